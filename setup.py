@@ -1,0 +1,40 @@
+from glob import glob
+
+from setuptools import find_packages, setup
+
+package_name = 'gripper_ros'
+
+setup(
+    name=package_name,
+    version='0.1.0',
+    packages=find_packages(include=[package_name, package_name + '.*']),
+    data_files=[
+        ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
+        ('share/' + package_name, ['package.xml']),
+        ('share/' + package_name + '/config', sorted(glob('config/*.yaml'))),
+    ],
+    install_requires=['setuptools'],
+    zip_safe=True,
+    maintainer='gripper_ros maintainers',
+    maintainer_email='maintainer@example.com',
+    description='Simulated electric parallel gripper: MPC-PD position and PI force control, '
+                'rclpy nodes, demo and rosbag2 (MCAP) tools.',
+    license='Apache-2.0',
+    tests_require=['pytest'],
+    entry_points={
+        'console_scripts': [
+            'plant_simulator = gripper_ros.plant_simulator_node:main',
+            'position_controller = gripper_ros.position_controller_node:main',
+            'force_controller = gripper_ros.force_controller_node:main',
+            'supervisor = gripper_ros.supervisor_node:main',
+            'grasp_demo = gripper_ros.grasp_demo:main',
+            'grasp_client = gripper_ros.grasp_client:main',
+            'paper_tables = gripper_ros.paper_tables:main',
+            'position_limit = gripper_ros.position_limit:main',
+            'bag_info = gripper_ros.bag_info:main',
+            'bag_replay = gripper_ros.bag_replay:main',
+            'bag_analyze = gripper_ros.bag_analyze:main',
+            'bench_graph = gripper_ros.bench_graph:main',
+        ],
+    },
+)
