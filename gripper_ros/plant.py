@@ -1,0 +1,340 @@
+"""Two-finger parallel gripper plant: brushed DC motor driving a lead screw (paper eqs. 1-13).
+
+State ``[i_a (A), omega (rad/s), x (m)]`` where ``x`` is the moving finger's travel from fully
+open (eq. 10: ``x = p/(2 pi) theta``). Free motion is linear and is discretised exactly (zero-order
+hold, matrix exponential) at whatever hold time a controller asks for. Contact with the object at
+``x_c = L_ls - width`` uses one of two documented models:
+
+* rigid (the paper's): the finger stops on arrival (perfectly inelastic; the kinetic energy it
+  loses is reported), and the gripping force follows the motor torque, ``F = k_t i_a / (eta p
+  N1/N2)`` (eq. 12), so force obeys eq. 13 exactly. The finger leaves the object when the motor
+  torque turns negative.
+* compliant (Kelvin-Voigt): ``F = k d + c d'`` for penetration ``d = x - x_c > 0``; the force
+  loads the motor through the same lever ``eta p N1/N2``.
+
+The fully-open end stop (``x = 0``) is rigid and senses no force; with no object the fingers meet
+at ``x = L_ls`` (a rigid object of width 0).
+"""
+from __future__ import annotations
+
+import enum
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.linalg import expm
+
+from .config import ContactParams, PlantParams
+from .force_sensor import FsrVoltageDivider
+
+
+class ContactState(enum.Enum):
+    FREE = 'free'
+    RIGID_OBJECT = 'rigid_object'      # pressing a rigid object (or the other finger)
+    COMPLIANT_OBJECT = 'compliant'     # compressing a compliant object
+    OPEN_STOP = 'open_stop'            # resting on the fully-open end stop
+
+
+@dataclass(frozen=True)
+class GraspObject:
+    """What lies between the fingers. width 0 = nothing (the fingers meet at full travel)."""
+
+    width_m: float = 0.0
+    stiffness_n_per_m: float = 0.0     # 0 = rigid
+    damping_n_s_per_m: float = 0.0
+
+    @property
+    def rigid(self) -> bool:
+        return self.stiffness_n_per_m == 0.0
+
+
+@dataclass(frozen=True)
+class PlantSample:
+    """What the plant's sensors and motor report at one instant."""
+
+    t_ns: int                   # simulated time, integer nanoseconds
+    position_m: float           # finger travel from fully open
+    velocity_mps: float
+    force_n: float              # gripping (contact) force
+    peak_force_n: float         # largest force since the previous sample
+    current_a: float
+    speed_rad_s: float
+    voltage_v: float            # armature voltage applied over the interval that ended now
+    sensor_voltage_v: float     # FSR divider output
+    contact: bool
+
+    @property
+    def t_s(self) -> float:
+        return self.t_ns * 1e-9
+
+
+class GripperPlant:
+    """Exact-discretised motor + lead screw + contact. Call :meth:`step` with a held voltage."""
+
+    def __init__(self, params: PlantParams, sensor: FsrVoltageDivider,
+                 contact: ContactParams | None = None):
+        self.params = params
+        self.sensor = sensor
+        p = params
+        self._rho = p.travel_per_rad_m
+        self._lever = p.force_lever_m
+        self._tau_e = p.inductance_h / p.resistance_ohm
+        self._a_free = np.array([
+            [-p.resistance_ohm / p.inductance_h, -p.back_emf_v_s_per_rad / p.inductance_h, 0.0],
+            [p.torque_constant_n_m_per_a / p.inertia_kg_m2, -p.damping_n_m_s_per_rad / p.inertia_kg_m2,
+             0.0],
+            [0.0, self._rho, 0.0]])
+        self._b = np.array([1.0 / p.inductance_h, 0.0, 0.0])
+        self._cache: dict[tuple, tuple[list, list]] = {}
+        default = contact or ContactParams(0.0, 0.0)
+        self.object = GraspObject(0.0, default.stiffness_n_per_m, default.damping_n_s_per_m)
+        self.impact_energy_lost_j = 0.0
+        self.t_ns = 0  # simulated time in integer nanoseconds: exact, the lockstep's tick key
+        self.reset()
+
+    # ----------------------------------------------------------------- set-up
+    def reset(self, open_fingers: bool = True) -> None:
+        """Motor at rest; optionally the finger back at the fully-open stop. Time keeps running."""
+        self._i = 0.0
+        self._w = 0.0
+        if open_fingers:
+            self._x = 0.0
+        self._voltage = 0.0
+        self._state = ContactState.OPEN_STOP if self._x <= 0.0 else ContactState.FREE
+        self._peak = 0.0
+        self.impact_energy_lost_j = 0.0
+        self._refresh_contact_state()
+
+    def touch_object(self) -> None:
+        """Put the finger at rest just touching the object, motor off (force-loop studies)."""
+        self._i = 0.0
+        self._w = 0.0
+        self._x = self.contact_position_m
+        self._voltage = 0.0
+        self._peak = 0.0
+        self._state = (ContactState.RIGID_OBJECT if self.object.rigid
+                       else ContactState.COMPLIANT_OBJECT)
+
+    def set_object(self, obj: GraspObject) -> None:
+        """Place an object (its fixed-finger face is the fixed finger; the other face at x_c)."""
+        if not (math.isfinite(obj.width_m) and 0.0 <= obj.width_m < self.params.max_travel_m):
+            raise ValueError(f'object width must be in [0, {self.params.max_travel_m}) m, '
+                             f'got {obj.width_m!r}')
+        for name in ('stiffness_n_per_m', 'damping_n_s_per_m'):
+            value = getattr(obj, name)
+            if not (math.isfinite(value) and value >= 0.0):
+                raise ValueError(f'object {name} must be finite and >= 0, got {value!r}')
+        if self._x > self.params.max_travel_m - obj.width_m:
+            raise ValueError('the finger is already past the new object surface; open first')
+        self.object = obj
+        self._refresh_contact_state()
+
+    @property
+    def t_s(self) -> float:
+        return self.t_ns * 1e-9
+
+    @property
+    def contact_position_m(self) -> float:
+        """Finger travel at which it touches the object."""
+        return self.params.max_travel_m - self.object.width_m
+
+    # ----------------------------------------------------------------- model facts
+    def position_transfer_function(self) -> tuple[np.ndarray, np.ndarray]:
+        """Eq. 11, X(s)/E_a(s), as (numerator, denominator) polynomial coefficients in s."""
+        p = self.params
+        num = np.array([p.torque_constant_n_m_per_a * p.pitch_m / (2.0 * math.pi)])
+        mech = np.polymul([p.inertia_kg_m2, p.damping_n_m_s_per_rad],
+                          [p.inductance_h, p.resistance_ohm])
+        den = np.polymul(np.polyadd(mech, [p.torque_constant_n_m_per_a * p.back_emf_v_s_per_rad]),
+                         [1.0, 0.0])
+        return num, den
+
+    def force_transfer_function(self) -> tuple[np.ndarray, np.ndarray]:
+        """Eq. 13, F_gr(s)/E_a(s) with the finger stalled, as (numerator, denominator)."""
+        p = self.params
+        return (np.array([p.torque_constant_n_m_per_a / self._lever]),
+                np.array([p.inductance_h, p.resistance_ohm]))
+
+    def stall_force_n(self, voltage_v: float) -> float:
+        """Steady gripping force for a held voltage on a rigid object (DC gain of eq. 13)."""
+        return self.params.stall_force_per_volt_n * voltage_v
+
+    def free_speed_mps(self, voltage_v: float) -> float:
+        """Steady finger speed for a held voltage in free motion (DC gain of eq. 9 times p/2pi)."""
+        p = self.params
+        w = p.torque_constant_n_m_per_a * voltage_v / (
+            p.damping_n_m_s_per_rad * p.resistance_ohm
+            + p.torque_constant_n_m_per_a * p.back_emf_v_s_per_rad)
+        return w * self._rho
+
+    def discrete_free_model(self, dt_s: float) -> tuple[np.ndarray, np.ndarray]:
+        """Exact ZOH model of free motion: ``s[k+1] = Ad s[k] + Bd e[k]``, s = [i, omega, x]."""
+        ad, bd = self._discretise(ContactState.FREE, dt_s)
+        return np.array(ad)[:3, :3], np.array(bd)[:3]
+
+    def discrete_force_model(self, dt_s: float) -> tuple[float, float]:
+        """Exact ZOH of eq. 13: ``F[k+1] = a F[k] + b e[k]`` on a rigid object."""
+        a = math.exp(-dt_s / self._tau_e)
+        return a, self.params.stall_force_per_volt_n * (1.0 - a)
+
+    # ----------------------------------------------------------------- simulation
+    @property
+    def contact_state(self) -> ContactState:
+        return self._state
+
+    def sample(self) -> PlantSample:
+        force = self._force()
+        return PlantSample(self.t_ns, self._x, self._w * self._rho, force,
+                           max(self._peak, force), self._i, self._w, self._voltage,
+                           self.sensor.voltage_v(force),
+                           self._state in (ContactState.RIGID_OBJECT,
+                                           ContactState.COMPLIANT_OBJECT) and force > 0.0)
+
+    def step(self, voltage_v: float, duration_s: float) -> PlantSample:
+        """Hold ``voltage_v`` (clipped to the supply, the H-bridge limit) for ``duration_s``."""
+        if not math.isfinite(duration_s) or duration_s <= 0.0:
+            raise ValueError(f'duration must be finite and > 0, got {duration_s!r}')
+        duration_ns = round(duration_s * 1e9)
+        if duration_ns <= 0:
+            raise ValueError(f'duration must be at least 1 ns, got {duration_s!r}')
+        duration_s = duration_ns * 1e-9
+        if not math.isfinite(voltage_v):
+            raise ValueError(f'voltage must be finite, got {voltage_v!r}')
+        limit = self.params.voltage_limit_v
+        e = min(limit, max(-limit, voltage_v))
+        self._voltage = e
+        self._peak = self._force()
+        remaining = duration_s
+        h = self.params.contact_substep_s
+        while remaining > 1e-15:
+            if self._state is ContactState.FREE:
+                if self._free_step_is_safe(e, remaining):
+                    self._advance_linear(ContactState.FREE, e, remaining)
+                    remaining = 0.0
+                else:
+                    dt = min(h, remaining)
+                    self._advance_linear(ContactState.FREE, e, dt)
+                    remaining -= dt
+                    self._detect_contact()
+            elif self._state in (ContactState.RIGID_OBJECT, ContactState.OPEN_STOP):
+                remaining = self._advance_stalled(e, remaining)
+            else:
+                dt = min(h, remaining)
+                self._advance_linear(ContactState.COMPLIANT_OBJECT, e, dt)
+                remaining -= dt
+                self._detect_separation()
+            self._peak = max(self._peak, self._force())
+        self.t_ns += duration_ns
+        return self.sample()
+
+    # ----------------------------------------------------------------- internals
+    def _force(self) -> float:
+        if self._state is ContactState.RIGID_OBJECT:
+            return max(0.0, self.params.torque_constant_n_m_per_a * self._i / self._lever)
+        if self._state is ContactState.COMPLIANT_OBJECT:
+            obj = self.object
+            depth = self._x - self.contact_position_m
+            return max(0.0, obj.stiffness_n_per_m * depth
+                       + obj.damping_n_s_per_m * self._w * self._rho)
+        return 0.0
+
+    def _refresh_contact_state(self) -> None:
+        """Re-derive the contact state after a reset or a new object."""
+        x_c = self.contact_position_m
+        if self._x <= 0.0:
+            self._x = 0.0
+            self._state = ContactState.OPEN_STOP
+        elif self._x >= x_c:
+            self._state = (ContactState.RIGID_OBJECT if self.object.rigid
+                           else ContactState.COMPLIANT_OBJECT)
+            if self.object.rigid:
+                self._x = x_c
+        else:
+            self._state = ContactState.FREE
+
+    def _discretise(self, regime: ContactState, dt_s: float):
+        key = (regime, dt_s, self.object) if regime is ContactState.COMPLIANT_OBJECT \
+            else (regime, dt_s)
+        cached = self._cache.get(key)
+        if cached is not None:
+            return cached
+        # Augmented state [i, omega, x, 1] so the contact's affine term discretises exactly.
+        a = np.zeros((4, 4))
+        a[:3, :3] = self._a_free
+        if regime is ContactState.COMPLIANT_OBJECT:
+            p, obj = self.params, self.object
+            k, c = obj.stiffness_n_per_m, obj.damping_n_s_per_m
+            a[1, 1] -= self._lever * c * self._rho / p.inertia_kg_m2
+            a[1, 2] -= self._lever * k / p.inertia_kg_m2
+            a[1, 3] += self._lever * k * self.contact_position_m / p.inertia_kg_m2
+        m = np.zeros((5, 5))
+        m[:4, :4] = a * dt_s
+        m[0, 4] = self._b[0] * dt_s
+        phi = expm(m)
+        ad = phi[:4, :4].tolist()
+        bd = phi[:4, 4].tolist()
+        if len(self._cache) > 256:
+            self._cache.clear()
+        self._cache[key] = (ad, bd)
+        return ad, bd
+
+    def _advance_linear(self, regime: ContactState, e: float, dt_s: float) -> None:
+        ad, bd = self._discretise(regime, dt_s)
+        s = (self._i, self._w, self._x, 1.0)
+        self._i = ad[0][0] * s[0] + ad[0][1] * s[1] + ad[0][2] * s[2] + ad[0][3] + bd[0] * e
+        self._w = ad[1][0] * s[0] + ad[1][1] * s[1] + ad[1][2] * s[2] + ad[1][3] + bd[1] * e
+        self._x = ad[2][0] * s[0] + ad[2][1] * s[1] + ad[2][2] * s[2] + ad[2][3] + bd[2] * e
+
+    def _free_step_is_safe(self, e: float, dt_s: float) -> bool:
+        """True if free motion over dt cannot reach either stop (speed bound, conservative)."""
+        # The speed of this overdamped drive moves monotonically towards the free speed of the
+        # held voltage, except for the short electrical transient; a 20 % margin covers it.
+        v_bound = 1.2 * max(abs(self._w * self._rho), abs(self.free_speed_mps(e))) + 1e-9
+        reach = v_bound * dt_s
+        return self._x - reach > 0.0 and self._x + reach < self.contact_position_m
+
+    def _detect_contact(self) -> None:
+        x_c = self.contact_position_m
+        if self._x >= x_c:
+            if self.object.rigid:
+                mass_equiv = self.params.inertia_kg_m2
+                self.impact_energy_lost_j += 0.5 * mass_equiv * self._w ** 2
+                self._x = x_c
+                self._w = 0.0
+                self._state = ContactState.RIGID_OBJECT
+            else:
+                self._state = ContactState.COMPLIANT_OBJECT
+        elif self._x <= 0.0:
+            self.impact_energy_lost_j += 0.5 * self.params.inertia_kg_m2 * self._w ** 2
+            self._x = 0.0
+            self._w = 0.0
+            self._state = ContactState.OPEN_STOP
+
+    def _detect_separation(self) -> None:
+        obj = self.object
+        depth = self._x - self.contact_position_m
+        if depth <= 0.0 or obj.stiffness_n_per_m * depth + obj.damping_n_s_per_m * self._w * \
+                self._rho < 0.0:
+            self._state = ContactState.FREE
+
+    def _advance_stalled(self, e: float, dt_s: float) -> float:
+        """Finger held by a rigid object or the open stop: only the current moves (first order).
+
+        Returns the time left in the interval after the finger leaves the stop (0 if it stays).
+        """
+        i_inf = e / self.params.resistance_ohm
+        i0 = self._i
+        # The stop holds while the motor torque (sign of the current) pushes into it.
+        into = 1.0 if self._state is ContactState.RIGID_OBJECT else -1.0
+        if into * i0 < 0.0:
+            t_leave = 0.0
+        elif into * i_inf >= 0.0:
+            t_leave = math.inf
+        else:  # the current decays through zero on its way to i_inf
+            t_leave = self._tau_e * math.log((i0 - i_inf) / (0.0 - i_inf))
+        if t_leave >= dt_s:
+            self._i = i_inf + (i0 - i_inf) * math.exp(-dt_s / self._tau_e)
+            return 0.0
+        self._i = i_inf + (i0 - i_inf) * math.exp(-t_leave / self._tau_e)
+        self._state = ContactState.FREE
+        return dt_s - t_leave

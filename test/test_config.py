@@ -1,0 +1,210 @@
+"""config/gripper.yaml: the shipped file is the paper's Tables I and II; bad files are refused
+with a ConfigError that names the offending key, and nothing is half-loaded."""
+import copy
+import dataclasses
+import math
+from pathlib import Path
+
+import pytest
+import yaml
+
+from gripper_ros.config import ConfigError, PidGains, load_config, parse_config
+
+REPO = Path(__file__).resolve().parents[1]
+SHIPPED = REPO / 'config' / 'gripper.yaml'
+
+
+@pytest.fixture(scope='module')
+def shipped_data():
+    return yaml.safe_load(SHIPPED.read_text(encoding='utf-8'))
+
+
+def write(tmp_path, data, name='bad.yaml'):
+    path = tmp_path / name
+    path.write_text(yaml.safe_dump(data), encoding='utf-8')
+    return path
+
+
+def set_key(data, dotted, value):
+    d = copy.deepcopy(data)
+    *parents, leaf = dotted.split('.')
+    node = d
+    for p in parents:
+        node = node[p]
+    if value is DELETE:
+        del node[leaf]
+    else:
+        node[leaf] = value
+    return d
+
+
+DELETE = object()
+
+
+# ------------------------------------------------------------------ the shipped file
+def test_shipped_file_is_table_one():
+    p = load_config(SHIPPED).plant
+    assert p.inertia_kg_m2 == 0.0043
+    assert p.damping_n_m_s_per_rad == 0.0038
+    assert p.gear_ratio == 4.4
+    assert p.resistance_ohm == 2.32
+    assert p.inductance_h == pytest.approx(0.238e-3, rel=1e-15)
+    assert p.pitch_m == 0.0075
+    assert p.torque_constant_n_m_per_a == 0.0213
+    assert p.back_emf_v_s_per_rad == 0.0024
+    assert p.efficiency == 0.20
+    assert p.max_travel_m == 0.150
+    assert p.gravity_mps2 == 9.81
+    assert p.voltage_limit_v == 24.0
+
+
+def test_shipped_file_is_table_two():
+    cfg = load_config(SHIPPED)
+    pos, frc = cfg.position, cfg.force
+    assert pos.sample_time_s == 0.01
+    assert pos.pd == PidGains(kc=968.0, kd=364.0)
+    assert pos.pid == PidGains(kc=653.0, ki=148.0, kd=640.0)
+    assert pos.mpc_pd == PidGains(kc=968.0, kd=364.0)
+    assert (pos.mpc_pd_dmc.horizon, pos.mpc_pd_dmc.control_horizon,
+            pos.mpc_pd_dmc.move_suppression) == (700, 10, 1.001)
+    assert isinstance(pos.mpc_pd_dmc.horizon, int)
+    assert frc.paper_sample_time_s == 0.0001
+    assert frc.pi_paper == PidGains(kc=1.0291, ki=18183.0)
+    assert (frc.mpc_pi_paper_dmc.horizon, frc.mpc_pi_paper_dmc.control_horizon,
+            frc.mpc_pi_paper_dmc.move_suppression) == (100, 10, 1.005)
+    assert 0.0 <= frc.closed_loop_pole < 1.0
+
+
+def test_derived_plant_constants():
+    p = load_config(SHIPPED).plant
+    assert p.force_lever_m == pytest.approx(0.2 * 0.0075 * 4.4, rel=1e-15)
+    assert p.travel_per_rad_m == pytest.approx(0.0075 / (2 * math.pi), rel=1e-15)
+    assert p.stall_force_per_volt_n == pytest.approx(1.391, abs=5e-4)
+    assert p.max_force_n == pytest.approx(33.39, abs=0.01)
+
+
+def test_default_path_loads_the_shipped_file(monkeypatch):
+    monkeypatch.delenv('GRIPPER_ROS_CONFIG', raising=False)
+    assert dataclasses.replace(load_config(), source='') == \
+        dataclasses.replace(load_config(SHIPPED), source='')
+
+
+def test_environment_variable_selects_the_file(monkeypatch, tmp_path, shipped_data):
+    path = write(tmp_path, set_key(shipped_data, 'plant.resistance_ohm', 3.0), 'env.yaml')
+    monkeypatch.setenv('GRIPPER_ROS_CONFIG', str(path))
+    cfg = load_config()
+    assert cfg.plant.resistance_ohm == 3.0 and cfg.source == str(path)
+
+
+# ------------------------------------------------------------------ bad files
+@pytest.mark.parametrize('key, value, words', [
+    ('plant.resistance_ohm', DELETE, 'missing'),
+    ('plant.inductance_h', 'abc', 'number'),
+    ('plant.inductance_h', '0.2', 'number'),                # a string, even if numeric
+    ('plant.pitch_m', True, 'number'),
+    ('plant.pitch_m', None, 'number'),
+    ('plant.pitch_m', [0.0075], 'number'),
+    ('plant.efficiency', float('nan'), 'finite'),
+    ('plant.gear_ratio', float('inf'), 'finite'),
+    ('plant.inertia_kg_m2', -0.0043, '> 0'),
+    ('plant.resistance_ohm', 0.0, '> 0'),
+    ('contact.stiffness_n_per_m', -1.0, '>= 0'),
+    ('force_sensor.activation_force_n', -0.2, '> 0'),
+    ('position_control.pd.kc', -968.0, '>= 0'),
+    ('position_control.pid.ki', 'fast', 'number'),
+    ('position_control.mpc_pd.horizon', 700.5, 'whole'),
+    ('position_control.mpc_pd.control_horizon', 0, '> 0'),
+    ('position_control.sample_time_s', DELETE, 'missing'),
+    ('force_control.pi_paper.kc', DELETE, 'missing'),
+    ('force_control.mpc_pi.move_suppression', float('nan'), 'finite'),
+    ('force_control.closed_loop_pole', 1.0, '[0, 1)'),
+    ('supervisor.timeout_s', -20.0, '> 0'),
+])
+def test_bad_value_raises_config_error_naming_the_key(tmp_path, shipped_data, key, value, words):
+    path = write(tmp_path, set_key(shipped_data, key, value))
+    with pytest.raises(ConfigError) as info:
+        load_config(path)
+    message = str(info.value)
+    assert key in message and words in message
+    assert '\n' not in message
+
+
+@pytest.mark.parametrize('section', ['plant', 'contact', 'force_sensor', 'position_control',
+                                     'force_control', 'supervisor'])
+def test_missing_section_is_named(tmp_path, shipped_data, section):
+    path = write(tmp_path, set_key(shipped_data, section, DELETE))
+    with pytest.raises(ConfigError, match=section):
+        load_config(path)
+
+
+def test_yaml_nan_literal_is_refused(tmp_path):
+    text = SHIPPED.read_text(encoding='utf-8').replace(
+        'resistance_ohm: 2.32', 'resistance_ohm: .nan')
+    assert '.nan' in text
+    path = tmp_path / 'nan.yaml'
+    path.write_text(text, encoding='utf-8')
+    with pytest.raises(ConfigError, match=r'plant\.resistance_ohm.*finite'):
+        load_config(path)
+
+
+@pytest.mark.parametrize('text', [
+    'plant: [1, 2\n',                                    # unclosed flow sequence
+    'plant:\n  inertia_kg_m2: 0.0043\n   gear_ratio: 4.4\n  : x\n',   # bad indentation
+    'plant: !!python/object:os.system {}\n',            # tag safe_load refuses
+    'plant: {a: 1}\n\t- b\n',                            # tab indentation
+])
+def test_unknown_yaml_syntax_raises_config_error_naming_the_file(tmp_path, text):
+    path = tmp_path / 'broken.yaml'
+    path.write_text(text, encoding='utf-8')
+    with pytest.raises(ConfigError) as info:
+        load_config(path)
+    assert str(path) in str(info.value) and 'not valid YAML' in str(info.value)
+
+
+@pytest.mark.parametrize('text', ['', '- 1\n- 2\n', '42\n'])
+def test_top_level_not_a_mapping(tmp_path, text):
+    path = tmp_path / 'flat.yaml'
+    path.write_text(text, encoding='utf-8')
+    with pytest.raises(ConfigError, match='mapping'):
+        load_config(path)
+
+
+def test_missing_file_raises_config_error_naming_it(tmp_path):
+    missing = tmp_path / 'nope.yaml'
+    with pytest.raises(ConfigError, match='nope.yaml'):
+        load_config(missing)
+
+
+def test_config_error_is_a_value_error():
+    assert issubclass(ConfigError, ValueError)
+
+
+# ------------------------------------------------------------------ nothing partially applied
+def test_failed_load_applies_nothing(tmp_path, shipped_data):
+    good = load_config(SHIPPED)
+    snapshot = copy.deepcopy(good)
+    # the bad value sits in the LAST section read: earlier sections must not leak out anywhere
+    bad = set_key(shipped_data, 'supervisor.timeout_s', 'never')
+    bad['plant']['resistance_ohm'] = 99.0
+    with pytest.raises(ConfigError, match='supervisor.timeout_s'):
+        load_config(write(tmp_path, bad))
+    assert good == snapshot
+    assert load_config(SHIPPED) == snapshot
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        good.plant.resistance_ohm = 99.0
+
+
+def test_parse_config_does_not_mutate_its_input(shipped_data):
+    data = copy.deepcopy(shipped_data)
+    parse_config(data)
+    assert data == shipped_data
+    bad = set_key(shipped_data, 'plant.gear_ratio', -1.0)
+    before = copy.deepcopy(bad)
+    with pytest.raises(ConfigError):
+        parse_config(bad)
+    assert bad == before
+
+
+def test_optional_gains_default_to_zero(tmp_path, shipped_data):
+    data = set_key(shipped_data, 'position_control.pd.kd', DELETE)
+    assert load_config(write(tmp_path, data)).position.pd == PidGains(kc=968.0, ki=0.0, kd=0.0)
