@@ -216,7 +216,7 @@ def parse_config(data: dict, source: str = '<dict>') -> GripperConfig:
         mpc_pd=_gains(pos, 'mpc_pd', 'position_control'),
         mpc_pd_dmc=_dmc(mpc_pd, 'position_control.mpc_pd'),
         mpc_pd_braking_voltage_v=_number(pos, 'mpc_pd_braking_voltage_v', 'position_control',
-                                         positive=True))
+                                         nonnegative=True))
     frc = _section(data, 'force_control', source)
     force = ForceControlParams(
         paper_sample_time_s=_number(frc, 'paper_sample_time_s', 'force_control', positive=True),

@@ -89,8 +89,10 @@ def make_position_controller(config: GripperConfig, kind: PositionControllerKind
     model = position_step_response(config, pos.mpc_pd, tuning.horizon)
     dmc = DynamicMatrixControl(model, tuning.control_horizon, tuning.move_suppression)
     ad, bd = make_plant(config).discrete_free_model(pos.sample_time_s)
-    governor = BrakingGovernor(ad, bd, config.plant.voltage_limit_v,
-                               pos.mpc_pd_braking_voltage_v, tuning.horizon)
+    governor = None
+    if pos.mpc_pd_braking_voltage_v > 0.0:  # opt-in: faster, but chatters (see config)
+        governor = BrakingGovernor(ad, bd, config.plant.voltage_limit_v,
+                                   pos.mpc_pd_braking_voltage_v, tuning.horizon)
     return CascadedMpc(dmc, _position_inner(config, pos.mpc_pd, limits), governor=governor)
 
 

@@ -151,25 +151,36 @@ class BrakingGovernor:
         self._free = np.ascontiguousarray(powers[:, 1:, :].reshape(-1, 3))   # [omega, x] rows
         self._forced = np.ascontiguousarray(steps[:, 1:])
         self.state = np.zeros(3)
+        self._braking = False
 
     def reset(self, measurement: float) -> None:
-        """At rest at ``measurement``."""
+        """At rest at ``measurement``; the next move may accelerate again."""
         self.state = np.array([0.0, 0.0, float(measurement)])
+        self._braking = False
 
-    def stop_position(self, state: np.ndarray, direction: float) -> float:
+    def stop_position(self, state: np.ndarray, direction: float,
+                      braking_v: float | None = None) -> float:
         """Where the finger comes to rest (speed through zero) braking at ``braking_v``."""
-        traj = (self._free @ state).reshape(-1, 2) - (direction * self.braking_v) * self._forced
+        brake = self.braking_v if braking_v is None else braking_v
+        traj = (self._free @ state).reshape(-1, 2) - (direction * brake) * self._forced
         moving = direction * traj[:, 0] > 0.0
         k = int(np.argmin(moving)) if not moving.all() else moving.size - 1
         return float(traj[k, 1])
 
     def must_accelerate(self, setpoint: float, measurement: float) -> float:
-        """+1/-1: drive at the full limit in that direction; 0: the DMC is free."""
+        """+1/-1: drive at the full limit in that direction; 0: the DMC is free.
+
+        Once braking has begun the test uses braking at the full limit (hysteresis): braking
+        harder than the reserve assumes stops shorter, and re-accelerating on the reserve test
+        would chatter between +-limit.
+        """
         self.state[2] = measurement
         direction = 1.0 if setpoint >= measurement else -1.0
         ahead = self.ad @ self.state + self.bd * (direction * self.limit_v)
-        if direction * (self.stop_position(ahead, direction) - setpoint) < 0.0:
+        brake = self.limit_v if self._braking else self.braking_v
+        if direction * (self.stop_position(ahead, direction, brake) - setpoint) < 0.0:
             return direction
+        self._braking = True
         return 0.0
 
     def applied(self, voltage: float) -> None:
