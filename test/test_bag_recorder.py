@@ -1,0 +1,380 @@
+"""BagRecorder and bag_replay over real DDS (Fast DDS, localhost only, own domain id).
+
+Nodes of this module live in their own rclpy Context, so bag_replay.main() can init the default
+context in-process; an executor thread spins them.
+"""
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+import threading
+import time
+from pathlib import Path
+
+import pytest
+
+os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
+os.environ.setdefault('ROS_DOMAIN_ID', '79')
+
+import rclpy  # noqa: E402
+import yaml  # noqa: E402
+from rclpy.executors import SingleThreadedExecutor  # noqa: E402
+from rclpy.parameter import Parameter  # noqa: E402
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy  # noqa: E402
+from rosgraph_msgs.msg import Clock  # noqa: E402
+from sensor_msgs.msg import JointState  # noqa: E402
+
+from gripper_ros import bag_info, bag_replay  # noqa: E402
+from gripper_ros.bag_io import EXIT_TRUNCATED, read_bag  # noqa: E402
+from gripper_ros.bag_recorder import BagRecorder, BagRecorderError  # noqa: E402
+
+REPO = Path(__file__).resolve().parents[1]
+JS, CLK = '/gripper/joint_states', '/clock'
+STD_TOPICS = {JS: 'sensor_msgs/msg/JointState', CLK: 'rosgraph_msgs/msg/Clock'}
+GRAPH_QOS = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
+LATCHED_QOS = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE,
+                         durability=DurabilityPolicy.TRANSIENT_LOCAL)
+
+try:
+    from gripper_interfaces.msg import SupervisorStatus
+except ImportError:  # interface package not built/sourced
+    SupervisorStatus = None
+
+
+def wait_until(predicate, timeout_s: float = 5.0) -> bool:
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        if predicate():
+            return True
+        time.sleep(0.005)
+    return predicate()
+
+
+@pytest.fixture(scope='module')
+def ros():
+    """(context, executor) spinning in a thread; nodes are added by the tests."""
+    context = rclpy.Context()
+    rclpy.init(context=context)
+    executor = SingleThreadedExecutor(context=context)
+    thread = threading.Thread(target=executor.spin, daemon=True)
+    thread.start()
+    yield context, executor
+    executor.shutdown()
+    rclpy.try_shutdown(context=context)
+    thread.join(timeout=2)
+
+
+@pytest.fixture
+def node_factory(ros):
+    context, executor = ros
+    nodes = []
+
+    def make(name: str, **kwargs):
+        node = rclpy.create_node(name, context=context, **kwargs)
+        executor.add_node(node)
+        nodes.append(node)
+        return node
+    yield make
+    for node in nodes:
+        executor.remove_node(node)
+        node.destroy_node()
+
+
+def joint_state(k: int) -> JointState:
+    msg = JointState()
+    msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(k * 10_000_000, 1_000_000_000)
+    msg.name = ['finger_joint']
+    msg.position, msg.velocity, msg.effort = [k * 1e-4], [0.01], [0.0]
+    return msg
+
+
+def clock(k: int) -> Clock:
+    msg = Clock()
+    msg.clock.sec, msg.clock.nanosec = divmod(k * 10_000_000, 1_000_000_000)
+    return msg
+
+
+def record(node_factory, bag_dir: Path, n: int = 150, **kwargs) -> dict:
+    """Publish n JointState + n Clock (+ n SupervisorStatus when built) through a recorder."""
+    topics = dict(STD_TOPICS)
+    if SupervisorStatus is not None:
+        topics['/gripper/supervisor/status'] = 'gripper_interfaces/msg/SupervisorStatus'
+    rec_node = node_factory('recorder')
+    pub_node = node_factory('publisher')
+    pubs = {JS: pub_node.create_publisher(JointState, JS, LATCHED_QOS),
+            CLK: pub_node.create_publisher(Clock, CLK, GRAPH_QOS)}
+    if SupervisorStatus is not None:
+        pubs['/gripper/supervisor/status'] = pub_node.create_publisher(
+            SupervisorStatus, '/gripper/supervisor/status', LATCHED_QOS)
+    recorder = BagRecorder(rec_node, bag_dir, topics, custom_data={'grasp_request': {
+        'width_m': 0.05, 'mass_kg': 0.2}}, **kwargs)
+    assert wait_until(lambda: all(p.get_subscription_count() >= 1 for p in pubs.values()))
+    sent = {t: [] for t in topics}
+    for k in range(n):
+        msgs = {JS: joint_state(k), CLK: clock(k)}
+        if SupervisorStatus is not None:
+            status = SupervisorStatus()
+            status.header.stamp = msgs[JS].header.stamp
+            status.phase, status.grasp_id = 1, 3
+            msgs['/gripper/supervisor/status'] = status
+        for topic, msg in msgs.items():
+            pubs[topic].publish(msg)
+            sent[topic].append(msg)
+    assert wait_until(lambda: recorder.message_count == len(topics) * n), recorder.counts
+    recorder.set_custom_data({'grasp_outcome': {'outcome': 'HOLDING'}})
+    return {'recorder': recorder, 'sent': sent, 'topics': topics, 'n': n,
+            'publishers': pubs, 'rec_node': rec_node}
+
+
+@pytest.fixture
+def recorded(node_factory, tmp_path):
+    result = record(node_factory, tmp_path / 'run1')
+    result['recorder'].close()
+    result['recorder'].close()               # idempotent
+    return result
+
+
+def test_counts_equal_published(recorded):
+    n = recorded['n']
+    assert recorded['recorder'].counts == {t: n for t in recorded['topics']}
+
+
+def test_metadata_yaml_version_9(recorded, tmp_path):
+    info = yaml.safe_load((tmp_path / 'run1' / 'metadata.yaml').read_text())
+    info = info['rosbag2_bagfile_information']
+    assert info['version'] == 9 and info['storage_identifier'] == 'mcap'
+    assert info['ros_distro'] == 'jazzy'
+    assert info['relative_file_paths'] == ['run1_0.mcap']
+    assert info['message_count'] == recorded['n'] * len(recorded['topics'])
+    assert info['compression_format'] == '' and info['compression_mode'] == ''
+    topics = {t['topic_metadata']['name']: t for t in info['topics_with_message_count']}
+    js = topics[JS]['topic_metadata']
+    assert isinstance(js['offered_qos_profiles'], list)
+    assert js['offered_qos_profiles'][0]['durability'] == 'transient_local'
+    assert js['offered_qos_profiles'][0]['reliability'] == 'reliable'
+    assert js['type_description_hash'].startswith('RIHS01_')
+    assert 'grasp_request' in info['custom_data'] and 'grasp_outcome' in info['custom_data']
+
+
+def test_rosbags_anyreader_reads_it(recorded, tmp_path):
+    from rosbags.highlevel import AnyReader
+    from rosbags.typesys import Stores, get_typestore
+    with AnyReader([tmp_path / 'run1'],
+                   default_typestore=get_typestore(Stores.ROS2_JAZZY)) as reader:
+        counts = {c.topic: c.msgcount for c in reader.connections}
+        assert counts == {t: recorded['n'] for t in recorded['topics']}
+        positions = [reader.deserialize(raw, c.msgtype).position[0]
+                     for c, _, raw in reader.messages() if c.topic == JS]
+    assert positions == pytest.approx([k * 1e-4 for k in range(recorded['n'])])
+
+
+def test_mcap_reader_with_ros2_decoder(recorded, tmp_path):
+    from mcap.reader import make_reader
+    from mcap_ros2.decoder import DecoderFactory
+    with open(tmp_path / 'run1' / 'run1_0.mcap', 'rb') as f:
+        reader = make_reader(f, decoder_factories=[DecoderFactory()])
+        assert reader.get_header().profile == 'ros2'
+        summary = reader.get_summary()
+        assert {s.name: s.encoding for s in summary.schemas.values()}[
+            'sensor_msgs/msg/JointState'] == 'ros2msg'
+        schema = next(s for s in summary.schemas.values()
+                      if s.name == 'sensor_msgs/msg/JointState').data.decode()
+        assert '=' * 80 + '\nMSG: std_msgs/msg/Header' in schema
+        assert 'MSG: builtin_interfaces/msg/Time' in schema
+        for channel in summary.channels.values():
+            assert channel.message_encoding == 'cdr'
+            assert set(channel.metadata) == {'offered_qos_profiles', 'topic_type_hash'}
+        metadata = {m.name: m.metadata for m in reader.iter_metadata()}
+        assert 'serialized_metadata' in metadata['rosbag2']
+        assert yaml.safe_load(metadata['rosbag2']['serialized_metadata'])['version'] == 9
+        decoded = [(c.topic, m) for _, c, _, m in reader.iter_decoded_messages()]
+    assert len(decoded) == recorded['n'] * len(recorded['topics'])
+    js = [m for t, m in decoded if t == JS]
+    assert js[5].name == ['finger_joint'] and js[5].position[0] == pytest.approx(5e-4)
+
+
+def test_recorded_messages_are_what_was_published(recorded, tmp_path):
+    """(Compared decoded: CDR padding bytes are not deterministic across serializations.)"""
+    from rclpy.serialization import deserialize_message
+    bag = read_bag(tmp_path / 'run1')
+    for topic, sent in recorded['sent'].items():
+        cls = type(sent[0])
+        assert [deserialize_message(m.data, cls) for m in bag.messages if m.topic == topic] == sent
+
+
+def _recorded_bytes(bag_dir: Path, topic: str) -> list[bytes]:
+    return [m.data for m in read_bag(bag_dir).messages if m.topic == topic]
+
+
+def test_refuses_existing_folder(node_factory, tmp_path):
+    node = node_factory('refuser')
+    (tmp_path / 'busy').mkdir()
+    (tmp_path / 'busy' / 'busy_0.mcap').write_bytes(b'x')
+    with pytest.raises(BagRecorderError, match='not empty'):
+        BagRecorder(node, tmp_path / 'busy', STD_TOPICS)
+    BagRecorder(node, tmp_path / 'busy', STD_TOPICS, overwrite=True).close()
+    (tmp_path / 'busy' / 'thesis.tex').write_text('precious')
+    with pytest.raises(BagRecorderError, match='refusing'):
+        BagRecorder(node, tmp_path / 'busy', STD_TOPICS, overwrite=True)
+    with pytest.raises(BagRecorderError, match='cannot record'):
+        BagRecorder(node, tmp_path / 'new', {'/x': 'no_such_pkg/msg/Nope'})
+
+
+def test_context_manager_keeps_bag_after_exception(node_factory, tmp_path):
+    node = node_factory('cm')
+    pub = node_factory('cm_pub').create_publisher(JointState, JS, GRAPH_QOS)
+    with pytest.raises(RuntimeError, match='boom'):
+        with BagRecorder(node, tmp_path / 'cm', {JS: STD_TOPICS[JS]}) as rec:
+            assert wait_until(lambda: pub.get_subscription_count() >= 1)
+            for k in range(10):
+                pub.publish(joint_state(k))
+            assert wait_until(lambda: rec.message_count == 10)
+            raise RuntimeError('boom')
+    assert rec.closed
+    assert (tmp_path / 'cm' / 'metadata.yaml').is_file()
+    bag = read_bag(tmp_path / 'cm')
+    assert bag.message_count == 10 and not bag.truncated
+
+
+def test_sim_time_log_time(node_factory, tmp_path):
+    """Default time source = the node's clock: under use_sim_time, /clock time."""
+    node = node_factory('simrec', parameter_overrides=[Parameter('use_sim_time', value=True)])
+    pub_node = node_factory('simpub')
+    clock_pub = pub_node.create_publisher(Clock, CLK, GRAPH_QOS)
+    js_pub = pub_node.create_publisher(JointState, JS, GRAPH_QOS)
+    rec = BagRecorder(node, tmp_path / 'sim', {JS: STD_TOPICS[JS]})
+    assert wait_until(lambda: clock_pub.get_subscription_count() >= 1
+                      and js_pub.get_subscription_count() >= 1)
+    msg = Clock()
+    msg.clock.sec = 42
+    clock_pub.publish(msg)
+    assert wait_until(lambda: node.get_clock().now().nanoseconds == 42_000_000_000)
+    js_pub.publish(joint_state(1))
+    assert wait_until(lambda: rec.message_count == 1)
+    rec.close()
+    bag = read_bag(tmp_path / 'sim')
+    assert bag.messages[0].log_time_ns == 42_000_000_000
+
+
+# --- kill -9: bounded loss --------------------------------------------------------------------
+
+KILLED_RECORDER = textwrap.dedent('''
+    import sys, threading, time, rclpy
+    from rclpy.executors import SingleThreadedExecutor
+    from sensor_msgs.msg import JointState
+    from gripper_ros.bag_recorder import BagRecorder
+    rclpy.init()
+    node, pub_node = rclpy.create_node('killed_rec'), rclpy.create_node('killed_pub')
+    ex = SingleThreadedExecutor(); ex.add_node(node)
+    threading.Thread(target=ex.spin, daemon=True).start()
+    rec = BagRecorder(node, sys.argv[1], {'/gripper/joint_states': 'sensor_msgs/msg/JointState'},
+                      flush_every_messages=int(sys.argv[3]), flush_every_s=60.0,
+                      custom_data={'grasp_request': {'width_m': 0.04}})
+    pub = pub_node.create_publisher(JointState, '/gripper/joint_states', 1000)
+    while pub.get_subscription_count() < 1:
+        time.sleep(0.01)
+    n = int(sys.argv[2])
+    for k in range(n):
+        m = JointState(); m.position = [float(k)]; pub.publish(m)
+    while rec.message_count < n:
+        time.sleep(0.01)
+    print('READY', flush=True)
+    time.sleep(60)
+''')
+
+
+def test_sigkill_loses_at_most_the_flush_bound(tmp_path):
+    n, every = 537, 100
+    proc = subprocess.Popen([sys.executable, '-c', KILLED_RECORDER, str(tmp_path / 'killed'),
+                             str(n), str(every)], stdout=subprocess.PIPE, text=True,
+                            env=dict(os.environ, PYTHONPATH=os.pathsep.join(
+                                [str(REPO), os.environ.get('PYTHONPATH', '')])))
+    try:
+        line = proc.stdout.readline()
+        assert line.strip() == 'READY'
+    finally:
+        proc.send_signal(signal.SIGKILL)
+        proc.wait(timeout=10)
+    assert not (tmp_path / 'killed' / 'metadata.yaml').exists()
+    bag = read_bag(tmp_path / 'killed')
+    assert bag.truncated
+    assert n - (every - 1) <= bag.message_count <= n
+    assert bag.message_count == (n // every) * every        # exactly the flushed chunks
+    positions = [float(bag.decode(m).position[0]) for m in bag.messages]
+    assert positions == [float(k) for k in range(bag.message_count)]
+    assert bag.custom_data_parsed()['grasp_request'] == {'width_m': 0.04}
+
+
+# --- replay -----------------------------------------------------------------------------------
+
+def _collector(node_factory, name: str, topics: dict[str, type], qos=GRAPH_QOS):
+    node = node_factory(name)
+    got = {t: [] for t in topics}
+    subs = [node.create_subscription(cls, t, lambda data, t=t: got[t].append(bytes(data)), qos,
+                                     raw=True) for t, cls in topics.items()]
+    return node, got, subs
+
+
+def test_player_republishes_exactly_in_order(recorded, node_factory, tmp_path):
+    bag = read_bag(tmp_path / 'run1')
+    topics = {JS: JointState, CLK: Clock}
+    _, got, _ = _collector(node_factory, 'listener', {'/replayed/js': JointState, CLK: Clock})
+    player_node = node_factory('player')
+    player = bag_replay.BagPlayer(player_node, bag, bag_replay.ReplayOptions(
+        rate=20.0, topics=list(topics), remap={JS: '/replayed/js'}, wait_for_subscribers=1))
+    assert player.play() == 2 * recorded['n']
+    assert wait_until(lambda: len(got['/replayed/js']) == recorded['n']
+                      and len(got[CLK]) == recorded['n'])
+    assert got['/replayed/js'] == _recorded_bytes(tmp_path / 'run1', JS)     # byte-identical
+    assert got[CLK] == _recorded_bytes(tmp_path / 'run1', CLK)
+
+
+def test_replay_cli_in_subprocess_with_clock(recorded, node_factory, tmp_path):
+    """bag_replay as a program; --clock replaces the recorded /clock with bag time."""
+    _, got, _ = _collector(node_factory, 'cli_listener', {JS: JointState, CLK: Clock},
+                           qos=GRAPH_QOS)
+    proc = subprocess.run(
+        [sys.executable, '-m', 'gripper_ros.bag_replay', str(tmp_path / 'run1'), '--rate', '10',
+         '--clock', '--wait-for-subscribers', '1', '--topics', JS],
+        capture_output=True, text=True, timeout=30,
+        env=dict(os.environ, PYTHONPATH=os.pathsep.join([str(REPO),
+                                                         os.environ.get('PYTHONPATH', '')])))
+    assert proc.returncode == 0, proc.stderr
+    assert f"{recorded['n']}/{recorded['n']} msgs" in proc.stderr       # progress line
+    assert wait_until(lambda: len(got[JS]) == recorded['n'])
+    assert got[JS] == _recorded_bytes(tmp_path / 'run1', JS)
+    bag = read_bag(tmp_path / 'run1')
+    stamps = sorted({m.log_time_ns for m in bag.messages if m.topic == JS})
+    assert wait_until(lambda: len(got[CLK]) == len(stamps))
+    from rclpy.serialization import deserialize_message
+    clocks = [deserialize_message(b, Clock).clock for b in got[CLK]]
+    assert [c.sec * 1_000_000_000 + c.nanosec for c in clocks] == stamps
+
+
+def test_truncated_recorder_file(recorded, node_factory, tmp_path, capsys):
+    """A real recorder file cut in the middle: complete messages recovered; CLIs exit 3."""
+    src = tmp_path / 'run1' / 'run1_0.mcap'
+    data = src.read_bytes()
+    cut_dir = tmp_path / 'cut'
+    cut_dir.mkdir()
+    (cut_dir / 'cut_0.mcap').write_bytes(data[:len(data) // 2])
+    full, cut = read_bag(tmp_path / 'run1'), read_bag(cut_dir)
+    assert cut.truncated and 0 < cut.message_count < full.message_count
+    assert [m.data for m in cut.messages] == [m.data for m in full.messages[:cut.message_count]]
+    with pytest.raises(SystemExit) as exc_info:
+        bag_info.main([str(cut_dir)])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert exc_info.value.code == EXIT_TRUNCATED
+    assert len(err) == 1 and f'truncated: {cut.message_count} complete messages' in err[0]
+    # replay in-process (default context; this module's nodes use their own)
+    n_js = sum(1 for m in cut.messages if m.topic == JS)
+    _, got, _ = _collector(node_factory, 'cut_listener', {JS: JointState})
+    with pytest.raises(SystemExit) as exc_info:
+        bag_replay.main([str(cut_dir), '--topics', JS, '--rate', '50', '--quiet',
+                         '--wait-for-subscribers', '1'])
+    assert exc_info.value.code == EXIT_TRUNCATED
+    assert wait_until(lambda: len(got[JS]) == n_js)
+    assert got[JS] == _recorded_bytes(tmp_path / 'run1', JS)[:n_js]

@@ -1,0 +1,408 @@
+"""Bag tools against synthetic grasp bags with known answers (no rclpy needed, except replay).
+
+The synthetic bag is written with rosbags' Writer (rosbag2 version 9, MCAP) on the graph's
+topics: a first-order position step (settling at tau*ln(50)), an underdamped second-order force
+step (overshoot exp(-pi*zeta/sqrt(1-zeta^2))), a voltage saturated for exactly 50 ms.
+"""
+from __future__ import annotations
+
+import json
+import math
+import os
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
+os.environ.setdefault('ROS_DOMAIN_ID', '78')
+
+from rosbags.rosbag2 import StoragePlugin, Writer  # noqa: E402
+from rosbags.typesys import Stores, get_types_from_msg, get_typestore  # noqa: E402
+
+from gripper_ros import bag_analyze, bag_info, bag_replay  # noqa: E402
+from gripper_ros.bag_io import (  # noqa: E402
+    EXIT_ERROR, EXIT_TRUNCATED, GRASP_TOPICS, TOPIC_CLOCK, TOPIC_FORCE_SENSOR, TOPIC_JOINT_STATES,
+    TOPIC_MOTOR_COMMAND, TOPIC_MOTOR_STATE, TOPIC_STATUS, EmptyBagError, MissingTopicsError,
+    NotABagError, BagNotFoundError, load_grasp_series, read_bag,
+)
+
+MSG_DIR = Path(__file__).resolve().parents[1] / 'gripper_interfaces' / 'msg'
+
+# known answers
+DT_NS = 1_000_000                 # 1 ms ticks
+T0_NS = 1_000_000_000             # grasp starts at simulated 1.0 s
+N_TICKS = 2001                    # 1.0 s .. 3.0 s
+K_CONTACT, K_SWITCH, K_HOLD = 550, 600, 1500
+TAU_S = 0.1                       # position stage: y = sp (1 - exp(-t/tau))
+POS_SP_M = 0.03
+ZETA, WN = 0.5, 20.0              # force stage: second order
+FORCE_SP_N = 5.0
+V_LIMIT_TICKS = 50                # |V| = 24 V on ticks 1..50 -> 50 ms at the limit
+GRASP_ID = 7
+
+
+def _typestore():
+    store = get_typestore(Stores.ROS2_JAZZY)
+    for path in sorted(MSG_DIR.glob('*.msg')):
+        store.register(get_types_from_msg(path.read_text(), f'gripper_interfaces/msg/{path.stem}'))
+    return store
+
+
+def _make(cls, **values):
+    """A rosbags message with unspecified numeric/bool/str fields zeroed (interfaces evolve)."""
+    import dataclasses
+    zero = {'float': 0.0, 'int': 0, 'bool': False, 'str': ''}
+    for f in dataclasses.fields(cls):
+        if f.name not in values and f.name != '__msgtype__':
+            values[f.name] = zero.get(f.type if isinstance(f.type, str) else f.type.__name__, 0)
+    return cls(**values)
+
+
+def _force(tau_s: float) -> float:
+    wd = WN * math.sqrt(1 - ZETA ** 2)
+    return FORCE_SP_N * (1 - math.exp(-ZETA * WN * tau_s) * (
+        math.cos(wd * tau_s) + ZETA / math.sqrt(1 - ZETA ** 2) * math.sin(wd * tau_s)))
+
+
+def _voltage(k: int) -> float:
+    if k == 0:
+        return 0.0
+    if k <= V_LIMIT_TICKS:
+        return 24.0
+    if k < K_SWITCH:
+        return 24.0 * math.exp(-(k - V_LIMIT_TICKS) * 1e-3 / 0.05)
+    return 2.0
+
+
+def write_grasp_bag(path: Path, topics=None, n_ticks: int = N_TICKS, custom_data=True) -> Path:
+    """A grasp bag with analytically known figures (see module docstring)."""
+    store = _typestore()
+    T = store.types
+    Time = T['builtin_interfaces/msg/Time']
+    Header = T['std_msgs/msg/Header']
+    topics = list(GRASP_TOPICS) if topics is None else topics
+    with Writer(path, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
+        conns = {t: writer.add_connection(t, GRASP_TOPICS[t], typestore=store) for t in topics}
+        if custom_data:
+            writer.set_custom_data('grasp_request', json.dumps(
+                {'width_m': 0.05, 'mass_kg': 0.2, 'friction_coefficient': 0.4}))
+            writer.set_custom_data('grasp_outcome', json.dumps({'outcome': 'HOLDING',
+                                                                'success': True}))
+        y_switch = POS_SP_M * (1 - math.exp(-(K_SWITCH - 1) * 1e-3 / TAU_S))
+        for k in range(n_ticks):
+            t_ns = T0_NS + k * DT_NS
+            stamp = Time(sec=t_ns // 10**9, nanosec=t_ns % 10**9)
+            hdr = Header(stamp=stamp, frame_id='')
+            t_rel = k * 1e-3
+            pos = POS_SP_M * (1 - math.exp(-t_rel / TAU_S)) if k < K_SWITCH else y_switch
+            if k < K_CONTACT:
+                force = 0.0
+            elif k < K_SWITCH:
+                force = 1e-3
+            else:
+                force = _force((k - K_SWITCH) * 1e-3)
+            phase = 1 if k < K_SWITCH else (2 if k < K_HOLD else 3)
+            last = k == n_ticks - 1
+            msgs = {
+                TOPIC_CLOCK: T['rosgraph_msgs/msg/Clock'](clock=stamp),
+                TOPIC_JOINT_STATES: T['sensor_msgs/msg/JointState'](
+                    header=hdr, name=['finger_joint'], position=np.array([pos]),
+                    velocity=np.array([0.0]), effort=np.array([force])),
+                TOPIC_FORCE_SENSOR: _make(T['gripper_interfaces/msg/ForceSensor'],
+                    header=hdr, force_n=force, voltage_v=0.2 + 0.4 * force, peak_force_n=force),
+                TOPIC_MOTOR_STATE: _make(T['gripper_interfaces/msg/MotorState'],
+                    header=hdr, voltage_v=_voltage(k), current_a=0.1 * _voltage(k),
+                    speed_rad_s=0.0),
+                TOPIC_STATUS: _make(T['gripper_interfaces/msg/SupervisorStatus'],
+                    header=hdr, phase=4 if last else phase, active_controller=1 if phase == 1
+                    else 2, switch_criterion=0 if k < K_SWITCH else 2, grasp_id=GRASP_ID,
+                    outcome=1 if last else 0, position_setpoint_m=POS_SP_M,
+                    force_setpoint_n=FORCE_SP_N, position_m=pos, force_n=force,
+                    contact=k >= K_CONTACT, seed_voltage_v=0.0),
+                TOPIC_MOTOR_COMMAND: _make(T['gripper_interfaces/msg/MotorCommand'],
+                    header=hdr, source=1 if phase == 1 else 2, grasp_id=GRASP_ID,
+                    voltage_v=_voltage(k + 1), hold_s=1e-3, inner_setpoint=0.0),
+            }
+            for topic in topics:
+                writer.write(conns[topic], t_ns,
+                             store.serialize_cdr(msgs[topic], GRASP_TOPICS[topic]))
+    return path
+
+
+@pytest.fixture(scope='module')
+def grasp_bag(tmp_path_factory) -> Path:
+    return write_grasp_bag(tmp_path_factory.mktemp('bags') / 'grasp')
+
+
+def rechunk(src: Path, dst: Path, chunk_size: int = 16 * 1024) -> Path:
+    """Copy a bag's .mcap with small chunks, as a recorder flushing often would write it.
+
+    (rosbags writes 1 MiB chunks, so a small bag is one chunk: cut anywhere, nothing survives.)
+    """
+    from mcap.reader import make_reader
+    from mcap.writer import Writer as McapWriter
+    dst.mkdir(parents=True)
+    out_path = dst / f'{dst.name}_0.mcap'
+    with open(next(src.glob('*.mcap')), 'rb') as fin, open(out_path, 'wb') as fout:
+        reader = make_reader(fin)
+        summary = reader.get_summary()
+        writer = McapWriter(fout, chunk_size=chunk_size)
+        writer.start(profile='ros2', library='test')
+        schema_ids = {sid: writer.register_schema(s.name, s.encoding, s.data)
+                      for sid, s in summary.schemas.items()}
+        channel_ids = {cid: writer.register_channel(c.topic, c.message_encoding,
+                                                    schema_ids[c.schema_id], c.metadata)
+                       for cid, c in summary.channels.items()}
+        for _, channel, message in reader.iter_messages(log_time_order=False):
+            writer.add_message(channel_ids[channel.id], message.log_time, message.data,
+                               message.publish_time, message.sequence)
+        writer.finish()
+    return dst
+
+
+@pytest.fixture(scope='module')
+def truncated_bag(tmp_path_factory, grasp_bag) -> Path:
+    """The grasp bag re-chunked, its .mcap cut in the middle (no summary, footer, metadata.yaml)."""
+    base = tmp_path_factory.mktemp('cut')
+    whole = rechunk(grasp_bag, base / 'whole')
+    out = base / 'cut'
+    out.mkdir()
+    data = next(whole.glob('*.mcap')).read_bytes()
+    (out / 'cut_0.mcap').write_bytes(data[:len(data) // 2])
+    return out
+
+
+# --- bag_io -----------------------------------------------------------------------------------
+
+def test_read_bag_counts_and_metadata(grasp_bag):
+    bag = read_bag(grasp_bag)
+    assert not bag.truncated
+    assert bag.counts() == {t: N_TICKS for t in GRASP_TOPICS}
+    assert bag.metadata['version'] == 9
+    assert bag.custom_data_parsed()['grasp_request']['width_m'] == 0.05
+    assert bag.start_ns == T0_NS and bag.end_ns == T0_NS + (N_TICKS - 1) * DT_NS
+    assert bag.topics[TOPIC_JOINT_STATES].rate_hz == pytest.approx(1000.0)
+
+
+def test_bag_is_self_describing(grasp_bag):
+    """Custom types decode from the schemas inside the bag (no interface package needed)."""
+    bag = read_bag(grasp_bag)
+    assert 'gripper_interfaces/msg/SupervisorStatus' in bag.schemas
+    status = [bag.decode(m) for m in bag.messages if m.topic == TOPIC_STATUS]
+    assert status[-1].outcome == 1 and status[-1].grasp_id == GRASP_ID
+
+
+def test_grasp_series(grasp_bag):
+    s = load_grasp_series(grasp_bag)
+    assert s.joint.t_s[0] == pytest.approx(1.0) and len(s.joint.t_s) == N_TICKS
+    assert s.joint.position_m[-1] == pytest.approx(POS_SP_M * (1 - math.exp(-0.599 / TAU_S)))
+    assert s.sensor.voltage_v[0] == pytest.approx(0.2)
+    assert s.status.phase[K_SWITCH] == 2 and s.command.source[0] == 1
+    assert s.motor.voltage_v[1] == 24.0
+    assert s.duration_s == pytest.approx(2.0)
+
+
+def test_truncated_recovers_complete_messages(grasp_bag, truncated_bag):
+    full = read_bag(grasp_bag)
+    cut = read_bag(truncated_bag)
+    assert cut.truncated and 0 < cut.message_count < full.message_count
+    # every recovered message is byte-identical to the original at the same position
+    assert [m.data for m in cut.messages] == [m.data for m in full.messages[:cut.message_count]]
+    assert cut.custom_data == {} or 'grasp_request' in cut.custom_data
+
+
+@pytest.mark.parametrize('make, error', [
+    (lambda d: d / 'nope', BagNotFoundError),
+    (lambda d: (d / 'notabag').mkdir() or (d / 'notabag' / 'x.txt').write_text('x')
+     and d / 'notabag', NotABagError),
+])
+def test_bad_paths(tmp_path, make, error):
+    with pytest.raises(error) as exc_info:
+        read_bag(make(tmp_path))
+    assert '\n' not in str(exc_info.value)
+
+
+# --- bag_analyze: the known answers -----------------------------------------------------------
+
+def test_analysis_known_answers(grasp_bag):
+    m = bag_analyze.analyze_series(load_grasp_series(grasp_bag))
+    dt = 1e-3
+    assert m.grasp_id == GRASP_ID and m.outcome == 'HOLDING'
+    assert m.time_to_contact_s == pytest.approx(K_CONTACT * dt, abs=1e-9)
+    assert m.switch_time_s == pytest.approx(K_SWITCH * dt, abs=1e-9)
+    assert m.switch_criterion == 'SENSOR_VOLTAGE'
+    # position: first order, 2 % settling at tau ln 50 (first sample inside the band)
+    assert m.position_overshoot_pct == 0.0
+    assert TAU_S * math.log(50) <= m.position_settling_s <= TAU_S * math.log(50) + dt + 1e-9
+    t_stage = K_SWITCH * dt
+    rms_analytic = POS_SP_M * math.sqrt(TAU_S / (2 * t_stage)
+                                        * (1 - math.exp(-2 * t_stage / TAU_S)))
+    assert m.position_rms_m == pytest.approx(rms_analytic, rel=0.02)
+    # force: second order overshoot and envelope bound on settling
+    os_pct = 100 * math.exp(-math.pi * ZETA / math.sqrt(1 - ZETA ** 2))
+    assert m.force_overshoot_pct == pytest.approx(os_pct, abs=0.01)
+    t_env = -math.log(0.02 * math.sqrt(1 - ZETA ** 2)) / (ZETA * WN)
+    half_period = math.pi / (WN * math.sqrt(1 - ZETA ** 2))
+    assert t_env - half_period <= m.force_settling_s <= t_env + dt
+    assert m.peak_contact_force_n == pytest.approx(FORCE_SP_N * (1 + os_pct / 100), rel=1e-4)
+    assert m.peak_force_ratio == pytest.approx(1 + os_pct / 100, rel=1e-4)
+    # voltage saturated on exactly 50 ticks of 1 ms
+    assert m.max_abs_voltage_v == 24.0
+    assert m.time_at_voltage_limit_s == pytest.approx(V_LIMIT_TICKS * dt, abs=1e-9)
+    assert m.final_position_error_m == pytest.approx(POS_SP_M * math.exp(-0.599 / TAU_S))
+    assert abs(m.final_force_error_n) < 1e-3
+
+
+def test_analyze_cli_table_json_csv_plot(grasp_bag, tmp_path, capsys):
+    assert bag_analyze.main([str(grasp_bag), str(grasp_bag)]) == 0
+    out = capsys.readouterr().out
+    assert 'switch_criterion' in out and 'SENSOR_VOLTAGE' in out
+    assert bag_analyze.main([str(grasp_bag), '--json']) == 0
+    rows = json.loads(capsys.readouterr().out)
+    assert rows[0]['time_at_voltage_limit_s'] == pytest.approx(0.05, abs=1e-9)
+    assert bag_analyze.main([str(grasp_bag), '--csv']) == 0
+    lines = capsys.readouterr().out.strip().splitlines()
+    assert len(lines) == 2 and lines[0].startswith('bag,grasp_id')
+    png = tmp_path / 'fig.png'
+    assert bag_analyze.main([str(grasp_bag), str(grasp_bag), '--plot', str(png), '--json']) == 0
+    assert png.stat().st_size > 10_000
+
+
+# --- bag_info ---------------------------------------------------------------------------------
+
+def test_info_cli(grasp_bag, capsys):
+    assert bag_info.main([str(grasp_bag)]) == 0
+    out = capsys.readouterr().out
+    for text in ('Files:', 'Bag size:', 'Storage id:', 'mcap', 'Duration:', '2.000000000s',
+                 'Messages:', str(6 * N_TICKS), 'Topic: /gripper/joint_states',
+                 'Type: sensor_msgs/msg/JointState', f'Count: {N_TICKS}',
+                 'Serialization Format: cdr', 'Rate: 1000.0 Hz', 'width_m=0.05',
+                 'outcome HOLDING', 'switch SENSOR_VOLTAGE', 'force 5 N'):
+        assert text in out, text
+
+
+# --- every CLI: bad input -> one line on stderr, non-zero exit ---------------------------------
+
+def _empty_bag(tmp_path: Path) -> Path:
+    store = _typestore()
+    path = tmp_path / 'empty'
+    with Writer(path, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
+        writer.add_connection(TOPIC_CLOCK, GRASP_TOPICS[TOPIC_CLOCK], typestore=store)
+    return path
+
+
+def _clock_only_bag(tmp_path: Path) -> Path:
+    return write_grasp_bag(tmp_path / 'clock_only', topics=[TOPIC_CLOCK], n_ticks=20,
+                           custom_data=False)
+
+
+def _not_a_bag(tmp_path: Path) -> Path:
+    path = tmp_path / 'plain'
+    path.mkdir()
+    (path / 'notes.txt').write_text('hello')
+    return path
+
+
+def _garbage_mcap(tmp_path: Path) -> Path:
+    path = tmp_path / 'garbage.mcap'
+    path.write_bytes(b'this is not an mcap file at all')
+    return path
+
+
+BAD_INPUTS = {
+    'missing': lambda d: d / 'does_not_exist',
+    'not_a_bag': _not_a_bag,
+    'empty': _empty_bag,
+    'garbage': _garbage_mcap,
+}
+
+CLIS = {
+    'bag_info': (bag_info.main, []),
+    'bag_analyze': (bag_analyze.main, []),
+    'bag_replay': (bag_replay.main, ['--quiet']),
+}
+
+
+def _run_cli(main, argv, capsys):
+    with pytest.raises(SystemExit) as exc_info:
+        main(argv)
+    captured = capsys.readouterr()
+    return exc_info.value.code, captured
+
+
+@pytest.mark.parametrize('cli', sorted(CLIS))
+@pytest.mark.parametrize('bad', sorted(BAD_INPUTS))
+def test_cli_bad_input_one_line(cli, bad, tmp_path, capsys):
+    main, extra = CLIS[cli]
+    code, captured = _run_cli(main, [str(BAD_INPUTS[bad](tmp_path))] + extra, capsys)
+    assert code == EXIT_ERROR
+    lines = captured.err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith(f'{cli}: error: '), captured.err
+    assert 'Traceback' not in captured.err
+
+
+@pytest.mark.parametrize('cli, argv', [
+    ('bag_analyze', []),
+    ('bag_replay', ['--topics', TOPIC_JOINT_STATES, '--quiet']),
+])
+def test_cli_missing_topics(cli, argv, tmp_path, capsys):
+    main, _ = CLIS[cli]
+    code, captured = _run_cli(main, [str(_clock_only_bag(tmp_path))] + argv, capsys)
+    assert code == EXIT_ERROR
+    lines = captured.err.strip().splitlines()
+    assert len(lines) == 1 and ('missing topics' in lines[0] or 'not in bag' in lines[0])
+
+
+def test_info_on_bag_without_grasp_topics_is_fine(tmp_path, capsys):
+    assert bag_info.main([str(_clock_only_bag(tmp_path))]) == 0
+    assert 'Topic: /clock' in capsys.readouterr().out
+
+
+@pytest.mark.parametrize('argv', [
+    ['--rate', '0'], ['--rate', 'nan'], ['--start-offset', '-1'], ['--remap', 'nocolon'],
+    ['--remap', '/nope:=/x'], ['--start-offset', '1000'],
+])
+def test_replay_bad_options(grasp_bag, argv, capsys):
+    code, captured = _run_cli(bag_replay.main, [str(grasp_bag), '--quiet'] + argv, capsys)
+    assert code == EXIT_ERROR
+    assert len(captured.err.strip().splitlines()) == 1
+
+
+def test_replay_resimulate_hook_is_explicit(grasp_bag, tmp_path, capsys):
+    code, captured = _run_cli(bag_replay.main, [str(grasp_bag), '--resimulate',
+                                                str(tmp_path / 'c.yaml')], capsys)
+    assert code == 2 and 'not implemented' in captured.err
+
+
+@pytest.mark.parametrize('cli', ['bag_info', 'bag_analyze'])
+def test_cli_truncated(cli, truncated_bag, grasp_bag, capsys):
+    """A bag cut in the middle: the tools work on the complete messages, say so, exit 3."""
+    main, extra = CLIS[cli]
+    recovered = read_bag(truncated_bag).message_count
+    code, captured = _run_cli(main, [str(truncated_bag)] + extra, capsys)
+    assert code == EXIT_TRUNCATED
+    lines = captured.err.strip().splitlines()
+    assert len(lines) == 1 and f'truncated: {recovered} complete messages recovered' in lines[0]
+    assert captured.out.strip()
+
+
+def test_garbage_in_mcap_folder(tmp_path):
+    folder = tmp_path / 'bag'
+    folder.mkdir()
+    shutil.copy(_garbage_mcap(tmp_path), folder / 'bag_0.mcap')
+    with pytest.raises(Exception) as exc_info:
+        read_bag(folder)
+    assert 'not an MCAP file' in str(exc_info.value)
+
+
+def test_empty_bag_error_type(tmp_path):
+    with pytest.raises(EmptyBagError):
+        read_bag(_empty_bag(tmp_path))
+    assert read_bag(_empty_bag(tmp_path / 'x'), allow_empty=True).message_count == 0
+
+
+def test_missing_topics_error(tmp_path):
+    with pytest.raises(MissingTopicsError, match='missing topics'):
+        load_grasp_series(_clock_only_bag(tmp_path))
