@@ -1,0 +1,238 @@
+"""The whole node graph in one process under one executor, with real service clients.
+
+Used by ``grasp_demo``, the tests and the benchmarks: the four nodes talk only over topics and
+services (DDS), the executor spins in a background thread, and requests go through
+``/gripper/sim/set_object`` and ``/gripper/grasp`` exactly as from another process.
+"""
+from __future__ import annotations
+
+import functools
+import math
+import threading
+import time
+from dataclasses import dataclass
+
+import rclpy
+from gripper_interfaces.srv import Grasp, SetObject
+from rclpy.context import Context
+from rclpy.parameter import Parameter
+from rclpy.task import Future
+
+from .force_controller_node import ForceControllerNode
+from .plant_simulator_node import PlantSimulatorNode
+from .position_controller_node import PositionControllerNode
+from .ros_common import (GRAPH_TOPICS, SERVICE_GRASP, SERVICE_SET_OBJECT, TOPIC_CLOCK,
+                         TOPIC_FORCE_SENSOR, TOPIC_JOINT_STATES, TOPIC_MOTOR_COMMAND,
+                         TOPIC_MOTOR_STATE, TOPIC_STATUS, ExecutorKind, make_executor,
+                         spin_until_stopped)
+from .supervisor_node import SupervisorNode
+
+
+class GraphError(RuntimeError):
+    """The graph did not come up or a call did not return in time."""
+
+
+@dataclass
+class RecordedGrasp:
+    """A grasp's answer, its bag, and how many messages the graph published per topic."""
+
+    response: Grasp.Response
+    bag_dir: object
+    published: dict
+    recorded: dict
+    wall_s: float
+
+
+@dataclass
+class GraphOptions:
+    executor: ExecutorKind = ExecutorKind.EVENTS
+    config_file: str = ''
+    position_controller: str = 'mpc_pd'
+    force_controller: str = 'pi'
+    approach_force_margin: float = 1.0
+
+
+class GripperGraph:
+    """plant_simulator, position_controller, force_controller and supervisor, spinning."""
+
+    def __init__(self, options: GraphOptions | None = None, context: Context | None = None):
+        self.options = opts = options or GraphOptions()
+        self.context = context
+        cfg = [Parameter('config_file', value=opts.config_file)]
+        sim = cfg + [Parameter('use_sim_time', value=True)]
+        kw = {'context': context} if context is not None else {}
+        self.plant = PlantSimulatorNode(parameter_overrides=cfg, **kw)
+        self.position = PositionControllerNode(
+            parameter_overrides=sim + [Parameter('controller', value=opts.position_controller)],
+            **kw)
+        self.force = ForceControllerNode(
+            parameter_overrides=sim + [
+                Parameter('controller', value=opts.force_controller),
+                Parameter('approach_force_margin', value=float(opts.approach_force_margin))],
+            **kw)
+        self.supervisor = SupervisorNode(parameter_overrides=sim, **kw)
+        self.client_node = rclpy.create_node('grasp_demo_client', **kw)
+        self.nodes = [self.plant, self.position, self.force, self.supervisor, self.client_node]
+        self.executor = make_executor(opts.executor, context)
+        for node in self.nodes:
+            self.executor.add_node(node)
+        self._stop = Future()
+        self._thread = threading.Thread(target=spin_until_stopped, args=(self.executor, self._stop),
+                                        name='gripper_graph_executor', daemon=True)
+        self._thread.start()
+        self._tap = _RecorderTap(self.client_node)
+        self._set_object = self.client_node.create_client(SetObject, SERVICE_SET_OBJECT)
+        self._grasp = self.client_node.create_client(Grasp, SERVICE_GRASP)
+        for client in (self._set_object, self._grasp):
+            if not client.wait_for_service(timeout_sec=10.0):
+                self.close()
+                raise GraphError(f'service {client.srv_name} did not come up')
+
+    def add_node(self, node) -> None:
+        self.nodes.append(node)
+        self.executor.add_node(node)
+
+    def call(self, client, request, timeout_s: float):
+        """A real service call from this process; waits in this (non-executor) thread."""
+        done = threading.Event()
+        future = client.call_async(request)
+        future.add_done_callback(lambda _f: done.set())
+        if not done.wait(timeout_s):
+            client.remove_pending_request(future)
+            raise GraphError(f'{client.srv_name} did not answer within {timeout_s:g} s')
+        return future.result()
+
+    def set_object(self, width_m: float, stiffness_n_per_m: float = 0.0,
+                   damping_n_s_per_m: float = 0.0, open_fingers: bool = True,
+                   timeout_s: float = 10.0) -> SetObject.Response:
+        return self.call(self._set_object, SetObject.Request(
+            width_m=float(width_m), stiffness_n_per_m=float(stiffness_n_per_m),
+            damping_n_s_per_m=float(damping_n_s_per_m), open_fingers=open_fingers), timeout_s)
+
+    def grasp(self, width_m: float, mass_kg: float, friction_coefficient: float = 0.0,
+              acceleration_mps2: float = 0.0, timeout_s: float = 0.0,
+              wall_timeout_s: float = 600.0) -> Grasp.Response:
+        return self.call(self._grasp, Grasp.Request(
+            width_m=float(width_m), mass_kg=float(mass_kg),
+            friction_coefficient=float(friction_coefficient),
+            acceleration_mps2=float(acceleration_mps2), timeout_s=float(timeout_s)),
+            wall_timeout_s)
+
+    def published_counts(self) -> dict:
+        """Messages published so far on every graph topic (from the nodes' own counters)."""
+        ticks = self.plant.ticks_published
+        return {TOPIC_CLOCK: ticks, TOPIC_JOINT_STATES: ticks, TOPIC_FORCE_SENSOR: ticks,
+                TOPIC_MOTOR_STATE: ticks, TOPIC_STATUS: self.supervisor.statuses_published,
+                TOPIC_MOTOR_COMMAND: (self.position.commands_published
+                                      + self.force.commands_published)}
+
+    def recorded_grasp(self, bag_dir, width_m: float, mass_kg: float,
+                       friction_coefficient: float = 0.0, stiffness_n_per_m: float = 0.0,
+                       damping_n_s_per_m: float = 0.0, overwrite: bool = False,
+                       wall_timeout_s: float = 600.0) -> RecordedGrasp:
+        """Place the object, record every graph topic into ``bag_dir`` and grasp it.
+
+        The bag is closed (summary, metadata.yaml) whatever happens, Ctrl-C included.
+        """
+        from .bag_recorder import BagRecorder
+        from .grasp_logic import Outcome
+
+        valid_width = math.isfinite(width_m) and 0.0 < width_m < \
+            self.plant.config.plant.max_travel_m
+        placed = self.set_object(width_m if valid_width else 0.0, stiffness_n_per_m,
+                                 damping_n_s_per_m)
+        if not placed.success:
+            raise GraphError(f'set_object: {placed.message}')
+        self._tap.wait_quiet()
+        recorder = BagRecorder(
+            self.client_node, bag_dir, GRAPH_TOPICS, overwrite=overwrite, subscribe=False,
+            time_source=lambda: self.plant.plant.t_ns,
+            custom_data={'request': {'width_m': width_m, 'mass_kg': mass_kg,
+                                     'friction_coefficient': friction_coefficient,
+                                     'stiffness_n_per_m': stiffness_n_per_m}})
+        response = None
+        before = self.published_counts()
+        self._tap.sink = recorder
+        t0 = time.perf_counter()
+        try:
+            response = self.grasp(width_m, mass_kg, friction_coefficient,
+                                  wall_timeout_s=wall_timeout_s)
+        finally:
+            published = {t: n - before[t] for t, n in self.published_counts().items()}
+            self._drain(recorder, published)
+            self._tap.sink = None
+            if response is not None:
+                recorder.set_custom_data({
+                    'outcome': Outcome(response.outcome).name, 'success': response.success,
+                    'message': response.message,
+                    'position_setpoint_m': response.position_setpoint_m,
+                    'force_setpoint_n': response.force_setpoint_n})
+            recorded = dict(recorder.counts)
+            recorder.close()
+        return RecordedGrasp(response, recorder.bag_dir, published, recorded,
+                             time.perf_counter() - t0)
+
+    @staticmethod
+    def _drain(recorder, published: dict, timeout_s: float = 10.0) -> None:
+        """Wait until the recorder holds every message published during the grasp."""
+        deadline = time.monotonic() + timeout_s
+        while time.monotonic() < deadline:
+            counts = recorder.counts
+            if all(counts.get(t, 0) >= n for t, n in published.items()):
+                return
+            time.sleep(0.005)
+
+    def close(self) -> None:
+        """Stop spinning and destroy every node; safe to call twice."""
+        if not self._stop.done():
+            self._stop.set_result(True)
+        self._thread.join(timeout=10.0)
+        self.executor.shutdown(timeout_sec=2.0)
+        self.supervisor.grasp_service.destroy()
+        for node in self.nodes:
+            node.destroy_node()
+        self.nodes = []
+
+    def __enter__(self) -> GripperGraph:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        if self.nodes:
+            self.close()
+
+
+
+class _RecorderTap:
+    """Long-lived raw subscriptions on every graph topic, forwarding to the current recorder.
+
+    Created with the graph, so they are matched long before any grasp: a volatile reader created
+    just before a grasp can miss the first sample of a writer that had been idle (seen with Fast
+    DDS: the first force-controller command of every grasp after the first).
+    """
+
+    def __init__(self, node):
+        from .bag_io import import_message_class
+        from .ros_common import GRAPH_QOS
+        self.sink = None
+        self.received = {topic: 0 for topic in GRAPH_TOPICS}
+        for topic, msgtype in GRAPH_TOPICS.items():
+            node.create_subscription(import_message_class(msgtype), topic,
+                                     functools.partial(self._on_message, topic), GRAPH_QOS,
+                                     raw=True)
+
+    def _on_message(self, topic: str, data: bytes) -> None:
+        self.received[topic] += 1
+        sink = self.sink
+        if sink is not None:
+            sink.write(topic, data)
+
+    def wait_quiet(self, quiet_s: float = 0.05, timeout_s: float = 5.0) -> None:
+        """Return once nothing has arrived for ``quiet_s``: what was published before a recording
+        starts (e.g. set_object's sample) is not recorded."""
+        deadline = time.monotonic() + timeout_s
+        last, since = sum(self.received.values()), time.monotonic()
+        while time.monotonic() < deadline and time.monotonic() - since < quiet_s:
+            time.sleep(0.005)
+            now = sum(self.received.values())
+            if now != last:
+                last, since = now, time.monotonic()

@@ -1,0 +1,235 @@
+"""Grasp supervisor state machine and request validation (no rclpy).
+
+Stages (paper sec. IV): POSITION (MPC-PD drives the finger to ``L_ls - width``) until either
+switching criterion holds - the position is within +-2 % of its setpoint, or the force-sensor
+voltage has risen by more than its threshold - then FORCE (PI to ``mu_s m (g + a)``, eq. 23)
+until the force has stayed within its band for a hold time: HOLDING. Exactly one controller is
+active at any tick; the decision for each tick is a :class:`Decision`.
+"""
+from __future__ import annotations
+
+import enum
+import math
+from dataclasses import dataclass
+
+from .config import PlantParams, SupervisorParams
+
+MAX_TIMEOUT_S = 600.0  # simulated seconds; a longer grasp is a mistake, not a request
+
+
+class Phase(enum.IntEnum):           # values match SupervisorStatus.PHASE_*
+    IDLE = 0
+    POSITION = 1
+    FORCE = 2
+    HOLDING = 3
+    DONE = 4
+    FAILED = 5
+
+
+class ActiveController(enum.IntEnum):  # values match SupervisorStatus.CONTROLLER_*
+    NONE = 0
+    POSITION = 1
+    FORCE = 2
+
+
+class SwitchCriterion(enum.IntEnum):  # values match SupervisorStatus.SWITCH_*
+    NONE = 0
+    POSITION_TOLERANCE = 1
+    SENSOR_VOLTAGE = 2
+
+
+class Outcome(enum.IntEnum):          # values match Grasp.srv OUTCOME_*
+    UNKNOWN = 0
+    HOLDING = 1
+    NO_OBJECT = 2
+    OBJECT_LOST = 3
+    TIMEOUT = 4
+    STOPPED = 5
+    REFUSED = 6
+    FAULT = 7
+
+
+class RequestError(ValueError):
+    """A grasp request that must be refused; the message says why, with the numbers."""
+
+
+@dataclass(frozen=True)
+class GraspRequest:
+    width_m: float
+    mass_kg: float
+    friction_coefficient: float = 0.0   # 0 = default
+    acceleration_mps2: float = 0.0
+    timeout_s: float = 0.0              # 0 = default
+
+
+@dataclass(frozen=True)
+class GraspTargets:
+    """What a valid request resolves to."""
+
+    position_setpoint_m: float
+    force_setpoint_n: float
+    friction_coefficient: float
+    timeout_s: float
+
+
+def force_setpoint_n(mass_kg: float, friction_coefficient: float, gravity_mps2: float,
+                     acceleration_mps2: float) -> float:
+    """Eq. 23: F_sp = mu_s m (g + a)."""
+    return friction_coefficient * mass_kg * (gravity_mps2 + acceleration_mps2)
+
+
+def validate_request(req: GraspRequest, plant: PlantParams,
+                     sup: SupervisorParams) -> GraspTargets:
+    """Resolve defaults and refuse anything non-finite, out of range or beyond 24 V."""
+    for name in ('width_m', 'mass_kg', 'friction_coefficient', 'acceleration_mps2', 'timeout_s'):
+        value = getattr(req, name)
+        if not isinstance(value, (int, float)) or isinstance(value, bool) or \
+                not math.isfinite(value):
+            raise RequestError(f'{name} must be a finite number, got {value!r}')
+    if not 0.0 < req.width_m < plant.max_travel_m:
+        raise RequestError(f'width_m must be in (0, {plant.max_travel_m:g}) m (the finger '
+                           f'travel), got {req.width_m!r}')
+    if req.mass_kg <= 0.0:
+        raise RequestError(f'mass_kg must be > 0, got {req.mass_kg!r}')
+    if req.friction_coefficient < 0.0:
+        raise RequestError(f'friction_coefficient must be >= 0 (0 = default '
+                           f'{sup.friction_coefficient:g}), got {req.friction_coefficient!r}')
+    if req.acceleration_mps2 < 0.0:
+        raise RequestError(f'acceleration_mps2 must be >= 0, got {req.acceleration_mps2!r}')
+    if not 0.0 <= req.timeout_s <= MAX_TIMEOUT_S:
+        raise RequestError(f'timeout_s must be in [0, {MAX_TIMEOUT_S:g}] s (0 = default '
+                           f'{sup.timeout_s:g}), got {req.timeout_s!r}')
+    mu = req.friction_coefficient or sup.friction_coefficient
+    accel = req.acceleration_mps2 or sup.acceleration_mps2
+    force = force_setpoint_n(req.mass_kg, mu, plant.gravity_mps2, accel)
+    if force > plant.max_force_n:
+        raise RequestError(
+            f'force setpoint {force:.2f} N (mu_s={mu:g} x m={req.mass_kg:g} kg x '
+            f'(g+a)={plant.gravity_mps2 + accel:g} m/s^2) exceeds the {plant.max_force_n:.2f} N '
+            f'the motor can hold at {plant.voltage_limit_v:g} V')
+    if force <= 0.0:
+        raise RequestError(f'force setpoint must be > 0 N, got {force!r}')
+    return GraspTargets(plant.max_travel_m - req.width_m, force, mu,
+                        req.timeout_s or sup.timeout_s)
+
+
+@dataclass(frozen=True)
+class Decision:
+    """The supervisor's verdict for one tick."""
+
+    phase: Phase
+    active: ActiveController
+    switch_criterion: SwitchCriterion
+    outcome: Outcome
+    position_setpoint_m: float
+    force_setpoint_n: float
+    message: str = ''
+
+    @property
+    def finished(self) -> bool:
+        return self.outcome is not Outcome.UNKNOWN
+
+
+class GraspSupervisor:
+    """One grasp at a time; :meth:`step` once per plant tick with that tick's measurements."""
+
+    def __init__(self, plant: PlantParams, params: SupervisorParams):
+        self.plant = plant
+        self.params = params
+        self.targets: GraspTargets | None = None
+        self.phase = Phase.IDLE
+        self.switch_criterion = SwitchCriterion.NONE
+        self.outcome = Outcome.UNKNOWN
+        self.start_ns = 0
+        self.switch_ns: int | None = None
+        self.contact_ns: int | None = None
+        self._baseline_voltage_v = 0.0
+        self._in_band_since_ns: int | None = None
+        self.message = ''
+
+    @property
+    def busy(self) -> bool:
+        return self.phase in (Phase.POSITION, Phase.FORCE)
+
+    def start(self, targets: GraspTargets, t_ns: int, sensor_voltage_v: float) -> Decision:
+        """Begin a grasp at tick ``t_ns``; the sensor voltage now is the no-contact baseline."""
+        if self.busy:
+            raise RequestError('a grasp is already running')
+        self.targets = targets
+        self.phase = Phase.POSITION
+        self.switch_criterion = SwitchCriterion.NONE
+        self.outcome = Outcome.UNKNOWN
+        self.start_ns = t_ns
+        self.switch_ns = None
+        self.contact_ns = None
+        self._baseline_voltage_v = sensor_voltage_v
+        self._in_band_since_ns = None
+        self.message = ''
+        return self._decision()
+
+    def stop(self, message: str = 'stopped on request') -> Decision:
+        """End the running grasp now (STOPPED); the plant is left without a commanding loop."""
+        if self.busy:
+            self._finish(Phase.DONE, Outcome.STOPPED, message)
+        return self._decision()
+
+    def fault(self, message: str) -> Decision:
+        if self.busy:
+            self._finish(Phase.FAILED, Outcome.FAULT, message)
+        return self._decision()
+
+    def step(self, t_ns: int, position_m: float, force_n: float,
+             sensor_voltage_v: float) -> Decision:
+        """Advance the state machine with the measurements of tick ``t_ns``."""
+        if not self.busy:
+            return self._decision()
+        if not all(math.isfinite(v) for v in (position_m, force_n, sensor_voltage_v)):
+            self._finish(Phase.FAILED, Outcome.FAULT,
+                         f'non-finite measurement at t={t_ns * 1e-9:.4f} s')
+            return self._decision()
+        p, tg = self.params, self.targets
+        sensor_rise = sensor_voltage_v - self._baseline_voltage_v > p.sensor_voltage_threshold_v
+        if sensor_rise and self.contact_ns is None:
+            self.contact_ns = t_ns
+        if self.phase is Phase.POSITION:
+            tol = p.position_tolerance_fraction * tg.position_setpoint_m
+            if abs(position_m - tg.position_setpoint_m) <= tol:
+                self._switch(SwitchCriterion.POSITION_TOLERANCE, t_ns)
+            elif sensor_rise:
+                self._switch(SwitchCriterion.SENSOR_VOLTAGE, t_ns)
+        elif self.phase is Phase.FORCE:
+            band = p.force_settle_band_fraction * tg.force_setpoint_n
+            if abs(force_n - tg.force_setpoint_n) <= band:
+                if self._in_band_since_ns is None:
+                    self._in_band_since_ns = t_ns
+                if (t_ns - self._in_band_since_ns) * 1e-9 >= p.force_settle_hold_s:
+                    self._finish(Phase.HOLDING, Outcome.HOLDING,
+                                 f'holding {force_n:.3f} N (setpoint '
+                                 f'{tg.force_setpoint_n:.3f} N) at {position_m:.5f} m')
+                    return self._decision()
+            else:
+                self._in_band_since_ns = None
+        if (t_ns - self.start_ns) * 1e-9 > tg.timeout_s:
+            self._finish(Phase.FAILED, Outcome.TIMEOUT,
+                         f'not settled within {tg.timeout_s:g} s of simulated time '
+                         f'(phase {self.phase.name}, position {position_m:.5f} m, '
+                         f'force {force_n:.3f} N)')
+        return self._decision()
+
+    def _switch(self, criterion: SwitchCriterion, t_ns: int) -> None:
+        self.phase = Phase.FORCE
+        self.switch_criterion = criterion
+        self.switch_ns = t_ns
+
+    def _finish(self, phase: Phase, outcome: Outcome, message: str) -> None:
+        self.phase = phase
+        self.outcome = outcome
+        self.message = message
+
+    def _decision(self) -> Decision:
+        active = {Phase.POSITION: ActiveController.POSITION,
+                  Phase.FORCE: ActiveController.FORCE}.get(self.phase, ActiveController.NONE)
+        tg = self.targets
+        return Decision(self.phase, active, self.switch_criterion, self.outcome,
+                        tg.position_setpoint_m if tg else 0.0,
+                        tg.force_setpoint_n if tg else 0.0, self.message)

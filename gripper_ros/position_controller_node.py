@@ -1,0 +1,76 @@
+"""position_controller: MPC-PD (DMC over PD, Table II) for the position stage, at 10 ms.
+
+Answers each lockstep tick in which the supervisor names it active with the armature voltage
+for the next ``sample_time_s``. ``controller`` selects ``mpc_pd`` (default), ``pd`` or ``pid``.
+"""
+from __future__ import annotations
+
+import sys
+
+import rclpy
+from gripper_interfaces.msg import MotorCommand, SupervisorStatus
+from rcl_interfaces.msg import ParameterDescriptor
+from rclpy.executors import ExternalShutdownException
+from sensor_msgs.msg import JointState
+
+from .config import ConfigError
+from .controller_node_base import LockstepController
+from .controllers import PositionControllerKind, make_position_controller
+from .ros_common import GRAPH_QOS, TOPIC_JOINT_STATES, declare_config, time_to_ns
+
+
+class PositionControllerNode(LockstepController):
+    source = MotorCommand.SOURCE_POSITION
+
+    def __init__(self, **kwargs):
+        super().__init__('position_controller', **kwargs)
+        self.config = declare_config(self)
+        kind = self.declare_parameter(
+            'controller', PositionControllerKind.MPC_PD.value,
+            ParameterDescriptor(description='mpc_pd | pd | pid', read_only=True)).value
+        try:
+            self.kind = PositionControllerKind(kind)
+        except ValueError:
+            raise ConfigError(f'parameter "controller" must be one of '
+                              f'{[k.value for k in PositionControllerKind]}, got {kind!r}') from None
+        self.controller = make_position_controller(self.config, self.kind)
+        self.sample_time_s = self.config.position.sample_time_s
+        self.create_subscription(JointState, TOPIC_JOINT_STATES, self._on_joint_state, GRAPH_QOS)
+
+    def _on_joint_state(self, msg: JointState) -> None:
+        position = msg.position[0] if msg.position else float('nan')
+        self.on_measurement(time_to_ns(msg.header.stamp), position)
+
+    def activate(self, status: SupervisorStatus, measurement: float) -> None:
+        """Start from rest at the measured position with the motor off."""
+        if self.kind is PositionControllerKind.MPC_PD:
+            self.controller.reset(measurement, 0.0)
+        else:
+            self.controller.reset(0.0, measurement=measurement)
+
+    def compute(self, status: SupervisorStatus, measurement: float) -> tuple[float, float]:
+        voltage = self.controller.step(status.position_setpoint_m, measurement)
+        inner = getattr(self.controller, 'last_inner_setpoint', status.position_setpoint_m)
+        return voltage, inner
+
+
+def main(args=None):
+    rclpy.init(args=args)
+    node = None
+    try:
+        node = PositionControllerNode()
+        rclpy.spin(node)
+    except ConfigError as exc:
+        print(f'position_controller: {exc}', file=sys.stderr)
+        return 2
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -1,0 +1,119 @@
+"""What every node of the graph shares: topic names, QoS, time stamps, config parameter."""
+from __future__ import annotations
+
+import enum
+
+from builtin_interfaces.msg import Time
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+
+from .config import GripperConfig, load_config
+
+TOPIC_CLOCK = '/clock'
+TOPIC_JOINT_STATES = '/gripper/joint_states'
+TOPIC_FORCE_SENSOR = '/gripper/force_sensor'
+TOPIC_MOTOR_STATE = '/gripper/motor_state'
+TOPIC_STATUS = '/gripper/supervisor/status'
+TOPIC_MOTOR_COMMAND = '/gripper/motor_command'
+SERVICE_GRASP = '/gripper/grasp'
+SERVICE_SET_OBJECT = '/gripper/sim/set_object'
+FINGER_JOINT = 'finger_joint'
+
+# Lockstep keeps at most a few messages in flight; the depth is there so that a slow recorder
+# callback never loses one (a reliable keep_last writer drops what its history cannot hold).
+GRAPH_QOS_DEPTH = 1000
+GRAPH_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=GRAPH_QOS_DEPTH,
+                       reliability=ReliabilityPolicy.RELIABLE,
+                       durability=DurabilityPolicy.VOLATILE)
+
+# Every topic the graph publishes, with its type: what the recorder records.
+GRAPH_TOPICS = {
+    TOPIC_CLOCK: 'rosgraph_msgs/msg/Clock',
+    TOPIC_JOINT_STATES: 'sensor_msgs/msg/JointState',
+    TOPIC_FORCE_SENSOR: 'gripper_interfaces/msg/ForceSensor',
+    TOPIC_MOTOR_STATE: 'gripper_interfaces/msg/MotorState',
+    TOPIC_STATUS: 'gripper_interfaces/msg/SupervisorStatus',
+    TOPIC_MOTOR_COMMAND: 'gripper_interfaces/msg/MotorCommand',
+}
+
+
+class ExecutorKind(enum.Enum):
+    EVENTS = 'events'      # rclpy.experimental.EventsExecutor: ~10x faster here
+    SINGLE = 'single'      # rclpy.executors.SingleThreadedExecutor
+
+
+def make_executor(kind: ExecutorKind, context=None):
+    if kind is ExecutorKind.EVENTS:
+        from rclpy.experimental import EventsExecutor
+        return EventsExecutor(context=context)
+    from rclpy.executors import SingleThreadedExecutor
+    return SingleThreadedExecutor(context=context)
+
+
+def ns_to_time(t_ns: int) -> Time:
+    return Time(sec=t_ns // 1_000_000_000, nanosec=t_ns % 1_000_000_000)
+
+
+def time_to_ns(stamp: Time) -> int:
+    return stamp.sec * 1_000_000_000 + stamp.nanosec
+
+
+def declare_config(node: Node) -> GripperConfig:
+    """Declare ``config_file`` (empty = the installed config/gripper.yaml) and load it.
+
+    A bad file raises ConfigError naming the key; the node does not start.
+    """
+    path = node.declare_parameter('config_file', '').value
+    return load_config(path or None)
+
+
+def spin_until_stopped(executor, stop) -> None:
+    """Spin ``executor`` until the ``stop`` future completes (set it from any thread).
+
+    rclpy 7.1.6's EventsExecutor busy-loops and never fires timers in ``spin()`` without a
+    timeout; ``spin_until_future_complete`` with a finite timeout works on both executors.
+    """
+    import rclpy
+    while not stop.done() and rclpy.ok(context=executor.context):
+        executor.spin_until_future_complete(stop, timeout_sec=3600.0)
+
+
+class DeferredService:
+    """A service server whose reply may be sent later, from another callback.
+
+    rclpy (Jazzy) sends a service callback's return value at once, and its EventsExecutor cannot
+    await an ``async`` callback. A grasp takes many lockstep ticks, so the request is taken from
+    the service handle by a steady-clock timer on ``node`` (the server itself lives on a private,
+    never-spun node) and answered with :meth:`reply` when the grasp ends. Requests queue in DDS
+    meanwhile; each is handled in arrival order.
+    """
+
+    def __init__(self, node: Node, srv_type, name: str, on_request, poll_period_s: float = 0.002):
+        from rclpy.clock import Clock, ClockType
+        self._server_node = Node(f'{node.get_name()}_service_server',
+                                 namespace=node.get_namespace(), context=node.context,
+                                 start_parameter_services=False)
+        self._service = self._server_node.create_service(srv_type, name, self._not_spun)
+        self._on_request = on_request
+        self._timer = node.create_timer(poll_period_s, self._poll,
+                                        clock=Clock(clock_type=ClockType.STEADY_TIME))
+
+    @staticmethod
+    def _not_spun(request, response):  # pragma: no cover - the server node is never spun
+        raise RuntimeError('DeferredService server node must not be added to an executor')
+
+    def _poll(self) -> None:
+        srv = self._service
+        while True:
+            with srv.handle:
+                request, header = srv.handle.service_take_request(srv.srv_type.Request)
+            if request is None:
+                return
+            self._on_request(request, header)
+
+    def reply(self, header, response) -> None:
+        self._service.send_response(response, header)
+
+    def destroy(self) -> None:
+        self._timer.destroy()
+        self._server_node.destroy_node()

@@ -1,0 +1,186 @@
+"""supervisor: serves ``/gripper/grasp`` and decides, tick by tick, which controller drives.
+
+For every plant tick it reads the joint state, force sensor and motor state of that tick, steps
+:class:`gripper_ros.grasp_logic.GraspSupervisor` and publishes the decision on
+``/gripper/supervisor/status`` (phase, active controller, both setpoints). The grasp service
+answers when the grasp has ended, with one explicit outcome; a bad request or a request while a
+grasp runs is refused at once with ``success=false`` and a message, and nothing moves.
+"""
+from __future__ import annotations
+
+import math
+import sys
+
+import rclpy
+from gripper_interfaces.msg import ForceSensor, MotorState, SupervisorStatus
+from gripper_interfaces.srv import Grasp
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+from sensor_msgs.msg import JointState
+
+from .config import ConfigError
+from .grasp_logic import (Decision, GraspRequest, GraspSupervisor, Outcome, RequestError,
+                          validate_request)
+from .ros_common import (GRAPH_QOS, SERVICE_GRASP, TOPIC_FORCE_SENSOR, TOPIC_JOINT_STATES,
+                         TOPIC_MOTOR_STATE, TOPIC_STATUS, DeferredService, declare_config,
+                         ns_to_time, time_to_ns)
+
+
+class SupervisorNode(Node):
+    def __init__(self, **kwargs):
+        super().__init__('supervisor', **kwargs)
+        self.config = declare_config(self)
+        self.logic = GraspSupervisor(self.config.plant, self.config.supervisor)
+        self._joint: JointState | None = None
+        self._force: ForceSensor | None = None
+        self._voltage_v = 0.0
+        self._last_decided_ns: int | None = None
+        self._grasp_id = 0
+        self._pending: tuple[object, Grasp.Response] | None = None  # (request header, response)
+        self._status_msg = SupervisorStatus()
+        self.statuses_published = 0
+        self._status_pub = self.create_publisher(SupervisorStatus, TOPIC_STATUS, GRAPH_QOS)
+        self.create_subscription(JointState, TOPIC_JOINT_STATES, self._on_joint, GRAPH_QOS)
+        self.create_subscription(ForceSensor, TOPIC_FORCE_SENSOR, self._on_force, GRAPH_QOS)
+        self.create_subscription(MotorState, TOPIC_MOTOR_STATE, self._on_motor, GRAPH_QOS)
+        self.grasp_service = DeferredService(self, Grasp, SERVICE_GRASP, self._on_grasp)
+
+    # ------------------------------------------------------------------ measurements
+    def _on_joint(self, msg: JointState) -> None:
+        self._joint = msg
+        self._try_decide()
+
+    def _on_force(self, msg: ForceSensor) -> None:
+        self._force = msg
+        self._try_decide()
+
+    def _on_motor(self, msg: MotorState) -> None:
+        self._voltage_v = msg.voltage_v
+
+    def _latest_tick(self) -> int | None:
+        """Stamp of the newest tick for which both measurements are here, else None."""
+        j, f = self._joint, self._force
+        if j is None or f is None:
+            return None
+        t_ns = time_to_ns(j.header.stamp)
+        return t_ns if t_ns == time_to_ns(f.header.stamp) else None
+
+    def _try_decide(self) -> None:
+        t_ns = self._latest_tick()
+        if t_ns is None or t_ns == self._last_decided_ns or not self.logic.busy:
+            return
+        self._last_decided_ns = t_ns
+        position = self._joint.position[0] if self._joint.position else math.nan
+        decision = self.logic.step(t_ns, position, self._force.force_n, self._force.voltage_v)
+        self._publish(t_ns, decision)
+        if decision.finished:
+            self._complete(decision)
+
+    def _publish(self, t_ns: int, d: Decision) -> None:
+        m = self._status_msg
+        m.header.stamp = ns_to_time(t_ns)
+        m.phase = int(d.phase)
+        m.active_controller = int(d.active)
+        m.switch_criterion = int(d.switch_criterion)
+        m.grasp_id = self._grasp_id
+        m.outcome = int(d.outcome)
+        m.position_setpoint_m = d.position_setpoint_m
+        m.force_setpoint_n = d.force_setpoint_n
+        m.position_m = self._joint.position[0] if self._joint and self._joint.position else 0.0
+        m.force_n = self._force.force_n if self._force else 0.0
+        m.contact = self.logic.contact_ns is not None
+        m.seed_voltage_v = self._voltage_v
+        self._status_pub.publish(m)
+        self.statuses_published += 1
+
+    # ------------------------------------------------------------------ service
+    def _on_grasp(self, request: Grasp.Request, header) -> None:
+        """Start a grasp, or refuse it at once; a started grasp is answered in _complete()."""
+        response = Grasp.Response()
+        message = self._start(request, response)
+        if message:
+            response.success = False
+            response.outcome = Grasp.Response.OUTCOME_REFUSED
+            response.message = message
+            self.get_logger().warn(f'grasp {message}')
+            self.grasp_service.reply(header, response)
+        else:
+            self._pending = (header, response)
+
+    def _start(self, request: Grasp.Request, response: Grasp.Response) -> str:
+        """Validate and start; returns a refusal message, or '' when the grasp has started."""
+        if self.logic.busy:
+            return 'refused: a grasp is already running'
+        try:
+            targets = validate_request(
+                GraspRequest(request.width_m, request.mass_kg, request.friction_coefficient,
+                             request.acceleration_mps2, request.timeout_s),
+                self.config.plant, self.config.supervisor)
+        except RequestError as exc:
+            return f'refused: {exc}'
+        t_ns = self._latest_tick()
+        if t_ns is None:
+            return 'refused: no measurement from plant_simulator yet'
+        self._grasp_id += 1
+        response.grasp_id = self._grasp_id
+        response.position_setpoint_m = targets.position_setpoint_m
+        response.force_setpoint_n = targets.force_setpoint_n
+        self.get_logger().info(
+            f'grasp {self._grasp_id}: width {request.width_m:g} m, mass {request.mass_kg:g} kg '
+            f'-> position {targets.position_setpoint_m:.4f} m, force '
+            f'{targets.force_setpoint_n:.3f} N')
+        decision = self.logic.start(targets, t_ns, self._force.voltage_v)
+        self._last_decided_ns = t_ns
+        self._publish(t_ns, decision)
+        return ''
+
+    def _complete(self, decision: Decision) -> None:
+        """The grasp has ended: answer the waiting request with its outcome."""
+        pending, self._pending = self._pending, None
+        self.get_logger().info(f'grasp {self._grasp_id}: {decision.outcome.name}: '
+                               f'{decision.message}')
+        if pending is None:
+            return
+        header, response = pending
+        response.success = decision.outcome is Outcome.HOLDING
+        response.outcome = int(decision.outcome)
+        response.message = decision.message
+        position = self._joint.position[0]
+        response.final_position_m = position
+        response.final_width_m = self.config.plant.max_travel_m - position
+        response.final_force_n = self._force.force_n
+        if self.logic.switch_ns is not None:
+            response.switch_time_s = (self.logic.switch_ns - self.logic.start_ns) * 1e-9
+        self.grasp_service.reply(header, response)
+
+    def stop_grasp(self, message: str = 'stopped on request') -> None:
+        """End the running grasp (STOPPED); the plant stops advancing."""
+        if not self.logic.busy:
+            return
+        decision = self.logic.stop(message)
+        t_ns = self._last_decided_ns or 0
+        self._publish(t_ns, decision)
+        self._complete(decision)
+
+
+def main(args=None):
+    rclpy.init(args=args)
+    node = None
+    try:
+        node = SupervisorNode()
+        rclpy.spin(node)
+    except ConfigError as exc:
+        print(f'supervisor: {exc}', file=sys.stderr)
+        return 2
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        if node is not None:
+            node.grasp_service.destroy()
+            node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())

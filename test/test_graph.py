@@ -1,0 +1,140 @@
+"""The node graph over real DDS in one process: paper objects, determinism, refusals, bags.
+
+Four rclpy nodes under one EventsExecutor, real service calls, real MCAP bags.
+"""
+import math
+import time
+
+import numpy as np
+import pytest
+import rclpy
+from gripper_interfaces.srv import Grasp
+from rclpy.context import Context
+
+from gripper_ros.bag_io import load_grasp_series, read_bag
+from gripper_ros.config import load_config
+from gripper_ros.grasp_logic import Outcome, SwitchCriterion
+from gripper_ros.grasp_demo import PAPER_OBJECTS
+from gripper_ros.graph import GraphOptions, GripperGraph
+from gripper_ros.ros_common import GRAPH_TOPICS
+
+CONFIG = load_config()
+L_LS = CONFIG.plant.max_travel_m
+V_LIMIT = CONFIG.plant.voltage_limit_v
+
+
+@pytest.fixture(scope='module')
+def graph():
+    context = Context()
+    rclpy.init(context=context)
+    g = GripperGraph(GraphOptions(), context=context)
+    yield g
+    g.close()
+    rclpy.try_shutdown(context=context)
+
+
+@pytest.fixture(scope='module')
+def paper_runs(graph, tmp_path_factory):
+    out = tmp_path_factory.mktemp('bags')
+    return [graph.recorded_grasp(out / f'object_{i}', w, m)
+            for i, (w, m) in enumerate(PAPER_OBJECTS, 1)]
+
+
+@pytest.mark.parametrize('index', range(len(PAPER_OBJECTS)))
+def test_paper_object_is_held_at_its_width_and_force(paper_runs, index):
+    width, mass = PAPER_OBJECTS[index]
+    run = paper_runs[index]
+    r = run.response
+    assert r.success and r.outcome == Outcome.HOLDING, r.message
+    setpoint = L_LS - width
+    assert r.position_setpoint_m == pytest.approx(setpoint)
+    assert abs(r.final_position_m - setpoint) <= 0.02 * setpoint
+    f_sp = CONFIG.supervisor.friction_coefficient * mass * CONFIG.plant.gravity_mps2  # eq. 23
+    assert r.force_setpoint_n == pytest.approx(f_sp)
+    assert abs(r.final_force_n - f_sp) <= 0.02 * f_sp
+
+
+@pytest.mark.parametrize('index', range(len(PAPER_OBJECTS)))
+def test_paper_object_bag_voltage_limit_and_single_switch(paper_runs, index):
+    series = load_grasp_series(paper_runs[index].bag_dir)
+    assert np.all(np.abs(series.motor.voltage_v) <= V_LIMIT + 1e-12)
+    assert np.all(np.abs(series.command.voltage_v) <= V_LIMIT + 1e-12)
+    criteria = series.status.switch_criterion
+    switches = np.flatnonzero(np.diff(criteria) != 0)
+    assert len(switches) == 1 and criteria[-1] != SwitchCriterion.NONE
+    # exactly one controller commands each tick, and it is the one the supervisor named
+    assert len(np.unique(series.command.t_s)) == len(series.command.t_s)
+
+
+@pytest.mark.parametrize('index', range(len(PAPER_OBJECTS)))
+def test_bag_holds_every_published_message_and_decodes(paper_runs, index):
+    run = paper_runs[index]
+    bag = read_bag(run.bag_dir)
+    assert not bag.truncated
+    assert set(bag.counts()) == set(GRAPH_TOPICS)
+    assert bag.counts() == run.published
+    assert all(n > 0 for n in run.published.values())
+    for topic in GRAPH_TOPICS:
+        first = next(iter(bag.iter_decoded(topic)))
+        assert first is not None
+
+
+def test_same_request_twice_gives_identical_series(graph, tmp_path):
+    runs = [graph.recorded_grasp(tmp_path / f'run_{k}', 0.05, 1.69) for k in range(2)]
+    a, b = (load_grasp_series(r.bag_dir) for r in runs)
+    # simulated time runs on across grasps: compare tick times relative to each grasp's start
+    t_a = np.round((a.joint.t_s - a.joint.t_s[0]) * 1e9).astype(np.int64)
+    t_b = np.round((b.joint.t_s - b.joint.t_s[0]) * 1e9).astype(np.int64)
+    assert np.array_equal(t_a, t_b)
+    assert np.array_equal(a.joint.position_m, b.joint.position_m)
+    assert np.array_equal(a.sensor.force_n, b.sensor.force_n)
+    assert np.array_equal(a.command.voltage_v, b.command.voltage_v)
+
+
+BAD_REQUESTS = [
+    dict(width_m=math.nan, mass_kg=1.0),
+    dict(width_m=math.inf, mass_kg=1.0),
+    dict(width_m=0.05, mass_kg=-math.inf),
+    dict(width_m=0.0, mass_kg=1.0),
+    dict(width_m=-0.01, mass_kg=1.0),
+    dict(width_m=L_LS, mass_kg=1.0),
+    dict(width_m=0.05, mass_kg=0.0),
+    dict(width_m=0.05, mass_kg=-1.0),
+    dict(width_m=0.05, mass_kg=1.0, friction_coefficient=-0.5),
+    dict(width_m=0.05, mass_kg=1.0, timeout_s=math.nan),
+    dict(width_m=0.05, mass_kg=50.0),   # 0.5*50*9.81 = 245 N > 33.4 N at 24 V
+]
+
+
+@pytest.mark.parametrize('request_fields', BAD_REQUESTS)
+def test_bad_request_is_refused_with_a_message_and_nothing_moves(graph, request_fields):
+    before = graph.plant.ticks_published
+    r = graph.grasp(**request_fields)
+    assert not r.success
+    assert r.outcome == Outcome.REFUSED
+    assert r.message.startswith('refused: ') and len(r.message) > len('refused: ')
+    assert graph.plant.ticks_published == before
+
+
+def test_force_beyond_the_motor_names_the_numbers(graph):
+    r = graph.grasp(0.05, 50.0)
+    assert '245.25 N' in r.message and '33.39 N' in r.message
+
+
+def test_request_while_grasping_is_refused_and_next_one_succeeds(graph):
+    graph.set_object(0.05)
+    first = graph._grasp.call_async(Grasp.Request(width_m=0.05, mass_kg=1.69))
+    busy = None
+    for _ in range(200):
+        if graph.supervisor.logic.busy:
+            busy = graph.grasp(0.05, 1.69)
+            break
+        time.sleep(0.005)
+    assert busy is not None, 'the first grasp never started'
+    assert busy.outcome == Outcome.REFUSED and 'already running' in busy.message
+    deadline = time.monotonic() + 120
+    while not first.done() and time.monotonic() < deadline:
+        time.sleep(0.01)
+    assert first.result().success
+    graph.set_object(0.10)
+    assert graph.grasp(0.10, 0.75).success
