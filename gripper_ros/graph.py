@@ -11,6 +11,8 @@ import math
 import threading
 import time
 from dataclasses import dataclass
+from datetime import datetime
+from pathlib import Path
 
 import rclpy
 from gripper_interfaces.srv import Grasp, SetObject
@@ -80,7 +82,7 @@ class GripperGraph:
         self._thread = threading.Thread(target=spin_until_stopped, args=(self.executor, self._stop),
                                         name='gripper_graph_executor', daemon=True)
         self._thread.start()
-        self._tap = _RecorderTap(self.client_node)
+        self._tap = _RecorderTap(self.client_node, lambda: self.plant.plant.t_ns)
         self._set_object = self.client_node.create_client(SetObject, SERVICE_SET_OBJECT)
         self._grasp = self.client_node.create_client(Grasp, SERVICE_GRASP)
         for client in (self._set_object, self._grasp):
@@ -117,6 +119,10 @@ class GripperGraph:
             friction_coefficient=float(friction_coefficient),
             acceleration_mps2=float(acceleration_mps2), timeout_s=float(timeout_s)),
             wall_timeout_s)
+
+    def record_every_grasp(self, output_dir) -> None:
+        """Serve mode: record one bag per grasp, whoever requested it."""
+        self._tap.record_every_grasp(output_dir)
 
     def published_counts(self) -> dict:
         """Messages published so far on every graph topic (from the nodes' own counters)."""
@@ -187,6 +193,9 @@ class GripperGraph:
         if not self._stop.done():
             self._stop.set_result(True)
         self._thread.join(timeout=10.0)
+        sink, self._tap.sink = self._tap.sink, None
+        if sink is not None:  # interrupted mid-grasp: the bag still gets its summary
+            sink.close()
         self.executor.shutdown(timeout_sec=2.0)
         self.supervisor.grasp_service.destroy()
         for node in self.nodes:
@@ -210,21 +219,57 @@ class _RecorderTap:
     DDS: the first force-controller command of every grasp after the first).
     """
 
-    def __init__(self, node):
+    def __init__(self, node, time_source):
         from .bag_io import import_message_class
         from .ros_common import GRAPH_QOS
         self.sink = None
+        self._node = node
+        self._time_source = time_source
+        self._auto_dir = None           # serve mode: one bag per grasp under this folder
+        self.auto_bags: list = []
         self.received = {topic: 0 for topic in GRAPH_TOPICS}
         for topic, msgtype in GRAPH_TOPICS.items():
             node.create_subscription(import_message_class(msgtype), topic,
                                      functools.partial(self._on_message, topic), GRAPH_QOS,
                                      raw=True)
 
+    def record_every_grasp(self, output_dir) -> None:
+        """Open a bag when a grasp starts and close it when it ends (for grasps requested by
+        other processes, which the demo cannot wrap in recorded_grasp())."""
+        self._auto_dir = output_dir
+
     def _on_message(self, topic: str, data: bytes) -> None:
         self.received[topic] += 1
+        if self._auto_dir is not None and topic == TOPIC_STATUS:
+            self._auto_record(data)
+            return
         sink = self.sink
         if sink is not None:
             sink.write(topic, data)
+
+    def _auto_record(self, data: bytes) -> None:
+        from gripper_interfaces.msg import SupervisorStatus
+        from rclpy.serialization import deserialize_message
+
+        from .bag_recorder import BagRecorder
+        status = deserialize_message(data, SupervisorStatus)
+        if self.sink is None and status.phase == SupervisorStatus.PHASE_POSITION:
+            stamp = datetime.now().strftime('%Y%m%d_%H%M%S')
+            bag_dir = Path(self._auto_dir) / f'grasp_{stamp}_id{status.grasp_id}'
+            self.sink = BagRecorder(self._node, bag_dir, GRAPH_TOPICS, subscribe=False,
+                                    time_source=self._time_source, custom_data={
+                                        'request': {'position_setpoint_m':
+                                                    status.position_setpoint_m,
+                                                    'force_setpoint_n': status.force_setpoint_n}})
+            self.auto_bags.append(bag_dir)
+        sink = self.sink
+        if sink is None:
+            return
+        sink.write(TOPIC_STATUS, data)
+        if status.outcome != 0:
+            sink.set_custom_data({'outcome_code': int(status.outcome)})
+            sink.close()
+            self.sink = None
 
     def wait_quiet(self, quiet_s: float = 0.05, timeout_s: float = 5.0) -> None:
         """Return once nothing has arrived for ``quiet_s``: what was published before a recording

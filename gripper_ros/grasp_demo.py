@@ -88,7 +88,9 @@ def main(argv: list[str] | None = None) -> int:
             force_controller=args.force_controller,
             approach_force_margin=args.approach_force_margin))
         if args.serve:
-            return _serve(graph)
+            if not args.no_record:
+                graph.record_every_grasp(args.output)
+            return _serve(graph, args)
         records = [_grasp_one(graph, args, w, m, i, len(objects))
                    for i, (w, m) in enumerate(objects, 1)]
         _summarise(graph, records, args)
@@ -106,9 +108,10 @@ def main(argv: list[str] | None = None) -> int:
         rclpy.try_shutdown()
 
 
-def _serve(graph) -> int:
-    print('grasp_demo: serving /gripper/grasp and /gripper/sim/set_object; Ctrl-C to stop',
-          flush=True)
+def _serve(graph, args) -> int:
+    where = 'not recording' if args.no_record else f'one bag per grasp in {args.output}/'
+    print(f'grasp_demo: serving /gripper/grasp and /gripper/sim/set_object ({where}); '
+          'Ctrl-C to stop', flush=True)
     while True:
         time.sleep(1.0)
 

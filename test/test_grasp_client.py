@@ -1,0 +1,86 @@
+"""grasp_demo --serve answers grasp_client from another process (real DDS between processes)."""
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import pytest
+
+
+def _run_client(*args, timeout=120):
+    return subprocess.run([sys.executable, '-m', 'gripper_ros.grasp_client', *args],
+                          capture_output=True, text=True, timeout=timeout, env=os.environ.copy())
+
+
+@pytest.fixture(scope='module')
+def server():
+    proc = subprocess.Popen([sys.executable, '-m', 'gripper_ros.grasp_demo', '--serve'],
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                            env=os.environ.copy())
+    deadline = time.monotonic() + 60
+    for line in proc.stdout:
+        if 'serving /gripper/grasp' in line or time.monotonic() > deadline:
+            break
+    yield proc
+    if proc.poll() is None:
+        proc.send_signal(signal.SIGINT)
+        try:
+            proc.wait(timeout=20)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+
+
+def test_client_grasp_from_another_process_is_held(server):
+    result = _run_client('--width', '0.05', '--mass', '1.69')
+    assert result.returncode == 0, result.stdout + result.stderr
+    assert 'outcome: HOLDING' in result.stdout
+    assert 'final_width_m: 0.050000' in result.stdout
+
+
+def test_client_bad_request_is_refused_and_server_keeps_serving(server):
+    bad = _run_client('--width', 'nan', '--mass', '1.0', '--no-place')
+    assert bad.returncode == 1
+    assert 'outcome: REFUSED' in bad.stdout and 'width_m must be a finite number' in bad.stdout
+    good = _run_client('--width', '0.1', '--mass', '0.75')
+    assert good.returncode == 0 and 'outcome: HOLDING' in good.stdout
+
+
+def test_server_stops_cleanly_on_sigint(server):
+    server.send_signal(signal.SIGINT)
+    assert server.wait(timeout=20) in (0, 130)
+
+
+def test_client_without_server_says_so():
+    env = dict(os.environ, ROS_DOMAIN_ID=str((int(os.environ.get('ROS_DOMAIN_ID', '0')) + 1)
+                                             % 100 + 101))
+    result = subprocess.run([sys.executable, '-m', 'gripper_ros.grasp_client', '--width', '0.05',
+                             '--mass', '1', '--wait', '1'], capture_output=True, text=True,
+                            timeout=60, env=env)
+    assert result.returncode == 2
+    assert 'not available' in result.stderr
+
+
+def test_serve_mode_records_one_complete_bag_per_grasp(tmp_path):
+    from gripper_ros.bag_io import load_grasp_series, read_bag
+    proc = subprocess.Popen([sys.executable, '-m', 'gripper_ros.grasp_demo', '--serve',
+                             '--output', str(tmp_path)], stdout=subprocess.PIPE,
+                            stderr=subprocess.STDOUT, text=True, env=os.environ.copy())
+    try:
+        for line in proc.stdout:
+            if 'serving /gripper/grasp' in line:
+                break
+        assert _run_client('--width', '0.1', '--mass', '0.75').returncode == 0
+        assert _run_client('--width', '0.05', '--mass', '1.69').returncode == 0
+    finally:
+        proc.send_signal(signal.SIGINT)
+        proc.wait(timeout=20)
+    bags = sorted(tmp_path.glob('grasp_*'))
+    assert len(bags) == 2
+    for bag_dir in bags:
+        bag = read_bag(bag_dir)
+        assert not bag.truncated and (bag_dir / 'metadata.yaml').is_file()
+        series = load_grasp_series(bag)
+        assert series.status.outcome[-1] == 1      # HOLDING
+        counts = bag.counts()
+        assert counts['/gripper/joint_states'] == counts['/gripper/motor_command']
