@@ -22,7 +22,8 @@ from .config import ConfigError
 from .grasp_logic import (Decision, GraspRequest, GraspSupervisor, Outcome, RequestError,
                           validate_request)
 from .ros_common import (GRAPH_QOS, SERVICE_GRASP, TOPIC_FORCE_SENSOR, TOPIC_JOINT_STATES,
-                         TOPIC_MOTOR_STATE, TOPIC_STATUS, DeferredService, declare_config,
+                         TOPIC_MOTOR_COMMAND, TOPIC_MOTOR_STATE, TOPIC_STATUS,
+                         DeferredService, declare_config,
                          ns_to_time, time_to_ns)
 
 
@@ -118,6 +119,9 @@ class SupervisorNode(Node):
                 self.config.plant, self.config.supervisor)
         except RequestError as exc:
             return f'refused: {exc}'
+        missing = self._missing_peers()
+        if missing:
+            return f'refused: graph not ready, not yet discovered: {missing}'
         t_ns = self._latest_tick()
         if t_ns is None:
             return 'refused: no measurement from plant_simulator yet'
@@ -133,6 +137,16 @@ class SupervisorNode(Node):
         self._last_decided_ns = t_ns
         self._publish(t_ns, decision)
         return ''
+
+    def _missing_peers(self) -> str:
+        """Lockstep cannot recover a lost tick: start only when every peer is discovered."""
+        missing = []
+        if self.count_subscribers(TOPIC_STATUS) < 3:          # plant + both controllers
+            missing.append(f'{TOPIC_STATUS} subscribers (plant_simulator, position_controller, '
+                           'force_controller)')
+        if self.count_publishers(TOPIC_MOTOR_COMMAND) < 2:
+            missing.append(f'{TOPIC_MOTOR_COMMAND} publishers (both controllers)')
+        return '; '.join(missing)
 
     def _complete(self, decision: Decision) -> None:
         """The grasp has ended: answer the waiting request with its outcome."""

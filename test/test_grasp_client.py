@@ -84,3 +84,52 @@ def test_serve_mode_records_one_complete_bag_per_grasp(tmp_path):
         assert series.status.outcome[-1] == 1      # HOLDING
         counts = bag.counts()
         assert counts['/gripper/joint_states'] == counts['/gripper/motor_command']
+
+
+def test_nodes_as_four_separate_processes_grasp_together():
+    """Each node runnable alone: four processes, lockstep over DDS, a grasp from a fifth."""
+    nodes = ['plant_simulator_node', 'position_controller_node', 'force_controller_node',
+             'supervisor_node']
+    procs = []
+    try:
+        for i, module in enumerate(nodes):
+            extra = [] if i == 0 else ['--ros-args', '-p', 'use_sim_time:=true']
+            procs.append(subprocess.Popen([sys.executable, '-m', f'gripper_ros.{module}', *extra],
+                                          stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                                          env=os.environ.copy()))
+        deadline = time.monotonic() + 60
+        while True:   # the supervisor refuses until it has discovered every peer
+            result = _run_client('--width', '0.1', '--mass', '0.75', '--wait', '30')
+            if 'graph not ready' not in result.stdout or time.monotonic() > deadline:
+                break
+            time.sleep(0.5)
+        assert result.returncode == 0, result.stdout + result.stderr
+        assert 'outcome: HOLDING' in result.stdout
+    finally:
+        for p in procs:
+            p.send_signal(signal.SIGINT)
+        for p in procs:
+            try:
+                assert p.wait(timeout=20) == 0
+            except subprocess.TimeoutExpired:
+                p.kill()
+                raise
+
+
+def test_ctrl_c_during_a_recorded_grasp_leaves_a_complete_bag(tmp_path):
+    from gripper_ros.bag_io import read_bag
+    proc = subprocess.Popen([sys.executable, '-m', 'gripper_ros.grasp_demo', '--output',
+                             str(tmp_path), '--no-plot'], stdout=subprocess.PIPE,
+                            stderr=subprocess.STDOUT, text=True, env=os.environ.copy())
+    for line in proc.stdout:
+        if 'grasping width' in line:
+            break
+    time.sleep(1.0)          # well inside the first grasp (several seconds of wall time)
+    proc.send_signal(signal.SIGINT)
+    out, _ = proc.communicate(timeout=30)
+    assert proc.returncode == 130, out
+    bags = sorted(tmp_path.glob('grasp_*'))
+    assert len(bags) == 1
+    assert (bags[0] / 'metadata.yaml').is_file()
+    bag = read_bag(bags[0])
+    assert not bag.truncated and bag.message_count > 0
