@@ -118,6 +118,7 @@ class SupervisorParams:
     force_settle_band_fraction: float
     force_settle_hold_s: float
     timeout_s: float
+    no_object_margin_m: float
 
 
 @dataclass(frozen=True)

@@ -191,6 +191,12 @@ class GraspSupervisor:
         sensor_rise = sensor_voltage_v - self._baseline_voltage_v > p.sensor_voltage_threshold_v
         if sensor_rise and self.contact_ns is None:
             self.contact_ns = t_ns
+        if self.contact_ns is None and position_m > tg.position_setpoint_m + p.no_object_margin_m:
+            self._finish(Phase.FAILED, Outcome.NO_OBJECT,
+                         f'no object: the finger passed the expected face '
+                         f'({tg.position_setpoint_m:.4f} m) by '
+                         f'{(position_m - tg.position_setpoint_m) * 1e3:.2f} mm without contact')
+            return self._decision()
         if self.phase is Phase.POSITION:
             tol = p.position_tolerance_fraction * tg.position_setpoint_m
             if abs(position_m - tg.position_setpoint_m) <= tol:

@@ -16,6 +16,7 @@ TOPIC_MOTOR_STATE = '/gripper/motor_state'
 TOPIC_STATUS = '/gripper/supervisor/status'
 TOPIC_MOTOR_COMMAND = '/gripper/motor_command'
 SERVICE_GRASP = '/gripper/grasp'
+SERVICE_STOP = '/gripper/stop'
 SERVICE_SET_OBJECT = '/gripper/sim/set_object'
 FINGER_JOINT = 'finger_joint'
 

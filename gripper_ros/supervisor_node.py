@@ -14,6 +14,7 @@ import sys
 import rclpy
 from gripper_interfaces.msg import ForceSensor, MotorState, SupervisorStatus
 from gripper_interfaces.srv import Grasp
+from std_srvs.srv import Trigger
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from sensor_msgs.msg import JointState
@@ -21,7 +22,7 @@ from sensor_msgs.msg import JointState
 from .config import ConfigError
 from .grasp_logic import (Decision, GraspRequest, GraspSupervisor, Outcome, RequestError,
                           validate_request)
-from .ros_common import (GRAPH_QOS, SERVICE_GRASP, TOPIC_FORCE_SENSOR, TOPIC_JOINT_STATES,
+from .ros_common import (GRAPH_QOS, SERVICE_GRASP, SERVICE_STOP, TOPIC_FORCE_SENSOR, TOPIC_JOINT_STATES,
                          TOPIC_MOTOR_COMMAND, TOPIC_MOTOR_STATE, TOPIC_STATUS,
                          DeferredService, declare_config,
                          ns_to_time, time_to_ns)
@@ -45,6 +46,7 @@ class SupervisorNode(Node):
         self.create_subscription(ForceSensor, TOPIC_FORCE_SENSOR, self._on_force, GRAPH_QOS)
         self.create_subscription(MotorState, TOPIC_MOTOR_STATE, self._on_motor, GRAPH_QOS)
         self.grasp_service = DeferredService(self, Grasp, SERVICE_GRASP, self._on_grasp)
+        self.create_service(Trigger, SERVICE_STOP, self._on_stop)
 
     # ------------------------------------------------------------------ measurements
     def _on_joint(self, msg: JointState) -> None:
@@ -166,6 +168,17 @@ class SupervisorNode(Node):
         if self.logic.switch_ns is not None:
             response.switch_time_s = (self.logic.switch_ns - self.logic.start_ns) * 1e-9
         self.grasp_service.reply(header, response)
+
+    def _on_stop(self, request: Trigger.Request, response: Trigger.Response):
+        """Stop the running grasp now: no controller drives the motor from this tick on."""
+        if not self.logic.busy:
+            response.success = False
+            response.message = 'no grasp is running'
+            return response
+        self.stop_grasp('stopped on request (/gripper/stop)')
+        response.success = True
+        response.message = f'grasp {self._grasp_id} stopped'
+        return response
 
     def stop_grasp(self, message: str = 'stopped on request') -> None:
         """End the running grasp (STOPPED); the plant stops advancing."""

@@ -138,3 +138,39 @@ def test_request_while_grasping_is_refused_and_next_one_succeeds(graph):
     assert first.result().success
     graph.set_object(0.10)
     assert graph.grasp(0.10, 0.75).success
+
+
+def test_no_object_between_the_fingers_ends_in_no_object(graph):
+    graph.set_object(0.0)                        # nothing there: the fingers would meet
+    r = graph.grasp(0.05, 1.69)
+    assert not r.success and r.outcome == Outcome.NO_OBJECT, r.message
+    assert 'without contact' in r.message
+    margin = CONFIG.supervisor.no_object_margin_m
+    assert (L_LS - 0.05) + margin < r.final_position_m < L_LS
+    graph.set_object(0.05)
+    assert graph.grasp(0.05, 1.69).success
+
+
+def test_stop_ends_the_running_grasp_and_the_next_one_succeeds(graph):
+    from std_srvs.srv import Trigger
+    stop = graph.client_node.create_client(Trigger, '/gripper/stop')
+    assert stop.wait_for_service(timeout_sec=5)
+    assert not graph.call(stop, Trigger.Request(), 5).success     # nothing to stop
+    graph.set_object(0.01)
+    pending = graph._grasp.call_async(Grasp.Request(width_m=0.01, mass_kg=1.27))
+    deadline = time.monotonic() + 30
+    while not graph.supervisor.logic.busy and time.monotonic() < deadline:
+        time.sleep(0.002)
+    ticks = graph.plant.ticks_published
+    while graph.plant.ticks_published < ticks + 20 and time.monotonic() < deadline:
+        time.sleep(0.002)
+    assert graph.call(stop, Trigger.Request(), 5).success
+    while not pending.done() and time.monotonic() < deadline:
+        time.sleep(0.005)
+    r = pending.result()
+    assert r.outcome == Outcome.STOPPED and not r.success
+    frozen = graph.plant.ticks_published
+    time.sleep(0.2)
+    assert graph.plant.ticks_published == frozen          # nobody drives the plant any more
+    graph.set_object(0.01)
+    assert graph.grasp(0.01, 1.27).success
