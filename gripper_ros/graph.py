@@ -23,7 +23,7 @@ from rclpy.task import Future
 from .force_controller_node import ForceControllerNode
 from .plant_simulator_node import PlantSimulatorNode
 from .position_controller_node import PositionControllerNode
-from .ros_common import (GRAPH_TOPICS, SERVICE_GRASP, SERVICE_SET_OBJECT, TOPIC_CLOCK,
+from .ros_common import (GRAPH_TOPICS, SERVICE_GRASP, SERVICE_QOS, SERVICE_SET_OBJECT, TOPIC_CLOCK,
                          TOPIC_FORCE_SENSOR, TOPIC_JOINT_STATES, TOPIC_MOTOR_COMMAND,
                          TOPIC_MOTOR_STATE, TOPIC_STATUS, ExecutorKind, make_executor,
                          spin_until_stopped)
@@ -84,7 +84,8 @@ class GripperGraph:
         self._thread.start()
         self._tap = _RecorderTap(self.client_node, lambda: self.plant.plant.t_ns)
         self._set_object = self.client_node.create_client(SetObject, SERVICE_SET_OBJECT)
-        self._grasp = self.client_node.create_client(Grasp, SERVICE_GRASP)
+        self._grasp = self.client_node.create_client(Grasp, SERVICE_GRASP,
+                                                     qos_profile=SERVICE_QOS)
         for client in (self._set_object, self._grasp):
             if not client.wait_for_service(timeout_sec=10.0):
                 self.close()

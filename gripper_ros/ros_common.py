@@ -27,6 +27,12 @@ GRAPH_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=GRAPH_QOS_DEPTH,
                        reliability=ReliabilityPolicy.RELIABLE,
                        durability=DurabilityPolicy.VOLATILE)
 
+# Services: rclpy's default keeps only 10 requests (and 10 responses at a client); a burst of
+# grasp requests from many clients must be answered (refused as busy), not dropped.
+SERVICE_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=GRAPH_QOS_DEPTH,
+                         reliability=ReliabilityPolicy.RELIABLE,
+                         durability=DurabilityPolicy.VOLATILE)
+
 # Every topic the graph publishes, with its type: what the recorder records.
 GRAPH_TOPICS = {
     TOPIC_CLOCK: 'rosgraph_msgs/msg/Clock',
@@ -94,7 +100,8 @@ class DeferredService:
         self._server_node = Node(f'{node.get_name()}_service_server',
                                  namespace=node.get_namespace(), context=node.context,
                                  start_parameter_services=False)
-        self._service = self._server_node.create_service(srv_type, name, self._not_spun)
+        self._service = self._server_node.create_service(srv_type, name, self._not_spun,
+                                                         qos_profile=SERVICE_QOS)
         self._on_request = on_request
         self._timer = node.create_timer(poll_period_s, self._poll,
                                         clock=Clock(clock_type=ClockType.STEADY_TIME))

@@ -1,0 +1,89 @@
+"""Bad input and load on the live graph: fuzzed requests, many clients at once.
+
+Real DDS, real service calls, one EventsExecutor (as in grasp_demo).
+"""
+import math
+import threading
+
+import pytest
+import rclpy
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+from rclpy.context import Context
+
+from gripper_ros.config import load_config
+from gripper_ros.grasp_logic import GraspRequest, Outcome, RequestError, validate_request
+from gripper_ros.graph import GraphOptions, GripperGraph
+
+CONFIG = load_config()
+
+
+@pytest.fixture(scope='module')
+def graph():
+    context = Context()
+    rclpy.init(context=context)
+    g = GripperGraph(GraphOptions(), context=context)
+    g.set_object(0.05)
+    yield g
+    g.close()
+    rclpy.try_shutdown(context=context)
+
+
+any_float = st.one_of(
+    st.floats(allow_nan=True, allow_infinity=True),
+    st.sampled_from([0.0, -0.0, 5e-324, -5e-324, 2.2250738585072014e-308, 1e308, -1e308,
+                     0.15, 0.15000000000000002, 1e-12]),
+    st.floats(min_value=-1.0, max_value=1.0))
+
+
+def _is_valid(fields):
+    try:
+        validate_request(GraspRequest(**fields), CONFIG.plant, CONFIG.supervisor)
+        return True
+    except RequestError:
+        return False
+
+
+@settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow,
+                                                                   HealthCheck.function_scoped_fixture])
+@given(width=any_float, mass=any_float, friction=any_float, accel=any_float, timeout=any_float)
+def test_fuzzed_requests_get_a_well_formed_refusal(graph, width, mass, friction, accel, timeout):
+    fields = dict(width_m=width, mass_kg=mass, friction_coefficient=friction,
+                  acceleration_mps2=accel, timeout_s=timeout)
+    if _is_valid(fields):
+        return    # a valid request would run a whole grasp; valid grasps are tested elsewhere
+    ticks = graph.plant.ticks_published
+    r = graph.grasp(width, mass, friction, accel, timeout, wall_timeout_s=30)
+    assert r.success is False and r.outcome == Outcome.REFUSED
+    assert r.message.startswith('refused: ') and len(r.message) > 12
+    for value in (r.final_position_m, r.final_force_n, r.position_setpoint_m,
+                  r.force_setpoint_n, r.switch_time_s):
+        assert math.isfinite(value)
+    assert graph.plant.ticks_published == ticks       # nothing moved
+
+
+def test_valid_request_after_fuzzing_succeeds(graph):
+    graph.set_object(0.05)
+    assert graph.grasp(0.05, 1.69).success
+
+
+def test_twenty_clients_at_once_exactly_one_grasp_runs(graph):
+    graph.set_object(0.10)
+    results = [None] * 20
+    barrier = threading.Barrier(len(results))
+
+    def client(i):
+        barrier.wait()
+        results[i] = graph.grasp(0.10, 0.75, wall_timeout_s=120)
+
+    threads = [threading.Thread(target=client, args=(i,)) for i in range(len(results))]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join(timeout=180)
+    assert all(r is not None for r in results)
+    held = [r for r in results if r.outcome == Outcome.HOLDING]
+    busy = [r for r in results if r.outcome == Outcome.REFUSED]
+    assert len(held) == 1 and len(busy) == len(results) - 1
+    assert all('already running' in r.message for r in busy)
+    assert graph.supervisor._grasp_id == held[0].grasp_id
