@@ -37,7 +37,8 @@ def format_time(t_ns: int) -> str:
 
 
 def _line(label: str, value: str) -> str:
-    return f'{label + ":" if label else "":<{_LABEL_WIDTH}}{value}'
+    head = f'{label}:' if label else ''
+    return f'{head:<{_LABEL_WIDTH - 1}} {value}'
 
 
 def _format_value(value: Any) -> str:

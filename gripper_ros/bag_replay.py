@@ -195,15 +195,18 @@ def resolve_classes(bag: Bag, topics: set[str]) -> dict[str, type]:
     return {topic: import_message_class(bag.topics[topic].msgtype) for topic in sorted(topics)}
 
 
-def resimulate(bag: Bag, config_path: str) -> None:
-    """HOOK (re-simulation mode, ``--resimulate CONFIG.yaml``): feed the bag's recorded
-    measurements/requests through the controllers built from CONFIG and compare commands.
+def resimulate(bag: Bag | str, config_path: str | None = None, **kwargs):
+    """Re-simulation mode (``--resimulate [CONFIG.yaml]``): feed the bag's recorded measurements
+    through the controllers built from CONFIG (None/'' = the installed default), tick by tick as
+    the controller nodes answer them, and compare with the recorded commands (open loop: the
+    plant is not re-run). Returns a :class:`gripper_ros.resimulate.ResimulationReport`.
 
-    Not implemented yet: the lead fills this in with the controllers (gripper_ros.pid,
-    gripper_ros.dmc). It must raise BagError (one line) for unusable input.
+    Raises BagError (one line) for an unusable bag, ConfigError (one line) for an unusable
+    configuration. ``kwargs``: ``position_controller``, ``force_controller``,
+    ``approach_force_margin``, ``keep_ticks`` (see :func:`gripper_ros.resimulate.resimulate_bag`).
     """
-    raise NotImplementedError('re-simulation is not implemented yet '
-                              '(hook: gripper_ros.bag_replay.resimulate)')
+    from gripper_ros.resimulate import resimulate_bag
+    return resimulate_bag(bag, config_path, **kwargs)
 
 
 # --- CLI --------------------------------------------------------------------------------------
@@ -227,8 +230,22 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument('--wait-for-subscribers', type=int, default=0, metavar='N',
                         help='first wait until every topic has N subscribers (max 5 s)')
     parser.add_argument('-q', '--quiet', action='store_true', help='no progress line')
-    parser.add_argument('--resimulate', metavar='CONFIG.yaml',
-                        help='re-simulation mode (hook, not implemented yet)')
+    resim = parser.add_argument_group(
+        're-simulation (open loop; nothing is published)',
+        'Feed the recorded measurements through the controllers of CONFIG.yaml tick by tick and '
+        'compare their commands with the recorded ones (the plant is not re-run).')
+    resim.add_argument('--resimulate', nargs='?', const='', default=None, metavar='CONFIG.yaml',
+                       help='re-simulate with this config (no value: the installed default)')
+    resim.add_argument('--position-controller', default=None,
+                       choices=['mpc_pd', 'pd', 'pid'],
+                       help='position controller kind (default: as recorded in the bag, '
+                            'else the node default mpc_pd)')
+    resim.add_argument('--force-controller', default=None, choices=['pi', 'mpc_pi'],
+                       help='force controller kind (default: as recorded, else pi)')
+    resim.add_argument('--approach-force-margin', type=float, default=None, metavar='M',
+                       help='force controller cap before contact (default: as recorded, '
+                            'else 1.0; 0 = off)')
+    resim.add_argument('--json', action='store_true', help='print the comparison as JSON')
     return parser
 
 
@@ -258,22 +275,52 @@ def options_from_args(args: argparse.Namespace) -> ReplayOptions:
                          progress=not args.quiet)
 
 
+def _run_resimulation(args: argparse.Namespace) -> int:
+    """Exit 0 when it ran (identical or not); 1 bad bag/options, 2 bad config, 3 truncated bag."""
+    from gripper_ros.config import ConfigError
+    from gripper_ros.resimulate import load_resim_config, to_json, to_table
+    try:
+        config = load_resim_config(args.resimulate)
+        bag = read_bag(args.bag)
+        # The recorder stores the graph's controller settings; explicit options override them.
+        recorded = bag.custom_data_parsed().get('controllers') or {}
+        if not isinstance(recorded, dict):
+            recorded = {}
+        position = args.position_controller or recorded.get('position_controller', 'mpc_pd')
+        force = args.force_controller or recorded.get('force_controller', 'pi')
+        margin = args.approach_force_margin
+        if margin is None:
+            margin = float(recorded.get('approach_force_margin', 1.0))
+        if not (math.isfinite(margin) and margin >= 0.0):
+            _fail('--approach-force-margin must be finite and >= 0')
+        report = resimulate(bag, config, position_controller=position, force_controller=force,
+                            approach_force_margin=margin)
+    except ConfigError as exc:
+        _fail(str(exc), code=2)
+    except BagError as exc:
+        _fail(str(exc))
+    print(to_json(report) if args.json else to_table(report))
+    if bag.truncated:
+        print(f'{PROG}: warning: {bag.truncation_note()}', file=sys.stderr)
+        sys.exit(EXIT_TRUNCATED)
+    return 0
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Exit 0; 1 on bad input (one line on stderr); 3 when the bag was truncated (what was
-    recovered is replayed)."""
+    recovered is replayed). ``--resimulate``: see :func:`_run_resimulation`."""
     args = build_parser().parse_args(argv)
+    if args.resimulate is not None:
+        return _run_resimulation(args)
+    if args.json:
+        _fail('--json only applies to --resimulate')
     try:
         options = options_from_args(args)
         bag = read_bag(args.bag)
-        if args.resimulate:
-            resimulate(bag, args.resimulate)
-            return 0
         messages = select_messages(bag, options)
         resolve_classes(bag, {m.topic for m in messages})
     except (BagError, ValueError, LookupError) as exc:
         _fail(str(exc))
-    except NotImplementedError as exc:
-        _fail(str(exc), code=2)
 
     import rclpy
     from rclpy.executors import ExternalShutdownException

@@ -4,19 +4,22 @@ A controller answers tick ``t_k`` once it holds both the supervisor's status for
 active and its own measurement for ``t_k``. It is (re)initialised, bumplessly, whenever it becomes
 active for a grasp. A non-finite measurement is never passed on: the controller holds 0 V and
 reports it.
+
+The bookkeeping and the control laws live in :mod:`gripper_ros.controller_logic` (no rclpy), so
+that ``bag_replay --resimulate`` runs exactly the code the nodes run.
 """
 from __future__ import annotations
-
-import math
 
 from gripper_interfaces.msg import MotorCommand, SupervisorStatus
 from rclpy.node import Node
 
+from .controller_logic import LockstepAnswerer
 from .ros_common import GRAPH_QOS, TOPIC_MOTOR_COMMAND, TOPIC_STATUS, time_to_ns
 
 
 class LockstepController(Node):
-    """Subclasses set ``source``, ``sample_time_s`` and implement ``activate``/``compute``."""
+    """Subclasses set ``source``, ``sample_time_s`` and implement ``activate``/``compute``
+    (the nodes delegate both to a stage of :mod:`gripper_ros.controller_logic`)."""
 
     source: int = MotorCommand.SOURCE_NONE
 
@@ -25,8 +28,7 @@ class LockstepController(Node):
         self._status: SupervisorStatus | None = None
         self._measurement_ns: int | None = None
         self._measurement: float = 0.0
-        self._answered: tuple[int, int] | None = None   # (grasp_id, stamp) last answered
-        self._active_grasp: int | None = None
+        self._lockstep = LockstepAnswerer(self)   # answers once per (grasp_id, stamp)
         self.sample_time_s = 0.0
         self.commands_published = 0
         self._pub = self.create_publisher(MotorCommand, TOPIC_MOTOR_COMMAND, GRAPH_QOS)
@@ -45,8 +47,7 @@ class LockstepController(Node):
     # lockstep ------------------------------------------------------------------
     def _on_status(self, msg: SupervisorStatus) -> None:
         self._status = msg
-        if msg.active_controller != self.source:
-            self._active_grasp = None
+        self._lockstep.on_status(msg)
         self._try_answer()
 
     def on_measurement(self, stamp_ns: int, value: float) -> None:
@@ -61,20 +62,13 @@ class LockstepController(Node):
         stamp_ns = time_to_ns(status.header.stamp)
         if self._measurement_ns != stamp_ns:
             return
-        key = (status.grasp_id, stamp_ns)
-        if key == self._answered:
+        answer = self._lockstep.answer(status, stamp_ns, self._measurement)
+        if answer is None:
             return
-        self._answered = key
-        value = self._measurement
-        if not math.isfinite(value):
-            self.get_logger().error(f'non-finite measurement {value!r} at t={stamp_ns}: '
-                                    'holding 0 V', throttle_duration_sec=1.0)
-            voltage, inner = 0.0, 0.0
-        else:
-            if self._active_grasp != status.grasp_id:
-                self.activate(status, value)
-                self._active_grasp = status.grasp_id
-            voltage, inner = self.compute(status, value)
+        if not answer.finite:
+            self.get_logger().error(f'non-finite measurement {self._measurement!r} at '
+                                    f't={stamp_ns}: holding 0 V', throttle_duration_sec=1.0)
+        voltage, inner = answer.voltage_v, answer.inner_setpoint
         cmd = self._command
         cmd.header.stamp = status.header.stamp
         cmd.grasp_id = status.grasp_id

@@ -14,8 +14,9 @@ from rclpy.executors import ExternalShutdownException
 from sensor_msgs.msg import JointState
 
 from .config import ConfigError
+from .controller_logic import PositionStageController, parse_kind
 from .controller_node_base import LockstepController
-from .controllers import PositionControllerKind, make_position_controller
+from .controllers import PositionControllerKind
 from .ros_common import GRAPH_QOS, TOPIC_JOINT_STATES, declare_config, time_to_ns
 
 
@@ -28,13 +29,10 @@ class PositionControllerNode(LockstepController):
         kind = self.declare_parameter(
             'controller', PositionControllerKind.MPC_PD.value,
             ParameterDescriptor(description='mpc_pd | pd | pid', read_only=True)).value
-        try:
-            self.kind = PositionControllerKind(kind)
-        except ValueError:
-            raise ConfigError(f'parameter "controller" must be one of '
-                              f'{[k.value for k in PositionControllerKind]}, got {kind!r}') from None
-        self.controller = make_position_controller(self.config, self.kind)
-        self.sample_time_s = self.config.position.sample_time_s
+        self.kind = parse_kind(PositionControllerKind, kind)
+        self.stage = PositionStageController(self.config, self.kind)   # the control law
+        self.controller = self.stage.controller
+        self.sample_time_s = self.stage.sample_time_s
         self.create_subscription(JointState, TOPIC_JOINT_STATES, self._on_joint_state, GRAPH_QOS)
 
     def _on_joint_state(self, msg: JointState) -> None:
@@ -43,15 +41,10 @@ class PositionControllerNode(LockstepController):
 
     def activate(self, status: SupervisorStatus, measurement: float) -> None:
         """Start from rest at the measured position with the motor off."""
-        if self.kind is PositionControllerKind.MPC_PD:
-            self.controller.reset(measurement, 0.0)
-        else:
-            self.controller.reset(0.0, measurement=measurement)
+        self.stage.activate(status, measurement)
 
     def compute(self, status: SupervisorStatus, measurement: float) -> tuple[float, float]:
-        voltage = self.controller.step(status.position_setpoint_m, measurement)
-        inner = getattr(self.controller, 'last_inner_setpoint', status.position_setpoint_m)
-        return voltage, inner
+        return self.stage.compute(status, measurement)
 
 
 def main(args=None):

@@ -370,10 +370,11 @@ def test_replay_bad_options(grasp_bag, argv, capsys):
     assert len(captured.err.strip().splitlines()) == 1
 
 
-def test_replay_resimulate_hook_is_explicit(grasp_bag, tmp_path, capsys):
+def test_replay_resimulate_with_a_missing_config_is_a_clear_error(grasp_bag, tmp_path, capsys):
     code, captured = _run_cli(bag_replay.main, [str(grasp_bag), '--resimulate',
                                                 str(tmp_path / 'c.yaml')], capsys)
-    assert code == 2 and 'not implemented' in captured.err
+    assert code == 2 and 'cannot read config file' in captured.err
+    assert len(captured.err.strip().splitlines()) == 1
 
 
 @pytest.mark.parametrize('cli', ['bag_info', 'bag_analyze'])
