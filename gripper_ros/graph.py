@@ -121,6 +121,14 @@ class GripperGraph:
             acceleration_mps2=float(acceleration_mps2), timeout_s=float(timeout_s)),
             wall_timeout_s)
 
+    def controller_settings(self) -> dict:
+        """What a re-simulation of this graph's bags needs to rebuild the same controllers."""
+        o = self.options
+        return {'position_controller': o.position_controller,
+                'force_controller': o.force_controller,
+                'approach_force_margin': o.approach_force_margin,
+                'config_file': o.config_file}
+
     def record_every_grasp(self, output_dir) -> None:
         """Serve mode: record one bag per grasp, whoever requested it."""
         self._tap.record_every_grasp(output_dir)
@@ -156,7 +164,8 @@ class GripperGraph:
             time_source=lambda: self.plant.plant.t_ns,
             custom_data={'request': {'width_m': width_m, 'mass_kg': mass_kg,
                                      'friction_coefficient': friction_coefficient,
-                                     'stiffness_n_per_m': stiffness_n_per_m}})
+                                     'stiffness_n_per_m': stiffness_n_per_m},
+                         'controllers': self.controller_settings()})
         response = None
         before = self.published_counts()
         self._tap.sink = recorder
