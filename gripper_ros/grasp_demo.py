@@ -13,6 +13,7 @@ from __future__ import annotations
 import argparse
 import math
 import os
+import signal
 import sys
 import time
 from dataclasses import dataclass
@@ -80,6 +81,8 @@ def main(argv: list[str] | None = None) -> int:
     from .ros_common import ExecutorKind
 
     rclpy.init(args=None if argv is None else [])
+    # SIGTERM (e.g. from a process manager) ends the demo like Ctrl-C: bags are closed.
+    previous_sigterm = signal.signal(signal.SIGTERM, _raise_keyboard_interrupt)
     graph = None
     try:
         graph = GripperGraph(GraphOptions(
@@ -106,6 +109,11 @@ def main(argv: list[str] | None = None) -> int:
         if graph is not None:
             graph.close()
         rclpy.try_shutdown()
+        signal.signal(signal.SIGTERM, previous_sigterm)
+
+
+def _raise_keyboard_interrupt(signum, frame):
+    raise KeyboardInterrupt
 
 
 def _serve(graph, args) -> int:

@@ -90,12 +90,12 @@ class DeferredService:
 
     rclpy (Jazzy) sends a service callback's return value at once, and its EventsExecutor cannot
     await an ``async`` callback. A grasp takes many lockstep ticks, so the request is taken from
-    the service handle by a steady-clock timer on ``node`` (the server itself lives on a private,
+    the service handle by a 10 ms steady-clock timer on ``node`` (the server itself lives on a private,
     never-spun node) and answered with :meth:`reply` when the grasp ends. Requests queue in DDS
     meanwhile; each is handled in arrival order.
     """
 
-    def __init__(self, node: Node, srv_type, name: str, on_request, poll_period_s: float = 0.002):
+    def __init__(self, node: Node, srv_type, name: str, on_request, poll_period_s: float = 0.01):
         from rclpy.clock import Clock, ClockType
         self._server_node = Node(f'{node.get_name()}_service_server',
                                  namespace=node.get_namespace(), context=node.context,

@@ -10,11 +10,14 @@ from __future__ import annotations
 
 import math
 import sys
+import time
 
 import rclpy
 from gripper_interfaces.msg import ForceSensor, MotorState, SupervisorStatus
 from gripper_interfaces.srv import Grasp
 from std_srvs.srv import Trigger
+from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
+from rclpy.clock import Clock, ClockType
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from sensor_msgs.msg import JointState
@@ -46,6 +49,12 @@ class SupervisorNode(Node):
         self.create_subscription(ForceSensor, TOPIC_FORCE_SENSOR, self._on_force, GRAPH_QOS)
         self.create_subscription(MotorState, TOPIC_MOTOR_STATE, self._on_motor, GRAPH_QOS)
         self.grasp_service = DeferredService(self, Grasp, SERVICE_GRASP, self._on_grasp)
+        self.tick_timeout_s = self.declare_parameter(
+            'tick_timeout_s', 2.0, ParameterDescriptor(
+                description='wall seconds without a new tick during a grasp before FAULT',
+                floating_point_range=[FloatingPointRange(from_value=0.05, to_value=600.0)])).value
+        self._last_progress_wall = time.monotonic()
+        self.create_timer(0.1, self._watchdog, clock=Clock(clock_type=ClockType.STEADY_TIME))
         self.create_service(Trigger, SERVICE_STOP, self._on_stop)
 
     # ------------------------------------------------------------------ measurements
@@ -73,6 +82,7 @@ class SupervisorNode(Node):
         if t_ns is None or t_ns == self._last_decided_ns or not self.logic.busy:
             return
         self._last_decided_ns = t_ns
+        self._last_progress_wall = time.monotonic()
         position = self._joint.position[0] if self._joint.position else math.nan
         decision = self.logic.step(t_ns, position, self._force.force_n, self._force.voltage_v)
         self._publish(t_ns, decision)
@@ -137,8 +147,34 @@ class SupervisorNode(Node):
             f'{targets.force_setpoint_n:.3f} N')
         decision = self.logic.start(targets, t_ns, self._force.voltage_v)
         self._last_decided_ns = t_ns
+        self._last_progress_wall = time.monotonic()
         self._publish(t_ns, decision)
         return ''
+
+    def _watchdog(self) -> None:
+        """Lockstep stalls if a node dies: end the grasp as FAULT, naming who went silent."""
+        if not self.logic.busy:
+            return
+        silent_s = time.monotonic() - self._last_progress_wall
+        if silent_s < self.tick_timeout_s:
+            return
+        active = self._status_msg.active_controller
+        expected = {SupervisorStatus.CONTROLLER_POSITION: 'position_controller',
+                    SupervisorStatus.CONTROLLER_FORCE: 'force_controller'}.get(active, '?')
+        commanders = {i.node_name for i in self.get_publishers_info_by_topic(TOPIC_MOTOR_COMMAND)}
+        plants = {i.node_name for i in self.get_publishers_info_by_topic(TOPIC_JOINT_STATES)}
+        if expected not in commanders:
+            who = f'{expected} is gone (no publisher on {TOPIC_MOTOR_COMMAND})'
+        elif 'plant_simulator' not in plants:
+            who = 'plant_simulator is gone (no publisher on ' + TOPIC_JOINT_STATES + ')'
+        else:
+            who = f'{expected} did not answer or plant_simulator did not advance'
+        message = (f'fault: no new tick for {silent_s:.2f} s of wall time at '
+                   f't={(self._last_decided_ns or 0) * 1e-9:.4f} s: {who}')
+        self.get_logger().error(message)
+        decision = self.logic.fault(message)
+        self._publish(self._last_decided_ns or 0, decision)
+        self._complete(decision)
 
     def _missing_peers(self) -> str:
         """Lockstep cannot recover a lost tick: start only when every peer is discovered."""

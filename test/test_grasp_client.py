@@ -98,9 +98,10 @@ def test_nodes_as_four_separate_processes_grasp_together():
                                           stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
                                           env=os.environ.copy()))
         deadline = time.monotonic() + 60
-        while True:   # the supervisor refuses until it has discovered every peer
-            result = _run_client('--width', '0.1', '--mass', '0.75', '--wait', '30')
-            if 'graph not ready' not in result.stdout or time.monotonic() > deadline:
+        while True:   # the supervisor refuses until it has discovered every peer and heard
+            result = _run_client('--width', '0.1', '--mass', '0.75', '--wait', '30')  # the plant
+            starting = 'graph not ready' in result.stdout or 'no measurement' in result.stdout
+            if not starting or time.monotonic() > deadline:
                 break
             time.sleep(0.5)
         assert result.returncode == 0, result.stdout + result.stderr
@@ -116,7 +117,8 @@ def test_nodes_as_four_separate_processes_grasp_together():
                 raise
 
 
-def test_ctrl_c_during_a_recorded_grasp_leaves_a_complete_bag(tmp_path):
+@pytest.mark.parametrize('sig', [signal.SIGINT, signal.SIGTERM])
+def test_signal_during_a_recorded_grasp_leaves_a_complete_bag(tmp_path, sig):
     from gripper_ros.bag_io import read_bag
     proc = subprocess.Popen([sys.executable, '-m', 'gripper_ros.grasp_demo', '--output',
                              str(tmp_path), '--no-plot'], stdout=subprocess.PIPE,
@@ -125,7 +127,7 @@ def test_ctrl_c_during_a_recorded_grasp_leaves_a_complete_bag(tmp_path):
         if 'grasping width' in line:
             break
     time.sleep(1.0)          # well inside the first grasp (several seconds of wall time)
-    proc.send_signal(signal.SIGINT)
+    proc.send_signal(sig)
     out, _ = proc.communicate(timeout=30)
     assert proc.returncode == 130, out
     bags = sorted(tmp_path.glob('grasp_*'))

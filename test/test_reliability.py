@@ -7,6 +7,7 @@ import threading
 
 import pytest
 import rclpy
+from gripper_interfaces.srv import Grasp
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from rclpy.context import Context
@@ -87,3 +88,32 @@ def test_twenty_clients_at_once_exactly_one_grasp_runs(graph):
     assert len(held) == 1 and len(busy) == len(results) - 1
     assert all('already running' in r.message for r in busy)
     assert graph.supervisor._grasp_id == held[0].grasp_id
+
+
+def test_dead_force_controller_mid_grasp_ends_in_fault_naming_it(graph):
+    """Its own graph: a controller is destroyed at the switch; the lockstep must not hang."""
+    import time
+    graph.close()   # one graph at a time on this domain
+    context = Context()
+    rclpy.init(context=context)
+    g = GripperGraph(GraphOptions(), context=context)
+    try:
+        g.set_object(0.10)
+        pending = g._grasp.call_async(Grasp.Request(width_m=0.10, mass_kg=0.75))
+        deadline = time.monotonic() + 60
+        while g.supervisor.logic.phase.name != 'FORCE' and time.monotonic() < deadline:
+            time.sleep(0.001)
+        g.executor.remove_node(g.force)
+        g.force.destroy_node()
+        g.nodes.remove(g.force)
+        killed_at = time.monotonic()
+        while not pending.done() and time.monotonic() < deadline:
+            time.sleep(0.01)
+        detected_s = time.monotonic() - killed_at
+        r = pending.result()
+        assert r.outcome == Outcome.FAULT and not r.success
+        assert 'force_controller' in r.message
+        assert detected_s < g.supervisor.tick_timeout_s + 2.0
+    finally:
+        g.close()
+        rclpy.try_shutdown(context=context)
