@@ -95,6 +95,24 @@ class GripperGraph:
         self.nodes.append(node)
         self.executor.add_node(node)
 
+    def kill_node(self, node, timeout_s: float = 5.0) -> None:
+        """Take ``node`` out of the running graph as if its process died (fault tests, demos).
+
+        Removal and destruction run on the executor thread, between callbacks: destroying a node
+        from another thread while one of its callbacks runs makes rclpy raise ``InvalidHandle``
+        inside the executor and ends the whole graph.
+        """
+        def remove():
+            self.executor.remove_node(node)
+            node.destroy_node()
+        done = threading.Event()
+        task = self.executor.create_task(remove)
+        task.add_done_callback(lambda _t: done.set())
+        if not done.wait(timeout_s):
+            raise GraphError(f'node {node.get_name()} could not be removed within {timeout_s:g} s')
+        task.result()   # re-raise what removal raised, if anything
+        self.nodes.remove(node)
+
     def call(self, client, request, timeout_s: float):
         """A real service call from this process; waits in this (non-executor) thread."""
         done = threading.Event()

@@ -103,9 +103,7 @@ def test_dead_force_controller_mid_grasp_ends_in_fault_naming_it(graph):
         deadline = time.monotonic() + 60
         while g.supervisor.logic.phase.name != 'FORCE' and time.monotonic() < deadline:
             time.sleep(0.001)
-        g.executor.remove_node(g.force)
-        g.force.destroy_node()
-        g.nodes.remove(g.force)
+        g.kill_node(g.force)
         killed_at = time.monotonic()
         while not pending.done() and time.monotonic() < deadline:
             time.sleep(0.01)
