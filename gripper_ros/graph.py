@@ -98,19 +98,37 @@ class GripperGraph:
     def kill_node(self, node, timeout_s: float = 5.0) -> None:
         """Take ``node`` out of the running graph as if its process died (fault tests, demos).
 
-        Removal and destruction run on the executor thread, between callbacks: destroying a node
-        from another thread while one of its callbacks runs makes rclpy raise ``InvalidHandle``
-        inside the executor and ends the whole graph.
+        Removal and destruction run on the executor thread, in two steps: the EventsExecutor still
+        dispatches events queued for a node before its removal, so the node is destroyed only by
+        a second task, queued behind those events. Destroying a node from another thread, or
+        while events for it are queued, makes rclpy raise ``InvalidHandle`` inside the executor
+        and ends the whole graph.
         """
-        def remove():
-            self.executor.remove_node(node)
-            node.destroy_node()
         done = threading.Event()
-        task = self.executor.create_task(remove)
-        task.add_done_callback(lambda _t: done.set())
+        failure: list[BaseException] = []
+
+        def destroy():
+            try:
+                node.destroy_node()
+            except BaseException as exc:  # reported to the caller below
+                failure.append(exc)
+            done.set()
+
+        def remove():
+            try:
+                self.executor.remove_node(node)
+            except BaseException as exc:
+                failure.append(exc)
+                done.set()
+                return
+            self.executor.create_task(destroy)
+
+        name = node.get_name()
+        self.executor.create_task(remove)
         if not done.wait(timeout_s):
-            raise GraphError(f'node {node.get_name()} could not be removed within {timeout_s:g} s')
-        task.result()   # re-raise what removal raised, if anything
+            raise GraphError(f'node {name} could not be removed within {timeout_s:g} s')
+        if failure:
+            raise GraphError(f'removing node {name} failed: {failure[0]}')
         self.nodes.remove(node)
 
     def call(self, client, request, timeout_s: float):
