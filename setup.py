@@ -35,6 +35,7 @@ setup(
             'bag_replay = gripper_ros.bag_replay:main',
             'bag_analyze = gripper_ros.bag_analyze:main',
             'bench_graph = gripper_ros.bench_graph:main',
+            'contact_sweep = gripper_ros.contact_sweep:main',
         ],
     },
 )

@@ -174,3 +174,18 @@ def test_stop_ends_the_running_grasp_and_the_next_one_succeeds(graph):
     assert graph.plant.ticks_published == frozen          # nobody drives the plant any more
     graph.set_object(0.01)
     assert graph.grasp(0.01, 1.27).success
+
+
+@pytest.mark.parametrize('index', range(len(PAPER_OBJECTS)))
+def test_headless_simulation_reproduces_the_graph_bit_for_bit(paper_runs, index):
+    """gripper_ros.headless runs the same logic without ROS: identical series to the bag's."""
+    from gripper_ros.headless import simulate_grasp
+    width, mass = PAPER_OBJECTS[index]
+    series = load_grasp_series(paper_runs[index].bag_dir)
+    start_ns = int(round(series.status.t_s[0] * 1e9))
+    h = simulate_grasp(CONFIG, width, mass, start_ns=start_ns)
+    assert h.outcome == Outcome(paper_runs[index].response.outcome)
+    # the bag starts after the tick the grasp began on (published before recording)
+    assert np.array_equal(h.position_m[1:], series.joint.position_m)
+    assert np.array_equal(h.force_n[1:], series.sensor.force_n)
+    assert np.array_equal(h.motor_voltage_v[1:], series.motor.voltage_v)
