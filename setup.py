@@ -29,6 +29,7 @@ setup(
             'supervisor = gripper_ros.supervisor_node:main',
             'grasp_demo = gripper_ros.grasp_demo:main',
             'grasp_client = gripper_ros.grasp_client:main',
+            'grasp_action_server = gripper_ros.grasp_action_node:main',
             'paper_tables = gripper_ros.paper_tables:main',
             'position_limit = gripper_ros.position_limit:main',
             'bag_info = gripper_ros.bag_info:main',

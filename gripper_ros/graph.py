@@ -21,6 +21,7 @@ from rclpy.parameter import Parameter
 from rclpy.task import Future
 
 from .force_controller_node import ForceControllerNode
+from .grasp_action_node import GraspActionServer
 from .plant_simulator_node import PlantSimulatorNode
 from .position_controller_node import PositionControllerNode
 from .ros_common import (GRAPH_TOPICS, SERVICE_GRASP, SERVICE_QOS, SERVICE_SET_OBJECT, TOPIC_CLOCK,
@@ -52,6 +53,7 @@ class GraphOptions:
     position_controller: str = 'mpc_pd'
     force_controller: str = 'pi'
     approach_force_margin: float = 1.0
+    action_server: bool = True     # also serve the grasp as an action (feedback, cancel)
 
 
 class GripperGraph:
@@ -75,6 +77,10 @@ class GripperGraph:
         self.supervisor = SupervisorNode(parameter_overrides=sim, **kw)
         self.client_node = rclpy.create_node('grasp_demo_client', **kw)
         self.nodes = [self.plant, self.position, self.force, self.supervisor, self.client_node]
+        self.action_server = None
+        if opts.action_server:
+            self.action_server = GraspActionServer(parameter_overrides=cfg, **kw)
+            self.nodes.append(self.action_server)
         self.executor = make_executor(opts.executor, context)
         for node in self.nodes:
             self.executor.add_node(node)

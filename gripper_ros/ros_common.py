@@ -18,6 +18,7 @@ TOPIC_MOTOR_COMMAND = '/gripper/motor_command'
 SERVICE_GRASP = '/gripper/grasp'
 SERVICE_STOP = '/gripper/stop'
 SERVICE_SET_OBJECT = '/gripper/sim/set_object'
+ACTION_GRASP = '/gripper/grasp_action'   # the grasp as an action (feedback, cancel)
 FINGER_JOINT = 'finger_joint'
 
 # Lockstep keeps at most a few messages in flight; the depth is there so that a slow recorder
