@@ -7,11 +7,15 @@ With a full ROS 2 the equivalent calls are:
     ros2 service call /gripper/sim/set_object gripper_interfaces/srv/SetObject \\
         "{width_m: 0.05, open_fingers: true}"
     ros2 service call /gripper/grasp gripper_interfaces/srv/Grasp "{width_m: 0.05, mass_kg: 1.69}"
+    ros2 action send_goal --feedback /gripper/grasp_action gripper_interfaces/action/Grasp \\
+        "{width_m: 0.05, mass_kg: 1.69}"                    # the same, as an action (--action)
 
 By default the client first places a matching simulated object (``/gripper/sim/set_object``,
 like spawning a model in a simulator); ``--object-width`` places a different one (e.g. to see
 NO_OBJECT) and ``--no-place`` leaves the simulation as it is. Exit code: 0 when the object is
-held, 1 for any other outcome, 2 when the graph cannot be reached.
+held, 1 for any other outcome, 2 when the graph cannot be reached. ``--action`` sends the grasp
+as a goal to ``/gripper/grasp_action`` instead, prints its feedback (phase, opening, force) as it
+comes, and cancels the goal on Ctrl-C (the grasp ends as STOPPED).
 """
 from __future__ import annotations
 
@@ -35,6 +39,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('--no-place', action='store_true', help='do not call /gripper/sim/set_object')
     p.add_argument('--wait', type=float, default=10.0, help='seconds to wait for the services')
     p.add_argument('--call-timeout', type=float, default=600.0, help='wall seconds per call')
+    p.add_argument('--action', action='store_true',
+                   help='use the /gripper/grasp_action action: feedback, Ctrl-C cancels')
     return p
 
 
@@ -46,6 +52,44 @@ def _call(node, client, request, timeout_s: float):
         client.remove_pending_request(future)
         return None
     return future.result()
+
+
+def _grasp_by_action(node, args):
+    """Send the goal, print feedback until the result; Ctrl-C cancels. None if no answer."""
+    import rclpy
+    from gripper_interfaces.action import Grasp as GraspAction
+    from rclpy.action import ActionClient
+
+    from .grasp_logic import Phase
+    from .ros_common import ACTION_GRASP
+
+    client = ActionClient(node, GraspAction, ACTION_GRASP)
+    if not client.wait_for_server(timeout_sec=args.wait):
+        print(f'grasp_client: action {ACTION_GRASP} not available after {args.wait:g} s',
+              file=sys.stderr)
+        return None
+
+    def on_feedback(msg):
+        f = msg.feedback
+        phase = Phase(f.phase).name if f.phase in Phase._value2member_map_ else str(f.phase)
+        print(f'feedback: t={f.elapsed_s:7.4f} s  phase {phase:<8s} opening {f.width_m:.5f} m  '
+              f'force {f.force_n:8.4f} N  contact {f.contact}', flush=True)
+
+    sent = client.send_goal_async(GraspAction.Goal(
+        width_m=args.width, mass_kg=args.mass, friction_coefficient=args.friction,
+        acceleration_mps2=args.acceleration, timeout_s=args.timeout), feedback_callback=on_feedback)
+    rclpy.spin_until_future_complete(node, sent, timeout_sec=args.call_timeout)
+    if not sent.done() or not sent.result().accepted:
+        return None
+    handle = sent.result()
+    result = handle.get_result_async()
+    try:
+        rclpy.spin_until_future_complete(node, result, timeout_sec=args.call_timeout)
+    except KeyboardInterrupt:
+        print('grasp_client: cancelling the goal', file=sys.stderr)
+        rclpy.spin_until_future_complete(node, handle.cancel_goal_async(), timeout_sec=args.wait)
+        rclpy.spin_until_future_complete(node, result, timeout_sec=args.wait)
+    return result.result().result if result.done() else None
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -79,11 +123,14 @@ def main(argv: list[str] | None = None) -> int:
                 return 2
             if not placed.success:
                 print(f'grasp_client: set_object: {placed.message}', file=sys.stderr)
-        response = _call(node, grasp, Grasp.Request(
-            width_m=args.width, mass_kg=args.mass, friction_coefficient=args.friction,
-            acceleration_mps2=args.acceleration, timeout_s=args.timeout), args.call_timeout)
+        if args.action:
+            response = _grasp_by_action(node, args)
+        else:
+            response = _call(node, grasp, Grasp.Request(
+                width_m=args.width, mass_kg=args.mass, friction_coefficient=args.friction,
+                acceleration_mps2=args.acceleration, timeout_s=args.timeout), args.call_timeout)
         if response is None:
-            print(f'grasp_client: /gripper/grasp did not answer within {args.call_timeout:g} s',
+            print(f'grasp_client: the grasp did not answer within {args.call_timeout:g} s',
                   file=sys.stderr)
             return 2
         outcome = Outcome(response.outcome).name if response.outcome in \

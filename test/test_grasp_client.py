@@ -46,6 +46,15 @@ def test_client_bad_request_is_refused_and_server_keeps_serving(server):
     assert good.returncode == 0 and 'outcome: HOLDING' in good.stdout
 
 
+def test_client_action_prints_feedback_from_another_process(server):
+    result = _run_client('--width', '0.1', '--mass', '0.75', '--action')
+    assert result.returncode == 0, result.stdout + result.stderr
+    feedback = [line for line in result.stdout.splitlines() if line.startswith('feedback:')]
+    assert any('phase POSITION' in line for line in feedback)
+    assert any('phase FORCE' in line for line in feedback)
+    assert 'outcome: HOLDING' in result.stdout and 'final_width_m: 0.100000' in result.stdout
+
+
 def test_server_stops_cleanly_on_sigint(server):
     server.send_signal(signal.SIGINT)
     assert server.wait(timeout=20) in (0, 130)
