@@ -1,0 +1,91 @@
+"""Lockstep determinism under CPU load (issue 6 item 9).
+
+The same grasps are recorded twice through the node graph (real DDS, real bags): once on a
+machine as quiet as it gets, once while CPU-bound spinner processes keep the other core(s) busy.
+Simulated time advances only with the commands of the lockstep protocol, so the recorded
+position, force and voltage series must be bit-identical; only the wall time may differ (it is
+printed, never asserted).
+"""
+import os
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+import rclpy
+from rclpy.context import Context
+
+from gripper_ros.bag_io import load_grasp_series
+from gripper_ros.graph import GraphOptions, GripperGraph
+
+OBJECTS = ((0.05, 1.69), (0.10, 0.75))       # two Table V objects, ~1-2 s wall each here
+SPIN = 'import time\nt = time.time()\nwhile time.time() - t < 120: pass\n'
+
+
+@pytest.fixture(scope='module')
+def graph():
+    context = Context()
+    rclpy.init(context=context)
+    g = GripperGraph(GraphOptions(), context=context)
+    yield g
+    g.close()
+    rclpy.try_shutdown(context=context)
+
+
+def _cpu_s(pid: int) -> float:
+    """utime + stime of a process, from /proc/<pid>/stat."""
+    with open(f'/proc/{pid}/stat') as f:
+        fields = f.read().rsplit(')', 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf('SC_CLK_TCK')
+
+
+def _record(graph, out, tag):
+    runs = []
+    for i, (w, m) in enumerate(OBJECTS):
+        run = graph.recorded_grasp(out / f'{tag}_{i}', w, m)
+        assert run.response.success, run.response.message
+        runs.append(run)
+    return runs
+
+
+def _series(run):
+    s = load_grasp_series(run.bag_dir)
+    rel = lambda t: np.round((t - t[0]) * 1e9).astype(np.int64)  # noqa: E731
+    return {
+        'joint_t': rel(s.joint.t_s), 'position_m': s.joint.position_m,
+        'force_n': s.sensor.force_n, 'sensor_voltage_v': s.sensor.voltage_v,
+        'motor_voltage_v': s.motor.voltage_v, 'command_t': rel(s.command.t_s),
+        'command_voltage_v': s.command.voltage_v, 'phase': s.status.phase,
+    }
+
+
+def test_loaded_grasps_record_bit_identical_series(graph, tmp_path):
+    quiet = _record(graph, tmp_path, 'quiet')
+    spinners = [subprocess.Popen([sys.executable, '-c', SPIN])
+                for _ in range(max(1, (os.cpu_count() or 2) - 1))]
+    try:
+        time.sleep(0.2)
+        cpu0 = [_cpu_s(p.pid) for p in spinners]
+        loaded = _record(graph, tmp_path, 'loaded')
+        burnt = sum(_cpu_s(p.pid) - c for p, c in zip(spinners, cpu0))
+        assert all(p.poll() is None for p in spinners), 'a spinner died early'
+    finally:
+        for p in spinners:
+            p.kill()
+            p.wait()
+    loaded_wall = sum(r.wall_s for r in loaded)
+    print(f'\nquiet {sum(r.wall_s for r in quiet):.2f} s, loaded {loaded_wall:.2f} s wall; '
+          f'spinners used {burnt:.2f} s CPU meanwhile')
+    # the load was really there: the spinners ran for a good part of the loaded grasps
+    assert burnt > 0.25 * loaded_wall
+    for q, l in zip(quiet, loaded):
+        assert q.published == l.published and q.recorded == l.recorded
+        assert q.recorded == q.published
+        a, b = _series(q), _series(l)
+        for key in a:
+            assert len(a[key]) > 0, key
+            assert np.array_equal(a[key], b[key]), key
+        assert q.response.final_position_m == l.response.final_position_m
+        assert q.response.final_force_n == l.response.final_force_n
+        assert q.response.switch_time_s == l.response.switch_time_s
