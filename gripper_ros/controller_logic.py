@@ -12,7 +12,9 @@ on recorded measurements and gets bit-identical commands:
   (N per V) and released once the status reports contact.
 - :class:`LockstepAnswerer`: the per-tick bookkeeping of a node (answer each (grasp, stamp)
   once, (re)activate on a new grasp or after another controller was active, hold 0 V on a
-  non-finite measurement).
+  non-finite measurement or status number without touching the control law's state, and
+  hold 0 V on a non-finite output or a law that refuses its inputs, re-initialising the law
+  at the next good tick).
 
 A *status* here is anything with the fields of ``gripper_interfaces/msg/SupervisorStatus`` that
 are read (``active_controller``, ``grasp_id``, ``position_setpoint_m``, ``force_setpoint_n``,
@@ -137,13 +139,18 @@ class ForceStageController:
         return voltage, inner
 
 
+STATUS_NUMBERS = ('position_setpoint_m', 'force_setpoint_n', 'seed_voltage_v')
+"""The status fields a stage computes with; a non-finite one is never acted on."""
+
+
 @dataclass(frozen=True)
 class TickAnswer:
     """A controller's answer to one tick (what goes into MotorCommand)."""
 
     voltage_v: float
     inner_setpoint: float
-    finite: bool = True        # False: the measurement was not finite, 0 V is held
+    finite: bool = True        # False: a measurement or output was not finite, 0 V is held
+    reason: str = ''           # why 0 V is held ('' when finite)
 
 
 class LockstepAnswerer:
@@ -171,9 +178,24 @@ class LockstepAnswerer:
             return None
         self.answered = key
         if not math.isfinite(measurement):
-            return TickAnswer(0.0, 0.0, finite=False)
-        if self.active_grasp != status.grasp_id:
-            self.stage.activate(status, measurement)
-            self.active_grasp = status.grasp_id
-        voltage, inner = self.stage.compute(status, measurement)
+            return TickAnswer(0.0, 0.0, finite=False, reason='non-finite measurement')
+        bad = [f'{name}={getattr(status, name)!r}' for name in STATUS_NUMBERS
+               if not math.isfinite(getattr(status, name))]
+        if bad:
+            return TickAnswer(0.0, 0.0, finite=False,
+                              reason=f'non-finite status ({", ".join(bad)})')
+        try:
+            if self.active_grasp != status.grasp_id:
+                self.stage.activate(status, measurement)
+                self.active_grasp = status.grasp_id
+            voltage, inner = self.stage.compute(status, measurement)
+        except (ValueError, ArithmeticError) as exc:    # a law that refuses its numbers
+            self.active_grasp = None
+            return TickAnswer(0.0, 0.0, finite=False, reason=f'control law failed: {exc}')
+        if not (math.isfinite(voltage) and math.isfinite(inner)):
+            # the law's state is no longer trustworthy: start afresh at the next finite tick
+            self.active_grasp = None
+            return TickAnswer(0.0, 0.0, finite=False,
+                              reason=f'non-finite output (voltage {voltage!r}, inner setpoint '
+                                     f'{inner!r})')
         return TickAnswer(voltage, inner)

@@ -2,19 +2,36 @@
 
 A controller answers tick ``t_k`` once it holds both the supervisor's status for ``t_k`` naming it
 active and its own measurement for ``t_k``. It is (re)initialised, bumplessly, whenever it becomes
-active for a grasp. A non-finite measurement is never passed on: the controller holds 0 V and
-reports it.
+active for a grasp. A non-finite measurement is never passed on, and a non-finite output is never
+published: the controller holds 0 V and reports it.
+
+A status watchdog (steady clock, parameter ``status_timeout_s``) covers a dead or hung
+supervisor: while this controller is the active one and no new status has arrived for that long,
+it publishes one 0 V command (``hold_s`` as usual) and logs an error naming the supervisor. The
+default (3 s) lies above the supervisor's own ``tick_timeout_s`` (2 s), so that a stall the
+supervisor can see (a dead plant or controller) ends as the supervisor's FAULT first and no
+controller commands anything after it. The 0 V command is stamped with the tick of the last
+status, which the lockstep plant has already consumed: simulated time stays where it stopped and
+the command stands for what a motor driver would be told.
 
 The bookkeeping and the control laws live in :mod:`gripper_ros.controller_logic` (no rclpy), so
 that ``bag_replay --resimulate`` runs exactly the code the nodes run.
 """
 from __future__ import annotations
 
+import time
+
 from gripper_interfaces.msg import MotorCommand, SupervisorStatus
+from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
+from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 
 from .controller_logic import LockstepAnswerer
 from .ros_common import GRAPH_QOS, TOPIC_MOTOR_COMMAND, TOPIC_STATUS, time_to_ns
+
+DEFAULT_STATUS_TIMEOUT_S = 3.0
+STATUS_TIMEOUT_RANGE_S = (0.1, 600.0)
+WATCHDOG_PERIOD_S = 0.05
 
 
 class LockstepController(Node):
@@ -31,9 +48,27 @@ class LockstepController(Node):
         self._lockstep = LockstepAnswerer(self)   # answers once per (grasp_id, stamp)
         self.sample_time_s = 0.0
         self.commands_published = 0
+        self.nonfinite_answers = 0                # ticks answered with 0 V for want of numbers
+        self.watchdog_trips = 0                   # 0 V commands for a silent supervisor
+        self.watchdog_message = ''                # the error logged by the last trip
+        self.declare_parameter(
+            'status_timeout_s', DEFAULT_STATUS_TIMEOUT_S, ParameterDescriptor(
+                description='wall seconds without a new supervisor status, while this controller '
+                            'is active, before it commands 0 V once; keep it above the '
+                            "supervisor's tick_timeout_s",
+                floating_point_range=[FloatingPointRange(from_value=STATUS_TIMEOUT_RANGE_S[0],
+                                                         to_value=STATUS_TIMEOUT_RANGE_S[1])]))
+        self._last_status_wall = time.monotonic()
+        self._watchdog_tripped = False
         self._pub = self.create_publisher(MotorCommand, TOPIC_MOTOR_COMMAND, GRAPH_QOS)
         self.create_subscription(SupervisorStatus, TOPIC_STATUS, self._on_status, GRAPH_QOS)
         self._command = MotorCommand(source=self.source)
+        self.create_timer(WATCHDOG_PERIOD_S, self._watchdog,
+                          clock=Clock(clock_type=ClockType.STEADY_TIME))
+
+    @property
+    def status_timeout_s(self) -> float:
+        return self.get_parameter('status_timeout_s').value
 
     # subclasses ----------------------------------------------------------------
     def activate(self, status: SupervisorStatus, measurement: float) -> None:
@@ -47,6 +82,8 @@ class LockstepController(Node):
     # lockstep ------------------------------------------------------------------
     def _on_status(self, msg: SupervisorStatus) -> None:
         self._status = msg
+        self._last_status_wall = time.monotonic()
+        self._watchdog_tripped = False
         self._lockstep.on_status(msg)
         self._try_answer()
 
@@ -66,9 +103,13 @@ class LockstepController(Node):
         if answer is None:
             return
         if not answer.finite:
-            self.get_logger().error(f'non-finite measurement {self._measurement!r} at '
-                                    f't={stamp_ns}: holding 0 V', throttle_duration_sec=1.0)
-        voltage, inner = answer.voltage_v, answer.inner_setpoint
+            self.nonfinite_answers += 1
+            self.get_logger().error(f'{answer.reason} at t={stamp_ns} (measurement '
+                                    f'{self._measurement!r}): holding 0 V',
+                                    throttle_duration_sec=1.0)
+        self._publish(status, answer.voltage_v, answer.inner_setpoint)
+
+    def _publish(self, status: SupervisorStatus, voltage: float, inner: float) -> None:
         cmd = self._command
         cmd.header.stamp = status.header.stamp
         cmd.grasp_id = status.grasp_id
@@ -77,3 +118,25 @@ class LockstepController(Node):
         cmd.inner_setpoint = float(inner)
         self._pub.publish(cmd)
         self.commands_published += 1
+
+    # watchdog ------------------------------------------------------------------
+    def _watchdog(self) -> None:
+        """Active, and the supervisor silent for ``status_timeout_s``: command 0 V once."""
+        status = self._status
+        if status is None or status.active_controller != self.source or self._watchdog_tripped:
+            return
+        silent_s = time.monotonic() - self._last_status_wall
+        if silent_s < self.status_timeout_s:
+            return
+        self._watchdog_tripped = True
+        if self.count_publishers(TOPIC_STATUS) == 0:
+            why = f'the supervisor is gone (no publisher on {TOPIC_STATUS})'
+        else:
+            why = 'the supervisor is silent'
+        self.watchdog_message = (
+            f'no status from the supervisor for {silent_s:.2f} s of wall time while '
+            f'{self.get_name()} was active (grasp {status.grasp_id}, '
+            f't={time_to_ns(status.header.stamp) * 1e-9:.4f} s): {why}; commanding 0 V')
+        self.get_logger().error(self.watchdog_message)
+        self.watchdog_trips += 1
+        self._publish(status, 0.0, 0.0)

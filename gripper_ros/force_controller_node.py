@@ -13,6 +13,7 @@ import sys
 import rclpy
 from gripper_interfaces.msg import ForceSensor, MotorCommand, SupervisorStatus
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
+from rclpy.exceptions import ParameterException
 from rclpy.executors import ExternalShutdownException
 
 from .config import ConfigError
@@ -41,6 +42,14 @@ class ForceControllerNode(LockstepController):
         self.controller = self.stage.controller
         self.sample_time_s = self.stage.sample_time_s
         self.create_subscription(ForceSensor, TOPIC_FORCE_SENSOR, self._on_force, GRAPH_QOS)
+        self.add_post_set_parameters_callback(self._on_parameters_set)
+
+    def _on_parameters_set(self, parameters) -> None:
+        """An accepted ``approach_force_margin`` (the descriptor's range refuses the rest)
+        takes effect when the force stage next takes over (the next grasp), never mid-stage."""
+        for p in parameters:
+            if p.name == 'approach_force_margin':
+                self.approach_margin = self.stage.approach_margin = float(p.value)
 
     def _on_force(self, msg: ForceSensor) -> None:
         self.on_measurement(time_to_ns(msg.header.stamp), msg.force_n)
@@ -59,7 +68,7 @@ def main(args=None):
     try:
         node = ForceControllerNode()
         rclpy.spin(node)
-    except ConfigError as exc:
+    except (ConfigError, ParameterException) as exc:   # bad config file, parameter out of range
         print(f'force_controller: {exc}', file=sys.stderr)
         return 2
     except (KeyboardInterrupt, ExternalShutdownException):

@@ -10,6 +10,7 @@ import sys
 import rclpy
 from gripper_interfaces.msg import MotorCommand, SupervisorStatus
 from rcl_interfaces.msg import ParameterDescriptor
+from rclpy.exceptions import ParameterException
 from rclpy.executors import ExternalShutdownException
 from sensor_msgs.msg import JointState
 
@@ -53,7 +54,7 @@ def main(args=None):
     try:
         node = PositionControllerNode()
         rclpy.spin(node)
-    except ConfigError as exc:
+    except (ConfigError, ParameterException) as exc:   # bad config file, parameter out of range
         print(f'position_controller: {exc}', file=sys.stderr)
         return 2
     except (KeyboardInterrupt, ExternalShutdownException):
