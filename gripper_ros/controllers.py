@@ -90,7 +90,7 @@ def make_position_controller(config: GripperConfig, kind: PositionControllerKind
     dmc = DynamicMatrixControl(model, tuning.control_horizon, tuning.move_suppression)
     ad, bd = make_plant(config).discrete_free_model(pos.sample_time_s)
     governor = None
-    if pos.mpc_pd_braking_voltage_v > 0.0:  # opt-in: faster, but chatters (see config)
+    if pos.mpc_pd_braking_voltage_v > 0.0:  # ours, default on; 0 = the DMC's clamp alone
         governor = BrakingGovernor(ad, bd, config.plant.voltage_limit_v,
                                    pos.mpc_pd_braking_voltage_v, tuning.horizon)
     return CascadedMpc(dmc, _position_inner(config, pos.mpc_pd, limits), governor=governor)

@@ -65,8 +65,9 @@ def position_rows(config: GripperConfig) -> list[Row]:
                   'have respected the limit'))
     cases.append(('MPC-PD', 'MPC-PD (ours, limit-aware)',
                   make_position_controller(config, PositionControllerKind.MPC_PD),
-                  'DMC output held where the inner PD stays within 24 V (no wind-up); '
-                  'the 24 V floor is 2.54 s / RMS 0.02414 (position_limit)'))
+                  'DMC output held where the inner PD stays within 24 V (no wind-up), '
+                  'minimum-time braking governor; the 24 V floor is 2.54 s / RMS 0.02414 '
+                  '(position_limit)'))
     for paper_key, name, controller, note in cases:
         run = position_step(config, controller, POSITION_SETPOINT_M, POSITION_HORIZON_S)
         rows.append(Row('III', name, PAPER_TABLE_III[paper_key], run.metrics(),

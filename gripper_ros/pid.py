@@ -113,6 +113,14 @@ class PID:
             return (-math.inf, math.inf)
         return ((low - base) / slope, (high - base) / slope)
 
+    def setpoint_for_output(self, output: float, measurement: float) -> float:
+        """The setpoint for which the next output is exactly ``output`` (inside the limits)."""
+        base = sum(self._terms(0.0, measurement))
+        slope = sum(self._terms(1.0, measurement)) - base
+        if slope <= 0.0:
+            raise ValueError('the output does not depend on the setpoint (kc = 0?)')
+        return (self._clamp(output) - base) / slope
+
     def step(self, setpoint: float, measurement: float) -> float:
         """One sample: returns the clamped output (e.g. armature voltage)."""
         if not (math.isfinite(setpoint) and math.isfinite(measurement)):

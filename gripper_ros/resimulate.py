@@ -260,6 +260,10 @@ def resimulate_bag(bag: Bag | str | os.PathLike, config: GripperConfig | str | o
         approach_force_margin=force.approach_margin, grasp_ids=grasp_ids,
         status_ticks=len(statuses), measurements_from_status=from_status,
         truncated=bag.truncated)
+    # A truncated bag may end with a tick whose status and measurement were written but whose
+    # command was cut off: answers past the last recorded command are beyond the damage.
+    last_recorded = (max(k[1:] for k in recorded) if bag.truncated and recorded
+                     else (math.inf, math.inf))
     for src, stage in stages.items():
         cmp = StageComparison(stage=STAGE_NAMES[src], source=src,
                               hold_s_config=stage.sample_time_s)
@@ -302,7 +306,8 @@ def resimulate_bag(bag: Bag | str | os.PathLike, config: GripperConfig | str | o
                                      'recorded_v': rec_v, 'resimulated_v': sim_v,
                                      'recorded_inner': float(rec.inner_setpoint),
                                      'resimulated_inner': float(sim.inner_setpoint)})
-        cmp.only_resimulated = sum(1 for k in answers if k[0] == src and k not in recorded)
+        cmp.only_resimulated = sum(1 for k in answers if k[0] == src and k not in recorded
+                                   and k[1:] <= last_recorded)
         cmp.rms_dv_v = math.sqrt(sq_sum / cmp.compared) if cmp.compared else 0.0
         report.stages[cmp.stage] = cmp
     return report

@@ -200,3 +200,36 @@ def test_closed_loop_step_response_of_p_loop_is_analytic():
     resp = closed_loop_step_response(model_step, pid, 20)
     np.testing.assert_allclose(resp, first_order_step(A_POLE - B_GAIN * kc, B_GAIN * kc, 20),
                                rtol=1e-12)
+
+
+# ------------------------------------------------------------------ braking governor
+def test_braking_governor_phases_in_order_on_the_gripper_model():
+    """One ACCELERATE run at +limit, one BRAKE run at -braking_v, then DMC for good; the
+    forced voltages are exactly those, and a short move still starts by accelerating."""
+    from gripper_ros.config import load_config
+    from gripper_ros.controllers import make_plant
+    from gripper_ros.dmc import BrakingGovernor, GovernorPhase
+
+    config = load_config()
+    dt = config.position.sample_time_s
+    plant = make_plant(config)
+    ad, bd = plant.discrete_free_model(dt)
+    gov = BrakingGovernor(ad, bd, 24.0, 20.0, 700)
+    gov.reset(0.0)
+    phases, volts = [], []
+    for _ in range(400):
+        y = plant.sample().position_m
+        v = gov.command(0.1, y)
+        phases.append(gov.phase)
+        if v is None:
+            break
+        volts.append(v)
+        gov.applied(v)
+        plant.step(v, dt)
+    order = [p for i, p in enumerate(phases) if i == 0 or p is not phases[i - 1]]
+    assert order == [GovernorPhase.ACCELERATE, GovernorPhase.BRAKE, GovernorPhase.DMC]
+    n_acc = phases.count(GovernorPhase.ACCELERATE)
+    assert volts[:n_acc] == [24.0] * n_acc and set(volts[n_acc:]) == {-20.0}
+    # handed over nearly at rest, just short of the setpoint (the DMC finishes the last bit)
+    assert 0.098 < plant.sample().position_m <= 0.1
+    assert abs(plant.sample().speed_rad_s) < 2.0

@@ -278,3 +278,23 @@ def test_p_only_is_clamped_proportional(kc, e, y):
     pid = PID(PidGains(kc=kc), DT, (-24.0, 24.0))
     assert pid.step(y + e, y) == pytest.approx(min(24.0, max(-24.0, kc * ((y + e) - y))),
                                                abs=1e-9)
+
+
+# ------------------------------------------------------------------ setpoint_for_output
+def test_setpoint_for_output_inverts_a_pd_by_hand():
+    # PD on measurement, kc 2, kd 3, dt 0.1, last y = 0.0, now y = 0.1:
+    # u = 2 (r - 0.1) - 3 (0.1 - 0) / 0.1 = 2 r - 3.2  ->  u = 5 needs r = 4.1
+    pid = PID(PidGains(kc=2.0, kd=3.0), DT, (-10.0, 10.0), derivative_on=DerivativeOn.MEASUREMENT)
+    pid.step(0.0, 0.0)
+    r = pid.setpoint_for_output(5.0, 0.1)
+    assert r == pytest.approx(4.1, abs=1e-12)
+    assert pid.step(r, 0.1) == pytest.approx(5.0, abs=1e-12)
+
+
+def test_setpoint_for_output_clamps_to_the_limits():
+    pid = PID(PidGains(kc=2.0, ki=1.0), DT, (-1.0, 1.0))
+    r = pid.setpoint_for_output(50.0, 0.0)          # beyond the limit: aims at the limit
+    assert pid.step(r, 0.0) == pytest.approx(1.0, abs=1e-12)
+    only_d_on_measurement = PID(PidGains(kc=0.0, kd=1.0), DT, WIDE, derivative_on=DerivativeOn.MEASUREMENT)
+    with pytest.raises(ValueError):                 # no setpoint gives any chosen output
+        only_d_on_measurement.setpoint_for_output(1.0, 0.0)

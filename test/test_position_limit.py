@@ -90,48 +90,65 @@ def test_paper_rms_is_below_the_floor(rms):
     assert 0.0238 < rms.rms_lower_m
 
 
-def _sign_changes(u):
-    return int(np.sum(np.diff(np.sign(u)) != 0))
+def _sign_changes(u, beyond_v=1.0):
+    """Sign changes of the command where it is beyond ``beyond_v`` (bang-bang chatter)."""
+    return int(np.sum((np.diff(np.sign(u)) != 0) & (np.abs(u[1:]) > beyond_v)))
 
 
-def _with_governor(config, braking_v=20.0):
+def _with_governor(config, braking_v):
     position = dataclasses.replace(config.position, mpc_pd_braking_voltage_v=braking_v)
     return dataclasses.replace(config, position=position)
 
 
-def test_default_limit_aware_mpc_pd_is_smooth_and_within_limits(config, rms, time_floor):
-    """Default (no governor): honest +-24 V, no wind-up, no chatter; slower than the floor."""
-    run = position_step(config, make_position_controller(config, PositionControllerKind.MPC_PD),
-                        R, 20.0)
-    m = run.metrics()
-    assert run.max_abs_command_v <= config.plant.voltage_limit_v
-    assert m.overshoot_pct <= 2.0
-    assert rms.rms_lower_m <= m.rms_error <= 0.0245
-    assert time_floor.band_settling_time_s <= m.settling_time_s <= 4.5
-    assert _sign_changes(run.command_v) <= 40
+def _mpc_pd_step(config, setpoint=R):
+    return position_step(config, make_position_controller(config, PositionControllerKind.MPC_PD),
+                         setpoint, 20.0)
 
 
-def test_braking_governor_reaches_near_the_floor(config, rms, time_floor):
-    """Opt-in governor: settling <= 3.0 s, overshoot <= 2 %, RMS <= 0.0245 under +-24 V."""
-    cfg = _with_governor(config)
-    run = position_step(cfg, make_position_controller(cfg, PositionControllerKind.MPC_PD), R, 20.0)
+def test_default_mpc_pd_meets_the_issue_targets_near_the_floor(config, rms, time_floor):
+    """Default (braking governor on): <= 3.0 s, <= 2 %, RMS <= 0.0245, honest +-24 V, and one
+    accelerate-brake reversal, not the +-24 V chatter of a DMC braking on its own."""
+    assert config.position.mpc_pd_braking_voltage_v > 0.0
+    run = _mpc_pd_step(config)
     m = run.metrics()
     assert run.max_abs_command_v <= config.plant.voltage_limit_v
     assert time_floor.band_settling_time_s <= m.settling_time_s <= 3.0
     assert m.overshoot_pct <= 2.0
     assert rms.rms_lower_m <= m.rms_error <= 0.0245
+    assert _sign_changes(run.command_v) <= 4
+    assert abs(run.output[-1] - R) < 1e-6                       # holds the setpoint at the end
 
 
-@pytest.mark.parametrize('setpoint', [0.01, 0.14])
-def test_braking_governor_other_steps(config, setpoint):
-    cfg = _with_governor(config)
-    run = position_step(cfg, make_position_controller(cfg, PositionControllerKind.MPC_PD),
-                        setpoint, 20.0)
+def test_clamp_only_mpc_pd_is_smooth_but_slow(config, rms, time_floor):
+    """Governor off: still no wind-up and no chatter, but the DMC brakes early (~4.2 s)."""
+    run = _mpc_pd_step(_with_governor(config, 0.0))
+    m = run.metrics()
+    assert run.max_abs_command_v <= config.plant.voltage_limit_v
+    assert m.overshoot_pct <= 2.0
+    assert rms.rms_lower_m <= m.rms_error <= 0.0245
+    assert 3.0 < m.settling_time_s <= 4.5
+    assert _sign_changes(run.command_v) <= 4
+
+
+@pytest.mark.parametrize('setpoint', [0.005, 0.01, 0.05, 0.14, 0.145])
+def test_default_mpc_pd_other_steps_near_their_floor(config, setpoint):
+    run = _mpc_pd_step(config, setpoint)
     m = run.metrics()
     floor = minimum_time_floor(config, setpoint, DT).band_settling_time_s
     assert run.max_abs_command_v <= config.plant.voltage_limit_v
     assert m.overshoot_pct <= 2.0
-    assert floor <= m.settling_time_s <= floor + 0.25
+    assert floor <= m.settling_time_s <= floor + 0.3
+    assert _sign_changes(run.command_v) <= 4
+
+
+@pytest.mark.parametrize('braking_v', [16.0, 24.0])
+def test_governor_braking_voltage_choices_stay_within_targets(config, braking_v):
+    """The reserve is a tuning knob, not a cliff: 16 V and the full 24 V also meet the targets."""
+    run = _mpc_pd_step(_with_governor(config, braking_v))
+    m = run.metrics()
+    assert run.max_abs_command_v <= config.plant.voltage_limit_v
+    assert m.settling_time_s <= 3.0 and m.overshoot_pct <= 2.0 and m.rms_error <= 0.0245
+    assert _sign_changes(run.command_v) <= 4
 
 
 def test_paper_structure_still_available(config):
