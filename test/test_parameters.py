@@ -1,0 +1,334 @@
+"""Node parameters and start-up configuration: bad values are refused with a reason.
+
+1. Start-up (before any graph runs on this domain): a bad YAML file given through the nodes'
+   ``config_file`` parameter (missing key, wrong type, negative resistance, out-of-range value)
+   stops every node with a ConfigError naming the key; the installed executables exit with
+   status 2 and that one-line message. An out-of-range parameter override stops start-up too.
+2. The running graph: every numeric parameter declared with a range, found through the nodes'
+   own ``describe_parameters`` services, refuses out-of-range, non-finite and wrongly typed values
+   over a real ``rcl_interfaces/srv/SetParameters`` call, with a reason, and keeps its value;
+   every read-only parameter refuses any change.
+"""
+import math
+import os
+import subprocess
+import time
+from pathlib import Path
+
+import pytest
+import rclpy
+import yaml
+from rcl_interfaces.msg import Parameter as ParameterMsg
+from rcl_interfaces.msg import ParameterType, ParameterValue
+from rcl_interfaces.srv import DescribeParameters, GetParameters, ListParameters, SetParameters
+from rclpy.context import Context
+from rclpy.exceptions import InvalidParameterValueException
+from rclpy.parameter import Parameter
+
+from gripper_ros.config import ConfigError
+from gripper_ros.force_controller_node import ForceControllerNode
+from gripper_ros.grasp_action_node import GraspActionServer
+from gripper_ros.graph import GraphOptions, GripperGraph
+from gripper_ros.plant_simulator_node import PlantSimulatorNode
+from gripper_ros.position_controller_node import PositionControllerNode
+from gripper_ros.supervisor_node import SupervisorNode
+
+REPO = Path(__file__).resolve().parents[1]
+SHIPPED = REPO / 'config' / 'gripper.yaml'
+BIN = REPO / 'install' / 'gripper_ros' / 'lib' / 'gripper_ros'
+
+NODE_CLASSES = {'plant_simulator': PlantSimulatorNode,
+                'position_controller': PositionControllerNode,
+                'force_controller': ForceControllerNode,
+                'supervisor': SupervisorNode,
+                'grasp_action_server': GraspActionServer}
+
+# every numeric parameter the nodes declare with a range (the graph test checks that the nodes
+# declare no other, and that these are ranged)
+RANGED = {('supervisor', 'tick_timeout_s'), ('force_controller', 'approach_force_margin'),
+          ('grasp_action_server', 'feedback_period_s'),
+          ('position_controller', 'status_timeout_s'), ('force_controller', 'status_timeout_s')}
+READ_ONLY = {('position_controller', 'controller'), ('force_controller', 'controller')}
+
+
+def _bad_config(tmp_path, dotted, value):
+    data = yaml.safe_load(SHIPPED.read_text(encoding='utf-8'))
+    *parents, leaf = dotted.split('.')
+    section = data
+    for p in parents:
+        section = section[p]
+    if value is None:
+        del section[leaf]
+    else:
+        section[leaf] = value
+    path = tmp_path / f'bad_{dotted.replace(".", "_")}.yaml'
+    path.write_text(yaml.safe_dump(data), encoding='utf-8')
+    return path
+
+
+BAD_CONFIGS = [   # (key, value or None = missing, words in the message)
+    ('plant.resistance_ohm', None, 'missing'),
+    ('plant.gear_ratio', 'four', 'must be a number'),
+    ('plant.resistance_ohm', -2.32, '> 0'),
+    ('force_control.closed_loop_pole', 1.5, '[0, 1)'),
+    ('supervisor.timeout_s', float('nan'), 'finite'),
+]
+BAD_IDS = ['missing', 'wrong_type', 'negative_resistance', 'out_of_range', 'nan']
+
+
+# ====================================================================== start-up
+@pytest.fixture
+def own_context():
+    """A context on a domain of its own (101..200, beyond the ones scripts/test.sh hands out):
+    a node whose constructor fails leaves its parameter services behind until shutdown, and they
+    must never answer for the graph's nodes."""
+    context = Context()
+    rclpy.init(context=context, domain_id=100 + int(os.environ.get('ROS_DOMAIN_ID', '0')) % 100 + 1)
+    yield context
+    rclpy.try_shutdown(context=context)
+
+
+@pytest.mark.parametrize('node_name', list(NODE_CLASSES))
+@pytest.mark.parametrize('key, value, words', BAD_CONFIGS, ids=BAD_IDS)
+def test_bad_config_file_stops_every_node_naming_the_key(own_context, tmp_path, node_name,
+                                                         key, value, words):
+    path = _bad_config(tmp_path, key, value)
+    with pytest.raises(ConfigError) as info:
+        NODE_CLASSES[node_name](context=own_context, parameter_overrides=[
+            Parameter('config_file', value=str(path))])
+    assert key in str(info.value) and words in str(info.value)
+
+
+def test_bad_config_file_stops_the_whole_graph(own_context, tmp_path):
+    path = _bad_config(tmp_path, 'plant.resistance_ohm', -2.32)
+    with pytest.raises(ConfigError, match=r'plant\.resistance_ohm.*> 0'):
+        GripperGraph(GraphOptions(config_file=str(path)), context=own_context)
+
+
+def test_missing_config_file_stops_a_node_naming_the_file(own_context, tmp_path):
+    with pytest.raises(ConfigError, match='nope.yaml'):
+        SupervisorNode(context=own_context, parameter_overrides=[
+            Parameter('config_file', value=str(tmp_path / 'nope.yaml'))])
+
+
+@pytest.mark.parametrize('node_name, parameter, value', [
+    ('supervisor', 'tick_timeout_s', 0.0),
+    ('supervisor', 'tick_timeout_s', 1e6),
+    ('force_controller', 'approach_force_margin', -0.5),
+    ('force_controller', 'approach_force_margin', 11.0),
+    ('grasp_action_server', 'feedback_period_s', -1.0),
+    ('position_controller', 'status_timeout_s', 0.0),
+    ('force_controller', 'status_timeout_s', math.inf),
+])
+def test_out_of_range_override_stops_start_up_naming_the_parameter(own_context, node_name,
+                                                                   parameter, value):
+    with pytest.raises(InvalidParameterValueException) as info:
+        NODE_CLASSES[node_name](context=own_context,
+                                parameter_overrides=[Parameter(parameter, value=value)])
+    assert parameter in str(info.value) and 'out of range' in str(info.value)
+
+
+def _run(executable, *ros_args):
+    env = dict(os.environ)
+    return subprocess.run([str(BIN / executable), '--ros-args', *ros_args], env=env,
+                          capture_output=True, text=True, timeout=60, stdin=subprocess.DEVNULL)
+
+
+def test_executables_exit_2_with_a_one_line_error_on_a_bad_config(tmp_path):
+    """The real start-up path: ``ros2 run gripper_ros <node> --ros-args -p config_file:=...``."""
+    path = _bad_config(tmp_path, 'plant.resistance_ohm', -2.32)
+    procs = {name: subprocess.Popen([str(BIN / name), '--ros-args', '-p',
+                                     f'config_file:={path}'], stdin=subprocess.DEVNULL,
+                                    stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+             for name in NODE_CLASSES}
+    for name, proc in procs.items():
+        out, err = proc.communicate(timeout=60)
+        assert proc.returncode == 2, (name, proc.returncode, err[-2000:])
+        lines = err.strip().splitlines()
+        assert lines[-1].startswith(f'{name}: ') and 'plant.resistance_ohm' in lines[-1]
+        assert 'Traceback' not in err
+
+
+@pytest.mark.parametrize('executable, parameter, value', [
+    ('position_controller', 'status_timeout_s', '0.0'),
+    ('force_controller', 'approach_force_margin', '20.0'),
+])
+def test_controller_executables_exit_2_on_an_out_of_range_parameter(executable, parameter, value):
+    r = _run(executable, '-p', f'{parameter}:={value}')
+    assert r.returncode == 2, r.stderr[-2000:]
+    assert 'Traceback' not in r.stderr
+    last = r.stderr.strip().splitlines()[-1]
+    assert last.startswith(f'{executable}: ') and parameter in last and 'out of range' in last
+
+
+# ====================================================================== the running graph
+@pytest.fixture(scope='module')
+def graph():
+    context = Context()
+    rclpy.init(context=context)
+    g = GripperGraph(GraphOptions(), context=context)
+    client = rclpy.create_node('parameter_client', context=context)
+    g.add_node(client)
+    g.param_client = client
+    g.param_clients = {}
+    yield g
+    g.close()
+    rclpy.try_shutdown(context=context)
+
+
+def _service(graph, node_name, srv_type, suffix):
+    key = (node_name, suffix)
+    if key not in graph.param_clients:
+        client = graph.param_client.create_client(srv_type, f'/{node_name}/{suffix}')
+        assert client.wait_for_service(timeout_sec=10.0), f'/{node_name}/{suffix}'
+        graph.param_clients[key] = client
+    return graph.param_clients[key]
+
+
+def _describe(graph, node_name):
+    names = graph.call(_service(graph, node_name, ListParameters, 'list_parameters'),
+                       ListParameters.Request(), 10.0).result.names
+    descriptors = graph.call(_service(graph, node_name, DescribeParameters,
+                                      'describe_parameters'),
+                             DescribeParameters.Request(names=list(names)), 10.0).descriptors
+    return {d.name: d for d in descriptors}
+
+
+def _get(graph, node_name, name):
+    values = graph.call(_service(graph, node_name, GetParameters, 'get_parameters'),
+                        GetParameters.Request(names=[name]), 10.0).values
+    return Parameter.from_parameter_msg(ParameterMsg(name=name, value=values[0])).value
+
+
+def _set(graph, node_name, name, value_msg):
+    result = graph.call(_service(graph, node_name, SetParameters, 'set_parameters'),
+                        SetParameters.Request(parameters=[ParameterMsg(name=name,
+                                                                       value=value_msg)]),
+                        10.0).results[0]
+    return result
+
+
+def _double(v):
+    return ParameterValue(type=ParameterType.PARAMETER_DOUBLE, double_value=float(v))
+
+
+def _bad_values(descriptor):
+    """Out of range on both sides, non-finite, and of the wrong type."""
+    r = descriptor.floating_point_range[0]
+    lo, hi = min(r.from_value, r.to_value), max(r.from_value, r.to_value)
+    below = lo - max(1e-3, abs(lo) * 0.01)
+    above = hi + max(1e-3, abs(hi) * 0.01)
+    return [('below', _double(below), 'out of range'), ('above', _double(above), 'out of range'),
+            ('nan', _double(math.nan), 'out of range'), ('+inf', _double(math.inf), 'out of range'),
+            ('-inf', _double(-math.inf), 'out of range'),
+            ('string', ParameterValue(type=ParameterType.PARAMETER_STRING, string_value='1.0'),
+             'Wrong parameter type'),
+            ('integer', ParameterValue(type=ParameterType.PARAMETER_INTEGER, integer_value=1),
+             'Wrong parameter type'),
+            ('bool', ParameterValue(type=ParameterType.PARAMETER_BOOL, bool_value=True),
+             'Wrong parameter type')]
+
+
+@pytest.fixture(scope='module')
+def descriptors(graph):
+    return {node: _describe(graph, node) for node in NODE_CLASSES}
+
+
+def test_the_ranged_and_read_only_parameters_are_the_known_ones(descriptors):
+    ranged = {(n, p) for n, ds in descriptors.items() for p, d in ds.items()
+              if d.floating_point_range or d.integer_range}
+    read_only = {(n, p) for n, ds in descriptors.items() for p, d in ds.items() if d.read_only}
+    numeric = {(n, p) for n, ds in descriptors.items() for p, d in ds.items()
+               if d.type in (ParameterType.PARAMETER_DOUBLE, ParameterType.PARAMETER_INTEGER)}
+    assert ranged == RANGED
+    assert numeric == RANGED          # no numeric parameter without a range
+    assert READ_ONLY <= read_only
+
+
+def test_every_ranged_parameter_refuses_bad_values_and_keeps_its_value(graph, descriptors):
+    checked = 0
+    for node_name, ds in descriptors.items():
+        for name, d in ds.items():
+            if not (d.floating_point_range or d.integer_range):
+                continue
+            assert d.floating_point_range, (node_name, name, 'integer ranges: add cases')
+            before = _get(graph, node_name, name)
+            for label, value, words in _bad_values(d):
+                result = _set(graph, node_name, name, value)
+                assert not result.successful, (node_name, name, label)
+                assert words in result.reason, (node_name, name, label, result.reason)
+                if words == 'out of range':
+                    assert name in result.reason
+                assert _get(graph, node_name, name) == before, (node_name, name, label)
+                checked += 1
+    assert checked == 8 * len(RANGED)
+
+
+def test_every_ranged_parameter_accepts_its_range_limits(graph, descriptors):
+    """The range edges are valid values (the refusals above are not a closed door)."""
+    for node_name, name in sorted(RANGED):
+        d = descriptors[node_name][name]
+        before = _get(graph, node_name, name)
+        r = d.floating_point_range[0]
+        for edge in (r.from_value, r.to_value, before):
+            result = _set(graph, node_name, name, _double(edge))
+            assert result.successful, (node_name, name, edge, result.reason)
+            assert _get(graph, node_name, name) == edge
+        assert _get(graph, node_name, name) == before
+
+
+def test_read_only_parameters_refuse_any_change(graph, descriptors):
+    """Even setting the value it already has is refused."""
+    checked = 0
+    for node_name, ds in descriptors.items():
+        for name, d in ds.items():
+            if not d.read_only:
+                continue
+            before = _get(graph, node_name, name)
+            if d.type == ParameterType.PARAMETER_STRING:
+                values = [ParameterValue(type=d.type, string_value=text)
+                          for text in ('pd', 'pi', 'mpc_pi', 'nonsense', before)]
+            elif d.type == ParameterType.PARAMETER_BOOL:    # rclpy's own, on every node
+                values = [ParameterValue(type=d.type, bool_value=b) for b in (True, False)]
+            else:
+                raise AssertionError((node_name, name, d.type, 'add a case'))
+            for value in values:
+                result = _set(graph, node_name, name, value)
+                assert not result.successful and 'read-only' in result.reason, (node_name, name)
+                assert _get(graph, node_name, name) == before
+                checked += 1
+    assert checked >= 5 * len(READ_ONLY) + 2 * len(NODE_CLASSES)
+
+
+def test_accepted_controller_parameters_take_effect(graph):
+    """status_timeout_s is read by the watchdog on every check; approach_force_margin goes to the
+    force stage (used from the next grasp on)."""
+    for node in (graph.position, graph.force):
+        name = node.get_name()
+        assert _set(graph, name, 'status_timeout_s', _double(4.5)).successful
+        assert node.status_timeout_s == 4.5
+        assert _set(graph, name, 'status_timeout_s', _double(3.0)).successful
+    assert _set(graph, 'force_controller', 'approach_force_margin', _double(2.0)).successful
+    assert graph.force.stage.approach_margin == 2.0
+    assert _set(graph, 'force_controller', 'approach_force_margin', _double(1.0)).successful
+    assert graph.force.stage.approach_margin == 1.0
+
+
+@pytest.mark.xfail(strict=True, reason='supervisor_node.py and grasp_action_node.py read '
+                   'tick_timeout_s / feedback_period_s once at start-up: an accepted change '
+                   'is ignored (see the report for the change)')
+def test_accepted_supervisor_and_action_parameters_take_effect(graph):
+    try:
+        assert _set(graph, 'supervisor', 'tick_timeout_s', _double(5.0)).successful
+        assert _set(graph, 'grasp_action_server', 'feedback_period_s', _double(0.5)).successful
+        assert graph.supervisor.tick_timeout_s == 5.0
+        assert graph.action_server.feedback_period_s == 0.5
+    finally:
+        _set(graph, 'supervisor', 'tick_timeout_s', _double(2.0))
+        _set(graph, 'grasp_action_server', 'feedback_period_s', _double(0.05))
+
+
+def test_graph_still_grasps_after_the_refused_changes(graph):
+    assert graph.set_object(0.10).success
+    r = graph.grasp(0.10, 0.75, wall_timeout_s=60.0)
+    assert r.success, r.message
