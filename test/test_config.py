@@ -208,3 +208,83 @@ def test_parse_config_does_not_mutate_its_input(shipped_data):
 def test_optional_gains_default_to_zero(tmp_path, shipped_data):
     data = set_key(shipped_data, 'position_control.pd.kd', DELETE)
     assert load_config(write(tmp_path, data)).position.pd == PidGains(kc=968.0, ki=0.0, kd=0.0)
+
+
+# ------------------------------------------------------------------ every key of the shipped file
+def _leaves(data, prefix=''):
+    """Dotted paths of every numeric leaf of the YAML mapping."""
+    for key, value in data.items():
+        path = f'{prefix}{key}'
+        if isinstance(value, dict):
+            yield from _leaves(value, path + '.')
+        elif isinstance(value, (int, float)) and not isinstance(value, bool):
+            yield path
+
+
+def _defaulted_fields():
+    """Field names that may be left out of the file (their dataclass gives a default)."""
+    import gripper_ros.config as config_module
+    names = set()
+    for obj in vars(config_module).values():
+        if dataclasses.is_dataclass(obj) and isinstance(obj, type):
+            names |= {f.name for f in dataclasses.fields(obj)
+                      if f.default is not dataclasses.MISSING}
+    return names
+
+
+SHIPPED_KEYS = list(_leaves(yaml.safe_load(SHIPPED.read_text(encoding='utf-8'))))
+
+
+def test_the_shipped_file_has_numeric_keys():
+    assert len(SHIPPED_KEYS) > 40 and 'plant.resistance_ohm' in SHIPPED_KEYS
+
+
+@pytest.mark.parametrize('value, words', [
+    ('abc', 'number'), ('1.0', 'number'), (None, 'number'), (True, 'number'), ([1.0], 'number'),
+    ({'a': 1}, 'number'), (float('nan'), 'finite'), (float('inf'), 'finite'),
+    (float('-inf'), 'finite'), (-1.0, '>= 0')],
+    ids=['string', 'numeric_string', 'null', 'bool', 'list', 'mapping', 'nan', '+inf', '-inf',
+         'negative'])
+def test_every_key_of_the_shipped_file_refuses_a_bad_value_naming_it(shipped_data, value, words):
+    """Wrong type, non-finite or negative, in ANY key: a ConfigError that names that key (a key
+    the loader ignored would load silently and fail here)."""
+    unchecked = []
+    for key in SHIPPED_KEYS:
+        try:
+            parse_config(set_key(shipped_data, key, value), 'shipped')
+        except ConfigError as exc:
+            message = str(exc)
+            assert key in message, (key, message)
+            if words == '>= 0':     # positive keys say '> 0', non-negative ones '>= 0'
+                assert '> 0' in message or '>= 0' in message or '[0, 1)' in message, message
+            else:
+                assert words in message, (key, message)
+            continue
+        unchecked.append(key)
+    assert not unchecked, f'accepted {value!r} in {unchecked}'
+
+
+def test_every_required_key_of_the_shipped_file_is_named_when_missing(shipped_data):
+    optional = _defaulted_fields()
+    for key in SHIPPED_KEYS:
+        try:
+            parse_config(set_key(shipped_data, key, DELETE), 'shipped')
+        except ConfigError as exc:
+            assert key in str(exc) and 'missing' in str(exc), (key, str(exc))
+            continue
+        assert key.rsplit('.', 1)[1] in optional, f'{key} may be left out but has no default'
+
+
+@pytest.mark.parametrize('key, value, words', [
+    ('plant.resistance_ohm', -2.32, '> 0'),            # negative resistance
+    ('plant.voltage_limit_v', -24.0, '> 0'),
+    ('force_control.closed_loop_pole', -0.1, '>= 0'),
+    ('force_control.closed_loop_pole', 1.5, '[0, 1)'),   # out of range: an unstable loop
+    ('position_control.mpc_pd_braking_voltage_v', 30.0, 'plant.voltage_limit_v'),
+    ('position_control.mpc_pd.horizon', '700', 'number'),
+    ('force_control.mpc_pi.control_horizon', 2.5, 'whole'),
+])
+def test_more_bad_values_are_refused_naming_the_key(tmp_path, shipped_data, key, value, words):
+    with pytest.raises(ConfigError) as info:
+        load_config(write(tmp_path, set_key(shipped_data, key, value)))
+    assert key in str(info.value) and words in str(info.value)
