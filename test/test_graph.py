@@ -189,3 +189,26 @@ def test_headless_simulation_reproduces_the_graph_bit_for_bit(paper_runs, index)
     assert np.array_equal(h.position_m[1:], series.joint.position_m)
     assert np.array_equal(h.force_n[1:], series.sensor.force_n)
     assert np.array_equal(h.motor_voltage_v[1:], series.motor.voltage_v)
+
+
+@pytest.mark.parametrize('index', range(len(PAPER_OBJECTS)))
+def test_position_stage_in_the_graph_is_the_controller_step_run(paper_runs, index):
+    """Issue 5 part 1: the node graph's MPC-PD gives the same response as the numeric core's
+    step run (whose figures test_position_limit holds to the targets), tick for tick, up to the
+    switch; the voltage never leaves +-24 V."""
+    from gripper_ros.controllers import PositionControllerKind, make_position_controller
+    from gripper_ros.simulation import position_step
+    width, _ = PAPER_OBJECTS[index]
+    setpoint = L_LS - width
+    series = load_grasp_series(paper_runs[index].bag_dir)
+    start_s = series.status.t_s[0]
+    switch_s = start_s + paper_runs[index].response.switch_time_s
+    ticks = series.joint.t_s <= switch_s + 1e-12                 # the 10 ms position stage
+    t_graph = series.joint.t_s[ticks] - start_s
+    x_graph = series.joint.position_m[ticks]
+    assert t_graph.size > 50
+    step = position_step(CONFIG, make_position_controller(CONFIG, PositionControllerKind.MPC_PD),
+                         setpoint, horizon_s=t_graph[-1] + 0.01)
+    k = np.rint(t_graph / CONFIG.position.sample_time_s).astype(int)
+    np.testing.assert_allclose(x_graph, step.output[k], rtol=0, atol=1e-12)
+    assert np.all(np.abs(series.motor.voltage_v[ticks]) <= V_LIMIT)
