@@ -37,6 +37,8 @@ setup(
             'bag_analyze = gripper_ros.bag_analyze:main',
             'bench_graph = gripper_ros.bench_graph:main',
             'contact_sweep = gripper_ros.contact_sweep:main',
+            'bench_soak = gripper_ros.bench_soak:main',
+            'bench_controllers = gripper_ros.bench_controllers:main',
         ],
     },
 )
