@@ -22,6 +22,10 @@ the first 10 and of the last 10, and their ratio), and whether identical request
 identical simulated durations and message counts. Bags go to a temporary folder and are deleted
 once checked unless ``--output``/``--keep-bags`` is given.
 
+Run it on a ROS_DOMAIN_ID nobody else uses: another process on the same domain that places
+objects or requests grasps changes what this graph does (scripts/test.sh holds a lock file per
+domain in /tmp/gripper_ros_domains.$UID/; ``flock -n .../67.lock bench_soak`` holds one too).
+
 Exit codes: 0 all grasps held and every bag matched, 1 a grasp failed or a bag did not match,
 2 bad arguments or the graph/client did not come up, 130 interrupted.
 """
@@ -245,13 +249,18 @@ def _grasp_client_exe(width: float, mass: float, timeout_s: float) -> dict:
 
 def run_soak(graph, worker: _WorkerClient, objects, grasps: int, bag_root: Path,
              keep_bags: bool = False, client: str = 'worker', warmup: int = 10,
-             grasp_timeout_s: float = 300.0, progress=None) -> tuple[list, dict]:
-    """Send ``grasps`` grasps (cycling over ``objects``); returns (rows, rss marks)."""
+             grasp_timeout_s: float = 300.0, progress=None, rows: list | None = None,
+             marks: dict | None = None) -> tuple[list, dict]:
+    """Send ``grasps`` grasps (cycling over ``objects``); returns (rows, rss marks).
+
+    ``rows``/``marks``, when given, are filled in place, so a caller still has the grasps done
+    so far when a SoakError ends the run."""
     from .ros_common import GRAPH_TOPICS
     tap = graph._tap                # the serve-mode recorder (no public accessor in graph.py)
     graph.record_every_grasp(bag_root)
-    rows: list[GraspRow] = []
-    marks = {'start': rss_kb()}
+    rows = [] if rows is None else rows
+    marks = {} if marks is None else marks
+    marks['start'] = rss_kb()
     for i in range(grasps):
         width, mass = objects[i % len(objects)]
         if client == 'worker':
@@ -418,18 +427,18 @@ def main(argv: list[str] | None = None) -> int:
 
     rclpy.init(args=[])
     graph = worker = None
+    rows, marks = [], {}
+    error, code = '', 0
     t0 = time.perf_counter()
     try:
         graph = GripperGraph(GraphOptions(executor=ExecutorKind(args.executor)))
         worker = _WorkerClient()
-        rows, marks = run_soak(graph, worker, objects, args.grasps, bag_root, keep, args.client,
-                               args.warmup, args.grasp_timeout, progress)
+        run_soak(graph, worker, objects, args.grasps, bag_root, keep, args.client,
+                 args.warmup, args.grasp_timeout, progress, rows, marks)
     except (GraphError, SoakError) as exc:
-        print(f'bench_soak: {exc}', file=sys.stderr)
-        return 2
+        error, code = str(exc), 2
     except KeyboardInterrupt:
-        print('bench_soak: interrupted', file=sys.stderr)
-        return 130
+        error, code = 'interrupted', 130
     finally:
         if worker is not None:
             worker.close()
@@ -438,12 +447,20 @@ def main(argv: list[str] | None = None) -> int:
         rclpy.try_shutdown()
         if not keep:
             shutil.rmtree(bag_root, ignore_errors=True)
+    if error:
+        print(f'bench_soak: {error} (after {len(rows)} grasps)', file=sys.stderr)
+        if not rows:
+            return code
+        marks.setdefault('warm', marks['start'])
+        marks['end'] = rows[-1].rss_kb
     report = summarise(rows, marks, objects, args.warmup, args.executor, args.client,
                        time.perf_counter() - t0)
     text = json.dumps(asdict(report), indent=1)
     if args.json_file:
         Path(args.json_file).write_text(text + '\n')
     print(text if args.json else format_report(report))
+    if error:
+        return code
     return 0 if report.failures == 0 and report.count_mismatches == 0 else 1
 
 
