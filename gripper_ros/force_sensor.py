@@ -3,8 +3,17 @@
 An FSR is an open circuit until a small activation force; above it its resistance falls roughly
 as 1/F. In a divider with a fixed measuring resistor the output jumps on first contact, which
 is the "change in the voltage reading above a set tolerance" the paper's supervisor looks for.
+
+Dropout (fault injection, ``SetObject.FAULT_SENSOR_DROPOUT``): the sensor's read-out stops
+delivering valid samples (a broken FSR lead or a failed ADC channel detected by the driver, e.g.
+by a wire-break check). The driver then marks the sample invalid the ROS way, with NaN force and
+NaN voltage (cf. REP 117: NaN for an invalid reading), rather than passing on the 0 V a broken
+divider would show: 0 V is within ADC resolution of the no-contact output (4.995 mV) and would
+read as "no force", i.e. as a lost object, and a force loop would wind up on it.
 """
 from __future__ import annotations
+
+import math
 
 from .config import ForceSensorParams
 
@@ -14,6 +23,13 @@ class FsrVoltageDivider:
 
     def __init__(self, params: ForceSensorParams):
         self.params = params
+        self.dropped_out = False     # True: every reading is invalid (NaN) until repaired
+
+    def read(self, force_n: float) -> tuple[float, float]:
+        """``(force_n, voltage_v)`` as the sensor reports them; both NaN after a dropout."""
+        if self.dropped_out:
+            return math.nan, math.nan
+        return force_n, self.voltage_v(force_n)
 
     def resistance_ohm(self, force_n: float) -> float:
         p = self.params

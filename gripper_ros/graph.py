@@ -149,10 +149,14 @@ class GripperGraph:
 
     def set_object(self, width_m: float, stiffness_n_per_m: float = 0.0,
                    damping_n_s_per_m: float = 0.0, open_fingers: bool = True,
-                   timeout_s: float = 10.0) -> SetObject.Response:
+                   timeout_s: float = 10.0, fault: int = 0, fault_at_s: float = 0.0,
+                   fault_time_constant_s: float = 0.0) -> SetObject.Response:
+        """Place an object; ``fault`` (SetObject.FAULT_*) fires ``fault_at_s`` into the next grasp."""
         return self.call(self._set_object, SetObject.Request(
             width_m=float(width_m), stiffness_n_per_m=float(stiffness_n_per_m),
-            damping_n_s_per_m=float(damping_n_s_per_m), open_fingers=open_fingers), timeout_s)
+            damping_n_s_per_m=float(damping_n_s_per_m), open_fingers=open_fingers,
+            fault=int(fault), fault_at_s=float(fault_at_s),
+            fault_time_constant_s=float(fault_time_constant_s)), timeout_s)
 
     def grasp(self, width_m: float, mass_kg: float, friction_coefficient: float = 0.0,
               acceleration_mps2: float = 0.0, timeout_s: float = 0.0,

@@ -14,12 +14,27 @@ hold, matrix exponential) at whatever hold time a controller asks for. Contact w
 
 The fully-open end stop (``x = 0``) is rigid and senses no force; with no object the fingers meet
 at ``x = L_ls`` (a rigid object of width 0).
+
+Fault injection (tests and demos; :meth:`GripperPlant.schedule_fault`, one fault fires at an exact
+simulated instant, the step is split there):
+
+* ``OBJECT_REMOVED``: the object vanishes; the finger is free to move on (to the other finger).
+* ``OBJECT_SLIPPING`` (rigid objects): the object slides out of the grip. The most force it can
+  resist decays as ``C(t) = F_0 exp(-(t - t_f)/tau)`` from the force ``F_0`` at the fault
+  instant ``t_f``. While the motor pushes harder than ``C`` the finger advances against the
+  constant load ``C`` (the face recedes with it) and the measured force is ``C``; once
+  ``C < 1 %`` of ``F_0`` the object is out and gone. Fired while nothing is gripped
+  (``F_0 = 0``) it acts as a removal.
+* ``SENSOR_DROPOUT``: the force sensor reports NaN force and voltage from then on
+  (:class:`gripper_ros.force_sensor.FsrVoltageDivider`); the mechanics are unaffected.
+
+Effects last until the next :meth:`GripperPlant.set_object` (a new object, a repaired sensor).
 """
 from __future__ import annotations
 
 import enum
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy.linalg import expm
@@ -28,8 +43,46 @@ from .config import ContactParams, PlantParams
 from .force_sensor import FsrVoltageDivider
 
 
+class FaultKind(enum.IntEnum):        # values match SetObject.srv FAULT_*
+    NONE = 0
+    OBJECT_REMOVED = 1
+    OBJECT_SLIPPING = 2
+    SENSOR_DROPOUT = 3
+
+
+DEFAULT_SLIP_TIME_CONSTANT_S = 0.01   # e-folding time of the slipping object's force capacity
+SLIP_GONE_FRACTION = 0.01             # the object is out once its capacity is below 1 % of F_0
+MAX_FAULT_DELAY_S = 600.0
+
+
+@dataclass(frozen=True)
+class ScheduledFault:
+    kind: FaultKind
+    at_ns: int                        # absolute simulated time at which it fires
+    time_constant_s: float = DEFAULT_SLIP_TIME_CONSTANT_S
+
+
+def check_fault(kind, delay_s: float, time_constant_s: float = 0.0,
+                rigid_object: bool = True) -> tuple[FaultKind, float]:
+    """Validate a fault request; returns (kind, time constant with 0 = default). ValueError."""
+    try:
+        kind = FaultKind(kind)
+    except ValueError:
+        raise ValueError(f'unknown fault {kind!r}; known: '
+                         f'{", ".join(f"{k.value}={k.name}" for k in FaultKind)}') from None
+    if not (math.isfinite(delay_s) and 0.0 <= delay_s <= MAX_FAULT_DELAY_S):
+        raise ValueError(f'fault_at_s must be in [0, {MAX_FAULT_DELAY_S:g}] s, got {delay_s!r}')
+    if not (math.isfinite(time_constant_s) and time_constant_s >= 0.0):
+        raise ValueError(f'fault_time_constant_s must be finite and >= 0, '
+                         f'got {time_constant_s!r}')
+    if kind is FaultKind.OBJECT_SLIPPING and not rigid_object:
+        raise ValueError('OBJECT_SLIPPING is modelled for rigid objects only (stiffness 0)')
+    return kind, time_constant_s or DEFAULT_SLIP_TIME_CONSTANT_S
+
+
 class ContactState(enum.Enum):
     FREE = 'free'
+    SLIPPING = 'slipping'              # a slipping object gives way: finger advances against C(t)
     RIGID_OBJECT = 'rigid_object'      # pressing a rigid object (or the other finger)
     COMPLIANT_OBJECT = 'compliant'     # compressing a compliant object
     OPEN_STOP = 'open_stop'            # resting on the fully-open end stop
@@ -90,6 +143,10 @@ class GripperPlant:
         self.object = GraspObject(0.0, default.stiffness_n_per_m, default.damping_n_s_per_m)
         self.impact_energy_lost_j = 0.0
         self.t_ns = 0  # simulated time in integer nanoseconds: exact, the lockstep's tick key
+        self.scheduled_fault: ScheduledFault | None = None
+        self.fired_faults: list[tuple[FaultKind, int]] = []   # (kind, t_ns) since set_object
+        self._slip: tuple[float, float, float] | None = None   # (t_f s, F_0 N, tau s)
+        self._t_now_s = 0.0
         self.reset()
 
     # ----------------------------------------------------------------- set-up
@@ -127,6 +184,65 @@ class GripperPlant:
         if self._x > self.params.max_travel_m - obj.width_m:
             raise ValueError('the finger is already past the new object surface; open first')
         self.object = obj
+        self.clear_faults()
+        self._refresh_contact_state()
+
+    # ----------------------------------------------------------------- fault injection
+    def schedule_fault(self, kind, at_ns: int,
+                       time_constant_s: float = DEFAULT_SLIP_TIME_CONSTANT_S) -> ScheduledFault:
+        """Fire ``kind`` at simulated time ``at_ns`` (>= now; replaces a scheduled one)."""
+        kind, tau = check_fault(kind, 0.0, time_constant_s, self.object.rigid)
+        at_ns = max(int(at_ns), self.t_ns)
+        self.scheduled_fault = None if kind is FaultKind.NONE else \
+            ScheduledFault(kind, at_ns, tau)
+        return self.scheduled_fault
+
+    def cancel_fault(self) -> None:
+        """Drop a scheduled fault that has not fired (its effects, once fired, stay)."""
+        self.scheduled_fault = None
+
+    def clear_faults(self) -> None:
+        """No scheduled fault, a working sensor, no slip."""
+        self.scheduled_fault = None
+        self.fired_faults = []
+        self.sensor.dropped_out = False
+        self._slip = None
+        if self._state is ContactState.SLIPPING:
+            self._w = 0.0
+            self._state = ContactState.RIGID_OBJECT
+
+    @property
+    def sensor_dropped_out(self) -> bool:
+        return self.sensor.dropped_out
+
+    def slip_capacity_n(self, t_s: float | None = None) -> float:
+        """Force the slipping object can still resist at ``t_s`` (inf when not slipping)."""
+        if self._slip is None:
+            return math.inf
+        t_f, f_0, tau = self._slip
+        t = self._t_now_s if t_s is None else t_s
+        return f_0 * math.exp(-max(0.0, t - t_f) / tau)
+
+    def _fire_fault(self, fault: ScheduledFault) -> None:
+        self.scheduled_fault = None
+        self.fired_faults.append((fault.kind, fault.at_ns))
+        if fault.kind is FaultKind.SENSOR_DROPOUT:
+            self.sensor.dropped_out = True
+        elif fault.kind is FaultKind.OBJECT_REMOVED:
+            self._remove_object()
+        elif fault.kind is FaultKind.OBJECT_SLIPPING:
+            f_0 = self._force()
+            if f_0 <= 0.0:
+                self._remove_object()
+            else:
+                self._slip = (fault.at_ns * 1e-9, f_0, fault.time_constant_s)
+
+    def _remove_object(self) -> None:
+        self._slip = None
+        self.object = GraspObject(0.0)          # nothing: the fingers would meet at L_ls
+        if self._state in (ContactState.RIGID_OBJECT, ContactState.COMPLIANT_OBJECT,
+                           ContactState.SLIPPING) and self._x < self.params.max_travel_m:
+            self._state = ContactState.FREE
         self._refresh_contact_state()
 
     @property
@@ -184,10 +300,11 @@ class GripperPlant:
 
     def sample(self) -> PlantSample:
         force = self._force()
-        return PlantSample(self.t_ns, self._x, self._w * self._rho, force,
-                           max(self._peak, force), self._i, self._w, self._voltage,
-                           self.sensor.voltage_v(force),
-                           self._state in (ContactState.RIGID_OBJECT,
+        measured, sensor_v = self.sensor.read(force)
+        peak = math.nan if math.isnan(measured) else max(self._peak, force)
+        return PlantSample(self.t_ns, self._x, self._w * self._rho, measured, peak,
+                           self._i, self._w, self._voltage, sensor_v,
+                           self._state in (ContactState.RIGID_OBJECT, ContactState.SLIPPING,
                                            ContactState.COMPLIANT_OBJECT) and force > 0.0)
 
     def step(self, voltage_v: float, duration_s: float) -> PlantSample:
@@ -204,9 +321,30 @@ class GripperPlant:
         e = min(limit, max(-limit, voltage_v))
         self._voltage = e
         self._peak = self._force()
+        fault = self.scheduled_fault
+        end_ns = self.t_ns + duration_ns
+        if fault is not None and fault.at_ns < end_ns:
+            before_ns = fault.at_ns - self.t_ns
+            if before_ns > 0:
+                self._integrate(e, before_ns * 1e-9, self.t_ns * 1e-9)
+            self._fire_fault(fault)
+            self._integrate(e, (duration_ns - before_ns) * 1e-9, fault.at_ns * 1e-9)
+        else:
+            self._integrate(e, duration_s, self.t_ns * 1e-9)
+        self.t_ns = end_ns
+        self._t_now_s = end_ns * 1e-9
+        return self.sample()
+
+    def _integrate(self, e: float, duration_s: float, start_s: float) -> None:
         remaining = duration_s
         h = self.params.contact_substep_s
         while remaining > 1e-15:
+            self._t_now_s = start_s + (duration_s - remaining)
+            if self._slip is not None and self._state in (ContactState.RIGID_OBJECT,
+                                                          ContactState.SLIPPING):
+                remaining = self._advance_slipping(e, min(h, remaining), remaining)
+                self._peak = max(self._peak, self._force())
+                continue
             if self._state is ContactState.FREE:
                 if self._free_step_is_safe(e, remaining):
                     self._advance_linear(ContactState.FREE, e, remaining)
@@ -224,13 +362,14 @@ class GripperPlant:
                 remaining -= dt
                 self._detect_separation()
             self._peak = max(self._peak, self._force())
-        self.t_ns += duration_ns
-        return self.sample()
 
     # ----------------------------------------------------------------- internals
     def _force(self) -> float:
+        if self._state is ContactState.SLIPPING:
+            return self.slip_capacity_n()
         if self._state is ContactState.RIGID_OBJECT:
-            return max(0.0, self.params.torque_constant_n_m_per_a * self._i / self._lever)
+            motor = max(0.0, self.params.torque_constant_n_m_per_a * self._i / self._lever)
+            return motor if self._slip is None else min(motor, self.slip_capacity_n())
         if self._state is ContactState.COMPLIANT_OBJECT:
             obj = self.object
             depth = self._x - self.contact_position_m
@@ -338,3 +477,54 @@ class GripperPlant:
         self._i = i_inf + (i0 - i_inf) * math.exp(-t_leave / self._tau_e)
         self._state = ContactState.FREE
         return dt_s - t_leave
+
+    # ----------------------------------------------------------------- slipping object
+    def _advance_slipping(self, e: float, dt_s: float, remaining_s: float) -> float:
+        """One sub-step of a gripped, slipping rigid object; returns the time left after it."""
+        p = self.params
+        cap = self.slip_capacity_n()
+        if cap < SLIP_GONE_FRACTION * self._slip[1]:
+            self._remove_object()                       # slid out: nothing left to grip
+            return remaining_s
+        if self._state is ContactState.RIGID_OBJECT:
+            motor = p.torque_constant_n_m_per_a * self._i / self._lever
+            if motor <= cap:                            # the object holds: stalled, as usual
+                left = self._advance_stalled(e, dt_s)
+                return remaining_s - dt_s + left
+            self._state = ContactState.SLIPPING         # pushing harder than it can resist
+        ad, bd = self._discretise_loaded(dt_s)
+        s = (self._i, self._w, self._x)
+        u = (e, cap)
+        self._i, self._w, self._x = (
+            sum(ad[r][c] * s[c] for c in range(3)) + bd[r][0] * u[0] + bd[r][1] * u[1]
+            for r in range(3))
+        end = p.max_travel_m
+        if self._x >= end:                              # the object is gone, the fingers meet
+            self._x = end
+            self._w = 0.0
+            self._slip = None
+            self.object = GraspObject(0.0)
+            self._state = ContactState.RIGID_OBJECT
+        else:
+            self.object = replace(self.object, width_m=end - self._x)   # the face recedes
+            if self._w <= 0.0:                          # the finger stopped: it grips again
+                self._w = 0.0
+                self._state = ContactState.RIGID_OBJECT
+        return remaining_s - dt_s
+
+    def _discretise_loaded(self, dt_s: float):
+        """Exact ZOH of free motion with two held inputs: voltage and a load force (N)."""
+        key = ('loaded', dt_s)
+        cached = self._cache.get(key)
+        if cached is not None:
+            return cached
+        m = np.zeros((5, 5))
+        m[:3, :3] = self._a_free * dt_s
+        m[0, 3] = self._b[0] * dt_s
+        m[1, 4] = -self._lever / self.params.inertia_kg_m2 * dt_s
+        phi = expm(m)
+        cached = (phi[:3, :3].tolist(), phi[:3, 3:5].tolist())
+        if len(self._cache) > 256:
+            self._cache.clear()
+        self._cache[key] = cached
+        return cached

@@ -4,6 +4,11 @@ Publishes ``/clock``, the finger joint state, the force sensor (force and FSR vo
 motor state for tick ``t_k``; then waits for the command of tick ``t_k`` from the controller the
 supervisor named active for ``t_k``, holds it for the command's ``hold_s`` and publishes tick
 ``t_k + hold_s``. Simulated time stands still while nobody commands.
+
+``/gripper/sim/set_object`` places an object and may schedule a fault (``SetObject.FAULT_*``):
+it is armed when the next grasp starts (the first status of a new grasp, phase POSITION) at
+``fault_at_s`` after that status' stamp, and dropped if that grasp ends before it fires. The
+fault's numerics live in :mod:`gripper_ros.plant` and :mod:`gripper_ros.force_sensor`.
 """
 from __future__ import annotations
 
@@ -20,7 +25,7 @@ from sensor_msgs.msg import JointState
 
 from .config import ConfigError
 from .controllers import make_plant
-from .plant import GraspObject, PlantSample
+from .plant import FaultKind, GraspObject, PlantSample, check_fault
 from .ros_common import (FINGER_JOINT, GRAPH_QOS, SERVICE_SET_OBJECT, TOPIC_CLOCK,
                          TOPIC_FORCE_SENSOR, TOPIC_JOINT_STATES, TOPIC_MOTOR_COMMAND,
                          TOPIC_MOTOR_STATE, TOPIC_STATUS, declare_config, ns_to_time, time_to_ns)
@@ -40,6 +45,8 @@ class PlantSimulatorNode(Node):
         self._command: MotorCommand | None = None
         self.ticks_published = 0
         self.commands_rejected = 0
+        self._pending_fault: tuple[FaultKind, float, float] | None = None  # (kind, at_s, tau)
+        self._fault_grasp_id: int | None = None   # the grasp the armed fault belongs to
 
         self._clock_pub = self.create_publisher(Clock, TOPIC_CLOCK, GRAPH_QOS)
         self._joint_pub = self.create_publisher(JointState, TOPIC_JOINT_STATES, GRAPH_QOS)
@@ -66,6 +73,18 @@ class PlantSimulatorNode(Node):
     # ------------------------------------------------------------------ lockstep
     def _on_status(self, msg: SupervisorStatus) -> None:
         self._status = msg
+        if self._pending_fault is not None and msg.phase == SupervisorStatus.PHASE_POSITION \
+                and msg.outcome == 0:
+            kind, at_s, tau = self._pending_fault
+            self._pending_fault = None
+            self._fault_grasp_id = msg.grasp_id
+            fault = self.plant.schedule_fault(
+                kind, time_to_ns(msg.header.stamp) + round(at_s * 1e9), tau)
+            self.get_logger().info(f'grasp {msg.grasp_id}: fault {kind.name} scheduled at '
+                                   f't={fault.at_ns * 1e-9:.4f} s')
+        elif msg.outcome != 0 and self.plant.scheduled_fault is not None and \
+                msg.grasp_id == self._fault_grasp_id:
+            self.plant.cancel_fault()             # the grasp ended before its fault fired
         self._try_step()
 
     def _on_command(self, msg: MotorCommand) -> None:
@@ -131,17 +150,25 @@ class PlantSimulatorNode(Node):
             response.message = 'refused: a grasp is running'
             return response
         try:
+            obj = GraspObject(request.width_m, request.stiffness_n_per_m,
+                              request.damping_n_s_per_m)
+            kind, tau = check_fault(request.fault, request.fault_at_s,
+                                    request.fault_time_constant_s, obj.rigid)
             if request.open_fingers:
                 self.plant.reset(open_fingers=True)
-            self.plant.set_object(GraspObject(request.width_m, request.stiffness_n_per_m,
-                                              request.damping_n_s_per_m))
+            self.plant.set_object(obj)                       # also clears earlier faults
         except ValueError as exc:
             response.success = False
             response.message = f'refused: {exc}'
             return response
+        self._pending_fault = None if kind is FaultKind.NONE else \
+            (kind, request.fault_at_s, tau)
         response.success = True
         response.message = (f'object width {request.width_m:g} m, contact at '
                             f'{self.plant.contact_position_m:.4f} m')
+        if self._pending_fault is not None:
+            response.message += (f'; fault {kind.name} {request.fault_at_s:g} s after the start '
+                                 f'of the next grasp')
         self.publish_sample(self.plant.sample())
         return response
 

@@ -388,3 +388,109 @@ def test_plant_sample_reports_sensor_voltage_of_its_force():
     assert plant.sample().sensor_voltage_v == SENSOR.voltage_v(0.0)
     s = plant.step(2.0, 1e-3)
     assert s.sensor_voltage_v == pytest.approx(SENSOR.voltage_v(s.force_n), rel=1e-12)
+
+
+# ------------------------------------------------------------------ fault injection
+from gripper_ros.plant import FaultKind, check_fault  # noqa: E402
+
+
+def gripping_plant(volts=8.0, width=0.05):
+    """Finger at rest on a rigid object, current settled at ``volts / R`` (force 1.391 N/V)."""
+    plant = make_plant()
+    plant.set_object(GraspObject(width))
+    plant.touch_object()
+    for _ in range(50):                                   # 5 ms = 48 L/R: current settled
+        plant.step(volts, 1e-4)
+    return plant
+
+
+def test_removal_fires_at_its_exact_instant_inside_a_step_then_free_motion():
+    volts, t_split = 8.0, 0.37e-3
+    plant = gripping_plant(volts)
+    i0 = plant.sample().current_a
+    x_c = plant.contact_position_m
+    plant.schedule_fault(FaultKind.OBJECT_REMOVED, plant.t_ns + round(t_split * 1e6) * 1000)
+    s = plant.step(volts, 1e-3)
+    # analytic: current of the stalled motor (eq. 13) up to the fault, then free motion
+    i_f = volts / R + (i0 - volts / R) * math.exp(-t_split / TAU_E)
+    a, b = continuous_free_model()
+    m = np.zeros((4, 4))
+    m[:3, :3] = a
+    m[:3, 3] = b[:, 0] * volts
+    phi = expm(m * (1e-3 - t_split))
+    expected = phi[:3, :3] @ np.array([i_f, 0.0, x_c]) + phi[:3, 3]
+    assert s.current_a == pytest.approx(expected[0], rel=1e-9)
+    assert s.speed_rad_s == pytest.approx(expected[1], rel=1e-9)
+    assert s.position_m == pytest.approx(expected[2], rel=1e-12)
+    assert s.position_m > x_c and s.force_n == 0.0 and not s.contact
+    assert plant.fired_faults == [(FaultKind.OBJECT_REMOVED, plant.t_ns - 1_000_000
+                                   + round(t_split * 1e9))]
+    assert plant.contact_position_m == L_LS                 # nothing left: fingers would meet
+
+
+def test_slipping_object_force_decays_exponentially_then_the_object_is_gone():
+    volts, tau = 8.0, 0.004
+    plant = gripping_plant(volts)
+    f_0 = plant.sample().force_n
+    assert f_0 == pytest.approx(STALL_N_PER_V * volts, rel=1e-6)
+    x_c = plant.contact_position_m
+    t_f = plant.t_ns
+    plant.schedule_fault(FaultKind.OBJECT_SLIPPING, t_f, tau)
+    for k in range(1, 3 * 40 + 1):                         # 3 tau in 0.1 ms steps
+        s = plant.step(volts, 1e-4)
+        assert s.force_n == pytest.approx(f_0 * math.exp(-k * 1e-4 / tau), rel=1e-9)
+        assert s.contact
+    assert plant.contact_state is ContactState.SLIPPING
+    assert s.position_m > x_c                               # the finger advanced: face receded
+    assert plant.contact_position_m == pytest.approx(s.position_m, abs=1e-12)
+    for _ in range(2 * 40 + 1):                            # past 4.6 tau: below 1 % of F_0
+        s = plant.step(volts, 1e-4)
+    assert s.force_n == 0.0 and not s.contact and plant.contact_state is ContactState.FREE
+
+
+def test_slip_with_the_motor_pushing_less_than_the_capacity_stays_stalled():
+    plant = gripping_plant(8.0)
+    f_0 = plant.sample().force_n
+    plant.schedule_fault(FaultKind.OBJECT_SLIPPING, plant.t_ns, 0.004)
+    plant.step(0.0, 0.002)                                  # motor off: the current decays
+    s = plant.sample()
+    cap = f_0 * math.exp(-0.5)
+    motor = f_0 * math.exp(-0.002 / TAU_E)                  # eq. 13, zero input
+    assert motor < cap and s.force_n == pytest.approx(motor, rel=1e-9)
+    assert plant.contact_state is ContactState.RIGID_OBJECT and s.velocity_mps == 0.0
+
+
+def test_sensor_dropout_reads_nan_and_leaves_the_mechanics_alone():
+    a, b = gripping_plant(8.0), gripping_plant(8.0)
+    a.schedule_fault(FaultKind.SENSOR_DROPOUT, a.t_ns + 250_000)
+    for _ in range(2):
+        sa, sb = a.step(5.0, 1e-4), b.step(5.0, 1e-4)
+        assert math.isfinite(sa.force_n) and sa.voltage_v == sb.voltage_v
+    sa, sb = a.step(5.0, 1e-4), b.step(5.0, 1e-4)
+    assert math.isnan(sa.force_n) and math.isnan(sa.sensor_voltage_v)
+    assert math.isnan(sa.peak_force_n)
+    assert (sa.position_m, sa.current_a, sa.contact) == (sb.position_m, sb.current_a, sb.contact)
+    a.set_object(GraspObject(0.05))                         # a new object: the sensor works again
+    assert a.sample().force_n == b.sample().force_n and not a.sensor_dropped_out
+    assert a.fired_faults == [] and a.scheduled_fault is None
+
+
+def test_a_cancelled_fault_never_fires():
+    plant = gripping_plant(8.0)
+    plant.schedule_fault(FaultKind.OBJECT_REMOVED, plant.t_ns + 100_000)
+    plant.cancel_fault()
+    s = plant.step(8.0, 1e-3)
+    assert s.force_n > 0.0 and plant.fired_faults == []
+
+
+@pytest.mark.parametrize('kind, at_s, tau, rigid, words', [
+    (9, 0.1, 0.0, True, 'unknown fault'),
+    (FaultKind.OBJECT_REMOVED, -0.1, 0.0, True, 'fault_at_s'),
+    (FaultKind.OBJECT_REMOVED, math.nan, 0.0, True, 'fault_at_s'),
+    (FaultKind.OBJECT_SLIPPING, 0.1, -1.0, True, 'fault_time_constant_s'),
+    (FaultKind.OBJECT_SLIPPING, 0.1, 0.0, False, 'rigid objects only'),
+])
+def test_bad_fault_requests_are_refused(kind, at_s, tau, rigid, words):
+    with pytest.raises(ValueError, match=words):
+        check_fault(kind, at_s, tau, rigid)
+    assert check_fault(FaultKind.OBJECT_SLIPPING, 0.5, 0.0) == (FaultKind.OBJECT_SLIPPING, 0.01)
