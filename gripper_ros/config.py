@@ -119,6 +119,12 @@ class SupervisorParams:
     force_settle_hold_s: float
     timeout_s: float
     no_object_margin_m: float
+    # Loss watch and release (defaults apply when a config file predates them).
+    hold_watch_s: float = 0.02           # force loop keeps holding and watching before HOLDING
+    lost_force_fraction: float = 0.5     # OBJECT_LOST: force below this x F_sp after a grip ...
+    lost_force_hold_s: float = 0.002     # ... for this long
+    release_tolerance_m: float = 0.001   # release done within this of the open position ...
+    release_settle_s: float = 0.05       # ... for this long
 
 
 @dataclass(frozen=True)
@@ -235,7 +241,11 @@ def parse_config(data: dict, source: str = '<dict>') -> GripperConfig:
         raise ConfigError('"position_control.mpc_pd_braking_voltage_v" must be <= '
                           f'"plant.voltage_limit_v", got {position.mpc_pd_braking_voltage_v!r}')
     sup = _build(SupervisorParams, _section(data, 'supervisor', source), 'supervisor',
-                 acceleration_mps2={'nonnegative': True})
+                 acceleration_mps2={'nonnegative': True}, hold_watch_s={'nonnegative': True},
+                 release_settle_s={'nonnegative': True})
+    if not sup.lost_force_fraction < 1.0:
+        raise ConfigError('"supervisor.lost_force_fraction" must be in (0, 1), '
+                          f'got {sup.lost_force_fraction!r}')
     return GripperConfig(plant, contact, sensor, position, force, sup, source)
 
 

@@ -16,6 +16,10 @@ NO_OBJECT) and ``--no-place`` leaves the simulation as it is. Exit code: 0 when 
 held, 1 for any other outcome, 2 when the graph cannot be reached. ``--action`` sends the grasp
 as a goal to ``/gripper/grasp_action`` instead, prints its feedback (phase, opening, force) as it
 comes, and cancels the goal on Ctrl-C (the grasp ends as STOPPED).
+
+``--release`` opens the fingers instead (``/gripper/release``, std_srvs/Trigger; with a full
+ROS 2: ``ros2 service call /gripper/release std_srvs/srv/Trigger``): exit code 0 once open, 1 if
+refused (e.g. a grasp is running: call ``/gripper/stop`` first).
 """
 from __future__ import annotations
 
@@ -28,8 +32,10 @@ from .grasp_logic import Outcome
 
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog='grasp_client', description=__doc__.splitlines()[0])
-    p.add_argument('--width', type=float, required=True, help='expected object width (m)')
-    p.add_argument('--mass', type=float, required=True, help='object mass (kg)')
+    p.add_argument('--width', type=float, help='expected object width (m); needed for a grasp')
+    p.add_argument('--mass', type=float, help='object mass (kg); needed for a grasp')
+    p.add_argument('--release', action='store_true',
+                   help='open the fingers (/gripper/release) instead of grasping')
     p.add_argument('--friction', type=float, default=0.0, help='mu_s (0 = supervisor default)')
     p.add_argument('--acceleration', type=float, default=0.0, help='a in eq. 23 (m/s^2)')
     p.add_argument('--timeout', type=float, default=0.0,
@@ -92,6 +98,24 @@ def _grasp_by_action(node, args):
     return result.result().result if result.done() else None
 
 
+def _release(node, args) -> int:
+    from std_srvs.srv import Trigger
+
+    from .ros_common import SERVICE_RELEASE
+    client = node.create_client(Trigger, SERVICE_RELEASE)
+    if not client.wait_for_service(timeout_sec=args.wait):
+        print(f'grasp_client: service {SERVICE_RELEASE} not available after {args.wait:g} s',
+              file=sys.stderr)
+        return 2
+    response = _call(node, client, Trigger.Request(), args.call_timeout)
+    if response is None:
+        print(f'grasp_client: the release did not answer within {args.call_timeout:g} s',
+              file=sys.stderr)
+        return 2
+    print(f'success: {response.success}\nmessage: {response.message}')
+    return 0 if response.success else 1
+
+
 def main(argv: list[str] | None = None) -> int:
     os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
     import rclpy
@@ -99,11 +123,16 @@ def main(argv: list[str] | None = None) -> int:
     from rclpy.executors import ExternalShutdownException
     from rclpy.utilities import remove_ros_args
 
-    args = build_parser().parse_args(
+    parser = build_parser()
+    args = parser.parse_args(
         remove_ros_args(sys.argv if argv is None else ['grasp_client', *argv])[1:])
+    if not args.release and (args.width is None or args.mass is None):
+        parser.error('--width and --mass are required for a grasp (or give --release)')
     rclpy.init(args=None if argv is None else [])
     node = rclpy.create_node('grasp_client')
     try:
+        if args.release:
+            return _release(node, args)
         grasp = node.create_client(Grasp, '/gripper/grasp')
         place = node.create_client(SetObject, '/gripper/sim/set_object')
         needed = [grasp] if args.no_place else [grasp, place]

@@ -5,6 +5,16 @@ switching criterion holds - the position is within +-2 % of its setpoint, or the
 voltage has risen by more than its threshold - then FORCE (PI to ``mu_s m (g + a)``, eq. 23)
 until the force has stayed within its band for a hold time: HOLDING. Exactly one controller is
 active at any tick; the decision for each tick is a :class:`Decision`.
+
+Loss watch: once the force has reached ``lost_force_fraction`` of its setpoint after contact, a
+force below that fraction for ``lost_force_hold_s``, or (after settling) the finger moving on
+past the held position by more than ``no_object_margin_m``, ends the grasp as OBJECT_LOST.
+After settling, the force loop keeps holding and watching for ``hold_watch_s`` (phase HOLDING,
+force controller still active) before the grasp ends with outcome HOLDING.
+
+Release: :meth:`GraspSupervisor.start_release` runs the position stage to the open position
+(phase RELEASING) until the finger has stayed within ``release_tolerance_m`` of it for
+``release_settle_s``: phase DONE, outcome RELEASED.
 """
 from __future__ import annotations
 
@@ -24,6 +34,7 @@ class Phase(enum.IntEnum):           # values match SupervisorStatus.PHASE_*
     HOLDING = 3
     DONE = 4
     FAILED = 5
+    RELEASING = 6                     # /gripper/release: position stage to the open position
 
 
 class ActiveController(enum.IntEnum):  # values match SupervisorStatus.CONTROLLER_*
@@ -47,6 +58,7 @@ class Outcome(enum.IntEnum):          # values match Grasp.srv OUTCOME_*
     STOPPED = 5
     REFUSED = 6
     FAULT = 7
+    RELEASED = 8                      # a release ended with the fingers open
 
 
 class RequestError(ValueError):
@@ -143,29 +155,67 @@ class GraspSupervisor:
         self.start_ns = 0
         self.switch_ns: int | None = None
         self.contact_ns: int | None = None
+        self.settled_ns: int | None = None      # force first settled (phase HOLDING from here)
+        self.hold_position_m: float | None = None
+        self.end_ns: int | None = None
         self._baseline_voltage_v = 0.0
         self._in_band_since_ns: int | None = None
+        self._gripped = False                   # force reached lost_force_fraction x F_sp
+        self._low_since_ns: int | None = None
+        self._t_ns = 0
         self.message = ''
 
     @property
     def busy(self) -> bool:
-        return self.phase in (Phase.POSITION, Phase.FORCE)
+        """A grasp or release is running (a controller drives the motor)."""
+        return self.phase is not Phase.IDLE and self.outcome is Outcome.UNKNOWN
+
+    @property
+    def releasing(self) -> bool:
+        return self.busy and self.phase is Phase.RELEASING
 
     def start(self, targets: GraspTargets, t_ns: int, sensor_voltage_v: float) -> Decision:
         """Begin a grasp at tick ``t_ns``; the sensor voltage now is the no-contact baseline."""
         if self.busy:
-            raise RequestError('a grasp is already running')
+            raise RequestError('a release is running' if self.releasing
+                               else 'a grasp is already running')
         self.targets = targets
         self.phase = Phase.POSITION
         self.switch_criterion = SwitchCriterion.NONE
         self.outcome = Outcome.UNKNOWN
-        self.start_ns = t_ns
+        self._reset(t_ns)
+        self._baseline_voltage_v = sensor_voltage_v
+        return self._decision()
+
+    def start_release(self, t_ns: int, open_position_m: float = 0.0,
+                      timeout_s: float | None = None) -> Decision:
+        """Open the fingers under position control: the position stage to ``open_position_m``."""
+        if self.busy:
+            raise RequestError(f'a {"release" if self.releasing else "grasp"} is running '
+                               f'(phase {self.phase.name})')
+        if not (math.isfinite(open_position_m)
+                and 0.0 <= open_position_m < self.plant.max_travel_m):
+            raise RequestError(f'open position must be in [0, {self.plant.max_travel_m:g}) m, '
+                               f'got {open_position_m!r}')
+        timeout = self.params.timeout_s if timeout_s is None else timeout_s
+        self.targets = GraspTargets(open_position_m, 0.0, 0.0, timeout)
+        self.phase = Phase.RELEASING
+        self.switch_criterion = SwitchCriterion.NONE
+        self._reset(t_ns)
+        return self._decision()
+
+    def _reset(self, t_ns: int) -> None:
+        self.outcome = Outcome.UNKNOWN
+        self.start_ns = self._t_ns = t_ns
         self.switch_ns = None
         self.contact_ns = None
-        self._baseline_voltage_v = sensor_voltage_v
+        self.settled_ns = None
+        self.hold_position_m = None
+        self.end_ns = None
         self._in_band_since_ns = None
+        self._gripped = False
+        self._low_since_ns = None
         self.message = ''
-        return self._decision()
 
     def stop(self, message: str = 'stopped on request') -> Decision:
         """End the running grasp now (STOPPED); the plant is left without a commanding loop."""
@@ -183,10 +233,22 @@ class GraspSupervisor:
         """Advance the state machine with the measurements of tick ``t_ns``."""
         if not self.busy:
             return self._decision()
-        if not all(math.isfinite(v) for v in (position_m, force_n, sensor_voltage_v)):
+        self._t_ns = t_ns
+        bad = []
+        if not math.isfinite(position_m):
+            bad.append(f'finger position sensor (joint state) reads {position_m!r} m')
+        if self.phase is not Phase.RELEASING and not (
+                math.isfinite(force_n) and math.isfinite(sensor_voltage_v)):
+            bad.append(f'force sensor reads force {force_n!r} N, voltage '
+                       f'{sensor_voltage_v!r} V (sensor dropout)')
+        if bad:
             self._finish(Phase.FAILED, Outcome.FAULT,
-                         f'non-finite measurement at t={t_ns * 1e-9:.4f} s')
+                         f'fault at t={t_ns * 1e-9:.4f} s ({(t_ns - self.start_ns) * 1e-9:.4f} s '
+                         f'into the {"release" if self.phase is Phase.RELEASING else "grasp"}): '
+                         + '; '.join(bad) + '; no controller drives the motor from here on')
             return self._decision()
+        if self.phase is Phase.RELEASING:
+            return self._step_release(t_ns, position_m)
         p, tg = self.params, self.targets
         sensor_rise = sensor_voltage_v - self._baseline_voltage_v > p.sensor_voltage_threshold_v
         if sensor_rise and self.contact_ns is None:
@@ -196,6 +258,8 @@ class GraspSupervisor:
                          f'no object: the finger passed the expected face '
                          f'({tg.position_setpoint_m:.4f} m) by '
                          f'{(position_m - tg.position_setpoint_m) * 1e3:.2f} mm without contact')
+            return self._decision()
+        if self.contact_ns is not None and self._object_lost(t_ns, position_m, force_n):
             return self._decision()
         if self.phase is Phase.POSITION:
             tol = p.position_tolerance_fraction * tg.position_setpoint_m
@@ -209,17 +273,72 @@ class GraspSupervisor:
                 if self._in_band_since_ns is None:
                     self._in_band_since_ns = t_ns
                 if (t_ns - self._in_band_since_ns) * 1e-9 >= p.force_settle_hold_s:
-                    self._finish(Phase.HOLDING, Outcome.HOLDING,
-                                 f'holding {force_n:.3f} N (setpoint '
-                                 f'{tg.force_setpoint_n:.3f} N) at {position_m:.5f} m')
-                    return self._decision()
+                    self.settled_ns = t_ns
+                    self.hold_position_m = position_m
+                    self.phase = Phase.HOLDING
             else:
                 self._in_band_since_ns = None
+        if self.phase is Phase.HOLDING and \
+                (t_ns - self.settled_ns) * 1e-9 >= p.hold_watch_s:
+            self._finish(Phase.HOLDING, Outcome.HOLDING,
+                         f'holding {force_n:.3f} N (setpoint '
+                         f'{tg.force_setpoint_n:.3f} N) at {position_m:.5f} m')
+            return self._decision()
         if (t_ns - self.start_ns) * 1e-9 > tg.timeout_s:
             self._finish(Phase.FAILED, Outcome.TIMEOUT,
                          f'not settled within {tg.timeout_s:g} s of simulated time '
                          f'(phase {self.phase.name}, position {position_m:.5f} m, '
                          f'force {force_n:.3f} N)')
+        return self._decision()
+
+    def _object_lost(self, t_ns: int, position_m: float, force_n: float) -> bool:
+        """After contact: a force collapse, or the finger moving on past the held position."""
+        p, tg = self.params, self.targets
+        floor = p.lost_force_fraction * tg.force_setpoint_n
+        t_s = t_ns * 1e-9
+        if force_n >= floor:
+            self._gripped = True
+            self._low_since_ns = None
+        elif self._gripped:
+            if self._low_since_ns is None:
+                self._low_since_ns = t_ns
+            low_s = (t_ns - self._low_since_ns) * 1e-9
+            if low_s >= p.lost_force_hold_s:
+                self._finish(Phase.FAILED, Outcome.OBJECT_LOST,
+                             f'object lost at t={t_s:.4f} s: force {force_n:.3f} N has been '
+                             f'below {p.lost_force_fraction:g} x the setpoint '
+                             f'{tg.force_setpoint_n:.3f} N = {floor:.3f} N for '
+                             f'{low_s * 1e3:.2f} ms (since t={self._low_since_ns * 1e-9:.4f} s);'
+                             f' finger at {position_m:.5f} m')
+                return True
+        if self.hold_position_m is not None and \
+                position_m > self.hold_position_m + p.no_object_margin_m:
+            self._finish(Phase.FAILED, Outcome.OBJECT_LOST,
+                         f'object lost at t={t_s:.4f} s: the finger moved on '
+                         f'{(position_m - self.hold_position_m) * 1e3:.2f} mm past the held '
+                         f'position {self.hold_position_m:.5f} m (margin '
+                         f'{p.no_object_margin_m * 1e3:g} mm); force {force_n:.3f} N')
+            return True
+        return False
+
+    def _step_release(self, t_ns: int, position_m: float) -> Decision:
+        p, tg = self.params, self.targets
+        if abs(position_m - tg.position_setpoint_m) <= p.release_tolerance_m:
+            if self._in_band_since_ns is None:
+                self._in_band_since_ns = t_ns
+            if (t_ns - self._in_band_since_ns) * 1e-9 >= p.release_settle_s:
+                self._finish(Phase.DONE, Outcome.RELEASED,
+                             f'released: finger at {position_m:.5f} m (open position '
+                             f'{tg.position_setpoint_m:.5f} m, opening '
+                             f'{self.plant.max_travel_m - position_m:.5f} m) after '
+                             f'{(t_ns - self.start_ns) * 1e-9:.3f} s')
+                return self._decision()
+        else:
+            self._in_band_since_ns = None
+        if (t_ns - self.start_ns) * 1e-9 > tg.timeout_s:
+            self._finish(Phase.FAILED, Outcome.TIMEOUT,
+                         f'release not done within {tg.timeout_s:g} s of simulated time '
+                         f'(finger at {position_m:.5f} m)')
         return self._decision()
 
     def _switch(self, criterion: SwitchCriterion, t_ns: int) -> None:
@@ -231,10 +350,16 @@ class GraspSupervisor:
         self.phase = phase
         self.outcome = outcome
         self.message = message
+        self.end_ns = self._t_ns
 
     def _decision(self) -> Decision:
-        active = {Phase.POSITION: ActiveController.POSITION,
-                  Phase.FORCE: ActiveController.FORCE}.get(self.phase, ActiveController.NONE)
+        active = ActiveController.NONE
+        if self.busy:
+            active = {Phase.POSITION: ActiveController.POSITION,
+                      Phase.RELEASING: ActiveController.POSITION,
+                      Phase.FORCE: ActiveController.FORCE,
+                      Phase.HOLDING: ActiveController.FORCE}.get(self.phase,
+                                                                ActiveController.NONE)
         tg = self.targets
         return Decision(self.phase, active, self.switch_criterion, self.outcome,
                         tg.position_setpoint_m if tg else 0.0,

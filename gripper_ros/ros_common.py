@@ -17,6 +17,7 @@ TOPIC_STATUS = '/gripper/supervisor/status'
 TOPIC_MOTOR_COMMAND = '/gripper/motor_command'
 SERVICE_GRASP = '/gripper/grasp'
 SERVICE_STOP = '/gripper/stop'
+SERVICE_RELEASE = '/gripper/release'   # std_srvs/Trigger: open the fingers (position stage)
 SERVICE_SET_OBJECT = '/gripper/sim/set_object'
 ACTION_GRASP = '/gripper/grasp_action'   # the grasp as an action (feedback, cancel)
 FINGER_JOINT = 'finger_joint'
@@ -124,5 +125,9 @@ class DeferredService:
         self._service.send_response(response, header)
 
     def destroy(self) -> None:
+        """Safe to call twice."""
+        if self._server_node is None:
+            return
         self._timer.destroy()
         self._server_node.destroy_node()
+        self._server_node = None

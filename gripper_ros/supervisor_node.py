@@ -5,6 +5,11 @@ For every plant tick it reads the joint state, force sensor and motor state of t
 ``/gripper/supervisor/status`` (phase, active controller, both setpoints). The grasp service
 answers when the grasp has ended, with one explicit outcome; a bad request or a request while a
 grasp runs is refused at once with ``success=false`` and a message, and nothing moves.
+
+``/gripper/release`` (std_srvs/Trigger) opens the fingers: the position stage drives the finger
+to the fully-open position (phase RELEASING) and the call is answered when it is there (outcome
+RELEASED on the status). It is refused while a grasp or release runs (call ``/gripper/stop``
+first): a release never silently ends a grasp.
 """
 from __future__ import annotations
 
@@ -23,9 +28,10 @@ from rclpy.node import Node
 from sensor_msgs.msg import JointState
 
 from .config import ConfigError
-from .grasp_logic import (Decision, GraspRequest, GraspSupervisor, Outcome, RequestError,
+from .grasp_logic import (Decision, GraspRequest, GraspSupervisor, Outcome, Phase, RequestError,
                           validate_request)
-from .ros_common import (GRAPH_QOS, SERVICE_GRASP, SERVICE_STOP, TOPIC_FORCE_SENSOR, TOPIC_JOINT_STATES,
+from .ros_common import (GRAPH_QOS, SERVICE_GRASP, SERVICE_RELEASE, SERVICE_STOP,
+                         TOPIC_FORCE_SENSOR, TOPIC_JOINT_STATES,
                          TOPIC_MOTOR_COMMAND, TOPIC_MOTOR_STATE, TOPIC_STATUS,
                          DeferredService, declare_config,
                          ns_to_time, time_to_ns)
@@ -41,7 +47,8 @@ class SupervisorNode(Node):
         self._voltage_v = 0.0
         self._last_decided_ns: int | None = None
         self._grasp_id = 0
-        self._pending: tuple[object, Grasp.Response] | None = None  # (request header, response)
+        # (request header, response): Grasp.Response for a grasp, Trigger.Response for a release
+        self._pending: tuple[object, object] | None = None
         self._status_msg = SupervisorStatus()
         self.statuses_published = 0
         self._status_pub = self.create_publisher(SupervisorStatus, TOPIC_STATUS, GRAPH_QOS)
@@ -56,6 +63,7 @@ class SupervisorNode(Node):
         self._last_progress_wall = time.monotonic()
         self.create_timer(0.1, self._watchdog, clock=Clock(clock_type=ClockType.STEADY_TIME))
         self.create_service(Trigger, SERVICE_STOP, self._on_stop)
+        self.release_service = DeferredService(self, Trigger, SERVICE_RELEASE, self._on_release)
 
     # ------------------------------------------------------------------ measurements
     def _on_joint(self, msg: JointState) -> None:
@@ -101,8 +109,10 @@ class SupervisorNode(Node):
         m.force_setpoint_n = d.force_setpoint_n
         m.position_m = self._joint.position[0] if self._joint and self._joint.position else 0.0
         m.force_n = self._force.force_n if self._force else 0.0
+        m.width_m = self.config.plant.max_travel_m - m.position_m
         m.contact = self.logic.contact_ns is not None
         m.seed_voltage_v = self._voltage_v
+        m.message = d.message if d.finished else ''
         self._status_pub.publish(m)
         self.statuses_published += 1
 
@@ -123,7 +133,8 @@ class SupervisorNode(Node):
     def _start(self, request: Grasp.Request, response: Grasp.Response) -> str:
         """Validate and start; returns a refusal message, or '' when the grasp has started."""
         if self.logic.busy:
-            return 'refused: a grasp is already running'
+            return ('refused: a release is running' if self.logic.releasing
+                    else 'refused: a grasp is already running')
         try:
             targets = validate_request(
                 GraspRequest(request.width_m, request.mass_kg, request.friction_coefficient,
@@ -137,6 +148,9 @@ class SupervisorNode(Node):
         t_ns = self._latest_tick()
         if t_ns is None:
             return 'refused: no measurement from plant_simulator yet'
+        if not (math.isfinite(self._force.force_n) and math.isfinite(self._force.voltage_v)):
+            return (f'refused: the force sensor reads force {self._force.force_n!r} N, voltage '
+                    f'{self._force.voltage_v!r} V (sensor dropout); a grasp needs it')
         self._grasp_id += 1
         response.grasp_id = self._grasp_id
         response.position_setpoint_m = targets.position_setpoint_m
@@ -189,11 +203,18 @@ class SupervisorNode(Node):
     def _complete(self, decision: Decision) -> None:
         """The grasp has ended: answer the waiting request with its outcome."""
         pending, self._pending = self._pending, None
-        self.get_logger().info(f'grasp {self._grasp_id}: {decision.outcome.name}: '
+        what = 'release' if self.logic.phase is Phase.RELEASING or \
+            decision.outcome is Outcome.RELEASED else 'grasp'
+        self.get_logger().info(f'{what} {self._grasp_id}: {decision.outcome.name}: '
                                f'{decision.message}')
         if pending is None:
             return
         header, response = pending
+        if isinstance(response, Trigger.Response):            # a release
+            response.success = decision.outcome is Outcome.RELEASED
+            response.message = f'{decision.outcome.name}: {decision.message}'
+            self.release_service.reply(header, response)
+            return
         response.success = decision.outcome is Outcome.HOLDING
         response.outcome = int(decision.outcome)
         response.message = decision.message
@@ -205,16 +226,53 @@ class SupervisorNode(Node):
             response.switch_time_s = (self.logic.switch_ns - self.logic.start_ns) * 1e-9
         self.grasp_service.reply(header, response)
 
+    def _on_release(self, request: Trigger.Request, header) -> None:
+        """Open the fingers (position stage to fully open), or refuse at once; answered in
+        _complete() when the finger is there."""
+        response = Trigger.Response()
+        message = ''
+        if self.logic.busy:
+            message = (f'refused: a {"release" if self.logic.releasing else "grasp"} is running '
+                       f'(grasp {self._grasp_id}, phase {self.logic.phase.name}); call '
+                       f'{SERVICE_STOP} first')
+        else:
+            missing = self._missing_peers()
+            t_ns = self._latest_tick()
+            if missing:
+                message = f'refused: graph not ready, not yet discovered: {missing}'
+            elif t_ns is None:
+                message = 'refused: no measurement from plant_simulator yet'
+        if message:
+            response.success = False
+            response.message = message
+            self.get_logger().warn(f'release {message}')
+            self.release_service.reply(header, response)
+            return
+        self._grasp_id += 1
+        self.get_logger().info(f'release {self._grasp_id}: opening from '
+                               f'{self._joint.position[0]:.5f} m')
+        decision = self.logic.start_release(t_ns)
+        self._pending = (header, response)
+        self._last_decided_ns = t_ns
+        self._last_progress_wall = time.monotonic()
+        self._publish(t_ns, decision)
+
     def _on_stop(self, request: Trigger.Request, response: Trigger.Response):
         """Stop the running grasp now: no controller drives the motor from this tick on."""
         if not self.logic.busy:
             response.success = False
             response.message = 'no grasp is running'
             return response
+        what = 'release' if self.logic.releasing else 'grasp'
         self.stop_grasp('stopped on request (/gripper/stop)')
         response.success = True
-        response.message = f'grasp {self._grasp_id} stopped'
+        response.message = f'{what} {self._grasp_id} stopped'
         return response
+
+    def destroy_node(self):
+        self.grasp_service.destroy()
+        self.release_service.destroy()
+        return super().destroy_node()
 
     def stop_grasp(self, message: str = 'stopped on request') -> None:
         """End the running grasp (STOPPED); the plant stops advancing."""
@@ -239,7 +297,6 @@ def main(args=None):
         pass
     finally:
         if node is not None:
-            node.grasp_service.destroy()
             node.destroy_node()
         rclpy.try_shutdown()
     return 0

@@ -1,4 +1,5 @@
 """Supervisor state machine and request validation (no ROS): eq. 23 and the switching rules."""
+import dataclasses
 import math
 
 import pytest
@@ -53,8 +54,11 @@ def test_largest_mass_the_motor_can_hold_is_accepted():
     assert targets(mass=m_max * 0.999).force_setpoint_n < P.max_force_n
 
 
-def start(width=0.05, mass=1.69):
-    sup = GraspSupervisor(P, S)
+NO_WATCH = dataclasses.replace(S, hold_watch_s=0.0)   # the answer comes when the force settles
+
+
+def start(width=0.05, mass=1.69, params=S):
+    sup = GraspSupervisor(P, params)
     d = sup.start(targets(width, mass), 0, 0.005)
     assert d.phase is Phase.POSITION and d.active is ActiveController.POSITION
     return sup
@@ -80,7 +84,7 @@ def test_switch_on_sensor_voltage_rise_far_from_the_setpoint():
 
 
 def test_holding_after_the_force_stays_in_band_for_the_hold_time():
-    sup = start()
+    sup = start(params=NO_WATCH)
     sup.step(10 * MS, 0.0995, 0.0, 0.005)
     f_sp = sup.targets.force_setpoint_n
     hold_ns = int(S.force_settle_hold_s * 1e9)
@@ -130,3 +134,142 @@ def test_stop_and_a_second_start_while_busy():
     d = sup.stop()
     assert d.outcome is Outcome.STOPPED and not sup.busy
     assert sup.start(targets(), 20 * MS, 0.0).phase is Phase.POSITION
+
+
+# ---------------------------------------------------------------- loss watch (OBJECT_LOST)
+US = 100_000          # one force sample (0.1 ms) in ns
+
+
+def holding(params=S):
+    """A supervisor in the force stage whose force has just settled (phase HOLDING, watching)."""
+    sup = start(params=params)
+    f_sp = sup.targets.force_setpoint_n
+    sup.step(10 * MS, 0.0995, 0.0, 0.005)                   # switch on position tolerance
+    t = 10 * MS + US
+    sup.step(t, 0.1, 0.3, 1.0)                              # contact (sensor rise)
+    hold_ns = int(S.force_settle_hold_s * 1e9)
+    while t < 10 * MS + 2 * US + hold_ns:
+        t += US
+        d = sup.step(t, 0.1, f_sp, 4.0)
+    assert d.phase is Phase.HOLDING and d.active is ActiveController.FORCE
+    assert d.outcome is Outcome.UNKNOWN and sup.busy and sup.settled_ns == t
+    return sup, t
+
+
+def test_after_settling_the_force_loop_holds_and_watches_then_answers_holding():
+    sup, t0 = holding()
+    f_sp = sup.targets.force_setpoint_n
+    t = t0
+    while (t + US - t0) * 1e-9 < S.hold_watch_s:
+        t += US
+        d = sup.step(t, 0.1, f_sp, 4.0)
+        assert d.phase is Phase.HOLDING and d.active is ActiveController.FORCE
+    d = sup.step(t + US, 0.1, f_sp, 4.0)
+    assert d.outcome is Outcome.HOLDING and d.active is ActiveController.NONE
+    assert (sup.end_ns - t0) * 1e-9 == pytest.approx(S.hold_watch_s, abs=1e-6)
+
+
+def test_force_collapse_while_holding_is_object_lost_after_the_hold_time_with_numbers():
+    sup, t0 = holding()
+    f_sp = sup.targets.force_setpoint_n
+    low = 0.49 * f_sp                                      # below the 0.5 x F_sp floor
+    hold_ns = int(round(S.lost_force_hold_s * 1e9))
+    d = sup.step(t0 + US, 0.1, low, 3.0)
+    assert d.outcome is Outcome.UNKNOWN
+    d = sup.step(t0 + US + hold_ns - US, 0.1, low, 3.0)
+    assert d.outcome is Outcome.UNKNOWN
+    d = sup.step(t0 + US + hold_ns, 0.1, low, 3.0)
+    assert d.outcome is Outcome.OBJECT_LOST and d.phase is Phase.FAILED
+    assert d.active is ActiveController.NONE
+    assert f'{low:.3f} N' in d.message and f'{0.5 * f_sp:.3f} N' in d.message
+    assert '2.00 ms' in d.message
+
+
+def test_a_short_dip_is_not_a_loss():
+    sup, t0 = holding()
+    f_sp = sup.targets.force_setpoint_n
+    t = t0
+    for _ in range(int(S.lost_force_hold_s * 1e9) // US - 1):
+        t += US
+        assert sup.step(t, 0.1, 0.1 * f_sp, 3.0).outcome is Outcome.UNKNOWN
+    t += US
+    sup.step(t, 0.1, f_sp, 4.0)                            # recovered: the dwell restarts
+    for _ in range(int(S.lost_force_hold_s * 1e9) // US - 1):
+        t += US
+        assert sup.step(t, 0.1, 0.1 * f_sp, 3.0).outcome is Outcome.UNKNOWN
+
+
+def test_finger_moving_on_past_the_held_position_is_object_lost():
+    sup, t0 = holding()
+    f_sp = sup.targets.force_setpoint_n
+    d = sup.step(t0 + US, 0.1 + S.no_object_margin_m * 0.99, f_sp, 4.0)
+    assert d.outcome is Outcome.UNKNOWN
+    d = sup.step(t0 + 2 * US, 0.1 + S.no_object_margin_m * 1.01, f_sp, 4.0)
+    assert d.outcome is Outcome.OBJECT_LOST and 'moved on 2.02 mm past' in d.message
+
+
+def test_force_below_the_floor_before_it_ever_gripped_is_not_a_loss():
+    """The force rises through the floor after contact: no loss until it has been reached."""
+    sup = start()
+    f_sp = sup.targets.force_setpoint_n
+    sup.step(10 * MS, 0.0995, 0.0, 0.005)
+    t = 10 * MS
+    for _ in range(100):                                   # 10 ms in contact, force still low
+        t += US
+        d = sup.step(t, 0.1, 0.3 * f_sp, 2.0)
+    assert d.outcome is Outcome.UNKNOWN and d.phase is Phase.FORCE
+
+
+def test_sensor_dropout_is_a_fault_naming_the_force_sensor():
+    sup, t0 = holding()
+    d = sup.step(t0 + US, 0.1, math.nan, math.nan)
+    assert d.outcome is Outcome.FAULT and d.active is ActiveController.NONE
+    assert 'force sensor' in d.message and 'dropout' in d.message
+
+
+def test_hold_watch_zero_answers_as_soon_as_the_force_settles():
+    sup = start(params=NO_WATCH)
+    f_sp = sup.targets.force_setpoint_n
+    sup.step(10 * MS, 0.0995, 0.0, 0.005)
+    sup.step(20 * MS, 0.1, f_sp, 4.0)
+    d = sup.step(20 * MS + int(S.force_settle_hold_s * 1e9), 0.1, f_sp, 4.0)
+    assert d.outcome is Outcome.HOLDING and d.phase is Phase.HOLDING
+
+
+# ---------------------------------------------------------------- release
+def test_release_runs_the_position_stage_to_open_and_ends_released():
+    sup = GraspSupervisor(P, S)
+    d = sup.start_release(0)
+    assert d.phase is Phase.RELEASING and d.active is ActiveController.POSITION
+    assert d.position_setpoint_m == 0.0 and sup.busy and sup.releasing
+    with pytest.raises(RequestError, match='release is running'):
+        sup.start(targets(), 10 * MS, 0.0)
+    d = sup.step(10 * MS, S.release_tolerance_m * 1.5, 0.0, 0.005)
+    assert d.outcome is Outcome.UNKNOWN
+    t = 20 * MS
+    d = sup.step(t, S.release_tolerance_m * 0.5, 0.0, 0.005)
+    settle_ns = int(round(S.release_settle_s * 1e9))
+    d = sup.step(t + settle_ns - 10 * MS, S.release_tolerance_m * 0.5, 0.0, 0.005)
+    assert d.outcome is Outcome.UNKNOWN
+    d = sup.step(t + settle_ns, 0.0, math.nan, math.nan)   # the force sensor is not needed
+    assert d.outcome is Outcome.RELEASED and d.phase is Phase.DONE
+    assert d.active is ActiveController.NONE and not sup.busy
+    assert 'released' in d.message
+
+
+def test_release_is_refused_while_a_grasp_runs_and_a_grasp_while_it_releases():
+    sup = start()
+    with pytest.raises(RequestError, match='grasp is running'):
+        sup.start_release(10 * MS)
+    sup.stop()
+    sup.start_release(20 * MS)
+    with pytest.raises(RequestError, match='release is running'):
+        sup.start_release(30 * MS)
+    assert sup.stop().outcome is Outcome.STOPPED
+
+
+def test_release_times_out_in_simulated_time():
+    sup = GraspSupervisor(P, S)
+    sup.start_release(0)
+    d = sup.step(int(S.timeout_s * 1e9) + 10 * MS, 0.05, 0.0, 0.005)
+    assert d.outcome is Outcome.TIMEOUT and 'release' in d.message

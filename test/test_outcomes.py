@@ -1,0 +1,215 @@
+"""Outcomes a robot program can rely on, over the real node graph (DDS, lockstep, services).
+
+Faults are injected in the plant through ``/gripper/sim/set_object`` (``SetObject.FAULT_*``,
+fired at an exact simulated instant after the start of the next grasp); every outcome must be in
+the service response and on the status topic, the motor command must stay within +-24 V, and a
+grasp after each of them must succeed. Known answers: the object removed while holding is lost
+within ``lost_force_hold_s`` (+ one force sample); a slipping object (capacity F_0 e^(-t/tau))
+within ``tau ln(1/lost_force_fraction) + lost_force_hold_s``; a sensor dropout is a FAULT at the
+first sample after it; a release ends within 2 % of the open position.
+
+Runs stay short: a 0.14 m object (0.01 m of travel) of 3 kg (F_sp = 14.7 N, approach cap 10.6 V)
+settles in about 0.91 s of simulated time.
+"""
+import math
+import threading
+import time
+
+import pytest
+import rclpy
+from gripper_interfaces.msg import MotorCommand, SupervisorStatus
+from gripper_interfaces.srv import Grasp, SetObject
+from rclpy.context import Context
+from std_srvs.srv import Trigger
+
+from gripper_ros.config import load_config
+from gripper_ros.grasp_logic import Outcome, Phase
+from gripper_ros.graph import GraphOptions, GripperGraph
+from gripper_ros.ros_common import (GRAPH_QOS, SERVICE_RELEASE, TOPIC_MOTOR_COMMAND,
+                                    TOPIC_STATUS, time_to_ns)
+
+CONFIG = load_config()
+S = CONFIG.supervisor
+L_LS = CONFIG.plant.max_travel_m
+V_LIMIT = CONFIG.plant.voltage_limit_v
+WIDTH, MASS = 0.14, 3.0
+F_SP = S.friction_coefficient * MASS * CONFIG.plant.gravity_mps2
+FORCE_SAMPLE_S = CONFIG.force.sample_time_s
+
+
+class Tap:
+    """What a robot program sees: the status topic and the motor commands."""
+
+    def __init__(self, node):
+        self._lock = threading.Lock()
+        self.last_status: SupervisorStatus | None = None
+        self.commands: list[tuple[int, float]] = []
+        node.create_subscription(SupervisorStatus, TOPIC_STATUS, self._on_status, GRAPH_QOS)
+        node.create_subscription(MotorCommand, TOPIC_MOTOR_COMMAND, self._on_command, GRAPH_QOS)
+
+    def _on_status(self, msg):
+        with self._lock:
+            self.last_status = msg
+
+    def _on_command(self, msg):
+        with self._lock:
+            self.commands.append((time_to_ns(msg.header.stamp), msg.voltage_v))
+
+    def take_commands(self):
+        with self._lock:
+            out, self.commands = self.commands, []
+        return out
+
+    def final_status(self, grasp_id: int, timeout_s: float = 5.0) -> SupervisorStatus:
+        """The latched last status of ``grasp_id`` (it may arrive just after the reply)."""
+        deadline = time.monotonic() + timeout_s
+        while time.monotonic() < deadline:
+            s = self.last_status
+            if s is not None and s.grasp_id == grasp_id and s.outcome != 0:
+                return s
+            time.sleep(0.005)
+        raise AssertionError(f'no final status for grasp {grasp_id}: {self.last_status}')
+
+
+@pytest.fixture(scope='module')
+def graph():
+    context = Context()
+    rclpy.init(context=context)
+    g = GripperGraph(GraphOptions(action_server=False), context=context)
+    g.tap = Tap(g.client_node)
+    g.release = g.client_node.create_client(Trigger, SERVICE_RELEASE)
+    assert g.release.wait_for_service(timeout_sec=10)
+    time.sleep(0.3)                      # let the tap's readers match the writers
+    yield g
+    g.close()
+    rclpy.try_shutdown(context=context)
+
+
+def grasp_ok(graph, open_fingers=True):
+    assert graph.set_object(WIDTH, open_fingers=open_fingers).success
+    r = graph.grasp(WIDTH, MASS)
+    assert r.success and r.outcome == Outcome.HOLDING, r.message
+    assert abs(r.final_force_n - F_SP) <= S.force_settle_band_fraction * F_SP
+    return r
+
+
+@pytest.fixture(scope='module')
+def settle_s(graph):
+    """Simulated time from the start of a grasp of the test object to a settled force."""
+    graph.tap.take_commands()
+    r = grasp_ok(graph)
+    logic = graph.supervisor.logic
+    status = graph.tap.final_status(r.grasp_id)
+    assert status.phase == Phase.HOLDING and status.outcome == Outcome.HOLDING
+    assert status.message == r.message and status.contact
+    assert status.width_m == pytest.approx(WIDTH, abs=0.02 * (L_LS - WIDTH))
+    # the force loop held and watched for hold_watch_s after settling before answering
+    assert (logic.end_ns - logic.settled_ns) * 1e-9 == pytest.approx(S.hold_watch_s, abs=2e-4)
+    return (logic.settled_ns - logic.start_ns) * 1e-9
+
+
+def faulty_grasp(graph, fault, at_s, **kw):
+    placed = graph.set_object(WIDTH, fault=fault, fault_at_s=at_s, **kw)
+    assert placed.success and 'fault' in placed.message, placed.message
+    graph.tap.take_commands()
+    r = graph.grasp(WIDTH, MASS)
+    logic = graph.supervisor.logic
+    fault_ns = logic.start_ns + round(at_s * 1e9)
+    assert graph.plant.plant.fired_faults[0] == (fault, fault_ns)
+    commands = graph.tap.take_commands()
+    assert commands and all(abs(v) <= V_LIMIT for _, v in commands)
+    return r, (logic.end_ns - fault_ns) * 1e-9, commands
+
+
+def test_object_removed_while_holding_is_object_lost_in_bounded_time(graph, settle_s):
+    r, detect_s, _ = faulty_grasp(graph, SetObject.Request.FAULT_OBJECT_REMOVED, settle_s + 0.005)
+    assert not r.success and r.outcome == Outcome.OBJECT_LOST, r.message
+    assert 'object lost' in r.message and f'{F_SP:.3f} N' in r.message
+    # the force drops to 0 at once: lost after lost_force_hold_s, within one force sample
+    assert S.lost_force_hold_s <= detect_s <= S.lost_force_hold_s + FORCE_SAMPLE_S + 1e-9
+    status = graph.tap.final_status(r.grasp_id)
+    assert status.outcome == Outcome.OBJECT_LOST and status.phase == Phase.FAILED
+    assert status.message == r.message and status.active_controller == 0
+    print(f'\nremoved: OBJECT_LOST {detect_s * 1e3:.2f} ms after the removal')
+    grasp_ok(graph)
+
+
+def test_slipping_object_is_object_lost_when_its_force_has_collapsed(graph, settle_s):
+    tau = 0.01
+    r, detect_s, _ = faulty_grasp(graph, SetObject.Request.FAULT_OBJECT_SLIPPING,
+                                  settle_s + 0.005, fault_time_constant_s=tau)
+    assert not r.success and r.outcome == Outcome.OBJECT_LOST, r.message
+    # the measured force is F_0 exp(-t/tau), F_0 ~ F_sp: below 0.5 F_sp at tau ln 2, then the dwell
+    expected = tau * math.log(1.0 / S.lost_force_fraction) + S.lost_force_hold_s
+    assert abs(detect_s - expected) <= 4 * FORCE_SAMPLE_S, (detect_s, expected)
+    assert graph.tap.final_status(r.grasp_id).outcome == Outcome.OBJECT_LOST
+    print(f'\nslipping (tau {tau} s): OBJECT_LOST {detect_s * 1e3:.2f} ms after the slip began '
+          f'(expected {expected * 1e3:.2f} ms)')
+    grasp_ok(graph)
+
+
+def test_sensor_dropout_is_a_fault_naming_the_sensor_and_the_motor_is_not_driven(
+        graph, settle_s):
+    r, detect_s, commands = faulty_grasp(graph, SetObject.Request.FAULT_SENSOR_DROPOUT,
+                                         settle_s + 0.005)
+    assert not r.success and r.outcome == Outcome.FAULT, r.message
+    assert 'force sensor' in r.message and 'dropout' in r.message
+    assert 0.0 < detect_s <= FORCE_SAMPLE_S + 1e-9       # the first sample after it
+    end_ns = graph.supervisor.logic.end_ns
+    assert all(stamp < end_ns for stamp, _ in commands)  # nothing answered the bad sample
+    assert all(math.isfinite(v) for _, v in commands)
+    frozen = graph.plant.ticks_published
+    time.sleep(0.2)
+    assert graph.plant.ticks_published == frozen         # nobody drives the plant
+    status = graph.tap.final_status(r.grasp_id)
+    assert status.outcome == Outcome.FAULT and 'force sensor' in status.message
+    # the sensor stays out until the next set_object: a grasp is refused, saying why
+    refused = graph.grasp(WIDTH, MASS)
+    assert refused.outcome == Outcome.REFUSED and 'sensor dropout' in refused.message
+    print(f'\ndropout: FAULT {detect_s * 1e3:.2f} ms after the dropout')
+    grasp_ok(graph)
+
+
+def test_a_fault_scheduled_after_the_grasp_ends_never_fires(graph, settle_s):
+    assert graph.set_object(WIDTH, fault=SetObject.Request.FAULT_OBJECT_REMOVED,
+                            fault_at_s=settle_s + 1.0).success
+    r = graph.grasp(WIDTH, MASS)
+    assert r.outcome == Outcome.HOLDING, r.message
+    assert graph.plant.plant.fired_faults == [] and graph.plant.plant.scheduled_fault is None
+
+
+def test_bad_fault_request_is_refused(graph):
+    r = graph.set_object(WIDTH, fault=SetObject.Request.FAULT_OBJECT_SLIPPING, fault_at_s=0.1,
+                         stiffness_n_per_m=1e4)
+    assert not r.success and 'rigid objects only' in r.message
+    r = graph.set_object(WIDTH, fault=SetObject.Request.FAULT_OBJECT_REMOVED, fault_at_s=-1.0)
+    assert not r.success and 'fault_at_s' in r.message
+
+
+def test_release_opens_the_fingers_and_the_next_grasp_succeeds(graph, settle_s):
+    grasp_ok(graph)
+    graph.tap.take_commands()
+    r = graph.call(graph.release, Trigger.Request(), 60)
+    assert r.success and r.message.startswith('RELEASED'), r.message
+    position = graph.plant.plant.sample().position_m
+    assert abs(position - 0.0) <= 0.02 * L_LS                 # within 2 % of the open position
+    assert abs(position) <= S.release_tolerance_m
+    assert all(abs(v) <= V_LIMIT for _, v in graph.tap.take_commands())
+    status = graph.tap.final_status(graph.supervisor._grasp_id)
+    assert status.outcome == Outcome.RELEASED and status.phase == Phase.DONE
+    assert status.width_m == pytest.approx(L_LS, abs=S.release_tolerance_m)
+    print(f'\nreleased: finger at {position * 1e3:.3f} mm from fully open')
+    grasp_ok(graph, open_fingers=False)                       # from where the release left it
+
+
+def test_release_is_refused_while_a_grasp_runs(graph):
+    assert graph.set_object(WIDTH).success
+    pending = graph._grasp.call_async(Grasp.Request(width_m=WIDTH, mass_kg=MASS))
+    deadline = time.monotonic() + 30
+    while not graph.supervisor.logic.busy and time.monotonic() < deadline:
+        time.sleep(0.002)
+    r = graph.call(graph.release, Trigger.Request(), 10)
+    assert not r.success and 'grasp is running' in r.message and '/gripper/stop' in r.message
+    while not pending.done() and time.monotonic() < deadline:
+        time.sleep(0.005)
+    assert pending.result().outcome == Outcome.HOLDING
