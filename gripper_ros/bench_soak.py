@@ -354,7 +354,8 @@ def format_report(rep: SoakReport) -> str:
         f'grasps {rep.grasps}   failures {rep.failures}   bag count mismatches '
         f'{rep.count_mismatches}',
         f'RSS of the serving process: start {rep.rss_start_kb * mb:.1f} MiB, after warm-up '
-        f'({rep.warmup} grasps) {rep.rss_warm_kb * mb:.1f} MiB, end {rep.rss_end_kb * mb:.1f} MiB'
+        f'({min(rep.warmup, rep.grasps)} grasps) {rep.rss_warm_kb * mb:.1f} MiB, '
+        f'end {rep.rss_end_kb * mb:.1f} MiB'
         f'; growth after warm-up {rep.rss_growth_after_warmup_kb * mb:+.2f} MiB '
         f'(slope {rep.rss_slope_after_warmup_kb_per_grasp:+.1f} KiB/grasp), since start '
         f'{(rep.rss_end_kb - rep.rss_start_kb) * mb:+.1f} MiB',
