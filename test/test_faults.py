@@ -429,3 +429,81 @@ def test_supervisor_publishes_no_non_finite_number_after_a_bad_measurement(injec
 def test_graph_grasps_normally_after_the_injected_faults(injected_runs):
     r = injected_runs[-1]
     assert r is not None and r.outcome == Outcome.HOLDING, r and r.message
+
+
+# ---------------------------------------------------------------------- a bad reading at rest
+IDLE_CASES = [(topic, value) for topic in (TOPIC_JOINT_STATES, TOPIC_FORCE_SENSOR)
+              for value in BAD_VALUES]
+IDLE_IDS = [f'{t.rsplit("/", 1)[1]}-{v}' for t, v in IDLE_CASES]
+
+
+@pytest.fixture(scope='module')
+def idle_runs():
+    """The probe corrupts the sample of the tick the graph rests on (t0), then a grasp is
+    requested: the supervisor and the position controller both take t0 from the probe."""
+    lg = LiveGraph()
+    g = lg.graph
+    runs = []
+    try:
+        for topic, value in IDLE_CASES:
+            assert g.set_object(0.10).success
+            time.sleep(0.1)
+            t0 = g.plant.plant.t_ns
+            seen = lg.watcher.counts[topic]
+            if topic == TOPIC_JOINT_STATES:
+                j = g.plant._joint
+                lg.joint_pub.publish(JointState(header=j.header, name=list(j.name),
+                                                position=[value], velocity=list(j.velocity),
+                                                effort=list(j.effort)))
+            else:
+                f = g.plant._force
+                lg.force_pub.publish(ForceSensor(header=f.header, force_n=value,
+                                                 peak_force_n=f.peak_force_n,
+                                                 voltage_v=f.voltage_v))
+            assert _wait(lambda: lg.watcher.counts[topic] > seen, 5.0)
+            time.sleep(0.1)
+            before = lg.watcher.snapshot()
+            nonfinite_answers = g.position.nonfinite_answers
+            ticks = g.plant.ticks_published
+            r = g.grasp(0.10, 0.75, timeout_s=0.3, wall_timeout_s=60.0)
+            time.sleep(0.2)
+            after = lg.watcher.snapshot()
+            runs.append(SimpleNamespace(
+                topic=topic, value=value, t0=t0, response=r,
+                nonfinite=after[0][len(before[0]):], commands=after[1][len(before[1]):],
+                motor_voltages=after[2][len(before[2]):],
+                nonfinite_answers=g.position.nonfinite_answers - nonfinite_answers,
+                ticks=g.plant.ticks_published - ticks))
+    finally:
+        lg.close()
+    return runs
+
+
+@pytest.mark.parametrize('index', range(len(IDLE_CASES)), ids=IDLE_IDS)
+def test_bad_reading_at_rest_never_reaches_the_motor(idle_runs, index):
+    """Whatever the supervisor makes of it, the controllers answer the bad tick with 0 V and
+    no node but the probe puts a non-finite number on a measurement or command topic."""
+    run = idle_runs[index]
+    assert all(math.isfinite(c[3]) and math.isfinite(c[4]) for c in run.commands)
+    assert all(math.isfinite(v) for v in run.motor_voltages)
+    at_t0 = [c for c in run.commands if c[1] == run.t0]
+    assert all(c[3] == 0.0 for c in at_t0), at_t0
+    if run.topic == TOPIC_JOINT_STATES and at_t0:
+        assert run.nonfinite_answers == 1          # the position controller held and said so
+    produced = [n for n in run.nonfinite if n[0] != TOPIC_STATUS]
+    assert produced == [], produced
+    print(f'\n{run.topic} {run.value}: {Outcome(run.response.outcome).name} '
+          f'{run.response.message!r}; commands at t0: {at_t0}')
+
+
+@pytest.mark.parametrize('index', [
+    pytest.param(i, marks=pytest.mark.xfail(
+        strict=True, reason='supervisor_node.py _start checks only the force sensor: a grasp '
+        'starts on a non-finite finger position (see the report for the change)'))
+    if t == TOPIC_JOINT_STATES else i for i, (t, _v) in enumerate(IDLE_CASES)], ids=IDLE_IDS)
+def test_grasp_on_a_bad_reading_at_rest_is_refused_and_nothing_moves(idle_runs, index):
+    run = idle_runs[index]
+    r = run.response
+    assert r.outcome in (Outcome.REFUSED, Outcome.FAULT) and not r.success, r.message
+    assert repr(run.value) in r.message or 'non-finite' in r.message, r.message
+    assert run.ticks == 0 and not run.commands
