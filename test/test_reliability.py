@@ -109,8 +109,11 @@ def test_dead_force_controller_mid_grasp_ends_in_fault_naming_it(graph):
             time.sleep(0.01)
         detected_s = time.monotonic() - killed_at
         r = pending.result()
+        print(f'\ndead force controller detected after {detected_s:.3f} s wall: {r.message}')
         assert r.outcome == Outcome.FAULT and not r.success
         assert 'force_controller' in r.message
+        # the other controller never stepped in, and neither controller's status watchdog fired
+        assert g.position.watchdog_trips == 0
         assert detected_s < g.supervisor.tick_timeout_s + 2.0
     finally:
         g.close()
