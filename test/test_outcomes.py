@@ -213,3 +213,32 @@ def test_release_is_refused_while_a_grasp_runs(graph):
     while not pending.done() and time.monotonic() < deadline:
         time.sleep(0.005)
     assert pending.result().outcome == Outcome.HOLDING
+
+
+def test_object_removed_before_contact_is_no_object_not_object_lost(graph):
+    """Loss needs a grip: an object gone before the fingers reach it is simply not there."""
+    assert graph.set_object(WIDTH, fault=SetObject.Request.FAULT_OBJECT_REMOVED,
+                            fault_at_s=0.3).success
+    r = graph.grasp(WIDTH, MASS)
+    assert r.outcome == Outcome.NO_OBJECT and 'without contact' in r.message, r.message
+    assert graph.tap.final_status(r.grasp_id).outcome == Outcome.NO_OBJECT
+    grasp_ok(graph)
+
+
+def test_grasp_client_release_from_another_process(graph):
+    import os
+    import subprocess
+    import sys
+
+    def client(*args):
+        return subprocess.run([sys.executable, '-m', 'gripper_ros.grasp_client', *args],
+                              capture_output=True, text=True, timeout=60,
+                              env=os.environ.copy())
+
+    grasp_ok(graph)
+    result = client('--release')
+    assert result.returncode == 0, result.stdout + result.stderr
+    assert 'success: True' in result.stdout and 'RELEASED' in result.stdout
+    assert abs(graph.plant.plant.sample().position_m) <= S.release_tolerance_m
+    usage = client('--mass', '1.0')                       # a grasp needs --width
+    assert usage.returncode == 2 and '--width and --mass are required' in usage.stderr
