@@ -200,11 +200,11 @@ def _get(graph, node_name, name):
     return Parameter.from_parameter_msg(ParameterMsg(name=name, value=values[0])).value
 
 
-def _set(graph, node_name, name, value_msg):
+def _set(graph, node_name, name, value_msg, timeout_s=10.0):
     result = graph.call(_service(graph, node_name, SetParameters, 'set_parameters'),
                         SetParameters.Request(parameters=[ParameterMsg(name=name,
                                                                        value=value_msg)]),
-                        10.0).results[0]
+                        timeout_s).results[0]
     return result
 
 
@@ -328,7 +328,36 @@ def test_accepted_supervisor_and_action_parameters_take_effect(graph):
         _set(graph, 'grasp_action_server', 'feedback_period_s', _double(0.05))
 
 
+@pytest.mark.xfail(strict=True, reason='ros_common.declare_config declares config_file writable: '
+                   'a new path is accepted and silently ignored (the file is read once at '
+                   'start-up); see the report for the change')
+def test_config_file_cannot_be_changed_on_a_running_node(graph):
+    other = ParameterValue(type=ParameterType.PARAMETER_STRING, string_value='/tmp/other.yaml')
+    nodes = [n for n in NODE_CLASSES if n != 'plant_simulator']   # see the last test
+    try:
+        for node_name in nodes:
+            before = _get(graph, node_name, 'config_file')
+            result = _set(graph, node_name, 'config_file', other)
+            assert not result.successful and 'read-only' in result.reason, node_name
+            assert _get(graph, node_name, 'config_file') == before
+    finally:
+        for node_name in nodes:
+            _set(graph, node_name, 'config_file',
+                 ParameterValue(type=ParameterType.PARAMETER_STRING, string_value=''))
+
+
 def test_graph_still_grasps_after_the_refused_changes(graph):
     assert graph.set_object(0.10).success
     r = graph.grasp(0.10, 0.75, wall_timeout_s=60.0)
     assert r.success, r.message
+
+
+@pytest.mark.xfail(strict=True, reason='plant_simulator_node.py sets self._clock to a '
+                   'rosgraph_msgs Clock message, shadowing rclpy Node._clock: every accepted '
+                   'parameter change raises AttributeError in the set_parameters service (no '
+                   'answer) and get_clock() returns the message; see the report for the change')
+def test_plant_answers_an_accepted_parameter_change(graph):
+    """Last in the file: when it fails, the plant's parameter service is left broken."""
+    result = _set(graph, 'plant_simulator', 'frame_id', ParameterValue(
+        type=ParameterType.PARAMETER_STRING, string_value='gripper_base'), timeout_s=3.0)
+    assert result.successful
