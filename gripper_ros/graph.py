@@ -151,7 +151,8 @@ class GripperGraph:
                    damping_n_s_per_m: float = 0.0, open_fingers: bool = True,
                    timeout_s: float = 10.0, fault: int = 0, fault_at_s: float = 0.0,
                    fault_time_constant_s: float = 0.0) -> SetObject.Response:
-        """Place an object; ``fault`` (SetObject.FAULT_*) fires ``fault_at_s`` into the next grasp."""
+        """Place an object; ``fault`` (SetObject.FAULT_*) fires ``fault_at_s`` s into the next
+        grasp."""
         return self.call(self._set_object, SetObject.Request(
             width_m=float(width_m), stiffness_n_per_m=float(stiffness_n_per_m),
             damping_n_s_per_m=float(damping_n_s_per_m), open_fingers=open_fingers,

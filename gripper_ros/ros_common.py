@@ -15,6 +15,9 @@ TOPIC_FORCE_SENSOR = '/gripper/force_sensor'
 TOPIC_MOTOR_STATE = '/gripper/motor_state'
 TOPIC_STATUS = '/gripper/supervisor/status'
 TOPIC_MOTOR_COMMAND = '/gripper/motor_command'
+# The final status of the last grasp or release, latched (transient local, depth 1): a program
+# that subscribes late still gets the last outcome. Not a lockstep topic (not in GRAPH_TOPICS).
+TOPIC_OUTCOME = '/gripper/supervisor/outcome'
 SERVICE_GRASP = '/gripper/grasp'
 SERVICE_STOP = '/gripper/stop'
 SERVICE_RELEASE = '/gripper/release'   # std_srvs/Trigger: open the fingers (position stage)
@@ -28,6 +31,10 @@ GRAPH_QOS_DEPTH = 1000
 GRAPH_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=GRAPH_QOS_DEPTH,
                        reliability=ReliabilityPolicy.RELIABLE,
                        durability=DurabilityPolicy.VOLATILE)
+
+LATCHED_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
+                         reliability=ReliabilityPolicy.RELIABLE,
+                         durability=DurabilityPolicy.TRANSIENT_LOCAL)
 
 # Services: rclpy's default keeps only 10 requests (and 10 responses at a client); a burst of
 # grasp requests from many clients must be answered (refused as busy), not dropped.

@@ -6,6 +6,8 @@ For every plant tick it reads the joint state, force sensor and motor state of t
 answers when the grasp has ended, with one explicit outcome; a bad request or a request while a
 grasp runs is refused at once with ``success=false`` and a message, and nothing moves.
 
+Each ended grasp or release is also published, latched, on ``/gripper/supervisor/outcome``.
+
 ``/gripper/release`` (std_srvs/Trigger) opens the fingers: the position stage drives the finger
 to the fully-open position (phase RELEASING) and the call is answered when it is there (outcome
 RELEASED on the status). It is refused while a grasp or release runs (call ``/gripper/stop``
@@ -30,8 +32,8 @@ from sensor_msgs.msg import JointState
 from .config import ConfigError
 from .grasp_logic import (Decision, GraspRequest, GraspSupervisor, Outcome, Phase, RequestError,
                           validate_request)
-from .ros_common import (GRAPH_QOS, SERVICE_GRASP, SERVICE_RELEASE, SERVICE_STOP,
-                         TOPIC_FORCE_SENSOR, TOPIC_JOINT_STATES,
+from .ros_common import (GRAPH_QOS, LATCHED_QOS, SERVICE_GRASP, SERVICE_RELEASE, SERVICE_STOP,
+                         TOPIC_FORCE_SENSOR, TOPIC_JOINT_STATES, TOPIC_OUTCOME,
                          TOPIC_MOTOR_COMMAND, TOPIC_MOTOR_STATE, TOPIC_STATUS,
                          DeferredService, declare_config,
                          ns_to_time, time_to_ns)
@@ -52,6 +54,7 @@ class SupervisorNode(Node):
         self._status_msg = SupervisorStatus()
         self.statuses_published = 0
         self._status_pub = self.create_publisher(SupervisorStatus, TOPIC_STATUS, GRAPH_QOS)
+        self._outcome_pub = self.create_publisher(SupervisorStatus, TOPIC_OUTCOME, LATCHED_QOS)
         self.create_subscription(JointState, TOPIC_JOINT_STATES, self._on_joint, GRAPH_QOS)
         self.create_subscription(ForceSensor, TOPIC_FORCE_SENSOR, self._on_force, GRAPH_QOS)
         self.create_subscription(MotorState, TOPIC_MOTOR_STATE, self._on_motor, GRAPH_QOS)
@@ -115,6 +118,8 @@ class SupervisorNode(Node):
         m.message = d.message if d.finished else ''
         self._status_pub.publish(m)
         self.statuses_published += 1
+        if d.finished:
+            self._outcome_pub.publish(m)     # latched: the last outcome, for late subscribers
 
     # ------------------------------------------------------------------ service
     def _on_grasp(self, request: Grasp.Request, header) -> None:

@@ -25,8 +25,8 @@ from std_srvs.srv import Trigger
 from gripper_ros.config import load_config
 from gripper_ros.grasp_logic import Outcome, Phase
 from gripper_ros.graph import GraphOptions, GripperGraph
-from gripper_ros.ros_common import (GRAPH_QOS, SERVICE_RELEASE, TOPIC_MOTOR_COMMAND,
-                                    TOPIC_STATUS, time_to_ns)
+from gripper_ros.ros_common import (GRAPH_QOS, LATCHED_QOS, SERVICE_RELEASE,
+                                    TOPIC_MOTOR_COMMAND, TOPIC_OUTCOME, TOPIC_STATUS, time_to_ns)
 
 CONFIG = load_config()
 S = CONFIG.supervisor
@@ -131,6 +131,16 @@ def test_object_removed_while_holding_is_object_lost_in_bounded_time(graph, sett
     assert status.outcome == Outcome.OBJECT_LOST and status.phase == Phase.FAILED
     assert status.message == r.message and status.active_controller == 0
     print(f'\nremoved: OBJECT_LOST {detect_s * 1e3:.2f} ms after the removal')
+    # a program that subscribes only now still gets the outcome (latched topic)
+    got = []
+    sub = graph.client_node.create_subscription(SupervisorStatus, TOPIC_OUTCOME, got.append,
+                                                LATCHED_QOS)
+    deadline = time.monotonic() + 10
+    while not got and time.monotonic() < deadline:
+        time.sleep(0.01)
+    graph.client_node.destroy_subscription(sub)
+    assert got and got[-1].grasp_id == r.grasp_id and got[-1].outcome == Outcome.OBJECT_LOST
+    assert got[-1].message == r.message
     grasp_ok(graph)
 
 
