@@ -11,8 +11,10 @@ it publishes one 0 V command (``hold_s`` as usual) and logs an error naming the 
 default (3 s) lies above the supervisor's own ``tick_timeout_s`` (2 s), so that a stall the
 supervisor can see (a dead plant or controller) ends as the supervisor's FAULT first and no
 controller commands anything after it. The 0 V command is stamped with the tick of the last
-status, which the lockstep plant has already consumed: simulated time stays where it stopped and
-the command stands for what a motor driver would be told.
+status. Normally the controller has answered that tick and the plant has moved on, so the plant
+ignores it: simulated time stays where it stopped and the command stands for what a motor driver
+would be told. If the tick was still unanswered (its measurement never came), the plant holds
+0 V for it, and a late measurement adds no second answer.
 
 The bookkeeping and the control laws live in :mod:`gripper_ros.controller_logic` (no rclpy), so
 that ``bag_replay --resimulate`` runs exactly the code the nodes run.
@@ -27,7 +29,8 @@ from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 
 from .controller_logic import LockstepAnswerer
-from .ros_common import GRAPH_QOS, TOPIC_MOTOR_COMMAND, TOPIC_STATUS, time_to_ns
+from .ros_common import (GRAPH_QOS, TOPIC_JOINT_STATES, TOPIC_MOTOR_COMMAND, TOPIC_STATUS,
+                         time_to_ns)
 
 DEFAULT_STATUS_TIMEOUT_S = 3.0
 STATUS_TIMEOUT_RANGE_S = (0.1, 600.0)
@@ -131,6 +134,10 @@ class LockstepController(Node):
         self._watchdog_tripped = True
         if self.count_publishers(TOPIC_STATUS) == 0:
             why = f'the supervisor is gone (no publisher on {TOPIC_STATUS})'
+        elif 'plant_simulator' not in {i.node_name for i in
+                                       self.get_publishers_info_by_topic(TOPIC_JOINT_STATES)}:
+            why = (f'the supervisor is silent and plant_simulator is gone (no publisher on '
+                   f'{TOPIC_JOINT_STATES})')
         else:
             why = 'the supervisor is silent'
         self.watchdog_message = (
@@ -139,4 +146,6 @@ class LockstepController(Node):
             f't={time_to_ns(status.header.stamp) * 1e-9:.4f} s): {why}; commanding 0 V')
         self.get_logger().error(self.watchdog_message)
         self.watchdog_trips += 1
+        # this tick counts as answered: a measurement arriving late adds no second command
+        self._lockstep.answered = (status.grasp_id, time_to_ns(status.header.stamp))
         self._publish(status, 0.0, 0.0)

@@ -277,6 +277,34 @@ def test_dead_plant_mid_grasp_ends_in_fault_naming_it_and_nothing_commands_after
     assert g.position.watchdog_trips == 0 and g.force.watchdog_trips == 0
 
 
+def test_dead_plant_with_a_patient_supervisor_active_controller_falls_to_zero_volts(live):
+    """Supervisor tick_timeout_s above the controllers' status_timeout_s (a misconfiguration):
+    the active controller's own watchdog commands 0 V and names both silent peers."""
+    g = live.graph
+    g.supervisor.tick_timeout_s = 600.0     # as if started so; the parameter is read at start-up
+    timeout_s = g.position.status_timeout_s
+    pending = live.start_grasp()
+    try:
+        start_ticks = g.plant.ticks_published
+        assert _wait(lambda: g.plant.ticks_published >= start_ticks + 30, 30.0)
+        assert g.supervisor.logic.phase is Phase.POSITION
+        g.kill_node(g.plant)
+        killed_at = time.monotonic()
+        assert _wait(lambda: g.position.watchdog_trips >= 1, timeout_s + 5.0)
+        detected_s = time.monotonic() - killed_at
+        assert _wait(lambda: any(c[0] > killed_at and c[3] == 0.0
+                                 for c in live.watcher.snapshot()[1]), 2.0)
+        commands = live.watcher.snapshot()[1]
+        message = g.position.watchdog_message
+        assert not pending.done()               # the supervisor is still waiting
+    finally:
+        live.close(pending)
+    print(f'\ndead plant, patient supervisor: 0 V after {detected_s:.3f} s wall: {message}')
+    assert commands[-1][2] == MotorCommand.SOURCE_POSITION and commands[-1][3] == 0.0
+    assert detected_s < timeout_s + 1.0
+    assert 'supervisor is silent' in message and 'plant_simulator is gone' in message
+
+
 @pytest.mark.parametrize('phase', [Phase.POSITION, Phase.FORCE], ids=['position', 'force'])
 def test_dead_supervisor_mid_grasp_active_controller_falls_to_zero_volts(live, phase):
     g = live.graph
