@@ -7,7 +7,10 @@ published: the controller holds 0 V and reports it.
 
 A status watchdog (steady clock, parameter ``status_timeout_s``) covers a dead or hung
 supervisor: while this controller is the active one and no new status has arrived for that long,
-it publishes one 0 V command (``hold_s`` as usual) and logs an error naming the supervisor. The
+it publishes one 0 V command (``hold_s`` as usual) and logs an error naming the supervisor. Only
+time in which the executor demonstrably ran counts (a check more than 0.25 s late adds 0.25 s):
+after a stall of the whole process, statuses queued behind the watchdog are not mistaken for
+silence. The
 default (3 s) lies above the supervisor's own ``tick_timeout_s`` (2 s), so that a stall the
 supervisor can see (a dead plant or controller) ends as the supervisor's FAULT first and no
 controller commands anything after it. The 0 V command is stamped with the tick of the last
@@ -35,6 +38,9 @@ from .ros_common import (GRAPH_QOS, TOPIC_JOINT_STATES, TOPIC_MOTOR_COMMAND, TOP
 DEFAULT_STATUS_TIMEOUT_S = 3.0
 STATUS_TIMEOUT_RANGE_S = (0.1, 600.0)
 WATCHDOG_PERIOD_S = 0.05
+MAX_COUNTED_GAP_S = 0.25
+"""Silence is counted only while the executor runs: a longer gap between two watchdog checks
+(the process starved, a slow callback) counts as this much, since statuses may be queued behind."""
 
 
 class LockstepController(Node):
@@ -61,7 +67,8 @@ class LockstepController(Node):
                             "supervisor's tick_timeout_s",
                 floating_point_range=[FloatingPointRange(from_value=STATUS_TIMEOUT_RANGE_S[0],
                                                          to_value=STATUS_TIMEOUT_RANGE_S[1])]))
-        self._last_status_wall = time.monotonic()
+        self._silent_s = 0.0                      # executor-running time since the last status
+        self._last_check_wall = time.monotonic()
         self._watchdog_tripped = False
         self._pub = self.create_publisher(MotorCommand, TOPIC_MOTOR_COMMAND, GRAPH_QOS)
         self.create_subscription(SupervisorStatus, TOPIC_STATUS, self._on_status, GRAPH_QOS)
@@ -85,7 +92,8 @@ class LockstepController(Node):
     # lockstep ------------------------------------------------------------------
     def _on_status(self, msg: SupervisorStatus) -> None:
         self._status = msg
-        self._last_status_wall = time.monotonic()
+        self._silent_s = 0.0
+        self._last_check_wall = time.monotonic()
         self._watchdog_tripped = False
         self._lockstep.on_status(msg)
         self._try_answer()
@@ -125,10 +133,13 @@ class LockstepController(Node):
     # watchdog ------------------------------------------------------------------
     def _watchdog(self) -> None:
         """Active, and the supervisor silent for ``status_timeout_s``: command 0 V once."""
+        now = time.monotonic()
+        gap_s, self._last_check_wall = now - self._last_check_wall, now
         status = self._status
         if status is None or status.active_controller != self.source or self._watchdog_tripped:
             return
-        silent_s = time.monotonic() - self._last_status_wall
+        self._silent_s += min(gap_s, MAX_COUNTED_GAP_S)
+        silent_s = self._silent_s
         if silent_s < self.status_timeout_s:
             return
         self._watchdog_tripped = True
