@@ -26,10 +26,13 @@ BAD_IDS = ['nan', '+inf', '-inf']
 
 
 # ====================================================================== stage logic, no ROS
-def _status(source, grasp_id=1, position_sp=0.05, force_sp=3.0, contact=False, seed=1.0):
+def _status(source, grasp_id=1, position_sp=0.05, force_sp=3.0, contact=False, seed=1.0,
+            position=0.049):
+    # every number field of SupervisorStatus a stage may read (position_m: where the finger is)
     return SimpleNamespace(active_controller=source, grasp_id=grasp_id,
                            position_setpoint_m=position_sp, force_setpoint_n=force_sp,
-                           seed_voltage_v=seed, contact=contact)
+                           seed_voltage_v=seed, contact=contact, position_m=position,
+                           force_n=0.0)
 
 
 def _stage(source):
