@@ -136,7 +136,7 @@ def test_stage_on_a_non_finite_measurement_before_activation_activates_later(bad
 
 # ====================================================================== the live graph
 rclpy = pytest.importorskip('rclpy')
-from gripper_interfaces.msg import ForceSensor, MotorCommand  # noqa: E402
+from gripper_interfaces.msg import ForceSensor, MotorCommand, MotorState  # noqa: E402
 from gripper_interfaces.srv import Grasp  # noqa: E402
 from rclpy.context import Context  # noqa: E402
 from rclpy.node import Node  # noqa: E402
@@ -220,6 +220,7 @@ class LiveGraph:
         self.probe = Node('fault_probe', context=self.context)
         self.joint_pub = self.probe.create_publisher(JointState, TOPIC_JOINT_STATES, GRAPH_QOS)
         self.force_pub = self.probe.create_publisher(ForceSensor, TOPIC_FORCE_SENSOR, GRAPH_QOS)
+        self.motor_pub = self.probe.create_publisher(MotorState, TOPIC_MOTOR_STATE, GRAPH_QOS)
         self.graph.add_node(self.watcher)
         self.graph.add_node(self.probe)
         # every reader has matched the probe's writers before anything is injected
@@ -396,11 +397,16 @@ class Injection:
                                  position=[self.value], velocity=list(joint.velocity),
                                  effort=list(joint.effort))
                 self.live.joint_pub.publish(bad)
-            else:
+            elif self.topic == TOPIC_FORCE_SENSOR:
                 f = self._force_msg
                 self.live.force_pub.publish(ForceSensor(
                     header=f.header, force_n=self.value, peak_force_n=f.peak_force_n,
                     voltage_v=f.voltage_v))
+            else:
+                m = self.live.graph.plant._motor
+                self.live.motor_pub.publish(MotorState(
+                    header=m.header, voltage_v=self.value, current_a=m.current_a,
+                    speed_rad_s=m.speed_rad_s))
         self._real_joint_pub.publish(joint)
 
 
@@ -569,3 +575,51 @@ def test_grasp_on_a_bad_reading_at_rest_is_refused_and_nothing_moves(idle_runs, 
     assert r.outcome in (Outcome.REFUSED, Outcome.FAULT) and not r.success, r.message
     assert repr(run.value) in r.message or 'non-finite' in r.message, r.message
     assert run.ticks == 0 and not run.commands
+
+
+# ---------------------------------------------------------------------- a bad motor state
+@pytest.fixture(scope='module')
+def motor_runs():
+    """The applied voltage the plant reports (the supervisor's bumpless seed) goes bad for one
+    tick of the position stage: the supervisor passes it on in the status as seed_voltage_v."""
+    lg = LiveGraph()
+    g = lg.graph
+    runs = []
+    try:
+        for value in BAD_VALUES:
+            def when(joint, state={'n': 0}):
+                if g.supervisor.logic.phase is not Phase.POSITION:
+                    return False
+                state['n'] += 1
+                return state['n'] > 20
+            inj = Injection(lg, TOPIC_MOTOR_STATE, value, when)
+            before = lg.watcher.snapshot()
+            held = g.position.nonfinite_answers
+            assert g.set_object(0.10).success
+            r = g.grasp(0.10, 0.75, timeout_s=0.5, wall_timeout_s=60.0)
+            g.plant._joint_pub = inj._real_joint_pub
+            time.sleep(0.2)
+            after = lg.watcher.snapshot()
+            runs.append(SimpleNamespace(
+                value=value, response=r, stamp_ns=inj.stamp_ns,
+                nonfinite=after[0][len(before[0]):], commands=after[1][len(before[1]):],
+                held=g.position.nonfinite_answers - held))
+    finally:
+        lg.close()
+    return runs
+
+
+@pytest.mark.parametrize('index', range(len(BAD_VALUES)), ids=BAD_IDS)
+def test_non_finite_seed_voltage_in_the_status_is_answered_with_zero_volts(motor_runs, index):
+    """The position controller does not act on a status carrying a non-finite number: it
+    answers that tick with 0 V (and logs it); every command stays finite."""
+    run = motor_runs[index]
+    assert run.stamp_ns is not None, 'the injection point was never reached'
+    at_tick = [c for c in run.commands if c[1] == run.stamp_ns]
+    assert len(at_tick) == 1 and at_tick[0][2] == MotorCommand.SOURCE_POSITION
+    assert at_tick[0][3] == 0.0 and run.held == 1
+    assert all(math.isfinite(c[3]) and math.isfinite(c[4]) for c in run.commands)
+    assert any(c[1] > run.stamp_ns for c in run.commands)       # the loop went on
+    produced = [n for n in run.nonfinite if n[0] not in (TOPIC_STATUS, TOPIC_MOTOR_STATE)]
+    assert produced == [], produced
+    assert [n[2] for n in run.nonfinite if n[0] == TOPIC_MOTOR_STATE] == [run.stamp_ns]
