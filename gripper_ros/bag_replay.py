@@ -240,8 +240,10 @@ def build_parser() -> argparse.ArgumentParser:
                        choices=['mpc_pd', 'pd', 'pid'],
                        help='position controller kind (default: as recorded in the bag, '
                             'else the node default mpc_pd)')
-    resim.add_argument('--force-controller', default=None, choices=['pi', 'mpc_pi'],
-                       help='force controller kind (default: as recorded, else pi)')
+    resim.add_argument('--force-controller', default=None,
+                       choices=['contact_aware', 'pi', 'mpc_pi'],
+                       help='force controller kind (default: as recorded, else pi: bags '
+                            'from before the kind was recorded used pi)')
     resim.add_argument('--approach-force-margin', type=float, default=None, metavar='M',
                        help='force controller cap before contact (default: as recorded, '
                             'else 1.0; 0 = off)')

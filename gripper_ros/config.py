@@ -99,6 +99,21 @@ class PositionControlParams:
 
 
 @dataclass(frozen=True)
+class ContactForceTuning:
+    """The contact-aware force stage (gripper_ros/contact_force.py), ours."""
+
+    approach_time_constant_s: float      # before contact, speed reference = gap / this ...
+    contact_speed_mps_per_n: float       # ... + this x F_sp: the speed at which contact is made
+    contact_force_fraction: float        # contact once the force exceeds this x F_sp
+    force_gain_v_per_n: float            # Kp on the force error after contact
+    damping_ratio: float                 # of the spring mode, via velocity damping
+    max_damping_v_s_per_m: float         # damping gain cap (also the approach tracking gain)
+    integral_gain_v_per_n_s: float       # model-error trim, only while at rest in contact
+    integral_speed_band_mps: float       # "at rest": |finger speed| below this
+    min_travel_for_stiffness_m: float    # stiffness F/d estimated once d exceeds this
+
+
+@dataclass(frozen=True)
 class ForceControlParams:
     paper_sample_time_s: float
     pi_paper: PidGains
@@ -107,6 +122,7 @@ class ForceControlParams:
     sample_time_s: float
     closed_loop_pole: float
     mpc_pi_dmc: DmcTuning
+    contact_aware: ContactForceTuning
 
 
 @dataclass(frozen=True)
@@ -125,6 +141,7 @@ class SupervisorParams:
     lost_force_hold_s: float = 0.002     # ... for this long
     release_tolerance_m: float = 0.001   # release done within this of the open position ...
     release_settle_s: float = 0.05       # ... for this long
+    position_switch_speed_mps: float = 0.0  # switch 1 also needs |speed| <= this (0: paper's)
 
 
 @dataclass(frozen=True)
@@ -233,7 +250,10 @@ def parse_config(data: dict, source: str = '<dict>') -> GripperConfig:
                               'force_control.mpc_pi_paper'),
         sample_time_s=_number(frc, 'sample_time_s', 'force_control', positive=True),
         closed_loop_pole=_number(frc, 'closed_loop_pole', 'force_control', nonnegative=True),
-        mpc_pi_dmc=_dmc(_section(frc, 'mpc_pi', 'force_control'), 'force_control.mpc_pi'))
+        mpc_pi_dmc=_dmc(_section(frc, 'mpc_pi', 'force_control'), 'force_control.mpc_pi'),
+        contact_aware=_build(ContactForceTuning, _section(frc, 'contact_aware', 'force_control'),
+                             'force_control.contact_aware',
+                             integral_gain_v_per_n_s={'nonnegative': True}))
     if not force.closed_loop_pole < 1.0:
         raise ConfigError('"force_control.closed_loop_pole" must be in [0, 1) for a stable loop, '
                           f'got {force.closed_loop_pole!r}')
@@ -242,7 +262,8 @@ def parse_config(data: dict, source: str = '<dict>') -> GripperConfig:
                           f'"plant.voltage_limit_v", got {position.mpc_pd_braking_voltage_v!r}')
     sup = _build(SupervisorParams, _section(data, 'supervisor', source), 'supervisor',
                  acceleration_mps2={'nonnegative': True}, hold_watch_s={'nonnegative': True},
-                 release_settle_s={'nonnegative': True})
+                 release_settle_s={'nonnegative': True},
+                 position_switch_speed_mps={'nonnegative': True})
     if not sup.lost_force_fraction < 1.0:
         raise ConfigError('"supervisor.lost_force_fraction" must be in (0, 1), '
                           f'got {sup.lost_force_fraction!r}')

@@ -37,7 +37,7 @@ SOURCE_FORCE = 2
 """``MotorCommand.SOURCE_FORCE`` / ``SupervisorStatus.CONTROLLER_FORCE``."""
 
 DEFAULT_POSITION_CONTROLLER = PositionControllerKind.MPC_PD
-DEFAULT_FORCE_CONTROLLER = ForceControllerKind.PI
+DEFAULT_FORCE_CONTROLLER = ForceControllerKind.CONTACT_AWARE
 DEFAULT_APPROACH_FORCE_MARGIN = 1.0
 
 
@@ -102,19 +102,26 @@ class ForceStageController:
         self.kind = parse_kind(ForceControllerKind, kind)
         self.approach_margin = margin
         self.controller = make_force_controller(config, self.kind)
-        self._pi = self.controller.inner if self.kind is ForceControllerKind.MPC_PI \
-            else self.controller
-        self._full_limits = self._pi.output_limits
+        self.contact_aware = self.kind is ForceControllerKind.CONTACT_AWARE
+        self._pi = None if self.contact_aware else (
+            self.controller.inner if self.kind is ForceControllerKind.MPC_PI
+            else self.controller)
+        self._full_limits = self.controller.output_limits if self.contact_aware \
+            else self._pi.output_limits
         self.sample_time_s = config.force.sample_time_s
         self._contact = False
 
     @property
     def capped(self) -> bool:
-        """True while the pre-contact cap is in force."""
-        return not self._contact and self.approach_margin > 0.0
+        """True while the pre-contact cap is in force (PI / MPC-PI; the contact-aware stage
+        caps its approach itself, at the feed-forward)."""
+        return not self._contact and self.approach_margin > 0.0 and not self.contact_aware
 
     def activate(self, status: StatusLike, measurement: float) -> None:
         self._contact = False
+        if self.contact_aware:       # speed-shaped approach from where the finger is now
+            self.controller.reset(status.position_m)
+            return
         self._apply_limits(status)
         if self.kind is ForceControllerKind.MPC_PI:
             self.controller.reset(measurement, status.seed_voltage_v)
@@ -131,6 +138,10 @@ class ForceStageController:
 
     def compute(self, status: StatusLike, measurement: float) -> tuple[float, float]:
         """(voltage_v, inner_setpoint) for this tick; the cap is released at first contact."""
+        if self.contact_aware:
+            voltage = self.controller.step(status.force_setpoint_n, measurement,
+                                           status.position_m, status.position_setpoint_m)
+            return voltage, status.force_setpoint_n
         if not self._contact and status.contact:
             self._contact = True
             self._apply_limits(status)
@@ -139,7 +150,7 @@ class ForceStageController:
         return voltage, inner
 
 
-STATUS_NUMBERS = ('position_setpoint_m', 'force_setpoint_n', 'seed_voltage_v')
+STATUS_NUMBERS = ('position_setpoint_m', 'force_setpoint_n', 'seed_voltage_v', 'position_m')
 """The status fields a stage computes with; a non-finite one is never acted on."""
 
 

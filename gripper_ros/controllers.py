@@ -8,6 +8,7 @@ from __future__ import annotations
 import enum
 
 from .config import DmcTuning, GripperConfig, PidGains
+from .contact_force import ContactForceController
 from .dmc import BrakingGovernor, CascadedMpc, DynamicMatrixControl, closed_loop_step_response
 from .force_sensor import FsrVoltageDivider
 from .pid import PID, AntiWindup, DerivativeOn, first_order_pi_by_pole_placement
@@ -23,8 +24,9 @@ class PositionControllerKind(enum.Enum):
 
 
 class ForceControllerKind(enum.Enum):
-    PI = 'pi'
-    MPC_PI = 'mpc_pi'
+    PI = 'pi'                           # the paper's structure, our discrete gains
+    MPC_PI = 'mpc_pi'                   # DMC over that PI
+    CONTACT_AWARE = 'contact_aware'     # ours: rigid and compliant objects (contact_force.py)
 
 
 def make_plant(config: GripperConfig) -> GripperPlant:
@@ -101,6 +103,8 @@ def make_force_controller(config: GripperConfig, kind: ForceControllerKind,
                           tuning: DmcTuning | None = None):
     """PI (ours by default) or MPC-PI over it, at ``dt_s`` (default: the force sampling time)."""
     dt = config.force.sample_time_s if dt_s is None else dt_s
+    if kind is ForceControllerKind.CONTACT_AWARE:
+        return ContactForceController(config.plant, config.force.contact_aware, dt)
     pi_gains = gains if gains is not None else force_pi_gains(config, dt)
     inner = PID(pi_gains, dt, _limits(config))
     if kind is ForceControllerKind.PI:

@@ -17,7 +17,7 @@ from rclpy.exceptions import ParameterException
 from rclpy.executors import ExternalShutdownException
 
 from .config import ConfigError
-from .controller_logic import ForceStageController, parse_kind
+from .controller_logic import DEFAULT_FORCE_CONTROLLER, ForceStageController, parse_kind
 from .controller_node_base import LockstepController
 from .controllers import ForceControllerKind
 from .ros_common import GRAPH_QOS, TOPIC_FORCE_SENSOR, declare_config, time_to_ns
@@ -30,13 +30,16 @@ class ForceControllerNode(LockstepController):
         super().__init__('force_controller', **kwargs)
         self.config = declare_config(self)
         kind = self.declare_parameter(
-            'controller', ForceControllerKind.PI.value,
-            ParameterDescriptor(description='pi | mpc_pi', read_only=True)).value
+            'controller', DEFAULT_FORCE_CONTROLLER.value,
+            ParameterDescriptor(description='contact_aware (default: rigid and compliant '
+                                            'objects) | pi | mpc_pi (the paper\'s structure)',
+                                read_only=True)).value
         self.kind = parse_kind(ForceControllerKind, kind)
         self.approach_margin = self.declare_parameter(
             'approach_force_margin', 1.0, ParameterDescriptor(
-                description='cap before contact: margin x stall voltage of the force setpoint; '
-                            '0 disables the cap (the paper behaviour)',
+                description='pi / mpc_pi: cap before contact, margin x stall voltage of the '
+                            'force setpoint; 0 disables the cap (the paper behaviour). '
+                            'contact_aware caps its approach itself',
                 floating_point_range=[FloatingPointRange(from_value=0.0, to_value=10.0)])).value
         self.stage = ForceStageController(self.config, self.kind, self.approach_margin)
         self.controller = self.stage.controller

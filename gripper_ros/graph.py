@@ -20,6 +20,7 @@ from rclpy.context import Context
 from rclpy.parameter import Parameter
 from rclpy.task import Future
 
+from .controller_logic import DEFAULT_FORCE_CONTROLLER
 from .force_controller_node import ForceControllerNode
 from .grasp_action_node import GraspActionServer
 from .plant_simulator_node import PlantSimulatorNode
@@ -51,7 +52,7 @@ class GraphOptions:
     executor: ExecutorKind = ExecutorKind.EVENTS
     config_file: str = ''
     position_controller: str = 'mpc_pd'
-    force_controller: str = 'pi'
+    force_controller: str = DEFAULT_FORCE_CONTROLLER.value
     approach_force_margin: float = 1.0
     action_server: bool = True     # also serve the grasp as an action (feedback, cancel)
 

@@ -34,6 +34,8 @@ class GraspRecord:
 
 
 def build_parser() -> argparse.ArgumentParser:
+    from .controller_logic import DEFAULT_FORCE_CONTROLLER
+    from .controllers import ForceControllerKind
     p = argparse.ArgumentParser(prog='grasp_demo', description=__doc__.splitlines()[0])
     p.add_argument('--width', type=float, help='object width (m); with --mass grasps one object')
     p.add_argument('--mass', type=float, help='object mass (kg)')
@@ -49,9 +51,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('--no-plot', action='store_true', help='do not write the figure')
     p.add_argument('--executor', choices=['events', 'single'], default='events')
     p.add_argument('--position-controller', choices=['mpc_pd', 'pd', 'pid'], default='mpc_pd')
-    p.add_argument('--force-controller', choices=['pi', 'mpc_pi'], default='pi')
+    p.add_argument('--force-controller', choices=[k.value for k in ForceControllerKind],
+                   default=DEFAULT_FORCE_CONTROLLER.value,
+                   help='contact_aware: rigid and compliant objects; pi / mpc_pi: the paper')
     p.add_argument('--approach-force-margin', type=float, default=1.0,
-                   help='voltage cap before contact, x stall voltage of F_sp (0 = off)')
+                   help='pi / mpc_pi: voltage cap before contact, x stall voltage of F_sp '
+                        '(0 = off)')
     p.add_argument('--config', default='', help='YAML parameter file (default: installed)')
     return p
 

@@ -229,8 +229,9 @@ class GraspSupervisor:
         return self._decision()
 
     def step(self, t_ns: int, position_m: float, force_n: float,
-             sensor_voltage_v: float) -> Decision:
-        """Advance the state machine with the measurements of tick ``t_ns``."""
+             sensor_voltage_v: float, speed_mps: float = 0.0) -> Decision:
+        """Advance the state machine with the measurements of tick ``t_ns`` (``speed_mps``:
+        the finger's speed, for the position switch's speed condition)."""
         if not self.busy:
             return self._decision()
         self._t_ns = t_ns
@@ -263,7 +264,9 @@ class GraspSupervisor:
             return self._decision()
         if self.phase is Phase.POSITION:
             tol = p.position_tolerance_fraction * tg.position_setpoint_m
-            if abs(position_m - tg.position_setpoint_m) <= tol:
+            slow = (p.position_switch_speed_mps <= 0.0
+                    or abs(speed_mps) <= p.position_switch_speed_mps)
+            if abs(position_m - tg.position_setpoint_m) <= tol and slow:
                 self._switch(SwitchCriterion.POSITION_TOLERANCE, t_ns)
             elif sensor_rise:
                 self._switch(SwitchCriterion.SENSOR_VOLTAGE, t_ns)

@@ -33,6 +33,7 @@ class _Status:
     force_setpoint_n: float = 0.0
     seed_voltage_v: float = 0.0
     contact: bool = False
+    position_m: float = 0.0
 
 
 @dataclass
@@ -98,6 +99,7 @@ def simulate_grasp(config: GripperConfig, width_m: float, mass_kg: float, *,
         status.active_controller = int(decision.active)
         status.contact = supervisor.contact_ns is not None
         status.seed_voltage_v = sample.voltage_v
+        status.position_m = sample.position_m
         for answerer in stages.values():
             answerer.on_status(status)
         if decision.active is ActiveController.NONE:
@@ -108,7 +110,7 @@ def simulate_grasp(config: GripperConfig, width_m: float, mass_kg: float, *,
         answer = answerer.answer(status, sample.t_ns, measurement)
         sample = plant.step(answer.voltage_v, answerer.stage.sample_time_s)
         decision = supervisor.step(sample.t_ns, sample.position_m, sample.force_n,
-                                   sample.sensor_voltage_v)
+                                   sample.sensor_voltage_v, sample.velocity_mps)
     cols = list(zip(*rows))
     return HeadlessGrasp(
         supervisor.outcome, supervisor.message, supervisor.switch_criterion,

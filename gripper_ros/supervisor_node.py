@@ -95,7 +95,9 @@ class SupervisorNode(Node):
         self._last_decided_ns = t_ns
         self._last_progress_wall = time.monotonic()
         position = self._joint.position[0] if self._joint.position else math.nan
-        decision = self.logic.step(t_ns, position, self._force.force_n, self._force.voltage_v)
+        speed = self._joint.velocity[0] if self._joint.velocity else 0.0
+        decision = self.logic.step(t_ns, position, self._force.force_n, self._force.voltage_v,
+                                   speed)
         self._publish(t_ns, decision)
         if decision.finished:
             self._complete(decision)

@@ -1,4 +1,4 @@
-"""Issue 5 part 2: no contact force spike on rigid objects, over the whole width x mass sweep.
+"""Issue 5 part 2: no contact force spike, on rigid, stiff and soft objects, across widths and masses.
 
 Each grasp is the node graph's logic run headless (bit-identical to the graph, see
 test_graph.py). Known answers: the paper's fingers hit with up to 3x the setpoint, ours must stay
@@ -10,7 +10,7 @@ import math
 import pytest
 
 from gripper_ros.config import load_config
-from gripper_ros.contact_sweep import MASSES_KG, WIDTHS_M, main, sweep
+from gripper_ros.contact_sweep import COMPLIANT_OBJECTS, MASSES_KG, WIDTHS_M, main, sweep
 
 CONFIG = load_config()
 
@@ -18,6 +18,35 @@ CONFIG = load_config()
 @pytest.fixture(scope='module')
 def rigid_rows():
     return sweep(CONFIG)
+
+
+@pytest.fixture(scope='module')
+def compliant_rows():
+    """Corners of the sweep (narrowest/widest object, lightest/heaviest) for the stiff
+    (1e5 N/m) and the soft (1e3 N/m) object; the full sweep is `contact_sweep --compliant`."""
+    rows = sweep(CONFIG, widths=(0.005, 0.05, 0.14), masses=(0.1, 3.0), compliant=True)
+    return [r for r in rows if r.contact != 'rigid']
+
+
+def test_stiff_and_soft_objects_are_held_without_a_spike(compliant_rows):
+    """The paper's PI (and ours before the contact-aware stage) hit a stiff object with up to
+    16x the setpoint and never settled on it; now every corner is held within 1.10x."""
+    assert {r.contact for r in compliant_rows} == {name for name, _, _ in COMPLIANT_OBJECTS}
+    assert len(compliant_rows) == 12
+    for r in compliant_rows:
+        assert r.outcome == 'HOLDING', r
+        assert r.peak_ratio <= 1.10, r
+        assert r.time_to_hold_s >= r.arrival_floor_s, r
+
+
+def test_paper_pi_still_spikes_on_the_stiff_object():
+    """The control: the same stiff grasp with the PI force stage (selectable, the paper's
+    structure) is not held and hits far above the setpoint."""
+    from gripper_ros.headless import simulate_grasp
+    g = simulate_grasp(CONFIG, 0.05, 1.0, stiffness_n_per_m=1e5, damping_n_s_per_m=50.0,
+                       force_controller='pi', timeout_s=4.0)
+    assert g.outcome.name != 'HOLDING'
+    assert g.peak_contact_force_n > 2.0 * g.force_setpoint_n
 
 
 def test_every_rigid_object_in_reach_is_held(rigid_rows):
@@ -32,11 +61,13 @@ def test_peak_contact_force_stays_within_ten_percent_of_the_setpoint(rigid_rows)
 
 def test_no_grasp_beats_the_physical_arrival_floor_and_all_are_near_the_rest_floor(rigid_rows):
     """Known answers: no grasp can hold before full voltage throughout would even reach the
-    face; the minimum-time position stage holds within 0.5 s of the at-rest floor."""
+    face; the minimum-time position stage holds within 0.6 s of the at-rest floor (the price
+    of meeting the face slowly: the switch waits for <= 2 mm/s, up to 0.3 s, and the last
+    micrometres are crossed at 30 um/s per newton of setpoint, up to 0.3 s for 0.1 kg)."""
     for r in rigid_rows:
         assert 0 < r.arrival_floor_s < r.approach_floor_s
         assert r.time_to_hold_s >= r.arrival_floor_s, r
-        assert r.time_to_hold_s <= r.approach_floor_s + 0.5, r
+        assert r.time_to_hold_s <= r.approach_floor_s + 0.6, r
 
 
 def test_the_held_force_is_the_eq_23_setpoint(rigid_rows):

@@ -113,10 +113,10 @@ def test_cli_table_and_json_for_the_recorded_config(recorded, capsys):
 
 # --- changed gains: only the changed stage differs -----------------------------------------------
 
-def test_changed_force_pole_changes_the_force_stage_only(recorded, tmp_path, capsys):
+def test_changed_force_gain_changes_the_force_stage_only(recorded, tmp_path, capsys):
     bag_dir, _ = recorded
-    path = _config_with(tmp_path, 'pole.yaml',
-                        lambda d: d['force_control'].__setitem__('closed_loop_pole', 0.5))
+    path = _config_with(tmp_path, 'kp.yaml', lambda d: d['force_control']['contact_aware']
+                        .__setitem__('force_gain_v_per_n', 0.6))
     code, out = _run_cli([str(bag_dir), '--resimulate', str(path), '--json'], capsys)
     assert code == 0, out.err                            # it ran: exit 0 even though it differs
     data = json.loads(out.out)
@@ -124,9 +124,8 @@ def test_changed_force_pole_changes_the_force_stage_only(recorded, tmp_path, cap
     pos, frc = data['stages']['position'], data['stages']['force']
     assert pos['identical'] and pos['max_abs_dv_v'] == 0.0 and pos['differing'] == 0
     assert frc['differing'] > 0 and frc['max_abs_dv_v'] > 0.0 and frc['rms_dv_v'] > 0.0
-    # the bumpless seed makes the first force tick equal up to rounding (the seed, -20 V of
-    # braking, is rebuilt from other gains' terms); the gains show from the second tick on
-    assert frc['first_diff_tick'] in (0, 1)
+    # the force gain acts from contact on: the approach ticks before it are identical
+    assert frc['first_diff_tick'] > 0
     assert frc['compared'] == frc['recorded']
     code, out = _run_cli([str(bag_dir), '--resimulate', str(path)], capsys)
     assert code == 0 and 'DIFFERENT' in out.out and 'NOT re-run' in out.out
@@ -162,6 +161,7 @@ class _Status:
         self.force_setpoint_n = 5.0
         self.seed_voltage_v = 0.0
         self.contact = False
+        self.position_m = 0.1
 
 
 class _CountingStage:
