@@ -66,6 +66,14 @@ def _time_steps(ctrl, plant_step, setpoints, warmup: int, steps: int) -> np.ndar
     return out
 
 
+class _ContactAware:
+    """The contact-aware force stage holding a rigid object (finger at rest on the face): its
+    ``step`` also takes position and face; the one extra call is included in its figure."""
+
+    def __init__(self, ctrl, position_m: float = 0.1):
+        self.step = lambda sp, y: ctrl.step(sp, y, position_m, position_m)
+
+
 def _force_plant(config, dt_s: float):
     from .controllers import make_plant
     a, b = make_plant(config).discrete_force_model(dt_s)
@@ -107,6 +115,9 @@ def measure(steps: int = 20000, warmup: int = 2000, period: int = 2000,
         ('PI (force)', make_force_controller(config, ForceControllerKind.PI),
          _force_plant(config, f_dt), f_sp, f_dt),
         ('MPC-PI (DMC over PI, force)', make_force_controller(config, ForceControllerKind.MPC_PI),
+         _force_plant(config, f_dt), f_sp, f_dt),
+        ('contact-aware (force, default)',
+         _ContactAware(make_force_controller(config, ForceControllerKind.CONTACT_AWARE)),
          _force_plant(config, f_dt), f_sp, f_dt),
         ('PD (position)', make_position_controller(config, PositionControllerKind.PD),
          _position_plant(config), p_sp, p_dt),
