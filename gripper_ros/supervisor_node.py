@@ -30,6 +30,7 @@ from rclpy.node import Node
 from sensor_msgs.msg import JointState
 
 from .config import ConfigError
+from .controller_node_base import MAX_COUNTED_GAP_S
 from .grasp_logic import (Decision, GraspRequest, GraspSupervisor, Outcome, Phase, RequestError,
                           validate_request)
 from .ros_common import (GRAPH_QOS, LATCHED_QOS, SERVICE_GRASP, SERVICE_RELEASE, SERVICE_STOP,
@@ -46,7 +47,11 @@ class SupervisorNode(Node):
         self.logic = GraspSupervisor(self.config.plant, self.config.supervisor)
         self._joint: JointState | None = None
         self._force: ForceSensor | None = None
-        self._voltage_v = 0.0
+        # the last finite reading of each number the status and the Grasp response carry: a
+        # non-finite measurement (sensor dropout) is never published, the last good one is
+        self._good_position_m = 0.0
+        self._good_force_n = 0.0
+        self._good_voltage_v = 0.0
         self._last_decided_ns: int | None = None
         self._grasp_id = 0
         # (request header, response): Grasp.Response for a grasp, Trigger.Response for a release
@@ -63,22 +68,42 @@ class SupervisorNode(Node):
             'tick_timeout_s', 2.0, ParameterDescriptor(
                 description='wall seconds without a new tick during a grasp before FAULT',
                 floating_point_range=[FloatingPointRange(from_value=0.05, to_value=600.0)])).value
-        self._last_progress_wall = time.monotonic()
+        self.add_post_set_parameters_callback(self._on_parameters_set)
+        # executor-running wall time without a new tick (see _watchdog)
+        self._silent_s = 0.0
+        self._last_check_wall = time.monotonic()
         self.create_timer(0.1, self._watchdog, clock=Clock(clock_type=ClockType.STEADY_TIME))
         self.create_service(Trigger, SERVICE_STOP, self._on_stop)
         self.release_service = DeferredService(self, Trigger, SERVICE_RELEASE, self._on_release)
 
+    def _on_parameters_set(self, parameters) -> None:
+        """An accepted ``tick_timeout_s`` (the descriptor's range refuses the rest) applies from
+        the watchdog's next check on."""
+        for p in parameters:
+            if p.name == 'tick_timeout_s':
+                self.tick_timeout_s = float(p.value)
+
+    def _progress(self) -> None:
+        """A tick was decided (or a grasp started): the watchdog's silence starts afresh."""
+        self._silent_s = 0.0
+        self._last_check_wall = time.monotonic()
+
     # ------------------------------------------------------------------ measurements
     def _on_joint(self, msg: JointState) -> None:
         self._joint = msg
+        if msg.position and math.isfinite(msg.position[0]):
+            self._good_position_m = msg.position[0]
         self._try_decide()
 
     def _on_force(self, msg: ForceSensor) -> None:
         self._force = msg
+        if math.isfinite(msg.force_n):
+            self._good_force_n = msg.force_n
         self._try_decide()
 
     def _on_motor(self, msg: MotorState) -> None:
-        self._voltage_v = msg.voltage_v
+        if math.isfinite(msg.voltage_v):
+            self._good_voltage_v = msg.voltage_v
 
     def _latest_tick(self) -> int | None:
         """Stamp of the newest tick for which both measurements are here, else None."""
@@ -93,7 +118,7 @@ class SupervisorNode(Node):
         if t_ns is None or t_ns == self._last_decided_ns or not self.logic.busy:
             return
         self._last_decided_ns = t_ns
-        self._last_progress_wall = time.monotonic()
+        self._progress()
         position = self._joint.position[0] if self._joint.position else math.nan
         speed = self._joint.velocity[0] if self._joint.velocity else 0.0
         decision = self.logic.step(t_ns, position, self._force.force_n, self._force.voltage_v,
@@ -112,11 +137,12 @@ class SupervisorNode(Node):
         m.outcome = int(d.outcome)
         m.position_setpoint_m = d.position_setpoint_m
         m.force_setpoint_n = d.force_setpoint_n
-        m.position_m = self._joint.position[0] if self._joint and self._joint.position else 0.0
-        m.force_n = self._force.force_n if self._force else 0.0
+        # the last finite readings: a non-finite one (sensor dropout) is never passed on
+        m.position_m = self._good_position_m
+        m.force_n = self._good_force_n
         m.width_m = self.config.plant.max_travel_m - m.position_m
         m.contact = self.logic.contact_ns is not None
-        m.seed_voltage_v = self._voltage_v
+        m.seed_voltage_v = self._good_voltage_v
         m.message = d.message if d.finished else ''
         self._status_pub.publish(m)
         self.statuses_published += 1
@@ -158,6 +184,10 @@ class SupervisorNode(Node):
         if not (math.isfinite(self._force.force_n) and math.isfinite(self._force.voltage_v)):
             return (f'refused: the force sensor reads force {self._force.force_n!r} N, voltage '
                     f'{self._force.voltage_v!r} V (sensor dropout); a grasp needs it')
+        position = self._joint.position[0] if self._joint.position else math.nan
+        if not math.isfinite(position):
+            return (f'refused: the finger position sensor reads {position!r} m (sensor dropout); '
+                    'a grasp needs it')
         self._grasp_id += 1
         response.grasp_id = self._grasp_id
         response.position_setpoint_m = targets.position_setpoint_m
@@ -168,15 +198,22 @@ class SupervisorNode(Node):
             f'{targets.force_setpoint_n:.3f} N')
         decision = self.logic.start(targets, t_ns, self._force.voltage_v)
         self._last_decided_ns = t_ns
-        self._last_progress_wall = time.monotonic()
+        self._progress()
         self._publish(t_ns, decision)
         return ''
 
     def _watchdog(self) -> None:
-        """Lockstep stalls if a node dies: end the grasp as FAULT, naming who went silent."""
+        """Lockstep stalls if a node dies: end the grasp as FAULT, naming who went silent.
+
+        Only time in which the executor demonstrably ran counts (a check more than
+        MAX_COUNTED_GAP_S late adds MAX_COUNTED_GAP_S, as the controllers' status watchdog does):
+        after a stall of the whole process, ticks queued behind this timer are not silence."""
+        now = time.monotonic()
+        gap_s, self._last_check_wall = now - self._last_check_wall, now
         if not self.logic.busy:
             return
-        silent_s = time.monotonic() - self._last_progress_wall
+        self._silent_s += min(gap_s, MAX_COUNTED_GAP_S)
+        silent_s = self._silent_s
         if silent_s < self.tick_timeout_s:
             return
         active = self._status_msg.active_controller
@@ -225,10 +262,10 @@ class SupervisorNode(Node):
         response.success = decision.outcome is Outcome.HOLDING
         response.outcome = int(decision.outcome)
         response.message = decision.message
-        position = self._joint.position[0]
+        position = self._good_position_m            # the last finite readings
         response.final_position_m = position
         response.final_width_m = self.config.plant.max_travel_m - position
-        response.final_force_n = self._force.force_n
+        response.final_force_n = self._good_force_n
         if self.logic.switch_ns is not None:
             response.switch_time_s = (self.logic.switch_ns - self.logic.start_ns) * 1e-9
         self.grasp_service.reply(header, response)
@@ -261,7 +298,7 @@ class SupervisorNode(Node):
         decision = self.logic.start_release(t_ns)
         self._pending = (header, response)
         self._last_decided_ns = t_ns
-        self._last_progress_wall = time.monotonic()
+        self._progress()
         self._publish(t_ns, decision)
 
     def _on_stop(self, request: Trigger.Request, response: Trigger.Response):
