@@ -170,11 +170,14 @@ class GripperGraph:
             wall_timeout_s)
 
     def controller_settings(self) -> dict:
-        """What a re-simulation of this graph's bags needs to rebuild the same controllers."""
+        """What a re-simulation of this graph's bags needs to rebuild the same controllers.
+
+        The approach margin is the force stage's current one: ``approach_force_margin`` is a
+        writable parameter, and a change at run time must be recorded as it is used."""
         o = self.options
         return {'position_controller': o.position_controller,
                 'force_controller': o.force_controller,
-                'approach_force_margin': o.approach_force_margin,
+                'approach_force_margin': float(self.force.stage.approach_margin),
                 'config_file': o.config_file}
 
     def record_every_grasp(self, output_dir) -> None:

@@ -46,6 +46,7 @@ class GraspActionServer(Node):
             'feedback_period_s', 0.05, ParameterDescriptor(
                 description='minimum wall seconds between two feedback messages of one phase',
                 floating_point_range=[FloatingPointRange(from_value=0.0, to_value=10.0)])).value
+        self.add_post_set_parameters_callback(self._on_parameters_set)
         self._grasp = self.create_client(Grasp, SERVICE_GRASP, qos_profile=SERVICE_QOS)
         self._stop = self.create_client(Trigger, SERVICE_STOP)
         self._status: SupervisorStatus | None = None
@@ -60,6 +61,13 @@ class GraspActionServer(Node):
                                     execute_callback=self._execute,
                                     goal_callback=self._on_goal,
                                     cancel_callback=self._on_cancel)
+
+    def _on_parameters_set(self, parameters) -> None:
+        """An accepted ``feedback_period_s`` (the descriptor's range refuses the rest) applies
+        from the next status on."""
+        for p in parameters:
+            if p.name == 'feedback_period_s':
+                self.feedback_period_s = float(p.value)
 
     # ------------------------------------------------------------------ goals
     def _on_goal(self, _goal_request) -> GoalResponse:

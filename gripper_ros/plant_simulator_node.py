@@ -18,6 +18,7 @@ import sys
 import rclpy
 from gripper_interfaces.msg import ForceSensor, MotorCommand, MotorState, SupervisorStatus
 from gripper_interfaces.srv import SetObject
+from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rosgraph_msgs.msg import Clock
@@ -40,7 +41,9 @@ class PlantSimulatorNode(Node):
         super().__init__('plant_simulator', **kwargs)
         self.config = declare_config(self)
         self.plant = make_plant(self.config)
-        self.frame_id = self.declare_parameter('frame_id', 'gripper_base').value
+        self.frame_id = self.declare_parameter('frame_id', 'gripper_base', ParameterDescriptor(
+            description='frame_id of every published header, read once at start-up',
+            read_only=True)).value
         self._status: SupervisorStatus | None = None
         self._command: MotorCommand | None = None
         self.ticks_published = 0
@@ -56,7 +59,7 @@ class PlantSimulatorNode(Node):
         self.create_subscription(MotorCommand, TOPIC_MOTOR_COMMAND, self._on_command, GRAPH_QOS)
         self.create_service(SetObject, SERVICE_SET_OBJECT, self._on_set_object)
 
-        self._clock = Clock()
+        self._clock_msg = Clock()
         self._joint = JointState(name=[FINGER_JOINT], position=[0.0], velocity=[0.0],
                                  effort=[0.0])
         self._joint.header.frame_id = self.frame_id
@@ -120,8 +123,8 @@ class PlantSimulatorNode(Node):
     def publish_sample(self, s: PlantSample) -> None:
         """Publish one tick: /clock first, so sim-time nodes see the tick's time."""
         stamp = ns_to_time(s.t_ns)
-        self._clock.clock = stamp
-        self._clock_pub.publish(self._clock)
+        self._clock_msg.clock = stamp
+        self._clock_pub.publish(self._clock_msg)
         j = self._joint
         j.header.stamp = stamp
         j.position[0] = s.position_m

@@ -4,6 +4,7 @@ from __future__ import annotations
 import enum
 
 from builtin_interfaces.msg import Time
+from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
@@ -79,7 +80,8 @@ def declare_config(node: Node) -> GripperConfig:
 
     A bad file raises ConfigError naming the key; the node does not start.
     """
-    path = node.declare_parameter('config_file', '').value
+    path = node.declare_parameter('config_file', '', ParameterDescriptor(
+        description='YAML file, read once at start-up', read_only=True)).value
     return load_config(path or None)
 
 
@@ -94,6 +96,13 @@ def spin_until_stopped(executor, stop) -> None:
         executor.spin_until_future_complete(stop, timeout_sec=3600.0)
 
 
+def server_node_name(node_name: str, service_name: str) -> str:
+    """The private server node of a :class:`DeferredService`: ``<node>_<last part>_server``."""
+    base = service_name.rstrip('/').rsplit('/', 1)[-1]
+    base = ''.join(c if c.isalnum() or c == '_' else '_' for c in base) or 'service'
+    return f'{node_name}_{base}_server'
+
+
 class DeferredService:
     """A service server whose reply may be sent later, from another callback.
 
@@ -106,7 +115,10 @@ class DeferredService:
 
     def __init__(self, node: Node, srv_type, name: str, on_request, poll_period_s: float = 0.01):
         from rclpy.clock import Clock, ClockType
-        self._server_node = Node(f'{node.get_name()}_service_server',
+        # one private node per service, named after it (node 'supervisor', '/gripper/grasp' ->
+        # 'supervisor_grasp_server'): a node with two deferred services must not register one
+        # name twice (rcl warns 'Publisher already registered for node name')
+        self._server_node = Node(server_node_name(node.get_name(), name),
                                  namespace=node.get_namespace(), context=node.context,
                                  start_parameter_services=False)
         self._service = self._server_node.create_service(srv_type, name, self._not_spun,

@@ -47,7 +47,8 @@ NODE_CLASSES = {'plant_simulator': PlantSimulatorNode,
 RANGED = {('supervisor', 'tick_timeout_s'), ('force_controller', 'approach_force_margin'),
           ('grasp_action_server', 'feedback_period_s'),
           ('position_controller', 'status_timeout_s'), ('force_controller', 'status_timeout_s')}
-READ_ONLY = {('position_controller', 'controller'), ('force_controller', 'controller')}
+READ_ONLY = {('position_controller', 'controller'), ('force_controller', 'controller'),
+             ('plant_simulator', 'frame_id')} | {(n, 'config_file') for n in NODE_CLASSES}
 
 
 def _bad_config(tmp_path, dotted, value):
@@ -309,13 +310,13 @@ def test_accepted_controller_parameters_take_effect(graph):
         assert _set(graph, name, 'status_timeout_s', _double(3.0)).successful
     assert _set(graph, 'force_controller', 'approach_force_margin', _double(2.0)).successful
     assert graph.force.stage.approach_margin == 2.0
+    # a bag records the margin in use, not the one the graph was started with
+    assert graph.controller_settings()['approach_force_margin'] == 2.0
     assert _set(graph, 'force_controller', 'approach_force_margin', _double(1.0)).successful
     assert graph.force.stage.approach_margin == 1.0
+    assert graph.controller_settings()['approach_force_margin'] == 1.0
 
 
-@pytest.mark.xfail(strict=True, reason='supervisor_node.py and grasp_action_node.py read '
-                   'tick_timeout_s / feedback_period_s once at start-up: an accepted change '
-                   'is ignored (see the report for the change)')
 def test_accepted_supervisor_and_action_parameters_take_effect(graph):
     try:
         assert _set(graph, 'supervisor', 'tick_timeout_s', _double(5.0)).successful
@@ -327,22 +328,15 @@ def test_accepted_supervisor_and_action_parameters_take_effect(graph):
         _set(graph, 'grasp_action_server', 'feedback_period_s', _double(0.05))
 
 
-@pytest.mark.xfail(strict=True, reason='ros_common.declare_config declares config_file writable: '
-                   'a new path is accepted and silently ignored (the file is read once at '
-                   'start-up); see the report for the change')
-def test_config_file_cannot_be_changed_on_a_running_node(graph):
+def test_config_file_cannot_be_changed_on_a_running_node(graph, descriptors):
+    """The file is read once at start-up: a new path would be accepted and silently ignored."""
     other = ParameterValue(type=ParameterType.PARAMETER_STRING, string_value='/tmp/other.yaml')
-    nodes = [n for n in NODE_CLASSES if n != 'plant_simulator']   # see the last test
-    try:
-        for node_name in nodes:
-            before = _get(graph, node_name, 'config_file')
-            result = _set(graph, node_name, 'config_file', other)
-            assert not result.successful and 'read-only' in result.reason, node_name
-            assert _get(graph, node_name, 'config_file') == before
-    finally:
-        for node_name in nodes:
-            _set(graph, node_name, 'config_file',
-                 ParameterValue(type=ParameterType.PARAMETER_STRING, string_value=''))
+    for node_name in NODE_CLASSES:
+        assert descriptors[node_name]['config_file'].read_only, node_name
+        before = _get(graph, node_name, 'config_file')
+        result = _set(graph, node_name, 'config_file', other)
+        assert not result.successful and 'read-only' in result.reason, node_name
+        assert _get(graph, node_name, 'config_file') == before
 
 
 def test_graph_still_grasps_after_the_refused_changes(graph):
@@ -351,12 +345,19 @@ def test_graph_still_grasps_after_the_refused_changes(graph):
     assert r.success, r.message
 
 
-@pytest.mark.xfail(strict=True, reason='plant_simulator_node.py sets self._clock to a '
-                   'rosgraph_msgs Clock message, shadowing rclpy Node._clock: every accepted '
-                   'parameter change raises AttributeError in the set_parameters service (no '
-                   'answer) and get_clock() returns the message; see the report for the change')
 def test_plant_answers_an_accepted_parameter_change(graph):
-    """Last in the file: when it fails, the plant's parameter service is left broken."""
+    """Last in the file: when it fails, the plant's parameter service is left broken.
+
+    An accepted change publishes a parameter event stamped with the node's clock; the plant's
+    Clock message once shadowed rclpy's ``Node._clock`` and the call was never answered.
+    frame_id is read-only (read once at start-up), so an accepted change is use_sim_time's."""
+    from rclpy.clock import Clock
+    assert isinstance(graph.plant.get_clock(), Clock)
     result = _set(graph, 'plant_simulator', 'frame_id', ParameterValue(
-        type=ParameterType.PARAMETER_STRING, string_value='gripper_base'), timeout_s=3.0)
-    assert result.successful
+        type=ParameterType.PARAMETER_STRING, string_value='other_frame'), timeout_s=3.0)
+    assert not result.successful and 'read-only' in result.reason
+    result = _set(graph, 'plant_simulator', 'use_sim_time', ParameterValue(
+        type=ParameterType.PARAMETER_BOOL, bool_value=False), timeout_s=3.0)
+    assert result.successful, result.reason
+    assert _get(graph, 'plant_simulator', 'use_sim_time') is False
+    assert graph.set_object(0.10).success      # the plant still answers its own service
