@@ -67,6 +67,7 @@ class Phase(enum.IntEnum):
     HOLDING = 3
     DONE = 4
     FAILED = 5
+    RELEASING = 6       # /gripper/release: position stage to the open position
 
 
 class Controller(enum.IntEnum):
@@ -96,6 +97,7 @@ class Outcome(enum.IntEnum):
     STOPPED = 5
     REFUSED = 6
     FAULT = 7
+    RELEASED = 8        # status only: /gripper/release opened the fingers
 
 
 def enum_name(enum_cls: type[enum.IntEnum], value: int) -> str:

@@ -123,8 +123,9 @@ def _raise_keyboard_interrupt(signum, frame):
 
 def _serve(graph, args) -> int:
     where = 'not recording' if args.no_record else f'one bag per grasp in {args.output}/'
-    print(f'grasp_demo: serving /gripper/grasp, /gripper/grasp_action, /gripper/stop and '
-          f'/gripper/sim/set_object ({where}); Ctrl-C to stop', flush=True)
+    print(f'grasp_demo: serving /gripper/grasp, /gripper/grasp_action, /gripper/stop, '
+          f'/gripper/release and /gripper/sim/set_object, publishing the latched '
+          f'/gripper/supervisor/outcome ({where}); Ctrl-C to stop', flush=True)
     while True:
         time.sleep(1.0)
 
