@@ -135,6 +135,14 @@ fi
 # --symlink-install: Python sources and config/*.yaml are symlinked, so editing them needs no rebuild.
 # A rebuild is needed when package metadata, entry points, the set of config files or the interfaces
 # change; the hash below covers exactly that.
+# One colcon build at a time: concurrent runs (parallel test runs on one checkout) share build/ and
+# install/, and two builds at once once left a 0-byte interface library. The second run waits
+# here, then finds the stamp current and skips the build.
+if command -v flock >/dev/null 2>&1; then
+  mkdir -p "$ROOT/build"
+  exec {setup_lock}>"$ROOT/build/.setup.lock"
+  flock "$setup_lock"
+fi
 BUILD_STAMP="$ROOT/install/.gripper_ros_build.sha256"
 build_hash="$( {
   echo "mode=$MODE venv=$VENV"; cat "$PIP_STAMP"
