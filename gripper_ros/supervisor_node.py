@@ -286,6 +286,11 @@ class SupervisorNode(Node):
                 message = f'refused: graph not ready, not yet discovered: {missing}'
             elif t_ns is None:
                 message = 'refused: no measurement from plant_simulator yet'
+            else:
+                p = self._joint.position[0] if self._joint.position else math.nan
+                if not math.isfinite(p):
+                    message = (f'refused: the finger position sensor reads {p!r} m (sensor '
+                               'dropout); opening under position control needs it')
         if message:
             response.success = False
             response.message = message

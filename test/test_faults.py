@@ -138,6 +138,7 @@ def test_stage_on_a_non_finite_measurement_before_activation_activates_later(bad
 rclpy = pytest.importorskip('rclpy')
 from gripper_interfaces.msg import ForceSensor, MotorCommand, MotorState  # noqa: E402
 from gripper_interfaces.srv import Grasp  # noqa: E402
+from std_srvs.srv import Trigger  # noqa: E402
 from rclpy.context import Context  # noqa: E402
 from rclpy.node import Node  # noqa: E402
 from rclpy.parameter import Parameter  # noqa: E402
@@ -148,7 +149,7 @@ from gripper_ros.grasp_logic import Outcome, Phase  # noqa: E402
 from gripper_ros.graph import GraphOptions, GripperGraph  # noqa: E402
 from gripper_ros.ros_common import (GRAPH_QOS, GRAPH_TOPICS, TOPIC_FORCE_SENSOR,  # noqa: E402
                                     TOPIC_JOINT_STATES, TOPIC_MOTOR_COMMAND, TOPIC_MOTOR_STATE,
-                                    TOPIC_STATUS, time_to_ns)
+                                    SERVICE_RELEASE, TOPIC_STATUS, time_to_ns)
 
 
 def _float_fields(msg, prefix=''):
@@ -511,6 +512,7 @@ def idle_runs():
     lg = LiveGraph()
     g = lg.graph
     runs = []
+    release = g.client_node.create_client(Trigger, SERVICE_RELEASE)
     try:
         for topic, value in IDLE_CASES:
             assert g.set_object(0.10).success
@@ -540,7 +542,8 @@ def idle_runs():
                 nonfinite=after[0][len(before[0]):], commands=after[1][len(before[1]):],
                 motor_voltages=after[2][len(before[2]):],
                 nonfinite_answers=g.position.nonfinite_answers - nonfinite_answers,
-                ticks=g.plant.ticks_published - ticks))
+                ticks=g.plant.ticks_published - ticks,
+                released=g.call(release, Trigger.Request(), 60)))   # on the same bad reading
     finally:
         lg.close()
     return runs
@@ -573,6 +576,11 @@ def test_grasp_on_a_bad_reading_at_rest_is_refused_and_nothing_moves(idle_runs, 
     assert r.outcome == Outcome.REFUSED and sensor in r.message, r.message
     assert run.ticks == 0 and not run.commands
     assert not run.nonfinite, run.nonfinite    # not even in the supervisor's status
+    if run.topic == TOPIC_JOINT_STATES:        # nor does a release open on a bad position
+        assert not run.released.success and 'finger position' in run.released.message, \
+            run.released.message
+    else:                                      # the release needs no force sensor
+        assert run.released.success, run.released.message
     assert all(math.isfinite(getattr(r, f)) for f in ('final_position_m', 'final_width_m',
                                                       'final_force_n'))
 
