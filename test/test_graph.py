@@ -212,3 +212,22 @@ def test_position_stage_in_the_graph_is_the_controller_step_run(paper_runs, inde
     k = np.rint(t_graph / CONFIG.position.sample_time_s).astype(int)
     np.testing.assert_allclose(x_graph, step.output[k], rtol=0, atol=1e-12)
     assert np.all(np.abs(series.motor.voltage_v[ticks]) <= V_LIMIT)
+
+
+def test_stiff_object_in_the_graph_no_spike_and_bit_identical_to_headless(graph, tmp_path):
+    """A stiff (1e5 N/m) object through the live graph: held without a spike (the PI hit it
+    with up to 16x), and the recorded series equal the headless run that contact_sweep uses."""
+    from gripper_ros.headless import simulate_grasp
+    run = graph.recorded_grasp(tmp_path / 'stiff', 0.05, 1.0, stiffness_n_per_m=1e5,
+                               damping_n_s_per_m=50.0)
+    assert run.response.success and run.response.outcome == Outcome.HOLDING, \
+        run.response.message
+    series = load_grasp_series(run.bag_dir)
+    f_sp = run.response.force_setpoint_n
+    assert np.max(series.sensor.peak_force_n) <= 1.10 * f_sp
+    assert np.all(np.abs(series.motor.voltage_v) <= V_LIMIT)
+    start_ns = int(round(series.status.t_s[0] * 1e9))
+    h = simulate_grasp(CONFIG, 0.05, 1.0, stiffness_n_per_m=1e5, damping_n_s_per_m=50.0,
+                       start_ns=start_ns)
+    assert np.array_equal(h.position_m[1:], series.joint.position_m)
+    assert np.array_equal(h.force_n[1:], series.sensor.force_n)
