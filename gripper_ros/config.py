@@ -142,6 +142,7 @@ class SupervisorParams:
     release_tolerance_m: float = 0.001   # release done within this of the open position ...
     release_settle_s: float = 0.05       # ... for this long
     position_switch_speed_mps: float = 0.0  # switch 1 also needs |speed| <= this (0: paper's)
+    width_tolerance_m: float = 0.0       # default +- on a request's width (Franka's epsilon)
 
 
 @dataclass(frozen=True)
@@ -263,7 +264,8 @@ def parse_config(data: dict, source: str = '<dict>') -> GripperConfig:
     sup = _build(SupervisorParams, _section(data, 'supervisor', source), 'supervisor',
                  acceleration_mps2={'nonnegative': True}, hold_watch_s={'nonnegative': True},
                  release_settle_s={'nonnegative': True},
-                 position_switch_speed_mps={'nonnegative': True})
+                 position_switch_speed_mps={'nonnegative': True},
+                 width_tolerance_m={'nonnegative': True})
     if not sup.lost_force_fraction < 1.0:
         raise ConfigError('"supervisor.lost_force_fraction" must be in (0, 1), '
                           f'got {sup.lost_force_fraction!r}')

@@ -121,6 +121,9 @@ class ContactForceController:
         else:
             if self._contact_position_m is None:
                 self._contact_position_m = position_m
+                # the backward difference still holds the approach speed; a rigid face has
+                # just stopped the finger dead, and damping that stale speed would pull it off
+                speed = 0.0
             travel = position_m - self._contact_position_m
             stiffness = force_n / travel if travel > t.min_travel_for_stiffness_m else math.inf
             kp = t.force_gain_v_per_n

@@ -61,6 +61,12 @@ def parse_kind(kind_cls: type[enum.Enum], value, name: str = 'controller'):
                           f'{[k.value for k in kind_cls]}, got {value!r}') from None
 
 
+def approach_setpoint(status: StatusLike) -> float:
+    """The position stage's target: ``approach_setpoint_m`` (the widest object's face); bags
+    recorded before it existed carry only ``position_setpoint_m``."""
+    return getattr(status, 'approach_setpoint_m', status.position_setpoint_m)
+
+
 class PositionStageController:
     """The position controller node's control law (10 ms, Table II)."""
 
@@ -82,8 +88,9 @@ class PositionStageController:
 
     def compute(self, status: StatusLike, measurement: float) -> tuple[float, float]:
         """(voltage_v, inner_setpoint) for this tick."""
-        voltage = self.controller.step(status.position_setpoint_m, measurement)
-        inner = getattr(self.controller, 'last_inner_setpoint', status.position_setpoint_m)
+        setpoint = approach_setpoint(status)
+        voltage = self.controller.step(setpoint, measurement)
+        inner = getattr(self.controller, 'last_inner_setpoint', setpoint)
         return voltage, inner
 
 

@@ -162,11 +162,12 @@ class GripperGraph:
 
     def grasp(self, width_m: float, mass_kg: float, friction_coefficient: float = 0.0,
               acceleration_mps2: float = 0.0, timeout_s: float = 0.0,
-              wall_timeout_s: float = 600.0) -> Grasp.Response:
+              wall_timeout_s: float = 600.0, width_tolerance_m: float = 0.0) -> Grasp.Response:
         return self.call(self._grasp, Grasp.Request(
             width_m=float(width_m), mass_kg=float(mass_kg),
             friction_coefficient=float(friction_coefficient),
-            acceleration_mps2=float(acceleration_mps2), timeout_s=float(timeout_s)),
+            acceleration_mps2=float(acceleration_mps2), timeout_s=float(timeout_s),
+            width_tolerance_m=float(width_tolerance_m)),
             wall_timeout_s)
 
     def controller_settings(self) -> dict:
@@ -195,8 +196,10 @@ class GripperGraph:
     def recorded_grasp(self, bag_dir, width_m: float, mass_kg: float,
                        friction_coefficient: float = 0.0, stiffness_n_per_m: float = 0.0,
                        damping_n_s_per_m: float = 0.0, overwrite: bool = False,
-                       wall_timeout_s: float = 600.0) -> RecordedGrasp:
-        """Place the object, record every graph topic into ``bag_dir`` and grasp it.
+                       wall_timeout_s: float = 600.0, width_tolerance_m: float = 0.0,
+                       object_width_m: float | None = None) -> RecordedGrasp:
+        """Place the object (``object_width_m``, default the requested ``width_m``), record
+        every graph topic into ``bag_dir`` and grasp it.
 
         The bag is closed (summary, metadata.yaml) whatever happens, Ctrl-C included.
         """
@@ -205,8 +208,9 @@ class GripperGraph:
 
         valid_width = math.isfinite(width_m) and 0.0 < width_m < \
             self.plant.config.plant.max_travel_m
-        placed = self.set_object(width_m if valid_width else 0.0, stiffness_n_per_m,
-                                 damping_n_s_per_m)
+        placed_width = object_width_m if object_width_m is not None else \
+            (width_m if valid_width else 0.0)
+        placed = self.set_object(placed_width, stiffness_n_per_m, damping_n_s_per_m)
         if not placed.success:
             raise GraphError(f'set_object: {placed.message}')
         self._tap.wait_quiet()
@@ -215,7 +219,9 @@ class GripperGraph:
             time_source=lambda: self.plant.plant.t_ns,
             custom_data={'request': {'width_m': width_m, 'mass_kg': mass_kg,
                                      'friction_coefficient': friction_coefficient,
-                                     'stiffness_n_per_m': stiffness_n_per_m},
+                                     'stiffness_n_per_m': stiffness_n_per_m,
+                                     'width_tolerance_m': width_tolerance_m,
+                                     'object_width_m': placed_width},
                          'controllers': self.controller_settings()})
         response = None
         before = self.published_counts()
@@ -223,7 +229,8 @@ class GripperGraph:
         t0 = time.perf_counter()
         try:
             response = self.grasp(width_m, mass_kg, friction_coefficient,
-                                  wall_timeout_s=wall_timeout_s)
+                                  wall_timeout_s=wall_timeout_s,
+                                  width_tolerance_m=width_tolerance_m)
         finally:
             published = {t: n - before[t] for t, n in self.published_counts().items()}
             self._drain(recorder, published)

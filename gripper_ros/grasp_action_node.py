@@ -32,7 +32,7 @@ from .ros_common import (ACTION_GRASP, GRAPH_QOS, SERVICE_GRASP, SERVICE_QOS, SE
                          TOPIC_STATUS, declare_config, time_to_ns)
 
 _REQUEST_FIELDS = ('width_m', 'mass_kg', 'friction_coefficient', 'acceleration_mps2',
-                   'timeout_s')
+                   'timeout_s', 'width_tolerance_m')
 _RESULT_FIELDS = ('success', 'outcome', 'message', 'position_setpoint_m', 'force_setpoint_n',
                   'final_position_m', 'final_width_m', 'final_force_n', 'switch_time_s',
                   'grasp_id')

@@ -40,6 +40,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('--acceleration', type=float, default=0.0, help='a in eq. 23 (m/s^2)')
     p.add_argument('--timeout', type=float, default=0.0,
                    help='simulated-time budget in s (0 = supervisor default)')
+    p.add_argument('--width-tolerance', type=float, default=0.0,
+                   help='the object may be this much wider or narrower, m (0 = default)')
     p.add_argument('--object-width', type=float, help='simulated object width (default --width)')
     p.add_argument('--stiffness', type=float, default=0.0, help='object stiffness N/m (0 rigid)')
     p.add_argument('--no-place', action='store_true', help='do not call /gripper/sim/set_object')
@@ -83,7 +85,8 @@ def _grasp_by_action(node, args):
 
     sent = client.send_goal_async(GraspAction.Goal(
         width_m=args.width, mass_kg=args.mass, friction_coefficient=args.friction,
-        acceleration_mps2=args.acceleration, timeout_s=args.timeout), feedback_callback=on_feedback)
+        acceleration_mps2=args.acceleration, timeout_s=args.timeout,
+        width_tolerance_m=args.width_tolerance), feedback_callback=on_feedback)
     rclpy.spin_until_future_complete(node, sent, timeout_sec=args.call_timeout)
     if not sent.done() or not sent.result().accepted:
         return None
@@ -157,7 +160,8 @@ def main(argv: list[str] | None = None) -> int:
         else:
             response = _call(node, grasp, Grasp.Request(
                 width_m=args.width, mass_kg=args.mass, friction_coefficient=args.friction,
-                acceleration_mps2=args.acceleration, timeout_s=args.timeout), args.call_timeout)
+                acceleration_mps2=args.acceleration, timeout_s=args.timeout,
+                width_tolerance_m=args.width_tolerance), args.call_timeout)
         if response is None:
             print(f'grasp_client: the grasp did not answer within {args.call_timeout:g} s',
                   file=sys.stderr)

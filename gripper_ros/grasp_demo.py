@@ -43,6 +43,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('--stiffness', type=float, default=0.0,
                    help='object contact stiffness N/m (0 = rigid, the paper\'s model)')
     p.add_argument('--damping', type=float, default=0.0, help='object contact damping N s/m')
+    p.add_argument('--width-tolerance', type=float, default=0.0,
+                   help='the object may be this much wider or narrower, m (0 = default)')
+    p.add_argument('--object-width', type=float, default=None,
+                   help='the simulated object\'s real width, m (default: the requested --width)')
     p.add_argument('--serve', action='store_true',
                    help='keep the graph up and answer /gripper/grasp from other processes')
     p.add_argument('--no-record', action='store_true', help='do not write bags')
@@ -140,12 +144,16 @@ def _grasp_one(graph, args, width_m: float, mass_kg: float, i: int, n: int) -> G
     if args.no_record:
         t0 = time.perf_counter()
         valid = 0.0 < width_m < graph.plant.config.plant.max_travel_m
-        graph.set_object(width_m if valid else 0.0, args.stiffness, args.damping)
-        response = graph.grasp(width_m, mass_kg, args.friction)
+        placed = args.object_width if args.object_width is not None else \
+            (width_m if valid else 0.0)
+        graph.set_object(placed, args.stiffness, args.damping)
+        response = graph.grasp(width_m, mass_kg, args.friction,
+                               width_tolerance_m=args.width_tolerance)
         return GraspRecord(width_m, mass_kg, response, None, time.perf_counter() - t0)
     run = graph.recorded_grasp(_bag_dir(Path(args.output), i, width_m, mass_kg), width_m,
                                mass_kg, args.friction, args.stiffness, args.damping,
-                               args.overwrite)
+                               args.overwrite, width_tolerance_m=args.width_tolerance,
+                               object_width_m=args.object_width)
     return GraspRecord(width_m, mass_kg, run.response, run.bag_dir, run.wall_s)
 
 

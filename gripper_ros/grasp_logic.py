@@ -72,16 +72,23 @@ class GraspRequest:
     friction_coefficient: float = 0.0   # 0 = default
     acceleration_mps2: float = 0.0
     timeout_s: float = 0.0              # 0 = default
+    width_tolerance_m: float = 0.0      # 0 = default
 
 
 @dataclass(frozen=True)
 class GraspTargets:
     """What a valid request resolves to."""
 
-    position_setpoint_m: float
+    position_setpoint_m: float          # expected face, L_ls - width
     force_setpoint_n: float
     friction_coefficient: float
     timeout_s: float
+    width_tolerance_m: float = 0.0
+
+    @property
+    def approach_setpoint_m(self) -> float:
+        """The position stage's target: the face of the widest object the request allows."""
+        return self.position_setpoint_m - self.width_tolerance_m
 
 
 def force_setpoint_n(mass_kg: float, friction_coefficient: float, gravity_mps2: float,
@@ -93,7 +100,8 @@ def force_setpoint_n(mass_kg: float, friction_coefficient: float, gravity_mps2: 
 def validate_request(req: GraspRequest, plant: PlantParams,
                      sup: SupervisorParams) -> GraspTargets:
     """Resolve defaults and refuse anything non-finite, out of range or beyond 24 V."""
-    for name in ('width_m', 'mass_kg', 'friction_coefficient', 'acceleration_mps2', 'timeout_s'):
+    for name in ('width_m', 'mass_kg', 'friction_coefficient', 'acceleration_mps2', 'timeout_s',
+                 'width_tolerance_m'):
         value = getattr(req, name)
         if not isinstance(value, (int, float)) or isinstance(value, bool) or \
                 not math.isfinite(value):
@@ -111,6 +119,13 @@ def validate_request(req: GraspRequest, plant: PlantParams,
     if not 0.0 <= req.timeout_s <= MAX_TIMEOUT_S:
         raise RequestError(f'timeout_s must be in [0, {MAX_TIMEOUT_S:g}] s (0 = default '
                            f'{sup.timeout_s:g}), got {req.timeout_s!r}')
+    if req.width_tolerance_m < 0.0:
+        raise RequestError(f'width_tolerance_m must be >= 0 (0 = default '
+                           f'{sup.width_tolerance_m:g}), got {req.width_tolerance_m!r}')
+    tolerance = req.width_tolerance_m or sup.width_tolerance_m
+    if not req.width_m + tolerance < plant.max_travel_m:
+        raise RequestError(f'width_m + width_tolerance_m must be < {plant.max_travel_m:g} m (the '
+                           f'finger travel), got {req.width_m:g} + {tolerance:g} m')
     mu = req.friction_coefficient or sup.friction_coefficient
     accel = req.acceleration_mps2 or sup.acceleration_mps2
     force = force_setpoint_n(req.mass_kg, mu, plant.gravity_mps2, accel)
@@ -122,7 +137,7 @@ def validate_request(req: GraspRequest, plant: PlantParams,
     if force <= 0.0:
         raise RequestError(f'force setpoint must be > 0 N, got {force!r}')
     return GraspTargets(plant.max_travel_m - req.width_m, force, mu,
-                        req.timeout_s or sup.timeout_s)
+                        req.timeout_s or sup.timeout_s, tolerance)
 
 
 @dataclass(frozen=True)
@@ -136,6 +151,7 @@ class Decision:
     position_setpoint_m: float
     force_setpoint_n: float
     message: str = ''
+    approach_setpoint_m: float = 0.0    # the position stage's target (see GraspTargets)
 
     @property
     def finished(self) -> bool:
@@ -254,11 +270,14 @@ class GraspSupervisor:
         sensor_rise = sensor_voltage_v - self._baseline_voltage_v > p.sensor_voltage_threshold_v
         if sensor_rise and self.contact_ns is None:
             self.contact_ns = t_ns
-        if self.contact_ns is None and position_m > tg.position_setpoint_m + p.no_object_margin_m:
+        farthest_face_m = tg.position_setpoint_m + tg.width_tolerance_m   # narrowest object
+        if self.contact_ns is None and position_m > farthest_face_m + p.no_object_margin_m:
             self._finish(Phase.FAILED, Outcome.NO_OBJECT,
                          f'no object: the finger passed the expected face '
-                         f'({tg.position_setpoint_m:.4f} m) by '
-                         f'{(position_m - tg.position_setpoint_m) * 1e3:.2f} mm without contact')
+                         f'({tg.position_setpoint_m:.4f} m'
+                         + (f' + {tg.width_tolerance_m * 1e3:g} mm tolerance'
+                            if tg.width_tolerance_m else '') +
+                         f') by {(position_m - farthest_face_m) * 1e3:.2f} mm without contact')
             return self._decision()
         if self.contact_ns is not None and self._object_lost(t_ns, position_m, force_n):
             return self._decision()
@@ -266,7 +285,7 @@ class GraspSupervisor:
             tol = p.position_tolerance_fraction * tg.position_setpoint_m
             slow = (p.position_switch_speed_mps <= 0.0
                     or abs(speed_mps) <= p.position_switch_speed_mps)
-            if abs(position_m - tg.position_setpoint_m) <= tol and slow:
+            if abs(position_m - tg.approach_setpoint_m) <= tol and slow:
                 self._switch(SwitchCriterion.POSITION_TOLERANCE, t_ns)
             elif sensor_rise:
                 self._switch(SwitchCriterion.SENSOR_VOLTAGE, t_ns)
@@ -366,4 +385,5 @@ class GraspSupervisor:
         tg = self.targets
         return Decision(self.phase, active, self.switch_criterion, self.outcome,
                         tg.position_setpoint_m if tg else 0.0,
-                        tg.force_setpoint_n if tg else 0.0, self.message)
+                        tg.force_setpoint_n if tg else 0.0, self.message,
+                        tg.approach_setpoint_m if tg else 0.0)

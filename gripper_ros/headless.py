@@ -34,6 +34,7 @@ class _Status:
     seed_voltage_v: float = 0.0
     contact: bool = False
     position_m: float = 0.0
+    approach_setpoint_m: float = 0.0
 
 
 @dataclass
@@ -70,6 +71,7 @@ def simulate_grasp(config: GripperConfig, width_m: float, mass_kg: float, *,
                    object_width_m: float | None = None, stiffness_n_per_m: float = 0.0,
                    damping_n_s_per_m: float = 0.0, friction_coefficient: float = 0.0,
                    acceleration_mps2: float = 0.0, timeout_s: float = 0.0,
+                   width_tolerance_m: float = 0.0,
                    position_controller=DEFAULT_POSITION_CONTROLLER,
                    force_controller=DEFAULT_FORCE_CONTROLLER,
                    approach_force_margin: float = DEFAULT_APPROACH_FORCE_MARGIN,
@@ -77,7 +79,7 @@ def simulate_grasp(config: GripperConfig, width_m: float, mass_kg: float, *,
     """Grasp from fully open; ``object_width_m`` (default ``width_m``; 0 = nothing) is the real
     object, ``width_m`` the expected one. Raises RequestError for a request the graph refuses."""
     targets = validate_request(GraspRequest(width_m, mass_kg, friction_coefficient,
-                                            acceleration_mps2, timeout_s),
+                                            acceleration_mps2, timeout_s, width_tolerance_m),
                                config.plant, config.supervisor)
     plant = make_plant(config)
     plant.t_ns = start_ns
@@ -92,7 +94,8 @@ def simulate_grasp(config: GripperConfig, width_m: float, mass_kg: float, *,
     decision = supervisor.start(targets, sample.t_ns, sample.sensor_voltage_v)
     rows = []
     status = _Status(position_setpoint_m=targets.position_setpoint_m,
-                     force_setpoint_n=targets.force_setpoint_n)
+                     force_setpoint_n=targets.force_setpoint_n,
+                     approach_setpoint_m=targets.approach_setpoint_m)
     while True:
         rows.append((sample.t_ns, sample.position_m, sample.force_n, sample.peak_force_n,
                      sample.voltage_v, sample.sensor_voltage_v, int(decision.phase)))

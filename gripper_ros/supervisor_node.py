@@ -136,6 +136,7 @@ class SupervisorNode(Node):
         m.grasp_id = self._grasp_id
         m.outcome = int(d.outcome)
         m.position_setpoint_m = d.position_setpoint_m
+        m.approach_setpoint_m = d.approach_setpoint_m
         m.force_setpoint_n = d.force_setpoint_n
         # the last finite readings: a non-finite one (sensor dropout) is never passed on
         m.position_m = self._good_position_m
@@ -171,7 +172,8 @@ class SupervisorNode(Node):
         try:
             targets = validate_request(
                 GraspRequest(request.width_m, request.mass_kg, request.friction_coefficient,
-                             request.acceleration_mps2, request.timeout_s),
+                             request.acceleration_mps2, request.timeout_s,
+                             request.width_tolerance_m),
                 self.config.plant, self.config.supervisor)
         except RequestError as exc:
             return f'refused: {exc}'

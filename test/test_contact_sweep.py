@@ -83,3 +83,24 @@ def test_cli_prints_a_table_and_rejects_a_bad_config(tmp_path, capsys):
     bad.write_text('plant: [not, a, mapping]\n')
     assert main(['--config', str(bad)]) == 2
     assert 'contact_sweep:' in capsys.readouterr().err
+
+
+@pytest.mark.parametrize('actual_width_m', [0.06, 0.052, 0.05, 0.049])
+def test_width_tolerance_meets_a_wider_or_narrower_rigid_object_without_a_spike(actual_width_m):
+    """The paper's second criterion made safe: an object up to the tolerance wider (or
+    narrower) than requested is met with at most F_sp; without a tolerance a 10 mm wider object
+    is hit by a finger still driven by the position stage (the paper's spike, ~2.8x)."""
+    from gripper_ros.headless import simulate_grasp
+    g = simulate_grasp(CONFIG, 0.05, 1.69, object_width_m=actual_width_m,
+                       width_tolerance_m=0.012)
+    assert g.outcome.name == 'HOLDING', g.message
+    assert g.peak_contact_force_n <= 1.10 * g.force_setpoint_n
+    held_at_m = CONFIG.plant.max_travel_m - actual_width_m
+    assert f'at {held_at_m:.5f} m' in g.message
+
+
+def test_without_a_tolerance_a_wider_object_is_hit_as_in_the_paper():
+    from gripper_ros.headless import simulate_grasp
+    g = simulate_grasp(CONFIG, 0.05, 1.69, object_width_m=0.06)
+    assert g.switch_criterion.name == 'SENSOR_VOLTAGE'          # the paper's second criterion
+    assert g.peak_contact_force_n > 2.0 * g.force_setpoint_n

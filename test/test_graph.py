@@ -231,3 +231,20 @@ def test_stiff_object_in_the_graph_no_spike_and_bit_identical_to_headless(graph,
                        start_ns=start_ns)
     assert np.array_equal(h.position_m[1:], series.joint.position_m)
     assert np.array_equal(h.force_n[1:], series.sensor.force_n)
+
+
+def test_width_tolerance_through_the_service_meets_a_wider_object_at_the_setpoint(graph, tmp_path):
+    """Request 50 mm +- 12 mm, place a 60 mm object: the position stage stops short of the
+    widest face (status approach_setpoint_m), the object is met with at most F_sp and held
+    at its real face."""
+    run = graph.recorded_grasp(tmp_path / 'wider', 0.05, 1.69, width_tolerance_m=0.012,
+                               object_width_m=0.06)
+    r = run.response
+    assert r.success and r.outcome == Outcome.HOLDING, r.message
+    assert r.final_width_m == pytest.approx(0.06, abs=1e-6)
+    series = load_grasp_series(run.bag_dir)
+    assert np.max(series.sensor.peak_force_n) <= 1.10 * r.force_setpoint_n
+    approach = {round(m.approach_setpoint_m, 9) for _, m in
+                read_bag(run.bag_dir).iter_decoded('/gripper/supervisor/status')}
+    assert approach == {round(L_LS - 0.05 - 0.012, 9)}
+    assert graph.grasp(0.05, 1.69, width_tolerance_m=math.nan).outcome == Outcome.REFUSED

@@ -273,3 +273,39 @@ def test_release_times_out_in_simulated_time():
     sup.start_release(0)
     d = sup.step(int(S.timeout_s * 1e9) + 10 * MS, 0.05, 0.0, 0.005)
     assert d.outcome is Outcome.TIMEOUT and 'release' in d.message
+
+
+# ------------------------------------------------------------------ width tolerance
+@pytest.mark.parametrize('fields, words', [
+    (dict(width_tolerance_m=-1e-6), 'width_tolerance_m must be >= 0'),
+    (dict(width_tolerance_m=math.nan), 'width_tolerance_m must be a finite'),
+    (dict(width_m=0.14, width_tolerance_m=0.01), r'width_m \+ width_tolerance_m must be < 0.15'),
+])
+def test_bad_width_tolerance_is_refused_with_the_reason(fields, words):
+    req = dict(width_m=0.05, mass_kg=1.0)
+    req.update(fields)
+    with pytest.raises(RequestError, match=words):
+        validate_request(GraspRequest(**req), P, S)
+
+
+def test_width_tolerance_moves_the_approach_setpoint_not_the_face():
+    t = targets(0.05, 1.0, width_tolerance_m=0.004)
+    assert t.position_setpoint_m == pytest.approx(0.10)          # expected face
+    assert t.approach_setpoint_m == pytest.approx(0.096)         # widest object's face
+    assert targets(0.05, 1.0).width_tolerance_m == S.width_tolerance_m   # 0 = default
+
+
+def test_with_a_tolerance_the_switch_is_around_the_widest_face_and_no_object_beyond_the_narrowest():
+    sup = GraspSupervisor(P, S)
+    d = sup.start(targets(0.05, 1.0, width_tolerance_m=0.004), 0, 0.005)
+    assert d.approach_setpoint_m == pytest.approx(0.096)
+    band = S.position_tolerance_fraction * 0.10
+    d = sup.step(10 * MS, 0.096 - band * 1.01, 0.0, 0.005)       # outside the band around 0.096
+    assert d.phase is Phase.POSITION
+    d = sup.step(20 * MS, 0.096 - band * 0.99, 0.0, 0.005)
+    assert d.phase is Phase.FORCE
+    # no contact up to the narrowest object's face (0.104) + margin: not yet NO_OBJECT
+    d = sup.step(30 * MS, 0.104 + S.no_object_margin_m * 0.99, 0.0, 0.005)
+    assert d.outcome is Outcome.UNKNOWN
+    d = sup.step(40 * MS, 0.104 + S.no_object_margin_m * 1.01, 0.0, 0.005)
+    assert d.outcome is Outcome.NO_OBJECT and '4 mm tolerance' in d.message

@@ -47,14 +47,17 @@ def _is_valid(fields):
 
 @settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow,
                                                                    HealthCheck.function_scoped_fixture])
-@given(width=any_float, mass=any_float, friction=any_float, accel=any_float, timeout=any_float)
-def test_fuzzed_requests_get_a_well_formed_refusal(graph, width, mass, friction, accel, timeout):
+@given(width=any_float, mass=any_float, friction=any_float, accel=any_float, timeout=any_float,
+       tolerance=any_float)
+def test_fuzzed_requests_get_a_well_formed_refusal(graph, width, mass, friction, accel, timeout,
+                                                   tolerance):
     fields = dict(width_m=width, mass_kg=mass, friction_coefficient=friction,
-                  acceleration_mps2=accel, timeout_s=timeout)
+                  acceleration_mps2=accel, timeout_s=timeout, width_tolerance_m=tolerance)
     if _is_valid(fields):
         return    # a valid request would run a whole grasp; valid grasps are tested elsewhere
     ticks = graph.plant.ticks_published
-    r = graph.grasp(width, mass, friction, accel, timeout, wall_timeout_s=30)
+    r = graph.grasp(width, mass, friction, accel, timeout, wall_timeout_s=30,
+                    width_tolerance_m=tolerance)
     assert r.success is False and r.outcome == Outcome.REFUSED
     assert r.message.startswith('refused: ') and len(r.message) > 12
     for value in (r.final_position_m, r.final_force_n, r.position_setpoint_m,
