@@ -108,16 +108,21 @@ class ContactForceController:
         in_contact = force_n > t.contact_force_fraction * force_setpoint_n
         terms = ContactForceTerms(feedforward_v=feedforward, in_contact=in_contact)
         if not in_contact and self._contact_position_m is None:
-            # approach: track a speed that falls with the gap, never below v_min
+            # approach: track a speed that falls with the gap to the expected face and arrives
+            # there at v_min. Past that face with nothing touched the object is narrower than
+            # requested, or absent: go on at the stall voltage of F_sp (safe on any rigid
+            # object), so that NO_OBJECT is found in a fraction of a second, not after a crawl.
             v_min = t.contact_speed_mps_per_n * force_setpoint_n
-            v_ref = max(face_m - position_m, 0.0) / t.approach_time_constant_s + v_min
+            past_face_untouched = position_m > face_m and force_n <= 0.0
+            v_ref = math.inf if past_face_untouched else \
+                max(face_m - position_m, 0.0) / t.approach_time_constant_s + v_min
             kv = t.max_damping_v_s_per_m
             # never more than the feed-forward: a rigid face met at any speed then stalls the
             # motor at exactly F_sp (the paper's contact); braking is not limited
             output = min(feedforward + kv * (v_ref - speed), feedforward)
             terms.speed_ref_mps = v_ref
             terms.damping_gain_v_s_per_m = kv
-            terms.damping_v = kv * (v_ref - speed)
+            terms.damping_v = output - feedforward
         else:
             if self._contact_position_m is None:
                 self._contact_position_m = position_m

@@ -152,3 +152,29 @@ def test_non_finite_input_is_refused():
     c = _controller()
     with pytest.raises(ValueError):
         c.step(5.0, math.nan, 0.1, 0.1)
+
+
+def test_past_the_expected_face_untouched_it_drives_at_the_feedforward_not_a_crawl():
+    """No object (or a narrower one): beyond the face the speed reference no longer applies and
+    the motor gets exactly the stall voltage of F_sp, so NO_OBJECT comes in a fraction of a
+    second; a touching finger (any force) keeps the crawl."""
+    c = _controller()
+    c.reset(0.1005)
+    ff = 5.0 / PLANT.stall_force_per_volt_n
+    assert c.step(5.0, 0.0, 0.1005, 0.1) == pytest.approx(ff)
+    assert c.step(5.0, 0.0, 0.1005 + 0.005 * DT, 0.1) == pytest.approx(ff)   # 5 mm/s: no brake
+    touching = _controller()
+    touching.reset(0.1005)
+    touching.step(5.0, 0.01, 0.1005, 0.1)
+    assert touching.step(5.0, 0.01, 0.1005 + 0.005 * DT, 0.1) < 0.0          # brakes to v_min
+
+
+def test_no_object_is_found_quickly():
+    from gripper_ros.headless import simulate_grasp
+    g = simulate_grasp(CONFIG, 0.05, 1.27, object_width_m=0.0)
+    assert g.outcome.name == 'NO_OBJECT'
+    # a crawl at the contact speed over the no-object margin would take margin / v_min
+    crawl_s = CONFIG.supervisor.no_object_margin_m / (
+        TUNING.contact_speed_mps_per_n * g.force_setpoint_n)
+    assert crawl_s > 10.0
+    assert (g.end_ns - g.switch_ns) * 1e-9 < 0.1 * crawl_s       # measured 0.66 s
