@@ -21,7 +21,9 @@ What this controller does, each force sample, knowing neither the stiffness nor 
 2. Before contact, a speed reference ``v_ref = gap / tau + v_min``, with ``gap`` the distance to
    the expected face and ``v_min`` proportional to ``F_sp``, tracked by the damping term: the
    finger arrives at the face at ``v_min`` (tens of um/s for light objects), so that the
-   impact adds little force.
+   impact adds little force. Past the expected face with nothing touched (a narrower object,
+   or none) the reference is dropped and the motor gets exactly ``V_ff``: safe on any rigid
+   object, and NO_OBJECT is found quickly instead of after a crawl.
 3. After contact, force feedback ``Kp (F_sp - F)`` (stable on the rigid electrical loop: its
    discrete pole ``a - b Kp`` stays inside the unit circle) plus velocity damping ``-Kv v``,
    with ``Kv`` chosen each sample from the stiffness estimated as ``F / d`` (``d`` the travel
