@@ -14,8 +14,10 @@ def _run_client(*args, timeout=120):
 
 
 @pytest.fixture(scope='module')
-def server():
-    proc = subprocess.Popen([sys.executable, '-m', 'gripper_ros.grasp_demo', '--serve'],
+def server(tmp_path_factory):
+    out = tmp_path_factory.mktemp('served_bags')     # never the repository's bags/
+    proc = subprocess.Popen([sys.executable, '-m', 'gripper_ros.grasp_demo', '--serve',
+                             '--output', str(out)],
                             stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
                             env=os.environ.copy())
     deadline = time.monotonic() + 60
