@@ -256,7 +256,6 @@ def run_soak(graph, worker: _WorkerClient, objects, grasps: int, bag_root: Path,
     ``rows``/``marks``, when given, are filled in place, so a caller still has the grasps done
     so far when a SoakError ends the run."""
     from .ros_common import GRAPH_TOPICS
-    tap = graph._tap                # the serve-mode recorder (no public accessor in graph.py)
     graph.record_every_grasp(bag_root)
     rows = [] if rows is None else rows
     marks = {} if marks is None else marks
@@ -269,9 +268,9 @@ def run_soak(graph, worker: _WorkerClient, objects, grasps: int, bag_root: Path,
                 raise SoakError(f'set_object refused: {placed.get("message")}')
         else:
             graph.set_object(width)
-        tap.wait_quiet()            # set_object's sample is published before the grasp
+        graph.wait_quiet()          # set_object's sample is published before the grasp
         before = graph.published_counts()
-        n_bags = len(tap.auto_bags)
+        n_bags = len(graph.served_bags())
         t0 = time.perf_counter()
         if client == 'worker':
             resp = worker.ask(op='grasp', width=width, mass=mass, timeout=grasp_timeout_s,
@@ -279,9 +278,10 @@ def run_soak(graph, worker: _WorkerClient, objects, grasps: int, bag_root: Path,
         else:
             resp = _grasp_client_exe(width, mass, grasp_timeout_s + 30.0)
         wall = time.perf_counter() - t0
-        closed = _wait(lambda: len(tap.auto_bags) > n_bags and tap.sink is None, 10.0)
+        closed = _wait(lambda: len(graph.served_bags()) > n_bags and not graph.recording, 10.0)
         published = {t: n - before[t] for t, n in graph.published_counts().items()}
-        bag = tap.auto_bags[-1] if len(tap.auto_bags) > n_bags else None
+        bags = graph.served_bags()
+        bag = bags[-1] if len(bags) > n_bags else None
         check = worker.ask(op='check', bag=str(bag), timeout_s=120.0) if bag and closed else \
             {'counts': {}, 'span_ns': 0, 'truncated': True}
         recorded = {t: check['counts'].get(t, 0) for t in GRAPH_TOPICS}

@@ -185,6 +185,20 @@ class GripperGraph:
         """Serve mode: record one bag per grasp, whoever requested it."""
         self._tap.record_every_grasp(output_dir)
 
+    def served_bags(self) -> list:
+        """Serve mode: the bag folders recorded so far, oldest first."""
+        return list(self._tap.auto_bags)
+
+    @property
+    def recording(self) -> bool:
+        """A bag is open (a grasp is being recorded)."""
+        return self._tap.sink is not None
+
+    def wait_quiet(self, quiet_s: float = 0.05, timeout_s: float = 5.0) -> None:
+        """Return once no graph message has arrived for ``quiet_s`` (so that what was published
+        before a grasp, e.g. set_object's sample, is not counted with it)."""
+        self._tap.wait_quiet(quiet_s, timeout_s)
+
     def published_counts(self) -> dict:
         """Messages published so far on every graph topic (from the nodes' own counters)."""
         ticks = self.plant.ticks_published
