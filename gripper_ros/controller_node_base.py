@@ -24,8 +24,6 @@ that ``bag_replay --resimulate`` runs exactly the code the nodes run.
 """
 from __future__ import annotations
 
-import time
-
 from gripper_interfaces.msg import MotorCommand, SupervisorStatus
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
 from rclpy.clock import Clock, ClockType
@@ -33,14 +31,11 @@ from rclpy.node import Node
 
 from .controller_logic import LockstepAnswerer
 from .ros_common import (GRAPH_QOS, TOPIC_JOINT_STATES, TOPIC_MOTOR_COMMAND, TOPIC_STATUS,
-                         time_to_ns)
+                         ExecutorSilence, time_to_ns)
 
 DEFAULT_STATUS_TIMEOUT_S = 3.0
 STATUS_TIMEOUT_RANGE_S = (0.1, 600.0)
 WATCHDOG_PERIOD_S = 0.05
-MAX_COUNTED_GAP_S = 0.25
-"""Silence is counted only while the executor runs: a longer gap between two watchdog checks
-(the process starved, a slow callback) counts as this much, since statuses may be queued behind."""
 
 
 class LockstepController(Node):
@@ -67,8 +62,7 @@ class LockstepController(Node):
                             "supervisor's tick_timeout_s",
                 floating_point_range=[FloatingPointRange(from_value=STATUS_TIMEOUT_RANGE_S[0],
                                                          to_value=STATUS_TIMEOUT_RANGE_S[1])]))
-        self._silent_s = 0.0                      # executor-running time since the last status
-        self._last_check_wall = time.monotonic()
+        self._silence = ExecutorSilence()         # executor-running time since the last status
         self._watchdog_tripped = False
         self._pub = self.create_publisher(MotorCommand, TOPIC_MOTOR_COMMAND, GRAPH_QOS)
         self.create_subscription(SupervisorStatus, TOPIC_STATUS, self._on_status, GRAPH_QOS)
@@ -92,8 +86,7 @@ class LockstepController(Node):
     # lockstep ------------------------------------------------------------------
     def _on_status(self, msg: SupervisorStatus) -> None:
         self._status = msg
-        self._silent_s = 0.0
-        self._last_check_wall = time.monotonic()
+        self._silence.reset()
         self._watchdog_tripped = False
         self._lockstep.on_status(msg)
         self._try_answer()
@@ -133,14 +126,11 @@ class LockstepController(Node):
     # watchdog ------------------------------------------------------------------
     def _watchdog(self) -> None:
         """Active, and the supervisor silent for ``status_timeout_s``: command 0 V once."""
-        now = time.monotonic()
-        gap_s, self._last_check_wall = now - self._last_check_wall, now
         status = self._status
-        if status is None or status.active_controller != self.source or self._watchdog_tripped:
-            return
-        self._silent_s += min(gap_s, MAX_COUNTED_GAP_S)
-        silent_s = self._silent_s
-        if silent_s < self.status_timeout_s:
+        watching = not (status is None or status.active_controller != self.source
+                        or self._watchdog_tripped)
+        silent_s = self._silence.check(counting=watching)
+        if not watching or silent_s < self.status_timeout_s:
             return
         self._watchdog_tripped = True
         if self.count_publishers(TOPIC_STATUS) == 0:

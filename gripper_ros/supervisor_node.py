@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import math
 import sys
-import time
 
 import rclpy
 from gripper_interfaces.msg import ForceSensor, MotorState, SupervisorStatus
@@ -30,13 +29,12 @@ from rclpy.node import Node
 from sensor_msgs.msg import JointState
 
 from .config import ConfigError
-from .controller_node_base import MAX_COUNTED_GAP_S
 from .grasp_logic import (Decision, GraspRequest, GraspSupervisor, Outcome, Phase, RequestError,
                           validate_request)
 from .ros_common import (GRAPH_QOS, LATCHED_QOS, SERVICE_GRASP, SERVICE_RELEASE, SERVICE_STOP,
                          TOPIC_FORCE_SENSOR, TOPIC_JOINT_STATES, TOPIC_OUTCOME,
                          TOPIC_MOTOR_COMMAND, TOPIC_MOTOR_STATE, TOPIC_STATUS,
-                         DeferredService, declare_config,
+                         DeferredService, ExecutorSilence, declare_config,
                          ns_to_time, time_to_ns)
 
 
@@ -70,8 +68,7 @@ class SupervisorNode(Node):
                 floating_point_range=[FloatingPointRange(from_value=0.05, to_value=600.0)])).value
         self.add_post_set_parameters_callback(self._on_parameters_set)
         # executor-running wall time without a new tick (see _watchdog)
-        self._silent_s = 0.0
-        self._last_check_wall = time.monotonic()
+        self._silence = ExecutorSilence()
         self.create_timer(0.1, self._watchdog, clock=Clock(clock_type=ClockType.STEADY_TIME))
         self.create_service(Trigger, SERVICE_STOP, self._on_stop)
         self.release_service = DeferredService(self, Trigger, SERVICE_RELEASE, self._on_release)
@@ -85,8 +82,7 @@ class SupervisorNode(Node):
 
     def _progress(self) -> None:
         """A tick was decided (or a grasp started): the watchdog's silence starts afresh."""
-        self._silent_s = 0.0
-        self._last_check_wall = time.monotonic()
+        self._silence.reset()
 
     # ------------------------------------------------------------------ measurements
     def _on_joint(self, msg: JointState) -> None:
@@ -207,16 +203,12 @@ class SupervisorNode(Node):
     def _watchdog(self) -> None:
         """Lockstep stalls if a node dies: end the grasp as FAULT, naming who went silent.
 
-        Only time in which the executor demonstrably ran counts (a check more than
-        MAX_COUNTED_GAP_S late adds MAX_COUNTED_GAP_S, as the controllers' status watchdog does):
-        after a stall of the whole process, ticks queued behind this timer are not silence."""
-        now = time.monotonic()
-        gap_s, self._last_check_wall = now - self._last_check_wall, now
-        if not self.logic.busy:
-            return
-        self._silent_s += min(gap_s, MAX_COUNTED_GAP_S)
-        silent_s = self._silent_s
-        if silent_s < self.tick_timeout_s:
+        Only time in which the executor demonstrably ran counts (``ExecutorSilence``, shared
+        with the controllers' status watchdog): after a stall of the whole process, ticks queued
+        behind this timer are not silence."""
+        busy = self.logic.busy
+        silent_s = self._silence.check(counting=busy)
+        if not busy or silent_s < self.tick_timeout_s:
             return
         active = self._status_msg.active_controller
         expected = {SupervisorStatus.CONTROLLER_POSITION: 'position_controller',
