@@ -109,6 +109,7 @@ class ContactForceController:
         feedforward = force_setpoint_n / self.stall_force_per_volt_n
         in_contact = force_n > t.contact_force_fraction * force_setpoint_n
         terms = ContactForceTerms(feedforward_v=feedforward, in_contact=in_contact)
+        low, high = self.output_limits
         if not in_contact and self._contact_position_m is None:
             # approach: track a speed that falls with the gap to the expected face and arrives
             # there at v_min. Past that face with nothing touched the object is narrower than
@@ -142,11 +143,9 @@ class ContactForceController:
             output = feedforward + kp * error + integral - kv * speed
             terms.force_v, terms.damping_v = kp * error, -kv * speed
             terms.stiffness_n_per_m, terms.damping_gain_v_s_per_m = stiffness, kv
-            low, high = self.output_limits
             if low <= output <= high:          # anti-windup: keep the integral only unsaturated
                 self._integral_v = integral
             terms.integral_v = self._integral_v
-        low, high = self.output_limits
         output = min(max(output, low), high)
         terms.output_v = output
         self.terms = terms

@@ -113,8 +113,7 @@ class ForceStageController:
         self._pi = None if self.contact_aware else (
             self.controller.inner if self.kind is ForceControllerKind.MPC_PI
             else self.controller)
-        self._full_limits = self.controller.output_limits if self.contact_aware \
-            else self._pi.output_limits
+        self._full_limits = None if self.contact_aware else self._pi.output_limits
         self.sample_time_s = config.force.sample_time_s
         self._contact = False
 

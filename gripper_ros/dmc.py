@@ -182,11 +182,9 @@ class BrakingGovernor:
         self.state = np.array([0.0, 0.0, float(measurement)])
         self.phase = GovernorPhase.ACCELERATE
 
-    def stop_position(self, state: np.ndarray, direction: float,
-                      braking_v: float | None = None) -> float:
+    def stop_position(self, state: np.ndarray, direction: float) -> float:
         """Where the finger comes to rest (speed through zero) braking at ``braking_v``."""
-        brake = self.braking_v if braking_v is None else braking_v
-        traj = (self._free @ state).reshape(-1, 2) - (direction * brake) * self._forced
+        traj = (self._free @ state).reshape(-1, 2) - (direction * self.braking_v) * self._forced
         moving = direction * traj[:, 0] > 0.0
         k = int(np.argmin(moving)) if not moving.all() else moving.size - 1
         return float(traj[k, 1])

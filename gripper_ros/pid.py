@@ -103,11 +103,15 @@ class PID:
             d_term = 0.0 if prev is None else g.kd * (error - prev) / self.dt_s
         return p_term, self._integral + g.ki * self.dt_s * error, d_term
 
+    def _output_line(self, measurement: float) -> tuple[float, float]:
+        """(base, slope): the next unclamped output is ``base + slope * setpoint``."""
+        base = sum(self._terms(0.0, measurement))
+        return base, sum(self._terms(1.0, measurement)) - base
+
     def setpoint_range(self, measurement: float) -> tuple[float, float]:
         """Setpoints for which the next output stays inside the limits (it is affine in the
         setpoint). A cascade's outer loop uses this so the inner loop never saturates."""
-        base = sum(self._terms(0.0, measurement))
-        slope = sum(self._terms(1.0, measurement)) - base
+        base, slope = self._output_line(measurement)
         low, high = self.output_limits
         if slope <= 0.0:
             return (-math.inf, math.inf)
@@ -115,8 +119,7 @@ class PID:
 
     def setpoint_for_output(self, output: float, measurement: float) -> float:
         """The setpoint for which the next output is exactly ``output`` (inside the limits)."""
-        base = sum(self._terms(0.0, measurement))
-        slope = sum(self._terms(1.0, measurement)) - base
+        base, slope = self._output_line(measurement)
         if slope <= 0.0:
             raise ValueError('the output does not depend on the setpoint (kc = 0?)')
         return (self._clamp(output) - base) / slope
