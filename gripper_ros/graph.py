@@ -63,6 +63,7 @@ class GripperGraph:
     def __init__(self, options: GraphOptions | None = None, context: Context | None = None):
         self.options = opts = options or GraphOptions()
         self.context = context
+        self._owns_context = False          # set by in_own_context(): close() shuts it down
         cfg = [Parameter('config_file', value=opts.config_file)]
         sim = cfg + [Parameter('use_sim_time', value=True)]
         kw = {'context': context} if context is not None else {}
@@ -270,8 +271,25 @@ class GripperGraph:
                 return
             time.sleep(0.005)
 
+    @classmethod
+    def in_own_context(cls, options: GraphOptions | None = None,
+                       domain_id: int | None = None) -> GripperGraph:
+        """A graph in a fresh rclpy context (on ``domain_id``, default ROS_DOMAIN_ID) that
+        :meth:`close` shuts down: several graphs, or a graph and other rclpy users, can share a
+        process without sharing a context."""
+        context = Context()
+        rclpy.init(context=context, **({} if domain_id is None else {'domain_id': domain_id}))
+        try:
+            graph = cls(options, context=context)
+        except BaseException:
+            rclpy.try_shutdown(context=context)
+            raise
+        graph._owns_context = True
+        return graph
+
     def close(self) -> None:
-        """Stop spinning and destroy every node; safe to call twice."""
+        """Stop spinning and destroy every node (and the context it owns); safe to call
+        twice."""
         if not self._stop.done():
             self._stop.set_result(True)
         self._thread.join(timeout=10.0)
@@ -279,10 +297,12 @@ class GripperGraph:
         if sink is not None:  # interrupted mid-grasp: the bag still gets its summary
             sink.close()
         self.executor.shutdown(timeout_sec=2.0)
-        self.supervisor.grasp_service.destroy()
         for node in self.nodes:
             node.destroy_node()
         self.nodes = []
+        if self._owns_context:
+            rclpy.try_shutdown(context=self.context)
+            self._owns_context = False
 
     def __enter__(self) -> GripperGraph:
         return self

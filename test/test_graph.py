@@ -7,15 +7,13 @@ import time
 
 import numpy as np
 import pytest
-import rclpy
 from gripper_interfaces.srv import Grasp
-from rclpy.context import Context
 
 from gripper_ros.bag_io import load_grasp_series, read_bag
 from gripper_ros.config import load_config
 from gripper_ros.grasp_logic import Outcome, SwitchCriterion
 from gripper_ros.grasp_demo import PAPER_OBJECTS
-from gripper_ros.graph import GraphOptions, GripperGraph
+from gripper_ros.graph import GripperGraph
 from gripper_ros.ros_common import GRAPH_TOPICS
 
 CONFIG = load_config()
@@ -25,12 +23,8 @@ V_LIMIT = CONFIG.plant.voltage_limit_v
 
 @pytest.fixture(scope='module')
 def graph():
-    context = Context()
-    rclpy.init(context=context)
-    g = GripperGraph(GraphOptions(), context=context)
-    yield g
-    g.close()
-    rclpy.try_shutdown(context=context)
+    with GripperGraph.in_own_context() as g:
+        yield g
 
 
 @pytest.fixture(scope='module')

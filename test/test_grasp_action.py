@@ -8,16 +8,14 @@ import threading
 import time
 
 import pytest
-import rclpy
 from action_msgs.msg import GoalStatus
 from gripper_interfaces.action import Grasp as GraspAction
 from gripper_interfaces.msg import SupervisorStatus
 from rclpy.action import ActionClient
-from rclpy.context import Context
 
 from gripper_ros.config import load_config
 from gripper_ros.grasp_logic import Outcome
-from gripper_ros.graph import GraphOptions, GripperGraph
+from gripper_ros.graph import GripperGraph
 from gripper_ros.ros_common import ACTION_GRASP
 
 CONFIG = load_config()
@@ -26,16 +24,12 @@ TRAVEL_M = CONFIG.plant.max_travel_m
 
 @pytest.fixture(scope='module')
 def graph():
-    context = Context()
-    rclpy.init(context=context)
-    g = GripperGraph(GraphOptions(), context=context)
-    client = ActionClient(g.client_node, GraspAction, ACTION_GRASP)
-    assert client.wait_for_server(timeout_sec=10.0)
-    g.action_client = client
-    yield g
-    client.destroy()
-    g.close()
-    rclpy.try_shutdown(context=context)
+    with GripperGraph.in_own_context() as g:
+        client = ActionClient(g.client_node, GraspAction, ACTION_GRASP)
+        assert client.wait_for_server(timeout_sec=10.0)
+        g.action_client = client
+        yield g
+        client.destroy()
 
 
 def _wait(future, timeout_s=120.0):

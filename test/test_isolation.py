@@ -11,7 +11,6 @@ import time
 
 import pytest
 import rclpy
-from rclpy.context import Context
 from sensor_msgs.msg import JointState
 
 from gripper_ros.graph import GraphOptions, GripperGraph
@@ -22,20 +21,17 @@ DOMAIN_B = (DOMAIN_A + 50) % 100 + 1          # far from the id scripts/test.sh 
 
 
 def _graph(domain_id):
-    context = Context()
-    rclpy.init(context=context, domain_id=domain_id)
-    return GripperGraph(GraphOptions(action_server=False), context=context), context
+    return GripperGraph.in_own_context(GraphOptions(action_server=False), domain_id=domain_id)
 
 
 @pytest.fixture(scope='module')
 def graphs():
     assert DOMAIN_A != DOMAIN_B
-    a, ca = _graph(DOMAIN_A)
-    b, cb = _graph(DOMAIN_B)
+    a = _graph(DOMAIN_A)
+    b = _graph(DOMAIN_B)
     yield a, b
-    for g, c in ((a, ca), (b, cb)):
+    for g in (a, b):
         g.close()
-        rclpy.try_shutdown(context=c)
 
 
 def test_each_domain_sees_only_its_own_plant(graphs):

@@ -13,11 +13,9 @@ import time
 
 import numpy as np
 import pytest
-import rclpy
-from rclpy.context import Context
 
 from gripper_ros.bag_io import load_grasp_series
-from gripper_ros.graph import GraphOptions, GripperGraph
+from gripper_ros.graph import GripperGraph
 
 OBJECTS = ((0.05, 1.69), (0.10, 0.75))       # two Table V objects, ~1-2 s wall each here
 SPIN = 'import time\nt = time.time()\nwhile time.time() - t < 120: pass\n'
@@ -25,12 +23,8 @@ SPIN = 'import time\nt = time.time()\nwhile time.time() - t < 120: pass\n'
 
 @pytest.fixture(scope='module')
 def graph():
-    context = Context()
-    rclpy.init(context=context)
-    g = GripperGraph(GraphOptions(), context=context)
-    yield g
-    g.close()
-    rclpy.try_shutdown(context=context)
+    with GripperGraph.in_own_context() as g:
+        yield g
 
 
 def _cpu_s(pid: int) -> float:

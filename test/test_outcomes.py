@@ -16,10 +16,8 @@ import threading
 import time
 
 import pytest
-import rclpy
 from gripper_interfaces.msg import MotorCommand, SupervisorStatus
 from gripper_interfaces.srv import Grasp, SetObject
-from rclpy.context import Context
 from std_srvs.srv import Trigger
 
 from gripper_ros.config import load_config
@@ -73,16 +71,12 @@ class Tap:
 
 @pytest.fixture(scope='module')
 def graph():
-    context = Context()
-    rclpy.init(context=context)
-    g = GripperGraph(GraphOptions(action_server=False), context=context)
-    g.tap = Tap(g.client_node)
-    g.release = g.client_node.create_client(Trigger, SERVICE_RELEASE)
-    assert g.release.wait_for_service(timeout_sec=10)
-    time.sleep(0.3)                      # let the tap's readers match the writers
-    yield g
-    g.close()
-    rclpy.try_shutdown(context=context)
+    with GripperGraph.in_own_context(GraphOptions(action_server=False)) as g:
+        g.tap = Tap(g.client_node)
+        g.release = g.client_node.create_client(Trigger, SERVICE_RELEASE)
+        assert g.release.wait_for_service(timeout_sec=10)
+        time.sleep(0.3)                  # let the tap's readers match the writers
+        yield g
 
 
 def grasp_ok(graph, open_fingers=True):

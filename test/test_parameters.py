@@ -164,16 +164,12 @@ def test_controller_executables_exit_2_on_an_out_of_range_parameter(executable, 
 # ====================================================================== the running graph
 @pytest.fixture(scope='module')
 def graph():
-    context = Context()
-    rclpy.init(context=context)
-    g = GripperGraph(GraphOptions(), context=context)
-    client = rclpy.create_node('parameter_client', context=context)
-    g.add_node(client)
-    g.param_client = client
-    g.param_clients = {}
-    yield g
-    g.close()
-    rclpy.try_shutdown(context=context)
+    with GripperGraph.in_own_context() as g:
+        client = rclpy.create_node('parameter_client', context=g.context)
+        g.add_node(client)
+        g.param_client = client
+        g.param_clients = {}
+        yield g
 
 
 def _service(graph, node_name, srv_type, suffix):

@@ -6,28 +6,22 @@ import math
 import threading
 
 import pytest
-import rclpy
 from gripper_interfaces.srv import Grasp
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
-from rclpy.context import Context
 
 from gripper_ros.config import load_config
 from gripper_ros.grasp_logic import GraspRequest, Outcome, RequestError, validate_request
-from gripper_ros.graph import GraphOptions, GripperGraph
+from gripper_ros.graph import GripperGraph
 
 CONFIG = load_config()
 
 
 @pytest.fixture(scope='module')
 def graph():
-    context = Context()
-    rclpy.init(context=context)
-    g = GripperGraph(GraphOptions(), context=context)
-    g.set_object(0.05)
-    yield g
-    g.close()
-    rclpy.try_shutdown(context=context)
+    with GripperGraph.in_own_context() as g:
+        g.set_object(0.05)
+        yield g
 
 
 any_float = st.one_of(
@@ -97,10 +91,7 @@ def test_dead_force_controller_mid_grasp_ends_in_fault_naming_it(graph):
     """Its own graph: a controller is destroyed at the switch; the lockstep must not hang."""
     import time
     graph.close()   # one graph at a time on this domain
-    context = Context()
-    rclpy.init(context=context)
-    g = GripperGraph(GraphOptions(), context=context)
-    try:
+    with GripperGraph.in_own_context() as g:
         g.set_object(0.10)
         pending = g._grasp.call_async(Grasp.Request(width_m=0.10, mass_kg=0.75))
         deadline = time.monotonic() + 60
@@ -118,6 +109,4 @@ def test_dead_force_controller_mid_grasp_ends_in_fault_naming_it(graph):
         # the other controller never stepped in, and neither controller's status watchdog fired
         assert g.position.watchdog_trips == 0
         assert detected_s < g.supervisor.tick_timeout_s + 2.0
-    finally:
-        g.close()
-        rclpy.try_shutdown(context=context)
+

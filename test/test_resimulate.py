@@ -14,16 +14,14 @@ import math
 from pathlib import Path
 
 import pytest
-import rclpy
 import yaml
-from rclpy.context import Context
 
 from gripper_ros import bag_replay
 from gripper_ros.bag_io import EXIT_ERROR, EXIT_TRUNCATED, MissingTopicsError, read_bag
 from gripper_ros.config import ConfigError, default_config_path, load_config, parse_config
 from gripper_ros.controller_logic import (ForceStageController, LockstepAnswerer,
                                           PositionStageController)
-from gripper_ros.graph import GraphOptions, GripperGraph
+from gripper_ros.graph import GripperGraph
 from gripper_ros.resimulate import OPEN_LOOP_NOTE, resimulate_bag
 
 CONFIG = load_config()
@@ -34,15 +32,9 @@ CONFIG_DATA = yaml.safe_load(Path(default_config_path()).read_text(encoding='utf
 def recorded(tmp_path_factory):
     """(bag dir, graph node stage classes) of one recorded grasp of paper object 1."""
     out = tmp_path_factory.mktemp('resim')
-    context = Context()
-    rclpy.init(context=context)
-    graph = GripperGraph(GraphOptions(), context=context)
-    try:
+    with GripperGraph.in_own_context() as graph:
         run = graph.recorded_grasp(out / 'grasp', 0.05, 1.69)
         stages = (type(graph.position.stage), type(graph.force.stage))
-    finally:
-        graph.close()
-        rclpy.try_shutdown(context=context)
     assert run.response.success, run.response.message
     return Path(run.bag_dir), stages
 
