@@ -228,15 +228,6 @@ class _WorkerClient:
 
 
 # ------------------------------------------------------------------ the soak
-def _wait(predicate, timeout_s: float) -> bool:
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        if predicate():
-            return True
-        time.sleep(0.005)
-    return predicate()
-
-
 def _grasp_client_exe(width: float, mass: float, timeout_s: float) -> dict:
     """One grasp through the grasp_client executable (the object is placed by the caller)."""
     r = subprocess.run([sys.executable, '-m', 'gripper_ros.grasp_client', '--width', repr(width),
@@ -255,7 +246,7 @@ def run_soak(graph, worker: _WorkerClient, objects, grasps: int, bag_root: Path,
 
     ``rows``/``marks``, when given, are filled in place, so a caller still has the grasps done
     so far when a SoakError ends the run."""
-    from .ros_common import GRAPH_TOPICS
+    from .ros_common import GRAPH_TOPICS, wait_until
     graph.record_every_grasp(bag_root)
     rows = [] if rows is None else rows
     marks = {} if marks is None else marks
@@ -278,7 +269,7 @@ def run_soak(graph, worker: _WorkerClient, objects, grasps: int, bag_root: Path,
         else:
             resp = _grasp_client_exe(width, mass, grasp_timeout_s + 30.0)
         wall = time.perf_counter() - t0
-        closed = _wait(lambda: len(graph.served_bags()) > n_bags and not graph.recording, 10.0)
+        closed = wait_until(lambda: len(graph.served_bags()) > n_bags and not graph.recording, 10.0)
         published = {t: n - before[t] for t, n in graph.published_counts().items()}
         bags = graph.served_bags()
         bag = bags[-1] if len(bags) > n_bags else None

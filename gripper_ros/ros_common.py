@@ -97,6 +97,17 @@ class ExecutorSilence:
         return self.silent_s
 
 
+def wait_until(predicate, timeout_s: float = 5.0, step_s: float = 0.005) -> bool:
+    """Poll ``predicate`` until it holds or ``timeout_s`` of wall time has passed; its last
+    value (for callers that wait on another thread's spinning executor)."""
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        if predicate():
+            return True
+        time.sleep(step_s)
+    return predicate()
+
+
 def ns_to_time(t_ns: int) -> Time:
     return Time(sec=t_ns // 1_000_000_000, nanosec=t_ns % 1_000_000_000)
 

@@ -11,7 +11,6 @@ import subprocess
 import sys
 import textwrap
 import threading
-import time
 from pathlib import Path
 
 import pytest
@@ -30,6 +29,7 @@ from sensor_msgs.msg import JointState  # noqa: E402
 from gripper_ros import bag_info, bag_replay  # noqa: E402
 from gripper_ros.bag_io import EXIT_TRUNCATED, read_bag  # noqa: E402
 from gripper_ros.bag_recorder import BagRecorder, BagRecorderError  # noqa: E402
+from gripper_ros.ros_common import wait_until  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
 JS, CLK = '/gripper/joint_states', '/clock'
@@ -42,15 +42,6 @@ try:
     from gripper_interfaces.msg import SupervisorStatus
 except ImportError:  # interface package not built/sourced
     SupervisorStatus = None
-
-
-def wait_until(predicate, timeout_s: float = 5.0) -> bool:
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        if predicate():
-            return True
-        time.sleep(0.005)
-    return predicate()
 
 
 @pytest.fixture(scope='module')

@@ -149,7 +149,7 @@ from gripper_ros.grasp_logic import Outcome, Phase  # noqa: E402
 from gripper_ros.graph import GraphOptions, GripperGraph  # noqa: E402
 from gripper_ros.ros_common import (GRAPH_QOS, GRAPH_TOPICS, TOPIC_FORCE_SENSOR,  # noqa: E402
                                     TOPIC_JOINT_STATES, TOPIC_MOTOR_COMMAND, TOPIC_MOTOR_STATE,
-                                    SERVICE_RELEASE, TOPIC_STATUS, time_to_ns)
+                                    SERVICE_RELEASE, TOPIC_STATUS, time_to_ns, wait_until)
 
 
 def _float_fields(msg, prefix=''):
@@ -202,15 +202,6 @@ class Watcher(Node):
             return list(self.nonfinite), list(self.commands), list(self.motor_voltages)
 
 
-def _wait(predicate, timeout_s, step_s=0.002):
-    deadline = time.monotonic() + timeout_s
-    while not predicate():
-        if time.monotonic() > deadline:
-            return False
-        time.sleep(step_s)
-    return True
-
-
 class LiveGraph:
     """A graph of its own (one at a time on this domain) with a watcher and a probe."""
 
@@ -226,7 +217,7 @@ class LiveGraph:
         self.graph.add_node(self.watcher)
         self.graph.add_node(self.probe)
         # every reader has matched the probe's writers before anything is injected
-        assert _wait(lambda: self.joint_pub.get_subscription_count() >= 4
+        assert wait_until(lambda: self.joint_pub.get_subscription_count() >= 4
                      and self.force_pub.get_subscription_count() >= 4, 10.0)
         time.sleep(0.3)     # the watcher matches the graph's writers (same process: fast)
 
@@ -257,12 +248,12 @@ def test_dead_plant_mid_grasp_ends_in_fault_naming_it_and_nothing_commands_after
     pending = live.start_grasp()
     try:
         start_ticks = g.plant.ticks_published
-        assert _wait(lambda: g.plant.ticks_published >= start_ticks + 30, 30.0)
+        assert wait_until(lambda: g.plant.ticks_published >= start_ticks + 30, 30.0)
         plant = g.plant
         g.kill_node(plant)
         killed_at = time.monotonic()
         last_tick_ns = plant.plant.t_ns
-        assert _wait(pending.done, sup_timeout + 5.0)
+        assert wait_until(pending.done, sup_timeout + 5.0)
         detected_s = time.monotonic() - killed_at
         r = pending.result()
         # the watchdogs of both controllers would fire status_timeout_s after their last status
@@ -294,13 +285,13 @@ def test_dead_plant_with_a_patient_supervisor_active_controller_falls_to_zero_vo
     pending = live.start_grasp()
     try:
         start_ticks = g.plant.ticks_published
-        assert _wait(lambda: g.plant.ticks_published >= start_ticks + 30, 30.0)
+        assert wait_until(lambda: g.plant.ticks_published >= start_ticks + 30, 30.0)
         assert g.supervisor.logic.phase is Phase.POSITION
         g.kill_node(g.plant)
         killed_at = time.monotonic()
-        assert _wait(lambda: g.position.watchdog_trips >= 1, timeout_s + 5.0)
+        assert wait_until(lambda: g.position.watchdog_trips >= 1, timeout_s + 5.0)
         detected_s = time.monotonic() - killed_at
-        assert _wait(lambda: any(c[0] > killed_at and c[3] == 0.0
+        assert wait_until(lambda: any(c[0] > killed_at and c[3] == 0.0
                                  for c in live.watcher.snapshot()[1]), 2.0)
         commands = live.watcher.snapshot()[1]
         message = g.position.watchdog_message
@@ -324,9 +315,9 @@ def stall_run():
         assert g.position.status_timeout_s < 3.5 and g.supervisor.tick_timeout_s < 3.5
         pending = lg.start_grasp()
         start_ticks = g.plant.ticks_published
-        assert _wait(lambda: g.plant.ticks_published >= start_ticks + 30, 30.0)
+        assert wait_until(lambda: g.plant.ticks_published >= start_ticks + 30, 30.0)
         g.executor.create_task(lambda: time.sleep(3.5))
-        assert _wait(pending.done, 60.0)
+        assert wait_until(pending.done, 60.0)
         return SimpleNamespace(response=pending.result(),
                                trips=g.position.watchdog_trips + g.force.watchdog_trips)
     finally:
@@ -351,14 +342,14 @@ def test_dead_supervisor_mid_grasp_active_controller_falls_to_zero_volts(live, p
     timeout_s = controller.status_timeout_s
     pending = live.start_grasp()
     try:
-        assert _wait(lambda: g.supervisor.logic.phase is phase, 30.0)
+        assert wait_until(lambda: g.supervisor.logic.phase is phase, 30.0)
         if phase is Phase.FORCE:   # the force loop is running, not just switched
             switched = g.force.commands_published
-            assert _wait(lambda: g.force.commands_published >= switched + 20, 10.0)
+            assert wait_until(lambda: g.force.commands_published >= switched + 20, 10.0)
         g.kill_node(g.supervisor)
         killed_at = time.monotonic()
-        assert _wait(lambda: controller.watchdog_trips >= 1, timeout_s + 5.0)
-        assert _wait(lambda: any(c[0] > killed_at and c[3] == 0.0
+        assert wait_until(lambda: controller.watchdog_trips >= 1, timeout_s + 5.0)
+        assert wait_until(lambda: any(c[0] > killed_at and c[3] == 0.0
                                  for c in live.watcher.snapshot()[1]), 2.0)
         time.sleep(0.5)    # a second 0 V command (or anything else) would show up here
         nonfinite, commands, _ = live.watcher.snapshot()
@@ -529,7 +520,7 @@ def idle_runs():
                 lg.force_pub.publish(ForceSensor(header=f.header, force_n=value,
                                                  peak_force_n=f.peak_force_n,
                                                  voltage_v=f.voltage_v))
-            assert _wait(lambda: lg.watcher.counts[topic] > seen, 5.0)
+            assert wait_until(lambda: lg.watcher.counts[topic] > seen, 5.0)
             time.sleep(0.1)
             before = lg.watcher.snapshot()
             nonfinite_answers = g.position.nonfinite_answers
