@@ -53,6 +53,7 @@ class FaultKind(enum.IntEnum):        # values match SetObject.srv FAULT_*
 DEFAULT_SLIP_TIME_CONSTANT_S = 0.01   # e-folding time of the slipping object's force capacity
 SLIP_GONE_FRACTION = 0.01             # the object is out once its capacity is below 1 % of F_0
 MAX_FAULT_DELAY_S = 600.0
+MAX_CACHED_DISCRETISATIONS = 256
 
 
 @dataclass(frozen=True)
@@ -364,11 +365,15 @@ class GripperPlant:
             self._peak = max(self._peak, self._force())
 
     # ----------------------------------------------------------------- internals
+    def _motor_force_n(self) -> float:
+        """The force the motor torque pushes with through the lead screw (eq. 12)."""
+        return self.params.torque_constant_n_m_per_a * self._i / self._lever
+
     def _force(self) -> float:
         if self._state is ContactState.SLIPPING:
             return self.slip_capacity_n()
         if self._state is ContactState.RIGID_OBJECT:
-            motor = max(0.0, self.params.torque_constant_n_m_per_a * self._i / self._lever)
+            motor = max(0.0, self._motor_force_n())
             return motor if self._slip is None else min(motor, self.slip_capacity_n())
         if self._state is ContactState.COMPLIANT_OBJECT:
             obj = self.object
@@ -410,12 +415,14 @@ class GripperPlant:
         m[:4, :4] = a * dt_s
         m[0, 4] = self._b[0] * dt_s
         phi = expm(m)
-        ad = phi[:4, :4].tolist()
-        bd = phi[:4, 4].tolist()
-        if len(self._cache) > 256:
+        return self._store(key, (phi[:4, :4].tolist(), phi[:4, 4].tolist()))
+
+    def _store(self, key, discretisation):
+        """Cache a discretisation (bounded: a long run with many hold times stays small)."""
+        if len(self._cache) > MAX_CACHED_DISCRETISATIONS:
             self._cache.clear()
-        self._cache[key] = (ad, bd)
-        return ad, bd
+        self._cache[key] = discretisation
+        return discretisation
 
     def _advance_linear(self, regime: ContactState, e: float, dt_s: float) -> None:
         ad, bd = self._discretise(regime, dt_s)
@@ -487,8 +494,7 @@ class GripperPlant:
             self._remove_object()                       # slid out: nothing left to grip
             return remaining_s
         if self._state is ContactState.RIGID_OBJECT:
-            motor = p.torque_constant_n_m_per_a * self._i / self._lever
-            if motor <= cap:                            # the object holds: stalled, as usual
+            if self._motor_force_n() <= cap:             # the object holds: stalled, as usual
                 left = self._advance_stalled(e, dt_s)
                 return remaining_s - dt_s + left
             self._state = ContactState.SLIPPING         # pushing harder than it can resist
@@ -523,8 +529,4 @@ class GripperPlant:
         m[0, 3] = self._b[0] * dt_s
         m[1, 4] = -self._lever / self.params.inertia_kg_m2 * dt_s
         phi = expm(m)
-        cached = (phi[:3, :3].tolist(), phi[:3, 3:5].tolist())
-        if len(self._cache) > 256:
-            self._cache.clear()
-        self._cache[key] = cached
-        return cached
+        return self._store(key, (phi[:3, :3].tolist(), phi[:3, 3:5].tolist()))
