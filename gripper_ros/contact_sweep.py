@@ -39,17 +39,21 @@ class SweepRow:
     arrival_floor_s: float       # minimum time to reach the face at all (full voltage throughout)
 
 
-def arrival_floor_s(config, setpoint_m: float, dt_s: float = 1.0e-4) -> float:
-    """Minimum time for the finger to reach ``setpoint_m`` from rest, at any speed: full
-    voltage all the way. A true lower bound for any grasp under the limit; a rigid object that
-    stops the finger dead (the paper's contact) lets a grasp beat the at-rest floor, never this."""
+def arrival_floors_s(config, setpoints_m, dt_s: float = 1.0e-4) -> list[float]:
+    """Minimum time for the finger to reach each of ``setpoints_m`` from rest, at any speed:
+    full voltage all the way (one run, read at each crossing). A true lower bound for any grasp
+    under the limit; a rigid object that stops the finger dead (the paper's contact) lets a
+    grasp beat the at-rest floor, never this."""
     from .controllers import make_plant
     plant = make_plant(config)
     limit = config.plant.voltage_limit_v
     sample = plant.sample()
-    while sample.position_m < setpoint_m:
-        sample = plant.step(limit, dt_s)
-    return sample.t_s
+    floors = {}
+    for setpoint_m in sorted(set(setpoints_m)):
+        while sample.position_m < setpoint_m:
+            sample = plant.step(limit, dt_s)
+        floors[setpoint_m] = sample.t_s
+    return [floors[s] for s in setpoints_m]
 
 
 def sweep(config, widths=WIDTHS_M, masses=MASSES_KG, compliant: bool = False) -> list[SweepRow]:
@@ -59,7 +63,8 @@ def sweep(config, widths=WIDTHS_M, masses=MASSES_KG, compliant: bool = False) ->
 
     floors = {w: minimum_time_floor(config, config.plant.max_travel_m - w,
                                     config.position.sample_time_s).rest_time_s for w in widths}
-    arrivals = {w: arrival_floor_s(config, config.plant.max_travel_m - w) for w in widths}
+    arrivals = dict(zip(widths, arrival_floors_s(
+        config, [config.plant.max_travel_m - w for w in widths])))
     objects = [('rigid', 0.0, 0.0)] + (list(COMPLIANT_OBJECTS) if compliant else [])
     rows = []
     for name, k, c in objects:
