@@ -208,6 +208,15 @@ class GripperGraph:
                 TOPIC_MOTOR_COMMAND: (self.position.commands_published
                                       + self.force.commands_published)}
 
+    def simulated_width_m(self, width_m: float, object_width_m: float | None = None) -> float:
+        """The object to place for a grasp of ``width_m``: ``object_width_m`` when given, else
+        the requested width, or nothing (0) when that width is not one an object can have (the
+        request will be refused; an invalid object must not fail the placement first)."""
+        if object_width_m is not None:
+            return object_width_m
+        valid = math.isfinite(width_m) and 0.0 < width_m < self.plant.config.plant.max_travel_m
+        return width_m if valid else 0.0
+
     def recorded_grasp(self, bag_dir, width_m: float, mass_kg: float,
                        friction_coefficient: float = 0.0, stiffness_n_per_m: float = 0.0,
                        damping_n_s_per_m: float = 0.0, overwrite: bool = False,
@@ -221,10 +230,7 @@ class GripperGraph:
         from .bag_recorder import BagRecorder
         from .grasp_logic import Outcome
 
-        valid_width = math.isfinite(width_m) and 0.0 < width_m < \
-            self.plant.config.plant.max_travel_m
-        placed_width = object_width_m if object_width_m is not None else \
-            (width_m if valid_width else 0.0)
+        placed_width = self.simulated_width_m(width_m, object_width_m)
         placed = self.set_object(placed_width, stiffness_n_per_m, damping_n_s_per_m)
         if not placed.success:
             raise GraphError(f'set_object: {placed.message}')

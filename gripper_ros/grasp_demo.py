@@ -143,10 +143,8 @@ def _grasp_one(graph, args, width_m: float, mass_kg: float, i: int, n: int) -> G
     print(f'[{i}/{n}] grasping width {width_m:g} m, mass {mass_kg:g} kg ...', flush=True)
     if args.no_record:
         t0 = time.perf_counter()
-        valid = 0.0 < width_m < graph.plant.config.plant.max_travel_m
-        placed = args.object_width if args.object_width is not None else \
-            (width_m if valid else 0.0)
-        graph.set_object(placed, args.stiffness, args.damping)
+        graph.set_object(graph.simulated_width_m(width_m, args.object_width), args.stiffness,
+                         args.damping)
         response = graph.grasp(width_m, mass_kg, args.friction,
                                width_tolerance_m=args.width_tolerance)
         return GraspRecord(width_m, mass_kg, response, None, time.perf_counter() - t0)
