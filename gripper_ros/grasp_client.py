@@ -62,6 +62,14 @@ def _call(node, client, request, timeout_s: float):
     return future.result()
 
 
+def _request_fields(args) -> dict:
+    """The grasp request from the command line: the service's request and the action's goal
+    carry the same fields."""
+    return dict(width_m=args.width, mass_kg=args.mass, friction_coefficient=args.friction,
+                acceleration_mps2=args.acceleration, timeout_s=args.timeout,
+                width_tolerance_m=args.width_tolerance)
+
+
 def _grasp_by_action(node, args):
     """Send the goal, print feedback until the result; Ctrl-C cancels. None if no answer."""
     import rclpy
@@ -83,10 +91,8 @@ def _grasp_by_action(node, args):
         print(f'feedback: t={f.elapsed_s:7.4f} s  phase {phase:<8s} opening {f.width_m:.5f} m  '
               f'force {f.force_n:8.4f} N  contact {f.contact}', flush=True)
 
-    sent = client.send_goal_async(GraspAction.Goal(
-        width_m=args.width, mass_kg=args.mass, friction_coefficient=args.friction,
-        acceleration_mps2=args.acceleration, timeout_s=args.timeout,
-        width_tolerance_m=args.width_tolerance), feedback_callback=on_feedback)
+    sent = client.send_goal_async(GraspAction.Goal(**_request_fields(args)),
+                                  feedback_callback=on_feedback)
     rclpy.spin_until_future_complete(node, sent, timeout_sec=args.call_timeout)
     if not sent.done() or not sent.result().accepted:
         return None
@@ -158,10 +164,8 @@ def main(argv: list[str] | None = None) -> int:
         if args.action:
             response = _grasp_by_action(node, args)
         else:
-            response = _call(node, grasp, Grasp.Request(
-                width_m=args.width, mass_kg=args.mass, friction_coefficient=args.friction,
-                acceleration_mps2=args.acceleration, timeout_s=args.timeout,
-                width_tolerance_m=args.width_tolerance), args.call_timeout)
+            response = _call(node, grasp, Grasp.Request(**_request_fields(args)),
+                             args.call_timeout)
         if response is None:
             print(f'grasp_client: the grasp did not answer within {args.call_timeout:g} s',
                   file=sys.stderr)
