@@ -11,7 +11,8 @@ a lightly damped mode,
 (``lever`` = eta p N1/N2, the motor torque per newton, eq. 12; ``rho`` = p / 2 pi, the travel per
 motor radian, eq. 10). With Table I: 13.5 rad/s and zeta = 0.033 at k = 1e5 N/m (stiff), 1.35
 rad/s and zeta = 0.33 at 1e3 N/m (soft). A PI with the rigid loop's integral gain drives that
-mode unstable (measured peaks 2-16x the setpoint), and any approach speed ``v`` is turned into
+mode unstable (`contact_sweep --compliant --force-controller pi`: peaks 1.7-6.1x the setpoint
+and the finger bounces off), and any approach speed ``v`` is turned into
 a force ``~ v k / omega_n`` (7400 N per m/s at 1e5 N/m): 10 mm/s gives 74 N.
 
 What this controller does, each force sample, knowing neither the stiffness nor the damping:

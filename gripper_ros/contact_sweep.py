@@ -1,6 +1,7 @@
 """contact_sweep: peak contact force over many objects, beside the approach-time floor.
 
     ros2 run gripper_ros contact_sweep [--plot FILE.png] [--json] [--compliant]
+                                      [--force-controller contact_aware|pi|mpc_pi]
 
 Each grasp runs the node graph's logic without ROS (:mod:`gripper_ros.headless`, bit-identical
 to the graph). For every object it reports the outcome, the peak contact force (including
@@ -56,7 +57,8 @@ def arrival_floors_s(config, setpoints_m, dt_s: float = 1.0e-4) -> list[float]:
     return [floors[s] for s in setpoints_m]
 
 
-def sweep(config, widths=WIDTHS_M, masses=MASSES_KG, compliant: bool = False) -> list[SweepRow]:
+def sweep(config, widths=WIDTHS_M, masses=MASSES_KG, compliant: bool = False,
+          force_controller: str | None = None) -> list[SweepRow]:
     from .grasp_logic import Outcome, RequestError
     from .headless import simulate_grasp
     from .position_limit import minimum_time_floor
@@ -65,13 +67,15 @@ def sweep(config, widths=WIDTHS_M, masses=MASSES_KG, compliant: bool = False) ->
                                     config.position.sample_time_s).rest_time_s for w in widths}
     arrivals = dict(zip(widths, arrival_floors_s(
         config, [config.plant.max_travel_m - w for w in widths])))
+    kinds = {} if force_controller is None else {'force_controller': force_controller}
     objects = [('rigid', 0.0, 0.0)] + (list(COMPLIANT_OBJECTS) if compliant else [])
     rows = []
     for name, k, c in objects:
         for w in widths:
             for m in masses:
                 try:
-                    g = simulate_grasp(config, w, m, stiffness_n_per_m=k, damping_n_s_per_m=c)
+                    g = simulate_grasp(config, w, m, stiffness_n_per_m=k, damping_n_s_per_m=c,
+                                       **kinds)
                 except RequestError:
                     continue            # beyond what 24 V can hold: refused, not swept
                 held = g.outcome is Outcome.HOLDING
@@ -122,10 +126,14 @@ def plot(rows: list[SweepRow], path: str) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
+    from .controllers import ForceControllerKind
     parser = argparse.ArgumentParser(prog='contact_sweep', description=__doc__.splitlines()[0])
     parser.add_argument('--config', help='YAML parameter file (default: installed)')
     parser.add_argument('--compliant', action='store_true',
                         help='also a stiff (1e5 N/m) and a soft (1e3 N/m) compliant object')
+    parser.add_argument('--force-controller', choices=[k.value for k in ForceControllerKind],
+                        help='force stage (default: the graph\'s default, contact_aware); pi or '
+                             'mpc_pi show the paper structure on compliant objects')
     parser.add_argument('--plot', help='write the sweep as PNG')
     parser.add_argument('--json', action='store_true')
     args = parser.parse_args(argv)
@@ -134,7 +142,7 @@ def main(argv: list[str] | None = None) -> int:
     except ConfigError as exc:
         print(f'contact_sweep: {exc}', file=sys.stderr)
         return 2
-    rows = sweep(config, compliant=args.compliant)
+    rows = sweep(config, compliant=args.compliant, force_controller=args.force_controller)
     if args.json:
         print(json.dumps([asdict(r) for r in rows], indent=1,
                          default=lambda v: None if isinstance(v, float) and math.isinf(v) else v))

@@ -30,7 +30,7 @@ def compliant_rows():
 
 def test_stiff_and_soft_objects_are_held_without_a_spike(compliant_rows):
     """The paper's PI (and ours before the contact-aware stage) hit a stiff object with up to
-    16x the setpoint and never settled on it; now every corner is held within 1.10x."""
+    6x the setpoint and never held it; now every corner is held within 1.10x."""
     assert {r.contact for r in compliant_rows} == {name for name, _, _ in COMPLIANT_OBJECTS}
     assert len(compliant_rows) == 12
     for r in compliant_rows:

@@ -210,7 +210,7 @@ def test_position_stage_in_the_graph_is_the_controller_step_run(paper_runs, inde
 
 def test_stiff_object_in_the_graph_no_spike_and_bit_identical_to_headless(graph, tmp_path):
     """A stiff (1e5 N/m) object through the live graph: held without a spike (the PI hit it
-    with up to 16x), and the recorded series equal the headless run that contact_sweep uses."""
+    with up to 6x), and the recorded series equal the headless run that contact_sweep uses."""
     from gripper_ros.headless import simulate_grasp
     run = graph.recorded_grasp(tmp_path / 'stiff', 0.05, 1.0, stiffness_n_per_m=1e5,
                                damping_n_s_per_m=50.0)
