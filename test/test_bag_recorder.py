@@ -26,10 +26,11 @@ from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy  # noqa: E
 from rosgraph_msgs.msg import Clock  # noqa: E402
 from sensor_msgs.msg import JointState  # noqa: E402
 
-from gripper_ros import bag_info, bag_replay  # noqa: E402
-from gripper_ros.bag_io import EXIT_TRUNCATED, read_bag  # noqa: E402
-from gripper_ros.bag_recorder import BagRecorder, BagRecorderError  # noqa: E402
-from gripper_ros.ros_common import wait_until  # noqa: E402
+from gripper_ros.bags import info as bag_info
+from gripper_ros.bags import replay as bag_replay  # noqa: E402
+from gripper_ros.bags.reader import EXIT_TRUNCATED, read_bag  # noqa: E402
+from gripper_ros.bags.recorder import BagRecorder, BagRecorderError  # noqa: E402
+from gripper_ros.nodes.common import wait_until  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
 JS, CLK = '/gripper/joint_states', '/clock'
@@ -256,7 +257,7 @@ KILLED_RECORDER = textwrap.dedent('''
     import sys, threading, time, rclpy
     from rclpy.executors import SingleThreadedExecutor
     from sensor_msgs.msg import JointState
-    from gripper_ros.bag_recorder import BagRecorder
+    from gripper_ros.bags.recorder import BagRecorder
     rclpy.init()
     node, pub_node = rclpy.create_node('killed_rec'), rclpy.create_node('killed_pub')
     ex = SingleThreadedExecutor(); ex.add_node(node)
@@ -328,7 +329,7 @@ def test_replay_cli_in_subprocess_with_clock(recorded, node_factory, tmp_path):
     _, got, _ = _collector(node_factory, 'cli_listener', {JS: JointState, CLK: Clock},
                            qos=GRAPH_QOS)
     proc = subprocess.run(
-        [sys.executable, '-m', 'gripper_ros.bag_replay', str(tmp_path / 'run1'), '--rate', '10',
+        [sys.executable, '-m', 'gripper_ros.bags.replay', str(tmp_path / 'run1'), '--rate', '10',
          '--clock', '--wait-for-subscribers', '1', '--topics', JS],
         capture_output=True, text=True, timeout=30,
         env=dict(os.environ, PYTHONPATH=os.pathsep.join([str(REPO),

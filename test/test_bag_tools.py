@@ -21,8 +21,10 @@ os.environ.setdefault('ROS_DOMAIN_ID', '78')
 from rosbags.rosbag2 import StoragePlugin, Writer  # noqa: E402
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore  # noqa: E402
 
-from gripper_ros import bag_analyze, bag_info, bag_replay  # noqa: E402
-from gripper_ros.bag_io import (  # noqa: E402
+from gripper_ros.bags import analyze as bag_analyze
+from gripper_ros.bags import info as bag_info
+from gripper_ros.bags import replay as bag_replay  # noqa: E402
+from gripper_ros.bags.reader import (  # noqa: E402
     EXIT_ERROR, EXIT_TRUNCATED, GRASP_TOPICS, TOPIC_CLOCK, TOPIC_FORCE_SENSOR, TOPIC_JOINT_STATES,
     TOPIC_MOTOR_COMMAND, TOPIC_MOTOR_STATE, TOPIC_STATUS, EmptyBagError, MissingTopicsError,
     NotABagError, BagNotFoundError, load_grasp_series, read_bag,

@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 import yaml
 
-from gripper_ros.config import ConfigError, PidGains, load_config, parse_config
+from gripper_ros.core.config import ConfigError, PidGains, load_config, parse_config
 
 REPO = Path(__file__).resolve().parents[1]
 SHIPPED = REPO / 'config' / 'gripper.yaml'
@@ -223,7 +223,7 @@ def _leaves(data, prefix=''):
 
 def _defaulted_fields():
     """Field names that may be left out of the file (their dataclass gives a default)."""
-    import gripper_ros.config as config_module
+    import gripper_ros.core.config as config_module
     names = set()
     for obj in vars(config_module).values():
         if dataclasses.is_dataclass(obj) and isinstance(obj, type):

@@ -10,10 +10,10 @@ import math
 import numpy as np
 import pytest
 
-from gripper_ros.config import load_config
-from gripper_ros.contact_force import ContactForceController
-from gripper_ros.controllers import make_plant
-from gripper_ros.plant import GraspObject
+from gripper_ros.core.config import load_config
+from gripper_ros.core.contact_force import ContactForceController
+from gripper_ros.core.controllers import make_plant
+from gripper_ros.core.plant import GraspObject
 
 CONFIG = load_config()
 PLANT = CONFIG.plant
@@ -119,7 +119,7 @@ def test_no_spike_on_rigid_stiff_or_soft_objects(name, k, c, force_n):
 def test_the_rigid_loops_pi_would_spike_on_the_stiff_object():
     """The control: the same hand-over into the paper-style PI (our rigid gains) on the stiff
     object overshoots many times over, which is what this stage exists to prevent."""
-    from gripper_ros.controllers import ForceControllerKind, make_force_controller
+    from gripper_ros.core.controllers import ForceControllerKind, make_force_controller
     plant = make_plant(CONFIG)
     plant.set_object(GraspObject(PLANT.max_travel_m - 0.1, 1e5, 50.0))
     plant.touch_object()
@@ -170,7 +170,7 @@ def test_past_the_expected_face_untouched_it_drives_at_the_feedforward_not_a_cra
 
 
 def test_no_object_is_found_quickly():
-    from gripper_ros.headless import simulate_grasp
+    from gripper_ros.core.headless import simulate_grasp
     g = simulate_grasp(CONFIG, 0.05, 1.27, object_width_m=0.0)
     assert g.outcome.name == 'NO_OBJECT'
     # a crawl at the contact speed over the no-object margin would take margin / v_min

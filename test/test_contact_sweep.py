@@ -9,8 +9,8 @@ import math
 
 import pytest
 
-from gripper_ros.config import load_config
-from gripper_ros.contact_sweep import COMPLIANT_OBJECTS, MASSES_KG, WIDTHS_M, main, sweep
+from gripper_ros.core.config import load_config
+from gripper_ros.apps.contact_sweep import COMPLIANT_OBJECTS, MASSES_KG, WIDTHS_M, main, sweep
 
 CONFIG = load_config()
 
@@ -42,7 +42,7 @@ def test_stiff_and_soft_objects_are_held_without_a_spike(compliant_rows):
 def test_paper_pi_still_spikes_on_the_stiff_object():
     """The control: the same stiff grasp with the PI force stage (selectable, the paper's
     structure) is not held and hits far above the setpoint."""
-    from gripper_ros.headless import simulate_grasp
+    from gripper_ros.core.headless import simulate_grasp
     g = simulate_grasp(CONFIG, 0.05, 1.0, stiffness_n_per_m=1e5, damping_n_s_per_m=50.0,
                        force_controller='pi', timeout_s=4.0)
     assert g.outcome.name != 'HOLDING'
@@ -90,7 +90,7 @@ def test_width_tolerance_meets_a_wider_or_narrower_rigid_object_without_a_spike(
     """The paper's second criterion made safe: an object up to the tolerance wider (or
     narrower) than requested is met with at most F_sp; without a tolerance a 10 mm wider object
     is hit by a finger still driven by the position stage (the paper's spike, ~2.8x)."""
-    from gripper_ros.headless import simulate_grasp
+    from gripper_ros.core.headless import simulate_grasp
     g = simulate_grasp(CONFIG, 0.05, 1.69, object_width_m=actual_width_m,
                        width_tolerance_m=0.012)
     assert g.outcome.name == 'HOLDING', g.message
@@ -100,7 +100,7 @@ def test_width_tolerance_meets_a_wider_or_narrower_rigid_object_without_a_spike(
 
 
 def test_without_a_tolerance_a_wider_object_is_hit_as_in_the_paper():
-    from gripper_ros.headless import simulate_grasp
+    from gripper_ros.core.headless import simulate_grasp
     g = simulate_grasp(CONFIG, 0.05, 1.69, object_width_m=0.06)
     assert g.switch_criterion.name == 'SENSOR_VOLTAGE'          # the paper's second criterion
     assert g.peak_contact_force_n > 2.0 * g.force_setpoint_n

@@ -3,10 +3,10 @@ discrete plant whose step response and free response are known in closed form.""
 import numpy as np
 import pytest
 
-from gripper_ros.config import PidGains
-from gripper_ros.dmc import (DynamicMatrixControl, closed_loop_step_response, dmc_gain,
+from gripper_ros.core.config import PidGains
+from gripper_ros.core.dmc import (DynamicMatrixControl, closed_loop_step_response, dmc_gain,
                              dynamic_matrix)
-from gripper_ros.pid import PID
+from gripper_ros.core.pid import PID
 
 A_POLE, B_GAIN = 0.5, 0.25          # plant y+ = a y + b u, DC gain b/(1-a) = 0.5
 HORIZON = 60                        # a^60 ~ 1e-18: the truncated model is exact to rounding
@@ -206,9 +206,9 @@ def test_closed_loop_step_response_of_p_loop_is_analytic():
 def test_braking_governor_phases_in_order_on_the_gripper_model():
     """One ACCELERATE run at +limit, one BRAKE run at -braking_v, then DMC for good; the
     forced voltages are exactly those, and a short move still starts by accelerating."""
-    from gripper_ros.config import load_config
-    from gripper_ros.controllers import make_plant
-    from gripper_ros.dmc import BrakingGovernor, GovernorPhase
+    from gripper_ros.core.config import load_config
+    from gripper_ros.core.controllers import make_plant
+    from gripper_ros.core.dmc import BrakingGovernor, GovernorPhase
 
     config = load_config()
     dt = config.position.sample_time_s

@@ -16,8 +16,8 @@ from types import SimpleNamespace
 
 import pytest
 
-from gripper_ros.config import load_config
-from gripper_ros.controller_logic import (SOURCE_FORCE, SOURCE_POSITION, ForceStageController,
+from gripper_ros.core.config import load_config
+from gripper_ros.core.stages import (SOURCE_FORCE, SOURCE_POSITION, ForceStageController,
                                           LockstepAnswerer, PositionStageController)
 
 CONFIG = load_config()
@@ -144,10 +144,10 @@ from rclpy.node import Node  # noqa: E402
 from rclpy.parameter import Parameter  # noqa: E402
 from sensor_msgs.msg import JointState  # noqa: E402
 
-from gripper_ros.bag_io import import_message_class  # noqa: E402
-from gripper_ros.grasp_logic import Outcome, Phase  # noqa: E402
-from gripper_ros.graph import GraphOptions, GripperGraph  # noqa: E402
-from gripper_ros.ros_common import (GRAPH_QOS, GRAPH_TOPICS, TOPIC_FORCE_SENSOR,  # noqa: E402
+from gripper_ros.bags.reader import import_message_class  # noqa: E402
+from gripper_ros.core.supervisor import Outcome, Phase  # noqa: E402
+from gripper_ros.nodes.graph import GraphOptions, GripperGraph  # noqa: E402
+from gripper_ros.nodes.common import (GRAPH_QOS, GRAPH_TOPICS, TOPIC_FORCE_SENSOR,  # noqa: E402
                                     TOPIC_JOINT_STATES, TOPIC_MOTOR_COMMAND, TOPIC_MOTOR_STATE,
                                     SERVICE_RELEASE, TOPIC_STATUS, time_to_ns, wait_until)
 

@@ -9,12 +9,12 @@ import numpy as np
 import pytest
 from gripper_interfaces.srv import Grasp
 
-from gripper_ros.bag_io import load_grasp_series, read_bag
-from gripper_ros.config import load_config
-from gripper_ros.grasp_logic import Outcome, SwitchCriterion
-from gripper_ros.grasp_demo import PAPER_OBJECTS
-from gripper_ros.graph import GripperGraph
-from gripper_ros.ros_common import GRAPH_TOPICS
+from gripper_ros.bags.reader import load_grasp_series, read_bag
+from gripper_ros.core.config import load_config
+from gripper_ros.core.supervisor import Outcome, SwitchCriterion
+from gripper_ros.apps.grasp_demo import PAPER_OBJECTS
+from gripper_ros.nodes.graph import GripperGraph
+from gripper_ros.nodes.common import GRAPH_TOPICS
 
 CONFIG = load_config()
 L_LS = CONFIG.plant.max_travel_m
@@ -172,8 +172,8 @@ def test_stop_ends_the_running_grasp_and_the_next_one_succeeds(graph):
 
 @pytest.mark.parametrize('index', range(len(PAPER_OBJECTS)))
 def test_headless_simulation_reproduces_the_graph_bit_for_bit(paper_runs, index):
-    """gripper_ros.headless runs the same logic without ROS: identical series to the bag's."""
-    from gripper_ros.headless import simulate_grasp
+    """gripper_ros.core.headless runs the same logic without ROS: identical series to the bag's."""
+    from gripper_ros.core.headless import simulate_grasp
     width, mass = PAPER_OBJECTS[index]
     series = load_grasp_series(paper_runs[index].bag_dir)
     start_ns = int(round(series.status.t_s[0] * 1e9))
@@ -190,8 +190,8 @@ def test_position_stage_in_the_graph_is_the_controller_step_run(paper_runs, inde
     """Issue 5 part 1: the node graph's MPC-PD gives the same response as the numeric core's
     step run (whose figures test_position_limit holds to the targets), tick for tick, up to the
     switch; the voltage never leaves +-24 V."""
-    from gripper_ros.controllers import PositionControllerKind, make_position_controller
-    from gripper_ros.simulation import position_step
+    from gripper_ros.core.controllers import PositionControllerKind, make_position_controller
+    from gripper_ros.core.step_runs import position_step
     width, _ = PAPER_OBJECTS[index]
     setpoint = L_LS - width
     series = load_grasp_series(paper_runs[index].bag_dir)
@@ -211,7 +211,7 @@ def test_position_stage_in_the_graph_is_the_controller_step_run(paper_runs, inde
 def test_stiff_object_in_the_graph_no_spike_and_bit_identical_to_headless(graph, tmp_path):
     """A stiff (1e5 N/m) object through the live graph: held without a spike (the PI hit it
     with up to 6x), and the recorded series equal the headless run that contact_sweep uses."""
-    from gripper_ros.headless import simulate_grasp
+    from gripper_ros.core.headless import simulate_grasp
     run = graph.recorded_grasp(tmp_path / 'stiff', 0.05, 1.0, stiffness_n_per_m=1e5,
                                damping_n_s_per_m=50.0)
     assert run.response.success and run.response.outcome == Outcome.HOLDING, \

@@ -13,10 +13,10 @@ from gripper_interfaces.action import Grasp as GraspAction
 from gripper_interfaces.msg import SupervisorStatus
 from rclpy.action import ActionClient
 
-from gripper_ros.config import load_config
-from gripper_ros.grasp_logic import Outcome
-from gripper_ros.graph import GripperGraph
-from gripper_ros.ros_common import ACTION_GRASP
+from gripper_ros.core.config import load_config
+from gripper_ros.core.supervisor import Outcome
+from gripper_ros.nodes.graph import GripperGraph
+from gripper_ros.nodes.common import ACTION_GRASP
 
 CONFIG = load_config()
 TRAVEL_M = CONFIG.plant.max_travel_m

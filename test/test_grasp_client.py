@@ -9,14 +9,14 @@ import pytest
 
 
 def _run_client(*args, timeout=120):
-    return subprocess.run([sys.executable, '-m', 'gripper_ros.grasp_client', *args],
+    return subprocess.run([sys.executable, '-m', 'gripper_ros.apps.grasp_client', *args],
                           capture_output=True, text=True, timeout=timeout, env=os.environ.copy())
 
 
 @pytest.fixture(scope='module')
 def server(tmp_path_factory):
     out = tmp_path_factory.mktemp('served_bags')     # never the repository's bags/
-    proc = subprocess.Popen([sys.executable, '-m', 'gripper_ros.grasp_demo', '--serve',
+    proc = subprocess.Popen([sys.executable, '-m', 'gripper_ros.apps.grasp_demo', '--serve',
                              '--output', str(out)],
                             stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
                             env=os.environ.copy())
@@ -65,7 +65,7 @@ def test_server_stops_cleanly_on_sigint(server):
 def test_client_without_server_says_so():
     env = dict(os.environ, ROS_DOMAIN_ID=str((int(os.environ.get('ROS_DOMAIN_ID', '0')) + 1)
                                              % 100 + 101))
-    result = subprocess.run([sys.executable, '-m', 'gripper_ros.grasp_client', '--width', '0.05',
+    result = subprocess.run([sys.executable, '-m', 'gripper_ros.apps.grasp_client', '--width', '0.05',
                              '--mass', '1', '--wait', '1'], capture_output=True, text=True,
                             timeout=60, env=env)
     assert result.returncode == 2
@@ -73,8 +73,8 @@ def test_client_without_server_says_so():
 
 
 def test_serve_mode_records_one_complete_bag_per_grasp(tmp_path):
-    from gripper_ros.bag_io import load_grasp_series, read_bag
-    proc = subprocess.Popen([sys.executable, '-m', 'gripper_ros.grasp_demo', '--serve',
+    from gripper_ros.bags.reader import load_grasp_series, read_bag
+    proc = subprocess.Popen([sys.executable, '-m', 'gripper_ros.apps.grasp_demo', '--serve',
                              '--output', str(tmp_path)], stdout=subprocess.PIPE,
                             stderr=subprocess.STDOUT, text=True, env=os.environ.copy())
     try:
@@ -105,7 +105,7 @@ def test_nodes_as_four_separate_processes_grasp_together():
     try:
         for i, module in enumerate(nodes):
             extra = [] if i == 0 else ['--ros-args', '-p', 'use_sim_time:=true']
-            procs.append(subprocess.Popen([sys.executable, '-m', f'gripper_ros.{module}', *extra],
+            procs.append(subprocess.Popen([sys.executable, '-m', f'gripper_ros.nodes.{module}', *extra],
                                           stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
                                           env=os.environ.copy()))
         deadline = time.monotonic() + 60
@@ -130,8 +130,8 @@ def test_nodes_as_four_separate_processes_grasp_together():
 
 @pytest.mark.parametrize('sig', [signal.SIGINT, signal.SIGTERM])
 def test_signal_during_a_recorded_grasp_leaves_a_complete_bag(tmp_path, sig):
-    from gripper_ros.bag_io import read_bag
-    proc = subprocess.Popen([sys.executable, '-m', 'gripper_ros.grasp_demo', '--output',
+    from gripper_ros.bags.reader import read_bag
+    proc = subprocess.Popen([sys.executable, '-m', 'gripper_ros.apps.grasp_demo', '--output',
                              str(tmp_path), '--no-plot'], stdout=subprocess.PIPE,
                             stderr=subprocess.STDOUT, text=True, env=os.environ.copy())
     for line in proc.stdout:

@@ -4,8 +4,8 @@ import math
 
 import pytest
 
-from gripper_ros.config import load_config
-from gripper_ros.grasp_logic import (ActiveController, GraspRequest, GraspSupervisor, Outcome,
+from gripper_ros.core.config import load_config
+from gripper_ros.core.supervisor import (ActiveController, GraspRequest, GraspSupervisor, Outcome,
                                      Phase, RequestError, SwitchCriterion, force_setpoint_n,
                                      validate_request)
 

@@ -34,7 +34,7 @@ INTERFACES = {
 def _console_scripts():
     """Names declared in setup.py's console_scripts."""
     text = (REPO / 'setup.py').read_text()
-    return set(re.findall(r"['\"]\s*(\w+)\s*=\s*gripper_ros\.\w+:main\s*['\"]", text))
+    return set(re.findall(r"['\"]\s*(\w+)\s*=\s*gripper_ros(?:\.\w+)+:main\s*['\"]", text))
 
 
 @pytest.fixture(scope='module')

@@ -13,8 +13,8 @@ import pytest
 import rclpy
 from sensor_msgs.msg import JointState
 
-from gripper_ros.graph import GraphOptions, GripperGraph
-from gripper_ros.ros_common import GRAPH_QOS, TOPIC_JOINT_STATES
+from gripper_ros.nodes.graph import GraphOptions, GripperGraph
+from gripper_ros.nodes.common import GRAPH_QOS, TOPIC_JOINT_STATES
 
 DOMAIN_A = int(os.environ.get('ROS_DOMAIN_ID', '0'))
 DOMAIN_B = (DOMAIN_A + 50) % 100 + 1          # far from the id scripts/test.sh picked for A

@@ -7,7 +7,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.optimize import brentq
 
-from gripper_ros.metrics import (SETTLING_BAND, percent_overshoot, rms_error, settling_time,
+from gripper_ros.core.metrics import (SETTLING_BAND, percent_overshoot, rms_error, settling_time,
                                  step_metrics)
 
 

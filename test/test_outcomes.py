@@ -20,10 +20,10 @@ from gripper_interfaces.msg import MotorCommand, SupervisorStatus
 from gripper_interfaces.srv import Grasp, SetObject
 from std_srvs.srv import Trigger
 
-from gripper_ros.config import load_config
-from gripper_ros.grasp_logic import Outcome, Phase
-from gripper_ros.graph import GraphOptions, GripperGraph
-from gripper_ros.ros_common import (GRAPH_QOS, LATCHED_QOS, SERVICE_RELEASE,
+from gripper_ros.core.config import load_config
+from gripper_ros.core.supervisor import Outcome, Phase
+from gripper_ros.nodes.graph import GraphOptions, GripperGraph
+from gripper_ros.nodes.common import (GRAPH_QOS, LATCHED_QOS, SERVICE_RELEASE,
                                     TOPIC_MOTOR_COMMAND, TOPIC_OUTCOME, TOPIC_STATUS, time_to_ns)
 
 CONFIG = load_config()
@@ -239,7 +239,7 @@ def test_grasp_client_release_from_another_process(graph):
     import sys
 
     def client(*args):
-        return subprocess.run([sys.executable, '-m', 'gripper_ros.grasp_client', *args],
+        return subprocess.run([sys.executable, '-m', 'gripper_ros.apps.grasp_client', *args],
                               capture_output=True, text=True, timeout=60,
                               env=os.environ.copy())
 

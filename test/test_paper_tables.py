@@ -7,11 +7,11 @@ import numpy as np
 import pytest
 from scipy.signal import step as lti_step
 
-from gripper_ros import paper_tables
-from gripper_ros.config import load_config
-from gripper_ros.controllers import ForceControllerKind, force_pi_gains, make_force_controller
-from gripper_ros.metrics import step_metrics
-from gripper_ros.simulation import force_step
+from gripper_ros.apps import paper_tables
+from gripper_ros.core.config import load_config
+from gripper_ros.core.controllers import ForceControllerKind, force_pi_gains, make_force_controller
+from gripper_ros.core.metrics import step_metrics
+from gripper_ros.core.step_runs import force_step
 
 REPO = Path(__file__).resolve().parents[1]
 CONFIG = load_config(REPO / 'config' / 'gripper.yaml')

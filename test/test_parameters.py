@@ -24,13 +24,13 @@ from rclpy.context import Context
 from rclpy.exceptions import InvalidParameterValueException
 from rclpy.parameter import Parameter
 
-from gripper_ros.config import ConfigError
-from gripper_ros.force_controller_node import ForceControllerNode
-from gripper_ros.grasp_action_node import GraspActionServer
-from gripper_ros.graph import GraphOptions, GripperGraph
-from gripper_ros.plant_simulator_node import PlantSimulatorNode
-from gripper_ros.position_controller_node import PositionControllerNode
-from gripper_ros.supervisor_node import SupervisorNode
+from gripper_ros.core.config import ConfigError
+from gripper_ros.nodes.force_controller_node import ForceControllerNode
+from gripper_ros.nodes.grasp_action_node import GraspActionServer
+from gripper_ros.nodes.graph import GraphOptions, GripperGraph
+from gripper_ros.nodes.plant_simulator_node import PlantSimulatorNode
+from gripper_ros.nodes.position_controller_node import PositionControllerNode
+from gripper_ros.nodes.supervisor_node import SupervisorNode
 
 REPO = Path(__file__).resolve().parents[1]
 SHIPPED = REPO / 'config' / 'gripper.yaml'

@@ -8,8 +8,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from gripper_ros.config import PidGains
-from gripper_ros.pid import PID, AntiWindup, DerivativeOn, first_order_pi_by_pole_placement
+from gripper_ros.core.config import PidGains
+from gripper_ros.core.pid import PID, AntiWindup, DerivativeOn, first_order_pi_by_pole_placement
 
 DT = 0.1
 WIDE = (-1e6, 1e6)

@@ -12,9 +12,9 @@ import pytest
 from scipy.linalg import expm
 from scipy.signal import cont2discrete, lsim
 
-from gripper_ros.config import ContactParams, ForceSensorParams, load_config
-from gripper_ros.force_sensor import FsrVoltageDivider
-from gripper_ros.plant import ContactState, GraspObject, GripperPlant
+from gripper_ros.core.config import ContactParams, ForceSensorParams, load_config
+from gripper_ros.core.force_sensor import FsrVoltageDivider
+from gripper_ros.core.plant import ContactState, GraspObject, GripperPlant
 
 REPO = Path(__file__).resolve().parents[1]
 CONFIG = load_config(REPO / 'config' / 'gripper.yaml')
@@ -391,7 +391,7 @@ def test_plant_sample_reports_sensor_voltage_of_its_force():
 
 
 # ------------------------------------------------------------------ fault injection
-from gripper_ros.plant import FaultKind, check_fault  # noqa: E402
+from gripper_ros.core.plant import FaultKind, check_fault  # noqa: E402
 
 
 def gripping_plant(volts=8.0, width=0.05):

@@ -3,11 +3,11 @@ import dataclasses
 import numpy as np
 import pytest
 
-from gripper_ros.config import load_config
-from gripper_ros.controllers import PositionControllerKind, make_plant, make_position_controller
-from gripper_ros.metrics import step_metrics
-from gripper_ros.position_limit import main, minimum_time_floor, rms_floor
-from gripper_ros.simulation import position_step
+from gripper_ros.core.config import load_config
+from gripper_ros.core.controllers import PositionControllerKind, make_plant, make_position_controller
+from gripper_ros.core.metrics import step_metrics
+from gripper_ros.apps.position_limit import main, minimum_time_floor, rms_floor
+from gripper_ros.core.step_runs import position_step
 
 DT = 0.01
 R = 0.1

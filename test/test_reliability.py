@@ -10,9 +10,9 @@ from gripper_interfaces.srv import Grasp
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from gripper_ros.config import load_config
-from gripper_ros.grasp_logic import GraspRequest, Outcome, RequestError, validate_request
-from gripper_ros.graph import GripperGraph
+from gripper_ros.core.config import load_config
+from gripper_ros.core.supervisor import GraspRequest, Outcome, RequestError, validate_request
+from gripper_ros.nodes.graph import GripperGraph
 
 CONFIG = load_config()
 

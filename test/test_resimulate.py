@@ -16,13 +16,13 @@ from pathlib import Path
 import pytest
 import yaml
 
-from gripper_ros import bag_replay
-from gripper_ros.bag_io import EXIT_ERROR, EXIT_TRUNCATED, MissingTopicsError, read_bag
-from gripper_ros.config import ConfigError, default_config_path, load_config, parse_config
-from gripper_ros.controller_logic import (ForceStageController, LockstepAnswerer,
+from gripper_ros.bags import replay as bag_replay
+from gripper_ros.bags.reader import EXIT_ERROR, EXIT_TRUNCATED, MissingTopicsError, read_bag
+from gripper_ros.core.config import ConfigError, default_config_path, load_config, parse_config
+from gripper_ros.core.stages import (ForceStageController, LockstepAnswerer,
                                           PositionStageController)
-from gripper_ros.graph import GripperGraph
-from gripper_ros.resimulate import OPEN_LOOP_NOTE, resimulate_bag
+from gripper_ros.nodes.graph import GripperGraph
+from gripper_ros.bags.resimulate import OPEN_LOOP_NOTE, resimulate_bag
 
 CONFIG = load_config()
 CONFIG_DATA = yaml.safe_load(Path(default_config_path()).read_text(encoding='utf-8'))

@@ -31,7 +31,7 @@ def soak(tmp_path_factory):
     out = tmp_path_factory.mktemp('soak')
     report = out / 'soak.json'
     proc = subprocess.run(
-        [sys.executable, '-m', 'gripper_ros.bench_soak', '--grasps', str(GRASPS), '--warmup',
+        [sys.executable, '-m', 'gripper_ros.bench.soak', '--grasps', str(GRASPS), '--warmup',
          str(WARMUP), '--objects', 'cheap', '--quiet', '--json-file', str(report)],
         capture_output=True, text=True, timeout=240, env=os.environ.copy())
     print(proc.stdout)

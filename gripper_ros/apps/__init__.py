@@ -1,0 +1,1 @@
+"""Console applications: the demo, the client, the paper's tables, the sweeps."""

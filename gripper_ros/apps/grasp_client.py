@@ -1,0 +1,191 @@
+"""grasp_client: request a grasp from another process (``ros2 service call`` is not installable here).
+
+    ros2 run gripper_ros grasp_client --width 0.05 --mass 1.69
+
+With a full ROS 2 the equivalent calls are:
+
+    ros2 service call /gripper/sim/set_object gripper_interfaces/srv/SetObject \\
+        "{width_m: 0.05, open_fingers: true}"
+    ros2 service call /gripper/grasp gripper_interfaces/srv/Grasp "{width_m: 0.05, mass_kg: 1.69}"
+    ros2 action send_goal --feedback /gripper/grasp_action gripper_interfaces/action/Grasp \\
+        "{width_m: 0.05, mass_kg: 1.69}"                    # the same, as an action (--action)
+
+By default the client first places a matching simulated object (``/gripper/sim/set_object``,
+like spawning a model in a simulator); ``--object-width`` places a different one (e.g. to see
+NO_OBJECT) and ``--no-place`` leaves the simulation as it is. Exit code: 0 when the object is
+held, 1 for any other outcome, 2 when the graph cannot be reached. ``--action`` sends the grasp
+as a goal to ``/gripper/grasp_action`` instead, prints its feedback (phase, opening, force) as it
+comes, and cancels the goal on Ctrl-C (the grasp ends as STOPPED).
+
+``--release`` opens the fingers instead (``/gripper/release``, std_srvs/Trigger; with a full
+ROS 2: ``ros2 service call /gripper/release std_srvs/srv/Trigger``): exit code 0 once open, 1 if
+refused (e.g. a grasp is running: call ``/gripper/stop`` first).
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+
+from gripper_ros.core.supervisor import Outcome
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog='grasp_client', description=__doc__.splitlines()[0])
+    p.add_argument('--width', type=float, help='expected object width (m); needed for a grasp')
+    p.add_argument('--mass', type=float, help='object mass (kg); needed for a grasp')
+    p.add_argument('--release', action='store_true',
+                   help='open the fingers (/gripper/release) instead of grasping')
+    p.add_argument('--friction', type=float, default=0.0, help='mu_s (0 = supervisor default)')
+    p.add_argument('--acceleration', type=float, default=0.0, help='a in eq. 23 (m/s^2)')
+    p.add_argument('--timeout', type=float, default=0.0,
+                   help='simulated-time budget in s (0 = supervisor default)')
+    p.add_argument('--width-tolerance', type=float, default=0.0,
+                   help='the object may be this much wider or narrower, m (0 = default)')
+    p.add_argument('--object-width', type=float, help='simulated object width (default --width)')
+    p.add_argument('--stiffness', type=float, default=0.0, help='object stiffness N/m (0 rigid)')
+    p.add_argument('--no-place', action='store_true', help='do not call /gripper/sim/set_object')
+    p.add_argument('--wait', type=float, default=10.0, help='seconds to wait for the services')
+    p.add_argument('--call-timeout', type=float, default=600.0, help='wall seconds per call')
+    p.add_argument('--action', action='store_true',
+                   help='use the /gripper/grasp_action action: feedback, Ctrl-C cancels')
+    return p
+
+
+def _call(node, client, request, timeout_s: float):
+    import rclpy
+    future = client.call_async(request)
+    rclpy.spin_until_future_complete(node, future, timeout_sec=timeout_s)
+    if not future.done():
+        client.remove_pending_request(future)
+        return None
+    return future.result()
+
+
+def _request_fields(args) -> dict:
+    """The grasp request from the command line: the service's request and the action's goal
+    carry the same fields."""
+    return dict(width_m=args.width, mass_kg=args.mass, friction_coefficient=args.friction,
+                acceleration_mps2=args.acceleration, timeout_s=args.timeout,
+                width_tolerance_m=args.width_tolerance)
+
+
+def _grasp_by_action(node, args):
+    """Send the goal, print feedback until the result; Ctrl-C cancels. None if no answer."""
+    import rclpy
+    from gripper_interfaces.action import Grasp as GraspAction
+    from rclpy.action import ActionClient
+
+    from gripper_ros.core.supervisor import Phase
+    from gripper_ros.nodes.common import ACTION_GRASP
+
+    client = ActionClient(node, GraspAction, ACTION_GRASP)
+    if not client.wait_for_server(timeout_sec=args.wait):
+        print(f'grasp_client: action {ACTION_GRASP} not available after {args.wait:g} s',
+              file=sys.stderr)
+        return None
+
+    def on_feedback(msg):
+        f = msg.feedback
+        phase = Phase(f.phase).name if f.phase in Phase._value2member_map_ else str(f.phase)
+        print(f'feedback: t={f.elapsed_s:7.4f} s  phase {phase:<8s} opening {f.width_m:.5f} m  '
+              f'force {f.force_n:8.4f} N  contact {f.contact}', flush=True)
+
+    sent = client.send_goal_async(GraspAction.Goal(**_request_fields(args)),
+                                  feedback_callback=on_feedback)
+    rclpy.spin_until_future_complete(node, sent, timeout_sec=args.call_timeout)
+    if not sent.done() or not sent.result().accepted:
+        return None
+    handle = sent.result()
+    result = handle.get_result_async()
+    try:
+        rclpy.spin_until_future_complete(node, result, timeout_sec=args.call_timeout)
+    except KeyboardInterrupt:
+        print('grasp_client: cancelling the goal', file=sys.stderr)
+        rclpy.spin_until_future_complete(node, handle.cancel_goal_async(), timeout_sec=args.wait)
+        rclpy.spin_until_future_complete(node, result, timeout_sec=args.wait)
+    return result.result().result if result.done() else None
+
+
+def _release(node, args) -> int:
+    from std_srvs.srv import Trigger
+
+    from gripper_ros.nodes.common import SERVICE_RELEASE
+    client = node.create_client(Trigger, SERVICE_RELEASE)
+    if not client.wait_for_service(timeout_sec=args.wait):
+        print(f'grasp_client: service {SERVICE_RELEASE} not available after {args.wait:g} s',
+              file=sys.stderr)
+        return 2
+    response = _call(node, client, Trigger.Request(), args.call_timeout)
+    if response is None:
+        print(f'grasp_client: the release did not answer within {args.call_timeout:g} s',
+              file=sys.stderr)
+        return 2
+    print(f'success: {response.success}\nmessage: {response.message}')
+    return 0 if response.success else 1
+
+
+def main(argv: list[str] | None = None) -> int:
+    os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
+    import rclpy
+    from gripper_interfaces.srv import Grasp, SetObject
+    from rclpy.executors import ExternalShutdownException
+    from rclpy.utilities import remove_ros_args
+
+    parser = build_parser()
+    args = parser.parse_args(
+        remove_ros_args(sys.argv if argv is None else ['grasp_client', *argv])[1:])
+    if not args.release and (args.width is None or args.mass is None):
+        parser.error('--width and --mass are required for a grasp (or give --release)')
+    rclpy.init(args=None if argv is None else [])
+    node = rclpy.create_node('grasp_client')
+    try:
+        if args.release:
+            return _release(node, args)
+        grasp = node.create_client(Grasp, '/gripper/grasp')
+        place = node.create_client(SetObject, '/gripper/sim/set_object')
+        needed = [grasp] if args.no_place else [grasp, place]
+        for client in needed:
+            if not client.wait_for_service(timeout_sec=args.wait):
+                print(f'grasp_client: service {client.srv_name} not available after '
+                      f'{args.wait:g} s (is grasp_demo --serve running on this '
+                      f'ROS_DOMAIN_ID?)', file=sys.stderr)
+                return 2
+        if not args.no_place:
+            width = args.width if args.object_width is None else args.object_width
+            placed = _call(node, place, SetObject.Request(
+                width_m=width, stiffness_n_per_m=args.stiffness, open_fingers=True),
+                args.call_timeout)
+            if placed is None:
+                print('grasp_client: set_object did not answer', file=sys.stderr)
+                return 2
+            if not placed.success:
+                print(f'grasp_client: set_object: {placed.message}', file=sys.stderr)
+        if args.action:
+            response = _grasp_by_action(node, args)
+        else:
+            response = _call(node, grasp, Grasp.Request(**_request_fields(args)),
+                             args.call_timeout)
+        if response is None:
+            print(f'grasp_client: the grasp did not answer within {args.call_timeout:g} s',
+                  file=sys.stderr)
+            return 2
+        outcome = Outcome(response.outcome).name if response.outcome in \
+            Outcome._value2member_map_ else str(response.outcome)
+        print(f'outcome: {outcome}\nsuccess: {response.success}\nmessage: {response.message}\n'
+              f'position_setpoint_m: {response.position_setpoint_m:.6f}\n'
+              f'force_setpoint_n: {response.force_setpoint_n:.4f}\n'
+              f'final_position_m: {response.final_position_m:.6f}\n'
+              f'final_width_m: {response.final_width_m:.6f}\n'
+              f'final_force_n: {response.final_force_n:.4f}\n'
+              f'switch_time_s: {response.switch_time_s:.4f}\ngrasp_id: {response.grasp_id}')
+        return 0 if response.success else 1
+    except (KeyboardInterrupt, ExternalShutdownException):
+        return 130
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown()
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -1,0 +1,199 @@
+"""grasp_demo: the whole gripper graph in one process, one executor; grasps and records bags.
+
+    ros2 run gripper_ros grasp_demo                       # the paper's three objects (Table V)
+    ros2 run gripper_ros grasp_demo --width 0.05 --mass 1.69
+    ros2 run gripper_ros grasp_demo --serve               # keep the graph up for grasp_client
+
+Each grasp is recorded as a rosbag2 MCAP bag under ``--output`` (default ``bags/``), a summary
+line per object is printed, and a figure like the paper's Fig. 8 is written as PNG.
+DDS discovery is limited to localhost unless ``ROS_AUTOMATIC_DISCOVERY_RANGE`` is set.
+"""
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import signal
+import sys
+import time
+from dataclasses import dataclass
+from datetime import datetime
+from pathlib import Path
+
+# Table V of the paper: (width m, mass kg).
+PAPER_OBJECTS = ((0.01, 1.27), (0.05, 1.69), (0.10, 0.75))
+
+
+@dataclass
+class GraspRecord:
+    width_m: float
+    mass_kg: float
+    response: object
+    bag_dir: Path | None
+    wall_s: float
+
+
+def build_parser() -> argparse.ArgumentParser:
+    from gripper_ros.core.stages import DEFAULT_FORCE_CONTROLLER
+    from gripper_ros.core.controllers import ForceControllerKind
+    p = argparse.ArgumentParser(prog='grasp_demo', description=__doc__.splitlines()[0])
+    p.add_argument('--width', type=float, help='object width (m); with --mass grasps one object')
+    p.add_argument('--mass', type=float, help='object mass (kg)')
+    p.add_argument('--friction', type=float, default=0.0, help='mu_s (0 = configured default)')
+    p.add_argument('--stiffness', type=float, default=0.0,
+                   help='object contact stiffness N/m (0 = rigid, the paper\'s model)')
+    p.add_argument('--damping', type=float, default=0.0, help='object contact damping N s/m')
+    p.add_argument('--width-tolerance', type=float, default=0.0,
+                   help='the object may be this much wider or narrower, m (0 = default)')
+    p.add_argument('--object-width', type=float, default=None,
+                   help='the simulated object\'s real width, m (default: the requested --width)')
+    p.add_argument('--serve', action='store_true',
+                   help='keep the graph up and answer /gripper/grasp from other processes')
+    p.add_argument('--no-record', action='store_true', help='do not write bags')
+    p.add_argument('--output', default='bags', help='folder for bags and the figure')
+    p.add_argument('--overwrite', action='store_true', help='replace existing bag folders')
+    p.add_argument('--no-plot', action='store_true', help='do not write the figure')
+    p.add_argument('--executor', choices=['events', 'single'], default='events')
+    p.add_argument('--position-controller', choices=['mpc_pd', 'pd', 'pid'], default='mpc_pd')
+    p.add_argument('--force-controller', choices=[k.value for k in ForceControllerKind],
+                   default=DEFAULT_FORCE_CONTROLLER.value,
+                   help='contact_aware: rigid and compliant objects; pi / mpc_pi: the paper')
+    p.add_argument('--approach-force-margin', type=float, default=1.0,
+                   help='pi / mpc_pi: voltage cap before contact, x stall voltage of F_sp '
+                        '(0 = off)')
+    p.add_argument('--config', default='', help='YAML parameter file (default: installed)')
+    return p
+
+
+def _fail(message: str) -> int:
+    print(f'grasp_demo: {message}', file=sys.stderr)
+    return 2
+
+
+def main(argv: list[str] | None = None) -> int:
+    os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
+    import rclpy
+    from rclpy.utilities import remove_ros_args
+
+    args = build_parser().parse_args(remove_ros_args(sys.argv if argv is None else
+                                                     ['grasp_demo', *argv])[1:])
+    if (args.width is None) != (args.mass is None):
+        return _fail('--width and --mass go together')
+    objects = PAPER_OBJECTS if args.width is None else ((args.width, args.mass),)
+    for w, m in objects:
+        if not (math.isfinite(w) and math.isfinite(m)):
+            return _fail(f'width and mass must be finite, got {w!r}, {m!r}')
+
+    from gripper_ros.core.config import ConfigError
+    from gripper_ros.bags.recorder import BagRecorderError
+    from gripper_ros.nodes.graph import GraphError, GraphOptions, GripperGraph
+    from gripper_ros.nodes.common import ExecutorKind
+
+    rclpy.init(args=None if argv is None else [])
+    # SIGTERM (e.g. from a process manager) ends the demo like Ctrl-C: bags are closed.
+    previous_sigterm = signal.signal(signal.SIGTERM, _raise_keyboard_interrupt)
+    graph = None
+    try:
+        graph = GripperGraph(GraphOptions(
+            executor=ExecutorKind(args.executor), config_file=args.config,
+            position_controller=args.position_controller,
+            force_controller=args.force_controller,
+            approach_force_margin=args.approach_force_margin))
+        if args.serve:
+            if not args.no_record:
+                graph.record_every_grasp(args.output)
+            return _serve(graph, args)
+        records = [_grasp_one(graph, args, w, m, i, len(objects))
+                   for i, (w, m) in enumerate(objects, 1)]
+        _summarise(graph, records, args)
+        return 0 if all(r.response.success for r in records) else 1
+    except ConfigError as exc:
+        return _fail(str(exc))
+    except (GraphError, BagRecorderError, RuntimeError) as exc:
+        return _fail(str(exc))
+    except KeyboardInterrupt:
+        print('grasp_demo: interrupted; bags closed', file=sys.stderr)
+        return 130
+    finally:
+        if graph is not None:
+            graph.close()
+        rclpy.try_shutdown()
+        signal.signal(signal.SIGTERM, previous_sigterm)
+
+
+def _raise_keyboard_interrupt(signum, frame):
+    raise KeyboardInterrupt
+
+
+def _serve(graph, args) -> int:
+    where = 'not recording' if args.no_record else f'one bag per grasp in {args.output}/'
+    print(f'grasp_demo: serving /gripper/grasp, /gripper/grasp_action, /gripper/stop, '
+          f'/gripper/release and /gripper/sim/set_object, publishing the latched '
+          f'/gripper/supervisor/outcome ({where}); Ctrl-C to stop', flush=True)
+    while True:
+        time.sleep(1.0)
+
+
+def _bag_dir(output: Path, i: int, width_m: float, mass_kg: float) -> Path:
+    stamp = datetime.now().strftime('%Y%m%d_%H%M%S')
+    return output / f'grasp_{stamp}_{i}_w{width_m * 1e3:.0f}mm_m{mass_kg:g}kg'
+
+
+def _grasp_one(graph, args, width_m: float, mass_kg: float, i: int, n: int) -> GraspRecord:
+    print(f'[{i}/{n}] grasping width {width_m:g} m, mass {mass_kg:g} kg ...', flush=True)
+    if args.no_record:
+        t0 = time.perf_counter()
+        graph.set_object(graph.simulated_width_m(width_m, args.object_width), args.stiffness,
+                         args.damping)
+        response = graph.grasp(width_m, mass_kg, args.friction,
+                               width_tolerance_m=args.width_tolerance)
+        return GraspRecord(width_m, mass_kg, response, None, time.perf_counter() - t0)
+    run = graph.recorded_grasp(_bag_dir(Path(args.output), i, width_m, mass_kg), width_m,
+                               mass_kg, args.friction, args.stiffness, args.damping,
+                               args.overwrite, width_tolerance_m=args.width_tolerance,
+                               object_width_m=args.object_width)
+    return GraspRecord(width_m, mass_kg, run.response, run.bag_dir, run.wall_s)
+
+
+def _summarise(graph, records: list[GraspRecord], args) -> None:
+    print(f'\n{"width m":>8s} {"mass kg":>8s} {"outcome":>10s} {"contact s":>10s} '
+          f'{"switch s":>9s} {"criterion":>18s} {"pos err mm":>11s} {"force N":>8s} '
+          f'{"F_sp N":>8s} {"peak N":>8s} {"peak/F_sp":>9s} {"max|V|":>7s} {"wall s":>7s}')
+    series, rows = [], []
+    if not args.no_record:
+        from gripper_ros.bags.analyze import analyze_series
+        from gripper_ros.bags.reader import load_grasp_series
+        for r in records:
+            s = load_grasp_series(r.bag_dir)
+            series.append(s)
+            rows.append(analyze_series(s, graph.plant.config.plant.voltage_limit_v))
+    from gripper_ros.core.supervisor import Outcome
+    for i, r in enumerate(records):
+        resp = r.response
+        outcome = Outcome(resp.outcome).name
+        pos_err_mm = (resp.final_position_m - resp.position_setpoint_m) * 1e3
+        if rows:
+            m = rows[i]
+            extra = (f'{m.time_to_contact_s:10.3f} {m.switch_time_s:9.3f} '
+                     f'{m.switch_criterion:>18s} {pos_err_mm:11.4f} {resp.final_force_n:8.3f} '
+                     f'{resp.force_setpoint_n:8.3f} {m.peak_contact_force_n:8.3f} '
+                     f'{m.peak_force_ratio:9.3f} {m.max_abs_voltage_v:7.2f}')
+        else:
+            extra = (f'{"":>10s} {resp.switch_time_s:9.3f} {"":>18s} {pos_err_mm:11.4f} '
+                     f'{resp.final_force_n:8.3f} {resp.force_setpoint_n:8.3f} {"":>8s} '
+                     f'{"":>9s} {"":>7s}')
+        print(f'{r.width_m:8.3f} {r.mass_kg:8.3f} {outcome:>10s} {extra} {r.wall_s:7.2f}')
+        if not resp.success:
+            print(f'    {resp.message}')
+    for r in records:
+        if r.bag_dir is not None:
+            print(f'bag: {r.bag_dir}')
+    if series and not args.no_plot:
+        from gripper_ros.bags.analyze import plot
+        png = Path(args.output) / 'grasp_demo.png'
+        plot(series, rows, str(png))
+        print(f'figure: {png}')
+
+
+if __name__ == '__main__':
+    sys.exit(main())

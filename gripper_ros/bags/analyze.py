@@ -1,0 +1,348 @@
+"""``bag_analyze BAG [BAG ...]``: the paper's step-response figures from recorded grasps.
+
+Per bag: time to contact, switch time and the criterion that fired, position-stage and
+force-stage RMS / overshoot / 2 % settling (all from :mod:`gripper_ros.core.metrics`), peak contact
+force and its ratio to the setpoint, voltage saturation, final errors. Terminal table, JSON, CSV
+and a Fig.-8-like plot (position, force, motor voltage, sensor voltage; one column per bag).
+
+The grasp analysed is the first one in the bag: from the first status in the POSITION phase to
+the last status with the same grasp id. Times are simulated seconds from that grasp start.
+"""
+from __future__ import annotations
+
+import argparse
+import csv
+import io
+import json
+import math
+import sys
+from dataclasses import asdict, dataclass
+from typing import Sequence
+
+import numpy as np
+
+from gripper_ros.bags.reader import (
+    EXIT_ERROR, EXIT_TRUNCATED, BagError, GraspSeries, Outcome, Phase, SwitchCriterion,
+    enum_name, load_grasp_series,
+)
+from gripper_ros.core.metrics import step_metrics
+
+PROG = 'bag_analyze'
+VOLTAGE_LIMIT_V = 24.0
+LIMIT_TOL_V = 1e-9
+
+
+@dataclass
+class GraspMetrics:
+    """One row of the analysis; NaN = not applicable, inf = did not settle in the record."""
+
+    bag: str
+    grasp_id: int
+    outcome: str
+    truncated: bool
+    grasp_start_s: float
+    grasp_end_s: float
+    time_to_contact_s: float
+    switch_time_s: float
+    switch_criterion: str
+    position_setpoint_m: float
+    position_rms_m: float
+    position_overshoot_pct: float
+    position_settling_s: float
+    force_setpoint_n: float
+    force_rms_n: float
+    force_overshoot_pct: float
+    force_settling_s: float
+    peak_contact_force_n: float
+    peak_force_ratio: float
+    max_abs_voltage_v: float
+    time_at_voltage_limit_s: float
+    final_position_error_m: float
+    final_force_error_n: float
+
+
+class AnalysisError(BagError):
+    """A bag whose content does not describe a grasp."""
+
+
+@dataclass(frozen=True)
+class Stages:
+    """Grasp time line in absolute simulated seconds."""
+
+    grasp_id: int
+    start_s: float
+    switch_s: float   # nan when the grasp never reached the force stage
+    end_s: float
+
+
+def find_stages(series: GraspSeries) -> Stages:
+    """Start = first POSITION-phase status, switch = first FORCE-phase status of that grasp."""
+    st = series.status
+    in_position = np.flatnonzero(st.phase == Phase.POSITION)
+    if in_position.size == 0:
+        raise AnalysisError(f'{series.path}: no supervisor status in the POSITION phase '
+                            f'(no grasp was started)')
+    first = in_position[0]
+    grasp_id = int(st.grasp_id[first])
+    same = np.flatnonzero(st.grasp_id == grasp_id)
+    same = same[same >= first]
+    start_s = float(st.t_s[first])
+    end_s = float(st.t_s[same[-1]])
+    force_idx = same[(st.phase[same] == Phase.FORCE) | (st.phase[same] == Phase.HOLDING)]
+    switch_s = float(st.t_s[force_idx[0]]) if force_idx.size else math.nan
+    return Stages(grasp_id, start_s, switch_s, end_s)
+
+
+def _window(t_s: np.ndarray, lo: float, hi: float, include_hi: bool = False) -> np.ndarray:
+    return (t_s >= lo) & ((t_s <= hi) if include_hi else (t_s < hi))
+
+
+def _safe_step(t_rel, y, setpoint, initial):
+    """step_metrics, or NaNs when the stage is empty or has no step."""
+    if len(y) == 0 or not math.isfinite(setpoint) or setpoint == initial:
+        return math.nan, math.nan, math.nan
+    m = step_metrics(t_rel, y, setpoint, initial)
+    return m.rms_error, m.overshoot_pct, m.settling_time_s
+
+
+def _time_at_limit(t_s: np.ndarray, voltage_v: np.ndarray, limit_v: float) -> float:
+    """Each motor_state sample holds over the interval ending at its stamp."""
+    if t_s.size < 2:
+        return 0.0
+    dt = np.diff(t_s)
+    at_limit = np.abs(voltage_v[1:]) >= limit_v - LIMIT_TOL_V
+    return float(np.sum(dt[at_limit]))
+
+
+def analyze_series(series: GraspSeries, voltage_limit_v: float = VOLTAGE_LIMIT_V) -> GraspMetrics:
+    """All figures of one grasp (pure numpy; metrics from gripper_ros.core.metrics)."""
+    stages = find_stages(series)
+    st, joint, sensor, motor, cmd = (series.status, series.joint, series.sensor, series.motor,
+                                     series.command)
+    t0, t_sw, t_end = stages.start_s, stages.switch_s, stages.end_s
+    in_grasp = _window(st.t_s, t0, t_end, include_hi=True) & (st.grasp_id == stages.grasp_id)
+    first = np.flatnonzero(in_grasp)[0]
+    pos_sp = float(st.position_setpoint_m[first])
+
+    # contact: plant truth (joint effort) first, supervisor's view as fallback
+    jmask = _window(joint.t_s, t0, t_end, include_hi=True)
+    contact = np.flatnonzero(jmask & (joint.contact_force_n > 0.0))
+    if contact.size:
+        time_to_contact = float(joint.t_s[contact[0]] - t0)
+    else:
+        c = np.flatnonzero(in_grasp & st.contact)
+        time_to_contact = float(st.t_s[c[0]] - t0) if c.size else math.nan
+
+    # position stage: [start, switch)
+    pos_end = t_sw if math.isfinite(t_sw) else t_end
+    pmask = _window(joint.t_s, t0, pos_end, include_hi=not math.isfinite(t_sw))
+    p_t, p_y = joint.t_s[pmask] - t0, joint.position_m[pmask]
+    p_init = float(p_y[0]) if p_y.size else math.nan
+    pos_rms, pos_os, pos_settle = _safe_step(p_t, p_y, pos_sp, p_init)
+
+    # force stage: [switch, end]
+    criterion, force_sp = 'NONE', math.nan
+    f_rms = f_os = f_settle = math.nan
+    if math.isfinite(t_sw):
+        at_sw = np.flatnonzero(in_grasp & (st.t_s >= t_sw))[0]
+        criterion = enum_name(SwitchCriterion, int(st.switch_criterion[at_sw]))
+        force_sp = float(st.force_setpoint_n[at_sw])
+        fmask = _window(sensor.t_s, t_sw, t_end, include_hi=True)
+        f_t, f_y = sensor.t_s[fmask] - t_sw, sensor.force_n[fmask]
+        f_init = float(f_y[0]) if f_y.size else math.nan
+        f_rms, f_os, f_settle = _safe_step(f_t, f_y, force_sp, f_init)
+    elif np.any(st.force_setpoint_n[in_grasp] > 0):
+        force_sp = float(st.force_setpoint_n[in_grasp][st.force_setpoint_n[in_grasp] > 0][0])
+
+    forces = joint.contact_force_n[jmask]
+    forces = forces[np.isfinite(forces)]
+    if forces.size == 0:
+        forces = sensor.force_n[_window(sensor.t_s, t0, t_end, include_hi=True)]
+    peak = float(np.max(forces)) if forces.size else math.nan
+    ratio = peak / force_sp if force_sp and math.isfinite(force_sp) else math.nan
+
+    # voltage: applied (motor_state) preferred, commands (hold_s each) as fallback
+    mmask = _window(motor.t_s, t0, t_end, include_hi=True)
+    if np.any(mmask):
+        volts = motor.voltage_v[mmask]
+        vmax = float(np.max(np.abs(volts)))
+        idx = np.flatnonzero(mmask)
+        t_lim = _time_at_limit(motor.t_s[idx], motor.voltage_v[idx], voltage_limit_v)
+    else:
+        cmask = _window(cmd.t_s, t0, t_end, include_hi=True)
+        volts = cmd.voltage_v[cmask]
+        vmax = float(np.max(np.abs(volts))) if volts.size else math.nan
+        t_lim = float(np.sum(cmd.hold_s[cmask][np.abs(volts) >= voltage_limit_v - LIMIT_TOL_V]))
+
+    jlast = np.flatnonzero(jmask)
+    final_pos_err = float(pos_sp - joint.position_m[jlast[-1]]) if jlast.size else math.nan
+    slast = np.flatnonzero(_window(sensor.t_s, t0, t_end, include_hi=True))
+    final_force_err = (float(force_sp - sensor.force_n[slast[-1]])
+                       if slast.size and math.isfinite(force_sp) else math.nan)
+
+    outcome_code = int(st.outcome[np.flatnonzero(in_grasp)[-1]])
+    return GraspMetrics(
+        bag=str(series.path), grasp_id=stages.grasp_id, outcome=enum_name(Outcome, outcome_code),
+        truncated=series.truncated, grasp_start_s=t0, grasp_end_s=t_end,
+        time_to_contact_s=time_to_contact,
+        switch_time_s=(t_sw - t0) if math.isfinite(t_sw) else math.nan,
+        switch_criterion=criterion, position_setpoint_m=pos_sp, position_rms_m=pos_rms,
+        position_overshoot_pct=pos_os, position_settling_s=pos_settle, force_setpoint_n=force_sp,
+        force_rms_n=f_rms, force_overshoot_pct=f_os, force_settling_s=f_settle,
+        peak_contact_force_n=peak, peak_force_ratio=ratio, max_abs_voltage_v=vmax,
+        time_at_voltage_limit_s=t_lim, final_position_error_m=final_pos_err,
+        final_force_error_n=final_force_err)
+
+
+# --- output -----------------------------------------------------------------------------------
+
+def _json_value(value):
+    if isinstance(value, float) and not math.isfinite(value):
+        return None if math.isnan(value) else ('inf' if value > 0 else '-inf')
+    return value
+
+
+def to_json(rows: list[GraspMetrics]) -> str:
+    """JSON list; NaN -> null, inf -> "inf" (strict JSON has neither)."""
+    return json.dumps([{k: _json_value(v) for k, v in asdict(r).items()} for r in rows], indent=2)
+
+
+def to_csv(rows: list[GraspMetrics]) -> str:
+    buf = io.StringIO()
+    fields = list(asdict(rows[0]).keys()) if rows else []
+    writer = csv.DictWriter(buf, fieldnames=fields, lineterminator='\n')
+    writer.writeheader()
+    for r in rows:
+        writer.writerow(asdict(r))
+    return buf.getvalue()
+
+
+def _cell(value) -> str:
+    if isinstance(value, bool):
+        return 'yes' if value else 'no'
+    if isinstance(value, float):
+        if math.isnan(value):
+            return '-'
+        if math.isinf(value):
+            return 'not settled' if value > 0 else '-inf'
+        return f'{value:.6g}'
+    return str(value)
+
+
+def to_table(rows: list[GraspMetrics]) -> str:
+    """Metric per line, one column per bag."""
+    if not rows:
+        return ''
+    fields = [f for f in asdict(rows[0]) if f != 'bag']
+    header = ['metric'] + [f'bag {i + 1}' for i in range(len(rows))]
+    body = [[f] + [_cell(getattr(r, f)) for r in rows] for f in fields]
+    widths = [max(len(line[c]) for line in [header] + body) for c in range(len(header))]
+    out = [f'bag {i + 1}: {r.bag}' for i, r in enumerate(rows)]
+    out.append('  '.join(h.ljust(w) for h, w in zip(header, widths)))
+    out.append('  '.join('-' * w for w in widths))
+    out.extend('  '.join(c.ljust(w) for c, w in zip(line, widths)) for line in body)
+    return '\n'.join(out)
+
+
+def plot(series_list: list[GraspSeries], metrics: list[GraspMetrics], path: str,
+         voltage_limit_v: float = VOLTAGE_LIMIT_V) -> None:
+    """Fig.-8-like grid: position, force, motor voltage, sensor voltage vs time; stages shaded."""
+    import matplotlib
+    matplotlib.use('Agg')
+    import matplotlib.pyplot as plt
+
+    ncols = len(series_list)
+    fig, axes = plt.subplots(4, ncols, figsize=(4.5 * ncols, 9), sharex='col', squeeze=False)
+    for col, (s, m) in enumerate(zip(series_list, metrics)):
+        t0 = m.grasp_start_s
+        t_sw = t0 + m.switch_time_s if math.isfinite(m.switch_time_s) else m.grasp_end_s
+        rows = [
+            (s.joint.t_s, s.joint.position_m * 1e3, 'position (mm)', m.position_setpoint_m * 1e3),
+            (s.sensor.t_s, s.sensor.force_n, 'force (N)', m.force_setpoint_n),
+            (s.motor.t_s, s.motor.voltage_v, 'motor voltage (V)', None),
+            (s.sensor.t_s, s.sensor.voltage_v, 'sensor voltage (V)', None),
+        ]
+        for r, (t, y, label, sp) in enumerate(rows):
+            ax = axes[r][col]
+            ax.axvspan(0.0, t_sw - t0, color='tab:blue', alpha=0.08,
+                       label='position stage' if r == 0 else None)
+            if math.isfinite(m.switch_time_s):
+                ax.axvspan(t_sw - t0, m.grasp_end_s - t0, color='tab:orange', alpha=0.10,
+                           label='force stage' if r == 0 else None)
+            if len(t) and r == 2:      # held over the interval ending at each stamp
+                ax.step(t - t0, y, where='pre', lw=1.2, color='k')
+            elif len(t):
+                ax.plot(t - t0, y, lw=1.2, color='k')
+            if sp is not None and math.isfinite(sp):
+                ax.axhline(sp, ls='--', lw=0.8, color='tab:red', label='setpoint')
+            if r == 2:
+                for lim in (voltage_limit_v, -voltage_limit_v):
+                    ax.axhline(lim, ls=':', lw=0.8, color='grey')
+            if col == 0:
+                ax.set_ylabel(label)
+            ax.grid(True, alpha=0.3)
+        axes[0][col].set_title(f'{s.path.name}\n{m.outcome}', fontsize=9)
+        axes[0][col].legend(fontsize=7, loc='best')
+        axes[3][col].set_xlabel('time from grasp start (s)')
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+# --- CLI --------------------------------------------------------------------------------------
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog=PROG, description='Step-response metrics of recorded '
+                                     'grasps (position and force stages).')
+    parser.add_argument('bags', metavar='BAG', nargs='+', help='bag folder or .mcap file')
+    fmt = parser.add_mutually_exclusive_group()
+    fmt.add_argument('--json', action='store_true', help='print JSON instead of the table')
+    fmt.add_argument('--csv', action='store_true', help='print CSV instead of the table')
+    parser.add_argument('--plot', metavar='FILE.png', help='also write a Fig.-8-like plot')
+    parser.add_argument('--voltage-limit', type=float, default=VOLTAGE_LIMIT_V, metavar='V',
+                        help='armature voltage limit for the time-at-limit figure (default 24)')
+    return parser
+
+
+def _fail(message: str) -> None:
+    print(f'{PROG}: error: {message}', file=sys.stderr)
+    sys.exit(EXIT_ERROR)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Exit 0; 1 on bad input (one line on stderr); 3 when a bag was truncated (figures printed)."""
+    args = build_parser().parse_args(argv)
+    if not (args.voltage_limit > 0 and math.isfinite(args.voltage_limit)):
+        _fail('--voltage-limit must be a positive number')
+    if args.plot and not args.plot.lower().endswith('.png'):
+        _fail(f'--plot needs a .png file name, got {args.plot!r}')
+    series_list, rows = [], []
+    for path in args.bags:
+        try:
+            series = load_grasp_series(path)
+            rows.append(analyze_series(series, args.voltage_limit))
+            series_list.append(series)
+        except BagError as exc:
+            _fail(str(exc))
+    if args.json:
+        print(to_json(rows))
+    elif args.csv:
+        print(to_csv(rows), end='')
+    else:
+        print(to_table(rows))
+    if args.plot:
+        try:
+            plot(series_list, rows, args.plot, args.voltage_limit)
+        except OSError as exc:
+            _fail(f'cannot write {args.plot}: {exc.strerror or exc}')
+    damaged = [s for s in series_list if s.truncated]
+    for s in damaged:
+        print(f'{PROG}: warning: {s.path}: truncated: {sum(s.counts.values())} complete messages '
+              f'recovered ({s.damage}); figures cover that part', file=sys.stderr)
+    if damaged:
+        sys.exit(EXIT_TRUNCATED)
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())

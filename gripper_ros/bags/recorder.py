@@ -1,0 +1,374 @@
+"""Record graph topics into a rosbag2 bag (MCAP storage) from inside an rclpy process.
+
+Why not rosbag2: it is not installable here (no ``ros2 bag``); why not ``rosbags``' Writer: it
+aborts without summary or metadata.yaml when an exception leaves its ``with`` block, and it
+cannot flush. This recorder writes the rosbag2 MCAP layout with the ``mcap`` library directly
+(``ros2`` profile, ``ros2msg`` schemas with their dependencies, ``cdr`` channels with
+``offered_qos_profiles``/``topic_type_hash``, a ``rosbag2`` metadata record, ``metadata.yaml``
+version 9), so ``ros2 bag info/play``, Foxglove, ``rosbags`` and ``mcap`` all read it.
+"""
+from __future__ import annotations
+
+import atexit
+import enum
+import functools
+import json
+import os
+import shutil
+import threading
+import time
+from pathlib import Path
+from typing import Any, Callable, Mapping
+
+import yaml
+from mcap.writer import CompressionType, Writer
+from rclpy.clock import Clock, ClockType
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+
+from gripper_ros.bags.reader import (
+    CUSTOM_DATA_RECORD, GRASP_TOPICS, import_message_class, message_definition,
+    type_hash_from_share,
+)
+
+ROS_DISTRO = 'jazzy'
+BAG_VERSION = 9
+_NS_PER_S = 1_000_000_000
+_INFINITE_NS = 0x7FFFFFFFFFFFFFFF  # RMW_DURATION_INFINITE
+
+
+class PublishTime(enum.Enum):
+    """What goes into an MCAP message's publish_time."""
+
+    RECEIVE = 'receive'   # same as log_time: the simulated receive time (one time base)
+    SOURCE = 'source'     # the publisher's DDS source timestamp (wall time)
+
+
+class BagRecorderError(Exception):
+    """Recorder set-up failure; the message is one line."""
+
+
+def _duration_dict(duration) -> dict:
+    ns = int(getattr(duration, 'nanoseconds', 0))
+    if ns >= _INFINITE_NS or ns < 0:
+        return {'sec': 9223372036, 'nsec': 854775807}
+    return {'sec': ns // _NS_PER_S, 'nsec': ns % _NS_PER_S}
+
+
+def _policy_name(policy) -> str:
+    return str(getattr(policy, 'name', policy)).lower()
+
+
+def qos_to_dict(qos: QoSProfile) -> dict:
+    """One rclpy QoS profile as a rosbag2 version-9 ``offered_qos_profiles`` entry."""
+    return {
+        'history': _policy_name(qos.history),
+        'depth': int(qos.depth),
+        'reliability': _policy_name(qos.reliability),
+        'durability': _policy_name(qos.durability),
+        'deadline': _duration_dict(qos.deadline),
+        'lifespan': _duration_dict(qos.lifespan),
+        'liveliness': _policy_name(qos.liveliness),
+        'liveliness_lease_duration': _duration_dict(qos.liveliness_lease_duration),
+        'avoid_ros_namespace_conventions': bool(qos.avoid_ros_namespace_conventions),
+    }
+
+
+def _custom_value(value: Any) -> str:
+    """rosbag2 custom_data is str -> str; structured values are stored as JSON."""
+    return value if isinstance(value, str) else json.dumps(value, sort_keys=True)
+
+
+def _prepare_dir(bag_dir: Path, overwrite: bool) -> None:
+    if bag_dir.exists() and not bag_dir.is_dir():
+        raise BagRecorderError(f'{bag_dir} exists and is not a folder')
+    if bag_dir.is_dir() and any(bag_dir.iterdir()):
+        if not overwrite:
+            raise BagRecorderError(f'{bag_dir} exists and is not empty (pass overwrite=True to '
+                                   f'replace a previous bag)')
+        foreign = [p.name for p in bag_dir.iterdir()
+                   if not (p.is_file() and (p.suffix == '.mcap' or p.name == 'metadata.yaml'))]
+        if foreign:
+            raise BagRecorderError(f'{bag_dir} holds more than a bag ({", ".join(foreign[:3])}); '
+                                   f'refusing to delete it')
+        shutil.rmtree(bag_dir)
+    bag_dir.mkdir(parents=True, exist_ok=True)
+
+
+class BagRecorder:
+    """Subscribe (raw CDR) to topics on a caller's node and write a rosbag2 MCAP bag.
+
+    Times: ``log_time`` is the receive time from ``time_source`` (ns; default the node's clock,
+    i.e. simulated time under ``use_sim_time`` -- which is 0 until the first /clock). A caller
+    that knows the tick better passes its own ``time_source``. ``publish_time`` is the same
+    (``PublishTime.RECEIVE``) or the DDS source timestamp (``PublishTime.SOURCE``, wall time).
+
+    Loss bound on SIGKILL: the writer is flushed (chunk closed and written to the OS) after every
+    ``flush_every_messages`` messages and, while the node is spun, by a steady-clock timer every
+    ``flush_every_s`` seconds when something is pending. A killed process therefore loses at most
+    the last ``flush_every_messages - 1`` messages, and at most those received in the last
+    ``flush_every_s`` seconds of wall time when the executor is running; everything before reads
+    back with ``gripper_ros.bags.reader.read_bag`` (flagged truncated). No fsync: a power cut can lose
+    more. ``close()`` (also on context-manager exit, even after an exception, and at interpreter
+    exit) writes the summary, the ``rosbag2`` record and ``metadata.yaml``.
+    """
+
+    def __init__(self, node: Node, bag_dir: str | os.PathLike,
+                 topics: Mapping[str, str] | None = None, *, qos_depth: int = 1000,
+                 time_source: Callable[[], int] | None = None,
+                 flush_every_messages: int = 100, flush_every_s: float = 0.5,
+                 custom_data: Mapping[str, Any] | None = None, overwrite: bool = False,
+                 publish_time: PublishTime = PublishTime.RECEIVE,
+                 compression: CompressionType = CompressionType.ZSTD,
+                 subscribe: bool = True):
+        if flush_every_messages < 1:
+            raise BagRecorderError('flush_every_messages must be >= 1')
+        if not flush_every_s > 0:
+            raise BagRecorderError('flush_every_s must be > 0')
+        self._node = node
+        self._bag_dir = Path(bag_dir)
+        self._topics = dict(GRASP_TOPICS if topics is None else topics)
+        if not self._topics:
+            raise BagRecorderError('no topics to record')
+        self._time_source = time_source or (lambda: node.get_clock().now().nanoseconds)
+        self._flush_every_messages = int(flush_every_messages)
+        self._publish_time = publish_time
+        self._lock = threading.RLock()
+        self._closed = False
+        self._custom_data: dict[str, str] = {}
+
+        classes, definitions = {}, {}
+        for topic, msgtype in self._topics.items():
+            try:
+                classes[topic] = import_message_class(msgtype)
+                if msgtype not in definitions:
+                    definitions[msgtype] = message_definition(msgtype)
+            except (LookupError, ValueError, OSError) as exc:
+                raise BagRecorderError(f'cannot record {topic}: {exc}') from None
+
+        _prepare_dir(self._bag_dir, overwrite)
+        self._mcap_path = self._bag_dir / f'{self._bag_dir.name}_0.mcap'
+        self._file = open(self._mcap_path, 'wb')  # noqa: SIM115 - closed in close()
+        self._writer = Writer(self._file, compression=compression)
+        self._writer.start(profile='ros2', library='gripper_ros.bags.recorder (mcap python)')
+        self._schema_ids = {t: self._writer.register_schema(t, 'ros2msg', d.encode('utf-8'))
+                            for t, d in definitions.items()}
+        self._channel_ids: dict[str, int] = {}
+        self._topic_meta: dict[str, dict] = {}
+        self._counts = {topic: 0 for topic in self._topics}
+        self._first_ns: int | None = None
+        self._last_ns: int | None = None
+        self._pending = 0
+        if custom_data:
+            self.set_custom_data(custom_data)
+
+        qos = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=int(qos_depth),
+                         reliability=ReliabilityPolicy.RELIABLE,
+                         durability=DurabilityPolicy.VOLATILE)
+        # subscribe=False: the caller owns long-lived subscriptions and calls write(). A volatile
+        # reader created just before a grasp can drop the first sample an idle writer sends it.
+        self._subscriptions = [
+            node.create_subscription(classes[topic], topic,
+                                     functools.partial(self._on_message, topic), qos, raw=True)
+            for topic in self._topics] if subscribe else []
+        self._timer = node.create_timer(flush_every_s, self._on_flush_timer,
+                                        clock=Clock(clock_type=ClockType.STEADY_TIME))
+        atexit.register(self.close)
+
+    # --- public API ---------------------------------------------------------------------------
+
+    @property
+    def bag_dir(self) -> Path:
+        return self._bag_dir
+
+    @property
+    def mcap_path(self) -> Path:
+        return self._mcap_path
+
+    @property
+    def counts(self) -> dict[str, int]:
+        """Messages written per topic so far."""
+        with self._lock:
+            return dict(self._counts)
+
+    @property
+    def message_count(self) -> int:
+        with self._lock:
+            return sum(self._counts.values())
+
+    @property
+    def closed(self) -> bool:
+        return self._closed
+
+    def set_custom_data(self, data: Mapping[str, Any]) -> None:
+        """Merge key/values into custom_data (e.g. grasp request and outcome).
+
+        Non-string values are stored as JSON. They are also written at once as an MCAP metadata
+        record and flushed, so even a killed recording keeps them.
+        """
+        with self._lock:
+            if self._closed:
+                raise BagRecorderError('recorder is closed')
+            self._custom_data.update({str(k): _custom_value(v) for k, v in data.items()})
+            self._writer.add_metadata(CUSTOM_DATA_RECORD, dict(self._custom_data))
+            self._flush_locked()
+
+    def write(self, topic: str, data: bytes) -> None:
+        """Record one serialized message received on ``topic`` (for subscribe=False)."""
+        self._on_message(topic, data)
+
+    def matched_publishers(self) -> dict[str, int]:
+        """Per topic, how many publishers this recorder's subscription has matched (reader side:
+        a volatile reader drops what a writer sent before the reader matched it)."""
+        return {topic: sub.get_publisher_count()
+                for topic, sub in zip(self._topics, self._subscriptions)}
+
+    def flush(self) -> None:
+        """Write everything received so far to the file (ends the current chunk)."""
+        with self._lock:
+            if not self._closed:
+                self._flush_locked()
+
+    def close(self) -> None:
+        """Stop recording, finish the MCAP (summary, ``rosbag2`` record) and write metadata.yaml.
+
+        Idempotent; safe after the node or rclpy context is gone.
+        """
+        with self._lock:
+            if self._closed:
+                return
+            self._closed = True
+        atexit.unregister(self.close)
+        for sub in self._subscriptions:
+            try:
+                self._node.destroy_subscription(sub)
+            except Exception:  # noqa: BLE001 - node already destroyed / context shut down
+                pass
+        try:
+            self._node.destroy_timer(self._timer)
+        except Exception:  # noqa: BLE001
+            pass
+        with self._lock:
+            errors = []
+            try:
+                for topic in self._topics:            # topics that never got a message
+                    self._channel_locked(topic)
+            except Exception as exc:  # noqa: BLE001
+                errors.append(exc)
+            info = self._metadata_locked()
+            try:
+                self._writer.add_metadata('rosbag2', {
+                    'serialized_metadata': yaml.safe_dump(info, sort_keys=False).strip()})
+                self._writer.finish()
+            except Exception as exc:  # noqa: BLE001
+                errors.append(exc)
+            finally:
+                self._file.close()
+            meta_path = self._bag_dir / 'metadata.yaml'
+            tmp = meta_path.with_suffix('.yaml.tmp')
+            tmp.write_text(yaml.safe_dump({'rosbag2_bagfile_information': info},
+                                          sort_keys=False), encoding='utf-8')
+            tmp.replace(meta_path)
+            if errors:
+                raise BagRecorderError(f'bag closed with errors: {errors[0]}') from errors[0]
+
+    def __enter__(self) -> BagRecorder:
+        return self
+
+    def __exit__(self, *exc_info) -> bool:
+        self.close()
+        return False
+
+    # --- internals ----------------------------------------------------------------------------
+
+    def _on_message(self, topic: str, data: bytes, info: Any = None) -> None:
+        t_ns = int(self._time_source())
+        with self._lock:
+            if self._closed:
+                return
+            if self._publish_time is PublishTime.SOURCE and isinstance(info, dict):
+                publish_ns = int(info.get('source_timestamp', t_ns))
+            else:
+                publish_ns = t_ns
+            channel_id = self._channel_locked(topic)
+            self._writer.add_message(channel_id, log_time=t_ns, data=bytes(data),
+                                     publish_time=publish_ns,
+                                     sequence=self._counts[topic] & 0xFFFFFFFF)
+            self._counts[topic] += 1
+            self._first_ns = t_ns if self._first_ns is None else min(self._first_ns, t_ns)
+            self._last_ns = t_ns if self._last_ns is None else max(self._last_ns, t_ns)
+            self._pending += 1
+            if self._pending >= self._flush_every_messages:
+                self._flush_locked()
+
+    def _on_flush_timer(self) -> None:
+        with self._lock:
+            if not self._closed and self._pending:
+                self._flush_locked()
+
+    def _flush_locked(self) -> None:
+        self._writer.flush()
+        self._pending = 0
+
+    def _publisher_qos_and_hash(self, topic: str, msgtype: str) -> tuple[list, str]:
+        """Offered QoS profiles of the current publishers and the type hash (rosbag2 does so)."""
+        profiles, type_hash = [], ''
+        try:
+            for endpoint in self._node.get_publishers_info_by_topic(topic):
+                profiles.append(qos_to_dict(endpoint.qos_profile))
+                text = str(getattr(endpoint, 'topic_type_hash', ''))
+                if text.startswith('RIHS') and not type_hash:
+                    type_hash = text
+        except Exception:  # noqa: BLE001 - graph query after shutdown
+            pass
+        return profiles, type_hash or type_hash_from_share(msgtype)
+
+    def _channel_locked(self, topic: str) -> int:
+        channel_id = self._channel_ids.get(topic)
+        if channel_id is None:
+            msgtype = self._topics[topic]
+            profiles, type_hash = self._publisher_qos_and_hash(topic, msgtype)
+            self._topic_meta[topic] = {'qos': profiles, 'type_hash': type_hash}
+            channel_id = self._writer.register_channel(
+                topic=topic, message_encoding='cdr', schema_id=self._schema_ids[msgtype],
+                metadata={'offered_qos_profiles': yaml.safe_dump(profiles, sort_keys=False)
+                          .strip() if profiles else '',
+                          'topic_type_hash': type_hash})
+            self._channel_ids[topic] = channel_id
+        return channel_id
+
+    def _metadata_locked(self) -> dict:
+        start = self._first_ns or 0
+        duration = (self._last_ns - self._first_ns) if self._first_ns is not None else 0
+        count = sum(self._counts.values())
+        return {
+            'version': BAG_VERSION,
+            'storage_identifier': 'mcap',
+            'duration': {'nanoseconds': duration},
+            'starting_time': {'nanoseconds_since_epoch': start},
+            'message_count': count,
+            'topics_with_message_count': [
+                {'topic_metadata': {
+                    'name': topic,
+                    'type': msgtype,
+                    'serialization_format': 'cdr',
+                    'offered_qos_profiles': self._topic_meta.get(topic, {}).get('qos', []),
+                    'type_description_hash': self._topic_meta.get(topic, {}).get('type_hash', ''),
+                 },
+                 'message_count': self._counts[topic]}
+                for topic, msgtype in self._topics.items()],
+            'compression_format': '',
+            'compression_mode': '',
+            'relative_file_paths': [self._mcap_path.name],
+            'files': [{'path': self._mcap_path.name,
+                       'starting_time': {'nanoseconds_since_epoch': start},
+                       'duration': {'nanoseconds': duration},
+                       'message_count': count}],
+            'custom_data': dict(self._custom_data),
+            'ros_distro': ROS_DISTRO,
+        }
+
+
+def wall_time_source() -> int:
+    """Wall-clock ns (for recordings outside the simulated graph)."""
+    return time.time_ns()

@@ -1,0 +1,355 @@
+"""``bag_replay BAG``: publish a recorded bag again (what ``ros2 bag play`` does; no rosbag2 here).
+
+Messages go out as recorded bytes (``Publisher.publish(bytes)``), paced by their recorded
+``log_time`` (simulated time in our bags) divided by ``--rate``. ``--clock`` publishes /clock
+from the bag's time so nodes with ``use_sim_time`` follow the replay.
+"""
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+import threading
+import time
+from dataclasses import dataclass, field
+from typing import Callable, Sequence
+
+from gripper_ros.bags.reader import (
+    EXIT_ERROR, EXIT_TRUNCATED, TOPIC_CLOCK, Bag, BagError, MissingTopicsError, RawMessage,
+    import_message_class, read_bag,
+)
+
+PROG = 'bag_replay'
+DEFAULT_DEPTH = 1000
+_PROGRESS_PERIOD_S = 0.1
+
+
+@dataclass
+class ReplayOptions:
+    """What to replay and how (mirrors ``ros2 bag play`` options)."""
+
+    rate: float = 1.0
+    loop: bool = False
+    start_offset_s: float = 0.0
+    topics: list[str] | None = None               # None = all topics of the bag
+    remap: dict[str, str] = field(default_factory=dict)
+    clock: bool = False
+    clock_hz: float = 0.0                          # 0: publish /clock at each new bag time only
+    delay_s: float = 0.0
+    wait_for_subscribers: int = 0
+    wait_timeout_s: float = 5.0
+    progress: bool = True
+
+
+def parse_remap(items: Sequence[str]) -> dict[str, str]:
+    """['old:=new', ...] -> {old: new}; ValueError with a one-line reason."""
+    out = {}
+    for item in items:
+        old, sep, new = item.partition(':=')
+        if not sep or not old or not new:
+            raise ValueError(f'bad --remap {item!r} (expected old:=new)')
+        out[old] = new
+    return out
+
+
+def select_messages(bag: Bag, options: ReplayOptions) -> list[RawMessage]:
+    """The messages to replay, in recorded order; raises BagError for unknown topics."""
+    if options.topics:
+        missing = [t for t in options.topics if t not in bag.topics]
+        if missing:
+            raise MissingTopicsError(f'{bag.path}: topics not in bag: {", ".join(missing)} '
+                                     f'(has: {", ".join(sorted(bag.topics))})')
+        wanted = set(options.topics)
+    else:
+        wanted = set(bag.topics)
+    if options.clock:
+        wanted.discard(TOPIC_CLOCK)                # one time source: ours
+    unknown = [old for old in options.remap if old not in bag.topics]
+    if unknown:
+        raise MissingTopicsError(f'{bag.path}: --remap of topics not in bag: {", ".join(unknown)}')
+    start_ns = bag.start_ns + int(round(options.start_offset_s * 1e9))
+    selected = [m for m in bag.messages if m.topic in wanted and m.log_time_ns >= start_ns]
+    if not selected:
+        raise BagError(f'{bag.path}: nothing to replay (check --topics and --start-offset)')
+    return selected
+
+
+def _qos_for(bag: Bag, topic: str):
+    """Reliability/durability as offered by the recorded publishers (depth from the bag or 1000)."""
+    from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+    profiles = bag.topics[topic].offered_qos_profiles or [{}]
+    first = profiles[0] if isinstance(profiles[0], dict) else {}
+    reliability = (ReliabilityPolicy.BEST_EFFORT if first.get('reliability') == 'best_effort'
+                   else ReliabilityPolicy.RELIABLE)
+    durability = (DurabilityPolicy.TRANSIENT_LOCAL if first.get('durability') == 'transient_local'
+                  else DurabilityPolicy.VOLATILE)
+    depth = int(first.get('depth') or 0) or DEFAULT_DEPTH
+    return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=max(depth, DEFAULT_DEPTH),
+                      reliability=reliability, durability=durability)
+
+
+class BagPlayer:
+    """Publishes a bag's messages on a caller's node with recorded timing."""
+
+    def __init__(self, node, bag: Bag, options: ReplayOptions | None = None):
+        self._node = node
+        self._bag = bag
+        self._options = options or ReplayOptions()
+        if not (self._options.rate > 0 and math.isfinite(self._options.rate)):
+            raise ValueError('rate must be a positive number')
+        self._messages = select_messages(bag, self._options)
+        classes = resolve_classes(bag, {m.topic for m in self._messages})
+        self._publishers = {
+            topic: node.create_publisher(cls, self._options.remap.get(topic, topic),
+                                         _qos_for(bag, topic))
+            for topic, cls in classes.items()}
+        self._clock_pub = None
+        if self._options.clock:
+            from rosgraph_msgs.msg import Clock
+            self._clock_pub = node.create_publisher(Clock, TOPIC_CLOCK, 10)
+        self.published = 0
+
+    @property
+    def messages(self) -> list[RawMessage]:
+        return list(self._messages)
+
+    def wait_for_subscribers(self, count: int, timeout_s: float) -> bool:
+        """Until every publisher has ``count`` matched subscriptions (no lost first messages)."""
+        deadline = time.monotonic() + timeout_s
+        while time.monotonic() < deadline:
+            if all(p.get_subscription_count() >= count for p in self._publishers.values()):
+                return True
+            time.sleep(0.01)
+        return False
+
+    def _publish_clock(self, t_ns: int) -> None:
+        from rosgraph_msgs.msg import Clock
+        msg = Clock()
+        msg.clock.sec, msg.clock.nanosec = divmod(int(t_ns), 1_000_000_000)
+        self._clock_pub.publish(msg)
+
+    def play(self, stop: threading.Event | None = None,
+             progress: Callable[[str], None] | None = None) -> int:
+        """Replay (looping if asked) until done or ``stop`` is set; returns messages published."""
+        opts = self._options
+        stop = stop or threading.Event()
+        if opts.wait_for_subscribers > 0:
+            if not self.wait_for_subscribers(opts.wait_for_subscribers, opts.wait_timeout_s):
+                print(f'{PROG}: warning: not all topics have {opts.wait_for_subscribers} '
+                      f'subscriber(s) after {opts.wait_timeout_s} s; playing anyway',
+                      file=sys.stderr)
+        if opts.delay_s > 0 and stop.wait(opts.delay_s):
+            return self.published
+        first_ns, last_ns = self._messages[0].log_time_ns, self._messages[-1].log_time_ns
+        span_s = (last_ns - first_ns) * 1e-9
+        loop_index = 0
+        while not stop.is_set():
+            wall0 = time.monotonic()
+            last_clock_ns, last_progress = None, 0.0
+            for i, msg in enumerate(self._messages):
+                target = wall0 + (msg.log_time_ns - first_ns) * 1e-9 / opts.rate
+                while True:
+                    now = time.monotonic()
+                    if target <= now or stop.is_set():
+                        break
+                    step = target - now
+                    if self._clock_pub is not None and opts.clock_hz > 0:
+                        step = min(step, 1.0 / opts.clock_hz)
+                        bag_ns = first_ns + int((now - wall0) * opts.rate * 1e9)
+                        self._publish_clock(bag_ns)
+                    stop.wait(step)
+                if stop.is_set():
+                    break
+                if self._clock_pub is not None and msg.log_time_ns != last_clock_ns:
+                    self._publish_clock(msg.log_time_ns)
+                    last_clock_ns = msg.log_time_ns
+                self._publishers[msg.topic].publish(msg.data)
+                self.published += 1
+                now = time.monotonic()
+                if progress is not None and (now - last_progress >= _PROGRESS_PERIOD_S
+                                             or i + 1 == len(self._messages)):
+                    last_progress = now
+                    progress(f'{(msg.log_time_ns - first_ns) * 1e-9:8.3f} / {span_s:.3f} s  '
+                             f'{i + 1}/{len(self._messages)} msgs'
+                             + (f'  loop {loop_index + 1}' if opts.loop else ''))
+            loop_index += 1
+            if not opts.loop:
+                break
+        self.wait_for_acks(2.0)
+        return self.published
+
+    def wait_for_acks(self, timeout_s: float) -> bool:
+        """Reliable readers acknowledged everything (so exiting right after loses nothing)."""
+        from rclpy.duration import Duration
+        ok = True
+        for pub in list(self._publishers.values()) + [p for p in [self._clock_pub] if p]:
+            try:
+                ok = pub.wait_for_all_acked(Duration(seconds=timeout_s)) and ok
+            except Exception:  # noqa: BLE001 - best effort publishers / shutdown
+                ok = False
+        return ok
+
+
+def resolve_classes(bag: Bag, topics: set[str]) -> dict[str, type]:
+    """Message class per topic (importlib); LookupError names the missing package."""
+    return {topic: import_message_class(bag.topics[topic].msgtype) for topic in sorted(topics)}
+
+
+def resimulate(bag: Bag | str, config_path: str | None = None, **kwargs):
+    """Re-simulation mode (``--resimulate [CONFIG.yaml]``): feed the bag's recorded measurements
+    through the controllers built from CONFIG (None/'' = the installed default), tick by tick as
+    the controller nodes answer them, and compare with the recorded commands (open loop: the
+    plant is not re-run). Returns a :class:`gripper_ros.bags.resimulate.ResimulationReport`.
+
+    Raises BagError (one line) for an unusable bag, ConfigError (one line) for an unusable
+    configuration. ``kwargs``: ``position_controller``, ``force_controller``,
+    ``approach_force_margin``, ``keep_ticks`` (see :func:`gripper_ros.bags.resimulate.resimulate_bag`).
+    """
+    from gripper_ros.bags.resimulate import resimulate_bag
+    return resimulate_bag(bag, config_path, **kwargs)
+
+
+# --- CLI --------------------------------------------------------------------------------------
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog=PROG, description='Replay a rosbag2 MCAP bag: raw '
+                                     'messages with recorded timing (like ros2 bag play).')
+    parser.add_argument('bag', metavar='BAG', help='bag folder or .mcap file')
+    parser.add_argument('-r', '--rate', type=float, default=1.0,
+                        help='playback rate factor (default 1.0)')
+    parser.add_argument('-l', '--loop', action='store_true', help='play again and again')
+    parser.add_argument('--start-offset', type=float, default=0.0, metavar='S',
+                        help='start this many seconds after the bag start')
+    parser.add_argument('--topics', nargs='+', metavar='TOPIC', help='only these topics')
+    parser.add_argument('--remap', nargs='+', default=[], metavar='OLD:=NEW',
+                        help='publish topic OLD as NEW')
+    parser.add_argument('--clock', nargs='?', type=float, const=0.0, default=None, metavar='HZ',
+                        help='publish /clock from bag time (at each new time; or also at HZ)')
+    parser.add_argument('-d', '--delay', type=float, default=0.0, metavar='S',
+                        help='wait this long after creating publishers')
+    parser.add_argument('--wait-for-subscribers', type=int, default=0, metavar='N',
+                        help='first wait until every topic has N subscribers (max 5 s)')
+    parser.add_argument('-q', '--quiet', action='store_true', help='no progress line')
+    resim = parser.add_argument_group(
+        're-simulation (open loop; nothing is published)',
+        'Feed the recorded measurements through the controllers of CONFIG.yaml tick by tick and '
+        'compare their commands with the recorded ones (the plant is not re-run).')
+    resim.add_argument('--resimulate', nargs='?', const='', default=None, metavar='CONFIG.yaml',
+                       help='re-simulate with this config (no value: the installed default)')
+    resim.add_argument('--position-controller', default=None,
+                       choices=['mpc_pd', 'pd', 'pid'],
+                       help='position controller kind (default: as recorded in the bag, '
+                            'else the node default mpc_pd)')
+    resim.add_argument('--force-controller', default=None,
+                       choices=['contact_aware', 'pi', 'mpc_pi'],
+                       help='force controller kind (default: as recorded, else pi: bags '
+                            'from before the kind was recorded used pi)')
+    resim.add_argument('--approach-force-margin', type=float, default=None, metavar='M',
+                       help='force controller cap before contact (default: as recorded, '
+                            'else 1.0; 0 = off)')
+    resim.add_argument('--json', action='store_true', help='print the comparison as JSON')
+    return parser
+
+
+def _fail(message: str, code: int = EXIT_ERROR) -> None:
+    print(f'{PROG}: error: {message}', file=sys.stderr)
+    sys.exit(code)
+
+
+def options_from_args(args: argparse.Namespace) -> ReplayOptions:
+    """Validated options; ValueError with a one-line reason."""
+    for name, value in (('--rate', args.rate), ('--start-offset', args.start_offset),
+                        ('--delay', args.delay)):
+        if not math.isfinite(value):
+            raise ValueError(f'{name} must be finite')
+    if args.rate <= 0:
+        raise ValueError('--rate must be > 0')
+    if args.start_offset < 0 or args.delay < 0:
+        raise ValueError('--start-offset and --delay must be >= 0')
+    if args.clock is not None and not (math.isfinite(args.clock) and args.clock >= 0):
+        raise ValueError('--clock HZ must be >= 0')
+    if args.wait_for_subscribers < 0:
+        raise ValueError('--wait-for-subscribers must be >= 0')
+    return ReplayOptions(rate=args.rate, loop=args.loop, start_offset_s=args.start_offset,
+                         topics=args.topics, remap=parse_remap(args.remap),
+                         clock=args.clock is not None, clock_hz=args.clock or 0.0,
+                         delay_s=args.delay, wait_for_subscribers=args.wait_for_subscribers,
+                         progress=not args.quiet)
+
+
+def _run_resimulation(args: argparse.Namespace) -> int:
+    """Exit 0 when it ran (identical or not); 1 bad bag/options, 2 bad config, 3 truncated bag."""
+    from gripper_ros.core.config import ConfigError
+    from gripper_ros.bags.resimulate import load_resim_config, to_json, to_table
+    try:
+        config = load_resim_config(args.resimulate)
+        bag = read_bag(args.bag)
+        # The recorder stores the graph's controller settings; explicit options override them.
+        recorded = bag.custom_data_parsed().get('controllers') or {}
+        if not isinstance(recorded, dict):
+            recorded = {}
+        position = args.position_controller or recorded.get('position_controller', 'mpc_pd')
+        force = args.force_controller or recorded.get('force_controller', 'pi')
+        margin = args.approach_force_margin
+        if margin is None:
+            margin = float(recorded.get('approach_force_margin', 1.0))
+        if not (math.isfinite(margin) and margin >= 0.0):
+            _fail('--approach-force-margin must be finite and >= 0')
+        report = resimulate(bag, config, position_controller=position, force_controller=force,
+                            approach_force_margin=margin)
+    except ConfigError as exc:
+        _fail(str(exc), code=2)
+    except BagError as exc:
+        _fail(str(exc))
+    print(to_json(report) if args.json else to_table(report))
+    if bag.truncated:
+        print(f'{PROG}: warning: {bag.truncation_note()}', file=sys.stderr)
+        sys.exit(EXIT_TRUNCATED)
+    return 0
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Exit 0; 1 on bad input (one line on stderr); 3 when the bag was truncated (what was
+    recovered is replayed). ``--resimulate``: see :func:`_run_resimulation`."""
+    args = build_parser().parse_args(argv)
+    if args.resimulate is not None:
+        return _run_resimulation(args)
+    if args.json:
+        _fail('--json only applies to --resimulate')
+    try:
+        options = options_from_args(args)
+        bag = read_bag(args.bag)
+        messages = select_messages(bag, options)
+        resolve_classes(bag, {m.topic for m in messages})
+    except (BagError, ValueError, LookupError) as exc:
+        _fail(str(exc))
+
+    import rclpy
+    from rclpy.executors import ExternalShutdownException
+
+    def show(line: str) -> None:
+        sys.stderr.write(f'\r[{PROG}] {line}\033[K')
+        sys.stderr.flush()
+
+    rclpy.init()
+    node = None
+    try:
+        node = rclpy.create_node('bag_replay')
+        player = BagPlayer(node, bag, options)
+        player.play(progress=show if options.progress else None)
+        if options.progress:
+            sys.stderr.write('\n')
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+    if bag.truncated:
+        print(f'{PROG}: warning: {bag.truncation_note()}', file=sys.stderr)
+        sys.exit(EXIT_TRUNCATED)
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())

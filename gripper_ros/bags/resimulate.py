@@ -1,0 +1,372 @@
+"""Open-loop re-simulation of a grasp bag: recorded measurements through the controllers of a
+configuration, tick by tick exactly as the controller nodes answer them, commands compared.
+
+``bag_replay BAG --resimulate [CONFIG.yaml]`` (or :func:`resimulate_bag`):
+
+1. every ``/gripper/supervisor/status`` of the bag, in recorded order, goes to both controllers
+   (:class:`gripper_ros.core.stages.LockstepAnswerer`, the code the nodes run);
+2. the controller the status names active answers it with the measurement of the same stamp:
+   ``/gripper/joint_states`` position for the position controller, ``/gripper/force_sensor``
+   ``force_n`` for the force controller. The first tick of a grasp is stamped with the plant
+   sample published *before* the recording started, so it has no measurement in the bag; the
+   supervisor's copy of that very measurement in the status (``position_m`` / ``force_n``) is
+   used instead (counted as ``measurements_from_status``);
+3. each answer is compared with the recorded ``/gripper/motor_command`` of the same
+   (source, grasp, stamp).
+
+OPEN LOOP: the plant is not re-run. The measurements are the recorded ones whatever the
+re-simulated controller commands, and the supervisor's decisions (switch tick, contact, seed
+voltage, end of the grasp) are the recorded ones too. With the configuration (and controller
+kinds) the bag was recorded with the commands are bit-identical; with changed gains the
+differences show what the new controller would have commanded *at the first ticks where it
+differs*; after that the recorded measurements no longer belong to the re-simulated commands.
+"""
+from __future__ import annotations
+
+import json
+import math
+import os
+import struct
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from gripper_ros.bags.reader import (
+    TOPIC_FORCE_SENSOR, TOPIC_JOINT_STATES, TOPIC_MOTOR_COMMAND, TOPIC_STATUS, Bag, BagError,
+    open_bag,
+)
+from gripper_ros.core.config import ConfigError, GripperConfig, default_config_path, parse_config
+from gripper_ros.core.stages import (
+    DEFAULT_APPROACH_FORCE_MARGIN, DEFAULT_FORCE_CONTROLLER, DEFAULT_POSITION_CONTROLLER,
+    SOURCE_FORCE, SOURCE_POSITION, ForceStageController, LockstepAnswerer,
+    PositionStageController,
+)
+from gripper_ros.core.controllers import ForceControllerKind, PositionControllerKind
+
+OPEN_LOOP_NOTE = ('open loop: the recorded measurements and supervisor decisions are replayed; '
+                  'the plant is NOT re-run, so they do not respond to changed commands')
+STAGE_NAMES = {SOURCE_POSITION: 'position', SOURCE_FORCE: 'force'}
+REQUIRED_TOPICS = (TOPIC_STATUS, TOPIC_MOTOR_COMMAND, TOPIC_JOINT_STATES, TOPIC_FORCE_SENSOR)
+
+
+class NothingToResimulateError(BagError):
+    """A bag in which no controller was ever named active."""
+
+
+def _one_line(text: object) -> str:
+    return ' '.join(str(text).split())
+
+
+def _bits(value: float) -> int:
+    return struct.unpack('<q', struct.pack('<d', float(value)))[0]
+
+
+def _stamp_ns(msg) -> int:
+    return int(msg.header.stamp.sec) * 1_000_000_000 + int(msg.header.stamp.nanosec)
+
+
+@dataclass
+class StageComparison:
+    """Re-simulated vs recorded commands of one controller (one stage) over the whole bag."""
+
+    stage: str
+    source: int
+    recorded: int = 0               # recorded commands of this source
+    resimulated: int = 0            # ticks the re-simulated controller answered
+    compared: int = 0               # ticks present in both
+    only_recorded: int = 0          # recorded commands with no re-simulated answer
+    only_resimulated: int = 0       # re-simulated answers with no recorded command
+    differing: int = 0              # compared ticks whose voltage differs (bitwise)
+    max_abs_dv_v: float = 0.0       # max |V_resim - V_recorded| over compared ticks
+    rms_dv_v: float = 0.0           # RMS of V_resim - V_recorded over compared ticks
+    max_abs_d_inner: float = 0.0    # same for the inner setpoint (DMC output / setpoint)
+    first_diff_tick: int | None = None      # index among this stage's compared ticks
+    first_diff_t_s: float | None = None     # simulated time (header stamp) of that tick
+    first_diff_recorded_v: float | None = None
+    first_diff_resimulated_v: float | None = None
+    hold_s_recorded: float | None = None    # hold_s of the recorded commands (first one)
+    hold_s_config: float | None = None      # sample time of the re-simulated controller
+    nonfinite_measurements: int = 0         # ticks answered with 0 V (non-finite measurement)
+
+    @property
+    def identical(self) -> bool:
+        return (self.differing == 0 and self.only_recorded == 0 and self.only_resimulated == 0)
+
+
+@dataclass
+class ResimulationReport:
+    bag: str
+    config: str
+    position_controller: str
+    force_controller: str
+    approach_force_margin: float
+    grasp_ids: list[int]
+    status_ticks: int
+    measurements_from_status: int
+    truncated: bool
+    stages: dict[str, StageComparison] = field(default_factory=dict)
+    note: str = OPEN_LOOP_NOTE
+    ticks: list[dict] = field(default_factory=list, repr=False)   # per tick, with keep_ticks
+
+    @property
+    def identical(self) -> bool:
+        """Every command bit-identical and no tick only on one side."""
+        return all(s.identical for s in self.stages.values())
+
+    def to_dict(self, with_ticks: bool = False) -> dict[str, Any]:
+        out = {k: v for k, v in asdict(self).items() if k not in ('stages', 'ticks')}
+        out['identical'] = self.identical
+        out['stages'] = {name: {**asdict(s), 'identical': s.identical}
+                         for name, s in self.stages.items()}
+        if with_ticks:
+            out['ticks'] = self.ticks
+        return out
+
+
+def _json_value(value):
+    if isinstance(value, float) and not math.isfinite(value):
+        return None if math.isnan(value) else ('inf' if value > 0 else '-inf')
+    if isinstance(value, dict):
+        return {k: _json_value(v) for k, v in value.items()}
+    if isinstance(value, list):
+        return [_json_value(v) for v in value]
+    return value
+
+
+def to_json(report: ResimulationReport, with_ticks: bool = False) -> str:
+    return json.dumps(_json_value(report.to_dict(with_ticks)), indent=2)
+
+
+def load_resim_config(config_path: str | os.PathLike | None) -> GripperConfig:
+    """The configuration to re-simulate with (None or '' = the installed default), read like
+    :func:`gripper_ros.core.config.load_config`; ConfigError with a one-line message."""
+    path = Path(config_path) if config_path else default_config_path()
+    try:
+        text = path.read_text(encoding='utf-8')
+    except IsADirectoryError:
+        raise ConfigError(f'cannot read config file {path}: is a directory') from None
+    except OSError as exc:
+        raise ConfigError(f'cannot read config file {path}: {exc.strerror or exc}') from None
+    except UnicodeDecodeError:
+        raise ConfigError(f'config file {path} is not UTF-8 text') from None
+    try:
+        data = yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, 'problem_mark', None)
+        problem = getattr(exc, 'problem', None) or str(exc)
+        where = f' (line {mark.line + 1}, column {mark.column + 1})' if mark is not None else ''
+        raise ConfigError(f'config file {path} is not valid YAML: '
+                          f'{_one_line(problem)}{where}') from None
+    try:
+        return parse_config(data, str(path))
+    except ConfigError as exc:
+        raise ConfigError(_one_line(exc)) from None
+
+
+def build_stages(config: GripperConfig,
+                 position_controller: PositionControllerKind | str = DEFAULT_POSITION_CONTROLLER,
+                 force_controller: ForceControllerKind | str = DEFAULT_FORCE_CONTROLLER,
+                 approach_force_margin: float = DEFAULT_APPROACH_FORCE_MARGIN):
+    """The two stage controllers, exactly as the nodes build them; ConfigError when the
+    configuration cannot give a controller (e.g. a force pole faster than the loop allows)."""
+    try:
+        return (PositionStageController(config, position_controller),
+                ForceStageController(config, force_controller, approach_force_margin))
+    except ConfigError:
+        raise
+    except (ValueError, ArithmeticError, ImportError) as exc:
+        raise ConfigError(f'{config.source}: cannot build the controllers: '
+                          f'{_one_line(exc)}') from None
+
+
+def resimulate_bag(bag: Bag | str | os.PathLike, config: GripperConfig | str | os.PathLike | None,
+                   position_controller: PositionControllerKind | str = DEFAULT_POSITION_CONTROLLER,
+                   force_controller: ForceControllerKind | str = DEFAULT_FORCE_CONTROLLER,
+                   approach_force_margin: float = DEFAULT_APPROACH_FORCE_MARGIN,
+                   keep_ticks: bool = False) -> ResimulationReport:
+    """Re-simulate every controller tick of ``bag`` with ``config`` (a GripperConfig, a YAML
+    path, or None for the installed default) and compare with the recorded commands.
+
+    Raises BagError (one line) for an unusable bag and ConfigError (one line) for an unusable
+    configuration. A truncated bag is re-simulated up to the damage (``report.truncated``).
+    With ``keep_ticks`` the report holds one row per compared tick (for plots and debugging).
+    """
+    if not isinstance(config, GripperConfig):
+        config = load_resim_config(config)
+    position, force = build_stages(config, position_controller, force_controller,
+                                   approach_force_margin)
+    bag = open_bag(bag)
+    bag.require_topics(REQUIRED_TOPICS)
+
+    joint_at: dict[int, float] = {}
+    force_at: dict[int, float] = {}
+    statuses: list = []
+    recorded: dict[tuple[int, int, int], Any] = {}
+    recorded_order: dict[int, list[tuple[int, int, int]]] = {SOURCE_POSITION: [],
+                                                              SOURCE_FORCE: []}
+    for raw in bag.messages:
+        if raw.topic == TOPIC_JOINT_STATES:
+            m = bag.decode(raw)
+            joint_at[_stamp_ns(m)] = m.position[0] if len(m.position) else math.nan
+        elif raw.topic == TOPIC_FORCE_SENSOR:
+            m = bag.decode(raw)
+            force_at[_stamp_ns(m)] = m.force_n
+        elif raw.topic == TOPIC_STATUS:
+            statuses.append(bag.decode(raw))
+        elif raw.topic == TOPIC_MOTOR_COMMAND:
+            m = bag.decode(raw)
+            key = (int(m.source), int(m.grasp_id), _stamp_ns(m))
+            if key not in recorded and int(m.source) in recorded_order:
+                recorded_order[int(m.source)].append(key)
+            recorded[key] = m
+
+    stages = {SOURCE_POSITION: position, SOURCE_FORCE: force}
+    answerers = {src: LockstepAnswerer(stage) for src, stage in stages.items()}
+    measurements = {SOURCE_POSITION: (joint_at, 'position_m'), SOURCE_FORCE: (force_at, 'force_n')}
+    answers: dict[tuple[int, int, int], Any] = {}
+    nonfinite = {SOURCE_POSITION: 0, SOURCE_FORCE: 0}
+    from_status = 0
+    grasp_ids: list[int] = []
+    for status in statuses:
+        for answerer in answerers.values():
+            answerer.on_status(status)
+        src = int(status.active_controller)
+        if src not in answerers:
+            continue
+        stamp = _stamp_ns(status)
+        table, status_field = measurements[src]
+        if stamp in table:
+            value = table[stamp]
+        else:
+            value = getattr(status, status_field)
+            from_status += 1
+        answer = answerers[src].answer(status, stamp, value)
+        if answer is None:
+            continue
+        if int(status.grasp_id) not in grasp_ids:
+            grasp_ids.append(int(status.grasp_id))
+        if not answer.finite:
+            nonfinite[src] += 1
+        answers[(src, int(status.grasp_id), stamp)] = answer
+    if not answers:
+        raise NothingToResimulateError(f'{bag.path}: no supervisor status names a controller '
+                                       f'active (no grasp tick to re-simulate)')
+
+    report = ResimulationReport(
+        bag=str(bag.path), config=str(config.source),
+        position_controller=position.kind.value, force_controller=force.kind.value,
+        approach_force_margin=force.approach_margin, grasp_ids=grasp_ids,
+        status_ticks=len(statuses), measurements_from_status=from_status,
+        truncated=bag.truncated)
+    # A truncated bag may end with a tick whose status and measurement were written but whose
+    # command was cut off: answers past the last recorded command are beyond the damage.
+    last_recorded = (max(k[1:] for k in recorded) if bag.truncated and recorded
+                     else (math.inf, math.inf))
+    for src, stage in stages.items():
+        cmp = StageComparison(stage=STAGE_NAMES[src], source=src,
+                              hold_s_config=stage.sample_time_s)
+        cmp.recorded = len(recorded_order[src])
+        cmp.resimulated = sum(1 for k in answers if k[0] == src)
+        cmp.nonfinite_measurements = nonfinite[src]
+        sq_sum = 0.0
+        for key in recorded_order[src]:
+            rec = recorded[key]
+            if cmp.hold_s_recorded is None:
+                cmp.hold_s_recorded = float(rec.hold_s)
+            sim = answers.get(key)
+            if sim is None:
+                cmp.only_recorded += 1
+                continue
+            index = cmp.compared
+            cmp.compared += 1
+            rec_v, sim_v = float(rec.voltage_v), float(sim.voltage_v)
+            dv = sim_v - rec_v
+            same = _bits(rec_v) == _bits(sim_v)
+            if not same:
+                cmp.differing += 1
+                if cmp.first_diff_tick is None:
+                    cmp.first_diff_tick = index
+                    cmp.first_diff_t_s = key[2] * 1e-9
+                    cmp.first_diff_recorded_v = rec_v
+                    cmp.first_diff_resimulated_v = sim_v
+                if math.isfinite(dv):
+                    sq_sum += dv * dv
+                    cmp.max_abs_dv_v = max(cmp.max_abs_dv_v, abs(dv))
+                else:                                        # NaN/inf on one side only
+                    cmp.max_abs_dv_v = math.inf
+                    sq_sum = math.inf
+            d_inner = float(sim.inner_setpoint) - float(rec.inner_setpoint)
+            if d_inner != 0.0:
+                cmp.max_abs_d_inner = max(cmp.max_abs_d_inner,
+                                          abs(d_inner) if math.isfinite(d_inner) else math.inf)
+            if keep_ticks:
+                report.ticks.append({'stage': cmp.stage, 'grasp_id': key[1], 't_s': key[2] * 1e-9,
+                                     'recorded_v': rec_v, 'resimulated_v': sim_v,
+                                     'recorded_inner': float(rec.inner_setpoint),
+                                     'resimulated_inner': float(sim.inner_setpoint)})
+        cmp.only_resimulated = sum(1 for k in answers if k[0] == src and k not in recorded
+                                   and k[1:] <= last_recorded)
+        cmp.rms_dv_v = math.sqrt(sq_sum / cmp.compared) if cmp.compared else 0.0
+        report.stages[cmp.stage] = cmp
+    return report
+
+
+# --- text output ------------------------------------------------------------------------------
+
+def _g(value, fmt: str = '.6g') -> str:
+    if value is None:
+        return '-'
+    if isinstance(value, float) and math.isnan(value):
+        return 'nan'
+    return format(value, fmt)
+
+
+def to_table(report: ResimulationReport) -> str:
+    """Terminal report: header, one row per stage, verdict, open-loop note."""
+    lines = [
+        f'bag:         {report.bag}' + ('  (TRUNCATED: re-simulated up to the damage)'
+                                        if report.truncated else ''),
+        f'config:      {report.config}',
+        f'controllers: position {report.position_controller}, force {report.force_controller}, '
+        f'approach_force_margin {report.approach_force_margin:g}',
+        f'grasp ids:   {", ".join(str(g) for g in report.grasp_ids)}   status ticks: '
+        f'{report.status_ticks}   first-tick measurements from status: '
+        f'{report.measurements_from_status}',
+        '',
+    ]
+    header = ['stage', 'recorded', 'resim', 'compared', 'differing', 'max|dV| (V)',
+              'RMS dV (V)', 'max|d inner|', 'first differing tick']
+    rows = []
+    for s in report.stages.values():
+        first = ('-' if s.first_diff_tick is None else
+                 f'#{s.first_diff_tick} t={s.first_diff_t_s:.4f} s: '
+                 f'{s.first_diff_recorded_v:.6g} -> {s.first_diff_resimulated_v:.6g} V '
+                 f'(dV {s.first_diff_resimulated_v - s.first_diff_recorded_v:+.3g})')
+        rows.append([s.stage, str(s.recorded), str(s.resimulated), str(s.compared),
+                     str(s.differing), _g(s.max_abs_dv_v), _g(s.rms_dv_v),
+                     _g(s.max_abs_d_inner), first])
+    widths = [max(len(r[c]) for r in [header] + rows) for c in range(len(header))]
+    lines.append('  '.join(h.ljust(w) for h, w in zip(header, widths)).rstrip())
+    lines.append('  '.join('-' * w for w in widths))
+    lines.extend('  '.join(c.ljust(w) for c, w in zip(r, widths)).rstrip() for r in rows)
+    lines.append('')
+    for s in report.stages.values():
+        extra = []
+        if s.only_recorded or s.only_resimulated:
+            extra.append(f'{s.only_recorded} recorded tick(s) not answered, '
+                         f'{s.only_resimulated} answered tick(s) not recorded')
+        if (s.hold_s_recorded is not None and s.hold_s_config is not None
+                and s.hold_s_recorded != s.hold_s_config):
+            extra.append(f'hold_s {s.hold_s_recorded:g} s recorded vs {s.hold_s_config:g} s in '
+                         f'the config (ticks stay the recorded ones)')
+        if s.nonfinite_measurements:
+            extra.append(f'{s.nonfinite_measurements} non-finite measurement(s): 0 V held')
+        for text in extra:
+            lines.append(f'{s.stage}: {text}')
+    verdict = ('IDENTICAL: every command is bit-identical to the recording' if report.identical
+               else 'DIFFERENT: the re-simulated commands differ from the recording')
+    lines.append(f'result: {verdict}')
+    lines.append(f'note: {report.note}')
+    return '\n'.join(lines)

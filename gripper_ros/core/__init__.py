@@ -1,0 +1,1 @@
+"""The numeric core: plant, sensor, controllers, supervisor logic, headless loop (no rclpy)."""

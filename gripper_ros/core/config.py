@@ -1,0 +1,286 @@
+"""The one reader of ``config/gripper.yaml`` (Table I plant, Table II gains, sensor, supervisor).
+
+Everything numeric the package uses comes through :func:`load_config`; nodes turn these values
+into ROS parameter defaults. A bad file stops with a :class:`ConfigError` naming the key.
+"""
+from __future__ import annotations
+
+import math
+import os
+from dataclasses import MISSING, dataclass, fields
+from pathlib import Path
+
+import yaml
+
+PACKAGE_NAME = 'gripper_ros'
+CONFIG_FILE_NAME = 'gripper.yaml'
+
+
+class ConfigError(ValueError):
+    """A configuration file is missing, unreadable or holds a bad value (message names the key)."""
+
+
+@dataclass(frozen=True)
+class PlantParams:
+    """Table I, SI units."""
+
+    inertia_kg_m2: float
+    damping_n_m_s_per_rad: float
+    gear_ratio: float
+    resistance_ohm: float
+    inductance_h: float
+    pitch_m: float
+    torque_constant_n_m_per_a: float
+    back_emf_v_s_per_rad: float
+    efficiency: float
+    max_travel_m: float
+    gravity_mps2: float
+    voltage_limit_v: float
+    contact_substep_s: float
+
+    @property
+    def force_lever_m(self) -> float:
+        """eta * p * N1/N2: motor torque per newton of gripping force (eq. 12)."""
+        return self.efficiency * self.pitch_m * self.gear_ratio
+
+    @property
+    def travel_per_rad_m(self) -> float:
+        """p / (2 pi): finger travel per motor radian (eq. 10)."""
+        return self.pitch_m / (2.0 * math.pi)
+
+    @property
+    def stall_force_per_volt_n(self) -> float:
+        """DC gain of eq. 13: gripping force per volt with the finger stalled."""
+        return self.torque_constant_n_m_per_a / (self.force_lever_m * self.resistance_ohm)
+
+    @property
+    def max_force_n(self) -> float:
+        """Largest steady gripping force the voltage limit allows."""
+        return self.stall_force_per_volt_n * self.voltage_limit_v
+
+
+@dataclass(frozen=True)
+class ContactParams:
+    stiffness_n_per_m: float
+    damping_n_s_per_m: float
+
+
+@dataclass(frozen=True)
+class ForceSensorParams:
+    supply_v: float
+    measuring_resistor_ohm: float
+    fsr_resistance_at_1n_ohm: float
+    open_resistance_ohm: float
+    activation_force_n: float
+
+
+@dataclass(frozen=True)
+class PidGains:
+    kc: float
+    ki: float = 0.0
+    kd: float = 0.0
+
+
+@dataclass(frozen=True)
+class DmcTuning:
+    horizon: int
+    control_horizon: int
+    move_suppression: float
+
+
+@dataclass(frozen=True)
+class PositionControlParams:
+    sample_time_s: float
+    pd: PidGains
+    pid: PidGains
+    mpc_pd: PidGains
+    mpc_pd_dmc: DmcTuning
+    mpc_pd_braking_voltage_v: float     # ours: braking-governor planning voltage
+
+
+@dataclass(frozen=True)
+class ContactForceTuning:
+    """The contact-aware force stage (gripper_ros/contact_force.py), ours."""
+
+    approach_time_constant_s: float      # before contact, speed reference = gap / this ...
+    contact_speed_mps_per_n: float       # ... + this x F_sp: the speed at which contact is made
+    contact_force_fraction: float        # contact once the force exceeds this x F_sp
+    force_gain_v_per_n: float            # Kp on the force error after contact
+    damping_ratio: float                 # of the spring mode, via velocity damping
+    max_damping_v_s_per_m: float         # damping gain cap (also the approach tracking gain)
+    integral_gain_v_per_n_s: float       # model-error trim, only while at rest in contact
+    integral_speed_band_mps: float       # "at rest": |finger speed| below this
+    min_travel_for_stiffness_m: float    # stiffness F/d estimated once d exceeds this
+
+
+@dataclass(frozen=True)
+class ForceControlParams:
+    paper_sample_time_s: float
+    pi_paper: PidGains
+    mpc_pi_paper: PidGains
+    mpc_pi_paper_dmc: DmcTuning
+    sample_time_s: float
+    closed_loop_pole: float
+    mpc_pi_dmc: DmcTuning
+    contact_aware: ContactForceTuning
+
+
+@dataclass(frozen=True)
+class SupervisorParams:
+    friction_coefficient: float
+    acceleration_mps2: float
+    position_tolerance_fraction: float
+    sensor_voltage_threshold_v: float
+    force_settle_band_fraction: float
+    force_settle_hold_s: float
+    timeout_s: float
+    no_object_margin_m: float
+    # Loss watch and release (defaults apply when a config file predates them).
+    hold_watch_s: float = 0.02           # force loop keeps holding and watching before HOLDING
+    lost_force_fraction: float = 0.5     # OBJECT_LOST: force below this x F_sp after a grip ...
+    lost_force_hold_s: float = 0.002     # ... for this long
+    release_tolerance_m: float = 0.001   # release done within this of the open position ...
+    release_settle_s: float = 0.05       # ... for this long
+    position_switch_speed_mps: float = 0.0  # switch 1 also needs |speed| <= this (0: paper's)
+    width_tolerance_m: float = 0.0       # default +- on a request's width (Franka's epsilon)
+
+
+@dataclass(frozen=True)
+class GripperConfig:
+    plant: PlantParams
+    contact: ContactParams
+    force_sensor: ForceSensorParams
+    position: PositionControlParams
+    force: ForceControlParams
+    supervisor: SupervisorParams
+    source: str
+
+
+def default_config_path() -> Path:
+    """The installed ``share/gripper_ros/config/gripper.yaml``, else the source tree's copy."""
+    env = os.environ.get('GRIPPER_ROS_CONFIG')
+    if env:
+        return Path(env)
+    try:
+        from ament_index_python.packages import get_package_share_directory
+        installed = Path(get_package_share_directory(PACKAGE_NAME)) / 'config' / CONFIG_FILE_NAME
+        if installed.is_file():
+            return installed
+    except (ImportError, LookupError, ValueError, OSError):
+        pass
+    return Path(__file__).resolve().parents[2] / 'config' / CONFIG_FILE_NAME
+
+
+def _section(data: dict, key: str, where: str) -> dict:
+    value = data.get(key)
+    if not isinstance(value, dict):
+        raise ConfigError(f'{where}: missing section "{key}"')
+    return value
+
+
+def _number(section: dict, key: str, where: str, *, positive: bool = False,
+            nonnegative: bool = False, integer: bool = False) -> float:
+    name = f'{where}.{key}'
+    if key not in section:
+        raise ConfigError(f'missing key "{name}"')
+    value = section[key]
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise ConfigError(f'"{name}" must be a number, got {value!r}')
+    value = float(value)
+    if not math.isfinite(value):
+        raise ConfigError(f'"{name}" must be finite, got {value!r}')
+    if positive and value <= 0.0:
+        raise ConfigError(f'"{name}" must be > 0, got {value!r}')
+    if nonnegative and value < 0.0:
+        raise ConfigError(f'"{name}" must be >= 0, got {value!r}')
+    if integer:
+        if value != int(value):
+            raise ConfigError(f'"{name}" must be a whole number, got {value!r}')
+        return int(value)
+    return value
+
+
+def _build(cls, section: dict, where: str, **rules):
+    kwargs = {}
+    for f in fields(cls):
+        opts = rules.get(f.name, {'positive': True})
+        if f.name not in section and f.default is not MISSING:
+            kwargs[f.name] = f.default
+            continue
+        kwargs[f.name] = _number(section, f.name, where, **opts)
+    return cls(**kwargs)
+
+
+def _gains(section: dict, key: str, where: str) -> PidGains:
+    return _build(PidGains, _section(section, key, where), f'{where}.{key}',
+                  kc={'nonnegative': True}, ki={'nonnegative': True}, kd={'nonnegative': True})
+
+
+def _dmc(section: dict, where: str) -> DmcTuning:
+    return _build(DmcTuning, section, where,
+                  horizon={'positive': True, 'integer': True},
+                  control_horizon={'positive': True, 'integer': True},
+                  move_suppression={'positive': True})
+
+
+def parse_config(data: dict, source: str = '<dict>') -> GripperConfig:
+    """Validate a loaded YAML mapping into a :class:`GripperConfig`."""
+    if not isinstance(data, dict):
+        raise ConfigError(f'{source}: top level must be a mapping')
+    plant = _build(PlantParams, _section(data, 'plant', source), 'plant')
+    contact = _build(ContactParams, _section(data, 'contact', source), 'contact',
+                     stiffness_n_per_m={'nonnegative': True},
+                     damping_n_s_per_m={'nonnegative': True})
+    sensor = _build(ForceSensorParams, _section(data, 'force_sensor', source), 'force_sensor')
+    pos = _section(data, 'position_control', source)
+    mpc_pd = _section(pos, 'mpc_pd', 'position_control')
+    position = PositionControlParams(
+        sample_time_s=_number(pos, 'sample_time_s', 'position_control', positive=True),
+        pd=_gains(pos, 'pd', 'position_control'),
+        pid=_gains(pos, 'pid', 'position_control'),
+        mpc_pd=_gains(pos, 'mpc_pd', 'position_control'),
+        mpc_pd_dmc=_dmc(mpc_pd, 'position_control.mpc_pd'),
+        mpc_pd_braking_voltage_v=_number(pos, 'mpc_pd_braking_voltage_v', 'position_control',
+                                         nonnegative=True))
+    frc = _section(data, 'force_control', source)
+    force = ForceControlParams(
+        paper_sample_time_s=_number(frc, 'paper_sample_time_s', 'force_control', positive=True),
+        pi_paper=_gains(frc, 'pi_paper', 'force_control'),
+        mpc_pi_paper=_gains(frc, 'mpc_pi_paper', 'force_control'),
+        mpc_pi_paper_dmc=_dmc(_section(frc, 'mpc_pi_paper', 'force_control'),
+                              'force_control.mpc_pi_paper'),
+        sample_time_s=_number(frc, 'sample_time_s', 'force_control', positive=True),
+        closed_loop_pole=_number(frc, 'closed_loop_pole', 'force_control', nonnegative=True),
+        mpc_pi_dmc=_dmc(_section(frc, 'mpc_pi', 'force_control'), 'force_control.mpc_pi'),
+        contact_aware=_build(ContactForceTuning, _section(frc, 'contact_aware', 'force_control'),
+                             'force_control.contact_aware',
+                             integral_gain_v_per_n_s={'nonnegative': True}))
+    if not force.closed_loop_pole < 1.0:
+        raise ConfigError('"force_control.closed_loop_pole" must be in [0, 1) for a stable loop, '
+                          f'got {force.closed_loop_pole!r}')
+    if position.mpc_pd_braking_voltage_v > plant.voltage_limit_v:
+        raise ConfigError('"position_control.mpc_pd_braking_voltage_v" must be <= '
+                          f'"plant.voltage_limit_v", got {position.mpc_pd_braking_voltage_v!r}')
+    sup = _build(SupervisorParams, _section(data, 'supervisor', source), 'supervisor',
+                 acceleration_mps2={'nonnegative': True}, hold_watch_s={'nonnegative': True},
+                 release_settle_s={'nonnegative': True},
+                 position_switch_speed_mps={'nonnegative': True},
+                 width_tolerance_m={'nonnegative': True})
+    if not sup.lost_force_fraction < 1.0:
+        raise ConfigError('"supervisor.lost_force_fraction" must be in (0, 1), '
+                          f'got {sup.lost_force_fraction!r}')
+    return GripperConfig(plant, contact, sensor, position, force, sup, source)
+
+
+def load_config(path: str | os.PathLike | None = None) -> GripperConfig:
+    """Load and validate the YAML file (default: the package's ``config/gripper.yaml``)."""
+    file_path = Path(path) if path is not None else default_config_path()
+    try:
+        text = file_path.read_text(encoding='utf-8')
+    except OSError as exc:
+        raise ConfigError(f'cannot read config file {file_path}: {exc.strerror}') from None
+    try:
+        data = yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        raise ConfigError(f'config file {file_path} is not valid YAML: {exc}') from None
+    return parse_config(data, str(file_path))

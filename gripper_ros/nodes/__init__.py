@@ -1,0 +1,1 @@
+"""The rclpy nodes and what they share: names, QoS, executors, the in-process graph."""

@@ -1,0 +1,193 @@
+"""What every node of the graph shares: topic names, QoS, time stamps, config parameter."""
+from __future__ import annotations
+
+import enum
+import time
+
+from builtin_interfaces.msg import Time
+from rcl_interfaces.msg import ParameterDescriptor
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+
+from gripper_ros.core.config import GripperConfig, load_config
+
+TOPIC_CLOCK = '/clock'
+TOPIC_JOINT_STATES = '/gripper/joint_states'
+TOPIC_FORCE_SENSOR = '/gripper/force_sensor'
+TOPIC_MOTOR_STATE = '/gripper/motor_state'
+TOPIC_STATUS = '/gripper/supervisor/status'
+TOPIC_MOTOR_COMMAND = '/gripper/motor_command'
+# The final status of the last grasp or release, latched (transient local, depth 1): a program
+# that subscribes late still gets the last outcome. Not a lockstep topic (not in GRAPH_TOPICS).
+TOPIC_OUTCOME = '/gripper/supervisor/outcome'
+SERVICE_GRASP = '/gripper/grasp'
+SERVICE_STOP = '/gripper/stop'
+SERVICE_RELEASE = '/gripper/release'   # std_srvs/Trigger: open the fingers (position stage)
+SERVICE_SET_OBJECT = '/gripper/sim/set_object'
+ACTION_GRASP = '/gripper/grasp_action'   # the grasp as an action (feedback, cancel)
+FINGER_JOINT = 'finger_joint'
+
+# Lockstep keeps at most a few messages in flight; the depth is there so that a slow recorder
+# callback never loses one (a reliable keep_last writer drops what its history cannot hold).
+GRAPH_QOS_DEPTH = 1000
+GRAPH_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=GRAPH_QOS_DEPTH,
+                       reliability=ReliabilityPolicy.RELIABLE,
+                       durability=DurabilityPolicy.VOLATILE)
+
+LATCHED_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
+                         reliability=ReliabilityPolicy.RELIABLE,
+                         durability=DurabilityPolicy.TRANSIENT_LOCAL)
+
+# Services: rclpy's default keeps only 10 requests (and 10 responses at a client); a burst of
+# grasp requests from many clients must be answered (refused as busy), not dropped.
+SERVICE_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=GRAPH_QOS_DEPTH,
+                         reliability=ReliabilityPolicy.RELIABLE,
+                         durability=DurabilityPolicy.VOLATILE)
+
+# Every topic the graph publishes, with its type: what the recorder records.
+GRAPH_TOPICS = {
+    TOPIC_CLOCK: 'rosgraph_msgs/msg/Clock',
+    TOPIC_JOINT_STATES: 'sensor_msgs/msg/JointState',
+    TOPIC_FORCE_SENSOR: 'gripper_interfaces/msg/ForceSensor',
+    TOPIC_MOTOR_STATE: 'gripper_interfaces/msg/MotorState',
+    TOPIC_STATUS: 'gripper_interfaces/msg/SupervisorStatus',
+    TOPIC_MOTOR_COMMAND: 'gripper_interfaces/msg/MotorCommand',
+}
+
+
+class ExecutorKind(enum.Enum):
+    EVENTS = 'events'      # rclpy.experimental.EventsExecutor: ~10x faster here
+    SINGLE = 'single'      # rclpy.executors.SingleThreadedExecutor
+
+
+def make_executor(kind: ExecutorKind, context=None):
+    if kind is ExecutorKind.EVENTS:
+        from rclpy.experimental import EventsExecutor
+        return EventsExecutor(context=context)
+    from rclpy.executors import SingleThreadedExecutor
+    return SingleThreadedExecutor(context=context)
+
+
+MAX_COUNTED_GAP_S = 0.25
+"""Silence is counted only while the executor runs: a longer gap between two watchdog checks
+(the process starved, a slow callback) counts as this much, since messages may be queued behind."""
+
+
+class ExecutorSilence:
+    """Wall time without progress, for the watchdogs (supervisor: no tick; controllers: no
+    status). Only time in which the executor demonstrably ran counts: call :meth:`check` from a
+    steady timer; a check more than ``MAX_COUNTED_GAP_S`` late adds only that much, so that after
+    a stall of the whole process the messages queued behind the timer are not taken for silence."""
+
+    def __init__(self):
+        self.silent_s = 0.0
+        self._last_check = time.monotonic()
+
+    def reset(self) -> None:
+        """Progress was made: silence starts afresh."""
+        self.silent_s = 0.0
+        self._last_check = time.monotonic()
+
+    def check(self, counting: bool) -> float:
+        """A timer check; the gap since the last one counts only when ``counting``."""
+        now = time.monotonic()
+        gap_s, self._last_check = now - self._last_check, now
+        if counting:
+            self.silent_s += min(gap_s, MAX_COUNTED_GAP_S)
+        return self.silent_s
+
+
+def wait_until(predicate, timeout_s: float = 5.0, step_s: float = 0.005) -> bool:
+    """Poll ``predicate`` until it holds or ``timeout_s`` of wall time has passed; its last
+    value (for callers that wait on another thread's spinning executor)."""
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        if predicate():
+            return True
+        time.sleep(step_s)
+    return predicate()
+
+
+def ns_to_time(t_ns: int) -> Time:
+    return Time(sec=t_ns // 1_000_000_000, nanosec=t_ns % 1_000_000_000)
+
+
+def time_to_ns(stamp: Time) -> int:
+    return stamp.sec * 1_000_000_000 + stamp.nanosec
+
+
+def declare_config(node: Node) -> GripperConfig:
+    """Declare ``config_file`` (empty = the installed config/gripper.yaml) and load it.
+
+    A bad file raises ConfigError naming the key; the node does not start.
+    """
+    path = node.declare_parameter('config_file', '', ParameterDescriptor(
+        description='YAML file, read once at start-up', read_only=True)).value
+    return load_config(path or None)
+
+
+def spin_until_stopped(executor, stop) -> None:
+    """Spin ``executor`` until the ``stop`` future completes (set it from any thread).
+
+    rclpy 7.1.6's EventsExecutor busy-loops and never fires timers in ``spin()`` without a
+    timeout; ``spin_until_future_complete`` with a finite timeout works on both executors.
+    """
+    import rclpy
+    while not stop.done() and rclpy.ok(context=executor.context):
+        executor.spin_until_future_complete(stop, timeout_sec=3600.0)
+
+
+def server_node_name(node_name: str, service_name: str) -> str:
+    """The private server node of a :class:`DeferredService`: ``<node>_<last part>_server``."""
+    base = service_name.rstrip('/').rsplit('/', 1)[-1]
+    base = ''.join(c if c.isalnum() or c == '_' else '_' for c in base) or 'service'
+    return f'{node_name}_{base}_server'
+
+
+class DeferredService:
+    """A service server whose reply may be sent later, from another callback.
+
+    rclpy (Jazzy) sends a service callback's return value at once, and its EventsExecutor cannot
+    await an ``async`` callback. A grasp takes many lockstep ticks, so the request is taken from
+    the service handle by a 10 ms steady-clock timer on ``node`` (the server itself lives on a private,
+    never-spun node) and answered with :meth:`reply` when the grasp ends. Requests queue in DDS
+    meanwhile; each is handled in arrival order.
+    """
+
+    def __init__(self, node: Node, srv_type, name: str, on_request, poll_period_s: float = 0.01):
+        from rclpy.clock import Clock, ClockType
+        # one private node per service, named after it (node 'supervisor', '/gripper/grasp' ->
+        # 'supervisor_grasp_server'): a node with two deferred services must not register one
+        # name twice (rcl warns 'Publisher already registered for node name')
+        self._server_node = Node(server_node_name(node.get_name(), name),
+                                 namespace=node.get_namespace(), context=node.context,
+                                 start_parameter_services=False)
+        self._service = self._server_node.create_service(srv_type, name, self._not_spun,
+                                                         qos_profile=SERVICE_QOS)
+        self._on_request = on_request
+        self._timer = node.create_timer(poll_period_s, self._poll,
+                                        clock=Clock(clock_type=ClockType.STEADY_TIME))
+
+    @staticmethod
+    def _not_spun(request, response):  # pragma: no cover - the server node is never spun
+        raise RuntimeError('DeferredService server node must not be added to an executor')
+
+    def _poll(self) -> None:
+        srv = self._service
+        while True:
+            with srv.handle:
+                request, header = srv.handle.service_take_request(srv.srv_type.Request)
+            if request is None:
+                return
+            self._on_request(request, header)
+
+    def reply(self, header, response) -> None:
+        self._service.send_response(response, header)
+
+    def destroy(self) -> None:
+        """Safe to call twice."""
+        if self._server_node is None:
+            return
+        self._timer.destroy()
+        self._server_node.destroy_node()
+        self._server_node = None

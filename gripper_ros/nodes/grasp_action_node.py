@@ -1,0 +1,162 @@
+"""grasp_action_server: the grasp as a ROS 2 action, with feedback and cancel.
+
+A robot program that must watch a grasp (and may abort it) wants an action, as Franka's gripper
+offers one beside its services. This node is a thin front end over the graph's own interfaces:
+a goal becomes a ``/gripper/grasp`` service call, feedback comes from
+``/gripper/supervisor/status`` (phase, finger position and opening, force, contact), and a cancel
+calls ``/gripper/stop`` so that the grasp ends as STOPPED and the goal as canceled. Every outcome
+of the service (including REFUSED for a bad request or a busy gripper) is the action's result;
+the goal is *succeeded* only on HOLDING, *aborted* otherwise.
+
+Feedback is throttled to ``feedback_period_s`` of wall time (the status topic carries one message
+per lockstep tick, thousands per second), and sent on every phase change.
+"""
+from __future__ import annotations
+
+import sys
+import time
+
+import rclpy
+from gripper_interfaces.action import Grasp as GraspAction
+from gripper_interfaces.msg import SupervisorStatus
+from gripper_interfaces.srv import Grasp
+from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
+from rclpy.action import ActionServer, CancelResponse, GoalResponse
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+from std_srvs.srv import Trigger
+
+from gripper_ros.core.config import ConfigError
+from gripper_ros.core.supervisor import Outcome
+from gripper_ros.nodes.common import (ACTION_GRASP, GRAPH_QOS, SERVICE_GRASP, SERVICE_QOS, SERVICE_STOP,
+                         TOPIC_STATUS, declare_config, time_to_ns)
+
+_REQUEST_FIELDS = ('width_m', 'mass_kg', 'friction_coefficient', 'acceleration_mps2',
+                   'timeout_s', 'width_tolerance_m')
+_RESULT_FIELDS = ('success', 'outcome', 'message', 'position_setpoint_m', 'force_setpoint_n',
+                  'final_position_m', 'final_width_m', 'final_force_n', 'switch_time_s',
+                  'grasp_id')
+
+
+class GraspActionServer(Node):
+    def __init__(self, **kwargs):
+        super().__init__('grasp_action_server', **kwargs)
+        self.travel_m = declare_config(self).plant.max_travel_m
+        self.feedback_period_s = self.declare_parameter(
+            'feedback_period_s', 0.05, ParameterDescriptor(
+                description='minimum wall seconds between two feedback messages of one phase',
+                floating_point_range=[FloatingPointRange(from_value=0.0, to_value=10.0)])).value
+        self.add_post_set_parameters_callback(self._on_parameters_set)
+        self._grasp = self.create_client(Grasp, SERVICE_GRASP, qos_profile=SERVICE_QOS)
+        self._stop = self.create_client(Trigger, SERVICE_STOP)
+        self._status: SupervisorStatus | None = None
+        self.create_subscription(SupervisorStatus, TOPIC_STATUS, self._on_status, GRAPH_QOS)
+        self._goal = None                 # the goal handle being executed
+        self._goal_grasp_id: int | None = None
+        self._goal_start_ns: int | None = None
+        self._last_feedback_wall = 0.0
+        self._last_phase: int | None = None
+        self.feedback_published = 0
+        self._server = ActionServer(self, GraspAction, ACTION_GRASP,
+                                    execute_callback=self._execute,
+                                    goal_callback=self._on_goal,
+                                    cancel_callback=self._on_cancel)
+
+    def _on_parameters_set(self, parameters) -> None:
+        """An accepted ``feedback_period_s`` (the descriptor's range refuses the rest) applies
+        from the next status on."""
+        for p in parameters:
+            if p.name == 'feedback_period_s':
+                self.feedback_period_s = float(p.value)
+
+    # ------------------------------------------------------------------ goals
+    def _on_goal(self, _goal_request) -> GoalResponse:
+        """Accept every goal: the supervisor decides (a refusal is a REFUSED result with why)."""
+        return GoalResponse.ACCEPT
+
+    def _on_cancel(self, goal_handle) -> CancelResponse:
+        """Cancel = stop the running grasp; the service then answers STOPPED."""
+        if goal_handle is self._goal and self._stop.service_is_ready():
+            self._stop.call_async(Trigger.Request())
+            return CancelResponse.ACCEPT
+        return CancelResponse.REJECT
+
+    async def _execute(self, goal_handle) -> GraspAction.Result:
+        goal = goal_handle.request
+        request = Grasp.Request(**{f: getattr(goal, f) for f in _REQUEST_FIELDS})
+        result = GraspAction.Result()
+        if not self._grasp.service_is_ready():
+            result.outcome = int(Outcome.REFUSED)
+            result.message = f'{SERVICE_GRASP} is not available'
+            goal_handle.abort()
+            return result
+        if self._goal is not None:
+            result.outcome = int(Outcome.REFUSED)
+            result.message = 'refused: a grasp goal is already executing'
+            goal_handle.abort()
+            return result
+        self._goal, self._goal_grasp_id, self._goal_start_ns = goal_handle, None, None
+        self._last_phase = None
+        try:
+            response = await self._grasp.call_async(request)
+        finally:
+            self._goal = None
+        for f in _RESULT_FIELDS:
+            setattr(result, f, getattr(response, f))
+        if goal_handle.is_cancel_requested and response.outcome == Outcome.STOPPED:
+            goal_handle.canceled()
+        elif response.success:
+            goal_handle.succeed()
+        else:
+            goal_handle.abort()
+        return result
+
+    # ------------------------------------------------------------------ feedback
+    def _on_status(self, msg: SupervisorStatus) -> None:
+        goal = self._goal
+        if goal is None or not goal.is_active:
+            return
+        if self._goal_grasp_id is None:
+            if msg.phase not in (SupervisorStatus.PHASE_POSITION, SupervisorStatus.PHASE_FORCE):
+                return                         # a status of an earlier grasp
+            self._goal_grasp_id = msg.grasp_id
+            self._goal_start_ns = time_to_ns(msg.header.stamp)
+        if msg.grasp_id != self._goal_grasp_id:
+            return
+        now = time.monotonic()
+        if msg.phase == self._last_phase and now - self._last_feedback_wall < self.feedback_period_s:
+            return
+        self._last_phase, self._last_feedback_wall = msg.phase, now
+        feedback = GraspAction.Feedback(
+            grasp_id=msg.grasp_id, phase=msg.phase,
+            elapsed_s=(time_to_ns(msg.header.stamp) - self._goal_start_ns) * 1e-9,
+            position_m=msg.position_m, width_m=self.travel_m - msg.position_m,
+            force_n=msg.force_n, contact=msg.contact)
+        goal.publish_feedback(feedback)
+        self.feedback_published += 1
+
+    def destroy_node(self):
+        self._server.destroy()
+        return super().destroy_node()
+
+
+def main(args=None):
+    rclpy.init(args=args)
+    node = None
+    try:
+        node = GraspActionServer()
+        rclpy.spin(node)
+    except ConfigError as exc:
+        print(f'grasp_action_server: {exc}', file=sys.stderr)
+        return 2
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())
