@@ -5,7 +5,7 @@ import math
 import pytest
 
 from gripper_ros.core.config import load_config
-from gripper_ros.core.supervisor import (ActiveController, GraspRequest, GraspSupervisor, Outcome,
+from gripper_ros.core.supervisor import (Controller, GraspRequest, GraspSupervisor, Outcome,
                                      Phase, RequestError, SwitchCriterion, force_setpoint_n,
                                      validate_request)
 
@@ -60,7 +60,7 @@ NO_WATCH = dataclasses.replace(S, hold_watch_s=0.0)   # the answer comes when th
 def start(width=0.05, mass=1.69, params=S):
     sup = GraspSupervisor(P, params)
     d = sup.start(targets(width, mass), 0, 0.005)
-    assert d.phase is Phase.POSITION and d.active is ActiveController.POSITION
+    assert d.phase is Phase.POSITION and d.active is Controller.POSITION
     return sup
 
 
@@ -70,7 +70,7 @@ def test_switch_on_position_tolerance_exactly_at_2_percent():
     d = sup.step(10 * MS, x_sp * (1 - 0.021), 0.0, 0.005)
     assert d.phase is Phase.POSITION
     d = sup.step(20 * MS, x_sp * (1 - 0.0199), 0.0, 0.005)
-    assert d.phase is Phase.FORCE and d.active is ActiveController.FORCE
+    assert d.phase is Phase.FORCE and d.active is Controller.FORCE
     assert d.switch_criterion is SwitchCriterion.POSITION_TOLERANCE
 
 
@@ -93,7 +93,7 @@ def test_holding_after_the_force_stays_in_band_for_the_hold_time():
     d = sup.step(t + hold_ns - 100_000, 0.1, f_sp * 1.01, 4.0)
     assert d.phase is Phase.FORCE
     d = sup.step(t + hold_ns, 0.1, f_sp * 0.99, 4.0)
-    assert d.outcome is Outcome.HOLDING and d.active is ActiveController.NONE
+    assert d.outcome is Outcome.HOLDING and d.active is Controller.NONE
 
 
 def test_leaving_the_band_restarts_the_hold_timer():
@@ -124,7 +124,7 @@ def test_timeout_in_simulated_time():
 def test_non_finite_measurement_is_a_fault_and_no_controller_drives():
     sup = start()
     d = sup.step(10 * MS, math.nan, 0.0, 0.005)
-    assert d.outcome is Outcome.FAULT and d.active is ActiveController.NONE
+    assert d.outcome is Outcome.FAULT and d.active is Controller.NONE
 
 
 def test_stop_and_a_second_start_while_busy():
@@ -151,7 +151,7 @@ def holding(params=S):
     while t < 10 * MS + 2 * US + hold_ns:
         t += US
         d = sup.step(t, 0.1, f_sp, 4.0)
-    assert d.phase is Phase.HOLDING and d.active is ActiveController.FORCE
+    assert d.phase is Phase.HOLDING and d.active is Controller.FORCE
     assert d.outcome is Outcome.UNKNOWN and sup.busy and sup.settled_ns == t
     return sup, t
 
@@ -163,9 +163,9 @@ def test_after_settling_the_force_loop_holds_and_watches_then_answers_holding():
     while (t + US - t0) * 1e-9 < S.hold_watch_s:
         t += US
         d = sup.step(t, 0.1, f_sp, 4.0)
-        assert d.phase is Phase.HOLDING and d.active is ActiveController.FORCE
+        assert d.phase is Phase.HOLDING and d.active is Controller.FORCE
     d = sup.step(t + US, 0.1, f_sp, 4.0)
-    assert d.outcome is Outcome.HOLDING and d.active is ActiveController.NONE
+    assert d.outcome is Outcome.HOLDING and d.active is Controller.NONE
     assert (sup.end_ns - t0) * 1e-9 == pytest.approx(S.hold_watch_s, abs=1e-6)
 
 
@@ -180,7 +180,7 @@ def test_force_collapse_while_holding_is_object_lost_after_the_hold_time_with_nu
     assert d.outcome is Outcome.UNKNOWN
     d = sup.step(t0 + US + hold_ns, 0.1, low, 3.0)
     assert d.outcome is Outcome.OBJECT_LOST and d.phase is Phase.FAILED
-    assert d.active is ActiveController.NONE
+    assert d.active is Controller.NONE
     assert f'{low:.3f} N' in d.message and f'{0.5 * f_sp:.3f} N' in d.message
     assert '2.00 ms' in d.message
 
@@ -223,7 +223,7 @@ def test_force_below_the_floor_before_it_ever_gripped_is_not_a_loss():
 def test_sensor_dropout_is_a_fault_naming_the_force_sensor():
     sup, t0 = holding()
     d = sup.step(t0 + US, 0.1, math.nan, math.nan)
-    assert d.outcome is Outcome.FAULT and d.active is ActiveController.NONE
+    assert d.outcome is Outcome.FAULT and d.active is Controller.NONE
     assert 'force sensor' in d.message and 'dropout' in d.message
 
 
@@ -240,7 +240,7 @@ def test_hold_watch_zero_answers_as_soon_as_the_force_settles():
 def test_release_runs_the_position_stage_to_open_and_ends_released():
     sup = GraspSupervisor(P, S)
     d = sup.start_release(0)
-    assert d.phase is Phase.RELEASING and d.active is ActiveController.POSITION
+    assert d.phase is Phase.RELEASING and d.active is Controller.POSITION
     assert d.position_setpoint_m == 0.0 and sup.busy and sup.releasing
     with pytest.raises(RequestError, match='release is running'):
         sup.start(targets(), 10 * MS, 0.0)
@@ -253,7 +253,7 @@ def test_release_runs_the_position_stage_to_open_and_ends_released():
     assert d.outcome is Outcome.UNKNOWN
     d = sup.step(t + settle_ns, 0.0, math.nan, math.nan)   # the force sensor is not needed
     assert d.outcome is Outcome.RELEASED and d.phase is Phase.DONE
-    assert d.active is ActiveController.NONE and not sup.busy
+    assert d.active is Controller.NONE and not sup.busy
     assert 'released' in d.message
 
 

@@ -12,7 +12,6 @@ Every failure is a :class:`BagError` subclass whose ``str()`` is one line, fit f
 """
 from __future__ import annotations
 
-import enum
 import importlib
 import json
 import os
@@ -25,29 +24,17 @@ from typing import Any, Iterable, Iterator
 import numpy as np
 import yaml
 
-# --- the graph's topics (docs/ARCHITECTURE.md) ------------------------------------------------
-
-TOPIC_CLOCK = '/clock'
-TOPIC_JOINT_STATES = '/gripper/joint_states'
-TOPIC_FORCE_SENSOR = '/gripper/force_sensor'
-TOPIC_MOTOR_STATE = '/gripper/motor_state'
-TOPIC_STATUS = '/gripper/supervisor/status'
-TOPIC_MOTOR_COMMAND = '/gripper/motor_command'
-
-GRASP_TOPICS: dict[str, str] = {
-    TOPIC_CLOCK: 'rosgraph_msgs/msg/Clock',
-    TOPIC_JOINT_STATES: 'sensor_msgs/msg/JointState',
-    TOPIC_FORCE_SENSOR: 'gripper_interfaces/msg/ForceSensor',
-    TOPIC_MOTOR_STATE: 'gripper_interfaces/msg/MotorState',
-    TOPIC_STATUS: 'gripper_interfaces/msg/SupervisorStatus',
-    TOPIC_MOTOR_COMMAND: 'gripper_interfaces/msg/MotorCommand',
-}
-"""Topic -> type of everything a grasp run publishes (what the recorder records by default)."""
+from gripper_ros.wire import (FINGER_JOINT, GRAPH_TOPICS, TOPIC_CLOCK, TOPIC_FORCE_SENSOR,  # noqa: F401,E501
+                              TOPIC_JOINT_STATES, TOPIC_MOTOR_COMMAND, TOPIC_MOTOR_STATE,
+                              TOPIC_STATUS, Outcome, Phase, SwitchCriterion, enum_name)
+from gripper_ros.wire import Controller  # noqa: F401
 
 REQUIRED_GRASP_TOPICS = (TOPIC_JOINT_STATES, TOPIC_FORCE_SENSOR, TOPIC_STATUS)
 """Without these a bag cannot be analysed as a grasp."""
 
-FINGER_JOINT = 'finger_joint'
+GRASP_TOPICS = GRAPH_TOPICS
+"""Topic -> type of everything a grasp run publishes (what the recorder records by default)."""
+
 SCHEMA_SEPARATOR = '=' * 80
 EXIT_ERROR = 1
 """CLI exit code: bad input, nothing done."""
@@ -56,56 +43,6 @@ EXIT_TRUNCATED = 3
 
 CUSTOM_DATA_RECORD = 'gripper_ros/custom_data'
 """MCAP metadata record the recorder writes as soon as custom data is set (survives a kill)."""
-
-
-class Phase(enum.IntEnum):
-    """SupervisorStatus.phase."""
-
-    IDLE = 0
-    POSITION = 1
-    FORCE = 2
-    HOLDING = 3
-    DONE = 4
-    FAILED = 5
-    RELEASING = 6       # /gripper/release: position stage to the open position
-
-
-class Controller(enum.IntEnum):
-    """SupervisorStatus.active_controller and MotorCommand.source."""
-
-    NONE = 0
-    POSITION = 1
-    FORCE = 2
-
-
-class SwitchCriterion(enum.IntEnum):
-    """SupervisorStatus.switch_criterion."""
-
-    NONE = 0
-    POSITION_TOLERANCE = 1
-    SENSOR_VOLTAGE = 2
-
-
-class Outcome(enum.IntEnum):
-    """Grasp.srv OUTCOME_*."""
-
-    UNKNOWN = 0
-    HOLDING = 1
-    NO_OBJECT = 2
-    OBJECT_LOST = 3
-    TIMEOUT = 4
-    STOPPED = 5
-    REFUSED = 6
-    FAULT = 7
-    RELEASED = 8        # status only: /gripper/release opened the fingers
-
-
-def enum_name(enum_cls: type[enum.IntEnum], value: int) -> str:
-    """Name of an enum value, or the number when the bag holds a code we do not know."""
-    try:
-        return enum_cls(int(value)).name
-    except ValueError:
-        return str(int(value))
 
 
 # --- errors -----------------------------------------------------------------------------------

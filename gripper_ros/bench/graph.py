@@ -47,14 +47,13 @@ import tempfile
 import time
 from typing import Any, Dict, List, Optional, Sequence
 
+from gripper_ros.wire import Phase
+
 EXECUTOR_KINDS = ('events', 'single')
 _WARMUP_ROUND_TRIPS = 200
 _MATCH_TIMEOUT_S = 10.0
 _run_counter = 0
 
-# SupervisorStatus.phase (gripper_interfaces/msg/SupervisorStatus.msg)
-_PHASE_POSITION = 1
-_PHASE_FORCE = 2
 _GRAPH_LOGGERS = ('plant_simulator', 'position_controller', 'force_controller', 'supervisor',
                   'grasp_demo_client', 'bench_graph_observer')
 
@@ -385,7 +384,7 @@ class _PhaseObserver:
             stamp = msg.header.stamp
             marks.append((phase, now, self._plant.ticks_published,
                           stamp.sec * 1_000_000_000 + stamp.nanosec, time.process_time()))
-        if phase not in (_PHASE_POSITION, _PHASE_FORCE):
+        if phase not in (Phase.POSITION, Phase.FORCE):
             self.finished.add(gid)
         elif (self.cap_deadline is not None and now > self.cap_deadline
               and gid not in self.capped):
@@ -484,8 +483,8 @@ def measure_graph(executor_kind: str, objects: Sequence[tuple], cap_s: float = 0
 def _grasp_row(kind, width_m, mass_kg, resp, outcome_enum, marks, call_s, published, fanout,
                capped) -> Dict[str, Any]:
     from gripper_ros.nodes.common import TOPIC_CLOCK
-    pos = _stage(marks, _PHASE_POSITION)
-    force = _stage(marks, _PHASE_FORCE)
+    pos = _stage(marks, Phase.POSITION)
+    force = _stage(marks, Phase.FORCE)
     if len(marks) < 2:
         raise BenchError(f'{kind} grasp of {width_m:g} m: the observer saw {len(marks)} status '
                          f'phase change(s); cannot time it (outcome '

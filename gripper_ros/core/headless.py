@@ -18,7 +18,7 @@ from gripper_ros.core.stages import (DEFAULT_APPROACH_FORCE_MARGIN, DEFAULT_FORC
                                DEFAULT_POSITION_CONTROLLER, ForceStageController,
                                LockstepAnswerer, PositionStageController)
 from gripper_ros.core.controllers import make_plant
-from gripper_ros.core.supervisor import (ActiveController, GraspRequest, GraspSupervisor, Outcome, Phase,
+from gripper_ros.core.supervisor import (Controller, GraspRequest, GraspSupervisor, Outcome, Phase,
                           SwitchCriterion, validate_request)
 from gripper_ros.core.plant import GraspObject
 
@@ -85,9 +85,9 @@ def simulate_grasp(config: GripperConfig, width_m: float, mass_kg: float, *,
     plant.t_ns = start_ns
     plant.set_object(GraspObject(width_m if object_width_m is None else object_width_m,
                                  stiffness_n_per_m, damping_n_s_per_m))
-    stages = {ActiveController.POSITION: LockstepAnswerer(
+    stages = {Controller.POSITION: LockstepAnswerer(
                   PositionStageController(config, position_controller)),
-              ActiveController.FORCE: LockstepAnswerer(
+              Controller.FORCE: LockstepAnswerer(
                   ForceStageController(config, force_controller, approach_force_margin))}
     supervisor = GraspSupervisor(config.plant, config.supervisor)
     sample = plant.sample()
@@ -105,10 +105,10 @@ def simulate_grasp(config: GripperConfig, width_m: float, mass_kg: float, *,
         status.position_m = sample.position_m
         for answerer in stages.values():
             answerer.on_status(status)
-        if decision.active is ActiveController.NONE:
+        if decision.active is Controller.NONE:
             break
         answerer = stages[decision.active]
-        measurement = sample.position_m if decision.active is ActiveController.POSITION \
+        measurement = sample.position_m if decision.active is Controller.POSITION \
             else sample.force_n
         answer = answerer.answer(status, sample.t_ns, measurement)
         sample = plant.step(answer.voltage_v, answerer.stage.sample_time_s)

@@ -41,13 +41,7 @@ from scipy.linalg import expm
 
 from gripper_ros.core.config import ContactParams, PlantParams
 from gripper_ros.core.force_sensor import FsrVoltageDivider
-
-
-class FaultKind(enum.IntEnum):        # values match SetObject.srv FAULT_*
-    NONE = 0
-    OBJECT_REMOVED = 1
-    OBJECT_SLIPPING = 2
-    SENSOR_DROPOUT = 3
+from gripper_ros.wire import FaultKind
 
 
 DEFAULT_SLIP_TIME_CONSTANT_S = 0.01   # e-folding time of the slipping object's force capacity

@@ -28,13 +28,12 @@ from dataclasses import dataclass
 from typing import Protocol
 
 from gripper_ros.core.config import ConfigError, GripperConfig
+from gripper_ros.wire import Controller
 from gripper_ros.core.controllers import (ForceControllerKind, PositionControllerKind, make_force_controller,
                           make_position_controller)
 
-SOURCE_POSITION = 1
-"""``MotorCommand.SOURCE_POSITION`` / ``SupervisorStatus.CONTROLLER_POSITION``."""
-SOURCE_FORCE = 2
-"""``MotorCommand.SOURCE_FORCE`` / ``SupervisorStatus.CONTROLLER_FORCE``."""
+SOURCE_POSITION = Controller.POSITION
+SOURCE_FORCE = Controller.FORCE
 
 DEFAULT_POSITION_CONTROLLER = PositionControllerKind.MPC_PD
 DEFAULT_FORCE_CONTROLLER = ForceControllerKind.CONTACT_AWARE

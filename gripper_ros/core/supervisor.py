@@ -18,47 +18,14 @@ Release: :meth:`GraspSupervisor.start_release` runs the position stage to the op
 """
 from __future__ import annotations
 
-import enum
 import math
 from dataclasses import dataclass
 
 from gripper_ros.core.config import PlantParams, SupervisorParams
+from gripper_ros.wire import Controller
+from gripper_ros.wire import Outcome, Phase, SwitchCriterion
 
 MAX_TIMEOUT_S = 600.0  # simulated seconds; a longer grasp is a mistake, not a request
-
-
-class Phase(enum.IntEnum):           # values match SupervisorStatus.PHASE_*
-    IDLE = 0
-    POSITION = 1
-    FORCE = 2
-    HOLDING = 3
-    DONE = 4
-    FAILED = 5
-    RELEASING = 6                     # /gripper/release: position stage to the open position
-
-
-class ActiveController(enum.IntEnum):  # values match SupervisorStatus.CONTROLLER_*
-    NONE = 0
-    POSITION = 1
-    FORCE = 2
-
-
-class SwitchCriterion(enum.IntEnum):  # values match SupervisorStatus.SWITCH_*
-    NONE = 0
-    POSITION_TOLERANCE = 1
-    SENSOR_VOLTAGE = 2
-
-
-class Outcome(enum.IntEnum):          # values match Grasp.srv OUTCOME_*
-    UNKNOWN = 0
-    HOLDING = 1
-    NO_OBJECT = 2
-    OBJECT_LOST = 3
-    TIMEOUT = 4
-    STOPPED = 5
-    REFUSED = 6
-    FAULT = 7
-    RELEASED = 8                      # a release ended with the fingers open
 
 
 class RequestError(ValueError):
@@ -145,7 +112,7 @@ class Decision:
     """The supervisor's verdict for one tick."""
 
     phase: Phase
-    active: ActiveController
+    active: Controller
     switch_criterion: SwitchCriterion
     outcome: Outcome
     position_setpoint_m: float
@@ -375,13 +342,13 @@ class GraspSupervisor:
         self.end_ns = self._t_ns
 
     def _decision(self) -> Decision:
-        active = ActiveController.NONE
+        active = Controller.NONE
         if self.busy:
-            active = {Phase.POSITION: ActiveController.POSITION,
-                      Phase.RELEASING: ActiveController.POSITION,
-                      Phase.FORCE: ActiveController.FORCE,
-                      Phase.HOLDING: ActiveController.FORCE}.get(self.phase,
-                                                                ActiveController.NONE)
+            active = {Phase.POSITION: Controller.POSITION,
+                      Phase.RELEASING: Controller.POSITION,
+                      Phase.FORCE: Controller.FORCE,
+                      Phase.HOLDING: Controller.FORCE}.get(self.phase,
+                                                                Controller.NONE)
         tg = self.targets
         return Decision(self.phase, active, self.switch_criterion, self.outcome,
                         tg.position_setpoint_m if tg else 0.0,

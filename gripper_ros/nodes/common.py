@@ -10,22 +10,10 @@ from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 from gripper_ros.core.config import GripperConfig, load_config
-
-TOPIC_CLOCK = '/clock'
-TOPIC_JOINT_STATES = '/gripper/joint_states'
-TOPIC_FORCE_SENSOR = '/gripper/force_sensor'
-TOPIC_MOTOR_STATE = '/gripper/motor_state'
-TOPIC_STATUS = '/gripper/supervisor/status'
-TOPIC_MOTOR_COMMAND = '/gripper/motor_command'
-# The final status of the last grasp or release, latched (transient local, depth 1): a program
-# that subscribes late still gets the last outcome. Not a lockstep topic (not in GRAPH_TOPICS).
-TOPIC_OUTCOME = '/gripper/supervisor/outcome'
-SERVICE_GRASP = '/gripper/grasp'
-SERVICE_STOP = '/gripper/stop'
-SERVICE_RELEASE = '/gripper/release'   # std_srvs/Trigger: open the fingers (position stage)
-SERVICE_SET_OBJECT = '/gripper/sim/set_object'
-ACTION_GRASP = '/gripper/grasp_action'   # the grasp as an action (feedback, cancel)
-FINGER_JOINT = 'finger_joint'
+from gripper_ros.wire import (ACTION_GRASP, FINGER_JOINT, GRAPH_TOPICS,  # noqa: F401
+                              SERVICE_GRASP, SERVICE_RELEASE, SERVICE_SET_OBJECT, SERVICE_STOP,
+                              TOPIC_CLOCK, TOPIC_FORCE_SENSOR, TOPIC_JOINT_STATES,
+                              TOPIC_MOTOR_COMMAND, TOPIC_MOTOR_STATE, TOPIC_OUTCOME, TOPIC_STATUS)
 
 # Lockstep keeps at most a few messages in flight; the depth is there so that a slow recorder
 # callback never loses one (a reliable keep_last writer drops what its history cannot hold).
@@ -43,17 +31,6 @@ LATCHED_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
 SERVICE_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=GRAPH_QOS_DEPTH,
                          reliability=ReliabilityPolicy.RELIABLE,
                          durability=DurabilityPolicy.VOLATILE)
-
-# Every topic the graph publishes, with its type: what the recorder records.
-GRAPH_TOPICS = {
-    TOPIC_CLOCK: 'rosgraph_msgs/msg/Clock',
-    TOPIC_JOINT_STATES: 'sensor_msgs/msg/JointState',
-    TOPIC_FORCE_SENSOR: 'gripper_interfaces/msg/ForceSensor',
-    TOPIC_MOTOR_STATE: 'gripper_interfaces/msg/MotorState',
-    TOPIC_STATUS: 'gripper_interfaces/msg/SupervisorStatus',
-    TOPIC_MOTOR_COMMAND: 'gripper_interfaces/msg/MotorCommand',
-}
-
 
 class ExecutorKind(enum.Enum):
     EVENTS = 'events'      # rclpy.experimental.EventsExecutor: ~10x faster here

@@ -1,0 +1,66 @@
+"""The wire codes and the numeric core: one home for codes, and a core without rclpy."""
+import ast
+import importlib
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from gripper_ros import wire
+
+PACKAGE = Path(wire.__file__).resolve().parent
+CORE_MODULES = sorted(f'gripper_ros.core.{p.stem}' for p in (PACKAGE / 'core').glob('*.py')
+                      if p.stem != '__init__')
+
+
+def _generated_constants(module: str, cls_path: str, prefix: str) -> dict[str, int]:
+    cls = importlib.import_module(module)
+    for part in cls_path.split('.'):
+        cls = getattr(cls, part)
+    return {name[len(prefix):]: getattr(cls, name) for name in dir(cls)
+            if name.startswith(prefix) and name.isupper()}
+
+
+@pytest.mark.parametrize('enum_cls, module, cls_path, prefix', wire.WIRE_CODES,
+                         ids=[f'{c[2]}.{c[3]}' for c in wire.WIRE_CODES])
+def test_every_code_equals_the_generated_constant(enum_cls, module, cls_path, prefix):
+    generated = _generated_constants(module, cls_path, prefix)
+    assert generated, f'no {prefix}* constants in {module}.{cls_path}'
+    assert {m.name: m.value for m in enum_cls} == generated
+
+
+def test_enum_name_of_an_unknown_code_is_the_number():
+    assert wire.enum_name(wire.Outcome, 1) == 'HOLDING'
+    assert wire.enum_name(wire.Outcome, 250) == '250'
+
+
+def _imports(tree: ast.AST):
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            yield from (alias.name for alias in node.names)
+        elif isinstance(node, ast.ImportFrom) and node.module and not node.level:
+            yield node.module
+
+
+@pytest.mark.parametrize('path', sorted((PACKAGE / 'core').glob('*.py')) + [PACKAGE / 'wire.py'],
+                         ids=lambda p: p.name)
+def test_core_module_names_no_ros_client_library(path):
+    """Not even lazily inside a function: the core runs where no ROS is installed."""
+    names = set(_imports(ast.parse(path.read_text(), str(path))))
+    ros = sorted(n for n in names if n.split('.')[0] in ('rclpy', 'rosidl_runtime_py',
+                                                           'gripper_interfaces'))
+    assert not ros, f'{path.name} imports {ros}'
+    outside = sorted(n for n in names if n.startswith('gripper_ros.')
+                     and not n.startswith(('gripper_ros.core', 'gripper_ros.wire')))
+    assert not outside, f'{path.name} reaches out of the core: {outside}'
+
+
+def test_importing_the_whole_core_loads_no_rclpy():
+    code = ('import sys\n' + ''.join(f'import {m}\n' for m in CORE_MODULES) +
+            'import gripper_ros.wire\n'
+            'bad = sorted(m for m in sys.modules if m.split(".")[0] in ("rclpy", '
+            '"gripper_interfaces"))\n'
+            'assert not bad, bad\n')
+    result = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True)
+    assert result.returncode == 0, result.stderr
