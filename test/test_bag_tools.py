@@ -24,10 +24,23 @@ from rosbags.typesys import Stores, get_types_from_msg, get_typestore  # noqa: E
 from gripper_ros.bags import analyze as bag_analyze
 from gripper_ros.bags import info as bag_info
 from gripper_ros.bags import replay as bag_replay  # noqa: E402
-from gripper_ros.bags.reader import (  # noqa: E402
-    EXIT_ERROR, EXIT_TRUNCATED, GRASP_TOPICS, TOPIC_CLOCK, TOPIC_FORCE_SENSOR, TOPIC_JOINT_STATES,
-    TOPIC_MOTOR_COMMAND, TOPIC_MOTOR_STATE, TOPIC_STATUS, EmptyBagError, MissingTopicsError,
-    NotABagError, BagNotFoundError, load_grasp_series, read_bag,
+from gripper_ros.bags.reader import (
+    EXIT_ERROR,
+    BagNotFoundError,
+    EmptyBagError,
+    EXIT_TRUNCATED,
+    MissingTopicsError,
+    NotABagError,
+    read_bag,
+)
+from gripper_ros.bags.series import GRASP_TOPICS, load_grasp_series
+from gripper_ros.wire import (
+    TOPIC_CLOCK,
+    TOPIC_FORCE_SENSOR,
+    TOPIC_JOINT_STATES,
+    TOPIC_MOTOR_COMMAND,
+    TOPIC_MOTOR_STATE,
+    TOPIC_STATUS,
 )
 
 MSG_DIR = Path(__file__).resolve().parents[1] / 'gripper_interfaces' / 'msg'

@@ -144,7 +144,7 @@ from rclpy.node import Node  # noqa: E402
 from rclpy.parameter import Parameter  # noqa: E402
 from sensor_msgs.msg import JointState  # noqa: E402
 
-from gripper_ros.bags.reader import import_message_class  # noqa: E402
+from gripper_ros.bags.schema import import_message_class  # noqa: E402
 from gripper_ros.core.supervisor import Outcome, Phase  # noqa: E402
 from gripper_ros.nodes.graph import GraphOptions, GripperGraph  # noqa: E402
 from gripper_ros.nodes.common import (GRAPH_QOS, GRAPH_TOPICS, TOPIC_FORCE_SENSOR,  # noqa: E402

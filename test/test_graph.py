@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 from gripper_interfaces.srv import Grasp
 
-from gripper_ros.bags.reader import load_grasp_series, read_bag
+from gripper_ros.bags.reader import read_bag
+from gripper_ros.bags.series import load_grasp_series
 from gripper_ros.core.config import load_config
 from gripper_ros.core.supervisor import Outcome, SwitchCriterion
 from gripper_ros.apps.grasp_demo import PAPER_OBJECTS

@@ -73,7 +73,8 @@ def test_client_without_server_says_so():
 
 
 def test_serve_mode_records_one_complete_bag_per_grasp(tmp_path):
-    from gripper_ros.bags.reader import load_grasp_series, read_bag
+    from gripper_ros.bags.reader import read_bag
+    from gripper_ros.bags.series import load_grasp_series
     proc = subprocess.Popen([sys.executable, '-m', 'gripper_ros.apps.grasp_demo', '--serve',
                              '--output', str(tmp_path)], stdout=subprocess.PIPE,
                             stderr=subprocess.STDOUT, text=True, env=os.environ.copy())

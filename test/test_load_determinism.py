@@ -14,7 +14,7 @@ import time
 import numpy as np
 import pytest
 
-from gripper_ros.bags.reader import load_grasp_series
+from gripper_ros.bags.series import load_grasp_series
 from gripper_ros.nodes.graph import GripperGraph
 
 OBJECTS = ((0.05, 1.69), (0.10, 0.75))       # two Table V objects, ~1-2 s wall each here

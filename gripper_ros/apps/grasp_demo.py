@@ -162,7 +162,7 @@ def _summarise(graph, records: list[GraspRecord], args) -> None:
     series, rows = [], []
     if not args.no_record:
         from gripper_ros.bags.analyze import analyze_series
-        from gripper_ros.bags.reader import load_grasp_series
+        from gripper_ros.bags.series import load_grasp_series
         for r in records:
             s = load_grasp_series(r.bag_dir)
             series.append(s)

@@ -21,10 +21,9 @@ from typing import Sequence
 
 import numpy as np
 
-from gripper_ros.bags.reader import (
-    EXIT_ERROR, EXIT_TRUNCATED, BagError, GraspSeries, Outcome, Phase, SwitchCriterion,
-    enum_name, load_grasp_series,
-)
+from gripper_ros.bags.reader import BagError, EXIT_ERROR, EXIT_TRUNCATED
+from gripper_ros.bags.series import GraspSeries, load_grasp_series
+from gripper_ros.wire import enum_name, Outcome, Phase, SwitchCriterion
 from gripper_ros.core.metrics import step_metrics
 
 PROG = 'bag_analyze'

@@ -10,10 +10,8 @@ import datetime as dt
 import sys
 from typing import Any, Sequence
 
-from gripper_ros.bags.reader import (
-    EXIT_ERROR, EXIT_TRUNCATED, TOPIC_STATUS, Bag, BagError, Controller, Outcome, Phase,
-    SwitchCriterion, enum_name, read_bag,
-)
+from gripper_ros.bags.reader import Bag, BagError, EXIT_ERROR, EXIT_TRUNCATED, read_bag
+from gripper_ros.wire import Controller, enum_name, Outcome, Phase, SwitchCriterion, TOPIC_STATUS
 
 PROG = 'bag_info'
 _LABEL_WIDTH = 19

@@ -26,10 +26,9 @@ from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
-from gripper_ros.bags.reader import (
-    CUSTOM_DATA_RECORD, GRASP_TOPICS, import_message_class, message_definition,
-    type_hash_from_share,
-)
+from gripper_ros.bags.reader import CUSTOM_DATA_RECORD
+from gripper_ros.bags.schema import import_message_class, message_definition, type_hash_from_share
+from gripper_ros.bags.series import GRASP_TOPICS
 
 ROS_DISTRO = 'jazzy'
 BAG_VERSION = 9

@@ -15,9 +15,16 @@ from dataclasses import dataclass, field
 from typing import Callable, Sequence
 
 from gripper_ros.bags.reader import (
-    EXIT_ERROR, EXIT_TRUNCATED, TOPIC_CLOCK, Bag, BagError, MissingTopicsError, RawMessage,
-    import_message_class, read_bag,
+    Bag,
+    BagError,
+    EXIT_ERROR,
+    EXIT_TRUNCATED,
+    MissingTopicsError,
+    RawMessage,
+    read_bag,
 )
+from gripper_ros.bags.schema import import_message_class
+from gripper_ros.wire import TOPIC_CLOCK
 
 PROG = 'bag_replay'
 DEFAULT_DEPTH = 1000

@@ -33,9 +33,12 @@ from typing import Any
 
 import yaml
 
-from gripper_ros.bags.reader import (
-    TOPIC_FORCE_SENSOR, TOPIC_JOINT_STATES, TOPIC_MOTOR_COMMAND, TOPIC_STATUS, Bag, BagError,
-    open_bag,
+from gripper_ros.bags.reader import Bag, BagError, open_bag
+from gripper_ros.wire import (
+    TOPIC_FORCE_SENSOR,
+    TOPIC_JOINT_STATES,
+    TOPIC_MOTOR_COMMAND,
+    TOPIC_STATUS,
 )
 from gripper_ros.core.config import ConfigError, GripperConfig, default_config_path, parse_config
 from gripper_ros.core.stages import (

@@ -328,7 +328,7 @@ class _RecorderTap:
     """
 
     def __init__(self, node, time_source):
-        from gripper_ros.bags.reader import import_message_class
+        from gripper_ros.bags.schema import import_message_class
         from gripper_ros.nodes.common import GRAPH_QOS
         self.sink = None
         self._node = node
