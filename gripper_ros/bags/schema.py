@@ -1,63 +1,56 @@
 """Message definitions and types from the installed interface packages (no rclpy).
 
-The recorder stores, per type, the full ``ros2msg`` schema text that rosbag2 writes into MCAP
-(the ``.msg`` and each nested dependency) and the type hash; the nodes import generated
-classes by name.
+The recorder stores, per type, the full ``ros2msg`` schema text exactly as rosbag2 writes it
+into MCAP (the ``.msg`` and each nested dependency, named as its field writes it) and the type
+hash; the nodes import generated classes by name.
 """
 from __future__ import annotations
 
 import importlib
 import json
 import os
+from pathlib import Path
 import re
 import sys
-from pathlib import Path
 from typing import Iterator
 
 SCHEMA_SEPARATOR = '=' * 80
+
+# How rosbag2 (rosbag2_cpp LocalMessageDefinitionSource, Jazzy) finds a .msg's dependencies:
+# the first word of every line that is not a comment, with any array suffix dropped, unless it
+# is one of its primitive names. A word without '/' gets the enclosing package as prefix
+# ('Header' in std_msgs -> 'std_msgs/Header'); any other word is kept exactly as written, so a
+# field 'std_msgs/Header' yields 'MSG: std_msgs/Header' and 'pkg/msg/Type' yields
+# 'MSG: pkg/msg/Type'. Foxglove resolves a qualified field type only by an exact 'MSG:' name.
+_MSG_FIELD_TYPE = re.compile(r'(?:^|\n)\s*([a-zA-Z0-9_/]+)(?:\[[^\]]*\])?\s+')
+_TYPE_NAME = re.compile(r'^([a-zA-Z0-9_]+)/(?:msg/|srv/)?([a-zA-Z0-9_]+)$')
+# rosbag2's list plus 'wstring' (rosbag2 would look for a message 'pkg/wstring', miss it and
+# store the whole type as IDL instead).
+_PRIMITIVES = frozenset({
+    'bool', 'byte', 'char', 'float32', 'float64', 'int8', 'uint8', 'int16', 'uint16', 'int32',
+    'uint32', 'int64', 'uint64', 'string', 'wstring',
+})
+_MAX_DEPTH = 50
+"""rosbag2's ROSBAG2_CPP_LOCAL_MESSAGE_DEFINITION_SOURCE_MAX_RECURSION_DEPTH."""
 
 
 def _one_line(text: object) -> str:
     return ' '.join(str(text).split())
 
-_PRIMITIVES = frozenset({
-    'bool', 'byte', 'char', 'float32', 'float64', 'int8', 'uint8', 'int16', 'uint16', 'int32',
-    'uint32', 'int64', 'uint64', 'string', 'wstring',
-})
 
+def msg_dependencies(text: str, package: str) -> list[str]:
+    """Names of the message types a .msg text uses, as rosbag2 writes them in 'MSG:' lines.
 
-def _normalize_type(name: str, own_pkg: str) -> str | None:
-    """'pkg/Type' or 'Type' or 'pkg/msg/Type' -> 'pkg/msg/Type'; None for primitives."""
-    base = re.sub(r'\[.*\]$', '', name)          # arrays: T[], T[3], T[<=3]
-    base = re.sub(r'<=\d+$', '', base)            # bounded strings: string<=10
-    if base in _PRIMITIVES:
-        return None
-    parts = base.split('/')
-    if len(parts) == 1:
-        return f'{own_pkg}/msg/{parts[0]}'
-    if len(parts) == 2:
-        return f'{parts[0]}/msg/{parts[1]}'
-    return base
-
-
-def _msg_dependencies(text: str, msgtype: str) -> list[str]:
-    """Field types of a .msg text that are messages themselves, in order of appearance."""
-    own_pkg = msgtype.split('/')[0]
-    deps: list[str] = []
-    for raw_line in text.splitlines():
-        line = raw_line.split('#', 1)[0].strip()
-        if not line:
+    Sorted and unique (rosbag2 keeps them in a ``std::set``); ``package`` is the package of the
+    type whose text this is.
+    """
+    deps = set()
+    for match in _MSG_FIELD_TYPE.finditer(text):
+        word = match.group(1)
+        if word in _PRIMITIVES:
             continue
-        tokens = line.split()
-        if len(tokens) < 2:
-            continue
-        type_token, name_token = tokens[0], tokens[1]
-        if '=' in name_token or (len(tokens) > 2 and tokens[2].startswith('=')):
-            continue                                   # constant
-        dep = _normalize_type(type_token, own_pkg)
-        if dep and dep not in deps:
-            deps.append(dep)
-    return deps
+        deps.add(word if '/' in word else f'{package}/{word}')
+    return sorted(deps)
 
 
 def _share_dirs(pkg: str) -> Iterator[Path]:
@@ -81,7 +74,7 @@ def _share_dirs(pkg: str) -> Iterator[Path]:
 
 
 def find_interface_file(msgtype: str, suffix: str = '.msg') -> Path:
-    """The installed ``<share>/pkg/msg/Type.msg`` (or ``.json`` with ``suffix``) of a type."""
+    """Find the installed ``<share>/pkg/msg/Type.msg`` (or ``.json`` with ``suffix``) of a type."""
     pkg, kind, name = split_type(msgtype)
     for share in _share_dirs(pkg):
         candidate = share / kind / f'{name}{suffix}'
@@ -102,24 +95,32 @@ def split_type(msgtype: str) -> tuple[str, str, str]:
 
 
 def message_definition(msgtype: str) -> str:
-    """Full ``ros2msg`` schema text: the .msg, then each dependency after 80 '=' and 'MSG:'.
+    """Full ``ros2msg`` schema text of ``msgtype``, written as rosbag2 writes it into MCAP.
 
-    This is the format rosbag2 stores in MCAP schemas; readers (Foxglove, mcap_ros2, rosbags)
-    need every nested type present.
+    The installed .msg text as is; after it, each dependency not written yet, depth first in
+    the order of :func:`msg_dependencies`, as a newline, 80 '=', 'MSG: <name as the field
+    writes it>' and that type's .msg text. Readers (Foxglove, mcap_ros2, rosbags) need every
+    nested type present and named so.
     """
-    root = find_interface_file(msgtype).read_text(encoding='utf-8')
-    parts = [root.rstrip('\n')]
-    seen = {msgtype}
-    queue = list(_msg_dependencies(root, msgtype))
-    while queue:
-        dep = queue.pop(0)
-        if dep in seen:
-            continue
-        seen.add(dep)
-        text = find_interface_file(dep).read_text(encoding='utf-8')
-        parts.append(f'{SCHEMA_SEPARATOR}\nMSG: {dep}\n{text.rstrip(chr(10))}')
-        queue.extend(d for d in _msg_dependencies(text, dep) if d not in seen)
-    return '\n'.join(parts) + '\n'
+    seen: set[str] = set()
+
+    def append(name: str, depth: int) -> str:
+        if depth <= 0:
+            raise LookupError(f'{msgtype}: nested deeper than {_MAX_DEPTH} types')
+        match = _TYPE_NAME.match(name)
+        if match is None:
+            raise ValueError(f'not a ROS message type name: {name!r} (in {msgtype})')
+        package = match.group(1)
+        # bytes as stored: no newline translation
+        text = find_interface_file(f'{package}/msg/{match.group(2)}').read_bytes().decode(
+            'utf-8')
+        for dep in msg_dependencies(text, package):
+            if dep not in seen:
+                seen.add(dep)
+                text += f'\n{SCHEMA_SEPARATOR}\nMSG: {dep}\n' + append(dep, depth - 1)
+        return text
+
+    return append(msgtype, _MAX_DEPTH)
 
 
 def type_hash_from_share(msgtype: str) -> str:
@@ -135,7 +136,7 @@ def type_hash_from_share(msgtype: str) -> str:
 
 
 def import_message_class(msgtype: str) -> type:
-    """The generated Python class of 'pkg/msg/Type' (importlib only, no rosidl_runtime_py)."""
+    """Import the generated class of 'pkg/msg/Type' (importlib only, no rosidl_runtime_py)."""
     pkg, kind, name = split_type(msgtype)
     try:
         module = importlib.import_module(f'{pkg}.{kind}')
