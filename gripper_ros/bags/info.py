@@ -51,7 +51,7 @@ def _last_status(bag: Bag):
     """Last SupervisorStatus in the bag (the grasp's final decision), or None."""
     last = None
     for raw in bag.messages:
-        if raw.topic == TOPIC_STATUS:
+        if raw.topic.endswith('/' + TOPIC_STATUS):
             last = raw
     if last is None:
         return None
@@ -65,6 +65,8 @@ def grasp_lines(bag: Bag) -> list[str]:
     """Grasp request/outcome from custom_data and the last supervisor status."""
     lines = []
     for key, value in bag.custom_data_parsed().items():
+        if key == 'config' and isinstance(value, dict):
+            value = f'{len(value)} sections ({", ".join(value)}), as the graph used them'
         lines.append(_line(f'{key}', _format_value(value)))
     status = _last_status(bag)
     if status is not None:

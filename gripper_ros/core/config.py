@@ -5,9 +5,10 @@ into ROS parameter defaults. A bad file stops with a :class:`ConfigError` naming
 """
 from __future__ import annotations
 
+import copy
 import math
 import os
-from dataclasses import MISSING, dataclass, fields
+from dataclasses import MISSING, dataclass, field, fields
 from pathlib import Path
 
 import yaml
@@ -154,6 +155,8 @@ class GripperConfig:
     force: ForceControlParams
     supervisor: SupervisorParams
     source: str
+    data: dict = field(default_factory=dict, compare=False, hash=False, repr=False)
+    """The mapping the values were read from (what a bag records, what re-runs start from)."""
 
 
 def default_config_path() -> Path:
@@ -269,7 +272,8 @@ def parse_config(data: dict, source: str = '<dict>') -> GripperConfig:
     if not sup.lost_force_fraction < 1.0:
         raise ConfigError('"supervisor.lost_force_fraction" must be in (0, 1), '
                           f'got {sup.lost_force_fraction!r}')
-    return GripperConfig(plant, contact, sensor, position, force, sup, source)
+    return GripperConfig(plant, contact, sensor, position, force, sup, source,
+                         copy.deepcopy(data))
 
 
 def load_config(path: str | os.PathLike | None = None) -> GripperConfig:

@@ -1,11 +1,12 @@
 """One grasp without ROS: the node graph's lockstep loop, run in plain Python.
 
-The same plant (:mod:`plant`), supervisor state machine (:mod:`grasp_logic`) and controller logic
-(:mod:`controller_logic`) the nodes call, wired exactly as the nodes wire them: each tick the
-supervisor decides from the tick's measurements, the controller it names answers, and the plant
-holds that answer for the controller's sampling time. A grasp here gives the same series as the
-graph (``test/test_graph.py`` checks it bit for bit against the recorded bags), in a fraction of
-the time, so sweeps over many objects are practical.
+The same plant, supervisor and stage code the nodes call (:mod:`gripper_ros.core.lockstep`),
+wired exactly as the graph wires them in ``time_mode`` fast: the position stage holds the
+open fingers, the grasp request starts at the next tick, each tick the supervisor decides, the
+stage it names answers and the plant holds that answer; simulated time stops when the request
+no longer needs it (answered, and no lift left to play out), or ``hold_s`` after the answer.
+A grasp here gives the same series as the graph, tick for tick, in a fraction of the time, so
+sweeps over many objects are practical.
 """
 from __future__ import annotations
 
@@ -14,34 +15,22 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from gripper_ros.core.config import GripperConfig
-from gripper_ros.core.stages import (DEFAULT_APPROACH_FORCE_MARGIN, DEFAULT_FORCE_CONTROLLER,
-                               DEFAULT_POSITION_CONTROLLER, ForceStageController,
-                               LockstepAnswerer, PositionStageController)
 from gripper_ros.core.controllers import make_plant
-from gripper_ros.core.supervisor import (Controller, GraspRequest, GraspSupervisor, Outcome, Phase,
-                          SwitchCriterion, validate_request)
+from gripper_ros.core.lockstep import PlantSide, StageSide, SupervisorSide
 from gripper_ros.core.plant import GraspObject
-
-
-@dataclass
-class _Status:
-    """The fields of SupervisorStatus the controllers read."""
-
-    active_controller: int = 0
-    grasp_id: int = 1
-    position_setpoint_m: float = 0.0
-    force_setpoint_n: float = 0.0
-    seed_voltage_v: float = 0.0
-    contact: bool = False
-    position_m: float = 0.0
-    approach_setpoint_m: float = 0.0
+from gripper_ros.core.stages import (DEFAULT_APPROACH_FORCE_MARGIN, DEFAULT_FORCE_CONTROLLER,
+                                     DEFAULT_POSITION_CONTROLLER, ForceStageController,
+                                     PositionStageController)
+from gripper_ros.core.supervisor import (GraspRequest, GraspSupervisor, Outcome, Phase,
+                                         SwitchCriterion, validate_request)
+from gripper_ros.wire import Controller
 
 
 @dataclass
 class HeadlessGrasp:
-    """Per-tick series (one entry per plant sample) and the grasp's result."""
+    """Per-tick series (one entry per plant tick) and the grasp's result."""
 
-    outcome: Outcome
+    outcome: Outcome                    # the final outcome (after the hold, when it went on)
     message: str
     switch_criterion: SwitchCriterion
     position_setpoint_m: float
@@ -49,14 +38,16 @@ class HeadlessGrasp:
     start_ns: int
     switch_ns: int | None
     contact_ns: int | None
-    end_ns: int
-    t_ns: np.ndarray = field(repr=False)
-    position_m: np.ndarray = field(repr=False)
-    force_n: np.ndarray = field(repr=False)
-    peak_force_n: np.ndarray = field(repr=False)
-    motor_voltage_v: np.ndarray = field(repr=False)
-    sensor_voltage_v: np.ndarray = field(repr=False)
-    phase: np.ndarray = field(repr=False)
+    end_ns: int                         # the last tick simulated
+    answer: Outcome = Outcome.UNKNOWN   # what the grasp service answered
+    answer_ns: int | None = None        # when
+    t_ns: np.ndarray = field(repr=False, default=None)
+    position_m: np.ndarray = field(repr=False, default=None)
+    force_n: np.ndarray = field(repr=False, default=None)
+    peak_force_n: np.ndarray = field(repr=False, default=None)
+    motor_voltage_v: np.ndarray = field(repr=False, default=None)
+    sensor_voltage_v: np.ndarray = field(repr=False, default=None)
+    phase: np.ndarray = field(repr=False, default=None)
 
     @property
     def peak_contact_force_n(self) -> float:
@@ -75,50 +66,53 @@ def simulate_grasp(config: GripperConfig, width_m: float, mass_kg: float, *,
                    position_controller=DEFAULT_POSITION_CONTROLLER,
                    force_controller=DEFAULT_FORCE_CONTROLLER,
                    approach_force_margin: float = DEFAULT_APPROACH_FORCE_MARGIN,
-                   start_ns: int = 0) -> HeadlessGrasp:
+                   hold_s: float = 0.0, start_ns: int = 0, **hold) -> HeadlessGrasp:
     """Grasp from fully open; ``object_width_m`` (default ``width_m``; 0 = nothing) is the real
-    object, ``width_m`` the expected one. Raises RequestError for a request the graph refuses."""
+    object, ``width_m`` the expected one; ``hold`` goes to the plant's ``set_object`` (the
+    object's mass, friction and lift). ``hold_s`` keeps simulated time running that long after
+    the answer. Raises RequestError for a request the graph refuses."""
     targets = validate_request(GraspRequest(width_m, mass_kg, friction_coefficient,
                                             acceleration_mps2, timeout_s, width_tolerance_m),
                                config.plant, config.supervisor)
     plant = make_plant(config)
     plant.t_ns = start_ns
-    plant.set_object(GraspObject(width_m if object_width_m is None else object_width_m,
-                                 stiffness_n_per_m, damping_n_s_per_m))
-    stages = {Controller.POSITION: LockstepAnswerer(
-                  PositionStageController(config, position_controller)),
-              Controller.FORCE: LockstepAnswerer(
-                  ForceStageController(config, force_controller, approach_force_margin))}
+    plant_side = PlantSide(plant)
+    plant_side.grasp_mass_kg = mass_kg
+    plant_side.set_object(GraspObject(width_m if object_width_m is None else object_width_m,
+                                      stiffness_n_per_m, damping_n_s_per_m), **hold)
     supervisor = GraspSupervisor(config.plant, config.supervisor)
-    sample = plant.sample()
-    decision = supervisor.start(targets, sample.t_ns, sample.sensor_voltage_v)
+    decide = SupervisorSide(supervisor).decide
+    stages = {Controller.POSITION: StageSide(PositionStageController(config, position_controller)),
+              Controller.FORCE: StageSide(ForceStageController(config, force_controller,
+                                                                approach_force_margin))}
+    tick = plant_side.tick()
+    decision, ref = decide(tick)                    # the position stage holds the open fingers
+    supervisor.request_grasp(targets, mass_kg, after_ns=tick.stamp_ns)
+    woken = True                                    # the request wakes the paused simulation
+    hold_until_ns = None
     rows = []
-    status = _Status(position_setpoint_m=targets.position_setpoint_m,
-                     force_setpoint_n=targets.force_setpoint_n,
-                     approach_setpoint_m=targets.approach_setpoint_m)
     while True:
-        rows.append((sample.t_ns, sample.position_m, sample.force_n, sample.peak_force_n,
-                     sample.voltage_v, sample.sensor_voltage_v, int(decision.phase)))
-        status.active_controller = int(decision.active)
-        status.contact = supervisor.contact_ns is not None
-        status.seed_voltage_v = sample.voltage_v
-        status.position_m = sample.position_m
-        for answerer in stages.values():
-            answerer.on_status(status)
-        if decision.active is Controller.NONE:
-            break
-        answerer = stages[decision.active]
-        measurement = sample.position_m if decision.active is Controller.POSITION \
-            else sample.force_n
-        answer = answerer.answer(status, sample.t_ns, measurement)
-        sample = plant.step(answer.voltage_v, answerer.stage.sample_time_s)
-        decision = supervisor.step(sample.t_ns, sample.position_m, sample.force_n,
-                                   sample.sensor_voltage_v, sample.velocity_mps)
+        rows.append((tick.stamp_ns, tick.position_m, tick.force_n, tick.peak_force_n,
+                     tick.motor_voltage_v, tick.sensor_voltage_v, int(decision.phase)))
+        if hold_until_ns is None and supervisor.answer_ns is not None:
+            hold_until_ns = supervisor.answer_ns + round(hold_s * 1e9)
+        if ref is None:
+            break                                   # a FAULT: nothing drives the motor
+        cmd = stages[ref.controller].answer(ref)
+        plant_side.accept(cmd)
+        needed = plant_side.needs_time(cmd) or woken or \
+            (hold_until_ns is not None and tick.stamp_ns < hold_until_ns)
+        if not needed:
+            break                                   # fast mode: simulated time pauses
+        woken = False
+        tick = plant_side.step(cmd)
+        decision, ref = decide(tick)
     cols = list(zip(*rows))
+    s = supervisor
     return HeadlessGrasp(
-        supervisor.outcome, supervisor.message, supervisor.switch_criterion,
-        targets.position_setpoint_m, targets.force_setpoint_n, start_ns, supervisor.switch_ns,
-        supervisor.contact_ns, sample.t_ns, np.array(cols[0], dtype=np.int64),
+        s.outcome, s.message, s.switch_criterion, targets.position_setpoint_m,
+        targets.force_setpoint_n, s.start_ns, s.switch_ns, s.contact_ns, tick.stamp_ns,
+        s.answer, s.answer_ns, np.array(cols[0], dtype=np.int64),
         *(np.array(c, dtype=float) for c in cols[1:6]), np.array(cols[6], dtype=np.int8))
 
 

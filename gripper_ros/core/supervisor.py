@@ -107,88 +107,184 @@ def validate_request(req: GraspRequest, plant: PlantParams,
                         req.timeout_s or sup.timeout_s, tolerance)
 
 
-@dataclass(frozen=True)
 class Decision:
-    """The supervisor's verdict for one tick."""
+    """The supervisor's verdict for one tick; the same object, updated in place, every tick.
 
-    phase: Phase
-    active: Controller
-    switch_criterion: SwitchCriterion
-    outcome: Outcome
-    position_setpoint_m: float
-    force_setpoint_n: float
-    message: str = ''
-    approach_setpoint_m: float = 0.0    # the position stage's target (see GraspTargets)
+    ``answer`` is the outcome this tick produced for the request (the grasp service answers
+    now, the outcome is latched), or None.
+    """
+
+    __slots__ = ('t_ns', 'phase', 'active', 'switch_criterion', 'outcome', 'grasp_id',
+                 'stage_id', 'running', 'contact', 'position_setpoint_m', 'approach_setpoint_m',
+                 'force_setpoint_n', 'message', 'answer')
+
+    def __init__(self):
+        self.t_ns = 0
+        self.phase = Phase.IDLE
+        self.active = Controller.NONE
+        self.switch_criterion = SwitchCriterion.NONE
+        self.outcome = Outcome.UNKNOWN
+        self.grasp_id = 0
+        self.stage_id = 0
+        self.running = False
+        self.contact = False
+        self.position_setpoint_m = 0.0
+        self.approach_setpoint_m = 0.0
+        self.force_setpoint_n = 0.0
+        self.message = ''
+        self.answer: Outcome | None = None
 
     @property
     def finished(self) -> bool:
+        """The request has been answered (it may go on holding, phase HOLDING)."""
         return self.outcome is not Outcome.UNKNOWN
 
 
+class RequestKind:
+    GRASP = 'grasp'
+    RELEASE = 'release'
+
+
 class GraspSupervisor:
-    """One grasp at a time; :meth:`step` once per plant tick with that tick's measurements."""
+    """One request at a time; :meth:`step` once per plant tick with that tick's measurements.
+
+    A controller always drives the motor, except after a FAULT: with no request the position
+    stage holds the finger where it came to rest (phase IDLE, or DONE/FAILED with the last
+    outcome); a grasp runs POSITION -> FORCE -> HOLDING and, once answered, goes on holding
+    (phase HOLDING, outcome HOLDING, force stage active) until a release, a stop, the next
+    grasp or the loss of the object. A request is accepted at once and starts at the next
+    tick (:meth:`request_grasp`, :meth:`request_release`). ``running`` says whether the
+    request still needs simulated time; ``stage_id`` grows whenever a controller is
+    (re)assigned, so that it restarts from the measured state.
+    """
 
     def __init__(self, plant: PlantParams, params: SupervisorParams):
         self.plant = plant
         self.params = params
         self.targets: GraspTargets | None = None
+        self.kind: str | None = None            # the current request's kind, None before any
         self.phase = Phase.IDLE
         self.switch_criterion = SwitchCriterion.NONE
         self.outcome = Outcome.UNKNOWN
+        self.grasp_id = 0
+        self.stage_id = 0
+        self.mass_kg = 0.0                      # the current grasp request's object mass
         self.start_ns = 0
         self.switch_ns: int | None = None
         self.contact_ns: int | None = None
         self.settled_ns: int | None = None      # force first settled (phase HOLDING from here)
         self.hold_position_m: float | None = None
-        self.end_ns: int | None = None
+        self.end_ns: int | None = None          # when the request was answered or ended
+        self.answer = Outcome.UNKNOWN            # what the current request was answered
+        self.answer_ns: int | None = None        # ... and when (the grasp service's answer)
+        self.message = ''
+        self._pending: tuple | None = None      # (kind, targets, mass_kg) starting next tick
+        self._active = Controller.NONE
+        self._idle_hold_m = 0.0                 # where the position stage holds without a request
+        self._revision: int | None = None       # the plant's world revision last seen
         self._baseline_voltage_v = 0.0
         self._in_band_since_ns: int | None = None
         self._gripped = False                   # force reached lost_force_fraction x F_sp
         self._low_since_ns: int | None = None
         self._t_ns = 0
-        self.message = ''
+        self._decision = Decision()
 
+    # ------------------------------------------------------------------ state
     @property
-    def busy(self) -> bool:
-        """A grasp or release is running (a controller drives the motor)."""
-        return self.phase is not Phase.IDLE and self.outcome is Outcome.UNKNOWN
+    def running(self) -> bool:
+        """A grasp or release is in progress (it needs simulated time until it is answered)."""
+        return self.kind is not None and self.outcome is Outcome.UNKNOWN
+
+    busy = running
 
     @property
     def releasing(self) -> bool:
-        return self.busy and self.phase is Phase.RELEASING
+        return self.running and self.phase is Phase.RELEASING
 
-    def start(self, targets: GraspTargets, t_ns: int, sensor_voltage_v: float) -> Decision:
-        """Begin a grasp at tick ``t_ns``; the sensor voltage now is the no-contact baseline."""
-        if self.busy:
-            raise RequestError('a release is running' if self.releasing
-                               else 'a grasp is already running')
-        self.targets = targets
-        self.phase = Phase.POSITION
-        self.switch_criterion = SwitchCriterion.NONE
-        self.outcome = Outcome.UNKNOWN
-        self._reset(t_ns)
-        self._baseline_voltage_v = sensor_voltage_v
-        return self._decision()
+    @property
+    def holding(self) -> bool:
+        """A grasp was answered HOLDING and the force stage goes on holding the object."""
+        return self.phase is Phase.HOLDING and self.outcome is Outcome.HOLDING
 
-    def start_release(self, t_ns: int, open_position_m: float = 0.0,
-                      timeout_s: float | None = None) -> Decision:
-        """Open the fingers under position control: the position stage to ``open_position_m``."""
-        if self.busy:
-            raise RequestError(f'a {"release" if self.releasing else "grasp"} is running '
-                               f'(phase {self.phase.name})')
+    @property
+    def pending(self) -> bool:
+        return self._pending is not None
+
+    @property
+    def active(self) -> Controller:
+        return self._active
+
+    # ------------------------------------------------------------------ requests
+    def _refuse_if_busy(self) -> None:
+        if self._pending is not None:
+            raise RequestError(f'a {self._pending[0]} request is already waiting to start')
+        if self.running:
+            raise RequestError(f'a {self.kind} is running (phase {self.phase.name})')
+
+    def request_grasp(self, targets: GraspTargets, mass_kg: float = 0.0,
+                      after_ns: int | None = None) -> None:
+        """Accept a grasp; it starts at the first tick later than ``after_ns`` (default: the
+        next tick decided), whose sensor voltage is the no-contact baseline.
+
+        Pass the newest tick received when the request arrived: the start is then the same
+        whether or not that tick had been decided yet (deterministic under any timing). A grasp
+        may follow a hold; the hold ends when it starts.
+        """
+        self._refuse_if_busy()
+        self._pending = (RequestKind.GRASP, targets, float(mass_kg), after_ns)
+
+    def request_release(self, open_position_m: float = 0.0, timeout_s: float | None = None,
+                        after_ns: int | None = None) -> None:
+        """Accept a release: the position stage to ``open_position_m``, from the first tick
+        later than ``after_ns`` (see :meth:`request_grasp`)."""
+        self._refuse_if_busy()
         if not (math.isfinite(open_position_m)
                 and 0.0 <= open_position_m < self.plant.max_travel_m):
             raise RequestError(f'open position must be in [0, {self.plant.max_travel_m:g}) m, '
                                f'got {open_position_m!r}')
         timeout = self.params.timeout_s if timeout_s is None else timeout_s
-        self.targets = GraspTargets(open_position_m, 0.0, 0.0, timeout)
-        self.phase = Phase.RELEASING
-        self.switch_criterion = SwitchCriterion.NONE
+        self._pending = (RequestKind.RELEASE, GraspTargets(open_position_m, 0.0, 0.0, timeout),
+                         0.0, after_ns)
+
+    def stop(self, message: str = 'stopped on request') -> Decision | None:
+        """End the running request, the hold or a waiting request now (STOPPED).
+
+        Returns the ending decision (for the status and the answer), or None with nothing to
+        stop. From the next tick the position stage holds the finger where it is.
+        """
+        if self._pending is not None and not self.running:
+            kind, targets, mass, _ = self._pending  # answered at once, it never starts
+            self._pending = None
+            self.grasp_id += 1
+            self.kind, self.targets, self.mass_kg = kind, targets, mass
+            self._reset(self._t_ns)
+        elif not (self.running or self.holding):
+            return None
+        self._end(Phase.DONE, Outcome.STOPPED, message)
+        return self._fill(Outcome.STOPPED)
+
+    def fault(self, message: str) -> Decision:
+        """End the running request or the hold as FAULT: no controller drives the motor."""
+        if not (self.running or self.holding):
+            return self._fill()
+        self._end(Phase.FAILED, Outcome.FAULT, message, hold=False)
+        return self._fill(Outcome.FAULT)
+
+    def _start(self, t_ns: int, position_m: float, sensor_voltage_v: float) -> None:
+        kind, targets, mass, _ = self._pending
+        self._pending = None
+        self.grasp_id += 1
+        self.kind, self.targets, self.mass_kg = kind, targets, mass
+        self.phase = Phase.POSITION if kind == RequestKind.GRASP else Phase.RELEASING
         self._reset(t_ns)
-        return self._decision()
+        self._baseline_voltage_v = sensor_voltage_v
+        self._assign(Controller.POSITION)
 
     def _reset(self, t_ns: int) -> None:
         self.outcome = Outcome.UNKNOWN
+        self.answer = Outcome.UNKNOWN
+        self.answer_ns = None
+        self.switch_criterion = SwitchCriterion.NONE
         self.start_ns = self._t_ns = t_ns
         self.switch_ns = None
         self.contact_ns = None
@@ -200,24 +296,42 @@ class GraspSupervisor:
         self._low_since_ns = None
         self.message = ''
 
-    def stop(self, message: str = 'stopped on request') -> Decision:
-        """End the running grasp now (STOPPED); the plant is left without a commanding loop."""
-        if self.busy:
-            self._finish(Phase.DONE, Outcome.STOPPED, message)
-        return self._decision()
+    def _assign(self, controller: Controller) -> None:
+        """Hand the motor to ``controller`` from this tick on; it restarts (new stage)."""
+        self._active = controller
+        self.stage_id += 1
 
-    def fault(self, message: str) -> Decision:
-        if self.busy:
-            self._finish(Phase.FAILED, Outcome.FAULT, message)
-        return self._decision()
+    def _hold_here(self, position_m: float) -> None:
+        """The position stage holds the finger at ``position_m`` (no request running)."""
+        self._idle_hold_m = position_m if math.isfinite(position_m) else self._idle_hold_m
+        self._assign(Controller.POSITION)
 
-    def step(self, t_ns: int, position_m: float, force_n: float,
-             sensor_voltage_v: float, speed_mps: float = 0.0) -> Decision:
-        """Advance the state machine with the measurements of tick ``t_ns`` (``speed_mps``:
-        the finger's speed, for the position switch's speed condition)."""
-        if not self.busy:
-            return self._decision()
+    # ------------------------------------------------------------------ the tick
+    def step(self, t_ns: int, position_m: float, force_n: float, sensor_voltage_v: float,
+             speed_mps: float = 0.0, revision: int = 0) -> Decision:
+        """Advance the state machine with the measurements of tick ``t_ns``.
+
+        ``speed_mps`` is the finger's speed (the position switch's speed condition);
+        ``revision`` counts changes of the simulated world (a new object, fingers reset): the
+        position stage then holds the finger where it now is.
+        """
         self._t_ns = t_ns
+        answer = None
+        if self._revision != revision:
+            first = self._revision is None
+            self._revision = revision
+            if not (self.running or self.holding) and \
+                    (first or self._active is Controller.POSITION):
+                self._hold_here(position_m)       # after a FAULT nothing drives until a request
+        pending = self._pending
+        if pending is not None and (pending[3] is None or t_ns > pending[3]) and \
+                math.isfinite(position_m):
+            self._start(t_ns, position_m, sensor_voltage_v)
+        if self.running or self.holding:
+            answer = self._step_request(t_ns, position_m, force_n, sensor_voltage_v, speed_mps)
+        return self._fill(answer)
+
+    def _step_request(self, t_ns, position_m, force_n, sensor_voltage_v, speed_mps):
         bad = []
         if not math.isfinite(position_m):
             bad.append(f'finger position sensor (joint state) reads {position_m!r} m')
@@ -226,11 +340,12 @@ class GraspSupervisor:
             bad.append(f'force sensor reads force {force_n!r} N, voltage '
                        f'{sensor_voltage_v!r} V (sensor dropout)')
         if bad:
-            self._finish(Phase.FAILED, Outcome.FAULT,
-                         f'fault at t={t_ns * 1e-9:.4f} s ({(t_ns - self.start_ns) * 1e-9:.4f} s '
-                         f'into the {"release" if self.phase is Phase.RELEASING else "grasp"}): '
-                         + '; '.join(bad) + '; no controller drives the motor from here on')
-            return self._decision()
+            what = 'release' if self.phase is Phase.RELEASING else \
+                'hold' if self.holding else 'grasp'
+            return self._end(Phase.FAILED, Outcome.FAULT,
+                             f'fault at t={t_ns * 1e-9:.4f} s ({(t_ns - self.start_ns) * 1e-9:.4f}'
+                             f' s into the {what}): ' + '; '.join(bad) +
+                             '; no controller drives the motor from here on', hold=False)
         if self.phase is Phase.RELEASING:
             return self._step_release(t_ns, position_m)
         p, tg = self.params, self.targets
@@ -239,15 +354,19 @@ class GraspSupervisor:
             self.contact_ns = t_ns
         farthest_face_m = tg.position_setpoint_m + tg.width_tolerance_m   # narrowest object
         if self.contact_ns is None and position_m > farthest_face_m + p.no_object_margin_m:
-            self._finish(Phase.FAILED, Outcome.NO_OBJECT,
-                         f'no object: the finger passed the expected face '
-                         f'({tg.position_setpoint_m:.4f} m'
-                         + (f' + {tg.width_tolerance_m * 1e3:g} mm tolerance'
-                            if tg.width_tolerance_m else '') +
-                         f') by {(position_m - farthest_face_m) * 1e3:.2f} mm without contact')
-            return self._decision()
-        if self.contact_ns is not None and self._object_lost(t_ns, position_m, force_n):
-            return self._decision()
+            return self._end(
+                Phase.FAILED, Outcome.NO_OBJECT,
+                f'no object: the finger passed the expected face ({tg.position_setpoint_m:.4f} m'
+                + (f' + {tg.width_tolerance_m * 1e3:g} mm tolerance'
+                   if tg.width_tolerance_m else '') +
+                f') by {(position_m - farthest_face_m) * 1e3:.2f} mm without contact',
+                position_m=position_m)
+        if self.contact_ns is not None:
+            lost = self._object_lost(t_ns, position_m, force_n)
+            if lost is not None:
+                return lost
+        if self.holding:
+            return None
         if self.phase is Phase.POSITION:
             tol = p.position_tolerance_fraction * tg.position_setpoint_m
             slow = (p.position_switch_speed_mps <= 0.0
@@ -257,30 +376,36 @@ class GraspSupervisor:
             elif sensor_rise:
                 self._switch(SwitchCriterion.SENSOR_VOLTAGE, t_ns)
         elif self.phase is Phase.FORCE:
-            band = p.force_settle_band_fraction * tg.force_setpoint_n
-            if abs(force_n - tg.force_setpoint_n) <= band:
-                if self._in_band_since_ns is None:
-                    self._in_band_since_ns = t_ns
-                if (t_ns - self._in_band_since_ns) * 1e-9 >= p.force_settle_hold_s:
-                    self.settled_ns = t_ns
-                    self.hold_position_m = position_m
-                    self.phase = Phase.HOLDING
-            else:
-                self._in_band_since_ns = None
+            self._step_force_settle(t_ns, position_m, force_n)
         if self.phase is Phase.HOLDING and \
                 (t_ns - self.settled_ns) * 1e-9 >= p.hold_watch_s:
-            self._finish(Phase.HOLDING, Outcome.HOLDING,
-                         f'holding {force_n:.3f} N (setpoint '
-                         f'{tg.force_setpoint_n:.3f} N) at {position_m:.5f} m')
-            return self._decision()
+            self.outcome = Outcome.HOLDING
+            self.end_ns = t_ns
+            self.message = (f'holding {force_n:.3f} N (setpoint {tg.force_setpoint_n:.3f} N) '
+                            f'at {position_m:.5f} m')
+            return Outcome.HOLDING
         if (t_ns - self.start_ns) * 1e-9 > tg.timeout_s:
-            self._finish(Phase.FAILED, Outcome.TIMEOUT,
-                         f'not settled within {tg.timeout_s:g} s of simulated time '
-                         f'(phase {self.phase.name}, position {position_m:.5f} m, '
-                         f'force {force_n:.3f} N)')
-        return self._decision()
+            return self._end(Phase.FAILED, Outcome.TIMEOUT,
+                             f'not settled within {tg.timeout_s:g} s of simulated time '
+                             f'(phase {self.phase.name}, position {position_m:.5f} m, '
+                             f'force {force_n:.3f} N)', position_m=position_m)
+        return None
 
-    def _object_lost(self, t_ns: int, position_m: float, force_n: float) -> bool:
+    def _step_force_settle(self, t_ns: int, position_m: float, force_n: float) -> None:
+        """FORCE -> HOLDING once the force has stayed within its band for the hold time."""
+        p, tg = self.params, self.targets
+        band = p.force_settle_band_fraction * tg.force_setpoint_n
+        if abs(force_n - tg.force_setpoint_n) <= band:
+            if self._in_band_since_ns is None:
+                self._in_band_since_ns = t_ns
+            if (t_ns - self._in_band_since_ns) * 1e-9 >= p.force_settle_hold_s:
+                self.settled_ns = t_ns
+                self.hold_position_m = position_m
+                self.phase = Phase.HOLDING
+        else:
+            self._in_band_since_ns = None
+
+    def _object_lost(self, t_ns: int, position_m: float, force_n: float) -> Outcome | None:
         """After contact: a force collapse, or the finger moving on past the held position."""
         p, tg = self.params, self.targets
         floor = p.lost_force_fraction * tg.force_setpoint_n
@@ -293,64 +418,96 @@ class GraspSupervisor:
                 self._low_since_ns = t_ns
             low_s = (t_ns - self._low_since_ns) * 1e-9
             if low_s >= p.lost_force_hold_s:
-                self._finish(Phase.FAILED, Outcome.OBJECT_LOST,
-                             f'object lost at t={t_s:.4f} s: force {force_n:.3f} N has been '
-                             f'below {p.lost_force_fraction:g} x the setpoint '
-                             f'{tg.force_setpoint_n:.3f} N = {floor:.3f} N for '
-                             f'{low_s * 1e3:.2f} ms (since t={self._low_since_ns * 1e-9:.4f} s);'
-                             f' finger at {position_m:.5f} m')
-                return True
+                return self._end(
+                    Phase.FAILED, Outcome.OBJECT_LOST,
+                    f'object lost at t={t_s:.4f} s{self._into()}: force {force_n:.3f} N has '
+                    f'been below {p.lost_force_fraction:g} x the setpoint '
+                    f'{tg.force_setpoint_n:.3f} N = {floor:.3f} N for {low_s * 1e3:.2f} ms '
+                    f'(since t={self._low_since_ns * 1e-9:.4f} s); finger at {position_m:.5f} m',
+                    position_m=position_m)
         if self.hold_position_m is not None and \
                 position_m > self.hold_position_m + p.no_object_margin_m:
-            self._finish(Phase.FAILED, Outcome.OBJECT_LOST,
-                         f'object lost at t={t_s:.4f} s: the finger moved on '
-                         f'{(position_m - self.hold_position_m) * 1e3:.2f} mm past the held '
-                         f'position {self.hold_position_m:.5f} m (margin '
-                         f'{p.no_object_margin_m * 1e3:g} mm); force {force_n:.3f} N')
-            return True
-        return False
+            return self._end(
+                Phase.FAILED, Outcome.OBJECT_LOST,
+                f'object lost at t={t_s:.4f} s{self._into()}: the finger moved on '
+                f'{(position_m - self.hold_position_m) * 1e3:.2f} mm past the held position '
+                f'{self.hold_position_m:.5f} m (margin {p.no_object_margin_m * 1e3:g} mm); '
+                f'force {force_n:.3f} N', position_m=position_m)
+        return None
 
-    def _step_release(self, t_ns: int, position_m: float) -> Decision:
+    def _into(self) -> str:
+        """Where in the grasp an event happened, for its message."""
+        if self.holding and self.end_ns is not None:
+            return f', {(self._t_ns - self.end_ns) * 1e-9:.4f} s after HOLDING'
+        return f', {(self._t_ns - self.start_ns) * 1e-9:.4f} s into the grasp'
+
+    def _step_release(self, t_ns: int, position_m: float) -> Outcome | None:
         p, tg = self.params, self.targets
         if abs(position_m - tg.position_setpoint_m) <= p.release_tolerance_m:
             if self._in_band_since_ns is None:
                 self._in_band_since_ns = t_ns
             if (t_ns - self._in_band_since_ns) * 1e-9 >= p.release_settle_s:
-                self._finish(Phase.DONE, Outcome.RELEASED,
-                             f'released: finger at {position_m:.5f} m (open position '
-                             f'{tg.position_setpoint_m:.5f} m, opening '
-                             f'{self.plant.max_travel_m - position_m:.5f} m) after '
-                             f'{(t_ns - self.start_ns) * 1e-9:.3f} s')
-                return self._decision()
+                return self._end(
+                    Phase.DONE, Outcome.RELEASED,
+                    f'released: finger at {position_m:.5f} m (open position '
+                    f'{tg.position_setpoint_m:.5f} m, opening '
+                    f'{self.plant.max_travel_m - position_m:.5f} m) after '
+                    f'{(t_ns - self.start_ns) * 1e-9:.3f} s', position_m=position_m)
         else:
             self._in_band_since_ns = None
         if (t_ns - self.start_ns) * 1e-9 > tg.timeout_s:
-            self._finish(Phase.FAILED, Outcome.TIMEOUT,
-                         f'release not done within {tg.timeout_s:g} s of simulated time '
-                         f'(finger at {position_m:.5f} m)')
-        return self._decision()
+            return self._end(Phase.FAILED, Outcome.TIMEOUT,
+                             f'release not done within {tg.timeout_s:g} s of simulated time '
+                             f'(finger at {position_m:.5f} m)', position_m=position_m)
+        return None
 
     def _switch(self, criterion: SwitchCriterion, t_ns: int) -> None:
         self.phase = Phase.FORCE
         self.switch_criterion = criterion
         self.switch_ns = t_ns
+        self._assign(Controller.FORCE)
 
-    def _finish(self, phase: Phase, outcome: Outcome, message: str) -> None:
+    def _end(self, phase: Phase, outcome: Outcome, message: str, *, hold: bool = True,
+             position_m: float | None = None) -> Outcome:
+        """End the request (or the hold): the position stage holds the finger from this tick
+        on (``hold``), or nothing drives the motor (a FAULT)."""
         self.phase = phase
         self.outcome = outcome
         self.message = message
         self.end_ns = self._t_ns
+        if hold:
+            self._hold_here(self._last_position() if position_m is None else position_m)
+        else:
+            self._active = Controller.NONE
+            self.stage_id += 1
+        return outcome
 
-    def _decision(self) -> Decision:
-        active = Controller.NONE
-        if self.busy:
-            active = {Phase.POSITION: Controller.POSITION,
-                      Phase.RELEASING: Controller.POSITION,
-                      Phase.FORCE: Controller.FORCE,
-                      Phase.HOLDING: Controller.FORCE}.get(self.phase,
-                                                                Controller.NONE)
+    def _last_position(self) -> float:
+        return self._idle_hold_m if self.hold_position_m is None else self.hold_position_m
+
+    def _fill(self, answer: Outcome | None = None) -> Decision:
+        d = self._decision
+        d.t_ns = self._t_ns
+        d.phase = self.phase
+        d.active = self._active
+        d.switch_criterion = self.switch_criterion
+        d.outcome = self.outcome
+        d.grasp_id = self.grasp_id
+        d.stage_id = self.stage_id
+        d.running = self.running
+        d.contact = self.contact_ns is not None
+        d.message = self.message
+        d.answer = answer
+        if answer is not None and self.answer_ns is None:
+            self.answer, self.answer_ns = answer, self._t_ns
         tg = self.targets
-        return Decision(self.phase, active, self.switch_criterion, self.outcome,
-                        tg.position_setpoint_m if tg else 0.0,
-                        tg.force_setpoint_n if tg else 0.0, self.message,
-                        tg.approach_setpoint_m if tg else 0.0)
+        if self._active is Controller.POSITION and not self.running:
+            d.position_setpoint_m = d.approach_setpoint_m = self._idle_hold_m
+            d.force_setpoint_n = tg.force_setpoint_n if tg is not None else 0.0
+        elif tg is not None:
+            d.position_setpoint_m = tg.position_setpoint_m
+            d.approach_setpoint_m = tg.approach_setpoint_m
+            d.force_setpoint_n = tg.force_setpoint_n
+        else:
+            d.position_setpoint_m = d.approach_setpoint_m = d.force_setpoint_n = 0.0
+        return d
