@@ -151,6 +151,14 @@ class HoldState(enum.IntEnum):
     LOST = 4
 
 
+class PendingRequest(enum.IntEnum):
+    """``SupervisorStatus.REQUEST_*``: a request accepted that starts at the next tick."""
+
+    NONE = 0
+    GRASP = 1
+    RELEASE = 2
+
+
 class TimeMode(enum.IntEnum):
     """``SimStatus.TIME_MODE_*``: how the simulator's time runs."""
 
@@ -167,6 +175,7 @@ WIRE_CODES = (
     (FaultKind, 'gripper_interfaces.srv', 'SetObject.Request', 'FAULT_'),
     (HoldState, 'gripper_interfaces.msg', 'ObjectState', 'STATE_'),
     (TimeMode, 'gripper_interfaces.msg', 'SimStatus', 'TIME_MODE_'),
+    (PendingRequest, 'gripper_interfaces.msg', 'SupervisorStatus', 'REQUEST_'),
 )
 """Each code enum and the generated constants it mirrors: (enum, module, class, prefix)."""
 
@@ -224,8 +233,8 @@ class LoopLayout:
 TICK_LAYOUT = LoopLayout(
     'gripper_interfaces/msg/PlantTick',
     ('stamp_ns', 'position_m', 'velocity_mps', 'force_n', 'peak_force_n', 'sensor_voltage_v',
-     'motor_voltage_v', 'current_a', 'speed_rad_s', 'revision', 'applied_source'),
-    'q8dIB3x')
+     'motor_voltage_v', 'current_a', 'speed_rad_s', 'applied_source', 'revision'),
+    'q8dB3xI')
 REFERENCE_LAYOUT = LoopLayout(
     'gripper_interfaces/msg/StageReference',
     ('stamp_ns', 'grasp_id', 'stage_id', 'phase', 'outcome', 'controller', 'running', 'contact',

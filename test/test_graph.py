@@ -9,17 +9,21 @@ import numpy as np
 import pytest
 from gripper_interfaces.srv import Grasp
 
+from gripper_ros.apps.grasp_demo import PAPER_OBJECTS
 from gripper_ros.bags.reader import read_bag
+from gripper_ros.bags.recording import recorded_grasp
 from gripper_ros.bags.series import load_grasp_series
 from gripper_ros.core.config import load_config
-from gripper_ros.core.supervisor import Outcome, SwitchCriterion
-from gripper_ros.apps.grasp_demo import PAPER_OBJECTS
 from gripper_ros.nodes.graph import GripperGraph
-from gripper_ros.nodes.common import GRAPH_TOPICS
+from gripper_ros.wire import (DEFAULT_NAMESPACE, GRAPH_TOPICS, Outcome, Phase, SwitchCriterion,
+                              qualified)
 
 CONFIG = load_config()
 L_LS = CONFIG.plant.max_travel_m
 V_LIMIT = CONFIG.plant.voltage_limit_v
+RECORDED = {qualified(DEFAULT_NAMESPACE, t) for t in GRAPH_TOPICS}
+IDLE_TICK_NS = round(CONFIG.position.sample_time_s * 1e9)
+"""A request starts one tick after the one it arrived at: the idle hold's position tick."""
 
 
 @pytest.fixture(scope='module')
@@ -31,7 +35,7 @@ def graph():
 @pytest.fixture(scope='module')
 def paper_runs(graph, tmp_path_factory):
     out = tmp_path_factory.mktemp('bags')
-    return [graph.recorded_grasp(out / f'object_{i}', w, m)
+    return [recorded_grasp(graph, out / f'object_{i}', w, m)
             for i, (w, m) in enumerate(PAPER_OBJECTS, 1)]
 
 
@@ -57,8 +61,14 @@ def test_paper_object_bag_voltage_limit_and_single_switch(paper_runs, index):
     criteria = series.status.switch_criterion
     switches = np.flatnonzero(np.diff(criteria) != 0)
     assert len(switches) == 1 and criteria[-1] != SwitchCriterion.NONE
-    # exactly one controller commands each tick, and it is the one the supervisor named
-    assert len(np.unique(series.command.t_s)) == len(series.command.t_s)
+    # every tick has one command, from the stage the supervisor named for that tick
+    named = {(int(s), int(round(t * 1e9))): int(c) for t, s, c in zip(
+        series.status.t_s, series.status.stage_id, series.status.active_controller)}
+    commands = [(int(s), int(round(t * 1e9)), int(src)) for t, s, src in zip(
+        series.command.t_s, series.command.stage_id, series.command.source)]
+    assert len({(s, t) for s, t, _ in commands}) == len(commands)
+    assert [named[(s, t)] for s, t, _ in commands] == [src for _, _, src in commands]
+    assert len(commands) == len(named) == len(series.joint.t_s)
 
 
 @pytest.mark.parametrize('index', range(len(PAPER_OBJECTS)))
@@ -66,16 +76,15 @@ def test_bag_holds_every_published_message_and_decodes(paper_runs, index):
     run = paper_runs[index]
     bag = read_bag(run.bag_dir)
     assert not bag.truncated
-    assert set(bag.counts()) == set(GRAPH_TOPICS)
+    assert set(bag.counts()) == RECORDED
     assert bag.counts() == run.published
     assert all(n > 0 for n in run.published.values())
-    for topic in GRAPH_TOPICS:
-        first = next(iter(bag.iter_decoded(topic)))
-        assert first is not None
+    for topic in RECORDED:                       # every message decodes
+        assert sum(1 for _ in bag.iter_decoded(topic)) == run.published[topic]
 
 
 def test_same_request_twice_gives_identical_series(graph, tmp_path):
-    runs = [graph.recorded_grasp(tmp_path / f'run_{k}', 0.05, 1.69) for k in range(2)]
+    runs = [recorded_grasp(graph, tmp_path / f'run_{k}', 0.05, 1.69) for k in range(2)]
     a, b = (load_grasp_series(r.bag_dir) for r in runs)
     # simulated time runs on across grasps: compare tick times relative to each grasp's start
     t_a = np.round((a.joint.t_s - a.joint.t_s[0]) * 1e9).astype(np.int64)
@@ -126,7 +135,7 @@ def test_request_while_grasping_is_refused_and_next_one_succeeds(graph):
             break
         time.sleep(0.005)
     assert busy is not None, 'the first grasp never started'
-    assert busy.outcome == Outcome.REFUSED and 'already running' in busy.message
+    assert busy.outcome == Outcome.REFUSED and 'grasp is running' in busy.message
     deadline = time.monotonic() + 120
     while not first.done() and time.monotonic() < deadline:
         time.sleep(0.01)
@@ -148,9 +157,11 @@ def test_no_object_between_the_fingers_ends_in_no_object(graph):
 
 def test_stop_ends_the_running_grasp_and_the_next_one_succeeds(graph):
     from std_srvs.srv import Trigger
-    stop = graph.client_node.create_client(Trigger, '/gripper/stop')
+    stop = graph.client_node.create_client(Trigger, 'stop')
     assert stop.wait_for_service(timeout_sec=5)
-    assert not graph.call(stop, Trigger.Request(), 5).success     # nothing to stop
+    graph.set_object(0.0)                        # a held object is released first
+    refused = graph.call(stop, Trigger.Request(), 5)
+    assert not refused.success and 'nothing to stop' in refused.message
     graph.set_object(0.01)
     pending = graph._grasp.call_async(Grasp.Request(width_m=0.01, mass_kg=1.27))
     deadline = time.monotonic() + 30
@@ -166,7 +177,8 @@ def test_stop_ends_the_running_grasp_and_the_next_one_succeeds(graph):
     assert r.outcome == Outcome.STOPPED and not r.success
     frozen = graph.plant.ticks_published
     time.sleep(0.2)
-    assert graph.plant.ticks_published == frozen          # nobody drives the plant any more
+    assert graph.plant.ticks_published == frozen          # fast time: nothing needs time now
+    assert graph.supervisor.logic.active == 1              # the position stage holds the finger
     graph.set_object(0.01)
     assert graph.grasp(0.01, 1.27).success
 
@@ -178,9 +190,11 @@ def test_headless_simulation_reproduces_the_graph_bit_for_bit(paper_runs, index)
     width, mass = PAPER_OBJECTS[index]
     series = load_grasp_series(paper_runs[index].bag_dir)
     start_ns = int(round(series.status.t_s[0] * 1e9))
-    h = simulate_grasp(CONFIG, width, mass, start_ns=start_ns)
+    h = simulate_grasp(CONFIG, width, mass, start_ns=start_ns - IDLE_TICK_NS)
     assert h.outcome == Outcome(paper_runs[index].response.outcome)
-    # the bag starts after the tick the grasp began on (published before recording)
+    assert h.start_ns == start_ns
+    # the bag starts with the grasp's first tick; the idle tick before it was not recorded
+    assert np.array_equal(h.t_ns[1:], series.ticks['stamp_ns'])
     assert np.array_equal(h.position_m[1:], series.joint.position_m)
     assert np.array_equal(h.force_n[1:], series.sensor.force_n)
     assert np.array_equal(h.motor_voltage_v[1:], series.motor.voltage_v)
@@ -213,8 +227,8 @@ def test_stiff_object_in_the_graph_no_spike_and_bit_identical_to_headless(graph,
     """A stiff (1e5 N/m) object through the live graph: held without a spike (the PI hit it
     with up to 6x), and the recorded series equal the headless run that contact_sweep uses."""
     from gripper_ros.core.headless import simulate_grasp
-    run = graph.recorded_grasp(tmp_path / 'stiff', 0.05, 1.0, stiffness_n_per_m=1e5,
-                               damping_n_s_per_m=50.0)
+    run = recorded_grasp(graph, tmp_path / 'stiff', 0.05, 1.0, stiffness_n_per_m=1e5,
+                         damping_n_s_per_m=50.0)
     assert run.response.success and run.response.outcome == Outcome.HOLDING, \
         run.response.message
     series = load_grasp_series(run.bag_dir)
@@ -223,7 +237,7 @@ def test_stiff_object_in_the_graph_no_spike_and_bit_identical_to_headless(graph,
     assert np.all(np.abs(series.motor.voltage_v) <= V_LIMIT)
     start_ns = int(round(series.status.t_s[0] * 1e9))
     h = simulate_grasp(CONFIG, 0.05, 1.0, stiffness_n_per_m=1e5, damping_n_s_per_m=50.0,
-                       start_ns=start_ns)
+                       start_ns=start_ns - IDLE_TICK_NS)
     assert np.array_equal(h.position_m[1:], series.joint.position_m)
     assert np.array_equal(h.force_n[1:], series.sensor.force_n)
 
@@ -232,14 +246,14 @@ def test_width_tolerance_through_the_service_meets_a_wider_object_at_the_setpoin
     """Request 50 mm +- 12 mm, place a 60 mm object: the position stage stops short of the
     widest face (status approach_setpoint_m), the object is met with at most F_sp and held
     at its real face."""
-    run = graph.recorded_grasp(tmp_path / 'wider', 0.05, 1.69, width_tolerance_m=0.012,
-                               object_width_m=0.06)
+    run = recorded_grasp(graph, tmp_path / 'wider', 0.05, 1.69, width_tolerance_m=0.012,
+                         object_width_m=0.06)
     r = run.response
     assert r.success and r.outcome == Outcome.HOLDING, r.message
     assert r.final_width_m == pytest.approx(0.06, abs=1e-6)
     series = load_grasp_series(run.bag_dir)
     assert np.max(series.sensor.peak_force_n) <= 1.10 * r.force_setpoint_n
-    approach = {round(m.approach_setpoint_m, 9) for _, m in
-                read_bag(run.bag_dir).iter_decoded('/gripper/supervisor/status')}
-    assert approach == {round(L_LS - 0.05 - 0.012, 9)}
+    grasp = np.isin(series.status.phase, (Phase.POSITION, Phase.FORCE))
+    assert set(np.round(series.status.approach_setpoint_m[grasp], 9)) == \
+        {round(L_LS - 0.05 - 0.012, 9)}
     assert graph.grasp(0.05, 1.69, width_tolerance_m=math.nan).outcome == Outcome.REFUSED

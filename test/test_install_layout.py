@@ -26,8 +26,9 @@ EXPECTED_EXECUTABLES = {
 }
 
 INTERFACES = {
-    'msg': ['ForceSensor', 'MotorCommand', 'MotorState', 'SupervisorStatus'],
-    'srv': ['Grasp', 'SetObject'],
+    'msg': ['ForceSensor', 'MotorCommand', 'ObjectState', 'PlantTick', 'SimStatus',
+            'StageReference', 'SupervisorStatus'],
+    'srv': ['Grasp', 'SetObject', 'SimStep'],
 }
 
 
@@ -170,7 +171,7 @@ def test_named_types_import():
 
     cmd = MotorCommand(source=MotorCommand.SOURCE_FORCE, voltage_v=1.5, hold_s=0.01)
     assert (cmd.source, cmd.voltage_v, cmd.hold_s) == (2, 1.5, 0.01)
-    assert cmd.header.stamp.sec == 0
+    assert cmd.stamp_ns == 0 and cmd.finite is False
     req = Grasp.Request(width_m=0.02, mass_kg=0.1)
     assert req.width_m == 0.02
     assert Grasp.Response.OUTCOME_HOLDING == 1

@@ -111,7 +111,10 @@ def main(argv: list[str] | None = None) -> int:
     if not (math.isfinite(args.real_time_factor) and 0.0 < args.real_time_factor <= 100.0):
         return _fail(f'--real-time-factor must be in (0, 100], got {args.real_time_factor!r}')
     time_mode = args.time_mode or ('realtime' if args.serve else 'fast')
-    rclpy.init(args=None if argv is None else [])
+    from rclpy.signals import SignalHandlerOptions
+    # Ctrl-C and SIGTERM end the demo here (KeyboardInterrupt), not inside rclpy: the graph
+    # stops its executor, closes its bags and only then shuts the context down.
+    rclpy.init(args=None if argv is None else [], signal_handler_options=SignalHandlerOptions.NO)
     # SIGTERM (e.g. from a process manager) ends the demo like Ctrl-C: bags are closed.
     previous_sigterm = signal.signal(signal.SIGTERM, _raise_keyboard_interrupt)
     graph = None

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import functools
 import os
+import struct
 import threading
 import time
 from dataclasses import dataclass, field
@@ -24,7 +25,9 @@ from pathlib import Path
 from gripper_ros.bags.recorder import BagRecorder, BagRecorderError
 from gripper_ros.bags.schema import import_message_class
 from gripper_ros.nodes.common import GRAPH_QOS, wait_until
-from gripper_ros.wire import GRAPH_TOPICS, TOPIC_STATUS, Outcome, qualified
+from gripper_ros.wire import (GRAPH_TOPICS, LOOP_TOPICS, REFERENCE_LAYOUT, TOPIC_FORCE_REFERENCE,
+                              TOPIC_MOTOR_COMMAND, TOPIC_POSITION_REFERENCE, TOPIC_TICK,
+                              Outcome, Phase, qualified)
 
 BAG_FORMAT = 2
 """custom_data gripper_ros.format: 2 = the lockstep loop topics (loop/tick, references,
@@ -38,7 +41,8 @@ class RecordingError(RuntimeError):
 
 @dataclass
 class RecordedGrasp:
-    """A grasp's answer, its bag, and how many messages the graph published per topic."""
+    """A grasp's answer, its bag, and how many messages the graph published per topic while
+    it recorded (fast mode; in realtime simulated time runs on and ``published`` is empty)."""
 
     response: object
     bag_dir: Path | None
@@ -51,8 +55,22 @@ class RecordedGrasp:
     notes: list = field(default_factory=list)
 
 
+_STAMP = struct.Struct('<q')
+"""Every lockstep message begins, after its 4-byte CDR header, with its tick's stamp_ns."""
+
+
+def _stamp_of(data: bytes) -> int:
+    return _STAMP.unpack_from(data, 4)[0]
+
+
 class GraphTap:
-    """Raw subscriptions on every topic of ``graph`` that forward to a sink while recording."""
+    """Raw subscriptions on every topic of ``graph`` that forward to a sink while recording.
+
+    A sink records a window of whole ticks: from a start tick, whose measurement, decision and
+    command it holds, up to an end tick it holds nothing of. DDS does not order messages of
+    different topics, so the window is kept by the stamps the lockstep messages carry, and a
+    sink closes only once the command of its last tick is in.
+    """
 
     def __init__(self, graph, topics: dict[str, str] | None = None):
         self.graph = graph
@@ -61,8 +79,24 @@ class GraphTap:
                        for t, msgtype in (topics or GRAPH_TOPICS).items()}
         self.sink: BagRecorder | None = None
         self.error = ''                          # why the last sink stopped early
-        self.on_status = None                    # called with the raw bytes of each status
+        self.on_reference = None                 # called with each reference's values
+        self.on_tick = None                      # called with each tick's stamp
+        self.on_closed = None                    # called with a sink the tap finished
         self.received = {t: 0 for t in self.topics}
+        self._tick_topic = qualified(graph.namespace, TOPIC_TICK)
+        self._command_topic = qualified(graph.namespace, TOPIC_MOTOR_COMMAND)
+        self._loop_topics = {qualified(graph.namespace, t) for t in LOOP_TOPICS}
+        self._reference_topics = {qualified(graph.namespace, t) for t in
+                                  (TOPIC_POSITION_REFERENCE, TOPIC_FORCE_REFERENCE)}
+        self._last_tick: tuple[int, bytes] | None = None
+        self._this_tick: list[tuple[str, bytes, int]] = []   # loop messages of the newest tick
+        self._held: tuple[int, bytes] | None = None   # the newest tick, written with its decision
+        self._last_command_ns: int | None = None
+        self._start_ns: int | None = None       # the window: ticks start_ns <= t < end_ns
+        self._end_ns: int | None = None
+        self._last_written_tick_ns: int | None = None
+        self._start_at_next_tick = False
+        self._closing_since: float | None = None
         self._lock = threading.Lock()
         self._subs = []
 
@@ -87,16 +121,116 @@ class GraphTap:
         return [p for node in self.graph.nodes if node is not self.node
                 for p in node.publishers if p.topic_name == topic]
 
+    # ------------------------------------------------------------------ the window
+    def start(self, sink: BagRecorder, at: str = 'now') -> None:
+        """Record into ``sink``: ``now`` (time stands still: nothing is in flight),
+        ``next_tick``, or ``last_tick`` (the newest tick, whose decision is being handled)."""
+        if self.sink is not None:
+            self._finish()                      # a sink still closing ends here
+        self._end_ns = self._last_written_tick_ns = self._closing_since = None
+        self._last_command_ns = None
+        self._start_at_next_tick = at == 'next_tick'
+        self._start_ns = None
+        if at == 'last_tick' and self._last_tick is not None:
+            self._start_ns = self._last_tick[0]
+            self.sink = sink
+            self._held = None
+            for topic, data, stamp in self._this_tick:     # the tick, and what came of it
+                if stamp == self._start_ns:
+                    self._write(sink, topic, data, stamp)
+            return
+        self.sink = None if self._start_at_next_tick else sink
+        self._pending_sink = sink
+
+    def stop_at(self, end_ns: int | None = None) -> None:
+        """End the window before tick ``end_ns`` (default: the next tick to come); the sink
+        closes once the command of its last tick is in (:attr:`on_closed`)."""
+        if self.sink is None:
+            return
+        self._end_ns = end_ns if end_ns is not None else -1
+        self._closing_since = time.monotonic()
+        if self._held is not None and end_ns is not None and self._held[0] >= end_ns:
+            self._held = None                   # that tick belongs after the window
+        if end_ns is not None and self._last_written_tick_ns is not None and \
+                self._last_command_ns == self._last_written_tick_ns:
+            self._finish()                      # nothing of the last tick is in flight
+
+    def stop(self, timeout_s: float = 2.0) -> BagRecorder | None:
+        """End the window at the next tick and wait until the sink is whole (or, when no tick
+        comes within ``timeout_s``, e.g. simulated time stands still, now)."""
+        sink = self.sink
+        if sink is None:
+            return None
+        self.stop_at()
+        wait_until(lambda: self.sink is None, timeout_s)
+        self._finish()
+        return sink
+
+    def _finish(self) -> None:
+        with self._lock:
+            sink, self.sink = self.sink, None
+            self._end_ns = self._closing_since = None
+        if sink is not None and self.on_closed is not None:
+            self.on_closed(sink)
+
+    def check_closing(self, grace_s: float = 0.5) -> None:
+        """Finish a sink whose last command has not come for ``grace_s`` (a node gone)."""
+        if self._closing_since is not None and time.monotonic() - self._closing_since > grace_s:
+            self._finish()
+
     def _on_message(self, topic: str, data: bytes) -> None:
         self.received[topic] += 1
+        if topic not in self._loop_topics:
+            sink = self.sink
+            if sink is not None and self._end_ns is None:
+                self._write(sink, topic, data)
+            return
+        stamp = _stamp_of(data)
+        if topic == self._tick_topic:
+            held, self._held = self._held, (stamp, data)
+            if held is not None:
+                self._keep(self._tick_topic, held[1], held[0])   # a tick nobody answered
+            self._last_tick = (stamp, data)
+            self._this_tick = []
+            if self._start_at_next_tick:
+                self._start_at_next_tick = False
+                self._start_ns, self.sink = stamp, self._pending_sink
+            if self._end_ns == -1 and self.sink is not None:
+                self._end_ns = stamp
+            if self.on_tick is not None:
+                self.on_tick(stamp)
+        else:
+            if topic in self._reference_topics and self.on_reference is not None:
+                values = REFERENCE_LAYOUT.unpack(data)
+                if values is not None:
+                    self.on_reference(values)
+            held = self._held
+            if held is not None and held[0] == stamp:
+                self._held = None
+                self._keep(self._tick_topic, held[1], stamp)
+            self._keep(topic, data, stamp)
+        self._this_tick.append((topic, data, stamp))
+
+    def _keep(self, topic: str, data: bytes, stamp: int) -> None:
+        """Write a lockstep message if its tick is inside the window."""
         sink = self.sink
-        if sink is not None:
-            try:
-                sink.write(topic, data)
-            except Exception as exc:  # noqa: BLE001 - a recorder error never stops the graph
-                self._fail(sink, exc)
-        if self.on_status is not None and topic.endswith('/' + TOPIC_STATUS):
-            self.on_status(data)
+        if sink is None or (self._start_ns is not None and stamp < self._start_ns) or \
+                (self._end_ns is not None and self._end_ns != -1 and stamp >= self._end_ns):
+            return
+        self._write(sink, topic, data, stamp)
+        if topic == self._command_topic:
+            self._last_command_ns = stamp
+            if self._end_ns is not None and stamp == self._last_written_tick_ns:
+                self._finish()                  # the last tick is whole
+
+    def _write(self, sink: BagRecorder, topic: str, data: bytes, stamp: int | None = None):
+        try:
+            sink.write(topic, data)
+        except Exception as exc:  # noqa: BLE001 - a recorder error never stops the graph
+            self._fail(sink, exc)
+            return
+        if topic == self._tick_topic:
+            self._last_written_tick_ns = stamp
 
     def _fail(self, sink: BagRecorder, exc: BaseException) -> None:
         with self._lock:
@@ -164,7 +298,8 @@ def recorded_grasp(graph, bag_dir, width_m: float, mass_kg: float,
     placed = graph.set_object(placed_width, stiffness_n_per_m, damping_n_s_per_m, **hold)
     if not placed.success:
         raise RecordingError(f'set_object: {placed.message}')
-    graph.wait_still()
+    if graph.options.time_mode == 'fast':
+        graph.wait_still()              # the placement's tick is answered before recording
     request = {'width_m': width_m, 'mass_kg': mass_kg,
                'friction_coefficient': friction_coefficient,
                'acceleration_mps2': acceleration_mps2, 'width_tolerance_m': width_tolerance_m}
@@ -179,7 +314,8 @@ def recorded_grasp(graph, bag_dir, width_m: float, mass_kg: float,
             raise RecordingError(str(exc)) from None
         response = None
         before = graph.published_counts()
-        tap.sink = recorder
+        fast = graph.options.time_mode == 'fast'
+        tap.start(recorder, 'now' if fast else 'next_tick')     # fast: nothing is in flight
         t0 = time.perf_counter()
         try:
             response = graph.grasp(width_m, mass_kg, friction_coefficient, acceleration_mps2,
@@ -187,11 +323,13 @@ def recorded_grasp(graph, bag_dir, width_m: float, mass_kg: float,
                                    width_tolerance_m=width_tolerance_m)
             _play_out(graph, linger_s)
         finally:
-            published = {qualified(graph.namespace, t): n - before.get(t, 0)
-                         for t, n in graph.published_counts().items()
-                         if qualified(graph.namespace, t) in tap.topics}
-            _drain(tap, recorder, published)
-            tap.sink = None
+            if fast:
+                _drain_published(graph, tap, recorder, before)
+                tap.sink = None             # time stands still: the last tick is whole
+                published = _published_since(graph, tap, before)
+            else:
+                tap.stop()                  # realtime: at a tick, once the last one is whole
+                published = {}              # (time runs on: no count to compare with)
             logic = graph.supervisor.logic
             final, message = logic.outcome, logic.message
             if not recorder.closed:
@@ -217,34 +355,44 @@ def _play_out(graph, linger_s: float) -> None:
     wait_until(lambda: graph.sim_time_ns >= until, timeout_s=max(10.0, 10 * linger_s))
 
 
-def _drain(tap: GraphTap, recorder: BagRecorder, published: dict, timeout_s: float = 10.0):
-    """Wait until the recorder holds every message published during the grasp."""
+def _published_since(graph, tap: GraphTap, before: dict) -> dict:
+    return {qualified(graph.namespace, t): n - before.get(t, 0)
+            for t, n in graph.published_counts().items()
+            if qualified(graph.namespace, t) in tap.topics}
+
+
+def _drain_published(graph, tap: GraphTap, recorder: BagRecorder, before: dict,
+                     timeout_s: float = 10.0) -> None:
+    """Wait until the recorder holds every message published since ``before``."""
+    published = _published_since(graph, tap, before)
     wait_until(lambda: recorder.closed or all(
         recorder.counts.get(t, 0) >= n for t, n in published.items()), timeout_s)
 
 
 class ServeRecorder:
-    """Serve mode: one bag per request, whoever made it, under ``output_dir``.
+    """Serve mode: one bag per grasp, whoever requested it, under ``output_dir``.
 
-    A bag opens when the supervisor accepts a request (its status says ``pending``, before the
-    request's first tick) and closes ``linger_s`` of simulated time after the answer, when
-    simulated time stands still, or when the next request is accepted.
+    The tap watches the stage references: the first reference of a new grasp opens a bag
+    (with the tick it decides), the tick ``linger_s`` of simulated time after the grasp's
+    answer closes it, as does the first reference of another request, or simulated time
+    standing still after the answer (fast mode). Each bag holds whole ticks.
     """
 
     def __init__(self, graph, output_dir, linger_s: float = 0.5):
-        from gripper_interfaces.msg import SupervisorStatus
         from rclpy.clock import Clock, ClockType
-        self._status_cls = SupervisorStatus
         self.graph = graph
         self.output_dir = Path(output_dir)
         self.linger_s = linger_s
         self.bags: list[Path] = []
         self.errors: list[str] = []
-        self._answered_ns: int | None = None
-        self._last_count = 0
-        self._still_since = time.monotonic()
+        self._grasp_id: int | None = None       # the grasp being recorded
+        self._close_at_ns: int | None = None
+        self._answered_wall: float | None = None
+        self._last_received = 0
         self.tap = GraphTap(graph).open()
-        self.tap.on_status = self._on_status
+        self.tap.on_reference = self._on_reference
+        self.tap.on_tick = self._on_tick
+        self.tap.on_closed = self._close_sink
         graph.close_hooks.append(self.close)
         self._timer = graph.client_node.create_timer(
             0.05, self._check, clock=Clock(clock_type=ClockType.STEADY_TIME))
@@ -253,21 +401,29 @@ class ServeRecorder:
     def recording(self) -> bool:
         return self.tap.sink is not None
 
-    def _on_status(self, data: bytes) -> None:
-        from rclpy.serialization import deserialize_message
-        status = deserialize_message(data, self._status_cls)
-        if status.pending:
-            self._open(status)
-        elif self.tap.sink is not None and status.outcome != 0 and self._answered_ns is None:
-            self._answered_ns = status.header.stamp.sec * 1_000_000_000 + \
-                status.header.stamp.nanosec
+    def _on_reference(self, values: tuple) -> None:
+        grasp_id, phase, outcome = values[1], values[3], values[4]
+        if grasp_id != self._grasp_id:
+            self._close_bag(values[0])
+            self._grasp_id = grasp_id
+            if phase == Phase.POSITION and outcome == Outcome.UNKNOWN:
+                self._open(grasp_id)
+        elif self.tap.sink is not None and outcome != Outcome.UNKNOWN and \
+                self._close_at_ns is None:
+            self._close_at_ns = values[0] + round(self.linger_s * 1e9)
+            self._answered_wall = time.monotonic()
 
-    def _open(self, status) -> None:
-        self._close_bag()
+    def _on_tick(self, stamp_ns: int) -> None:
+        if self._close_at_ns is not None and self.tap.sink is not None and \
+                stamp_ns >= self._close_at_ns:
+            self._close_at_ns = None
+            self.tap.stop_at(stamp_ns)          # before this tick: whole ticks only
+
+    def _open(self, grasp_id: int) -> None:
         stamp = datetime.now().strftime('%Y%m%d_%H%M%S')
         try:
-            bag_dir = unique_bag_dir(self.output_dir, f'grasp_{stamp}_id{status.grasp_id + 1}')
-            self.tap.sink = BagRecorder(
+            bag_dir = unique_bag_dir(self.output_dir, f'grasp_{stamp}_id{grasp_id}')
+            sink = BagRecorder(
                 self.graph.client_node, bag_dir, self.tap.topics, subscribe=False,
                 time_source=lambda: self.graph.sim_time_ns, overwrite=True,
                 custom_data={'gripper_ros': {'format': BAG_FORMAT,
@@ -279,32 +435,40 @@ class ServeRecorder:
             self._report(f'recording not started under {self.output_dir}: '
                          f'{getattr(exc, "strerror", None) or exc}')
             return
-        self._answered_ns = None
+        self._close_at_ns = self._answered_wall = None
         self.bags.append(bag_dir)
+        self.tap.start(sink, 'last_tick')          # the tick this first decision is for
 
     def _check(self) -> None:
-        sink = self.tap.sink
+        self.tap.check_closing()
         if self.tap.error:
             self._report(self.tap.error)
             self.tap.error = ''
-        if sink is None:
-            return
-        count = sink.message_count
-        if count != self._last_count:
-            self._last_count, self._still_since = count, time.monotonic()
-        if self._answered_ns is None:
-            return
-        if self.graph.sim_time_ns >= self._answered_ns + round(self.linger_s * 1e9) or \
-                time.monotonic() - self._still_since > 0.2:
-            self._close_bag()
+        received = sum(self.tap.received.values())
+        still = received == self._last_received
+        self._last_received = received
+        if still and self._answered_wall is not None and self.tap.sink is not None and \
+                time.monotonic() - self._answered_wall > 0.1:
+            self._close_bag()                   # fast mode: simulated time stands still
 
     def _report(self, message: str) -> None:
         self.errors.append(message)
         self.graph.client_node.get_logger().error(message)
         self.graph.supervisor.response_notes.append(message)
 
-    def _close_bag(self) -> None:
+    def _close_bag(self, before_ns: int | None = None) -> None:
+        """Close the bag now, or (``before_ns``) hold nothing of that tick on and close once
+        the last one is whole."""
+        self._close_at_ns = self._answered_wall = None
+        if before_ns is not None and self.tap.sink is not None:
+            sink = self.tap.sink
+            self.tap.stop_at(before_ns)
+            if self.tap.sink is sink:           # its last command may still be in flight
+                return
         sink, self.tap.sink = self.tap.sink, None
+        self._close_sink(sink)
+
+    def _close_sink(self, sink) -> None:
         if sink is not None and not sink.closed:
             try:
                 sink.close()
@@ -312,5 +476,10 @@ class ServeRecorder:
                 self._report(f'closing {sink.bag_dir} failed: {exc}')
 
     def close(self) -> None:
+        """End recording (the graph is shutting down): a bag open now ends with whole ticks."""
+        self._timer.cancel()
+        self.tap.on_closed = None
+        sink = self.tap.stop()                  # the executor still runs the tap here
+        self._close_sink(sink)
         self._close_bag()
         self.tap.close()

@@ -226,7 +226,7 @@ def resimulate_bag(bag: Bag | str | os.PathLike, config: GripperConfig | str | o
         bag=str(bag.path), config=str(config.source),
         position_controller=position.kind.value, force_controller=force.kind.value,
         approach_force_margin=force.approach_margin, grasp_ids=grasp_ids,
-        status_ticks=len(statuses), measurements_from_status=from_status,
+        status_ticks=status_ticks, measurements_from_status=from_status,
         truncated=bag.truncated)
     # A truncated bag may end with a tick whose status and measurement were written but whose
     # command was cut off: answers past the last recorded command are beyond the damage.
@@ -285,6 +285,7 @@ def _lockstep_ticks(bag: Bag, ns: str):
     """References and recorded commands of a lockstep bag (repeats of a tick once)."""
     ref_topics = {qualified(ns, TOPIC_POSITION_REFERENCE), qualified(ns, TOPIC_FORCE_REFERENCE)}
     cmd_topic = qualified(ns, TOPIC_MOTOR_COMMAND)
+    bag.require_topics([cmd_topic])
     refs, seen = [], set()
     recorded: dict[tuple[int, int, int], Any] = {}
     order: dict[int, list] = {SOURCE_POSITION: [], SOURCE_FORCE: []}

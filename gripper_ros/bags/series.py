@@ -226,7 +226,7 @@ def _lockstep_series(bag: Bag, ns: str) -> GraspSeries:
             m = bag.decode(raw)
             objects.append((_stamp_ns(m) * 1e-9, m.state, m.slip_m, m.slip_speed_mps, m.load_n,
                             m.capacity_n))
-    ticks = _unique_by(ticks, lambda v: (v[0], v[9]))          # a repeated (waiting) tick once
+    ticks = _unique_by(ticks, lambda v: (v[0], v[10]))         # a repeated (waiting) tick once
     refs = _unique_by(refs, lambda v: (v[2], v[0]))            # (stage, stamp)
     cmds = _unique_by(cmds, lambda v: (v[2], v[0]))
     tick = dict(zip(TICK_LAYOUT.fields, _columns(ticks, (np.int64,) + (float,) * 8 + (int, int))))

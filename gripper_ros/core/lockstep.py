@@ -29,7 +29,7 @@ def tick_of(sample: PlantSample, revision: int, applied_source: int) -> Tick:
     """The tick message of a plant sample."""
     return Tick(sample.t_ns, sample.position_m, sample.velocity_mps, sample.force_n,
                 sample.peak_force_n, sample.sensor_voltage_v, sample.voltage_v,
-                sample.current_a, sample.speed_rad_s, revision, applied_source)
+                sample.current_a, sample.speed_rad_s, applied_source, revision)
 
 
 def command_problem(cmd: Command) -> str:

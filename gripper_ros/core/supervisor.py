@@ -23,7 +23,7 @@ from dataclasses import dataclass
 
 from gripper_ros.core.config import PlantParams, SupervisorParams
 from gripper_ros.wire import Controller
-from gripper_ros.wire import Outcome, Phase, SwitchCriterion
+from gripper_ros.wire import Outcome, PendingRequest, Phase, SwitchCriterion
 
 MAX_TIMEOUT_S = 600.0  # simulated seconds; a longer grasp is a mistake, not a request
 
@@ -145,6 +145,10 @@ class RequestKind:
     RELEASE = 'release'
 
 
+PENDING_CODES = {None: PendingRequest.NONE, RequestKind.GRASP: PendingRequest.GRASP,
+                 RequestKind.RELEASE: PendingRequest.RELEASE}
+
+
 class GraspSupervisor:
     """One request at a time; :meth:`step` once per plant tick with that tick's measurements.
 
@@ -209,6 +213,11 @@ class GraspSupervisor:
     @property
     def pending(self) -> bool:
         return self._pending is not None
+
+    @property
+    def pending_request(self) -> PendingRequest:
+        """What request waits to start at the next tick (the status' ``pending_request``)."""
+        return PENDING_CODES[self._pending[0] if self._pending is not None else None]
 
     @property
     def active(self) -> Controller:

@@ -58,10 +58,22 @@ def spin_until_stopped(executor, stop) -> None:
 
     rclpy 7.1.6's EventsExecutor busy-loops and never fires timers in ``spin()`` without a
     timeout; ``spin_until_future_complete`` with a finite timeout works on both executors.
+    A callback that raises is reported in one line and spinning goes on: one failing callback
+    must not leave a graph that serves nothing.
     """
     import rclpy
+    from rclpy.executors import ExternalShutdownException
+    from rclpy.logging import get_logger
     while not stop.done() and rclpy.ok(context=executor.context):
-        executor.spin_until_future_complete(stop, timeout_sec=3600.0)
+        try:
+            executor.spin_until_future_complete(stop, timeout_sec=3600.0)
+        except (ExternalShutdownException, KeyboardInterrupt):
+            return
+        except Exception as exc:  # noqa: BLE001 - reported, and the graph keeps running
+            if not rclpy.ok(context=executor.context):
+                return
+            get_logger('gripper_ros').error(
+                f'a callback failed and was skipped: {type(exc).__name__}: {one_line(exc)}')
 
 
 def run_node(make_node: Callable[[], Node], name: str, args=None) -> int:

@@ -213,7 +213,12 @@ class GripperGraph:
                    timeout_s: float = 10.0, fault: int = 0, fault_at_s: float = 0.0,
                    fault_time_constant_s: float = 0.0, **hold) -> SetObject.Response:
         """Place an object; ``fault`` (SetObject.FAULT_*) fires ``fault_at_s`` s into the next
-        grasp; ``hold`` sets the SetObject hold and lift fields (mass_kg, lift_delay_s...)."""
+        grasp; ``hold`` sets the SetObject hold and lift fields (mass_kg, lift_delay_s...).
+
+        An object still held from an earlier grasp is released first (the plant refuses to
+        replace an object the fingers hold)."""
+        if self.supervisor.logic.holding:
+            self.release()
         request = SetObject.Request(
             width_m=float(width_m), stiffness_n_per_m=float(stiffness_n_per_m),
             damping_n_s_per_m=float(damping_n_s_per_m), open_fingers=open_fingers,

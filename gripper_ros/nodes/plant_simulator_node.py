@@ -114,6 +114,7 @@ class PlantSimulatorNode(Node):
         self._rtf = (time.monotonic(), self.plant.t_ns, 0.0)   # window start; last achieved
         self._last_rtf_warning = 0.0
         self._last_sim_status = 0.0
+        self._advancing = False
 
         self._tick_pub = self.create_publisher(PlantTick, TOPIC_TICK, GRAPH_QOS)
         self._joint_pub = self.create_publisher(JointState, TOPIC_JOINT_STATES, GRAPH_QOS)
@@ -191,7 +192,7 @@ class PlantSimulatorNode(Node):
                 self.side.grasp_mass_kg = msg.mass_kg
         if msg.active_controller == Controller.NONE and self._pending is None:
             self._unpowered = True              # nobody will command: 0 V, when time runs
-        if msg.pending:
+        if msg.pending_request:
             self._woken = True
         self._try_step()
 
@@ -218,6 +219,7 @@ class PlantSimulatorNode(Node):
                 return
             elif self.time_mode is TimeMode.FAST:
                 if not (self._woken or (cmd is not None and self.side.needs_time(cmd))):
+                    self._set_advancing(False)
                     return                      # nothing needs time: it pauses here
             else:
                 lead_s = self._lead_s(self._tick.stamp_ns + hold_ns)
@@ -228,6 +230,7 @@ class PlantSimulatorNode(Node):
                     time.sleep(lead_s)
             self._woken = False
             self._pending = None
+            self._set_advancing(True)
             self._tick = self.side.step(cmd) if cmd is not None else \
                 self.side.step_unpowered(hold_ns * 1e-9)
             self._publish_tick()
@@ -236,6 +239,12 @@ class PlantSimulatorNode(Node):
             self._spend_budget()
             if cmd is not None or self.time_mode is TimeMode.FAST:
                 return                          # lockstep: the next step needs its command
+
+    def _set_advancing(self, advancing: bool) -> None:
+        """sim/status at once when simulated time starts or stops advancing (fast mode)."""
+        if advancing != self._advancing:
+            self._advancing = advancing
+            self._publish_sim_status(window=False)
 
     def _wait(self, lead_s: float) -> None:
         """Realtime: step again once the wall clock has caught up."""
@@ -299,22 +308,24 @@ class PlantSimulatorNode(Node):
         self._object_pub.publish(msg)
         self.published[TOPIC_OBJECT_STATE] += 1
 
-    def _publish_sim_status(self) -> None:
+    def _publish_sim_status(self, window: bool = True) -> None:
+        """sim/status; ``window``: the periodic one, which measures the real-time factor."""
         now = time.monotonic()
-        wall0, sim0, _ = self._rtf
+        wall0, sim0, rtf = self._rtf
         elapsed = now - wall0
-        rtf = (self.plant.t_ns - sim0) * 1e-9 / elapsed if elapsed > 0.0 else 0.0
-        self._rtf = (now, self.plant.t_ns, rtf)
-        self._last_sim_status = now
+        if window:
+            rtf = (self.plant.t_ns - sim0) * 1e-9 / elapsed if elapsed > 0.0 else 0.0
+            self._rtf = (now, self.plant.t_ns, rtf)
+            self._last_sim_status = now
         msg = SimStatus(time_mode=int(self.time_mode), paused=self._paused,
-                        advancing=self.plant.t_ns > sim0,
+                        advancing=self._advancing if not window else self.plant.t_ns > sim0,
                         real_time_factor_target=self.real_time_factor
                         if self.time_mode is TimeMode.REALTIME else 0.0,
                         real_time_factor=rtf, ticks=self.ticks_published)
         msg.header.stamp = ns_to_time(self.plant.t_ns)
         self._sim_pub.publish(msg)
         self.published[TOPIC_SIM_STATUS] += 1
-        if self.time_mode is TimeMode.REALTIME and not self._paused and \
+        if window and self.time_mode is TimeMode.REALTIME and not self._paused and \
                 rtf < RTF_WARN_FRACTION * self.real_time_factor and \
                 now - self._last_rtf_warning > 10.0 and elapsed > 0.5:
             self._last_rtf_warning = now
@@ -413,12 +424,18 @@ class PlantSimulatorNode(Node):
 
     # ------------------------------------------------------------------ simulation set-up
     def _busy_reason(self) -> str:
-        echo = self._last_echo
-        if echo is None:
+        """Why the world may not be changed now: the supervisor's newest word on it (its
+        status, or the echo of the last command, whichever is later)."""
+        echo, status = self._last_echo, self._status
+        state = echo
+        if status is not None and (echo is None or (status.grasp_id, status.stage_id) >=
+                                   (echo.grasp_id, echo.stage_id)):
+            state = status
+        if state is None:
             return ''
-        if echo.running:
+        if state.running or getattr(state, 'pending_request', 0):
             return 'a grasp or release is running'
-        if echo.phase == Phase.HOLDING and echo.outcome == Outcome.HOLDING:
+        if state.phase == Phase.HOLDING and state.outcome == Outcome.HOLDING:
             return 'an object is held (release or stop first)'
         return ''
 

@@ -138,7 +138,7 @@ class SupervisorNode(Node):
     def _publish_status(self, t_ns: int, force: bool = False) -> None:
         """At the status rate, on every change, or when ``force``d (heartbeat, a request)."""
         d = self.logic
-        key = (d.phase, d.active, d.stage_id, d.outcome, d.pending)
+        key = (d.phase, d.active, d.stage_id, d.outcome, d.pending_request)
         if not force and key == self._status_key and t_ns < self._next_status_ns:
             return
         self._status_key = key
@@ -153,7 +153,7 @@ class SupervisorNode(Node):
         m.stage_id = d.stage_id
         m.outcome = int(d.outcome)
         m.running = d.running
-        m.pending = d.pending
+        m.pending_request = int(d.pending_request)
         tg = d.targets
         m.position_setpoint_m = tg.position_setpoint_m if tg else 0.0
         m.approach_setpoint_m = tg.approach_setpoint_m if tg else 0.0
