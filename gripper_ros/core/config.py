@@ -5,9 +5,9 @@ into ROS parameter defaults. A bad file stops with a :class:`ConfigError` naming
 """
 from __future__ import annotations
 
+from dataclasses import dataclass, fields, MISSING
 import math
 import os
-from dataclasses import MISSING, dataclass, fields
 from pathlib import Path
 
 import yaml
@@ -40,12 +40,12 @@ class PlantParams:
 
     @property
     def force_lever_m(self) -> float:
-        """eta * p * N1/N2: motor torque per newton of gripping force (eq. 12)."""
+        """Motor torque per newton of gripping force, eta * p * N1/N2 (eq. 12)."""
         return self.efficiency * self.pitch_m * self.gear_ratio
 
     @property
     def travel_per_rad_m(self) -> float:
-        """p / (2 pi): finger travel per motor radian (eq. 10)."""
+        """Finger travel per motor radian, p / (2 pi) (eq. 10)."""
         return self.pitch_m / (2.0 * math.pi)
 
     @property
@@ -61,8 +61,14 @@ class PlantParams:
 
 @dataclass(frozen=True)
 class ContactParams:
+    """Default object contact: normal (stiffness, damping) and tangential (pad friction)."""
+
     stiffness_n_per_m: float
     damping_n_s_per_m: float
+    # Defaults apply when a config file predates them.
+    static_friction: float = 0.5       # mu_s between pad and object (per pad)
+    kinetic_friction: float = 0.4      # mu_k while the object slides; <= mu_s
+    pad_length_m: float = 0.02         # the object is out once it has slid this far
 
 
 @dataclass(frozen=True)
@@ -157,7 +163,7 @@ class GripperConfig:
 
 
 def default_config_path() -> Path:
-    """The installed ``share/gripper_ros/config/gripper.yaml``, else the source tree's copy."""
+    """Return the installed ``share/gripper_ros/config/gripper.yaml``, else the source copy."""
     env = os.environ.get('GRIPPER_ROS_CONFIG')
     if env:
         return Path(env)
@@ -231,6 +237,9 @@ def parse_config(data: dict, source: str = '<dict>') -> GripperConfig:
     contact = _build(ContactParams, _section(data, 'contact', source), 'contact',
                      stiffness_n_per_m={'nonnegative': True},
                      damping_n_s_per_m={'nonnegative': True})
+    if contact.kinetic_friction > contact.static_friction:
+        raise ConfigError('"contact.kinetic_friction" must be <= "contact.static_friction" '
+                          f'({contact.static_friction!r}), got {contact.kinetic_friction!r}')
     sensor = _build(ForceSensorParams, _section(data, 'force_sensor', source), 'force_sensor')
     pos = _section(data, 'position_control', source)
     mpc_pd = _section(pos, 'mpc_pd', 'position_control')
