@@ -173,7 +173,7 @@ def test_a_firm_grip_holds_without_any_slip_through_and_after_the_lift():
         s = plant.step(volts, STEP_S)
         state = plant.object_state
         assert state.state is HoldState.STUCK and state.slip_m == 0.0
-        load = m * (G + a) if s.t_ns < t_end else m * G
+        load = m * (G + a) if s.t_ns <= t_end else m * G      # a(t) = a on [t_lift, t_end]
         assert state.load_n == pytest.approx(load, rel=1e-15)
         assert s.force_n == f
 

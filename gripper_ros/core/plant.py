@@ -505,8 +505,11 @@ class GripperPlant:
         return self._sample(force)
 
     def _step_in_pieces(self, e: float, t_ns: int, end_ns: int) -> None:
-        """Integrate ``[t_ns, end_ns]`` split at the fault, the lift's start and end, the loss."""
-        while True:
+        """Integrate ``[t_ns, end_ns]`` split at the fault, the lift's start and end, the loss.
+
+        An event at ``end_ns`` itself takes effect in the next step (after this sample).
+        """
+        while t_ns < end_ns:
             fault = self.scheduled_fault
             if fault is not None and fault.at_ns <= t_ns:
                 self._fire_fault(fault)
@@ -516,8 +519,6 @@ class GripperPlant:
                 hold.fire_events(t_ns)
                 if not hold.live:
                     hold = self._hold_live = None
-            if t_ns >= end_ns:
-                return
             piece_end_ns = end_ns
             if fault is not None and fault.at_ns < piece_end_ns:
                 piece_end_ns = fault.at_ns
