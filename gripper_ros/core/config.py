@@ -6,6 +6,7 @@ into ROS parameter defaults. A bad file stops with a :class:`ConfigError` naming
 from __future__ import annotations
 
 from dataclasses import dataclass, fields, MISSING
+import enum
 import math
 import os
 from pathlib import Path
@@ -131,6 +132,13 @@ class ForceControlParams:
     contact_aware: ContactForceTuning
 
 
+class ForceLaw(enum.Enum):
+    """How the grasp's force setpoint follows from mass, friction and acceleration."""
+
+    FRICTION = 'friction'   # k m (g + a) / (2 mu_s): each of the two pads holds mu_s F
+    PAPER = 'paper'         # eq. 23 as printed, mu_s m (g + a)
+
+
 @dataclass(frozen=True)
 class SupervisorParams:
     friction_coefficient: float
@@ -149,6 +157,8 @@ class SupervisorParams:
     release_settle_s: float = 0.05       # ... for this long
     position_switch_speed_mps: float = 0.0  # switch 1 also needs |speed| <= this (0: paper's)
     width_tolerance_m: float = 0.0       # default +- on a request's width (Franka's epsilon)
+    force_law: ForceLaw = ForceLaw.FRICTION
+    grip_safety_factor: float = 1.5      # k of the friction law (>= 1)
 
 
 @dataclass(frozen=True)
@@ -206,6 +216,20 @@ def _number(section: dict, key: str, where: str, *, positive: bool = False,
     return value
 
 
+def _choice(section: dict, key: str, where: str, choices: type[enum.Enum]) -> enum.Enum:
+    name = f'{where}.{key}'
+    if key not in section:
+        raise ConfigError(f'missing key "{name}"')
+    value = section[key]
+    known = ', '.join(repr(c.value) for c in choices)
+    if not isinstance(value, str):
+        raise ConfigError(f'"{name}" must be one of {known}, got {value!r}')
+    try:
+        return choices(value)
+    except ValueError:
+        raise ConfigError(f'"{name}" must be one of {known}, got {value!r}') from None
+
+
 def _build(cls, section: dict, where: str, **rules):
     kwargs = {}
     for f in fields(cls):
@@ -213,7 +237,10 @@ def _build(cls, section: dict, where: str, **rules):
         if f.name not in section and f.default is not MISSING:
             kwargs[f.name] = f.default
             continue
-        kwargs[f.name] = _number(section, f.name, where, **opts)
+        if 'choices' in opts:
+            kwargs[f.name] = _choice(section, f.name, where, opts['choices'])
+        else:
+            kwargs[f.name] = _number(section, f.name, where, **opts)
     return cls(**kwargs)
 
 
@@ -274,7 +301,11 @@ def parse_config(data: dict, source: str = '<dict>') -> GripperConfig:
                  acceleration_mps2={'nonnegative': True}, hold_watch_s={'nonnegative': True},
                  release_settle_s={'nonnegative': True},
                  position_switch_speed_mps={'nonnegative': True},
-                 width_tolerance_m={'nonnegative': True})
+                 width_tolerance_m={'nonnegative': True},
+                 force_law={'choices': ForceLaw})
+    if not sup.grip_safety_factor >= 1.0:
+        raise ConfigError('"supervisor.grip_safety_factor" must be >= 1 (a grip that knowingly '
+                          f'holds less than the load), got {sup.grip_safety_factor!r}')
     if not sup.lost_force_fraction < 1.0:
         raise ConfigError('"supervisor.lost_force_fraction" must be in (0, 1), '
                           f'got {sup.lost_force_fraction!r}')
