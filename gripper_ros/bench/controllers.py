@@ -11,8 +11,9 @@ load_config`): PI and MPC-PI (force, at the force sampling time), PD and MPC-PD 
 10 ms); and a bare baseline, a Python call returning ``a * k + b``, timed the same way.
 Beside them, ``GripperPlant.step(voltage, dt)`` of the simulated plant the nodes run
 (:func:`gripper_ros.core.controllers.make_plant`): a 0.1 ms force-loop step holding a rigid and a
-compliant (1e5 N/m, 50 N s/m) object under the contact-aware force stage, and a 10 ms
-position-loop step of free motion under PD; there the controller runs outside the timed region.
+compliant (1e5 N/m, 50 N s/m) object under the contact-aware force stage (and the rigid one
+lifted, 20 g held by pad friction: the hold physics included), and a 10 ms position-loop step
+of free motion under PD; there the controller runs outside the timed region.
 
 Each step is timed on its own with ``time.perf_counter_ns()`` around the call (the baseline
 carries the same timer overhead, so ``x base`` is the controller's cost in units of a trivial
@@ -128,13 +129,21 @@ def _time_plant_steps(plant, dt_s: float, control, setpoints, warmup: int,
 
 
 def _holding_plant(config, stiffness_n_per_m: float, damping_n_s_per_m: float,
-                   width_m: float = 0.05):
-    """Build a plant with the finger at rest on an object, driven by the contact-aware stage."""
+                   width_m: float = 0.05, lifted_mass_kg: float = 0.0):
+    """Build a plant with the finger at rest on an object, driven by the contact-aware stage.
+
+    ``lifted_mass_kg`` > 0: the object is lifted off its support at once and held by friction
+    (the hold physics runs every step).
+    """
     from gripper_ros.core.controllers import ForceControllerKind, make_force_controller, make_plant
-    from gripper_ros.core.plant import GraspObject
+    from gripper_ros.core.plant import GraspObject, Lift
     plant = make_plant(config)
-    plant.set_object(GraspObject(width_m, stiffness_n_per_m, damping_n_s_per_m))
+    lift = Lift(0.0) if lifted_mass_kg > 0.0 else None
+    plant.set_object(GraspObject(width_m, stiffness_n_per_m, damping_n_s_per_m,
+                                 mass_kg=lifted_mass_kg), lift=lift)
     plant.touch_object()
+    if lift is not None:
+        plant.begin_hold(plant.t_ns)
     ctrl = make_force_controller(config, ForceControllerKind.CONTACT_AWARE)
     face = plant.contact_position_m
 
@@ -190,6 +199,8 @@ def measure(steps: int = 20000, warmup: int = 2000, period: int = 2000,
         plant_cases = [
             ('plant step, force, rigid', _holding_plant(config, 0.0, 0.0), f_dt, f_sp),
             ('plant step, force, compliant', _holding_plant(config, 1e5, 50.0), f_dt, f_sp),
+            ('plant step, force, rigid, lifted',
+             _holding_plant(config, 0.0, 0.0, lifted_mass_kg=0.02), f_dt, f_sp),
             ('plant step, position, free', _free_plant(config), p_dt, p_sp),
         ]
         for name, (plant, control), dt, sps in plant_cases:

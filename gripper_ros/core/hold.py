@@ -129,6 +129,16 @@ class HoldModel:
         """Most the two pads hold by static friction at grip force ``force_n``."""
         return 2.0 * self.static_friction * max(0.0, force_n)
 
+    def stays_stuck(self, force_n: float, until_ns: int) -> bool:
+        """Tell whether it stays stuck at grip ``force_n``, with no event before ``until_ns``.
+
+        The step then needs no splitting: advancing it would change nothing.
+        """
+        event_ns = self.next_event_ns
+        return self.state is HoldState.STUCK and (event_ns is None or event_ns >= until_ns) and \
+            self.mass_kg * (self.gravity_mps2 + self.acceleration_mps2) <= \
+            2.0 * self.static_friction * force_n
+
     def fire_events(self, t_ns: int) -> None:
         """Apply the lift's start and end if they are due at ``t_ns``."""
         while self.next_event_ns is not None and self.next_event_ns <= t_ns:

@@ -493,7 +493,9 @@ class GripperPlant:
         self._peak = self._force()
         start_ns = self.t_ns
         end_ns = start_ns + duration_ns
-        if self.scheduled_fault is None and self._hold_live is None:
+        hold = self._hold_live
+        if self.scheduled_fault is None and (
+                hold is None or hold.stays_stuck(self._peak, end_ns)):
             force = self._integrate(e, duration_ns * 1e-9, start_ns * 1e-9)
         else:
             self._step_in_pieces(e, start_ns, end_ns)
