@@ -237,14 +237,14 @@ TICK_LAYOUT = LoopLayout(
     'q8dB3xI')
 REFERENCE_LAYOUT = LoopLayout(
     'gripper_interfaces/msg/StageReference',
-    ('stamp_ns', 'grasp_id', 'stage_id', 'phase', 'outcome', 'controller', 'running', 'contact',
-     'position_setpoint_m', 'approach_setpoint_m', 'force_setpoint_n', 'position_m',
-     'velocity_mps', 'force_n', 'seed_voltage_v'),
-    'qII5B3x7d')
+    ('stamp_ns', 'grasp_id', 'stage_id', 'revision', 'phase', 'outcome', 'controller',
+     'running', 'contact', 'position_setpoint_m', 'approach_setpoint_m', 'force_setpoint_n',
+     'position_m', 'velocity_mps', 'force_n', 'seed_voltage_v'),
+    'qIII5B7x7d')
 COMMAND_LAYOUT = LoopLayout(
     'gripper_interfaces/msg/MotorCommand',
-    ('stamp_ns', 'grasp_id', 'stage_id', 'source', 'phase', 'outcome', 'running', 'finite',
-     'voltage_v', 'hold_s', 'inner_setpoint'),
-    'qII5B3x3d')
+    ('stamp_ns', 'grasp_id', 'stage_id', 'revision', 'source', 'phase', 'outcome', 'running',
+     'finite', 'voltage_v', 'hold_s', 'inner_setpoint'),
+    'qIII5B7x3d')
 LOOP_LAYOUTS = {layout.msgtype: layout for layout in (TICK_LAYOUT, REFERENCE_LAYOUT,
                                                       COMMAND_LAYOUT)}

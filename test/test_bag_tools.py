@@ -149,10 +149,10 @@ def write_grasp_bag(path: Path, topics=None, n_ticks: int = N_TICKS, custom_data
                                        0.2 + 0.4 * g['force'], _voltage(k), 0.1 * _voltage(k),
                                        0.0, g['source'] if k else 0, 0),
                 POS_REF if g['phase'] == 1 else FORCE_REF: REFERENCE_LAYOUT.pack(
-                    t_ns, GRASP_ID, g['stage'], g['phase'], g['outcome'], g['source'],
+                    t_ns, GRASP_ID, g['stage'], 0, g['phase'], g['outcome'], g['source'],
                     running, k >= K_CONTACT, POS_SP_M, POS_SP_M, FORCE_SP_N, g['pos'], 0.0,
                     g['force'], 0.0),
-                COMMAND: COMMAND_LAYOUT.pack(t_ns, GRASP_ID, g['stage'], g['source'],
+                COMMAND: COMMAND_LAYOUT.pack(t_ns, GRASP_ID, g['stage'], 0, g['source'],
                                              g['phase'], g['outcome'], running, True,
                                              _voltage(k + 1), 1e-3, 0.0),
             }

@@ -7,13 +7,12 @@ stiffness; the damping gain places that mode's damping ratio exactly.
 import dataclasses
 import math
 
-import numpy as np
-import pytest
-
 from gripper_ros.core.config import load_config
 from gripper_ros.core.contact_force import ContactForceController
 from gripper_ros.core.controllers import make_plant
 from gripper_ros.core.plant import GraspObject
+import numpy as np
+import pytest
 
 CONFIG = load_config()
 PLANT = CONFIG.plant
@@ -62,8 +61,10 @@ def test_damping_gain_places_the_spring_mode_damping_ratio():
 
 
 def test_open_loop_spring_mode_matches_the_closed_form():
-    """Without control the stiff object rings at omega_n = sqrt(k lever rho / J): the reason
-    the rigid loop's PI cannot hold a compliant object."""
+    """Without control the stiff object rings at omega_n = sqrt(k lever rho / J).
+
+    That is the reason the rigid loop's PI cannot hold a compliant object.
+    """
     k = 1e5
     omega = math.sqrt(k * PLANT.force_lever_m * PLANT.travel_per_rad_m / PLANT.inertia_kg_m2)
     plant = make_plant(CONFIG)
@@ -108,8 +109,10 @@ def _hold(k, c_damp, force_n, gap_m, speed_mps, seconds=8.0):
                                       ('soft', 1e3, 5.0)])
 @pytest.mark.parametrize('force_n', [0.5, 14.7])
 def test_no_spike_on_rigid_stiff_or_soft_objects(name, k, c, force_n):
-    """From 1 mm short at 1.5 mm/s (what the position stage hands over): the peak stays
-    within 1.10 x F_sp, the force ends within 2 %, the voltage within +-24 V."""
+    """From 1 mm short at 1.5 mm/s (what the position stage hands over): no spike.
+
+    The peak stays within 1.10 x F_sp, the force ends within 2 %, the voltage within +-24 V.
+    """
     peak, final, volts = _hold(k, c, force_n, 1e-3, 1.5e-3)
     assert peak <= 1.10 * force_n
     assert final == pytest.approx(force_n, rel=0.02)
@@ -117,8 +120,10 @@ def test_no_spike_on_rigid_stiff_or_soft_objects(name, k, c, force_n):
 
 
 def test_the_rigid_loops_pi_would_spike_on_the_stiff_object():
-    """The control: the same hand-over into the paper-style PI (our rigid gains) on the stiff
-    object overshoots many times over, which is what this stage exists to prevent."""
+    """The control: the same hand-over into the paper-style PI overshoots many times over.
+
+    The PI (our rigid gains) on the stiff object: what this stage exists to prevent.
+    """
     from gripper_ros.core.controllers import ForceControllerKind, make_force_controller
     plant = make_plant(CONFIG)
     plant.set_object(GraspObject(PLANT.max_travel_m - 0.1, 1e5, 50.0))
@@ -133,9 +138,12 @@ def test_the_rigid_loops_pi_would_spike_on_the_stiff_object():
 
 
 def test_integral_trims_a_wrong_stall_gain_only_at_rest():
-    """Model error: the plant's motor is 20 % weaker than the controller believes. The
-    feed-forward alone would hold 0.8 F_sp on a rigid object; the trim restores F_sp."""
-    weak = dataclasses.replace(PLANT, torque_constant_n_m_per_a=0.8 * PLANT.torque_constant_n_m_per_a)
+    """Model error: the plant's motor is 20 % weaker than the controller believes.
+
+    The feed-forward alone would hold 0.8 F_sp on a rigid object; the trim restores F_sp.
+    """
+    weak = dataclasses.replace(PLANT,
+                               torque_constant_n_m_per_a=0.8 * PLANT.torque_constant_n_m_per_a)
     plant = make_plant(dataclasses.replace(CONFIG, plant=weak))
     plant.set_object(GraspObject(PLANT.max_travel_m - 0.1))
     plant.touch_object()
@@ -155,9 +163,11 @@ def test_non_finite_input_is_refused():
 
 
 def test_past_the_expected_face_untouched_it_drives_at_the_feedforward_not_a_crawl():
-    """No object (or a narrower one): beyond the face the speed reference no longer applies and
-    the motor gets exactly the stall voltage of F_sp, so NO_OBJECT comes in a fraction of a
-    second; a touching finger (any force) keeps the crawl."""
+    """No object (or a narrower one): NO_OBJECT comes in a fraction of a second.
+
+    Beyond the face the speed reference no longer applies and the motor gets exactly the stall
+    voltage of F_sp; a touching finger (any force) keeps the crawl.
+    """
     c = _controller()
     c.reset(0.1005)
     ff = 5.0 / PLANT.stall_force_per_volt_n
@@ -171,7 +181,7 @@ def test_past_the_expected_face_untouched_it_drives_at_the_feedforward_not_a_cra
 
 def test_no_object_is_found_quickly():
     from gripper_ros.core.headless import simulate_grasp
-    g = simulate_grasp(CONFIG, 0.05, 1.27, object_width_m=0.0)
+    g = simulate_grasp(CONFIG, 0.05, 0.42, object_width_m=0.0)     # F_sp 6.18 N
     assert g.outcome.name == 'NO_OBJECT'
     # a crawl at the contact speed over the no-object margin would take margin / v_min
     crawl_s = CONFIG.supervisor.no_object_margin_m / (

@@ -48,7 +48,9 @@ def test_paper_object_is_held_at_its_width_and_force(paper_runs, index):
     setpoint = L_LS - width
     assert r.position_setpoint_m == pytest.approx(setpoint)
     assert abs(r.final_position_m - setpoint) <= 0.02 * setpoint
-    f_sp = CONFIG.supervisor.friction_coefficient * mass * CONFIG.plant.gravity_mps2  # eq. 23
+    sup = CONFIG.supervisor                      # friction law: each pad holds mu_s F
+    f_sp = sup.grip_safety_factor * mass * CONFIG.plant.gravity_mps2 / (
+        2 * sup.friction_coefficient)
     assert r.force_setpoint_n == pytest.approx(f_sp)
     assert abs(r.final_force_n - f_sp) <= 0.02 * f_sp
 
@@ -106,7 +108,7 @@ BAD_REQUESTS = [
     dict(width_m=0.05, mass_kg=-1.0),
     dict(width_m=0.05, mass_kg=1.0, friction_coefficient=-0.5),
     dict(width_m=0.05, mass_kg=1.0, timeout_s=math.nan),
-    dict(width_m=0.05, mass_kg=50.0),   # 0.5*50*9.81 = 245 N > 33.4 N at 24 V
+    dict(width_m=0.05, mass_kg=50.0),   # 1.5*50*9.81/(2*0.5) = 736 N > 33.4 N at 24 V
 ]
 
 
@@ -122,7 +124,8 @@ def test_bad_request_is_refused_with_a_message_and_nothing_moves(graph, request_
 
 def test_force_beyond_the_motor_names_the_numbers(graph):
     r = graph.grasp(0.05, 50.0)
-    assert '245.25 N' in r.message and '33.39 N' in r.message
+    # friction law: 1.5 x 50 kg x 9.81 m/s^2 / (2 x 0.5) = 735.75 N
+    assert '735.75 N' in r.message and 'friction law' in r.message and '33.39 N' in r.message
 
 
 def test_request_while_grasping_is_refused_and_next_one_succeeds(graph):

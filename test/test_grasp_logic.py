@@ -1,28 +1,40 @@
-"""Supervisor state machine and request validation (no ROS): eq. 23 and the switching rules."""
+"""Supervisor state machine and request validation (no ROS): force law, switching rules."""
 import dataclasses
 import math
 
+from gripper_ros.core.config import ForceLaw, load_config
+from gripper_ros.core.supervisor import (Controller, force_setpoint_n, GraspRequest,
+                                         GraspSupervisor, Outcome, Phase, RequestError,
+                                         SwitchCriterion, validate_request)
 import pytest
-
-from gripper_ros.core.config import load_config
-from gripper_ros.core.supervisor import (Controller, GraspRequest, GraspSupervisor, Outcome,
-                                     Phase, RequestError, SwitchCriterion, force_setpoint_n,
-                                     validate_request)
 
 CFG = load_config()
 P, S = CFG.plant, CFG.supervisor
+PAPER = dataclasses.replace(S, force_law=ForceLaw.PAPER)
 MS = 1_000_000
 
 
-def targets(width=0.05, mass=1.69, **kw):
-    return validate_request(GraspRequest(width, mass, **kw), P, S)
+def targets(width=0.05, mass=1.69, params=S, **kw):
+    return validate_request(GraspRequest(width, mass, **kw), P, params)
 
 
-def test_eq23_and_position_setpoint():
+def test_default_law_is_friction_on_two_pads_with_a_safety_factor():
+    assert (S.force_law, S.grip_safety_factor) == (ForceLaw.FRICTION, 1.5)
+    # 1.5 x 1.69 kg x (9.81 + 2.0) m/s^2 / (2 x 0.8) = 18.7115 N: each pad holds 0.8 x 18.71 N
     t = targets(0.05, 1.69, friction_coefficient=0.8, acceleration_mps2=2.0)
-    assert t.force_setpoint_n == pytest.approx(0.8 * 1.69 * (9.81 + 2.0))
+    assert t.force_setpoint_n == pytest.approx(18.71147, rel=1e-6)
+    assert 2 * 0.8 * t.force_setpoint_n == pytest.approx(1.5 * 1.69 * 11.81, rel=1e-12)
     assert t.position_setpoint_m == pytest.approx(0.15 - 0.05)
-    assert force_setpoint_n(2.0, 0.5, 9.81, 0.0) == pytest.approx(9.81)
+    # default mu_s = 0.5: F_sp = 1.5 m g, 24.868 N for the 1.69 kg object
+    assert targets().force_setpoint_n == pytest.approx(24.86835, rel=1e-6)
+    assert force_setpoint_n(2.0, 0.5, 9.81, 0.0, ForceLaw.FRICTION, 1.0) == \
+        pytest.approx(19.62)
+
+
+def test_paper_law_is_eq23_as_printed():
+    t = targets(0.05, 1.69, PAPER, friction_coefficient=0.8, acceleration_mps2=2.0)
+    assert t.force_setpoint_n == pytest.approx(0.8 * 1.69 * (9.81 + 2.0))
+    assert force_setpoint_n(2.0, 0.5, 9.81, 0.0, ForceLaw.PAPER, 1.5) == pytest.approx(9.81)
 
 
 def test_defaults_are_resolved_from_config():
@@ -32,26 +44,44 @@ def test_defaults_are_resolved_from_config():
 
 
 @pytest.mark.parametrize('fields, words', [
-    (dict(width_m=math.nan), 'width_m must be a finite'),
-    (dict(mass_kg=math.inf), 'mass_kg must be a finite'),
-    (dict(width_m=0.0), 'width_m must be in'),
-    (dict(width_m=0.15), 'width_m must be in'),
-    (dict(mass_kg=0.0), 'mass_kg must be > 0'),
-    (dict(friction_coefficient=-1e-9), 'friction_coefficient must be >= 0'),
-    (dict(acceleration_mps2=-1.0), 'acceleration_mps2 must be >= 0'),
-    (dict(timeout_s=1e9), 'timeout_s must be in'),
-    (dict(mass_kg=7.0), 'exceeds the 33.39 N'),            # 0.5*7*9.81 = 34.3 N > 33.39 N
+    ({'width_m': math.nan}, 'width_m must be a finite'),
+    ({'mass_kg': math.inf}, 'mass_kg must be a finite'),
+    ({'width_m': 0.0}, 'width_m must be in'),
+    ({'width_m': 0.15}, 'width_m must be in'),
+    ({'mass_kg': 0.0}, 'mass_kg must be > 0'),
+    ({'friction_coefficient': -1e-9}, 'friction_coefficient must be >= 0'),
+    ({'acceleration_mps2': -1.0}, 'acceleration_mps2 must be >= 0'),
+    ({'timeout_s': 1e9}, 'timeout_s must be in'),
 ])
 def test_bad_requests_are_refused_with_the_reason(fields, words):
-    req = dict(width_m=0.05, mass_kg=1.0)
+    req = {'width_m': 0.05, 'mass_kg': 1.0}
     req.update(fields)
     with pytest.raises(RequestError, match=words):
         validate_request(GraspRequest(**req), P, S)
 
 
-def test_largest_mass_the_motor_can_hold_is_accepted():
-    m_max = P.max_force_n / (S.friction_coefficient * P.gravity_mps2)
-    assert targets(mass=m_max * 0.999).force_setpoint_n < P.max_force_n
+def test_more_force_than_24_v_can_hold_is_refused_with_the_law_and_its_numbers():
+    # friction law: 1.5 x 2.3 kg x 9.81 / (2 x 0.5) = 33.84 N > 33.39 N
+    with pytest.raises(RequestError) as info:
+        targets(mass=2.3)
+    message = str(info.value)
+    assert 'force setpoint 33.84 N' in message and 'friction law' in message
+    assert 'k=1.5' in message and 'm=2.3 kg' in message and '2 mu_s=1' in message
+    assert 'exceeds the 33.39 N' in message and '24 V' in message
+    # paper law: 0.5 x 7 kg x 9.81 = 34.34 N > 33.39 N; 2.3 kg is 11.28 N there
+    assert targets(mass=2.3, params=PAPER).force_setpoint_n == pytest.approx(11.2815)
+    with pytest.raises(RequestError, match=r'34\.34 N \(paper law, eq\. 23: mu_s=0\.5'):
+        targets(mass=7.0, params=PAPER)
+
+
+@pytest.mark.parametrize('params, m_max', [
+    (S, P.max_force_n * 2 * S.friction_coefficient / (1.5 * P.gravity_mps2)),    # 2.269 kg
+    (PAPER, P.max_force_n / (S.friction_coefficient * P.gravity_mps2))],         # 6.807 kg
+    ids=['friction', 'paper'])
+def test_largest_mass_the_motor_can_hold_is_accepted(params, m_max):
+    assert targets(mass=m_max * 0.999, params=params).force_setpoint_n < P.max_force_n
+    with pytest.raises(RequestError, match='exceeds'):
+        targets(mass=m_max * 1.001, params=params)
 
 
 NO_WATCH = dataclasses.replace(S, hold_watch_s=0.0)   # the answer comes when the force settles
@@ -187,7 +217,7 @@ US = 100_000          # one force sample (0.1 ms) in ns
 
 
 def holding(params=S):
-    """A supervisor in the force stage whose force has just settled (phase HOLDING, watching)."""
+    """Start a supervisor whose force has just settled (phase HOLDING, watching)."""
     sup = start(params=params)
     f_sp = sup.targets.force_setpoint_n
     sup.step(10 * MS, 0.0995, 0.0, 0.005)                   # switch on position tolerance
@@ -333,12 +363,12 @@ def test_release_times_out_in_simulated_time():
 
 # ------------------------------------------------------------------ width tolerance
 @pytest.mark.parametrize('fields, words', [
-    (dict(width_tolerance_m=-1e-6), 'width_tolerance_m must be >= 0'),
-    (dict(width_tolerance_m=math.nan), 'width_tolerance_m must be a finite'),
-    (dict(width_m=0.14, width_tolerance_m=0.01), r'width_m \+ width_tolerance_m must be < 0.15'),
+    ({'width_tolerance_m': -1e-6}, 'width_tolerance_m must be >= 0'),
+    ({'width_tolerance_m': math.nan}, 'width_tolerance_m must be a finite'),
+    ({'width_m': 0.14, 'width_tolerance_m': 0.01}, r'width_m \+ width_tolerance_m must be < 0.15'),
 ])
 def test_bad_width_tolerance_is_refused_with_the_reason(fields, words):
-    req = dict(width_m=0.05, mass_kg=1.0)
+    req = {'width_m': 0.05, 'mass_kg': 1.0}
     req.update(fields)
     with pytest.raises(RequestError, match=words):
         validate_request(GraspRequest(**req), P, S)
@@ -351,7 +381,7 @@ def test_width_tolerance_moves_the_approach_setpoint_not_the_face():
     assert targets(0.05, 1.0).width_tolerance_m == S.width_tolerance_m   # 0 = default
 
 
-def test_with_a_tolerance_the_switch_is_around_the_widest_face_and_no_object_beyond_the_narrowest():
+def test_with_a_tolerance_the_switch_is_around_the_widest_face_no_object_beyond_the_narrowest():
     sup = start(0.05, 1.0, width_tolerance_m=0.004)
     assert sup.targets.approach_setpoint_m == pytest.approx(0.096)
     band = S.position_tolerance_fraction * 0.10

@@ -30,8 +30,8 @@ CONFIG = load_config()
 S = CONFIG.supervisor
 L_LS = CONFIG.plant.max_travel_m
 V_LIMIT = CONFIG.plant.voltage_limit_v
-WIDTH, MASS = 0.14, 3.0
-F_SP = S.friction_coefficient * MASS * CONFIG.plant.gravity_mps2
+WIDTH, MASS = 0.14, 1.0
+F_SP = S.grip_safety_factor * MASS * CONFIG.plant.gravity_mps2 / (2 * S.friction_coefficient)
 FORCE_SAMPLE_S = CONFIG.force.sample_time_s
 
 

@@ -174,9 +174,9 @@ class _CountingStage:
         return measurement * 2.0, measurement
 
 
-def _ref(stamp, stage_id=1, grasp_id=1, position_m=1.5):
-    return Reference(stamp, grasp_id, stage_id, 1, 0, 1, True, False, 0.1, 0.1, 1.0,
-                     position_m, 0.0, 0.0, 0.0)
+def _ref(stamp, stage_id=1, grasp_id=1, position_m=1.5, position_setpoint_m=0.1):
+    return Reference(stamp, grasp_id, stage_id, 0, 1, 0, 1, True, False, position_setpoint_m,
+                     0.1, 1.0, position_m, 0.0, 0.0, 0.0)
 
 
 def test_lockstep_answerer_dedupes_restarts_on_a_new_stage_and_holds_on_nan():
@@ -189,7 +189,7 @@ def test_lockstep_answerer_dedupes_restarts_on_a_new_stage_and_holds_on_nan():
     assert stage.activations == 2
     held = a.answer(_ref(40, stage_id=3, position_m=math.nan))
     assert held.voltage_v == 0.0 and not held.finite and 'measurement' in held.reason
-    bad = a.answer(Reference(*(_ref(50, stage_id=3)[:8]), math.inf, *_ref(50)[9:]))
+    bad = a.answer(_ref(50, stage_id=3, position_setpoint_m=math.inf))
     assert not bad.finite and 'position_setpoint_m=inf' in bad.reason
     assert stage.activations == 2                        # neither touched the law
 

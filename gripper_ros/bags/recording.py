@@ -24,6 +24,7 @@ from pathlib import Path
 
 from gripper_ros.bags.recorder import BagRecorder, BagRecorderError
 from gripper_ros.bags.schema import import_message_class
+from gripper_ros.core.stages import Reference
 from gripper_ros.nodes.common import GRAPH_QOS, wait_until
 from gripper_ros.wire import (GRAPH_TOPICS, LOOP_TOPICS, REFERENCE_LAYOUT, TOPIC_FORCE_REFERENCE,
                               TOPIC_MOTOR_COMMAND, TOPIC_POSITION_REFERENCE, TOPIC_TICK,
@@ -91,6 +92,7 @@ class GraphTap:
         self._last_tick: tuple[int, bytes] | None = None
         self._this_tick: list[tuple[str, bytes, int]] = []   # loop messages of the newest tick
         self._held: tuple[int, bytes] | None = None   # the newest tick, written with its decision
+        self._decided_ns: int | None = None     # newest stamp of a reference or command seen
         self._last_command_ns: int | None = None
         self._start_ns: int | None = None       # the window: ticks start_ns <= t < end_ns
         self._end_ns: int | None = None
@@ -127,6 +129,7 @@ class GraphTap:
         ``next_tick``, or ``last_tick`` (the newest tick, whose decision is being handled)."""
         if self.sink is not None:
             self._finish()                      # a sink still closing ends here
+        self.error = ''
         self._end_ns = self._last_written_tick_ns = self._closing_since = None
         self._last_command_ns = None
         self._start_at_next_tick = at == 'next_tick'
@@ -141,6 +144,12 @@ class GraphTap:
             return
         self.sink = None if self._start_at_next_tick else sink
         self._pending_sink = sink
+
+    def flush(self) -> None:
+        """Write a tick still held for its decision (time stands still: none is coming)."""
+        held, self._held = self._held, None
+        if held is not None:
+            self._keep(self._tick_topic, held[1], held[0])
 
     def stop_at(self, end_ns: int | None = None) -> None:
         """End the window before tick ``end_ns`` (default: the next tick to come); the sink
@@ -190,6 +199,9 @@ class GraphTap:
             held, self._held = self._held, (stamp, data)
             if held is not None:
                 self._keep(self._tick_topic, held[1], held[0])   # a tick nobody answered
+            if self._decided_ns is not None and stamp <= self._decided_ns:
+                self._held = None               # its decision came first: write it now
+                self._keep(topic, data, stamp)
             self._last_tick = (stamp, data)
             self._this_tick = []
             if self._start_at_next_tick:
@@ -208,6 +220,7 @@ class GraphTap:
             if held is not None and held[0] == stamp:
                 self._held = None
                 self._keep(self._tick_topic, held[1], stamp)
+            self._decided_ns = stamp if self._decided_ns is None else max(stamp, self._decided_ns)
             self._keep(topic, data, stamp)
         self._this_tick.append((topic, data, stamp))
 
@@ -259,6 +272,22 @@ class GraphTap:
         self.close()
 
 
+def graph_tap(graph) -> GraphTap:
+    """The graph's one tap, subscribed at its first recording and kept while the graph lives.
+
+    A reader created anew for every grasp can be matched by an idle writer and still be sent
+    nothing (seen with Fast DDS: the force stage's references and commands of a later grasp),
+    so a graph that records keeps its tap; a graph that never records has none and pays
+    nothing for it.
+    """
+    tap = getattr(graph, 'recording_tap', None)
+    if tap is None:
+        tap = GraphTap(graph).open()
+        graph.recording_tap = tap
+        graph.close_hooks.append(tap.close)
+    return tap
+
+
 def bag_metadata(graph, request: dict, placed: dict) -> dict:
     """custom_data of a grasp bag: all a closed-loop re-run needs, and the format."""
     return {'gripper_ros': {'format': BAG_FORMAT, 'namespace': graph.namespace,
@@ -305,43 +334,44 @@ def recorded_grasp(graph, bag_dir, width_m: float, mass_kg: float,
                'acceleration_mps2': acceleration_mps2, 'width_tolerance_m': width_tolerance_m}
     obj = {'width_m': placed_width, 'stiffness_n_per_m': stiffness_n_per_m,
            'damping_n_s_per_m': damping_n_s_per_m, **{k: float(v) for k, v in hold.items()}}
-    with GraphTap(graph) as tap:
-        try:
-            recorder = BagRecorder(graph.client_node, bag_dir, tap.topics, overwrite=overwrite,
-                                   subscribe=False, time_source=lambda: graph.sim_time_ns,
-                                   custom_data=bag_metadata(graph, request, obj))
-        except BagRecorderError as exc:
-            raise RecordingError(str(exc)) from None
-        response = None
-        before = graph.published_counts()
-        fast = graph.options.time_mode == 'fast'
-        tap.start(recorder, 'now' if fast else 'next_tick')     # fast: nothing is in flight
-        t0 = time.perf_counter()
-        try:
-            response = graph.grasp(width_m, mass_kg, friction_coefficient, acceleration_mps2,
-                                   wall_timeout_s=wall_timeout_s,
-                                   width_tolerance_m=width_tolerance_m)
-            _play_out(graph, linger_s)
-        finally:
-            if fast:
-                _drain_published(graph, tap, recorder, before)
-                tap.sink = None             # time stands still: the last tick is whole
-                published = _published_since(graph, tap, before)
-            else:
-                tap.stop()                  # realtime: at a tick, once the last one is whole
-                published = {}              # (time runs on: no count to compare with)
-            logic = graph.supervisor.logic
-            final, message = logic.outcome, logic.message
-            if not recorder.closed:
-                if response is not None:
-                    recorder.set_custom_data({
-                        'outcome': Outcome(response.outcome).name, 'success': response.success,
-                        'message': response.message, 'final_outcome': final.name,
-                        'final_message': message,
-                        'position_setpoint_m': response.position_setpoint_m,
-                        'force_setpoint_n': response.force_setpoint_n})
-                recorder.close()
-            recorded = dict(recorder.counts)
+    tap = graph_tap(graph)
+    try:
+        recorder = BagRecorder(graph.client_node, bag_dir, tap.topics, overwrite=overwrite,
+                               subscribe=False, time_source=lambda: graph.sim_time_ns,
+                               custom_data=bag_metadata(graph, request, obj))
+    except BagRecorderError as exc:
+        raise RecordingError(str(exc)) from None
+    response = None
+    before = graph.published_counts()
+    received_before = dict(tap.received)
+    fast = graph.options.time_mode == 'fast'
+    tap.start(recorder, 'now' if fast else 'next_tick')     # fast: nothing is in flight
+    t0 = time.perf_counter()
+    try:
+        response = graph.grasp(width_m, mass_kg, friction_coefficient, acceleration_mps2,
+                               wall_timeout_s=wall_timeout_s,
+                               width_tolerance_m=width_tolerance_m)
+        _play_out(graph, linger_s)
+    finally:
+        if fast:
+            _drain_published(graph, tap, recorder, before, received_before)
+            tap.sink = None             # time stands still: the last tick is whole
+            published = _published_since(graph, tap, before)
+        else:
+            tap.stop()                  # realtime: at a tick, once the last one is whole
+            published = {}              # (time runs on: no count to compare with)
+        logic = graph.supervisor.logic
+        final, message = logic.outcome, logic.message
+        if not recorder.closed:
+            if response is not None:
+                recorder.set_custom_data({
+                    'outcome': Outcome(response.outcome).name, 'success': response.success,
+                    'message': response.message, 'final_outcome': final.name,
+                    'final_message': message,
+                    'position_setpoint_m': response.position_setpoint_m,
+                    'force_setpoint_n': response.force_setpoint_n})
+            recorder.close()
+        recorded = dict(recorder.counts)
     return RecordedGrasp(response, Path(bag_dir), published, recorded,
                          time.perf_counter() - t0, final, message, tap.error)
 
@@ -362,11 +392,13 @@ def _published_since(graph, tap: GraphTap, before: dict) -> dict:
 
 
 def _drain_published(graph, tap: GraphTap, recorder: BagRecorder, before: dict,
-                     timeout_s: float = 10.0) -> None:
-    """Wait until the recorder holds every message published since ``before``."""
+                     received_before: dict, timeout_s: float = 10.0) -> None:
+    """Wait until the tap has received every message published since ``before`` (time stands
+    still), and write a tick it still holds for its decision."""
     published = _published_since(graph, tap, before)
     wait_until(lambda: recorder.closed or all(
-        recorder.counts.get(t, 0) >= n for t, n in published.items()), timeout_s)
+        tap.received[t] - received_before[t] >= n for t, n in published.items()), timeout_s)
+    tap.flush()
 
 
 class ServeRecorder:
@@ -389,7 +421,7 @@ class ServeRecorder:
         self._close_at_ns: int | None = None
         self._answered_wall: float | None = None
         self._last_received = 0
-        self.tap = GraphTap(graph).open()
+        self.tap = graph_tap(graph)
         self.tap.on_reference = self._on_reference
         self.tap.on_tick = self._on_tick
         self.tap.on_closed = self._close_sink
@@ -402,15 +434,16 @@ class ServeRecorder:
         return self.tap.sink is not None
 
     def _on_reference(self, values: tuple) -> None:
-        grasp_id, phase, outcome = values[1], values[3], values[4]
+        ref = Reference._make(values)
+        grasp_id, phase, outcome = ref.grasp_id, ref.phase, ref.outcome
         if grasp_id != self._grasp_id:
-            self._close_bag(values[0])
+            self._close_bag(ref.stamp_ns)
             self._grasp_id = grasp_id
             if phase == Phase.POSITION and outcome == Outcome.UNKNOWN:
                 self._open(grasp_id)
         elif self.tap.sink is not None and outcome != Outcome.UNKNOWN and \
                 self._close_at_ns is None:
-            self._close_at_ns = values[0] + round(self.linger_s * 1e9)
+            self._close_at_ns = ref.stamp_ns + round(self.linger_s * 1e9)
             self._answered_wall = time.monotonic()
 
     def _on_tick(self, stamp_ns: int) -> None:
@@ -482,4 +515,3 @@ class ServeRecorder:
         sink = self.tap.stop()                  # the executor still runs the tap here
         self._close_sink(sink)
         self._close_bag()
-        self.tap.close()

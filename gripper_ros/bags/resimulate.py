@@ -301,13 +301,18 @@ def _lockstep_ticks(bag: Bag, ns: str):
         elif raw.topic == cmd_topic:
             values = COMMAND_LAYOUT.unpack(raw.data) or tuple(
                 getattr(bag.decode(raw), n) for n in COMMAND_LAYOUT.fields)
-            cmd = _RecordedCommand(*(values[i] for i in (3, 2, 0, 8, 9, 10)))
+            c = dict(zip(COMMAND_LAYOUT.fields, values))
+            cmd = _RecordedCommand(c['source'], c['stage_id'], c['stamp_ns'], c['voltage_v'],
+                                   c['hold_s'], c['inner_setpoint'])
             key = (int(cmd.source), int(cmd.stage_id), int(cmd.stamp_ns))
             if key not in recorded and cmd.source in order:
                 order[cmd.source].append(key)
                 recorded[key] = cmd
     if not refs:
         raise NothingToResimulateError(f'{bag.path}: no stage reference in the bag')
+    refs.sort(key=lambda r: (r.stamp_ns, r.stage_id))        # tick order, whatever DDS did
+    for source in order:
+        order[source].sort(key=lambda key: (key[2], key[1]))
     return refs, recorded, order, 0, len(refs)
 
 
@@ -355,7 +360,7 @@ def _legacy_ticks(bag: Bag):
         force_n = force_at.get(stamp, s.force_n)
         if stamp not in (joint_at if active == SOURCE_POSITION else force_at):
             from_status += 1                    # the first tick: published before recording
-        refs.append(Reference(stamp, int(s.grasp_id), stage, int(s.phase), int(s.outcome),
+        refs.append(Reference(stamp, int(s.grasp_id), stage, 0, int(s.phase), int(s.outcome),
                               active, s.outcome == 0, bool(s.contact), s.position_setpoint_m,
                               getattr(s, 'approach_setpoint_m', s.position_setpoint_m),
                               s.force_setpoint_n, position, velocity, force_n, s.seed_voltage_v))

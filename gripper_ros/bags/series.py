@@ -226,14 +226,18 @@ def _lockstep_series(bag: Bag, ns: str) -> GraspSeries:
             m = bag.decode(raw)
             objects.append((_stamp_ns(m) * 1e-9, m.state, m.slip_m, m.slip_speed_mps, m.load_n,
                             m.capacity_n))
-    ticks = _unique_by(ticks, lambda v: (v[0], v[10]))         # a repeated (waiting) tick once
-    refs = _unique_by(refs, lambda v: (v[2], v[0]))            # (stage, stamp)
-    cmds = _unique_by(cmds, lambda v: (v[2], v[0]))
+    # a repeated tick (a late peer) once; in tick order (DDS does not order topics)
+    ticks = sorted(_unique_by(ticks, _key(TICK_LAYOUT, 'stamp_ns', 'revision')),
+                   key=_key(TICK_LAYOUT, 'stamp_ns', 'revision'))
+    refs = sorted(_unique_by(refs, _key(REFERENCE_LAYOUT, 'stage_id', 'stamp_ns')),
+                  key=_key(REFERENCE_LAYOUT, 'stamp_ns', 'stage_id'))
+    cmds = sorted(_unique_by(cmds, _key(COMMAND_LAYOUT, 'stage_id', 'stamp_ns')),
+                  key=_key(COMMAND_LAYOUT, 'stamp_ns', 'stage_id'))
     tick = dict(zip(TICK_LAYOUT.fields, _columns(ticks, (np.int64,) + (float,) * 8 + (int, int))))
     t_s = tick['stamp_ns'] * 1e-9
     f, i = float, int
     ref = dict(zip(REFERENCE_LAYOUT.fields, _columns(
-        refs, (np.int64, i, i, i, i, i, bool, bool) + (f,) * 7)))
+        refs, (np.int64, i, i, i, i, i, i, bool, bool) + (f,) * 7)))
     switch = _switch_criteria(ref['stamp_ns'], statuses)
     status = StatusSeries(ref['stamp_ns'] * 1e-9, ref['phase'], ref['controller'], switch,
                           ref['grasp_id'], ref['outcome'], ref['position_setpoint_m'],
@@ -242,7 +246,7 @@ def _lockstep_series(bag: Bag, ns: str) -> GraspSeries:
                           ref['approach_setpoint_m'])
     status = _with_final_state(status, statuses)
     cmd = dict(zip(COMMAND_LAYOUT.fields, _columns(
-        cmds, (np.int64, i, i, i, i, i, bool, bool, f, f, f))))
+        cmds, (np.int64, i, i, i, i, i, i, bool, bool, f, f, f))))
     return GraspSeries(
         path=bag.path,
         joint=JointSeries(t_s, tick['position_m'], tick['velocity_mps'], tick['force_n']),
@@ -257,6 +261,12 @@ def _lockstep_series(bag: Bag, ns: str) -> GraspSeries:
         end_ns=bag.end_ns, size_bytes=bag.size_bytes, truncated=bag.truncated,
         damage=bag.damage, namespace=ns, bag_format=2,
         objects=ObjectSeries(*_columns(objects, (f, i, f, f, f, f))), ticks=tick)
+
+
+def _key(layout, *names):
+    """A function of a message's values giving the named fields (for de-duplication)."""
+    index = tuple(layout.fields.index(n) for n in names)
+    return lambda values: tuple(values[i] for i in index)
 
 
 def _fields(msg, names) -> tuple:

@@ -6,9 +6,10 @@ into ROS parameter defaults. A bad file stops with a :class:`ConfigError` naming
 from __future__ import annotations
 
 import copy
+from dataclasses import dataclass, field, fields, MISSING
+import enum
 import math
 import os
-from dataclasses import MISSING, dataclass, field, fields
 from pathlib import Path
 
 import yaml
@@ -41,12 +42,12 @@ class PlantParams:
 
     @property
     def force_lever_m(self) -> float:
-        """eta * p * N1/N2: motor torque per newton of gripping force (eq. 12)."""
+        """Motor torque per newton of gripping force, eta * p * N1/N2 (eq. 12)."""
         return self.efficiency * self.pitch_m * self.gear_ratio
 
     @property
     def travel_per_rad_m(self) -> float:
-        """p / (2 pi): finger travel per motor radian (eq. 10)."""
+        """Finger travel per motor radian, p / (2 pi) (eq. 10)."""
         return self.pitch_m / (2.0 * math.pi)
 
     @property
@@ -62,8 +63,15 @@ class PlantParams:
 
 @dataclass(frozen=True)
 class ContactParams:
+    """Default object contact: normal (stiffness, damping) and tangential (pad friction)."""
+
     stiffness_n_per_m: float
     damping_n_s_per_m: float
+    # Defaults apply when a config file predates them.
+    static_friction: float = 0.5       # mu_s between pad and object (per pad)
+    kinetic_friction: float = 0.4      # mu_k while the object slides; <= mu_s
+    pad_length_m: float = 0.02         # the object is out once it has slid this far
+    after_lift_s: float = 0.5          # fast mode plays a lift out this long after it ends
 
 
 @dataclass(frozen=True)
@@ -126,6 +134,13 @@ class ForceControlParams:
     contact_aware: ContactForceTuning
 
 
+class ForceLaw(enum.Enum):
+    """How the grasp's force setpoint follows from mass, friction and acceleration."""
+
+    FRICTION = 'friction'   # k m (g + a) / (2 mu_s): each of the two pads holds mu_s F
+    PAPER = 'paper'         # eq. 23 as printed, mu_s m (g + a)
+
+
 @dataclass(frozen=True)
 class SupervisorParams:
     friction_coefficient: float
@@ -144,6 +159,8 @@ class SupervisorParams:
     release_settle_s: float = 0.05       # ... for this long
     position_switch_speed_mps: float = 0.0  # switch 1 also needs |speed| <= this (0: paper's)
     width_tolerance_m: float = 0.0       # default +- on a request's width (Franka's epsilon)
+    force_law: ForceLaw = ForceLaw.FRICTION
+    grip_safety_factor: float = 1.5      # k of the friction law (>= 1)
 
 
 @dataclass(frozen=True)
@@ -160,7 +177,7 @@ class GripperConfig:
 
 
 def default_config_path() -> Path:
-    """The installed ``share/gripper_ros/config/gripper.yaml``, else the source tree's copy."""
+    """Return the installed ``share/gripper_ros/config/gripper.yaml``, else the source copy."""
     env = os.environ.get('GRIPPER_ROS_CONFIG')
     if env:
         return Path(env)
@@ -203,6 +220,20 @@ def _number(section: dict, key: str, where: str, *, positive: bool = False,
     return value
 
 
+def _choice(section: dict, key: str, where: str, choices: type[enum.Enum]) -> enum.Enum:
+    name = f'{where}.{key}'
+    if key not in section:
+        raise ConfigError(f'missing key "{name}"')
+    value = section[key]
+    known = ', '.join(repr(c.value) for c in choices)
+    if not isinstance(value, str):
+        raise ConfigError(f'"{name}" must be one of {known}, got {value!r}')
+    try:
+        return choices(value)
+    except ValueError:
+        raise ConfigError(f'"{name}" must be one of {known}, got {value!r}') from None
+
+
 def _build(cls, section: dict, where: str, **rules):
     kwargs = {}
     for f in fields(cls):
@@ -210,7 +241,10 @@ def _build(cls, section: dict, where: str, **rules):
         if f.name not in section and f.default is not MISSING:
             kwargs[f.name] = f.default
             continue
-        kwargs[f.name] = _number(section, f.name, where, **opts)
+        if 'choices' in opts:
+            kwargs[f.name] = _choice(section, f.name, where, opts['choices'])
+        else:
+            kwargs[f.name] = _number(section, f.name, where, **opts)
     return cls(**kwargs)
 
 
@@ -233,7 +267,11 @@ def parse_config(data: dict, source: str = '<dict>') -> GripperConfig:
     plant = _build(PlantParams, _section(data, 'plant', source), 'plant')
     contact = _build(ContactParams, _section(data, 'contact', source), 'contact',
                      stiffness_n_per_m={'nonnegative': True},
-                     damping_n_s_per_m={'nonnegative': True})
+                     damping_n_s_per_m={'nonnegative': True},
+                     after_lift_s={'nonnegative': True})
+    if contact.kinetic_friction > contact.static_friction:
+        raise ConfigError('"contact.kinetic_friction" must be <= "contact.static_friction" '
+                          f'({contact.static_friction!r}), got {contact.kinetic_friction!r}')
     sensor = _build(ForceSensorParams, _section(data, 'force_sensor', source), 'force_sensor')
     pos = _section(data, 'position_control', source)
     mpc_pd = _section(pos, 'mpc_pd', 'position_control')
@@ -268,7 +306,11 @@ def parse_config(data: dict, source: str = '<dict>') -> GripperConfig:
                  acceleration_mps2={'nonnegative': True}, hold_watch_s={'nonnegative': True},
                  release_settle_s={'nonnegative': True},
                  position_switch_speed_mps={'nonnegative': True},
-                 width_tolerance_m={'nonnegative': True})
+                 width_tolerance_m={'nonnegative': True},
+                 force_law={'choices': ForceLaw})
+    if not sup.grip_safety_factor >= 1.0:
+        raise ConfigError('"supervisor.grip_safety_factor" must be >= 1 (a grip that knowingly '
+                          f'holds less than the load), got {sup.grip_safety_factor!r}')
     if not sup.lost_force_fraction < 1.0:
         raise ConfigError('"supervisor.lost_force_fraction" must be in (0, 1), '
                           f'got {sup.lost_force_fraction!r}')

@@ -17,7 +17,7 @@ import numpy as np
 from gripper_ros.core.config import GripperConfig
 from gripper_ros.core.controllers import make_plant
 from gripper_ros.core.lockstep import PlantSide, StageSide, SupervisorSide
-from gripper_ros.core.plant import GraspObject
+from gripper_ros.core.plant import GraspObject, Lift
 from gripper_ros.core.stages import (DEFAULT_APPROACH_FORCE_MARGIN, DEFAULT_FORCE_CONTROLLER,
                                      DEFAULT_POSITION_CONTROLLER, ForceStageController,
                                      PositionStageController)
@@ -66,11 +66,15 @@ def simulate_grasp(config: GripperConfig, width_m: float, mass_kg: float, *,
                    position_controller=DEFAULT_POSITION_CONTROLLER,
                    force_controller=DEFAULT_FORCE_CONTROLLER,
                    approach_force_margin: float = DEFAULT_APPROACH_FORCE_MARGIN,
-                   hold_s: float = 0.0, start_ns: int = 0, **hold) -> HeadlessGrasp:
+                   object_mass_kg: float = 0.0, static_friction: float = 0.0,
+                   kinetic_friction: float = 0.0, pad_length_m: float = 0.0,
+                   lift: Lift | None = None, hold_s: float = 0.0,
+                   start_ns: int = 0) -> HeadlessGrasp:
     """Grasp from fully open; ``object_width_m`` (default ``width_m``; 0 = nothing) is the real
-    object, ``width_m`` the expected one; ``hold`` goes to the plant's ``set_object`` (the
-    object's mass, friction and lift). ``hold_s`` keeps simulated time running that long after
-    the answer. Raises RequestError for a request the graph refuses."""
+    object, ``width_m`` the expected one. The object's own mass and pad friction (0 = the
+    grasp's mass, the configured friction) hold it once ``lift`` lifts it; time runs until the
+    lift has played out, and ``hold_s`` at least that long after the answer. Raises
+    RequestError for a request the graph refuses."""
     targets = validate_request(GraspRequest(width_m, mass_kg, friction_coefficient,
                                             acceleration_mps2, timeout_s, width_tolerance_m),
                                config.plant, config.supervisor)
@@ -79,7 +83,9 @@ def simulate_grasp(config: GripperConfig, width_m: float, mass_kg: float, *,
     plant_side = PlantSide(plant)
     plant_side.grasp_mass_kg = mass_kg
     plant_side.set_object(GraspObject(width_m if object_width_m is None else object_width_m,
-                                      stiffness_n_per_m, damping_n_s_per_m), **hold)
+                                      stiffness_n_per_m, damping_n_s_per_m, object_mass_kg,
+                                      static_friction, kinetic_friction, pad_length_m),
+                          lift=lift)
     supervisor = GraspSupervisor(config.plant, config.supervisor)
     decide = SupervisorSide(supervisor).decide
     stages = {Controller.POSITION: StageSide(PositionStageController(config, position_controller)),

@@ -97,17 +97,15 @@ class PlantSide:
         if cmd.phase == Phase.HOLDING and cmd.outcome == Outcome.HOLDING and \
                 self._hold_begun_for != cmd.grasp_id:
             self._hold_begun_for = cmd.grasp_id
-            begin = getattr(self.plant, 'begin_hold', None)
-            if begin is not None:
-                begin(cmd.stamp_ns, self.grasp_mass_kg)
+            try:
+                self.plant.begin_hold(cmd.stamp_ns, self.grasp_mass_kg)
+            except ValueError:
+                pass            # the object left its support in an earlier hold: no new lift
 
     def needs_time(self, cmd: Command) -> bool:
         """Whether simulated time must go on after ``cmd`` in fast mode: a request in
         progress, or a hold scenario (a lift) still to be played out."""
-        if cmd.running:
-            return True
-        busy = getattr(self.plant, 'scenario_in_progress', None)
-        return bool(busy is not None and busy())
+        return bool(cmd.running) or self.plant.scenario_in_progress()
 
     def step(self, cmd: Command) -> Tick:
         """Hold the command's voltage for its ``hold_s``; the next tick."""
@@ -132,8 +130,8 @@ class SupervisorSide:
                                  tick.sensor_voltage_v, tick.velocity_mps, tick.revision)
         if d.active is Controller.NONE:
             return d, None
-        return d, Reference(tick.stamp_ns, d.grasp_id, d.stage_id, int(d.phase),
-                            int(d.outcome), int(d.active), d.running, d.contact,
+        return d, Reference(tick.stamp_ns, d.grasp_id, d.stage_id, tick.revision,
+                            int(d.phase), int(d.outcome), int(d.active), d.running, d.contact,
                             d.position_setpoint_m, d.approach_setpoint_m, d.force_setpoint_n,
                             tick.position_m, tick.velocity_mps, tick.force_n,
                             tick.motor_voltage_v)
@@ -153,6 +151,6 @@ class StageSide:
         if a is None:
             return None
         self.last_answer = a
-        return Command(ref.stamp_ns, ref.grasp_id, ref.stage_id, int(self.stage.source),
-                       ref.phase, ref.outcome, ref.running, a.finite, a.voltage_v,
-                       self.stage.sample_time_s, a.inner_setpoint)
+        return Command(ref.stamp_ns, ref.grasp_id, ref.stage_id, ref.revision,
+                       int(self.stage.source), ref.phase, ref.outcome, ref.running, a.finite,
+                       a.voltage_v, self.stage.sample_time_s, a.inner_setpoint)

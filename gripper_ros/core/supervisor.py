@@ -2,9 +2,10 @@
 
 Stages (paper sec. IV): POSITION (MPC-PD drives the finger to ``L_ls - width``) until either
 switching criterion holds - the position is within +-2 % of its setpoint, or the force-sensor
-voltage has risen by more than its threshold - then FORCE (PI to ``mu_s m (g + a)``, eq. 23)
-until the force has stayed within its band for a hold time: HOLDING. Exactly one controller is
-active at any tick; the decision for each tick is a :class:`Decision`.
+voltage has risen by more than its threshold - then FORCE (to :func:`force_setpoint_n`:
+``k m (g + a) / (2 mu_s)`` by default, eq. 23's ``mu_s m (g + a)`` with ``supervisor.force_law:
+paper``) until the force has stayed within its band for a hold time: HOLDING. Exactly one
+controller is active at any tick; the decision for each tick is a :class:`Decision`.
 
 Loss watch: once the force has reached ``lost_force_fraction`` of its setpoint after contact, a
 force below that fraction for ``lost_force_hold_s``, or (after settling) the finger moving on
@@ -18,10 +19,10 @@ Release: :meth:`GraspSupervisor.start_release` runs the position stage to the op
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
+import math
 
-from gripper_ros.core.config import PlantParams, SupervisorParams
+from gripper_ros.core.config import ForceLaw, PlantParams, SupervisorParams
 from gripper_ros.wire import Controller
 from gripper_ros.wire import Outcome, PendingRequest, Phase, SwitchCriterion
 
@@ -59,9 +60,25 @@ class GraspTargets:
 
 
 def force_setpoint_n(mass_kg: float, friction_coefficient: float, gravity_mps2: float,
-                     acceleration_mps2: float) -> float:
-    """Eq. 23: F_sp = mu_s m (g + a)."""
-    return friction_coefficient * mass_kg * (gravity_mps2 + acceleration_mps2)
+                     acceleration_mps2: float, law: ForceLaw, safety_factor: float) -> float:
+    """Grip force to hold ``m`` under ``g + a`` by friction ``mu_s`` on the two finger pads.
+
+    ``FRICTION``: each pad holds at most ``mu_s F``, so ``F_sp = k m (g + a) / (2 mu_s)`` with the
+    safety factor ``k``. ``PAPER``: eq. 23 as printed, ``F_sp = mu_s m (g + a)`` (``k`` unused).
+    """
+    if law is ForceLaw.PAPER:
+        return friction_coefficient * mass_kg * (gravity_mps2 + acceleration_mps2)
+    return safety_factor * mass_kg * (gravity_mps2 + acceleration_mps2) / (
+        2.0 * friction_coefficient)
+
+
+def _force_law_text(law: ForceLaw, mu: float, mass_kg: float, g_plus_a: float,
+                    safety_factor: float) -> str:
+    """Write the setpoint's formula with the request's numbers, for a refusal."""
+    if law is ForceLaw.PAPER:
+        return f'paper law, eq. 23: mu_s={mu:g} x m={mass_kg:g} kg x (g+a)={g_plus_a:g} m/s^2'
+    return (f'friction law: k={safety_factor:g} x m={mass_kg:g} kg x (g+a)={g_plus_a:g} m/s^2 '
+            f'/ (2 mu_s={2.0 * mu:g})')
 
 
 def validate_request(req: GraspRequest, plant: PlantParams,
@@ -95,12 +112,13 @@ def validate_request(req: GraspRequest, plant: PlantParams,
                            f'finger travel), got {req.width_m:g} + {tolerance:g} m')
     mu = req.friction_coefficient or sup.friction_coefficient
     accel = req.acceleration_mps2 or sup.acceleration_mps2
-    force = force_setpoint_n(req.mass_kg, mu, plant.gravity_mps2, accel)
+    law, k = sup.force_law, sup.grip_safety_factor
+    force = force_setpoint_n(req.mass_kg, mu, plant.gravity_mps2, accel, law, k)
     if force > plant.max_force_n:
         raise RequestError(
-            f'force setpoint {force:.2f} N (mu_s={mu:g} x m={req.mass_kg:g} kg x '
-            f'(g+a)={plant.gravity_mps2 + accel:g} m/s^2) exceeds the {plant.max_force_n:.2f} N '
-            f'the motor can hold at {plant.voltage_limit_v:g} V')
+            f'force setpoint {force:.2f} N ('
+            f'{_force_law_text(law, mu, req.mass_kg, plant.gravity_mps2 + accel, k)}) exceeds '
+            f'the {plant.max_force_n:.2f} N the motor can hold at {plant.voltage_limit_v:g} V')
     if force <= 0.0:
         raise RequestError(f'force setpoint must be > 0 N, got {force!r}')
     return GraspTargets(plant.max_travel_m - req.width_m, force, mu,

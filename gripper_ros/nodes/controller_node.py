@@ -136,7 +136,7 @@ class LockstepController(Node):
         # answered: a reference arriving late adds no second command for this tick
         self.side.answerer.answered = (ref.stage_id, ref.stamp_ns)
         self._last_command = COMMAND_LAYOUT.pack(
-            ref.stamp_ns, ref.grasp_id, ref.stage_id, int(self.source), ref.phase, ref.outcome,
-            ref.running, False, 0.0, self.sample_time_s, 0.0)
+            ref.stamp_ns, ref.grasp_id, ref.stage_id, ref.revision, int(self.source), ref.phase,
+            ref.outcome, ref.running, False, 0.0, self.sample_time_s, 0.0)
         self._pub.publish(self._last_command)
         self.published[TOPIC_MOTOR_COMMAND] += 1

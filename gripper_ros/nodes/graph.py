@@ -323,7 +323,7 @@ class GripperGraph:
     def close(self) -> None:
         """Stop spinning and destroy every node (and the context it owns); safe to call
         twice."""
-        for hook in self.close_hooks:
+        for hook in reversed(self.close_hooks):      # the last opened closes first
             hook()
         self.close_hooks = []
         if hasattr(self, '_stop'):

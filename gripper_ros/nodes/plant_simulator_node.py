@@ -37,7 +37,7 @@ from std_srvs.srv import Trigger
 
 from gripper_ros.core.controllers import make_plant
 from gripper_ros.core.lockstep import Command, PlantSide, command_problem
-from gripper_ros.core.plant import GraspObject, check_fault
+from gripper_ros.core.plant import GraspObject, Lift, check_fault
 from gripper_ros.nodes.common import (GRAPH_QOS, DeferredService, StartupError,
                                       declare_config, default_namespace, ns_to_time, run_node)
 from gripper_ros.nodes.loop_io import decode
@@ -45,7 +45,7 @@ from gripper_ros.wire import (COMMAND_LAYOUT, FINGER_JOINT, NODE_PLANT, SERVICE_
                               SERVICE_RESUME, SERVICE_SET_OBJECT, SERVICE_STEP, TICK_LAYOUT,
                               TOPIC_CLOCK, TOPIC_FORCE_SENSOR, TOPIC_JOINT_STATES,
                               TOPIC_MOTOR_COMMAND, TOPIC_OBJECT_STATE, TOPIC_SIM_STATUS,
-                              TOPIC_STATUS, TOPIC_TICK, Controller, HoldState, Outcome, Phase,
+                              TOPIC_STATUS, TOPIC_TICK, Controller, Outcome, Phase,
                               TimeMode)
 
 HOUSEKEEPING_PERIOD_S = 0.05
@@ -169,9 +169,9 @@ class PlantSimulatorNode(Node):
     def _on_command(self, data: bytes) -> None:
         cmd = Command._make(decode(COMMAND_LAYOUT, data, MotorCommand))
         pending = self._pending
-        if cmd.stamp_ns != self._tick.stamp_ns or \
+        if cmd.stamp_ns != self._tick.stamp_ns or cmd.revision != self.side.revision or \
                 (pending is not None and cmd.stage_id <= pending.stage_id):
-            self.commands_ignored += 1          # stale, a duplicate, or an older stage
+            self.commands_ignored += 1          # stale, for the world before, or a repeat
             return
         problem = command_problem(cmd)
         if problem:
@@ -267,8 +267,7 @@ class PlantSimulatorNode(Node):
 
     # ------------------------------------------------------------------ state topics
     def _hold_state_changed(self) -> bool:
-        state = getattr(self.plant, 'object_state', None)
-        return state is not None and state.state != self._last_hold_state
+        return self.plant.hold_state is not self._last_hold_state
 
     def _publish_state(self, force: bool = False) -> None:
         """joint_states, force_sensor, sim/object_state and /clock for the current tick."""
@@ -293,16 +292,12 @@ class PlantSimulatorNode(Node):
         f.voltage_v = tick.sensor_voltage_v
         self._force_pub.publish(f)
         self.published[TOPIC_FORCE_SENSOR] += 1
-        state = getattr(self.plant, 'object_state', None)
-        if state is not None:
-            self._last_hold_state = state.state
-            msg = ObjectState(state=int(state.state), slip_m=state.slip_m,
-                              slip_speed_mps=state.slip_speed_mps, load_n=state.load_n,
-                              capacity_n=state.capacity_n,
-                              lift_acceleration_mps2=state.lift_acceleration_mps2)
-        else:
-            msg = ObjectState(state=int(HoldState.NONE if self.plant.object.width_m == 0.0
-                                        else HoldState.RESTING))
+        state = self.plant.object_state
+        self._last_hold_state = state.state
+        msg = ObjectState(state=int(state.state), slip_m=state.slip_m,
+                          slip_speed_mps=state.slip_speed_mps, load_n=state.load_n,
+                          capacity_n=state.capacity_n,
+                          lift_acceleration_mps2=state.lift_acceleration_mps2)
         msg.header.stamp = stamp
         msg.header.frame_id = self.frame_id
         self._object_pub.publish(msg)
@@ -448,11 +443,15 @@ class PlantSimulatorNode(Node):
             return response
         try:
             obj = GraspObject(request.width_m, request.stiffness_n_per_m,
-                              request.damping_n_s_per_m)
+                              request.damping_n_s_per_m, request.mass_kg,
+                              request.static_friction, request.kinetic_friction,
+                              request.pad_length_m)
+            lift = Lift(request.lift_acceleration_mps2, request.lift_delay_s,
+                        request.lift_duration_s) if request.lift_duration_s > 0.0 else None
             kind, tau = check_fault(request.fault, request.fault_at_s,
                                     request.fault_time_constant_s, obj.rigid)
             self.side.set_object(obj, request.open_fingers, (kind, request.fault_at_s, tau),
-                                 **hold_arguments(request, self.plant))
+                                 lift=lift)
         except (ValueError, TypeError) as exc:
             response.success = False
             response.message = f'refused: {exc}'
@@ -472,19 +471,6 @@ class PlantSimulatorNode(Node):
     def destroy_node(self):
         self.step_service.destroy()
         return super().destroy_node()
-
-
-def hold_arguments(request: SetObject.Request, plant) -> dict:
-    """The hold-physics fields of a SetObject request, as the plant's set_object takes them
-    (nothing while the plant has no hold physics)."""
-    if not hasattr(plant, 'begin_hold'):
-        return {}
-    from gripper_ros.core.plant import Lift
-    return {'hold': dict(mass_kg=request.mass_kg, static_friction=request.static_friction,
-                         kinetic_friction=request.kinetic_friction,
-                         pad_length_m=request.pad_length_m),
-            'lift': Lift(request.lift_acceleration_mps2, request.lift_delay_s,
-                         request.lift_duration_s)}
 
 
 def main(args=None):
