@@ -294,7 +294,7 @@ def bag_metadata(graph, request: dict, placed: dict) -> dict:
                             'time_mode': graph.options.time_mode},
             'request': request, 'object': placed,
             'controllers': graph.controller_settings(),
-            'config': graph.plant.config.data}
+            'config': graph.config_data()}
 
 
 def unique_bag_dir(parent: Path, stem: str) -> Path:
@@ -463,7 +463,7 @@ class ServeRecorder:
                                              'namespace': self.graph.namespace,
                                              'time_mode': self.graph.options.time_mode},
                              'controllers': self.graph.controller_settings(),
-                             'config': self.graph.plant.config.data})
+                             'config': self.graph.config_data()})
         except (OSError, BagRecorderError, RecordingError) as exc:
             self._report(f'recording not started under {self.output_dir}: '
                          f'{getattr(exc, "strerror", None) or exc}')

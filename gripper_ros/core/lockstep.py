@@ -123,18 +123,24 @@ class SupervisorSide:
 
     def __init__(self, supervisor: GraspSupervisor):
         self.supervisor = supervisor
+        self._seed_v = 0.0
 
     def decide(self, tick: Tick) -> tuple[Decision, Reference | None]:
-        """The decision for ``tick`` and the reference to the stage it names (None: none)."""
+        """The decision for ``tick`` and the reference to the stage it names (None: none).
+
+        The reference relays the tick's measurement as read, a non-finite one included (the
+        stage then holds 0 V); the seed voltage is the last finite applied one, since no
+        measurement of the stage depends on it."""
         d = self.supervisor.step(tick.stamp_ns, tick.position_m, tick.force_n,
                                  tick.sensor_voltage_v, tick.velocity_mps, tick.revision)
+        if math.isfinite(tick.motor_voltage_v):
+            self._seed_v = tick.motor_voltage_v
         if d.active is Controller.NONE:
             return d, None
         return d, Reference(tick.stamp_ns, d.grasp_id, d.stage_id, tick.revision,
                             int(d.phase), int(d.outcome), int(d.active), d.running, d.contact,
                             d.position_setpoint_m, d.approach_setpoint_m, d.force_setpoint_n,
-                            tick.position_m, tick.velocity_mps, tick.force_n,
-                            tick.motor_voltage_v)
+                            tick.position_m, tick.velocity_mps, tick.force_n, self._seed_v)
 
 
 class StageSide:

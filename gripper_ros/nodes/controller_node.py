@@ -26,9 +26,9 @@ from rclpy.node import Node
 
 from gripper_ros.core.lockstep import StageSide
 from gripper_ros.core.stages import Reference
-from gripper_ros.nodes.common import GRAPH_QOS, ExecutorSilence, declare_config, \
-    default_namespace
+from gripper_ros.nodes.common import GRAPH_QOS, ExecutorSilence, default_namespace
 from gripper_ros.nodes.loop_io import decode
+from gripper_ros.nodes.parameters import ConfigParameters
 from gripper_ros.wire import (COMMAND_LAYOUT, NODE_PLANT, REFERENCE_LAYOUT, TOPIC_MOTOR_COMMAND,
                               TOPIC_STATUS, TOPIC_TICK, Controller)
 
@@ -40,15 +40,23 @@ WATCHDOG_PERIOD_S = 0.05
 class LockstepController(Node):
     """A stage controller node: ``reference_topic`` in, ``loop/motor_command`` out.
 
-    Subclasses build their stage (:mod:`gripper_ros.core.stages`) in ``make_stage(config)``.
+    Subclasses name their config ``section``, declare their own parameters in
+    ``declare_stage_parameters()`` and build their stage (:mod:`gripper_ros.core.stages`) in
+    ``build_stage(config)``. A gain set at run time is checked at once and takes effect when
+    the supervisor next assigns this stage (the law restarts then anyway).
     """
 
     source: Controller = Controller.NONE
     reference_topic = ''
+    section = ''
 
     def __init__(self, name: str, **kwargs):
         super().__init__(name, **default_namespace(kwargs))
-        self.config = declare_config(self)
+        self.parameters = ConfigParameters(self, (self.section,), ('plant',),
+                                           on_change=self._on_config_change)
+        self.config = self.parameters.config
+        self._next_stage = None                   # built from changed gains, not yet in use
+        self.declare_stage_parameters()
         self.declare_parameter(
             'status_timeout_s', DEFAULT_STATUS_TIMEOUT_S, ParameterDescriptor(
                 description='wall seconds without the supervisor status heartbeat, while this '
@@ -56,7 +64,7 @@ class LockstepController(Node):
                             "it above the supervisor's tick_timeout_s",
                 floating_point_range=[FloatingPointRange(from_value=STATUS_TIMEOUT_RANGE_S[0],
                                                          to_value=STATUS_TIMEOUT_RANGE_S[1])]))
-        self.stage = self.make_stage(self.config)
+        self.stage = self.build_stage(self.config)
         self.controller = self.stage.controller
         self.sample_time_s = self.stage.sample_time_s
         self.side = StageSide(self.stage)
@@ -77,8 +85,16 @@ class LockstepController(Node):
         self.create_timer(WATCHDOG_PERIOD_S, self._watchdog,
                           clock=Clock(clock_type=ClockType.STEADY_TIME))
 
-    def make_stage(self, config):
+    def declare_stage_parameters(self) -> None:
+        """Declare the parameters ``build_stage`` reads (the controller kind...)."""
+
+    def build_stage(self, config):
         raise NotImplementedError
+
+    def _on_config_change(self, config, keys) -> None:
+        self.config = config
+        self._next_stage = self.build_stage(config)     # checked now, used from the next stage
+        self.get_logger().info(f'{", ".join(keys)} changed: in effect from the next stage')
 
     @property
     def status_timeout_s(self) -> float:
@@ -89,6 +105,10 @@ class LockstepController(Node):
         ref = Reference._make(decode(REFERENCE_LAYOUT, data, StageReference))
         self._last_ref = ref
         self._named = True
+        if self._next_stage is not None and ref.stage_id != self.side.answerer.active_stage:
+            self.stage, self._next_stage = self._next_stage, None      # a new stage begins
+            self.controller = self.stage.controller
+            self.side = StageSide(self.stage)
         cmd = self.side.answer(ref)
         if cmd is None:                           # asked again: the plant is still waiting
             if self._last_command is not None:

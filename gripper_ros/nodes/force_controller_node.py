@@ -24,12 +24,13 @@ from gripper_ros.wire import NODE_FORCE_CONTROLLER, TOPIC_FORCE_REFERENCE, Contr
 class ForceControllerNode(LockstepController):
     source = Controller.FORCE
     reference_topic = TOPIC_FORCE_REFERENCE
+    section = 'force_control'
 
     def __init__(self, **kwargs):
         super().__init__(NODE_FORCE_CONTROLLER, **kwargs)
         self.add_post_set_parameters_callback(self._on_parameters_set)
 
-    def make_stage(self, config) -> ForceStageController:
+    def declare_stage_parameters(self) -> None:
         kind = self.declare_parameter(
             'controller', DEFAULT_FORCE_CONTROLLER.value,
             ParameterDescriptor(description='contact_aware (default: rigid and compliant '
@@ -42,6 +43,8 @@ class ForceControllerNode(LockstepController):
                             'force setpoint; 0 disables the cap (the paper behaviour). '
                             'contact_aware caps its approach itself',
                 floating_point_range=[FloatingPointRange(from_value=0.0, to_value=10.0)])).value
+
+    def build_stage(self, config) -> ForceStageController:
         return ForceStageController(config, self.kind, self.approach_margin)
 
     def _on_parameters_set(self, parameters) -> None:

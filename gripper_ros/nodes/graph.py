@@ -7,6 +7,7 @@ Recording lives in :mod:`gripper_ros.bags.recording`.
 """
 from __future__ import annotations
 
+import copy
 import math
 import threading
 import time
@@ -267,6 +268,15 @@ class GripperGraph:
                 'force_controller': o.force_controller,
                 'approach_force_margin': float(self.force.stage.approach_margin),
                 'config_file': o.config_file}
+
+    def config_data(self) -> dict:
+        """The configuration the graph runs with now: each section from the node that owns it
+        (a gain set at run time included), as a config file would hold it."""
+        data = copy.deepcopy(self.plant.parameters.data)
+        for node in (self.position, self.force, self.supervisor):
+            for section in node.parameters.writable:
+                data[section] = copy.deepcopy(node.parameters.data[section])
+        return data
 
     def published_counts(self) -> Counter:
         """Messages published so far on every graph topic (relative names; the nodes' own

@@ -39,8 +39,9 @@ from gripper_ros.core.controllers import make_plant
 from gripper_ros.core.lockstep import Command, PlantSide, command_problem
 from gripper_ros.core.plant import GraspObject, Lift, check_fault
 from gripper_ros.nodes.common import (GRAPH_QOS, DeferredService, StartupError,
-                                      declare_config, default_namespace, ns_to_time, run_node)
+                                      default_namespace, ns_to_time, run_node)
 from gripper_ros.nodes.loop_io import decode
+from gripper_ros.nodes.parameters import ConfigParameters
 from gripper_ros.wire import (COMMAND_LAYOUT, FINGER_JOINT, NODE_PLANT, SERVICE_PAUSE,
                               SERVICE_RESUME, SERVICE_SET_OBJECT, SERVICE_STEP, TICK_LAYOUT,
                               TOPIC_CLOCK, TOPIC_FORCE_SENSOR, TOPIC_JOINT_STATES,
@@ -64,7 +65,8 @@ class PlantSimulatorNode(Node):
 
     def __init__(self, **kwargs):
         super().__init__(NODE_PLANT, **default_namespace(kwargs))
-        self.config = declare_config(self)
+        self.parameters = ConfigParameters(self, (), ('plant', 'contact', 'force_sensor'))
+        self.config = self.parameters.config
         self.side = PlantSide(make_plant(self.config))
         self.plant = self.side.plant
         self.frame_id = self._param('frame_id', 'gripper_base',

@@ -20,15 +20,18 @@ from gripper_ros.wire import NODE_POSITION_CONTROLLER, TOPIC_POSITION_REFERENCE,
 class PositionControllerNode(LockstepController):
     source = Controller.POSITION
     reference_topic = TOPIC_POSITION_REFERENCE
+    section = 'position_control'
 
     def __init__(self, **kwargs):
         super().__init__(NODE_POSITION_CONTROLLER, **kwargs)
 
-    def make_stage(self, config) -> PositionStageController:
+    def declare_stage_parameters(self) -> None:
         kind = self.declare_parameter(
             'controller', PositionControllerKind.MPC_PD.value,
             ParameterDescriptor(description='mpc_pd | pd | pid', read_only=True)).value
         self.kind = parse_kind(PositionControllerKind, kind)
+
+    def build_stage(self, config) -> PositionStageController:
         return PositionStageController(config, self.kind)
 
 

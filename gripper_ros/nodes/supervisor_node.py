@@ -31,8 +31,9 @@ from gripper_ros.core.lockstep import SupervisorSide, Tick
 from gripper_ros.core.supervisor import (GraspRequest, GraspSupervisor, RequestError,
                                          RequestKind, validate_request)
 from gripper_ros.nodes.common import (GRAPH_QOS, LATCHED_QOS, DeferredService, ExecutorSilence,
-                                      declare_config, default_namespace, ns_to_time, run_node)
+                                      default_namespace, ns_to_time, run_node)
 from gripper_ros.nodes.loop_io import decode
+from gripper_ros.nodes.parameters import ConfigParameters
 from gripper_ros.wire import (NODE_FORCE_CONTROLLER, NODE_PLANT,
                               NODE_POSITION_CONTROLLER, NODE_SUPERVISOR, REFERENCE_LAYOUT,
                               SERVICE_GRASP, SERVICE_RELEASE, SERVICE_STOP, TICK_LAYOUT,
@@ -51,7 +52,9 @@ REFERENCE_TOPICS = {Controller.POSITION: TOPIC_POSITION_REFERENCE,
 class SupervisorNode(Node):
     def __init__(self, **kwargs):
         super().__init__(NODE_SUPERVISOR, **default_namespace(kwargs))
-        self.config = declare_config(self)
+        self.parameters = ConfigParameters(self, ('supervisor',), ('plant',),
+                                           on_change=self._on_config_change)
+        self.config = self.parameters.config
         self.logic = GraspSupervisor(self.config.plant, self.config.supervisor)
         self._decide = SupervisorSide(self.logic).decide
         self.tick_timeout_s = self.declare_parameter(
@@ -94,6 +97,13 @@ class SupervisorNode(Node):
         self._silence = ExecutorSilence()       # executor-running wall time without progress
         self.create_timer(WATCHDOG_PERIOD_S, self._watchdog, clock=steady)
         self.create_timer(HEARTBEAT_PERIOD_S, self._heartbeat, clock=steady)
+
+    def _on_config_change(self, config, keys) -> None:
+        """Thresholds apply from the next tick; a running request keeps the setpoints it was
+        given (a new force law applies to the next request)."""
+        self.config = config
+        self.logic.params = config.supervisor
+        self.get_logger().info(f'{", ".join(keys)} changed: in effect from the next tick')
 
     def _on_parameters_set(self, parameters) -> None:
         """Accepted values apply from the next check or tick (the descriptors refuse the rest)."""
@@ -177,7 +187,8 @@ class SupervisorNode(Node):
         if self.logic.running or self.logic.pending:
             what = self.logic.kind if self.logic.running else 'request'
             return (f'refused: a {what} is running (grasp {self.logic.grasp_id}, phase '
-                    f'{self.logic.phase.name}); call {SERVICE_STOP} first'
+                    f'{self.logic.phase.name}); call {self.resolve_service_name(SERVICE_STOP)} '
+                    'first'
                     if kind == RequestKind.RELEASE else
                     f'refused: a {what} is {"running" if self.logic.running else "waiting"}')
         missing = self._missing_peers()
