@@ -27,7 +27,7 @@ from rclpy.node import Node
 from gripper_ros.core.lockstep import StageSide
 from gripper_ros.core.stages import Reference
 from gripper_ros.nodes.common import GRAPH_QOS, ExecutorSilence, default_namespace
-from gripper_ros.nodes.loop_io import decode
+from gripper_ros.nodes.loop_io import decode, read_status
 from gripper_ros.nodes.parameters import ConfigParameters
 from gripper_ros.wire import (COMMAND_LAYOUT, NODE_PLANT, REFERENCE_LAYOUT, TOPIC_MOTOR_COMMAND,
                               TOPIC_STATUS, TOPIC_TICK, Controller)
@@ -81,7 +81,8 @@ class LockstepController(Node):
         self._pub = self.create_publisher(MotorCommand, TOPIC_MOTOR_COMMAND, GRAPH_QOS)
         self.create_subscription(StageReference, self.reference_topic, self._on_reference,
                                  GRAPH_QOS, raw=True)
-        self.create_subscription(SupervisorStatus, TOPIC_STATUS, self._on_status, GRAPH_QOS)
+        self.create_subscription(SupervisorStatus, TOPIC_STATUS, self._on_status, GRAPH_QOS,
+                                 raw=True)
         self.create_timer(WATCHDOG_PERIOD_S, self._watchdog,
                           clock=Clock(clock_type=ClockType.STEADY_TIME))
 
@@ -125,8 +126,8 @@ class LockstepController(Node):
         self.commands_published += 1
         self.published[TOPIC_MOTOR_COMMAND] += 1
 
-    def _on_status(self, msg: SupervisorStatus) -> None:
-        self._named = msg.active_controller == self.source
+    def _on_status(self, data: bytes) -> None:
+        self._named = read_status(data).active_controller == self.source
         self._silence.reset()
         self._watchdog_tripped = False
 

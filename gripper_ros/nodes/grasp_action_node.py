@@ -26,7 +26,8 @@ from rclpy.node import Node
 from std_srvs.srv import Trigger
 
 from gripper_ros.nodes.common import (GRAPH_QOS, SERVICE_QOS, declare_config, default_namespace,
-                                      run_node, time_to_ns)
+                                      run_node)
+from gripper_ros.nodes.loop_io import read_status
 from gripper_ros.wire import (ACTION_GRASP, NODE_GRASP_ACTION, SERVICE_GRASP, SERVICE_STOP,
                               TOPIC_STATUS, Outcome, Phase)
 
@@ -48,8 +49,8 @@ class GraspActionServer(Node):
         self.add_post_set_parameters_callback(self._on_parameters_set)
         self._grasp = self.create_client(Grasp, SERVICE_GRASP, qos_profile=SERVICE_QOS)
         self._stop = self.create_client(Trigger, SERVICE_STOP)
-        self._status: SupervisorStatus | None = None
-        self.create_subscription(SupervisorStatus, TOPIC_STATUS, self._on_status, GRAPH_QOS)
+        self.create_subscription(SupervisorStatus, TOPIC_STATUS, self._on_status, GRAPH_QOS,
+                                 raw=True)
         self._goal = None                 # the goal handle being executed
         self._goal_grasp_id: int | None = None
         self._goal_start_ns: int | None = None
@@ -111,15 +112,17 @@ class GraspActionServer(Node):
         return result
 
     # ------------------------------------------------------------------ feedback
-    def _on_status(self, msg: SupervisorStatus) -> None:
+    def _on_status(self, data: bytes) -> None:
         goal = self._goal
         if goal is None or not goal.is_active:
             return
+        msg = read_status(data)
+        stamp_ns = msg.sec * 1_000_000_000 + msg.nanosec
         if self._goal_grasp_id is None:
             if msg.phase not in (Phase.POSITION, Phase.FORCE):
                 return                         # a status of an earlier grasp
             self._goal_grasp_id = msg.grasp_id
-            self._goal_start_ns = time_to_ns(msg.header.stamp)
+            self._goal_start_ns = stamp_ns
         if msg.grasp_id != self._goal_grasp_id:
             return
         now = time.monotonic()
@@ -128,7 +131,7 @@ class GraspActionServer(Node):
         self._last_phase, self._last_feedback_wall = msg.phase, now
         feedback = GraspAction.Feedback(
             grasp_id=msg.grasp_id, phase=msg.phase,
-            elapsed_s=(time_to_ns(msg.header.stamp) - self._goal_start_ns) * 1e-9,
+            elapsed_s=(stamp_ns - self._goal_start_ns) * 1e-9,
             position_m=msg.position_m, width_m=self.travel_m - msg.position_m,
             force_n=msg.force_n, contact=msg.contact)
         goal.publish_feedback(feedback)

@@ -40,7 +40,9 @@ from gripper_ros.core.lockstep import Command, PlantSide, command_problem
 from gripper_ros.core.plant import GraspObject, Lift, check_fault
 from gripper_ros.nodes.common import (GRAPH_QOS, DeferredService, StartupError,
                                       default_namespace, ns_to_time, run_node)
-from gripper_ros.nodes.loop_io import decode
+from gripper_ros.nodes.loop_io import (clock_template, decode, force_sensor_template,
+                                       joint_state_template, object_state_template,
+                                       read_status, split_ns, StatusView)
 from gripper_ros.nodes.parameters import ConfigParameters
 from gripper_ros.wire import (COMMAND_LAYOUT, FINGER_JOINT, NODE_PLANT, SERVICE_PAUSE,
                               SERVICE_RESUME, SERVICE_SET_OBJECT, SERVICE_STEP, TICK_LAYOUT,
@@ -56,6 +58,12 @@ REPUBLISH_AFTER_S = 0.5
 SIM_STATUS_PERIOD_S = 1.0
 RTF_WARN_FRACTION = 0.95
 """Realtime: warn (throttled) when the achieved real-time factor falls below this x target."""
+RTF_WARN_PERIOD_S = 10.0
+RTF_WARN_GRACE_S = 3.0
+"""No pace warning this soon after start: the first ticks wait for the peers' discovery."""
+MAX_LAG_S = 0.02
+"""Realtime: behind the wall clock by more than this, pacing starts afresh from now (simulated
+time is not rushed to catch up; the achieved real-time factor shows the loss)."""
 SLEEP_LIMIT_S = 0.001
 """Realtime pacing: a wait this short is slept in place; a longer one is a timer."""
 
@@ -107,14 +115,14 @@ class PlantSimulatorNode(Node):
         self._budget: tuple[str, int] | None = None    # sim/step: ('ticks', n) or ('until', ns)
         self._step_reply = None                 # (header, response) of a running sim/step
         self._unpowered = self.time_mode is TimeMode.REALTIME   # nobody commands (yet)
-        self._status: SupervisorStatus | None = None
-        self._pace_timer = None
+        self._status: StatusView | None = None
+        self._pacing = False                    # realtime: waiting for the wall clock
         self._anchor()
         self._state_period_ns = round(1e9 / self.state_rate_hz)
         self._next_state_ns = self._tick.stamp_ns
         self._last_hold_state = None
         self._rtf = (time.monotonic(), self.plant.t_ns, 0.0)   # window start; last achieved
-        self._last_rtf_warning = 0.0
+        self._last_rtf_warning = time.monotonic() - RTF_WARN_PERIOD_S + RTF_WARN_GRACE_S
         self._last_sim_status = 0.0
         self._advancing = False
 
@@ -127,19 +135,21 @@ class PlantSimulatorNode(Node):
             if self.publish_clock else None
         self.create_subscription(MotorCommand, TOPIC_MOTOR_COMMAND, self._on_command, GRAPH_QOS,
                                  raw=True)
-        self.create_subscription(SupervisorStatus, TOPIC_STATUS, self._on_status, GRAPH_QOS)
+        self.create_subscription(SupervisorStatus, TOPIC_STATUS, self._on_status, GRAPH_QOS,
+                                 raw=True)
         self.create_service(SetObject, SERVICE_SET_OBJECT, self._on_set_object)
         self.create_service(Trigger, SERVICE_PAUSE, self._on_pause)
         self.create_service(Trigger, SERVICE_RESUME, self._on_resume)
         self.step_service = DeferredService(self, SimStep, SERVICE_STEP, self._on_step)
         self._steady = Clock(clock_type=ClockType.STEADY_TIME)
+        self._pace_timer = self.create_timer(1.0, self._on_pace_timer, clock=self._steady)
+        self._pace_timer.cancel()
         self.create_timer(HOUSEKEEPING_PERIOD_S, self._housekeeping, clock=self._steady)
 
-        self._joint = JointState(name=[FINGER_JOINT], position=[0.0], velocity=[0.0],
-                                 effort=[0.0])
-        self._joint.header.frame_id = self.frame_id
-        self._force = ForceSensor()
-        self._force.header.frame_id = self.frame_id
+        self._joint_layout = joint_state_template(FINGER_JOINT, self.frame_id)
+        self._force_layout = force_sensor_template(self.frame_id)
+        self._object_layout = object_state_template(self.frame_id)
+        self._clock_layout = clock_template()
         self.get_logger().info(
             f'plant ready ({self.time_mode.name.lower()} time): travel '
             f'{self.config.plant.max_travel_m:g} m, max force {self.config.plant.max_force_n:.2f} '
@@ -187,7 +197,8 @@ class PlantSimulatorNode(Node):
         self._unpowered = False
         self._try_step()
 
-    def _on_status(self, msg: SupervisorStatus) -> None:
+    def _on_status(self, data: bytes) -> None:
+        msg = read_status(data)
         previous, self._status = self._status, msg
         if previous is None or msg.grasp_id != previous.grasp_id:
             if msg.mass_kg > 0.0:
@@ -225,6 +236,9 @@ class PlantSimulatorNode(Node):
                     return                      # nothing needs time: it pauses here
             else:
                 lead_s = self._lead_s(self._tick.stamp_ns + hold_ns)
+                if lead_s < -MAX_LAG_S:         # fell behind (a stall): no burst to catch up
+                    self._anchor()
+                    lead_s = self._lead_s(self._tick.stamp_ns + hold_ns)
                 if lead_s > 0.0:
                     if lead_s > SLEEP_LIMIT_S:
                         self._wait(lead_s)
@@ -249,16 +263,19 @@ class PlantSimulatorNode(Node):
             self._publish_sim_status(window=False)
 
     def _wait(self, lead_s: float) -> None:
-        """Realtime: step again once the wall clock has caught up."""
-        if self._pace_timer is not None:
+        """Realtime: step again once the wall clock has caught up (one timer, re-armed: a
+        timer made per tick costs the executor a rebuild of its entities every time)."""
+        if self._pacing:
             return
-        self._pace_timer = self.create_timer(lead_s, self._on_pace_timer, clock=self._steady)
+        self._pacing = True
+        self._pace_timer.timer_period_ns = max(1, round(lead_s * 1e9))
+        self._pace_timer.reset()
 
     def _on_pace_timer(self) -> None:
-        timer, self._pace_timer = self._pace_timer, None
-        if timer is not None:
-            self.destroy_timer(timer)
-        self._try_step()
+        self._pace_timer.cancel()
+        if self._pacing:
+            self._pacing = False
+            self._try_step()
 
     def _publish_tick(self) -> None:
         self._tick_bytes = TICK_LAYOUT.pack(*self._tick)
@@ -274,35 +291,23 @@ class PlantSimulatorNode(Node):
     def _publish_state(self, force: bool = False) -> None:
         """joint_states, force_sensor, sim/object_state and /clock for the current tick."""
         tick = self._tick
-        stamp = ns_to_time(tick.stamp_ns)
+        sec, nanosec = split_ns(tick.stamp_ns)
         period = self._state_period_ns
         self._next_state_ns = (tick.stamp_ns // period + 1) * period
         if self._clock_pub is not None:
-            self._clock_pub.publish(ClockMsg(clock=stamp))
+            self._clock_pub.publish(self._clock_layout.pack(sec, nanosec))
             self.published[TOPIC_CLOCK] += 1
-        j = self._joint
-        j.header.stamp = stamp
-        j.position[0] = tick.position_m
-        j.velocity[0] = tick.velocity_mps
-        j.effort[0] = tick.force_n
-        self._joint_pub.publish(j)
+        self._joint_pub.publish(self._joint_layout.pack(
+            sec, nanosec, tick.position_m, tick.velocity_mps, tick.force_n))
         self.published[TOPIC_JOINT_STATES] += 1
-        f = self._force
-        f.header.stamp = stamp
-        f.force_n = tick.force_n
-        f.peak_force_n = tick.peak_force_n
-        f.voltage_v = tick.sensor_voltage_v
-        self._force_pub.publish(f)
+        self._force_pub.publish(self._force_layout.pack(
+            sec, nanosec, tick.force_n, tick.peak_force_n, tick.sensor_voltage_v))
         self.published[TOPIC_FORCE_SENSOR] += 1
         state = self.plant.object_state
         self._last_hold_state = state.state
-        msg = ObjectState(state=int(state.state), slip_m=state.slip_m,
-                          slip_speed_mps=state.slip_speed_mps, load_n=state.load_n,
-                          capacity_n=state.capacity_n,
-                          lift_acceleration_mps2=state.lift_acceleration_mps2)
-        msg.header.stamp = stamp
-        msg.header.frame_id = self.frame_id
-        self._object_pub.publish(msg)
+        self._object_pub.publish(self._object_layout.pack(
+            sec, nanosec, int(state.state), state.slip_m, state.slip_speed_mps, state.load_n,
+            state.capacity_n, state.lift_acceleration_mps2))
         self.published[TOPIC_OBJECT_STATE] += 1
 
     def _publish_sim_status(self, window: bool = True) -> None:
@@ -324,7 +329,7 @@ class PlantSimulatorNode(Node):
         self.published[TOPIC_SIM_STATUS] += 1
         if window and self.time_mode is TimeMode.REALTIME and not self._paused and \
                 rtf < RTF_WARN_FRACTION * self.real_time_factor and \
-                now - self._last_rtf_warning > 10.0 and elapsed > 0.5:
+                now - self._last_rtf_warning > RTF_WARN_PERIOD_S and elapsed > 0.5:
             self._last_rtf_warning = now
             self.get_logger().warning(
                 f'the graph cannot keep pace: achieved real-time factor {rtf:.2f} against '

@@ -31,8 +31,8 @@ from gripper_ros.core.lockstep import SupervisorSide, Tick
 from gripper_ros.core.supervisor import (GraspRequest, GraspSupervisor, RequestError,
                                          RequestKind, validate_request)
 from gripper_ros.nodes.common import (GRAPH_QOS, LATCHED_QOS, DeferredService, ExecutorSilence,
-                                      default_namespace, ns_to_time, run_node)
-from gripper_ros.nodes.loop_io import decode
+                                      default_namespace, run_node)
+from gripper_ros.nodes.loop_io import decode, split_ns, status_message, status_template
 from gripper_ros.nodes.parameters import ConfigParameters
 from gripper_ros.wire import (NODE_FORCE_CONTROLLER, NODE_PLANT,
                               NODE_POSITION_CONTROLLER, NODE_SUPERVISOR, REFERENCE_LAYOUT,
@@ -83,7 +83,7 @@ class SupervisorNode(Node):
         self.statuses_published = 0
         self.references_published = 0
         self.published: Counter = Counter()     # messages per (relative) topic
-        self._status = SupervisorStatus()
+        self._status_now = (0, None, '')          # the newest status: stamp, numbers, text
         self._refs = {controller: self.create_publisher(StageReference, topic, GRAPH_QOS)
                       for controller, topic in REFERENCE_TOPICS.items()}
         self._ref_name = TOPIC_POSITION_REFERENCE
@@ -154,27 +154,19 @@ class SupervisorNode(Node):
         self._status_key = key
         period = round(1e9 / self.status_rate_hz)
         self._next_status_ns = (t_ns // period + 1) * period
-        m = self._status
-        m.header.stamp = ns_to_time(t_ns)
-        m.phase = int(d.phase)
-        m.active_controller = int(d.active)
-        m.switch_criterion = int(d.switch_criterion)
-        m.grasp_id = d.grasp_id
-        m.stage_id = d.stage_id
-        m.outcome = int(d.outcome)
-        m.running = d.running
-        m.pending_request = int(d.pending_request)
         tg = d.targets
-        m.position_setpoint_m = tg.position_setpoint_m if tg else 0.0
-        m.approach_setpoint_m = tg.approach_setpoint_m if tg else 0.0
-        m.force_setpoint_n = tg.force_setpoint_n if tg else 0.0
-        m.mass_kg = d.mass_kg
-        m.position_m = self._good_position_m
-        m.force_n = self._good_force_n
-        m.width_m = self.config.plant.max_travel_m - m.position_m
-        m.contact = d.contact_ns is not None
-        m.message = d.message if d.outcome is not Outcome.UNKNOWN else ''
-        self._status_pub.publish(m)
+        position_m = self._good_position_m
+        values = (int(d.phase), int(d.active), int(d.switch_criterion), d.grasp_id, d.stage_id,
+                  int(d.outcome), d.running, int(d.pending_request),
+                  tg.position_setpoint_m if tg else 0.0, tg.approach_setpoint_m if tg else 0.0,
+                  tg.force_setpoint_n if tg else 0.0, d.mass_kg, position_m, self._good_force_n,
+                  self.config.plant.max_travel_m - position_m, d.contact_ns is not None)
+        message = d.message if d.outcome is not Outcome.UNKNOWN else ''
+        self._status_now = (t_ns, values, message)
+        if message:                             # the rare status with a text: the general way
+            self._status_pub.publish(status_message(t_ns, values, message))
+        else:
+            self._status_pub.publish(status_template().pack(*split_ns(t_ns), *values))
         self.statuses_published += 1
         self.published[TOPIC_STATUS] += 1
 
@@ -294,7 +286,7 @@ class SupervisorNode(Node):
 
     def _complete(self, decision) -> None:
         """An answer: latch it, and answer the waiting request with it."""
-        self._outcome_pub.publish(self._status)
+        self._outcome_pub.publish(status_message(*self._status_now))
         what = self.logic.kind or 'grasp'
         self.get_logger().info(f'{what} {self.logic.grasp_id}: {decision.answer.name}: '
                                f'{decision.message}')
