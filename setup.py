@@ -39,6 +39,8 @@ setup(
             'contact_sweep = gripper_ros.apps.contact_sweep:main',
             'bench_soak = gripper_ros.bench.soak:main',
             'bench_controllers = gripper_ros.bench.controllers:main',
+            'lift_table = gripper_ros.apps.lift_table:main',
+            'bench_realtime = gripper_ros.bench.realtime:main',
         ],
     },
 )

@@ -22,6 +22,8 @@ from pathlib import Path
 
 # Table V of the paper: (width m, mass kg).
 PAPER_OBJECTS = ((0.01, 1.27), (0.05, 1.69), (0.10, 0.75))
+LIFT_DELAY_S = 0.2       # --lift: from HOLDING to the start of the lift
+LIFT_DURATION_S = 1.0    # --lift: how long the arm accelerates upward
 
 
 @dataclass
@@ -36,6 +38,7 @@ class GraspRecord:
 
 
 def build_parser() -> argparse.ArgumentParser:
+    from gripper_ros.core.config import ForceLaw
     from gripper_ros.core.controllers import ForceControllerKind
     from gripper_ros.core.stages import DEFAULT_FORCE_CONTROLLER
     from gripper_ros.wire import DEFAULT_NAMESPACE
@@ -50,6 +53,16 @@ def build_parser() -> argparse.ArgumentParser:
                    help='the object may be this much wider or narrower, m (0 = default)')
     p.add_argument('--object-width', type=float, default=None,
                    help='the simulated object\'s real width, m (default: the requested --width)')
+    p.add_argument('--lift', type=float, default=0.0, metavar='A',
+                   help='after HOLDING the arm lifts the object at A m/s^2 upward (the request '
+                        'carries a = A for the force law); 0 = no lift')
+    p.add_argument('--lift-delay', type=float, default=LIFT_DELAY_S,
+                   help='seconds from HOLDING to the lift (default %(default)g)')
+    p.add_argument('--lift-duration', type=float, default=LIFT_DURATION_S,
+                   help='seconds the lift accelerates (default %(default)g)')
+    p.add_argument('--force-law', choices=[law.value for law in ForceLaw], default=None,
+                   help='grip force: friction, F_sp = k m (g + a) / (2 mu_s), enough for two '
+                        'pads (the default in config); paper, its eq. 23, mu_s m (g + a)')
     p.add_argument('--serve', action='store_true',
                    help='keep the graph up as simulated hardware and answer grasp, release, '
                         'stop and sim/* from other processes')
@@ -96,6 +109,10 @@ def main(argv: list[str] | None = None) -> int:
     for w, m in objects:
         if not (math.isfinite(w) and math.isfinite(m)):
             return _fail(f'width and mass must be finite, got {w!r}, {m!r}')
+    for name in ('lift', 'lift_delay', 'lift_duration'):
+        value = getattr(args, name)
+        if not (math.isfinite(value) and value >= 0.0):
+            return _fail(f'--{name.replace("_", "-")} must be finite and >= 0, got {value!r}')
 
     from gripper_ros.bags.recorder import BagRecorderError
     from gripper_ros.bags.recording import RecordingError, ServeRecorder
@@ -124,7 +141,9 @@ def main(argv: list[str] | None = None) -> int:
             time_mode=time_mode, real_time_factor=args.real_time_factor,
             publish_clock=not args.no_clock, position_controller=args.position_controller,
             force_controller=args.force_controller,
-            approach_force_margin=args.approach_force_margin))
+            approach_force_margin=args.approach_force_margin,
+            supervisor_parameters={} if args.force_law is None else
+            {'supervisor.force_law': args.force_law}))
         if args.serve:
             if not args.no_record:
                 ServeRecorder(graph, args.output)
@@ -174,19 +193,28 @@ def _bag_dir(output: Path, i: int, width_m: float, mass_kg: float, overwrite: bo
     return output / stem if overwrite else unique_bag_dir(output, stem)
 
 
+def _lift(args) -> dict:
+    """The SetObject lift fields of ``--lift`` (none without a lift)."""
+    if not args.lift:
+        return {}
+    return {'lift_acceleration_mps2': args.lift, 'lift_delay_s': args.lift_delay,
+            'lift_duration_s': args.lift_duration}
+
+
 def _grasp_one(graph, args, width_m: float, mass_kg: float, i: int, n: int) -> GraspRecord:
     from gripper_ros.bags.recording import RecordingError, recorded_grasp
     from gripper_ros.nodes.graph import GraphError
-    print(f'[{i}/{n}] grasping width {width_m:g} m, mass {mass_kg:g} kg ...', flush=True)
+    lift = f', lifted at {args.lift:g} m/s^2' if args.lift else ''
+    print(f'[{i}/{n}] grasping width {width_m:g} m, mass {mass_kg:g} kg{lift} ...', flush=True)
     if i > 1:                        # the previous object is still held: open the fingers
         graph.release()
     if args.no_record:
         t0 = time.perf_counter()
         placed = graph.set_object(graph.simulated_width_m(width_m, args.object_width),
-                                  args.stiffness, args.damping)
+                                  args.stiffness, args.damping, **_lift(args))
         if not placed.success:
             raise GraphError(f'set_object: {placed.message}')
-        response = graph.grasp(width_m, mass_kg, args.friction,
+        response = graph.grasp(width_m, mass_kg, args.friction, args.lift,
                                width_tolerance_m=args.width_tolerance)
         graph.wait_still()
         logic = graph.supervisor.logic
@@ -196,17 +224,26 @@ def _grasp_one(graph, args, width_m: float, mass_kg: float, i: int, n: int) -> G
                                          args.overwrite), width_m, mass_kg, args.friction,
                          args.stiffness, args.damping, args.overwrite,
                          width_tolerance_m=args.width_tolerance,
-                         object_width_m=args.object_width)
+                         object_width_m=args.object_width, acceleration_mps2=args.lift,
+                         **_lift(args))
     if run.recording_error:
         raise RecordingError(run.recording_error)
     return GraspRecord(width_m, mass_kg, run.response, run.bag_dir, run.wall_s,
                        run.final_outcome.name, run.final_message)
 
 
+def _dash(value: float, fmt: str) -> str:
+    """``value`` formatted, or a dash of the same width when it is NaN (never happened)."""
+    width = int(fmt.split('.')[0])
+    return f'{"-":>{width}s}' if value != value else f'{value:{fmt}}'
+
+
 def _summarise(graph, records: list[GraspRecord], args) -> None:
-    print(f'\n{"width m":>8s} {"mass kg":>8s} {"outcome":>10s} {"contact s":>10s} '
+    lifted = bool(args.lift) and not args.no_record
+    print(f'\n{"width m":>8s} {"mass kg":>8s} {"outcome":>11s} {"contact s":>10s} '
           f'{"switch s":>9s} {"criterion":>18s} {"pos err mm":>11s} {"force N":>8s} '
-          f'{"F_sp N":>8s} {"peak N":>8s} {"peak/F_sp":>9s} {"max|V|":>7s} {"wall s":>7s}')
+          f'{"F_sp N":>8s} {"peak N":>8s} {"peak/F_sp":>9s} {"max|V|":>7s} '
+          + (f'{"slip mm":>8s} {"lost s":>7s} ' if lifted else '') + f'{"wall s":>7s}')
     series, rows = [], []
     if not args.no_record:
         from gripper_ros.bags.analyze import analyze_series
@@ -226,11 +263,13 @@ def _summarise(graph, records: list[GraspRecord], args) -> None:
                      f'{m.switch_criterion:>18s} {pos_err_mm:11.4f} {resp.final_force_n:8.3f} '
                      f'{resp.force_setpoint_n:8.3f} {m.peak_contact_force_n:8.3f} '
                      f'{m.peak_force_ratio:9.3f} {m.max_abs_voltage_v:7.2f}')
+            if lifted:
+                extra += f' {_dash(m.max_slip_m * 1e3, "8.2f")} {_dash(m.lost_at_s, "7.3f")}'
         else:
             extra = (f'{"":>10s} {resp.switch_time_s:9.3f} {"":>18s} {pos_err_mm:11.4f} '
                      f'{resp.final_force_n:8.3f} {resp.force_setpoint_n:8.3f} {"":>8s} '
                      f'{"":>9s} {"":>7s}')
-        print(f'{r.width_m:8.3f} {r.mass_kg:8.3f} {outcome:>10s} {extra} {r.wall_s:7.2f}')
+        print(f'{r.width_m:8.3f} {r.mass_kg:8.3f} {outcome:>11s} {extra} {r.wall_s:7.2f}')
         if not resp.success:
             print(f'    {resp.message}')
         elif outcome != 'HOLDING':

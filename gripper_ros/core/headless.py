@@ -48,6 +48,9 @@ class HeadlessGrasp:
     motor_voltage_v: np.ndarray = field(repr=False, default=None)
     sensor_voltage_v: np.ndarray = field(repr=False, default=None)
     phase: np.ndarray = field(repr=False, default=None)
+    final_ns: int | None = None         # when the final outcome was reached
+    slip_m: float = 0.0                 # ground truth: how far the object slid on the pads
+    lost_ns: int | None = None          # ground truth: when it left the pads
 
     @property
     def peak_contact_force_n(self) -> float:
@@ -119,7 +122,8 @@ def simulate_grasp(config: GripperConfig, width_m: float, mass_kg: float, *,
         s.outcome, s.message, s.switch_criterion, targets.position_setpoint_m,
         targets.force_setpoint_n, s.start_ns, s.switch_ns, s.contact_ns, tick.stamp_ns,
         s.answer, s.answer_ns, np.array(cols[0], dtype=np.int64),
-        *(np.array(c, dtype=float) for c in cols[1:6]), np.array(cols[6], dtype=np.int8))
+        *(np.array(c, dtype=float) for c in cols[1:6]), np.array(cols[6], dtype=np.int8),
+        s.end_ns, plant.object_state.slip_m, plant.object_state.lost_ns)
 
 
 __all__ = ['HeadlessGrasp', 'Phase', 'simulate_grasp']
