@@ -129,8 +129,8 @@ def default_namespace(kwargs: dict) -> dict:
 
 def taken_names(node: Node, node_names: tuple[str, ...] = (),
                 services: tuple[str, ...] = (), wait_s: float = 0.5) -> list[str]:
-    """What of ``node_names`` and relative ``services`` already exists in ``node``'s namespace
-    on the domain, after ``wait_s`` of discovery (checked twice, so that a node that was just
+    """What of ``node_names`` and relative ``services`` (a server; a client waiting for one is
+    welcome) already exists in ``node``'s namespace on the domain, after ``wait_s`` of discovery (checked twice, so that a node that was just
     shut down is not mistaken for a running one)."""
     namespace = node.get_namespace()
     found: list[str] = []
@@ -139,9 +139,10 @@ def taken_names(node: Node, node_names: tuple[str, ...] = (),
         nodes = {(ns.rstrip('/') or '/', n) for n, ns in node.get_node_names_and_namespaces()}
         ours = namespace.rstrip('/') or '/'
         found = [qualified(namespace.strip('/'), n) for n in node_names if (ours, n) in nodes]
-        names = {s for s, _ in node.get_service_names_and_types()}
-        found += [f'service {qualified(namespace.strip("/"), s)}' for s in services
-                  if qualified(namespace.strip('/'), s) in names]
+        names = {s for s, _ in node.get_service_names_and_types()}   # clients' names too
+        found += [f'service {name}' for name in
+                  (qualified(namespace.strip('/'), s) for s in services)
+                  if name in names and node.count_services(name) > 0]
         if not found:
             return []
     return found
