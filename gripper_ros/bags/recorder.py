@@ -212,9 +212,10 @@ class BagRecorder:
             self._writer.add_metadata(CUSTOM_DATA_RECORD, dict(self._custom_data))
             self._flush_locked()
 
-    def write(self, topic: str, data: bytes) -> None:
-        """Record one serialized message received on ``topic`` (for subscribe=False)."""
-        self._on_message(topic, data)
+    def write(self, topic: str, data: bytes, t_ns: int | None = None) -> None:
+        """Record one serialized message received on ``topic`` (for subscribe=False) at
+        ``t_ns`` (default: now, by the time source)."""
+        self._on_message(topic, data, None, t_ns)
 
     def matched_publishers(self) -> dict[str, int]:
         """Per topic, how many publishers this recorder's subscription has matched (reader side:
@@ -280,8 +281,10 @@ class BagRecorder:
 
     # --- internals ----------------------------------------------------------------------------
 
-    def _on_message(self, topic: str, data: bytes, info: Any = None) -> None:
-        t_ns = int(self._time_source())
+    def _on_message(self, topic: str, data: bytes, info: Any = None,
+                    t_ns: int | None = None) -> None:
+        if t_ns is None:
+            t_ns = int(self._time_source())
         with self._lock:
             if self._closed:
                 return
@@ -289,13 +292,18 @@ class BagRecorder:
                 publish_ns = int(info.get('source_timestamp', t_ns))
             else:
                 publish_ns = t_ns
-            channel_id = self._channel_locked(topic)
-            self._writer.add_message(channel_id, log_time=t_ns, data=bytes(data),
-                                     publish_time=publish_ns,
-                                     sequence=self._counts[topic] & 0xFFFFFFFF)
-            self._counts[topic] += 1
-            self._first_ns = t_ns if self._first_ns is None else min(self._first_ns, t_ns)
-            self._last_ns = t_ns if self._last_ns is None else max(self._last_ns, t_ns)
+            channel_id = self._channel_ids.get(topic)
+            if channel_id is None:
+                channel_id = self._channel_locked(topic)
+            count = self._counts[topic]
+            self._writer.add_message(channel_id, t_ns, data, publish_ns, count & 0xFFFFFFFF)
+            self._counts[topic] = count + 1
+            if self._first_ns is None:
+                self._first_ns = self._last_ns = t_ns
+            elif t_ns < self._first_ns:
+                self._first_ns = t_ns
+            elif t_ns > self._last_ns:
+                self._last_ns = t_ns
             self._pending += 1
             if self._pending >= self._flush_every_messages:
                 self._flush_locked()

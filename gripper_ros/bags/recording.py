@@ -238,7 +238,7 @@ class GraphTap:
 
     def _write(self, sink: BagRecorder, topic: str, data: bytes, stamp: int | None = None):
         try:
-            sink.write(topic, data)
+            sink.write(topic, data, stamp)      # a loop message: logged at its tick's time
         except Exception as exc:  # noqa: BLE001 - a recorder error never stops the graph
             self._fail(sink, exc)
             return

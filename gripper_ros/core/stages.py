@@ -23,7 +23,6 @@ from __future__ import annotations
 import enum
 import math
 from collections import namedtuple
-from dataclasses import dataclass
 
 from gripper_ros.core.config import ConfigError, GripperConfig
 from gripper_ros.core.controllers import (ForceControllerKind, PositionControllerKind,
@@ -157,14 +156,12 @@ REFERENCE_NUMBERS = ('position_setpoint_m', 'approach_setpoint_m', 'force_setpoi
 """The reference fields a stage computes with; a non-finite one is never acted on."""
 
 
-@dataclass(frozen=True)
-class TickAnswer:
-    """A controller's answer to one tick (what goes into MotorCommand)."""
+class TickAnswer(namedtuple('TickAnswer', 'voltage_v inner_setpoint finite reason',
+                             defaults=(True, ''))):
+    """A controller's answer to one tick (what goes into MotorCommand): ``finite`` False
+    means a measurement or output was not finite and 0 V is held, ``reason`` says why."""
 
-    voltage_v: float
-    inner_setpoint: float
-    finite: bool = True        # False: a measurement or output was not finite, 0 V is held
-    reason: str = ''           # why 0 V is held ('' when finite)
+    __slots__ = ()
 
 
 class LockstepAnswerer:
@@ -189,12 +186,14 @@ class LockstepAnswerer:
         measurement = self.stage.measurement(ref)
         if not math.isfinite(measurement):
             return TickAnswer(0.0, 0.0, finite=False, reason='non-finite measurement')
-        for name in REFERENCE_NUMBERS:
-            if not math.isfinite(getattr(ref, name)):
-                bad = [f'{n}={getattr(ref, n)!r}' for n in REFERENCE_NUMBERS
-                       if not math.isfinite(getattr(ref, n))]
-                return TickAnswer(0.0, 0.0, finite=False,
-                                  reason=f'non-finite reference ({", ".join(bad)})')
+        isfinite = math.isfinite
+        if not (isfinite(ref.position_setpoint_m) and isfinite(ref.approach_setpoint_m)
+                and isfinite(ref.force_setpoint_n) and isfinite(ref.seed_voltage_v)
+                and isfinite(ref.position_m)):
+            bad = [f'{n}={getattr(ref, n)!r}' for n in REFERENCE_NUMBERS
+                   if not isfinite(getattr(ref, n))]
+            return TickAnswer(0.0, 0.0, finite=False,
+                              reason=f'non-finite reference ({", ".join(bad)})')
         try:
             if self.active_stage != ref.stage_id:
                 self.stage.activate(ref, measurement)
