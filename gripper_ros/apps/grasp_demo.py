@@ -225,7 +225,7 @@ def _grasp_one(graph, args, width_m: float, mass_kg: float, i: int, n: int) -> G
                          args.stiffness, args.damping, args.overwrite,
                          width_tolerance_m=args.width_tolerance,
                          object_width_m=args.object_width, acceleration_mps2=args.lift,
-                         **_lift(args))
+                         stop_on_error=True, **_lift(args))
     if run.recording_error:
         raise RecordingError(run.recording_error)
     return GraspRecord(width_m, mass_kg, run.response, run.bag_dir, run.wall_s,

@@ -158,6 +158,8 @@ class BagRecorder:
         self._first_ns: int | None = None
         self._last_ns: int | None = None
         self._pending = 0
+        self._total = 0                         # messages handed to the writer
+        self._readable = 0                      # of those, in chunks written to the file
         if custom_data:
             self.set_custom_data(custom_data)
 
@@ -194,6 +196,13 @@ class BagRecorder:
     def message_count(self) -> int:
         with self._lock:
             return sum(self._counts.values())
+
+    @property
+    def readable_count(self) -> int:
+        """Messages in chunks already written to the file: what a reader gets after a crash or a
+        full disk (the rest was still buffered)."""
+        with self._lock:
+            return self._readable
 
     @property
     def closed(self) -> bool:
@@ -298,6 +307,7 @@ class BagRecorder:
             count = self._counts[topic]
             self._writer.add_message(channel_id, t_ns, data, publish_ns, count & 0xFFFFFFFF)
             self._counts[topic] = count + 1
+            self._total += 1
             if self._first_ns is None:
                 self._first_ns = self._last_ns = t_ns
             elif t_ns < self._first_ns:
@@ -316,6 +326,7 @@ class BagRecorder:
     def _flush_locked(self) -> None:
         self._writer.flush()
         self._pending = 0
+        self._readable = self._total
 
     def _publisher_qos_and_hash(self, topic: str, msgtype: str) -> tuple[list, str]:
         """Offered QoS profiles of the current publishers and the type hash (rosbag2 does so)."""

@@ -22,13 +22,14 @@ from dataclasses import dataclass, field
 from datetime import datetime
 from pathlib import Path
 
+from gripper_ros.bags.reader import BagError, read_bag
 from gripper_ros.bags.recorder import BagRecorder, BagRecorderError
 from gripper_ros.bags.schema import import_message_class
 from gripper_ros.core.stages import Reference
 from gripper_ros.nodes.common import GRAPH_QOS, wait_until
 from gripper_ros.wire import (GRAPH_TOPICS, LOOP_TOPICS, REFERENCE_LAYOUT, TOPIC_FORCE_REFERENCE,
-                              TOPIC_MOTOR_COMMAND, TOPIC_POSITION_REFERENCE, TOPIC_TICK,
-                              Outcome, Phase, qualified)
+                              TOPIC_MOTOR_COMMAND, TOPIC_POSITION_REFERENCE, TOPIC_TICK, Outcome,
+                              Phase, qualified)
 
 BAG_FORMAT = 2
 """custom_data gripper_ros.format: 2 = the lockstep loop topics (loop/tick, references,
@@ -83,6 +84,7 @@ class GraphTap:
         self.on_reference = None                 # called with each reference's values
         self.on_tick = None                      # called with each tick's stamp
         self.on_closed = None                    # called with a sink the tap finished
+        self.on_error = None                     # called with the message of a failed sink
         self.received = {t: 0 for t in self.topics}
         self._tick_topic = qualified(graph.namespace, TOPIC_TICK)
         self._command_topic = qualified(graph.namespace, TOPIC_MOTOR_COMMAND)
@@ -255,10 +257,14 @@ class GraphTap:
             sink.close()
         except Exception:  # noqa: BLE001 - the first error is the one to report
             pass
+        readable = _readable_messages(sink)
         reason = getattr(exc, 'strerror', None) or str(exc)
-        self.error = (f'recording stopped: {sink.bag_dir}: {reason}; the bag holds {count} '
-                      'messages, readable up to there')
-        self.node.get_logger().error(self.error)
+        lost = f' ({count - readable} more were still buffered and are lost)' \
+            if count > readable else ''
+        self.error = (f'recording stopped: {sink.bag_dir}: {reason}; the bag holds {readable} '
+                      f'messages, readable up to there{lost}')
+        if self.on_error is not None:
+            self.on_error(self.error)
 
     def close(self) -> None:
         for sub in self._subs:
@@ -270,6 +276,15 @@ class GraphTap:
 
     def __exit__(self, *exc) -> None:
         self.close()
+
+
+def _readable_messages(sink: BagRecorder) -> int:
+    """How many messages a reader gets back from a bag whose recording failed (read back:
+    a write that failed may have left a chunk whole without its index)."""
+    try:
+        return read_bag(sink.bag_dir, allow_empty=True).message_count
+    except BagError:
+        return sink.readable_count
 
 
 def graph_tap(graph) -> GraphTap:
@@ -317,11 +332,15 @@ def recorded_grasp(graph, bag_dir, width_m: float, mass_kg: float,
                    damping_n_s_per_m: float = 0.0, overwrite: bool = False,
                    wall_timeout_s: float = 600.0, width_tolerance_m: float = 0.0,
                    object_width_m: float | None = None, acceleration_mps2: float = 0.0,
-                   linger_s: float = 0.5, **hold) -> RecordedGrasp:
+                   linger_s: float = 0.5, stop_on_error: bool = False,
+                   **hold) -> RecordedGrasp:
     """Place the object, record every topic of the graph into ``bag_dir`` and grasp it.
 
     ``hold`` sets the object's hold and lift fields (SetObject). The bag is closed (summary,
-    metadata.yaml) whatever happens, Ctrl-C included.
+    metadata.yaml) whatever happens, Ctrl-C included. ``stop_on_error``: a recording that
+    fails stops the grasp at once (STOPPED: the position stage holds the finger where it is);
+    else the grasp goes on unrecorded. Either way :attr:`RecordedGrasp.recording_error` says
+    what failed.
     """
     placed_width = graph.simulated_width_m(width_m, object_width_m)
     placed = graph.set_object(placed_width, stiffness_n_per_m, damping_n_s_per_m, **hold)
@@ -345,6 +364,8 @@ def recorded_grasp(graph, bag_dir, width_m: float, mass_kg: float,
     before = graph.published_counts()
     received_before = dict(tap.received)
     fast = graph.options.time_mode == 'fast'
+    if stop_on_error:
+        tap.on_error = lambda message: graph.supervisor.stop_grasp(message)
     tap.start(recorder, 'now' if fast else 'next_tick')     # fast: nothing is in flight
     t0 = time.perf_counter()
     try:
@@ -353,6 +374,7 @@ def recorded_grasp(graph, bag_dir, width_m: float, mass_kg: float,
                                width_tolerance_m=width_tolerance_m)
         _play_out(graph, linger_s)
     finally:
+        tap.on_error = None
         if fast:
             _drain_published(graph, tap, recorder, before, received_before)
             tap.sink = None             # time stands still: the last tick is whole

@@ -12,7 +12,7 @@ from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 from gripper_ros.core.config import ConfigError, GripperConfig, load_config
-from gripper_ros.wire import DEFAULT_NAMESPACE, qualified
+from gripper_ros.wire import DEFAULT_NAMESPACE
 
 # Lockstep keeps at most a few messages in flight; the depth is there so that a slow recorder
 # callback never loses one (a reliable keep_last writer drops what its history cannot hold).
@@ -76,21 +76,25 @@ def spin_until_stopped(executor, stop) -> None:
                 f'a callback failed and was skipped: {type(exc).__name__}: {one_line(exc)}')
 
 
-def run_node(make_node: Callable[[], Node], name: str, args=None) -> int:
+def run_node(make_node: Callable[[], Node], name: str, args=None,
+             services: tuple[str, ...] = ()) -> int:
     """The one ``main()`` of every node: init, spin, clean shutdown, one exit-code policy.
 
     0 on Ctrl-C or SIGTERM; ``EXIT_BAD_START`` with one line on stderr, no traceback, for a bad
-    config file, a refused start-up parameter or names already taken. The executor is the
-    node's ``executor`` parameter (``events``, the default, or ``single``).
+    config file, a refused start-up parameter or names already taken (a node ``name``, or a
+    server of one of ``services``, in its namespace). The executor is the node's ``executor``
+    parameter (``events``, the default, or ``single``).
     """
     import rclpy
     from rclpy.exceptions import ParameterException
     from rclpy.executors import ExternalShutdownException
     from rclpy.task import Future
 
+    from gripper_ros.nodes.names import NameClaim
     rclpy.init(args=args)
-    node = executor = None
+    node = executor = claim = None
     try:
+        claim = NameClaim.take((name,), services)
         node = make_node()
         kind = node.declare_parameter('executor', ExecutorKind.EVENTS.value, ParameterDescriptor(
             description='events (rclpy EventsExecutor) | single (SingleThreadedExecutor)',
@@ -112,6 +116,8 @@ def run_node(make_node: Callable[[], Node], name: str, args=None) -> int:
             executor.shutdown(timeout_sec=1.0)
         if node is not None:
             node.destroy_node()
+        if claim is not None:
+            claim.release()
         rclpy.try_shutdown()
     return 0
 
@@ -125,27 +131,6 @@ def default_namespace(kwargs: dict) -> dict:
     ``-r __ns:=/left`` still wins, as for every ROS node)."""
     kwargs.setdefault('namespace', DEFAULT_NAMESPACE)
     return kwargs
-
-
-def taken_names(node: Node, node_names: tuple[str, ...] = (),
-                services: tuple[str, ...] = (), wait_s: float = 0.5) -> list[str]:
-    """What of ``node_names`` and relative ``services`` (a server; a client waiting for one is
-    welcome) already exists in ``node``'s namespace on the domain, after ``wait_s`` of discovery (checked twice, so that a node that was just
-    shut down is not mistaken for a running one)."""
-    namespace = node.get_namespace()
-    found: list[str] = []
-    for attempt in range(2):
-        time.sleep(wait_s)
-        nodes = {(ns.rstrip('/') or '/', n) for n, ns in node.get_node_names_and_namespaces()}
-        ours = namespace.rstrip('/') or '/'
-        found = [qualified(namespace.strip('/'), n) for n in node_names if (ours, n) in nodes]
-        names = {s for s, _ in node.get_service_names_and_types()}   # clients' names too
-        found += [f'service {name}' for name in
-                  (qualified(namespace.strip('/'), s) for s in services)
-                  if name in names and node.count_services(name) > 0]
-        if not found:
-            return []
-    return found
 
 
 MAX_COUNTED_GAP_S = 0.25

@@ -22,10 +22,10 @@ from rclpy.task import Future
 from std_srvs.srv import Trigger
 
 from gripper_ros.core.stages import DEFAULT_FORCE_CONTROLLER
-from gripper_ros.nodes.common import (SERVICE_QOS, ExecutorKind, StartupError, make_executor,
-                                      spin_until_stopped, taken_names)
+from gripper_ros.nodes.common import SERVICE_QOS, ExecutorKind, make_executor, spin_until_stopped
 from gripper_ros.nodes.force_controller_node import ForceControllerNode
 from gripper_ros.nodes.grasp_action_node import GraspActionServer
+from gripper_ros.nodes.names import NameClaim
 from gripper_ros.nodes.plant_simulator_node import PlantSimulatorNode
 from gripper_ros.nodes.position_controller_node import PositionControllerNode
 from gripper_ros.nodes.supervisor_node import SupervisorNode
@@ -69,8 +69,15 @@ class GripperGraph:
             kw['context'] = context
         self.nodes: list = []
         self.close_hooks: list = []          # run first by close() (e.g. open recordings)
-        if opts.check_names:
-            self._refuse_taken_names(kw)
+        self._claim = NameClaim.take((NODE_PLANT, NODE_SUPERVISOR), (SERVICE_GRASP,), context,
+                                     self.namespace) if opts.check_names else None
+        try:
+            self._build(opts, kw)
+        except BaseException:
+            self.close()
+            raise
+
+    def _build(self, opts: GraphOptions, kw: dict) -> None:
         cfg = [Parameter('config_file', value=opts.config_file)]
         self.plant = PlantSimulatorNode(parameter_overrides=cfg + [
             Parameter('time_mode', value=opts.time_mode),
@@ -97,7 +104,7 @@ class GripperGraph:
         if opts.action_server:
             self.action_server = GraspActionServer(parameter_overrides=cfg, **kw)
             self.nodes.append(self.action_server)
-        self.executor = make_executor(opts.executor, context)
+        self.executor = make_executor(opts.executor, self.context)
         for node in self.nodes:
             self.executor.add_node(node)
         self._stop = Future()
@@ -114,28 +121,7 @@ class GripperGraph:
         self._step = client(SimStep, SERVICE_STEP)
         for c in (self._set_object, self._grasp, self._release):
             if not c.wait_for_service(timeout_sec=10.0):
-                self.close()
                 raise GraphError(f'service {c.srv_name} did not come up')
-
-    def _refuse_taken_names(self, kw: dict) -> None:
-        """One graph per namespace: refuse to start when its plant, supervisor or grasp
-        service is already on the domain (before anything is published)."""
-        probe = rclpy.create_node('gripper_graph_probe', enable_rosout=False,
-                                  start_parameter_services=False, **kw)
-        try:
-            taken = taken_names(probe, (NODE_PLANT, NODE_SUPERVISOR), (SERVICE_GRASP,))
-        finally:
-            probe.destroy_node()
-        if taken:
-            raise StartupError(f'namespace /{self.namespace} is taken on ROS_DOMAIN_ID '
-                               f'{self._domain_id()}: found {", ".join(taken)}')
-
-    def _domain_id(self) -> int:
-        ctx = self.context or rclpy.get_default_context()
-        try:
-            return ctx.get_domain_id()
-        except Exception:  # noqa: BLE001 - informative only
-            return -1
 
     # ------------------------------------------------------------------ nodes
     def add_node(self, node) -> None:
@@ -344,6 +330,9 @@ class GripperGraph:
         for node in self.nodes:
             node.destroy_node()
         self.nodes = []
+        if self._claim is not None:
+            self._claim.release()
+            self._claim = None
         if self._owns_context:
             rclpy.try_shutdown(context=self.context)
             self._owns_context = False

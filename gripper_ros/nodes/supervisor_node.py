@@ -351,7 +351,7 @@ class SupervisorNode(Node):
 
 
 def main(args=None):
-    return run_node(SupervisorNode, NODE_SUPERVISOR, args)
+    return run_node(SupervisorNode, NODE_SUPERVISOR, args, (SERVICE_GRASP,))
 
 
 if __name__ == '__main__':
