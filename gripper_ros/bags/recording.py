@@ -291,7 +291,8 @@ def graph_tap(graph) -> GraphTap:
 def bag_metadata(graph, request: dict, placed: dict) -> dict:
     """custom_data of a grasp bag: all a closed-loop re-run needs, and the format."""
     return {'gripper_ros': {'format': BAG_FORMAT, 'namespace': graph.namespace,
-                            'time_mode': graph.options.time_mode},
+                            'time_mode': graph.options.time_mode,
+                            'state_rate_hz': float(graph.plant.state_rate_hz)},
             'request': request, 'object': placed,
             'controllers': graph.controller_settings(),
             'config': graph.config_data()}
@@ -320,8 +321,9 @@ def recorded_grasp(graph, bag_dir, width_m: float, mass_kg: float,
                    linger_s: float = 0.5, **hold) -> RecordedGrasp:
     """Place the object, record every topic of the graph into ``bag_dir`` and grasp it.
 
-    ``hold`` sets the object's hold and lift fields (SetObject). The bag is closed (summary,
-    metadata.yaml) whatever happens, Ctrl-C included.
+    ``hold`` sets the object's hold and lift fields and a fault for the grasp (SetObject:
+    ``fault``, ``fault_at_s``, ``fault_time_constant_s``), all recorded with the object. The
+    bag is closed (summary, metadata.yaml) whatever happens, Ctrl-C included.
     """
     placed_width = graph.simulated_width_m(width_m, object_width_m)
     placed = graph.set_object(placed_width, stiffness_n_per_m, damping_n_s_per_m, **hold)
@@ -333,7 +335,8 @@ def recorded_grasp(graph, bag_dir, width_m: float, mass_kg: float,
                'friction_coefficient': friction_coefficient,
                'acceleration_mps2': acceleration_mps2, 'width_tolerance_m': width_tolerance_m}
     obj = {'width_m': placed_width, 'stiffness_n_per_m': stiffness_n_per_m,
-           'damping_n_s_per_m': damping_n_s_per_m, **{k: float(v) for k, v in hold.items()}}
+           'damping_n_s_per_m': damping_n_s_per_m,
+           **{k: int(v) if k == 'fault' else float(v) for k, v in hold.items()}}
     tap = graph_tap(graph)
     try:
         recorder = BagRecorder(graph.client_node, bag_dir, tap.topics, overwrite=overwrite,

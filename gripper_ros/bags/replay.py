@@ -255,6 +255,22 @@ def build_parser() -> argparse.ArgumentParser:
                        help='force controller cap before contact (default: as recorded, '
                             'else 1.0; 0 = off)')
     resim.add_argument('--json', action='store_true', help='print the comparison as JSON')
+    loop = parser.add_argument_group(
+        'closed-loop re-run (what-if; with --resimulate --closed-loop; nothing is published)',
+        "Grasp again without ROS (the graph's plant, supervisor and stages, tick for tick) with "
+        'the recorded request, object, controllers and configuration, changed as asked, and '
+        'show the figures recorded, re-run and their difference. Bad input: one line, exit 2.')
+    loop.add_argument('--closed-loop', action='store_true',
+                      help='re-run the grasp in closed loop (the plant answers new commands)')
+    loop.add_argument('--config', metavar='FILE', default=None,
+                      help='start from this config file instead of the recorded configuration')
+    loop.add_argument('--set', action='append', default=[], metavar='SECTION.KEY=VALUE',
+                      help='change one config value (repeatable), e.g. '
+                           'position_control.mpc_pd.kc=900')
+    loop.add_argument('--sweep', default=None, metavar='SECTION.KEY=V1,V2,...',
+                      help='re-run once per value and print one row per value')
+    loop.add_argument('--plot', default=None, metavar='FILE.png',
+                      help='draw recorded and re-run position, force, motor and FSR voltage')
     return parser
 
 
@@ -315,10 +331,65 @@ def _run_resimulation(args: argparse.Namespace) -> int:
     return 0
 
 
+def _run_closed_loop(args: argparse.Namespace) -> int:
+    """Re-run the bag's grasp in closed loop and print the comparison.
+
+    Exit 0 when it ran; 2 on bad input (the bag, an option, a key or value; one line on
+    stderr); 3 when the bag was truncated (the recorded figures cover the part recovered).
+    """
+    from gripper_ros.bags import rerun
+    from gripper_ros.core.config import ConfigError
+    if args.resimulate and args.config and args.resimulate != args.config:
+        _fail('give the configuration once: --resimulate CONFIG.yaml or --config FILE', code=2)
+    if args.plot and not args.plot.lower().endswith('.png'):
+        _fail(f'--plot needs a .png file name, got {args.plot!r}', code=2)
+    margin = args.approach_force_margin
+    if margin is not None and not (math.isfinite(margin) and margin >= 0.0):
+        _fail('--approach-force-margin must be finite and >= 0', code=2)
+    try:
+        settings = [rerun.parse_assignment(item) for item in args.set]
+        sweep = rerun.parse_sweep(args.sweep) if args.sweep else None
+        changes = rerun.Changes(args.config or args.resimulate or None, settings,
+                                args.position_controller, args.force_controller, margin)
+        result = rerun.whatif(args.bag, changes, sweep)
+    except (ConfigError, BagError) as exc:
+        _fail(str(exc), code=2)
+    if sweep is None:
+        print(rerun.to_json(result) if args.json else rerun.to_table(result))
+    else:
+        print(rerun.sweep_json(result) if args.json else rerun.sweep_table(result))
+    if args.plot:
+        try:
+            rerun.plot(result, args.plot)
+        except OSError as exc:
+            _fail(f'cannot write {args.plot}: {exc.strerror or exc}', code=2)
+        print(f'{PROG}: figure: {args.plot}', file=sys.stderr)
+    if result.record.truncated:
+        series = result.record.series
+        print(f'{PROG}: warning: {series.path}: truncated ({series.damage}); the recorded '
+              f'figures cover the part recovered', file=sys.stderr)
+        sys.exit(EXIT_TRUNCATED)
+    return 0
+
+
+CLOSED_LOOP_OPTIONS = ('config', 'sweep', 'plot')
+
+
 def main(argv: Sequence[str] | None = None) -> int:
-    """Exit 0; 1 on bad input (one line on stderr); 3 when the bag was truncated (what was
-    recovered is replayed). ``--resimulate``: see :func:`_run_resimulation`."""
+    """Replay a bag, or re-simulate it (open or closed loop).
+
+    Exit 0; 1 on bad input (one line on stderr); 3 when the bag was truncated (what was
+    recovered is replayed). ``--resimulate``: see :func:`_run_resimulation`;
+    ``--resimulate --closed-loop``: see :func:`_run_closed_loop`.
+    """
     args = build_parser().parse_args(argv)
+    if args.closed_loop:
+        return _run_closed_loop(args)
+    given = [f'--{name}' for name in CLOSED_LOOP_OPTIONS if getattr(args, name) is not None]
+    if args.set:
+        given.append('--set')
+    if given:
+        _fail(f'{", ".join(given)} only apply to --resimulate --closed-loop')
     if args.resimulate is not None:
         return _run_resimulation(args)
     if args.json:

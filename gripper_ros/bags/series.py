@@ -137,6 +137,10 @@ class GraspSeries:
     objects: ObjectSeries | None = None
     ticks: dict[str, np.ndarray] = field(default_factory=dict, repr=False)
     """Format 2: every PlantTick field as an array (what a re-simulation feeds back)."""
+    references: dict[str, np.ndarray] = field(default_factory=dict, repr=False)
+    """Format 2: every StageReference field as an array, in tick order."""
+    commands: dict[str, np.ndarray] = field(default_factory=dict, repr=False)
+    """Format 2: every MotorCommand field as an array, in tick order."""
 
     @property
     def duration_s(self) -> float:
@@ -226,6 +230,27 @@ def _lockstep_series(bag: Bag, ns: str) -> GraspSeries:
             m = bag.decode(raw)
             objects.append((_stamp_ns(m) * 1e-9, m.state, m.slip_m, m.slip_speed_mps, m.load_n,
                             m.capacity_n))
+    return lockstep_series(bag.path, ns, ticks, refs, cmds, statuses, objects,
+                           custom_data=bag.custom_data_parsed(), counts=bag.counts(),
+                           start_ns=bag.start_ns, end_ns=bag.end_ns, size_bytes=bag.size_bytes,
+                           truncated=bag.truncated, damage=bag.damage)
+
+
+_NO_BAG = {'custom_data': {}, 'counts': {}, 'start_ns': 0, 'end_ns': 0, 'size_bytes': 0,
+           'truncated': False}
+"""The bag fields of a series that comes from no bag."""
+
+
+def lockstep_series(path, ns: str, ticks: list[tuple], refs: list[tuple], cmds: list[tuple],
+                    statuses: list[tuple], objects: list[tuple], **bag_fields) -> GraspSeries:
+    """Build the series of lockstep messages, for bags and grasps re-run without ROS alike.
+
+    ``ticks``, ``refs`` and ``cmds`` are the wire layouts' values (TICK_LAYOUT,
+    REFERENCE_LAYOUT, COMMAND_LAYOUT), ``statuses`` (stamp_ns, an object with
+    SupervisorStatus's fields), ``objects`` (t_s, state, slip_m, slip_speed_mps, load_n,
+    capacity_n); ``bag_fields`` fill the rest of :class:`GraspSeries`. One builder, so that
+    both give the same series.
+    """
     # a repeated tick (a late peer) once; in tick order (DDS does not order topics)
     ticks = sorted(_unique_by(ticks, _key(TICK_LAYOUT, 'stamp_ns', 'revision')),
                    key=_key(TICK_LAYOUT, 'stamp_ns', 'revision'))
@@ -248,7 +273,7 @@ def _lockstep_series(bag: Bag, ns: str) -> GraspSeries:
     cmd = dict(zip(COMMAND_LAYOUT.fields, _columns(
         cmds, (np.int64, i, i, i, i, i, i, bool, bool, f, f, f))))
     return GraspSeries(
-        path=bag.path,
+        path=Path(path),
         joint=JointSeries(t_s, tick['position_m'], tick['velocity_mps'], tick['force_n']),
         sensor=SensorSeries(t_s, tick['force_n'], tick['sensor_voltage_v'],
                             tick['peak_force_n']),
@@ -257,10 +282,9 @@ def _lockstep_series(bag: Bag, ns: str) -> GraspSeries:
         command=CommandSeries(cmd['stamp_ns'] * 1e-9, cmd['voltage_v'], cmd['source'],
                               cmd['grasp_id'], cmd['hold_s'], cmd['inner_setpoint'],
                               cmd['stage_id']),
-        custom_data=bag.custom_data_parsed(), counts=bag.counts(), start_ns=bag.start_ns,
-        end_ns=bag.end_ns, size_bytes=bag.size_bytes, truncated=bag.truncated,
-        damage=bag.damage, namespace=ns, bag_format=2,
-        objects=ObjectSeries(*_columns(objects, (f, i, f, f, f, f))), ticks=tick)
+        namespace=ns, bag_format=2,
+        objects=ObjectSeries(*_columns(objects, (f, i, f, f, f, f))), ticks=tick,
+        references=ref, commands=cmd, **{**_NO_BAG, **bag_fields})
 
 
 def _key(layout, *names):
