@@ -13,22 +13,22 @@ grasp goes on.
 """
 from __future__ import annotations
 
+from dataclasses import dataclass, field
+from datetime import datetime
 import functools
 import os
+from pathlib import Path
 import struct
 import threading
 import time
-from dataclasses import dataclass, field
-from datetime import datetime
-from pathlib import Path
 
 from gripper_ros.bags.recorder import BagRecorder, BagRecorderError
 from gripper_ros.bags.schema import import_message_class
 from gripper_ros.core.stages import Reference
 from gripper_ros.nodes.common import GRAPH_QOS, wait_until
-from gripper_ros.wire import (GRAPH_TOPICS, LOOP_TOPICS, REFERENCE_LAYOUT, TOPIC_FORCE_REFERENCE,
-                              TOPIC_MOTOR_COMMAND, TOPIC_POSITION_REFERENCE, TOPIC_TICK,
-                              Outcome, Phase, qualified)
+from gripper_ros.wire import (GRAPH_TOPICS, LOOP_TOPICS, Outcome, Phase, qualified,
+                              REFERENCE_LAYOUT, TOPIC_FORCE_REFERENCE, TOPIC_MOTOR_COMMAND,
+                              TOPIC_POSITION_REFERENCE, TOPIC_TICK)
 
 BAG_FORMAT = 2
 """custom_data gripper_ros.format: 2 = the lockstep loop topics (loop/tick, references,
@@ -42,8 +42,11 @@ class RecordingError(RuntimeError):
 
 @dataclass
 class RecordedGrasp:
-    """A grasp's answer, its bag, and how many messages the graph published per topic while
-    it recorded (fast mode; in realtime simulated time runs on and ``published`` is empty)."""
+    """A grasp's answer, its bag, and what the graph published while it recorded.
+
+    ``published``: messages per topic (fast mode; in realtime simulated time runs on and it is
+    empty).
+    """
 
     response: object
     bag_dir: Path | None
@@ -83,7 +86,7 @@ class GraphTap:
         self.on_reference = None                 # called with each reference's values
         self.on_tick = None                      # called with each tick's stamp
         self.on_closed = None                    # called with a sink the tap finished
-        self.received = {t: 0 for t in self.topics}
+        self.received = dict.fromkeys(self.topics, 0)
         self._tick_topic = qualified(graph.namespace, TOPIC_TICK)
         self._command_topic = qualified(graph.namespace, TOPIC_MOTOR_COMMAND)
         self._loop_topics = {qualified(graph.namespace, t) for t in LOOP_TOPICS}
@@ -102,7 +105,7 @@ class GraphTap:
         self._lock = threading.Lock()
         self._subs = []
 
-    def open(self) -> GraphTap:
+    def open(self) -> GraphTap:  # noqa: A003 - a tap is opened and closed like a file
         """Subscribe, and wait until every publisher of the graph has matched this tap."""
         baseline = {t: [p.get_subscription_count() for p in self._publishers(t)]
                     for t in self.topics}
@@ -125,8 +128,11 @@ class GraphTap:
 
     # ------------------------------------------------------------------ the window
     def start(self, sink: BagRecorder, at: str = 'now') -> None:
-        """Record into ``sink``: ``now`` (time stands still: nothing is in flight),
-        ``next_tick``, or ``last_tick`` (the newest tick, whose decision is being handled)."""
+        """Record into ``sink`` from ``at``.
+
+        ``now`` (time stands still: nothing is in flight), ``next_tick``, or ``last_tick`` (the
+        newest tick, whose decision is being handled).
+        """
         if self.sink is not None:
             self._finish()                      # a sink still closing ends here
         self.error = ''
@@ -152,8 +158,10 @@ class GraphTap:
             self._keep(self._tick_topic, held[1], held[0])
 
     def stop_at(self, end_ns: int | None = None) -> None:
-        """End the window before tick ``end_ns`` (default: the next tick to come); the sink
-        closes once the command of its last tick is in (:attr:`on_closed`)."""
+        """End the window before tick ``end_ns`` (default: the next tick to come).
+
+        The sink closes once the command of its last tick is in (:attr:`on_closed`).
+        """
         if self.sink is None:
             return
         self._end_ns = end_ns if end_ns is not None else -1
@@ -165,8 +173,10 @@ class GraphTap:
             self._finish()                      # nothing of the last tick is in flight
 
     def stop(self, timeout_s: float = 2.0) -> BagRecorder | None:
-        """End the window at the next tick and wait until the sink is whole (or, when no tick
-        comes within ``timeout_s``, e.g. simulated time stands still, now)."""
+        """End the window at the next tick and wait until the sink is whole.
+
+        When no tick comes within ``timeout_s`` (simulated time stands still) it ends now.
+        """
         sink = self.sink
         if sink is None:
             return None
@@ -273,7 +283,7 @@ class GraphTap:
 
 
 def graph_tap(graph) -> GraphTap:
-    """The graph's one tap, subscribed at its first recording and kept while the graph lives.
+    """Give the graph's one tap, subscribed at its first recording, kept while the graph lives.
 
     A reader created anew for every grasp can be matched by an idle writer and still be sent
     nothing (seen with Fast DDS: the force stage's references and commands of a later grasp),
@@ -299,8 +309,10 @@ def bag_metadata(graph, request: dict, placed: dict) -> dict:
 
 
 def unique_bag_dir(parent: Path, stem: str) -> Path:
-    """A new folder under ``parent`` named after ``stem``, never one that exists: the name
-    carries the process id and a counter, and the folder is created atomically."""
+    """Create a new folder under ``parent`` named after ``stem``, never one that exists.
+
+    The name carries the process id and a counter, and the folder is created atomically.
+    """
     parent.mkdir(parents=True, exist_ok=True)
     for n in range(1000):
         candidate = parent / f'{stem}_{os.getpid()}' if n == 0 else \
@@ -396,8 +408,10 @@ def _published_since(graph, tap: GraphTap, before: dict) -> dict:
 
 def _drain_published(graph, tap: GraphTap, recorder: BagRecorder, before: dict,
                      received_before: dict, timeout_s: float = 10.0) -> None:
-    """Wait until the tap has received every message published since ``before`` (time stands
-    still), and write a tick it still holds for its decision."""
+    """Wait until the tap has received every message published since ``before``.
+
+    Time stands still then; a tick the tap still holds for its decision is written.
+    """
     published = _published_since(graph, tap, before)
     wait_until(lambda: recorder.closed or all(
         tap.received[t] - received_before[t] >= n for t, n in published.items()), timeout_s)
@@ -493,8 +507,7 @@ class ServeRecorder:
         self.graph.supervisor.response_notes.append(message)
 
     def _close_bag(self, before_ns: int | None = None) -> None:
-        """Close the bag now, or (``before_ns``) hold nothing of that tick on and close once
-        the last one is whole."""
+        """Close the bag now, or (``before_ns``) before that tick, once the last one is whole."""
         self._close_at_ns = self._answered_wall = None
         if before_ns is not None and self.tap.sink is not None:
             sink = self.tap.sink

@@ -7,11 +7,11 @@ from the bag's time so nodes with ``use_sim_time`` follow the replay.
 from __future__ import annotations
 
 import argparse
+from dataclasses import dataclass, field
 import math
 import sys
 import threading
 import time
-from dataclasses import dataclass, field
 from typing import Callable, Sequence
 
 from gripper_ros.bags.reader import (
@@ -60,7 +60,7 @@ def parse_remap(items: Sequence[str]) -> dict[str, str]:
 
 
 def select_messages(bag: Bag, options: ReplayOptions) -> list[RawMessage]:
-    """The messages to replay, in recorded order; raises BagError for unknown topics."""
+    """Select the messages to replay, in recorded order; BagError for unknown topics."""
     if options.topics:
         missing = [t for t in options.topics if t not in bag.topics]
         if missing:
@@ -82,7 +82,7 @@ def select_messages(bag: Bag, options: ReplayOptions) -> list[RawMessage]:
 
 
 def _qos_for(bag: Bag, topic: str):
-    """Reliability/durability as offered by the recorded publishers (depth from the bag or 1000)."""
+    """Offer the recorded publishers' reliability/durability (depth from the bag, or 1000)."""
     from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
     profiles = bag.topics[topic].offered_qos_profiles or [{}]
     first = profiles[0] if isinstance(profiles[0], dict) else {}
@@ -137,7 +137,7 @@ class BagPlayer:
 
     def play(self, stop: threading.Event | None = None,
              progress: Callable[[str], None] | None = None) -> int:
-        """Replay (looping if asked) until done or ``stop`` is set; returns messages published."""
+        """Publish (looping if asked) until done or ``stop`` is set; the count published."""
         opts = self._options
         stop = stop or threading.Event()
         if opts.wait_for_subscribers > 0:
@@ -203,14 +203,17 @@ def resolve_classes(bag: Bag, topics: set[str]) -> dict[str, type]:
 
 
 def resimulate(bag: Bag | str, config_path: str | None = None, **kwargs):
-    """Re-simulation mode (``--resimulate [CONFIG.yaml]``): feed the bag's recorded measurements
-    through the controllers built from CONFIG (None/'' = the installed default), tick by tick as
-    the controller nodes answer them, and compare with the recorded commands (open loop: the
-    plant is not re-run). Returns a :class:`gripper_ros.bags.resimulate.ResimulationReport`.
+    """Re-simulate the bag open loop (``--resimulate [CONFIG.yaml]``).
+
+    Feed the bag's recorded measurements through the controllers built from CONFIG (None/'' =
+    the installed default), tick by tick as the controller nodes answer them, and compare with
+    the recorded commands (open loop: the plant is not re-run). Returns a
+    :class:`gripper_ros.bags.resimulate.ResimulationReport`.
 
     Raises BagError (one line) for an unusable bag, ConfigError (one line) for an unusable
     configuration. ``kwargs``: ``position_controller``, ``force_controller``,
-    ``approach_force_margin``, ``keep_ticks`` (see :func:`gripper_ros.bags.resimulate.resimulate_bag`).
+    ``approach_force_margin``, ``keep_ticks`` (see
+    :func:`gripper_ros.bags.resimulate.resimulate_bag`).
     """
     from gripper_ros.bags.resimulate import resimulate_bag
     return resimulate_bag(bag, config_path, **kwargs)
@@ -280,7 +283,7 @@ def _fail(message: str, code: int = EXIT_ERROR) -> None:
 
 
 def options_from_args(args: argparse.Namespace) -> ReplayOptions:
-    """Validated options; ValueError with a one-line reason."""
+    """Validate the replay options; ValueError with a one-line reason."""
     for name, value in (('--rate', args.rate), ('--start-offset', args.start_offset),
                         ('--delay', args.delay)):
         if not math.isfinite(value):

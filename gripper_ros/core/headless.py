@@ -13,8 +13,6 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Callable
 
-import numpy as np
-
 from gripper_ros.core.config import GripperConfig
 from gripper_ros.core.controllers import make_plant
 from gripper_ros.core.lockstep import PlantSide, StageSide, SupervisorSide
@@ -25,6 +23,7 @@ from gripper_ros.core.stages import (DEFAULT_APPROACH_FORCE_MARGIN, DEFAULT_FORC
 from gripper_ros.core.supervisor import (GraspRequest, GraspSupervisor, Outcome, Phase,
                                          SwitchCriterion, validate_request)
 from gripper_ros.wire import Controller, FaultKind
+import numpy as np
 
 
 @dataclass
@@ -107,9 +106,10 @@ def simulate_grasp(config: GripperConfig, width_m: float, mass_kg: float, *,
     plant_side.set_object(obj, fault=fault, lift=lift)
     supervisor = GraspSupervisor(config.plant, config.supervisor)
     decide = SupervisorSide(supervisor).decide
-    stages = {Controller.POSITION: StageSide(PositionStageController(config, position_controller)),
-              Controller.FORCE: StageSide(ForceStageController(config, force_controller,
-                                                                approach_force_margin))}
+    position_stage = PositionStageController(config, position_controller)
+    force_stage = ForceStageController(config, force_controller, approach_force_margin)
+    stages = {Controller.POSITION: StageSide(position_stage),
+              Controller.FORCE: StageSide(force_stage)}
     tick = plant_side.tick()
     decision, ref = decide(tick)                    # the position stage holds the open fingers
     supervisor.request_grasp(targets, mass_kg, after_ns=tick.stamp_ns)
