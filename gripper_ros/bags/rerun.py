@@ -751,7 +751,7 @@ def sweep_json(w: WhatIf) -> str:
 RERUN_COLORS = ('tab:red', 'tab:blue', 'tab:green', 'tab:purple', 'tab:brown', 'tab:olive',
                 'tab:cyan', 'tab:pink')
 ZOOM_MARGIN_S = 0.03
-"""The right-hand column shows the force stages from this long before the first switch."""
+"""The right-hand column starts this long before each grasp's switch to the force stage."""
 
 
 def _phase_times(m: GraspMetrics) -> tuple[float, float, float]:
@@ -764,9 +764,10 @@ def _phase_times(m: GraspMetrics) -> tuple[float, float, float]:
 def plot(w: WhatIf, path: str) -> None:
     """Draw recorded and re-run position, force, motor and FSR voltage on shared time axes.
 
-    Time runs from the grasp start: the whole grasp on the left, the force stage on the right.
-    The recording is drawn in black and its stages are shaded (as bag_analyze and grasp_demo
-    shade them); each re-run's switch and answer are marked in its colour.
+    On the left time runs from the grasp start over the whole grasp; on the right it runs from
+    each grasp's switch to the force stage, so that the force stages lie over each other. The
+    recording is drawn in black and its stages are shaded (as bag_analyze and grasp_demo shade
+    them); each re-run's switch and answer are marked in its colour.
     """
     import matplotlib
     matplotlib.use('Agg')
@@ -777,27 +778,29 @@ def plot(w: WhatIf, path: str) -> None:
         label = 're-run' if w.sweep_key is None else f'{w.sweep_key}={r.value}'
         runs.append((label, r.series, r.metrics, RERUN_COLORS[i % len(RERUN_COLORS)],
                      r.setup.config))
-    switches = [_phase_times(m)[0] for _, _, m, _, _ in runs]
-    ends = [_phase_times(m)[2] for _, _, m, _, _ in runs]
-    zoom = (max(0.0, min(switches) - ZOOM_MARGIN_S), max(ends))
+    times = [_phase_times(m) for _, _, m, _, _ in runs]     # (switch, answer, hold end)
+    columns = ((0.0, max(t[2] for t in times)),             # (from, to) of each column
+               (-ZOOM_MARGIN_S, max(t[2] - t[0] for t in times)))
     fig, axes = plt.subplots(4, 2, figsize=(13, 9.5), sharex='col', squeeze=False,
                              gridspec_kw={'width_ratios': [3, 2]})
-    rec_switch, rec_end, rec_hold = _phase_times(w.recorded)
+    rec_switch, rec_end, rec_hold = times[0]
     labels = ('position (mm)', 'force (N)', 'motor voltage (V)', 'FSR voltage (V)')
-    for col, (lo, hi) in enumerate(((0.0, max(ends)), zoom)):
+    for col, (lo, hi) in enumerate(columns):
+        shift = rec_switch if col else 0.0                  # the recording's zero on this side
         for row in range(4):
             ax = axes[row][col]
             first = row == 0 and col == 0
-            ax.axvspan(0.0, rec_switch, color='tab:blue', alpha=0.08,
+            ax.axvspan(-shift, rec_switch - shift, color='tab:blue', alpha=0.08,
                        label='position stage (recorded)' if first else None)
             if rec_end > rec_switch:
-                ax.axvspan(rec_switch, rec_end, color='tab:orange', alpha=0.10,
+                ax.axvspan(rec_switch - shift, rec_end - shift, color='tab:orange', alpha=0.10,
                            label='force stage (recorded)' if first else None)
             if rec_hold > rec_end:
-                ax.axvspan(rec_end, rec_hold, color='tab:green', alpha=0.08,
+                ax.axvspan(rec_end - shift, rec_hold - shift, color='tab:green', alpha=0.08,
                            label='hold after the answer (recorded)' if first else None)
-            for label, s, m, color, config in runs:
-                t = s.joint.t_s - m.grasp_start_s
+            for (label, s, m, color, config), (switch, end, _) in zip(runs, times):
+                zero = m.grasp_start_s + (switch if col else 0.0)
+                t = s.joint.t_s - zero
                 keep = (t >= lo) & (t <= hi)
                 y = (s.joint.position_m * 1e3, s.sensor.force_n, s.motor.voltage_v,
                      s.sensor.voltage_v)[row]
@@ -809,9 +812,9 @@ def plot(w: WhatIf, path: str) -> None:
                     ax.plot(t[keep], y[keep], lw=width, color=color,
                             label=label if first else None)
                 if color != 'k':
-                    switch, end, _ = _phase_times(m)
-                    ax.axvline(switch, color=color, ls='--', lw=0.8)
-                    ax.axvline(end, color=color, ls=':', lw=0.8)
+                    if not col:
+                        ax.axvline(switch, color=color, ls='--', lw=0.8)
+                    ax.axvline(end - (switch if col else 0.0), color=color, ls=':', lw=0.8)
                 setpoint = (m.position_setpoint_m * 1e3, m.force_setpoint_n, None, None)[row]
                 if setpoint is not None and math.isfinite(setpoint) and color == 'k':
                     ax.axhline(setpoint, ls='--', lw=0.8, color='grey',
@@ -823,7 +826,8 @@ def plot(w: WhatIf, path: str) -> None:
             if col == 0:
                 ax.set_ylabel(labels[row])
             ax.grid(True, alpha=0.3)
-        axes[3][col].set_xlabel('time from grasp start (s)' + (' (force stage)' if col else ''))
+    axes[3][0].set_xlabel('time from the grasp start (s)')
+    axes[3][1].set_xlabel('time from the switch to the force stage (s)')
     changes = '; '.join(w.reruns[0].setup.changes) if w.sweep_key is None else \
         f'sweep {w.sweep_key}'
     outcomes = ', '.join(f'{label} {m.outcome}' for label, _, m, _, _ in runs)
