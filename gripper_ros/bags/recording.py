@@ -13,23 +13,23 @@ grasp goes on.
 """
 from __future__ import annotations
 
+from dataclasses import dataclass, field
+from datetime import datetime
 import functools
 import os
+from pathlib import Path
 import struct
 import threading
 import time
-from dataclasses import dataclass, field
-from datetime import datetime
-from pathlib import Path
 
 from gripper_ros.bags.reader import BagError, read_bag
 from gripper_ros.bags.recorder import BagRecorder, BagRecorderError
 from gripper_ros.bags.schema import import_message_class
 from gripper_ros.core.stages import Reference
 from gripper_ros.nodes.common import GRAPH_QOS, wait_until
-from gripper_ros.wire import (GRAPH_TOPICS, LOOP_TOPICS, REFERENCE_LAYOUT, TOPIC_FORCE_REFERENCE,
-                              TOPIC_MOTOR_COMMAND, TOPIC_POSITION_REFERENCE, TOPIC_TICK, Outcome,
-                              Phase, qualified)
+from gripper_ros.wire import (GRAPH_TOPICS, LOOP_TOPICS, Outcome, Phase, qualified,
+                              REFERENCE_LAYOUT, TOPIC_FORCE_REFERENCE, TOPIC_MOTOR_COMMAND,
+                              TOPIC_POSITION_REFERENCE, TOPIC_TICK)
 
 BAG_FORMAT = 2
 """custom_data gripper_ros.format: 2 = the lockstep loop topics (loop/tick, references,
@@ -43,8 +43,11 @@ class RecordingError(RuntimeError):
 
 @dataclass
 class RecordedGrasp:
-    """A grasp's answer, its bag, and how many messages the graph published per topic while
-    it recorded (fast mode; in realtime simulated time runs on and ``published`` is empty)."""
+    """A grasp's answer, its bag, and what the graph published while it recorded.
+
+    ``published``: messages per topic (fast mode; in realtime simulated time runs on and it is
+    empty).
+    """
 
     response: object
     bag_dir: Path | None
@@ -85,7 +88,7 @@ class GraphTap:
         self.on_tick = None                      # called with each tick's stamp
         self.on_closed = None                    # called with a sink the tap finished
         self.on_error = None                     # called with the message of a failed sink
-        self.received = {t: 0 for t in self.topics}
+        self.received = dict.fromkeys(self.topics, 0)
         self._tick_topic = qualified(graph.namespace, TOPIC_TICK)
         self._command_topic = qualified(graph.namespace, TOPIC_MOTOR_COMMAND)
         self._loop_topics = {qualified(graph.namespace, t) for t in LOOP_TOPICS}
@@ -104,7 +107,7 @@ class GraphTap:
         self._lock = threading.Lock()
         self._subs = []
 
-    def open(self) -> GraphTap:
+    def open(self) -> GraphTap:  # noqa: A003 - a tap is opened and closed like a file
         """Subscribe, and wait until every publisher of the graph has matched this tap."""
         baseline = {t: [p.get_subscription_count() for p in self._publishers(t)]
                     for t in self.topics}
@@ -127,8 +130,11 @@ class GraphTap:
 
     # ------------------------------------------------------------------ the window
     def start(self, sink: BagRecorder, at: str = 'now') -> None:
-        """Record into ``sink``: ``now`` (time stands still: nothing is in flight),
-        ``next_tick``, or ``last_tick`` (the newest tick, whose decision is being handled)."""
+        """Record into ``sink`` from ``at``.
+
+        ``now`` (time stands still: nothing is in flight), ``next_tick``, or ``last_tick`` (the
+        newest tick, whose decision is being handled).
+        """
         if self.sink is not None:
             self._finish()                      # a sink still closing ends here
         self.error = ''
@@ -154,8 +160,10 @@ class GraphTap:
             self._keep(self._tick_topic, held[1], held[0])
 
     def stop_at(self, end_ns: int | None = None) -> None:
-        """End the window before tick ``end_ns`` (default: the next tick to come); the sink
-        closes once the command of its last tick is in (:attr:`on_closed`)."""
+        """End the window before tick ``end_ns`` (default: the next tick to come).
+
+        The sink closes once the command of its last tick is in (:attr:`on_closed`).
+        """
         if self.sink is None:
             return
         self._end_ns = end_ns if end_ns is not None else -1
@@ -167,8 +175,10 @@ class GraphTap:
             self._finish()                      # nothing of the last tick is in flight
 
     def stop(self, timeout_s: float = 2.0) -> BagRecorder | None:
-        """End the window at the next tick and wait until the sink is whole (or, when no tick
-        comes within ``timeout_s``, e.g. simulated time stands still, now)."""
+        """End the window at the next tick and wait until the sink is whole.
+
+        When no tick comes within ``timeout_s`` (simulated time stands still) it ends now.
+        """
         sink = self.sink
         if sink is None:
             return None
@@ -288,7 +298,7 @@ def _readable_messages(sink: BagRecorder) -> int:
 
 
 def graph_tap(graph) -> GraphTap:
-    """The graph's one tap, subscribed at its first recording and kept while the graph lives.
+    """Give the graph's one tap, subscribed at its first recording, kept while the graph lives.
 
     A reader created anew for every grasp can be matched by an idle writer and still be sent
     nothing (seen with Fast DDS: the force stage's references and commands of a later grasp),
@@ -306,15 +316,18 @@ def graph_tap(graph) -> GraphTap:
 def bag_metadata(graph, request: dict, placed: dict) -> dict:
     """custom_data of a grasp bag: all a closed-loop re-run needs, and the format."""
     return {'gripper_ros': {'format': BAG_FORMAT, 'namespace': graph.namespace,
-                            'time_mode': graph.options.time_mode},
+                            'time_mode': graph.options.time_mode,
+                            'state_rate_hz': float(graph.plant.state_rate_hz)},
             'request': request, 'object': placed,
             'controllers': graph.controller_settings(),
             'config': graph.config_data()}
 
 
 def unique_bag_dir(parent: Path, stem: str) -> Path:
-    """A new folder under ``parent`` named after ``stem``, never one that exists: the name
-    carries the process id and a counter, and the folder is created atomically."""
+    """Create a new folder under ``parent`` named after ``stem``, never one that exists.
+
+    The name carries the process id and a counter, and the folder is created atomically.
+    """
     parent.mkdir(parents=True, exist_ok=True)
     for n in range(1000):
         candidate = parent / f'{stem}_{os.getpid()}' if n == 0 else \
@@ -336,11 +349,12 @@ def recorded_grasp(graph, bag_dir, width_m: float, mass_kg: float,
                    **hold) -> RecordedGrasp:
     """Place the object, record every topic of the graph into ``bag_dir`` and grasp it.
 
-    ``hold`` sets the object's hold and lift fields (SetObject). The bag is closed (summary,
-    metadata.yaml) whatever happens, Ctrl-C included. ``stop_on_error``: a recording that
-    fails stops the grasp at once (STOPPED: the position stage holds the finger where it is);
-    else the grasp goes on unrecorded. Either way :attr:`RecordedGrasp.recording_error` says
-    what failed.
+    ``hold`` sets the object's hold and lift fields and a fault for the grasp (SetObject:
+    ``fault``, ``fault_at_s``, ``fault_time_constant_s``), all recorded with the object. The
+    bag is closed (summary, metadata.yaml) whatever happens, Ctrl-C included.
+    ``stop_on_error``: a recording that fails stops the grasp at once (STOPPED: the position
+    stage holds the finger where it is); else the grasp goes on unrecorded. Either way
+    :attr:`RecordedGrasp.recording_error` says what failed.
     """
     placed_width = graph.simulated_width_m(width_m, object_width_m)
     placed = graph.set_object(placed_width, stiffness_n_per_m, damping_n_s_per_m, **hold)
@@ -352,7 +366,8 @@ def recorded_grasp(graph, bag_dir, width_m: float, mass_kg: float,
                'friction_coefficient': friction_coefficient,
                'acceleration_mps2': acceleration_mps2, 'width_tolerance_m': width_tolerance_m}
     obj = {'width_m': placed_width, 'stiffness_n_per_m': stiffness_n_per_m,
-           'damping_n_s_per_m': damping_n_s_per_m, **{k: float(v) for k, v in hold.items()}}
+           'damping_n_s_per_m': damping_n_s_per_m,
+           **{k: int(v) if k == 'fault' else float(v) for k, v in hold.items()}}
     tap = graph_tap(graph)
     try:
         recorder = BagRecorder(graph.client_node, bag_dir, tap.topics, overwrite=overwrite,
@@ -415,8 +430,10 @@ def _published_since(graph, tap: GraphTap, before: dict) -> dict:
 
 def _drain_published(graph, tap: GraphTap, recorder: BagRecorder, before: dict,
                      received_before: dict, timeout_s: float = 10.0) -> None:
-    """Wait until the tap has received every message published since ``before`` (time stands
-    still), and write a tick it still holds for its decision."""
+    """Wait until the tap has received every message published since ``before``.
+
+    Time stands still then; a tick the tap still holds for its decision is written.
+    """
     published = _published_since(graph, tap, before)
     wait_until(lambda: recorder.closed or all(
         tap.received[t] - received_before[t] >= n for t, n in published.items()), timeout_s)
@@ -512,8 +529,7 @@ class ServeRecorder:
         self.graph.supervisor.response_notes.append(message)
 
     def _close_bag(self, before_ns: int | None = None) -> None:
-        """Close the bag now, or (``before_ns``) hold nothing of that tick on and close once
-        the last one is whole."""
+        """Close the bag now, or (``before_ns``) before that tick, once the last one is whole."""
         self._close_at_ns = self._answered_wall = None
         if before_ns is not None and self.tap.sink is not None:
             sink = self.tap.sink

@@ -9,18 +9,17 @@ with headers). Both give the same :class:`GraspSeries`.
 """
 from __future__ import annotations
 
-import os
 from dataclasses import dataclass, field
+import os
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from gripper_ros.bags.reader import Bag, MissingTopicsError, open_bag
-from gripper_ros.wire import (COMMAND_LAYOUT, FINGER_JOINT, GRAPH_TOPICS, REFERENCE_LAYOUT,
-                              TICK_LAYOUT, TOPIC_FORCE_REFERENCE, TOPIC_MOTOR_COMMAND,
-                              TOPIC_OBJECT_STATE, TOPIC_POSITION_REFERENCE, TOPIC_STATUS,
-                              TOPIC_TICK, qualified)
+from gripper_ros.wire import (COMMAND_LAYOUT, FINGER_JOINT, GRAPH_TOPICS, qualified,
+                              REFERENCE_LAYOUT, TICK_LAYOUT, TOPIC_FORCE_REFERENCE,
+                              TOPIC_MOTOR_COMMAND, TOPIC_OBJECT_STATE, TOPIC_POSITION_REFERENCE,
+                              TOPIC_STATUS, TOPIC_TICK)
+import numpy as np
 
 LEGACY_NAMESPACE = 'gripper'
 LEGACY_TOPICS = {
@@ -137,6 +136,10 @@ class GraspSeries:
     objects: ObjectSeries | None = None
     ticks: dict[str, np.ndarray] = field(default_factory=dict, repr=False)
     """Format 2: every PlantTick field as an array (what a re-simulation feeds back)."""
+    references: dict[str, np.ndarray] = field(default_factory=dict, repr=False)
+    """Format 2: every StageReference field as an array, in tick order."""
+    commands: dict[str, np.ndarray] = field(default_factory=dict, repr=False)
+    """Format 2: every MotorCommand field as an array, in tick order."""
 
     @property
     def duration_s(self) -> float:
@@ -158,7 +161,8 @@ def bag_namespace(bag: Bag, namespace: str | None = None) -> tuple[int, str]:
     """(format, namespace) of a grasp bag: the recorded ones, or found from its topics.
 
     MissingTopicsError when the bag holds no gripper's loop (or legacy) topics, or several
-    grippers' when ``namespace`` does not choose one."""
+    grippers' when ``namespace`` does not choose one.
+    """
     info = bag.custom_data_parsed().get('gripper_ros')
     if isinstance(info, dict) and namespace is None and info.get('namespace') is not None:
         namespace = str(info['namespace'])
@@ -188,8 +192,10 @@ def bag_namespace(bag: Bag, namespace: str | None = None) -> tuple[int, str]:
 
 def load_grasp_series(bag: Bag | str | os.PathLike,
                       namespace: str | None = None) -> GraspSeries:
-    """Series of every topic of a grasp bag, of either format (missing optional topics give
-    empty arrays)."""
+    """Load the series of every topic of a grasp bag, of either format.
+
+    Optional topics the bag lacks give empty arrays.
+    """
     bag = open_bag(bag)
     fmt, ns = bag_namespace(bag, namespace)
     if fmt == 1:
@@ -226,6 +232,27 @@ def _lockstep_series(bag: Bag, ns: str) -> GraspSeries:
             m = bag.decode(raw)
             objects.append((_stamp_ns(m) * 1e-9, m.state, m.slip_m, m.slip_speed_mps, m.load_n,
                             m.capacity_n))
+    return lockstep_series(bag.path, ns, ticks, refs, cmds, statuses, objects,
+                           custom_data=bag.custom_data_parsed(), counts=bag.counts(),
+                           start_ns=bag.start_ns, end_ns=bag.end_ns, size_bytes=bag.size_bytes,
+                           truncated=bag.truncated, damage=bag.damage)
+
+
+_NO_BAG = {'custom_data': {}, 'counts': {}, 'start_ns': 0, 'end_ns': 0, 'size_bytes': 0,
+           'truncated': False}
+"""The bag fields of a series that comes from no bag."""
+
+
+def lockstep_series(path, ns: str, ticks: list[tuple], refs: list[tuple], cmds: list[tuple],
+                    statuses: list[tuple], objects: list[tuple], **bag_fields) -> GraspSeries:
+    """Build the series of lockstep messages, for bags and grasps re-run without ROS alike.
+
+    ``ticks``, ``refs`` and ``cmds`` are the wire layouts' values (TICK_LAYOUT,
+    REFERENCE_LAYOUT, COMMAND_LAYOUT), ``statuses`` (stamp_ns, an object with
+    SupervisorStatus's fields), ``objects`` (t_s, state, slip_m, slip_speed_mps, load_n,
+    capacity_n); ``bag_fields`` fill the rest of :class:`GraspSeries`. One builder, so that
+    both give the same series.
+    """
     # a repeated tick (a late peer) once; in tick order (DDS does not order topics)
     ticks = sorted(_unique_by(ticks, _key(TICK_LAYOUT, 'stamp_ns', 'revision')),
                    key=_key(TICK_LAYOUT, 'stamp_ns', 'revision'))
@@ -248,7 +275,7 @@ def _lockstep_series(bag: Bag, ns: str) -> GraspSeries:
     cmd = dict(zip(COMMAND_LAYOUT.fields, _columns(
         cmds, (np.int64, i, i, i, i, i, i, bool, bool, f, f, f))))
     return GraspSeries(
-        path=bag.path,
+        path=Path(path),
         joint=JointSeries(t_s, tick['position_m'], tick['velocity_mps'], tick['force_n']),
         sensor=SensorSeries(t_s, tick['force_n'], tick['sensor_voltage_v'],
                             tick['peak_force_n']),
@@ -257,14 +284,13 @@ def _lockstep_series(bag: Bag, ns: str) -> GraspSeries:
         command=CommandSeries(cmd['stamp_ns'] * 1e-9, cmd['voltage_v'], cmd['source'],
                               cmd['grasp_id'], cmd['hold_s'], cmd['inner_setpoint'],
                               cmd['stage_id']),
-        custom_data=bag.custom_data_parsed(), counts=bag.counts(), start_ns=bag.start_ns,
-        end_ns=bag.end_ns, size_bytes=bag.size_bytes, truncated=bag.truncated,
-        damage=bag.damage, namespace=ns, bag_format=2,
-        objects=ObjectSeries(*_columns(objects, (f, i, f, f, f, f))), ticks=tick)
+        namespace=ns, bag_format=2,
+        objects=ObjectSeries(*_columns(objects, (f, i, f, f, f, f))), ticks=tick,
+        references=ref, commands=cmd, **{**_NO_BAG, **bag_fields})
 
 
 def _key(layout, *names):
-    """A function of a message's values giving the named fields (for de-duplication)."""
+    """Make a function of a message's values giving the named fields (de-duplication)."""
     index = tuple(layout.fields.index(n) for n in names)
     return lambda values: tuple(values[i] for i in index)
 
@@ -297,14 +323,16 @@ def _switch_criteria(stamps_ns: np.ndarray, statuses: list) -> np.ndarray:
 
 
 def _with_final_state(status: StatusSeries, statuses: list) -> StatusSeries:
-    """Append the supervisor's last reported state when it ended the request after the last
-    reference (a FAULT: no stage is named, so no reference carries it)."""
+    """Append the supervisor's last state when it ended the request after the last reference.
+
+    A FAULT: no stage is named, so no reference carries it.
+    """
     if not statuses:
         return status
     t_ns, m = statuses[-1]
     last_t = status.t_s[-1] if status.t_s.size else -np.inf
-    if t_ns * 1e-9 < last_t or (status.outcome.size and status.outcome[-1] == m.outcome
-                                 and status.phase[-1] == m.phase):
+    if t_ns * 1e-9 < last_t or (status.outcome.size and status.outcome[-1] == m.outcome and
+                                status.phase[-1] == m.phase):
         return status
     row = (t_ns * 1e-9, m.phase, m.active_controller, m.switch_criterion, m.grasp_id, m.outcome,
            m.position_setpoint_m, m.force_setpoint_n, m.position_m, m.force_n, bool(m.contact),
@@ -317,7 +345,7 @@ def _with_final_state(status: StatusSeries, statuses: list) -> StatusSeries:
 
 
 def _legacy_series(bag: Bag) -> GraspSeries:
-    """A bag recorded before the lockstep protocol: one tick message per topic, headers."""
+    """Read a bag recorded before the lockstep protocol: a message per topic per tick."""
     topic = {name: qualified(LEGACY_NAMESPACE, name) for name in LEGACY_TOPICS}
     bag.require_topics([topic['joint_states'], topic['force_sensor'],
                         topic['supervisor/status']])

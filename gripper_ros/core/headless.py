@@ -11,19 +11,19 @@ sweeps over many objects are practical.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-
-import numpy as np
+from typing import Callable
 
 from gripper_ros.core.config import GripperConfig
 from gripper_ros.core.controllers import make_plant
 from gripper_ros.core.lockstep import PlantSide, StageSide, SupervisorSide
-from gripper_ros.core.plant import GraspObject, Lift
+from gripper_ros.core.plant import check_fault, GraspObject, Lift
 from gripper_ros.core.stages import (DEFAULT_APPROACH_FORCE_MARGIN, DEFAULT_FORCE_CONTROLLER,
                                      DEFAULT_POSITION_CONTROLLER, ForceStageController,
                                      PositionStageController)
 from gripper_ros.core.supervisor import (GraspRequest, GraspSupervisor, Outcome, Phase,
                                          SwitchCriterion, validate_request)
-from gripper_ros.wire import Controller
+from gripper_ros.wire import Controller, FaultKind
+import numpy as np
 
 
 @dataclass
@@ -72,12 +72,27 @@ def simulate_grasp(config: GripperConfig, width_m: float, mass_kg: float, *,
                    object_mass_kg: float = 0.0, static_friction: float = 0.0,
                    kinetic_friction: float = 0.0, pad_length_m: float = 0.0,
                    lift: Lift | None = None, hold_s: float = 0.0,
-                   start_ns: int = 0) -> HeadlessGrasp:
-    """Grasp from fully open; ``object_width_m`` (default ``width_m``; 0 = nothing) is the real
+                   start_ns: int = 0,
+                   fault: tuple[FaultKind | int, float, float] | None = None,
+                   idle_unpowered_s: float = 0.0,
+                   trace: Callable | None = None) -> HeadlessGrasp:
+    """Grasp from fully open, as the graph grasps in fast mode.
+
+    ``object_width_m`` (default ``width_m``; 0 = nothing) is the real
     object, ``width_m`` the expected one. The object's own mass and pad friction (0 = the
     grasp's mass, the configured friction) hold it once ``lift`` lifts it; time runs until the
     lift has played out, and ``hold_s`` at least that long after the answer. Raises
-    RequestError for a request the graph refuses."""
+    RequestError for a request the graph refuses.
+
+    ``fault`` = (kind, seconds after the grasp's start, time constant; 0 = the default) is
+    scheduled as ``sim/set_object`` schedules it (ValueError when refused).
+    ``idle_unpowered_s`` > 0: the tick before the grasp goes unanswered and the motor is held at
+    0 V this long, as in the graph after a FAULT (its supervisor names no stage until the next
+    request, and the plant steps unpowered for one state period). ``trace``, when
+    given, is called every tick with (plant, tick, decision, reference, command) before the
+    plant reacts to the command (reference and command None on the tick no stage is named);
+    the decision is the supervisor's reused object, to be read at once.
+    """
     targets = validate_request(GraspRequest(width_m, mass_kg, friction_coefficient,
                                             acceleration_mps2, timeout_s, width_tolerance_m),
                                config.plant, config.supervisor)
@@ -85,29 +100,45 @@ def simulate_grasp(config: GripperConfig, width_m: float, mass_kg: float, *,
     plant.t_ns = start_ns
     plant_side = PlantSide(plant)
     plant_side.grasp_mass_kg = mass_kg
-    plant_side.set_object(GraspObject(width_m if object_width_m is None else object_width_m,
-                                      stiffness_n_per_m, damping_n_s_per_m, object_mass_kg,
-                                      static_friction, kinetic_friction, pad_length_m),
-                          lift=lift)
+    obj = GraspObject(width_m if object_width_m is None else object_width_m, stiffness_n_per_m,
+                      damping_n_s_per_m, object_mass_kg, static_friction, kinetic_friction,
+                      pad_length_m)
+    if fault is not None:
+        kind, tau = check_fault(fault[0], fault[1], fault[2], obj.rigid)
+        fault = (kind, fault[1], tau)
+    plant_side.set_object(obj, fault=fault, lift=lift)
     supervisor = GraspSupervisor(config.plant, config.supervisor)
     decide = SupervisorSide(supervisor).decide
-    stages = {Controller.POSITION: StageSide(PositionStageController(config, position_controller)),
-              Controller.FORCE: StageSide(ForceStageController(config, force_controller,
-                                                                approach_force_margin))}
+    position_stage = PositionStageController(config, position_controller)
+    force_stage = ForceStageController(config, force_controller, approach_force_margin)
+    stages = {Controller.POSITION: StageSide(position_stage),
+              Controller.FORCE: StageSide(force_stage)}
     tick = plant_side.tick()
     decision, ref = decide(tick)                    # the position stage holds the open fingers
     supervisor.request_grasp(targets, mass_kg, after_ns=tick.stamp_ns)
     woken = True                                    # the request wakes the paused simulation
     hold_until_ns = None
     rows = []
+    if idle_unpowered_s > 0.0:
+        rows.append((tick.stamp_ns, tick.position_m, tick.force_n, tick.peak_force_n,
+                     tick.motor_voltage_v, tick.sensor_voltage_v, int(decision.phase)))
+        if trace is not None:
+            trace(plant, tick, decision, None, None)
+        tick = plant_side.step_unpowered(idle_unpowered_s)
+        decision, ref = decide(tick)
+        woken = False
     while True:
         rows.append((tick.stamp_ns, tick.position_m, tick.force_n, tick.peak_force_n,
                      tick.motor_voltage_v, tick.sensor_voltage_v, int(decision.phase)))
         if hold_until_ns is None and supervisor.answer_ns is not None:
             hold_until_ns = supervisor.answer_ns + round(hold_s * 1e9)
         if ref is None:
+            if trace is not None:
+                trace(plant, tick, decision, None, None)
             break                                   # a FAULT: nothing drives the motor
         cmd = stages[ref.controller].answer(ref)
+        if trace is not None:
+            trace(plant, tick, decision, ref, cmd)
         plant_side.accept(cmd)
         needed = plant_side.needs_time(cmd) or woken or \
             (hold_until_ns is not None and tick.stamp_ns < hold_until_ns)
