@@ -244,7 +244,10 @@ def to_csv(rows: list[GraspMetrics]) -> str:
     return buf.getvalue()
 
 
-def _cell(value) -> str:
+def format_cell(value) -> str:
+    """One metric as a table shows it: yes/no, '-' for none or NaN, 'not settled' for inf."""
+    if value is None:
+        return ''
     if isinstance(value, bool):
         return 'yes' if value else 'no'
     if isinstance(value, float):
@@ -262,7 +265,7 @@ def to_table(rows: list[GraspMetrics]) -> str:
         return ''
     fields = [f for f in asdict(rows[0]) if f != 'bag']
     header = ['metric'] + [f'bag {i + 1}' for i in range(len(rows))]
-    body = [[f] + [_cell(getattr(r, f)) for r in rows] for f in fields]
+    body = [[f] + [format_cell(getattr(r, f)) for r in rows] for f in fields]
     widths = [max(len(line[c]) for line in [header] + body) for c in range(len(header))]
     out = [f'bag {i + 1}: {r.bag}' for i, r in enumerate(rows)]
     out.append('  '.join(h.ljust(w) for h, w in zip(header, widths)))

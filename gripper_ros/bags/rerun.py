@@ -26,7 +26,7 @@ import os
 from pathlib import Path
 from typing import Any, Sequence
 
-from gripper_ros.bags.analyze import analyze_series, GraspMetrics
+from gripper_ros.bags.analyze import analyze_series, format_cell, GraspMetrics
 from gripper_ros.bags.reader import Bag, BagError, open_bag
 from gripper_ros.bags.resimulate import build_stages, load_resim_config
 from gripper_ros.bags.series import bag_namespace, GraspSeries, load_grasp_series, \
@@ -588,24 +588,10 @@ def _difference(recorded, rerun):
     return rerun - recorded
 
 
-def _cell(value) -> str:
-    if value is None:
-        return ''
-    if isinstance(value, bool):
-        return 'yes' if value else 'no'
-    if isinstance(value, float):
-        if math.isnan(value):
-            return '-'
-        if math.isinf(value):
-            return 'not settled' if value > 0 else '-inf'
-        return f'{value:.6g}'
-    return str(value)
-
-
 def _signed(value) -> str:
     if isinstance(value, float):
         return '0' if value == 0.0 else f'{value:+.4g}'
-    return _cell(value)
+    return format_cell(value)
 
 
 def _json_value(value):
@@ -670,7 +656,7 @@ def to_table(w: WhatIf) -> str:
         lines.append(_series_line(r))
     lines.append('')
     header = ('metric', 'recorded', 're-run', 'difference')
-    body = [(k, _cell(a), _cell(b), _signed(d)) for k, a, b, d in _rows(w, r)]
+    body = [(k, format_cell(a), format_cell(b), _signed(d)) for k, a, b, d in _rows(w, r)]
     widths = [max(len(line[c]) for line in [header] + body) for c in range(4)]
     lines.append('  '.join(h.ljust(n) for h, n in zip(header, widths)).rstrip())
     lines.append('  '.join('-' * n for n in widths))
@@ -709,7 +695,7 @@ SWEEP_COLUMNS = (
 def _sweep_cell(value, scale: float) -> str:
     if isinstance(value, float) and math.isfinite(value):
         return f'{value * scale:.4g}'
-    return _cell(value)
+    return format_cell(value)
 
 
 def sweep_table(w: WhatIf) -> str:

@@ -37,6 +37,7 @@ import time
 from pathlib import Path
 from typing import Any, Callable, Dict, List, Optional, Sequence
 
+from gripper_ros.bench.common import call, process_cpu_s
 from gripper_ros.bench.pingpong import BenchError, EXECUTOR_KINDS, measure_pingpong
 from gripper_ros.bench.report import format_report, median_of, ratios
 from gripper_ros.wire import Phase
@@ -322,12 +323,7 @@ class _NodeProcesses:
                     raise BenchError(f'{client.srv_name} did not come up')
 
     def call(self, client, request, timeout_s: float):
-        done = threading.Event()
-        future = client.call_async(request)
-        future.add_done_callback(lambda _f: done.set())
-        if not done.wait(timeout_s):
-            raise BenchError(f'{client.srv_name} did not answer within {timeout_s:g} s')
-        return future.result()
+        return call(client, request, timeout_s)
 
     def set_object(self, width_m: float):
         from gripper_interfaces.srv import SetObject
@@ -348,17 +344,8 @@ class _NodeProcesses:
         self._stop.call_async(Trigger.Request())
 
     def cpu_s(self) -> float:
-        """CPU time of the four node processes (user + system), from /proc."""
-        tick = os.sysconf('SC_CLK_TCK')
-        total = 0.0
-        for p in self.procs:
-            try:
-                with open(f'/proc/{p.pid}/stat') as f:
-                    fields = f.read().rsplit(')', 1)[1].split()
-                total += (int(fields[11]) + int(fields[12])) / tick
-            except (OSError, IndexError, ValueError):
-                return float('nan')
-        return total
+        """CPU time of the four node processes (user + system)."""
+        return sum(process_cpu_s(p.pid) for p in self.procs)
 
     def close(self) -> None:
         self._done.set_result(True)

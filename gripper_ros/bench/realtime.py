@@ -30,6 +30,7 @@ import threading
 import time
 from typing import Any, Dict, Optional, Sequence
 
+from gripper_ros.bench.common import call, process_cpu_s
 from gripper_ros.bench.pingpong import BenchError
 
 GRASP = (0.10, 0.75)                   # Table V's third object: the longest force stage
@@ -108,12 +109,7 @@ class _Watcher:
                     'joint_ns': self.joint_first_last_ns[1], 'sim_rtf': len(self.sim_rtf)}
 
     def call(self, client, request, timeout_s: float):
-        done = threading.Event()
-        future = client.call_async(request)
-        future.add_done_callback(lambda _f: done.set())
-        if not done.wait(timeout_s):
-            raise BenchError(f'{client.srv_name} did not answer within {timeout_s:g} s')
-        return future.result()
+        return call(client, request, timeout_s)
 
     def close(self) -> None:
         self._stop.set_result(True)
@@ -123,18 +119,11 @@ class _Watcher:
         self.context.try_shutdown()
 
 
-def _cpu_s(pid: int) -> float:
-    tick = os.sysconf('SC_CLK_TCK')
-    with open(f'/proc/{pid}/stat') as f:
-        fields = f.read().rsplit(')', 1)[1].split()
-    return (int(fields[11]) + int(fields[12])) / tick
-
-
 def _window(watcher: _Watcher, pid: int, seconds: float) -> Dict[str, Any]:
     """Streams, simulated time and CPU over ``seconds`` of wall time."""
-    a, cpu0, t0 = watcher.snapshot(), _cpu_s(pid), time.perf_counter()
+    a, cpu0, t0 = watcher.snapshot(), process_cpu_s(pid), time.perf_counter()
     time.sleep(seconds)
-    b, cpu1, t1 = watcher.snapshot(), _cpu_s(pid), time.perf_counter()
+    b, cpu1, t1 = watcher.snapshot(), process_cpu_s(pid), time.perf_counter()
     wall = t1 - t0
     with watcher._lock:
         sim_rtf = watcher.sim_rtf[a['sim_rtf']:b['sim_rtf']]

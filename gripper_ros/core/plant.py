@@ -171,22 +171,14 @@ _new_tuple = tuple.__new__
 _SHARED_CACHES: dict[PlantParams, dict] = {}
 
 
-def _caches_for(params: PlantParams) -> dict:
-    caches = _SHARED_CACHES.get(params)
-    if caches is None:
-        if len(_SHARED_CACHES) > MAX_CACHED_DISCRETISATIONS:
-            _SHARED_CACHES.clear()
-        caches = _SHARED_CACHES[params] = {}
-    return caches
-
-
-def _kind_cache(caches: dict, key) -> dict:
-    cache = caches.get(key)
-    if cache is None:
-        if len(caches) > MAX_CACHED_DISCRETISATIONS:
-            caches.clear()
-        cache = caches[key] = {}
-    return cache
+def _bounded_entry(store: dict, key) -> dict:
+    """``store[key]``, a dict made on first use; a store grown past the bound starts afresh."""
+    entry = store.get(key)
+    if entry is None:
+        if len(store) > MAX_CACHED_DISCRETISATIONS:
+            store.clear()
+        entry = store[key] = {}
+    return entry
 
 
 class GripperPlant:
@@ -213,9 +205,9 @@ class GripperPlant:
              -p.damping_n_m_s_per_rad / p.inertia_kg_m2, 0.0],
             [0.0, self._rho, 0.0]])
         self._b = np.array([1.0 / p.inductance_h, 0.0, 0.0])
-        self._caches = _caches_for(params)
-        self._free_cache = _kind_cache(self._caches, 'free')
-        self._loaded_cache = _kind_cache(self._caches, 'loaded')
+        self._caches = _bounded_entry(_SHARED_CACHES, params)
+        self._free_cache = _bounded_entry(self._caches, 'free')
+        self._loaded_cache = _bounded_entry(self._caches, 'loaded')
         self.contact_defaults = contact or ContactParams(0.0, 0.0)
         default = self.contact_defaults
         self.impact_energy_lost_j = 0.0
@@ -302,7 +294,7 @@ class GripperPlant:
             self._compliant_cache = None
             self._compliant_one_step_s = 0.0
         else:
-            self._compliant_cache = _kind_cache(
+            self._compliant_cache = _bounded_entry(
                 self._caches, ('compliant', obj.stiffness_n_per_m, obj.damping_n_s_per_m,
                                self._x_c))
             p = self.params

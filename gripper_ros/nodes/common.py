@@ -162,6 +162,19 @@ class ExecutorSilence:
         return self.silent_s
 
 
+def call_and_wait(client, request, timeout_s: float):
+    """A service call from a thread that is not the executor's: the response, or None when
+    none came within ``timeout_s`` (the pending request is dropped)."""
+    import threading
+    done = threading.Event()
+    future = client.call_async(request)
+    future.add_done_callback(lambda _f: done.set())
+    if not done.wait(timeout_s):
+        client.remove_pending_request(future)
+        return None
+    return future.result()
+
+
 def wait_until(predicate, timeout_s: float = 5.0, step_s: float = 0.005) -> bool:
     """Poll ``predicate`` until it holds or ``timeout_s`` of wall time has passed; its last
     value (for callers that wait on another thread's spinning executor)."""

@@ -22,7 +22,8 @@ from rclpy.task import Future
 from std_srvs.srv import Trigger
 
 from gripper_ros.core.stages import DEFAULT_FORCE_CONTROLLER
-from gripper_ros.nodes.common import SERVICE_QOS, ExecutorKind, make_executor, spin_until_stopped
+from gripper_ros.nodes.common import (SERVICE_QOS, ExecutorKind, call_and_wait, make_executor,
+                                      spin_until_stopped)
 from gripper_ros.nodes.force_controller_node import ForceControllerNode
 from gripper_ros.nodes.grasp_action_node import GraspActionServer
 from gripper_ros.nodes.names import NameClaim
@@ -187,13 +188,10 @@ class GripperGraph:
     # ------------------------------------------------------------------ calls
     def call(self, client, request, timeout_s: float):
         """A real service call from this process; waits in this (non-executor) thread."""
-        done = threading.Event()
-        future = client.call_async(request)
-        future.add_done_callback(lambda _f: done.set())
-        if not done.wait(timeout_s):
-            client.remove_pending_request(future)
+        response = call_and_wait(client, request, timeout_s)
+        if response is None:
             raise GraphError(f'{client.srv_name} did not answer within {timeout_s:g} s')
-        return future.result()
+        return response
 
     def set_object(self, width_m: float, stiffness_n_per_m: float = 0.0,
                    damping_n_s_per_m: float = 0.0, open_fingers: bool = True,
