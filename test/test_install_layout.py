@@ -28,7 +28,8 @@ EXPECTED_EXECUTABLES = {
 INTERFACES = {
     'msg': ['ForceSensor', 'MotorCommand', 'ObjectState', 'PlantTick', 'SimStatus',
             'StageReference', 'SupervisorStatus'],
-    'srv': ['Grasp', 'SetObject', 'SimStep'],
+    'srv': ['Grasp', 'Move', 'SetObject', 'SimStep'],
+    'action': ['Grasp', 'Move'],
 }
 
 
@@ -163,6 +164,17 @@ def test_generated_service_matches_srv_file(name):
                                            flags=re.M)
     _check(srv.Request, request_text)
     _check(srv.Response, response_text)
+
+
+@pytest.mark.parametrize('name', INTERFACES['action'])
+def test_generated_action_matches_action_file(name):
+    module = importlib.import_module('gripper_interfaces.action')
+    action = getattr(module, name)
+    goal, result, feedback = re.split(r'^---\s*$', _definition('action', name), maxsplit=2,
+                                      flags=re.M)
+    _check(action.Goal, goal)
+    _check(action.Result, result)
+    _check(action.Feedback, feedback)
 
 
 def test_named_types_import():

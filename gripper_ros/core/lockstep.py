@@ -140,7 +140,8 @@ class SupervisorSide:
         return d, Reference(tick.stamp_ns, d.grasp_id, d.stage_id, tick.revision,
                             int(d.phase), int(d.outcome), int(d.active), d.running, d.contact,
                             d.position_setpoint_m, d.approach_setpoint_m, d.force_setpoint_n,
-                            tick.position_m, tick.velocity_mps, tick.force_n, self._seed_v)
+                            tick.position_m, tick.velocity_mps, tick.force_n, self._seed_v,
+                            d.speed_limit_mps, d.voltage_limit_v)
 
 
 class StageSide:
