@@ -21,7 +21,8 @@ REPO = Path(__file__).resolve().parents[1]
 
 EXPECTED_EXECUTABLES = {
     'plant_simulator', 'position_controller', 'force_controller', 'supervisor',
-    'grasp_demo', 'grasp_client', 'grasp_action_server', 'paper_tables', 'position_limit',
+    'grasp_demo', 'grasp_client', 'grasp_action_server', 'move_action_server', 'paper_tables',
+    'position_limit',
     'bag_info', 'bag_replay', 'bag_analyze', 'bench_graph', 'bench_soak', 'bench_controllers',
 }
 

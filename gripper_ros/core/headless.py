@@ -160,11 +160,12 @@ class HeadlessMoves:
 
 def simulate_moves(config: GripperConfig, moves, *, object_width_m: float = 0.0,
                    stiffness_n_per_m: float = 0.0, damping_n_s_per_m: float = 0.0,
-                   position_controller=DEFAULT_POSITION_CONTROLLER,
+                   position_controller=DEFAULT_POSITION_CONTROLLER, hold_s: float = 0.0,
                    start_ns: int = 0) -> HeadlessMoves:
     """Moves (:class:`MoveRequest`), one after the other from fully open, each requested when
     the one before has been answered and simulated time has paused (as a client of the graph
-    in fast mode does); ``object_width_m`` 0 = nothing between the fingers. Raises
+    in fast mode does); ``object_width_m`` 0 = nothing between the fingers. Time runs on
+    ``hold_s`` after the last answer (the position stage keeps the last command). Raises
     RequestError for a request the graph refuses (before anything runs)."""
     targets = [validate_move(m, config.plant, config.supervisor) for m in moves]
     plant = make_plant(config)
@@ -191,6 +192,10 @@ def simulate_moves(config: GripperConfig, moves, *, object_width_m: float = 0.0,
         plant_side.accept(cmd)
         if not plant_side.needs_time(cmd):
             if not pending:
+                if answers and tick.stamp_ns < answers[-1].answer_ns + round(hold_s * 1e9):
+                    tick = plant_side.step(cmd)
+                    decision, ref = decide(tick)
+                    continue
                 break                               # fast mode: simulated time pauses
             # the next request wakes the paused simulation; it starts at the next tick
             supervisor.request_move(pending.pop(0), after_ns=tick.stamp_ns)

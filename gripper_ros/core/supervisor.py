@@ -644,13 +644,14 @@ class GraspSupervisor:
         """End the request (or the hold): the position stage holds the finger from this tick
         on (``hold``; at ``position_m``, default where it is; with a move's ``limits``), or
         nothing drives the motor (a FAULT)."""
+        if hold and position_m is None:
+            position_m = self._last_position()      # (while the request still runs)
         self.phase = phase
         self.outcome = outcome
         self.message = message
         self.end_ns = self._t_ns
         if hold:
-            self._hold_here(self._last_position() if position_m is None else position_m,
-                            limits)
+            self._hold_here(position_m, limits)
         else:
             self._active = Controller.NONE
             self.stage_id += 1
