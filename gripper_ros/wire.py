@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import enum
 import struct
-from dataclasses import dataclass
 
 DEFAULT_NAMESPACE = 'gripper'
 
@@ -76,7 +75,7 @@ GRAPH_TOPICS: dict[str, str] = {**LOOP_TOPICS, **STATE_TOPICS}
 
 
 def qualified(namespace: str, name: str) -> str:
-    """The absolute name of a relative ``name`` in ``namespace`` (``/clock`` stays ``/clock``)."""
+    """Return the absolute name of relative ``name`` in ``namespace`` (``/clock`` stays)."""
     if name.startswith('/'):
         return name
     ns = '/' + namespace.strip('/') if namespace.strip('/') else ''
@@ -190,7 +189,7 @@ WIRE_CODES = (
 
 
 def enum_name(enum_cls: type[enum.IntEnum], value: int) -> str:
-    """The member name of ``value``, or the number itself for a code this version lacks."""
+    """Return the member name of ``value``, or the number itself for a code unknown here."""
     try:
         return enum_cls(int(value)).name
     except ValueError:
@@ -225,12 +224,15 @@ class LoopLayout:
         self.size = self._reader.size
 
     def pack(self, *values) -> bytes:
-        """The CDR bytes of a message with ``values`` in field order (bools as 0/1)."""
+        """Return the CDR bytes of a message with ``values`` in field order (bools as 0/1)."""
         return self._writer.pack(CDR_LITTLE_ENDIAN, *values)
 
     def unpack(self, data) -> tuple | None:
-        """The field values of CDR ``data`` in field order, or None when not little-endian or
-        not of this layout's size (another version of the type, e.g. in an older bag)."""
+        """Return the field values of CDR ``data`` in field order, or None.
+
+        None when ``data`` is not little-endian or not of this layout's size (another version
+        of the type, e.g. in an older bag).
+        """
         if data[:4] != CDR_LITTLE_ENDIAN or len(data) != self.size:
             return None
         return self._reader.unpack_from(data)

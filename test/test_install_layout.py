@@ -65,6 +65,15 @@ def test_share_directory_has_package_xml_and_config():
         'config/gripper.yaml is not installed (missing in the repo, or setup.sh not re-run)'
 
 
+def test_launch_file_is_installed_where_ros2_launch_looks():
+    installed = Path(get_package_share_directory('gripper_ros')) / 'launch' / 'gripper.launch.py'
+    assert installed.is_file(), \
+        f'{installed} missing (setup.py data_files, or setup.sh not re-run)'
+    source = REPO / 'launch' / 'gripper.launch.py'
+    if source.is_file():
+        assert installed.read_text() == source.read_text()
+
+
 def test_setup_py_declares_every_expected_entry_point():
     assert _console_scripts() >= EXPECTED_EXECUTABLES
 

@@ -69,8 +69,10 @@ class PlantParams:
 
     @property
     def mechanical_time_constant_s(self) -> float:
-        """Time constant of the finger's speed under a held voltage (free motion, L_a neglected):
-        J_m / (b_m + k_t k_b / R_a)."""
+        """Time constant of the finger's speed under a held voltage in free motion.
+
+        ``J_m / (b_m + k_t k_b / R_a)``, the armature inductance neglected.
+        """
         return self.inertia_kg_m2 / (
             self.damping_n_m_s_per_rad
             + self.torque_constant_n_m_per_a * self.back_emf_v_s_per_rad / self.resistance_ohm)
@@ -186,8 +188,8 @@ class SupervisorParams:
     move_default_speed_mps: float = 0.05  # a move's speed when the request gives none
     move_tolerance_m: float = 0.0005     # reached_goal: at rest within this of the width
     move_rest_speed_mps: float = 0.0005  # "at rest": |finger speed| at most this
-    move_stall_force_fraction: float = 0.9  # stalled at once: at rest, pressing with this x
-                                         # the effort limit
+    move_stall_force_fraction: float = 0.9  # stalled at once: at rest, pressing with this
+    # fraction of the effort limit
     move_stall_timeout_s: float = 0.5    # stalled: at rest short of the width this long
 
 

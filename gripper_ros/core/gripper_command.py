@@ -25,7 +25,7 @@ class GoalEnd(enum.Enum):
 
 
 def move_request_of(command, travel_m: float, joint: str = FINGER_JOINT) -> MoveRequest:
-    """The move a ParallelGripperCommand ``command`` (a JointState) asks for.
+    """Return the move a ParallelGripperCommand ``command`` (a JointState) asks for.
 
     With names, the entry named ``joint`` is used (other joints are refused: this gripper has
     one); without names, exactly one position. A velocity or effort entry that is missing or
@@ -50,8 +50,8 @@ def move_request_of(command, travel_m: float, joint: str = FINGER_JOINT) -> Move
     position_m = positions[index]
     if not (isinstance(position_m, (int, float)) and math.isfinite(position_m)
             and 0.0 <= position_m <= travel_m):
-        raise RequestError(f'position of {joint!r} must be in [0, {travel_m:g}] m (the finger\'s '
-                           f'travel from fully open), got {position_m!r}')
+        raise RequestError(f'position of {joint!r} must be in [0, {travel_m:g}] m (the travel '
+                           f'of the finger from fully open), got {position_m!r}')
     velocities, efforts = list(command.velocity), list(command.effort)
     speed_mps = velocities[index] if len(velocities) > index else 0.0
     effort_n = efforts[index] if len(efforts) > index else 0.0
@@ -60,21 +60,24 @@ def move_request_of(command, travel_m: float, joint: str = FINGER_JOINT) -> Move
 
 def joint_state_fields(position_m: float, effort_n: float,
                        joint: str = FINGER_JOINT) -> dict:
-    """The fields of the JointState that reports the gripper's state (velocity left empty)."""
+    """Return the fields of the JointState that reports the gripper's state (no velocity)."""
     return {'name': [joint], 'position': [float(position_m)], 'velocity': [],
             'effort': [float(effort_n)]}
 
 
 def result_fields(move_result) -> dict:
-    """ParallelGripperCommand.Result's fields from a srv/Move answer."""
+    """Return ParallelGripperCommand.Result's fields from a srv/Move answer."""
     return {'state': joint_state_fields(move_result.position_m, move_result.effort_n),
             'stalled': bool(move_result.stalled),
             'reached_goal': bool(move_result.reached_goal)}
 
 
 def goal_end(move_result, allow_stalling: bool, cancel_requested: bool) -> GoalEnd:
-    """Succeeded on reaching the goal, or on a stall when stalls are allowed (as
-    ros2_controllers' ``allow_stalling``); canceled when a cancel stopped the move."""
+    """Return how a goal ends after the move's answer ``move_result``.
+
+    Succeeded on reaching the goal, or on a stall when stalls are allowed (as
+    ros2_controllers' ``allow_stalling``); canceled when a cancel stopped the move.
+    """
     if cancel_requested and move_result.outcome == Outcome.STOPPED:
         return GoalEnd.CANCELED
     if move_result.reached_goal or (allow_stalling and move_result.stalled):

@@ -12,8 +12,6 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-import numpy as np
-
 from gripper_ros.core.config import GripperConfig
 from gripper_ros.core.controllers import make_plant
 from gripper_ros.core.lockstep import PlantSide, StageSide, SupervisorSide
@@ -25,6 +23,7 @@ from gripper_ros.core.supervisor import (GraspRequest, GraspSupervisor, MoveRequ
                                          Phase, SwitchCriterion, validate_move,
                                          validate_request)
 from gripper_ros.wire import Controller
+import numpy as np
 
 
 @dataclass
@@ -71,11 +70,14 @@ def simulate_grasp(config: GripperConfig, width_m: float, mass_kg: float, *,
                    kinetic_friction: float = 0.0, pad_length_m: float = 0.0,
                    lift: Lift | None = None, hold_s: float = 0.0,
                    start_ns: int = 0) -> HeadlessGrasp:
-    """Grasp from fully open; ``object_width_m`` (default ``width_m``; 0 = nothing) is the real
-    object, ``width_m`` the expected one. The object's own mass and pad friction (0 = the
-    grasp's mass, the configured friction) hold it once ``lift`` lifts it; time runs until the
-    lift has played out, and ``hold_s`` at least that long after the answer. Raises
-    RequestError for a request the graph refuses."""
+    """Grasp from fully open, as the graph in fast mode does.
+
+    ``object_width_m`` (default ``width_m``; 0 = nothing) is the real object, ``width_m`` the
+    expected one. The object's own mass and pad friction (0 = the grasp's mass, the configured
+    friction) hold it once ``lift`` lifts it; time runs until the lift has played out, and
+    ``hold_s`` at least that long after the answer. Raises RequestError for a request the graph
+    refuses.
+    """
     targets = validate_request(GraspRequest(width_m, mass_kg, friction_coefficient,
                                             acceleration_mps2, timeout_s, width_tolerance_m),
                                config.plant, config.supervisor)
@@ -89,9 +91,9 @@ def simulate_grasp(config: GripperConfig, width_m: float, mass_kg: float, *,
                           lift=lift)
     supervisor = GraspSupervisor(config.plant, config.supervisor)
     decide = SupervisorSide(supervisor).decide
-    stages = {Controller.POSITION: StageSide(PositionStageController(config, position_controller)),
-              Controller.FORCE: StageSide(ForceStageController(config, force_controller,
-                                                                approach_force_margin))}
+    position = PositionStageController(config, position_controller)
+    force = ForceStageController(config, force_controller, approach_force_margin)
+    stages = {Controller.POSITION: StageSide(position), Controller.FORCE: StageSide(force)}
     tick = plant_side.tick()
     decision, ref = decide(tick)                    # the position stage holds the open fingers
     supervisor.request_grasp(targets, mass_kg, after_ns=tick.stamp_ns)
@@ -162,11 +164,13 @@ def simulate_moves(config: GripperConfig, moves, *, object_width_m: float = 0.0,
                    stiffness_n_per_m: float = 0.0, damping_n_s_per_m: float = 0.0,
                    position_controller=DEFAULT_POSITION_CONTROLLER, hold_s: float = 0.0,
                    start_ns: int = 0) -> HeadlessMoves:
-    """Moves (:class:`MoveRequest`), one after the other from fully open, each requested when
-    the one before has been answered and simulated time has paused (as a client of the graph
-    in fast mode does); ``object_width_m`` 0 = nothing between the fingers. Time runs on
-    ``hold_s`` after the last answer (the position stage keeps the last command). Raises
-    RequestError for a request the graph refuses (before anything runs)."""
+    """Run moves (:class:`MoveRequest`) one after the other from fully open.
+
+    Each is requested when the one before has been answered and simulated time has paused (as
+    a client of the graph in fast mode does); ``object_width_m`` 0 = nothing between the
+    fingers. Time runs on ``hold_s`` after the last answer (the position stage keeps the last
+    command). Raises RequestError for a request the graph refuses (before anything runs).
+    """
     targets = [validate_move(m, config.plant, config.supervisor) for m in moves]
     plant = make_plant(config)
     plant.t_ns = start_ns

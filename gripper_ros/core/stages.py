@@ -21,15 +21,15 @@ A *reference* is anything with the fields of ``gripper_interfaces/msg/StageRefer
 """
 from __future__ import annotations
 
-import enum
-import math
 from collections import namedtuple
 from dataclasses import dataclass
+import enum
+import math
 
 from gripper_ros.core.config import ConfigError, GripperConfig
-from gripper_ros.core.controllers import (ForceControllerKind, PositionControllerKind,
-                                          make_force_controller, make_position_controller)
-from gripper_ros.wire import REFERENCE_LAYOUT, Controller
+from gripper_ros.core.controllers import (ForceControllerKind, make_force_controller,
+                                          make_position_controller, PositionControllerKind)
+from gripper_ros.wire import Controller, REFERENCE_LAYOUT
 
 SOURCE_POSITION = Controller.POSITION
 SOURCE_FORCE = Controller.FORCE
@@ -44,7 +44,7 @@ a move's ``speed_limit_mps`` and ``voltage_limit_v``, default to 0 (no limit).""
 
 
 def parse_kind(kind_cls: type[enum.Enum], value, name: str = 'controller'):
-    """``value`` as a member of ``kind_cls``; ConfigError naming the parameter otherwise."""
+    """Return ``value`` as a member of ``kind_cls``; ConfigError naming the parameter if not."""
     if isinstance(value, kind_cls):
         return value
     try:
@@ -87,8 +87,10 @@ class PositionStageController:
         self._speed_gain_v_per_mps = ((1.0 - pole) * gain, (a - pole) * gain)
 
     def voltage_cap_v(self, ref, toward_speed_mps: float) -> float:
-        """The most voltage towards the setpoint this tick (the finger moving towards it at
-        ``toward_speed_mps``)."""
+        """Return the most voltage towards the setpoint this tick.
+
+        ``toward_speed_mps`` is the finger's speed towards the setpoint.
+        """
         cap = self._full_v
         if ref.voltage_limit_v > 0.0:
             cap = min(cap, ref.voltage_limit_v)
@@ -99,7 +101,7 @@ class PositionStageController:
         return cap
 
     def _apply_limits(self, ref, measurement: float) -> None:
-        """This tick's output limits (only a move's reference changes them)."""
+        """Set this tick's output limits (only a move's reference changes them)."""
         if ref.voltage_limit_v == 0.0 and ref.speed_limit_mps == 0.0:
             limits = self._full_limits
         elif ref.approach_setpoint_m >= measurement:
@@ -114,7 +116,7 @@ class PositionStageController:
 
     @staticmethod
     def measurement(ref) -> float:
-        """What this stage controls, from the tick's reference: the finger position."""
+        """Return what this stage controls, from the tick's reference: the finger position."""
         return ref.position_m
 
     def activate(self, ref, measurement: float) -> None:
@@ -126,7 +128,7 @@ class PositionStageController:
             self.controller.reset(0.0, measurement=measurement)
 
     def compute(self, ref, measurement: float) -> tuple[float, float]:
-        """(voltage_v, inner_setpoint) for this tick."""
+        """Return (voltage_v, inner_setpoint) for this tick."""
         self._apply_limits(ref, measurement)
         setpoint = ref.approach_setpoint_m
         voltage = self.controller.step(setpoint, measurement)
@@ -159,13 +161,16 @@ class ForceStageController:
 
     @property
     def capped(self) -> bool:
-        """True while the pre-contact cap is in force (PI / MPC-PI; the contact-aware stage
-        caps its approach itself, at the feed-forward)."""
+        """Tell whether the pre-contact cap is in force.
+
+        Only for PI / MPC-PI: the contact-aware stage caps its approach itself, at the
+        feed-forward.
+        """
         return not self._contact and self.approach_margin > 0.0 and not self.contact_aware
 
     @staticmethod
     def measurement(ref) -> float:
-        """What this stage controls, from the tick's reference: the gripping force."""
+        """Return what this stage controls, from the tick's reference: the gripping force."""
         return ref.force_n
 
     def activate(self, ref, measurement: float) -> None:
@@ -189,7 +194,7 @@ class ForceStageController:
         self._pi.output_limits = (low, high)
 
     def compute(self, ref, measurement: float) -> tuple[float, float]:
-        """(voltage_v, inner_setpoint) for this tick; the cap is released at first contact."""
+        """Return (voltage_v, inner_setpoint) for this tick; the cap ends at first contact."""
         if self.contact_aware:
             voltage = self.controller.step(ref.force_setpoint_n, measurement,
                                            ref.position_m, ref.position_setpoint_m)
@@ -231,7 +236,7 @@ class LockstepAnswerer:
         self.active_stage: int | None = None            # the stage the law was started for
 
     def answer(self, ref) -> TickAnswer | None:
-        """The command for this tick, or None when this (stage, stamp) was answered already."""
+        """Return the command for this tick, or None when this (stage, stamp) was answered."""
         key = (ref.stage_id, ref.stamp_ns)
         if key == self.answered:
             return None

@@ -20,12 +20,13 @@ Release: :meth:`GraspSupervisor.request_release` runs the position stage to the 
 Move (:meth:`GraspSupervisor.request_move`, Franka's move, control_msgs GripperCommand's
 result): the position stage drives the finger to ``L_ls - width`` with the request's speed and
 effort as its limits (phase MOVING; :class:`gripper_ros.core.stages.PositionStageController`
-keeps the speed below the limit and the push below the stall voltage of the effort). MOVED (``reached_goal``) once the finger is at rest within
-``move_tolerance_m`` of the goal; STALLED once it is at rest short of the goal and, closing,
-presses with ``move_stall_force_fraction`` x the effort limit (the force sensor tells contact),
-or has been at rest short of it for ``move_stall_timeout_s``. Either way the position stage
-then keeps the move's last command (the goal, the cap): a stalled move goes on pressing with
-at most its effort, as a position-controlled gripper keeps its command.
+keeps the speed below the limit and the push below the stall voltage of the effort). MOVED
+(``reached_goal``) once the finger is at rest within ``move_tolerance_m`` of the goal; STALLED
+once it is at rest short of the goal and, closing, presses with ``move_stall_force_fraction`` x
+the effort limit (the force sensor tells contact), or has been at rest short of it for
+``move_stall_timeout_s``. Either way the position stage then keeps the move's last command (the
+goal, the limits): a stalled move goes on pressing with at most its effort, as a
+position-controlled gripper keeps its command.
 """
 from __future__ import annotations
 
@@ -189,7 +190,7 @@ def validate_move(req: MoveRequest, plant: PlantParams, sup: SupervisorParams) -
     if req.max_effort_n != 0.0 and not 0.0 < req.max_effort_n <= plant.max_force_n:
         raise RequestError(
             f'max_effort_n must be in (0, {plant.max_force_n:.6g}] N (the force of '
-            f'{plant.voltage_limit_v:g} V at stall) or 0 (the motor\'s limit), '
+            f'{plant.voltage_limit_v:g} V at stall) or 0 (the limit of the motor), '
             f'got {req.max_effort_n!r}')
     if not 0.0 <= req.timeout_s <= MAX_TIMEOUT_S:
         raise RequestError(f'timeout_s must be in [0, {MAX_TIMEOUT_S:g}] s (0 = the travel at '
@@ -338,8 +339,9 @@ class GraspSupervisor:
 
     def request_grasp(self, targets: GraspTargets, mass_kg: float = 0.0,
                       after_ns: int | None = None) -> None:
-        """Accept a grasp; it starts at the first tick later than ``after_ns`` (default: the
-        next tick decided), whose sensor voltage is the no-contact baseline.
+        """Accept a grasp: it starts at the first tick later than ``after_ns``.
+
+        By default that is the next tick decided; its sensor voltage is the no-contact baseline.
 
         Pass the newest tick received when the request arrived: the start is then the same
         whether or not that tick had been decided yet (deterministic under any timing). A grasp
@@ -350,8 +352,10 @@ class GraspSupervisor:
 
     def request_release(self, open_position_m: float = 0.0, timeout_s: float | None = None,
                         after_ns: int | None = None) -> None:
-        """Accept a release: the position stage to ``open_position_m``, from the first tick
-        later than ``after_ns`` (see :meth:`request_grasp`)."""
+        """Accept a release: the position stage to ``open_position_m``.
+
+        It starts at the first tick later than ``after_ns`` (see :meth:`request_grasp`).
+        """
         self._refuse_if_busy()
         if not (math.isfinite(open_position_m)
                 and 0.0 <= open_position_m < self.plant.max_travel_m):
@@ -362,8 +366,11 @@ class GraspSupervisor:
                          0.0, after_ns)
 
     def request_move(self, targets: MoveTargets, after_ns: int | None = None) -> None:
-        """Accept a move (:func:`validate_move`), from the first tick later than ``after_ns``
-        (see :meth:`request_grasp`). A move may follow a hold; the hold ends when it starts."""
+        """Accept a move (:func:`validate_move`).
+
+        It starts at the first tick later than ``after_ns`` (see :meth:`request_grasp`). A move
+        may follow a hold; the hold ends when it starts.
+        """
         self._refuse_if_busy()
         self._pending = (RequestKind.MOVE, targets, 0.0, after_ns)
 
@@ -428,8 +435,10 @@ class GraspSupervisor:
         self.stage_id += 1
 
     def _hold_here(self, position_m: float, limits: MoveTargets | None = None) -> None:
-        """The position stage holds the finger at ``position_m`` (no request running), with a
-        move's speed and voltage limits (None: none but the plant's)."""
+        """Let the position stage hold the finger at ``position_m`` (no request running).
+
+        With a move's speed and voltage ``limits`` (None: none but the plant's).
+        """
         self._idle_hold_m = position_m if math.isfinite(position_m) else self._idle_hold_m
         self._idle_limit_v = limits.voltage_limit_v if limits is not None else 0.0
         self._idle_speed_limit_mps = limits.speed_mps if limits is not None else 0.0
@@ -595,7 +604,7 @@ class GraspSupervisor:
 
     def _step_move(self, t_ns: int, position_m: float, force_n: float, sensor_voltage_v: float,
                    speed_mps: float) -> Outcome | None:
-        """MOVED, STALLED or TIMEOUT end a move; the position stage drives it meanwhile."""
+        """End a move MOVED, STALLED or TIMEOUT; the position stage drives it meanwhile."""
         p, tg = self.params, self.targets
         goal = tg.position_setpoint_m
         elapsed_s = (t_ns - self.start_ns) * 1e-9
@@ -641,9 +650,11 @@ class GraspSupervisor:
 
     def _end(self, phase: Phase, outcome: Outcome, message: str, *, hold: bool = True,
              position_m: float | None = None, limits: MoveTargets | None = None) -> Outcome:
-        """End the request (or the hold): the position stage holds the finger from this tick
-        on (``hold``; at ``position_m``, default where it is; with a move's ``limits``), or
-        nothing drives the motor (a FAULT)."""
+        """End the request (or the hold).
+
+        The position stage holds the finger from this tick on (``hold``; at ``position_m``,
+        default where it is; with a move's ``limits``), or nothing drives the motor (a FAULT).
+        """
         if hold and position_m is None:
             position_m = self._last_position()      # (while the request still runs)
         self.phase = phase
@@ -658,8 +669,11 @@ class GraspSupervisor:
         return outcome
 
     def _last_position(self) -> float:
-        """Where to hold when a request or hold ends: the held position of a hold, else where
-        the finger was last measured in the running request, else the idle hold."""
+        """Return where to hold when a request or hold ends.
+
+        The held position of a hold, else where the finger was last measured in the running
+        request, else the idle hold.
+        """
         if self.hold_position_m is not None:
             return self.hold_position_m
         if self.running and self._position_m is not None:

@@ -27,18 +27,17 @@ import time
 from gripper_interfaces.action import Move as MoveAction
 from gripper_interfaces.msg import SupervisorStatus
 from gripper_interfaces.srv import Move
+from gripper_ros.core.gripper_command import (goal_end, GoalEnd, joint_state_fields,
+                                              move_request_of, result_fields)
+from gripper_ros.core.supervisor import RequestError, validate_move
+from gripper_ros.nodes.common import (declare_config, default_namespace, GRAPH_QOS, run_node,
+                                      SERVICE_QOS, time_to_ns)
+from gripper_ros.wire import (ACTION_GRIPPER_CMD, ACTION_MOVE, NODE_MOVE_ACTION, Outcome, Phase,
+                              SERVICE_MOVE, SERVICE_STOP, TOPIC_STATUS)
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
 from rclpy.node import Node
 from std_srvs.srv import Trigger
-
-from gripper_ros.core.gripper_command import (GoalEnd, goal_end, joint_state_fields,
-                                              move_request_of, result_fields)
-from gripper_ros.core.supervisor import RequestError, validate_move
-from gripper_ros.nodes.common import (GRAPH_QOS, SERVICE_QOS, declare_config, default_namespace,
-                                      run_node, time_to_ns)
-from gripper_ros.wire import (ACTION_GRIPPER_CMD, ACTION_MOVE, NODE_MOVE_ACTION, SERVICE_MOVE,
-                              SERVICE_STOP, TOPIC_STATUS, Outcome, Phase)
 
 try:  # a system ROS 2 Jazzy has it; the ros-jazzy wheels do not
     from control_msgs.action import ParallelGripperCommand
@@ -88,7 +87,7 @@ class MoveActionServer(Node):
                                               cancel_callback=self._on_cancel))
 
     def _on_parameters_set(self, parameters) -> None:
-        """Accepted values apply from the next status or result on."""
+        """Apply accepted values from the next status or result on."""
         for p in parameters:
             if p.name == 'feedback_period_s':
                 self.feedback_period_s = float(p.value)
@@ -118,7 +117,7 @@ class MoveActionServer(Node):
         return CancelResponse.REJECT
 
     async def _call_move(self, goal_handle, request: Move.Request, feedback) -> Move.Response:
-        """The move service's answer for this goal (REFUSED without calling when busy)."""
+        """Return the move service's answer for this goal (REFUSED, uncalled, when busy)."""
         refusal = ''
         if not self._move.service_is_ready():
             refusal = f'{SERVICE_MOVE} is not available'
@@ -193,7 +192,8 @@ class MoveActionServer(Node):
         if msg.grasp_id != self._goal_grasp_id:
             return
         now = time.monotonic()
-        if msg.phase == self._last_phase and now - self._last_feedback_wall < self.feedback_period_s:
+        if msg.phase == self._last_phase and \
+                now - self._last_feedback_wall < self.feedback_period_s:
             return
         self._last_phase, self._last_feedback_wall = msg.phase, now
         goal.publish_feedback(feedback(msg))

@@ -1,4 +1,6 @@
-"""supervisor: serves ``grasp``, ``release``, ``move`` and ``stop``; decides, tick by tick, who drives.
+"""supervisor: serves ``grasp``, ``release``, ``move`` and ``stop``; decides who drives.
+
+Tick by tick, it names the one stage that drives the motor.
 
 For every ``loop/tick`` it steps :class:`gripper_ros.core.supervisor.GraspSupervisor` and sends
 the tick's reference (setpoints and the measurement) to the one stage it names, on
@@ -36,13 +38,12 @@ from gripper_ros.nodes.common import (GRAPH_QOS, LATCHED_QOS, DeferredService, E
                                       default_namespace, ns_to_time, run_node)
 from gripper_ros.nodes.loop_io import decode
 from gripper_ros.nodes.parameters import ConfigParameters
-from gripper_ros.wire import (NODE_FORCE_CONTROLLER, NODE_PLANT,
-                              NODE_POSITION_CONTROLLER, NODE_SUPERVISOR, REFERENCE_LAYOUT,
-                              SERVICE_GRASP, SERVICE_MOVE, SERVICE_RELEASE, SERVICE_STOP,
-                              TICK_LAYOUT,
-                              TOPIC_FORCE_REFERENCE, TOPIC_MOTOR_COMMAND, TOPIC_OUTCOME,
-                              TOPIC_POSITION_REFERENCE, TOPIC_STATUS, TOPIC_TICK, Controller,
-                              Outcome)
+from gripper_ros.wire import (Controller, NODE_FORCE_CONTROLLER, NODE_PLANT,
+                              NODE_POSITION_CONTROLLER, NODE_SUPERVISOR, Outcome,
+                              REFERENCE_LAYOUT, SERVICE_GRASP, SERVICE_MOVE, SERVICE_RELEASE,
+                              SERVICE_STOP, TICK_LAYOUT, TOPIC_FORCE_REFERENCE,
+                              TOPIC_MOTOR_COMMAND, TOPIC_OUTCOME, TOPIC_POSITION_REFERENCE,
+                              TOPIC_STATUS, TOPIC_TICK)
 
 HEARTBEAT_PERIOD_S = 1.0
 WATCHDOG_PERIOD_S = 0.1
@@ -202,8 +203,8 @@ class SupervisorNode(Node):
         if tick is None:
             return f'refused: no measurement from {NODE_PLANT} yet'
         if not math.isfinite(tick.position_m):
-            what = {RequestKind.RELEASE: 'opening', RequestKind.MOVE: 'a move'}.get(kind,
-                                                                                  'a grasp')
+            what = {RequestKind.RELEASE: 'opening', RequestKind.MOVE: 'a move'}.get(
+                kind, 'a grasp')
             return (f'refused: the finger position sensor reads {tick.position_m!r} m (sensor '
                     f'dropout); {what} under position control needs it')
         if kind == RequestKind.GRASP and not (math.isfinite(tick.force_n)
@@ -307,7 +308,7 @@ class SupervisorNode(Node):
         self._publish_status(self._tick.stamp_ns, force=True)     # wakes a paused simulation
 
     def _fill_move_state(self, response: Move.Response) -> None:
-        """The finger's state in a move's answer: the last finite readings."""
+        """Fill in a move's answer the finger's state: the last finite readings."""
         response.position_m = self._good_position_m
         response.width_m = self.config.plant.max_travel_m - self._good_position_m
         response.effort_n = self._good_force_n
