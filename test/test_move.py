@@ -188,6 +188,37 @@ def test_every_position_controller_keeps_the_speed_limit():
         assert np.max(run.peak_force_n) <= 10.0 * (1 + 1e-9), kind
 
 
+@pytest.mark.parametrize('field', ['speed_limit_mps', 'voltage_limit_v'])
+@pytest.mark.parametrize('bad', [math.nan, math.inf])
+def test_the_position_stage_never_acts_on_a_non_finite_limit(field, bad):
+    from gripper_ros.core.stages import LockstepAnswerer, PositionStageController, Reference
+
+    answerer = LockstepAnswerer(PositionStageController(CONFIG))
+    ref = Reference(10 * MS, 1, 1, 0, int(Phase.MOVING), 0, int(Controller.POSITION), True,
+                    False, 0.1, 0.1, 5.0, 0.05, 0.0, 0.0, 0.0, **{field: bad})
+    answer = answerer.answer(ref)
+    assert not answer.finite and answer.voltage_v == 0.0 and field in answer.reason
+    good = ref._replace(stamp_ns=20 * MS, **{field: 0.02})
+    assert answerer.answer(good).finite
+
+
+def test_the_voltage_limit_caps_only_the_push_towards_the_setpoint():
+    from gripper_ros.core.stages import PositionStageController, Reference
+
+    stage = PositionStageController(CONFIG, 'pd')
+    cap_v = 5.0 / P.stall_force_per_volt_n
+    closing = Reference(0, 1, 1, 0, int(Phase.MOVING), 0, int(Controller.POSITION), True,
+                        False, 0.1, 0.1, 5.0, 0.05, 0.0, 0.0, 0.0, 0.0, cap_v)
+    stage.activate(closing, 0.05)
+    assert stage.compute(closing, 0.05)[0] == pytest.approx(cap_v)      # 50 mm short: capped
+    # closing towards the setpoint: the closing push is capped, braking (opening) is not
+    assert stage.controller.output_limits == (-P.voltage_limit_v, pytest.approx(cap_v))
+    opening = closing._replace(position_m=0.15)                        # the setpoint behind
+    stage.activate(opening, 0.15)
+    assert stage.compute(opening, 0.15)[0] == pytest.approx(-cap_v)
+    assert stage.controller.output_limits == (pytest.approx(-cap_v), P.voltage_limit_v)
+
+
 # ====================================================================== ParallelGripperCommand
 def _command(position=(), name=(), velocity=(), effort=()):
     """Return a stand-in for sensor_msgs/JointState with the four sequences."""
@@ -429,3 +460,60 @@ def test_cancelling_the_move_action_stops_the_move(graph):
     assert wrapped.status == GoalStatus.STATUS_CANCELED
     assert wrapped.result.outcome == Outcome.STOPPED
     assert wrapped.result.width_m > 0.01
+
+
+def test_parallel_gripper_command_on_gripper_cmd_drives_the_move(graph):
+    """Drive the move with MoveIt's parallel-gripper action, where control_msgs is installed."""
+    try:
+        from control_msgs.action import ParallelGripperCommand
+    except ImportError:
+        pytest.skip('control_msgs is not installable from the ros-jazzy wheels; run on a '
+                    'system ROS 2 Jazzy')
+    from action_msgs.msg import GoalStatus
+    from rclpy.action import ActionClient
+    from rclpy.parameter import Parameter
+    from sensor_msgs.msg import JointState
+
+    from gripper_ros.wire import ACTION_GRIPPER_CMD
+
+    assert graph.move_action_server.gripper_command_served
+    client = graph.run_in_executor(lambda: ActionClient(
+        graph.client_node, ParallelGripperCommand, ACTION_GRIPPER_CMD))
+    assert client.wait_for_server(timeout_sec=10.0)
+
+    def send(command, allow_stalling=False):
+        graph.move_action_server.set_parameters(
+            [Parameter('allow_stalling', value=allow_stalling)])
+        feedback = []
+        handle = _wait(client.send_goal_async(ParallelGripperCommand.Goal(command=command),
+                                              feedback_callback=feedback.append))
+        if not handle.accepted:
+            return None, None, feedback
+        wrapped = _wait(handle.get_result_async())
+        return wrapped.status, wrapped.result, feedback
+
+    try:
+        assert graph.set_object(0.06, open_fingers=True).success
+        # as MoveIt's handle sends it: a position, no names, the effort given
+        close = JointState(position=[TRAVEL_M], effort=[5.0])
+        status, result, feedback = send(close)
+        assert status == GoalStatus.STATUS_ABORTED                  # stalled, not allowed
+        assert result.stalled and not result.reached_goal
+        assert list(result.state.name) == [FINGER_JOINT]
+        assert result.state.position[0] == pytest.approx(TRAVEL_M - 0.06, abs=1e-9)
+        assert S.move_stall_force_fraction * 5.0 <= result.state.effort[0] <= 5.0 * (1 + 1e-9)
+        assert feedback and list(feedback[-1].feedback.state.name) == [FINGER_JOINT]
+        status, result, _ = send(close, allow_stalling=True)         # still pressing there
+        assert status == GoalStatus.STATUS_SUCCEEDED and result.stalled
+        opened = JointState(name=[FINGER_JOINT], position=[0.02], velocity=[0.04])
+        status, result, _ = send(opened)
+        assert status == GoalStatus.STATUS_SUCCEEDED and result.reached_goal
+        assert abs(result.state.position[0] - 0.02) <= S.move_tolerance_m
+        for bad in (JointState(position=[0.05, 0.05]),
+                    JointState(name=['other_joint'], position=[0.05]),
+                    JointState(position=[TRAVEL_M + 0.01])):
+            ticks = graph.plant.ticks_published
+            assert send(bad)[0] is None                              # rejected at the goal
+            assert graph.plant.ticks_published == ticks
+    finally:
+        graph.run_in_executor(client.destroy)

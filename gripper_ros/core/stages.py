@@ -74,6 +74,7 @@ class PositionStageController:
         self.kind = parse_kind(PositionControllerKind, kind)
         self.controller = make_position_controller(config, self.kind)
         self.sample_time_s = config.position.sample_time_s
+        self.reference_numbers = REFERENCE_NUMBERS + LIMIT_NUMBERS
         mpc = self.kind is PositionControllerKind.MPC_PD
         self._pid = self.controller.inner if mpc else self.controller
         self._governor = self.controller.governor if mpc else None
@@ -208,8 +209,10 @@ class ForceStageController:
 
 
 REFERENCE_NUMBERS = ('position_setpoint_m', 'approach_setpoint_m', 'force_setpoint_n',
-                     'seed_voltage_v', 'position_m', 'speed_limit_mps', 'voltage_limit_v')
+                     'seed_voltage_v', 'position_m')
 """The reference fields a stage computes with; a non-finite one is never acted on."""
+LIMIT_NUMBERS = ('speed_limit_mps', 'voltage_limit_v')
+"""... and the position stage's limits (a stage's ``reference_numbers`` name all it uses)."""
 
 
 @dataclass(frozen=True)
@@ -232,6 +235,7 @@ class LockstepAnswerer:
 
     def __init__(self, stage):
         self.stage = stage
+        self.numbers = getattr(stage, 'reference_numbers', REFERENCE_NUMBERS)
         self.answered: tuple[int, int] | None = None    # (stage_id, stamp) last answered
         self.active_stage: int | None = None            # the stage the law was started for
 
@@ -244,9 +248,9 @@ class LockstepAnswerer:
         measurement = self.stage.measurement(ref)
         if not math.isfinite(measurement):
             return TickAnswer(0.0, 0.0, finite=False, reason='non-finite measurement')
-        for name in REFERENCE_NUMBERS:
+        for name in self.numbers:
             if not math.isfinite(getattr(ref, name)):
-                bad = [f'{n}={getattr(ref, n)!r}' for n in REFERENCE_NUMBERS
+                bad = [f'{n}={getattr(ref, n)!r}' for n in self.numbers
                        if not math.isfinite(getattr(ref, n))]
                 return TickAnswer(0.0, 0.0, finite=False,
                                   reason=f'non-finite reference ({", ".join(bad)})')

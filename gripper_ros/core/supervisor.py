@@ -288,7 +288,7 @@ class GraspSupervisor:
         self._active = Controller.NONE
         self._idle_hold_m = 0.0                 # where the position stage holds without a request
         self._idle_limit_v = 0.0                # ... and its voltage cap (0: the plant's limit)
-        self._position_m: float | None = None   # the last finite position measured
+        self._position_m: float | None = None   # the last position measured in a request
         self._idle_speed_limit_mps = 0.0        # ... and its speed limit (0: none)
         self._move_timeout_s = 0.0
         self._rest_since_ns: int | None = None  # a move: the finger at rest since
@@ -455,8 +455,6 @@ class GraspSupervisor:
         """
         self._t_ns = t_ns
         answer = None
-        if math.isfinite(position_m):
-            self._position_m = position_m
         if self._revision != revision:
             first = self._revision is None
             self._revision = revision
@@ -472,11 +470,13 @@ class GraspSupervisor:
         return self._fill(answer)
 
     def _step_request(self, t_ns, position_m, force_n, sensor_voltage_v, speed_mps):
+        phase = self.phase
+        position_only = phase is Phase.RELEASING or phase is Phase.MOVING   # no force needed
         bad = []
         if not math.isfinite(position_m):
             bad.append(f'finger position sensor (joint state) reads {position_m!r} m')
-        if self.phase not in (Phase.RELEASING, Phase.MOVING) and not (
-                math.isfinite(force_n) and math.isfinite(sensor_voltage_v)):
+        if not position_only and not (math.isfinite(force_n)
+                                      and math.isfinite(sensor_voltage_v)):
             bad.append(f'force sensor reads force {force_n!r} N, voltage '
                        f'{sensor_voltage_v!r} V (sensor dropout)')
         if bad:
@@ -485,9 +485,10 @@ class GraspSupervisor:
                              f'fault at t={t_ns * 1e-9:.4f} s ({(t_ns - self.start_ns) * 1e-9:.4f}'
                              f' s into the {what}): ' + '; '.join(bad) +
                              '; no controller drives the motor from here on', hold=False)
-        if self.phase is Phase.RELEASING:
-            return self._step_release(t_ns, position_m)
-        if self.phase is Phase.MOVING:
+        self._position_m = position_m                   # finite: where a stop holds
+        if position_only:
+            if phase is Phase.RELEASING:
+                return self._step_release(t_ns, position_m)
             return self._step_move(t_ns, position_m, force_n, sensor_voltage_v, speed_mps)
         p, tg = self.params, self.targets
         sensor_rise = sensor_voltage_v - self._baseline_voltage_v > p.sensor_voltage_threshold_v
@@ -696,7 +697,6 @@ class GraspSupervisor:
         if answer is not None and self.answer_ns is None:
             self.answer, self.answer_ns = answer, self._t_ns
         tg = self.targets
-        d.voltage_limit_v = d.speed_limit_mps = 0.0
         if self._active is Controller.POSITION and not self.running:
             d.position_setpoint_m = d.approach_setpoint_m = self._idle_hold_m
             d.force_setpoint_n = tg.force_setpoint_n if tg is not None else 0.0
@@ -709,6 +709,9 @@ class GraspSupervisor:
             if self.phase is Phase.MOVING:
                 d.voltage_limit_v = tg.voltage_limit_v
                 d.speed_limit_mps = tg.speed_mps
+            else:
+                d.voltage_limit_v = d.speed_limit_mps = 0.0
         else:
             d.position_setpoint_m = d.approach_setpoint_m = d.force_setpoint_n = 0.0
+            d.voltage_limit_v = d.speed_limit_mps = 0.0
         return d
