@@ -99,6 +99,21 @@ def test_stop_during_a_move_holds_the_finger_where_it_is():
     assert (d.speed_limit_mps, d.voltage_limit_v) == (0.0, 0.0)
 
 
+def test_stop_ends_the_press_of_a_stalled_move_where_it_stalled():
+    sup = GraspSupervisor(P, S)
+    sup.step(0, 0.0, 0.0, 0.005)
+    sup.request_move(_targets(0.0, 0.02, 5.0), after_ns=0)
+    sup.step(10 * MS, 0.0, 0.0, 0.005)
+    d = sup.step(20 * MS, 0.1, 5.0, 3.0)               # at rest on an object, at the limit
+    assert d.answer is Outcome.STALLED and sup.pressing
+    assert (d.position_setpoint_m, d.speed_limit_mps) == (TRAVEL_M, 0.02)   # presses on
+    assert d.voltage_limit_v == pytest.approx(5.0 / P.stall_force_per_volt_n)
+    d = sup.stop()
+    assert d.outcome is Outcome.STOPPED and not sup.pressing
+    assert (d.position_setpoint_m, d.speed_limit_mps, d.voltage_limit_v) == (0.1, 0.0, 0.0)
+    assert sup.stop() is None
+
+
 # ====================================================================== headless moves
 @pytest.mark.parametrize('speed_mps', [0.005, 0.02, 0.05])
 def test_a_move_reaches_its_width_never_faster_than_the_limit(speed_mps):

@@ -318,6 +318,12 @@ class GraspSupervisor:
         return self.phase is Phase.HOLDING and self.outcome is Outcome.HOLDING
 
     @property
+    def pressing(self) -> bool:
+        """A stalled move's last command is in force: the finger presses at its limits."""
+        return self.outcome is Outcome.STALLED and self._idle_speed_limit_mps > 0.0 and \
+            self._active is Controller.POSITION
+
+    @property
     def pending(self) -> bool:
         return self._pending is not None
 
@@ -375,10 +381,11 @@ class GraspSupervisor:
         self._pending = (RequestKind.MOVE, targets, 0.0, after_ns)
 
     def stop(self, message: str = 'stopped on request') -> Decision | None:
-        """End the running request, the hold or a waiting request now (STOPPED).
+        """End the running request, the hold, a stalled move's press or a waiting request now.
 
-        Returns the ending decision (for the status and the answer), or None with nothing to
-        stop. From the next tick the position stage holds the finger where it is.
+        The outcome is STOPPED. Returns the ending decision (for the status and the answer),
+        or None with nothing to stop. From the next tick the position stage holds the finger
+        where it is, without a move's limits.
         """
         if self._pending is not None and not self.running:
             kind, targets, mass, _ = self._pending  # answered at once, it never starts
@@ -386,6 +393,9 @@ class GraspSupervisor:
             self.grasp_id += 1
             self.kind, self.targets, self.mass_kg = kind, targets, mass
             self._reset(self._t_ns)
+        elif self.pressing:                         # where the move stalled
+            self._end(Phase.DONE, Outcome.STOPPED, message, position_m=self._position_m)
+            return self._fill(Outcome.STOPPED)
         elif not (self.running or self.holding):
             return None
         self._end(Phase.DONE, Outcome.STOPPED, message)

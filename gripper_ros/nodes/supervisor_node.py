@@ -319,7 +319,8 @@ class SupervisorNode(Node):
         decision = self.stop_grasp('stopped on request (stop)')
         if decision is None:
             response.success = False
-            response.message = 'nothing to stop: no grasp, hold, release or move is running'
+            response.message = ('nothing to stop: no grasp, hold, release or move is running, '
+                                'no stalled move presses')
             return response
         response.success = True
         response.message = f'{what} {self.logic.grasp_id} stopped'
