@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import enum
 import struct
-from dataclasses import dataclass
 
 DEFAULT_NAMESPACE = 'gripper'
 
@@ -39,17 +38,22 @@ TOPIC_SIM_STATUS = 'sim/status'
 SERVICE_GRASP = 'grasp'
 SERVICE_STOP = 'stop'
 SERVICE_RELEASE = 'release'
+SERVICE_MOVE = 'move'
 SERVICE_SET_OBJECT = 'sim/set_object'
 SERVICE_PAUSE = 'sim/pause'
 SERVICE_RESUME = 'sim/resume'
 SERVICE_STEP = 'sim/step'
 ACTION_GRASP = 'grasp_action'
+ACTION_MOVE = 'move_action'
+ACTION_GRIPPER_CMD = 'gripper_cmd'
+"""control_msgs/action/ParallelGripperCommand, the name MoveIt's parallel-gripper handle uses."""
 
 NODE_PLANT = 'plant_simulator'
 NODE_POSITION_CONTROLLER = 'position_controller'
 NODE_FORCE_CONTROLLER = 'force_controller'
 NODE_SUPERVISOR = 'supervisor'
 NODE_GRASP_ACTION = 'grasp_action_server'
+NODE_MOVE_ACTION = 'move_action_server'
 
 FINGER_JOINT = 'finger_joint'
 
@@ -71,7 +75,7 @@ GRAPH_TOPICS: dict[str, str] = {**LOOP_TOPICS, **STATE_TOPICS}
 
 
 def qualified(namespace: str, name: str) -> str:
-    """The absolute name of a relative ``name`` in ``namespace`` (``/clock`` stays ``/clock``)."""
+    """Return the absolute name of relative ``name`` in ``namespace`` (``/clock`` stays)."""
     if name.startswith('/'):
         return name
     ns = '/' + namespace.strip('/') if namespace.strip('/') else ''
@@ -100,6 +104,7 @@ class Phase(enum.IntEnum):
     DONE = 4
     FAILED = 5
     RELEASING = 6
+    MOVING = 7
 
 
 class Controller(enum.IntEnum):
@@ -130,6 +135,8 @@ class Outcome(enum.IntEnum):
     REFUSED = 6
     FAULT = 7
     RELEASED = 8
+    MOVED = 9
+    STALLED = 10
 
 
 class FaultKind(enum.IntEnum):
@@ -157,6 +164,7 @@ class PendingRequest(enum.IntEnum):
     NONE = 0
     GRASP = 1
     RELEASE = 2
+    MOVE = 3
 
 
 class TimeMode(enum.IntEnum):
@@ -181,7 +189,7 @@ WIRE_CODES = (
 
 
 def enum_name(enum_cls: type[enum.IntEnum], value: int) -> str:
-    """The member name of ``value``, or the number itself for a code this version lacks."""
+    """Return the member name of ``value``, or the number itself for a code unknown here."""
     try:
         return enum_cls(int(value)).name
     except ValueError:
@@ -202,8 +210,8 @@ class LoopLayout:
     and the lockstep loop sends three of them every 0.1 ms. ``body`` is the struct format of
     the fields after the 4-byte encapsulation header, with CDR's alignment (8 bytes for
     int64/float64, counted from the end of the header) and its padding to a multiple of 4
-    written out. A message in another encapsulation (big-endian) is not for the fast path:
-    :meth:`unpack` returns None and the caller deserialises it the general way.
+    written out. A message in another encapsulation (big-endian) or of another size is not for
+    the fast path: :meth:`unpack` returns None and the caller deserialises it the general way.
     """
 
     __slots__ = ('msgtype', 'fields', 'size', '_reader', '_writer')
@@ -216,12 +224,16 @@ class LoopLayout:
         self.size = self._reader.size
 
     def pack(self, *values) -> bytes:
-        """The CDR bytes of a message with ``values`` in field order (bools as 0/1)."""
+        """Return the CDR bytes of a message with ``values`` in field order (bools as 0/1)."""
         return self._writer.pack(CDR_LITTLE_ENDIAN, *values)
 
     def unpack(self, data) -> tuple | None:
-        """The field values of CDR ``data`` in field order, or None when not little-endian."""
-        if data[:4] != CDR_LITTLE_ENDIAN:
+        """Return the field values of CDR ``data`` in field order, or None.
+
+        None when ``data`` is not little-endian or not of this layout's size (another version
+        of the type, e.g. in an older bag).
+        """
+        if data[:4] != CDR_LITTLE_ENDIAN or len(data) != self.size:
             return None
         return self._reader.unpack_from(data)
 
@@ -239,8 +251,9 @@ REFERENCE_LAYOUT = LoopLayout(
     'gripper_interfaces/msg/StageReference',
     ('stamp_ns', 'grasp_id', 'stage_id', 'revision', 'phase', 'outcome', 'controller',
      'running', 'contact', 'position_setpoint_m', 'approach_setpoint_m', 'force_setpoint_n',
-     'position_m', 'velocity_mps', 'force_n', 'seed_voltage_v'),
-    'qIII5B7x7d')
+     'position_m', 'velocity_mps', 'force_n', 'seed_voltage_v', 'speed_limit_mps',
+     'voltage_limit_v'),
+    'qIII5B7x9d')
 COMMAND_LAYOUT = LoopLayout(
     'gripper_interfaces/msg/MotorCommand',
     ('stamp_ns', 'grasp_id', 'stage_id', 'revision', 'source', 'phase', 'outcome', 'running',

@@ -167,7 +167,7 @@ fi
 BUILD_STAMP="$ROOT/install/.gripper_ros_build.sha256"
 build_hash="$( {
   echo "mode=$MODE venv=$VENV"; cat "$PIP_STAMP"
-  find package.xml setup.py setup.cfg resource config gripper_interfaces scripts/setup.sh \
+  find package.xml setup.py setup.cfg resource config launch gripper_interfaces scripts/setup.sh \
        -path gripper_interfaces/build -prune -o -type f -print 2>/dev/null | LC_ALL=C sort | xargs -r sha256sum
 } | sha256sum | cut -d' ' -f1)"
 

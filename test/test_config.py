@@ -305,6 +305,10 @@ def test_every_required_key_of_the_shipped_file_is_named_when_missing(shipped_da
     ('position_control.mpc_pd_braking_voltage_v', 30.0, 'plant.voltage_limit_v'),
     ('position_control.mpc_pd.horizon', '700', 'number'),
     ('force_control.mpc_pi.control_horizon', 2.5, 'whole'),
+    ('supervisor.move_stall_force_fraction', 1.2, '(0, 1]'),   # a force never reached
+    ('supervisor.move_default_speed_mps', 0.1, 'free speed'),  # faster than 24 V drives it
+    ('supervisor.move_default_speed_mps', 0.0004, 'move_rest_speed_mps'),   # "at rest"
+    ('position_control.speed_limit_pole', 0.995, 'open-loop pole'),  # never reaches the limit
 ])
 def test_more_bad_values_are_refused_naming_the_key(tmp_path, shipped_data, key, value, words):
     with pytest.raises(ConfigError) as info:

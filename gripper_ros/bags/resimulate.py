@@ -291,8 +291,8 @@ def _lockstep_ticks(bag: Bag, ns: str):
     order: dict[int, list] = {SOURCE_POSITION: [], SOURCE_FORCE: []}
     for raw in bag.messages:
         if raw.topic in ref_topics:
-            values = REFERENCE_LAYOUT.unpack(raw.data) or tuple(
-                getattr(bag.decode(raw), n) for n in REFERENCE_LAYOUT.fields)
+            values = REFERENCE_LAYOUT.unpack(raw.data) or tuple(   # older types: 0 limits
+                getattr(bag.decode(raw), n, 0.0) for n in REFERENCE_LAYOUT.fields)
             ref = Reference._make(values)
             key = (ref.stage_id, ref.stamp_ns)
             if key not in seen:

@@ -264,7 +264,7 @@ def lockstep_series(path, ns: str, ticks: list[tuple], refs: list[tuple], cmds: 
     t_s = tick['stamp_ns'] * 1e-9
     f, i = float, int
     ref = dict(zip(REFERENCE_LAYOUT.fields, _columns(
-        refs, (np.int64, i, i, i, i, i, i, bool, bool) + (f,) * 7)))
+        refs, (np.int64, i, i, i, i, i, i, bool, bool) + (f,) * 9)))
     switch = _switch_criteria(ref['stamp_ns'], statuses)
     status = StatusSeries(ref['stamp_ns'] * 1e-9, ref['phase'], ref['controller'], switch,
                           ref['grasp_id'], ref['outcome'], ref['position_setpoint_m'],
@@ -296,7 +296,8 @@ def _key(layout, *names):
 
 
 def _fields(msg, names) -> tuple:
-    return tuple(getattr(msg, n) for n in names)
+    """``msg``'s values of ``names``; 0 for a field its (older) type lacks."""
+    return tuple(getattr(msg, n, 0) for n in names)
 
 
 def _unique_by(rows: list, key) -> list:

@@ -60,6 +60,28 @@ class PlantParams:
         """Largest steady gripping force the voltage limit allows."""
         return self.stall_force_per_volt_n * self.voltage_limit_v
 
+    @property
+    def free_speed_per_volt_mps(self) -> float:
+        """DC gain of eq. 9 times p/2pi: steady finger speed per volt in free motion."""
+        return self.torque_constant_n_m_per_a * self.travel_per_rad_m / (
+            self.damping_n_m_s_per_rad * self.resistance_ohm
+            + self.torque_constant_n_m_per_a * self.back_emf_v_s_per_rad)
+
+    @property
+    def mechanical_time_constant_s(self) -> float:
+        """Time constant of the finger's speed under a held voltage in free motion.
+
+        ``J_m / (b_m + k_t k_b / R_a)``, the armature inductance neglected.
+        """
+        return self.inertia_kg_m2 / (
+            self.damping_n_m_s_per_rad
+            + self.torque_constant_n_m_per_a * self.back_emf_v_s_per_rad / self.resistance_ohm)
+
+    @property
+    def max_free_speed_mps(self) -> float:
+        """Steady finger speed at the voltage limit in free motion (the fastest a move goes)."""
+        return self.free_speed_per_volt_mps * self.voltage_limit_v
+
 
 @dataclass(frozen=True)
 class ContactParams:
@@ -105,6 +127,7 @@ class PositionControlParams:
     mpc_pd: PidGains
     mpc_pd_dmc: DmcTuning
     mpc_pd_braking_voltage_v: float     # ours: braking-governor planning voltage
+    speed_limit_pole: float = 0.5       # ours: discrete pole of the speed under a move's limit
 
 
 @dataclass(frozen=True)
@@ -161,6 +184,13 @@ class SupervisorParams:
     width_tolerance_m: float = 0.0       # default +- on a request's width (Franka's epsilon)
     force_law: ForceLaw = ForceLaw.FRICTION
     grip_safety_factor: float = 1.5      # k of the friction law (>= 1)
+    # The move (srv/Move, control_msgs ParallelGripperCommand).
+    move_default_speed_mps: float = 0.05  # a move's speed when the request gives none
+    move_tolerance_m: float = 0.0005     # reached_goal: at rest within this of the width
+    move_rest_speed_mps: float = 0.0005  # "at rest": |finger speed| at most this
+    move_stall_force_fraction: float = 0.9  # stalled at once: at rest, pressing with this
+    # fraction of the effort limit
+    move_stall_timeout_s: float = 0.5    # stalled: at rest short of the width this long
 
 
 @dataclass(frozen=True)
@@ -282,7 +312,10 @@ def parse_config(data: dict, source: str = '<dict>') -> GripperConfig:
         mpc_pd=_gains(pos, 'mpc_pd', 'position_control'),
         mpc_pd_dmc=_dmc(mpc_pd, 'position_control.mpc_pd'),
         mpc_pd_braking_voltage_v=_number(pos, 'mpc_pd_braking_voltage_v', 'position_control',
-                                         nonnegative=True))
+                                         nonnegative=True),
+        **({'speed_limit_pole': _number(pos, 'speed_limit_pole', 'position_control',
+                                        nonnegative=True)}
+           if 'speed_limit_pole' in pos else {}))    # older files: the dataclass default
     frc = _section(data, 'force_control', source)
     force = ForceControlParams(
         paper_sample_time_s=_number(frc, 'paper_sample_time_s', 'force_control', positive=True),
@@ -299,6 +332,12 @@ def parse_config(data: dict, source: str = '<dict>') -> GripperConfig:
     if not force.closed_loop_pole < 1.0:
         raise ConfigError('"force_control.closed_loop_pole" must be in [0, 1) for a stable loop, '
                           f'got {force.closed_loop_pole!r}')
+    speed_pole = math.exp(-position.sample_time_s / plant.mechanical_time_constant_s)
+    if not position.speed_limit_pole < speed_pole:
+        raise ConfigError('"position_control.speed_limit_pole" must be in [0, '
+                          f'{speed_pole:.6g}) (the open-loop pole of the finger speed over one '
+                          f'sample; slower than that never reaches the limit), '
+                          f'got {position.speed_limit_pole!r}')
     if position.mpc_pd_braking_voltage_v > plant.voltage_limit_v:
         raise ConfigError('"position_control.mpc_pd_braking_voltage_v" must be <= '
                           f'"plant.voltage_limit_v", got {position.mpc_pd_braking_voltage_v!r}')
@@ -314,6 +353,15 @@ def parse_config(data: dict, source: str = '<dict>') -> GripperConfig:
     if not sup.lost_force_fraction < 1.0:
         raise ConfigError('"supervisor.lost_force_fraction" must be in (0, 1), '
                           f'got {sup.lost_force_fraction!r}')
+    if not sup.move_stall_force_fraction <= 1.0:
+        raise ConfigError('"supervisor.move_stall_force_fraction" must be in (0, 1] (a force '
+                          'above the effort limit is never reached), '
+                          f'got {sup.move_stall_force_fraction!r}')
+    if not sup.move_rest_speed_mps < sup.move_default_speed_mps <= plant.max_free_speed_mps:
+        raise ConfigError('"supervisor.move_default_speed_mps" must be in '
+                          f'("supervisor.move_rest_speed_mps" = {sup.move_rest_speed_mps!r}, '
+                          f'{plant.max_free_speed_mps:.6g}] m/s (the free speed at '
+                          f'"plant.voltage_limit_v"), got {sup.move_default_speed_mps!r}')
     return GripperConfig(plant, contact, sensor, position, force, sup, source,
                          copy.deepcopy(data))
 

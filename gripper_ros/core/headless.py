@@ -20,8 +20,9 @@ from gripper_ros.core.plant import check_fault, GraspObject, Lift
 from gripper_ros.core.stages import (DEFAULT_APPROACH_FORCE_MARGIN, DEFAULT_FORCE_CONTROLLER,
                                      DEFAULT_POSITION_CONTROLLER, ForceStageController,
                                      PositionStageController)
-from gripper_ros.core.supervisor import (GraspRequest, GraspSupervisor, Outcome, Phase,
-                                         SwitchCriterion, validate_request)
+from gripper_ros.core.supervisor import (GraspRequest, GraspSupervisor, MoveRequest, Outcome,
+                                         Phase, SwitchCriterion, validate_move,
+                                         validate_request)
 from gripper_ros.wire import Controller, FaultKind
 import numpy as np
 
@@ -157,4 +158,91 @@ def simulate_grasp(config: GripperConfig, width_m: float, mass_kg: float, *,
         s.end_ns, plant.object_state.slip_m, plant.object_state.lost_ns)
 
 
-__all__ = ['HeadlessGrasp', 'Phase', 'simulate_grasp']
+@dataclass
+class MoveAnswer:
+    """What the move service answered one request (srv/Move's result)."""
+
+    outcome: Outcome
+    message: str
+    start_ns: int
+    answer_ns: int
+    position_m: float
+    effort_n: float
+
+    @property
+    def reached_goal(self) -> bool:
+        return self.outcome is Outcome.MOVED
+
+    @property
+    def stalled(self) -> bool:
+        return self.outcome is Outcome.STALLED
+
+
+@dataclass
+class HeadlessMoves:
+    """Per-tick series of a sequence of moves and each move's answer."""
+
+    answers: list
+    t_ns: np.ndarray = field(repr=False, default=None)
+    position_m: np.ndarray = field(repr=False, default=None)
+    velocity_mps: np.ndarray = field(repr=False, default=None)
+    force_n: np.ndarray = field(repr=False, default=None)
+    peak_force_n: np.ndarray = field(repr=False, default=None)
+    motor_voltage_v: np.ndarray = field(repr=False, default=None)
+    phase: np.ndarray = field(repr=False, default=None)
+    approach_setpoint_m: np.ndarray = field(repr=False, default=None)
+
+
+def simulate_moves(config: GripperConfig, moves, *, object_width_m: float = 0.0,
+                   stiffness_n_per_m: float = 0.0, damping_n_s_per_m: float = 0.0,
+                   position_controller=DEFAULT_POSITION_CONTROLLER, hold_s: float = 0.0,
+                   start_ns: int = 0) -> HeadlessMoves:
+    """Run moves (:class:`MoveRequest`) one after the other from fully open.
+
+    Each is requested when the one before has been answered and simulated time has paused (as
+    a client of the graph in fast mode does); ``object_width_m`` 0 = nothing between the
+    fingers. Time runs on ``hold_s`` after the last answer (the position stage keeps the last
+    command). Raises RequestError for a request the graph refuses (before anything runs).
+    """
+    targets = [validate_move(m, config.plant, config.supervisor) for m in moves]
+    plant = make_plant(config)
+    plant.t_ns = start_ns
+    plant_side = PlantSide(plant)
+    plant_side.set_object(GraspObject(object_width_m, stiffness_n_per_m, damping_n_s_per_m))
+    supervisor = GraspSupervisor(config.plant, config.supervisor)
+    decide = SupervisorSide(supervisor).decide
+    stage = StageSide(PositionStageController(config, position_controller))
+    tick = plant_side.tick()
+    decision, ref = decide(tick)                    # the position stage holds the open fingers
+    pending = list(targets)
+    answers, rows = [], []
+    while True:
+        rows.append((tick.stamp_ns, tick.position_m, tick.velocity_mps, tick.force_n,
+                     tick.peak_force_n, tick.motor_voltage_v, int(decision.phase),
+                     decision.approach_setpoint_m))
+        if decision.answer is not None:
+            answers.append(MoveAnswer(decision.answer, decision.message, supervisor.start_ns,
+                                      tick.stamp_ns, tick.position_m, tick.force_n))
+        if ref is None:
+            break                                   # a FAULT: nothing drives the motor
+        cmd = stage.answer(ref)
+        plant_side.accept(cmd)
+        if not plant_side.needs_time(cmd):
+            if not pending:
+                if answers and tick.stamp_ns < answers[-1].answer_ns + round(hold_s * 1e9):
+                    tick = plant_side.step(cmd)
+                    decision, ref = decide(tick)
+                    continue
+                break                               # fast mode: simulated time pauses
+            # the next request wakes the paused simulation; it starts at the next tick
+            supervisor.request_move(pending.pop(0), after_ns=tick.stamp_ns)
+        tick = plant_side.step(cmd)
+        decision, ref = decide(tick)
+    cols = list(zip(*rows))
+    return HeadlessMoves(answers, np.array(cols[0], dtype=np.int64),
+                         *(np.array(c, dtype=float) for c in cols[1:6]),
+                         np.array(cols[6], dtype=np.int8), np.array(cols[7], dtype=float))
+
+
+__all__ = ['HeadlessGrasp', 'HeadlessMoves', 'MoveAnswer', 'MoveRequest', 'Phase',
+           'simulate_grasp', 'simulate_moves']

@@ -8,13 +8,13 @@ directly. Both call exactly the code below, so a headless grasp equals the graph
 """
 from __future__ import annotations
 
-import math
 from collections import namedtuple
+import math
 
 from gripper_ros.core.plant import GraspObject, GripperPlant, PlantSample
 from gripper_ros.core.stages import LockstepAnswerer, Reference
 from gripper_ros.core.supervisor import Decision, GraspSupervisor
-from gripper_ros.wire import COMMAND_LAYOUT, TICK_LAYOUT, Controller, FaultKind, Outcome, Phase
+from gripper_ros.wire import COMMAND_LAYOUT, Controller, FaultKind, Outcome, Phase, TICK_LAYOUT
 
 Tick = namedtuple('Tick', TICK_LAYOUT.fields)
 """One PlantTick's fields, in message order."""
@@ -26,7 +26,7 @@ MAX_HOLD_S = 1.0
 
 
 def tick_of(sample: PlantSample, revision: int, applied_source: int) -> Tick:
-    """The tick message of a plant sample."""
+    """Return the tick message of a plant sample."""
     return Tick(sample.t_ns, sample.position_m, sample.velocity_mps, sample.force_n,
                 sample.peak_force_n, sample.sensor_voltage_v, sample.voltage_v,
                 sample.current_a, sample.speed_rad_s, applied_source, revision)
@@ -66,8 +66,11 @@ class PlantSide:
 
     def set_object(self, obj: GraspObject, open_fingers: bool = False,
                    fault: tuple[FaultKind, float, float] | None = None, **hold) -> None:
-        """Place ``obj`` (ValueError and nothing changes when refused); ``fault`` (kind,
-        seconds after the next grasp's start, time constant) is armed when that grasp starts."""
+        """Place ``obj`` (ValueError and nothing changes when refused).
+
+        ``fault`` (kind, seconds after the next grasp's start, time constant) is armed when
+        that grasp starts.
+        """
         saved = dict(vars(self.plant))
         try:
             if open_fingers:
@@ -103,8 +106,10 @@ class PlantSide:
                 pass            # the object left its support in an earlier hold: no new lift
 
     def needs_time(self, cmd: Command) -> bool:
-        """Whether simulated time must go on after ``cmd`` in fast mode: a request in
-        progress, or a hold scenario (a lift) still to be played out."""
+        """Tell whether simulated time must go on after ``cmd`` in fast mode.
+
+        It must for a request in progress, or a hold scenario (a lift) still to be played out.
+        """
         return bool(cmd.running) or self.plant.scenario_in_progress()
 
     def step(self, cmd: Command) -> Tick:
@@ -126,11 +131,12 @@ class SupervisorSide:
         self._seed_v = 0.0
 
     def decide(self, tick: Tick) -> tuple[Decision, Reference | None]:
-        """The decision for ``tick`` and the reference to the stage it names (None: none).
+        """Return the decision for ``tick`` and the reference to the stage it names (or None).
 
         The reference relays the tick's measurement as read, a non-finite one included (the
         stage then holds 0 V); the seed voltage is the last finite applied one, since no
-        measurement of the stage depends on it."""
+        measurement of the stage depends on it.
+        """
         d = self.supervisor.step(tick.stamp_ns, tick.position_m, tick.force_n,
                                  tick.sensor_voltage_v, tick.velocity_mps, tick.revision)
         if math.isfinite(tick.motor_voltage_v):
@@ -140,7 +146,8 @@ class SupervisorSide:
         return d, Reference(tick.stamp_ns, d.grasp_id, d.stage_id, tick.revision,
                             int(d.phase), int(d.outcome), int(d.active), d.running, d.contact,
                             d.position_setpoint_m, d.approach_setpoint_m, d.force_setpoint_n,
-                            tick.position_m, tick.velocity_mps, tick.force_n, self._seed_v)
+                            tick.position_m, tick.velocity_mps, tick.force_n, self._seed_v,
+                            d.speed_limit_mps, d.voltage_limit_v)
 
 
 class StageSide:
@@ -152,7 +159,7 @@ class StageSide:
         self.last_answer = None                 # the TickAnswer of the last command
 
     def answer(self, ref: Reference) -> Command | None:
-        """The command for ``ref``, or None when that (stage, stamp) was answered already."""
+        """Return the command for ``ref``, or None when that (stage, stamp) was answered."""
         a = self.answerer.answer(ref)
         if a is None:
             return None

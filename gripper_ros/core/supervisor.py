@@ -13,9 +13,20 @@ past the held position by more than ``no_object_margin_m``, ends the grasp as OB
 After settling, the force loop keeps holding and watching for ``hold_watch_s`` (phase HOLDING,
 force controller still active) before the grasp ends with outcome HOLDING.
 
-Release: :meth:`GraspSupervisor.start_release` runs the position stage to the open position
+Release: :meth:`GraspSupervisor.request_release` runs the position stage to the open position
 (phase RELEASING) until the finger has stayed within ``release_tolerance_m`` of it for
 ``release_settle_s``: phase DONE, outcome RELEASED.
+
+Move (:meth:`GraspSupervisor.request_move`, Franka's move, control_msgs GripperCommand's
+result): the position stage drives the finger to ``L_ls - width`` with the request's speed and
+effort as its limits (phase MOVING; :class:`gripper_ros.core.stages.PositionStageController`
+keeps the speed below the limit and the push below the stall voltage of the effort). MOVED
+(``reached_goal``) once the finger is at rest within ``move_tolerance_m`` of the goal; STALLED
+once it is at rest short of the goal and, closing, presses with ``move_stall_force_fraction`` x
+the effort limit (the force sensor tells contact), or has been at rest short of it for
+``move_stall_timeout_s``. Either way the position stage then keeps the move's last command (the
+goal, the limits): a stalled move goes on pressing with at most its effort, as a
+position-controlled gripper keeps its command.
 """
 from __future__ import annotations
 
@@ -41,6 +52,37 @@ class GraspRequest:
     acceleration_mps2: float = 0.0
     timeout_s: float = 0.0              # 0 = default
     width_tolerance_m: float = 0.0      # 0 = default
+
+
+@dataclass(frozen=True)
+class MoveRequest:
+    width_m: float
+    speed_mps: float = 0.0              # 0 = default
+    max_effort_n: float = 0.0           # 0 = the motor's limit
+    timeout_s: float = 0.0              # 0 = the travel at speed + the default timeout
+
+
+@dataclass(frozen=True)
+class MoveTargets:
+    """What a valid move resolves to; the attributes the status reads are a grasp's names."""
+
+    position_setpoint_m: float          # the goal, L_ls - width
+    speed_mps: float
+    max_effort_n: float                 # the effort limit (the motor's when the request gave 0)
+    voltage_limit_v: float              # its stall voltage; 0 = no cap below the plant's
+    timeout_s: float                    # 0 = the travel at speed + the default timeout
+    tolerance_m: float
+    friction_coefficient: float = 0.0
+    width_tolerance_m: float = 0.0
+
+    @property
+    def approach_setpoint_m(self) -> float:
+        return self.position_setpoint_m
+
+    @property
+    def force_setpoint_n(self) -> float:
+        """The status' force setpoint of a move: its effort limit."""
+        return self.max_effort_n
 
 
 @dataclass(frozen=True)
@@ -125,6 +167,41 @@ def validate_request(req: GraspRequest, plant: PlantParams,
                         req.timeout_s or sup.timeout_s, tolerance)
 
 
+def _check_finite(req, names) -> None:
+    for name in names:
+        value = getattr(req, name)
+        if not isinstance(value, (int, float)) or isinstance(value, bool) or \
+                not math.isfinite(value):
+            raise RequestError(f'{name} must be a finite number, got {value!r}')
+
+
+def validate_move(req: MoveRequest, plant: PlantParams, sup: SupervisorParams) -> MoveTargets:
+    """Resolve a move's defaults and refuse anything non-finite or out of range."""
+    _check_finite(req, ('width_m', 'speed_mps', 'max_effort_n', 'timeout_s'))
+    if not 0.0 <= req.width_m <= plant.max_travel_m:
+        raise RequestError(f'width_m must be in [0, {plant.max_travel_m:g}] m (0 = closed, '
+                           f'{plant.max_travel_m:g} = fully open), got {req.width_m!r}')
+    top_speed = plant.max_free_speed_mps
+    if req.speed_mps != 0.0 and not sup.move_rest_speed_mps < req.speed_mps <= top_speed:
+        raise RequestError(
+            f'speed_mps must be in ({sup.move_rest_speed_mps:g}, {top_speed:.6g}] m/s (at rest '
+            f'below; the free speed at {plant.voltage_limit_v:g} V above) or 0 (default '
+            f'{sup.move_default_speed_mps:g}), got {req.speed_mps!r}')
+    if req.max_effort_n != 0.0 and not 0.0 < req.max_effort_n <= plant.max_force_n:
+        raise RequestError(
+            f'max_effort_n must be in (0, {plant.max_force_n:.6g}] N (the force of '
+            f'{plant.voltage_limit_v:g} V at stall) or 0 (the limit of the motor), '
+            f'got {req.max_effort_n!r}')
+    if not 0.0 <= req.timeout_s <= MAX_TIMEOUT_S:
+        raise RequestError(f'timeout_s must be in [0, {MAX_TIMEOUT_S:g}] s (0 = the travel at '
+                           f'speed + {sup.timeout_s:g} s), got {req.timeout_s!r}')
+    effort = req.max_effort_n or plant.max_force_n
+    cap_v = req.max_effort_n / plant.stall_force_per_volt_n if req.max_effort_n else 0.0
+    return MoveTargets(plant.max_travel_m - req.width_m,
+                       req.speed_mps or sup.move_default_speed_mps, effort, cap_v,
+                       req.timeout_s, sup.move_tolerance_m)
+
+
 class Decision:
     """The supervisor's verdict for one tick; the same object, updated in place, every tick.
 
@@ -134,7 +211,7 @@ class Decision:
 
     __slots__ = ('t_ns', 'phase', 'active', 'switch_criterion', 'outcome', 'grasp_id',
                  'stage_id', 'running', 'contact', 'position_setpoint_m', 'approach_setpoint_m',
-                 'force_setpoint_n', 'message', 'answer')
+                 'force_setpoint_n', 'speed_limit_mps', 'voltage_limit_v', 'message', 'answer')
 
     def __init__(self):
         self.t_ns = 0
@@ -149,6 +226,8 @@ class Decision:
         self.position_setpoint_m = 0.0
         self.approach_setpoint_m = 0.0
         self.force_setpoint_n = 0.0
+        self.speed_limit_mps = 0.0          # the position stage's limits (a move's): speed,
+        self.voltage_limit_v = 0.0          # 0 = none; voltage towards the setpoint, 0 = 24 V
         self.message = ''
         self.answer: Outcome | None = None
 
@@ -161,10 +240,14 @@ class Decision:
 class RequestKind:
     GRASP = 'grasp'
     RELEASE = 'release'
+    MOVE = 'move'
 
 
 PENDING_CODES = {None: PendingRequest.NONE, RequestKind.GRASP: PendingRequest.GRASP,
-                 RequestKind.RELEASE: PendingRequest.RELEASE}
+                 RequestKind.RELEASE: PendingRequest.RELEASE,
+                 RequestKind.MOVE: PendingRequest.MOVE}
+START_PHASES = {RequestKind.GRASP: Phase.POSITION, RequestKind.RELEASE: Phase.RELEASING,
+                RequestKind.MOVE: Phase.MOVING}
 
 
 class GraspSupervisor:
@@ -174,8 +257,9 @@ class GraspSupervisor:
     stage holds the finger where it came to rest (phase IDLE, or DONE/FAILED with the last
     outcome); a grasp runs POSITION -> FORCE -> HOLDING and, once answered, goes on holding
     (phase HOLDING, outcome HOLDING, force stage active) until a release, a stop, the next
-    grasp or the loss of the object. A request is accepted at once and starts at the next
-    tick (:meth:`request_grasp`, :meth:`request_release`). ``running`` says whether the
+    grasp or the loss of the object; a move runs MOVING and then keeps its last command. A
+    request is accepted at once and starts at the next tick (:meth:`request_grasp`,
+    :meth:`request_release`, :meth:`request_move`). ``running`` says whether the
     request still needs simulated time; ``stage_id`` grows whenever a controller is
     (re)assigned, so that it restarts from the measured state.
     """
@@ -203,6 +287,11 @@ class GraspSupervisor:
         self._pending: tuple | None = None      # (kind, targets, mass_kg) starting next tick
         self._active = Controller.NONE
         self._idle_hold_m = 0.0                 # where the position stage holds without a request
+        self._idle_limit_v = 0.0                # ... and its voltage cap (0: the plant's limit)
+        self._position_m: float | None = None   # the last position measured in a request
+        self._idle_speed_limit_mps = 0.0        # ... and its speed limit (0: none)
+        self._move_timeout_s = 0.0
+        self._rest_since_ns: int | None = None  # a move: the finger at rest since
         self._revision: int | None = None       # the plant's world revision last seen
         self._baseline_voltage_v = 0.0
         self._in_band_since_ns: int | None = None
@@ -229,6 +318,12 @@ class GraspSupervisor:
         return self.phase is Phase.HOLDING and self.outcome is Outcome.HOLDING
 
     @property
+    def pressing(self) -> bool:
+        """A stalled move's last command is in force: the finger presses at its limits."""
+        return self.outcome is Outcome.STALLED and self._idle_speed_limit_mps > 0.0 and \
+            self._active is Controller.POSITION
+
+    @property
     def pending(self) -> bool:
         return self._pending is not None
 
@@ -250,8 +345,9 @@ class GraspSupervisor:
 
     def request_grasp(self, targets: GraspTargets, mass_kg: float = 0.0,
                       after_ns: int | None = None) -> None:
-        """Accept a grasp; it starts at the first tick later than ``after_ns`` (default: the
-        next tick decided), whose sensor voltage is the no-contact baseline.
+        """Accept a grasp: it starts at the first tick later than ``after_ns``.
+
+        By default that is the next tick decided; its sensor voltage is the no-contact baseline.
 
         Pass the newest tick received when the request arrived: the start is then the same
         whether or not that tick had been decided yet (deterministic under any timing). A grasp
@@ -262,8 +358,10 @@ class GraspSupervisor:
 
     def request_release(self, open_position_m: float = 0.0, timeout_s: float | None = None,
                         after_ns: int | None = None) -> None:
-        """Accept a release: the position stage to ``open_position_m``, from the first tick
-        later than ``after_ns`` (see :meth:`request_grasp`)."""
+        """Accept a release: the position stage to ``open_position_m``.
+
+        It starts at the first tick later than ``after_ns`` (see :meth:`request_grasp`).
+        """
         self._refuse_if_busy()
         if not (math.isfinite(open_position_m)
                 and 0.0 <= open_position_m < self.plant.max_travel_m):
@@ -273,11 +371,21 @@ class GraspSupervisor:
         self._pending = (RequestKind.RELEASE, GraspTargets(open_position_m, 0.0, 0.0, timeout),
                          0.0, after_ns)
 
-    def stop(self, message: str = 'stopped on request') -> Decision | None:
-        """End the running request, the hold or a waiting request now (STOPPED).
+    def request_move(self, targets: MoveTargets, after_ns: int | None = None) -> None:
+        """Accept a move (:func:`validate_move`).
 
-        Returns the ending decision (for the status and the answer), or None with nothing to
-        stop. From the next tick the position stage holds the finger where it is.
+        It starts at the first tick later than ``after_ns`` (see :meth:`request_grasp`). A move
+        may follow a hold; the hold ends when it starts.
+        """
+        self._refuse_if_busy()
+        self._pending = (RequestKind.MOVE, targets, 0.0, after_ns)
+
+    def stop(self, message: str = 'stopped on request') -> Decision | None:
+        """End the running request, the hold, a stalled move's press or a waiting request now.
+
+        The outcome is STOPPED. Returns the ending decision (for the status and the answer),
+        or None with nothing to stop. From the next tick the position stage holds the finger
+        where it is, without a move's limits.
         """
         if self._pending is not None and not self.running:
             kind, targets, mass, _ = self._pending  # answered at once, it never starts
@@ -285,6 +393,9 @@ class GraspSupervisor:
             self.grasp_id += 1
             self.kind, self.targets, self.mass_kg = kind, targets, mass
             self._reset(self._t_ns)
+        elif self.pressing:                         # where the move stalled
+            self._end(Phase.DONE, Outcome.STOPPED, message, position_m=self._position_m)
+            return self._fill(Outcome.STOPPED)
         elif not (self.running or self.holding):
             return None
         self._end(Phase.DONE, Outcome.STOPPED, message)
@@ -302,9 +413,13 @@ class GraspSupervisor:
         self._pending = None
         self.grasp_id += 1
         self.kind, self.targets, self.mass_kg = kind, targets, mass
-        self.phase = Phase.POSITION if kind == RequestKind.GRASP else Phase.RELEASING
+        self.phase = START_PHASES[kind]
         self._reset(t_ns)
         self._baseline_voltage_v = sensor_voltage_v
+        if kind == RequestKind.MOVE:
+            self._move_timeout_s = targets.timeout_s or (
+                self.params.timeout_s
+                + abs(targets.position_setpoint_m - position_m) / targets.speed_mps)
         self._assign(Controller.POSITION)
 
     def _reset(self, t_ns: int) -> None:
@@ -321,6 +436,7 @@ class GraspSupervisor:
         self._in_band_since_ns = None
         self._gripped = False
         self._low_since_ns = None
+        self._rest_since_ns = None
         self.message = ''
 
     def _assign(self, controller: Controller) -> None:
@@ -328,9 +444,14 @@ class GraspSupervisor:
         self._active = controller
         self.stage_id += 1
 
-    def _hold_here(self, position_m: float) -> None:
-        """The position stage holds the finger at ``position_m`` (no request running)."""
+    def _hold_here(self, position_m: float, limits: MoveTargets | None = None) -> None:
+        """Let the position stage hold the finger at ``position_m`` (no request running).
+
+        With a move's speed and voltage ``limits`` (None: none but the plant's).
+        """
         self._idle_hold_m = position_m if math.isfinite(position_m) else self._idle_hold_m
+        self._idle_limit_v = limits.voltage_limit_v if limits is not None else 0.0
+        self._idle_speed_limit_mps = limits.speed_mps if limits is not None else 0.0
         self._assign(Controller.POSITION)
 
     # ------------------------------------------------------------------ the tick
@@ -359,22 +480,26 @@ class GraspSupervisor:
         return self._fill(answer)
 
     def _step_request(self, t_ns, position_m, force_n, sensor_voltage_v, speed_mps):
+        phase = self.phase
+        position_only = phase is Phase.RELEASING or phase is Phase.MOVING   # no force needed
         bad = []
         if not math.isfinite(position_m):
             bad.append(f'finger position sensor (joint state) reads {position_m!r} m')
-        if self.phase is not Phase.RELEASING and not (
-                math.isfinite(force_n) and math.isfinite(sensor_voltage_v)):
+        if not position_only and not (math.isfinite(force_n)
+                                      and math.isfinite(sensor_voltage_v)):
             bad.append(f'force sensor reads force {force_n!r} N, voltage '
                        f'{sensor_voltage_v!r} V (sensor dropout)')
         if bad:
-            what = 'release' if self.phase is Phase.RELEASING else \
-                'hold' if self.holding else 'grasp'
+            what = 'hold' if self.holding else self.kind
             return self._end(Phase.FAILED, Outcome.FAULT,
                              f'fault at t={t_ns * 1e-9:.4f} s ({(t_ns - self.start_ns) * 1e-9:.4f}'
                              f' s into the {what}): ' + '; '.join(bad) +
                              '; no controller drives the motor from here on', hold=False)
-        if self.phase is Phase.RELEASING:
-            return self._step_release(t_ns, position_m)
+        self._position_m = position_m                   # finite: where a stop holds
+        if position_only:
+            if phase is Phase.RELEASING:
+                return self._step_release(t_ns, position_m)
+            return self._step_move(t_ns, position_m, force_n, sensor_voltage_v, speed_mps)
         p, tg = self.params, self.targets
         sensor_rise = sensor_voltage_v - self._baseline_voltage_v > p.sensor_voltage_threshold_v
         if sensor_rise and self.contact_ns is None:
@@ -488,6 +613,46 @@ class GraspSupervisor:
                              f'(finger at {position_m:.5f} m)', position_m=position_m)
         return None
 
+    def _step_move(self, t_ns: int, position_m: float, force_n: float, sensor_voltage_v: float,
+                   speed_mps: float) -> Outcome | None:
+        """End a move MOVED, STALLED or TIMEOUT; the position stage drives it meanwhile."""
+        p, tg = self.params, self.targets
+        goal = tg.position_setpoint_m
+        elapsed_s = (t_ns - self.start_ns) * 1e-9
+        if self.contact_ns is None and \
+                sensor_voltage_v - self._baseline_voltage_v > p.sensor_voltage_threshold_v:
+            self.contact_ns = t_ns
+        error_m = goal - position_m                   # > 0: still to close
+        at_rest = abs(speed_mps) <= p.move_rest_speed_mps
+        where = (f'finger at {position_m:.5f} m (opening '
+                 f'{self.plant.max_travel_m - position_m:.5f} m, goal '
+                 f'{self.plant.max_travel_m - goal:.5f} m), force {force_n:.3f} N, after '
+                 f'{elapsed_s:.3f} s')
+        if not at_rest:
+            self._rest_since_ns = None
+        elif abs(error_m) <= tg.tolerance_m:
+            return self._end(Phase.DONE, Outcome.MOVED, f'moved: {where}', position_m=goal,
+                             limits=tg)
+        else:
+            if self._rest_since_ns is None:
+                self._rest_since_ns = t_ns
+            rest_s = (t_ns - self._rest_since_ns) * 1e-9
+            fraction = p.move_stall_force_fraction
+            # closing onto an obstacle, pressing at the effort limit (False for a NaN force)
+            pressing = error_m > 0.0 and \
+                fraction * tg.max_effort_n <= force_n <= tg.max_effort_n / fraction
+            if pressing or rest_s >= p.move_stall_timeout_s:
+                why = (f'pressing with {force_n:.3f} N at the effort limit '
+                       f'{tg.max_effort_n:.3f} N' if pressing else f'at rest for {rest_s:.3f} s')
+                return self._end(Phase.DONE, Outcome.STALLED,
+                                 f'stalled {abs(error_m) * 1e3:.2f} mm short of the goal, '
+                                 f'{why}: {where}', position_m=goal, limits=tg)
+        if elapsed_s > self._move_timeout_s:
+            return self._end(Phase.FAILED, Outcome.TIMEOUT,
+                             f'move not done within {self._move_timeout_s:g} s of simulated '
+                             f'time: {where}', position_m=position_m)
+        return None
+
     def _switch(self, criterion: SwitchCriterion, t_ns: int) -> None:
         self.phase = Phase.FORCE
         self.switch_criterion = criterion
@@ -495,22 +660,36 @@ class GraspSupervisor:
         self._assign(Controller.FORCE)
 
     def _end(self, phase: Phase, outcome: Outcome, message: str, *, hold: bool = True,
-             position_m: float | None = None) -> Outcome:
-        """End the request (or the hold): the position stage holds the finger from this tick
-        on (``hold``), or nothing drives the motor (a FAULT)."""
+             position_m: float | None = None, limits: MoveTargets | None = None) -> Outcome:
+        """End the request (or the hold).
+
+        The position stage holds the finger from this tick on (``hold``; at ``position_m``,
+        default where it is; with a move's ``limits``), or nothing drives the motor (a FAULT).
+        """
+        if hold and position_m is None:
+            position_m = self._last_position()      # (while the request still runs)
         self.phase = phase
         self.outcome = outcome
         self.message = message
         self.end_ns = self._t_ns
         if hold:
-            self._hold_here(self._last_position() if position_m is None else position_m)
+            self._hold_here(position_m, limits)
         else:
             self._active = Controller.NONE
             self.stage_id += 1
         return outcome
 
     def _last_position(self) -> float:
-        return self._idle_hold_m if self.hold_position_m is None else self.hold_position_m
+        """Return where to hold when a request or hold ends.
+
+        The held position of a hold, else where the finger was last measured in the running
+        request, else the idle hold.
+        """
+        if self.hold_position_m is not None:
+            return self.hold_position_m
+        if self.running and self._position_m is not None:
+            return self._position_m
+        return self._idle_hold_m
 
     def _fill(self, answer: Outcome | None = None) -> Decision:
         d = self._decision
@@ -531,10 +710,18 @@ class GraspSupervisor:
         if self._active is Controller.POSITION and not self.running:
             d.position_setpoint_m = d.approach_setpoint_m = self._idle_hold_m
             d.force_setpoint_n = tg.force_setpoint_n if tg is not None else 0.0
+            d.voltage_limit_v = self._idle_limit_v
+            d.speed_limit_mps = self._idle_speed_limit_mps
         elif tg is not None:
             d.position_setpoint_m = tg.position_setpoint_m
             d.approach_setpoint_m = tg.approach_setpoint_m
             d.force_setpoint_n = tg.force_setpoint_n
+            if self.phase is Phase.MOVING:
+                d.voltage_limit_v = tg.voltage_limit_v
+                d.speed_limit_mps = tg.speed_mps
+            else:
+                d.voltage_limit_v = d.speed_limit_mps = 0.0
         else:
             d.position_setpoint_m = d.approach_setpoint_m = d.force_setpoint_n = 0.0
+            d.voltage_limit_v = d.speed_limit_mps = 0.0
         return d

@@ -2,7 +2,8 @@
 
 Used by ``grasp_demo``, the tests and the benchmarks: the nodes talk only over topics and
 services (DDS), the executor spins in a background thread, and requests go through
-``sim/set_object``, ``grasp``, ``release`` and ``stop`` exactly as from another process.
+``sim/set_object``, ``grasp``, ``release``, ``move`` and ``stop`` exactly as from another
+process.
 Recording lives in :mod:`gripper_ros.bags.recording`.
 """
 from __future__ import annotations
@@ -15,7 +16,7 @@ from collections import Counter
 from dataclasses import dataclass, field
 
 import rclpy
-from gripper_interfaces.srv import Grasp, SetObject, SimStep
+from gripper_interfaces.srv import Grasp, Move, SetObject, SimStep
 from rclpy.context import Context
 from rclpy.parameter import Parameter
 from rclpy.task import Future
@@ -26,13 +27,14 @@ from gripper_ros.nodes.common import (SERVICE_QOS, ExecutorKind, call_and_wait, 
                                       spin_until_stopped)
 from gripper_ros.nodes.force_controller_node import ForceControllerNode
 from gripper_ros.nodes.grasp_action_node import GraspActionServer
+from gripper_ros.nodes.move_action_node import MoveActionServer
 from gripper_ros.nodes.names import NameClaim
 from gripper_ros.nodes.plant_simulator_node import PlantSimulatorNode
 from gripper_ros.nodes.position_controller_node import PositionControllerNode
 from gripper_ros.nodes.supervisor_node import SupervisorNode
 from gripper_ros.wire import (DEFAULT_NAMESPACE, NODE_PLANT, NODE_SUPERVISOR, SERVICE_GRASP,
-                              SERVICE_PAUSE, SERVICE_RELEASE, SERVICE_RESUME, SERVICE_SET_OBJECT,
-                              SERVICE_STEP, SERVICE_STOP, check_namespace)
+                              SERVICE_MOVE, SERVICE_PAUSE, SERVICE_RELEASE, SERVICE_RESUME,
+                              SERVICE_SET_OBJECT, SERVICE_STEP, SERVICE_STOP, check_namespace)
 
 
 class GraphError(RuntimeError):
@@ -51,7 +53,7 @@ class GraphOptions:
     position_controller: str = 'mpc_pd'
     force_controller: str = DEFAULT_FORCE_CONTROLLER.value
     approach_force_margin: float = 1.0
-    action_server: bool = True       # also serve the grasp as an action (feedback, cancel)
+    action_server: bool = True       # also serve the grasp and the move as actions
     check_names: bool = True         # refuse to start when the namespace is taken
     supervisor_parameters: dict = field(default_factory=dict)
     plant_parameters: dict = field(default_factory=dict)
@@ -101,10 +103,12 @@ class GripperGraph:
         self.nodes.append(self.supervisor)
         self.client_node = rclpy.create_node('grasp_demo_client', **kw)
         self.nodes.append(self.client_node)
-        self.action_server = None
+        self.action_server = self.move_action_server = None
         if opts.action_server:
             self.action_server = GraspActionServer(parameter_overrides=cfg, **kw)
             self.nodes.append(self.action_server)
+            self.move_action_server = MoveActionServer(parameter_overrides=cfg, **kw)
+            self.nodes.append(self.move_action_server)
         self.executor = make_executor(opts.executor, self.context)
         for node in self.nodes:
             self.executor.add_node(node)
@@ -116,11 +120,12 @@ class GripperGraph:
         self._set_object = client(SetObject, SERVICE_SET_OBJECT)
         self._grasp = client(Grasp, SERVICE_GRASP, qos_profile=SERVICE_QOS)
         self._release = client(Trigger, SERVICE_RELEASE)
+        self._move = client(Move, SERVICE_MOVE, qos_profile=SERVICE_QOS)
         self._stop_client = client(Trigger, SERVICE_STOP)
         self._pause = client(Trigger, SERVICE_PAUSE)
         self._resume = client(Trigger, SERVICE_RESUME)
         self._step = client(SimStep, SERVICE_STEP)
-        for c in (self._set_object, self._grasp, self._release):
+        for c in (self._set_object, self._grasp, self._release, self._move):
             if not c.wait_for_service(timeout_sec=10.0):
                 raise GraphError(f'service {c.srv_name} did not come up')
 
@@ -222,6 +227,12 @@ class GripperGraph:
             acceleration_mps2=float(acceleration_mps2), timeout_s=float(timeout_s),
             width_tolerance_m=float(width_tolerance_m)),
             wall_timeout_s)
+
+    def move(self, width_m: float, speed_mps: float = 0.0, max_effort_n: float = 0.0,
+             timeout_s: float = 0.0, wall_timeout_s: float = 600.0) -> Move.Response:
+        return self.call(self._move, Move.Request(
+            width_m=float(width_m), speed_mps=float(speed_mps),
+            max_effort_n=float(max_effort_n), timeout_s=float(timeout_s)), wall_timeout_s)
 
     def release(self, wall_timeout_s: float = 120.0) -> Trigger.Response:
         return self.call(self._release, Trigger.Request(), wall_timeout_s)

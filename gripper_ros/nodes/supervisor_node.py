@@ -1,4 +1,6 @@
-"""supervisor: serves ``grasp``, ``release`` and ``stop``, and decides, tick by tick, who drives.
+"""supervisor: serves ``grasp``, ``release``, ``move`` and ``stop``; decides who drives.
+
+Tick by tick, it names the one stage that drives the motor.
 
 For every ``loop/tick`` it steps :class:`gripper_ros.core.supervisor.GraspSupervisor` and sends
 the tick's reference (setpoints and the measurement) to the one stage it names, on
@@ -7,7 +9,8 @@ starts at the next tick; the grasp service answers when the grasp is HOLDING (th
 until ``release``, ``stop`` or the next grasp) or has ended otherwise, with one explicit
 outcome. A bad request, or one while another runs, is refused at once with ``success=false``
 and a message, and nothing moves. ``release`` (std_srvs/Trigger) opens the fingers under
-position control and answers when they are open.
+position control and answers when they are open. ``move`` (srv/Move) drives the finger to a
+width at most at a speed and an effort and answers MOVED (reached_goal) or STALLED.
 
 ``supervisor/status`` carries the state for other programs: at ``status_rate_hz`` of simulated
 time, on every change, and once a second of wall time as a heartbeat. Each answer and each
@@ -21,25 +24,26 @@ import sys
 from collections import Counter
 
 from gripper_interfaces.msg import PlantTick, StageReference, SupervisorStatus
-from gripper_interfaces.srv import Grasp
+from gripper_interfaces.srv import Grasp, Move
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from std_srvs.srv import Trigger
 
 from gripper_ros.core.lockstep import SupervisorSide, Tick
-from gripper_ros.core.supervisor import (GraspRequest, GraspSupervisor, RequestError,
-                                         RequestKind, validate_request)
+from gripper_ros.core.supervisor import (GraspRequest, GraspSupervisor, MoveRequest,
+                                         RequestError, RequestKind, validate_move,
+                                         validate_request)
 from gripper_ros.nodes.common import (GRAPH_QOS, LATCHED_QOS, DeferredService, ExecutorSilence,
                                       default_namespace, run_node)
 from gripper_ros.nodes.loop_io import decode, split_ns, status_message, status_template
 from gripper_ros.nodes.parameters import ConfigParameters
-from gripper_ros.wire import (NODE_FORCE_CONTROLLER, NODE_PLANT,
-                              NODE_POSITION_CONTROLLER, NODE_SUPERVISOR, REFERENCE_LAYOUT,
-                              SERVICE_GRASP, SERVICE_RELEASE, SERVICE_STOP, TICK_LAYOUT,
-                              TOPIC_FORCE_REFERENCE, TOPIC_MOTOR_COMMAND, TOPIC_OUTCOME,
-                              TOPIC_POSITION_REFERENCE, TOPIC_STATUS, TOPIC_TICK, Controller,
-                              Outcome)
+from gripper_ros.wire import (Controller, NODE_FORCE_CONTROLLER, NODE_PLANT,
+                              NODE_POSITION_CONTROLLER, NODE_SUPERVISOR, Outcome,
+                              REFERENCE_LAYOUT, SERVICE_GRASP, SERVICE_MOVE, SERVICE_RELEASE,
+                              SERVICE_STOP, TICK_LAYOUT, TOPIC_FORCE_REFERENCE,
+                              TOPIC_MOTOR_COMMAND, TOPIC_OUTCOME, TOPIC_POSITION_REFERENCE,
+                              TOPIC_STATUS, TOPIC_TICK)
 
 HEARTBEAT_PERIOD_S = 1.0
 WATCHDOG_PERIOD_S = 0.1
@@ -92,6 +96,7 @@ class SupervisorNode(Node):
         self.create_subscription(PlantTick, TOPIC_TICK, self._on_tick, GRAPH_QOS, raw=True)
         self.grasp_service = DeferredService(self, Grasp, SERVICE_GRASP, self._on_grasp)
         self.release_service = DeferredService(self, Trigger, SERVICE_RELEASE, self._on_release)
+        self.move_service = DeferredService(self, Move, SERVICE_MOVE, self._on_move)
         self.create_service(Trigger, SERVICE_STOP, self._on_stop)
         steady = Clock(clock_type=ClockType.STEADY_TIME)
         self._silence = ExecutorSilence()       # executor-running wall time without progress
@@ -190,9 +195,10 @@ class SupervisorNode(Node):
         if tick is None:
             return f'refused: no measurement from {NODE_PLANT} yet'
         if not math.isfinite(tick.position_m):
+            what = {RequestKind.RELEASE: 'opening', RequestKind.MOVE: 'a move'}.get(
+                kind, 'a grasp')
             return (f'refused: the finger position sensor reads {tick.position_m!r} m (sensor '
-                    f'dropout); {"opening" if kind == RequestKind.RELEASE else "a grasp"} under '
-                    'position control needs it')
+                    f'dropout); {what} under position control needs it')
         if kind == RequestKind.GRASP and not (math.isfinite(tick.force_n)
                                               and math.isfinite(tick.sensor_voltage_v)):
             return (f'refused: the force sensor reads force {tick.force_n!r} N, voltage '
@@ -264,13 +270,49 @@ class SupervisorNode(Node):
         self._silence.reset()
         self._publish_status(self._tick.stamp_ns, force=True)
 
+    def _on_move(self, request: Move.Request, header) -> None:
+        """Accept a move, or refuse it at once; an accepted move is answered in _complete()."""
+        response = Move.Response()
+        message = self._refusal(RequestKind.MOVE)
+        if not message:
+            try:
+                targets = validate_move(
+                    MoveRequest(request.width_m, request.speed_mps, request.max_effort_n,
+                                request.timeout_s),
+                    self.config.plant, self.config.supervisor)
+                self.logic.request_move(targets, after_ns=self._tick.stamp_ns)
+            except RequestError as exc:
+                message = f'refused: {exc}'
+        if message:
+            response.success = False
+            response.outcome = Outcome.REFUSED
+            response.message = message
+            self._fill_move_state(response)
+            self.get_logger().warning(f'move {message}')
+            self.move_service.reply(header, response)
+            return
+        self.get_logger().info(
+            f'move {self.logic.grasp_id + 1}: width {request.width_m:g} m -> position '
+            f'{targets.position_setpoint_m:.4f} m at most at {targets.speed_mps:g} m/s, '
+            f'{targets.max_effort_n:.3f} N')
+        self._waiting = (header, response)
+        self._silence.reset()
+        self._publish_status(self._tick.stamp_ns, force=True)     # wakes a paused simulation
+
+    def _fill_move_state(self, response: Move.Response) -> None:
+        """Fill in a move's answer the finger's state: the last finite readings."""
+        response.position_m = self._good_position_m
+        response.width_m = self.config.plant.max_travel_m - self._good_position_m
+        response.effort_n = self._good_force_n
+
     def _on_stop(self, request: Trigger.Request, response: Trigger.Response):
         """End the running request or the hold now; the position stage then holds the finger."""
         what = self.logic.kind or 'grasp'
         decision = self.stop_grasp('stopped on request (stop)')
         if decision is None:
             response.success = False
-            response.message = 'nothing to stop: no grasp, hold or release is running'
+            response.message = ('nothing to stop: no grasp, hold, release or move is running, '
+                                'no stalled move presses')
             return response
         response.success = True
         response.message = f'{what} {self.logic.grasp_id} stopped'
@@ -300,6 +342,15 @@ class SupervisorNode(Node):
             response.success = decision.answer is Outcome.RELEASED
             response.message = f'{decision.answer.name}: {message}'
             self.release_service.reply(header, response)
+            return
+        if isinstance(response, Move.Response):
+            response.outcome = int(decision.answer)
+            response.reached_goal = response.success = decision.answer is Outcome.MOVED
+            response.stalled = decision.answer is Outcome.STALLED
+            response.message = message
+            response.grasp_id = self.logic.grasp_id
+            self._fill_move_state(response)
+            self.move_service.reply(header, response)
             return
         logic = self.logic
         response.success = decision.answer is Outcome.HOLDING
@@ -346,6 +397,7 @@ class SupervisorNode(Node):
     def destroy_node(self):
         self.grasp_service.destroy()
         self.release_service.destroy()
+        self.move_service.destroy()
         return super().destroy_node()
 
 
