@@ -155,15 +155,16 @@ def test_out_of_range_override_stops_start_up_naming_the_parameter(own_context, 
 
 def _run(executable, *ros_args):
     env = dict(os.environ)
-    return subprocess.run([str(BIN / executable), '--ros-args', *ros_args], env=env,
+    return subprocess.run([str(BIN / executable), '--ros-args', '-r',      # its own namespace
+                           f'__ns:=/params_{executable}', *ros_args], env=env,
                           capture_output=True, text=True, timeout=60, stdin=subprocess.DEVNULL)
 
 
 def test_executables_exit_2_with_a_one_line_error_on_a_bad_config(tmp_path):
     """The real start-up path: ``ros2 run gripper_ros <node> --ros-args -p config_file:=...``."""
     path = _bad_config(tmp_path, 'plant.resistance_ohm', -2.32)
-    procs = {name: subprocess.Popen([str(BIN / name), '--ros-args', '-p',
-                                     f'config_file:={path}'], stdin=subprocess.DEVNULL,
+    procs = {name: subprocess.Popen([str(BIN / name), '--ros-args', '-r', f'__ns:=/bad_{name}',
+                                     '-p', f'config_file:={path}'], stdin=subprocess.DEVNULL,
                                     stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
              for name in NODE_CLASSES}
     for name, proc in procs.items():

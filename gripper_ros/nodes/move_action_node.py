@@ -31,12 +31,14 @@ from gripper_ros.core.gripper_command import (goal_end, GoalEnd, joint_state_fie
                                               move_request_of, result_fields)
 from gripper_ros.core.supervisor import RequestError, validate_move
 from gripper_ros.nodes.common import (declare_config, default_namespace, GRAPH_QOS, run_node,
-                                      SERVICE_QOS, time_to_ns)
+                                      SERVICE_QOS)
+from gripper_ros.nodes.loop_io import read_status, StatusView
 from gripper_ros.wire import (ACTION_GRIPPER_CMD, ACTION_MOVE, NODE_MOVE_ACTION, Outcome, Phase,
                               SERVICE_MOVE, SERVICE_STOP, TOPIC_STATUS)
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
 from rclpy.node import Node
+from std_msgs.msg import Header
 from std_srvs.srv import Trigger
 
 try:  # a system ROS 2 Jazzy has it; the ros-jazzy wheels do not
@@ -66,8 +68,9 @@ class MoveActionServer(Node):
         self.add_post_set_parameters_callback(self._on_parameters_set)
         self._move = self.create_client(Move, SERVICE_MOVE, qos_profile=SERVICE_QOS)
         self._stop = self.create_client(Trigger, SERVICE_STOP)
-        self.create_subscription(SupervisorStatus, TOPIC_STATUS, self._on_status, GRAPH_QOS)
-        self._status: SupervisorStatus | None = None
+        self.create_subscription(SupervisorStatus, TOPIC_STATUS, self._on_status, GRAPH_QOS,
+                                 raw=True)
+        self._status_data: bytes | None = None   # the newest status, read when needed
         self._goal = None                 # the goal handle being executed
         self._feedback = None             # makes its feedback from a status
         self._goal_grasp_id: int | None = None
@@ -124,7 +127,7 @@ class MoveActionServer(Node):
         elif self._goal is not None:
             refusal = 'refused: a move goal is already executing'
         if refusal:
-            status = self._status
+            status = read_status(self._status_data) if self._status_data else None
             position_m = status.position_m if status is not None else 0.0
             return Move.Response(outcome=int(Outcome.REFUSED), message=refusal,
                                  position_m=position_m, width_m=self.travel_m - position_m,
@@ -167,28 +170,30 @@ class MoveActionServer(Node):
             goal_handle.abort()
 
     # ------------------------------------------------------------------ feedback
-    def _move_feedback(self, msg: SupervisorStatus) -> MoveAction.Feedback:
+    def _move_feedback(self, msg: StatusView) -> MoveAction.Feedback:
         return MoveAction.Feedback(
             grasp_id=msg.grasp_id, phase=msg.phase,
-            elapsed_s=(time_to_ns(msg.header.stamp) - self._goal_start_ns) * 1e-9,
+            elapsed_s=(_stamp_ns(msg) - self._goal_start_ns) * 1e-9,
             position_m=msg.position_m, width_m=self.travel_m - msg.position_m,
             force_n=msg.force_n)
 
-    def _gripper_feedback(self, msg: SupervisorStatus):
+    def _gripper_feedback(self, msg: StatusView):
+        header = Header()
+        header.stamp.sec, header.stamp.nanosec = msg.sec, msg.nanosec
         return ParallelGripperCommand.Feedback(
-            state=JointState(header=msg.header, **joint_state_fields(msg.position_m,
-                                                                     msg.force_n)))
+            state=JointState(header=header, **joint_state_fields(msg.position_m, msg.force_n)))
 
-    def _on_status(self, msg: SupervisorStatus) -> None:
-        self._status = msg
+    def _on_status(self, data: bytes) -> None:
+        self._status_data = data
         goal, feedback = self._goal, self._feedback
         if goal is None or not goal.is_active:
             return
+        msg = read_status(data)
         if self._goal_grasp_id is None:
             if msg.phase != Phase.MOVING:
                 return                         # a status of an earlier request
             self._goal_grasp_id = msg.grasp_id
-            self._goal_start_ns = time_to_ns(msg.header.stamp)
+            self._goal_start_ns = _stamp_ns(msg)
         if msg.grasp_id != self._goal_grasp_id:
             return
         now = time.monotonic()
@@ -203,6 +208,10 @@ class MoveActionServer(Node):
         for server in self._servers:
             server.destroy()
         return super().destroy_node()
+
+
+def _stamp_ns(status: StatusView) -> int:
+    return status.sec * 1_000_000_000 + status.nanosec
 
 
 def main(args=None):
