@@ -75,10 +75,6 @@ class RmsFloor:
     window_s: float
     inputs_v: np.ndarray = field(repr=False)
 
-    @property
-    def rms_m(self) -> float:
-        return self.rms_lower_m
-
 
 def _markov(config: GripperConfig, dt_s: float, samples: int) -> np.ndarray:
     """``out[m] = Ad^m Bd`` for m < samples: the state's response to a unit input m samples ago."""

@@ -16,7 +16,6 @@ import json
 import os
 import shutil
 import threading
-import time
 from pathlib import Path
 from typing import Any, Callable, Mapping
 
@@ -183,10 +182,6 @@ class BagRecorder:
         return self._bag_dir
 
     @property
-    def mcap_path(self) -> Path:
-        return self._mcap_path
-
-    @property
     def counts(self) -> dict[str, int]:
         """Messages written per topic so far."""
         with self._lock:
@@ -225,12 +220,6 @@ class BagRecorder:
         """Record one serialized message received on ``topic`` (for subscribe=False) at
         ``t_ns`` (default: now, by the time source)."""
         self._on_message(topic, data, None, t_ns)
-
-    def matched_publishers(self) -> dict[str, int]:
-        """Per topic, how many publishers this recorder's subscription has matched (reader side:
-        a volatile reader drops what a writer sent before the reader matched it)."""
-        return {topic: sub.get_publisher_count()
-                for topic, sub in zip(self._topics, self._subscriptions)}
 
     def flush(self) -> None:
         """Write everything received so far to the file (ends the current chunk)."""
@@ -385,8 +374,3 @@ class BagRecorder:
             'custom_data': dict(self._custom_data),
             'ros_distro': ROS_DISTRO,
         }
-
-
-def wall_time_source() -> int:
-    """Wall-clock ns (for recordings outside the simulated graph)."""
-    return time.time_ns()
