@@ -15,8 +15,10 @@ from gripper_ros.bags.recording import recorded_grasp
 from gripper_ros.bags.series import load_grasp_series
 from gripper_ros.core.config import load_config
 from gripper_ros.nodes.graph import GripperGraph
-from gripper_ros.wire import (DEFAULT_NAMESPACE, GRAPH_TOPICS, Outcome, Phase, SwitchCriterion,
-                              qualified)
+from gripper_ros.wire import (COMMAND_LAYOUT, DEFAULT_NAMESPACE, GRAPH_TOPICS, LOOP_LAYOUTS,
+                              LOOP_TOPICS, REFERENCE_LAYOUT, TICK_LAYOUT, TOPIC_FORCE_REFERENCE,
+                              TOPIC_MOTOR_COMMAND, TOPIC_POSITION_REFERENCE, TOPIC_TICK,
+                              Controller, Outcome, Phase, SwitchCriterion, qualified)
 
 CONFIG = load_config()
 L_LS = CONFIG.plant.max_travel_m
@@ -63,14 +65,56 @@ def test_paper_object_bag_voltage_limit_and_single_switch(paper_runs, index):
     criteria = series.status.switch_criterion
     switches = np.flatnonzero(np.diff(criteria) != 0)
     assert len(switches) == 1 and criteria[-1] != SwitchCriterion.NONE
-    # every tick has one command, from the stage the supervisor named for that tick
-    named = {(int(s), int(round(t * 1e9))): int(c) for t, s, c in zip(
-        series.status.t_s, series.status.stage_id, series.status.active_controller)}
-    commands = [(int(s), int(round(t * 1e9)), int(src)) for t, s, src in zip(
-        series.command.t_s, series.command.stage_id, series.command.source)]
-    assert len({(s, t) for s, t, _ in commands}) == len(commands)
-    assert [named[(s, t)] for s, t, _ in commands] == [src for _, _, src in commands]
-    assert len(commands) == len(named) == len(series.joint.t_s)
+
+
+def _loop_messages(bag, topic, layout):
+    """Per tick (stamp_ns), the distinct messages of one loop topic, as dicts by field name (a
+    reference or command repeated for a late peer is the same message again)."""
+    out = {}
+    for raw in bag.messages:
+        if raw.topic == qualified(DEFAULT_NAMESPACE, topic):
+            values = layout.as_dict(layout.unpack(raw.data))
+            rows = out.setdefault(values['stamp_ns'], [])
+            if values not in rows:
+                rows.append(values)
+    return out
+
+
+@pytest.mark.parametrize('index', range(len(PAPER_OBJECTS)))
+def test_each_tick_applies_the_command_of_the_controller_the_supervisor_named(paper_runs,
+                                                                              index):
+    """Tick by tick, on the wire: the one reference for tick t names a controller (on that
+    controller's topic); the one command for t comes from it, in the same stage; the plant's
+    next tick, ``hold_s`` later, reports that source and that voltage as applied. The named
+    controller is the position stage until one switch, the force stage after."""
+    bag = read_bag(paper_runs[index].bag_dir)
+    ticks = _loop_messages(bag, TOPIC_TICK, TICK_LAYOUT)
+    topics = {Controller.POSITION: TOPIC_POSITION_REFERENCE,
+              Controller.FORCE: TOPIC_FORCE_REFERENCE}
+    references = {}
+    for controller, topic in topics.items():
+        for stamp, rows in _loop_messages(bag, topic, REFERENCE_LAYOUT).items():
+            assert all(r['controller'] == controller for r in rows), (topic, stamp)
+            references.setdefault(stamp, []).extend(rows)
+    commands = _loop_messages(bag, TOPIC_MOTOR_COMMAND, COMMAND_LAYOUT)
+    stamps = sorted(ticks)
+    assert stamps == sorted(references) == sorted(commands)
+    assert all(len(rows) == 1 for table in (ticks, references, commands)
+               for rows in table.values())
+    named = []
+    for stamp in stamps:
+        (ref,), (cmd,) = references[stamp], commands[stamp]
+        assert cmd['source'] == ref['controller'], stamp
+        assert (cmd['stage_id'], cmd['grasp_id']) == (ref['stage_id'], ref['grasp_id']), stamp
+        named.append(ref['controller'])
+    for before, after in zip(stamps, stamps[1:]):          # the first tick's command was idle's
+        (cmd,), (tick,) = commands[before], ticks[after]
+        assert after - before == round(cmd['hold_s'] * 1e9), before
+        assert tick['applied_source'] == cmd['source'], after
+        assert tick['motor_voltage_v'] == cmd['voltage_v'], after
+    switch = named.index(Controller.FORCE)
+    assert switch > 0 and named == [Controller.POSITION] * switch + \
+        [Controller.FORCE] * (len(named) - switch)
 
 
 @pytest.mark.parametrize('index', range(len(PAPER_OBJECTS)))
@@ -81,8 +125,16 @@ def test_bag_holds_every_published_message_and_decodes(paper_runs, index):
     assert set(bag.counts()) == RECORDED
     assert bag.counts() == run.published
     assert all(n > 0 for n in run.published.values())
-    for topic in RECORDED:                       # every message decodes
-        assert sum(1 for _ in bag.iter_decoded(topic)) == run.published[topic]
+    layouts = {qualified(DEFAULT_NAMESPACE, t): LOOP_LAYOUTS[msgtype]
+               for t, msgtype in LOOP_TOPICS.items()}
+    for topic in RECORDED:                       # every message decodes, by the bag's schema
+        decoded = list(bag.iter_decoded(topic))
+        assert len(decoded) == run.published[topic]
+        if topic in layouts:                     # to the numbers the nodes packed
+            layout = layouts[topic]
+            for raw, msg in decoded:
+                assert tuple(getattr(msg, f) for f in layout.fields) == \
+                    layout.unpack(raw.data), topic
 
 
 def test_same_request_twice_gives_identical_series(graph, tmp_path):
