@@ -164,7 +164,12 @@ def test_bumpless_reset_at_zero_error(where):
 def test_bumpless_reset_with_error_first_output_is_the_motor_command(where):
     pid = PID(PidGains(kc=3.0, ki=40.0, kd=0.2), DT, (-24.0, 24.0), where)
     pid.reset(output=7.5, setpoint=1.0, measurement=0.2)
-    assert pid.step(1.0, 0.2) == pytest.approx(7.5, abs=1e-12)   # returns 7.5 + 40*0.1*0.8 = 10.7
+    # the integral is seeded with 7.5 - 3*0.8 - 40*0.1*0.8 = 1.9, so that the step that adds
+    # ki*dt*e returns the voltage already applied: 2.4 + (1.9 + 3.2) + 0 = 7.5, not 7.5 + 3.2
+    assert pid.step(1.0, 0.2) == pytest.approx(7.5, abs=1e-12)
+    assert pid.terms.integral == pytest.approx(5.1, abs=1e-12)
+    # and the law goes on from there: e = 0.7, P 2.1, I 5.1 + 2.8 = 7.9, D 0.2*(-0.1)/0.1
+    assert pid.step(1.0, 0.3) == pytest.approx(2.1 + 7.9 - 0.2, abs=1e-12)
 
 
 def test_reset_forgets_derivative_and_integral_history():
