@@ -5,20 +5,20 @@ Four rclpy nodes under one EventsExecutor, real service calls, real MCAP bags.
 import math
 import time
 
-import numpy as np
-import pytest
 from gripper_interfaces.srv import Grasp
-
 from gripper_ros.apps.grasp_demo import PAPER_OBJECTS
 from gripper_ros.bags.reader import read_bag
 from gripper_ros.bags.recording import recorded_grasp
 from gripper_ros.bags.series import load_grasp_series
 from gripper_ros.core.config import load_config
 from gripper_ros.nodes.graph import GripperGraph
-from gripper_ros.wire import (COMMAND_LAYOUT, DEFAULT_NAMESPACE, GRAPH_TOPICS, LOOP_LAYOUTS,
-                              LOOP_TOPICS, REFERENCE_LAYOUT, TICK_LAYOUT, TOPIC_FORCE_REFERENCE,
-                              TOPIC_MOTOR_COMMAND, TOPIC_POSITION_REFERENCE, TOPIC_TICK,
-                              Controller, Outcome, Phase, SwitchCriterion, qualified)
+from gripper_ros.wire import (COMMAND_LAYOUT, Controller, DEFAULT_NAMESPACE, GRAPH_TOPICS,
+                              LOOP_LAYOUTS, LOOP_TOPICS, Outcome, Phase, qualified,
+                              REFERENCE_LAYOUT, SwitchCriterion, TICK_LAYOUT,
+                              TOPIC_FORCE_REFERENCE, TOPIC_MOTOR_COMMAND,
+                              TOPIC_POSITION_REFERENCE, TOPIC_TICK)
+import numpy as np
+import pytest
 
 CONFIG = load_config()
 L_LS = CONFIG.plant.max_travel_m
@@ -68,8 +68,10 @@ def test_paper_object_bag_voltage_limit_and_single_switch(paper_runs, index):
 
 
 def _loop_messages(bag, topic, layout):
-    """Per tick (stamp_ns), the distinct messages of one loop topic, as dicts by field name (a
-    reference or command repeated for a late peer is the same message again)."""
+    """Per tick (stamp_ns), the distinct messages of one loop topic, as dicts by field name.
+
+    A reference or command repeated for a late peer is the same message again: kept once.
+    """
     out = {}
     for raw in bag.messages:
         if raw.topic == qualified(DEFAULT_NAMESPACE, topic):
@@ -83,10 +85,13 @@ def _loop_messages(bag, topic, layout):
 @pytest.mark.parametrize('index', range(len(PAPER_OBJECTS)))
 def test_each_tick_applies_the_command_of_the_controller_the_supervisor_named(paper_runs,
                                                                               index):
-    """Tick by tick, on the wire: the one reference for tick t names a controller (on that
-    controller's topic); the one command for t comes from it, in the same stage; the plant's
-    next tick, ``hold_s`` later, reports that source and that voltage as applied. The named
-    controller is the position stage until one switch, the force stage after."""
+    """Tick by tick, on the wire, the motor is driven by the controller the supervisor named.
+
+    The one reference for tick t names a controller (on that controller's topic); the one
+    command for t comes from it, in the same stage; the plant's next tick, ``hold_s`` later,
+    reports that source and that voltage as applied. The named controller is the position
+    stage until one switch, the force stage after.
+    """
     bag = read_bag(paper_runs[index].bag_dir)
     ticks = _loop_messages(bag, TOPIC_TICK, TICK_LAYOUT)
     topics = {Controller.POSITION: TOPIC_POSITION_REFERENCE,
@@ -150,17 +155,17 @@ def test_same_request_twice_gives_identical_series(graph, tmp_path):
 
 
 BAD_REQUESTS = [
-    dict(width_m=math.nan, mass_kg=1.0),
-    dict(width_m=math.inf, mass_kg=1.0),
-    dict(width_m=0.05, mass_kg=-math.inf),
-    dict(width_m=0.0, mass_kg=1.0),
-    dict(width_m=-0.01, mass_kg=1.0),
-    dict(width_m=L_LS, mass_kg=1.0),
-    dict(width_m=0.05, mass_kg=0.0),
-    dict(width_m=0.05, mass_kg=-1.0),
-    dict(width_m=0.05, mass_kg=1.0, friction_coefficient=-0.5),
-    dict(width_m=0.05, mass_kg=1.0, timeout_s=math.nan),
-    dict(width_m=0.05, mass_kg=50.0),   # 1.5*50*9.81/(2*0.5) = 736 N > 33.4 N at 24 V
+    {'width_m': math.nan, 'mass_kg': 1.0},
+    {'width_m': math.inf, 'mass_kg': 1.0},
+    {'width_m': 0.05, 'mass_kg': -math.inf},
+    {'width_m': 0.0, 'mass_kg': 1.0},
+    {'width_m': -0.01, 'mass_kg': 1.0},
+    {'width_m': L_LS, 'mass_kg': 1.0},
+    {'width_m': 0.05, 'mass_kg': 0.0},
+    {'width_m': 0.05, 'mass_kg': -1.0},
+    {'width_m': 0.05, 'mass_kg': 1.0, 'friction_coefficient': -0.5},
+    {'width_m': 0.05, 'mass_kg': 1.0, 'timeout_s': math.nan},
+    {'width_m': 0.05, 'mass_kg': 50.0},   # 1.5*50*9.81/(2*0.5) = 736 N > 33.4 N at 24 V
 ]
 
 
@@ -257,9 +262,11 @@ def test_headless_simulation_reproduces_the_graph_bit_for_bit(paper_runs, index)
 
 @pytest.mark.parametrize('index', range(len(PAPER_OBJECTS)))
 def test_position_stage_in_the_graph_is_the_controller_step_run(paper_runs, index):
-    """Issue 5 part 1: the node graph's MPC-PD gives the same response as the numeric core's
-    step run (whose figures test_position_limit holds to the targets), tick for tick, up to the
-    switch; the voltage never leaves +-24 V."""
+    """The node graph's MPC-PD gives the numeric core's step response, tick for tick.
+
+    test_position_limit holds the step run's figures to the targets; here the graph follows it
+    up to the switch, and the voltage never leaves +-24 V.
+    """
     from gripper_ros.core.controllers import PositionControllerKind, make_position_controller
     from gripper_ros.core.step_runs import position_step
     width, _ = PAPER_OBJECTS[index]
@@ -279,8 +286,10 @@ def test_position_stage_in_the_graph_is_the_controller_step_run(paper_runs, inde
 
 
 def test_stiff_object_in_the_graph_no_spike_and_bit_identical_to_headless(graph, tmp_path):
-    """A stiff (1e5 N/m) object through the live graph: held without a spike (the PI hit it
-    with up to 6x), and the recorded series equal the headless run that contact_sweep uses."""
+    """A stiff (1e5 N/m) object through the live graph: held without a force spike.
+
+    The recorded series equal the headless run that contact_sweep uses.
+    """
     from gripper_ros.core.headless import simulate_grasp
     run = recorded_grasp(graph, tmp_path / 'stiff', 0.05, 1.0, stiffness_n_per_m=1e5,
                          damping_n_s_per_m=50.0)
@@ -298,9 +307,11 @@ def test_stiff_object_in_the_graph_no_spike_and_bit_identical_to_headless(graph,
 
 
 def test_width_tolerance_through_the_service_meets_a_wider_object_at_the_setpoint(graph, tmp_path):
-    """Request 50 mm +- 12 mm, place a 60 mm object: the position stage stops short of the
-    widest face (status approach_setpoint_m), the object is met with at most F_sp and held
-    at its real face."""
+    """Request 50 mm +- 12 mm, place a 60 mm object: it is held at its real face.
+
+    The position stage stops short of the widest face (status approach_setpoint_m) and the
+    object is met with at most F_sp.
+    """
     run = recorded_grasp(graph, tmp_path / 'wider', 0.05, 1.69, width_tolerance_m=0.012,
                          object_width_m=0.06)
     r = run.response

@@ -9,20 +9,19 @@ reads its own case's result.
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
 import signal
 import subprocess
 import sys
 import time
-from dataclasses import dataclass
-
-import pytest
-import rclpy
-from rcl_interfaces.srv import GetParameters
-from rclpy.context import Context
-from rclpy.executors import SingleThreadedExecutor
 
 from gripper_ros.wire import (NODE_FORCE_CONTROLLER, NODE_GRASP_ACTION, NODE_PLANT,
                               NODE_POSITION_CONTROLLER, NODE_SUPERVISOR)
+import pytest
+from rcl_interfaces.srv import GetParameters
+import rclpy
+from rclpy.context import Context
+from rclpy.executors import SingleThreadedExecutor
 
 MODULES = {NODE_PLANT: 'plant_simulator_node',
            NODE_POSITION_CONTROLLER: 'position_controller_node',

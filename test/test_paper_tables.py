@@ -1,17 +1,18 @@
-"""Tables III and IV: our simulations against the paper's published numbers and against
-closed-form answers (continuous-time PI loop, discrete characteristic polynomial)."""
+"""Tables III and IV: our simulations against the paper's published numbers.
+
+And against closed-form answers (continuous-time PI loop, discrete characteristic polynomial).
+"""
 import math
 from pathlib import Path
 
+from gripper_ros.apps import paper_tables
+from gripper_ros.core.config import load_config
+from gripper_ros.core.controllers import force_pi_gains, ForceControllerKind, make_force_controller
+from gripper_ros.core.metrics import step_metrics, StepMetrics
+from gripper_ros.core.step_runs import force_step
 import numpy as np
 import pytest
 from scipy.signal import step as lti_step
-
-from gripper_ros.apps import paper_tables
-from gripper_ros.core.config import load_config
-from gripper_ros.core.controllers import ForceControllerKind, force_pi_gains, make_force_controller
-from gripper_ros.core.metrics import StepMetrics, step_metrics
-from gripper_ros.core.step_runs import force_step
 
 REPO = Path(__file__).resolve().parents[1]
 CONFIG = load_config(REPO / 'config' / 'gripper.yaml')
