@@ -3,7 +3,8 @@
 ``python -m gripper_ros.nodes.<module>``, each case in a namespace of its own: stopped with
 Ctrl-C (SIGINT) or SIGTERM once it runs (it answers a parameter request), it exits 0 with no
 traceback; given a bad start-up parameter (out of range, of the wrong type, not one of the
-allowed words) it exits 2 with one line on stderr naming the parameter, and no traceback. The
+allowed words) it exits 2 with one line on stderr naming the parameter, and no traceback; a
+second one started beside a running one exits 2 with one line naming the taken name. The
 cases run side by side in one module fixture (a node start costs about a second); each test
 reads its own case's result.
 """
@@ -52,6 +53,7 @@ class Case:
     namespace: str
     args: list[str]
     stop: signal.Signals | None = None       # None: the node must refuse to start
+    twin: Case | None = None                 # a second one started beside it once it runs
     proc: subprocess.Popen | None = None
     answered: bool = False                   # it answered a parameter request before the signal
     returncode: int | None = None
@@ -116,19 +118,31 @@ def results():
         stopped = [c for c in cases.values() if c.stop is not None]
         _wait_until_running(stopped)
         for case in stopped:
+            if case.stop is signal.SIGINT and case.answered:
+                case.twin = Case(case.node, case.namespace, [])
+                _start(case.twin)
+        for case in stopped:                    # each twin ends before its first one is stopped
+            if case.twin is not None:
+                _finish(case.twin)
+        for case in stopped:
             if case.answered and case.proc.poll() is None:
                 case.proc.send_signal(case.stop)
         for case in cases.values():
             if case.stop is not None and not case.answered:
                 case.proc.kill()                # never ran: its test fails saying so
-            _stderr = case.proc.communicate(timeout=60)[1]
-            case.returncode, case.stderr = case.proc.returncode, _stderr
+            _finish(case)
     finally:
         for case in cases.values():
-            if case.proc is not None and case.proc.poll() is None:
-                case.proc.kill()
-                case.proc.wait()
+            for proc in (case.proc, case.twin.proc if case.twin else None):
+                if proc is not None and proc.poll() is None:
+                    proc.kill()
+                    proc.wait()
     return cases
+
+
+def _finish(case: Case) -> None:
+    case.stderr = case.proc.communicate(timeout=60)[1]
+    case.returncode = case.proc.returncode
 
 
 @pytest.mark.parametrize('node', list(MODULES))
@@ -149,6 +163,19 @@ def test_a_bad_start_up_parameter_exits_2_in_one_line(results, node, parameter, 
     assert len(lines) == 1, case.stderr
     assert lines[0].startswith(f'{node}: ') and parameter in lines[0] and words in lines[0], \
         lines[0]
+
+
+@pytest.mark.parametrize('node', list(MODULES))
+def test_a_second_node_beside_a_running_one_exits_2_in_one_line(results, node):
+    first = results[f'{node}-sigint']
+    assert first.twin is not None, f'{node} never ran: {first.stderr[-2000:]}'
+    twin = first.twin
+    assert twin.returncode == 2, (twin.returncode, twin.stderr[-2000:])
+    assert 'Traceback' not in twin.stderr
+    lines = twin.stderr.strip().splitlines()
+    assert len(lines) == 1, twin.stderr
+    assert lines[0].startswith(f'{node}: namespace /{first.namespace} is taken'), lines[0]
+    assert f'/{first.namespace}/{node}' in lines[0], lines[0]
 
 
 def test_every_node_is_tested_with_a_bad_start_up_parameter():
