@@ -11,6 +11,7 @@ reads its own case's result.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
 import signal
 import subprocess
 import sys
@@ -45,6 +46,7 @@ BAD_PARAMETERS = [   # (node, parameter, value as typed after -p name:=, words i
     (NODE_GRASP_ACTION, 'executor', 'threads', 'must be one of'),          # run_node's own
 ]
 RUNNING_TIMEOUT_S = 60.0
+NODES_DIR = Path(__file__).resolve().parents[1] / 'gripper_ros' / 'nodes'
 
 
 @dataclass
@@ -178,5 +180,9 @@ def test_a_second_node_beside_a_running_one_exits_2_in_one_line(results, node):
     assert f'/{first.namespace}/{node}' in lines[0], lines[0]
 
 
-def test_every_node_is_tested_with_a_bad_start_up_parameter():
+def test_every_node_executable_is_here_with_a_bad_start_up_parameter():
+    """A node module with a ``main()`` is an executable: each one is in MODULES."""
+    executables = {p.stem for p in NODES_DIR.glob('*.py')
+                   if '\ndef main(' in p.read_text(encoding='utf-8')}
+    assert executables == set(MODULES.values())
     assert {node for node, *_ in BAD_PARAMETERS} == set(MODULES)
