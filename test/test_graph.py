@@ -5,18 +5,20 @@ Four rclpy nodes under one EventsExecutor, real service calls, real MCAP bags.
 import math
 import time
 
-import numpy as np
-import pytest
 from gripper_interfaces.srv import Grasp
-
 from gripper_ros.apps.grasp_demo import PAPER_OBJECTS
 from gripper_ros.bags.reader import read_bag
 from gripper_ros.bags.recording import recorded_grasp
 from gripper_ros.bags.series import load_grasp_series
 from gripper_ros.core.config import load_config
 from gripper_ros.nodes.graph import GripperGraph
-from gripper_ros.wire import (DEFAULT_NAMESPACE, GRAPH_TOPICS, Outcome, Phase, SwitchCriterion,
-                              qualified)
+from gripper_ros.wire import (COMMAND_LAYOUT, Controller, DEFAULT_NAMESPACE, GRAPH_TOPICS,
+                              LOOP_LAYOUTS, LOOP_TOPICS, Outcome, Phase, qualified,
+                              REFERENCE_LAYOUT, SwitchCriterion, TICK_LAYOUT,
+                              TOPIC_FORCE_REFERENCE, TOPIC_MOTOR_COMMAND,
+                              TOPIC_POSITION_REFERENCE, TOPIC_TICK)
+import numpy as np
+import pytest
 
 CONFIG = load_config()
 L_LS = CONFIG.plant.max_travel_m
@@ -63,14 +65,61 @@ def test_paper_object_bag_voltage_limit_and_single_switch(paper_runs, index):
     criteria = series.status.switch_criterion
     switches = np.flatnonzero(np.diff(criteria) != 0)
     assert len(switches) == 1 and criteria[-1] != SwitchCriterion.NONE
-    # every tick has one command, from the stage the supervisor named for that tick
-    named = {(int(s), int(round(t * 1e9))): int(c) for t, s, c in zip(
-        series.status.t_s, series.status.stage_id, series.status.active_controller)}
-    commands = [(int(s), int(round(t * 1e9)), int(src)) for t, s, src in zip(
-        series.command.t_s, series.command.stage_id, series.command.source)]
-    assert len({(s, t) for s, t, _ in commands}) == len(commands)
-    assert [named[(s, t)] for s, t, _ in commands] == [src for _, _, src in commands]
-    assert len(commands) == len(named) == len(series.joint.t_s)
+
+
+def _loop_messages(bag, topic, layout):
+    """Per tick (stamp_ns), the distinct messages of one loop topic, as dicts by field name.
+
+    A reference or command repeated for a late peer is the same message again: kept once.
+    """
+    out = {}
+    for raw in bag.messages:
+        if raw.topic == qualified(DEFAULT_NAMESPACE, topic):
+            values = layout.as_dict(layout.unpack(raw.data))
+            rows = out.setdefault(values['stamp_ns'], [])
+            if values not in rows:
+                rows.append(values)
+    return out
+
+
+@pytest.mark.parametrize('index', range(len(PAPER_OBJECTS)))
+def test_each_tick_applies_the_command_of_the_controller_the_supervisor_named(paper_runs,
+                                                                              index):
+    """Tick by tick, on the wire, the motor is driven by the controller the supervisor named.
+
+    The one reference for tick t names a controller (on that controller's topic); the one
+    command for t comes from it, in the same stage; the plant's next tick, ``hold_s`` later,
+    reports that source and that voltage as applied. The named controller is the position
+    stage until one switch, the force stage after.
+    """
+    bag = read_bag(paper_runs[index].bag_dir)
+    ticks = _loop_messages(bag, TOPIC_TICK, TICK_LAYOUT)
+    topics = {Controller.POSITION: TOPIC_POSITION_REFERENCE,
+              Controller.FORCE: TOPIC_FORCE_REFERENCE}
+    references = {}
+    for controller, topic in topics.items():
+        for stamp, rows in _loop_messages(bag, topic, REFERENCE_LAYOUT).items():
+            assert all(r['controller'] == controller for r in rows), (topic, stamp)
+            references.setdefault(stamp, []).extend(rows)
+    commands = _loop_messages(bag, TOPIC_MOTOR_COMMAND, COMMAND_LAYOUT)
+    stamps = sorted(ticks)
+    assert stamps == sorted(references) == sorted(commands)
+    assert all(len(rows) == 1 for table in (ticks, references, commands)
+               for rows in table.values())
+    named = []
+    for stamp in stamps:
+        (ref,), (cmd,) = references[stamp], commands[stamp]
+        assert cmd['source'] == ref['controller'], stamp
+        assert (cmd['stage_id'], cmd['grasp_id']) == (ref['stage_id'], ref['grasp_id']), stamp
+        named.append(ref['controller'])
+    for before, after in zip(stamps, stamps[1:]):          # the first tick's command was idle's
+        (cmd,), (tick,) = commands[before], ticks[after]
+        assert after - before == round(cmd['hold_s'] * 1e9), before
+        assert tick['applied_source'] == cmd['source'], after
+        assert tick['motor_voltage_v'] == cmd['voltage_v'], after
+    switch = named.index(Controller.FORCE)
+    assert switch > 0 and named == [Controller.POSITION] * switch + \
+        [Controller.FORCE] * (len(named) - switch)
 
 
 @pytest.mark.parametrize('index', range(len(PAPER_OBJECTS)))
@@ -81,8 +130,16 @@ def test_bag_holds_every_published_message_and_decodes(paper_runs, index):
     assert set(bag.counts()) == RECORDED
     assert bag.counts() == run.published
     assert all(n > 0 for n in run.published.values())
-    for topic in RECORDED:                       # every message decodes
-        assert sum(1 for _ in bag.iter_decoded(topic)) == run.published[topic]
+    layouts = {qualified(DEFAULT_NAMESPACE, t): LOOP_LAYOUTS[msgtype]
+               for t, msgtype in LOOP_TOPICS.items()}
+    for topic in RECORDED:                       # every message decodes, by the bag's schema
+        decoded = list(bag.iter_decoded(topic))
+        assert len(decoded) == run.published[topic]
+        if topic in layouts:                     # to the numbers the nodes packed
+            layout = layouts[topic]
+            for raw, msg in decoded:
+                assert tuple(getattr(msg, f) for f in layout.fields) == \
+                    layout.unpack(raw.data), topic
 
 
 def test_same_request_twice_gives_identical_series(graph, tmp_path):
@@ -98,17 +155,17 @@ def test_same_request_twice_gives_identical_series(graph, tmp_path):
 
 
 BAD_REQUESTS = [
-    dict(width_m=math.nan, mass_kg=1.0),
-    dict(width_m=math.inf, mass_kg=1.0),
-    dict(width_m=0.05, mass_kg=-math.inf),
-    dict(width_m=0.0, mass_kg=1.0),
-    dict(width_m=-0.01, mass_kg=1.0),
-    dict(width_m=L_LS, mass_kg=1.0),
-    dict(width_m=0.05, mass_kg=0.0),
-    dict(width_m=0.05, mass_kg=-1.0),
-    dict(width_m=0.05, mass_kg=1.0, friction_coefficient=-0.5),
-    dict(width_m=0.05, mass_kg=1.0, timeout_s=math.nan),
-    dict(width_m=0.05, mass_kg=50.0),   # 1.5*50*9.81/(2*0.5) = 736 N > 33.4 N at 24 V
+    {'width_m': math.nan, 'mass_kg': 1.0},
+    {'width_m': math.inf, 'mass_kg': 1.0},
+    {'width_m': 0.05, 'mass_kg': -math.inf},
+    {'width_m': 0.0, 'mass_kg': 1.0},
+    {'width_m': -0.01, 'mass_kg': 1.0},
+    {'width_m': L_LS, 'mass_kg': 1.0},
+    {'width_m': 0.05, 'mass_kg': 0.0},
+    {'width_m': 0.05, 'mass_kg': -1.0},
+    {'width_m': 0.05, 'mass_kg': 1.0, 'friction_coefficient': -0.5},
+    {'width_m': 0.05, 'mass_kg': 1.0, 'timeout_s': math.nan},
+    {'width_m': 0.05, 'mass_kg': 50.0},   # 1.5*50*9.81/(2*0.5) = 736 N > 33.4 N at 24 V
 ]
 
 
@@ -205,9 +262,11 @@ def test_headless_simulation_reproduces_the_graph_bit_for_bit(paper_runs, index)
 
 @pytest.mark.parametrize('index', range(len(PAPER_OBJECTS)))
 def test_position_stage_in_the_graph_is_the_controller_step_run(paper_runs, index):
-    """Issue 5 part 1: the node graph's MPC-PD gives the same response as the numeric core's
-    step run (whose figures test_position_limit holds to the targets), tick for tick, up to the
-    switch; the voltage never leaves +-24 V."""
+    """The node graph's MPC-PD gives the numeric core's step response, tick for tick.
+
+    test_position_limit holds the step run's figures to the targets; here the graph follows it
+    up to the switch, and the voltage never leaves +-24 V.
+    """
     from gripper_ros.core.controllers import PositionControllerKind, make_position_controller
     from gripper_ros.core.step_runs import position_step
     width, _ = PAPER_OBJECTS[index]
@@ -227,8 +286,10 @@ def test_position_stage_in_the_graph_is_the_controller_step_run(paper_runs, inde
 
 
 def test_stiff_object_in_the_graph_no_spike_and_bit_identical_to_headless(graph, tmp_path):
-    """A stiff (1e5 N/m) object through the live graph: held without a spike (the PI hit it
-    with up to 6x), and the recorded series equal the headless run that contact_sweep uses."""
+    """A stiff (1e5 N/m) object through the live graph: held without a force spike.
+
+    The recorded series equal the headless run that contact_sweep uses.
+    """
     from gripper_ros.core.headless import simulate_grasp
     run = recorded_grasp(graph, tmp_path / 'stiff', 0.05, 1.0, stiffness_n_per_m=1e5,
                          damping_n_s_per_m=50.0)
@@ -246,9 +307,11 @@ def test_stiff_object_in_the_graph_no_spike_and_bit_identical_to_headless(graph,
 
 
 def test_width_tolerance_through_the_service_meets_a_wider_object_at_the_setpoint(graph, tmp_path):
-    """Request 50 mm +- 12 mm, place a 60 mm object: the position stage stops short of the
-    widest face (status approach_setpoint_m), the object is met with at most F_sp and held
-    at its real face."""
+    """Request 50 mm +- 12 mm, place a 60 mm object: it is held at its real face.
+
+    The position stage stops short of the widest face (status approach_setpoint_m) and the
+    object is met with at most F_sp.
+    """
     run = recorded_grasp(graph, tmp_path / 'wider', 0.05, 1.69, width_tolerance_m=0.012,
                          object_width_m=0.06)
     r = run.response

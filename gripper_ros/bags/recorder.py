@@ -14,21 +14,19 @@ import enum
 import functools
 import json
 import os
+from pathlib import Path
 import shutil
 import threading
-import time
-from pathlib import Path
 from typing import Any, Callable, Mapping
-
-import yaml
-from mcap.writer import CompressionType, Writer
-from rclpy.clock import Clock, ClockType
-from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 from gripper_ros.bags.reader import CUSTOM_DATA_RECORD
 from gripper_ros.bags.schema import import_message_class, message_definition, type_hash_from_share
 from gripper_ros.bags.series import GRASP_TOPICS
+from mcap.writer import CompressionType, Writer
+from rclpy.clock import Clock, ClockType
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+import yaml
 
 ROS_DISTRO = 'jazzy'
 BAG_VERSION = 9
@@ -107,9 +105,9 @@ class BagRecorder:
     ``flush_every_s`` seconds when something is pending. A killed process therefore loses at most
     the last ``flush_every_messages - 1`` messages, and at most those received in the last
     ``flush_every_s`` seconds of wall time when the executor is running; everything before reads
-    back with ``gripper_ros.bags.reader.read_bag`` (flagged truncated). No fsync: a power cut can lose
-    more. ``close()`` (also on context-manager exit, even after an exception, and at interpreter
-    exit) writes the summary, the ``rosbag2`` record and ``metadata.yaml``.
+    back with ``gripper_ros.bags.reader.read_bag`` (flagged truncated). No fsync: a power cut
+    can lose more. ``close()`` (also on context-manager exit, even after an exception, and at
+    interpreter exit) writes the summary, the ``rosbag2`` record and ``metadata.yaml``.
     """
 
     def __init__(self, node: Node, bag_dir: str | os.PathLike,
@@ -154,7 +152,7 @@ class BagRecorder:
                             for t, d in definitions.items()}
         self._channel_ids: dict[str, int] = {}
         self._topic_meta: dict[str, dict] = {}
-        self._counts = {topic: 0 for topic in self._topics}
+        self._counts = dict.fromkeys(self._topics, 0)
         self._first_ns: int | None = None
         self._last_ns: int | None = None
         self._pending = 0
@@ -183,10 +181,6 @@ class BagRecorder:
         return self._bag_dir
 
     @property
-    def mcap_path(self) -> Path:
-        return self._mcap_path
-
-    @property
     def counts(self) -> dict[str, int]:
         """Messages written per topic so far."""
         with self._lock:
@@ -199,8 +193,10 @@ class BagRecorder:
 
     @property
     def readable_count(self) -> int:
-        """Messages in chunks already written to the file: what a reader gets after a crash or a
-        full disk (the rest was still buffered)."""
+        """Messages in chunks already written to the file.
+
+        What a reader gets after a crash or a full disk (the rest was still buffered).
+        """
         with self._lock:
             return self._readable
 
@@ -222,15 +218,11 @@ class BagRecorder:
             self._flush_locked()
 
     def write(self, topic: str, data: bytes, t_ns: int | None = None) -> None:
-        """Record one serialized message received on ``topic`` (for subscribe=False) at
-        ``t_ns`` (default: now, by the time source)."""
-        self._on_message(topic, data, None, t_ns)
+        """Record one serialized message received on ``topic`` (for subscribe=False).
 
-    def matched_publishers(self) -> dict[str, int]:
-        """Per topic, how many publishers this recorder's subscription has matched (reader side:
-        a volatile reader drops what a writer sent before the reader matched it)."""
-        return {topic: sub.get_publisher_count()
-                for topic, sub in zip(self._topics, self._subscriptions)}
+        ``t_ns`` is its log time (default: now, by the time source).
+        """
+        self._on_message(topic, data, None, t_ns)
 
     def flush(self) -> None:
         """Write everything received so far to the file (ends the current chunk)."""
@@ -385,8 +377,3 @@ class BagRecorder:
             'custom_data': dict(self._custom_data),
             'ros_distro': ROS_DISTRO,
         }
-
-
-def wall_time_source() -> int:
-    """Wall-clock ns (for recordings outside the simulated graph)."""
-    return time.time_ns()
