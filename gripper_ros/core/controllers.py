@@ -9,9 +9,10 @@ import enum
 
 from gripper_ros.core.config import DmcTuning, GripperConfig, PidGains
 from gripper_ros.core.contact_force import ContactForceController
-from gripper_ros.core.dmc import BrakingGovernor, CascadedMpc, DynamicMatrixControl, closed_loop_step_response
+from gripper_ros.core.dmc import (BrakingGovernor, CascadedMpc, closed_loop_step_response,
+                                  DynamicMatrixControl)
 from gripper_ros.core.force_sensor import FsrVoltageDivider
-from gripper_ros.core.pid import PID, AntiWindup, DerivativeOn, first_order_pi_by_pole_placement
+from gripper_ros.core.pid import AntiWindup, DerivativeOn, first_order_pi_by_pole_placement, PID
 from gripper_ros.core.plant import GripperPlant
 
 UNSATURATED_V = 1e12  # limits used when building a DMC's linear model

@@ -38,9 +38,8 @@ import enum
 import math
 from typing import Callable
 
-import numpy as np
-
 from gripper_ros.core.pid import PID
+import numpy as np
 
 
 def dynamic_matrix(step_response: np.ndarray, control_horizon: int) -> np.ndarray:
@@ -55,7 +54,8 @@ def dynamic_matrix(step_response: np.ndarray, control_horizon: int) -> np.ndarra
     return matrix
 
 
-def dmc_gain(step_response: np.ndarray, control_horizon: int, move_suppression: float) -> np.ndarray:
+def dmc_gain(step_response: np.ndarray, control_horizon: int,
+             move_suppression: float) -> np.ndarray:
     """Eq. 20: K = (A^T A + lambda I)^-1 A^T, all n_u rows (row 0 is the move applied)."""
     if not (math.isfinite(move_suppression) and move_suppression >= 0.0):
         raise ValueError(f'move suppression must be finite and >= 0, got {move_suppression!r}')
@@ -81,7 +81,7 @@ class DynamicMatrixControl:
         self.reset(0.0, 0.0)
 
     def reset(self, measurement: float, output: float) -> None:
-        """At rest: output steady at ``measurement`` with the manipulated variable at ``output``."""
+        """At rest: output steady at ``measurement``, manipulated variable at ``output``."""
         self._prediction = np.full(self.horizon + 1, float(measurement))
         self.last_output = float(output)
         self.last_move = 0.0
@@ -190,7 +190,7 @@ class BrakingGovernor:
         return float(traj[k, 1])
 
     def command(self, setpoint: float, measurement: float) -> float | None:
-        """The voltage to hold over the coming sample, or None once the DMC is in charge."""
+        """Voltage to hold over the coming sample, or None once the DMC is in charge."""
         self.state[2] = measurement
         if self.phase is GovernorPhase.ACCELERATE:
             d = 1.0 if setpoint >= measurement else -1.0
@@ -260,9 +260,11 @@ class CascadedMpc:
         return output
 
     def _forced(self, voltage_v: float, measurement: float) -> float:
-        """A governor sample: the inner PD is handed the one setpoint that gives ``voltage_v``
-        (the cascade's structure stays: the MPC layer sets the PD's setpoint); the DMC, which
-        did not choose the move, is held at the measurement."""
+        """Governor sample: the inner PD is handed the setpoint that gives ``voltage_v``.
+
+        The cascade's structure stays (the MPC layer sets the PD's setpoint); the DMC, which
+        did not choose the move, is held at the measurement.
+        """
         held = self.inner.setpoint_for_output(voltage_v, measurement)
         output = self.inner.step(held, measurement)
         self.dmc.reset(measurement, measurement)

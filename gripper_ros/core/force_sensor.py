@@ -44,5 +44,5 @@ class FsrVoltageDivider:
 
     @property
     def activation_step_v(self) -> float:
-        """Voltage rise from no contact to the activation force: the switching tolerance's scale."""
+        """Voltage rise from zero to the activation force: the switching tolerance's scale."""
         return self.voltage_v(self.params.activation_force_n) - self.voltage_v(0.0)

@@ -105,9 +105,12 @@ class HoldModel:
             self.next_event_ns = self.lift_start_ns
 
     def scenario_in_progress(self, t_ns: int, after_lift_ns: int) -> bool:
-        """A lift still to be played out at ``t_ns``: to come, going on, the object sliding,
-        or less than ``after_lift_ns`` since the lift ended or the object was lost (the
-        gripper's answer to a loss is part of the scenario)."""
+        """Whether a lift is still to be played out at ``t_ns``.
+
+        True while it is to come, going on, the object sliding, or less than ``after_lift_ns``
+        since the lift ended or the object was lost (the gripper's answer to a loss is part of
+        the scenario).
+        """
         if self.lift_start_ns is None:
             return False                        # no lift: the object stays on its support
         if self.lost_ns is not None:

@@ -14,9 +14,9 @@ integrator is seeded so the first output equals the command already on the motor
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
 import enum
 import math
-from dataclasses import dataclass
 
 from gripper_ros.core.config import PidGains
 
@@ -69,8 +69,11 @@ class PID:
 
     def reset(self, output: float = 0.0, setpoint: float | None = None,
               measurement: float | None = None) -> None:
-        """Forget the past. With ``output`` (and the current setpoint/measurement) the next
-        :meth:`step` starts from that output: bumpless transfer from another controller."""
+        """Forget the past.
+
+        With ``output`` (and the current setpoint/measurement) the next :meth:`step` starts
+        from that output: bumpless transfer from another controller.
+        """
         self._prev_error: float | None = None
         self._prev_measurement: float | None = measurement
         if setpoint is not None and measurement is not None:
@@ -104,13 +107,16 @@ class PID:
         return p_term, self._integral + g.ki * self.dt_s * error, d_term
 
     def _output_line(self, measurement: float) -> tuple[float, float]:
-        """(base, slope): the next unclamped output is ``base + slope * setpoint``."""
+        """Return (base, slope): the next unclamped output is ``base + slope * setpoint``."""
         base = sum(self._terms(0.0, measurement))
         return base, sum(self._terms(1.0, measurement)) - base
 
     def setpoint_range(self, measurement: float) -> tuple[float, float]:
-        """Setpoints for which the next output stays inside the limits (it is affine in the
-        setpoint). A cascade's outer loop uses this so the inner loop never saturates."""
+        """Setpoints for which the next output stays inside the limits.
+
+        The output is affine in the setpoint. A cascade's outer loop uses this so the inner
+        loop never saturates.
+        """
         base, slope = self._output_line(measurement)
         low, high = self.output_limits
         if slope <= 0.0:
@@ -118,7 +124,7 @@ class PID:
         return ((low - base) / slope, (high - base) / slope)
 
     def setpoint_for_output(self, output: float, measurement: float) -> float:
-        """The setpoint for which the next output is exactly ``output`` (inside the limits)."""
+        """Setpoint for which the next output is exactly ``output`` (inside the limits)."""
         base, slope = self._output_line(measurement)
         if slope <= 0.0:
             raise ValueError('the output does not depend on the setpoint (kc = 0?)')

@@ -343,8 +343,10 @@ class GripperPlant:
                            hold.capacity_n(self._force()), hold.lost_ns, hold.acceleration_mps2)
 
     def scenario_in_progress(self) -> bool:
-        """A hold scenario (a lift) is still to be played out, so that simulated time must go
-        on in fast mode after the grasp was answered."""
+        """Whether a hold scenario (a lift) is still to be played out.
+
+        While it is, simulated time must go on in fast mode after the grasp was answered.
+        """
         hold = self._hold
         return hold is not None and hold.scenario_in_progress(
             self.t_ns, round(self.contact_defaults.after_lift_s * 1e9))

@@ -215,9 +215,12 @@ LIMIT_NUMBERS = ('speed_limit_mps', 'voltage_limit_v')
 
 
 class TickAnswer(namedtuple('TickAnswer', 'voltage_v inner_setpoint finite reason',
-                             defaults=(True, ''))):
-    """A controller's answer to one tick (what goes into MotorCommand): ``finite`` False
-    means a measurement or output was not finite and 0 V is held, ``reason`` says why."""
+                            defaults=(True, ''))):
+    """A controller's answer to one tick (what goes into MotorCommand).
+
+    ``finite`` False means a measurement or output was not finite and 0 V is held, ``reason``
+    says why.
+    """
 
     __slots__ = ()
 

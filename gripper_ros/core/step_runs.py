@@ -7,12 +7,11 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import numpy as np
-
 from gripper_ros.core.config import GripperConfig
 from gripper_ros.core.controllers import make_plant
-from gripper_ros.core.metrics import StepMetrics, step_metrics
+from gripper_ros.core.metrics import step_metrics, StepMetrics
 from gripper_ros.core.plant import GraspObject
+import numpy as np
 
 
 @dataclass
