@@ -1,22 +1,22 @@
-"""grasp_client: request a grasp from another process (``ros2 service call`` is not installable here).
+r"""grasp_client: request a grasp from another process (the ``ros2`` CLI is not installable here).
 
     ros2 run gripper_ros grasp_client --width 0.05 --mass 1.69
 
 With a full ROS 2 the equivalent calls are:
 
-    ros2 service call /gripper/sim/set_object gripper_interfaces/srv/SetObject \\
+    ros2 service call /gripper/sim/set_object gripper_interfaces/srv/SetObject \
         "{width_m: 0.05, open_fingers: true}"      # (refused while an object is held)
     ros2 service call /gripper/grasp gripper_interfaces/srv/Grasp "{width_m: 0.05, mass_kg: 1.69}"
-    ros2 action send_goal --feedback /gripper/grasp_action gripper_interfaces/action/Grasp \\
+    ros2 action send_goal --feedback /gripper/grasp_action gripper_interfaces/action/Grasp \
         "{width_m: 0.05, mass_kg: 1.69}"                    # the same, as an action (--action)
 
 By default the client first places a matching simulated object (``/gripper/sim/set_object``,
 like spawning a model in a simulator; an object still held from an earlier grasp is released
 first); ``--object-width`` places a different one (e.g. to see NO_OBJECT) and ``--no-place``
-leaves the simulation as it is. ``--namespace left`` talks to the gripper ``/left``. Exit code: 0 when the object is
-held, 1 for any other outcome, 2 when the graph cannot be reached. ``--action`` sends the grasp
-as a goal to ``/gripper/grasp_action`` instead, prints its feedback (phase, opening, force) as it
-comes, and cancels the goal on Ctrl-C (the grasp ends as STOPPED).
+leaves the simulation as it is. ``--namespace left`` talks to the gripper ``/left``. Exit code:
+0 when the object is held, 1 for any other outcome, 2 when the graph cannot be reached.
+``--action`` sends the grasp as a goal to ``/gripper/grasp_action`` instead, prints its feedback
+(phase, opening, force) as it comes, and cancels the goal on Ctrl-C (the grasp ends as STOPPED).
 
 ``--release`` opens the fingers instead (``/gripper/release``, std_srvs/Trigger; with a full
 ROS 2: ``ros2 service call /gripper/release std_srvs/srv/Trigger``): exit code 0 once open, 1 if
@@ -28,8 +28,8 @@ import argparse
 import os
 import sys
 
-from gripper_ros.wire import (ACTION_GRASP, DEFAULT_NAMESPACE, SERVICE_GRASP, SERVICE_RELEASE,
-                              SERVICE_SET_OBJECT, Outcome, Phase, check_namespace)
+from gripper_ros.wire import (ACTION_GRASP, check_namespace, DEFAULT_NAMESPACE, Outcome, Phase,
+                              SERVICE_GRASP, SERVICE_RELEASE, SERVICE_SET_OBJECT)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -67,11 +67,10 @@ def _call(node, client, request, timeout_s: float):
 
 
 def _request_fields(args) -> dict:
-    """The grasp request from the command line: the service's request and the action's goal
-    carry the same fields."""
-    return dict(width_m=args.width, mass_kg=args.mass, friction_coefficient=args.friction,
-                acceleration_mps2=args.acceleration, timeout_s=args.timeout,
-                width_tolerance_m=args.width_tolerance)
+    """Return the grasp request of the command line (the service request and the goal alike)."""
+    return {'width_m': args.width, 'mass_kg': args.mass, 'friction_coefficient': args.friction,
+            'acceleration_mps2': args.acceleration, 'timeout_s': args.timeout,
+            'width_tolerance_m': args.width_tolerance}
 
 
 def _grasp_by_action(node, args):

@@ -11,14 +11,14 @@ DDS discovery is limited to localhost unless ``ROS_AUTOMATIC_DISCOVERY_RANGE`` i
 from __future__ import annotations
 
 import argparse
+from dataclasses import dataclass
+from datetime import datetime
 import math
 import os
+from pathlib import Path
 import signal
 import sys
 import time
-from dataclasses import dataclass
-from datetime import datetime
-from pathlib import Path
 
 # Table V of the paper: (width m, mass kg).
 PAPER_OBJECTS = ((0.01, 1.27), (0.05, 1.69), (0.10, 0.75))
@@ -47,12 +47,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('--mass', type=float, help='object mass (kg)')
     p.add_argument('--friction', type=float, default=0.0, help='mu_s (0 = configured default)')
     p.add_argument('--stiffness', type=float, default=0.0,
-                   help='object contact stiffness N/m (0 = rigid, the paper\'s model)')
+                   help="object contact stiffness N/m (0 = rigid, the paper's model)")
     p.add_argument('--damping', type=float, default=0.0, help='object contact damping N s/m')
     p.add_argument('--width-tolerance', type=float, default=0.0,
                    help='the object may be this much wider or narrower, m (0 = default)')
     p.add_argument('--object-width', type=float, default=None,
-                   help='the simulated object\'s real width, m (default: the requested --width)')
+                   help="the simulated object's real width, m (default: the requested --width)")
     p.add_argument('--lift', type=float, default=0.0, metavar='A',
                    help='after HOLDING the arm lifts the object at A m/s^2 upward (the request '
                         'carries a = A for the force law); 0 = no lift')
@@ -186,7 +186,7 @@ def _serve(graph, args) -> int:
 
 
 def _bag_dir(output: Path, i: int, width_m: float, mass_kg: float, overwrite: bool) -> Path:
-    """A bag folder for grasp ``i``: a fresh, unique one (or the named one, ``overwrite``)."""
+    """Return the bag folder of grasp ``i``: a fresh, unique one (the named one, ``overwrite``)."""
     from gripper_ros.bags.recording import unique_bag_dir
     stamp = datetime.now().strftime('%Y%m%d_%H%M%S')
     stem = f'grasp_{stamp}_{i}_w{width_m * 1e3:.0f}mm_m{mass_kg:g}kg'
@@ -194,7 +194,7 @@ def _bag_dir(output: Path, i: int, width_m: float, mass_kg: float, overwrite: bo
 
 
 def _lift(args) -> dict:
-    """The SetObject lift fields of ``--lift`` (none without a lift)."""
+    """Return the SetObject lift fields of ``--lift`` (none without a lift)."""
     if not args.lift:
         return {}
     return {'lift_acceleration_mps2': args.lift, 'lift_delay_s': args.lift_delay,

@@ -59,8 +59,8 @@ def _cell(value: float, fmt: str) -> str:
 
 
 def markdown(rows: list[dict], delay_s: float, duration_s: float) -> str:
-    lines = [f'| object (width, mass) | a m/s² | law | F_sp N | outcome | slip mm | lost s | '
-             f'detected s |', '|---|---:|---|---:|---|---:|---:|---:|']
+    lines = ['| object (width, mass) | a m/s² | law | F_sp N | outcome | slip mm | lost s | '
+             'detected s |', '|---|---:|---|---:|---|---:|---:|---:|']
     for r in rows:
         obj = f'{r["width_m"] * 1e3:g} mm, {r["mass_kg"]:g} kg'
         if r['outcome'] == 'REFUSED':
@@ -72,7 +72,7 @@ def markdown(rows: list[dict], delay_s: float, duration_s: float) -> str:
                      f'{_cell(r["lost_s"], ".3f")} | {_cell(r["detected_s"], ".3f")} |')
     lines.append('')
     lines.append(f'Lift {delay_s:g} s after HOLDING, for {duration_s:g} s; lost and detected: '
-                 'seconds after HOLDING (ground truth, and the supervisor\'s OBJECT_LOST).')
+                 "seconds after HOLDING (ground truth, and the supervisor's OBJECT_LOST).")
     return '\n'.join(lines)
 
 

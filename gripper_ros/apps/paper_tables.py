@@ -8,14 +8,15 @@ README "Reproducing the paper" explains it with numbers.
 from __future__ import annotations
 
 import argparse
+from dataclasses import dataclass
 import json
 import math
 import sys
-from dataclasses import dataclass
 
 from gripper_ros.core.config import ConfigError, GripperConfig, load_config
-from gripper_ros.core.controllers import (ForceControllerKind, PositionControllerKind, force_pi_gains,
-                          make_force_controller, make_position_controller)
+from gripper_ros.core.controllers import (force_pi_gains, ForceControllerKind,
+                                          make_force_controller, make_position_controller,
+                                          PositionControllerKind)
 from gripper_ros.core.metrics import StepMetrics
 from gripper_ros.core.step_runs import force_step, position_step
 
@@ -32,7 +33,7 @@ PAPER_TABLE_IV = {
 POSITION_SETPOINT_M = 0.1
 POSITION_HORIZON_S = 20.0
 FORCE_SETPOINT_N = 1.0
-FORCE_HORIZON_S = 0.004          # the paper's Fig. 6 time axis is not in the text; RMS depends on it
+FORCE_HORIZON_S = 0.004          # the paper's Fig. 6 time axis is not in the text; RMS hangs on it
 NEAR_CONTINUOUS_DT_S = 1e-6      # the paper's force gains evaluated as (almost) continuous time
 
 
@@ -54,14 +55,14 @@ def position_rows(config: GripperConfig) -> list[Row]:
     cases = [
         ('PD', 'PD', make_position_controller(config, PositionControllerKind.PD), ''),
         ('PID', 'PID', make_position_controller(config, PositionControllerKind.PID),
-         'ours has conditional-integration anti-windup; the paper\'s PID response is slower '
+         "ours has conditional-integration anti-windup; the paper's PID response is slower "
          '(RMS 0.039 with 0.05 % overshoot) than these Table II gains give under the 24 V limit'),
     ]
     paper_mpc = make_position_controller(config, PositionControllerKind.MPC_PD)
     paper_mpc.respect_inner_limits = False
     cases.append(('MPC-PD', 'MPC-PD (paper structure)', paper_mpc,
                   'DMC unaware of the 24 V limit winds up and drives the finger into the end '
-                  'stop; the paper\'s RMS 0.0238 is below the 24 V floor, so its run cannot '
+                  "stop; the paper's RMS 0.0238 is below the 24 V floor, so its run cannot "
                   'have respected the limit'))
     cases.append(('MPC-PD', 'MPC-PD (ours, limit-aware)',
                   make_position_controller(config, PositionControllerKind.MPC_PD),
@@ -86,7 +87,7 @@ def force_rows(config: GripperConfig) -> list[Row]:
          'unstable in discrete time: the sampling equals the electrical time constant L/R'),
         ('PI', f'PI paper gains, t_s={NEAR_CONTINUOUS_DT_S:g} s',
          make_force_controller(config, ForceControllerKind.PI, f.pi_paper, NEAR_CONTINUOUS_DT_S),
-         NEAR_CONTINUOUS_DT_S, 'near-continuous: what the paper\'s gains do'),
+         NEAR_CONTINUOUS_DT_S, "near-continuous: what the paper's gains do"),
         ('PI', f'PI ours kc={ours.kc:.4f} ki={ours.ki:.0f}, t_s={f.sample_time_s:g} s',
          make_force_controller(config, ForceControllerKind.PI), f.sample_time_s,
          f'discrete pole placement, poles at z={f.closed_loop_pole:g}'),
