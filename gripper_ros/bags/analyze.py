@@ -12,19 +12,18 @@ from __future__ import annotations
 
 import argparse
 import csv
+from dataclasses import asdict, dataclass
 import io
 import json
 import math
 import sys
-from dataclasses import asdict, dataclass
 from typing import Sequence
-
-import numpy as np
 
 from gripper_ros.bags.reader import BagError, EXIT_ERROR, EXIT_TRUNCATED
 from gripper_ros.bags.series import GraspSeries, load_grasp_series
-from gripper_ros.wire import HoldState, Outcome, Phase, SwitchCriterion, enum_name
 from gripper_ros.core.metrics import step_metrics
+from gripper_ros.wire import enum_name, HoldState, Outcome, Phase, SwitchCriterion
+import numpy as np
 
 PROG = 'bag_analyze'
 VOLTAGE_LIMIT_V = 24.0
@@ -81,8 +80,11 @@ class Stages:
 
 
 def find_stages(series: GraspSeries) -> Stages:
-    """Start = first POSITION-phase decision, switch = first FORCE-phase decision of that
-    grasp, end = its answer (the first decision with an outcome)."""
+    """Find the stages of the bag's grasp: its start, its switch to force and its end.
+
+    Start = first POSITION-phase decision, switch = first FORCE-phase decision of that grasp,
+    end = its answer (the first decision with an outcome).
+    """
     st = series.status
     in_position = np.flatnonzero(st.phase == Phase.POSITION)
     if in_position.size == 0:
@@ -203,7 +205,7 @@ def analyze_series(series: GraspSeries, voltage_limit_v: float = VOLTAGE_LIMIT_V
 
 
 def _hold_figures(series: GraspSeries, stages: Stages) -> dict:
-    """What happened after the answer: the final outcome, the slip, the loss."""
+    """Return what happened after the answer: the final outcome, the slip, the loss."""
     st = series.status
     same = np.flatnonzero((st.grasp_id == stages.grasp_id) & (st.t_s >= stages.start_s))
     final = enum_name(Outcome, int(st.outcome[same[-1]])) if same.size else ''
@@ -348,7 +350,7 @@ def _fail(message: str) -> None:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Exit 0; 1 on bad input (one line on stderr); 3 when a bag was truncated (figures printed)."""
+    """Exit 0; 1 on bad input (one line on stderr); 3 when a bag was truncated (figures shown)."""
     args = build_parser().parse_args(argv)
     if not (args.voltage_limit > 0 and math.isfinite(args.voltage_limit)):
         _fail('--voltage-limit must be a positive number')

@@ -1,4 +1,4 @@
-"""``bag_info BAG``: what ``ros2 bag info`` prints (no rosbag2 here), plus rate, size and the grasp.
+"""``bag_info``: what ``ros2 bag info`` prints (no rosbag2 here), plus rate, size and the grasp.
 
 Works on damaged bags too: a truncated file is reported with the number of complete messages
 recovered instead of failing.
@@ -28,7 +28,7 @@ def format_size(size_bytes: int) -> str:
 
 
 def format_time(t_ns: int) -> str:
-    """'Jan  1 1970 00:00:01.500000000 (1.500000000)': date plus seconds (sim time starts at 0)."""
+    """Format as 'Jan  1 1970 00:00:01.500000000 (1.500000000)': date plus seconds from 0."""
     sec, nsec = divmod(int(t_ns), 1_000_000_000)
     stamp = dt.datetime.fromtimestamp(sec, tz=dt.timezone.utc)
     return f'{stamp:%b %e %Y %H:%M:%S}.{nsec:09d} ({sec}.{nsec:09d})'
@@ -82,7 +82,7 @@ def grasp_lines(bag: Bag) -> list[str]:
 
 
 def format_info(bag: Bag) -> str:
-    """The whole report as text."""
+    """Return the whole report as text."""
     lines = [
         _line('Files', ', '.join(str(f.name) for f in bag.files)),
         _line('Bag size', format_size(bag.size_bytes)),

@@ -12,9 +12,9 @@ Every failure is a :class:`BagError` subclass whose ``str()`` is one line, fit f
 """
 from __future__ import annotations
 
+from dataclasses import dataclass, field
 import json
 import os
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Iterable, Iterator
 
@@ -155,7 +155,7 @@ class Bag:
 
     @property
     def typestore(self):
-        """rosbags Jazzy typestore plus every type defined by the bag's own schemas."""
+        """Return the rosbags Jazzy typestore plus every type the bag's own schemas define."""
         if self._typestore is None:
             self._typestore = make_typestore(self.schemas)
         return self._typestore
@@ -194,7 +194,8 @@ def make_typestore(schemas: dict[str, str]):
         try:
             types = get_types_from_msg(text, name)
         except Exception as exc:  # noqa: BLE001
-            raise UnreadableBagError(f'schema of {name} does not parse: {_one_line(exc)}') from None
+            raise UnreadableBagError(
+                f'schema of {name} does not parse: {_one_line(exc)}') from None
         store.register({k: v for k, v in types.items() if k not in store.fielddefs})
     return store
 
@@ -294,7 +295,7 @@ def _load_metadata_yaml(path: Path) -> dict:
 
 
 def _bag_files(path: Path) -> tuple[list[Path], dict]:
-    """The .mcap files of a bag directory (or the file itself) and its metadata.yaml content."""
+    """Return the .mcap files of a bag directory (or the file itself) and its metadata.yaml."""
     if not path.exists():
         raise BagNotFoundError(f'{path}: no such file or directory')
     if path.is_file():
@@ -383,10 +384,10 @@ def read_bag(path: str | os.PathLike, *, allow_empty: bool = False) -> Bag:
             tinfo = topics[topic]
             tinfo.count += 1
             tinfo.size_bytes += len(data)
-            tinfo.first_ns = rec.log_time if tinfo.first_ns is None else min(tinfo.first_ns,
-                                                                              rec.log_time)
-            tinfo.last_ns = rec.log_time if tinfo.last_ns is None else max(tinfo.last_ns,
-                                                                            rec.log_time)
+            tinfo.first_ns = (rec.log_time if tinfo.first_ns is None
+                              else min(tinfo.first_ns, rec.log_time))
+            tinfo.last_ns = (rec.log_time if tinfo.last_ns is None
+                             else max(tinfo.last_ns, rec.log_time))
         if CUSTOM_DATA_RECORD in content.metadata:
             custom_data.update(content.metadata[CUSTOM_DATA_RECORD])
         if 'rosbag2' in content.metadata:

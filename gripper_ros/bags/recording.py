@@ -289,8 +289,10 @@ class GraphTap:
 
 
 def _readable_messages(sink: BagRecorder) -> int:
-    """How many messages a reader gets back from a bag whose recording failed (read back:
-    a write that failed may have left a chunk whole without its index)."""
+    """Count the messages a reader gets back from a bag whose recording failed.
+
+    It is read back: a write that failed may have left a chunk whole without its index.
+    """
     try:
         return read_bag(sink.bag_dir, allow_empty=True).message_count
     except BagError:

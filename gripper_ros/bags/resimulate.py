@@ -1,5 +1,7 @@
-"""Open-loop re-simulation of a grasp bag: recorded measurements through the controllers of a
-configuration, tick by tick exactly as the controller nodes answer them, commands compared.
+"""Open-loop re-simulation of a grasp bag, its commands compared with the recorded ones.
+
+The recorded measurements go through the controllers of a configuration, tick by tick exactly
+as the controller nodes answer them.
 
 ``bag_replay BAG --resimulate [CONFIG.yaml]`` (or :func:`resimulate_bag`):
 
@@ -24,27 +26,26 @@ differs*; after that the recorded measurements no longer belong to the re-simula
 """
 from __future__ import annotations
 
+from dataclasses import asdict, dataclass, field
 import json
 import math
 import os
-import struct
-from dataclasses import asdict, dataclass, field
 from pathlib import Path
+import struct
 from typing import Any
 
-import yaml
-
 from gripper_ros.bags.reader import Bag, BagError, open_bag
-from gripper_ros.bags.series import LEGACY_NAMESPACE, bag_namespace
-from gripper_ros.core.config import ConfigError, GripperConfig, default_config_path, parse_config
+from gripper_ros.bags.series import bag_namespace, LEGACY_NAMESPACE
+from gripper_ros.core.config import ConfigError, default_config_path, GripperConfig, parse_config
 from gripper_ros.core.controllers import ForceControllerKind, PositionControllerKind
 from gripper_ros.core.lockstep import StageSide
-from gripper_ros.core.stages import (
-    DEFAULT_APPROACH_FORCE_MARGIN, DEFAULT_FORCE_CONTROLLER, DEFAULT_POSITION_CONTROLLER,
-    SOURCE_FORCE, SOURCE_POSITION, ForceStageController, PositionStageController, Reference,
-)
-from gripper_ros.wire import (COMMAND_LAYOUT, REFERENCE_LAYOUT, TOPIC_FORCE_REFERENCE,
-                              TOPIC_MOTOR_COMMAND, TOPIC_POSITION_REFERENCE, qualified)
+from gripper_ros.core.stages import (DEFAULT_APPROACH_FORCE_MARGIN, DEFAULT_FORCE_CONTROLLER,
+                                     DEFAULT_POSITION_CONTROLLER, ForceStageController,
+                                     PositionStageController, Reference, SOURCE_FORCE,
+                                     SOURCE_POSITION)
+from gripper_ros.wire import (COMMAND_LAYOUT, qualified, REFERENCE_LAYOUT, TOPIC_FORCE_REFERENCE,
+                              TOPIC_MOTOR_COMMAND, TOPIC_POSITION_REFERENCE)
+import yaml
 
 OPEN_LOOP_NOTE = ('open loop: the recorded measurements and supervisor decisions are replayed; '
                   'the plant is NOT re-run, so they do not respond to changed commands')
@@ -140,8 +141,11 @@ def to_json(report: ResimulationReport, with_ticks: bool = False) -> str:
 
 
 def load_resim_config(config_path: str | os.PathLike | None) -> GripperConfig:
-    """The configuration to re-simulate with (None or '' = the installed default), read like
-    :func:`gripper_ros.core.config.load_config`; ConfigError with a one-line message."""
+    """Read the configuration to re-simulate with (None or '' = the installed default).
+
+    It is read like :func:`gripper_ros.core.config.load_config`; ConfigError with a one-line
+    message.
+    """
     path = Path(config_path) if config_path else default_config_path()
     try:
         text = path.read_text(encoding='utf-8')
@@ -169,8 +173,11 @@ def build_stages(config: GripperConfig,
                  position_controller: PositionControllerKind | str = DEFAULT_POSITION_CONTROLLER,
                  force_controller: ForceControllerKind | str = DEFAULT_FORCE_CONTROLLER,
                  approach_force_margin: float = DEFAULT_APPROACH_FORCE_MARGIN):
-    """The two stage controllers, exactly as the nodes build them; ConfigError when the
-    configuration cannot give a controller (e.g. a force pole faster than the loop allows)."""
+    """Build the two stage controllers exactly as the nodes build them.
+
+    ConfigError when the configuration cannot give a controller (e.g. a force pole faster than
+    the loop allows).
+    """
     try:
         return (PositionStageController(config, position_controller),
                 ForceStageController(config, force_controller, approach_force_margin))
@@ -186,9 +193,9 @@ def resimulate_bag(bag: Bag | str | os.PathLike, config: GripperConfig | str | o
                    force_controller: ForceControllerKind | str = DEFAULT_FORCE_CONTROLLER,
                    approach_force_margin: float = DEFAULT_APPROACH_FORCE_MARGIN,
                    keep_ticks: bool = False) -> ResimulationReport:
-    """Re-simulate every controller tick of ``bag`` with ``config`` (a GripperConfig, a YAML
-    path, or None for the installed default) and compare with the recorded commands.
+    """Re-simulate every controller tick of ``bag`` with ``config``; compare with the recording.
 
+    ``config`` is a GripperConfig, a YAML path, or None for the installed default.
     Raises BagError (one line) for an unusable bag and ConfigError (one line) for an unusable
     configuration. A truncated bag is re-simulated up to the damage (``report.truncated``).
     With ``keep_ticks`` the report holds one row per compared tick (for plots and debugging).
@@ -282,7 +289,7 @@ def resimulate_bag(bag: Bag | str | os.PathLike, config: GripperConfig | str | o
 
 
 def _lockstep_ticks(bag: Bag, ns: str):
-    """References and recorded commands of a lockstep bag (repeats of a tick once)."""
+    """Return the references and recorded commands of a lockstep bag (repeated ticks once)."""
     ref_topics = {qualified(ns, TOPIC_POSITION_REFERENCE), qualified(ns, TOPIC_FORCE_REFERENCE)}
     cmd_topic = qualified(ns, TOPIC_MOTOR_COMMAND)
     bag.require_topics([cmd_topic])
@@ -327,7 +334,7 @@ class _RecordedCommand:
 
 
 def _legacy_ticks(bag: Bag):
-    """References rebuilt from a bag of the earlier protocol, and its recorded commands."""
+    """Return references rebuilt from a bag of the earlier protocol, and its recorded commands."""
     topic = {name: qualified(LEGACY_NAMESPACE, name) for name in
              ('joint_states', 'force_sensor', 'supervisor/status', 'motor_command')}
     bag.require_topics(list(topic.values()))
