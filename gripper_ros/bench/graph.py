@@ -27,6 +27,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+from pathlib import Path
 import platform
 import re
 import subprocess
@@ -34,7 +35,6 @@ import sys
 import tempfile
 import threading
 import time
-from pathlib import Path
 from typing import Any, Callable, Dict, List, Optional, Sequence
 
 from gripper_ros.bench.common import call, process_cpu_s
@@ -167,8 +167,10 @@ def _quiet_loggers() -> None:
 
 def measure_graph(executor_kind: str, objects: Sequence[tuple], cap_s: float = 0.0,
                   record: bool = False) -> Dict[str, Any]:
-    """Grasp each ``(width_m, mass_kg)`` in a fresh graph, in a private Context, as
-    ``grasp_demo`` does (released between objects; recorded as it records, ``record``)."""
+    """Grasp each ``(width_m, mass_kg)`` in a fresh graph, in a private Context.
+
+    As ``grasp_demo`` does: released between objects; recorded as it records with ``record``.
+    """
     import rclpy
     from gripper_ros.bags.recording import recorded_grasp
     from gripper_ros.core.config import ConfigError
@@ -196,7 +198,7 @@ def measure_graph(executor_kind: str, objects: Sequence[tuple], cap_s: float = 0
         up_s = time.perf_counter() - t_up
         fanout = _subscriptions_per_topic(graph)
         dt_s = _stage_dt_s(graph.plant.config)
-        rows, published_per_tick = [], []
+        rows = []
         with tempfile.TemporaryDirectory(prefix='bench_graph_bags_') as tmp:
             for i, (width_m, mass_kg) in enumerate(objects, 1):
                 before = graph.published_counts()
@@ -246,7 +248,7 @@ def _subscriptions_per_topic(graph) -> Dict[str, int]:
     """Subscriptions in the graph's nodes per graph topic: callbacks one publication costs."""
     from gripper_ros.wire import GRAPH_TOPICS, qualified
     names = {qualified(graph.namespace, t): t for t in GRAPH_TOPICS}
-    subs = {t: 0 for t in GRAPH_TOPICS}
+    subs = dict.fromkeys(GRAPH_TOPICS, 0)
     for node in graph.nodes:
         for sub in node.subscriptions:
             if sub.topic_name in names:
@@ -368,8 +370,11 @@ class _NodeProcesses:
 
 def measure_processes(executor_kind: str, objects: Sequence[tuple],
                       cap_s: float = 0.0) -> Dict[str, Any]:
-    """The same grasps with one process per node (``python -m gripper_ros.nodes.<node>``, as
-    ``ros2 run`` starts them, with ``-p time_mode:=fast``), no recording."""
+    """Grasp the same objects with one process per node, without recording.
+
+    Each node runs as ``python -m gripper_ros.nodes.<node>``, as ``ros2 run`` starts them, with
+    ``-p time_mode:=fast``.
+    """
     from gripper_ros.core.config import load_config
     from gripper_ros.wire import Outcome
     t_up = time.perf_counter()

@@ -280,7 +280,7 @@ def _measure_pingpong_here(executor_kind: str, seconds: float,
 
 
 def _echo_main(tag: str, executor_kind: str, seconds: float) -> int:
-    """The echo node alone, for ``seconds`` or until terminated (``across_processes``)."""
+    """Run the echo node alone, for ``seconds`` or until terminated (``across_processes``)."""
     import rclpy
     from rclpy.task import Future
     rclpy.init(args=[])

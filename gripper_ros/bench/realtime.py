@@ -1,4 +1,4 @@
-"""bench_realtime: does the simulated gripper keep the wall clock's pace, and at what CPU cost?
+"""bench_realtime: whether the simulated gripper keeps the wall clock's pace, at what CPU cost.
 
     ros2 run gripper_ros bench_realtime                  # idle 5 s, grasp, hold 5 s
     ros2 run gripper_ros bench_realtime --seconds 10 --no-record --json
@@ -196,7 +196,7 @@ def format_report(r: Dict[str, Any]) -> str:
     lines = [f"bench_realtime: grasp_demo --serve{'' if r['record'] else ' --no-record'} "
              f"(realtime, real-time factor 1, state_rate_hz {r['state_rate_hz']:g}) watched "
              f"from another process, {r['seconds']:g} s per window; CPU: the serving "
-             f"process, share of one core", '',
+             'process, share of one core', '',
              f'{"window":>8s} {"RTF":>6s} {"plant RTF":>9s} {"/clock Hz":>10s} '
              f'{"joint_states Hz":>15s} {"CPU share":>9s}']
     for name in ('idle', 'holding'):

@@ -16,8 +16,10 @@ def _median(values):
 
 
 def median_of(items: List[Any]) -> Any:
-    """Element-wise median of equally shaped results (dicts and lists of numbers); any other
-    value is the first repetition's, a boolean is true when any repetition's is."""
+    """Return the element-wise median of equally shaped results (dicts and lists of numbers).
+
+    Any other value is the first repetition's; a boolean is true when any repetition's is.
+    """
     items = [it for it in items if it is not None]
     if not items:
         return None
@@ -35,7 +37,7 @@ def median_of(items: List[Any]) -> Any:
 
 
 def ratios(res: Dict[str, Any]) -> Dict[str, float]:
-    """The same-run ratios of one repetition (or of the medians)."""
+    """Return the same-run ratios of one repetition (or of the medians)."""
     pp, graph, procs, demo = res['pingpong'], res['graph'], res['processes'], res['demo']
     out: Dict[str, float] = {}
     for kind, g in graph.items():
@@ -47,7 +49,7 @@ def ratios(res: Dict[str, Any]) -> Dict[str, float]:
                 out[f'{stage}_tick_over_pingpong_{kind}'] = g['all'][stage]['us_per_tick'] / rt
     for kind, p in res.get('pingpong_processes', {}).items():
         out[f'pingpong_processes_over_pingpong_{kind}'] = (p['us_per_round_trip']
-                                                          / pp[kind]['us_per_round_trip'])
+                                                           / pp[kind]['us_per_round_trip'])
     for kind, p in procs.items():
         one = p['one_process']
         out[f'processes_over_one_process_{kind}'] = p['all']['wall_s'] / one['all']['wall_s']
@@ -110,7 +112,7 @@ def format_report(report: Dict[str, Any]) -> str:
              f"{m['rmw']}, ROS_DOMAIN_ID={m['ros_domain_id']}, load average (1 min) "
              f"{_f(m['loadavg_1min_before'], '.2f', 0)} before, "
              f"{_f(m['loadavg_1min_after'], '.2f', 0)} after", '',
-             f"1. baseline: lockstep std_msgs/Float64 ping-pong, two nodes, one executor "
+             '1. baseline: lockstep std_msgs/Float64 ping-pong, two nodes, one executor '
              f"({s['pingpong_s']:g} s each)",
              f'{"executor":>8s} {"round trips/s":>14s} {"us/round trip":>14s} '
              f'{"CPU us/round trip":>18s}']
@@ -149,7 +151,7 @@ def format_report(report: Dict[str, Any]) -> str:
             lines.append(f'  {kind}: CPU = the four node processes; processes up in '
                          f'{p["processes_up_s"]:.2f} s')
     if res['demo']:
-        lines += ['', f"4. grasp_demo --no-plot (three objects, bags to a temp dir), child "
+        lines += ['', '4. grasp_demo --no-plot (three objects, bags to a temp dir), child '
                   f"process, cap {s['demo_cap_s']:g} s",
                   f'{"executor":>8s} {"wall s":>8s} {"grasps s":>9s} {"exit":>5s}']
         for kind, d in res['demo'].items():

@@ -32,8 +32,10 @@ Exit codes: 0 all grasps held and every bag matched, 1 a grasp failed or a bag d
 from __future__ import annotations
 
 import argparse
+from dataclasses import asdict, dataclass, field
 import json
 import os
+from pathlib import Path
 import platform
 import shutil
 import statistics
@@ -41,8 +43,6 @@ import subprocess
 import sys
 import tempfile
 import time
-from dataclasses import asdict, dataclass, field
-from pathlib import Path
 
 PAPER_OBJECTS = ((0.01, 1.27), (0.05, 1.69), (0.10, 0.75))        # Table V
 # cheap: wide objects, short strokes (~1200-1400 plant ticks per grasp instead of 1500-2000)
@@ -115,7 +115,7 @@ class SoakReport:
 
 # ------------------------------------------------------------------ client process
 def client_worker() -> int:
-    """The client side, in its own process: JSON lines in on stdin, JSON lines out on stdout.
+    """Run the client side, in its own process: JSON lines in on stdin, out on stdout.
 
     ``{"op": "place", "width": w}`` -> sim/set_object (open fingers; a held object is
     released first);
@@ -239,9 +239,9 @@ class _WorkerClient:
 # ------------------------------------------------------------------ the soak
 def _grasp_client_exe(width: float, mass: float, timeout_s: float) -> dict:
     """One grasp through the grasp_client executable (the object is placed by the caller)."""
-    r = subprocess.run([sys.executable, '-m', 'gripper_ros.apps.grasp_client', '--width', repr(width),
-                        '--mass', repr(mass), '--no-place'], capture_output=True, text=True,
-                       timeout=timeout_s, env=os.environ.copy())
+    r = subprocess.run([sys.executable, '-m', 'gripper_ros.apps.grasp_client',
+                        '--width', repr(width), '--mass', repr(mass), '--no-place'],
+                       capture_output=True, text=True, timeout=timeout_s, env=os.environ.copy())
     fields = dict(line.split(': ', 1) for line in r.stdout.splitlines() if ': ' in line)
     return {'success': r.returncode == 0, 'outcome': fields.get('outcome', f'exit {r.returncode}'),
             'message': fields.get('message', r.stderr.strip()[-200:])}
@@ -254,7 +254,8 @@ def run_soak(graph, worker: _WorkerClient, objects, grasps: int, bag_root: Path,
     """Send ``grasps`` grasps (cycling over ``objects``); returns (rows, rss marks).
 
     ``rows``/``marks``, when given, are filled in place, so a caller still has the grasps done
-    so far when a SoakError ends the run."""
+    so far when a SoakError ends the run.
+    """
     from gripper_ros.bags.recording import ServeRecorder
     from gripper_ros.nodes.common import wait_until
     from gripper_ros.wire import LOOP_TOPICS, TOPIC_TICK, qualified
