@@ -7,12 +7,11 @@ import time
 from typing import Callable
 
 from builtin_interfaces.msg import Time
+from gripper_ros.core.config import ConfigError, GripperConfig, load_config
+from gripper_ros.wire import DEFAULT_NAMESPACE
 from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
-
-from gripper_ros.core.config import ConfigError, GripperConfig, load_config
-from gripper_ros.wire import DEFAULT_NAMESPACE
 
 # Lockstep keeps at most a few messages in flight; the depth is there so that a slow recorder
 # callback never loses one (a reliable keep_last writer drops what its history cannot hold).
@@ -78,7 +77,7 @@ def spin_until_stopped(executor, stop) -> None:
 
 def run_node(make_node: Callable[[], Node], name: str, args=None,
              services: tuple[str, ...] = ()) -> int:
-    """The one ``main()`` of every node: init, spin, clean shutdown, one exit-code policy.
+    """Run a node: the one ``main()`` of every node (init, spin, clean shutdown, exit codes).
 
     0 on Ctrl-C or SIGTERM; ``EXIT_BAD_START`` with one line on stderr, no traceback, for a bad
     config file, a refused start-up parameter or names already taken (a node ``name``, or a
@@ -127,8 +126,10 @@ def one_line(text: object) -> str:
 
 
 def default_namespace(kwargs: dict) -> dict:
-    """Node keyword arguments with the package's namespace unless one is given (a remap
-    ``-r __ns:=/left`` still wins, as for every ROS node)."""
+    """Return Node keyword arguments with the package's namespace unless one is given.
+
+    A remap ``-r __ns:=/left`` still wins, as for every ROS node.
+    """
     kwargs.setdefault('namespace', DEFAULT_NAMESPACE)
     return kwargs
 
@@ -139,10 +140,13 @@ MAX_COUNTED_GAP_S = 0.25
 
 
 class ExecutorSilence:
-    """Wall time without progress, for the watchdogs (supervisor: no tick; controllers: no
-    status). Only time in which the executor demonstrably ran counts: call :meth:`check` from a
-    steady timer; a check more than ``MAX_COUNTED_GAP_S`` late adds only that much, so that after
-    a stall of the whole process the messages queued behind the timer are not taken for silence."""
+    """Wall time without progress, for the watchdogs.
+
+    The supervisor's is time without a tick, the controllers' time without a status. Only time
+    in which the executor demonstrably ran counts: call :meth:`check` from a steady timer; a
+    check more than ``MAX_COUNTED_GAP_S`` late adds only that much, so that after a stall of the
+    whole process the messages queued behind the timer are not taken for silence.
+    """
 
     def __init__(self):
         self.silent_s = 0.0
@@ -154,7 +158,7 @@ class ExecutorSilence:
         self._last_check = time.monotonic()
 
     def check(self, counting: bool) -> float:
-        """A timer check; the gap since the last one counts only when ``counting``."""
+        """Check from the timer; the gap since the last check counts only when ``counting``."""
         now = time.monotonic()
         gap_s, self._last_check = now - self._last_check, now
         if counting:
@@ -163,8 +167,10 @@ class ExecutorSilence:
 
 
 def call_and_wait(client, request, timeout_s: float):
-    """A service call from a thread that is not the executor's: the response, or None when
-    none came within ``timeout_s`` (the pending request is dropped)."""
+    """Call a service from a thread that is not the executor's; return the response.
+
+    None when none came within ``timeout_s`` (the pending request is dropped).
+    """
     import threading
     done = threading.Event()
     future = client.call_async(request)
@@ -176,8 +182,10 @@ def call_and_wait(client, request, timeout_s: float):
 
 
 def wait_until(predicate, timeout_s: float = 5.0, step_s: float = 0.005) -> bool:
-    """Poll ``predicate`` until it holds or ``timeout_s`` of wall time has passed; its last
-    value (for callers that wait on another thread's spinning executor)."""
+    """Poll ``predicate`` until it holds or ``timeout_s`` of wall time has passed.
+
+    Returns its last value (for callers that wait on another thread's spinning executor).
+    """
     deadline = time.monotonic() + timeout_s
     while time.monotonic() < deadline:
         if predicate():
@@ -205,7 +213,7 @@ def declare_config(node: Node) -> GripperConfig:
 
 
 def server_node_name(node_name: str, service_name: str) -> str:
-    """The private server node of a :class:`DeferredService`: ``<node>_<last part>_server``."""
+    """Name the private server node of a :class:`DeferredService`: ``<node>_<last>_server``."""
     base = service_name.rstrip('/').rsplit('/', 1)[-1]
     base = ''.join(c if c.isalnum() or c == '_' else '_' for c in base) or 'service'
     return f'{node_name}_{base}_server'
@@ -216,9 +224,9 @@ class DeferredService:
 
     rclpy (Jazzy) sends a service callback's return value at once, and its EventsExecutor cannot
     await an ``async`` callback. A grasp takes many lockstep ticks, so the request is taken from
-    the service handle by a 10 ms steady-clock timer on ``node`` (the server itself lives on a private,
-    never-spun node) and answered with :meth:`reply` when the grasp ends. Requests queue in DDS
-    meanwhile; each is handled in arrival order.
+    the service handle by a 10 ms steady-clock timer on ``node`` (the server itself lives on a
+    private, never-spun node) and answered with :meth:`reply` when the grasp ends. Requests queue
+    in DDS meanwhile; each is handled in arrival order.
     """
 
     def __init__(self, node: Node, srv_type, name: str, on_request, poll_period_s: float = 0.01):

@@ -20,17 +20,16 @@ from __future__ import annotations
 from collections import Counter
 
 from gripper_interfaces.msg import MotorCommand, StageReference, SupervisorStatus
+from gripper_ros.core.lockstep import StageSide
+from gripper_ros.core.stages import Reference
+from gripper_ros.nodes.common import default_namespace, ExecutorSilence, GRAPH_QOS
+from gripper_ros.nodes.loop_io import decode, read_status
+from gripper_ros.nodes.parameters import ConfigParameters
+from gripper_ros.wire import (COMMAND_LAYOUT, Controller, NODE_PLANT, REFERENCE_LAYOUT,
+                              TOPIC_MOTOR_COMMAND, TOPIC_STATUS, TOPIC_TICK)
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
-
-from gripper_ros.core.lockstep import StageSide
-from gripper_ros.core.stages import Reference
-from gripper_ros.nodes.common import GRAPH_QOS, ExecutorSilence, default_namespace
-from gripper_ros.nodes.loop_io import decode, read_status
-from gripper_ros.nodes.parameters import ConfigParameters
-from gripper_ros.wire import (COMMAND_LAYOUT, NODE_PLANT, REFERENCE_LAYOUT, TOPIC_MOTOR_COMMAND,
-                              TOPIC_STATUS, TOPIC_TICK, Controller)
 
 DEFAULT_STATUS_TIMEOUT_S = 3.0
 STATUS_TIMEOUT_RANGE_S = (0.1, 600.0)

@@ -11,14 +11,13 @@ from __future__ import annotations
 
 import sys
 
-from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
-
 from gripper_ros.core.controllers import ForceControllerKind
 from gripper_ros.core.stages import (DEFAULT_APPROACH_FORCE_MARGIN, DEFAULT_FORCE_CONTROLLER,
                                      ForceStageController, parse_kind)
 from gripper_ros.nodes.common import run_node
 from gripper_ros.nodes.controller_node import LockstepController
-from gripper_ros.wire import NODE_FORCE_CONTROLLER, TOPIC_FORCE_REFERENCE, Controller
+from gripper_ros.wire import Controller, NODE_FORCE_CONTROLLER, TOPIC_FORCE_REFERENCE
+from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
 
 
 class ForceControllerNode(LockstepController):
@@ -34,7 +33,7 @@ class ForceControllerNode(LockstepController):
         kind = self.declare_parameter(
             'controller', DEFAULT_FORCE_CONTROLLER.value,
             ParameterDescriptor(description='contact_aware (default: rigid and compliant '
-                                            'objects) | pi | mpc_pi (the paper\'s structure)',
+                                            "objects) | pi | mpc_pi (the paper's structure)",
                                 read_only=True)).value
         self.kind = parse_kind(ForceControllerKind, kind)
         self.approach_margin = self.declare_parameter(
@@ -48,8 +47,10 @@ class ForceControllerNode(LockstepController):
         return ForceStageController(config, self.kind, self.approach_margin)
 
     def _on_parameters_set(self, parameters) -> None:
-        """An accepted ``approach_force_margin`` (the descriptor's range refuses the rest)
-        takes effect when the force stage next takes over, never mid-stage."""
+        """Apply an accepted ``approach_force_margin`` when the force stage next takes over.
+
+        Never mid-stage; the descriptor's range refuses the rest.
+        """
         for p in parameters:
             if p.name == 'approach_force_margin':
                 self.approach_margin = self.stage.approach_margin = float(p.value)

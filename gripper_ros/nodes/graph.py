@@ -8,22 +8,16 @@ Recording lives in :mod:`gripper_ros.bags.recording`.
 """
 from __future__ import annotations
 
+from collections import Counter
 import copy
+from dataclasses import dataclass, field
 import math
 import threading
 import time
-from collections import Counter
-from dataclasses import dataclass, field
 
-import rclpy
 from gripper_interfaces.srv import Grasp, Move, SetObject, SimStep
-from rclpy.context import Context
-from rclpy.parameter import Parameter
-from rclpy.task import Future
-from std_srvs.srv import Trigger
-
 from gripper_ros.core.stages import DEFAULT_FORCE_CONTROLLER
-from gripper_ros.nodes.common import (SERVICE_QOS, ExecutorKind, call_and_wait, make_executor,
+from gripper_ros.nodes.common import (call_and_wait, ExecutorKind, make_executor, SERVICE_QOS,
                                       spin_until_stopped)
 from gripper_ros.nodes.force_controller_node import ForceControllerNode
 from gripper_ros.nodes.grasp_action_node import GraspActionServer
@@ -32,9 +26,14 @@ from gripper_ros.nodes.names import NameClaim
 from gripper_ros.nodes.plant_simulator_node import PlantSimulatorNode
 from gripper_ros.nodes.position_controller_node import PositionControllerNode
 from gripper_ros.nodes.supervisor_node import SupervisorNode
-from gripper_ros.wire import (DEFAULT_NAMESPACE, NODE_PLANT, NODE_SUPERVISOR, SERVICE_GRASP,
-                              SERVICE_MOVE, SERVICE_PAUSE, SERVICE_RELEASE, SERVICE_RESUME,
-                              SERVICE_SET_OBJECT, SERVICE_STEP, SERVICE_STOP, check_namespace)
+from gripper_ros.wire import (check_namespace, DEFAULT_NAMESPACE, NODE_PLANT, NODE_SUPERVISOR,
+                              SERVICE_GRASP, SERVICE_MOVE, SERVICE_PAUSE, SERVICE_RELEASE,
+                              SERVICE_RESUME, SERVICE_SET_OBJECT, SERVICE_STEP, SERVICE_STOP)
+import rclpy
+from rclpy.context import Context
+from rclpy.parameter import Parameter
+from rclpy.task import Future
+from std_srvs.srv import Trigger
 
 
 class GraphError(RuntimeError):
@@ -113,7 +112,8 @@ class GripperGraph:
         for node in self.nodes:
             self.executor.add_node(node)
         self._stop = Future()
-        self._thread = threading.Thread(target=spin_until_stopped, args=(self.executor, self._stop),
+        self._thread = threading.Thread(target=spin_until_stopped,
+                                        args=(self.executor, self._stop),
                                         name='gripper_graph_executor', daemon=True)
         self._thread.start()
         client = self.client_node.create_client
@@ -192,7 +192,7 @@ class GripperGraph:
 
     # ------------------------------------------------------------------ calls
     def call(self, client, request, timeout_s: float):
-        """A real service call from this process; waits in this (non-executor) thread."""
+        """Make a real service call from this process; wait in this (non-executor) thread."""
         response = call_and_wait(client, request, timeout_s)
         if response is None:
             raise GraphError(f'{client.srv_name} did not answer within {timeout_s:g} s')
@@ -202,11 +202,13 @@ class GripperGraph:
                    damping_n_s_per_m: float = 0.0, open_fingers: bool = True,
                    timeout_s: float = 10.0, fault: int = 0, fault_at_s: float = 0.0,
                    fault_time_constant_s: float = 0.0, **hold) -> SetObject.Response:
-        """Place an object; ``fault`` (SetObject.FAULT_*) fires ``fault_at_s`` s into the next
-        grasp; ``hold`` sets the SetObject hold and lift fields (mass_kg, lift_delay_s...).
+        """Place an object, with an optional fault and hold scenario for the next grasp.
 
-        An object still held from an earlier grasp is released first (the plant refuses to
-        replace an object the fingers hold)."""
+        ``fault`` (SetObject.FAULT_*) fires ``fault_at_s`` s into the next grasp; ``hold`` sets
+        the SetObject hold and lift fields (mass_kg, lift_delay_s...). An object still held from
+        an earlier grasp is released first (the plant refuses to replace an object the fingers
+        hold).
+        """
         if self.supervisor.logic.holding:
             self.release()
         request = SetObject.Request(
@@ -254,10 +256,11 @@ class GripperGraph:
 
     # ------------------------------------------------------------------ state
     def controller_settings(self) -> dict:
-        """What a re-simulation of this graph's bags needs to rebuild the same controllers.
+        """Return what a re-simulation of this graph's bags needs to rebuild its controllers.
 
         The approach margin is the force stage's current one: ``approach_force_margin`` is a
-        writable parameter, and a change at run time must be recorded as it is used."""
+        writable parameter, and a change at run time must be recorded as it is used.
+        """
         o = self.options
         return {'position_controller': o.position_controller,
                 'force_controller': o.force_controller,
@@ -265,8 +268,10 @@ class GripperGraph:
                 'config_file': o.config_file}
 
     def config_data(self) -> dict:
-        """The configuration the graph runs with now: each section from the node that owns it
-        (a gain set at run time included), as a config file would hold it."""
+        """Return the configuration the graph runs with now, as a config file would hold it.
+
+        Each section comes from the node that owns it (a gain set at run time included).
+        """
         data = copy.deepcopy(self.plant.parameters.data)
         for node in (self.position, self.force, self.supervisor):
             for section in node.parameters.writable:
@@ -274,8 +279,10 @@ class GripperGraph:
         return data
 
     def published_counts(self) -> Counter:
-        """Messages published so far on every graph topic (relative names; the nodes' own
-        counters, repeats of an unanswered tick included)."""
+        """Count the messages published so far on every graph topic (relative names).
+
+        These are the nodes' own counters, repeats of an unanswered tick included.
+        """
         total: Counter = Counter()
         for node in (self.plant, self.supervisor, self.position, self.force):
             total.update(node.published)
@@ -286,8 +293,10 @@ class GripperGraph:
         return self.plant.plant.t_ns
 
     def wait_still(self, quiet_s: float = 0.05, timeout_s: float = 30.0) -> bool:
-        """Wait until simulated time has stood still for ``quiet_s`` of wall time (fast mode:
-        the request and its hold scenario are over); False on timeout."""
+        """Wait until simulated time has stood still for ``quiet_s`` of wall time.
+
+        In fast mode that means the request and its hold scenario are over. False on timeout.
+        """
         deadline = time.monotonic() + timeout_s
         last, since = self.plant.ticks_published, time.monotonic()
         while time.monotonic() < deadline:
@@ -300,9 +309,12 @@ class GripperGraph:
         return False
 
     def simulated_width_m(self, width_m: float, object_width_m: float | None = None) -> float:
-        """The object to place for a grasp of ``width_m``: ``object_width_m`` when given, else
-        the requested width, or nothing (0) when that width is not one an object can have (the
-        request will be refused; an invalid object must not fail the placement first)."""
+        """Return the width of the object to place for a grasp of ``width_m``.
+
+        ``object_width_m`` when given, else the requested width, or nothing (0) when that width
+        is not one an object can have (the request will be refused; an invalid object must not
+        fail the placement first).
+        """
         if object_width_m is not None:
             return object_width_m
         valid = math.isfinite(width_m) and 0.0 < width_m < self.plant.config.plant.max_travel_m
@@ -312,9 +324,11 @@ class GripperGraph:
     @classmethod
     def in_own_context(cls, options: GraphOptions | None = None,
                        domain_id: int | None = None) -> GripperGraph:
-        """A graph in a fresh rclpy context (on ``domain_id``, default ROS_DOMAIN_ID) that
-        :meth:`close` shuts down: several graphs, or a graph and other rclpy users, can share a
-        process without sharing a context."""
+        """Start a graph in a fresh rclpy context that :meth:`close` shuts down.
+
+        The context is on ``domain_id`` (default ROS_DOMAIN_ID). Several graphs, or a graph and
+        other rclpy users, can share a process without sharing a context.
+        """
         context = Context()
         rclpy.init(context=context, **({} if domain_id is None else {'domain_id': domain_id}))
         try:
@@ -326,8 +340,7 @@ class GripperGraph:
         return graph
 
     def close(self) -> None:
-        """Stop spinning and destroy every node (and the context it owns); safe to call
-        twice."""
+        """Stop spinning and destroy every node (and the context it owns); safe to call twice."""
         for hook in reversed(self.close_hooks):      # the last opened closes first
             hook()
         self.close_hooks = []

@@ -20,16 +20,15 @@ import time
 from gripper_interfaces.action import Grasp as GraspAction
 from gripper_interfaces.msg import SupervisorStatus
 from gripper_interfaces.srv import Grasp
+from gripper_ros.nodes.common import (declare_config, default_namespace, GRAPH_QOS, run_node,
+                                      SERVICE_QOS)
+from gripper_ros.nodes.loop_io import read_status
+from gripper_ros.wire import (ACTION_GRASP, NODE_GRASP_ACTION, Outcome, Phase, SERVICE_GRASP,
+                              SERVICE_STOP, TOPIC_STATUS)
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
 from rclpy.node import Node
 from std_srvs.srv import Trigger
-
-from gripper_ros.nodes.common import (GRAPH_QOS, SERVICE_QOS, declare_config, default_namespace,
-                                      run_node)
-from gripper_ros.nodes.loop_io import read_status
-from gripper_ros.wire import (ACTION_GRASP, NODE_GRASP_ACTION, SERVICE_GRASP, SERVICE_STOP,
-                              TOPIC_STATUS, Outcome, Phase)
 
 _REQUEST_FIELDS = ('width_m', 'mass_kg', 'friction_coefficient', 'acceleration_mps2',
                    'timeout_s', 'width_tolerance_m')
@@ -63,8 +62,10 @@ class GraspActionServer(Node):
                                     cancel_callback=self._on_cancel)
 
     def _on_parameters_set(self, parameters) -> None:
-        """An accepted ``feedback_period_s`` (the descriptor's range refuses the rest) applies
-        from the next status on."""
+        """Apply an accepted ``feedback_period_s`` from the next status on.
+
+        The descriptor's range refuses the rest.
+        """
         for p in parameters:
             if p.name == 'feedback_period_s':
                 self.feedback_period_s = float(p.value)
@@ -126,7 +127,8 @@ class GraspActionServer(Node):
         if msg.grasp_id != self._goal_grasp_id:
             return
         now = time.monotonic()
-        if msg.phase == self._last_phase and now - self._last_feedback_wall < self.feedback_period_s:
+        if (msg.phase == self._last_phase
+                and now - self._last_feedback_wall < self.feedback_period_s):
             return
         self._last_phase, self._last_feedback_wall = msg.phase, now
         feedback = GraspAction.Feedback(

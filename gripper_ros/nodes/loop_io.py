@@ -6,17 +6,16 @@ deserialisation, so any DDS peer is understood.
 """
 from __future__ import annotations
 
+from collections import namedtuple
 import functools
 import struct
-from collections import namedtuple
-
-from rclpy.serialization import deserialize_message
 
 from gripper_ros.wire import CDR_LITTLE_ENDIAN as CDR_HEADER, LoopLayout
+from rclpy.serialization import deserialize_message
 
 
 def decode(layout: LoopLayout, data: bytes, msg_cls) -> tuple:
-    """The field values of one serialised loop message, in layout order."""
+    """Return the field values of one serialised loop message, in layout order."""
     values = layout.unpack(data)
     if values is None:                       # not little-endian plain CDR: the general way
         msg = deserialize_message(data, msg_cls)
@@ -30,8 +29,11 @@ _SLOT_FORMATS = {'double': 'd', 'float': 'f', 'int64': 'q', 'uint64': 'Q', 'int3
 
 
 class _CdrPlan:
-    """The plain-CDR form of one message value, piece by piece: constant bytes that matter
-    (lengths, string text, numbers not in ``fields``), padding, and the named fields."""
+    """The plain-CDR form of one message value, piece by piece.
+
+    Constant bytes that matter (lengths, string text, numbers not in ``fields``), padding, and
+    the named fields.
+    """
 
     def __init__(self, fields: tuple[str, ...]):
         self.fields = fields
@@ -138,12 +140,12 @@ class MessageTemplate:
         self._identity = self._order == list(range(len(self.fields)))
 
     def pack(self, *values) -> bytes:
-        """The serialised message with ``values`` for :attr:`fields`, in that order."""
+        """Return the serialised message with ``values`` for :attr:`fields`, in that order."""
         return self._writer.pack(*[values[a] if a.__class__ is int else a
                                    for a in self._args])
 
     def unpack(self, data) -> tuple | None:
-        """The values of :attr:`fields` in ``data``, or None when ``data`` is in another form."""
+        """Return the values of :attr:`fields` in ``data``; None when it is in another form."""
         if len(data) != self.size:
             return None
         for start, stop, part in self._checks:
@@ -208,14 +210,17 @@ StatusView = namedtuple('StatusView', ('sec', 'nanosec') + STATUS_FIELDS)
 
 @functools.lru_cache(maxsize=None)
 def status_template() -> MessageTemplate:
-    """SupervisorStatus with an empty frame_id and message: the form of nearly every status."""
+    """Return the template of a SupervisorStatus with empty frame_id and message, as most are."""
     from gripper_interfaces.msg import SupervisorStatus
     return MessageTemplate(SupervisorStatus(), STAMP + STATUS_FIELDS)
 
 
 def read_status(data: bytes) -> StatusView:
-    """The numbers of a serialised status: by layout when it has the usual form, else by
-    rclpy's deserialisation (a message text, another frame_id, a big-endian peer)."""
+    """Read the numbers of a serialised status.
+
+    By layout when it has the usual form, else by rclpy's deserialisation (a message text,
+    another frame_id, a big-endian peer).
+    """
     values = status_template().unpack(data)
     if values is None:
         from gripper_interfaces.msg import SupervisorStatus
@@ -226,7 +231,7 @@ def read_status(data: bytes) -> StatusView:
 
 
 def status_message(t_ns: int, values: tuple, message: str):
-    """A SupervisorStatus message of stamp ``t_ns``, ``values`` (STATUS_FIELDS) and text."""
+    """Build a SupervisorStatus message of stamp ``t_ns``, ``values`` (STATUS_FIELDS), text."""
     from gripper_interfaces.msg import SupervisorStatus
     msg = SupervisorStatus(message=message)
     msg.header.stamp.sec, msg.header.stamp.nanosec = split_ns(t_ns)

@@ -13,15 +13,14 @@ from __future__ import annotations
 
 import fcntl
 import os
+from pathlib import Path
 import re
 import tempfile
 import time
-from pathlib import Path
-
-from rclpy.node import Node
 
 from gripper_ros.nodes.common import StartupError
 from gripper_ros.wire import DEFAULT_NAMESPACE, qualified
+from rclpy.node import Node
 
 DISCOVERY_WAIT_S = 0.5
 
@@ -43,9 +42,12 @@ class NameClaim:
     @classmethod
     def take(cls, node_names: tuple[str, ...], services: tuple[str, ...] = (), context=None,
              namespace: str | None = None) -> NameClaim:
-        """Claim ``node_names`` in ``namespace`` (default: the default one as the command line
-        remaps it, ``-r __ns:=/left``); StartupError naming what is found when one of them, or
-        a server of one of the relative ``services``, exists already."""
+        """Claim ``node_names`` in ``namespace``, or raise StartupError if one is taken.
+
+        ``namespace`` defaults to the default one as the command line remaps it
+        (``-r __ns:=/left``). The StartupError names what is found when one of the nodes, or a
+        server of one of the relative ``services``, exists already.
+        """
         import rclpy
         kw = {'namespace': DEFAULT_NAMESPACE if namespace is None else namespace}
         if context is not None:
@@ -104,9 +106,12 @@ class NameClaim:
 
 def taken_names(node: Node, node_names: tuple[str, ...] = (), services: tuple[str, ...] = (),
                 wait_s: float = DISCOVERY_WAIT_S) -> list[str]:
-    """What of ``node_names`` and relative ``services`` (a server; a client waiting for one is
-    welcome) exists in ``node``'s namespace on the domain after ``wait_s`` of discovery,
-    checked twice so that a node that was just shut down is not mistaken for a running one."""
+    """Return which of ``node_names`` and relative ``services`` exist in ``node``'s namespace.
+
+    A service counts when it has a server (a client waiting for one is welcome). They are looked
+    up on the domain after ``wait_s`` of discovery, checked twice so that a node that was just
+    shut down is not mistaken for a running one.
+    """
     namespace = node.get_namespace()
     found: list[str] = []
     for _attempt in range(2):

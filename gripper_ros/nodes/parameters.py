@@ -15,17 +15,16 @@ from __future__ import annotations
 import copy
 from typing import Callable
 
+from gripper_ros.core.config import ConfigError, GripperConfig, load_config, parse_config
 from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
 from rclpy.node import Node
-
-from gripper_ros.core.config import ConfigError, GripperConfig, load_config, parse_config
 
 INTEGER_KEYS = frozenset({'horizon', 'control_horizon'})
 """Leaf keys whose values are whole numbers (the DMC horizons); every other number is a double."""
 
 
 def flatten(data: dict, prefix: str = '') -> dict[str, object]:
-    """``{'a': {'b': 1}}`` -> ``{'a.b': 1}``."""
+    """Flatten nested sections to dotted keys: ``{'a': {'b': 1}}`` -> ``{'a.b': 1}``."""
     out = {}
     for key, value in data.items():
         name = f'{prefix}{key}'
@@ -37,7 +36,7 @@ def flatten(data: dict, prefix: str = '') -> dict[str, object]:
 
 
 def _as_parameter_value(dotted: str, value):
-    """A config value in the type its parameter is declared with."""
+    """Return a config value in the type its parameter is declared with."""
     if isinstance(value, (bool, str)):
         return value
     if isinstance(value, (int, float)):

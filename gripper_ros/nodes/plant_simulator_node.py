@@ -20,36 +20,34 @@ schedule a fault for the next grasp.
 """
 from __future__ import annotations
 
+from collections import Counter
 import math
 import sys
 import time
-from collections import Counter
 
 from gripper_interfaces.msg import (ForceSensor, MotorCommand, ObjectState, PlantTick, SimStatus,
                                     SupervisorStatus)
 from gripper_interfaces.srv import SetObject, SimStep
+from gripper_ros.core.controllers import make_plant
+from gripper_ros.core.lockstep import Command, command_problem, PlantSide
+from gripper_ros.core.plant import check_fault, GraspObject, Lift
+from gripper_ros.nodes.common import (default_namespace, DeferredService, GRAPH_QOS, ns_to_time,
+                                      run_node, StartupError)
+from gripper_ros.nodes.loop_io import (clock_template, decode, force_sensor_template,
+                                       joint_state_template, object_state_template,
+                                       read_status, split_ns, StatusView)
+from gripper_ros.nodes.parameters import ConfigParameters
+from gripper_ros.wire import (COMMAND_LAYOUT, Controller, FINGER_JOINT, NODE_PLANT, Outcome, Phase,
+                              SERVICE_PAUSE, SERVICE_RESUME, SERVICE_SET_OBJECT, SERVICE_STEP,
+                              TICK_LAYOUT, TimeMode, TOPIC_CLOCK, TOPIC_FORCE_SENSOR,
+                              TOPIC_JOINT_STATES, TOPIC_MOTOR_COMMAND, TOPIC_OBJECT_STATE,
+                              TOPIC_SIM_STATUS, TOPIC_STATUS, TOPIC_TICK)
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from rosgraph_msgs.msg import Clock as ClockMsg
 from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
-
-from gripper_ros.core.controllers import make_plant
-from gripper_ros.core.lockstep import Command, PlantSide, command_problem
-from gripper_ros.core.plant import GraspObject, Lift, check_fault
-from gripper_ros.nodes.common import (GRAPH_QOS, DeferredService, StartupError,
-                                      default_namespace, ns_to_time, run_node)
-from gripper_ros.nodes.loop_io import (clock_template, decode, force_sensor_template,
-                                       joint_state_template, object_state_template,
-                                       read_status, split_ns, StatusView)
-from gripper_ros.nodes.parameters import ConfigParameters
-from gripper_ros.wire import (COMMAND_LAYOUT, FINGER_JOINT, NODE_PLANT, SERVICE_PAUSE,
-                              SERVICE_RESUME, SERVICE_SET_OBJECT, SERVICE_STEP, TICK_LAYOUT,
-                              TOPIC_CLOCK, TOPIC_FORCE_SENSOR, TOPIC_JOINT_STATES,
-                              TOPIC_MOTOR_COMMAND, TOPIC_OBJECT_STATE, TOPIC_SIM_STATUS,
-                              TOPIC_STATUS, TOPIC_TICK, Controller, Outcome, Phase,
-                              TimeMode)
 
 HOUSEKEEPING_PERIOD_S = 0.05
 """Steady timer: republish a tick nobody answered, free-run without commands, sim/status."""
@@ -166,7 +164,7 @@ class PlantSimulatorNode(Node):
         return self.declare_parameter(name, default, descriptor).value
 
     def _on_parameters_set(self, parameters) -> None:
-        """Accepted changes apply from the next tick (the descriptors refuse the rest)."""
+        """Apply accepted changes from the next tick (the descriptors refuse the rest)."""
         for p in parameters:
             if p.name == 'real_time_factor':
                 self.real_time_factor = float(p.value)
@@ -263,8 +261,11 @@ class PlantSimulatorNode(Node):
             self._publish_sim_status(window=False)
 
     def _wait(self, lead_s: float) -> None:
-        """Realtime: step again once the wall clock has caught up (one timer, re-armed: a
-        timer made per tick costs the executor a rebuild of its entities every time)."""
+        """Realtime: step again once the wall clock has caught up.
+
+        One timer, re-armed: a timer made per tick costs the executor a rebuild of its entities
+        every time.
+        """
         if self._pacing:
             return
         self._pacing = True
@@ -426,8 +427,11 @@ class PlantSimulatorNode(Node):
 
     # ------------------------------------------------------------------ simulation set-up
     def _busy_reason(self) -> str:
-        """Why the world may not be changed now: the supervisor's newest word on it (its
-        status, or the echo of the last command, whichever is later)."""
+        """Say why the world may not be changed now ('' when it may).
+
+        The supervisor's newest word on it counts: its status, or the echo of the last command,
+        whichever is later.
+        """
         echo, status = self._last_echo, self._status
         state = echo
         if status is not None and (echo is None or (status.grasp_id, status.stage_id) >=

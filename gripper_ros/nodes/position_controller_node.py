@@ -8,13 +8,12 @@ from __future__ import annotations
 
 import sys
 
-from rcl_interfaces.msg import ParameterDescriptor
-
 from gripper_ros.core.controllers import PositionControllerKind
-from gripper_ros.core.stages import PositionStageController, parse_kind
+from gripper_ros.core.stages import parse_kind, PositionStageController
 from gripper_ros.nodes.common import run_node
 from gripper_ros.nodes.controller_node import LockstepController
-from gripper_ros.wire import NODE_POSITION_CONTROLLER, TOPIC_POSITION_REFERENCE, Controller
+from gripper_ros.wire import Controller, NODE_POSITION_CONTROLLER, TOPIC_POSITION_REFERENCE
+from rcl_interfaces.msg import ParameterDescriptor
 
 
 class PositionControllerNode(LockstepController):

@@ -19,23 +19,18 @@ later loss is also latched on ``supervisor/outcome``. A request that makes no pr
 """
 from __future__ import annotations
 
+from collections import Counter
 import math
 import sys
-from collections import Counter
 
 from gripper_interfaces.msg import PlantTick, StageReference, SupervisorStatus
 from gripper_interfaces.srv import Grasp, Move
-from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
-from rclpy.clock import Clock, ClockType
-from rclpy.node import Node
-from std_srvs.srv import Trigger
-
 from gripper_ros.core.lockstep import SupervisorSide, Tick
 from gripper_ros.core.supervisor import (GraspRequest, GraspSupervisor, MoveRequest,
                                          RequestError, RequestKind, validate_move,
                                          validate_request)
-from gripper_ros.nodes.common import (GRAPH_QOS, LATCHED_QOS, DeferredService, ExecutorSilence,
-                                      default_namespace, run_node)
+from gripper_ros.nodes.common import (default_namespace, DeferredService, ExecutorSilence,
+                                      GRAPH_QOS, LATCHED_QOS, run_node)
 from gripper_ros.nodes.loop_io import decode, split_ns, status_message, status_template
 from gripper_ros.nodes.parameters import ConfigParameters
 from gripper_ros.wire import (Controller, NODE_FORCE_CONTROLLER, NODE_PLANT,
@@ -44,6 +39,10 @@ from gripper_ros.wire import (Controller, NODE_FORCE_CONTROLLER, NODE_PLANT,
                               SERVICE_STOP, TICK_LAYOUT, TOPIC_FORCE_REFERENCE,
                               TOPIC_MOTOR_COMMAND, TOPIC_OUTCOME, TOPIC_POSITION_REFERENCE,
                               TOPIC_STATUS, TOPIC_TICK)
+from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
+from rclpy.clock import Clock, ClockType
+from rclpy.node import Node
+from std_srvs.srv import Trigger
 
 HEARTBEAT_PERIOD_S = 1.0
 WATCHDOG_PERIOD_S = 0.1
@@ -104,14 +103,16 @@ class SupervisorNode(Node):
         self.create_timer(HEARTBEAT_PERIOD_S, self._heartbeat, clock=steady)
 
     def _on_config_change(self, config, keys) -> None:
-        """Thresholds apply from the next tick; a running request keeps the setpoints it was
-        given (a new force law applies to the next request)."""
+        """Apply new thresholds from the next tick; a running request keeps its setpoints.
+
+        A new force law applies to the next request.
+        """
         self.config = config
         self.logic.params = config.supervisor
         self.get_logger().info(f'{", ".join(keys)} changed: in effect from the next tick')
 
     def _on_parameters_set(self, parameters) -> None:
-        """Accepted values apply from the next check or tick (the descriptors refuse the rest)."""
+        """Apply accepted values from the next check or tick (the descriptors refuse the rest)."""
         for p in parameters:
             if p.name == 'tick_timeout_s':
                 self.tick_timeout_s = float(p.value)
@@ -327,7 +328,7 @@ class SupervisorNode(Node):
         return decision
 
     def _complete(self, decision) -> None:
-        """An answer: latch it, and answer the waiting request with it."""
+        """Latch an answer and answer the waiting request with it."""
         self._outcome_pub.publish(status_message(*self._status_now))
         what = self.logic.kind or 'grasp'
         self.get_logger().info(f'{what} {self.logic.grasp_id}: {decision.answer.name}: '
@@ -369,7 +370,8 @@ class SupervisorNode(Node):
         """Lockstep stalls if a node dies: end the request as FAULT, naming who went silent.
 
         Only time in which the executor demonstrably ran counts (``ExecutorSilence``): after a
-        stall of the whole process, ticks queued behind this timer are not silence."""
+        stall of the whole process, ticks queued behind this timer are not silence.
+        """
         running = self.logic.running
         silent_s = self._silence.check(counting=running)
         if not running or silent_s < self.tick_timeout_s:
@@ -399,7 +401,6 @@ class SupervisorNode(Node):
         self.release_service.destroy()
         self.move_service.destroy()
         return super().destroy_node()
-
 
 
 def main(args=None):
