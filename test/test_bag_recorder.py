@@ -6,31 +6,29 @@ context in-process; an executor thread spins them.
 from __future__ import annotations
 
 import os
+from pathlib import Path
 import signal
 import subprocess
 import sys
 import textwrap
 import threading
-from pathlib import Path
-
-import pytest
 
 os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
 os.environ.setdefault('ROS_DOMAIN_ID', '79')
 
+from gripper_ros.bags import info as bag_info  # noqa: E402
+from gripper_ros.bags import replay as bag_replay  # noqa: E402
+from gripper_ros.bags.reader import EXIT_TRUNCATED, read_bag  # noqa: E402
+from gripper_ros.bags.recorder import BagRecorder, BagRecorderError  # noqa: E402
+from gripper_ros.nodes.common import wait_until  # noqa: E402
+import pytest  # noqa: E402
 import rclpy  # noqa: E402
-import yaml  # noqa: E402
 from rclpy.executors import SingleThreadedExecutor  # noqa: E402
 from rclpy.parameter import Parameter  # noqa: E402
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy  # noqa: E402
 from rosgraph_msgs.msg import Clock  # noqa: E402
 from sensor_msgs.msg import JointState  # noqa: E402
-
-from gripper_ros.bags import info as bag_info
-from gripper_ros.bags import replay as bag_replay  # noqa: E402
-from gripper_ros.bags.reader import EXIT_TRUNCATED, read_bag  # noqa: E402
-from gripper_ros.bags.recorder import BagRecorder, BagRecorderError  # noqa: E402
-from gripper_ros.nodes.common import wait_until  # noqa: E402
+import yaml  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
 JS, CLK = '/gripper/joint_states', '/clock'
@@ -189,7 +187,7 @@ def test_mcap_reader_with_ros2_decoder(recorded, tmp_path):
 
 
 def test_recorded_messages_are_what_was_published(recorded, tmp_path):
-    """(Compared decoded: CDR padding bytes are not deterministic across serializations.)"""
+    """Messages compare decoded: CDR padding bytes are not deterministic across serializations."""
     from rclpy.serialization import deserialize_message
     bag = read_bag(tmp_path / 'run1')
     for topic, sent in recorded['sent'].items():
@@ -253,7 +251,7 @@ def test_sim_time_log_time(node_factory, tmp_path):
 
 # --- kill -9: bounded loss --------------------------------------------------------------------
 
-KILLED_RECORDER = textwrap.dedent('''
+KILLED_RECORDER = textwrap.dedent("""
     import sys, threading, time, rclpy
     from rclpy.executors import SingleThreadedExecutor
     from sensor_msgs.msg import JointState
@@ -275,7 +273,7 @@ KILLED_RECORDER = textwrap.dedent('''
         time.sleep(0.01)
     print('READY', flush=True)
     time.sleep(60)
-''')
+""")
 
 
 def test_sigkill_loses_at_most_the_flush_bound(tmp_path):

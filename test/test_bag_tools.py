@@ -12,17 +12,11 @@ from __future__ import annotations
 import json
 import math
 import os
-import shutil
 from pathlib import Path
-
-import numpy as np
-import pytest
+import shutil
 
 os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
 os.environ.setdefault('ROS_DOMAIN_ID', '78')
-
-from rosbags.rosbag2 import StoragePlugin, Writer  # noqa: E402
-from rosbags.typesys import Stores, get_types_from_msg, get_typestore  # noqa: E402
 
 from gripper_ros.bags import analyze as bag_analyze  # noqa: E402
 from gripper_ros.bags import info as bag_info  # noqa: E402
@@ -37,20 +31,14 @@ from gripper_ros.bags.reader import (  # noqa: E402
     read_bag,
 )
 from gripper_ros.bags.series import LEGACY_TOPICS, load_grasp_series  # noqa: E402
-from gripper_ros.wire import (  # noqa: E402
-    COMMAND_LAYOUT,
-    LOOP_TOPICS,
-    REFERENCE_LAYOUT,
-    TICK_LAYOUT,
-    TOPIC_CLOCK,
-    TOPIC_FORCE_REFERENCE,
-    TOPIC_JOINT_STATES,
-    TOPIC_MOTOR_COMMAND,
-    TOPIC_POSITION_REFERENCE,
-    TOPIC_STATUS,
-    TOPIC_TICK,
-    qualified,
-)
+from gripper_ros.wire import (COMMAND_LAYOUT, LOOP_TOPICS, qualified,  # noqa: E402
+                              REFERENCE_LAYOUT, TICK_LAYOUT, TOPIC_CLOCK, TOPIC_FORCE_REFERENCE,
+                              TOPIC_JOINT_STATES, TOPIC_MOTOR_COMMAND, TOPIC_POSITION_REFERENCE,
+                              TOPIC_STATUS, TOPIC_TICK)
+import numpy as np  # noqa: E402
+import pytest  # noqa: E402
+from rosbags.rosbag2 import StoragePlugin, Writer  # noqa: E402
+from rosbags.typesys import get_types_from_msg, get_typestore, Stores  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
 MSG_DIR = REPO / 'gripper_interfaces' / 'msg'
@@ -89,7 +77,7 @@ def _typestore(msg_dir: Path = MSG_DIR):
 
 
 def _make(cls, **values):
-    """A rosbags message with unspecified numeric/bool/str fields zeroed (interfaces evolve)."""
+    """Make a rosbags message with unset numeric/bool/str fields zeroed (interfaces evolve)."""
     import dataclasses
     zero = {'float': 0.0, 'int': 0, 'bool': False, 'str': ''}
     for f in dataclasses.fields(cls):
@@ -115,19 +103,19 @@ def _voltage(k: int) -> float:
 
 
 def _tick(k: int, n_ticks: int) -> dict:
-    """The known grasp at tick ``k``."""
+    """Return the known grasp at tick ``k``."""
     y_switch = POS_SP_M * (1 - math.exp(-(K_SWITCH - 1) * 1e-3 / TAU_S))
     pos = POS_SP_M * (1 - math.exp(-k * 1e-3 / TAU_S)) if k < K_SWITCH else y_switch
     force = 0.0 if k < K_CONTACT else (1e-3 if k < K_SWITCH else _force((k - K_SWITCH) * 1e-3))
     last = k == n_ticks - 1
     phase = 1 if k < K_SWITCH else (2 if k < K_HOLD else 3)
-    return dict(t_ns=T0_NS + k * DT_NS, pos=pos, force=force, phase=phase,
-                source=1 if phase == 1 else 2, stage=1 if phase == 1 else 2,
-                outcome=1 if last else 0, switch=0 if k < K_SWITCH else 2)
+    return {'t_ns': T0_NS + k * DT_NS, 'pos': pos, 'force': force, 'phase': phase,
+            'source': 1 if phase == 1 else 2, 'stage': 1 if phase == 1 else 2,
+            'outcome': 1 if last else 0, 'switch': 0 if k < K_SWITCH else 2}
 
 
 def write_grasp_bag(path: Path, topics=None, n_ticks: int = N_TICKS, custom_data=True) -> Path:
-    """A lockstep-format grasp bag with analytically known figures (module docstring)."""
+    """Write a lockstep-format grasp bag with analytically known figures (module docstring)."""
     store = _typestore()
     T = store.types
     topics = dict(LOCKSTEP_TOPICS) if topics is None else {t: LOCKSTEP_TOPICS.get(
@@ -179,7 +167,7 @@ def write_grasp_bag(path: Path, topics=None, n_ticks: int = N_TICKS, custom_data
 
 
 def write_legacy_grasp_bag(path: Path, n_ticks: int = N_TICKS) -> Path:
-    """The same grasp in the earlier format, with the interface definitions of that time."""
+    """Write the same grasp in the earlier format, with the interface definitions of that time."""
     store = _typestore(LEGACY_MSG_DIR)
     T = store.types
     with Writer(path, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
@@ -195,19 +183,23 @@ def write_legacy_grasp_bag(path: Path, n_ticks: int = N_TICKS) -> Path:
                 OLD['joint_states']: T['sensor_msgs/msg/JointState'](
                     header=hdr, name=['finger_joint'], position=np.array([g['pos']]),
                     velocity=np.array([0.0]), effort=np.array([g['force']])),
-                OLD['force_sensor']: _make(T['gripper_interfaces/msg/ForceSensor'],
+                OLD['force_sensor']: _make(
+                    T['gripper_interfaces/msg/ForceSensor'],
                     header=hdr, force_n=g['force'], voltage_v=0.2 + 0.4 * g['force'],
                     peak_force_n=g['force']),
-                OLD['motor_state']: _make(T['gripper_interfaces/msg/MotorState'],
+                OLD['motor_state']: _make(
+                    T['gripper_interfaces/msg/MotorState'],
                     header=hdr, voltage_v=_voltage(k), current_a=0.1 * _voltage(k),
                     speed_rad_s=0.0),
-                OLD['supervisor/status']: _make(T['gripper_interfaces/msg/SupervisorStatus'],
+                OLD['supervisor/status']: _make(
+                    T['gripper_interfaces/msg/SupervisorStatus'],
                     header=hdr, phase=4 if g['outcome'] else g['phase'],
                     active_controller=g['source'], switch_criterion=g['switch'],
                     grasp_id=GRASP_ID, outcome=g['outcome'], position_setpoint_m=POS_SP_M,
                     force_setpoint_n=FORCE_SP_N, position_m=g['pos'], force_n=g['force'],
                     contact=k >= K_CONTACT, seed_voltage_v=0.0),
-                OLD['motor_command']: _make(T['gripper_interfaces/msg/MotorCommand'],
+                OLD['motor_command']: _make(
+                    T['gripper_interfaces/msg/MotorCommand'],
                     header=hdr, source=g['source'], grasp_id=GRASP_ID,
                     voltage_v=_voltage(k + 1), hold_s=1e-3, inner_setpoint=0.0),
             }
@@ -254,7 +246,10 @@ def rechunk(src: Path, dst: Path, chunk_size: int = 16 * 1024) -> Path:
 
 @pytest.fixture(scope='module')
 def truncated_bag(tmp_path_factory, grasp_bag) -> Path:
-    """The grasp bag re-chunked, its .mcap cut in the middle (no summary, footer, metadata.yaml)."""
+    """Return the grasp bag re-chunked, its .mcap cut in the middle (no summary or footer).
+
+    The cut bag has no metadata.yaml either.
+    """
     base = tmp_path_factory.mktemp('cut')
     whole = rechunk(grasp_bag, base / 'whole')
     out = base / 'cut'
@@ -325,8 +320,10 @@ def test_bad_paths(tmp_path, make, error):
 
 @pytest.mark.parametrize('which', ['lockstep', 'legacy'])
 def test_analysis_known_answers(grasp_bag, legacy_bag, which):
-    """The same figures from either format: bags recorded before the lockstep protocol still
-    analyse the same."""
+    """The same figures come from either format.
+
+    Bags recorded before the lockstep protocol still analyse the same.
+    """
     m = bag_analyze.analyze_series(load_grasp_series(grasp_bag if which == 'lockstep'
                                                      else legacy_bag))
     dt = 1e-3

@@ -1,12 +1,14 @@
-"""Dynamic matrix control (eqs. 17-22) on small, hand-checkable examples and on a first-order
-discrete plant whose step response and free response are known in closed form."""
+"""Dynamic matrix control (eqs. 17-22) on hand-checkable examples and a first-order plant.
+
+The examples are small; the discrete first-order plant's step response and free response are
+known in closed form.
+"""
+from gripper_ros.core.config import PidGains
+from gripper_ros.core.dmc import (closed_loop_step_response, dmc_gain, dynamic_matrix,
+                                  DynamicMatrixControl)
+from gripper_ros.core.pid import PID
 import numpy as np
 import pytest
-
-from gripper_ros.core.config import PidGains
-from gripper_ros.core.dmc import (DynamicMatrixControl, closed_loop_step_response, dmc_gain,
-                             dynamic_matrix)
-from gripper_ros.core.pid import PID
 
 A_POLE, B_GAIN = 0.5, 0.25          # plant y+ = a y + b u, DC gain b/(1-a) = 0.5
 HORIZON = 60                        # a^60 ~ 1e-18: the truncated model is exact to rounding
@@ -123,8 +125,11 @@ def test_first_move_is_eq_20_on_the_error_of_eq_19():
 
 @pytest.mark.parametrize('gain_ratio', [0.6, 1.5])
 def test_model_gain_error_still_removes_offset(gain_ratio):
-    """True plant gain differs from the model's: eq. 22 correction settles at the model's
-    steady-state mis-prediction r (1 - b_model / b_true) and the output has no offset."""
+    """A true plant gain that differs from the model's still leaves no offset.
+
+    Eq. 22's correction settles at the model's steady-state mis-prediction
+    r (1 - b_model / b_true) and the output has no offset.
+    """
     model = first_order_step(A_POLE, B_GAIN, HORIZON)
     dmc = DynamicMatrixControl(model, 3, 0.5)
     b_true = gain_ratio * B_GAIN
@@ -204,8 +209,10 @@ def test_closed_loop_step_response_of_p_loop_is_analytic():
 
 # ------------------------------------------------------------------ braking governor
 def test_braking_governor_phases_in_order_on_the_gripper_model():
-    """One ACCELERATE run at +limit, one BRAKE run at -braking_v, then DMC for good; the
-    forced voltages are exactly those, and a short move still starts by accelerating."""
+    """One ACCELERATE run at +limit, one BRAKE run at -braking_v, then DMC for good.
+
+    The forced voltages are exactly those, and a short move still starts by accelerating.
+    """
     from gripper_ros.core.config import load_config
     from gripper_ros.core.controllers import make_plant
     from gripper_ros.core.dmc import BrakingGovernor, GovernorPhase

@@ -14,11 +14,11 @@ import threading
 import time
 from types import SimpleNamespace
 
-import pytest
-
 from gripper_ros.core.config import load_config
-from gripper_ros.core.stages import (SOURCE_FORCE, SOURCE_POSITION, ForceStageController,
-                                     LockstepAnswerer, PositionStageController, Reference)
+from gripper_ros.core.stages import (ForceStageController, LockstepAnswerer,
+                                     PositionStageController, Reference, SOURCE_FORCE,
+                                     SOURCE_POSITION)
+import pytest
 
 CONFIG = load_config()
 BAD_VALUES = [math.nan, math.inf, -math.inf]
@@ -28,14 +28,14 @@ BAD_IDS = ['nan', '+inf', '-inf']
 # ====================================================================== stage logic, no ROS
 def _ref(source, stamp_ns, measurement, stage_id=1, position_sp=0.05, force_sp=3.0,
          contact=False, seed=1.0, position=0.049, **bad):
-    """A stage reference; ``bad`` overrides fields with non-finite numbers."""
-    values = dict(stamp_ns=stamp_ns, grasp_id=1, stage_id=stage_id, revision=0, phase=1,
-                  outcome=0, controller=int(source), running=True, contact=contact,
-                  position_setpoint_m=position_sp, approach_setpoint_m=position_sp,
-                  force_setpoint_n=force_sp,
-                  position_m=measurement if source == SOURCE_POSITION else position,
-                  velocity_mps=0.0, force_n=measurement if source == SOURCE_FORCE else 0.0,
-                  seed_voltage_v=seed)
+    """Build a stage reference; ``bad`` overrides fields with non-finite numbers."""
+    values = {'stamp_ns': stamp_ns, 'grasp_id': 1, 'stage_id': stage_id, 'revision': 0,
+              'phase': 1, 'outcome': 0, 'controller': int(source), 'running': True,
+              'contact': contact, 'position_setpoint_m': position_sp,
+              'approach_setpoint_m': position_sp, 'force_setpoint_n': force_sp,
+              'position_m': measurement if source == SOURCE_POSITION else position,
+              'velocity_mps': 0.0, 'force_n': measurement if source == SOURCE_FORCE else 0.0,
+              'seed_voltage_v': seed}
     values.update(bad)
     return Reference(**values)
 
@@ -56,8 +56,10 @@ def _measurements(source):
 @pytest.mark.parametrize('at', [0, 2], ids=['first_tick', 'mid_run'])
 def test_stage_holds_zero_volts_on_a_non_finite_measurement_and_is_left_untouched(
         source, bad, at):
-    """The bad tick is answered with exactly 0 V; the law is not stepped, so every later answer
-    equals that of a run that never saw the bad tick."""
+    """The bad tick is answered with exactly 0 V, and the law is not stepped.
+
+    So every later answer equals that of a run that never saw the bad tick.
+    """
     values = _measurements(source)
     dt_ns = 10_000_000
     clean, hit = LockstepAnswerer(_stage(source)), LockstepAnswerer(_stage(source))
@@ -143,15 +145,14 @@ def test_stage_on_a_non_finite_measurement_before_activation_activates_later(bad
 
 # ====================================================================== the live graph
 rclpy = pytest.importorskip('rclpy')
-from rclpy.context import Context  # noqa: E402
-from rclpy.node import Node  # noqa: E402
-
-from gripper_ros.bags.schema import import_message_class  # noqa: E402
+from gripper_ros.bags.schema import import_message_class  # noqa: E402, I100 (block after skip)
 from gripper_ros.nodes.common import GRAPH_QOS, wait_until  # noqa: E402
 from gripper_ros.nodes.graph import GraphOptions, GripperGraph  # noqa: E402
-from gripper_ros.wire import (COMMAND_LAYOUT, DEFAULT_NAMESPACE, GRAPH_TOPICS,  # noqa: E402
-                              TICK_LAYOUT, TOPIC_MOTOR_COMMAND, TOPIC_STATUS, TOPIC_TICK,
-                              Controller, Outcome, Phase, qualified)
+from gripper_ros.wire import (Controller, DEFAULT_NAMESPACE, GRAPH_TOPICS,  # noqa: E402
+                              Outcome, Phase, qualified, TICK_LAYOUT, TOPIC_MOTOR_COMMAND,
+                              TOPIC_STATUS, TOPIC_TICK)
+from rclpy.context import Context  # noqa: E402
+from rclpy.node import Node  # noqa: E402
 
 TOPICS = {qualified(DEFAULT_NAMESPACE, t): ty for t, ty in GRAPH_TOPICS.items()}
 TICKS, COMMANDS, STATUS = (qualified(DEFAULT_NAMESPACE, t) for t in
@@ -190,7 +191,7 @@ class Watcher(Node):
         self.nonfinite = []        # (topic, field, stamp_ns, value)
         self.commands = []         # (wall, stamp_ns, source, voltage_v, hold_s)
         self.motor_voltages = []   # applied voltage, every tick
-        self.counts = {topic: 0 for topic in TOPICS}
+        self.counts = dict.fromkeys(TOPICS, 0)
         for topic, msgtype in TOPICS.items():
             self.create_subscription(import_message_class(msgtype), topic,
                                      lambda msg, t=topic: self._on(t, msg), GRAPH_QOS)
@@ -280,8 +281,11 @@ def test_dead_plant_mid_grasp_ends_in_fault_naming_it_and_nothing_commands_after
 
 @pytest.fixture(scope='module')
 def stall_run():
-    """The whole process stalls (here: a 3.5 s callback on the executor thread) mid-grasp, longer
-    than every watchdog's timeout; references and ticks are queued behind the stall."""
+    """Stall the whole process mid-grasp for longer than every watchdog's timeout.
+
+    The stall is a 3.5 s callback on the executor thread; references and ticks are queued
+    behind it.
+    """
     lg = LiveGraph()
     g = lg.graph
     pending = None
@@ -299,9 +303,11 @@ def stall_run():
 
 
 def test_executor_stall_trips_no_watchdog_and_the_grasp_holds(stall_run):
-    """Statuses and ticks queued behind the stall are not silence: no controller commands 0 V,
-    and the supervisor's tick watchdog (which also counts only time in which the executor ran)
-    does not end the grasp as FAULT."""
+    """Statuses and ticks queued behind the stall are not silence.
+
+    No controller commands 0 V, and the supervisor's tick watchdog (which also counts only time
+    in which the executor ran) does not end the grasp as FAULT.
+    """
     print(f'\nafter a 3.5 s executor stall: {Outcome(stall_run.response.outcome).name}: '
           f'{stall_run.response.message}')
     assert stall_run.trips == 0
@@ -345,9 +351,11 @@ def test_dead_supervisor_mid_grasp_active_controller_falls_to_zero_volts(live, p
 
 # ---------------------------------------------------------------------- non-finite measurements
 class Injection:
-    """Stands in for the plant's tick publisher: the first tick for which ``when()`` holds is
-    published with ``field`` replaced by ``value`` (the plant's sensor read that), the rest as
-    they are."""
+    """Stands in for the plant's tick publisher, corrupting one tick.
+
+    The first tick for which ``when()`` holds is published with ``field`` replaced by ``value``
+    (the plant's sensor read that), the rest as they are.
+    """
 
     FIELDS = {'position': 'position_m', 'force': 'force_n', 'voltage': 'motor_voltage_v'}
 
@@ -461,8 +469,10 @@ IDLE_IDS = [f'{f}-{v}' for f, v in IDLE_CASES]
 
 @pytest.fixture(scope='module')
 def idle_runs():
-    """The tick the graph rests on after set_object reads a non-finite number; a grasp and a
-    release are then requested on it."""
+    """Make the tick the graph rests on after set_object read a non-finite number.
+
+    A grasp and a release are then requested on it.
+    """
     lg = LiveGraph()
     g = lg.graph
     runs = []
@@ -494,8 +504,11 @@ def idle_runs():
 
 @pytest.mark.parametrize('index', range(len(IDLE_CASES)), ids=IDLE_IDS)
 def test_bad_reading_at_rest_never_reaches_the_motor(idle_runs, index):
-    """The position stage holding the fingers answers a bad position with 0 V; only the tick
-    and the reference that relays it carry the bad number, never a status or a command."""
+    """The position stage holding the fingers answers a bad position with 0 V.
+
+    Only the tick and the reference that relays it carry the bad number, never a status or a
+    command.
+    """
     run = idle_runs[index]
     assert all(math.isfinite(c[3]) and math.isfinite(c[4]) for c in run.commands)
     assert all(math.isfinite(v) for v in run.motor_voltages)
@@ -527,8 +540,10 @@ def test_grasp_on_a_bad_reading_at_rest_is_refused_and_nothing_moves(idle_runs, 
 # ---------------------------------------------------------------------- a bad applied voltage
 @pytest.fixture(scope='module')
 def motor_runs():
-    """The applied voltage the plant reports (the stage's bumpless seed) reads non-finite for
-    one tick of the position stage: the reference carries the last finite one."""
+    """Make the applied voltage the plant reports read non-finite for one position-stage tick.
+
+    That voltage is the stage's bumpless seed; the reference carries the last finite one.
+    """
     lg = LiveGraph()
     g = lg.graph
     runs = []
@@ -553,8 +568,11 @@ def motor_runs():
 
 @pytest.mark.parametrize('index', range(len(BAD_VALUES)), ids=BAD_IDS)
 def test_non_finite_applied_voltage_is_not_relayed(motor_runs, index):
-    """The reference carries the last finite applied voltage as its seed: the position
-    controller answers that tick as usual (no 0 V hold) and every command stays finite."""
+    """The reference carries the last finite applied voltage as its seed.
+
+    The position controller answers that tick as usual (no 0 V hold) and every command stays
+    finite.
+    """
     run = motor_runs[index]
     assert run.stamp_ns is not None, 'the injection point was never reached'
     at_tick = [c for c in run.commands if c[1] == run.stamp_ns]

@@ -7,16 +7,15 @@ import math
 import threading
 import time
 
-import pytest
 from action_msgs.msg import GoalStatus
 from gripper_interfaces.action import Grasp as GraspAction
 from gripper_interfaces.msg import SupervisorStatus
-from rclpy.action import ActionClient
-
 from gripper_ros.core.config import load_config
 from gripper_ros.core.supervisor import Outcome
 from gripper_ros.nodes.graph import GripperGraph
 from gripper_ros.wire import ACTION_GRASP
+import pytest
+from rclpy.action import ActionClient
 
 CONFIG = load_config()
 TRAVEL_M = CONFIG.plant.max_travel_m

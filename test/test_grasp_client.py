@@ -65,9 +65,9 @@ def test_server_stops_cleanly_on_sigint(server):
 def test_client_without_server_says_so():
     env = dict(os.environ, ROS_DOMAIN_ID=str((int(os.environ.get('ROS_DOMAIN_ID', '0')) + 1)
                                              % 100 + 101))
-    result = subprocess.run([sys.executable, '-m', 'gripper_ros.apps.grasp_client', '--width', '0.05',
-                             '--mass', '1', '--wait', '1'], capture_output=True, text=True,
-                            timeout=60, env=env)
+    result = subprocess.run([sys.executable, '-m', 'gripper_ros.apps.grasp_client',
+                             '--width', '0.05', '--mass', '1', '--wait', '1'],
+                            capture_output=True, text=True, timeout=60, env=env)
     assert result.returncode == 2
     assert 'not available' in result.stderr
 
@@ -112,9 +112,9 @@ def test_nodes_as_four_separate_processes_grasp_together():
     try:
         for i, module in enumerate(nodes):
             extra = [] if i == 0 else ['--ros-args', '-p', 'use_sim_time:=true']
-            procs.append(subprocess.Popen([sys.executable, '-m', f'gripper_ros.nodes.{module}', *extra],
-                                          stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
-                                          env=os.environ.copy()))
+            procs.append(subprocess.Popen(
+                [sys.executable, '-m', f'gripper_ros.nodes.{module}', *extra],
+                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=os.environ.copy()))
         deadline = time.monotonic() + 60
         while True:   # the supervisor refuses until it has discovered every peer and heard
             result = _run_client('--width', '0.1', '--mass', '0.75', '--wait', '30')  # the plant

@@ -4,18 +4,13 @@ Needs the environment of scripts/env.sh (bash scripts/test.sh sets it up); no rc
 """
 import importlib
 import os
-import re
 from pathlib import Path
+import re
 
-import pytest
-
-from ament_index_python.packages import (
-    PackageNotFoundError,
-    get_package_prefix,
-    get_package_share_directory,
-    get_packages_with_prefixes,
-)
+from ament_index_python.packages import (get_package_prefix, get_package_share_directory,
+                                         get_packages_with_prefixes, PackageNotFoundError)
 from ament_index_python.resources import has_resource
+import pytest
 
 REPO = Path(__file__).resolve().parents[1]
 

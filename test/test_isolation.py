@@ -9,13 +9,12 @@ import os
 import threading
 import time
 
+from gripper_ros.nodes.common import GRAPH_QOS
+from gripper_ros.nodes.graph import GraphOptions, GripperGraph
+from gripper_ros.wire import DEFAULT_NAMESPACE, qualified, TOPIC_JOINT_STATES
 import pytest
 import rclpy
 from sensor_msgs.msg import JointState
-
-from gripper_ros.nodes.graph import GraphOptions, GripperGraph
-from gripper_ros.nodes.common import GRAPH_QOS
-from gripper_ros.wire import DEFAULT_NAMESPACE, TOPIC_JOINT_STATES, qualified
 
 JOINT_STATES = qualified(DEFAULT_NAMESPACE, TOPIC_JOINT_STATES)
 

@@ -10,11 +10,10 @@ import math
 import subprocess
 import sys
 
-import pytest
-
 from gripper_ros.apps.grasp_demo import LIFT_DELAY_S, LIFT_DURATION_S
 from gripper_ros.apps.lift_table import lift_rows
 from gripper_ros.core.config import load_config
+import pytest
 
 
 @pytest.fixture(scope='module')
@@ -63,8 +62,10 @@ def _demo(tmp_path, law):
 
 
 def test_grasp_demo_lift_ends_lost_under_eq_23_and_holding_under_friction(tmp_path, rows):
-    """The issue's acceptance: 0.1 m / 0.75 kg lifted at 5 m/s^2; the table's loss time is the
-    headless loop's, to the millisecond it prints."""
+    """The issue's acceptance: 0.1 m / 0.75 kg lifted at 5 m/s^2.
+
+    The table's loss time is the headless loop's, to the millisecond it prints.
+    """
     paper = _demo(tmp_path, 'paper')
     assert paper.returncode == 1, paper.stdout + paper.stderr
     line = next(s for s in paper.stdout.splitlines() if s.strip().startswith('0.100'))

@@ -11,12 +11,11 @@ import subprocess
 import sys
 import time
 
-import numpy as np
-import pytest
-
 from gripper_ros.bags.recording import recorded_grasp
 from gripper_ros.bags.series import load_grasp_series
 from gripper_ros.nodes.graph import GripperGraph
+import numpy as np
+import pytest
 
 OBJECTS = ((0.05, 1.69), (0.10, 0.75))       # two Table V objects, ~1-2 s wall each here
 SPIN = 'import time\nt = time.time()\nwhile time.time() - t < 120: pass\n'
@@ -29,7 +28,7 @@ def graph():
 
 
 def _cpu_s(pid: int) -> float:
-    """utime + stime of a process, from /proc/<pid>/stat."""
+    """Return utime + stime of a process, from /proc/<pid>/stat."""
     with open(f'/proc/{pid}/stat') as f:
         fields = f.read().rsplit(')', 1)[1].split()
     return (int(fields[11]) + int(fields[12])) / os.sysconf('SC_CLK_TCK')
@@ -45,9 +44,11 @@ def _record(graph, out, tag):
 
 
 def _simulated(counts: dict) -> dict:
-    """Counts of the lockstep topics, one message per tick. (The state topics are sampled on
-    the absolute grid of simulated time, on which two grasps start at different phases, and
-    sim/status comes once a wall second.)"""
+    """Keep the counts of the lockstep topics, one message per tick.
+
+    The state topics are sampled on the absolute grid of simulated time, on which two grasps
+    start at different phases, and sim/status comes once a wall second.
+    """
     return {t: n for t, n in counts.items() if '/loop/' in t}
 
 

@@ -1,11 +1,10 @@
 """The state-topic templates: struct-packed messages that equal rclpy's own serialisation."""
 import math
 
+from gripper_ros.nodes import loop_io
 import numpy as np
 import pytest
 from rclpy.serialization import deserialize_message, serialize_message
-
-from gripper_ros.nodes import loop_io
 
 
 def _templates():
@@ -47,8 +46,11 @@ def _same(a, b):
 
 @pytest.mark.parametrize('name', list(_templates()))
 def test_template_is_rclpys_serialisation_both_ways(name):
-    """rclpy reads what the template packs, field by field, and the template reads what rclpy
-    writes (its alignment padding uninitialised), for random values, NaN included."""
+    """The template and rclpy read what the other writes, field by field.
+
+    rclpy reads what the template packs, and the template reads what rclpy writes (its
+    alignment padding uninitialised), for random values, NaN included.
+    """
     template = _templates()[name]
     formats = template.formats
     rng = np.random.default_rng(3)
@@ -62,8 +64,10 @@ def test_template_is_rclpys_serialisation_both_ways(name):
 
 
 def test_template_refuses_a_message_of_another_form():
-    """Another frame_id, or a status carrying a text, is not in the layout: None, and the
-    status reader falls back to rclpy and still reads its numbers."""
+    """Another frame_id, or a status carrying a text, is not in the layout: None.
+
+    The status reader falls back to rclpy and still reads its numbers.
+    """
     force = loop_io.force_sensor_template('gripper_base')
     other = deserialize_message(force.pack(1, 2, 3.0, 4.0, 5.0), force.msg_cls)
     other.header.frame_id = 'elsewhere'

@@ -1,14 +1,13 @@
 """RMS error, % overshoot and 2 % settling time against closed-form step responses."""
 import math
 
-import numpy as np
-import pytest
+from gripper_ros.core.metrics import (percent_overshoot, rms_error, SETTLING_BAND, settling_time,
+                                      step_metrics)
 from hypothesis import given, settings
 from hypothesis import strategies as st
+import numpy as np
+import pytest
 from scipy.optimize import brentq
-
-from gripper_ros.core.metrics import (SETTLING_BAND, percent_overshoot, rms_error, settling_time,
-                                 step_metrics)
 
 
 def first_order(tau, dt, t_end, y0=0.0, r=1.0):
@@ -17,7 +16,7 @@ def first_order(tau, dt, t_end, y0=0.0, r=1.0):
 
 
 def second_order(zeta, wn, t):
-    """Unit step response of wn^2 / (s^2 + 2 zeta wn s + wn^2), 0 < zeta < 1."""
+    """Return the unit step response of wn^2 / (s^2 + 2 zeta wn s + wn^2), 0 < zeta < 1."""
     wd = wn * math.sqrt(1 - zeta ** 2)
     phi = math.acos(zeta)
     return 1 - np.exp(-zeta * wn * t) / math.sqrt(1 - zeta ** 2) * np.sin(wd * t + phi)
@@ -150,8 +149,8 @@ def test_rms_by_hand():
 @settings(max_examples=100, deadline=None, derandomize=True)
 @given(offset=st.floats(-1e3, 1e3), n=st.integers(1, 50))
 def test_rms_of_constant_error_is_its_magnitude(offset, n):
-    assert rms_error(np.full(n, 3.0 + offset), 3.0) == pytest.approx(abs(offset), rel=1e-12,
-                                                                       abs=1e-12)
+    assert rms_error(np.full(n, 3.0 + offset), 3.0) == pytest.approx(
+        abs(offset), rel=1e-12, abs=1e-12)
 
 
 @settings(max_examples=100, deadline=None, derandomize=True)

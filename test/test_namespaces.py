@@ -11,14 +11,13 @@ import sys
 import threading
 import time
 
-import pytest
-
 from gripper_ros.bags.reader import read_bag
 from gripper_ros.bags.recording import recorded_grasp
 from gripper_ros.nodes.common import StartupError
 from gripper_ros.nodes.graph import GraphOptions, GripperGraph
-from gripper_ros.wire import (TOPIC_FORCE_REFERENCE, TOPIC_MOTOR_COMMAND,
-                              TOPIC_POSITION_REFERENCE, TOPIC_TICK, Outcome, qualified)
+from gripper_ros.wire import (Outcome, qualified, TOPIC_FORCE_REFERENCE, TOPIC_MOTOR_COMMAND,
+                              TOPIC_POSITION_REFERENCE, TOPIC_TICK)
+import pytest
 
 OBJECTS = {'left': (0.05, 1.69), 'right': (0.10, 0.75)}
 
@@ -136,8 +135,10 @@ def test_a_standalone_node_in_a_taken_namespace_exits_2_in_one_line(module, foun
 
 
 def test_a_gripper_claimed_elsewhere_is_still_found_by_discovery(tmp_path, monkeypatch):
-    """A graph whose claims live elsewhere (another machine, another user) is found on the
-    domain: its plant, its supervisor and its grasp server."""
+    """A graph whose claims live elsewhere (another machine, another user) is still found.
+
+    Discovery on the domain finds its plant, its supervisor and its grasp server.
+    """
     monkeypatch.setenv('GRIPPER_ROS_CLAIMS_DIR', str(tmp_path / 'there'))
     first = GripperGraph.in_own_context(GraphOptions(namespace='elsewhere'))
     try:

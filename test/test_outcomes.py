@@ -15,15 +15,14 @@ import math
 import threading
 import time
 
-import pytest
 from gripper_interfaces.msg import MotorCommand, SupervisorStatus
 from gripper_interfaces.srv import Grasp, SetObject
-
 from gripper_ros.core.config import load_config
 from gripper_ros.nodes.common import GRAPH_QOS, LATCHED_QOS
 from gripper_ros.nodes.graph import GraphOptions, GripperGraph
-from gripper_ros.wire import (TOPIC_MOTOR_COMMAND, TOPIC_OUTCOME, TOPIC_STATUS,
-                              Controller, Outcome, Phase)
+from gripper_ros.wire import (Controller, Outcome, Phase, TOPIC_MOTOR_COMMAND, TOPIC_OUTCOME,
+                              TOPIC_STATUS)
+import pytest
 
 CONFIG = load_config()
 S = CONFIG.supervisor
@@ -58,7 +57,7 @@ class Tap:
         return out
 
     def final_status(self, grasp_id: int, timeout_s: float = 5.0) -> SupervisorStatus:
-        """The latched last status of ``grasp_id`` (it may arrive just after the reply)."""
+        """Return the latched last status of ``grasp_id`` (it may come just after the reply)."""
         deadline = time.monotonic() + timeout_s
         while time.monotonic() < deadline:
             s = self.last_status
@@ -86,7 +85,7 @@ def grasp_ok(graph, open_fingers=True):
 
 @pytest.fixture(scope='module')
 def settle_s(graph):
-    """Simulated time from the start of a grasp of the test object to a settled force."""
+    """Measure simulated time from the start of a grasp of the test object to a settled force."""
     graph.tap.take_commands()
     r = grasp_ok(graph)
     logic = graph.supervisor.logic

@@ -15,30 +15,28 @@
 """
 import math
 import os
-import subprocess
 from pathlib import Path
-
-import numpy as np
-import pytest
-import rclpy
-import yaml
-from rcl_interfaces.msg import Parameter as ParameterMsg
-from rcl_interfaces.msg import ParameterType, ParameterValue
-from rcl_interfaces.srv import DescribeParameters, GetParameters, ListParameters, SetParameters
-from rclpy.context import Context
-from rclpy.exceptions import InvalidParameterValueException
-from rclpy.parameter import Parameter
+import subprocess
 
 from gripper_ros.core.config import ConfigError
 from gripper_ros.nodes.force_controller_node import ForceControllerNode
-from gripper_ros.nodes.grasp_action_node import GraspActionServer
 from gripper_ros.nodes.graph import GraphOptions, GripperGraph
+from gripper_ros.nodes.grasp_action_node import GraspActionServer
+from gripper_ros.nodes.parameters import flatten
 from gripper_ros.nodes.plant_simulator_node import PlantSimulatorNode
 from gripper_ros.nodes.position_controller_node import PositionControllerNode
 from gripper_ros.nodes.supervisor_node import SupervisorNode
-
-from gripper_ros.nodes.parameters import flatten
 from gripper_ros.wire import DEFAULT_NAMESPACE
+import numpy as np
+import pytest
+from rcl_interfaces.msg import Parameter as ParameterMsg
+from rcl_interfaces.msg import ParameterType, ParameterValue
+from rcl_interfaces.srv import DescribeParameters, GetParameters, ListParameters, SetParameters
+import rclpy
+from rclpy.context import Context
+from rclpy.exceptions import InvalidParameterValueException
+from rclpy.parameter import Parameter
+import yaml
 
 REPO = Path(__file__).resolve().parents[1]
 SHIPPED = REPO / 'config' / 'gripper.yaml'
@@ -71,7 +69,7 @@ CONFIG_SECTIONS = {'plant_simulator': ((), ('plant', 'contact', 'force_sensor'))
 
 
 def config_keys(node_name, which):
-    """The dotted config keys a node declares: ``which`` 0 = writable, 1 = read-only."""
+    """Return the dotted config keys a node declares: ``which`` 0 = writable, 1 = read-only."""
     return {k for section in CONFIG_SECTIONS[node_name][which]
             for k in flatten(SHIPPED_DATA[section], section + '.')}
 
@@ -104,11 +102,14 @@ BAD_IDS = ['missing', 'wrong_type', 'negative_resistance', 'out_of_range', 'nan'
 # ====================================================================== start-up
 @pytest.fixture
 def own_context():
-    """A context on a domain of its own (101..200, beyond the ones scripts/test.sh hands out):
-    a node whose constructor fails leaves its parameter services behind until shutdown, and they
-    must never answer for the graph's nodes."""
+    """Yield a context on a domain of its own (101..200, beyond those scripts/test.sh hands out).
+
+    A node whose constructor fails leaves its parameter services behind until shutdown, and they
+    must never answer for the graph's nodes.
+    """
     context = Context()
-    rclpy.init(context=context, domain_id=100 + int(os.environ.get('ROS_DOMAIN_ID', '0')) % 100 + 1)
+    domain_id = 100 + int(os.environ.get('ROS_DOMAIN_ID', '0')) % 100 + 1
+    rclpy.init(context=context, domain_id=domain_id)
     yield context
     rclpy.try_shutdown(context=context)
 
@@ -242,7 +243,8 @@ def _bad_values(descriptor):
     below = lo - max(1e-3, abs(lo) * 0.01)
     above = hi + max(1e-3, abs(hi) * 0.01)
     return [('below', _double(below), 'out of range'), ('above', _double(above), 'out of range'),
-            ('nan', _double(math.nan), 'out of range'), ('+inf', _double(math.inf), 'out of range'),
+            ('nan', _double(math.nan), 'out of range'),
+            ('+inf', _double(math.inf), 'out of range'),
             ('-inf', _double(-math.inf), 'out of range'),
             ('string', ParameterValue(type=ParameterType.PARAMETER_STRING, string_value='1.0'),
              'Wrong parameter type'),
@@ -340,8 +342,11 @@ def test_read_only_parameters_refuse_any_change(graph, descriptors):
 
 
 def test_accepted_controller_parameters_take_effect(graph):
-    """status_timeout_s is read by the watchdog on every check; approach_force_margin goes to the
-    force stage (used from the next grasp on)."""
+    """Accepted controller parameters reach what uses them.
+
+    status_timeout_s is read by the watchdog on every check; approach_force_margin goes to the
+    force stage (used from the next grasp on).
+    """
     for node in (graph.position, graph.force):
         name = node.get_name()
         assert _set(graph, name, 'status_timeout_s', _double(4.5)).successful
@@ -389,7 +394,8 @@ def test_plant_answers_an_accepted_parameter_change(graph):
 
     An accepted change publishes a parameter event stamped with the node's clock; the plant's
     Clock message once shadowed rclpy's ``Node._clock`` and the call was never answered.
-    frame_id is read-only (read once at start-up), so an accepted change is use_sim_time's."""
+    frame_id is read-only (read once at start-up), so an accepted change is use_sim_time's.
+    """
     from rclpy.clock import Clock
     assert isinstance(graph.plant.get_clock(), Clock)
     result = _set(graph, 'plant_simulator', 'frame_id', ParameterValue(
@@ -415,8 +421,10 @@ def _value(v):
 
 @pytest.mark.parametrize('node_name', ['position_controller', 'force_controller', 'supervisor'])
 def test_every_writable_config_number_refuses_bad_values_naming_the_key(graph, node_name):
-    """NaN, infinity and a negative number go through the config reader: refused with its
-    message, which names the key, and the value stays."""
+    """NaN, infinity and a negative number go through the config reader and are refused.
+
+    The refusal carries the reader's message, which names the key, and the value stays.
+    """
     checked = 0
     for key in sorted(config_keys(node_name, 0)):
         before = _get(graph, node_name, key)
@@ -432,10 +440,13 @@ def test_every_writable_config_number_refuses_bad_values_naming_the_key(graph, n
     assert checked > 10
 
 
-def test_a_gain_set_over_the_parameter_services_takes_effect_at_the_next_stage(graph,
-                                                                              tmp_path):
-    """ros2 param set /gripper/position_controller position_control.mpc_pd.kc 900.0: the next
-    grasp's position stage runs with it, tick for tick as the headless loop with that gain."""
+def test_a_gain_set_over_the_parameter_services_takes_effect_at_the_next_stage(
+        graph, tmp_path):
+    """A gain set over the parameter services takes effect at the next stage.
+
+    ``ros2 param set /gripper/position_controller position_control.mpc_pd.kc 900.0``: the next
+    grasp's position stage runs with it, tick for tick as the headless loop with that gain.
+    """
     import dataclasses
     from gripper_ros.bags.recording import recorded_grasp
     from gripper_ros.bags.series import load_grasp_series

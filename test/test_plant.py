@@ -7,14 +7,13 @@ import copy
 import math
 from pathlib import Path
 
+from gripper_ros.core.config import ContactParams, ForceSensorParams, load_config
+from gripper_ros.core.force_sensor import FsrVoltageDivider
+from gripper_ros.core.plant import check_fault, ContactState, FaultKind, GraspObject, GripperPlant
 import numpy as np
 import pytest
 from scipy.linalg import expm
 from scipy.signal import cont2discrete, lsim
-
-from gripper_ros.core.config import ContactParams, ForceSensorParams, load_config
-from gripper_ros.core.force_sensor import FsrVoltageDivider
-from gripper_ros.core.plant import ContactState, GraspObject, GripperPlant
 
 REPO = Path(__file__).resolve().parents[1]
 CONFIG = load_config(REPO / 'config' / 'gripper.yaml')
@@ -31,7 +30,7 @@ FREE_MPS_PER_V = KT / (B_M * R + KT * KB) * RHO  # DC gain of eq. 9 times p/2pi
 
 
 def continuous_free_model():
-    """x' = A x + B e for x = [i_a, omega, x_finger], straight from eqs. 3, 4 and 10."""
+    """Return x' = A x + B e for x = [i_a, omega, x_finger], straight from eqs. 3, 4 and 10."""
     a = np.array([[-R / L, -KB / L, 0.0],          # eq. 4
                   [KT / J, -B_M / J, 0.0],         # eq. 3
                   [0.0, RHO, 0.0]])                # eq. 10
@@ -56,7 +55,7 @@ _MOVING = []
 
 
 def moving_plant():
-    """A plant 2 cm into its travel and moving (prepared once, copied per test)."""
+    """Return a plant 2 cm into its travel and moving (prepared once, copied per test)."""
     if not _MOVING:
         plant = make_plant()
         for _ in range(60):
@@ -391,7 +390,6 @@ def test_plant_sample_reports_sensor_voltage_of_its_force():
 
 
 # ------------------------------------------------------------------ fault injection
-from gripper_ros.core.plant import FaultKind, check_fault  # noqa: E402
 
 
 def gripping_plant(volts=8.0, width=0.05):

@@ -1,13 +1,14 @@
 """Physical floor of the 0.1 m position step and the limit-aware MPC-PD against it (no ROS)."""
 import dataclasses
+
+from gripper_ros.apps.position_limit import main, minimum_time_floor, rms_floor
+from gripper_ros.core.config import load_config
+from gripper_ros.core.controllers import (make_plant, make_position_controller,
+                                          PositionControllerKind)
+from gripper_ros.core.metrics import step_metrics
+from gripper_ros.core.step_runs import position_step
 import numpy as np
 import pytest
-
-from gripper_ros.core.config import load_config
-from gripper_ros.core.controllers import PositionControllerKind, make_plant, make_position_controller
-from gripper_ros.core.metrics import step_metrics
-from gripper_ros.apps.position_limit import main, minimum_time_floor, rms_floor
-from gripper_ros.core.step_runs import position_step
 
 DT = 0.01
 R = 0.1
@@ -106,8 +107,10 @@ def _mpc_pd_step(config, setpoint=R):
 
 
 def test_default_mpc_pd_meets_the_issue_targets_near_the_floor(config, rms, time_floor):
-    """Default (braking governor on): <= 3.0 s, <= 2 %, RMS <= 0.0245, honest +-24 V, and one
-    accelerate-brake reversal, not the +-24 V chatter of a DMC braking on its own."""
+    """Default (braking governor on): <= 3.0 s, <= 2 %, RMS <= 0.0245, honest +-24 V.
+
+    And one accelerate-brake reversal, not the +-24 V chatter of a DMC braking on its own.
+    """
     assert config.position.mpc_pd_braking_voltage_v > 0.0
     run = _mpc_pd_step(config)
     m = run.metrics()

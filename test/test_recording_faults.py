@@ -6,25 +6,24 @@ number of messages a reader gets back from it, and that number is what ``read_ba
 ``grasp_demo`` stops the grasp and exits 2 at once with that one line; a serving graph reports
 it in the grasp's answer and serves and records the next grasp.
 """
+from concurrent.futures import ThreadPoolExecutor
 import errno
+from pathlib import Path
 import re
 import subprocess
 import sys
 import time
-from concurrent.futures import ThreadPoolExecutor
-from pathlib import Path
-
-import pytest
 
 from gripper_ros.bags import recorder as recorder_module
 from gripper_ros.bags.reader import read_bag
 from gripper_ros.bags.recording import ServeRecorder, unique_bag_dir
 from gripper_ros.nodes.graph import GraphOptions, GripperGraph
 from gripper_ros.wire import Outcome
+import pytest
 
 FULL_AFTER_BYTES = 40_000          # a few chunks into the first grasp's bag
 
-_FULL_DISK = '''
+_FULL_DISK = """
 import builtins, errno, sys
 import gripper_ros.bags.recorder as recorder
 limit = int(sys.argv[1])
@@ -48,7 +47,7 @@ def full_open(path, mode='r', *args, **kwargs):
 recorder.open = full_open
 from gripper_ros.apps.grasp_demo import main
 sys.exit(main(sys.argv[2:]))
-'''
+"""
 
 
 class _FullFile:
@@ -136,13 +135,13 @@ def test_a_taken_bag_folder_name_is_never_reused(tmp_path):
     assert first.is_dir() and second.is_dir()
 
 
-_NAMER = '''
+_NAMER = """
 import sys
 from pathlib import Path
 from gripper_ros.bags.recording import unique_bag_dir
 for _ in range(int(sys.argv[2])):
     print(unique_bag_dir(Path(sys.argv[1]), 'grasp_20261201_120000_id1'))
-'''
+"""
 
 
 def test_two_servers_naming_bags_in_one_folder_in_the_same_second_never_collide(tmp_path):

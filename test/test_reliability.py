@@ -5,14 +5,13 @@ Real DDS, real service calls, one EventsExecutor (as in grasp_demo).
 import math
 import threading
 
-import pytest
 from gripper_interfaces.srv import Grasp
-from hypothesis import HealthCheck, given, settings
-from hypothesis import strategies as st
-
 from gripper_ros.core.config import load_config
 from gripper_ros.core.supervisor import GraspRequest, Outcome, RequestError, validate_request
 from gripper_ros.nodes.graph import GripperGraph
+from hypothesis import given, HealthCheck, settings
+from hypothesis import strategies as st
+import pytest
 
 CONFIG = load_config()
 
@@ -39,14 +38,14 @@ def _is_valid(fields):
         return False
 
 
-@settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow,
-                                                                   HealthCheck.function_scoped_fixture])
+@settings(max_examples=150, deadline=None,
+          suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
 @given(width=any_float, mass=any_float, friction=any_float, accel=any_float, timeout=any_float,
        tolerance=any_float)
 def test_fuzzed_requests_get_a_well_formed_refusal(graph, width, mass, friction, accel, timeout,
                                                    tolerance):
-    fields = dict(width_m=width, mass_kg=mass, friction_coefficient=friction,
-                  acceleration_mps2=accel, timeout_s=timeout, width_tolerance_m=tolerance)
+    fields = {'width_m': width, 'mass_kg': mass, 'friction_coefficient': friction,
+              'acceleration_mps2': accel, 'timeout_s': timeout, 'width_tolerance_m': tolerance}
     if _is_valid(fields):
         return    # a valid request would run a whole grasp; valid grasps are tested elsewhere
     ticks = graph.plant.ticks_published
@@ -111,4 +110,3 @@ def test_dead_force_controller_mid_grasp_ends_in_fault_naming_it(graph):
         # the other controller never stepped in, and neither controller's status watchdog fired
         assert g.position.watchdog_trips == 0
         assert detected_s < g.supervisor.tick_timeout_s + 2.0
-

@@ -10,15 +10,14 @@ still and a step of n ticks advances it by exactly n ticks.
 import threading
 import time
 
-import pytest
-from rosgraph_msgs.msg import Clock
-from sensor_msgs.msg import JointState
-
 from gripper_ros.core.config import load_config
 from gripper_ros.nodes.common import GRAPH_QOS
 from gripper_ros.nodes.graph import GraphOptions, GripperGraph
 from gripper_ros.nodes.loop_io import clock_template, joint_state_template
-from gripper_ros.wire import FINGER_JOINT, TOPIC_CLOCK, TOPIC_JOINT_STATES, Outcome, qualified
+from gripper_ros.wire import FINGER_JOINT, Outcome, qualified, TOPIC_CLOCK, TOPIC_JOINT_STATES
+import pytest
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import JointState
 
 CONFIG = load_config()
 STATE_PERIOD_NS = 10_000_000                # state_rate_hz 100

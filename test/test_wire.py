@@ -1,13 +1,12 @@
 """The wire codes and the numeric core: one home for codes, and a core without rclpy."""
 import ast
 import importlib
+from pathlib import Path
 import subprocess
 import sys
-from pathlib import Path
-
-import pytest
 
 from gripper_ros import wire
+import pytest
 
 PACKAGE = Path(wire.__file__).resolve().parent
 CORE_MODULES = sorted(f'gripper_ros.core.{p.stem}' for p in (PACKAGE / 'core').glob('*.py')
@@ -48,8 +47,8 @@ def _imports(tree: ast.AST):
 def test_core_module_names_no_ros_client_library(path):
     """Not even lazily inside a function: the core runs where no ROS is installed."""
     names = set(_imports(ast.parse(path.read_text(), str(path))))
-    ros = sorted(n for n in names if n.split('.')[0] in ('rclpy', 'rosidl_runtime_py',
-                                                           'gripper_interfaces'))
+    ros = sorted(n for n in names
+                 if n.split('.')[0] in ('rclpy', 'rosidl_runtime_py', 'gripper_interfaces'))
     assert not ros, f'{path.name} imports {ros}'
     outside = sorted(n for n in names if n.startswith('gripper_ros.')
                      and not n.startswith(('gripper_ros.core', 'gripper_ros.wire')))
@@ -95,8 +94,11 @@ def _random_values(cls, rng):
 
 @pytest.mark.parametrize('layout', wire.LOOP_LAYOUTS.values(), ids=lambda lay: lay.msgtype)
 def test_loop_layout_is_rclpys_own_serialisation(layout):
-    """Both ways, for random values: rclpy reads what the nodes pack, and the nodes read what
-    rclpy writes (NaN and infinities included); field by field, so every offset agrees."""
+    """Both ways, for random values, field by field, so that every offset agrees.
+
+    rclpy reads what the nodes pack, and the nodes read what rclpy writes (NaN and infinities
+    included).
+    """
     import numpy as np
     from rclpy.serialization import deserialize_message, serialize_message
     cls = _message_class(layout.msgtype)
