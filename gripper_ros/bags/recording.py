@@ -443,7 +443,7 @@ def _drain_published(graph, tap: GraphTap, recorder: BagRecorder, before: dict,
 
 
 class ServeRecorder:
-    """Serve mode: one bag per grasp, whoever requested it, under ``output_dir``.
+    """Serve mode: one bag per grasp or move, whoever requested it, under ``output_dir``.
 
     The tap watches the stage references: the first reference of a new grasp opens a bag
     (with the tick it decides), the tick ``linger_s`` of simulated time after the grasp's
@@ -480,8 +480,8 @@ class ServeRecorder:
         if grasp_id != self._grasp_id:
             self._close_bag(ref.stamp_ns)
             self._grasp_id = grasp_id
-            if phase == Phase.POSITION and outcome == Outcome.UNKNOWN:
-                self._open(grasp_id)
+            if phase in (Phase.POSITION, Phase.MOVING) and outcome == Outcome.UNKNOWN:
+                self._open(grasp_id, 'grasp' if phase == Phase.POSITION else 'move')
         elif self.tap.sink is not None and outcome != Outcome.UNKNOWN and \
                 self._close_at_ns is None:
             self._close_at_ns = ref.stamp_ns + round(self.linger_s * 1e9)
@@ -493,10 +493,10 @@ class ServeRecorder:
             self._close_at_ns = None
             self.tap.stop_at(stamp_ns)          # before this tick: whole ticks only
 
-    def _open(self, grasp_id: int) -> None:
+    def _open(self, grasp_id: int, kind: str) -> None:
         stamp = datetime.now().strftime('%Y%m%d_%H%M%S')
         try:
-            bag_dir = unique_bag_dir(self.output_dir, f'grasp_{stamp}_id{grasp_id}')
+            bag_dir = unique_bag_dir(self.output_dir, f'{kind}_{stamp}_id{grasp_id}')
             sink = BagRecorder(
                 self.graph.client_node, bag_dir, self.tap.topics, subscribe=False,
                 time_source=lambda: self.graph.sim_time_ns, overwrite=True,

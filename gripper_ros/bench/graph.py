@@ -7,7 +7,9 @@ Everything is measured in ONE run, in this order, so that the ratios compare fig
 under the same machine load:
 
 1. baseline: a lockstep std_msgs/Float64 ping-pong between two nodes in one executor
-   (:mod:`gripper_ros.bench.pingpong`), and between two processes (the floor of step 3);
+   (:mod:`gripper_ros.bench.pingpong`), and between two processes (the floor of step 3); and
+   the transport floor of a tick: the three loop messages passed round a ring of three nodes
+   with nothing done in the callbacks, bare and with the recorder's three subscriptions;
 2. graph: :class:`~gripper_ros.nodes.graph.GripperGraph` (the four nodes and the client, one
    executor thread) grasps each object of Table V through the real ``grasp`` service, in fast
    time, releasing between objects as ``grasp_demo`` does; ``--record`` records each grasp
@@ -38,7 +40,8 @@ import time
 from typing import Any, Callable, Dict, List, Optional, Sequence
 
 from gripper_ros.bench.common import call, process_cpu_s
-from gripper_ros.bench.pingpong import BenchError, EXECUTOR_KINDS, measure_pingpong
+from gripper_ros.bench.pingpong import (BenchError, EXECUTOR_KINDS, measure_pingpong,
+                                        measure_ring)
 from gripper_ros.bench.report import format_report, median_of, ratios
 from gripper_ros.wire import Phase
 
@@ -449,12 +452,15 @@ def run(opts: argparse.Namespace, objects: Sequence[tuple], kinds: Sequence[str]
     load_before = _loadavg()
     t_start = time.perf_counter()
     for r in range(opts.repeat):
-        rep: Dict[str, Any] = {'pingpong': {}, 'pingpong_processes': {}, 'graph': {},
-                               'processes': {}, 'demo': {}}
+        rep: Dict[str, Any] = {'pingpong': {}, 'pingpong_processes': {}, 'ring': {},
+                               'graph': {}, 'processes': {}, 'demo': {}}
         tag = f'[{r + 1}/{opts.repeat}] ' if opts.repeat > 1 else ''
         for kind in kinds:
             progress(f'{tag}ping-pong {kind} ({opts.pingpong_seconds:g} s) ...')
             rep['pingpong'][kind] = measure_pingpong(kind, opts.pingpong_seconds)
+            progress(f'{tag}the floor: a ring of the three loop messages, {kind} ...')
+            rep['ring'][kind] = {'bare': measure_ring(kind, opts.pingpong_seconds),
+                                 'tapped': measure_ring(kind, opts.pingpong_seconds, True)}
             if opts.processes:
                 progress(f'{tag}ping-pong {kind} across two processes ...')
                 rep['pingpong_processes'][kind] = measure_pingpong(

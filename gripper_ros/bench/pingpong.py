@@ -298,6 +298,87 @@ def _echo_main(tag: str, executor_kind: str, seconds: float) -> int:
     return 0
 
 
+def measure_ring(executor_kind: str, seconds: float, taps: bool = False) -> Dict[str, Any]:
+    """The transport floor of one graph tick: three nodes in one executor passing the three
+    loop messages (PlantTick, StageReference, MotorCommand) round a lockstep ring, as bytes on
+    raw subscriptions with no work in the callbacks; ``taps`` adds one more raw subscription
+    on each hop, as the recorder has. One lap is one tick."""
+    import rclpy
+    from gripper_interfaces.msg import MotorCommand, PlantTick, StageReference
+    from rclpy.node import Node
+    from rclpy.task import Future
+    from gripper_ros.nodes.common import GRAPH_QOS
+    from gripper_ros.wire import COMMAND_LAYOUT, REFERENCE_LAYOUT, TICK_LAYOUT
+    global _run_counter
+    _run_counter += 1
+    tag = f'{os.getpid()}_{_run_counter}'
+    layouts = (TICK_LAYOUT, REFERENCE_LAYOUT, COMMAND_LAYOUT)
+    types = (PlantTick, StageReference, MotorCommand)
+    payloads = [lay.pack(*(0.0 if c in 'd' else 0 for c in _codes(lay))) for lay in layouts]
+    context = rclpy.Context()
+    rclpy.init(args=[], context=context)
+    executor = _make_executor(executor_kind, context)
+    nodes = [Node(f'bench_ring_{tag}_{i}', context=context) for i in range(3)]
+    try:
+        topics = [f'bench_ring_{tag}/hop{i}' for i in range(3)]
+        pubs = [nodes[i].create_publisher(types[i], topics[i], GRAPH_QOS) for i in range(3)]
+        state = {'laps': 0, 'deadline': float('inf'), 'done': Future()}
+
+        def hop(i):
+            nxt = (i + 1) % 3
+            if nxt:
+                return lambda _data: pubs[nxt].publish(payloads[nxt])
+
+            def lap(_data):
+                state['laps'] += 1
+                if time.perf_counter() >= state['deadline']:
+                    state['done'].set_result(True)
+                    return
+                pubs[0].publish(payloads[0])
+            return lap
+        subs = [nodes[(i + 1) % 3].create_subscription(types[i], topics[i], hop(i), GRAPH_QOS,
+                                                       raw=True) for i in range(3)]
+        if taps:
+            subs += [nodes[0].create_subscription(types[i], topics[i], lambda _d: None,
+                                                  GRAPH_QOS, raw=True) for i in range(3)]
+        for node in nodes:
+            executor.add_node(node)
+        t_end = time.monotonic() + _MATCH_TIMEOUT_S
+        while any(sub.get_publisher_count() < 1 for sub in subs) or \
+                any(pub.get_subscription_count() < (2 if taps else 1) for pub in pubs):
+            if time.monotonic() > t_end:
+                raise BenchError('the ring nodes did not discover each other')
+            executor.spin_once(timeout_sec=0.01)
+        for phase_s in (0.2, seconds):            # warm-up, then the measured phase
+            state.update(laps=0, done=Future())
+            t0 = time.perf_counter()
+            state['deadline'] = t0 + phase_s
+            pubs[0].publish(payloads[0])
+            _spin_until(executor, state['done'], phase_s + _MATCH_TIMEOUT_S)
+            elapsed = time.perf_counter() - t0
+            if not state['done'].done():
+                raise BenchError(f'the ring stalled after {state["laps"]} laps')
+        n = state['laps']
+        return {'executor': executor_kind, 'taps': taps, 'ticks': n, 'seconds': elapsed,
+                'us_per_tick': elapsed / n * 1e6 if n else float('inf')}
+    finally:
+        executor.shutdown(timeout_sec=5.0)
+        for node in nodes:
+            node.destroy_node()
+        context.try_shutdown()
+
+
+def _codes(layout) -> str:
+    """The struct codes of a loop layout's fields, in order (padding left out)."""
+    import re
+    fmt = layout._reader.format.lstrip('<')
+    out = ''
+    for count, code in re.findall(r'(\d*)([a-zA-Z?])', fmt):
+        if code != 'x':
+            out += code * int(count or 1)
+    return out
+
+
 def format_pingpong(result: Dict[str, Any]) -> str:
     return (f"{result['executor']:>6}: {result['round_trips_per_s']:10.0f} round trips/s  "
             f"{result['us_per_round_trip']:8.1f} us/round trip  "

@@ -47,6 +47,10 @@ def ratios(res: Dict[str, Any]) -> Dict[str, float]:
         for stage in ('position', 'force'):
             if g['all'][stage]:
                 out[f'{stage}_tick_over_pingpong_{kind}'] = g['all'][stage]['us_per_tick'] / rt
+    for kind, ring in res.get('ring', {}).items():
+        for variant, r in ring.items():
+            out[f'ring_{variant}_over_pingpong_{kind}'] = (r['us_per_tick']
+                                                          / pp[kind]['us_per_round_trip'])
     for kind, p in res.get('pingpong_processes', {}).items():
         out[f'pingpong_processes_over_pingpong_{kind}'] = (p['us_per_round_trip']
                                                            / pp[kind]['us_per_round_trip'])
@@ -122,6 +126,10 @@ def format_report(report: Dict[str, Any]) -> str:
             lines.append(f'{kind + label:>8s} {_f(p["round_trips_per_s"], ".0f", 14)} '
                          f'{_f(p["us_per_round_trip"], ".1f", 14)} '
                          f'{_f(p["cpu_us_per_round_trip"], ".1f", 18)}')
+    for kind, ring in res.get('ring', {}).items():
+        lines.append(f'{kind:>8s} floor of a tick: the three loop messages round a ring of three '
+                     f'nodes, {ring["bare"]["us_per_tick"]:.1f} us bare, '
+                     f'{ring["tapped"]["us_per_tick"]:.1f} us with a raw tap on each hop')
     lines += ['', '2. graph, one process: one grasp per Table V object, fast time, '
               + ('recorded as grasp_demo records' if s['record'] else 'not recorded')
               + '; x pp = us/tick over the ping-pong round trip', _GRASP_HEAD]
@@ -166,6 +174,10 @@ def format_report(report: Dict[str, Any]) -> str:
         tick = rat[f'graph_tick_over_pingpong_{kind}']
         lines.append(f'  {kind}: graph tick / ping-pong round trip {tick:.2f}x: '
                      + _verdict(tick, TICK_AIM, True))
+        floor = rat.get(f'ring_{"tapped" if s["record"] else "bare"}_over_pingpong_{kind}')
+        if floor is not None:
+            lines.append(f'  {kind}: its transport floor (ring of the loop messages'
+                         f'{", tapped" if s["record"] else ""}) {floor:.2f}x')
         for stage, aim in (('force', FORCE_RTF_AIM), ('position', POSITION_RTF_AIM)):
             rtf = (g['all'][stage] or {}).get('rtf', float('nan'))
             lines.append(f'  {kind}: {stage} stage {_f(rtf, ".3f", 0)}x real time: '
