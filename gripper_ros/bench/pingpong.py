@@ -299,10 +299,13 @@ def _echo_main(tag: str, executor_kind: str, seconds: float) -> int:
 
 
 def measure_ring(executor_kind: str, seconds: float, taps: bool = False) -> Dict[str, Any]:
-    """The transport floor of one graph tick: three nodes in one executor passing the three
-    loop messages (PlantTick, StageReference, MotorCommand) round a lockstep ring, as bytes on
-    raw subscriptions with no work in the callbacks; ``taps`` adds one more raw subscription
-    on each hop, as the recorder has. One lap is one tick."""
+    """Measure the transport floor of one graph tick: the three loop messages round a ring.
+
+    Three nodes in one executor pass the three loop messages (PlantTick, StageReference,
+    MotorCommand) round a lockstep ring, as bytes on raw subscriptions with no work in the
+    callbacks; ``taps`` adds one more raw subscription on each hop, as the recorder has. One lap
+    is one tick.
+    """
     import rclpy
     from gripper_interfaces.msg import MotorCommand, PlantTick, StageReference
     from rclpy.node import Node
@@ -369,7 +372,7 @@ def measure_ring(executor_kind: str, seconds: float, taps: bool = False) -> Dict
 
 
 def _codes(layout) -> str:
-    """The struct codes of a loop layout's fields, in order (padding left out)."""
+    """Return the struct codes of a loop layout's fields, in order (padding left out)."""
     import re
     fmt = layout._reader.format.lstrip('<')
     out = ''

@@ -50,7 +50,7 @@ def ratios(res: Dict[str, Any]) -> Dict[str, float]:
     for kind, ring in res.get('ring', {}).items():
         for variant, r in ring.items():
             out[f'ring_{variant}_over_pingpong_{kind}'] = (r['us_per_tick']
-                                                          / pp[kind]['us_per_round_trip'])
+                                                           / pp[kind]['us_per_round_trip'])
     for kind, p in res.get('pingpong_processes', {}).items():
         out[f'pingpong_processes_over_pingpong_{kind}'] = (p['us_per_round_trip']
                                                            / pp[kind]['us_per_round_trip'])
