@@ -5,9 +5,9 @@ into ROS parameter defaults. A bad file stops with a :class:`ConfigError` naming
 """
 from __future__ import annotations
 
+from dataclasses import dataclass, fields, MISSING
 import math
 import os
-from dataclasses import MISSING, dataclass, fields
 from pathlib import Path
 
 import yaml
@@ -40,12 +40,12 @@ class PlantParams:
 
     @property
     def force_lever_m(self) -> float:
-        """eta * p * N1/N2: motor torque per newton of gripping force (eq. 12)."""
+        """Return eta p N1/N2: motor torque per newton of gripping force (eq. 12)."""
         return self.efficiency * self.pitch_m * self.gear_ratio
 
     @property
     def travel_per_rad_m(self) -> float:
-        """p / (2 pi): finger travel per motor radian (eq. 10)."""
+        """Return p / (2 pi): finger travel per motor radian (eq. 10)."""
         return self.pitch_m / (2.0 * math.pi)
 
     @property
@@ -100,17 +100,21 @@ class PositionControlParams:
 
 @dataclass(frozen=True)
 class ContactForceTuning:
-    """The contact-aware force stage (gripper_ros/contact_force.py), ours."""
+    """The contact-aware force stage (gripper_ros/core/contact_force.py), ours."""
 
-    approach_time_constant_s: float      # before contact, speed reference = gap / this ...
-    contact_speed_mps_per_n: float       # ... + this x F_sp: the speed at which contact is made
-    contact_force_fraction: float        # contact once the force exceeds this x F_sp
-    force_gain_v_per_n: float            # Kp on the force error after contact
-    damping_ratio: float                 # of the spring mode, via velocity damping
-    max_damping_v_s_per_m: float         # damping gain cap (also the approach tracking gain)
+    design_stiffness_n_per_m: float      # stiffest object the contact speed is designed for
+    design_damping_ratio: float          # ... and its damping ratio (against the reflected mass)
+    band_design_stiffness_n_per_m: float  # ... within a width tolerance band
+    impact_force_fraction: float         # impact at the contact speed <= this x F_sp (in (0, 1))
+    braking_deceleration_mps2: float     # the speed profiles' deceleration
+    contact_force_n: float               # contact once the measured force exceeds this
+    untouched_overtravel_m: float        # past the narrowest face by this, untouched: V_ff
+    force_gain_v_per_n: float            # extra Kp on the force error after contact
+    damping_ratio: float                 # of the closed loop on the estimated spring
+    servo_sample_gain: float             # most of a speed error the servo corrects per sample
+    max_damping_v_s_per_m: float         # speed-servo gain cap
     integral_gain_v_per_n_s: float       # model-error trim, only while at rest in contact
     integral_speed_band_mps: float       # "at rest": |finger speed| below this
-    min_travel_for_stiffness_m: float    # stiffness F/d estimated once d exceeds this
 
 
 @dataclass(frozen=True)
@@ -157,7 +161,7 @@ class GripperConfig:
 
 
 def default_config_path() -> Path:
-    """The installed ``share/gripper_ros/config/gripper.yaml``, else the source tree's copy."""
+    """Return the installed ``share/gripper_ros/config/gripper.yaml``, else the tree's copy."""
     env = os.environ.get('GRIPPER_ROS_CONFIG')
     if env:
         return Path(env)
@@ -254,7 +258,11 @@ def parse_config(data: dict, source: str = '<dict>') -> GripperConfig:
         mpc_pi_dmc=_dmc(_section(frc, 'mpc_pi', 'force_control'), 'force_control.mpc_pi'),
         contact_aware=_build(ContactForceTuning, _section(frc, 'contact_aware', 'force_control'),
                              'force_control.contact_aware',
+                             force_gain_v_per_n={'nonnegative': True},
                              integral_gain_v_per_n_s={'nonnegative': True}))
+    if not force.contact_aware.impact_force_fraction < 1.0:
+        raise ConfigError('"force_control.contact_aware.impact_force_fraction" must be in (0, 1), '
+                          f'got {force.contact_aware.impact_force_fraction!r}')
     if not force.closed_loop_pole < 1.0:
         raise ConfigError('"force_control.closed_loop_pole" must be in [0, 1) for a stable loop, '
                           f'got {force.closed_loop_pole!r}')

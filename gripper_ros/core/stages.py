@@ -144,8 +144,10 @@ class ForceStageController:
     def compute(self, status: StatusLike, measurement: float) -> tuple[float, float]:
         """(voltage_v, inner_setpoint) for this tick; the cap is released at first contact."""
         if self.contact_aware:
+            face_m = status.position_setpoint_m
             voltage = self.controller.step(status.force_setpoint_n, measurement,
-                                           status.position_m, status.position_setpoint_m)
+                                           status.position_m, face_m,
+                                           max(face_m - approach_setpoint(status), 0.0))
             return voltage, status.force_setpoint_n
         if not self._contact and status.contact:
             self._contact = True
