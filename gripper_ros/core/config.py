@@ -147,6 +147,8 @@ class SupervisorParams:
     release_settle_s: float = 0.05       # ... for this long
     position_switch_speed_mps: float = 0.0  # switch 1 also needs |speed| <= this (0: paper's)
     width_tolerance_m: float = 0.0       # default +- on a request's width (Franka's epsilon)
+    force_settle_horizon_s: float = 0.0  # settled: |e| + this x |dF/dt| within the band ...
+    force_settle_speed_mps: float = 0.0  # ... and the finger slower than this (0: no bound)
 
 
 @dataclass(frozen=True)
@@ -273,7 +275,9 @@ def parse_config(data: dict, source: str = '<dict>') -> GripperConfig:
                  acceleration_mps2={'nonnegative': True}, hold_watch_s={'nonnegative': True},
                  release_settle_s={'nonnegative': True},
                  position_switch_speed_mps={'nonnegative': True},
-                 width_tolerance_m={'nonnegative': True})
+                 width_tolerance_m={'nonnegative': True},
+                 force_settle_horizon_s={'nonnegative': True},
+                 force_settle_speed_mps={'nonnegative': True})
     if not sup.lost_force_fraction < 1.0:
         raise ConfigError('"supervisor.lost_force_fraction" must be in (0, 1), '
                           f'got {sup.lost_force_fraction!r}')
