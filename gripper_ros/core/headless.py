@@ -10,17 +10,17 @@ the time, so sweeps over many objects are practical.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-
-import numpy as np
+import math
 
 from gripper_ros.core.config import GripperConfig
-from gripper_ros.core.stages import (DEFAULT_APPROACH_FORCE_MARGIN, DEFAULT_FORCE_CONTROLLER,
-                               DEFAULT_POSITION_CONTROLLER, ForceStageController,
-                               LockstepAnswerer, PositionStageController)
 from gripper_ros.core.controllers import make_plant
-from gripper_ros.core.supervisor import (Controller, GraspRequest, GraspSupervisor, Outcome, Phase,
-                          SwitchCriterion, validate_request)
 from gripper_ros.core.plant import GraspObject
+from gripper_ros.core.stages import (DEFAULT_APPROACH_FORCE_MARGIN, DEFAULT_FORCE_CONTROLLER,
+                                     DEFAULT_POSITION_CONTROLLER, ForceStageController,
+                                     LockstepAnswerer, PositionStageController)
+from gripper_ros.core.supervisor import (Controller, GraspRequest, GraspSupervisor, Outcome,
+                                         Phase, SwitchCriterion, validate_request)
+import numpy as np
 
 
 @dataclass
@@ -57,10 +57,27 @@ class HeadlessGrasp:
     motor_voltage_v: np.ndarray = field(repr=False)
     sensor_voltage_v: np.ndarray = field(repr=False)
     phase: np.ndarray = field(repr=False)
+    hold_s: float = 0.0     # the plant and force stage ran on this long after HOLDING (series)
 
     @property
     def peak_contact_force_n(self) -> float:
+        """Largest contact force, between samples included, over the grasp and the hold."""
         return float(np.max(self.peak_force_n))
+
+    @property
+    def continued_hold(self) -> slice:
+        """The samples of the continued hold (after the HOLDING answer; empty without one)."""
+        return slice(int(np.searchsorted(self.t_ns, self.end_ns, side='right')), None)
+
+    def hold_force_range_n(self) -> tuple[float, float]:
+        """Return (min, max) of the force over the continued hold; (nan, nan) without one.
+
+        The max includes the peaks between samples.
+        """
+        hold = self.continued_hold
+        if self.force_n[hold].size == 0:
+            return math.nan, math.nan
+        return float(np.min(self.force_n[hold])), float(np.max(self.peak_force_n[hold]))
 
     @property
     def duration_s(self) -> float:
@@ -75,9 +92,17 @@ def simulate_grasp(config: GripperConfig, width_m: float, mass_kg: float, *,
                    position_controller=DEFAULT_POSITION_CONTROLLER,
                    force_controller=DEFAULT_FORCE_CONTROLLER,
                    approach_force_margin: float = DEFAULT_APPROACH_FORCE_MARGIN,
-                   start_ns: int = 0) -> HeadlessGrasp:
-    """Grasp from fully open; ``object_width_m`` (default ``width_m``; 0 = nothing) is the real
-    object, ``width_m`` the expected one. Raises RequestError for a request the graph refuses."""
+                   start_ns: int = 0, hold_s: float = 0.0) -> HeadlessGrasp:
+    """Grasp from fully open, as the node graph does.
+
+    ``object_width_m`` (default ``width_m``; 0 = nothing) is the real object, ``width_m`` the
+    expected one. Raises RequestError for a request the graph refuses.
+
+    ``hold_s`` > 0: after a HOLDING answer the plant and the force stage run on for this long
+    (the series go on, phase HOLDING), to check that the held force stays settled.
+    """
+    if not (math.isfinite(hold_s) and hold_s >= 0.0):
+        raise ValueError(f'hold_s must be finite and >= 0, got {hold_s!r}')
     targets = validate_request(GraspRequest(width_m, mass_kg, friction_coefficient,
                                             acceleration_mps2, timeout_s, width_tolerance_m),
                                config.plant, config.supervisor)
@@ -114,12 +139,24 @@ def simulate_grasp(config: GripperConfig, width_m: float, mass_kg: float, *,
         sample = plant.step(answer.voltage_v, answerer.stage.sample_time_s)
         decision = supervisor.step(sample.t_ns, sample.position_m, sample.force_n,
                                    sample.sensor_voltage_v, sample.velocity_mps)
+    end_ns = sample.t_ns
+    if hold_s > 0.0 and supervisor.outcome is Outcome.HOLDING:
+        force_stage = stages[Controller.FORCE].stage    # no re-activation: the same force loop
+        status.active_controller = int(Controller.FORCE)
+        hold_end_ns = sample.t_ns + round(hold_s * 1e9)
+        while sample.t_ns < hold_end_ns:
+            status.position_m = sample.position_m
+            voltage, _ = force_stage.compute(status, sample.force_n)
+            sample = plant.step(voltage, force_stage.sample_time_s)
+            rows.append((sample.t_ns, sample.position_m, sample.force_n, sample.peak_force_n,
+                         sample.voltage_v, sample.sensor_voltage_v, int(Phase.HOLDING)))
     cols = list(zip(*rows))
     return HeadlessGrasp(
         supervisor.outcome, supervisor.message, supervisor.switch_criterion,
         targets.position_setpoint_m, targets.force_setpoint_n, start_ns, supervisor.switch_ns,
-        supervisor.contact_ns, sample.t_ns, np.array(cols[0], dtype=np.int64),
-        *(np.array(c, dtype=float) for c in cols[1:6]), np.array(cols[6], dtype=np.int8))
+        supervisor.contact_ns, end_ns, np.array(cols[0], dtype=np.int64),
+        *(np.array(c, dtype=float) for c in cols[1:6]), np.array(cols[6], dtype=np.int8),
+        hold_s if supervisor.outcome is Outcome.HOLDING else 0.0)
 
 
 __all__ = ['HeadlessGrasp', 'Phase', 'simulate_grasp']
