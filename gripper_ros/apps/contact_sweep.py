@@ -1,7 +1,8 @@
 """contact_sweep: peak contact force, losses and time to a steady hold over the object envelope.
 
-    ros2 run gripper_ros contact_sweep [--quick | --compliant] [--exact-only] [--hold-s S]
-                                      [--jobs N] [--force-controller contact_aware|pi|mpc_pi]
+    ros2 run gripper_ros contact_sweep [--quick | --compliant] [--exact-only | --band-only]
+                                      [--band-design-stiffness N_PER_M] [--hold-s S] [--jobs N]
+                                      [--force-controller contact_aware|pi|mpc_pi]
                                       [--plot FILE.png] [--json] [--config FILE]
 
 Each grasp runs the node graph's logic without ROS (:mod:`gripper_ros.core.headless`,
@@ -14,9 +15,9 @@ The envelope (default): rigid contact (the paper's eq. 13) and Kelvin-Voigt obje
 the motor inertia reflected to the finger (``m_r = J / (eta p N1/N2 p / 2 pi)`` = 546 kg, Table
 I); widths over the travel and masses from 0.1 kg to the heaviest 24 V can hold, at the exact
 width; then a reduced grid at uncertain widths, the object placed at the widest face, at the
-expected face and at the narrowest face of a +-1 mm and a +-5 mm tolerance. An object that
-would be squashed flat before it pushes back with F_sp (``F_sp / k >= width``) cannot be held
-by any gripper and is left out (counted).
+expected face and at the narrowest face of a +-1 mm and a +-5 mm tolerance, and 2 % of the
+tolerance past the widest. An object that would be squashed flat before it pushes back with F_sp
+(``F_sp / k >= width``) cannot be held by any gripper and is left out (counted).
 
 For each grasp: the outcome, the peak contact force (including between samples) over the grasp
 and the continued hold as a multiple of the setpoint, the force range over the continued hold,
@@ -29,6 +30,7 @@ throughout: a true lower bound).
 from __future__ import annotations
 
 import argparse
+import dataclasses
 from dataclasses import asdict, dataclass
 import functools
 import json
@@ -43,9 +45,9 @@ WIDTHS_M = (0.005, 0.02, 0.05, 0.08, 0.11, 0.14)
 MASSES_KG = (0.1, 0.5, 1.0, 3.0, None)          # None: the heaviest 24 V can hold
 STIFFNESSES_N_PER_M = (1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8)
 DAMPING_RATIOS = (0.01, 0.1, 1.0)
-# uncertain widths: a reduced grid, the object placed 0, 1 and 2 tolerances into the band
+# uncertain widths: a reduced grid, the object placed 0, 0.02, 1 and 2 tolerances into the band
 BAND_TOLERANCES_M = (0.001, 0.005)
-BAND_PLACEMENTS = (0.0, 1.0, 2.0)               # x tolerance past the widest face
+BAND_PLACEMENTS = (0.0, 0.02, 1.0, 2.0)         # x tolerance past the widest face
 BAND_STIFFNESSES_N_PER_M = (1e2, 1e4, 1e6, 1e8)
 BAND_DAMPING_RATIOS = (0.01, 1.0)
 BAND_WIDTHS_M = (0.05,)
@@ -150,12 +152,15 @@ def build_cases(config, *, kinds, widths, masses, tolerances=(0.0,),
     return cases, excluded
 
 
-def envelope_cases(config, exact_only: bool = False) -> tuple[list[SweepCase], int]:
+def envelope_cases(config, exact: bool = True, band: bool = True
+                   ) -> tuple[list[SweepCase], int]:
     """Return the default grid: the envelope at exact widths, then the uncertain widths."""
-    cases, excluded = build_cases(config, kinds=_kinds(config, STIFFNESSES_N_PER_M,
-                                                       DAMPING_RATIOS),
-                                  widths=WIDTHS_M, masses=MASSES_KG)
-    if not exact_only:
+    cases, excluded = [], 0
+    if exact:
+        cases, excluded = build_cases(config, kinds=_kinds(config, STIFFNESSES_N_PER_M,
+                                                           DAMPING_RATIOS),
+                                      widths=WIDTHS_M, masses=MASSES_KG)
+    if band:
         band, band_excluded = build_cases(
             config, kinds=_kinds(config, BAND_STIFFNESSES_N_PER_M, BAND_DAMPING_RATIOS),
             widths=BAND_WIDTHS_M, masses=BAND_MASSES_KG, tolerances=BAND_TOLERANCES_M,
@@ -291,9 +296,11 @@ def summary(config, rows: list[SweepRow], excluded: int, hold_s: float,
              + f'; {excluded} objects left out: squashed flat before F_sp (F_sp / k >= width)']
     if not rows:
         return '\n'.join(lines)
-    worst = max(rows, key=lambda r: r.peak_ratio)
-    lines.append(f'worst peak: {worst.peak_ratio:.4f} x F_sp ({_describe(worst)}); '
-                 f'limit 1.10')
+    for part, sel in (('at the exact width', exact), ('within a tolerance', banded)):
+        if sel:
+            worst = max(sel, key=lambda r: r.peak_ratio)
+            lines.append(f'worst peak {part}: {worst.peak_ratio:.4f} x F_sp '
+                         f'({_describe(worst)}); limit 1.10')
     counts = {}
     for r in rows:
         counts[r.outcome] = counts.get(r.outcome, 0) + 1
@@ -435,8 +442,15 @@ def main(argv: list[str] | None = None) -> int:
     grid.add_argument('--compliant', action='store_true',
                       help='only rigid, stiff (1e5 N/m) and soft (1e3 N/m) objects at the exact '
                            'width (the former sweep)')
-    parser.add_argument('--exact-only', action='store_true',
-                        help='leave out the uncertain-width grid')
+    part = parser.add_mutually_exclusive_group()
+    part.add_argument('--exact-only', action='store_true',
+                      help='leave out the uncertain-width grid')
+    part.add_argument('--band-only', action='store_true',
+                      help='only the uncertain-width grid')
+    parser.add_argument('--band-design-stiffness', type=float, metavar='N_PER_M',
+                        help='cross tolerance bands at the speed designed for this stiffness '
+                             '(default: force_control.contact_aware.band_design_stiffness_n_per_m'
+                             '); objects stiffer than it are met harder')
     parser.add_argument('--hold-s', type=float, default=DEFAULT_HOLD_S,
                         help='continued hold after HOLDING, checked against the settle band '
                              '(default %(default)s s)')
@@ -448,20 +462,29 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument('--plot', help='write the sweep as PNG')
     parser.add_argument('--json', action='store_true')
     args = parser.parse_args(argv)
-    if not (math.isfinite(args.hold_s) and args.hold_s >= 0.0) or args.jobs < 1:
-        print('contact_sweep: --hold-s must be finite and >= 0 and --jobs >= 1', file=sys.stderr)
+    band_k = args.band_design_stiffness
+    if not (math.isfinite(args.hold_s) and args.hold_s >= 0.0) or args.jobs < 1 or (
+            band_k is not None and not (math.isfinite(band_k) and band_k > 0.0)):
+        print('contact_sweep: --hold-s must be finite and >= 0, --jobs >= 1 and '
+              '--band-design-stiffness finite and > 0', file=sys.stderr)
         return 2
     try:
         config = load_config(args.config)
     except ConfigError as exc:
         print(f'contact_sweep: {exc}', file=sys.stderr)
         return 2
+    if band_k is not None:
+        tuning = dataclasses.replace(config.force.contact_aware,
+                                     band_design_stiffness_n_per_m=band_k)
+        config = dataclasses.replace(config, force=dataclasses.replace(config.force,
+                                                                       contact_aware=tuning))
     if args.quick:
         cases, excluded = quick_cases(config)
     elif args.compliant:
         cases, excluded = compliant_cases(config)
     else:
-        cases, excluded = envelope_cases(config, exact_only=args.exact_only)
+        cases, excluded = envelope_cases(config, exact=not args.band_only,
+                                         band=not args.exact_only)
     start = time.monotonic()
     rows = sweep(config, cases, args.force_controller, args.hold_s, args.jobs)
     elapsed_s = time.monotonic() - start

@@ -247,12 +247,16 @@ class ContactForceController:
             # F / d, at most k_d (rigid: d = 0) and at least the softest spring that can give
             # F_sp within the travel
             k_soft = force_setpoint_n / self.plant.max_travel_m
-            stiffness = k_design if force_n >= k_design * travel else \
-                max(force_n / travel, k_soft)
             error = force_setpoint_n - force_n
-            tau_k = self.loop_time_constant_s(stiffness)
+            if force_n >= k_design * travel:
+                # rigid, or stiffer than the design: the design's loop, computed once
+                stiffness, tau_k = k_design, self.time_constant_s
+                kv = self._approach_gain_v_s_per_m
+            else:
+                stiffness = max(force_n / travel, k_soft)
+                tau_k = self.loop_time_constant_s(stiffness)
+                kv = self.damping_gain_for(stiffness, tau_k)
             v_ref = self.speed_profile_mps(error / stiffness, tau_k)
-            kv = self.damping_gain_for(stiffness, tau_k)
             at_rest = abs(speed) <= t.integral_speed_band_mps
             integral = self._integral_v + (t.integral_gain_v_per_n_s * error * self.dt_s
                                            if at_rest else 0.0)
