@@ -296,6 +296,23 @@ def test_within_a_tolerance_the_band_is_crossed_at_the_band_speed():
         100.0 * soft.contact_speed_mps(5.0), rel=1e-12)
 
 
+def test_within_a_tolerance_the_stiffness_estimate_starts_at_the_band_design():
+    """At first touch the loop assumes the stiffest object it was designed to meet.
+
+    That is k_d at an exact width, the band design stiffness within a tolerance, so that the
+    speed reference does not drop below the band speed at contact.
+    """
+    soft = _controller(band_design_stiffness_n_per_m=1e4)
+    for tol, k_cap in ((0.0, TUNING.design_stiffness_n_per_m), (0.001, 1e4)):
+        soft.reset(0.1)
+        soft.step(5.0, 1e-3, 0.1, 0.1, tol)
+        assert soft.terms.in_contact and soft.terms.stiffness_n_per_m == k_cap
+        tau_k = soft.loop_time_constant_s(k_cap)
+        assert soft.terms.speed_ref_mps == pytest.approx(
+            soft.speed_profile_mps((5.0 - 1e-3) / k_cap, tau_k), rel=1e-12)
+        assert soft.terms.speed_ref_mps >= soft.contact_speed_mps(5.0 - 1e-3, tol)
+
+
 def test_past_the_narrowest_face_untouched_it_drives_at_the_feedforward_not_a_crawl():
     """No object (or a narrower one): beyond the narrowest face the motor gets V_ff.
 

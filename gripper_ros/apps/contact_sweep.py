@@ -380,7 +380,7 @@ def format_rows(rows: list[SweepRow]) -> str:
     return '\n'.join(lines)
 
 
-def plot(rows: list[SweepRow], path: str) -> None:
+def plot(config, rows: list[SweepRow], path: str) -> None:
     import matplotlib
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt
@@ -414,17 +414,26 @@ def plot(rows: list[SweepRow], path: str) -> None:
     ax2.set_title('exact width: time to a steady hold')
     if banded:
         ax3 = axes[2]
+        per_n = band_speed_mps(config, 1.0)
+        floor_s = 0.01                      # at the widest face: no crossing, drawn here
         for tol in sorted({r.width_tolerance_m for r in banded}):
             sel = [r for r in banded if r.width_tolerance_m == tol]
-            held = [r for r in sel if math.isfinite(r.time_to_hold_s)]
-            ax3.scatter([r.band_offset_m * 1e3 for r in held],
-                        [r.time_to_hold_s - r.approach_floor_s for r in held], s=14,
-                        label=f'+-{tol * 1e3:g} mm, held')
-            missed = [r for r in sel if not math.isfinite(r.time_to_hold_s)]
-            ax3.scatter([r.band_offset_m * 1e3 for r in missed],
-                        [r.approach_floor_s * 0 + 20.0 for r in missed], marker='x', s=20,
-                        label=f'+-{tol * 1e3:g} mm, not reached in the timeout')
-        ax3.set_xlabel('object past the widest allowed face (mm)')
+            crossing = [max(r.band_offset_m / (per_n * r.force_setpoint_n), floor_s)
+                        for r in sel]
+            held = [(x, r) for x, r in zip(crossing, sel) if math.isfinite(r.time_to_hold_s)]
+            ax3.scatter([x for x, _ in held],
+                        [max(r.time_to_hold_s - r.approach_floor_s, floor_s) for _, r in held],
+                        s=14, label=f'+-{tol * 1e3:g} mm, held')
+            missed = [x for x, r in zip(crossing, sel) if not math.isfinite(r.time_to_hold_s)]
+            ax3.scatter(missed, [config.supervisor.timeout_s] * len(missed), marker='x', s=20,
+                        label=f'+-{tol * 1e3:g} mm, TIMEOUT')
+        top = max(crossing_s for crossing_s in [r.band_offset_m / (per_n * r.force_setpoint_n)
+                                                for r in banded] + [10.0])
+        ax3.plot([floor_s, top], [floor_s, top], 'k:', label='crossing time')
+        ax3.axhline(config.supervisor.timeout_s, color='r', ls='--', label='timeout')
+        ax3.set_xscale('log')
+        ax3.set_yscale('log')
+        ax3.set_xlabel('distance into the band / band speed (s)')
         ax3.set_ylabel('time to hold - rest floor at the real face (s)')
         ax3.set_title('uncertain width: the band is crossed at v_c')
         ax3.legend(fontsize=8)
@@ -496,7 +505,7 @@ def main(argv: list[str] | None = None) -> int:
         print()
         print(format_rows(rows))
     if args.plot:
-        plot(rows, args.plot)
+        plot(config, rows, args.plot)
         print(f'figure: {args.plot}')
     return 0
 

@@ -39,7 +39,8 @@ What it does each force sample, knowing neither the stiffness nor the exact widt
 4. From the first force sample above ``tuning.contact_force_n`` on, the same servo tracks
    ``v_ref = s((F_sp - F) / k_hat)``: the finger moves towards the compression that gives
    ``F_sp`` on a spring of stiffness ``k_hat = min(F / d, k_d)`` (``d`` the travel since
-   contact; rigid contact gives ``d = 0``, hence ``k_d``). With ``tau = 1 / (alpha k_d)`` the
+   contact; rigid contact gives ``d = 0``, hence ``k_d``; within a tolerance the cap is the
+   band design stiffness). With ``tau = 1 / (alpha k_d)`` the
    reference is continuous at contact (``v_c (1 - F / F_sp)``) and, on a spring of any
    stiffness ``k = k_hat``, the force approaches ``F_sp`` first-order with time constant ``tau``
    (plus the object's own creep ``c / k``); a soft object is compressed along the braking
@@ -114,6 +115,13 @@ class ContactForceController:
         self._kappa_over_dt = t.servo_sample_gain / dt_s
         self.output_limits = (-plant.voltage_limit_v, plant.voltage_limit_v)
         self._approach_gain_v_s_per_m = self.damping_gain_for(t.design_stiffness_n_per_m)
+        # the loop on a spring at the stiffness cap (rigid contact too), computed once: at an
+        # exact width the design's, within a tolerance the band design's
+        k_band = min(t.band_design_stiffness_n_per_m, t.design_stiffness_n_per_m)
+        tau_band = self.loop_time_constant_s(k_band)
+        self._capped_loop = {False: (t.design_stiffness_n_per_m, self.time_constant_s,
+                                     self._approach_gain_v_s_per_m),
+                             True: (k_band, tau_band, self.damping_gain_for(k_band, tau_band))}
         self.terms = ContactForceTerms()
         self.reset()
 
@@ -243,15 +251,13 @@ class ContactForceController:
         else:
             terms.in_contact = True
             travel = position_m - contact_x
-            k_design = t.design_stiffness_n_per_m
-            # F / d, at most k_d (rigid: d = 0) and at least the softest spring that can give
-            # F_sp within the travel
+            # F / d, at most the stiffness the contact speed was designed for (rigid: d = 0)
+            # and at least the softest spring that can give F_sp within the travel
+            k_cap, tau_cap, kv_cap = self._capped_loop[width_tolerance_m > 0.0]
             k_soft = force_setpoint_n / self.plant.max_travel_m
             error = force_setpoint_n - force_n
-            if force_n >= k_design * travel:
-                # rigid, or stiffer than the design: the design's loop, computed once
-                stiffness, tau_k = k_design, self.time_constant_s
-                kv = self._approach_gain_v_s_per_m
+            if force_n >= k_cap * travel:
+                stiffness, tau_k, kv = k_cap, tau_cap, kv_cap
             else:
                 stiffness = max(force_n / travel, k_soft)
                 tau_k = self.loop_time_constant_s(stiffness)
