@@ -114,7 +114,8 @@ class ContactForceTuning:
     servo_sample_gain: float             # most of a speed error the servo corrects per sample
     max_damping_v_s_per_m: float         # speed-servo gain cap
     integral_gain_v_per_n_s: float       # model-error trim, only while at rest in contact
-    integral_speed_band_mps: float       # "at rest": |finger speed| below this
+    integral_speed_band_mps: float       # "at rest": |finger speed| below this ...
+    integral_rate_fraction: float        # ... and |de/dt| tau_k below this x |e|
 
 
 @dataclass(frozen=True)

@@ -50,7 +50,8 @@ What it does each force sample, knowing neither the stiffness nor the exact widt
    (``D = K_stall Kv``), the spring mode with the servo and the force reference acting on it.
    On a rigid object the speed is 0 and the servo term is a force gain ``Kv / (k_d tau)``.
 6. A small integral on the force error trims model error (friction, a stall gain that is not
-   1.391 N/V); it integrates only while the finger is at rest in contact.
+   1.391 N/V); it integrates only the error the loop leaves standing, with the finger at rest
+   in contact and the error decaying much slower than the loop's rate ``1 / tau_k``.
 
 Everything is clamped to the motor's +-24 V. The per-sample cost is two square roots.
 """
@@ -129,6 +130,7 @@ class ContactForceController:
         """Start a new force stage; ``position_m`` is where the finger is now (speed 0)."""
         self._prev_position_m = position_m
         self._contact_position_m: float | None = None
+        self._prev_force_n = 0.0
         self._integral_v = 0.0
         self.terms = ContactForceTerms()
 
@@ -204,6 +206,7 @@ class ContactForceController:
         prev = self._prev_position_m
         speed = 0.0 if prev is None else (position_m - prev) / self.dt_s
         self._prev_position_m = position_m
+        prev_force_n, self._prev_force_n = self._prev_force_n, force_n
         feedforward = force_setpoint_n / self.stall_force_per_volt_n
         terms = self.terms
         terms.feedforward_v = feedforward
@@ -263,9 +266,14 @@ class ContactForceController:
                 tau_k = self.loop_time_constant_s(stiffness)
                 kv = self.damping_gain_for(stiffness, tau_k)
             v_ref = self.speed_profile_mps(error / stiffness, tau_k)
-            at_rest = abs(speed) <= t.integral_speed_band_mps
+            # trim only the error the loop leaves standing: the finger at rest and the error
+            # decaying slower than integral_rate_fraction of the loop's own rate 1 / tau_k (a
+            # stiff object is compressed at a few um/s, so rest alone would integrate the ramp)
+            standing = abs(speed) <= t.integral_speed_band_mps and \
+                abs(force_n - prev_force_n) * tau_k <= \
+                t.integral_rate_fraction * abs(error) * self.dt_s
             integral = self._integral_v + (t.integral_gain_v_per_n_s * error * self.dt_s
-                                           if at_rest else 0.0)
+                                           if standing else 0.0)
             force_v = t.force_gain_v_per_n * error
             damping_v = kv * (v_ref - speed)
             output = feedforward + force_v + integral + damping_v
