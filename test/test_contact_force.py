@@ -305,12 +305,33 @@ def test_within_a_tolerance_the_stiffness_estimate_starts_at_the_band_design():
     soft = _controller(band_design_stiffness_n_per_m=1e4)
     for tol, k_cap in ((0.0, TUNING.design_stiffness_n_per_m), (0.001, 1e4)):
         soft.reset(0.1)
-        soft.step(5.0, 1e-3, 0.1, 0.1, tol)
+        soft.step(5.0, 1e-3, 0.1, 0.1, tol)                      # touched here
+        assert soft.terms.stiffness_n_per_m == TUNING.design_stiffness_n_per_m   # no travel yet
+        soft.step(5.0, 1e-3, 0.1 + 1e-12, 0.1, tol)              # 1 pm in, 1 mN: ~1e9 N/m
         assert soft.terms.in_contact and soft.terms.stiffness_n_per_m == k_cap
         tau_k = soft.loop_time_constant_s(k_cap)
         assert soft.terms.speed_ref_mps == pytest.approx(
             soft.speed_profile_mps((5.0 - 1e-3) / k_cap, tau_k), rel=1e-12)
         assert soft.terms.speed_ref_mps >= soft.contact_speed_mps(5.0 - 1e-3, tol)
+
+
+def test_a_rigid_face_within_a_softer_band_design_is_still_met_at_the_setpoint():
+    """No travel after the touch is rigid contact, whatever the band: k_d's loop.
+
+    Its speed reference is a small force gain on the stalled motor; a band loop would drive it
+    into the rail.
+    """
+    plant = make_plant(CONFIG)
+    plant.set_object(GraspObject(PLANT.max_travel_m - 0.1))
+    plant.touch_object()
+    ctrl = _controller(band_design_stiffness_n_per_m=1e4)
+    s = plant.sample()
+    ctrl.reset(s.position_m)
+    peak = 0.0
+    for _ in range(int(0.05 / DT)):
+        s = plant.step(ctrl.step(0.5, s.force_n, s.position_m, 0.1 + 0.001, 0.001), DT)
+        peak = max(peak, s.peak_force_n)
+    assert peak <= 1.10 * 0.5 and s.force_n == pytest.approx(0.5, rel=1e-3)
 
 
 def test_past_the_narrowest_face_untouched_it_drives_at_the_feedforward_not_a_crawl():

@@ -254,9 +254,10 @@ class ContactForceController:
         else:
             terms.in_contact = True
             travel = position_m - contact_x
-            # F / d, at most the stiffness the contact speed was designed for (rigid: d = 0)
-            # and at least the softest spring that can give F_sp within the travel
-            k_cap, tau_cap, kv_cap = self._capped_loop[width_tolerance_m > 0.0]
+            # F / d, at most the stiffness the contact speed was designed for and at least the
+            # softest spring that can give F_sp within the travel; no travel (rigid contact)
+            # is k_d's loop, the only one whose speed reference is a safe force gain there
+            k_cap, tau_cap, kv_cap = self._capped_loop[width_tolerance_m > 0.0 and travel > 0.0]
             k_soft = force_setpoint_n / self.plant.max_travel_m
             error = force_setpoint_n - force_n
             if force_n >= k_cap * travel:
