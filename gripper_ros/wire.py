@@ -1,39 +1,97 @@
-"""What goes over the wire: topic and service names, and the codes the messages carry.
+"""What goes over the wire: names, the codes the messages carry, the lockstep byte layouts.
 
-The one home of every name and code the nodes, the numeric core and the bag tools share. It
-imports no rclpy, so the core and the bag readers use it without a ROS installation; a test
-ties each code to the constant generated from its ``.msg`` / ``.srv`` file.
+The one home of every topic, service and node name and of every code the nodes, the numeric
+core and the bag tools share. It imports no rclpy, so the core and the bag readers use it
+without a ROS installation; tests tie each code to the constant generated from its ``.msg`` /
+``.srv`` file and each byte layout to rclpy's own serialisation.
+
+Names are relative: a node in namespace ``left`` publishes ``/left/joint_states``. The default
+namespace is ``gripper``. ``/clock`` is global, as everywhere in ROS.
 """
 from __future__ import annotations
 
 import enum
+import struct
 
+DEFAULT_NAMESPACE = 'gripper'
+
+# --- lockstep topics: one message per tick each (see docs/ARCHITECTURE.md) ---------------------
+TOPIC_TICK = 'loop/tick'
+"""PlantTick, plant -> supervisor: the measurement of tick t."""
+TOPIC_POSITION_REFERENCE = 'loop/position_reference'
+"""StageReference, supervisor -> position controller, on the ticks it names that stage."""
+TOPIC_FORCE_REFERENCE = 'loop/force_reference'
+"""StageReference, supervisor -> force controller, on the ticks it names that stage."""
+TOPIC_MOTOR_COMMAND = 'loop/motor_command'
+"""MotorCommand, the named stage -> plant: the voltage held from tick t."""
+
+# --- state topics for other programs: at the state rate while simulated time runs --------------
 TOPIC_CLOCK = '/clock'
-TOPIC_JOINT_STATES = '/gripper/joint_states'
-TOPIC_FORCE_SENSOR = '/gripper/force_sensor'
-TOPIC_MOTOR_STATE = '/gripper/motor_state'
-TOPIC_STATUS = '/gripper/supervisor/status'
-TOPIC_MOTOR_COMMAND = '/gripper/motor_command'
-TOPIC_OUTCOME = '/gripper/supervisor/outcome'
-"""The final status of the last grasp or release, latched (transient local, depth 1)."""
+TOPIC_JOINT_STATES = 'joint_states'
+TOPIC_FORCE_SENSOR = 'force_sensor'
+TOPIC_STATUS = 'supervisor/status'
+TOPIC_OUTCOME = 'supervisor/outcome'
+"""The final status of the last request, latched (transient local, depth 1)."""
+TOPIC_OBJECT_STATE = 'sim/object_state'
+TOPIC_SIM_STATUS = 'sim/status'
 
-SERVICE_GRASP = '/gripper/grasp'
-SERVICE_STOP = '/gripper/stop'
-SERVICE_RELEASE = '/gripper/release'
-SERVICE_SET_OBJECT = '/gripper/sim/set_object'
-ACTION_GRASP = '/gripper/grasp_action'
+SERVICE_GRASP = 'grasp'
+SERVICE_STOP = 'stop'
+SERVICE_RELEASE = 'release'
+SERVICE_MOVE = 'move'
+SERVICE_SET_OBJECT = 'sim/set_object'
+SERVICE_PAUSE = 'sim/pause'
+SERVICE_RESUME = 'sim/resume'
+SERVICE_STEP = 'sim/step'
+ACTION_GRASP = 'grasp_action'
+ACTION_MOVE = 'move_action'
+ACTION_GRIPPER_CMD = 'gripper_cmd'
+"""control_msgs/action/ParallelGripperCommand, the name MoveIt's parallel-gripper handle uses."""
+
+NODE_PLANT = 'plant_simulator'
+NODE_POSITION_CONTROLLER = 'position_controller'
+NODE_FORCE_CONTROLLER = 'force_controller'
+NODE_SUPERVISOR = 'supervisor'
+NODE_GRASP_ACTION = 'grasp_action_server'
+NODE_MOVE_ACTION = 'move_action_server'
 
 FINGER_JOINT = 'finger_joint'
 
-GRAPH_TOPICS: dict[str, str] = {
-    TOPIC_CLOCK: 'rosgraph_msgs/msg/Clock',
-    TOPIC_JOINT_STATES: 'sensor_msgs/msg/JointState',
-    TOPIC_FORCE_SENSOR: 'gripper_interfaces/msg/ForceSensor',
-    TOPIC_MOTOR_STATE: 'gripper_interfaces/msg/MotorState',
-    TOPIC_STATUS: 'gripper_interfaces/msg/SupervisorStatus',
+LOOP_TOPICS: dict[str, str] = {
+    TOPIC_TICK: 'gripper_interfaces/msg/PlantTick',
+    TOPIC_POSITION_REFERENCE: 'gripper_interfaces/msg/StageReference',
+    TOPIC_FORCE_REFERENCE: 'gripper_interfaces/msg/StageReference',
     TOPIC_MOTOR_COMMAND: 'gripper_interfaces/msg/MotorCommand',
 }
-"""Every topic the lockstep graph publishes, with its type: what a grasp bag records."""
+STATE_TOPICS: dict[str, str] = {
+    TOPIC_JOINT_STATES: 'sensor_msgs/msg/JointState',
+    TOPIC_FORCE_SENSOR: 'gripper_interfaces/msg/ForceSensor',
+    TOPIC_STATUS: 'gripper_interfaces/msg/SupervisorStatus',
+    TOPIC_OBJECT_STATE: 'gripper_interfaces/msg/ObjectState',
+    TOPIC_SIM_STATUS: 'gripper_interfaces/msg/SimStatus',
+}
+GRAPH_TOPICS: dict[str, str] = {**LOOP_TOPICS, **STATE_TOPICS}
+"""Every topic of one gripper's graph but /clock, with its type: what a grasp bag records."""
+
+
+def qualified(namespace: str, name: str) -> str:
+    """Return the absolute name of relative ``name`` in ``namespace`` (``/clock`` stays)."""
+    if name.startswith('/'):
+        return name
+    ns = '/' + namespace.strip('/') if namespace.strip('/') else ''
+    return f'{ns}/{name}'
+
+
+def check_namespace(namespace: str) -> str:
+    """``namespace`` without slashes at its ends, or ValueError saying what a ROS name allows."""
+    ns = namespace.strip('/')
+    parts = ns.split('/') if ns else []
+    for part in parts:
+        if not part or not (part[0].isalpha() or part[0] == '_') or \
+                not all(c.isalnum() or c == '_' for c in part):
+            raise ValueError(f'namespace {namespace!r} is not a ROS name: each part must start '
+                             'with a letter or _ and hold only letters, digits and _')
+    return ns
 
 
 class Phase(enum.IntEnum):
@@ -46,6 +104,7 @@ class Phase(enum.IntEnum):
     DONE = 4
     FAILED = 5
     RELEASING = 6
+    MOVING = 7
 
 
 class Controller(enum.IntEnum):
@@ -76,6 +135,8 @@ class Outcome(enum.IntEnum):
     REFUSED = 6
     FAULT = 7
     RELEASED = 8
+    MOVED = 9
+    STALLED = 10
 
 
 class FaultKind(enum.IntEnum):
@@ -87,6 +148,32 @@ class FaultKind(enum.IntEnum):
     SENSOR_DROPOUT = 3
 
 
+class HoldState(enum.IntEnum):
+    """``ObjectState.STATE_*``: the grasped object along the finger pads (ground truth)."""
+
+    NONE = 0
+    RESTING = 1
+    STUCK = 2
+    SLIDING = 3
+    LOST = 4
+
+
+class PendingRequest(enum.IntEnum):
+    """``SupervisorStatus.REQUEST_*``: a request accepted that starts at the next tick."""
+
+    NONE = 0
+    GRASP = 1
+    RELEASE = 2
+    MOVE = 3
+
+
+class TimeMode(enum.IntEnum):
+    """``SimStatus.TIME_MODE_*``: how the simulator's time runs."""
+
+    REALTIME = 0
+    FAST = 1
+
+
 WIRE_CODES = (
     (Phase, 'gripper_interfaces.msg', 'SupervisorStatus', 'PHASE_'),
     (Controller, 'gripper_interfaces.msg', 'SupervisorStatus', 'CONTROLLER_'),
@@ -94,13 +181,83 @@ WIRE_CODES = (
     (SwitchCriterion, 'gripper_interfaces.msg', 'SupervisorStatus', 'SWITCH_'),
     (Outcome, 'gripper_interfaces.srv', 'Grasp.Response', 'OUTCOME_'),
     (FaultKind, 'gripper_interfaces.srv', 'SetObject.Request', 'FAULT_'),
+    (HoldState, 'gripper_interfaces.msg', 'ObjectState', 'STATE_'),
+    (TimeMode, 'gripper_interfaces.msg', 'SimStatus', 'TIME_MODE_'),
+    (PendingRequest, 'gripper_interfaces.msg', 'SupervisorStatus', 'REQUEST_'),
 )
 """Each code enum and the generated constants it mirrors: (enum, module, class, prefix)."""
 
 
 def enum_name(enum_cls: type[enum.IntEnum], value: int) -> str:
-    """The member name of ``value``, or the number itself for a code this version lacks."""
+    """Return the member name of ``value``, or the number itself for a code unknown here."""
     try:
         return enum_cls(int(value)).name
     except ValueError:
         return str(int(value))
+
+
+# --- byte layouts of the lockstep messages ---------------------------------------------------
+
+CDR_LITTLE_ENDIAN = b'\x00\x01\x00\x00'
+"""The encapsulation header of a little-endian plain-CDR payload (the first four bytes)."""
+
+
+class LoopLayout:
+    """The serialised form of one fixed-size lockstep message type.
+
+    The nodes publish and take these messages as bytes: packing a handful of numbers with
+    :mod:`struct` costs a fraction of rclpy's conversion to and from a Python message object,
+    and the lockstep loop sends three of them every 0.1 ms. ``body`` is the struct format of
+    the fields after the 4-byte encapsulation header, with CDR's alignment (8 bytes for
+    int64/float64, counted from the end of the header) and its padding to a multiple of 4
+    written out. A message in another encapsulation (big-endian) or of another size is not for
+    the fast path: :meth:`unpack` returns None and the caller deserialises it the general way.
+    """
+
+    __slots__ = ('msgtype', 'fields', 'size', '_reader', '_writer')
+
+    def __init__(self, msgtype: str, fields: tuple[str, ...], body: str):
+        self.msgtype = msgtype
+        self.fields = fields
+        self._reader = struct.Struct('<4x' + body)
+        self._writer = struct.Struct('<4s' + body)
+        self.size = self._reader.size
+
+    def pack(self, *values) -> bytes:
+        """Return the CDR bytes of a message with ``values`` in field order (bools as 0/1)."""
+        return self._writer.pack(CDR_LITTLE_ENDIAN, *values)
+
+    def unpack(self, data) -> tuple | None:
+        """Return the field values of CDR ``data`` in field order, or None.
+
+        None when ``data`` is not little-endian or not of this layout's size (another version
+        of the type, e.g. in an older bag).
+        """
+        if data[:4] != CDR_LITTLE_ENDIAN or len(data) != self.size:
+            return None
+        return self._reader.unpack_from(data)
+
+    def as_dict(self, values: tuple) -> dict:
+        """``values`` (as :meth:`unpack` returns them) by field name."""
+        return dict(zip(self.fields, values))
+
+
+TICK_LAYOUT = LoopLayout(
+    'gripper_interfaces/msg/PlantTick',
+    ('stamp_ns', 'position_m', 'velocity_mps', 'force_n', 'peak_force_n', 'sensor_voltage_v',
+     'motor_voltage_v', 'current_a', 'speed_rad_s', 'applied_source', 'revision'),
+    'q8dB3xI')
+REFERENCE_LAYOUT = LoopLayout(
+    'gripper_interfaces/msg/StageReference',
+    ('stamp_ns', 'grasp_id', 'stage_id', 'revision', 'phase', 'outcome', 'controller',
+     'running', 'contact', 'position_setpoint_m', 'approach_setpoint_m', 'force_setpoint_n',
+     'position_m', 'velocity_mps', 'force_n', 'seed_voltage_v', 'speed_limit_mps',
+     'voltage_limit_v'),
+    'qIII5B7x9d')
+COMMAND_LAYOUT = LoopLayout(
+    'gripper_interfaces/msg/MotorCommand',
+    ('stamp_ns', 'grasp_id', 'stage_id', 'revision', 'source', 'phase', 'outcome', 'running',
+     'finite', 'voltage_v', 'hold_s', 'inner_setpoint'),
+    'qIII5B7x3d')
+LOOP_LAYOUTS = {layout.msgtype: layout for layout in (TICK_LAYOUT, REFERENCE_LAYOUT,
+                                                      COMMAND_LAYOUT)}

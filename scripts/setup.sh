@@ -110,6 +110,27 @@ else
   log "python requirements unchanged (stamp matches), pip skipped"
 fi
 
+# ---------------------------------------------------------------- npm (skipped when unchanged)
+# Foxglove's own ROS 2 readers, pinned by test/interop/package-lock.json, for
+# test/test_foxglove_interop.py; installed into test/interop/node_modules (git-ignored).
+INTEROP="$ROOT/test/interop"
+NPM_STAMP="$INTEROP/node_modules/.gripper_ros_npm.sha256"
+if [[ -f "$INTEROP/package-lock.json" ]]; then
+  if ! command -v npm >/dev/null 2>&1; then
+    log "npm not found: test/interop packages not installed (test_foxglove_interop will skip)"
+  else
+    npm_hash="$(cat "$INTEROP/package.json" "$INTEROP/package-lock.json" | sha256sum | cut -d' ' -f1)"
+    if [[ "$(cat "$NPM_STAMP" 2>/dev/null || true)" != "$npm_hash" ]]; then
+      log "installing test/interop npm packages (npm ci)"
+      (cd "$INTEROP" && npm ci --ignore-scripts --no-audit --no-fund --loglevel=error </dev/null) \
+        || die "npm ci in test/interop failed"
+      echo "$npm_hash" > "$NPM_STAMP"
+    else
+      log "npm packages unchanged (stamp matches), npm ci skipped"
+    fi
+  fi
+fi
+
 # ---------------------------------------------------------------- wheels: cmake paths + prefix paths
 if [[ "$MODE" == wheels ]]; then
   # The wheels' exported cmake files name include dirs of the machine that built them; cmake
@@ -146,7 +167,7 @@ fi
 BUILD_STAMP="$ROOT/install/.gripper_ros_build.sha256"
 build_hash="$( {
   echo "mode=$MODE venv=$VENV"; cat "$PIP_STAMP"
-  find package.xml setup.py setup.cfg resource config gripper_interfaces scripts/setup.sh \
+  find package.xml setup.py setup.cfg resource config launch gripper_interfaces scripts/setup.sh \
        -path gripper_interfaces/build -prune -o -type f -print 2>/dev/null | LC_ALL=C sort | xargs -r sha256sum
 } | sha256sum | cut -d' ' -f1)"
 

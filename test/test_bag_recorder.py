@@ -174,8 +174,8 @@ def test_mcap_reader_with_ros2_decoder(recorded, tmp_path):
             'sensor_msgs/msg/JointState'] == 'ros2msg'
         schema = next(s for s in summary.schemas.values()
                       if s.name == 'sensor_msgs/msg/JointState').data.decode()
-        assert '=' * 80 + '\nMSG: std_msgs/msg/Header' in schema
-        assert 'MSG: builtin_interfaces/msg/Time' in schema
+        assert '=' * 80 + '\nMSG: std_msgs/Header\n' in schema
+        assert 'MSG: builtin_interfaces/Time\n' in schema
         for channel in summary.channels.values():
             assert channel.message_encoding == 'cdr'
             assert set(channel.metadata) == {'offered_qos_profiles', 'topic_type_hash'}

@@ -1,7 +1,10 @@
 """Bag tools against synthetic grasp bags with known answers (no rclpy needed, except replay).
 
-The synthetic bag is written with rosbags' Writer (rosbag2 version 9, MCAP) on the graph's
-topics: a first-order position step (settling at tau*ln(50)), an underdamped second-order force
+The synthetic bags are written with rosbags' Writer (rosbag2 version 9, MCAP), in both formats
+the tools read: the lockstep loop (``/gripper/loop/tick``, stage references, motor commands,
+plus the supervisor's status) and, with the interface definitions of that time
+(``test/data/legacy_msgs``), the earlier one message per topic per tick. Both hold the same
+grasp: a first-order position step (settling at tau*ln(50)), an underdamped second-order force
 step (overshoot exp(-pi*zeta/sqrt(1-zeta^2))), a voltage saturated for exactly 50 ms.
 """
 from __future__ import annotations
@@ -21,16 +24,37 @@ os.environ.setdefault('ROS_DOMAIN_ID', '78')
 from rosbags.rosbag2 import StoragePlugin, Writer  # noqa: E402
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore  # noqa: E402
 
-from gripper_ros.bags import analyze as bag_analyze
-from gripper_ros.bags import info as bag_info
+from gripper_ros.bags import analyze as bag_analyze  # noqa: E402
+from gripper_ros.bags import info as bag_info  # noqa: E402
 from gripper_ros.bags import replay as bag_replay  # noqa: E402
 from gripper_ros.bags.reader import (  # noqa: E402
-    EXIT_ERROR, EXIT_TRUNCATED, GRASP_TOPICS, TOPIC_CLOCK, TOPIC_FORCE_SENSOR, TOPIC_JOINT_STATES,
-    TOPIC_MOTOR_COMMAND, TOPIC_MOTOR_STATE, TOPIC_STATUS, EmptyBagError, MissingTopicsError,
-    NotABagError, BagNotFoundError, load_grasp_series, read_bag,
+    BagNotFoundError,
+    EmptyBagError,
+    EXIT_ERROR,
+    EXIT_TRUNCATED,
+    MissingTopicsError,
+    NotABagError,
+    read_bag,
+)
+from gripper_ros.bags.series import LEGACY_TOPICS, load_grasp_series  # noqa: E402
+from gripper_ros.wire import (  # noqa: E402
+    COMMAND_LAYOUT,
+    LOOP_TOPICS,
+    REFERENCE_LAYOUT,
+    TICK_LAYOUT,
+    TOPIC_CLOCK,
+    TOPIC_FORCE_REFERENCE,
+    TOPIC_JOINT_STATES,
+    TOPIC_MOTOR_COMMAND,
+    TOPIC_POSITION_REFERENCE,
+    TOPIC_STATUS,
+    TOPIC_TICK,
+    qualified,
 )
 
-MSG_DIR = Path(__file__).resolve().parents[1] / 'gripper_interfaces' / 'msg'
+REPO = Path(__file__).resolve().parents[1]
+MSG_DIR = REPO / 'gripper_interfaces' / 'msg'
+LEGACY_MSG_DIR = Path(__file__).resolve().parent / 'data' / 'legacy_msgs'
 
 # known answers
 DT_NS = 1_000_000                 # 1 ms ticks
@@ -44,10 +68,22 @@ FORCE_SP_N = 5.0
 V_LIMIT_TICKS = 50                # |V| = 24 V on ticks 1..50 -> 50 ms at the limit
 GRASP_ID = 7
 
+NS = 'gripper'
+TICK, STATUS, JOINTS = (qualified(NS, t) for t in (TOPIC_TICK, TOPIC_STATUS, TOPIC_JOINT_STATES))
+POS_REF, FORCE_REF, COMMAND = (qualified(NS, t) for t in (
+    TOPIC_POSITION_REFERENCE, TOPIC_FORCE_REFERENCE, TOPIC_MOTOR_COMMAND))
+LOCKSTEP_TOPICS = {**{qualified(NS, t): ty for t, ty in LOOP_TOPICS.items()},
+                   STATUS: 'gripper_interfaces/msg/SupervisorStatus',
+                   JOINTS: 'sensor_msgs/msg/JointState'}
+"""The topics of the synthetic lockstep bag (every tick on each but the unused reference)."""
+OLD = {name: qualified(NS, name) for name in LEGACY_TOPICS}
+OLD_TOPICS = {TOPIC_CLOCK: 'rosgraph_msgs/msg/Clock',
+              **{OLD[name]: ty for name, ty in LEGACY_TOPICS.items()}}
 
-def _typestore():
+
+def _typestore(msg_dir: Path = MSG_DIR):
     store = get_typestore(Stores.ROS2_JAZZY)
-    for path in sorted(MSG_DIR.glob('*.msg')):
+    for path in sorted(msg_dir.glob('*.msg')):
         store.register(get_types_from_msg(path.read_text(), f'gripper_interfaces/msg/{path.stem}'))
     return store
 
@@ -78,59 +114,111 @@ def _voltage(k: int) -> float:
     return 2.0
 
 
+def _tick(k: int, n_ticks: int) -> dict:
+    """The known grasp at tick ``k``."""
+    y_switch = POS_SP_M * (1 - math.exp(-(K_SWITCH - 1) * 1e-3 / TAU_S))
+    pos = POS_SP_M * (1 - math.exp(-k * 1e-3 / TAU_S)) if k < K_SWITCH else y_switch
+    force = 0.0 if k < K_CONTACT else (1e-3 if k < K_SWITCH else _force((k - K_SWITCH) * 1e-3))
+    last = k == n_ticks - 1
+    phase = 1 if k < K_SWITCH else (2 if k < K_HOLD else 3)
+    return dict(t_ns=T0_NS + k * DT_NS, pos=pos, force=force, phase=phase,
+                source=1 if phase == 1 else 2, stage=1 if phase == 1 else 2,
+                outcome=1 if last else 0, switch=0 if k < K_SWITCH else 2)
+
+
 def write_grasp_bag(path: Path, topics=None, n_ticks: int = N_TICKS, custom_data=True) -> Path:
-    """A grasp bag with analytically known figures (see module docstring)."""
+    """A lockstep-format grasp bag with analytically known figures (module docstring)."""
     store = _typestore()
     T = store.types
-    Time = T['builtin_interfaces/msg/Time']
-    Header = T['std_msgs/msg/Header']
-    topics = list(GRASP_TOPICS) if topics is None else topics
+    topics = dict(LOCKSTEP_TOPICS) if topics is None else {t: LOCKSTEP_TOPICS.get(
+        t, 'rosgraph_msgs/msg/Clock') for t in topics}
     with Writer(path, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
-        conns = {t: writer.add_connection(t, GRASP_TOPICS[t], typestore=store) for t in topics}
+        conns = {t: writer.add_connection(t, ty, typestore=store) for t, ty in topics.items()}
         if custom_data:
+            writer.set_custom_data('gripper_ros', json.dumps({'format': 2, 'namespace': NS}))
             writer.set_custom_data('grasp_request', json.dumps(
                 {'width_m': 0.05, 'mass_kg': 0.2, 'friction_coefficient': 0.4}))
-            writer.set_custom_data('grasp_outcome', json.dumps({'outcome': 'HOLDING',
-                                                                'success': True}))
-        y_switch = POS_SP_M * (1 - math.exp(-(K_SWITCH - 1) * 1e-3 / TAU_S))
         for k in range(n_ticks):
-            t_ns = T0_NS + k * DT_NS
-            stamp = Time(sec=t_ns // 10**9, nanosec=t_ns % 10**9)
-            hdr = Header(stamp=stamp, frame_id='')
-            t_rel = k * 1e-3
-            pos = POS_SP_M * (1 - math.exp(-t_rel / TAU_S)) if k < K_SWITCH else y_switch
-            if k < K_CONTACT:
-                force = 0.0
-            elif k < K_SWITCH:
-                force = 1e-3
-            else:
-                force = _force((k - K_SWITCH) * 1e-3)
-            phase = 1 if k < K_SWITCH else (2 if k < K_HOLD else 3)
-            last = k == n_ticks - 1
+            g = _tick(k, n_ticks)
+            t_ns = g['t_ns']
+            stamp = T['builtin_interfaces/msg/Time'](sec=t_ns // 10**9, nanosec=t_ns % 10**9)
+            hdr = T['std_msgs/msg/Header'](stamp=stamp, frame_id='')
+            running = g['outcome'] == 0
+            raw = {
+                TICK: TICK_LAYOUT.pack(t_ns, g['pos'], 0.0, g['force'], g['force'],
+                                       0.2 + 0.4 * g['force'], _voltage(k), 0.1 * _voltage(k),
+                                       0.0, g['source'] if k else 0, 0),
+                POS_REF if g['phase'] == 1 else FORCE_REF: REFERENCE_LAYOUT.pack(
+                    t_ns, GRASP_ID, g['stage'], 0, g['phase'], g['outcome'], g['source'],
+                    running, k >= K_CONTACT, POS_SP_M, POS_SP_M, FORCE_SP_N, g['pos'], 0.0,
+                    g['force'], 0.0, 0.0, 0.0),
+                COMMAND: COMMAND_LAYOUT.pack(t_ns, GRASP_ID, g['stage'], 0, g['source'],
+                                             g['phase'], g['outcome'], running, True,
+                                             _voltage(k + 1), 1e-3, 0.0),
+            }
             msgs = {
                 TOPIC_CLOCK: T['rosgraph_msgs/msg/Clock'](clock=stamp),
-                TOPIC_JOINT_STATES: T['sensor_msgs/msg/JointState'](
-                    header=hdr, name=['finger_joint'], position=np.array([pos]),
-                    velocity=np.array([0.0]), effort=np.array([force])),
-                TOPIC_FORCE_SENSOR: _make(T['gripper_interfaces/msg/ForceSensor'],
-                    header=hdr, force_n=force, voltage_v=0.2 + 0.4 * force, peak_force_n=force),
-                TOPIC_MOTOR_STATE: _make(T['gripper_interfaces/msg/MotorState'],
-                    header=hdr, voltage_v=_voltage(k), current_a=0.1 * _voltage(k),
-                    speed_rad_s=0.0),
-                TOPIC_STATUS: _make(T['gripper_interfaces/msg/SupervisorStatus'],
-                    header=hdr, phase=4 if last else phase, active_controller=1 if phase == 1
-                    else 2, switch_criterion=0 if k < K_SWITCH else 2, grasp_id=GRASP_ID,
-                    outcome=1 if last else 0, position_setpoint_m=POS_SP_M,
-                    force_setpoint_n=FORCE_SP_N, position_m=pos, force_n=force,
-                    contact=k >= K_CONTACT, seed_voltage_v=0.0),
-                TOPIC_MOTOR_COMMAND: _make(T['gripper_interfaces/msg/MotorCommand'],
-                    header=hdr, source=1 if phase == 1 else 2, grasp_id=GRASP_ID,
-                    voltage_v=_voltage(k + 1), hold_s=1e-3, inner_setpoint=0.0),
+                JOINTS: T['sensor_msgs/msg/JointState'](
+                    header=hdr, name=['finger_joint'], position=np.array([g['pos']]),
+                    velocity=np.array([0.0]), effort=np.array([g['force']])),
+                STATUS: _make(T['gripper_interfaces/msg/SupervisorStatus'],
+                              header=hdr, phase=g['phase'], active_controller=g['source'],
+                              switch_criterion=g['switch'], grasp_id=GRASP_ID,
+                              stage_id=g['stage'], outcome=g['outcome'], running=running,
+                              position_setpoint_m=POS_SP_M, approach_setpoint_m=POS_SP_M,
+                              force_setpoint_n=FORCE_SP_N, mass_kg=0.2, position_m=g['pos'],
+                              force_n=g['force'], contact=k >= K_CONTACT),
             }
             for topic in topics:
-                writer.write(conns[topic], t_ns,
-                             store.serialize_cdr(msgs[topic], GRASP_TOPICS[topic]))
+                if topic in raw:
+                    writer.write(conns[topic], t_ns, raw[topic])
+                elif topic in msgs:
+                    writer.write(conns[topic], t_ns, store.serialize_cdr(msgs[topic],
+                                                                         topics[topic]))
     return path
+
+
+def write_legacy_grasp_bag(path: Path, n_ticks: int = N_TICKS) -> Path:
+    """The same grasp in the earlier format, with the interface definitions of that time."""
+    store = _typestore(LEGACY_MSG_DIR)
+    T = store.types
+    with Writer(path, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
+        conns = {t: writer.add_connection(t, ty, typestore=store) for t, ty in OLD_TOPICS.items()}
+        writer.set_custom_data('grasp_request', json.dumps({'width_m': 0.05, 'mass_kg': 0.2}))
+        for k in range(n_ticks):
+            g = _tick(k, n_ticks)
+            t_ns = g['t_ns']
+            stamp = T['builtin_interfaces/msg/Time'](sec=t_ns // 10**9, nanosec=t_ns % 10**9)
+            hdr = T['std_msgs/msg/Header'](stamp=stamp, frame_id='')
+            msgs = {
+                TOPIC_CLOCK: T['rosgraph_msgs/msg/Clock'](clock=stamp),
+                OLD['joint_states']: T['sensor_msgs/msg/JointState'](
+                    header=hdr, name=['finger_joint'], position=np.array([g['pos']]),
+                    velocity=np.array([0.0]), effort=np.array([g['force']])),
+                OLD['force_sensor']: _make(T['gripper_interfaces/msg/ForceSensor'],
+                    header=hdr, force_n=g['force'], voltage_v=0.2 + 0.4 * g['force'],
+                    peak_force_n=g['force']),
+                OLD['motor_state']: _make(T['gripper_interfaces/msg/MotorState'],
+                    header=hdr, voltage_v=_voltage(k), current_a=0.1 * _voltage(k),
+                    speed_rad_s=0.0),
+                OLD['supervisor/status']: _make(T['gripper_interfaces/msg/SupervisorStatus'],
+                    header=hdr, phase=4 if g['outcome'] else g['phase'],
+                    active_controller=g['source'], switch_criterion=g['switch'],
+                    grasp_id=GRASP_ID, outcome=g['outcome'], position_setpoint_m=POS_SP_M,
+                    force_setpoint_n=FORCE_SP_N, position_m=g['pos'], force_n=g['force'],
+                    contact=k >= K_CONTACT, seed_voltage_v=0.0),
+                OLD['motor_command']: _make(T['gripper_interfaces/msg/MotorCommand'],
+                    header=hdr, source=g['source'], grasp_id=GRASP_ID,
+                    voltage_v=_voltage(k + 1), hold_s=1e-3, inner_setpoint=0.0),
+            }
+            for topic, msg in msgs.items():
+                writer.write(conns[topic], t_ns, store.serialize_cdr(msg, OLD_TOPICS[topic]))
+    return path
+
+
+@pytest.fixture(scope='module')
+def legacy_bag(tmp_path_factory) -> Path:
+    return write_legacy_grasp_bag(tmp_path_factory.mktemp('legacy') / 'grasp')
 
 
 @pytest.fixture(scope='module')
@@ -181,23 +269,30 @@ def truncated_bag(tmp_path_factory, grasp_bag) -> Path:
 def test_read_bag_counts_and_metadata(grasp_bag):
     bag = read_bag(grasp_bag)
     assert not bag.truncated
-    assert bag.counts() == {t: N_TICKS for t in GRASP_TOPICS}
+    counts = bag.counts()
+    assert counts[POS_REF] + counts[FORCE_REF] == N_TICKS
+    assert {t: counts[t] for t in (TICK, COMMAND, STATUS, JOINTS)} == dict.fromkeys(
+        (TICK, COMMAND, STATUS, JOINTS), N_TICKS)
     assert bag.metadata['version'] == 9
     assert bag.custom_data_parsed()['grasp_request']['width_m'] == 0.05
     assert bag.start_ns == T0_NS and bag.end_ns == T0_NS + (N_TICKS - 1) * DT_NS
-    assert bag.topics[TOPIC_JOINT_STATES].rate_hz == pytest.approx(1000.0)
+    assert bag.topics[TICK].rate_hz == pytest.approx(1000.0)
 
 
 def test_bag_is_self_describing(grasp_bag):
     """Custom types decode from the schemas inside the bag (no interface package needed)."""
     bag = read_bag(grasp_bag)
     assert 'gripper_interfaces/msg/SupervisorStatus' in bag.schemas
-    status = [bag.decode(m) for m in bag.messages if m.topic == TOPIC_STATUS]
+    status = [bag.decode(m) for m in bag.messages if m.topic == STATUS]
     assert status[-1].outcome == 1 and status[-1].grasp_id == GRASP_ID
+    tick = [bag.decode(m) for m in bag.messages if m.topic == TICK][-1]
+    assert tick.stamp_ns == T0_NS + (N_TICKS - 1) * DT_NS
 
 
-def test_grasp_series(grasp_bag):
-    s = load_grasp_series(grasp_bag)
+@pytest.mark.parametrize('which', ['lockstep', 'legacy'])
+def test_grasp_series(grasp_bag, legacy_bag, which):
+    s = load_grasp_series(grasp_bag if which == 'lockstep' else legacy_bag)
+    assert s.bag_format == (2 if which == 'lockstep' else 1) and s.namespace == NS
     assert s.joint.t_s[0] == pytest.approx(1.0) and len(s.joint.t_s) == N_TICKS
     assert s.joint.position_m[-1] == pytest.approx(POS_SP_M * (1 - math.exp(-0.599 / TAU_S)))
     assert s.sensor.voltage_v[0] == pytest.approx(0.2)
@@ -228,8 +323,12 @@ def test_bad_paths(tmp_path, make, error):
 
 # --- bag_analyze: the known answers -----------------------------------------------------------
 
-def test_analysis_known_answers(grasp_bag):
-    m = bag_analyze.analyze_series(load_grasp_series(grasp_bag))
+@pytest.mark.parametrize('which', ['lockstep', 'legacy'])
+def test_analysis_known_answers(grasp_bag, legacy_bag, which):
+    """The same figures from either format: bags recorded before the lockstep protocol still
+    analyse the same."""
+    m = bag_analyze.analyze_series(load_grasp_series(grasp_bag if which == 'lockstep'
+                                                     else legacy_bag))
     dt = 1e-3
     assert m.grasp_id == GRASP_ID and m.outcome == 'HOLDING'
     assert m.time_to_contact_s == pytest.approx(K_CONTACT * dt, abs=1e-9)
@@ -278,7 +377,7 @@ def test_info_cli(grasp_bag, capsys):
     assert bag_info.main([str(grasp_bag)]) == 0
     out = capsys.readouterr().out
     for text in ('Files:', 'Bag size:', 'Storage id:', 'mcap', 'Duration:', '2.000000000s',
-                 'Messages:', str(6 * N_TICKS), 'Topic: /gripper/joint_states',
+                 'Messages:', str(5 * N_TICKS), 'Topic: /gripper/joint_states',
                  'Type: sensor_msgs/msg/JointState', f'Count: {N_TICKS}',
                  'Serialization Format: cdr', 'Rate: 1000.0 Hz', 'width_m=0.05',
                  'outcome HOLDING', 'switch SENSOR_VOLTAGE', 'force 5 N'):
@@ -291,7 +390,7 @@ def _empty_bag(tmp_path: Path) -> Path:
     store = _typestore()
     path = tmp_path / 'empty'
     with Writer(path, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
-        writer.add_connection(TOPIC_CLOCK, GRASP_TOPICS[TOPIC_CLOCK], typestore=store)
+        writer.add_connection(TOPIC_CLOCK, 'rosgraph_msgs/msg/Clock', typestore=store)
     return path
 
 
@@ -347,14 +446,14 @@ def test_cli_bad_input_one_line(cli, bad, tmp_path, capsys):
 
 @pytest.mark.parametrize('cli, argv', [
     ('bag_analyze', []),
-    ('bag_replay', ['--topics', TOPIC_JOINT_STATES, '--quiet']),
+    ('bag_replay', ['--topics', JOINTS, '--quiet']),
 ])
 def test_cli_missing_topics(cli, argv, tmp_path, capsys):
     main, _ = CLIS[cli]
     code, captured = _run_cli(main, [str(_clock_only_bag(tmp_path))] + argv, capsys)
     assert code == EXIT_ERROR
     lines = captured.err.strip().splitlines()
-    assert len(lines) == 1 and ('missing topics' in lines[0] or 'not in bag' in lines[0])
+    assert len(lines) == 1 and ('not a grasp bag' in lines[0] or 'not in bag' in lines[0])
 
 
 def test_info_on_bag_without_grasp_topics_is_fine(tmp_path, capsys):
@@ -407,5 +506,5 @@ def test_empty_bag_error_type(tmp_path):
 
 
 def test_missing_topics_error(tmp_path):
-    with pytest.raises(MissingTopicsError, match='missing topics'):
+    with pytest.raises(MissingTopicsError, match='not a grasp bag: no <namespace>/loop/tick'):
         load_grasp_series(_clock_only_bag(tmp_path))

@@ -1,14 +1,16 @@
-"""config/gripper.yaml: the shipped file is the paper's Tables I and II; bad files are refused
-with a ConfigError that names the offending key, and nothing is half-loaded."""
+"""config/gripper.yaml: the shipped file is the paper's Tables I and II.
+
+Bad files are refused with a ConfigError that names the offending key, and nothing is
+half-loaded.
+"""
 import copy
 import dataclasses
 import math
 from pathlib import Path
 
+from gripper_ros.core.config import ConfigError, ForceLaw, load_config, parse_config, PidGains
 import pytest
 import yaml
-
-from gripper_ros.core.config import ConfigError, PidGains, load_config, parse_config
 
 REPO = Path(__file__).resolve().parents[1]
 SHIPPED = REPO / 'config' / 'gripper.yaml'
@@ -75,6 +77,16 @@ def test_shipped_file_is_table_two():
     assert 0.0 <= frc.closed_loop_pole < 1.0
 
 
+def test_shipped_force_law_and_pad_friction(tmp_path, shipped_data):
+    cfg = load_config(SHIPPED)
+    assert (cfg.supervisor.force_law, cfg.supervisor.grip_safety_factor) == \
+        (ForceLaw.FRICTION, 1.5)
+    assert (cfg.contact.static_friction, cfg.contact.kinetic_friction,
+            cfg.contact.pad_length_m) == (0.5, 0.4, 0.02)
+    paper = load_config(write(tmp_path, set_key(shipped_data, 'supervisor.force_law', 'paper')))
+    assert paper.supervisor.force_law is ForceLaw.PAPER
+
+
 def test_derived_plant_constants():
     p = load_config(SHIPPED).plant
     assert p.force_lever_m == pytest.approx(0.2 * 0.0075 * 4.4, rel=1e-15)
@@ -119,6 +131,14 @@ def test_environment_variable_selects_the_file(monkeypatch, tmp_path, shipped_da
     ('force_control.mpc_pi.move_suppression', float('nan'), 'finite'),
     ('force_control.closed_loop_pole', 1.0, '[0, 1)'),
     ('supervisor.timeout_s', -20.0, '> 0'),
+    ('supervisor.force_law', 'magic', "one of 'friction', 'paper'"),
+    ('supervisor.force_law', 1.0, "one of 'friction', 'paper'"),
+    ('supervisor.force_law', None, 'one of'),
+    ('supervisor.grip_safety_factor', 0.9, '>= 1'),
+    ('supervisor.grip_safety_factor', float('nan'), 'finite'),
+    ('contact.static_friction', -0.5, '> 0'),
+    ('contact.kinetic_friction', 0.6, '<= "contact.static_friction"'),
+    ('contact.pad_length_m', 0.0, '> 0'),
 ])
 def test_bad_value_raises_config_error_naming_the_key(tmp_path, shipped_data, key, value, words):
     path = write(tmp_path, set_key(shipped_data, key, value))
@@ -246,8 +266,10 @@ def test_the_shipped_file_has_numeric_keys():
     ids=['string', 'numeric_string', 'null', 'bool', 'list', 'mapping', 'nan', '+inf', '-inf',
          'negative'])
 def test_every_key_of_the_shipped_file_refuses_a_bad_value_naming_it(shipped_data, value, words):
-    """Wrong type, non-finite or negative, in ANY key: a ConfigError that names that key (a key
-    the loader ignored would load silently and fail here)."""
+    """Wrong type, non-finite or negative, in ANY key: a ConfigError that names that key.
+
+    A key the loader ignored would load silently and fail here.
+    """
     unchecked = []
     for key in SHIPPED_KEYS:
         try:
@@ -283,6 +305,10 @@ def test_every_required_key_of_the_shipped_file_is_named_when_missing(shipped_da
     ('position_control.mpc_pd_braking_voltage_v', 30.0, 'plant.voltage_limit_v'),
     ('position_control.mpc_pd.horizon', '700', 'number'),
     ('force_control.mpc_pi.control_horizon', 2.5, 'whole'),
+    ('supervisor.move_stall_force_fraction', 1.2, '(0, 1]'),   # a force never reached
+    ('supervisor.move_default_speed_mps', 0.1, 'free speed'),  # faster than 24 V drives it
+    ('supervisor.move_default_speed_mps', 0.0004, 'move_rest_speed_mps'),   # "at rest"
+    ('position_control.speed_limit_pole', 0.995, 'open-loop pole'),  # never reaches the limit
 ])
 def test_more_bad_values_are_refused_naming_the_key(tmp_path, shipped_data, key, value, words):
     with pytest.raises(ConfigError) as info:

@@ -358,7 +358,7 @@ def test_past_the_narrowest_face_untouched_it_drives_at_the_feedforward_not_a_cr
 
 def test_no_object_is_found_quickly():
     from gripper_ros.core.headless import simulate_grasp
-    g = simulate_grasp(CONFIG, 0.05, 1.27, object_width_m=0.0)
+    g = simulate_grasp(CONFIG, 0.05, 0.42, object_width_m=0.0)     # F_sp 6.18 N
     assert g.outcome.name == 'NO_OBJECT'
     # a crawl at the contact speed over the no-object margin would take margin / v_c
     crawl_s = CONFIG.supervisor.no_object_margin_m / _controller().contact_speed_mps(

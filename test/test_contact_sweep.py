@@ -3,20 +3,25 @@
 Each grasp is the node graph's logic run headless (bit-identical to the graph, see
 test_graph.py), held on for 1 s after HOLDING. Known answers: the paper's PI hits a compliant
 object many times over its setpoint, ours must stay within 1.10x; no grasp may hold sooner than
-full voltage throughout would even reach the held position; the held force equals mu_s m g
-(eq. 23); within a tolerance the object is reached after its distance into the band divided by
+full voltage throughout would even reach the held position; the held force is the friction
+law's k m (g + a) / (2 mu_s); within a tolerance the object is reached after its distance into the band divided by
 the band speed. The full envelope is `contact_sweep` (docs/contact_sweep.txt).
 """
+import dataclasses
 import math
 
 from gripper_ros.apps.contact_sweep import (band_speed_mps, main, max_mass_kg, quick_cases,
                                             reflected_mass_kg, rigid_cases, sweep, SweepCase)
-from gripper_ros.core.config import load_config
+from gripper_ros.core.config import ForceLaw, load_config
 from gripper_ros.core.headless import simulate_grasp
 import pytest
 
 CONFIG = load_config()
 SUP = CONFIG.supervisor
+# The paper's setpoint (eq. 23), for the controls that reproduce the paper's spike: the spike is
+# bounded by the 24 V stall force, so it shows against the paper's smaller setpoints.
+PAPER_LAW = dataclasses.replace(CONFIG, supervisor=dataclasses.replace(
+    CONFIG.supervisor, force_law=ForceLaw.PAPER))
 M_R = reflected_mass_kg(CONFIG)      # 546 kg: the motor inertia seen from the finger
 
 
@@ -54,12 +59,14 @@ def test_holding_is_declared_only_once_the_force_stays_in_band(quick_rows):
         assert r.hold_drift_m < 0.5 * SUP.no_object_margin_m, r
 
 
-def test_no_grasp_beats_the_arrival_floor_and_the_force_is_eq_23(quick_rows):
+def test_no_grasp_beats_the_arrival_floor_and_the_force_is_the_friction_law(quick_rows):
     g = CONFIG.plant.gravity_mps2
+    assert SUP.force_law is ForceLaw.FRICTION
     for r in quick_rows:
         assert r.time_to_hold_s >= r.arrival_floor_s, r
         assert r.force_setpoint_n == pytest.approx(
-            SUP.friction_coefficient * r.mass_kg * (g + SUP.acceleration_mps2), rel=1e-12)
+            SUP.grip_safety_factor * r.mass_kg * (g + SUP.acceleration_mps2)
+            / (2.0 * SUP.friction_coefficient), rel=1e-12)
 
 
 def test_paper_pi_still_spikes_on_a_compliant_object():
@@ -69,7 +76,7 @@ def test_paper_pi_still_spikes_on_a_compliant_object():
     above the setpoint, at 1e5 N/m and at 1e7 N/m.
     """
     for k, c in ((1e5, 50.0), (1e7, 2.0 * 0.1 * math.sqrt(1e7 * M_R))):
-        g = simulate_grasp(CONFIG, 0.05, 1.0, stiffness_n_per_m=k, damping_n_s_per_m=c,
+        g = simulate_grasp(PAPER_LAW, 0.05, 1.0, stiffness_n_per_m=k, damping_n_s_per_m=c,
                            force_controller='pi', timeout_s=4.0)
         assert g.outcome.name != 'HOLDING'
         assert g.peak_contact_force_n > 2.0 * g.force_setpoint_n
@@ -131,16 +138,16 @@ def test_within_a_tolerance_an_object_the_band_speed_cannot_reach_in_time_is_a_t
     """Show what the gripper does where physics forbids both speed and no spike.
 
     The expected 50 mm object of a +- 5 mm request lies 5 mm into the band, 5 mm / v_band =
-    1000 s at 1 kg; the grasp times out crossing the band, without ever touching the object
+    353 s at 1 kg; the grasp times out crossing the band, without ever touching the object
     (no spike, nothing lost).
     """
     g = simulate_grasp(CONFIG, 0.05, 1.0, width_tolerance_m=0.005, stiffness_n_per_m=1e8,
                        damping_n_s_per_m=2.0 * math.sqrt(1e8 * M_R), timeout_s=4.0)
-    assert 0.005 / band_speed_mps(CONFIG, g.force_setpoint_n) > 100 * 4.0
+    assert 0.005 / band_speed_mps(CONFIG, g.force_setpoint_n) > 50 * 4.0
     assert g.outcome.name == 'TIMEOUT' and g.peak_contact_force_n == 0.0
 
 
 def test_without_a_tolerance_a_wider_object_is_hit_as_in_the_paper():
-    g = simulate_grasp(CONFIG, 0.05, 1.69, object_width_m=0.06)
+    g = simulate_grasp(PAPER_LAW, 0.05, 1.69, object_width_m=0.06)
     assert g.switch_criterion.name == 'SENSOR_VOLTAGE'          # the paper's second criterion
     assert g.peak_contact_force_n > 2.0 * g.force_setpoint_n

@@ -18,7 +18,7 @@ import pytest
 
 from gripper_ros.core.config import load_config
 from gripper_ros.core.stages import (SOURCE_FORCE, SOURCE_POSITION, ForceStageController,
-                                          LockstepAnswerer, PositionStageController)
+                                     LockstepAnswerer, PositionStageController, Reference)
 
 CONFIG = load_config()
 BAD_VALUES = [math.nan, math.inf, -math.inf]
@@ -26,13 +26,18 @@ BAD_IDS = ['nan', '+inf', '-inf']
 
 
 # ====================================================================== stage logic, no ROS
-def _status(source, grasp_id=1, position_sp=0.05, force_sp=3.0, contact=False, seed=1.0,
-            position=0.049):
-    # every number field of SupervisorStatus a stage may read (position_m: where the finger is)
-    return SimpleNamespace(active_controller=source, grasp_id=grasp_id,
-                           position_setpoint_m=position_sp, force_setpoint_n=force_sp,
-                           seed_voltage_v=seed, contact=contact, position_m=position,
-                           force_n=0.0)
+def _ref(source, stamp_ns, measurement, stage_id=1, position_sp=0.05, force_sp=3.0,
+         contact=False, seed=1.0, position=0.049, **bad):
+    """A stage reference; ``bad`` overrides fields with non-finite numbers."""
+    values = dict(stamp_ns=stamp_ns, grasp_id=1, stage_id=stage_id, revision=0, phase=1,
+                  outcome=0, controller=int(source), running=True, contact=contact,
+                  position_setpoint_m=position_sp, approach_setpoint_m=position_sp,
+                  force_setpoint_n=force_sp,
+                  position_m=measurement if source == SOURCE_POSITION else position,
+                  velocity_mps=0.0, force_n=measurement if source == SOURCE_FORCE else 0.0,
+                  seed_voltage_v=seed)
+    values.update(bad)
+    return Reference(**values)
 
 
 def _stage(source):
@@ -58,15 +63,14 @@ def test_stage_holds_zero_volts_on_a_non_finite_measurement_and_is_left_untouche
     clean, hit = LockstepAnswerer(_stage(source)), LockstepAnswerer(_stage(source))
     clean_answers, hit_answers = [], []
     for k, value in enumerate(values):
-        status = _status(source, contact=k >= 3)
         if k == at:
-            bad_answer = hit.answer(status, k * dt_ns, bad)
+            bad_answer = hit.answer(_ref(source, k * dt_ns, bad, contact=k >= 3))
             assert bad_answer.voltage_v == 0.0 and bad_answer.inner_setpoint == 0.0
             assert not bad_answer.finite and 'non-finite measurement' in bad_answer.reason
-            assert hit.answer(status, k * dt_ns, bad) is None    # each tick answered once
+            assert hit.answer(_ref(source, k * dt_ns, bad)) is None   # each tick answered once
             continue
-        clean_answers.append(clean.answer(status, k * dt_ns, value))
-        hit_answers.append(hit.answer(status, k * dt_ns, value))
+        clean_answers.append(clean.answer(_ref(source, k * dt_ns, value, contact=k >= 3)))
+        hit_answers.append(hit.answer(_ref(source, k * dt_ns, value, contact=k >= 3)))
     assert hit_answers == clean_answers
     assert all(a.finite and math.isfinite(a.voltage_v) and math.isfinite(a.inner_setpoint)
                for a in hit_answers)
@@ -74,19 +78,18 @@ def test_stage_holds_zero_volts_on_a_non_finite_measurement_and_is_left_untouche
 
 @pytest.mark.parametrize('source', [SOURCE_POSITION, SOURCE_FORCE], ids=['position', 'force'])
 @pytest.mark.parametrize('bad', BAD_VALUES, ids=BAD_IDS)
-@pytest.mark.parametrize('field', ['position_setpoint_m', 'force_setpoint_n', 'seed_voltage_v'])
-def test_stage_is_not_driven_by_a_non_finite_status_number(source, bad, field):
-    """A corrupted status (setpoint or seed voltage) is not acted on: 0 V, law untouched."""
+@pytest.mark.parametrize('field', ['position_setpoint_m', 'approach_setpoint_m',
+                                   'force_setpoint_n', 'seed_voltage_v'])
+def test_stage_is_not_driven_by_a_non_finite_reference_number(source, bad, field):
+    """A corrupted reference (setpoint or seed voltage) is not acted on: 0 V, law untouched."""
     clean, hit = LockstepAnswerer(_stage(source)), LockstepAnswerer(_stage(source))
     m = _measurements(source)
-    assert hit.answer(_status(source), 0, m[0]) == clean.answer(_status(source), 0, m[0])
-    corrupt = _status(source)
-    setattr(corrupt, field, bad)
-    a = hit.answer(corrupt, 10_000_000, m[1])
+    assert hit.answer(_ref(source, 0, m[0])) == clean.answer(_ref(source, 0, m[0]))
+    a = hit.answer(_ref(source, 10_000_000, m[1], **{field: bad}))
     assert (a.voltage_v, a.inner_setpoint, a.finite) == (0.0, 0.0, False)
-    assert 'non-finite status' in a.reason and field in a.reason
-    assert hit.answer(_status(source), 20_000_000, m[2]) == \
-        clean.answer(_status(source), 20_000_000, m[2])
+    assert 'non-finite reference' in a.reason and field in a.reason
+    assert hit.answer(_ref(source, 20_000_000, m[2])) == \
+        clean.answer(_ref(source, 20_000_000, m[2]))
 
 
 class _BrokenStage:
@@ -97,10 +100,14 @@ class _BrokenStage:
     def __init__(self, output):
         self.output, self.activations, self.calls = output, 0, 0
 
-    def activate(self, status, measurement):
+    @staticmethod
+    def measurement(ref):
+        return ref.position_m
+
+    def activate(self, ref, measurement):
         self.activations += 1
 
-    def compute(self, status, measurement):
+    def compute(self, ref, measurement):
         self.calls += 1
         if self.calls == 2:
             if isinstance(self.output, Exception):
@@ -116,40 +123,39 @@ def test_stage_never_outputs_a_non_finite_voltage(output):
     """A non-finite output is never passed on: 0 V, and the law starts afresh next tick."""
     stage = _BrokenStage(output)
     answerer = LockstepAnswerer(stage)
-    assert answerer.answer(_status(SOURCE_POSITION), 0, 0.0).voltage_v == 1.5
-    a = answerer.answer(_status(SOURCE_POSITION), 10_000_000, 0.0)
+    assert answerer.answer(_ref(SOURCE_POSITION, 0, 0.0)).voltage_v == 1.5
+    a = answerer.answer(_ref(SOURCE_POSITION, 10_000_000, 0.0))
     assert (a.voltage_v, a.inner_setpoint, a.finite) == (0.0, 0.0, False)
     assert 'non-finite output' in a.reason or 'control law failed' in a.reason
-    assert answerer.answer(_status(SOURCE_POSITION), 20_000_000, 0.0).voltage_v == 1.5
+    assert answerer.answer(_ref(SOURCE_POSITION, 20_000_000, 0.0)).voltage_v == 1.5
     assert stage.activations == 2          # re-initialised after the bad output
 
 
 @pytest.mark.parametrize('bad', BAD_VALUES, ids=BAD_IDS)
 def test_stage_on_a_non_finite_measurement_before_activation_activates_later(bad):
-    """A grasp whose first tick is bad: 0 V, and the stage activates on the first good tick."""
+    """A stage whose first tick is bad: 0 V, and it activates on the first good tick."""
     answerer = LockstepAnswerer(_stage(SOURCE_POSITION))
-    assert answerer.answer(_status(SOURCE_POSITION), 0, bad).voltage_v == 0.0
-    assert answerer.active_grasp is None
-    good = answerer.answer(_status(SOURCE_POSITION), 10_000_000, 0.0)
-    assert good.finite and answerer.active_grasp == 1
+    assert answerer.answer(_ref(SOURCE_POSITION, 0, bad)).voltage_v == 0.0
+    assert answerer.active_stage is None
+    good = answerer.answer(_ref(SOURCE_POSITION, 10_000_000, 0.0))
+    assert good.finite and answerer.active_stage == 1
 
 
 # ====================================================================== the live graph
 rclpy = pytest.importorskip('rclpy')
-from gripper_interfaces.msg import ForceSensor, MotorCommand, MotorState  # noqa: E402
-from gripper_interfaces.srv import Grasp  # noqa: E402
-from std_srvs.srv import Trigger  # noqa: E402
 from rclpy.context import Context  # noqa: E402
 from rclpy.node import Node  # noqa: E402
-from rclpy.parameter import Parameter  # noqa: E402
-from sensor_msgs.msg import JointState  # noqa: E402
 
-from gripper_ros.bags.reader import import_message_class  # noqa: E402
-from gripper_ros.core.supervisor import Outcome, Phase  # noqa: E402
+from gripper_ros.bags.schema import import_message_class  # noqa: E402
+from gripper_ros.nodes.common import GRAPH_QOS, wait_until  # noqa: E402
 from gripper_ros.nodes.graph import GraphOptions, GripperGraph  # noqa: E402
-from gripper_ros.nodes.common import (GRAPH_QOS, GRAPH_TOPICS, TOPIC_FORCE_SENSOR,  # noqa: E402
-                                    TOPIC_JOINT_STATES, TOPIC_MOTOR_COMMAND, TOPIC_MOTOR_STATE,
-                                    SERVICE_RELEASE, TOPIC_STATUS, time_to_ns, wait_until)
+from gripper_ros.wire import (COMMAND_LAYOUT, DEFAULT_NAMESPACE, GRAPH_TOPICS,  # noqa: E402
+                              TICK_LAYOUT, TOPIC_MOTOR_COMMAND, TOPIC_STATUS, TOPIC_TICK,
+                              Controller, Outcome, Phase, qualified)
+
+TOPICS = {qualified(DEFAULT_NAMESPACE, t): ty for t, ty in GRAPH_TOPICS.items()}
+TICKS, COMMANDS, STATUS = (qualified(DEFAULT_NAMESPACE, t) for t in
+                           (TOPIC_TICK, TOPIC_MOTOR_COMMAND, TOPIC_STATUS))
 
 
 def _float_fields(msg, prefix=''):
@@ -169,6 +175,12 @@ def _float_fields(msg, prefix=''):
                     yield from _float_fields(item, f'{path}[{i}].')
 
 
+def _stamp(msg) -> int:
+    if hasattr(msg, 'stamp_ns'):
+        return msg.stamp_ns
+    return msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
+
+
 class Watcher(Node):
     """Subscribes to every graph topic; keeps every non-finite float and every motor command."""
 
@@ -178,24 +190,23 @@ class Watcher(Node):
         self.nonfinite = []        # (topic, field, stamp_ns, value)
         self.commands = []         # (wall, stamp_ns, source, voltage_v, hold_s)
         self.motor_voltages = []   # applied voltage, every tick
-        self.counts = {topic: 0 for topic in GRAPH_TOPICS}
-        for topic, msgtype in GRAPH_TOPICS.items():
+        self.counts = {topic: 0 for topic in TOPICS}
+        for topic, msgtype in TOPICS.items():
             self.create_subscription(import_message_class(msgtype), topic,
                                      lambda msg, t=topic: self._on(t, msg), GRAPH_QOS)
 
     def _on(self, topic, msg):
-        stamp = time_to_ns(msg.header.stamp) if hasattr(msg, 'header') else \
-            time_to_ns(msg.clock)
+        stamp = _stamp(msg)
         with self.lock:
             self.counts[topic] += 1
             for field, value in _float_fields(msg):
                 if not math.isfinite(value):
                     self.nonfinite.append((topic, field, stamp, value))
-            if topic == TOPIC_MOTOR_COMMAND:
+            if topic == COMMANDS:
                 self.commands.append((time.monotonic(), stamp, msg.source, msg.voltage_v,
                                       msg.hold_s))
-            elif topic == TOPIC_MOTOR_STATE:
-                self.motor_voltages.append(msg.voltage_v)
+            elif topic == TICKS:
+                self.motor_voltages.append(msg.motor_voltage_v)
 
     def snapshot(self):
         with self.lock:
@@ -203,25 +214,18 @@ class Watcher(Node):
 
 
 class LiveGraph:
-    """A graph of its own (one at a time on this domain) with a watcher and a probe."""
+    """A graph of its own (one at a time on this domain) with a watcher."""
 
     def __init__(self):
         self.context = Context()
         rclpy.init(context=self.context)
         self.graph = GripperGraph(GraphOptions(), context=self.context)
         self.watcher = Watcher(self.context)
-        self.probe = Node('fault_probe', context=self.context)
-        self.joint_pub = self.probe.create_publisher(JointState, TOPIC_JOINT_STATES, GRAPH_QOS)
-        self.force_pub = self.probe.create_publisher(ForceSensor, TOPIC_FORCE_SENSOR, GRAPH_QOS)
-        self.motor_pub = self.probe.create_publisher(MotorState, TOPIC_MOTOR_STATE, GRAPH_QOS)
         self.graph.add_node(self.watcher)
-        self.graph.add_node(self.probe)
-        # every reader has matched the probe's writers before anything is injected
-        assert wait_until(lambda: self.joint_pub.get_subscription_count() >= 4
-                     and self.force_pub.get_subscription_count() >= 4, 10.0)
         time.sleep(0.3)     # the watcher matches the graph's writers (same process: fast)
 
     def start_grasp(self, width_m=0.10, mass_kg=0.75, timeout_s=0.0):
+        from gripper_interfaces.srv import Grasp
         assert self.graph.set_object(width_m).success
         time.sleep(0.1)
         return self.graph._grasp.call_async(Grasp.Request(width_m=width_m, mass_kg=mass_kg,
@@ -274,40 +278,10 @@ def test_dead_plant_mid_grasp_ends_in_fault_naming_it_and_nothing_commands_after
     assert g.position.watchdog_trips == 0 and g.force.watchdog_trips == 0
 
 
-def test_dead_plant_with_a_patient_supervisor_active_controller_falls_to_zero_volts(live):
-    """Supervisor tick_timeout_s above the controllers' status_timeout_s (a misconfiguration):
-    the active controller's own watchdog commands 0 V and names both silent peers."""
-    g = live.graph
-    assert g.supervisor.set_parameters(
-        [Parameter('tick_timeout_s', value=600.0)])[0].successful
-    assert g.supervisor.tick_timeout_s == 600.0
-    timeout_s = g.position.status_timeout_s
-    pending = live.start_grasp()
-    try:
-        start_ticks = g.plant.ticks_published
-        assert wait_until(lambda: g.plant.ticks_published >= start_ticks + 30, 30.0)
-        assert g.supervisor.logic.phase is Phase.POSITION
-        g.kill_node(g.plant)
-        killed_at = time.monotonic()
-        assert wait_until(lambda: g.position.watchdog_trips >= 1, timeout_s + 5.0)
-        detected_s = time.monotonic() - killed_at
-        assert wait_until(lambda: any(c[0] > killed_at and c[3] == 0.0
-                                 for c in live.watcher.snapshot()[1]), 2.0)
-        commands = live.watcher.snapshot()[1]
-        message = g.position.watchdog_message
-        assert not pending.done()               # the supervisor is still waiting
-    finally:
-        live.close(pending)
-    print(f'\ndead plant, patient supervisor: 0 V after {detected_s:.3f} s wall: {message}')
-    assert commands[-1][2] == MotorCommand.SOURCE_POSITION and commands[-1][3] == 0.0
-    assert detected_s < timeout_s + 1.0
-    assert 'supervisor is silent' in message and 'plant_simulator is gone' in message
-
-
 @pytest.fixture(scope='module')
 def stall_run():
     """The whole process stalls (here: a 3.5 s callback on the executor thread) mid-grasp, longer
-    than every watchdog's timeout; statuses and ticks are queued behind the stall."""
+    than every watchdog's timeout; references and ticks are queued behind the stall."""
     lg = LiveGraph()
     g = lg.graph
     pending = None
@@ -350,7 +324,7 @@ def test_dead_supervisor_mid_grasp_active_controller_falls_to_zero_volts(live, p
         killed_at = time.monotonic()
         assert wait_until(lambda: controller.watchdog_trips >= 1, timeout_s + 5.0)
         assert wait_until(lambda: any(c[0] > killed_at and c[3] == 0.0
-                                 for c in live.watcher.snapshot()[1]), 2.0)
+                                      for c in live.watcher.snapshot()[1]), 2.0)
         time.sleep(0.5)    # a second 0 V command (or anything else) would show up here
         nonfinite, commands, _ = live.watcher.snapshot()
     finally:
@@ -371,44 +345,46 @@ def test_dead_supervisor_mid_grasp_active_controller_falls_to_zero_volts(live, p
 
 # ---------------------------------------------------------------------- non-finite measurements
 class Injection:
-    """Run on the executor thread inside the plant's publish of tick ``t_k``: the probe
-    publishes a corrupted copy of the tick's joint state or force sensor sample (after the
-    plant's force sample, before its joint state), so the supervisor decides ``t_k`` on it."""
+    """Stands in for the plant's tick publisher: the first tick for which ``when()`` holds is
+    published with ``field`` replaced by ``value`` (the plant's sensor read that), the rest as
+    they are."""
 
-    def __init__(self, live, topic, value, when):
-        self.live, self.topic, self.value, self.when = live, topic, value, when
+    FIELDS = {'position': 'position_m', 'force': 'force_n', 'voltage': 'motor_voltage_v'}
+
+    def __init__(self, graph, field, value, when):
+        self.plant, self.field, self.value, self.when = graph.plant, field, value, when
         self.stamp_ns = None
-        plant = live.graph.plant
-        self._real_joint_pub = plant._joint_pub
-        self._force_msg = plant._force
-        plant._joint_pub = self
+        self._real = self.plant._tick_pub
+        self.plant._tick_pub = self
 
-    def publish(self, joint):
-        if self.stamp_ns is None and self.when(joint):
-            self.stamp_ns = time_to_ns(joint.header.stamp)
-            if self.topic == TOPIC_JOINT_STATES:
-                bad = JointState(header=joint.header, name=list(joint.name),
-                                 position=[self.value], velocity=list(joint.velocity),
-                                 effort=list(joint.effort))
-                self.live.joint_pub.publish(bad)
-            elif self.topic == TOPIC_FORCE_SENSOR:
-                f = self._force_msg
-                self.live.force_pub.publish(ForceSensor(
-                    header=f.header, force_n=self.value, peak_force_n=f.peak_force_n,
-                    voltage_v=f.voltage_v))
-            else:
-                m = self.live.graph.plant._motor
-                self.live.motor_pub.publish(MotorState(
-                    header=m.header, voltage_v=self.value, current_a=m.current_a,
-                    speed_rad_s=m.speed_rad_s))
-        self._real_joint_pub.publish(joint)
+    def publish(self, data):
+        if self.stamp_ns is None and self.when():
+            values = dict(zip(TICK_LAYOUT.fields, TICK_LAYOUT.unpack(data)))
+            values[self.FIELDS[self.field]] = self.value
+            self.stamp_ns = values['stamp_ns']
+            data = TICK_LAYOUT.pack(*values.values())
+        self._real.publish(data)
+
+    def remove(self):
+        self.plant._tick_pub = self._real
 
 
-CASES = [(topic, phase, value) for topic, phase in [(TOPIC_JOINT_STATES, Phase.POSITION),
-                                                    (TOPIC_FORCE_SENSOR, Phase.POSITION),
-                                                    (TOPIC_FORCE_SENSOR, Phase.FORCE)]
+def _in_phase(graph, phase, after=20):
+    state = {'n': 0}
+
+    def when():
+        if graph.supervisor.logic.phase is not phase:
+            return False
+        state['n'] += 1
+        return state['n'] > after          # 20 ticks into the phase
+    return when
+
+
+CASES = [(field, phase, value) for field, phase in [('position', Phase.POSITION),
+                                                    ('force', Phase.POSITION),
+                                                    ('force', Phase.FORCE)]
          for value in BAD_VALUES]
-CASE_IDS = [f'{t.rsplit("/", 1)[1]}-{p.name.lower()}-{v}' for t, p, v in CASES]
+CASE_IDS = [f'{f}-{p.name.lower()}-{v}' for f, p, v in CASES]
 
 
 @pytest.fixture(scope='module')
@@ -416,38 +392,28 @@ def injected_runs():
     """One graph, one grasp per case, each corrupted at one tick mid-grasp."""
     lg = LiveGraph()
     runs = []
+    g = lg.graph
     try:
-        for topic, phase, value in CASES:
-            sup = lg.graph.supervisor
-
-            def when(joint, phase=phase, state={'n': 0}):
-                if sup.logic.phase is not phase:
-                    return False
-                state['n'] += 1
-                return state['n'] > 20      # 20 ticks into the phase
-            inj = Injection(lg, topic, value, when)
+        for field, phase, value in CASES:
+            inj = Injection(g, field, value, _in_phase(g, phase))
             before = lg.watcher.snapshot()
-            t0 = time.monotonic()
-            r = lg.graph.grasp(0.10, 0.75, wall_timeout_s=60.0) if lg.graph.set_object(
-                0.10).success else None
-            wall = time.monotonic() - t0
-            lg.graph.plant._joint_pub = inj._real_joint_pub
-            ticks_at_end = lg.graph.plant.ticks_published
-            commands_at_end = lg.graph.position.commands_published + \
-                lg.graph.force.commands_published
+            r = g.grasp(0.10, 0.75, wall_timeout_s=60.0) if g.set_object(0.10).success \
+                else None
+            inj.remove()
+            ticks_at_end = g.plant.ticks_published
+            commands_at_end = g.position.commands_published + g.force.commands_published
             time.sleep(0.2)
             after = lg.watcher.snapshot()
             runs.append(SimpleNamespace(
-                topic=topic, phase=phase, value=value, response=r, stamp_ns=inj.stamp_ns,
-                wall_s=wall,
+                field=field, phase=phase, value=value, response=r, stamp_ns=inj.stamp_ns,
                 nonfinite=after[0][len(before[0]):], commands=after[1][len(before[1]):],
                 motor_voltages=after[2][len(before[2]):],
-                quiet=(lg.graph.plant.ticks_published == ticks_at_end and
-                       lg.graph.position.commands_published + lg.graph.force.commands_published
+                quiet=(g.plant.ticks_published == ticks_at_end and
+                       g.position.commands_published + g.force.commands_published
                        == commands_at_end)))
         # the graph still grasps after all that
-        runs.append(lg.graph.grasp(0.10, 0.75, wall_timeout_s=60.0)
-                    if lg.graph.set_object(0.10).success else None)
+        runs.append(g.grasp(0.10, 0.75, wall_timeout_s=60.0)
+                    if g.set_object(0.10).success else None)
     finally:
         lg.close()
     return runs
@@ -460,24 +426,22 @@ def test_non_finite_measurement_ends_the_grasp_in_fault_and_no_voltage_goes_bad(
     r = run.response
     assert run.stamp_ns is not None, 'the injection point was never reached'
     assert r.outcome == Outcome.FAULT and not r.success, r.message
-    # the message says what was wrong (the supervisor's wording varies: 'non-finite
-    # measurement', or the sensor and its reading) and when: the corrupted tick
-    assert 'non-finite' in r.message or repr(run.value) in r.message, r.message
+    assert repr(run.value) in r.message, r.message
     assert f't={run.stamp_ns * 1e-9:.4f}' in r.message, r.message
-    # nothing of the injected tick or later was commanded; the motor never saw a bad number
+    # nothing of the corrupted tick or later was commanded; the motor never saw a bad number
     assert run.commands and all(c[1] < run.stamp_ns for c in run.commands)
     assert all(math.isfinite(c[3]) and math.isfinite(c[4]) for c in run.commands)
     assert run.motor_voltages and all(math.isfinite(v) for v in run.motor_voltages)
-    assert run.quiet            # the lockstep stopped: no tick, no command after the fault
-    # no node but the probe published a non-finite number on a measurement/command topic
-    produced = [n for n in run.nonfinite if n[0] != TOPIC_STATUS]
-    assert [(n[0], n[2]) for n in produced] == [(run.topic, run.stamp_ns)], produced
+    assert run.quiet            # after FAULT nothing drives, and fast time stands still
+    # the corrupted tick is the only message with a non-finite number (the FAULT names no
+    # stage, so no reference relays it)
+    assert [(n[0], n[2]) for n in run.nonfinite] == [(TICKS, run.stamp_ns)], run.nonfinite
 
 
-def test_supervisor_publishes_no_non_finite_number_after_a_bad_measurement(injected_runs):
+def test_no_status_or_answer_carries_a_non_finite_number(injected_runs):
     bad = []
     for run in injected_runs[:len(CASES)]:
-        bad += [n for n in run.nonfinite if n[0] == TOPIC_STATUS]
+        bad += [n for n in run.nonfinite if n[0] == STATUS]
         r = run.response
         bad += [(f, getattr(r, f)) for f in ('final_position_m', 'final_width_m',
                                              'final_force_n')
@@ -491,50 +455,38 @@ def test_graph_grasps_normally_after_the_injected_faults(injected_runs):
 
 
 # ---------------------------------------------------------------------- a bad reading at rest
-IDLE_CASES = [(topic, value) for topic in (TOPIC_JOINT_STATES, TOPIC_FORCE_SENSOR)
-              for value in BAD_VALUES]
-IDLE_IDS = [f'{t.rsplit("/", 1)[1]}-{v}' for t, v in IDLE_CASES]
+IDLE_CASES = [(field, value) for field in ('position', 'force') for value in BAD_VALUES]
+IDLE_IDS = [f'{f}-{v}' for f, v in IDLE_CASES]
 
 
 @pytest.fixture(scope='module')
 def idle_runs():
-    """The probe corrupts the sample of the tick the graph rests on (t0), then a grasp is
-    requested: the supervisor and the position controller both take t0 from the probe."""
+    """The tick the graph rests on after set_object reads a non-finite number; a grasp and a
+    release are then requested on it."""
     lg = LiveGraph()
     g = lg.graph
     runs = []
-    release = g.client_node.create_client(Trigger, SERVICE_RELEASE)
     try:
-        for topic, value in IDLE_CASES:
-            assert g.set_object(0.10).success
-            time.sleep(0.1)
-            t0 = g.plant.plant.t_ns
-            seen = lg.watcher.counts[topic]
-            if topic == TOPIC_JOINT_STATES:
-                j = g.plant._joint
-                lg.joint_pub.publish(JointState(header=j.header, name=list(j.name),
-                                                position=[value], velocity=list(j.velocity),
-                                                effort=list(j.effort)))
-            else:
-                f = g.plant._force
-                lg.force_pub.publish(ForceSensor(header=f.header, force_n=value,
-                                                 peak_force_n=f.peak_force_n,
-                                                 voltage_v=f.voltage_v))
-            assert wait_until(lambda: lg.watcher.counts[topic] > seen, 5.0)
-            time.sleep(0.1)
+        for field, value in IDLE_CASES:
+            inj = Injection(g, field, value, lambda: True)
             before = lg.watcher.snapshot()
-            nonfinite_answers = g.position.nonfinite_answers
+            held = g.position.nonfinite_answers
+            assert g.set_object(0.10).success
+            assert wait_until(lambda: g.position.nonfinite_answers > held or
+                              field != 'position', 5.0)
+            inj.remove()
+            g.wait_still()
             ticks = g.plant.ticks_published
             r = g.grasp(0.10, 0.75, timeout_s=0.3, wall_timeout_s=60.0)
+            moved = g.plant.ticks_published - ticks
+            released = g.release(60)                     # on the same bad reading
             time.sleep(0.2)
             after = lg.watcher.snapshot()
             runs.append(SimpleNamespace(
-                topic=topic, value=value, t0=t0, response=r,
+                field=field, value=value, t0=inj.stamp_ns, response=r, released=released,
                 nonfinite=after[0][len(before[0]):], commands=after[1][len(before[1]):],
                 motor_voltages=after[2][len(before[2]):],
-                nonfinite_answers=g.position.nonfinite_answers - nonfinite_answers,
-                ticks=g.plant.ticks_published - ticks,
-                released=g.call(release, Trigger.Request(), 60)))   # on the same bad reading
+                nonfinite_answers=g.position.nonfinite_answers - held, ticks=moved))
     finally:
         lg.close()
     return runs
@@ -542,32 +494,28 @@ def idle_runs():
 
 @pytest.mark.parametrize('index', range(len(IDLE_CASES)), ids=IDLE_IDS)
 def test_bad_reading_at_rest_never_reaches_the_motor(idle_runs, index):
-    """Whatever the supervisor makes of it, the controllers answer the bad tick with 0 V and
-    no node but the probe puts a non-finite number on a measurement or command topic."""
+    """The position stage holding the fingers answers a bad position with 0 V; only the tick
+    and the reference that relays it carry the bad number, never a status or a command."""
     run = idle_runs[index]
     assert all(math.isfinite(c[3]) and math.isfinite(c[4]) for c in run.commands)
     assert all(math.isfinite(v) for v in run.motor_voltages)
     at_t0 = [c for c in run.commands if c[1] == run.t0]
-    assert all(c[3] == 0.0 for c in at_t0), at_t0
-    if run.topic == TOPIC_JOINT_STATES and at_t0:
-        assert run.nonfinite_answers == 1          # the position controller held and said so
-    produced = [n for n in run.nonfinite if n[0] != TOPIC_STATUS]
-    assert produced == [], produced
-    print(f'\n{run.topic} {run.value}: {Outcome(run.response.outcome).name} '
-          f'{run.response.message!r}; commands at t0: {at_t0}')
+    assert at_t0 and all(c[3] == 0.0 for c in at_t0) if run.field == 'position' else True
+    assert run.nonfinite_answers == (1 if run.field == 'position' else 0)
+    carriers = {n[0].rsplit('/', 1)[1] for n in run.nonfinite if n[2] == run.t0}
+    assert carriers <= {'tick', 'position_reference'}, run.nonfinite
+    assert all(n[2] == run.t0 for n in run.nonfinite), run.nonfinite
 
 
 @pytest.mark.parametrize('index', range(len(IDLE_CASES)), ids=IDLE_IDS)
 def test_grasp_on_a_bad_reading_at_rest_is_refused_and_nothing_moves(idle_runs, index):
     run = idle_runs[index]
     r = run.response
-    assert r.outcome in (Outcome.REFUSED, Outcome.FAULT) and not r.success, r.message
-    assert repr(run.value) in r.message or 'non-finite' in r.message, r.message
-    sensor = 'finger position' if run.topic == TOPIC_JOINT_STATES else 'force sensor'
-    assert r.outcome == Outcome.REFUSED and sensor in r.message, r.message
-    assert run.ticks == 0 and not run.commands
-    assert not run.nonfinite, run.nonfinite    # not even in the supervisor's status
-    if run.topic == TOPIC_JOINT_STATES:        # nor does a release open on a bad position
+    assert r.outcome == Outcome.REFUSED and not r.success, r.message
+    assert repr(run.value) in r.message, r.message
+    assert ('finger position' if run.field == 'position' else 'force sensor') in r.message
+    assert run.ticks == 0
+    if run.field == 'position':                # nor does a release open on a bad position
         assert not run.released.success and 'finger position' in run.released.message, \
             run.released.message
     else:                                      # the release needs no force sensor
@@ -576,27 +524,22 @@ def test_grasp_on_a_bad_reading_at_rest_is_refused_and_nothing_moves(idle_runs, 
                                                       'final_force_n'))
 
 
-# ---------------------------------------------------------------------- a bad motor state
+# ---------------------------------------------------------------------- a bad applied voltage
 @pytest.fixture(scope='module')
 def motor_runs():
-    """The applied voltage the plant reports (the supervisor's bumpless seed) goes bad for one
-    tick of the position stage: the supervisor keeps the last finite one as seed_voltage_v."""
+    """The applied voltage the plant reports (the stage's bumpless seed) reads non-finite for
+    one tick of the position stage: the reference carries the last finite one."""
     lg = LiveGraph()
     g = lg.graph
     runs = []
     try:
         for value in BAD_VALUES:
-            def when(joint, state={'n': 0}):
-                if g.supervisor.logic.phase is not Phase.POSITION:
-                    return False
-                state['n'] += 1
-                return state['n'] > 20
-            inj = Injection(lg, TOPIC_MOTOR_STATE, value, when)
+            inj = Injection(g, 'voltage', value, _in_phase(g, Phase.POSITION))
             before = lg.watcher.snapshot()
             held = g.position.nonfinite_answers
             assert g.set_object(0.10).success
             r = g.grasp(0.10, 0.75, timeout_s=0.5, wall_timeout_s=60.0)
-            g.plant._joint_pub = inj._real_joint_pub
+            inj.remove()
             time.sleep(0.2)
             after = lg.watcher.snapshot()
             runs.append(SimpleNamespace(
@@ -609,18 +552,14 @@ def motor_runs():
 
 
 @pytest.mark.parametrize('index', range(len(BAD_VALUES)), ids=BAD_IDS)
-def test_non_finite_applied_voltage_never_reaches_the_status(motor_runs, index):
-    """The supervisor publishes the last finite applied voltage as seed_voltage_v: the status
-    carries no non-finite number, the position controller answers that tick as usual (no 0 V
-    hold; a non-finite status would be answered with 0 V, see the stage tests above) and every
-    command stays finite."""
+def test_non_finite_applied_voltage_is_not_relayed(motor_runs, index):
+    """The reference carries the last finite applied voltage as its seed: the position
+    controller answers that tick as usual (no 0 V hold) and every command stays finite."""
     run = motor_runs[index]
     assert run.stamp_ns is not None, 'the injection point was never reached'
     at_tick = [c for c in run.commands if c[1] == run.stamp_ns]
-    assert len(at_tick) == 1 and at_tick[0][2] == MotorCommand.SOURCE_POSITION
+    assert len(at_tick) == 1 and at_tick[0][2] == Controller.POSITION
     assert run.held == 0
     assert all(math.isfinite(c[3]) and math.isfinite(c[4]) for c in run.commands)
     assert any(c[1] > run.stamp_ns for c in run.commands)       # the loop went on
-    produced = [n for n in run.nonfinite if n[0] != TOPIC_MOTOR_STATE]
-    assert produced == [], produced
-    assert [n[2] for n in run.nonfinite if n[0] == TOPIC_MOTOR_STATE] == [run.stamp_ns]
+    assert [(n[0], n[2]) for n in run.nonfinite] == [(TICKS, run.stamp_ns)], run.nonfinite

@@ -5,20 +5,27 @@ Four rclpy nodes under one EventsExecutor, real service calls, real MCAP bags.
 import math
 import time
 
+from gripper_interfaces.srv import Grasp
+from gripper_ros.apps.grasp_demo import PAPER_OBJECTS
+from gripper_ros.bags.reader import read_bag
+from gripper_ros.bags.recording import recorded_grasp
+from gripper_ros.bags.series import load_grasp_series
+from gripper_ros.core.config import load_config
+from gripper_ros.nodes.graph import GripperGraph
+from gripper_ros.wire import (COMMAND_LAYOUT, Controller, DEFAULT_NAMESPACE, GRAPH_TOPICS,
+                              LOOP_LAYOUTS, LOOP_TOPICS, Outcome, Phase, qualified,
+                              REFERENCE_LAYOUT, SwitchCriterion, TICK_LAYOUT,
+                              TOPIC_FORCE_REFERENCE, TOPIC_MOTOR_COMMAND,
+                              TOPIC_POSITION_REFERENCE, TOPIC_TICK)
 import numpy as np
 import pytest
-from gripper_interfaces.srv import Grasp
-
-from gripper_ros.bags.reader import load_grasp_series, read_bag
-from gripper_ros.core.config import load_config
-from gripper_ros.core.supervisor import Outcome, SwitchCriterion
-from gripper_ros.apps.grasp_demo import PAPER_OBJECTS
-from gripper_ros.nodes.graph import GripperGraph
-from gripper_ros.nodes.common import GRAPH_TOPICS
 
 CONFIG = load_config()
 L_LS = CONFIG.plant.max_travel_m
 V_LIMIT = CONFIG.plant.voltage_limit_v
+RECORDED = {qualified(DEFAULT_NAMESPACE, t) for t in GRAPH_TOPICS}
+IDLE_TICK_NS = round(CONFIG.position.sample_time_s * 1e9)
+"""A request starts one tick after the one it arrived at: the idle hold's position tick."""
 
 
 @pytest.fixture(scope='module')
@@ -30,7 +37,7 @@ def graph():
 @pytest.fixture(scope='module')
 def paper_runs(graph, tmp_path_factory):
     out = tmp_path_factory.mktemp('bags')
-    return [graph.recorded_grasp(out / f'object_{i}', w, m)
+    return [recorded_grasp(graph, out / f'object_{i}', w, m)
             for i, (w, m) in enumerate(PAPER_OBJECTS, 1)]
 
 
@@ -43,7 +50,9 @@ def test_paper_object_is_held_at_its_width_and_force(paper_runs, index):
     setpoint = L_LS - width
     assert r.position_setpoint_m == pytest.approx(setpoint)
     assert abs(r.final_position_m - setpoint) <= 0.02 * setpoint
-    f_sp = CONFIG.supervisor.friction_coefficient * mass * CONFIG.plant.gravity_mps2  # eq. 23
+    sup = CONFIG.supervisor                      # friction law: each pad holds mu_s F
+    f_sp = sup.grip_safety_factor * mass * CONFIG.plant.gravity_mps2 / (
+        2 * sup.friction_coefficient)
     assert r.force_setpoint_n == pytest.approx(f_sp)
     assert abs(r.final_force_n - f_sp) <= 0.02 * f_sp
 
@@ -56,8 +65,61 @@ def test_paper_object_bag_voltage_limit_and_single_switch(paper_runs, index):
     criteria = series.status.switch_criterion
     switches = np.flatnonzero(np.diff(criteria) != 0)
     assert len(switches) == 1 and criteria[-1] != SwitchCriterion.NONE
-    # exactly one controller commands each tick, and it is the one the supervisor named
-    assert len(np.unique(series.command.t_s)) == len(series.command.t_s)
+
+
+def _loop_messages(bag, topic, layout):
+    """Per tick (stamp_ns), the distinct messages of one loop topic, as dicts by field name.
+
+    A reference or command repeated for a late peer is the same message again: kept once.
+    """
+    out = {}
+    for raw in bag.messages:
+        if raw.topic == qualified(DEFAULT_NAMESPACE, topic):
+            values = layout.as_dict(layout.unpack(raw.data))
+            rows = out.setdefault(values['stamp_ns'], [])
+            if values not in rows:
+                rows.append(values)
+    return out
+
+
+@pytest.mark.parametrize('index', range(len(PAPER_OBJECTS)))
+def test_each_tick_applies_the_command_of_the_controller_the_supervisor_named(paper_runs,
+                                                                              index):
+    """Tick by tick, on the wire, the motor is driven by the controller the supervisor named.
+
+    The one reference for tick t names a controller (on that controller's topic); the one
+    command for t comes from it, in the same stage; the plant's next tick, ``hold_s`` later,
+    reports that source and that voltage as applied. The named controller is the position
+    stage until one switch, the force stage after.
+    """
+    bag = read_bag(paper_runs[index].bag_dir)
+    ticks = _loop_messages(bag, TOPIC_TICK, TICK_LAYOUT)
+    topics = {Controller.POSITION: TOPIC_POSITION_REFERENCE,
+              Controller.FORCE: TOPIC_FORCE_REFERENCE}
+    references = {}
+    for controller, topic in topics.items():
+        for stamp, rows in _loop_messages(bag, topic, REFERENCE_LAYOUT).items():
+            assert all(r['controller'] == controller for r in rows), (topic, stamp)
+            references.setdefault(stamp, []).extend(rows)
+    commands = _loop_messages(bag, TOPIC_MOTOR_COMMAND, COMMAND_LAYOUT)
+    stamps = sorted(ticks)
+    assert stamps == sorted(references) == sorted(commands)
+    assert all(len(rows) == 1 for table in (ticks, references, commands)
+               for rows in table.values())
+    named = []
+    for stamp in stamps:
+        (ref,), (cmd,) = references[stamp], commands[stamp]
+        assert cmd['source'] == ref['controller'], stamp
+        assert (cmd['stage_id'], cmd['grasp_id']) == (ref['stage_id'], ref['grasp_id']), stamp
+        named.append(ref['controller'])
+    for before, after in zip(stamps, stamps[1:]):          # the first tick's command was idle's
+        (cmd,), (tick,) = commands[before], ticks[after]
+        assert after - before == round(cmd['hold_s'] * 1e9), before
+        assert tick['applied_source'] == cmd['source'], after
+        assert tick['motor_voltage_v'] == cmd['voltage_v'], after
+    switch = named.index(Controller.FORCE)
+    assert switch > 0 and named == [Controller.POSITION] * switch + \
+        [Controller.FORCE] * (len(named) - switch)
 
 
 @pytest.mark.parametrize('index', range(len(PAPER_OBJECTS)))
@@ -65,16 +127,23 @@ def test_bag_holds_every_published_message_and_decodes(paper_runs, index):
     run = paper_runs[index]
     bag = read_bag(run.bag_dir)
     assert not bag.truncated
-    assert set(bag.counts()) == set(GRAPH_TOPICS)
+    assert set(bag.counts()) == RECORDED
     assert bag.counts() == run.published
     assert all(n > 0 for n in run.published.values())
-    for topic in GRAPH_TOPICS:
-        first = next(iter(bag.iter_decoded(topic)))
-        assert first is not None
+    layouts = {qualified(DEFAULT_NAMESPACE, t): LOOP_LAYOUTS[msgtype]
+               for t, msgtype in LOOP_TOPICS.items()}
+    for topic in RECORDED:                       # every message decodes, by the bag's schema
+        decoded = list(bag.iter_decoded(topic))
+        assert len(decoded) == run.published[topic]
+        if topic in layouts:                     # to the numbers the nodes packed
+            layout = layouts[topic]
+            for raw, msg in decoded:
+                assert tuple(getattr(msg, f) for f in layout.fields) == \
+                    layout.unpack(raw.data), topic
 
 
 def test_same_request_twice_gives_identical_series(graph, tmp_path):
-    runs = [graph.recorded_grasp(tmp_path / f'run_{k}', 0.05, 1.69) for k in range(2)]
+    runs = [recorded_grasp(graph, tmp_path / f'run_{k}', 0.05, 1.69) for k in range(2)]
     a, b = (load_grasp_series(r.bag_dir) for r in runs)
     # simulated time runs on across grasps: compare tick times relative to each grasp's start
     t_a = np.round((a.joint.t_s - a.joint.t_s[0]) * 1e9).astype(np.int64)
@@ -86,17 +155,17 @@ def test_same_request_twice_gives_identical_series(graph, tmp_path):
 
 
 BAD_REQUESTS = [
-    dict(width_m=math.nan, mass_kg=1.0),
-    dict(width_m=math.inf, mass_kg=1.0),
-    dict(width_m=0.05, mass_kg=-math.inf),
-    dict(width_m=0.0, mass_kg=1.0),
-    dict(width_m=-0.01, mass_kg=1.0),
-    dict(width_m=L_LS, mass_kg=1.0),
-    dict(width_m=0.05, mass_kg=0.0),
-    dict(width_m=0.05, mass_kg=-1.0),
-    dict(width_m=0.05, mass_kg=1.0, friction_coefficient=-0.5),
-    dict(width_m=0.05, mass_kg=1.0, timeout_s=math.nan),
-    dict(width_m=0.05, mass_kg=50.0),   # 0.5*50*9.81 = 245 N > 33.4 N at 24 V
+    {'width_m': math.nan, 'mass_kg': 1.0},
+    {'width_m': math.inf, 'mass_kg': 1.0},
+    {'width_m': 0.05, 'mass_kg': -math.inf},
+    {'width_m': 0.0, 'mass_kg': 1.0},
+    {'width_m': -0.01, 'mass_kg': 1.0},
+    {'width_m': L_LS, 'mass_kg': 1.0},
+    {'width_m': 0.05, 'mass_kg': 0.0},
+    {'width_m': 0.05, 'mass_kg': -1.0},
+    {'width_m': 0.05, 'mass_kg': 1.0, 'friction_coefficient': -0.5},
+    {'width_m': 0.05, 'mass_kg': 1.0, 'timeout_s': math.nan},
+    {'width_m': 0.05, 'mass_kg': 50.0},   # 1.5*50*9.81/(2*0.5) = 736 N > 33.4 N at 24 V
 ]
 
 
@@ -112,7 +181,8 @@ def test_bad_request_is_refused_with_a_message_and_nothing_moves(graph, request_
 
 def test_force_beyond_the_motor_names_the_numbers(graph):
     r = graph.grasp(0.05, 50.0)
-    assert '245.25 N' in r.message and '33.39 N' in r.message
+    # friction law: 1.5 x 50 kg x 9.81 m/s^2 / (2 x 0.5) = 735.75 N
+    assert '735.75 N' in r.message and 'friction law' in r.message and '33.39 N' in r.message
 
 
 def test_request_while_grasping_is_refused_and_next_one_succeeds(graph):
@@ -125,7 +195,7 @@ def test_request_while_grasping_is_refused_and_next_one_succeeds(graph):
             break
         time.sleep(0.005)
     assert busy is not None, 'the first grasp never started'
-    assert busy.outcome == Outcome.REFUSED and 'already running' in busy.message
+    assert busy.outcome == Outcome.REFUSED and 'grasp is running' in busy.message
     deadline = time.monotonic() + 120
     while not first.done() and time.monotonic() < deadline:
         time.sleep(0.01)
@@ -147,9 +217,11 @@ def test_no_object_between_the_fingers_ends_in_no_object(graph):
 
 def test_stop_ends_the_running_grasp_and_the_next_one_succeeds(graph):
     from std_srvs.srv import Trigger
-    stop = graph.client_node.create_client(Trigger, '/gripper/stop')
+    stop = graph.client_node.create_client(Trigger, 'stop')
     assert stop.wait_for_service(timeout_sec=5)
-    assert not graph.call(stop, Trigger.Request(), 5).success     # nothing to stop
+    graph.set_object(0.0)                        # a held object is released first
+    refused = graph.call(stop, Trigger.Request(), 5)
+    assert not refused.success and 'nothing to stop' in refused.message
     graph.set_object(0.01)
     pending = graph._grasp.call_async(Grasp.Request(width_m=0.01, mass_kg=1.27))
     deadline = time.monotonic() + 30
@@ -165,7 +237,8 @@ def test_stop_ends_the_running_grasp_and_the_next_one_succeeds(graph):
     assert r.outcome == Outcome.STOPPED and not r.success
     frozen = graph.plant.ticks_published
     time.sleep(0.2)
-    assert graph.plant.ticks_published == frozen          # nobody drives the plant any more
+    assert graph.plant.ticks_published == frozen          # fast time: nothing needs time now
+    assert graph.supervisor.logic.active == 1              # the position stage holds the finger
     graph.set_object(0.01)
     assert graph.grasp(0.01, 1.27).success
 
@@ -177,9 +250,11 @@ def test_headless_simulation_reproduces_the_graph_bit_for_bit(paper_runs, index)
     width, mass = PAPER_OBJECTS[index]
     series = load_grasp_series(paper_runs[index].bag_dir)
     start_ns = int(round(series.status.t_s[0] * 1e9))
-    h = simulate_grasp(CONFIG, width, mass, start_ns=start_ns)
+    h = simulate_grasp(CONFIG, width, mass, start_ns=start_ns - IDLE_TICK_NS)
     assert h.outcome == Outcome(paper_runs[index].response.outcome)
-    # the bag starts after the tick the grasp began on (published before recording)
+    assert h.start_ns == start_ns
+    # the bag starts with the grasp's first tick; the idle tick before it was not recorded
+    assert np.array_equal(h.t_ns[1:], series.ticks['stamp_ns'])
     assert np.array_equal(h.position_m[1:], series.joint.position_m)
     assert np.array_equal(h.force_n[1:], series.sensor.force_n)
     assert np.array_equal(h.motor_voltage_v[1:], series.motor.voltage_v)
@@ -187,9 +262,11 @@ def test_headless_simulation_reproduces_the_graph_bit_for_bit(paper_runs, index)
 
 @pytest.mark.parametrize('index', range(len(PAPER_OBJECTS)))
 def test_position_stage_in_the_graph_is_the_controller_step_run(paper_runs, index):
-    """Issue 5 part 1: the node graph's MPC-PD gives the same response as the numeric core's
-    step run (whose figures test_position_limit holds to the targets), tick for tick, up to the
-    switch; the voltage never leaves +-24 V."""
+    """The node graph's MPC-PD gives the numeric core's step response, tick for tick.
+
+    test_position_limit holds the step run's figures to the targets; here the graph follows it
+    up to the switch, and the voltage never leaves +-24 V.
+    """
     from gripper_ros.core.controllers import PositionControllerKind, make_position_controller
     from gripper_ros.core.step_runs import position_step
     width, _ = PAPER_OBJECTS[index]
@@ -209,11 +286,13 @@ def test_position_stage_in_the_graph_is_the_controller_step_run(paper_runs, inde
 
 
 def test_stiff_object_in_the_graph_no_spike_and_bit_identical_to_headless(graph, tmp_path):
-    """A stiff (1e5 N/m) object through the live graph: held without a spike (the PI hit it
-    with up to 6x), and the recorded series equal the headless run that contact_sweep uses."""
+    """A stiff (1e5 N/m) object through the live graph: held without a force spike.
+
+    The recorded series equal the headless run that contact_sweep uses.
+    """
     from gripper_ros.core.headless import simulate_grasp
-    run = graph.recorded_grasp(tmp_path / 'stiff', 0.05, 1.0, stiffness_n_per_m=1e5,
-                               damping_n_s_per_m=50.0)
+    run = recorded_grasp(graph, tmp_path / 'stiff', 0.05, 1.0, stiffness_n_per_m=1e5,
+                         damping_n_s_per_m=50.0)
     assert run.response.success and run.response.outcome == Outcome.HOLDING, \
         run.response.message
     series = load_grasp_series(run.bag_dir)
@@ -222,23 +301,25 @@ def test_stiff_object_in_the_graph_no_spike_and_bit_identical_to_headless(graph,
     assert np.all(np.abs(series.motor.voltage_v) <= V_LIMIT)
     start_ns = int(round(series.status.t_s[0] * 1e9))
     h = simulate_grasp(CONFIG, 0.05, 1.0, stiffness_n_per_m=1e5, damping_n_s_per_m=50.0,
-                       start_ns=start_ns)
+                       start_ns=start_ns - IDLE_TICK_NS)
     assert np.array_equal(h.position_m[1:], series.joint.position_m)
     assert np.array_equal(h.force_n[1:], series.sensor.force_n)
 
 
 def test_width_tolerance_through_the_service_meets_a_wider_object_at_the_setpoint(graph, tmp_path):
-    """Request 50 mm +- 12 mm, place a 60 mm object: the position stage stops short of the
-    widest face (status approach_setpoint_m), the object is met with at most F_sp and held
-    at its real face."""
-    run = graph.recorded_grasp(tmp_path / 'wider', 0.05, 1.69, width_tolerance_m=0.012,
-                               object_width_m=0.06)
+    """Request 50 mm +- 12 mm, place a 60 mm object: it is held at its real face.
+
+    The position stage stops short of the widest face (status approach_setpoint_m) and the
+    object is met with at most F_sp.
+    """
+    run = recorded_grasp(graph, tmp_path / 'wider', 0.05, 1.69, width_tolerance_m=0.012,
+                         object_width_m=0.06)
     r = run.response
     assert r.success and r.outcome == Outcome.HOLDING, r.message
     assert r.final_width_m == pytest.approx(0.06, abs=1e-6)
     series = load_grasp_series(run.bag_dir)
     assert np.max(series.sensor.peak_force_n) <= 1.10 * r.force_setpoint_n
-    approach = {round(m.approach_setpoint_m, 9) for _, m in
-                read_bag(run.bag_dir).iter_decoded('/gripper/supervisor/status')}
-    assert approach == {round(L_LS - 0.05 - 0.012, 9)}
+    grasp = np.isin(series.status.phase, (Phase.POSITION, Phase.FORCE))
+    assert set(np.round(series.status.approach_setpoint_m[grasp], 9)) == \
+        {round(L_LS - 0.05 - 0.012, 9)}
     assert graph.grasp(0.05, 1.69, width_tolerance_m=math.nan).outcome == Outcome.REFUSED

@@ -16,7 +16,7 @@ from rclpy.action import ActionClient
 from gripper_ros.core.config import load_config
 from gripper_ros.core.supervisor import Outcome
 from gripper_ros.nodes.graph import GripperGraph
-from gripper_ros.nodes.common import ACTION_GRASP
+from gripper_ros.wire import ACTION_GRASP
 
 CONFIG = load_config()
 TRAVEL_M = CONFIG.plant.max_travel_m
@@ -62,7 +62,8 @@ def test_goal_holds_the_object_with_feedback_through_both_stages(graph):
     assert result.success and result.outcome == Outcome.HOLDING
     assert result.final_width_m == pytest.approx(0.10, rel=0.02)
     sup = CONFIG.supervisor
-    f_sp = sup.friction_coefficient * 0.75 * (CONFIG.plant.gravity_mps2 + sup.acceleration_mps2)
+    f_sp = sup.grip_safety_factor * 0.75 * (CONFIG.plant.gravity_mps2 + sup.acceleration_mps2) \
+        / (2 * sup.friction_coefficient)
     assert result.final_force_n == pytest.approx(f_sp, rel=0.02)
     fb = goal.feedback
     phases = [f.phase for f in fb]

@@ -17,7 +17,7 @@ def _run_client(*args, timeout=120):
 def server(tmp_path_factory):
     out = tmp_path_factory.mktemp('served_bags')     # never the repository's bags/
     proc = subprocess.Popen([sys.executable, '-m', 'gripper_ros.apps.grasp_demo', '--serve',
-                             '--output', str(out)],
+                             '--time-mode', 'fast', '--output', str(out)],
                             stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
                             env=os.environ.copy())
     deadline = time.monotonic() + 60
@@ -73,7 +73,8 @@ def test_client_without_server_says_so():
 
 
 def test_serve_mode_records_one_complete_bag_per_grasp(tmp_path):
-    from gripper_ros.bags.reader import load_grasp_series, read_bag
+    from gripper_ros.bags.reader import read_bag
+    from gripper_ros.bags.series import load_grasp_series
     proc = subprocess.Popen([sys.executable, '-m', 'gripper_ros.apps.grasp_demo', '--serve',
                              '--output', str(tmp_path)], stdout=subprocess.PIPE,
                             stderr=subprocess.STDOUT, text=True, env=os.environ.copy())
@@ -81,20 +82,26 @@ def test_serve_mode_records_one_complete_bag_per_grasp(tmp_path):
         for line in proc.stdout:
             if 'serving /gripper/grasp' in line:
                 break
-        assert _run_client('--width', '0.1', '--mass', '0.75').returncode == 0
-        assert _run_client('--width', '0.05', '--mass', '1.69').returncode == 0
+        for width, mass in (('0.1', '0.75'), ('0.05', '1.69')):
+            done = _run_client('--width', width, '--mass', mass, timeout=60)
+            assert done.returncode == 0, done.stdout + done.stderr
     finally:
         proc.send_signal(signal.SIGINT)
-        proc.wait(timeout=20)
+        out, _ = proc.communicate(timeout=20)
+    assert proc.returncode in (0, 130), out
     bags = sorted(tmp_path.glob('grasp_*'))
     assert len(bags) == 2
     for bag_dir in bags:
         bag = read_bag(bag_dir)
         assert not bag.truncated and (bag_dir / 'metadata.yaml').is_file()
         series = load_grasp_series(bag)
-        assert series.status.outcome[-1] == 1      # HOLDING
+        assert series.status.outcome[-1] == 1, (bag_dir.name, series.status.outcome[-9:],
+                                                series.status.phase[-9:])      # HOLDING
         counts = bag.counts()
-        assert counts['/gripper/joint_states'] == counts['/gripper/motor_command']
+        loop = [(m.topic.rsplit('/', 1)[1], int.from_bytes(m.data[4:12], 'little'))
+                for m in bag.messages if '/loop/' in m.topic]
+        assert counts['/gripper/loop/tick'] == counts['/gripper/loop/motor_command'] > 100, \
+            (bag_dir.name, loop[:4], loop[-4:])
 
 
 def test_nodes_as_four_separate_processes_grasp_together():
@@ -131,13 +138,14 @@ def test_nodes_as_four_separate_processes_grasp_together():
 @pytest.mark.parametrize('sig', [signal.SIGINT, signal.SIGTERM])
 def test_signal_during_a_recorded_grasp_leaves_a_complete_bag(tmp_path, sig):
     from gripper_ros.bags.reader import read_bag
-    proc = subprocess.Popen([sys.executable, '-m', 'gripper_ros.apps.grasp_demo', '--output',
+    proc = subprocess.Popen([sys.executable, '-m', 'gripper_ros.apps.grasp_demo', '--width',
+                             '0.01', '--mass', '1.27', '--time-mode', 'realtime', '--output',
                              str(tmp_path), '--no-plot'], stdout=subprocess.PIPE,
                             stderr=subprocess.STDOUT, text=True, env=os.environ.copy())
     for line in proc.stdout:
         if 'grasping width' in line:
             break
-    time.sleep(1.0)          # well inside the first grasp (several seconds of wall time)
+    time.sleep(1.0)          # well inside the grasp (3.8 s of simulated time, paced)
     proc.send_signal(sig)
     out, _ = proc.communicate(timeout=30)
     assert proc.returncode == 130, out

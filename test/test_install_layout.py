@@ -21,13 +21,17 @@ REPO = Path(__file__).resolve().parents[1]
 
 EXPECTED_EXECUTABLES = {
     'plant_simulator', 'position_controller', 'force_controller', 'supervisor',
-    'grasp_demo', 'grasp_client', 'grasp_action_server', 'paper_tables', 'position_limit',
+    'grasp_demo', 'grasp_client', 'grasp_action_server', 'move_action_server', 'paper_tables',
+    'position_limit',
     'bag_info', 'bag_replay', 'bag_analyze', 'bench_graph', 'bench_soak', 'bench_controllers',
+    'contact_sweep', 'lift_table', 'bench_realtime',
 }
 
 INTERFACES = {
-    'msg': ['ForceSensor', 'MotorCommand', 'MotorState', 'SupervisorStatus'],
-    'srv': ['Grasp', 'SetObject'],
+    'msg': ['ForceSensor', 'MotorCommand', 'ObjectState', 'PlantTick', 'SimStatus',
+            'StageReference', 'SupervisorStatus'],
+    'srv': ['Grasp', 'Move', 'SetObject', 'SimStep'],
+    'action': ['Grasp', 'Move'],
 }
 
 
@@ -60,6 +64,15 @@ def test_share_directory_has_package_xml_and_config():
     assert '<name>gripper_ros</name>' in (share / 'package.xml').read_text()
     assert (share / 'config' / 'gripper.yaml').is_file(), \
         'config/gripper.yaml is not installed (missing in the repo, or setup.sh not re-run)'
+
+
+def test_launch_file_is_installed_where_ros2_launch_looks():
+    installed = Path(get_package_share_directory('gripper_ros')) / 'launch' / 'gripper.launch.py'
+    assert installed.is_file(), \
+        f'{installed} missing (setup.py data_files, or setup.sh not re-run)'
+    source = REPO / 'launch' / 'gripper.launch.py'
+    if source.is_file():
+        assert installed.read_text() == source.read_text()
 
 
 def test_setup_py_declares_every_expected_entry_point():
@@ -164,13 +177,24 @@ def test_generated_service_matches_srv_file(name):
     _check(srv.Response, response_text)
 
 
+@pytest.mark.parametrize('name', INTERFACES['action'])
+def test_generated_action_matches_action_file(name):
+    module = importlib.import_module('gripper_interfaces.action')
+    action = getattr(module, name)
+    goal, result, feedback = re.split(r'^---\s*$', _definition('action', name), maxsplit=2,
+                                      flags=re.M)
+    _check(action.Goal, goal)
+    _check(action.Result, result)
+    _check(action.Feedback, feedback)
+
+
 def test_named_types_import():
     from gripper_interfaces.msg import MotorCommand
     from gripper_interfaces.srv import Grasp
 
     cmd = MotorCommand(source=MotorCommand.SOURCE_FORCE, voltage_v=1.5, hold_s=0.01)
     assert (cmd.source, cmd.voltage_v, cmd.hold_s) == (2, 1.5, 0.01)
-    assert cmd.header.stamp.sec == 0
+    assert cmd.stamp_ns == 0 and cmd.finite is False
     req = Grasp.Request(width_m=0.02, mass_kg=0.1)
     assert req.width_m == 0.02
     assert Grasp.Response.OUTCOME_HOLDING == 1

@@ -14,7 +14,10 @@ import rclpy
 from sensor_msgs.msg import JointState
 
 from gripper_ros.nodes.graph import GraphOptions, GripperGraph
-from gripper_ros.nodes.common import GRAPH_QOS, TOPIC_JOINT_STATES
+from gripper_ros.nodes.common import GRAPH_QOS
+from gripper_ros.wire import DEFAULT_NAMESPACE, TOPIC_JOINT_STATES, qualified
+
+JOINT_STATES = qualified(DEFAULT_NAMESPACE, TOPIC_JOINT_STATES)
 
 DOMAIN_A = int(os.environ.get('ROS_DOMAIN_ID', '0'))
 DOMAIN_B = (DOMAIN_A + 50) % 100 + 1          # far from the id scripts/test.sh picked for A
@@ -37,14 +40,14 @@ def graphs():
 def test_each_domain_sees_only_its_own_plant(graphs):
     for g in graphs:
         time.sleep(0.5)                                   # let discovery settle
-        assert g.client_node.count_publishers(TOPIC_JOINT_STATES) == 1
+        assert g.client_node.count_publishers(JOINT_STATES) == 1
 
 
 def test_a_probe_in_one_domain_hears_nothing_of_the_other(graphs):
     a, b = graphs
     heard = []
     probe = rclpy.create_node('isolation_probe', context=a.context)
-    probe.create_subscription(JointState, TOPIC_JOINT_STATES, heard.append, GRAPH_QOS)
+    probe.create_subscription(JointState, JOINT_STATES, heard.append, GRAPH_QOS)
     a.add_node(probe)
     b.set_object(0.10)
     ticks_before = b.plant.ticks_published
@@ -56,9 +59,9 @@ def test_a_probe_in_one_domain_hears_nothing_of_the_other(graphs):
     a.set_object(0.10)
     assert a.grasp(0.10, 0.75).success
     deadline = time.monotonic() + 5
-    while len(heard) < 1000 and time.monotonic() < deadline:
+    while len(heard) < 200 and time.monotonic() < deadline:   # 100 Hz of a 2.2 s grasp
         time.sleep(0.01)
-    assert len(heard) >= 1000
+    assert len(heard) >= 200
 
 
 def test_simultaneous_grasps_on_both_domains_each_get_their_own_answer(graphs):

@@ -18,20 +18,19 @@ import time
 import pytest
 from gripper_interfaces.msg import MotorCommand, SupervisorStatus
 from gripper_interfaces.srv import Grasp, SetObject
-from std_srvs.srv import Trigger
 
 from gripper_ros.core.config import load_config
-from gripper_ros.core.supervisor import Outcome, Phase
+from gripper_ros.nodes.common import GRAPH_QOS, LATCHED_QOS
 from gripper_ros.nodes.graph import GraphOptions, GripperGraph
-from gripper_ros.nodes.common import (GRAPH_QOS, LATCHED_QOS, SERVICE_RELEASE,
-                                    TOPIC_MOTOR_COMMAND, TOPIC_OUTCOME, TOPIC_STATUS, time_to_ns)
+from gripper_ros.wire import (TOPIC_MOTOR_COMMAND, TOPIC_OUTCOME, TOPIC_STATUS,
+                              Controller, Outcome, Phase)
 
 CONFIG = load_config()
 S = CONFIG.supervisor
 L_LS = CONFIG.plant.max_travel_m
 V_LIMIT = CONFIG.plant.voltage_limit_v
-WIDTH, MASS = 0.14, 3.0
-F_SP = S.friction_coefficient * MASS * CONFIG.plant.gravity_mps2
+WIDTH, MASS = 0.14, 1.0
+F_SP = S.grip_safety_factor * MASS * CONFIG.plant.gravity_mps2 / (2 * S.friction_coefficient)
 FORCE_SAMPLE_S = CONFIG.force.sample_time_s
 
 
@@ -51,7 +50,7 @@ class Tap:
 
     def _on_command(self, msg):
         with self._lock:
-            self.commands.append((time_to_ns(msg.header.stamp), msg.voltage_v))
+            self.commands.append((msg.stamp_ns, msg.voltage_v))
 
     def take_commands(self):
         with self._lock:
@@ -73,8 +72,6 @@ class Tap:
 def graph():
     with GripperGraph.in_own_context(GraphOptions(action_server=False)) as g:
         g.tap = Tap(g.client_node)
-        g.release = g.client_node.create_client(Trigger, SERVICE_RELEASE)
-        assert g.release.wait_for_service(timeout_sec=10)
         time.sleep(0.3)                  # let the tap's readers match the writers
         yield g
 
@@ -123,7 +120,8 @@ def test_object_removed_while_holding_is_object_lost_in_bounded_time(graph, sett
     assert S.lost_force_hold_s <= detect_s <= S.lost_force_hold_s + FORCE_SAMPLE_S + 1e-9
     status = graph.tap.final_status(r.grasp_id)
     assert status.outcome == Outcome.OBJECT_LOST and status.phase == Phase.FAILED
-    assert status.message == r.message and status.active_controller == 0
+    assert status.message == r.message
+    assert status.active_controller == Controller.POSITION   # holds the finger where it is
     print(f'\nremoved: OBJECT_LOST {detect_s * 1e3:.2f} ms after the removal')
     # a program that subscribes only now still gets the outcome (latched topic)
     got = []
@@ -167,11 +165,12 @@ def test_sensor_dropout_is_a_fault_naming_the_sensor_and_the_motor_is_not_driven
     assert graph.plant.ticks_published == frozen         # nobody drives the plant
     status = graph.tap.final_status(r.grasp_id)
     assert status.outcome == Outcome.FAULT and 'force sensor' in status.message
+    assert status.active_controller == Controller.NONE
     # the sensor stays out until the next set_object: a grasp is refused, saying why
     refused = graph.grasp(WIDTH, MASS)
     assert refused.outcome == Outcome.REFUSED and 'sensor dropout' in refused.message
     # ... but the fingers can still be opened: the release needs only the position
-    released = graph.call(graph.release, Trigger.Request(), 60)
+    released = graph.release(60)
     assert released.success, released.message
     assert abs(graph.plant.plant.sample().position_m) <= S.release_tolerance_m
     print(f'\ndropout: FAULT {detect_s * 1e3:.2f} ms after the dropout')
@@ -197,13 +196,13 @@ def test_bad_fault_request_is_refused(graph):
 def test_release_opens_the_fingers_and_the_next_grasp_succeeds(graph, settle_s):
     grasp_ok(graph)
     graph.tap.take_commands()
-    r = graph.call(graph.release, Trigger.Request(), 60)
+    r = graph.release(60)
     assert r.success and r.message.startswith('RELEASED'), r.message
     position = graph.plant.plant.sample().position_m
     assert abs(position - 0.0) <= 0.02 * L_LS                 # within 2 % of the open position
     assert abs(position) <= S.release_tolerance_m
     assert all(abs(v) <= V_LIMIT for _, v in graph.tap.take_commands())
-    status = graph.tap.final_status(graph.supervisor._grasp_id)
+    status = graph.tap.final_status(graph.supervisor.logic.grasp_id)
     assert status.outcome == Outcome.RELEASED and status.phase == Phase.DONE
     assert status.width_m == pytest.approx(L_LS, abs=S.release_tolerance_m)
     print(f'\nreleased: finger at {position * 1e3:.3f} mm from fully open')
@@ -216,7 +215,7 @@ def test_release_is_refused_while_a_grasp_runs(graph):
     deadline = time.monotonic() + 30
     while not graph.supervisor.logic.busy and time.monotonic() < deadline:
         time.sleep(0.002)
-    r = graph.call(graph.release, Trigger.Request(), 10)
+    r = graph.release(10)
     assert not r.success and 'grasp is running' in r.message and '/gripper/stop' in r.message
     while not pending.done() and time.monotonic() < deadline:
         time.sleep(0.005)

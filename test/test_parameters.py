@@ -4,16 +4,21 @@
    ``config_file`` parameter (missing key, wrong type, negative resistance, out-of-range value)
    stops every node with a ConfigError naming the key; the installed executables exit with
    status 2 and that one-line message. An out-of-range parameter override stops start-up too.
+   A standard ROS params file sets config keys at start-up.
 2. The running graph: every numeric parameter declared with a range, found through the nodes'
    own ``describe_parameters`` services, refuses out-of-range, non-finite and wrongly typed values
    over a real ``rcl_interfaces/srv/SetParameters`` call, with a reason, and keeps its value;
-   every read-only parameter refuses any change.
+   every read-only parameter refuses any change. Every config key is a parameter of the nodes
+   that use it; a writable one is checked by the config reader (refused with its message) and
+   takes effect: a gain from the position controller's next stage on, a threshold from the
+   supervisor's next tick.
 """
 import math
 import os
 import subprocess
 from pathlib import Path
 
+import numpy as np
 import pytest
 import rclpy
 import yaml
@@ -32,9 +37,13 @@ from gripper_ros.nodes.plant_simulator_node import PlantSimulatorNode
 from gripper_ros.nodes.position_controller_node import PositionControllerNode
 from gripper_ros.nodes.supervisor_node import SupervisorNode
 
+from gripper_ros.nodes.parameters import flatten
+from gripper_ros.wire import DEFAULT_NAMESPACE
+
 REPO = Path(__file__).resolve().parents[1]
 SHIPPED = REPO / 'config' / 'gripper.yaml'
 BIN = REPO / 'install' / 'gripper_ros' / 'lib' / 'gripper_ros'
+SHIPPED_DATA = yaml.safe_load(SHIPPED.read_text(encoding='utf-8'))
 
 NODE_CLASSES = {'plant_simulator': PlantSimulatorNode,
                 'position_controller': PositionControllerNode,
@@ -44,11 +53,27 @@ NODE_CLASSES = {'plant_simulator': PlantSimulatorNode,
 
 # every numeric parameter the nodes declare with a range (the graph test checks that the nodes
 # declare no other, and that these are ranged)
-RANGED = {('supervisor', 'tick_timeout_s'), ('force_controller', 'approach_force_margin'),
+RANGED = {('supervisor', 'tick_timeout_s'), ('supervisor', 'status_rate_hz'),
+          ('force_controller', 'approach_force_margin'),
           ('grasp_action_server', 'feedback_period_s'),
-          ('position_controller', 'status_timeout_s'), ('force_controller', 'status_timeout_s')}
+          ('position_controller', 'status_timeout_s'), ('force_controller', 'status_timeout_s'),
+          ('plant_simulator', 'real_time_factor'), ('plant_simulator', 'state_rate_hz'),
+          ('plant_simulator', 'command_timeout_s')}
 READ_ONLY = {('position_controller', 'controller'), ('force_controller', 'controller'),
-             ('plant_simulator', 'frame_id')} | {(n, 'config_file') for n in NODE_CLASSES}
+             ('plant_simulator', 'frame_id'), ('plant_simulator', 'time_mode'),
+             ('plant_simulator', 'publish_clock')} | {(n, 'config_file') for n in NODE_CLASSES}
+# the config sections each node declares as parameters: (writable, read-only)
+CONFIG_SECTIONS = {'plant_simulator': ((), ('plant', 'contact', 'force_sensor')),
+                   'position_controller': (('position_control',), ('plant',)),
+                   'force_controller': (('force_control',), ('plant',)),
+                   'supervisor': (('supervisor',), ('plant',)),
+                   'grasp_action_server': ((), ())}
+
+
+def config_keys(node_name, which):
+    """The dotted config keys a node declares: ``which`` 0 = writable, 1 = read-only."""
+    return {k for section in CONFIG_SECTIONS[node_name][which]
+            for k in flatten(SHIPPED_DATA[section], section + '.')}
 
 
 def _bad_config(tmp_path, dotted, value):
@@ -130,15 +155,16 @@ def test_out_of_range_override_stops_start_up_naming_the_parameter(own_context, 
 
 def _run(executable, *ros_args):
     env = dict(os.environ)
-    return subprocess.run([str(BIN / executable), '--ros-args', *ros_args], env=env,
+    return subprocess.run([str(BIN / executable), '--ros-args', '-r',      # its own namespace
+                           f'__ns:=/params_{executable}', *ros_args], env=env,
                           capture_output=True, text=True, timeout=60, stdin=subprocess.DEVNULL)
 
 
 def test_executables_exit_2_with_a_one_line_error_on_a_bad_config(tmp_path):
     """The real start-up path: ``ros2 run gripper_ros <node> --ros-args -p config_file:=...``."""
     path = _bad_config(tmp_path, 'plant.resistance_ohm', -2.32)
-    procs = {name: subprocess.Popen([str(BIN / name), '--ros-args', '-p',
-                                     f'config_file:={path}'], stdin=subprocess.DEVNULL,
+    procs = {name: subprocess.Popen([str(BIN / name), '--ros-args', '-r', f'__ns:=/bad_{name}',
+                                     '-p', f'config_file:={path}'], stdin=subprocess.DEVNULL,
                                     stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
              for name in NODE_CLASSES}
     for name, proc in procs.items():
@@ -175,8 +201,9 @@ def graph():
 def _service(graph, node_name, srv_type, suffix):
     key = (node_name, suffix)
     if key not in graph.param_clients:
-        client = graph.param_client.create_client(srv_type, f'/{node_name}/{suffix}')
-        assert client.wait_for_service(timeout_sec=10.0), f'/{node_name}/{suffix}'
+        name = f'/{DEFAULT_NAMESPACE}/{node_name}/{suffix}'
+        client = graph.param_client.create_client(srv_type, name)
+        assert client.wait_for_service(timeout_sec=10.0), name
         graph.param_clients[key] = client
     return graph.param_clients[key]
 
@@ -234,11 +261,23 @@ def test_the_ranged_and_read_only_parameters_are_the_known_ones(descriptors):
     ranged = {(n, p) for n, ds in descriptors.items() for p, d in ds.items()
               if d.floating_point_range or d.integer_range}
     read_only = {(n, p) for n, ds in descriptors.items() for p, d in ds.items() if d.read_only}
+    config = {(n, p) for n in descriptors for which in (0, 1) for p in config_keys(n, which)}
     numeric = {(n, p) for n, ds in descriptors.items() for p, d in ds.items()
                if d.type in (ParameterType.PARAMETER_DOUBLE, ParameterType.PARAMETER_INTEGER)}
     assert ranged == RANGED
-    assert numeric == RANGED          # no numeric parameter without a range
+    assert numeric - config == RANGED  # numbers: ranged, or config keys the reader checks
     assert READ_ONLY <= read_only
+
+
+@pytest.mark.parametrize('node_name', list(NODE_CLASSES))
+def test_every_config_key_is_a_parameter_of_the_nodes_that_use_it(descriptors, node_name):
+    ds = descriptors[node_name]
+    writable, read_only = config_keys(node_name, 0), config_keys(node_name, 1)
+    assert writable | read_only <= set(ds), sorted((writable | read_only) - set(ds))[:5]
+    assert all(not ds[k].read_only for k in writable)
+    assert all(ds[k].read_only for k in read_only)
+    other = {k for k in ds if '.' in k and k.split('.')[0] in SHIPPED_DATA}
+    assert other == writable | read_only            # and no other section
 
 
 def test_every_ranged_parameter_refuses_bad_values_and_keeps_its_value(graph, descriptors):
@@ -281,7 +320,11 @@ def test_read_only_parameters_refuse_any_change(graph, descriptors):
             if not d.read_only:
                 continue
             before = _get(graph, node_name, name)
-            if d.type == ParameterType.PARAMETER_STRING:
+            if name in config_keys(node_name, 1):
+                values = [_double(before + 1.0 if isinstance(before, float) else 1.0)] \
+                    if d.type == ParameterType.PARAMETER_DOUBLE else \
+                    [ParameterValue(type=d.type, integer_value=int(before) + 1)]
+            elif d.type == ParameterType.PARAMETER_STRING:
                 values = [ParameterValue(type=d.type, string_value=text)
                           for text in ('pd', 'pi', 'mpc_pi', 'nonsense', before)]
             elif d.type == ParameterType.PARAMETER_BOOL:    # rclpy's own, on every node
@@ -293,7 +336,7 @@ def test_read_only_parameters_refuse_any_change(graph, descriptors):
                 assert not result.successful and 'read-only' in result.reason, (node_name, name)
                 assert _get(graph, node_name, name) == before
                 checked += 1
-    assert checked >= 5 * len(READ_ONLY) + 2 * len(NODE_CLASSES)
+    assert checked >= len(READ_ONLY) + sum(len(config_keys(n, 1)) for n in NODE_CLASSES)
 
 
 def test_accepted_controller_parameters_take_effect(graph):
@@ -357,3 +400,130 @@ def test_plant_answers_an_accepted_parameter_change(graph):
     assert result.successful, result.reason
     assert _get(graph, 'plant_simulator', 'use_sim_time') is False
     assert graph.set_object(0.10).success      # the plant still answers its own service
+
+
+# ---------------------------------------------------------------------- config keys at run time
+def _value(v):
+    if isinstance(v, bool):
+        return ParameterValue(type=ParameterType.PARAMETER_BOOL, bool_value=v)
+    if isinstance(v, int):
+        return ParameterValue(type=ParameterType.PARAMETER_INTEGER, integer_value=v)
+    if isinstance(v, str):
+        return ParameterValue(type=ParameterType.PARAMETER_STRING, string_value=v)
+    return _double(v)
+
+
+@pytest.mark.parametrize('node_name', ['position_controller', 'force_controller', 'supervisor'])
+def test_every_writable_config_number_refuses_bad_values_naming_the_key(graph, node_name):
+    """NaN, infinity and a negative number go through the config reader: refused with its
+    message, which names the key, and the value stays."""
+    checked = 0
+    for key in sorted(config_keys(node_name, 0)):
+        before = _get(graph, node_name, key)
+        if isinstance(before, bool) or not isinstance(before, (int, float)):
+            continue
+        bad = [-1] if isinstance(before, int) else [math.nan, math.inf, -1.0]
+        for value in bad:
+            result = _set(graph, node_name, key, _value(value))
+            assert not result.successful, (key, value)
+            assert key in result.reason, (key, value, result.reason)
+            assert _get(graph, node_name, key) == before
+            checked += 1
+    assert checked > 10
+
+
+def test_a_gain_set_over_the_parameter_services_takes_effect_at_the_next_stage(graph,
+                                                                              tmp_path):
+    """ros2 param set /gripper/position_controller position_control.mpc_pd.kc 900.0: the next
+    grasp's position stage runs with it, tick for tick as the headless loop with that gain."""
+    import dataclasses
+    from gripper_ros.bags.recording import recorded_grasp
+    from gripper_ros.bags.series import load_grasp_series
+    from gripper_ros.core.config import load_config
+    from gripper_ros.core.headless import simulate_grasp
+    key = 'position_control.mpc_pd.kc'
+    shipped = SHIPPED_DATA['position_control']['mpc_pd']['kc']
+    assert _get(graph, 'position_controller', key) == shipped
+    try:
+        result = _set(graph, 'position_controller', key, _double(900.0))
+        assert result.successful, result.reason
+        assert _get(graph, 'position_controller', key) == 900.0
+        run = recorded_grasp(graph, tmp_path / 'kc900', 0.10, 0.75)
+        assert run.response.success, run.response.message
+        assert run.recorded['/gripper/loop/tick'] > 100
+        series = load_grasp_series(run.bag_dir)
+        assert series.custom_data['config']['position_control']['mpc_pd']['kc'] == 900.0
+        cfg = load_config()
+        cfg = dataclasses.replace(cfg, position=dataclasses.replace(
+            cfg.position, mpc_pd=dataclasses.replace(cfg.position.mpc_pd, kc=900.0)))
+        start = int(round(series.status.t_s[0] * 1e9))
+        h = simulate_grasp(cfg, 0.10, 0.75, start_ns=start - round(
+            cfg.position.sample_time_s * 1e9))
+        shipped_run = simulate_grasp(load_config(), 0.10, 0.75, start_ns=start)
+        assert np.array_equal(h.position_m[1:], series.joint.position_m)
+        assert not np.array_equal(shipped_run.position_m[:50], h.position_m[1:51])
+    finally:
+        assert _set(graph, 'position_controller', key, _double(shipped)).successful
+
+
+def test_a_supervisor_threshold_applies_from_the_next_tick(graph):
+    """supervisor.timeout_s set to 0.5 s: the next grasp (which needs 2 s) times out."""
+    key = 'supervisor.timeout_s'
+    before = _get(graph, 'supervisor', key)
+    try:
+        assert _set(graph, 'supervisor', key, _double(0.5)).successful
+        assert graph.supervisor.logic.params.timeout_s == 0.5
+        assert graph.set_object(0.10).success
+        r = graph.grasp(0.10, 0.75, wall_timeout_s=60.0)
+        assert r.outcome == 4 and 'not settled within 0.5 s' in r.message, r.message  # TIMEOUT
+    finally:
+        assert _set(graph, 'supervisor', key, _double(before)).successful
+
+
+def test_the_force_law_is_a_parameter(graph):
+    key = 'supervisor.force_law'
+    assert _get(graph, 'supervisor', key) == 'friction'
+    refused = _set(graph, 'supervisor', key, _value('nonsense'))
+    assert not refused.successful and 'friction' in refused.reason and 'paper' in refused.reason
+    try:
+        assert _set(graph, 'supervisor', key, _value('paper')).successful
+        assert graph.set_object(0.10).success
+        r = graph.grasp(0.10, 0.75, wall_timeout_s=60.0)
+        mu, g = SHIPPED_DATA['supervisor']['friction_coefficient'], 9.81
+        assert r.force_setpoint_n == pytest.approx(mu * 0.75 * g)         # eq. 23 as printed
+    finally:
+        assert _set(graph, 'supervisor', key, _value('friction')).successful
+
+
+def test_a_params_file_sets_config_keys_at_start_up(tmp_path):
+    """A standard ROS params file (nested or dotted keys), read by rcl at start-up."""
+    path = tmp_path / 'params.yaml'
+    path.write_text(yaml.safe_dump({
+        '/**': {'ros__parameters': {'position_control': {'mpc_pd': {'kc': 901.0}}}},
+        f'/{DEFAULT_NAMESPACE}/supervisor': {'ros__parameters': {'supervisor.timeout_s': 7.5}}}),
+        encoding='utf-8')
+    context = Context()
+    rclpy.init(context=context, args=['--ros-args', '--params-file', str(path)],
+               domain_id=100 + int(os.environ.get('ROS_DOMAIN_ID', '0')) % 100 + 1)
+    try:
+        position = PositionControllerNode(context=context)
+        supervisor = SupervisorNode(context=context)
+        assert position.get_parameter('position_control.mpc_pd.kc').value == 901.0
+        assert position.config.position.mpc_pd.kc == 901.0
+        assert supervisor.config.supervisor.timeout_s == 7.5
+        assert supervisor.logic.params.timeout_s == 7.5
+        for node in (position, supervisor):
+            node.destroy_node()
+    finally:
+        rclpy.try_shutdown(context=context)
+
+
+def test_a_bad_params_file_value_stops_the_executable_in_one_line(tmp_path):
+    path = tmp_path / 'params.yaml'
+    path.write_text(yaml.safe_dump({'/**': {'ros__parameters': {
+        'position_control.mpc_pd.kc': -5.0}}}), encoding='utf-8')
+    r = _run('position_controller', '--params-file', str(path))
+    assert r.returncode == 2, r.stderr[-2000:]
+    last = r.stderr.strip().splitlines()[-1]
+    assert last.startswith('position_controller: ') and 'position_control.mpc_pd.kc' in last
+    assert 'Traceback' not in r.stderr

@@ -1,15 +1,17 @@
-"""PD / PI / PID: hand-computed sequences, limits, anti-windup, derivative kick, bumpless
-transfer, setpoint_range and discrete pole placement against the characteristic polynomial."""
+"""PD / PI / PID against hand-computed answers.
+
+Sequences, limits, anti-windup, derivative kick, bumpless transfer, setpoint_range and discrete
+pole placement against the characteristic polynomial.
+"""
 import copy
 import math
 
-import numpy as np
-import pytest
+from gripper_ros.core.config import PidGains
+from gripper_ros.core.pid import AntiWindup, DerivativeOn, first_order_pi_by_pole_placement, PID
 from hypothesis import given, settings
 from hypothesis import strategies as st
-
-from gripper_ros.core.config import PidGains
-from gripper_ros.core.pid import PID, AntiWindup, DerivativeOn, first_order_pi_by_pole_placement
+import numpy as np
+import pytest
 
 DT = 0.1
 WIDE = (-1e6, 1e6)
@@ -78,12 +80,12 @@ def test_output_limits_clamp():
 
 
 @pytest.mark.parametrize('kwargs', [
-    dict(gains=PidGains(kc=1.0), dt_s=0.0, output_limits=(-1, 1)),
-    dict(gains=PidGains(kc=1.0), dt_s=math.nan, output_limits=(-1, 1)),
-    dict(gains=PidGains(kc=1.0), dt_s=0.1, output_limits=(1, 1)),
-    dict(gains=PidGains(kc=1.0), dt_s=0.1, output_limits=(2, -2)),
-    dict(gains=PidGains(kc=-1.0), dt_s=0.1, output_limits=(-1, 1)),
-    dict(gains=PidGains(kc=1.0, ki=math.inf), dt_s=0.1, output_limits=(-1, 1)),
+    {'gains': PidGains(kc=1.0), 'dt_s': 0.0, 'output_limits': (-1, 1)},
+    {'gains': PidGains(kc=1.0), 'dt_s': math.nan, 'output_limits': (-1, 1)},
+    {'gains': PidGains(kc=1.0), 'dt_s': 0.1, 'output_limits': (1, 1)},
+    {'gains': PidGains(kc=1.0), 'dt_s': 0.1, 'output_limits': (2, -2)},
+    {'gains': PidGains(kc=-1.0), 'dt_s': 0.1, 'output_limits': (-1, 1)},
+    {'gains': PidGains(kc=1.0, ki=math.inf), 'dt_s': 0.1, 'output_limits': (-1, 1)},
 ])
 def test_bad_construction_raises(kwargs):
     with pytest.raises(ValueError):
@@ -164,7 +166,12 @@ def test_bumpless_reset_at_zero_error(where):
 def test_bumpless_reset_with_error_first_output_is_the_motor_command(where):
     pid = PID(PidGains(kc=3.0, ki=40.0, kd=0.2), DT, (-24.0, 24.0), where)
     pid.reset(output=7.5, setpoint=1.0, measurement=0.2)
-    assert pid.step(1.0, 0.2) == pytest.approx(7.5, abs=1e-12)   # returns 7.5 + 40*0.1*0.8 = 10.7
+    # the integral is seeded with 7.5 - 3*0.8 - 40*0.1*0.8 = 1.9, so that the step that adds
+    # ki*dt*e returns the voltage already applied: 2.4 + (1.9 + 3.2) + 0 = 7.5, not 7.5 + 3.2
+    assert pid.step(1.0, 0.2) == pytest.approx(7.5, abs=1e-12)
+    assert pid.terms.integral == pytest.approx(5.1, abs=1e-12)
+    # and the law goes on from there: e = 0.7, P 2.1, I 5.1 + 2.8 = 7.9, D 0.2*(-0.1)/0.1
+    assert pid.step(1.0, 0.3) == pytest.approx(2.1 + 7.9 - 0.2, abs=1e-12)
 
 
 def test_reset_forgets_derivative_and_integral_history():
@@ -197,8 +204,7 @@ def test_setpoint_range_gives_outputs_exactly_at_the_limits(where):
     (PidGains(kc=653.0, ki=148.0, kd=640.0), DerivativeOn.MEASUREMENT),
     (PidGains(kc=0.29, ki=4877.0), DerivativeOn.ERROR)])
 def test_setpoint_range_with_integral_reaches_the_limits_from_inside(gains, where):
-    """Just inside the range (1e-9 of its width) the output is within 1e-6 V of each limit.
-    """
+    """Just inside the range (1e-9 of its width) the output is within 1e-6 V of each limit."""
     pid = PID(gains, 0.01, (-24.0, 24.0), where)
     run(pid, HISTORY)
     lo, hi = pid.setpoint_range(0.0215)
@@ -211,7 +217,9 @@ def test_setpoint_range_with_integral_reaches_the_limits_from_inside(gains, wher
 
 def test_pi_output_is_monotone_in_the_setpoint_across_the_limit():
     """Minimal reproduction: PI kc=1, ki=10, dt=0.1, limits +-1, fresh state, y = 0.
-    raw = r + 10*0.1*r = 2r: r = 0.5 gives 1.0; r = 0.5 + 1e-7 gives 0.5000001 (should be 1.0)."""
+
+    raw = r + 10*0.1*r = 2r: r = 0.5 gives 1.0; r = 0.5 + 1e-7 gives 0.5000001 (should be 1.0).
+    """
     outs = []
     for r in (0.4, 0.5, 0.5 + 1e-7, 0.6, 2.0):
         pid = PID(PidGains(kc=1.0, ki=10.0), DT, (-1.0, 1.0))
@@ -295,6 +303,7 @@ def test_setpoint_for_output_clamps_to_the_limits():
     pid = PID(PidGains(kc=2.0, ki=1.0), DT, (-1.0, 1.0))
     r = pid.setpoint_for_output(50.0, 0.0)          # beyond the limit: aims at the limit
     assert pid.step(r, 0.0) == pytest.approx(1.0, abs=1e-12)
-    only_d_on_measurement = PID(PidGains(kc=0.0, kd=1.0), DT, WIDE, derivative_on=DerivativeOn.MEASUREMENT)
+    only_d_on_measurement = PID(PidGains(kc=0.0, kd=1.0), DT, WIDE,
+                                derivative_on=DerivativeOn.MEASUREMENT)
     with pytest.raises(ValueError):                 # no setpoint gives any chosen output
         only_d_on_measurement.setpoint_for_output(1.0, 0.0)

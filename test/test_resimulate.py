@@ -20,9 +20,10 @@ from gripper_ros.bags import replay as bag_replay
 from gripper_ros.bags.reader import EXIT_ERROR, EXIT_TRUNCATED, MissingTopicsError, read_bag
 from gripper_ros.core.config import ConfigError, default_config_path, load_config, parse_config
 from gripper_ros.core.stages import (ForceStageController, LockstepAnswerer,
-                                          PositionStageController)
-from gripper_ros.nodes.graph import GripperGraph
+                                     PositionStageController, Reference)
+from gripper_ros.bags.recording import recorded_grasp
 from gripper_ros.bags.resimulate import OPEN_LOOP_NOTE, resimulate_bag
+from gripper_ros.nodes.graph import GripperGraph
 
 CONFIG = load_config()
 CONFIG_DATA = yaml.safe_load(Path(default_config_path()).read_text(encoding='utf-8'))
@@ -33,7 +34,7 @@ def recorded(tmp_path_factory):
     """(bag dir, graph node stage classes) of one recorded grasp of paper object 1."""
     out = tmp_path_factory.mktemp('resim')
     with GripperGraph.in_own_context() as graph:
-        run = graph.recorded_grasp(out / 'grasp', 0.05, 1.69)
+        run = recorded_grasp(graph, out / 'grasp', 0.05, 1.69)
         stages = (type(graph.position.stage), type(graph.force.stage))
     assert run.response.success, run.response.message
     return Path(run.bag_dir), stages
@@ -75,7 +76,7 @@ def test_recorded_config_reproduces_every_command_bitwise(recorded):
     report = resimulate_bag(bag_dir, None)              # the installed default config
     assert report.identical
     assert report.grasp_ids == [1]
-    assert report.measurements_from_status == 1         # the grasp's first tick (see module doc)
+    assert report.measurements_from_status == 0         # each reference carries its tick's
     counts = read_bag(bag_dir).counts()
     total = 0
     for name in ('position', 'force'):
@@ -86,7 +87,7 @@ def test_recorded_config_reproduces_every_command_bitwise(recorded):
         assert s.max_abs_dv_v == 0.0 and s.rms_dv_v == 0.0 and s.max_abs_d_inner == 0.0
         assert s.first_diff_tick is None
         total += s.compared
-    assert total == counts['/gripper/motor_command']
+    assert total == counts['/gripper/loop/motor_command']
 
 
 def test_cli_table_and_json_for_the_recorded_config(recorded, capsys):
@@ -162,30 +163,35 @@ class _CountingStage:
     def __init__(self):
         self.activations = 0
 
-    def activate(self, status, measurement):
+    @staticmethod
+    def measurement(ref):
+        return ref.position_m
+
+    def activate(self, ref, measurement):
         self.activations += 1
 
-    def compute(self, status, measurement):
+    def compute(self, ref, measurement):
         return measurement * 2.0, measurement
 
 
-def test_lockstep_answerer_dedupes_reactivates_and_holds_on_nan():
+def _ref(stamp, stage_id=1, grasp_id=1, position_m=1.5, position_setpoint_m=0.1):
+    return Reference(stamp, grasp_id, stage_id, 0, 1, 0, 1, True, False, position_setpoint_m,
+                     0.1, 1.0, position_m, 0.0, 0.0, 0.0)
+
+
+def test_lockstep_answerer_dedupes_restarts_on_a_new_stage_and_holds_on_nan():
     stage = _CountingStage()
     a = LockstepAnswerer(stage)
-    s = _Status(active=1)
-    a.on_status(s)
-    assert a.answer(s, 10, 1.5).voltage_v == 3.0 and stage.activations == 1
-    assert a.answer(s, 10, 1.5) is None                  # same (grasp, stamp): answered once
-    assert a.answer(s, 20, 2.0).voltage_v == 4.0 and stage.activations == 1
-    other = _Status(active=2)
-    a.on_status(other)                                   # another controller took over
-    a.on_status(s)
-    a.answer(s, 30, 1.0)
-    assert stage.activations == 2                        # re-activated on taking over again
-    held = a.answer(s, 40, math.nan)
-    assert held.voltage_v == 0.0 and not held.finite
-    a.answer(_Status(active=1, grasp_id=2), 40, 1.0)     # new grasp, same stamp
-    assert stage.activations == 3
+    assert a.answer(_ref(10)).voltage_v == 3.0 and stage.activations == 1
+    assert a.answer(_ref(10)) is None                    # same (stage, stamp): answered once
+    assert a.answer(_ref(20, position_m=2.0)).voltage_v == 4.0 and stage.activations == 1
+    a.answer(_ref(30, stage_id=3))                       # a new stage: restarted
+    assert stage.activations == 2
+    held = a.answer(_ref(40, stage_id=3, position_m=math.nan))
+    assert held.voltage_v == 0.0 and not held.finite and 'measurement' in held.reason
+    bad = a.answer(_ref(50, stage_id=3, position_setpoint_m=math.inf))
+    assert not bad.finite and 'position_setpoint_m=inf' in bad.reason
+    assert stage.activations == 2                        # neither touched the law
 
 
 # --- bad input -----------------------------------------------------------------------------------
@@ -236,7 +242,7 @@ def test_bag_without_commands_is_refused(recorded, tmp_path):
             Writer(out, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
         conns = {}
         for c in reader.connections:
-            if c.topic != '/gripper/motor_command':
+            if c.topic != '/gripper/loop/motor_command':
                 conns[c.id] = writer.add_connection(c.topic, c.msgtype, typestore=store,
                                                     msgdef=c.msgdef.data, rihs01=c.digest)
         for c, t, data in reader.messages():
@@ -244,7 +250,7 @@ def test_bag_without_commands_is_refused(recorded, tmp_path):
                 writer.write(conns[c.id], t, data)
     with pytest.raises(MissingTopicsError) as exc_info:
         resimulate_bag(out, CONFIG)
-    assert '/gripper/motor_command' in str(exc_info.value)
+    assert '/gripper/loop/motor_command' in str(exc_info.value)
     assert '\n' not in str(exc_info.value)
 
 

@@ -53,10 +53,11 @@ def test_every_bag_holds_what_the_nodes_published(soak):
     for r in rep['rows']:
         assert r['counts_match'], r
         assert r['recorded'] == r['published']
-        assert len(r['published']) == 6 and all(n > 0 for n in r['published'].values())
-        # lockstep: one command and one status per tick (status also for the last tick)
-        assert r['published']['/gripper/motor_command'] == r['published']['/clock']
-        assert r['published']['/gripper/supervisor/status'] == r['published']['/clock'] + 1
+        assert len(r['published']) == 4 and all(n > 0 for n in r['published'].values())
+        # lockstep: one reference (to one of the two stages) and one command per tick
+        p = r['published']
+        assert p['/gripper/loop/motor_command'] == p['/gripper/loop/tick'] == \
+            p['/gripper/loop/position_reference'] + p['/gripper/loop/force_reference']
 
 
 def test_identical_requests_give_identical_simulated_runs(soak):

@@ -113,15 +113,17 @@ def reflected_mass_kg(config) -> float:
 
 
 def max_mass_kg(config) -> float:
-    """Return the heaviest object (to 10 g) whose eq. 23 setpoint 24 V can hold."""
-    sup, p = config.supervisor, config.plant
-    return math.floor(100.0 * p.max_force_n / (
-        sup.friction_coefficient * (p.gravity_mps2 + sup.acceleration_mps2)) * (1 - 1e-12)) / 100.0
+    """Return the heaviest object (to 10 g) whose force setpoint 24 V can hold."""
+    return math.floor(100.0 * config.plant.max_force_n / _force_setpoint_n(config, 1.0)
+                      * (1 - 1e-12)) / 100.0
 
 
 def _force_setpoint_n(config, mass_kg: float) -> float:
+    """Return the configured force law's setpoint for ``mass_kg`` (what the supervisor asks)."""
+    from gripper_ros.core.supervisor import force_setpoint_n
     sup, p = config.supervisor, config.plant
-    return sup.friction_coefficient * mass_kg * (p.gravity_mps2 + sup.acceleration_mps2)
+    return force_setpoint_n(mass_kg, sup.friction_coefficient, p.gravity_mps2,
+                            sup.acceleration_mps2, sup.force_law, sup.grip_safety_factor)
 
 
 def _compliant(config, k: float, zeta: float) -> tuple[str, float, float, float]:
@@ -242,7 +244,7 @@ def _grasp(config, force_controller, hold_s, case: SweepCase):
         drift = float(max(abs(g.position_m[hold].max() - g.position_m[hold.start - 1]),
                           abs(g.position_m[hold].min() - g.position_m[hold.start - 1])))
     return (g.outcome.name, f_sp, g.peak_contact_force_n,
-            g.duration_s if held else math.inf, lo / f_sp, hi / f_sp, drift)
+            g.time_to_answer_s if held else math.inf, lo / f_sp, hi / f_sp, drift)
 
 
 def _pool_map(fn, items, jobs: int):

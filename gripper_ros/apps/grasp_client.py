@@ -5,14 +5,15 @@
 With a full ROS 2 the equivalent calls are:
 
     ros2 service call /gripper/sim/set_object gripper_interfaces/srv/SetObject \\
-        "{width_m: 0.05, open_fingers: true}"
+        "{width_m: 0.05, open_fingers: true}"      # (refused while an object is held)
     ros2 service call /gripper/grasp gripper_interfaces/srv/Grasp "{width_m: 0.05, mass_kg: 1.69}"
     ros2 action send_goal --feedback /gripper/grasp_action gripper_interfaces/action/Grasp \\
         "{width_m: 0.05, mass_kg: 1.69}"                    # the same, as an action (--action)
 
 By default the client first places a matching simulated object (``/gripper/sim/set_object``,
-like spawning a model in a simulator); ``--object-width`` places a different one (e.g. to see
-NO_OBJECT) and ``--no-place`` leaves the simulation as it is. Exit code: 0 when the object is
+like spawning a model in a simulator; an object still held from an earlier grasp is released
+first); ``--object-width`` places a different one (e.g. to see NO_OBJECT) and ``--no-place``
+leaves the simulation as it is. ``--namespace left`` talks to the gripper ``/left``. Exit code: 0 when the object is
 held, 1 for any other outcome, 2 when the graph cannot be reached. ``--action`` sends the grasp
 as a goal to ``/gripper/grasp_action`` instead, prints its feedback (phase, opening, force) as it
 comes, and cancels the goal on Ctrl-C (the grasp ends as STOPPED).
@@ -27,7 +28,8 @@ import argparse
 import os
 import sys
 
-from gripper_ros.core.supervisor import Outcome
+from gripper_ros.wire import (ACTION_GRASP, DEFAULT_NAMESPACE, SERVICE_GRASP, SERVICE_RELEASE,
+                              SERVICE_SET_OBJECT, Outcome, Phase, check_namespace)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -48,7 +50,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('--wait', type=float, default=10.0, help='seconds to wait for the services')
     p.add_argument('--call-timeout', type=float, default=600.0, help='wall seconds per call')
     p.add_argument('--action', action='store_true',
-                   help='use the /gripper/grasp_action action: feedback, Ctrl-C cancels')
+                   help='use the grasp_action action: feedback, Ctrl-C cancels')
+    p.add_argument('--namespace', default=DEFAULT_NAMESPACE,
+                   help='the gripper to talk to (default %(default)s: /gripper/...)')
     return p
 
 
@@ -75,9 +79,6 @@ def _grasp_by_action(node, args):
     import rclpy
     from gripper_interfaces.action import Grasp as GraspAction
     from rclpy.action import ActionClient
-
-    from gripper_ros.core.supervisor import Phase
-    from gripper_ros.nodes.common import ACTION_GRASP
 
     client = ActionClient(node, GraspAction, ACTION_GRASP)
     if not client.wait_for_server(timeout_sec=args.wait):
@@ -110,7 +111,6 @@ def _grasp_by_action(node, args):
 def _release(node, args) -> int:
     from std_srvs.srv import Trigger
 
-    from gripper_ros.nodes.common import SERVICE_RELEASE
     client = node.create_client(Trigger, SERVICE_RELEASE)
     if not client.wait_for_service(timeout_sec=args.wait):
         print(f'grasp_client: service {SERVICE_RELEASE} not available after {args.wait:g} s',
@@ -137,13 +137,17 @@ def main(argv: list[str] | None = None) -> int:
         remove_ros_args(sys.argv if argv is None else ['grasp_client', *argv])[1:])
     if not args.release and (args.width is None or args.mass is None):
         parser.error('--width and --mass are required for a grasp (or give --release)')
+    try:
+        namespace = check_namespace(args.namespace)
+    except ValueError as exc:
+        parser.error(str(exc))
     rclpy.init(args=None if argv is None else [])
-    node = rclpy.create_node('grasp_client')
+    node = rclpy.create_node('grasp_client', namespace=namespace)
     try:
         if args.release:
             return _release(node, args)
-        grasp = node.create_client(Grasp, '/gripper/grasp')
-        place = node.create_client(SetObject, '/gripper/sim/set_object')
+        grasp = node.create_client(Grasp, SERVICE_GRASP)
+        place = node.create_client(SetObject, SERVICE_SET_OBJECT)
         needed = [grasp] if args.no_place else [grasp, place]
         for client in needed:
             if not client.wait_for_service(timeout_sec=args.wait):
@@ -153,9 +157,13 @@ def main(argv: list[str] | None = None) -> int:
                 return 2
         if not args.no_place:
             width = args.width if args.object_width is None else args.object_width
-            placed = _call(node, place, SetObject.Request(
-                width_m=width, stiffness_n_per_m=args.stiffness, open_fingers=True),
-                args.call_timeout)
+            request = SetObject.Request(width_m=width, stiffness_n_per_m=args.stiffness,
+                                        open_fingers=True)
+            placed = _call(node, place, request, args.call_timeout)
+            if placed is not None and not placed.success and 'is held' in placed.message:
+                print('grasp_client: an object is held: releasing it first', flush=True)
+                if _release(node, args) == 0:
+                    placed = _call(node, place, request, args.call_timeout)
             if placed is None:
                 print('grasp_client: set_object did not answer', file=sys.stderr)
                 return 2

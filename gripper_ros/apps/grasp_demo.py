@@ -22,6 +22,8 @@ from pathlib import Path
 
 # Table V of the paper: (width m, mass kg).
 PAPER_OBJECTS = ((0.01, 1.27), (0.05, 1.69), (0.10, 0.75))
+LIFT_DELAY_S = 0.2       # --lift: from HOLDING to the start of the lift
+LIFT_DURATION_S = 1.0    # --lift: how long the arm accelerates upward
 
 
 @dataclass
@@ -31,11 +33,15 @@ class GraspRecord:
     response: object
     bag_dir: Path | None
     wall_s: float
+    final_outcome: str = ''          # after the hold that follows the answer (a lift)
+    final_message: str = ''
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from gripper_ros.core.stages import DEFAULT_FORCE_CONTROLLER
+    from gripper_ros.core.config import ForceLaw
     from gripper_ros.core.controllers import ForceControllerKind
+    from gripper_ros.core.stages import DEFAULT_FORCE_CONTROLLER
+    from gripper_ros.wire import DEFAULT_NAMESPACE
     p = argparse.ArgumentParser(prog='grasp_demo', description=__doc__.splitlines()[0])
     p.add_argument('--width', type=float, help='object width (m); with --mass grasps one object')
     p.add_argument('--mass', type=float, help='object mass (kg)')
@@ -47,8 +53,28 @@ def build_parser() -> argparse.ArgumentParser:
                    help='the object may be this much wider or narrower, m (0 = default)')
     p.add_argument('--object-width', type=float, default=None,
                    help='the simulated object\'s real width, m (default: the requested --width)')
+    p.add_argument('--lift', type=float, default=0.0, metavar='A',
+                   help='after HOLDING the arm lifts the object at A m/s^2 upward (the request '
+                        'carries a = A for the force law); 0 = no lift')
+    p.add_argument('--lift-delay', type=float, default=LIFT_DELAY_S,
+                   help='seconds from HOLDING to the lift (default %(default)g)')
+    p.add_argument('--lift-duration', type=float, default=LIFT_DURATION_S,
+                   help='seconds the lift accelerates (default %(default)g)')
+    p.add_argument('--force-law', choices=[law.value for law in ForceLaw], default=None,
+                   help='grip force: friction, F_sp = k m (g + a) / (2 mu_s), enough for two '
+                        'pads (the default in config); paper, its eq. 23, mu_s m (g + a)')
     p.add_argument('--serve', action='store_true',
-                   help='keep the graph up and answer /gripper/grasp from other processes')
+                   help='keep the graph up as simulated hardware and answer grasp, release, '
+                        'stop and sim/* from other processes')
+    p.add_argument('--namespace', default=DEFAULT_NAMESPACE,
+                   help='ROS namespace of this gripper (default %(default)s: /gripper/...)')
+    p.add_argument('--time-mode', choices=['realtime', 'fast'], default=None,
+                   help='realtime: paced to the wall clock, always running (default with '
+                        '--serve); fast: as fast as the graph goes while a grasp runs (default)')
+    p.add_argument('--real-time-factor', type=float, default=1.0,
+                   help='realtime: simulated seconds per wall second (default 1)')
+    p.add_argument('--no-clock', action='store_true',
+                   help='do not publish /clock (another simulator on the domain does)')
     p.add_argument('--no-record', action='store_true', help='do not write bags')
     p.add_argument('--output', default='bags', help='folder for bags and the figure')
     p.add_argument('--overwrite', action='store_true', help='replace existing bag folders')
@@ -83,33 +109,52 @@ def main(argv: list[str] | None = None) -> int:
     for w, m in objects:
         if not (math.isfinite(w) and math.isfinite(m)):
             return _fail(f'width and mass must be finite, got {w!r}, {m!r}')
+    for name in ('lift', 'lift_delay', 'lift_duration'):
+        value = getattr(args, name)
+        if not (math.isfinite(value) and value >= 0.0):
+            return _fail(f'--{name.replace("_", "-")} must be finite and >= 0, got {value!r}')
 
-    from gripper_ros.core.config import ConfigError
     from gripper_ros.bags.recorder import BagRecorderError
+    from gripper_ros.bags.recording import RecordingError, ServeRecorder
+    from gripper_ros.core.config import ConfigError
+    from gripper_ros.nodes.common import ExecutorKind, StartupError
     from gripper_ros.nodes.graph import GraphError, GraphOptions, GripperGraph
-    from gripper_ros.nodes.common import ExecutorKind
+    from gripper_ros.wire import check_namespace
 
-    rclpy.init(args=None if argv is None else [])
+    try:
+        namespace = check_namespace(args.namespace)
+    except ValueError as exc:
+        return _fail(str(exc))
+    if not (math.isfinite(args.real_time_factor) and 0.0 < args.real_time_factor <= 100.0):
+        return _fail(f'--real-time-factor must be in (0, 100], got {args.real_time_factor!r}')
+    time_mode = args.time_mode or ('realtime' if args.serve else 'fast')
+    from rclpy.signals import SignalHandlerOptions
+    # Ctrl-C and SIGTERM end the demo here (KeyboardInterrupt), not inside rclpy: the graph
+    # stops its executor, closes its bags and only then shuts the context down.
+    rclpy.init(args=None if argv is None else [], signal_handler_options=SignalHandlerOptions.NO)
     # SIGTERM (e.g. from a process manager) ends the demo like Ctrl-C: bags are closed.
     previous_sigterm = signal.signal(signal.SIGTERM, _raise_keyboard_interrupt)
     graph = None
     try:
         graph = GripperGraph(GraphOptions(
-            executor=ExecutorKind(args.executor), config_file=args.config,
-            position_controller=args.position_controller,
+            executor=ExecutorKind(args.executor), config_file=args.config, namespace=namespace,
+            time_mode=time_mode, real_time_factor=args.real_time_factor,
+            publish_clock=not args.no_clock, position_controller=args.position_controller,
             force_controller=args.force_controller,
-            approach_force_margin=args.approach_force_margin))
+            approach_force_margin=args.approach_force_margin,
+            supervisor_parameters={} if args.force_law is None else
+            {'supervisor.force_law': args.force_law}))
         if args.serve:
             if not args.no_record:
-                graph.record_every_grasp(args.output)
+                ServeRecorder(graph, args.output)
             return _serve(graph, args)
         records = [_grasp_one(graph, args, w, m, i, len(objects))
                    for i, (w, m) in enumerate(objects, 1)]
         _summarise(graph, records, args)
-        return 0 if all(r.response.success for r in records) else 1
-    except ConfigError as exc:
+        return 0 if all(r.final_outcome == 'HOLDING' for r in records) else 1
+    except (ConfigError, StartupError) as exc:
         return _fail(str(exc))
-    except (GraphError, BagRecorderError, RuntimeError) as exc:
+    except (GraphError, BagRecorderError, RecordingError, RuntimeError) as exc:
         return _fail(str(exc))
     except KeyboardInterrupt:
         print('grasp_demo: interrupted; bags closed', file=sys.stderr)
@@ -126,51 +171,91 @@ def _raise_keyboard_interrupt(signum, frame):
 
 
 def _serve(graph, args) -> int:
+    from gripper_ros.wire import (ACTION_GRASP, SERVICE_GRASP, SERVICE_RELEASE,
+                                  SERVICE_SET_OBJECT, SERVICE_STEP, SERVICE_STOP, TOPIC_OUTCOME,
+                                  qualified)
     where = 'not recording' if args.no_record else f'one bag per grasp in {args.output}/'
-    print(f'grasp_demo: serving /gripper/grasp, /gripper/grasp_action, /gripper/stop, '
-          f'/gripper/release and /gripper/sim/set_object, publishing the latched '
-          f'/gripper/supervisor/outcome ({where}); Ctrl-C to stop', flush=True)
+    names = ', '.join(qualified(graph.namespace, n) for n in (
+        SERVICE_GRASP, ACTION_GRASP, SERVICE_STOP, SERVICE_RELEASE, SERVICE_SET_OBJECT,
+        SERVICE_STEP))
+    print(f'grasp_demo: serving {names}, publishing the latched '
+          f'{qualified(graph.namespace, TOPIC_OUTCOME)} ({graph.options.time_mode} time, '
+          f'{where}); Ctrl-C to stop', flush=True)
     while True:
         time.sleep(1.0)
 
 
-def _bag_dir(output: Path, i: int, width_m: float, mass_kg: float) -> Path:
+def _bag_dir(output: Path, i: int, width_m: float, mass_kg: float, overwrite: bool) -> Path:
+    """A bag folder for grasp ``i``: a fresh, unique one (or the named one, ``overwrite``)."""
+    from gripper_ros.bags.recording import unique_bag_dir
     stamp = datetime.now().strftime('%Y%m%d_%H%M%S')
-    return output / f'grasp_{stamp}_{i}_w{width_m * 1e3:.0f}mm_m{mass_kg:g}kg'
+    stem = f'grasp_{stamp}_{i}_w{width_m * 1e3:.0f}mm_m{mass_kg:g}kg'
+    return output / stem if overwrite else unique_bag_dir(output, stem)
+
+
+def _lift(args) -> dict:
+    """The SetObject lift fields of ``--lift`` (none without a lift)."""
+    if not args.lift:
+        return {}
+    return {'lift_acceleration_mps2': args.lift, 'lift_delay_s': args.lift_delay,
+            'lift_duration_s': args.lift_duration}
 
 
 def _grasp_one(graph, args, width_m: float, mass_kg: float, i: int, n: int) -> GraspRecord:
-    print(f'[{i}/{n}] grasping width {width_m:g} m, mass {mass_kg:g} kg ...', flush=True)
+    from gripper_ros.bags.recording import RecordingError, recorded_grasp
+    from gripper_ros.nodes.graph import GraphError
+    lift = f', lifted at {args.lift:g} m/s^2' if args.lift else ''
+    print(f'[{i}/{n}] grasping width {width_m:g} m, mass {mass_kg:g} kg{lift} ...', flush=True)
+    if i > 1:                        # the previous object is still held: open the fingers
+        graph.release()
     if args.no_record:
         t0 = time.perf_counter()
-        graph.set_object(graph.simulated_width_m(width_m, args.object_width), args.stiffness,
-                         args.damping)
-        response = graph.grasp(width_m, mass_kg, args.friction,
+        placed = graph.set_object(graph.simulated_width_m(width_m, args.object_width),
+                                  args.stiffness, args.damping, **_lift(args))
+        if not placed.success:
+            raise GraphError(f'set_object: {placed.message}')
+        response = graph.grasp(width_m, mass_kg, args.friction, args.lift,
                                width_tolerance_m=args.width_tolerance)
-        return GraspRecord(width_m, mass_kg, response, None, time.perf_counter() - t0)
-    run = graph.recorded_grasp(_bag_dir(Path(args.output), i, width_m, mass_kg), width_m,
-                               mass_kg, args.friction, args.stiffness, args.damping,
-                               args.overwrite, width_tolerance_m=args.width_tolerance,
-                               object_width_m=args.object_width)
-    return GraspRecord(width_m, mass_kg, run.response, run.bag_dir, run.wall_s)
+        graph.wait_still()
+        logic = graph.supervisor.logic
+        return GraspRecord(width_m, mass_kg, response, None, time.perf_counter() - t0,
+                           logic.outcome.name, logic.message)
+    run = recorded_grasp(graph, _bag_dir(Path(args.output), i, width_m, mass_kg,
+                                         args.overwrite), width_m, mass_kg, args.friction,
+                         args.stiffness, args.damping, args.overwrite,
+                         width_tolerance_m=args.width_tolerance,
+                         object_width_m=args.object_width, acceleration_mps2=args.lift,
+                         stop_on_error=True, **_lift(args))
+    if run.recording_error:
+        raise RecordingError(run.recording_error)
+    return GraspRecord(width_m, mass_kg, run.response, run.bag_dir, run.wall_s,
+                       run.final_outcome.name, run.final_message)
+
+
+def _dash(value: float, fmt: str) -> str:
+    """``value`` formatted, or a dash of the same width when it is NaN (never happened)."""
+    width = int(fmt.split('.')[0])
+    return f'{"-":>{width}s}' if value != value else f'{value:{fmt}}'
 
 
 def _summarise(graph, records: list[GraspRecord], args) -> None:
-    print(f'\n{"width m":>8s} {"mass kg":>8s} {"outcome":>10s} {"contact s":>10s} '
+    lifted = bool(args.lift) and not args.no_record
+    print(f'\n{"width m":>8s} {"mass kg":>8s} {"outcome":>11s} {"contact s":>10s} '
           f'{"switch s":>9s} {"criterion":>18s} {"pos err mm":>11s} {"force N":>8s} '
-          f'{"F_sp N":>8s} {"peak N":>8s} {"peak/F_sp":>9s} {"max|V|":>7s} {"wall s":>7s}')
+          f'{"F_sp N":>8s} {"peak N":>8s} {"peak/F_sp":>9s} {"max|V|":>7s} '
+          + (f'{"slip mm":>8s} {"lost s":>7s} ' if lifted else '') + f'{"wall s":>7s}')
     series, rows = [], []
     if not args.no_record:
         from gripper_ros.bags.analyze import analyze_series
-        from gripper_ros.bags.reader import load_grasp_series
+        from gripper_ros.bags.series import load_grasp_series
         for r in records:
             s = load_grasp_series(r.bag_dir)
             series.append(s)
             rows.append(analyze_series(s, graph.plant.config.plant.voltage_limit_v))
-    from gripper_ros.core.supervisor import Outcome
+    from gripper_ros.wire import Outcome
     for i, r in enumerate(records):
         resp = r.response
-        outcome = Outcome(resp.outcome).name
+        outcome = r.final_outcome or Outcome(resp.outcome).name
         pos_err_mm = (resp.final_position_m - resp.position_setpoint_m) * 1e3
         if rows:
             m = rows[i]
@@ -178,13 +263,17 @@ def _summarise(graph, records: list[GraspRecord], args) -> None:
                      f'{m.switch_criterion:>18s} {pos_err_mm:11.4f} {resp.final_force_n:8.3f} '
                      f'{resp.force_setpoint_n:8.3f} {m.peak_contact_force_n:8.3f} '
                      f'{m.peak_force_ratio:9.3f} {m.max_abs_voltage_v:7.2f}')
+            if lifted:
+                extra += f' {_dash(m.max_slip_m * 1e3, "8.2f")} {_dash(m.lost_at_s, "7.3f")}'
         else:
             extra = (f'{"":>10s} {resp.switch_time_s:9.3f} {"":>18s} {pos_err_mm:11.4f} '
                      f'{resp.final_force_n:8.3f} {resp.force_setpoint_n:8.3f} {"":>8s} '
                      f'{"":>9s} {"":>7s}')
-        print(f'{r.width_m:8.3f} {r.mass_kg:8.3f} {outcome:>10s} {extra} {r.wall_s:7.2f}')
+        print(f'{r.width_m:8.3f} {r.mass_kg:8.3f} {outcome:>11s} {extra} {r.wall_s:7.2f}')
         if not resp.success:
             print(f'    {resp.message}')
+        elif outcome != 'HOLDING':
+            print(f'    answered HOLDING, then {outcome}: {r.final_message}')
     for r in records:
         if r.bag_dir is not None:
             print(f'bag: {r.bag_dir}')

@@ -28,17 +28,16 @@ with the command held for each sample and ``|u| <= 24 V``:
 from __future__ import annotations
 
 import argparse
+from dataclasses import asdict, dataclass, field
 import json
 import math
 import sys
-from dataclasses import asdict, dataclass, field
-
-import numpy as np
-from scipy.optimize import linprog, lsq_linear
 
 from gripper_ros.core.config import ConfigError, GripperConfig, load_config
 from gripper_ros.core.controllers import make_plant
 from gripper_ros.core.metrics import SETTLING_BAND
+import numpy as np
+from scipy.optimize import linprog, lsq_linear
 
 DEFAULT_SETPOINT_M = 0.1
 DEFAULT_HORIZON_S = 20.0
@@ -74,10 +73,6 @@ class RmsFloor:
     rms_upper_m: float               # achieved by ``inputs_v`` (then 0 V): the bracket is tight
     window_s: float
     inputs_v: np.ndarray = field(repr=False)
-
-    @property
-    def rms_m(self) -> float:
-        return self.rms_lower_m
 
 
 def _markov(config: GripperConfig, dt_s: float, samples: int) -> np.ndarray:
@@ -250,7 +245,8 @@ def main(argv: list[str] | None = None) -> int:
           f'then -{lim:g} V)')
     print(f'  minimum time to the setpoint at rest:            {mt.rest_time_s:.2f} s  '
           f'(+{lim:g} V until {mt.rest_switch_time_s:.2f} s, then -{lim:g} V)')
-    print(f'  minimum RMS error over {rf.horizon_s:g} s (samples 0..{int(round(rf.horizon_s / dt))}): '
+    samples = int(round(rf.horizon_s / dt))
+    print(f'  minimum RMS error over {rf.horizon_s:g} s (samples 0..{samples}): '
           f'{rf.rms_lower_m:.5f} m  (achieved: {rf.rms_upper_m:.5f} m)')
     import dataclasses
 

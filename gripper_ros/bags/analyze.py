@@ -21,10 +21,9 @@ from typing import Sequence
 
 import numpy as np
 
-from gripper_ros.bags.reader import (
-    EXIT_ERROR, EXIT_TRUNCATED, BagError, GraspSeries, Outcome, Phase, SwitchCriterion,
-    enum_name, load_grasp_series,
-)
+from gripper_ros.bags.reader import BagError, EXIT_ERROR, EXIT_TRUNCATED
+from gripper_ros.bags.series import GraspSeries, load_grasp_series
+from gripper_ros.wire import HoldState, Outcome, Phase, SwitchCriterion, enum_name
 from gripper_ros.core.metrics import step_metrics
 
 PROG = 'bag_analyze'
@@ -59,6 +58,11 @@ class GraspMetrics:
     time_at_voltage_limit_s: float
     final_position_error_m: float
     final_force_error_n: float
+    final_outcome: str = ''             # after the hold that follows the answer (a lift)
+    hold_s: float = math.nan            # simulated time recorded after the answer
+    max_slip_m: float = math.nan        # ground truth: the most the object slid on the pads
+    lost_at_s: float = math.nan         # ground truth: when it left the grip, after the answer
+    loss_detected_s: float = math.nan   # when the supervisor reported OBJECT_LOST, after it
 
 
 class AnalysisError(BagError):
@@ -72,25 +76,28 @@ class Stages:
     grasp_id: int
     start_s: float
     switch_s: float   # nan when the grasp never reached the force stage
-    end_s: float
+    end_s: float      # the answer (or the last decision of the grasp, unanswered)
+    last_s: float     # the last decision of the grasp, the hold after the answer included
 
 
 def find_stages(series: GraspSeries) -> Stages:
-    """Start = first POSITION-phase status, switch = first FORCE-phase status of that grasp."""
+    """Start = first POSITION-phase decision, switch = first FORCE-phase decision of that
+    grasp, end = its answer (the first decision with an outcome)."""
     st = series.status
     in_position = np.flatnonzero(st.phase == Phase.POSITION)
     if in_position.size == 0:
-        raise AnalysisError(f'{series.path}: no supervisor status in the POSITION phase '
+        raise AnalysisError(f'{series.path}: no supervisor decision in the POSITION phase '
                             f'(no grasp was started)')
     first = in_position[0]
     grasp_id = int(st.grasp_id[first])
     same = np.flatnonzero(st.grasp_id == grasp_id)
     same = same[same >= first]
     start_s = float(st.t_s[first])
-    end_s = float(st.t_s[same[-1]])
+    answered = same[st.outcome[same] != 0]
+    end_s = float(st.t_s[answered[0]] if answered.size else st.t_s[same[-1]])
     force_idx = same[(st.phase[same] == Phase.FORCE) | (st.phase[same] == Phase.HOLDING)]
     switch_s = float(st.t_s[force_idx[0]]) if force_idx.size else math.nan
-    return Stages(grasp_id, start_s, switch_s, end_s)
+    return Stages(grasp_id, start_s, switch_s, end_s, float(st.t_s[same[-1]]))
 
 
 def _window(t_s: np.ndarray, lo: float, hi: float, include_hi: bool = False) -> np.ndarray:
@@ -181,6 +188,7 @@ def analyze_series(series: GraspSeries, voltage_limit_v: float = VOLTAGE_LIMIT_V
                        if slast.size and math.isfinite(force_sp) else math.nan)
 
     outcome_code = int(st.outcome[np.flatnonzero(in_grasp)[-1]])
+    hold = _hold_figures(series, stages)
     return GraspMetrics(
         bag=str(series.path), grasp_id=stages.grasp_id, outcome=enum_name(Outcome, outcome_code),
         truncated=series.truncated, grasp_start_s=t0, grasp_end_s=t_end,
@@ -191,7 +199,26 @@ def analyze_series(series: GraspSeries, voltage_limit_v: float = VOLTAGE_LIMIT_V
         force_rms_n=f_rms, force_overshoot_pct=f_os, force_settling_s=f_settle,
         peak_contact_force_n=peak, peak_force_ratio=ratio, max_abs_voltage_v=vmax,
         time_at_voltage_limit_s=t_lim, final_position_error_m=final_pos_err,
-        final_force_error_n=final_force_err)
+        final_force_error_n=final_force_err, **hold)
+
+
+def _hold_figures(series: GraspSeries, stages: Stages) -> dict:
+    """What happened after the answer: the final outcome, the slip, the loss."""
+    st = series.status
+    same = np.flatnonzero((st.grasp_id == stages.grasp_id) & (st.t_s >= stages.start_s))
+    final = enum_name(Outcome, int(st.outcome[same[-1]])) if same.size else ''
+    last_tick_s = float(series.joint.t_s[-1]) if series.joint.t_s.size else stages.last_s
+    lost = same[(st.outcome[same] == Outcome.OBJECT_LOST) & (st.t_s[same] > stages.end_s)]
+    figures = {'final_outcome': final, 'hold_s': max(0.0, last_tick_s - stages.end_s),
+               'loss_detected_s': float(st.t_s[lost[0]] - stages.end_s) if lost.size
+               else math.nan}
+    obj = series.objects
+    if obj is not None and obj.t_s.size:
+        figures['max_slip_m'] = float(np.max(obj.slip_m))
+        gone = np.flatnonzero(obj.state == HoldState.LOST)
+        if gone.size:
+            figures['lost_at_s'] = float(obj.t_s[gone[0]] - stages.end_s)
+    return figures
 
 
 # --- output -----------------------------------------------------------------------------------
@@ -217,7 +244,10 @@ def to_csv(rows: list[GraspMetrics]) -> str:
     return buf.getvalue()
 
 
-def _cell(value) -> str:
+def format_cell(value) -> str:
+    """One metric as a table shows it: yes/no, '-' for none or NaN, 'not settled' for inf."""
+    if value is None:
+        return ''
     if isinstance(value, bool):
         return 'yes' if value else 'no'
     if isinstance(value, float):
@@ -235,7 +265,7 @@ def to_table(rows: list[GraspMetrics]) -> str:
         return ''
     fields = [f for f in asdict(rows[0]) if f != 'bag']
     header = ['metric'] + [f'bag {i + 1}' for i in range(len(rows))]
-    body = [[f] + [_cell(getattr(r, f)) for r in rows] for f in fields]
+    body = [[f] + [format_cell(getattr(r, f)) for r in rows] for f in fields]
     widths = [max(len(line[c]) for line in [header] + body) for c in range(len(header))]
     out = [f'bag {i + 1}: {r.bag}' for i, r in enumerate(rows)]
     out.append('  '.join(h.ljust(w) for h, w in zip(header, widths)))
@@ -269,6 +299,9 @@ def plot(series_list: list[GraspSeries], metrics: list[GraspMetrics], path: str,
             if math.isfinite(m.switch_time_s):
                 ax.axvspan(t_sw - t0, m.grasp_end_s - t0, color='tab:orange', alpha=0.10,
                            label='force stage' if r == 0 else None)
+            if m.hold_s > 0.0:
+                ax.axvspan(m.grasp_end_s - t0, m.grasp_end_s - t0 + m.hold_s, color='tab:green',
+                           alpha=0.08, label='hold after the answer' if r == 0 else None)
             if len(t) and r == 2:      # held over the interval ending at each stamp
                 ax.step(t - t0, y, where='pre', lw=1.2, color='k')
             elif len(t):
@@ -281,7 +314,9 @@ def plot(series_list: list[GraspSeries], metrics: list[GraspMetrics], path: str,
             if col == 0:
                 ax.set_ylabel(label)
             ax.grid(True, alpha=0.3)
-        axes[0][col].set_title(f'{s.path.name}\n{m.outcome}', fontsize=9)
+        final = f' -> {m.final_outcome}' if m.final_outcome and m.final_outcome != m.outcome \
+            else ''
+        axes[0][col].set_title(f'{s.path.name}\n{m.outcome}{final}', fontsize=9)
         axes[0][col].legend(fontsize=7, loc='best')
         axes[3][col].set_xlabel('time from grasp start (s)')
     fig.tight_layout()
@@ -301,6 +336,9 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument('--plot', metavar='FILE.png', help='also write a Fig.-8-like plot')
     parser.add_argument('--voltage-limit', type=float, default=VOLTAGE_LIMIT_V, metavar='V',
                         help='armature voltage limit for the time-at-limit figure (default 24)')
+    parser.add_argument('--namespace', default=None,
+                        help='the gripper to analyse when a bag holds several (default: the '
+                             'one recorded)')
     return parser
 
 
@@ -319,7 +357,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     series_list, rows = [], []
     for path in args.bags:
         try:
-            series = load_grasp_series(path)
+            series = load_grasp_series(path, args.namespace)
             rows.append(analyze_series(series, args.voltage_limit))
             series_list.append(series)
         except BagError as exc:

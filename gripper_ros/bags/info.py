@@ -10,10 +10,8 @@ import datetime as dt
 import sys
 from typing import Any, Sequence
 
-from gripper_ros.bags.reader import (
-    EXIT_ERROR, EXIT_TRUNCATED, TOPIC_STATUS, Bag, BagError, Controller, Outcome, Phase,
-    SwitchCriterion, enum_name, read_bag,
-)
+from gripper_ros.bags.reader import Bag, BagError, EXIT_ERROR, EXIT_TRUNCATED, read_bag
+from gripper_ros.wire import Controller, enum_name, Outcome, Phase, SwitchCriterion, TOPIC_STATUS
 
 PROG = 'bag_info'
 _LABEL_WIDTH = 19
@@ -53,7 +51,7 @@ def _last_status(bag: Bag):
     """Last SupervisorStatus in the bag (the grasp's final decision), or None."""
     last = None
     for raw in bag.messages:
-        if raw.topic == TOPIC_STATUS:
+        if raw.topic.endswith('/' + TOPIC_STATUS):
             last = raw
     if last is None:
         return None
@@ -67,6 +65,8 @@ def grasp_lines(bag: Bag) -> list[str]:
     """Grasp request/outcome from custom_data and the last supervisor status."""
     lines = []
     for key, value in bag.custom_data_parsed().items():
+        if key == 'config' and isinstance(value, dict):
+            value = f'{len(value)} sections ({", ".join(value)}), as the graph used them'
         lines.append(_line(f'{key}', _format_value(value)))
     status = _last_status(bag)
     if status is not None:

@@ -14,22 +14,19 @@ import enum
 import functools
 import json
 import os
+from pathlib import Path
 import shutil
 import threading
-import time
-from pathlib import Path
 from typing import Any, Callable, Mapping
 
-import yaml
+from gripper_ros.bags.reader import CUSTOM_DATA_RECORD
+from gripper_ros.bags.schema import import_message_class, message_definition, type_hash_from_share
+from gripper_ros.bags.series import GRASP_TOPICS
 from mcap.writer import CompressionType, Writer
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
-
-from gripper_ros.bags.reader import (
-    CUSTOM_DATA_RECORD, GRASP_TOPICS, import_message_class, message_definition,
-    type_hash_from_share,
-)
+import yaml
 
 ROS_DISTRO = 'jazzy'
 BAG_VERSION = 9
@@ -108,9 +105,9 @@ class BagRecorder:
     ``flush_every_s`` seconds when something is pending. A killed process therefore loses at most
     the last ``flush_every_messages - 1`` messages, and at most those received in the last
     ``flush_every_s`` seconds of wall time when the executor is running; everything before reads
-    back with ``gripper_ros.bags.reader.read_bag`` (flagged truncated). No fsync: a power cut can lose
-    more. ``close()`` (also on context-manager exit, even after an exception, and at interpreter
-    exit) writes the summary, the ``rosbag2`` record and ``metadata.yaml``.
+    back with ``gripper_ros.bags.reader.read_bag`` (flagged truncated). No fsync: a power cut
+    can lose more. ``close()`` (also on context-manager exit, even after an exception, and at
+    interpreter exit) writes the summary, the ``rosbag2`` record and ``metadata.yaml``.
     """
 
     def __init__(self, node: Node, bag_dir: str | os.PathLike,
@@ -155,10 +152,12 @@ class BagRecorder:
                             for t, d in definitions.items()}
         self._channel_ids: dict[str, int] = {}
         self._topic_meta: dict[str, dict] = {}
-        self._counts = {topic: 0 for topic in self._topics}
+        self._counts = dict.fromkeys(self._topics, 0)
         self._first_ns: int | None = None
         self._last_ns: int | None = None
         self._pending = 0
+        self._total = 0                         # messages handed to the writer
+        self._readable = 0                      # of those, in chunks written to the file
         if custom_data:
             self.set_custom_data(custom_data)
 
@@ -182,10 +181,6 @@ class BagRecorder:
         return self._bag_dir
 
     @property
-    def mcap_path(self) -> Path:
-        return self._mcap_path
-
-    @property
     def counts(self) -> dict[str, int]:
         """Messages written per topic so far."""
         with self._lock:
@@ -195,6 +190,15 @@ class BagRecorder:
     def message_count(self) -> int:
         with self._lock:
             return sum(self._counts.values())
+
+    @property
+    def readable_count(self) -> int:
+        """Messages in chunks already written to the file.
+
+        What a reader gets after a crash or a full disk (the rest was still buffered).
+        """
+        with self._lock:
+            return self._readable
 
     @property
     def closed(self) -> bool:
@@ -213,15 +217,12 @@ class BagRecorder:
             self._writer.add_metadata(CUSTOM_DATA_RECORD, dict(self._custom_data))
             self._flush_locked()
 
-    def write(self, topic: str, data: bytes) -> None:
-        """Record one serialized message received on ``topic`` (for subscribe=False)."""
-        self._on_message(topic, data)
+    def write(self, topic: str, data: bytes, t_ns: int | None = None) -> None:
+        """Record one serialized message received on ``topic`` (for subscribe=False).
 
-    def matched_publishers(self) -> dict[str, int]:
-        """Per topic, how many publishers this recorder's subscription has matched (reader side:
-        a volatile reader drops what a writer sent before the reader matched it)."""
-        return {topic: sub.get_publisher_count()
-                for topic, sub in zip(self._topics, self._subscriptions)}
+        ``t_ns`` is its log time (default: now, by the time source).
+        """
+        self._on_message(topic, data, None, t_ns)
 
     def flush(self) -> None:
         """Write everything received so far to the file (ends the current chunk)."""
@@ -281,8 +282,10 @@ class BagRecorder:
 
     # --- internals ----------------------------------------------------------------------------
 
-    def _on_message(self, topic: str, data: bytes, info: Any = None) -> None:
-        t_ns = int(self._time_source())
+    def _on_message(self, topic: str, data: bytes, info: Any = None,
+                    t_ns: int | None = None) -> None:
+        if t_ns is None:
+            t_ns = int(self._time_source())
         with self._lock:
             if self._closed:
                 return
@@ -290,13 +293,19 @@ class BagRecorder:
                 publish_ns = int(info.get('source_timestamp', t_ns))
             else:
                 publish_ns = t_ns
-            channel_id = self._channel_locked(topic)
-            self._writer.add_message(channel_id, log_time=t_ns, data=bytes(data),
-                                     publish_time=publish_ns,
-                                     sequence=self._counts[topic] & 0xFFFFFFFF)
-            self._counts[topic] += 1
-            self._first_ns = t_ns if self._first_ns is None else min(self._first_ns, t_ns)
-            self._last_ns = t_ns if self._last_ns is None else max(self._last_ns, t_ns)
+            channel_id = self._channel_ids.get(topic)
+            if channel_id is None:
+                channel_id = self._channel_locked(topic)
+            count = self._counts[topic]
+            self._writer.add_message(channel_id, t_ns, data, publish_ns, count & 0xFFFFFFFF)
+            self._counts[topic] = count + 1
+            self._total += 1
+            if self._first_ns is None:
+                self._first_ns = self._last_ns = t_ns
+            elif t_ns < self._first_ns:
+                self._first_ns = t_ns
+            elif t_ns > self._last_ns:
+                self._last_ns = t_ns
             self._pending += 1
             if self._pending >= self._flush_every_messages:
                 self._flush_locked()
@@ -309,6 +318,7 @@ class BagRecorder:
     def _flush_locked(self) -> None:
         self._writer.flush()
         self._pending = 0
+        self._readable = self._total
 
     def _publisher_qos_and_hash(self, topic: str, msgtype: str) -> tuple[list, str]:
         """Offered QoS profiles of the current publishers and the type hash (rosbag2 does so)."""
@@ -367,8 +377,3 @@ class BagRecorder:
             'custom_data': dict(self._custom_data),
             'ros_distro': ROS_DISTRO,
         }
-
-
-def wall_time_source() -> int:
-    """Wall-clock ns (for recordings outside the simulated graph)."""
-    return time.time_ns()

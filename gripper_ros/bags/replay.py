@@ -7,17 +7,24 @@ from the bag's time so nodes with ``use_sim_time`` follow the replay.
 from __future__ import annotations
 
 import argparse
+from dataclasses import dataclass, field
 import math
 import sys
 import threading
 import time
-from dataclasses import dataclass, field
 from typing import Callable, Sequence
 
 from gripper_ros.bags.reader import (
-    EXIT_ERROR, EXIT_TRUNCATED, TOPIC_CLOCK, Bag, BagError, MissingTopicsError, RawMessage,
-    import_message_class, read_bag,
+    Bag,
+    BagError,
+    EXIT_ERROR,
+    EXIT_TRUNCATED,
+    MissingTopicsError,
+    RawMessage,
+    read_bag,
 )
+from gripper_ros.bags.schema import import_message_class
+from gripper_ros.wire import TOPIC_CLOCK
 
 PROG = 'bag_replay'
 DEFAULT_DEPTH = 1000
@@ -53,7 +60,7 @@ def parse_remap(items: Sequence[str]) -> dict[str, str]:
 
 
 def select_messages(bag: Bag, options: ReplayOptions) -> list[RawMessage]:
-    """The messages to replay, in recorded order; raises BagError for unknown topics."""
+    """Select the messages to replay, in recorded order; BagError for unknown topics."""
     if options.topics:
         missing = [t for t in options.topics if t not in bag.topics]
         if missing:
@@ -75,7 +82,7 @@ def select_messages(bag: Bag, options: ReplayOptions) -> list[RawMessage]:
 
 
 def _qos_for(bag: Bag, topic: str):
-    """Reliability/durability as offered by the recorded publishers (depth from the bag or 1000)."""
+    """Offer the recorded publishers' reliability/durability (depth from the bag, or 1000)."""
     from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
     profiles = bag.topics[topic].offered_qos_profiles or [{}]
     first = profiles[0] if isinstance(profiles[0], dict) else {}
@@ -130,7 +137,7 @@ class BagPlayer:
 
     def play(self, stop: threading.Event | None = None,
              progress: Callable[[str], None] | None = None) -> int:
-        """Replay (looping if asked) until done or ``stop`` is set; returns messages published."""
+        """Publish (looping if asked) until done or ``stop`` is set; the count published."""
         opts = self._options
         stop = stop or threading.Event()
         if opts.wait_for_subscribers > 0:
@@ -196,14 +203,17 @@ def resolve_classes(bag: Bag, topics: set[str]) -> dict[str, type]:
 
 
 def resimulate(bag: Bag | str, config_path: str | None = None, **kwargs):
-    """Re-simulation mode (``--resimulate [CONFIG.yaml]``): feed the bag's recorded measurements
-    through the controllers built from CONFIG (None/'' = the installed default), tick by tick as
-    the controller nodes answer them, and compare with the recorded commands (open loop: the
-    plant is not re-run). Returns a :class:`gripper_ros.bags.resimulate.ResimulationReport`.
+    """Re-simulate the bag open loop (``--resimulate [CONFIG.yaml]``).
+
+    Feed the bag's recorded measurements through the controllers built from CONFIG (None/'' =
+    the installed default), tick by tick as the controller nodes answer them, and compare with
+    the recorded commands (open loop: the plant is not re-run). Returns a
+    :class:`gripper_ros.bags.resimulate.ResimulationReport`.
 
     Raises BagError (one line) for an unusable bag, ConfigError (one line) for an unusable
     configuration. ``kwargs``: ``position_controller``, ``force_controller``,
-    ``approach_force_margin``, ``keep_ticks`` (see :func:`gripper_ros.bags.resimulate.resimulate_bag`).
+    ``approach_force_margin``, ``keep_ticks`` (see
+    :func:`gripper_ros.bags.resimulate.resimulate_bag`).
     """
     from gripper_ros.bags.resimulate import resimulate_bag
     return resimulate_bag(bag, config_path, **kwargs)
@@ -248,6 +258,22 @@ def build_parser() -> argparse.ArgumentParser:
                        help='force controller cap before contact (default: as recorded, '
                             'else 1.0; 0 = off)')
     resim.add_argument('--json', action='store_true', help='print the comparison as JSON')
+    loop = parser.add_argument_group(
+        'closed-loop re-run (what-if; with --resimulate --closed-loop; nothing is published)',
+        "Grasp again without ROS (the graph's plant, supervisor and stages, tick for tick) with "
+        'the recorded request, object, controllers and configuration, changed as asked, and '
+        'show the figures recorded, re-run and their difference. Bad input: one line, exit 2.')
+    loop.add_argument('--closed-loop', action='store_true',
+                      help='re-run the grasp in closed loop (the plant answers new commands)')
+    loop.add_argument('--config', metavar='FILE', default=None,
+                      help='start from this config file instead of the recorded configuration')
+    loop.add_argument('--set', action='append', default=[], metavar='SECTION.KEY=VALUE',
+                      help='change one config value (repeatable), e.g. '
+                           'position_control.mpc_pd.kc=900')
+    loop.add_argument('--sweep', default=None, metavar='SECTION.KEY=V1,V2,...',
+                      help='re-run once per value and print one row per value')
+    loop.add_argument('--plot', default=None, metavar='FILE.png',
+                      help='draw recorded and re-run position, force, motor and FSR voltage')
     return parser
 
 
@@ -257,7 +283,7 @@ def _fail(message: str, code: int = EXIT_ERROR) -> None:
 
 
 def options_from_args(args: argparse.Namespace) -> ReplayOptions:
-    """Validated options; ValueError with a one-line reason."""
+    """Validate the replay options; ValueError with a one-line reason."""
     for name, value in (('--rate', args.rate), ('--start-offset', args.start_offset),
                         ('--delay', args.delay)):
         if not math.isfinite(value):
@@ -308,10 +334,65 @@ def _run_resimulation(args: argparse.Namespace) -> int:
     return 0
 
 
+def _run_closed_loop(args: argparse.Namespace) -> int:
+    """Re-run the bag's grasp in closed loop and print the comparison.
+
+    Exit 0 when it ran; 2 on bad input (the bag, an option, a key or value; one line on
+    stderr); 3 when the bag was truncated (the recorded figures cover the part recovered).
+    """
+    from gripper_ros.bags import rerun
+    from gripper_ros.core.config import ConfigError
+    if args.resimulate and args.config and args.resimulate != args.config:
+        _fail('give the configuration once: --resimulate CONFIG.yaml or --config FILE', code=2)
+    if args.plot and not args.plot.lower().endswith('.png'):
+        _fail(f'--plot needs a .png file name, got {args.plot!r}', code=2)
+    margin = args.approach_force_margin
+    if margin is not None and not (math.isfinite(margin) and margin >= 0.0):
+        _fail('--approach-force-margin must be finite and >= 0', code=2)
+    try:
+        settings = [rerun.parse_assignment(item) for item in args.set]
+        sweep = rerun.parse_sweep(args.sweep) if args.sweep else None
+        changes = rerun.Changes(args.config or args.resimulate or None, settings,
+                                args.position_controller, args.force_controller, margin)
+        result = rerun.whatif(args.bag, changes, sweep)
+    except (ConfigError, BagError) as exc:
+        _fail(str(exc), code=2)
+    if sweep is None:
+        print(rerun.to_json(result) if args.json else rerun.to_table(result))
+    else:
+        print(rerun.sweep_json(result) if args.json else rerun.sweep_table(result))
+    if args.plot:
+        try:
+            rerun.plot(result, args.plot)
+        except OSError as exc:
+            _fail(f'cannot write {args.plot}: {exc.strerror or exc}', code=2)
+        print(f'{PROG}: figure: {args.plot}', file=sys.stderr)
+    if result.record.truncated:
+        series = result.record.series
+        print(f'{PROG}: warning: {series.path}: truncated ({series.damage}); the recorded '
+              f'figures cover the part recovered', file=sys.stderr)
+        sys.exit(EXIT_TRUNCATED)
+    return 0
+
+
+CLOSED_LOOP_OPTIONS = ('config', 'sweep', 'plot')
+
+
 def main(argv: Sequence[str] | None = None) -> int:
-    """Exit 0; 1 on bad input (one line on stderr); 3 when the bag was truncated (what was
-    recovered is replayed). ``--resimulate``: see :func:`_run_resimulation`."""
+    """Replay a bag, or re-simulate it (open or closed loop).
+
+    Exit 0; 1 on bad input (one line on stderr); 3 when the bag was truncated (what was
+    recovered is replayed). ``--resimulate``: see :func:`_run_resimulation`;
+    ``--resimulate --closed-loop``: see :func:`_run_closed_loop`.
+    """
     args = build_parser().parse_args(argv)
+    if args.closed_loop:
+        return _run_closed_loop(args)
+    given = [f'--{name}' for name in CLOSED_LOOP_OPTIONS if getattr(args, name) is not None]
+    if args.set:
+        given.append('--set')
+    if given:
+        _fail(f'{", ".join(given)} only apply to --resimulate --closed-loop')
     if args.resimulate is not None:
         return _run_resimulation(args)
     if args.json:

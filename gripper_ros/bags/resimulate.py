@@ -3,16 +3,17 @@ configuration, tick by tick exactly as the controller nodes answer them, command
 
 ``bag_replay BAG --resimulate [CONFIG.yaml]`` (or :func:`resimulate_bag`):
 
-1. every ``/gripper/supervisor/status`` of the bag, in recorded order, goes to both controllers
-   (:class:`gripper_ros.core.stages.LockstepAnswerer`, the code the nodes run);
-2. the controller the status names active answers it with the measurement of the same stamp:
-   ``/gripper/joint_states`` position for the position controller, ``/gripper/force_sensor``
-   ``force_n`` for the force controller. The first tick of a grasp is stamped with the plant
-   sample published *before* the recording started, so it has no measurement in the bag; the
-   supervisor's copy of that very measurement in the status (``position_m`` / ``force_n``) is
-   used instead (counted as ``measurements_from_status``);
-3. each answer is compared with the recorded ``/gripper/motor_command`` of the same
-   (source, grasp, stamp).
+1. every stage reference of the bag (``<ns>/loop/position_reference`` and
+   ``<ns>/loop/force_reference``, each with its tick's measurement), in recorded order, goes to
+   the stage it names (:class:`gripper_ros.core.lockstep.StageSide`, the code the nodes run);
+2. each answer is compared with the recorded ``<ns>/loop/motor_command`` of the same
+   (source, stage, stamp).
+
+Bags recorded before the lockstep protocol carry a status per tick and the measurements on
+their own topics; their references are rebuilt from those (a new stage whenever the active
+controller or the grasp changed, as those controllers restarted), and a tick whose measurement
+is not in the bag (the first of a grasp) uses the supervisor's copy in the status (counted as
+``measurements_from_status``).
 
 OPEN LOOP: the plant is not re-run. The measurements are the recorded ones whatever the
 re-simulated controller commands, and the supervisor's decisions (switch tick, contact, seed
@@ -33,22 +34,21 @@ from typing import Any
 
 import yaml
 
-from gripper_ros.bags.reader import (
-    TOPIC_FORCE_SENSOR, TOPIC_JOINT_STATES, TOPIC_MOTOR_COMMAND, TOPIC_STATUS, Bag, BagError,
-    open_bag,
-)
+from gripper_ros.bags.reader import Bag, BagError, open_bag
+from gripper_ros.bags.series import LEGACY_NAMESPACE, bag_namespace
 from gripper_ros.core.config import ConfigError, GripperConfig, default_config_path, parse_config
+from gripper_ros.core.controllers import ForceControllerKind, PositionControllerKind
+from gripper_ros.core.lockstep import StageSide
 from gripper_ros.core.stages import (
     DEFAULT_APPROACH_FORCE_MARGIN, DEFAULT_FORCE_CONTROLLER, DEFAULT_POSITION_CONTROLLER,
-    SOURCE_FORCE, SOURCE_POSITION, ForceStageController, LockstepAnswerer,
-    PositionStageController,
+    SOURCE_FORCE, SOURCE_POSITION, ForceStageController, PositionStageController, Reference,
 )
-from gripper_ros.core.controllers import ForceControllerKind, PositionControllerKind
+from gripper_ros.wire import (COMMAND_LAYOUT, REFERENCE_LAYOUT, TOPIC_FORCE_REFERENCE,
+                              TOPIC_MOTOR_COMMAND, TOPIC_POSITION_REFERENCE, qualified)
 
 OPEN_LOOP_NOTE = ('open loop: the recorded measurements and supervisor decisions are replayed; '
                   'the plant is NOT re-run, so they do not respond to changed commands')
 STAGE_NAMES = {SOURCE_POSITION: 'position', SOURCE_FORCE: 'force'}
-REQUIRED_TOPICS = (TOPIC_STATUS, TOPIC_MOTOR_COMMAND, TOPIC_JOINT_STATES, TOPIC_FORCE_SENSOR)
 
 
 class NothingToResimulateError(BagError):
@@ -198,67 +198,35 @@ def resimulate_bag(bag: Bag | str | os.PathLike, config: GripperConfig | str | o
     position, force = build_stages(config, position_controller, force_controller,
                                    approach_force_margin)
     bag = open_bag(bag)
-    bag.require_topics(REQUIRED_TOPICS)
-
-    joint_at: dict[int, float] = {}
-    force_at: dict[int, float] = {}
-    statuses: list = []
-    recorded: dict[tuple[int, int, int], Any] = {}
-    recorded_order: dict[int, list[tuple[int, int, int]]] = {SOURCE_POSITION: [],
-                                                              SOURCE_FORCE: []}
-    for raw in bag.messages:
-        if raw.topic == TOPIC_JOINT_STATES:
-            m = bag.decode(raw)
-            joint_at[_stamp_ns(m)] = m.position[0] if len(m.position) else math.nan
-        elif raw.topic == TOPIC_FORCE_SENSOR:
-            m = bag.decode(raw)
-            force_at[_stamp_ns(m)] = m.force_n
-        elif raw.topic == TOPIC_STATUS:
-            statuses.append(bag.decode(raw))
-        elif raw.topic == TOPIC_MOTOR_COMMAND:
-            m = bag.decode(raw)
-            key = (int(m.source), int(m.grasp_id), _stamp_ns(m))
-            if key not in recorded and int(m.source) in recorded_order:
-                recorded_order[int(m.source)].append(key)
-            recorded[key] = m
-
+    fmt, ns = bag_namespace(bag)
+    refs, recorded, recorded_order, from_status, status_ticks = (
+        _lockstep_ticks(bag, ns) if fmt == 2 else _legacy_ticks(bag))
     stages = {SOURCE_POSITION: position, SOURCE_FORCE: force}
-    answerers = {src: LockstepAnswerer(stage) for src, stage in stages.items()}
-    measurements = {SOURCE_POSITION: (joint_at, 'position_m'), SOURCE_FORCE: (force_at, 'force_n')}
+    sides = {src: StageSide(stage) for src, stage in stages.items()}
     answers: dict[tuple[int, int, int], Any] = {}
     nonfinite = {SOURCE_POSITION: 0, SOURCE_FORCE: 0}
-    from_status = 0
     grasp_ids: list[int] = []
-    for status in statuses:
-        for answerer in answerers.values():
-            answerer.on_status(status)
-        src = int(status.active_controller)
-        if src not in answerers:
+    for ref in refs:
+        side = sides.get(int(ref.controller))
+        if side is None:
             continue
-        stamp = _stamp_ns(status)
-        table, status_field = measurements[src]
-        if stamp in table:
-            value = table[stamp]
-        else:
-            value = getattr(status, status_field)
-            from_status += 1
-        answer = answerers[src].answer(status, stamp, value)
-        if answer is None:
+        cmd = side.answer(ref)
+        if cmd is None:
             continue
-        if int(status.grasp_id) not in grasp_ids:
-            grasp_ids.append(int(status.grasp_id))
-        if not answer.finite:
-            nonfinite[src] += 1
-        answers[(src, int(status.grasp_id), stamp)] = answer
+        if int(ref.grasp_id) not in grasp_ids:
+            grasp_ids.append(int(ref.grasp_id))
+        if not cmd.finite:
+            nonfinite[int(ref.controller)] += 1
+        answers[(int(ref.controller), int(ref.stage_id), int(ref.stamp_ns))] = cmd
     if not answers:
-        raise NothingToResimulateError(f'{bag.path}: no supervisor status names a controller '
-                                       f'active (no grasp tick to re-simulate)')
+        raise NothingToResimulateError(f'{bag.path}: no supervisor decision names a controller '
+                                       f'(no grasp tick to re-simulate)')
 
     report = ResimulationReport(
         bag=str(bag.path), config=str(config.source),
         position_controller=position.kind.value, force_controller=force.kind.value,
         approach_force_margin=force.approach_margin, grasp_ids=grasp_ids,
-        status_ticks=len(statuses), measurements_from_status=from_status,
+        status_ticks=status_ticks, measurements_from_status=from_status,
         truncated=bag.truncated)
     # A truncated bag may end with a tick whose status and measurement were written but whose
     # command was cut off: answers past the last recorded command are beyond the damage.
@@ -302,7 +270,7 @@ def resimulate_bag(bag: Bag | str | os.PathLike, config: GripperConfig | str | o
                 cmp.max_abs_d_inner = max(cmp.max_abs_d_inner,
                                           abs(d_inner) if math.isfinite(d_inner) else math.inf)
             if keep_ticks:
-                report.ticks.append({'stage': cmp.stage, 'grasp_id': key[1], 't_s': key[2] * 1e-9,
+                report.ticks.append({'stage': cmp.stage, 'stage_id': key[1], 't_s': key[2] * 1e-9,
                                      'recorded_v': rec_v, 'resimulated_v': sim_v,
                                      'recorded_inner': float(rec.inner_setpoint),
                                      'resimulated_inner': float(sim.inner_setpoint)})
@@ -311,6 +279,103 @@ def resimulate_bag(bag: Bag | str | os.PathLike, config: GripperConfig | str | o
         cmp.rms_dv_v = math.sqrt(sq_sum / cmp.compared) if cmp.compared else 0.0
         report.stages[cmp.stage] = cmp
     return report
+
+
+def _lockstep_ticks(bag: Bag, ns: str):
+    """References and recorded commands of a lockstep bag (repeats of a tick once)."""
+    ref_topics = {qualified(ns, TOPIC_POSITION_REFERENCE), qualified(ns, TOPIC_FORCE_REFERENCE)}
+    cmd_topic = qualified(ns, TOPIC_MOTOR_COMMAND)
+    bag.require_topics([cmd_topic])
+    refs, seen = [], set()
+    recorded: dict[tuple[int, int, int], Any] = {}
+    order: dict[int, list] = {SOURCE_POSITION: [], SOURCE_FORCE: []}
+    for raw in bag.messages:
+        if raw.topic in ref_topics:
+            values = REFERENCE_LAYOUT.unpack(raw.data) or tuple(   # older types: 0 limits
+                getattr(bag.decode(raw), n, 0.0) for n in REFERENCE_LAYOUT.fields)
+            ref = Reference._make(values)
+            key = (ref.stage_id, ref.stamp_ns)
+            if key not in seen:
+                seen.add(key)
+                refs.append(ref)
+        elif raw.topic == cmd_topic:
+            values = COMMAND_LAYOUT.unpack(raw.data) or tuple(
+                getattr(bag.decode(raw), n) for n in COMMAND_LAYOUT.fields)
+            c = dict(zip(COMMAND_LAYOUT.fields, values))
+            cmd = _RecordedCommand(c['source'], c['stage_id'], c['stamp_ns'], c['voltage_v'],
+                                   c['hold_s'], c['inner_setpoint'])
+            key = (int(cmd.source), int(cmd.stage_id), int(cmd.stamp_ns))
+            if key not in recorded and cmd.source in order:
+                order[cmd.source].append(key)
+                recorded[key] = cmd
+    if not refs:
+        raise NothingToResimulateError(f'{bag.path}: no stage reference in the bag')
+    refs.sort(key=lambda r: (r.stamp_ns, r.stage_id))        # tick order, whatever DDS did
+    for source in order:
+        order[source].sort(key=lambda key: (key[2], key[1]))
+    return refs, recorded, order, 0, len(refs)
+
+
+@dataclass(frozen=True)
+class _RecordedCommand:
+    source: int
+    stage_id: int
+    stamp_ns: int
+    voltage_v: float
+    hold_s: float
+    inner_setpoint: float
+
+
+def _legacy_ticks(bag: Bag):
+    """References rebuilt from a bag of the earlier protocol, and its recorded commands."""
+    topic = {name: qualified(LEGACY_NAMESPACE, name) for name in
+             ('joint_states', 'force_sensor', 'supervisor/status', 'motor_command')}
+    bag.require_topics(list(topic.values()))
+    joint_at: dict[int, tuple[float, float]] = {}
+    force_at: dict[int, float] = {}
+    statuses, commands = [], []
+    for raw in bag.messages:
+        if raw.topic == topic['joint_states']:
+            m = bag.decode(raw)
+            joint_at[_stamp_ns(m)] = (m.position[0] if len(m.position) else math.nan,
+                                      m.velocity[0] if len(m.velocity) else 0.0)
+        elif raw.topic == topic['force_sensor']:
+            m = bag.decode(raw)
+            force_at[_stamp_ns(m)] = m.force_n
+        elif raw.topic == topic['supervisor/status']:
+            statuses.append(bag.decode(raw))
+        elif raw.topic == topic['motor_command']:
+            commands.append(bag.decode(raw))
+    refs, stage_of, from_status = [], {}, 0
+    stage, current = 0, None
+    for s in statuses:
+        stamp, active = _stamp_ns(s), int(s.active_controller)
+        if (int(s.grasp_id), active) != current:
+            current = (int(s.grasp_id), active)
+            stage += 1
+        if active not in (SOURCE_POSITION, SOURCE_FORCE):
+            continue
+        stage_of[(active, int(s.grasp_id), stamp)] = stage
+        position, velocity = joint_at.get(stamp, (s.position_m, 0.0))
+        force_n = force_at.get(stamp, s.force_n)
+        if stamp not in (joint_at if active == SOURCE_POSITION else force_at):
+            from_status += 1                    # the first tick: published before recording
+        refs.append(Reference(stamp, int(s.grasp_id), stage, 0, int(s.phase), int(s.outcome),
+                              active, s.outcome == 0, bool(s.contact), s.position_setpoint_m,
+                              getattr(s, 'approach_setpoint_m', s.position_setpoint_m),
+                              s.force_setpoint_n, position, velocity, force_n, s.seed_voltage_v))
+    recorded: dict[tuple[int, int, int], Any] = {}
+    order: dict[int, list] = {SOURCE_POSITION: [], SOURCE_FORCE: []}
+    for m in commands:
+        stamp = _stamp_ns(m)
+        stage_id = stage_of.get((int(m.source), int(m.grasp_id), stamp), -1)
+        cmd = _RecordedCommand(int(m.source), stage_id, stamp, float(m.voltage_v),
+                               float(m.hold_s), float(m.inner_setpoint))
+        key = (cmd.source, cmd.stage_id, cmd.stamp_ns)
+        if key not in recorded and cmd.source in order:
+            order[cmd.source].append(key)
+            recorded[key] = cmd
+    return refs, recorded, order, from_status, len(statuses)
 
 
 # --- text output ------------------------------------------------------------------------------

@@ -9,6 +9,11 @@ nodes build them (:func:`gripper_ros.core.controllers.make_force_controller` /
 :func:`~gripper_ros.core.controllers.make_position_controller` from :func:`gripper_ros.core.config.
 load_config`): PI and MPC-PI (force, at the force sampling time), PD and MPC-PD (position, at
 10 ms); and a bare baseline, a Python call returning ``a * k + b``, timed the same way.
+Beside them, ``GripperPlant.step(voltage, dt)`` of the simulated plant the nodes run
+(:func:`gripper_ros.core.controllers.make_plant`): a 0.1 ms force-loop step holding a rigid and a
+compliant (1e5 N/m, 50 N s/m) object under the contact-aware force stage (and the rigid one
+lifted, 20 g held by pad friction: the hold physics included), and a 10 ms position-loop step
+of free motion under PD; there the controller runs outside the timed region.
 
 Each step is timed on its own with ``time.perf_counter_ns()`` around the call (the baseline
 carries the same timer overhead, so ``x base`` is the controller's cost in units of a trivial
@@ -42,8 +47,11 @@ def _baseline_call(a: float, b: float) -> float:
 
 
 class _Baseline:
-    """The reference: a bare Python call doing one float multiply-add (ctrl.step binds to it
-    directly, so one call, as for the controllers' bound ``step`` methods)."""
+    """The reference: a bare Python call doing one float multiply-add.
+
+    ``ctrl.step`` binds to it directly, so one call, as for the controllers' bound ``step``
+    methods.
+    """
 
     step = staticmethod(_baseline_call)
 
@@ -67,8 +75,10 @@ def _time_steps(ctrl, plant_step, setpoints, warmup: int, steps: int) -> np.ndar
 
 
 class _ContactAware:
-    """The contact-aware force stage holding a rigid object (finger at rest on the face): its
-    ``step`` also takes position and face; the one extra call is included in its figure."""
+    """The contact-aware force stage holding a rigid object (finger at rest on the face).
+
+    Its ``step`` also takes position and face; the one extra call is included in its figure.
+    """
 
     def __init__(self, ctrl, position_m: float = 0.1):
         self.step = lambda sp, y: ctrl.step(sp, y, position_m, position_m)
@@ -100,11 +110,65 @@ def _position_plant(config):
     return step
 
 
+def _time_plant_steps(plant, dt_s: float, control, setpoints, warmup: int,
+                      steps: int) -> np.ndarray:
+    """Per-call ns of plant.step(voltage, dt_s); control(setpoint, sample) runs untimed."""
+    clock = time.perf_counter_ns
+    step = plant.step
+    u = 0.0
+    out = np.empty(steps, dtype=np.int64)
+    n_sp = len(setpoints)
+    for k in range(warmup + steps):
+        t0 = clock()
+        s = step(u, dt_s)
+        t1 = clock()
+        if k >= warmup:
+            out[k - warmup] = t1 - t0
+        u = control(setpoints[(k + 1) % n_sp], s)
+    return out
+
+
+def _holding_plant(config, stiffness_n_per_m: float, damping_n_s_per_m: float,
+                   width_m: float = 0.05, lifted_mass_kg: float = 0.0):
+    """Build a plant with the finger at rest on an object, driven by the contact-aware stage.
+
+    ``lifted_mass_kg`` > 0: the object is lifted off its support at once and held by friction
+    (the hold physics runs every step).
+    """
+    from gripper_ros.core.controllers import ForceControllerKind, make_force_controller, make_plant
+    from gripper_ros.core.plant import GraspObject, Lift
+    plant = make_plant(config)
+    lift = Lift(0.0) if lifted_mass_kg > 0.0 else None
+    plant.set_object(GraspObject(width_m, stiffness_n_per_m, damping_n_s_per_m,
+                                 mass_kg=lifted_mass_kg), lift=lift)
+    plant.touch_object()
+    if lift is not None:
+        plant.begin_hold(plant.t_ns)
+    ctrl = make_force_controller(config, ForceControllerKind.CONTACT_AWARE)
+    face = plant.contact_position_m
+
+    def control(sp: float, s) -> float:
+        return ctrl.step(sp, s.force_n, s.position_m, face)
+    return plant, control
+
+
+def _free_plant(config):
+    """Build a plant with nothing between the fingers, driven by the PD position controller."""
+    from gripper_ros.core.controllers import (PositionControllerKind, make_plant,
+                                              make_position_controller)
+    plant = make_plant(config)
+    ctrl = make_position_controller(config, PositionControllerKind.PD)
+
+    def control(sp: float, s) -> float:
+        return ctrl.step(sp, s.position_m)
+    return plant, control
+
+
 def measure(steps: int = 20000, warmup: int = 2000, period: int = 2000,
             config_file: str | None = None, disable_gc: bool = False) -> dict:
     from gripper_ros.core.config import load_config
     from gripper_ros.core.controllers import (ForceControllerKind, PositionControllerKind,
-                              make_force_controller, make_position_controller)
+                                              make_force_controller, make_position_controller)
     config = load_config(config_file or None)
     f_dt = config.force.sample_time_s
     p_dt = config.position.sample_time_s
@@ -131,11 +195,17 @@ def measure(steps: int = 20000, warmup: int = 2000, period: int = 2000,
     rows = []
     try:
         for name, ctrl, plant, sps, dt in cases:
-            ns = _time_steps(ctrl, plant, sps, warmup, steps)
-            rows.append({'name': name, 'median_us': float(np.median(ns)) / 1e3,
-                         'p99_us': float(np.percentile(ns, 99)) / 1e3,
-                         'mean_us': float(ns.mean()) / 1e3, 'max_us': float(ns.max()) / 1e3,
-                         'sample_time_us': None if dt is None else dt * 1e6})
+            rows.append(_row(name, _time_steps(ctrl, plant, sps, warmup, steps), dt))
+        plant_cases = [
+            ('plant step, force, rigid', _holding_plant(config, 0.0, 0.0), f_dt, f_sp),
+            ('plant step, force, compliant', _holding_plant(config, 1e5, 50.0), f_dt, f_sp),
+            ('plant step, force, rigid, lifted',
+             _holding_plant(config, 0.0, 0.0, lifted_mass_kg=0.02), f_dt, f_sp),
+            ('plant step, position, free', _free_plant(config), p_dt, p_sp),
+        ]
+        for name, (plant, control), dt, sps in plant_cases:
+            rows.append(_row(name, _time_plant_steps(plant, dt, control, sps, warmup, steps),
+                             dt))
     finally:
         if disable_gc and was_enabled:
             gc.enable()
@@ -154,6 +224,13 @@ def measure(steps: int = 20000, warmup: int = 2000, period: int = 2000,
             'rows': rows}
 
 
+def _row(name: str, ns: np.ndarray, dt_s: float | None) -> dict:
+    return {'name': name, 'median_us': float(np.median(ns)) / 1e3,
+            'p99_us': float(np.percentile(ns, 99)) / 1e3,
+            'mean_us': float(ns.mean()) / 1e3, 'max_us': float(ns.max()) / 1e3,
+            'sample_time_us': None if dt_s is None else dt_s * 1e6}
+
+
 def format_report(rep: dict) -> str:
     lines = [f'bench_controllers: {rep["steps"]} timed steps each after {rep["warmup"]} warm-up, '
              f'setpoint alternating every {rep["period"]} steps, closed loop, gc '
@@ -170,8 +247,9 @@ def format_report(rep: dict) -> str:
                      f'{100 * r["median_of_100us"]:8.2f}% {100 * r["p99_of_100us"]:8.2f}% '
                      f'{own:>10s}')
     lines.append('x base: multiple of the baseline call (same timer overhead included); '
-                 '/100us: fraction of the paper\'s 0.1 ms force sampling time; own ts: of the '
-                 'controller\'s own sampling time (force 0.1 ms, position 10 ms). Through the '
+                 "/100us: fraction of the paper's 0.1 ms force sampling time; own ts: of the "
+                 "controller's own sampling time (force 0.1 ms, position 10 ms); plant step: "
+                 'GripperPlant.step over one such period. Through the '
                  'node graph a tick costs ~1 ms: see bench_graph.')
     return '\n'.join(lines)
 

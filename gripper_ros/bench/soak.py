@@ -117,7 +117,8 @@ class SoakReport:
 def client_worker() -> int:
     """The client side, in its own process: JSON lines in on stdin, JSON lines out on stdout.
 
-    ``{"op": "place", "width": w}`` -> /gripper/sim/set_object (open fingers);
+    ``{"op": "place", "width": w}`` -> sim/set_object (open fingers; a held object is
+    released first);
     ``{"op": "grasp", "width": w, "mass": m}`` -> /gripper/grasp (the response's fields);
     ``{"op": "check", "bag": path}`` -> the bag's message counts and simulated span;
     ``{"op": "quit"}``. The calls are those of ``grasp_client``.
@@ -136,12 +137,17 @@ def client_worker() -> int:
         out.write(json.dumps(obj) + '\n')
         out.flush()
 
+    from std_srvs.srv import Trigger
+
+    from gripper_ros.wire import (DEFAULT_NAMESPACE, SERVICE_GRASP, SERVICE_RELEASE,
+                                  SERVICE_SET_OBJECT)
     rclpy.init(args=[])
-    node = rclpy.create_node('bench_soak_client')
+    node = rclpy.create_node('bench_soak_client', namespace=DEFAULT_NAMESPACE)
     try:
-        grasp = node.create_client(Grasp, '/gripper/grasp')
-        place = node.create_client(SetObject, '/gripper/sim/set_object')
-        for client in (grasp, place):
+        grasp = node.create_client(Grasp, SERVICE_GRASP)
+        place = node.create_client(SetObject, SERVICE_SET_OBJECT)
+        release = node.create_client(Trigger, SERVICE_RELEASE)
+        for client in (grasp, place, release):
             if not client.wait_for_service(timeout_sec=30.0):
                 say({'ready': False, 'error': f'{client.srv_name} not available'})
                 return 2
@@ -152,8 +158,11 @@ def client_worker() -> int:
             if op == 'quit':
                 break
             if op == 'place':
-                r = _call(node, place, SetObject.Request(width_m=float(cmd['width']),
-                                                         open_fingers=True), 60.0)
+                request = SetObject.Request(width_m=float(cmd['width']), open_fingers=True)
+                r = _call(node, place, request, 60.0)
+                if r is not None and not r.success and 'is held' in r.message:
+                    _call(node, release, Trigger.Request(), 120.0)   # as grasp_client does
+                    r = _call(node, place, request, 60.0)
                 say({'ok': r is not None and r.success,
                      'message': 'no answer' if r is None else r.message})
             elif op == 'grasp':
@@ -246,8 +255,11 @@ def run_soak(graph, worker: _WorkerClient, objects, grasps: int, bag_root: Path,
 
     ``rows``/``marks``, when given, are filled in place, so a caller still has the grasps done
     so far when a SoakError ends the run."""
-    from gripper_ros.nodes.common import GRAPH_TOPICS, wait_until
-    graph.record_every_grasp(bag_root)
+    from gripper_ros.bags.recording import ServeRecorder
+    from gripper_ros.nodes.common import wait_until
+    from gripper_ros.wire import LOOP_TOPICS, TOPIC_TICK, qualified
+    loop = [qualified(graph.namespace, t) for t in LOOP_TOPICS]
+    recorder = ServeRecorder(graph, bag_root)
     rows = [] if rows is None else rows
     marks = {} if marks is None else marks
     marks['start'] = rss_kb()
@@ -259,9 +271,9 @@ def run_soak(graph, worker: _WorkerClient, objects, grasps: int, bag_root: Path,
                 raise SoakError(f'set_object refused: {placed.get("message")}')
         else:
             graph.set_object(width)
-        graph.wait_quiet()          # set_object's sample is published before the grasp
+        graph.wait_still()          # set_object's tick is answered before the grasp
         before = graph.published_counts()
-        n_bags = len(graph.served_bags())
+        n_bags = len(recorder.bags)
         t0 = time.perf_counter()
         if client == 'worker':
             resp = worker.ask(op='grasp', width=width, mass=mass, timeout=grasp_timeout_s,
@@ -269,19 +281,24 @@ def run_soak(graph, worker: _WorkerClient, objects, grasps: int, bag_root: Path,
         else:
             resp = _grasp_client_exe(width, mass, grasp_timeout_s + 30.0)
         wall = time.perf_counter() - t0
-        closed = wait_until(lambda: len(graph.served_bags()) > n_bags and not graph.recording, 10.0)
-        published = {t: n - before[t] for t, n in graph.published_counts().items()}
-        bags = graph.served_bags()
-        bag = bags[-1] if len(bags) > n_bags else None
+        closed = wait_until(lambda: len(recorder.bags) > n_bags and not recorder.recording,
+                            10.0)
+        # every lockstep message published from the grasp's request on (state topics are
+        # sampled on the grid of simulated time, and the request's own status precedes it)
+        published = {qualified(graph.namespace, t): n - before.get(t, 0)
+                     for t, n in graph.published_counts().items()
+                     if qualified(graph.namespace, t) in loop}
+        bag = recorder.bags[-1] if len(recorder.bags) > n_bags else None
         check = worker.ask(op='check', bag=str(bag), timeout_s=120.0) if bag and closed else \
             {'counts': {}, 'span_ns': 0, 'truncated': True}
-        recorded = {t: check['counts'].get(t, 0) for t in GRAPH_TOPICS}
+        recorded = {t: check['counts'].get(t, 0) for t in loop}
         match = closed and not check['truncated'] and recorded == published
         if bag is not None and not keep_bags:
             shutil.rmtree(bag, ignore_errors=True)
         row = GraspRow(i + 1, width, mass, bool(resp.get('success')), resp.get('outcome', '?'),
                        resp.get('message', ''), wall, rss_kb(),
-                       published.get('/gripper/joint_states', 0), published, recorded, match,
+                       published.get(qualified(graph.namespace, TOPIC_TICK), 0), published,
+                       recorded, match,
                        int(check['span_ns']), str(bag) if keep_bags else '')
         rows.append(row)
         if i + 1 == min(warmup, grasps):
@@ -290,6 +307,7 @@ def run_soak(graph, worker: _WorkerClient, objects, grasps: int, bag_root: Path,
             progress(row)
     marks.setdefault('warm', marks['start'])
     marks['end'] = rows[-1].rss_kb if rows else marks['start']
+    recorder.close()
     return rows, marks
 
 

@@ -5,7 +5,9 @@ into ROS parameter defaults. A bad file stops with a :class:`ConfigError` naming
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, fields, MISSING
+import copy
+from dataclasses import dataclass, field, fields, MISSING
+import enum
 import math
 import os
 from pathlib import Path
@@ -58,11 +60,40 @@ class PlantParams:
         """Largest steady gripping force the voltage limit allows."""
         return self.stall_force_per_volt_n * self.voltage_limit_v
 
+    @property
+    def free_speed_per_volt_mps(self) -> float:
+        """DC gain of eq. 9 times p/2pi: steady finger speed per volt in free motion."""
+        return self.torque_constant_n_m_per_a * self.travel_per_rad_m / (
+            self.damping_n_m_s_per_rad * self.resistance_ohm
+            + self.torque_constant_n_m_per_a * self.back_emf_v_s_per_rad)
+
+    @property
+    def mechanical_time_constant_s(self) -> float:
+        """Time constant of the finger's speed under a held voltage in free motion.
+
+        ``J_m / (b_m + k_t k_b / R_a)``, the armature inductance neglected.
+        """
+        return self.inertia_kg_m2 / (
+            self.damping_n_m_s_per_rad
+            + self.torque_constant_n_m_per_a * self.back_emf_v_s_per_rad / self.resistance_ohm)
+
+    @property
+    def max_free_speed_mps(self) -> float:
+        """Steady finger speed at the voltage limit in free motion (the fastest a move goes)."""
+        return self.free_speed_per_volt_mps * self.voltage_limit_v
+
 
 @dataclass(frozen=True)
 class ContactParams:
+    """Default object contact: normal (stiffness, damping) and tangential (pad friction)."""
+
     stiffness_n_per_m: float
     damping_n_s_per_m: float
+    # Defaults apply when a config file predates them.
+    static_friction: float = 0.5       # mu_s between pad and object (per pad)
+    kinetic_friction: float = 0.4      # mu_k while the object slides; <= mu_s
+    pad_length_m: float = 0.02         # the object is out once it has slid this far
+    after_lift_s: float = 0.5          # fast mode plays a lift out this long after it ends
 
 
 @dataclass(frozen=True)
@@ -96,6 +127,7 @@ class PositionControlParams:
     mpc_pd: PidGains
     mpc_pd_dmc: DmcTuning
     mpc_pd_braking_voltage_v: float     # ours: braking-governor planning voltage
+    speed_limit_pole: float = 0.5       # ours: discrete pole of the speed under a move's limit
 
 
 @dataclass(frozen=True)
@@ -130,6 +162,13 @@ class ForceControlParams:
     contact_aware: ContactForceTuning
 
 
+class ForceLaw(enum.Enum):
+    """How the grasp's force setpoint follows from mass, friction and acceleration."""
+
+    FRICTION = 'friction'   # k m (g + a) / (2 mu_s): each of the two pads holds mu_s F
+    PAPER = 'paper'         # eq. 23 as printed, mu_s m (g + a)
+
+
 @dataclass(frozen=True)
 class SupervisorParams:
     friction_coefficient: float
@@ -150,6 +189,15 @@ class SupervisorParams:
     width_tolerance_m: float = 0.0       # default +- on a request's width (Franka's epsilon)
     force_settle_horizon_s: float = 0.0  # settled: |e| + this x |dF/dt| within the band ...
     force_settle_speed_mps: float = 0.0  # ... and the finger slower than this (0: no bound)
+    force_law: ForceLaw = ForceLaw.FRICTION
+    grip_safety_factor: float = 1.5      # k of the friction law (>= 1)
+    # The move (srv/Move, control_msgs ParallelGripperCommand).
+    move_default_speed_mps: float = 0.05  # a move's speed when the request gives none
+    move_tolerance_m: float = 0.0005     # reached_goal: at rest within this of the width
+    move_rest_speed_mps: float = 0.0005  # "at rest": |finger speed| at most this
+    move_stall_force_fraction: float = 0.9  # stalled at once: at rest, pressing with this
+    # fraction of the effort limit
+    move_stall_timeout_s: float = 0.5    # stalled: at rest short of the width this long
 
 
 @dataclass(frozen=True)
@@ -161,6 +209,8 @@ class GripperConfig:
     force: ForceControlParams
     supervisor: SupervisorParams
     source: str
+    data: dict = field(default_factory=dict, compare=False, hash=False, repr=False)
+    """The mapping the values were read from (what a bag records, what re-runs start from)."""
 
 
 def default_config_path() -> Path:
@@ -207,6 +257,20 @@ def _number(section: dict, key: str, where: str, *, positive: bool = False,
     return value
 
 
+def _choice(section: dict, key: str, where: str, choices: type[enum.Enum]) -> enum.Enum:
+    name = f'{where}.{key}'
+    if key not in section:
+        raise ConfigError(f'missing key "{name}"')
+    value = section[key]
+    known = ', '.join(repr(c.value) for c in choices)
+    if not isinstance(value, str):
+        raise ConfigError(f'"{name}" must be one of {known}, got {value!r}')
+    try:
+        return choices(value)
+    except ValueError:
+        raise ConfigError(f'"{name}" must be one of {known}, got {value!r}') from None
+
+
 def _build(cls, section: dict, where: str, **rules):
     kwargs = {}
     for f in fields(cls):
@@ -214,7 +278,10 @@ def _build(cls, section: dict, where: str, **rules):
         if f.name not in section and f.default is not MISSING:
             kwargs[f.name] = f.default
             continue
-        kwargs[f.name] = _number(section, f.name, where, **opts)
+        if 'choices' in opts:
+            kwargs[f.name] = _choice(section, f.name, where, opts['choices'])
+        else:
+            kwargs[f.name] = _number(section, f.name, where, **opts)
     return cls(**kwargs)
 
 
@@ -237,7 +304,11 @@ def parse_config(data: dict, source: str = '<dict>') -> GripperConfig:
     plant = _build(PlantParams, _section(data, 'plant', source), 'plant')
     contact = _build(ContactParams, _section(data, 'contact', source), 'contact',
                      stiffness_n_per_m={'nonnegative': True},
-                     damping_n_s_per_m={'nonnegative': True})
+                     damping_n_s_per_m={'nonnegative': True},
+                     after_lift_s={'nonnegative': True})
+    if contact.kinetic_friction > contact.static_friction:
+        raise ConfigError('"contact.kinetic_friction" must be <= "contact.static_friction" '
+                          f'({contact.static_friction!r}), got {contact.kinetic_friction!r}')
     sensor = _build(ForceSensorParams, _section(data, 'force_sensor', source), 'force_sensor')
     pos = _section(data, 'position_control', source)
     mpc_pd = _section(pos, 'mpc_pd', 'position_control')
@@ -248,7 +319,10 @@ def parse_config(data: dict, source: str = '<dict>') -> GripperConfig:
         mpc_pd=_gains(pos, 'mpc_pd', 'position_control'),
         mpc_pd_dmc=_dmc(mpc_pd, 'position_control.mpc_pd'),
         mpc_pd_braking_voltage_v=_number(pos, 'mpc_pd_braking_voltage_v', 'position_control',
-                                         nonnegative=True))
+                                         nonnegative=True),
+        **({'speed_limit_pole': _number(pos, 'speed_limit_pole', 'position_control',
+                                        nonnegative=True)}
+           if 'speed_limit_pole' in pos else {}))    # older files: the dataclass default
     frc = _section(data, 'force_control', source)
     force = ForceControlParams(
         paper_sample_time_s=_number(frc, 'paper_sample_time_s', 'force_control', positive=True),
@@ -269,6 +343,12 @@ def parse_config(data: dict, source: str = '<dict>') -> GripperConfig:
     if not force.closed_loop_pole < 1.0:
         raise ConfigError('"force_control.closed_loop_pole" must be in [0, 1) for a stable loop, '
                           f'got {force.closed_loop_pole!r}')
+    speed_pole = math.exp(-position.sample_time_s / plant.mechanical_time_constant_s)
+    if not position.speed_limit_pole < speed_pole:
+        raise ConfigError('"position_control.speed_limit_pole" must be in [0, '
+                          f'{speed_pole:.6g}) (the open-loop pole of the finger speed over one '
+                          f'sample; slower than that never reaches the limit), '
+                          f'got {position.speed_limit_pole!r}')
     if position.mpc_pd_braking_voltage_v > plant.voltage_limit_v:
         raise ConfigError('"position_control.mpc_pd_braking_voltage_v" must be <= '
                           f'"plant.voltage_limit_v", got {position.mpc_pd_braking_voltage_v!r}')
@@ -278,11 +358,25 @@ def parse_config(data: dict, source: str = '<dict>') -> GripperConfig:
                  position_switch_speed_mps={'nonnegative': True},
                  width_tolerance_m={'nonnegative': True},
                  force_settle_horizon_s={'nonnegative': True},
-                 force_settle_speed_mps={'nonnegative': True})
+                 force_settle_speed_mps={'nonnegative': True},
+                 force_law={'choices': ForceLaw})
+    if not sup.grip_safety_factor >= 1.0:
+        raise ConfigError('"supervisor.grip_safety_factor" must be >= 1 (a grip that knowingly '
+                          f'holds less than the load), got {sup.grip_safety_factor!r}')
     if not sup.lost_force_fraction < 1.0:
         raise ConfigError('"supervisor.lost_force_fraction" must be in (0, 1), '
                           f'got {sup.lost_force_fraction!r}')
-    return GripperConfig(plant, contact, sensor, position, force, sup, source)
+    if not sup.move_stall_force_fraction <= 1.0:
+        raise ConfigError('"supervisor.move_stall_force_fraction" must be in (0, 1] (a force '
+                          'above the effort limit is never reached), '
+                          f'got {sup.move_stall_force_fraction!r}')
+    if not sup.move_rest_speed_mps < sup.move_default_speed_mps <= plant.max_free_speed_mps:
+        raise ConfigError('"supervisor.move_default_speed_mps" must be in '
+                          f'("supervisor.move_rest_speed_mps" = {sup.move_rest_speed_mps!r}, '
+                          f'{plant.max_free_speed_mps:.6g}] m/s (the free speed at '
+                          f'"plant.voltage_limit_v"), got {sup.move_default_speed_mps!r}')
+    return GripperConfig(plant, contact, sensor, position, force, sup, source,
+                         copy.deepcopy(data))
 
 
 def load_config(path: str | os.PathLike | None = None) -> GripperConfig:

@@ -1,36 +1,34 @@
-"""What a controller node does with one lockstep tick, without rclpy (nodes and re-simulation).
+"""What a stage controller node does with one lockstep tick, without rclpy.
 
-The position and force controller nodes are thin: they pair the supervisor's status for tick
-``t_k`` with their own measurement for ``t_k`` and publish the answer. Everything else lives
-here, so that ``bag_replay --resimulate`` (:mod:`gripper_ros.bags.resimulate`) runs the very same code
-on recorded measurements and gets bit-identical commands:
+The position and force controller nodes are thin: each takes the supervisor's
+``StageReference`` for tick ``t_k`` (it carries that tick's measurement) and publishes the
+answer. Everything else lives here, so that the headless loop (:mod:`gripper_ros.core.headless`)
+and ``bag_replay --resimulate`` run the very same code and get bit-identical commands:
 
-- :class:`PositionStageController`: MPC-PD (or PD / PID), reset from rest at the measured
-  position whenever it takes over.
-- :class:`ForceStageController`: PI (or MPC-PI), seeded bumplessly from the status'
-  ``seed_voltage_v``, its output capped before contact at ``approach_force_margin`` x F_sp /
-  (N per V) and released once the status reports contact.
-- :class:`LockstepAnswerer`: the per-tick bookkeeping of a node (answer each (grasp, stamp)
-  once, (re)activate on a new grasp or after another controller was active, hold 0 V on a
-  non-finite measurement or status number without touching the control law's state, and
-  hold 0 V on a non-finite output or a law that refuses its inputs, re-initialising the law
-  at the next good tick).
+- :class:`PositionStageController`: MPC-PD (or PD / PID), restarted from rest at the measured
+  position whenever it takes over a stage; its voltage capped at the reference's
+  ``voltage_limit_v`` (a move's effort limit) when that is set.
+- :class:`ForceStageController`: the contact-aware force stage (or the paper's PI / MPC-PI,
+  seeded bumplessly from ``seed_voltage_v`` and capped before contact at
+  ``approach_force_margin`` x F_sp / (N per V)).
+- :class:`LockstepAnswerer`: the per-tick bookkeeping of a node: answer each (stage, stamp)
+  once, restart the law on a new stage, hold 0 V on a non-finite measurement or reference
+  number without touching the law's state, and hold 0 V on a non-finite output or a law that
+  refuses its inputs, restarting the law at the next good tick.
 
-A *status* here is anything with the fields of ``gripper_interfaces/msg/SupervisorStatus`` that
-are read (``active_controller``, ``grasp_id``, ``position_setpoint_m``, ``force_setpoint_n``,
-``seed_voltage_v``, ``contact``): the rclpy message, a rosbags-decoded one, or a test double.
+A *reference* is anything with the fields of ``gripper_interfaces/msg/StageReference``:
+:data:`Reference` (built from the message's bytes), the rclpy message, or a test double.
 """
 from __future__ import annotations
 
+from collections import namedtuple
 import enum
 import math
-from dataclasses import dataclass
-from typing import Protocol
 
 from gripper_ros.core.config import ConfigError, GripperConfig
-from gripper_ros.wire import Controller
-from gripper_ros.core.controllers import (ForceControllerKind, PositionControllerKind, make_force_controller,
-                          make_position_controller)
+from gripper_ros.core.controllers import (ForceControllerKind, make_force_controller,
+                                          make_position_controller, PositionControllerKind)
+from gripper_ros.wire import Controller, REFERENCE_LAYOUT
 
 SOURCE_POSITION = Controller.POSITION
 SOURCE_FORCE = Controller.FORCE
@@ -39,18 +37,13 @@ DEFAULT_POSITION_CONTROLLER = PositionControllerKind.MPC_PD
 DEFAULT_FORCE_CONTROLLER = ForceControllerKind.CONTACT_AWARE
 DEFAULT_APPROACH_FORCE_MARGIN = 1.0
 
-
-class StatusLike(Protocol):
-    active_controller: int
-    grasp_id: int
-    position_setpoint_m: float
-    force_setpoint_n: float
-    seed_voltage_v: float
-    contact: bool
+Reference = namedtuple('Reference', REFERENCE_LAYOUT.fields, defaults=(0.0, 0.0))
+"""One StageReference's fields, in message order (``Reference._make(values)``); the last two,
+a move's ``speed_limit_mps`` and ``voltage_limit_v``, default to 0 (no limit)."""
 
 
 def parse_kind(kind_cls: type[enum.Enum], value, name: str = 'controller'):
-    """``value`` as a member of ``kind_cls``; ConfigError naming the parameter otherwise."""
+    """Return ``value`` as a member of ``kind_cls``; ConfigError naming the parameter if not."""
     if isinstance(value, kind_cls):
         return value
     try:
@@ -60,14 +53,17 @@ def parse_kind(kind_cls: type[enum.Enum], value, name: str = 'controller'):
                           f'{[k.value for k in kind_cls]}, got {value!r}') from None
 
 
-def approach_setpoint(status: StatusLike) -> float:
-    """The position stage's target: ``approach_setpoint_m`` (the widest object's face); bags
-    recorded before it existed carry only ``position_setpoint_m``."""
-    return getattr(status, 'approach_setpoint_m', status.position_setpoint_m)
-
-
 class PositionStageController:
-    """The position controller node's control law (10 ms, Table II)."""
+    """The position controller node's control law (10 ms, Table II), with a move's limits.
+
+    A reference's ``voltage_limit_v`` and ``speed_limit_mps`` (> 0; 0 = none) cap the voltage
+    that drives the finger towards its setpoint: at ``voltage_limit_v`` (the stall voltage of
+    a move's effort), and at what keeps the speed below ``speed_limit_mps`` on the exact
+    first-order model of the finger's speed (``position_control.speed_limit_pole``). The
+    voltage away from the setpoint (braking) keeps the plant's limit. The cap is the output
+    limit of the PD / PID (the inner PD of the MPC-PD, whose DMC then keeps within it, and the
+    braking governor's accelerating voltage), so that every loop books the voltage applied.
+    """
 
     source = SOURCE_POSITION
 
@@ -77,17 +73,64 @@ class PositionStageController:
         self.kind = parse_kind(PositionControllerKind, kind)
         self.controller = make_position_controller(config, self.kind)
         self.sample_time_s = config.position.sample_time_s
+        self.reference_numbers = REFERENCE_NUMBERS + LIMIT_NUMBERS
+        mpc = self.kind is PositionControllerKind.MPC_PD
+        self._pid = self.controller.inner if mpc else self.controller
+        self._governor = self.controller.governor if mpc else None
+        plant = config.plant
+        self._full_v = plant.voltage_limit_v
+        self._limits = self._full_limits = (-self._full_v, self._full_v)
+        # speed one sample on: a v + (1 - a) k_v u; the cap u puts it at v_lim - pole (v_lim - v)
+        a = math.exp(-self.sample_time_s / plant.mechanical_time_constant_s)
+        pole = config.position.speed_limit_pole
+        gain = 1.0 / ((1.0 - a) * plant.free_speed_per_volt_mps)
+        self._speed_gain_v_per_mps = ((1.0 - pole) * gain, (a - pole) * gain)
 
-    def activate(self, status: StatusLike, measurement: float) -> None:
+    def voltage_cap_v(self, ref, toward_speed_mps: float) -> float:
+        """Return the most voltage towards the setpoint this tick.
+
+        ``toward_speed_mps`` is the finger's speed towards the setpoint.
+        """
+        cap = self._full_v
+        if ref.voltage_limit_v > 0.0:
+            cap = min(cap, ref.voltage_limit_v)
+        limit = ref.speed_limit_mps
+        if limit > 0.0:
+            k_limit, k_speed = self._speed_gain_v_per_mps
+            cap = min(cap, max(0.0, k_limit * limit - k_speed * toward_speed_mps))
+        return cap
+
+    def _apply_limits(self, ref, measurement: float) -> None:
+        """Set this tick's output limits (only a move's reference changes them)."""
+        if ref.voltage_limit_v == 0.0 and ref.speed_limit_mps == 0.0:
+            limits = self._full_limits
+        elif ref.approach_setpoint_m >= measurement:
+            limits = (-self._full_v, self.voltage_cap_v(ref, ref.velocity_mps))
+        else:
+            limits = (-self.voltage_cap_v(ref, -ref.velocity_mps), self._full_v)
+        if limits != self._limits:
+            self._limits = limits
+            self._pid.output_limits = limits
+            if self._governor is not None:
+                self._governor.limit_v = min(-limits[0], limits[1])
+
+    @staticmethod
+    def measurement(ref) -> float:
+        """Return what this stage controls, from the tick's reference: the finger position."""
+        return ref.position_m
+
+    def activate(self, ref, measurement: float) -> None:
         """Start from rest at the measured position with the motor off."""
+        self._apply_limits(ref, measurement)
         if self.kind is PositionControllerKind.MPC_PD:
             self.controller.reset(measurement, 0.0)
         else:
             self.controller.reset(0.0, measurement=measurement)
 
-    def compute(self, status: StatusLike, measurement: float) -> tuple[float, float]:
-        """(voltage_v, inner_setpoint) for this tick."""
-        setpoint = approach_setpoint(status)
+    def compute(self, ref, measurement: float) -> tuple[float, float]:
+        """Return (voltage_v, inner_setpoint) for this tick."""
+        self._apply_limits(ref, measurement)
+        setpoint = ref.approach_setpoint_m
         voltage = self.controller.step(setpoint, measurement)
         inner = getattr(self.controller, 'last_inner_setpoint', setpoint)
         return voltage, inner
@@ -118,101 +161,108 @@ class ForceStageController:
 
     @property
     def capped(self) -> bool:
-        """True while the pre-contact cap is in force (PI / MPC-PI; the contact-aware stage
-        caps its approach itself, at the feed-forward)."""
+        """Tell whether the pre-contact cap is in force.
+
+        Only for PI / MPC-PI: the contact-aware stage caps its approach itself, at the
+        feed-forward.
+        """
         return not self._contact and self.approach_margin > 0.0 and not self.contact_aware
 
-    def activate(self, status: StatusLike, measurement: float) -> None:
+    @staticmethod
+    def measurement(ref) -> float:
+        """Return what this stage controls, from the tick's reference: the gripping force."""
+        return ref.force_n
+
+    def activate(self, ref, measurement: float) -> None:
+        """Restart: the contact-aware approach from where the finger is, or the PI seeded."""
         self._contact = False
         if self.contact_aware:       # speed-shaped approach from where the finger is now
-            self.controller.reset(status.position_m)
+            self.controller.reset(ref.position_m)
             return
-        self._apply_limits(status)
+        self._apply_limits(ref)
         if self.kind is ForceControllerKind.MPC_PI:
-            self.controller.reset(measurement, status.seed_voltage_v)
+            self.controller.reset(measurement, ref.seed_voltage_v)
         else:
-            self.controller.reset(status.seed_voltage_v, status.force_setpoint_n, measurement)
+            self.controller.reset(ref.seed_voltage_v, ref.force_setpoint_n, measurement)
 
-    def _apply_limits(self, status: StatusLike) -> None:
+    def _apply_limits(self, ref) -> None:
         low, high = self._full_limits
         if not self._contact and self.approach_margin > 0.0:
-            cap = (self.approach_margin * status.force_setpoint_n
+            cap = (self.approach_margin * ref.force_setpoint_n
                    / self.config.plant.stall_force_per_volt_n)
             high = min(high, cap)
         self._pi.output_limits = (low, high)
 
-    def compute(self, status: StatusLike, measurement: float) -> tuple[float, float]:
-        """(voltage_v, inner_setpoint) for this tick; the cap is released at first contact."""
+    def compute(self, ref, measurement: float) -> tuple[float, float]:
+        """Return (voltage_v, inner_setpoint) for this tick; the cap ends at first contact."""
         if self.contact_aware:
-            face_m = status.position_setpoint_m
-            voltage = self.controller.step(status.force_setpoint_n, measurement,
-                                           status.position_m, face_m,
-                                           max(face_m - approach_setpoint(status), 0.0))
-            return voltage, status.force_setpoint_n
-        if not self._contact and status.contact:
+            face_m = ref.position_setpoint_m
+            voltage = self.controller.step(ref.force_setpoint_n, measurement, ref.position_m,
+                                           face_m, max(face_m - ref.approach_setpoint_m, 0.0))
+            return voltage, ref.force_setpoint_n
+        if not self._contact and ref.contact:
             self._contact = True
-            self._apply_limits(status)
-        voltage = self.controller.step(status.force_setpoint_n, measurement)
-        inner = getattr(self.controller, 'last_inner_setpoint', status.force_setpoint_n)
+            self._apply_limits(ref)
+        voltage = self.controller.step(ref.force_setpoint_n, measurement)
+        inner = getattr(self.controller, 'last_inner_setpoint', ref.force_setpoint_n)
         return voltage, inner
 
 
-STATUS_NUMBERS = ('position_setpoint_m', 'force_setpoint_n', 'seed_voltage_v', 'position_m')
-"""The status fields a stage computes with; a non-finite one is never acted on."""
+REFERENCE_NUMBERS = ('position_setpoint_m', 'approach_setpoint_m', 'force_setpoint_n',
+                     'seed_voltage_v', 'position_m')
+"""The reference fields a stage computes with; a non-finite one is never acted on."""
+LIMIT_NUMBERS = ('speed_limit_mps', 'voltage_limit_v')
+"""... and the position stage's limits (a stage's ``reference_numbers`` name all it uses)."""
 
 
-@dataclass(frozen=True)
-class TickAnswer:
-    """A controller's answer to one tick (what goes into MotorCommand)."""
+class TickAnswer(namedtuple('TickAnswer', 'voltage_v inner_setpoint finite reason',
+                             defaults=(True, ''))):
+    """A controller's answer to one tick (what goes into MotorCommand): ``finite`` False
+    means a measurement or output was not finite and 0 V is held, ``reason`` says why."""
 
-    voltage_v: float
-    inner_setpoint: float
-    finite: bool = True        # False: a measurement or output was not finite, 0 V is held
-    reason: str = ''           # why 0 V is held ('' when finite)
+    __slots__ = ()
 
 
 class LockstepAnswerer:
-    """The lockstep bookkeeping of one controller around a stage (anything with ``source``,
-    ``activate(status, measurement)`` and ``compute(status, measurement)``).
+    """The lockstep bookkeeping of one controller around a stage.
 
-    Call :meth:`on_status` with EVERY status (also those naming another controller), then
-    :meth:`answer` with the status of tick ``stamp_ns`` that names this controller and the
-    measurement of the same tick.
+    A stage is anything with ``source``, ``measurement(ref)``, ``activate(ref, measurement)``
+    and ``compute(ref, measurement)``. Call :meth:`answer` with every reference addressed to
+    this controller.
     """
 
     def __init__(self, stage):
         self.stage = stage
-        self.answered: tuple[int, int] | None = None    # (grasp_id, stamp) last answered
-        self.active_grasp: int | None = None
+        self.numbers = getattr(stage, 'reference_numbers', REFERENCE_NUMBERS)
+        self.answered: tuple[int, int] | None = None    # (stage_id, stamp) last answered
+        self.active_stage: int | None = None            # the stage the law was started for
 
-    def on_status(self, status: StatusLike) -> None:
-        if status.active_controller != self.stage.source:
-            self.active_grasp = None
-
-    def answer(self, status: StatusLike, stamp_ns: int, measurement: float) -> TickAnswer | None:
-        """The command for this tick, or None when this (grasp, stamp) was answered already."""
-        key = (status.grasp_id, stamp_ns)
+    def answer(self, ref) -> TickAnswer | None:
+        """Return the command for this tick, or None when this (stage, stamp) was answered."""
+        key = (ref.stage_id, ref.stamp_ns)
         if key == self.answered:
             return None
         self.answered = key
+        measurement = self.stage.measurement(ref)
         if not math.isfinite(measurement):
             return TickAnswer(0.0, 0.0, finite=False, reason='non-finite measurement')
-        bad = [f'{name}={getattr(status, name)!r}' for name in STATUS_NUMBERS
-               if not math.isfinite(getattr(status, name))]
-        if bad:
-            return TickAnswer(0.0, 0.0, finite=False,
-                              reason=f'non-finite status ({", ".join(bad)})')
+        for name in self.numbers:
+            if not math.isfinite(getattr(ref, name)):
+                bad = [f'{n}={getattr(ref, n)!r}' for n in self.numbers
+                       if not math.isfinite(getattr(ref, n))]
+                return TickAnswer(0.0, 0.0, finite=False,
+                                  reason=f'non-finite reference ({", ".join(bad)})')
         try:
-            if self.active_grasp != status.grasp_id:
-                self.stage.activate(status, measurement)
-                self.active_grasp = status.grasp_id
-            voltage, inner = self.stage.compute(status, measurement)
+            if self.active_stage != ref.stage_id:
+                self.stage.activate(ref, measurement)
+                self.active_stage = ref.stage_id
+            voltage, inner = self.stage.compute(ref, measurement)
         except (ValueError, ArithmeticError) as exc:    # a law that refuses its numbers
-            self.active_grasp = None
+            self.active_stage = None
             return TickAnswer(0.0, 0.0, finite=False, reason=f'control law failed: {exc}')
         if not (math.isfinite(voltage) and math.isfinite(inner)):
             # the law's state is no longer trustworthy: start afresh at the next finite tick
-            self.active_grasp = None
+            self.active_stage = None
             return TickAnswer(0.0, 0.0, finite=False,
                               reason=f'non-finite output (voltage {voltage!r}, inner setpoint '
                                      f'{inner!r})')

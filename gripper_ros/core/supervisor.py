@@ -2,9 +2,10 @@
 
 Stages (paper sec. IV): POSITION (MPC-PD drives the finger to ``L_ls - width``) until either
 switching criterion holds - the position is within +-2 % of its setpoint, or the force-sensor
-voltage has risen by more than its threshold - then FORCE (PI to ``mu_s m (g + a)``, eq. 23)
-until the force has stayed within its band for a hold time: HOLDING. Exactly one controller is
-active at any tick; the decision for each tick is a :class:`Decision`.
+voltage has risen by more than its threshold - then FORCE (to :func:`force_setpoint_n`:
+``k m (g + a) / (2 mu_s)`` by default, eq. 23's ``mu_s m (g + a)`` with ``supervisor.force_law:
+paper``) until the force has stayed within its band for a hold time: HOLDING. Exactly one
+controller is active at any tick; the decision for each tick is a :class:`Decision`.
 
 Loss watch: once the force has reached ``lost_force_fraction`` of its setpoint after contact, a
 force below that fraction for ``lost_force_hold_s``, or (after settling) the finger moving on
@@ -12,18 +13,29 @@ past the held position by more than ``no_object_margin_m``, ends the grasp as OB
 After settling, the force loop keeps holding and watching for ``hold_watch_s`` (phase HOLDING,
 force controller still active) before the grasp ends with outcome HOLDING.
 
-Release: :meth:`GraspSupervisor.start_release` runs the position stage to the open position
+Release: :meth:`GraspSupervisor.request_release` runs the position stage to the open position
 (phase RELEASING) until the finger has stayed within ``release_tolerance_m`` of it for
 ``release_settle_s``: phase DONE, outcome RELEASED.
+
+Move (:meth:`GraspSupervisor.request_move`, Franka's move, control_msgs GripperCommand's
+result): the position stage drives the finger to ``L_ls - width`` with the request's speed and
+effort as its limits (phase MOVING; :class:`gripper_ros.core.stages.PositionStageController`
+keeps the speed below the limit and the push below the stall voltage of the effort). MOVED
+(``reached_goal``) once the finger is at rest within ``move_tolerance_m`` of the goal; STALLED
+once it is at rest short of the goal and, closing, presses with ``move_stall_force_fraction`` x
+the effort limit (the force sensor tells contact), or has been at rest short of it for
+``move_stall_timeout_s``. Either way the position stage then keeps the move's last command (the
+goal, the limits): a stalled move goes on pressing with at most its effort, as a
+position-controlled gripper keeps its command.
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
+import math
 
-from gripper_ros.core.config import PlantParams, SupervisorParams
+from gripper_ros.core.config import ForceLaw, PlantParams, SupervisorParams
 from gripper_ros.wire import Controller
-from gripper_ros.wire import Outcome, Phase, SwitchCriterion
+from gripper_ros.wire import Outcome, PendingRequest, Phase, SwitchCriterion
 
 MAX_TIMEOUT_S = 600.0  # simulated seconds; a longer grasp is a mistake, not a request
 
@@ -43,6 +55,37 @@ class GraspRequest:
 
 
 @dataclass(frozen=True)
+class MoveRequest:
+    width_m: float
+    speed_mps: float = 0.0              # 0 = default
+    max_effort_n: float = 0.0           # 0 = the motor's limit
+    timeout_s: float = 0.0              # 0 = the travel at speed + the default timeout
+
+
+@dataclass(frozen=True)
+class MoveTargets:
+    """What a valid move resolves to; the attributes the status reads are a grasp's names."""
+
+    position_setpoint_m: float          # the goal, L_ls - width
+    speed_mps: float
+    max_effort_n: float                 # the effort limit (the motor's when the request gave 0)
+    voltage_limit_v: float              # its stall voltage; 0 = no cap below the plant's
+    timeout_s: float                    # 0 = the travel at speed + the default timeout
+    tolerance_m: float
+    friction_coefficient: float = 0.0
+    width_tolerance_m: float = 0.0
+
+    @property
+    def approach_setpoint_m(self) -> float:
+        return self.position_setpoint_m
+
+    @property
+    def force_setpoint_n(self) -> float:
+        """The status' force setpoint of a move: its effort limit."""
+        return self.max_effort_n
+
+
+@dataclass(frozen=True)
 class GraspTargets:
     """What a valid request resolves to."""
 
@@ -59,9 +102,25 @@ class GraspTargets:
 
 
 def force_setpoint_n(mass_kg: float, friction_coefficient: float, gravity_mps2: float,
-                     acceleration_mps2: float) -> float:
-    """Eq. 23: F_sp = mu_s m (g + a)."""
-    return friction_coefficient * mass_kg * (gravity_mps2 + acceleration_mps2)
+                     acceleration_mps2: float, law: ForceLaw, safety_factor: float) -> float:
+    """Grip force to hold ``m`` under ``g + a`` by friction ``mu_s`` on the two finger pads.
+
+    ``FRICTION``: each pad holds at most ``mu_s F``, so ``F_sp = k m (g + a) / (2 mu_s)`` with the
+    safety factor ``k``. ``PAPER``: eq. 23 as printed, ``F_sp = mu_s m (g + a)`` (``k`` unused).
+    """
+    if law is ForceLaw.PAPER:
+        return friction_coefficient * mass_kg * (gravity_mps2 + acceleration_mps2)
+    return safety_factor * mass_kg * (gravity_mps2 + acceleration_mps2) / (
+        2.0 * friction_coefficient)
+
+
+def _force_law_text(law: ForceLaw, mu: float, mass_kg: float, g_plus_a: float,
+                    safety_factor: float) -> str:
+    """Write the setpoint's formula with the request's numbers, for a refusal."""
+    if law is ForceLaw.PAPER:
+        return f'paper law, eq. 23: mu_s={mu:g} x m={mass_kg:g} kg x (g+a)={g_plus_a:g} m/s^2'
+    return (f'friction law: k={safety_factor:g} x m={mass_kg:g} kg x (g+a)={g_plus_a:g} m/s^2 '
+            f'/ (2 mu_s={2.0 * mu:g})')
 
 
 def validate_request(req: GraspRequest, plant: PlantParams,
@@ -95,52 +154,145 @@ def validate_request(req: GraspRequest, plant: PlantParams,
                            f'finger travel), got {req.width_m:g} + {tolerance:g} m')
     mu = req.friction_coefficient or sup.friction_coefficient
     accel = req.acceleration_mps2 or sup.acceleration_mps2
-    force = force_setpoint_n(req.mass_kg, mu, plant.gravity_mps2, accel)
+    law, k = sup.force_law, sup.grip_safety_factor
+    force = force_setpoint_n(req.mass_kg, mu, plant.gravity_mps2, accel, law, k)
     if force > plant.max_force_n:
         raise RequestError(
-            f'force setpoint {force:.2f} N (mu_s={mu:g} x m={req.mass_kg:g} kg x '
-            f'(g+a)={plant.gravity_mps2 + accel:g} m/s^2) exceeds the {plant.max_force_n:.2f} N '
-            f'the motor can hold at {plant.voltage_limit_v:g} V')
+            f'force setpoint {force:.2f} N ('
+            f'{_force_law_text(law, mu, req.mass_kg, plant.gravity_mps2 + accel, k)}) exceeds '
+            f'the {plant.max_force_n:.2f} N the motor can hold at {plant.voltage_limit_v:g} V')
     if force <= 0.0:
         raise RequestError(f'force setpoint must be > 0 N, got {force!r}')
     return GraspTargets(plant.max_travel_m - req.width_m, force, mu,
                         req.timeout_s or sup.timeout_s, tolerance)
 
 
-@dataclass(frozen=True)
-class Decision:
-    """The supervisor's verdict for one tick."""
+def _check_finite(req, names) -> None:
+    for name in names:
+        value = getattr(req, name)
+        if not isinstance(value, (int, float)) or isinstance(value, bool) or \
+                not math.isfinite(value):
+            raise RequestError(f'{name} must be a finite number, got {value!r}')
 
-    phase: Phase
-    active: Controller
-    switch_criterion: SwitchCriterion
-    outcome: Outcome
-    position_setpoint_m: float
-    force_setpoint_n: float
-    message: str = ''
-    approach_setpoint_m: float = 0.0    # the position stage's target (see GraspTargets)
+
+def validate_move(req: MoveRequest, plant: PlantParams, sup: SupervisorParams) -> MoveTargets:
+    """Resolve a move's defaults and refuse anything non-finite or out of range."""
+    _check_finite(req, ('width_m', 'speed_mps', 'max_effort_n', 'timeout_s'))
+    if not 0.0 <= req.width_m <= plant.max_travel_m:
+        raise RequestError(f'width_m must be in [0, {plant.max_travel_m:g}] m (0 = closed, '
+                           f'{plant.max_travel_m:g} = fully open), got {req.width_m!r}')
+    top_speed = plant.max_free_speed_mps
+    if req.speed_mps != 0.0 and not sup.move_rest_speed_mps < req.speed_mps <= top_speed:
+        raise RequestError(
+            f'speed_mps must be in ({sup.move_rest_speed_mps:g}, {top_speed:.6g}] m/s (at rest '
+            f'below; the free speed at {plant.voltage_limit_v:g} V above) or 0 (default '
+            f'{sup.move_default_speed_mps:g}), got {req.speed_mps!r}')
+    if req.max_effort_n != 0.0 and not 0.0 < req.max_effort_n <= plant.max_force_n:
+        raise RequestError(
+            f'max_effort_n must be in (0, {plant.max_force_n:.6g}] N (the force of '
+            f'{plant.voltage_limit_v:g} V at stall) or 0 (the limit of the motor), '
+            f'got {req.max_effort_n!r}')
+    if not 0.0 <= req.timeout_s <= MAX_TIMEOUT_S:
+        raise RequestError(f'timeout_s must be in [0, {MAX_TIMEOUT_S:g}] s (0 = the travel at '
+                           f'speed + {sup.timeout_s:g} s), got {req.timeout_s!r}')
+    effort = req.max_effort_n or plant.max_force_n
+    cap_v = req.max_effort_n / plant.stall_force_per_volt_n if req.max_effort_n else 0.0
+    return MoveTargets(plant.max_travel_m - req.width_m,
+                       req.speed_mps or sup.move_default_speed_mps, effort, cap_v,
+                       req.timeout_s, sup.move_tolerance_m)
+
+
+class Decision:
+    """The supervisor's verdict for one tick; the same object, updated in place, every tick.
+
+    ``answer`` is the outcome this tick produced for the request (the grasp service answers
+    now, the outcome is latched), or None.
+    """
+
+    __slots__ = ('t_ns', 'phase', 'active', 'switch_criterion', 'outcome', 'grasp_id',
+                 'stage_id', 'running', 'contact', 'position_setpoint_m', 'approach_setpoint_m',
+                 'force_setpoint_n', 'speed_limit_mps', 'voltage_limit_v', 'message', 'answer')
+
+    def __init__(self):
+        self.t_ns = 0
+        self.phase = Phase.IDLE
+        self.active = Controller.NONE
+        self.switch_criterion = SwitchCriterion.NONE
+        self.outcome = Outcome.UNKNOWN
+        self.grasp_id = 0
+        self.stage_id = 0
+        self.running = False
+        self.contact = False
+        self.position_setpoint_m = 0.0
+        self.approach_setpoint_m = 0.0
+        self.force_setpoint_n = 0.0
+        self.speed_limit_mps = 0.0          # the position stage's limits (a move's): speed,
+        self.voltage_limit_v = 0.0          # 0 = none; voltage towards the setpoint, 0 = 24 V
+        self.message = ''
+        self.answer: Outcome | None = None
 
     @property
     def finished(self) -> bool:
+        """The request has been answered (it may go on holding, phase HOLDING)."""
         return self.outcome is not Outcome.UNKNOWN
 
 
+class RequestKind:
+    GRASP = 'grasp'
+    RELEASE = 'release'
+    MOVE = 'move'
+
+
+PENDING_CODES = {None: PendingRequest.NONE, RequestKind.GRASP: PendingRequest.GRASP,
+                 RequestKind.RELEASE: PendingRequest.RELEASE,
+                 RequestKind.MOVE: PendingRequest.MOVE}
+START_PHASES = {RequestKind.GRASP: Phase.POSITION, RequestKind.RELEASE: Phase.RELEASING,
+                RequestKind.MOVE: Phase.MOVING}
+
+
 class GraspSupervisor:
-    """One grasp at a time; :meth:`step` once per plant tick with that tick's measurements."""
+    """One request at a time; :meth:`step` once per plant tick with that tick's measurements.
+
+    A controller always drives the motor, except after a FAULT: with no request the position
+    stage holds the finger where it came to rest (phase IDLE, or DONE/FAILED with the last
+    outcome); a grasp runs POSITION -> FORCE -> HOLDING and, once answered, goes on holding
+    (phase HOLDING, outcome HOLDING, force stage active) until a release, a stop, the next
+    grasp or the loss of the object; a move runs MOVING and then keeps its last command. A
+    request is accepted at once and starts at the next tick (:meth:`request_grasp`,
+    :meth:`request_release`, :meth:`request_move`). ``running`` says whether the
+    request still needs simulated time; ``stage_id`` grows whenever a controller is
+    (re)assigned, so that it restarts from the measured state.
+    """
 
     def __init__(self, plant: PlantParams, params: SupervisorParams):
         self.plant = plant
         self.params = params
         self.targets: GraspTargets | None = None
+        self.kind: str | None = None            # the current request's kind, None before any
         self.phase = Phase.IDLE
         self.switch_criterion = SwitchCriterion.NONE
         self.outcome = Outcome.UNKNOWN
+        self.grasp_id = 0
+        self.stage_id = 0
+        self.mass_kg = 0.0                      # the current grasp request's object mass
         self.start_ns = 0
         self.switch_ns: int | None = None
         self.contact_ns: int | None = None
         self.settled_ns: int | None = None      # force first settled (phase HOLDING from here)
         self.hold_position_m: float | None = None
-        self.end_ns: int | None = None
+        self.end_ns: int | None = None          # when the request was answered or ended
+        self.answer = Outcome.UNKNOWN            # what the current request was answered
+        self.answer_ns: int | None = None        # ... and when (the grasp service's answer)
+        self.message = ''
+        self._pending: tuple | None = None      # (kind, targets, mass_kg) starting next tick
+        self._active = Controller.NONE
+        self._idle_hold_m = 0.0                 # where the position stage holds without a request
+        self._idle_limit_v = 0.0                # ... and its voltage cap (0: the plant's limit)
+        self._position_m: float | None = None   # the last position measured in a request
+        self._idle_speed_limit_mps = 0.0        # ... and its speed limit (0: none)
+        self._move_timeout_s = 0.0
+        self._rest_since_ns: int | None = None  # a move: the finger at rest since
+        self._revision: int | None = None       # the plant's world revision last seen
         self._baseline_voltage_v = 0.0
         self._in_band_since_ns: int | None = None
         self._prev_force_t_ns: int | None = None    # previous FORCE-phase tick (settle rate)
@@ -148,49 +300,135 @@ class GraspSupervisor:
         self._gripped = False                   # force reached lost_force_fraction x F_sp
         self._low_since_ns: int | None = None
         self._t_ns = 0
-        self.message = ''
+        self._decision = Decision()
 
+    # ------------------------------------------------------------------ state
     @property
-    def busy(self) -> bool:
-        """A grasp or release is running (a controller drives the motor)."""
-        return self.phase is not Phase.IDLE and self.outcome is Outcome.UNKNOWN
+    def running(self) -> bool:
+        """A grasp or release is in progress (it needs simulated time until it is answered)."""
+        return self.kind is not None and self.outcome is Outcome.UNKNOWN
+
+    busy = running
 
     @property
     def releasing(self) -> bool:
-        return self.busy and self.phase is Phase.RELEASING
+        return self.running and self.phase is Phase.RELEASING
 
-    def start(self, targets: GraspTargets, t_ns: int, sensor_voltage_v: float) -> Decision:
-        """Begin a grasp at tick ``t_ns``; the sensor voltage now is the no-contact baseline."""
-        if self.busy:
-            raise RequestError('a release is running' if self.releasing
-                               else 'a grasp is already running')
-        self.targets = targets
-        self.phase = Phase.POSITION
-        self.switch_criterion = SwitchCriterion.NONE
-        self.outcome = Outcome.UNKNOWN
-        self._reset(t_ns)
-        self._baseline_voltage_v = sensor_voltage_v
-        return self._decision()
+    @property
+    def holding(self) -> bool:
+        """A grasp was answered HOLDING and the force stage goes on holding the object."""
+        return self.phase is Phase.HOLDING and self.outcome is Outcome.HOLDING
 
-    def start_release(self, t_ns: int, open_position_m: float = 0.0,
-                      timeout_s: float | None = None) -> Decision:
-        """Open the fingers under position control: the position stage to ``open_position_m``."""
-        if self.busy:
-            raise RequestError(f'a {"release" if self.releasing else "grasp"} is running '
-                               f'(phase {self.phase.name})')
+    @property
+    def pressing(self) -> bool:
+        """A stalled move's last command is in force: the finger presses at its limits."""
+        return self.outcome is Outcome.STALLED and self._idle_speed_limit_mps > 0.0 and \
+            self._active is Controller.POSITION
+
+    @property
+    def pending(self) -> bool:
+        return self._pending is not None
+
+    @property
+    def pending_request(self) -> PendingRequest:
+        """What request waits to start at the next tick (the status' ``pending_request``)."""
+        return PENDING_CODES[self._pending[0] if self._pending is not None else None]
+
+    @property
+    def active(self) -> Controller:
+        return self._active
+
+    # ------------------------------------------------------------------ requests
+    def _refuse_if_busy(self) -> None:
+        if self._pending is not None:
+            raise RequestError(f'a {self._pending[0]} request is already waiting to start')
+        if self.running:
+            raise RequestError(f'a {self.kind} is running (phase {self.phase.name})')
+
+    def request_grasp(self, targets: GraspTargets, mass_kg: float = 0.0,
+                      after_ns: int | None = None) -> None:
+        """Accept a grasp: it starts at the first tick later than ``after_ns``.
+
+        By default that is the next tick decided; its sensor voltage is the no-contact baseline.
+
+        Pass the newest tick received when the request arrived: the start is then the same
+        whether or not that tick had been decided yet (deterministic under any timing). A grasp
+        may follow a hold; the hold ends when it starts.
+        """
+        self._refuse_if_busy()
+        self._pending = (RequestKind.GRASP, targets, float(mass_kg), after_ns)
+
+    def request_release(self, open_position_m: float = 0.0, timeout_s: float | None = None,
+                        after_ns: int | None = None) -> None:
+        """Accept a release: the position stage to ``open_position_m``.
+
+        It starts at the first tick later than ``after_ns`` (see :meth:`request_grasp`).
+        """
+        self._refuse_if_busy()
         if not (math.isfinite(open_position_m)
                 and 0.0 <= open_position_m < self.plant.max_travel_m):
             raise RequestError(f'open position must be in [0, {self.plant.max_travel_m:g}) m, '
                                f'got {open_position_m!r}')
         timeout = self.params.timeout_s if timeout_s is None else timeout_s
-        self.targets = GraspTargets(open_position_m, 0.0, 0.0, timeout)
-        self.phase = Phase.RELEASING
-        self.switch_criterion = SwitchCriterion.NONE
+        self._pending = (RequestKind.RELEASE, GraspTargets(open_position_m, 0.0, 0.0, timeout),
+                         0.0, after_ns)
+
+    def request_move(self, targets: MoveTargets, after_ns: int | None = None) -> None:
+        """Accept a move (:func:`validate_move`).
+
+        It starts at the first tick later than ``after_ns`` (see :meth:`request_grasp`). A move
+        may follow a hold; the hold ends when it starts.
+        """
+        self._refuse_if_busy()
+        self._pending = (RequestKind.MOVE, targets, 0.0, after_ns)
+
+    def stop(self, message: str = 'stopped on request') -> Decision | None:
+        """End the running request, the hold, a stalled move's press or a waiting request now.
+
+        The outcome is STOPPED. Returns the ending decision (for the status and the answer),
+        or None with nothing to stop. From the next tick the position stage holds the finger
+        where it is, without a move's limits.
+        """
+        if self._pending is not None and not self.running:
+            kind, targets, mass, _ = self._pending  # answered at once, it never starts
+            self._pending = None
+            self.grasp_id += 1
+            self.kind, self.targets, self.mass_kg = kind, targets, mass
+            self._reset(self._t_ns)
+        elif self.pressing:                         # where the move stalled
+            self._end(Phase.DONE, Outcome.STOPPED, message, position_m=self._position_m)
+            return self._fill(Outcome.STOPPED)
+        elif not (self.running or self.holding):
+            return None
+        self._end(Phase.DONE, Outcome.STOPPED, message)
+        return self._fill(Outcome.STOPPED)
+
+    def fault(self, message: str) -> Decision:
+        """End the running request or the hold as FAULT: no controller drives the motor."""
+        if not (self.running or self.holding):
+            return self._fill()
+        self._end(Phase.FAILED, Outcome.FAULT, message, hold=False)
+        return self._fill(Outcome.FAULT)
+
+    def _start(self, t_ns: int, position_m: float, sensor_voltage_v: float) -> None:
+        kind, targets, mass, _ = self._pending
+        self._pending = None
+        self.grasp_id += 1
+        self.kind, self.targets, self.mass_kg = kind, targets, mass
+        self.phase = START_PHASES[kind]
         self._reset(t_ns)
-        return self._decision()
+        self._baseline_voltage_v = sensor_voltage_v
+        if kind == RequestKind.MOVE:
+            self._move_timeout_s = targets.timeout_s or (
+                self.params.timeout_s
+                + abs(targets.position_setpoint_m - position_m) / targets.speed_mps)
+        self._assign(Controller.POSITION)
 
     def _reset(self, t_ns: int) -> None:
         self.outcome = Outcome.UNKNOWN
+        self.answer = Outcome.UNKNOWN
+        self.answer_ns = None
+        self.switch_criterion = SwitchCriterion.NONE
         self.start_ns = self._t_ns = t_ns
         self.switch_ns = None
         self.contact_ns = None
@@ -198,60 +436,93 @@ class GraspSupervisor:
         self.hold_position_m = None
         self.end_ns = None
         self._in_band_since_ns = None
-        self._prev_force_t_ns: int | None = None
+        self._prev_force_t_ns = None
         self._prev_force_n = 0.0
         self._gripped = False
         self._low_since_ns = None
+        self._rest_since_ns = None
         self.message = ''
 
-    def stop(self, message: str = 'stopped on request') -> Decision:
-        """End the running grasp now (STOPPED); the plant is left without a commanding loop."""
-        if self.busy:
-            self._finish(Phase.DONE, Outcome.STOPPED, message)
-        return self._decision()
+    def _assign(self, controller: Controller) -> None:
+        """Hand the motor to ``controller`` from this tick on; it restarts (new stage)."""
+        self._active = controller
+        self.stage_id += 1
 
-    def fault(self, message: str) -> Decision:
-        if self.busy:
-            self._finish(Phase.FAILED, Outcome.FAULT, message)
-        return self._decision()
+    def _hold_here(self, position_m: float, limits: MoveTargets | None = None) -> None:
+        """Let the position stage hold the finger at ``position_m`` (no request running).
 
-    def step(self, t_ns: int, position_m: float, force_n: float,
-             sensor_voltage_v: float, speed_mps: float = 0.0) -> Decision:
-        """Advance the state machine with the measurements of tick ``t_ns`` (``speed_mps``:
-        the finger's speed, for the position switch's speed condition)."""
-        if not self.busy:
-            return self._decision()
+        With a move's speed and voltage ``limits`` (None: none but the plant's).
+        """
+        self._idle_hold_m = position_m if math.isfinite(position_m) else self._idle_hold_m
+        self._idle_limit_v = limits.voltage_limit_v if limits is not None else 0.0
+        self._idle_speed_limit_mps = limits.speed_mps if limits is not None else 0.0
+        self._assign(Controller.POSITION)
+
+    # ------------------------------------------------------------------ the tick
+    def step(self, t_ns: int, position_m: float, force_n: float, sensor_voltage_v: float,
+             speed_mps: float = 0.0, revision: int = 0) -> Decision:
+        """Advance the state machine with the measurements of tick ``t_ns``.
+
+        ``speed_mps`` is the finger's speed (the position switch's speed condition);
+        ``revision`` counts changes of the simulated world (a new object, fingers reset): the
+        position stage then holds the finger where it now is.
+        """
         self._t_ns = t_ns
+        answer = None
+        if self._revision != revision:
+            first = self._revision is None
+            self._revision = revision
+            if not (self.running or self.holding) and \
+                    (first or self._active is Controller.POSITION):
+                self._hold_here(position_m)       # after a FAULT nothing drives until a request
+        pending = self._pending
+        if pending is not None and (pending[3] is None or t_ns > pending[3]) and \
+                math.isfinite(position_m):
+            self._start(t_ns, position_m, sensor_voltage_v)
+        if self.running or self.holding:
+            answer = self._step_request(t_ns, position_m, force_n, sensor_voltage_v, speed_mps)
+        return self._fill(answer)
+
+    def _step_request(self, t_ns, position_m, force_n, sensor_voltage_v, speed_mps):
+        phase = self.phase
+        position_only = phase is Phase.RELEASING or phase is Phase.MOVING   # no force needed
         bad = []
         if not math.isfinite(position_m):
             bad.append(f'finger position sensor (joint state) reads {position_m!r} m')
-        if self.phase is not Phase.RELEASING and not (
-                math.isfinite(force_n) and math.isfinite(sensor_voltage_v)):
+        if not position_only and not (math.isfinite(force_n)
+                                      and math.isfinite(sensor_voltage_v)):
             bad.append(f'force sensor reads force {force_n!r} N, voltage '
                        f'{sensor_voltage_v!r} V (sensor dropout)')
         if bad:
-            self._finish(Phase.FAILED, Outcome.FAULT,
-                         f'fault at t={t_ns * 1e-9:.4f} s ({(t_ns - self.start_ns) * 1e-9:.4f} s '
-                         f'into the {"release" if self.phase is Phase.RELEASING else "grasp"}): '
-                         + '; '.join(bad) + '; no controller drives the motor from here on')
-            return self._decision()
-        if self.phase is Phase.RELEASING:
-            return self._step_release(t_ns, position_m)
+            what = 'hold' if self.holding else self.kind
+            return self._end(Phase.FAILED, Outcome.FAULT,
+                             f'fault at t={t_ns * 1e-9:.4f} s ({(t_ns - self.start_ns) * 1e-9:.4f}'
+                             f' s into the {what}): ' + '; '.join(bad) +
+                             '; no controller drives the motor from here on', hold=False)
+        self._position_m = position_m                   # finite: where a stop holds
+        if position_only:
+            if phase is Phase.RELEASING:
+                return self._step_release(t_ns, position_m)
+            return self._step_move(t_ns, position_m, force_n, sensor_voltage_v, speed_mps)
         p, tg = self.params, self.targets
         sensor_rise = sensor_voltage_v - self._baseline_voltage_v > p.sensor_voltage_threshold_v
         if sensor_rise and self.contact_ns is None:
             self.contact_ns = t_ns
         farthest_face_m = tg.position_setpoint_m + tg.width_tolerance_m   # narrowest object
         if self.contact_ns is None and position_m > farthest_face_m + p.no_object_margin_m:
-            self._finish(Phase.FAILED, Outcome.NO_OBJECT,
-                         f'no object: the finger passed the expected face '
-                         f'({tg.position_setpoint_m:.4f} m'
-                         + (f' + {tg.width_tolerance_m * 1e3:g} mm tolerance'
-                            if tg.width_tolerance_m else '') +
-                         f') by {(position_m - farthest_face_m) * 1e3:.2f} mm without contact')
-            return self._decision()
-        if self.contact_ns is not None and self._object_lost(t_ns, position_m, force_n):
-            return self._decision()
+            return self._end(
+                Phase.FAILED, Outcome.NO_OBJECT,
+                f'no object: the finger passed the expected face ({tg.position_setpoint_m:.4f} m'
+                + (f' + {tg.width_tolerance_m * 1e3:g} mm tolerance'
+                   if tg.width_tolerance_m else '') +
+                f') by {(position_m - farthest_face_m) * 1e3:.2f} mm without contact',
+                position_m=position_m)
+        if self.contact_ns is not None:
+            lost = self._object_lost(t_ns, position_m, force_n)
+            if lost is not None:
+                return lost
+        if self.holding:
+            return None
         if self.phase is Phase.POSITION:
             tol = p.position_tolerance_fraction * tg.position_setpoint_m
             slow = (p.position_switch_speed_mps <= 0.0
@@ -267,16 +538,17 @@ class GraspSupervisor:
                 self.phase = Phase.HOLDING
         if self.phase is Phase.HOLDING and \
                 (t_ns - self.settled_ns) * 1e-9 >= p.hold_watch_s:
-            self._finish(Phase.HOLDING, Outcome.HOLDING,
-                         f'holding {force_n:.3f} N (setpoint '
-                         f'{tg.force_setpoint_n:.3f} N) at {position_m:.5f} m')
-            return self._decision()
+            self.outcome = Outcome.HOLDING
+            self.end_ns = t_ns
+            self.message = (f'holding {force_n:.3f} N (setpoint {tg.force_setpoint_n:.3f} N) '
+                            f'at {position_m:.5f} m')
+            return Outcome.HOLDING
         if (t_ns - self.start_ns) * 1e-9 > tg.timeout_s:
-            self._finish(Phase.FAILED, Outcome.TIMEOUT,
-                         f'not settled within {tg.timeout_s:g} s of simulated time '
-                         f'(phase {self.phase.name}, position {position_m:.5f} m, '
-                         f'force {force_n:.3f} N)')
-        return self._decision()
+            return self._end(Phase.FAILED, Outcome.TIMEOUT,
+                             f'not settled within {tg.timeout_s:g} s of simulated time '
+                             f'(phase {self.phase.name}, position {position_m:.5f} m, '
+                             f'force {force_n:.3f} N)', position_m=position_m)
+        return None
 
     def _force_settled(self, t_ns: int, force_n: float, speed_mps: float) -> bool:
         """Apply the force stage's settle criterion, once per FORCE-phase tick.
@@ -307,7 +579,7 @@ class GraspSupervisor:
             self._in_band_since_ns = t_ns
         return (t_ns - self._in_band_since_ns) * 1e-9 >= p.force_settle_hold_s
 
-    def _object_lost(self, t_ns: int, position_m: float, force_n: float) -> bool:
+    def _object_lost(self, t_ns: int, position_m: float, force_n: float) -> Outcome | None:
         """After contact: a force collapse, or the finger moving on past the held position."""
         p, tg = self.params, self.targets
         floor = p.lost_force_fraction * tg.force_setpoint_n
@@ -320,65 +592,159 @@ class GraspSupervisor:
                 self._low_since_ns = t_ns
             low_s = (t_ns - self._low_since_ns) * 1e-9
             if low_s >= p.lost_force_hold_s:
-                self._finish(Phase.FAILED, Outcome.OBJECT_LOST,
-                             f'object lost at t={t_s:.4f} s: force {force_n:.3f} N has been '
-                             f'below {p.lost_force_fraction:g} x the setpoint '
-                             f'{tg.force_setpoint_n:.3f} N = {floor:.3f} N for '
-                             f'{low_s * 1e3:.2f} ms (since t={self._low_since_ns * 1e-9:.4f} s);'
-                             f' finger at {position_m:.5f} m')
-                return True
+                return self._end(
+                    Phase.FAILED, Outcome.OBJECT_LOST,
+                    f'object lost at t={t_s:.4f} s{self._into()}: force {force_n:.3f} N has '
+                    f'been below {p.lost_force_fraction:g} x the setpoint '
+                    f'{tg.force_setpoint_n:.3f} N = {floor:.3f} N for {low_s * 1e3:.2f} ms '
+                    f'(since t={self._low_since_ns * 1e-9:.4f} s); finger at {position_m:.5f} m',
+                    position_m=position_m)
         if self.hold_position_m is not None and \
                 position_m > self.hold_position_m + p.no_object_margin_m:
-            self._finish(Phase.FAILED, Outcome.OBJECT_LOST,
-                         f'object lost at t={t_s:.4f} s: the finger moved on '
-                         f'{(position_m - self.hold_position_m) * 1e3:.2f} mm past the held '
-                         f'position {self.hold_position_m:.5f} m (margin '
-                         f'{p.no_object_margin_m * 1e3:g} mm); force {force_n:.3f} N')
-            return True
-        return False
+            return self._end(
+                Phase.FAILED, Outcome.OBJECT_LOST,
+                f'object lost at t={t_s:.4f} s{self._into()}: the finger moved on '
+                f'{(position_m - self.hold_position_m) * 1e3:.2f} mm past the held position '
+                f'{self.hold_position_m:.5f} m (margin {p.no_object_margin_m * 1e3:g} mm); '
+                f'force {force_n:.3f} N', position_m=position_m)
+        return None
 
-    def _step_release(self, t_ns: int, position_m: float) -> Decision:
+    def _into(self) -> str:
+        """Where in the grasp an event happened, for its message."""
+        if self.holding and self.end_ns is not None:
+            return f', {(self._t_ns - self.end_ns) * 1e-9:.4f} s after HOLDING'
+        return f', {(self._t_ns - self.start_ns) * 1e-9:.4f} s into the grasp'
+
+    def _step_release(self, t_ns: int, position_m: float) -> Outcome | None:
         p, tg = self.params, self.targets
         if abs(position_m - tg.position_setpoint_m) <= p.release_tolerance_m:
             if self._in_band_since_ns is None:
                 self._in_band_since_ns = t_ns
             if (t_ns - self._in_band_since_ns) * 1e-9 >= p.release_settle_s:
-                self._finish(Phase.DONE, Outcome.RELEASED,
-                             f'released: finger at {position_m:.5f} m (open position '
-                             f'{tg.position_setpoint_m:.5f} m, opening '
-                             f'{self.plant.max_travel_m - position_m:.5f} m) after '
-                             f'{(t_ns - self.start_ns) * 1e-9:.3f} s')
-                return self._decision()
+                return self._end(
+                    Phase.DONE, Outcome.RELEASED,
+                    f'released: finger at {position_m:.5f} m (open position '
+                    f'{tg.position_setpoint_m:.5f} m, opening '
+                    f'{self.plant.max_travel_m - position_m:.5f} m) after '
+                    f'{(t_ns - self.start_ns) * 1e-9:.3f} s', position_m=position_m)
         else:
             self._in_band_since_ns = None
         if (t_ns - self.start_ns) * 1e-9 > tg.timeout_s:
-            self._finish(Phase.FAILED, Outcome.TIMEOUT,
-                         f'release not done within {tg.timeout_s:g} s of simulated time '
-                         f'(finger at {position_m:.5f} m)')
-        return self._decision()
+            return self._end(Phase.FAILED, Outcome.TIMEOUT,
+                             f'release not done within {tg.timeout_s:g} s of simulated time '
+                             f'(finger at {position_m:.5f} m)', position_m=position_m)
+        return None
+
+    def _step_move(self, t_ns: int, position_m: float, force_n: float, sensor_voltage_v: float,
+                   speed_mps: float) -> Outcome | None:
+        """End a move MOVED, STALLED or TIMEOUT; the position stage drives it meanwhile."""
+        p, tg = self.params, self.targets
+        goal = tg.position_setpoint_m
+        elapsed_s = (t_ns - self.start_ns) * 1e-9
+        if self.contact_ns is None and \
+                sensor_voltage_v - self._baseline_voltage_v > p.sensor_voltage_threshold_v:
+            self.contact_ns = t_ns
+        error_m = goal - position_m                   # > 0: still to close
+        at_rest = abs(speed_mps) <= p.move_rest_speed_mps
+        where = (f'finger at {position_m:.5f} m (opening '
+                 f'{self.plant.max_travel_m - position_m:.5f} m, goal '
+                 f'{self.plant.max_travel_m - goal:.5f} m), force {force_n:.3f} N, after '
+                 f'{elapsed_s:.3f} s')
+        if not at_rest:
+            self._rest_since_ns = None
+        elif abs(error_m) <= tg.tolerance_m:
+            return self._end(Phase.DONE, Outcome.MOVED, f'moved: {where}', position_m=goal,
+                             limits=tg)
+        else:
+            if self._rest_since_ns is None:
+                self._rest_since_ns = t_ns
+            rest_s = (t_ns - self._rest_since_ns) * 1e-9
+            fraction = p.move_stall_force_fraction
+            # closing onto an obstacle, pressing at the effort limit (False for a NaN force)
+            pressing = error_m > 0.0 and \
+                fraction * tg.max_effort_n <= force_n <= tg.max_effort_n / fraction
+            if pressing or rest_s >= p.move_stall_timeout_s:
+                why = (f'pressing with {force_n:.3f} N at the effort limit '
+                       f'{tg.max_effort_n:.3f} N' if pressing else f'at rest for {rest_s:.3f} s')
+                return self._end(Phase.DONE, Outcome.STALLED,
+                                 f'stalled {abs(error_m) * 1e3:.2f} mm short of the goal, '
+                                 f'{why}: {where}', position_m=goal, limits=tg)
+        if elapsed_s > self._move_timeout_s:
+            return self._end(Phase.FAILED, Outcome.TIMEOUT,
+                             f'move not done within {self._move_timeout_s:g} s of simulated '
+                             f'time: {where}', position_m=position_m)
+        return None
 
     def _switch(self, criterion: SwitchCriterion, t_ns: int) -> None:
         self._prev_force_t_ns = None          # the settle criterion's force rate starts here
         self.phase = Phase.FORCE
         self.switch_criterion = criterion
         self.switch_ns = t_ns
+        self._assign(Controller.FORCE)
 
-    def _finish(self, phase: Phase, outcome: Outcome, message: str) -> None:
+    def _end(self, phase: Phase, outcome: Outcome, message: str, *, hold: bool = True,
+             position_m: float | None = None, limits: MoveTargets | None = None) -> Outcome:
+        """End the request (or the hold).
+
+        The position stage holds the finger from this tick on (``hold``; at ``position_m``,
+        default where it is; with a move's ``limits``), or nothing drives the motor (a FAULT).
+        """
+        if hold and position_m is None:
+            position_m = self._last_position()      # (while the request still runs)
         self.phase = phase
         self.outcome = outcome
         self.message = message
         self.end_ns = self._t_ns
+        if hold:
+            self._hold_here(position_m, limits)
+        else:
+            self._active = Controller.NONE
+            self.stage_id += 1
+        return outcome
 
-    def _decision(self) -> Decision:
-        active = Controller.NONE
-        if self.busy:
-            active = {Phase.POSITION: Controller.POSITION,
-                      Phase.RELEASING: Controller.POSITION,
-                      Phase.FORCE: Controller.FORCE,
-                      Phase.HOLDING: Controller.FORCE}.get(self.phase,
-                                                                Controller.NONE)
+    def _last_position(self) -> float:
+        """Return where to hold when a request or hold ends.
+
+        The held position of a hold, else where the finger was last measured in the running
+        request, else the idle hold.
+        """
+        if self.hold_position_m is not None:
+            return self.hold_position_m
+        if self.running and self._position_m is not None:
+            return self._position_m
+        return self._idle_hold_m
+
+    def _fill(self, answer: Outcome | None = None) -> Decision:
+        d = self._decision
+        d.t_ns = self._t_ns
+        d.phase = self.phase
+        d.active = self._active
+        d.switch_criterion = self.switch_criterion
+        d.outcome = self.outcome
+        d.grasp_id = self.grasp_id
+        d.stage_id = self.stage_id
+        d.running = self.running
+        d.contact = self.contact_ns is not None
+        d.message = self.message
+        d.answer = answer
+        if answer is not None and self.answer_ns is None:
+            self.answer, self.answer_ns = answer, self._t_ns
         tg = self.targets
-        return Decision(self.phase, active, self.switch_criterion, self.outcome,
-                        tg.position_setpoint_m if tg else 0.0,
-                        tg.force_setpoint_n if tg else 0.0, self.message,
-                        tg.approach_setpoint_m if tg else 0.0)
+        if self._active is Controller.POSITION and not self.running:
+            d.position_setpoint_m = d.approach_setpoint_m = self._idle_hold_m
+            d.force_setpoint_n = tg.force_setpoint_n if tg is not None else 0.0
+            d.voltage_limit_v = self._idle_limit_v
+            d.speed_limit_mps = self._idle_speed_limit_mps
+        elif tg is not None:
+            d.position_setpoint_m = tg.position_setpoint_m
+            d.approach_setpoint_m = tg.approach_setpoint_m
+            d.force_setpoint_n = tg.force_setpoint_n
+            if self.phase is Phase.MOVING:
+                d.voltage_limit_v = tg.voltage_limit_v
+                d.speed_limit_mps = tg.speed_mps
+            else:
+                d.voltage_limit_v = d.speed_limit_mps = 0.0
+        else:
+            d.position_setpoint_m = d.approach_setpoint_m = d.force_setpoint_n = 0.0
+            d.voltage_limit_v = d.speed_limit_mps = 0.0
+        return d

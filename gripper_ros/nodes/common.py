@@ -1,19 +1,18 @@
-"""What every node of the graph shares: topic names, QoS, time stamps, config parameter."""
+"""What every node shares: QoS, executors, time stamps, the config, ``main()``, service tools."""
 from __future__ import annotations
 
 import enum
+import sys
 import time
+from typing import Callable
 
 from builtin_interfaces.msg import Time
 from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
-from gripper_ros.core.config import GripperConfig, load_config
-from gripper_ros.wire import (ACTION_GRASP, FINGER_JOINT, GRAPH_TOPICS,  # noqa: F401
-                              SERVICE_GRASP, SERVICE_RELEASE, SERVICE_SET_OBJECT, SERVICE_STOP,
-                              TOPIC_CLOCK, TOPIC_FORCE_SENSOR, TOPIC_JOINT_STATES,
-                              TOPIC_MOTOR_COMMAND, TOPIC_MOTOR_STATE, TOPIC_OUTCOME, TOPIC_STATUS)
+from gripper_ros.core.config import ConfigError, GripperConfig, load_config
+from gripper_ros.wire import DEFAULT_NAMESPACE
 
 # Lockstep keeps at most a few messages in flight; the depth is there so that a slow recorder
 # callback never loses one (a reliable keep_last writer drops what its history cannot hold).
@@ -21,6 +20,7 @@ GRAPH_QOS_DEPTH = 1000
 GRAPH_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=GRAPH_QOS_DEPTH,
                        reliability=ReliabilityPolicy.RELIABLE,
                        durability=DurabilityPolicy.VOLATILE)
+"""Every lockstep and state topic: reliable, so that neither the loop nor a recorder loses one."""
 
 LATCHED_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
                          reliability=ReliabilityPolicy.RELIABLE,
@@ -31,6 +31,14 @@ LATCHED_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1,
 SERVICE_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=GRAPH_QOS_DEPTH,
                          reliability=ReliabilityPolicy.RELIABLE,
                          durability=DurabilityPolicy.VOLATILE)
+
+EXIT_BAD_START = 2
+"""Exit status of a node or tool that refused to start (one line on stderr says why)."""
+
+
+class StartupError(RuntimeError):
+    """A node cannot start (its names are taken, a bad parameter); the message is one line."""
+
 
 class ExecutorKind(enum.Enum):
     EVENTS = 'events'      # rclpy.experimental.EventsExecutor: ~10x faster here
@@ -43,6 +51,86 @@ def make_executor(kind: ExecutorKind, context=None):
         return EventsExecutor(context=context)
     from rclpy.executors import SingleThreadedExecutor
     return SingleThreadedExecutor(context=context)
+
+
+def spin_until_stopped(executor, stop) -> None:
+    """Spin ``executor`` until the ``stop`` future completes (set it from any thread).
+
+    rclpy 7.1.6's EventsExecutor busy-loops and never fires timers in ``spin()`` without a
+    timeout; ``spin_until_future_complete`` with a finite timeout works on both executors.
+    A callback that raises is reported in one line and spinning goes on: one failing callback
+    must not leave a graph that serves nothing.
+    """
+    import rclpy
+    from rclpy.executors import ExternalShutdownException
+    from rclpy.logging import get_logger
+    while not stop.done() and rclpy.ok(context=executor.context):
+        try:
+            executor.spin_until_future_complete(stop, timeout_sec=3600.0)
+        except (ExternalShutdownException, KeyboardInterrupt):
+            return
+        except Exception as exc:  # noqa: BLE001 - reported, and the graph keeps running
+            if not rclpy.ok(context=executor.context):
+                return
+            get_logger('gripper_ros').error(
+                f'a callback failed and was skipped: {type(exc).__name__}: {one_line(exc)}')
+
+
+def run_node(make_node: Callable[[], Node], name: str, args=None,
+             services: tuple[str, ...] = ()) -> int:
+    """The one ``main()`` of every node: init, spin, clean shutdown, one exit-code policy.
+
+    0 on Ctrl-C or SIGTERM; ``EXIT_BAD_START`` with one line on stderr, no traceback, for a bad
+    config file, a refused start-up parameter or names already taken (a node ``name``, or a
+    server of one of ``services``, in its namespace). The executor is the node's ``executor``
+    parameter (``events``, the default, or ``single``).
+    """
+    import rclpy
+    from rclpy.exceptions import ParameterException
+    from rclpy.executors import ExternalShutdownException
+    from rclpy.task import Future
+
+    from gripper_ros.nodes.names import NameClaim
+    rclpy.init(args=args)
+    node = executor = claim = None
+    try:
+        claim = NameClaim.take((name,), services)
+        node = make_node()
+        kind = node.declare_parameter('executor', ExecutorKind.EVENTS.value, ParameterDescriptor(
+            description='events (rclpy EventsExecutor) | single (SingleThreadedExecutor)',
+            read_only=True)).value
+        try:
+            executor = make_executor(ExecutorKind(kind))
+        except ValueError:
+            raise StartupError(f'parameter "executor" must be one of '
+                               f'{[k.value for k in ExecutorKind]}, got {kind!r}') from None
+        executor.add_node(node)
+        spin_until_stopped(executor, Future())
+    except (ConfigError, ParameterException, StartupError, ValueError) as exc:
+        print(f'{name}: {one_line(exc)}', file=sys.stderr)
+        return EXIT_BAD_START
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        if executor is not None:
+            executor.shutdown(timeout_sec=1.0)
+        if node is not None:
+            node.destroy_node()
+        if claim is not None:
+            claim.release()
+        rclpy.try_shutdown()
+    return 0
+
+
+def one_line(text: object) -> str:
+    return ' '.join(str(text).split())
+
+
+def default_namespace(kwargs: dict) -> dict:
+    """Node keyword arguments with the package's namespace unless one is given (a remap
+    ``-r __ns:=/left`` still wins, as for every ROS node)."""
+    kwargs.setdefault('namespace', DEFAULT_NAMESPACE)
+    return kwargs
 
 
 MAX_COUNTED_GAP_S = 0.25
@@ -74,6 +162,19 @@ class ExecutorSilence:
         return self.silent_s
 
 
+def call_and_wait(client, request, timeout_s: float):
+    """A service call from a thread that is not the executor's: the response, or None when
+    none came within ``timeout_s`` (the pending request is dropped)."""
+    import threading
+    done = threading.Event()
+    future = client.call_async(request)
+    future.add_done_callback(lambda _f: done.set())
+    if not done.wait(timeout_s):
+        client.remove_pending_request(future)
+        return None
+    return future.result()
+
+
 def wait_until(predicate, timeout_s: float = 5.0, step_s: float = 0.005) -> bool:
     """Poll ``predicate`` until it holds or ``timeout_s`` of wall time has passed; its last
     value (for callers that wait on another thread's spinning executor)."""
@@ -101,17 +202,6 @@ def declare_config(node: Node) -> GripperConfig:
     path = node.declare_parameter('config_file', '', ParameterDescriptor(
         description='YAML file, read once at start-up', read_only=True)).value
     return load_config(path or None)
-
-
-def spin_until_stopped(executor, stop) -> None:
-    """Spin ``executor`` until the ``stop`` future completes (set it from any thread).
-
-    rclpy 7.1.6's EventsExecutor busy-loops and never fires timers in ``spin()`` without a
-    timeout; ``spin_until_future_complete`` with a finite timeout works on both executors.
-    """
-    import rclpy
-    while not stop.done() and rclpy.ok(context=executor.context):
-        executor.spin_until_future_complete(stop, timeout_sec=3600.0)
 
 
 def server_node_name(node_name: str, service_name: str) -> str:

@@ -1,37 +1,36 @@
-"""What the position and force controller nodes share: the lockstep answer to a tick.
+"""What the position and force controller nodes share: the lockstep answer to a reference.
 
-A controller answers tick ``t_k`` once it holds both the supervisor's status for ``t_k`` naming it
-active and its own measurement for ``t_k``. It is (re)initialised, bumplessly, whenever it becomes
-active for a grasp. A non-finite measurement is never passed on, and a non-finite output is never
-published: the controller holds 0 V and reports it.
+A stage controller takes only the references addressed to it (``loop/position_reference`` or
+``loop/force_reference``), each carrying its tick's measurement, and answers each (stage,
+stamp) once on ``loop/motor_command``; a repeated reference (the plant still waiting, e.g. a
+late peer) gets the same command again. It restarts from the measured state whenever the
+supervisor assigns it a new stage. A non-finite measurement or output is never acted on: the
+controller holds 0 V and reports it. The bookkeeping and the laws live in
+:mod:`gripper_ros.core.stages` and :mod:`gripper_ros.core.lockstep` (no rclpy).
 
-A status watchdog (steady clock, parameter ``status_timeout_s``) covers a dead or hung
-supervisor: while this controller is the active one and no new status has arrived for that long,
-it publishes one 0 V command (``hold_s`` as usual) and logs an error naming the supervisor. Only
-time in which the executor demonstrably ran counts (a check more than 0.25 s late adds 0.25 s):
-after a stall of the whole process, statuses queued behind the watchdog are not mistaken for
-silence. The
-default (3 s) lies above the supervisor's own ``tick_timeout_s`` (2 s), so that a stall the
-supervisor can see (a dead plant or controller) ends as the supervisor's FAULT first and no
-controller commands anything after it. The 0 V command is stamped with the tick of the last
-status. Normally the controller has answered that tick and the plant has moved on, so the plant
-ignores it: simulated time stays where it stopped and the command stands for what a motor driver
-would be told. If the tick was still unanswered (its measurement never came), the plant holds
-0 V for it, and a late measurement adds no second answer.
-
-The bookkeeping and the control laws live in :mod:`gripper_ros.core.stages` (no rclpy), so
-that ``bag_replay --resimulate`` runs exactly the code the nodes run.
+A watchdog (steady clock, parameter ``status_timeout_s``) covers a dead or hung supervisor:
+while this controller is the named stage and the supervisor's status heartbeat has been silent
+for that long, it publishes one 0 V command for the last tick it knows and logs an error naming
+the supervisor. Only time in which the executor demonstrably ran counts. The default (3 s) lies
+above the supervisor's own ``tick_timeout_s`` (2 s), so that a stall the supervisor can see ends
+as its FAULT first.
 """
 from __future__ import annotations
 
-from gripper_interfaces.msg import MotorCommand, SupervisorStatus
+from collections import Counter
+
+from gripper_interfaces.msg import MotorCommand, StageReference, SupervisorStatus
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 
-from gripper_ros.core.stages import LockstepAnswerer
-from gripper_ros.nodes.common import (GRAPH_QOS, TOPIC_JOINT_STATES, TOPIC_MOTOR_COMMAND, TOPIC_STATUS,
-                         ExecutorSilence, time_to_ns)
+from gripper_ros.core.lockstep import StageSide
+from gripper_ros.core.stages import Reference
+from gripper_ros.nodes.common import GRAPH_QOS, ExecutorSilence, default_namespace
+from gripper_ros.nodes.loop_io import decode, read_status
+from gripper_ros.nodes.parameters import ConfigParameters
+from gripper_ros.wire import (COMMAND_LAYOUT, NODE_PLANT, REFERENCE_LAYOUT, TOPIC_MOTOR_COMMAND,
+                              TOPIC_STATUS, TOPIC_TICK, Controller)
 
 DEFAULT_STATUS_TIMEOUT_S = 3.0
 STATUS_TIMEOUT_RANGE_S = (0.1, 600.0)
@@ -39,114 +38,126 @@ WATCHDOG_PERIOD_S = 0.05
 
 
 class LockstepController(Node):
-    """Subclasses set ``source``, ``sample_time_s`` and implement ``activate``/``compute``
-    (the nodes delegate both to a stage of :mod:`gripper_ros.core.stages`)."""
+    """A stage controller node: ``reference_topic`` in, ``loop/motor_command`` out.
 
-    source: int = MotorCommand.SOURCE_NONE
+    Subclasses name their config ``section``, declare their own parameters in
+    ``declare_stage_parameters()`` and build their stage (:mod:`gripper_ros.core.stages`) in
+    ``build_stage(config)``. A gain set at run time is checked at once and takes effect when
+    the supervisor next assigns this stage (the law restarts then anyway).
+    """
+
+    source: Controller = Controller.NONE
+    reference_topic = ''
+    section = ''
 
     def __init__(self, name: str, **kwargs):
-        super().__init__(name, **kwargs)
-        self._status: SupervisorStatus | None = None
-        self._measurement_ns: int | None = None
-        self._measurement: float = 0.0
-        self._lockstep = LockstepAnswerer(self)   # answers once per (grasp_id, stamp)
-        self.sample_time_s = 0.0
+        super().__init__(name, **default_namespace(kwargs))
+        self.parameters = ConfigParameters(self, (self.section,), ('plant',),
+                                           on_change=self._on_config_change)
+        self.config = self.parameters.config
+        self._next_stage = None                   # built from changed gains, not yet in use
+        self.declare_stage_parameters()
+        self.declare_parameter(
+            'status_timeout_s', DEFAULT_STATUS_TIMEOUT_S, ParameterDescriptor(
+                description='wall seconds without the supervisor status heartbeat, while this '
+                            'controller is the named stage, before it commands 0 V once; keep '
+                            "it above the supervisor's tick_timeout_s",
+                floating_point_range=[FloatingPointRange(from_value=STATUS_TIMEOUT_RANGE_S[0],
+                                                         to_value=STATUS_TIMEOUT_RANGE_S[1])]))
+        self.stage = self.build_stage(self.config)
+        self.controller = self.stage.controller
+        self.sample_time_s = self.stage.sample_time_s
+        self.side = StageSide(self.stage)
         self.commands_published = 0
+        self.published: Counter = Counter()       # messages per (relative) topic
         self.nonfinite_answers = 0                # ticks answered with 0 V for want of numbers
         self.watchdog_trips = 0                   # 0 V commands for a silent supervisor
         self.watchdog_message = ''                # the error logged by the last trip
-        self.declare_parameter(
-            'status_timeout_s', DEFAULT_STATUS_TIMEOUT_S, ParameterDescriptor(
-                description='wall seconds without a new supervisor status, while this controller '
-                            'is active, before it commands 0 V once; keep it above the '
-                            "supervisor's tick_timeout_s",
-                floating_point_range=[FloatingPointRange(from_value=STATUS_TIMEOUT_RANGE_S[0],
-                                                         to_value=STATUS_TIMEOUT_RANGE_S[1])]))
-        self._silence = ExecutorSilence()         # executor-running time since the last status
+        self._last_ref: Reference | None = None
+        self._last_command: bytes | None = None
+        self._named = False                       # the supervisor's status names this stage
+        self._silence = ExecutorSilence()         # executor-running time without a status
         self._watchdog_tripped = False
         self._pub = self.create_publisher(MotorCommand, TOPIC_MOTOR_COMMAND, GRAPH_QOS)
-        self.create_subscription(SupervisorStatus, TOPIC_STATUS, self._on_status, GRAPH_QOS)
-        self._command = MotorCommand(source=self.source)
+        self.create_subscription(StageReference, self.reference_topic, self._on_reference,
+                                 GRAPH_QOS, raw=True)
+        self.create_subscription(SupervisorStatus, TOPIC_STATUS, self._on_status, GRAPH_QOS,
+                                 raw=True)
         self.create_timer(WATCHDOG_PERIOD_S, self._watchdog,
                           clock=Clock(clock_type=ClockType.STEADY_TIME))
+
+    def declare_stage_parameters(self) -> None:
+        """Declare the parameters ``build_stage`` reads (the controller kind...)."""
+
+    def build_stage(self, config):
+        raise NotImplementedError
+
+    def _on_config_change(self, config, keys) -> None:
+        self.config = config
+        self._next_stage = self.build_stage(config)     # checked now, used from the next stage
+        self.get_logger().info(f'{", ".join(keys)} changed: in effect from the next stage')
 
     @property
     def status_timeout_s(self) -> float:
         return self.get_parameter('status_timeout_s').value
 
-    # subclasses ----------------------------------------------------------------
-    def activate(self, status: SupervisorStatus, measurement: float) -> None:
-        """Called when this controller takes over (new grasp or stage switch)."""
-        raise NotImplementedError
-
-    def compute(self, status: SupervisorStatus, measurement: float) -> tuple[float, float]:
-        """Return (voltage_v, inner_setpoint) for this tick."""
-        raise NotImplementedError
-
     # lockstep ------------------------------------------------------------------
-    def _on_status(self, msg: SupervisorStatus) -> None:
-        self._status = msg
+    def _on_reference(self, data: bytes) -> None:
+        ref = Reference._make(decode(REFERENCE_LAYOUT, data, StageReference))
+        self._last_ref = ref
+        self._named = True
+        if self._next_stage is not None and ref.stage_id != self.side.answerer.active_stage:
+            self.stage, self._next_stage = self._next_stage, None      # a new stage begins
+            self.controller = self.stage.controller
+            self.side = StageSide(self.stage)
+        cmd = self.side.answer(ref)
+        if cmd is None:                           # asked again: the plant is still waiting
+            if self._last_command is not None:
+                self._pub.publish(self._last_command)
+                self.published[TOPIC_MOTOR_COMMAND] += 1
+            return
+        if not cmd.finite:
+            self.nonfinite_answers += 1
+            self.get_logger().error(f'{self.side.last_answer.reason} at t={ref.stamp_ns} '
+                                    f'(measurement {self.stage.measurement(ref)!r}): holding 0 V',
+                                    throttle_duration_sec=1.0)
+        self._last_command = COMMAND_LAYOUT.pack(*cmd)
+        self._pub.publish(self._last_command)
+        self.commands_published += 1
+        self.published[TOPIC_MOTOR_COMMAND] += 1
+
+    def _on_status(self, data: bytes) -> None:
+        self._named = read_status(data).active_controller == self.source
         self._silence.reset()
         self._watchdog_tripped = False
-        self._lockstep.on_status(msg)
-        self._try_answer()
-
-    def on_measurement(self, stamp_ns: int, value: float) -> None:
-        self._measurement_ns = stamp_ns
-        self._measurement = value
-        self._try_answer()
-
-    def _try_answer(self) -> None:
-        status = self._status
-        if status is None or status.active_controller != self.source:
-            return
-        stamp_ns = time_to_ns(status.header.stamp)
-        if self._measurement_ns != stamp_ns:
-            return
-        answer = self._lockstep.answer(status, stamp_ns, self._measurement)
-        if answer is None:
-            return
-        if not answer.finite:
-            self.nonfinite_answers += 1
-            self.get_logger().error(f'{answer.reason} at t={stamp_ns} (measurement '
-                                    f'{self._measurement!r}): holding 0 V',
-                                    throttle_duration_sec=1.0)
-        self._publish(status, answer.voltage_v, answer.inner_setpoint)
-
-    def _publish(self, status: SupervisorStatus, voltage: float, inner: float) -> None:
-        cmd = self._command
-        cmd.header.stamp = status.header.stamp
-        cmd.grasp_id = status.grasp_id
-        cmd.voltage_v = float(voltage)
-        cmd.hold_s = self.sample_time_s
-        cmd.inner_setpoint = float(inner)
-        self._pub.publish(cmd)
-        self.commands_published += 1
 
     # watchdog ------------------------------------------------------------------
     def _watchdog(self) -> None:
-        """Active, and the supervisor silent for ``status_timeout_s``: command 0 V once."""
-        status = self._status
-        watching = not (status is None or status.active_controller != self.source
-                        or self._watchdog_tripped)
+        """Named, and the supervisor silent for ``status_timeout_s``: command 0 V once."""
+        ref = self._last_ref
+        watching = self._named and ref is not None and not self._watchdog_tripped
         silent_s = self._silence.check(counting=watching)
         if not watching or silent_s < self.status_timeout_s:
             return
         self._watchdog_tripped = True
         if self.count_publishers(TOPIC_STATUS) == 0:
             why = f'the supervisor is gone (no publisher on {TOPIC_STATUS})'
-        elif 'plant_simulator' not in {i.node_name for i in
-                                       self.get_publishers_info_by_topic(TOPIC_JOINT_STATES)}:
-            why = (f'the supervisor is silent and plant_simulator is gone (no publisher on '
-                   f'{TOPIC_JOINT_STATES})')
+        elif NODE_PLANT not in {i.node_name for i in self.get_publishers_info_by_topic(
+                self.resolve_topic_name(TOPIC_TICK))}:
+            why = f'the supervisor is silent and {NODE_PLANT} is gone (no publisher on ' \
+                  f'{TOPIC_TICK})'
         else:
             why = 'the supervisor is silent'
         self.watchdog_message = (
             f'no status from the supervisor for {silent_s:.2f} s of wall time while '
-            f'{self.get_name()} was active (grasp {status.grasp_id}, '
-            f't={time_to_ns(status.header.stamp) * 1e-9:.4f} s): {why}; commanding 0 V')
+            f'{self.get_name()} was the named stage (grasp {ref.grasp_id}, '
+            f't={ref.stamp_ns * 1e-9:.4f} s): {why}; commanding 0 V')
         self.get_logger().error(self.watchdog_message)
         self.watchdog_trips += 1
-        # this tick counts as answered: a measurement arriving late adds no second command
-        self._lockstep.answered = (status.grasp_id, time_to_ns(status.header.stamp))
-        self._publish(status, 0.0, 0.0)
+        # answered: a reference arriving late adds no second command for this tick
+        self.side.answerer.answered = (ref.stage_id, ref.stamp_ns)
+        self._last_command = COMMAND_LAYOUT.pack(
+            ref.stamp_ns, ref.grasp_id, ref.stage_id, ref.revision, int(self.source), ref.phase,
+            ref.outcome, ref.running, False, 0.0, self.sample_time_s, 0.0)
+        self._pub.publish(self._last_command)
+        self.published[TOPIC_MOTOR_COMMAND] += 1

@@ -1,34 +1,36 @@
-"""force_controller: PI (or MPC-PI) on the gripping force, at the force sampling time (0.1 ms).
+"""force_controller: the force stage, every force sample (0.1 ms), from contact to the hold.
 
-Takes over from the position controller bumplessly: its integrator is seeded with the voltage
-the motor had at the switch (``SupervisorStatus.seed_voltage_v``). Until the sensor reports
-contact, its output is capped at the voltage whose stall force equals the setpoint
-(``approach_force_margin`` x F_sp / (N per V), eq. 13): on a rigid object the finger then
-cannot arrive pushing harder than the setpoint, which removes the paper's contact spike.
+The default law is the contact-aware stage (:mod:`gripper_ros.core.contact_force`: feed-forward,
+a speed-shaped approach, force feedback with stiffness-scheduled damping), for rigid and
+compliant objects alike; ``controller`` selects the paper's ``pi`` or ``mpc_pi`` instead, whose
+output is capped before contact at ``approach_force_margin`` x the stall voltage of the setpoint
+(eq. 13). It answers each ``loop/force_reference`` and keeps holding after the grasp is answered
+HOLDING, until the supervisor names another stage.
 """
 from __future__ import annotations
 
 import sys
 
-import rclpy
-from gripper_interfaces.msg import ForceSensor, MotorCommand, SupervisorStatus
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
-from rclpy.exceptions import ParameterException
-from rclpy.executors import ExternalShutdownException
 
-from gripper_ros.core.config import ConfigError
-from gripper_ros.core.stages import DEFAULT_FORCE_CONTROLLER, ForceStageController, parse_kind
-from gripper_ros.nodes.controller_node import LockstepController
 from gripper_ros.core.controllers import ForceControllerKind
-from gripper_ros.nodes.common import GRAPH_QOS, TOPIC_FORCE_SENSOR, declare_config, time_to_ns
+from gripper_ros.core.stages import (DEFAULT_APPROACH_FORCE_MARGIN, DEFAULT_FORCE_CONTROLLER,
+                                     ForceStageController, parse_kind)
+from gripper_ros.nodes.common import run_node
+from gripper_ros.nodes.controller_node import LockstepController
+from gripper_ros.wire import NODE_FORCE_CONTROLLER, TOPIC_FORCE_REFERENCE, Controller
 
 
 class ForceControllerNode(LockstepController):
-    source = MotorCommand.SOURCE_FORCE
+    source = Controller.FORCE
+    reference_topic = TOPIC_FORCE_REFERENCE
+    section = 'force_control'
 
     def __init__(self, **kwargs):
-        super().__init__('force_controller', **kwargs)
-        self.config = declare_config(self)
+        super().__init__(NODE_FORCE_CONTROLLER, **kwargs)
+        self.add_post_set_parameters_callback(self._on_parameters_set)
+
+    def declare_stage_parameters(self) -> None:
         kind = self.declare_parameter(
             'controller', DEFAULT_FORCE_CONTROLLER.value,
             ParameterDescriptor(description='contact_aware (default: rigid and compliant '
@@ -36,51 +38,25 @@ class ForceControllerNode(LockstepController):
                                 read_only=True)).value
         self.kind = parse_kind(ForceControllerKind, kind)
         self.approach_margin = self.declare_parameter(
-            'approach_force_margin', 1.0, ParameterDescriptor(
+            'approach_force_margin', DEFAULT_APPROACH_FORCE_MARGIN, ParameterDescriptor(
                 description='pi / mpc_pi: cap before contact, margin x stall voltage of the '
                             'force setpoint; 0 disables the cap (the paper behaviour). '
                             'contact_aware caps its approach itself',
                 floating_point_range=[FloatingPointRange(from_value=0.0, to_value=10.0)])).value
-        self.stage = ForceStageController(self.config, self.kind, self.approach_margin)
-        self.controller = self.stage.controller
-        self.sample_time_s = self.stage.sample_time_s
-        self.create_subscription(ForceSensor, TOPIC_FORCE_SENSOR, self._on_force, GRAPH_QOS)
-        self.add_post_set_parameters_callback(self._on_parameters_set)
+
+    def build_stage(self, config) -> ForceStageController:
+        return ForceStageController(config, self.kind, self.approach_margin)
 
     def _on_parameters_set(self, parameters) -> None:
         """An accepted ``approach_force_margin`` (the descriptor's range refuses the rest)
-        takes effect when the force stage next takes over (the next grasp), never mid-stage."""
+        takes effect when the force stage next takes over, never mid-stage."""
         for p in parameters:
             if p.name == 'approach_force_margin':
                 self.approach_margin = self.stage.approach_margin = float(p.value)
 
-    def _on_force(self, msg: ForceSensor) -> None:
-        self.on_measurement(time_to_ns(msg.header.stamp), msg.force_n)
-
-    def activate(self, status: SupervisorStatus, measurement: float) -> None:
-        """Seed bumplessly from ``status.seed_voltage_v``; cap the output until contact."""
-        self.stage.activate(status, measurement)
-
-    def compute(self, status: SupervisorStatus, measurement: float) -> tuple[float, float]:
-        return self.stage.compute(status, measurement)
-
 
 def main(args=None):
-    rclpy.init(args=args)
-    node = None
-    try:
-        node = ForceControllerNode()
-        rclpy.spin(node)
-    except (ConfigError, ParameterException) as exc:   # bad config file, parameter out of range
-        print(f'force_controller: {exc}', file=sys.stderr)
-        return 2
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    return run_node(ForceControllerNode, NODE_FORCE_CONTROLLER, args)
 
 
 if __name__ == '__main__':

@@ -2,34 +2,34 @@
 
 A robot program that must watch a grasp (and may abort it) wants an action, as Franka's gripper
 offers one beside its services. This node is a thin front end over the graph's own interfaces:
-a goal becomes a ``/gripper/grasp`` service call, feedback comes from
-``/gripper/supervisor/status`` (phase, finger position and opening, force, contact), and a cancel
-calls ``/gripper/stop`` so that the grasp ends as STOPPED and the goal as canceled. Every outcome
+a goal becomes a ``grasp`` service call, feedback comes from
+``supervisor/status`` (phase, finger position and opening, force, contact), and a cancel
+calls ``stop`` so that the grasp ends as STOPPED and the goal as canceled. Every outcome
 of the service (including REFUSED for a bad request or a busy gripper) is the action's result;
 the goal is *succeeded* only on HOLDING, *aborted* otherwise.
 
-Feedback is throttled to ``feedback_period_s`` of wall time (the status topic carries one message
-per lockstep tick, thousands per second), and sent on every phase change.
+Feedback is throttled to ``feedback_period_s`` of wall time (the status comes at the
+supervisor's status rate of simulated time, which in fast mode is many per wall second), and
+sent on every phase change.
 """
 from __future__ import annotations
 
 import sys
 import time
 
-import rclpy
 from gripper_interfaces.action import Grasp as GraspAction
 from gripper_interfaces.msg import SupervisorStatus
 from gripper_interfaces.srv import Grasp
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from std_srvs.srv import Trigger
 
-from gripper_ros.core.config import ConfigError
-from gripper_ros.core.supervisor import Outcome
-from gripper_ros.nodes.common import (ACTION_GRASP, GRAPH_QOS, SERVICE_GRASP, SERVICE_QOS, SERVICE_STOP,
-                         TOPIC_STATUS, declare_config, time_to_ns)
+from gripper_ros.nodes.common import (GRAPH_QOS, SERVICE_QOS, declare_config, default_namespace,
+                                      run_node)
+from gripper_ros.nodes.loop_io import read_status
+from gripper_ros.wire import (ACTION_GRASP, NODE_GRASP_ACTION, SERVICE_GRASP, SERVICE_STOP,
+                              TOPIC_STATUS, Outcome, Phase)
 
 _REQUEST_FIELDS = ('width_m', 'mass_kg', 'friction_coefficient', 'acceleration_mps2',
                    'timeout_s', 'width_tolerance_m')
@@ -40,7 +40,7 @@ _RESULT_FIELDS = ('success', 'outcome', 'message', 'position_setpoint_m', 'force
 
 class GraspActionServer(Node):
     def __init__(self, **kwargs):
-        super().__init__('grasp_action_server', **kwargs)
+        super().__init__(NODE_GRASP_ACTION, **default_namespace(kwargs))
         self.travel_m = declare_config(self).plant.max_travel_m
         self.feedback_period_s = self.declare_parameter(
             'feedback_period_s', 0.05, ParameterDescriptor(
@@ -49,8 +49,8 @@ class GraspActionServer(Node):
         self.add_post_set_parameters_callback(self._on_parameters_set)
         self._grasp = self.create_client(Grasp, SERVICE_GRASP, qos_profile=SERVICE_QOS)
         self._stop = self.create_client(Trigger, SERVICE_STOP)
-        self._status: SupervisorStatus | None = None
-        self.create_subscription(SupervisorStatus, TOPIC_STATUS, self._on_status, GRAPH_QOS)
+        self.create_subscription(SupervisorStatus, TOPIC_STATUS, self._on_status, GRAPH_QOS,
+                                 raw=True)
         self._goal = None                 # the goal handle being executed
         self._goal_grasp_id: int | None = None
         self._goal_start_ns: int | None = None
@@ -112,15 +112,17 @@ class GraspActionServer(Node):
         return result
 
     # ------------------------------------------------------------------ feedback
-    def _on_status(self, msg: SupervisorStatus) -> None:
+    def _on_status(self, data: bytes) -> None:
         goal = self._goal
         if goal is None or not goal.is_active:
             return
+        msg = read_status(data)
+        stamp_ns = msg.sec * 1_000_000_000 + msg.nanosec
         if self._goal_grasp_id is None:
-            if msg.phase not in (SupervisorStatus.PHASE_POSITION, SupervisorStatus.PHASE_FORCE):
+            if msg.phase not in (Phase.POSITION, Phase.FORCE):
                 return                         # a status of an earlier grasp
             self._goal_grasp_id = msg.grasp_id
-            self._goal_start_ns = time_to_ns(msg.header.stamp)
+            self._goal_start_ns = stamp_ns
         if msg.grasp_id != self._goal_grasp_id:
             return
         now = time.monotonic()
@@ -129,7 +131,7 @@ class GraspActionServer(Node):
         self._last_phase, self._last_feedback_wall = msg.phase, now
         feedback = GraspAction.Feedback(
             grasp_id=msg.grasp_id, phase=msg.phase,
-            elapsed_s=(time_to_ns(msg.header.stamp) - self._goal_start_ns) * 1e-9,
+            elapsed_s=(stamp_ns - self._goal_start_ns) * 1e-9,
             position_m=msg.position_m, width_m=self.travel_m - msg.position_m,
             force_n=msg.force_n, contact=msg.contact)
         goal.publish_feedback(feedback)
@@ -141,21 +143,7 @@ class GraspActionServer(Node):
 
 
 def main(args=None):
-    rclpy.init(args=args)
-    node = None
-    try:
-        node = GraspActionServer()
-        rclpy.spin(node)
-    except ConfigError as exc:
-        print(f'grasp_action_server: {exc}', file=sys.stderr)
-        return 2
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    return run_node(GraspActionServer, NODE_GRASP_ACTION, args)
 
 
 if __name__ == '__main__':

@@ -1,197 +1,487 @@
-"""plant_simulator: the gripper's motor, lead screw, fingers and object, in lockstep sim time.
+"""plant_simulator: the gripper's motor, lead screw, fingers and object, as simulated hardware.
 
-Publishes ``/clock``, the finger joint state, the force sensor (force and FSR voltage) and the
-motor state for tick ``t_k``; then waits for the command of tick ``t_k`` from the controller the
-supervisor named active for ``t_k``, holds it for the command's ``hold_s`` and publishes tick
-``t_k + hold_s``. Simulated time stands still while nobody commands.
+Lockstep: it publishes the measurement of tick ``t_k`` on ``loop/tick``, takes the command of
+``t_k`` from ``loop/motor_command`` (the stage the supervisor named, as the command's echo says),
+holds it for the command's ``hold_s`` and publishes tick ``t_k + hold_s``. How simulated time
+runs is the parameter ``time_mode``:
 
-``/gripper/sim/set_object`` places an object and may schedule a fault (``SetObject.FAULT_*``):
-it is armed when the next grasp starts (the first status of a new grasp, phase POSITION) at
-``fault_at_s`` after that status' stamp, and dropped if that grasp ends before it fires. The
-fault's numerics live in :mod:`gripper_ros.core.plant` and :mod:`gripper_ros.core.force_sensor`.
+- ``realtime`` (default): time always advances, paced to the wall clock by ``real_time_factor``
+  and never ahead of it; with no command (no supervisor yet, a FAULT, a node gone for
+  ``command_timeout_s``) the motor is held at 0 V and time goes on.
+- ``fast``: lockstep as fast as the graph goes while a request needs time (the command's echo
+  says so, or a lift is being played out), then time pauses until the next request.
+
+``sim/pause``, ``sim/resume`` and ``sim/step`` (ticks or a duration) hold and advance time in
+either mode. For other programs it publishes, at ``state_rate_hz`` of simulated time,
+``joint_states``, ``force_sensor``, ``sim/object_state`` (ground truth of the held object) and,
+with ``publish_clock``, ``/clock``; and ``sim/status`` (mode, pause, achieved real-time factor)
+about once a second. ``sim/set_object`` places an object, its hold physics and a lift, and may
+schedule a fault for the next grasp.
 """
 from __future__ import annotations
 
 import math
 import sys
+import time
+from collections import Counter
 
-import rclpy
-from gripper_interfaces.msg import ForceSensor, MotorCommand, MotorState, SupervisorStatus
-from gripper_interfaces.srv import SetObject
-from rcl_interfaces.msg import ParameterDescriptor
-from rclpy.executors import ExternalShutdownException
+from gripper_interfaces.msg import (ForceSensor, MotorCommand, ObjectState, PlantTick, SimStatus,
+                                    SupervisorStatus)
+from gripper_interfaces.srv import SetObject, SimStep
+from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
+from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
-from rosgraph_msgs.msg import Clock
+from rosgraph_msgs.msg import Clock as ClockMsg
 from sensor_msgs.msg import JointState
+from std_srvs.srv import Trigger
 
-from gripper_ros.core.config import ConfigError
 from gripper_ros.core.controllers import make_plant
-from gripper_ros.core.plant import FaultKind, GraspObject, PlantSample, check_fault
-from gripper_ros.nodes.common import (FINGER_JOINT, GRAPH_QOS, SERVICE_SET_OBJECT, TOPIC_CLOCK,
-                         TOPIC_FORCE_SENSOR, TOPIC_JOINT_STATES, TOPIC_MOTOR_COMMAND,
-                         TOPIC_MOTOR_STATE, TOPIC_STATUS, declare_config, ns_to_time, time_to_ns)
+from gripper_ros.core.lockstep import Command, PlantSide, command_problem
+from gripper_ros.core.plant import GraspObject, Lift, check_fault
+from gripper_ros.nodes.common import (GRAPH_QOS, DeferredService, StartupError,
+                                      default_namespace, ns_to_time, run_node)
+from gripper_ros.nodes.loop_io import (clock_template, decode, force_sensor_template,
+                                       joint_state_template, object_state_template,
+                                       read_status, split_ns, StatusView)
+from gripper_ros.nodes.parameters import ConfigParameters
+from gripper_ros.wire import (COMMAND_LAYOUT, FINGER_JOINT, NODE_PLANT, SERVICE_PAUSE,
+                              SERVICE_RESUME, SERVICE_SET_OBJECT, SERVICE_STEP, TICK_LAYOUT,
+                              TOPIC_CLOCK, TOPIC_FORCE_SENSOR, TOPIC_JOINT_STATES,
+                              TOPIC_MOTOR_COMMAND, TOPIC_OBJECT_STATE, TOPIC_SIM_STATUS,
+                              TOPIC_STATUS, TOPIC_TICK, Controller, Outcome, Phase,
+                              TimeMode)
 
-MAX_HOLD_S = 1.0  # a command held longer than this is refused as malformed
+HOUSEKEEPING_PERIOD_S = 0.05
+"""Steady timer: republish a tick nobody answered, free-run without commands, sim/status."""
+REPUBLISH_AFTER_S = 0.5
+"""A tick nobody has answered for this long (wall) is published again (discovery, late peers)."""
+SIM_STATUS_PERIOD_S = 1.0
+RTF_WARN_FRACTION = 0.95
+"""Realtime: warn (throttled) when the achieved real-time factor falls below this x target."""
+RTF_WARN_PERIOD_S = 10.0
+RTF_WARN_GRACE_S = 3.0
+"""No pace warning this soon after start: the first ticks wait for the peers' discovery."""
+MAX_LAG_S = 0.02
+"""Realtime: behind the wall clock by more than this, pacing starts afresh from now (simulated
+time is not rushed to catch up; the achieved real-time factor shows the loss)."""
+SLEEP_LIMIT_S = 0.001
+"""Realtime pacing: a wait this short is slept in place; a longer one is a timer."""
 
 
 class PlantSimulatorNode(Node):
     """Thin ROS wrapper around :class:`gripper_ros.core.plant.GripperPlant`."""
 
     def __init__(self, **kwargs):
-        super().__init__('plant_simulator', **kwargs)
-        self.config = declare_config(self)
-        self.plant = make_plant(self.config)
-        self.frame_id = self.declare_parameter('frame_id', 'gripper_base', ParameterDescriptor(
-            description='frame_id of every published header, read once at start-up',
-            read_only=True)).value
-        self._status: SupervisorStatus | None = None
-        self._command: MotorCommand | None = None
-        self.ticks_published = 0
-        self.commands_rejected = 0
-        self._pending_fault: tuple[FaultKind, float, float] | None = None  # (kind, at_s, tau)
-        self._fault_grasp_id: int | None = None   # the grasp the armed fault belongs to
+        super().__init__(NODE_PLANT, **default_namespace(kwargs))
+        self.parameters = ConfigParameters(self, (), ('plant', 'contact', 'force_sensor'))
+        self.config = self.parameters.config
+        self.side = PlantSide(make_plant(self.config))
+        self.plant = self.side.plant
+        self.frame_id = self._param('frame_id', 'gripper_base',
+                                    'frame_id of every published header', read_only=True)
+        mode = self._param('time_mode', 'realtime', 'realtime: paced to the wall clock, always '
+                           'advancing | fast: as fast as the graph goes while a request runs',
+                           read_only=True)
+        try:
+            self.time_mode = TimeMode[str(mode).upper()]
+        except KeyError:
+            raise StartupError(f'parameter "time_mode" must be realtime or fast, got '
+                               f'{mode!r}') from None
+        self.real_time_factor = self._param(
+            'real_time_factor', 1.0, 'realtime: simulated seconds per wall second',
+            (1e-3, 100.0))
+        self.state_rate_hz = self._param(
+            'state_rate_hz', 100.0, 'rate (per simulated second) of joint_states, '
+            'force_sensor, sim/object_state and /clock', (1.0, 10000.0))
+        self.command_timeout_s = self._param(
+            'command_timeout_s', 1.0, 'realtime: wall seconds without a command before the '
+            'motor is held at 0 V and time goes on', (0.01, 600.0))
+        self.publish_clock = self._param(
+            'publish_clock', True, 'publish /clock (one simulator per ROS graph should)',
+            read_only=True)
+        self.add_post_set_parameters_callback(self._on_parameters_set)
 
-        self._clock_pub = self.create_publisher(Clock, TOPIC_CLOCK, GRAPH_QOS)
+        self.ticks_published = 0
+        self.published: Counter = Counter()     # messages per (relative) topic
+        self.commands_rejected = 0
+        self.commands_ignored = 0               # stale, duplicate or superseded
+        self._pending: Command | None = None    # the accepted command for the current tick
+        self._last_echo: Command | None = None
+        self._tick = self.side.tick()
+        self._tick_bytes = TICK_LAYOUT.pack(*self._tick)
+        self._tick_wall = time.monotonic()      # when the current tick was published
+        self._woken = False                     # a request is waiting for simulated time
+        self._paused = False
+        self._budget: tuple[str, int] | None = None    # sim/step: ('ticks', n) or ('until', ns)
+        self._step_reply = None                 # (header, response) of a running sim/step
+        self._unpowered = self.time_mode is TimeMode.REALTIME   # nobody commands (yet)
+        self._status: StatusView | None = None
+        self._pacing = False                    # realtime: waiting for the wall clock
+        self._anchor()
+        self._state_period_ns = round(1e9 / self.state_rate_hz)
+        self._next_state_ns = self._tick.stamp_ns
+        self._last_hold_state = None
+        self._rtf = (time.monotonic(), self.plant.t_ns, 0.0)   # window start; last achieved
+        self._last_rtf_warning = time.monotonic() - RTF_WARN_PERIOD_S + RTF_WARN_GRACE_S
+        self._last_sim_status = 0.0
+        self._advancing = False
+
+        self._tick_pub = self.create_publisher(PlantTick, TOPIC_TICK, GRAPH_QOS)
         self._joint_pub = self.create_publisher(JointState, TOPIC_JOINT_STATES, GRAPH_QOS)
         self._force_pub = self.create_publisher(ForceSensor, TOPIC_FORCE_SENSOR, GRAPH_QOS)
-        self._motor_pub = self.create_publisher(MotorState, TOPIC_MOTOR_STATE, GRAPH_QOS)
-        self.create_subscription(SupervisorStatus, TOPIC_STATUS, self._on_status, GRAPH_QOS)
-        self.create_subscription(MotorCommand, TOPIC_MOTOR_COMMAND, self._on_command, GRAPH_QOS)
+        self._object_pub = self.create_publisher(ObjectState, TOPIC_OBJECT_STATE, GRAPH_QOS)
+        self._sim_pub = self.create_publisher(SimStatus, TOPIC_SIM_STATUS, GRAPH_QOS)
+        self._clock_pub = self.create_publisher(ClockMsg, TOPIC_CLOCK, GRAPH_QOS) \
+            if self.publish_clock else None
+        self.create_subscription(MotorCommand, TOPIC_MOTOR_COMMAND, self._on_command, GRAPH_QOS,
+                                 raw=True)
+        self.create_subscription(SupervisorStatus, TOPIC_STATUS, self._on_status, GRAPH_QOS,
+                                 raw=True)
         self.create_service(SetObject, SERVICE_SET_OBJECT, self._on_set_object)
+        self.create_service(Trigger, SERVICE_PAUSE, self._on_pause)
+        self.create_service(Trigger, SERVICE_RESUME, self._on_resume)
+        self.step_service = DeferredService(self, SimStep, SERVICE_STEP, self._on_step)
+        self._steady = Clock(clock_type=ClockType.STEADY_TIME)
+        self._pace_timer = self.create_timer(1.0, self._on_pace_timer, clock=self._steady)
+        self._pace_timer.cancel()
+        self.create_timer(HOUSEKEEPING_PERIOD_S, self._housekeeping, clock=self._steady)
 
-        self._clock_msg = Clock()
-        self._joint = JointState(name=[FINGER_JOINT], position=[0.0], velocity=[0.0],
-                                 effort=[0.0])
-        self._joint.header.frame_id = self.frame_id
-        self._force = ForceSensor()
-        self._force.header.frame_id = self.frame_id
-        self._motor = MotorState()
-        self._motor.header.frame_id = self.frame_id
+        self._joint_layout = joint_state_template(FINGER_JOINT, self.frame_id)
+        self._force_layout = force_sensor_template(self.frame_id)
+        self._object_layout = object_state_template(self.frame_id)
+        self._clock_layout = clock_template()
         self.get_logger().info(
-            f'plant ready: travel {self.config.plant.max_travel_m:g} m, '
-            f'max force {self.config.plant.max_force_n:.2f} N at '
-            f'{self.config.plant.voltage_limit_v:g} V')
-        self.publish_sample(self.plant.sample())
+            f'plant ready ({self.time_mode.name.lower()} time): travel '
+            f'{self.config.plant.max_travel_m:g} m, max force {self.config.plant.max_force_n:.2f} '
+            f'N at {self.config.plant.voltage_limit_v:g} V')
+        self._publish_tick()
+        self._publish_state(force=True)
+        self._publish_sim_status()
+
+    def _param(self, name, default, description, value_range=None, read_only=False):
+        descriptor = ParameterDescriptor(description=description, read_only=read_only)
+        if value_range is not None:
+            descriptor.floating_point_range = [FloatingPointRange(
+                from_value=value_range[0], to_value=value_range[1])]
+        return self.declare_parameter(name, default, descriptor).value
+
+    def _on_parameters_set(self, parameters) -> None:
+        """Accepted changes apply from the next tick (the descriptors refuse the rest)."""
+        for p in parameters:
+            if p.name == 'real_time_factor':
+                self.real_time_factor = float(p.value)
+                self._anchor()
+            elif p.name == 'state_rate_hz':
+                self.state_rate_hz = float(p.value)
+                self._state_period_ns = round(1e9 / self.state_rate_hz)
+            elif p.name == 'command_timeout_s':
+                self.command_timeout_s = float(p.value)
 
     # ------------------------------------------------------------------ lockstep
-    def _on_status(self, msg: SupervisorStatus) -> None:
-        self._status = msg
-        if self._pending_fault is not None and msg.phase == SupervisorStatus.PHASE_POSITION \
-                and msg.outcome == 0:
-            kind, at_s, tau = self._pending_fault
-            self._pending_fault = None
-            self._fault_grasp_id = msg.grasp_id
-            fault = self.plant.schedule_fault(
-                kind, time_to_ns(msg.header.stamp) + round(at_s * 1e9), tau)
-            self.get_logger().info(f'grasp {msg.grasp_id}: fault {kind.name} scheduled at '
-                                   f't={fault.at_ns * 1e-9:.4f} s')
-        elif msg.outcome != 0 and self.plant.scheduled_fault is not None and \
-                msg.grasp_id == self._fault_grasp_id:
-            self.plant.cancel_fault()             # the grasp ended before its fault fired
+    def _on_command(self, data: bytes) -> None:
+        cmd = Command._make(decode(COMMAND_LAYOUT, data, MotorCommand))
+        pending = self._pending
+        if cmd.stamp_ns != self._tick.stamp_ns or cmd.revision != self.side.revision or \
+                (pending is not None and cmd.stage_id <= pending.stage_id):
+            self.commands_ignored += 1          # stale, for the world before, or a repeat
+            return
+        problem = command_problem(cmd)
+        if problem:
+            self.commands_rejected += 1
+            self.get_logger().error(f'refusing the command of t={cmd.stamp_ns * 1e-9:.4f} s from '
+                                    f'source {cmd.source}: {problem}; motor held at 0 V',
+                                    throttle_duration_sec=1.0)
+            return
+        self.side.accept(cmd)
+        self._pending = self._last_echo = cmd
+        self._unpowered = False
         self._try_step()
 
-    def _on_command(self, msg: MotorCommand) -> None:
-        self._command = msg
+    def _on_status(self, data: bytes) -> None:
+        msg = read_status(data)
+        previous, self._status = self._status, msg
+        if previous is None or msg.grasp_id != previous.grasp_id:
+            if msg.mass_kg > 0.0:
+                self.side.grasp_mass_kg = msg.mass_kg
+        if msg.active_controller == Controller.NONE and self._pending is None:
+            self._unpowered = True              # nobody will command: 0 V, when time runs
+        if msg.pending_request:
+            self._woken = True
         self._try_step()
+
+    def _anchor(self) -> None:
+        """Realtime pacing counts from here: simulated time now = wall time now."""
+        self._wall_anchor = time.monotonic()
+        self._sim_anchor_ns = self.plant.t_ns
+
+    def _lead_s(self, t_next_ns: int) -> float:
+        """Wall seconds until simulated time ``t_next_ns`` may be published (realtime)."""
+        wall_s = time.monotonic() - self._wall_anchor
+        return (t_next_ns - self._sim_anchor_ns) * 1e-9 / self.real_time_factor - wall_s
 
     def _try_step(self) -> None:
-        status, command = self._status, self._command
-        if status is None or command is None:
-            return
-        now_ns = self.plant.t_ns
-        if time_to_ns(status.header.stamp) != now_ns or time_to_ns(command.header.stamp) != now_ns:
-            return
-        if status.active_controller == SupervisorStatus.CONTROLLER_NONE:
-            return
-        if command.source != status.active_controller or command.grasp_id != status.grasp_id:
-            self.commands_rejected += 1
-            self.get_logger().warn(
-                f'ignoring command from source {command.source} (grasp {command.grasp_id}): '
-                f'controller {status.active_controller} of grasp {status.grasp_id} is active',
-                throttle_duration_sec=1.0)
-            return
-        if not (math.isfinite(command.voltage_v) and math.isfinite(command.hold_s)
-                and 0.0 < command.hold_s <= MAX_HOLD_S):
-            self.commands_rejected += 1
-            self.get_logger().error(
-                f'refusing malformed command voltage={command.voltage_v!r} '
-                f'hold={command.hold_s!r}; motor held at 0 V', throttle_duration_sec=1.0)
-            return
-        self._command = None
-        self.publish_sample(self.plant.step(command.voltage_v, command.hold_s))
+        """Step when the gate of the time mode is open; without a command, step unpowered."""
+        while True:
+            cmd = self._pending
+            if cmd is None and not self._unpowered:
+                return
+            hold_ns = round(cmd.hold_s * 1e9) if cmd is not None else self._state_period_ns
+            if self._budget is not None:
+                pass                            # sim/step: advance now, in either mode
+            elif self._paused:
+                return
+            elif self.time_mode is TimeMode.FAST:
+                if not (self._woken or (cmd is not None and self.side.needs_time(cmd))):
+                    self._set_advancing(False)
+                    return                      # nothing needs time: it pauses here
+            else:
+                lead_s = self._lead_s(self._tick.stamp_ns + hold_ns)
+                if lead_s < -MAX_LAG_S:         # fell behind (a stall): no burst to catch up
+                    self._anchor()
+                    lead_s = self._lead_s(self._tick.stamp_ns + hold_ns)
+                if lead_s > 0.0:
+                    if lead_s > SLEEP_LIMIT_S:
+                        self._wait(lead_s)
+                        return
+                    time.sleep(lead_s)
+            self._woken = False
+            self._pending = None
+            self._set_advancing(True)
+            self._tick = self.side.step(cmd) if cmd is not None else \
+                self.side.step_unpowered(hold_ns * 1e-9)
+            self._publish_tick()
+            if self._tick.stamp_ns >= self._next_state_ns or self._hold_state_changed():
+                self._publish_state()
+            self._spend_budget()
+            if cmd is not None or self.time_mode is TimeMode.FAST:
+                return                          # lockstep: the next step needs its command
 
-    def publish_sample(self, s: PlantSample) -> None:
-        """Publish one tick: /clock first, so sim-time nodes see the tick's time."""
-        stamp = ns_to_time(s.t_ns)
-        self._clock_msg.clock = stamp
-        self._clock_pub.publish(self._clock_msg)
-        j = self._joint
-        j.header.stamp = stamp
-        j.position[0] = s.position_m
-        j.velocity[0] = s.velocity_mps
-        j.effort[0] = s.force_n
-        self._motor.header.stamp = stamp
-        self._motor.voltage_v = s.voltage_v
-        self._motor.current_a = s.current_a
-        self._motor.speed_rad_s = s.speed_rad_s
-        self._motor_pub.publish(self._motor)
-        f = self._force
-        f.header.stamp = stamp
-        f.force_n = s.force_n
-        f.peak_force_n = s.peak_force_n
-        f.voltage_v = s.sensor_voltage_v
-        self._force_pub.publish(f)
-        self._joint_pub.publish(j)
+    def _set_advancing(self, advancing: bool) -> None:
+        """sim/status at once when simulated time starts or stops advancing (fast mode)."""
+        if advancing != self._advancing:
+            self._advancing = advancing
+            self._publish_sim_status(window=False)
+
+    def _wait(self, lead_s: float) -> None:
+        """Realtime: step again once the wall clock has caught up (one timer, re-armed: a
+        timer made per tick costs the executor a rebuild of its entities every time)."""
+        if self._pacing:
+            return
+        self._pacing = True
+        self._pace_timer.timer_period_ns = max(1, round(lead_s * 1e9))
+        self._pace_timer.reset()
+
+    def _on_pace_timer(self) -> None:
+        self._pace_timer.cancel()
+        if self._pacing:
+            self._pacing = False
+            self._try_step()
+
+    def _publish_tick(self) -> None:
+        self._tick_bytes = TICK_LAYOUT.pack(*self._tick)
+        self._tick_pub.publish(self._tick_bytes)
+        self._tick_wall = time.monotonic()
         self.ticks_published += 1
+        self.published[TOPIC_TICK] += 1
+
+    # ------------------------------------------------------------------ state topics
+    def _hold_state_changed(self) -> bool:
+        return self.plant.hold_state is not self._last_hold_state
+
+    def _publish_state(self, force: bool = False) -> None:
+        """joint_states, force_sensor, sim/object_state and /clock for the current tick."""
+        tick = self._tick
+        sec, nanosec = split_ns(tick.stamp_ns)
+        period = self._state_period_ns
+        self._next_state_ns = (tick.stamp_ns // period + 1) * period
+        if self._clock_pub is not None:
+            self._clock_pub.publish(self._clock_layout.pack(sec, nanosec))
+            self.published[TOPIC_CLOCK] += 1
+        self._joint_pub.publish(self._joint_layout.pack(
+            sec, nanosec, tick.position_m, tick.velocity_mps, tick.force_n))
+        self.published[TOPIC_JOINT_STATES] += 1
+        self._force_pub.publish(self._force_layout.pack(
+            sec, nanosec, tick.force_n, tick.peak_force_n, tick.sensor_voltage_v))
+        self.published[TOPIC_FORCE_SENSOR] += 1
+        state = self.plant.object_state
+        self._last_hold_state = state.state
+        self._object_pub.publish(self._object_layout.pack(
+            sec, nanosec, int(state.state), state.slip_m, state.slip_speed_mps, state.load_n,
+            state.capacity_n, state.lift_acceleration_mps2))
+        self.published[TOPIC_OBJECT_STATE] += 1
+
+    def _publish_sim_status(self, window: bool = True) -> None:
+        """sim/status; ``window``: the periodic one, which measures the real-time factor."""
+        now = time.monotonic()
+        wall0, sim0, rtf = self._rtf
+        elapsed = now - wall0
+        if window:
+            rtf = (self.plant.t_ns - sim0) * 1e-9 / elapsed if elapsed > 0.0 else 0.0
+            self._rtf = (now, self.plant.t_ns, rtf)
+            self._last_sim_status = now
+        msg = SimStatus(time_mode=int(self.time_mode), paused=self._paused,
+                        advancing=self._advancing if not window else self.plant.t_ns > sim0,
+                        real_time_factor_target=self.real_time_factor
+                        if self.time_mode is TimeMode.REALTIME else 0.0,
+                        real_time_factor=rtf, ticks=self.ticks_published)
+        msg.header.stamp = ns_to_time(self.plant.t_ns)
+        self._sim_pub.publish(msg)
+        self.published[TOPIC_SIM_STATUS] += 1
+        if window and self.time_mode is TimeMode.REALTIME and not self._paused and \
+                rtf < RTF_WARN_FRACTION * self.real_time_factor and \
+                now - self._last_rtf_warning > RTF_WARN_PERIOD_S and elapsed > 0.5:
+            self._last_rtf_warning = now
+            self.get_logger().warning(
+                f'the graph cannot keep pace: achieved real-time factor {rtf:.2f} against '
+                f'{self.real_time_factor:g} over the last {elapsed:.1f} s')
+
+    @property
+    def achieved_real_time_factor(self) -> float:
+        return self._rtf[2]
+
+    def _housekeeping(self) -> None:
+        now = time.monotonic()
+        if now - self._last_sim_status >= SIM_STATUS_PERIOD_S:
+            self._publish_sim_status()
+        if self._pending is not None or self._paused:
+            return
+        silent_s = now - self._tick_wall
+        if self.time_mode is TimeMode.REALTIME and not self._unpowered and \
+                silent_s >= self.command_timeout_s:
+            self._unpowered = True
+            self.get_logger().error(
+                f'no command for t={self._tick.stamp_ns * 1e-9:.4f} s in {silent_s:.2f} s: '
+                'motor held at 0 V, time goes on', throttle_duration_sec=5.0)
+            self._try_step()
+        elif silent_s >= REPUBLISH_AFTER_S and not self._unpowered:
+            self._tick_pub.publish(self._tick_bytes)      # nobody answered: a late peer
+            self.published[TOPIC_TICK] += 1
+            self._tick_wall = now
+
+    # ------------------------------------------------------------------ sim services
+    def _budget_done(self) -> bool:
+        kind, value = self._budget
+        return value <= 0 if kind == 'ticks' else self.plant.t_ns >= value
+
+    def _spend_budget(self) -> None:
+        if self._budget is None:
+            return
+        if self._budget[0] == 'ticks':
+            self._budget = ('ticks', self._budget[1] - 1)
+        if self._budget_done():
+            self._budget = None
+            self._anchor()
+            reply, self._step_reply = self._step_reply, None
+            if reply is not None:
+                header, response = reply
+                response.success = True
+                response.time_s = self.plant.t_ns * 1e-9
+                response.message = f'stepped to t={response.time_s:.6f} s'
+                self.step_service.reply(header, response)
+
+    def _on_step(self, request: SimStep.Request, header) -> None:
+        response = SimStep.Response()
+        ticks, duration = int(request.ticks), float(request.duration_s)
+        problem = ''
+        if self._step_reply is not None:
+            problem = 'a step is already running'
+        elif not math.isfinite(duration) or duration < 0.0:
+            problem = f'duration_s must be finite and >= 0, got {duration!r}'
+        elif (ticks > 0) == (duration > 0.0):
+            problem = f'give exactly one of ticks ({ticks}) and duration_s ({duration:g}) > 0'
+        elif duration > 600.0:
+            problem = f'duration_s must be <= 600 s, got {duration:g}'
+        if problem:
+            response.success = False
+            response.message = f'refused: {problem}'
+            response.time_s = self.plant.t_ns * 1e-9
+            self.step_service.reply(header, response)
+            return
+        self._budget = ('ticks', ticks) if ticks else \
+            ('until', self.plant.t_ns + round(duration * 1e9))
+        self._step_reply = (header, response)
+        self._try_step()
+
+    def _on_pause(self, request, response):
+        response.success = not self._paused
+        response.message = f'paused at t={self.plant.t_ns * 1e-9:.6f} s' if not self._paused \
+            else 'already paused'
+        self._paused = True
+        self._publish_sim_status()
+        return response
+
+    def _on_resume(self, request, response):
+        response.success = self._paused
+        response.message = f'resumed at t={self.plant.t_ns * 1e-9:.6f} s' if self._paused \
+            else 'not paused'
+        self._paused = False
+        self._anchor()
+        self._publish_sim_status()
+        self._try_step()
+        return response
+
+    @property
+    def paused(self) -> bool:
+        return self._paused
 
     # ------------------------------------------------------------------ simulation set-up
+    def _busy_reason(self) -> str:
+        """Why the world may not be changed now: the supervisor's newest word on it (its
+        status, or the echo of the last command, whichever is later)."""
+        echo, status = self._last_echo, self._status
+        state = echo
+        if status is not None and (echo is None or (status.grasp_id, status.stage_id) >=
+                                   (echo.grasp_id, echo.stage_id)):
+            state = status
+        if state is None:
+            return ''
+        if state.running or getattr(state, 'pending_request', 0):
+            return 'a grasp or release is running'
+        if state.phase == Phase.HOLDING and state.outcome == Outcome.HOLDING:
+            return 'an object is held (release or stop first)'
+        return ''
+
     def _on_set_object(self, request: SetObject.Request,
                        response: SetObject.Response) -> SetObject.Response:
-        status = self._status
-        if status is not None and status.active_controller != SupervisorStatus.CONTROLLER_NONE:
+        busy = self._busy_reason()
+        if busy:
             response.success = False
-            response.message = 'refused: a grasp is running'
+            response.message = f'refused: {busy}'
             return response
         try:
             obj = GraspObject(request.width_m, request.stiffness_n_per_m,
-                              request.damping_n_s_per_m)
+                              request.damping_n_s_per_m, request.mass_kg,
+                              request.static_friction, request.kinetic_friction,
+                              request.pad_length_m)
+            lift = Lift(request.lift_acceleration_mps2, request.lift_delay_s,
+                        request.lift_duration_s) if request.lift_duration_s > 0.0 else None
             kind, tau = check_fault(request.fault, request.fault_at_s,
                                     request.fault_time_constant_s, obj.rigid)
-            if request.open_fingers:
-                self.plant.reset(open_fingers=True)
-            self.plant.set_object(obj)                       # also clears earlier faults
-        except ValueError as exc:
+            self.side.set_object(obj, request.open_fingers, (kind, request.fault_at_s, tau),
+                                 lift=lift)
+        except (ValueError, TypeError) as exc:
             response.success = False
             response.message = f'refused: {exc}'
             return response
-        self._pending_fault = None if kind is FaultKind.NONE else \
-            (kind, request.fault_at_s, tau)
+        self._pending = None                    # the command was for the world before
+        self._tick = self.side.tick()
+        self._publish_tick()
+        self._publish_state(force=True)
         response.success = True
         response.message = (f'object width {request.width_m:g} m, contact at '
                             f'{self.plant.contact_position_m:.4f} m')
-        if self._pending_fault is not None:
+        if kind.value:
             response.message += (f'; fault {kind.name} {request.fault_at_s:g} s after the start '
                                  f'of the next grasp')
-        self.publish_sample(self.plant.sample())
         return response
+
+    def destroy_node(self):
+        self.step_service.destroy()
+        return super().destroy_node()
 
 
 def main(args=None):
-    rclpy.init(args=args)
-    node = None
-    try:
-        node = PlantSimulatorNode()
-        rclpy.spin(node)
-    except ConfigError as exc:
-        print(f'plant_simulator: {exc}', file=sys.stderr)
-        return 2
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    return run_node(PlantSimulatorNode, NODE_PLANT, args)
 
 
 if __name__ == '__main__':

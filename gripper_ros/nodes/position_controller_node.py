@@ -1,69 +1,42 @@
-"""position_controller: MPC-PD (DMC over PD, Table II) for the position stage, at 10 ms.
+"""position_controller: MPC-PD (DMC over PD, Table II) for the position stage, every 10 ms.
 
-Answers each lockstep tick in which the supervisor names it active with the armature voltage
+Answers each ``loop/position_reference`` (the ticks on which the supervisor names the position
+stage: approaching an object, releasing, holding the fingers still) with the armature voltage
 for the next ``sample_time_s``. ``controller`` selects ``mpc_pd`` (default), ``pd`` or ``pid``.
 """
 from __future__ import annotations
 
 import sys
 
-import rclpy
-from gripper_interfaces.msg import MotorCommand, SupervisorStatus
 from rcl_interfaces.msg import ParameterDescriptor
-from rclpy.exceptions import ParameterException
-from rclpy.executors import ExternalShutdownException
-from sensor_msgs.msg import JointState
 
-from gripper_ros.core.config import ConfigError
-from gripper_ros.core.stages import PositionStageController, parse_kind
-from gripper_ros.nodes.controller_node import LockstepController
 from gripper_ros.core.controllers import PositionControllerKind
-from gripper_ros.nodes.common import GRAPH_QOS, TOPIC_JOINT_STATES, declare_config, time_to_ns
+from gripper_ros.core.stages import PositionStageController, parse_kind
+from gripper_ros.nodes.common import run_node
+from gripper_ros.nodes.controller_node import LockstepController
+from gripper_ros.wire import NODE_POSITION_CONTROLLER, TOPIC_POSITION_REFERENCE, Controller
 
 
 class PositionControllerNode(LockstepController):
-    source = MotorCommand.SOURCE_POSITION
+    source = Controller.POSITION
+    reference_topic = TOPIC_POSITION_REFERENCE
+    section = 'position_control'
 
     def __init__(self, **kwargs):
-        super().__init__('position_controller', **kwargs)
-        self.config = declare_config(self)
+        super().__init__(NODE_POSITION_CONTROLLER, **kwargs)
+
+    def declare_stage_parameters(self) -> None:
         kind = self.declare_parameter(
             'controller', PositionControllerKind.MPC_PD.value,
             ParameterDescriptor(description='mpc_pd | pd | pid', read_only=True)).value
         self.kind = parse_kind(PositionControllerKind, kind)
-        self.stage = PositionStageController(self.config, self.kind)   # the control law
-        self.controller = self.stage.controller
-        self.sample_time_s = self.stage.sample_time_s
-        self.create_subscription(JointState, TOPIC_JOINT_STATES, self._on_joint_state, GRAPH_QOS)
 
-    def _on_joint_state(self, msg: JointState) -> None:
-        position = msg.position[0] if msg.position else float('nan')
-        self.on_measurement(time_to_ns(msg.header.stamp), position)
-
-    def activate(self, status: SupervisorStatus, measurement: float) -> None:
-        """Start from rest at the measured position with the motor off."""
-        self.stage.activate(status, measurement)
-
-    def compute(self, status: SupervisorStatus, measurement: float) -> tuple[float, float]:
-        return self.stage.compute(status, measurement)
+    def build_stage(self, config) -> PositionStageController:
+        return PositionStageController(config, self.kind)
 
 
 def main(args=None):
-    rclpy.init(args=args)
-    node = None
-    try:
-        node = PositionControllerNode()
-        rclpy.spin(node)
-    except (ConfigError, ParameterException) as exc:   # bad config file, parameter out of range
-        print(f'position_controller: {exc}', file=sys.stderr)
-        return 2
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    return run_node(PositionControllerNode, NODE_POSITION_CONTROLLER, args)
 
 
 if __name__ == '__main__':

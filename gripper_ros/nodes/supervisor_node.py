@@ -1,348 +1,409 @@
-"""supervisor: serves ``/gripper/grasp`` and decides, tick by tick, which controller drives.
+"""supervisor: serves ``grasp``, ``release``, ``move`` and ``stop``; decides who drives.
 
-For every plant tick it reads the joint state, force sensor and motor state of that tick, steps
-:class:`gripper_ros.core.supervisor.GraspSupervisor` and publishes the decision on
-``/gripper/supervisor/status`` (phase, active controller, both setpoints). The grasp service
-answers when the grasp has ended, with one explicit outcome; a bad request or a request while a
-grasp runs is refused at once with ``success=false`` and a message, and nothing moves.
+Tick by tick, it names the one stage that drives the motor.
 
-Each ended grasp or release is also published, latched, on ``/gripper/supervisor/outcome``.
+For every ``loop/tick`` it steps :class:`gripper_ros.core.supervisor.GraspSupervisor` and sends
+the tick's reference (setpoints and the measurement) to the one stage it names, on
+``loop/position_reference`` or ``loop/force_reference``. A request is accepted at once and
+starts at the next tick; the grasp service answers when the grasp is HOLDING (the hold goes on
+until ``release``, ``stop`` or the next grasp) or has ended otherwise, with one explicit
+outcome. A bad request, or one while another runs, is refused at once with ``success=false``
+and a message, and nothing moves. ``release`` (std_srvs/Trigger) opens the fingers under
+position control and answers when they are open. ``move`` (srv/Move) drives the finger to a
+width at most at a speed and an effort and answers MOVED (reached_goal) or STALLED.
 
-``/gripper/release`` (std_srvs/Trigger) opens the fingers: the position stage drives the finger
-to the fully-open position (phase RELEASING) and the call is answered when it is there (outcome
-RELEASED on the status). It is refused while a grasp or release runs (call ``/gripper/stop``
-first): a release never silently ends a grasp.
+``supervisor/status`` carries the state for other programs: at ``status_rate_hz`` of simulated
+time, on every change, and once a second of wall time as a heartbeat. Each answer and each
+later loss is also latched on ``supervisor/outcome``. A request that makes no progress for
+``tick_timeout_s`` of wall time (a node gone) ends as FAULT naming who went silent.
 """
 from __future__ import annotations
 
 import math
 import sys
+from collections import Counter
 
-import rclpy
-from gripper_interfaces.msg import ForceSensor, MotorState, SupervisorStatus
-from gripper_interfaces.srv import Grasp
-from std_srvs.srv import Trigger
+from gripper_interfaces.msg import PlantTick, StageReference, SupervisorStatus
+from gripper_interfaces.srv import Grasp, Move
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
 from rclpy.clock import Clock, ClockType
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
-from sensor_msgs.msg import JointState
+from std_srvs.srv import Trigger
 
-from gripper_ros.core.config import ConfigError
-from gripper_ros.core.supervisor import (Decision, GraspRequest, GraspSupervisor, Outcome, Phase, RequestError,
-                          validate_request)
-from gripper_ros.nodes.common import (GRAPH_QOS, LATCHED_QOS, SERVICE_GRASP, SERVICE_RELEASE, SERVICE_STOP,
-                         TOPIC_FORCE_SENSOR, TOPIC_JOINT_STATES, TOPIC_OUTCOME,
-                         TOPIC_MOTOR_COMMAND, TOPIC_MOTOR_STATE, TOPIC_STATUS,
-                         DeferredService, ExecutorSilence, declare_config,
-                         ns_to_time, time_to_ns)
+from gripper_ros.core.lockstep import SupervisorSide, Tick
+from gripper_ros.core.supervisor import (GraspRequest, GraspSupervisor, MoveRequest,
+                                         RequestError, RequestKind, validate_move,
+                                         validate_request)
+from gripper_ros.nodes.common import (GRAPH_QOS, LATCHED_QOS, DeferredService, ExecutorSilence,
+                                      default_namespace, run_node)
+from gripper_ros.nodes.loop_io import decode, split_ns, status_message, status_template
+from gripper_ros.nodes.parameters import ConfigParameters
+from gripper_ros.wire import (Controller, NODE_FORCE_CONTROLLER, NODE_PLANT,
+                              NODE_POSITION_CONTROLLER, NODE_SUPERVISOR, Outcome,
+                              REFERENCE_LAYOUT, SERVICE_GRASP, SERVICE_MOVE, SERVICE_RELEASE,
+                              SERVICE_STOP, TICK_LAYOUT, TOPIC_FORCE_REFERENCE,
+                              TOPIC_MOTOR_COMMAND, TOPIC_OUTCOME, TOPIC_POSITION_REFERENCE,
+                              TOPIC_STATUS, TOPIC_TICK)
+
+HEARTBEAT_PERIOD_S = 1.0
+WATCHDOG_PERIOD_S = 0.1
+STAGE_NODES = {Controller.POSITION: NODE_POSITION_CONTROLLER,
+               Controller.FORCE: NODE_FORCE_CONTROLLER}
+REFERENCE_TOPICS = {Controller.POSITION: TOPIC_POSITION_REFERENCE,
+                    Controller.FORCE: TOPIC_FORCE_REFERENCE}
 
 
 class SupervisorNode(Node):
     def __init__(self, **kwargs):
-        super().__init__('supervisor', **kwargs)
-        self.config = declare_config(self)
+        super().__init__(NODE_SUPERVISOR, **default_namespace(kwargs))
+        self.parameters = ConfigParameters(self, ('supervisor',), ('plant',),
+                                           on_change=self._on_config_change)
+        self.config = self.parameters.config
         self.logic = GraspSupervisor(self.config.plant, self.config.supervisor)
-        self._joint: JointState | None = None
-        self._force: ForceSensor | None = None
-        # the last finite reading of each number the status and the Grasp response carry: a
-        # non-finite measurement (sensor dropout) is never published, the last good one is
-        self._good_position_m = 0.0
-        self._good_force_n = 0.0
-        self._good_voltage_v = 0.0
-        self._last_decided_ns: int | None = None
-        self._grasp_id = 0
-        # (request header, response): Grasp.Response for a grasp, Trigger.Response for a release
-        self._pending: tuple[object, object] | None = None
-        self._status_msg = SupervisorStatus()
-        self.statuses_published = 0
-        self._status_pub = self.create_publisher(SupervisorStatus, TOPIC_STATUS, GRAPH_QOS)
-        self._outcome_pub = self.create_publisher(SupervisorStatus, TOPIC_OUTCOME, LATCHED_QOS)
-        self.create_subscription(JointState, TOPIC_JOINT_STATES, self._on_joint, GRAPH_QOS)
-        self.create_subscription(ForceSensor, TOPIC_FORCE_SENSOR, self._on_force, GRAPH_QOS)
-        self.create_subscription(MotorState, TOPIC_MOTOR_STATE, self._on_motor, GRAPH_QOS)
-        self.grasp_service = DeferredService(self, Grasp, SERVICE_GRASP, self._on_grasp)
+        self._decide = SupervisorSide(self.logic).decide
         self.tick_timeout_s = self.declare_parameter(
             'tick_timeout_s', 2.0, ParameterDescriptor(
-                description='wall seconds without a new tick during a grasp before FAULT',
+                description='wall seconds without progress (a tick commanded by the named '
+                            'stage) during a grasp or release before FAULT',
                 floating_point_range=[FloatingPointRange(from_value=0.05, to_value=600.0)])).value
+        self.status_rate_hz = self.declare_parameter(
+            'status_rate_hz', 100.0, ParameterDescriptor(
+                description='supervisor/status per simulated second (and on every change)',
+                floating_point_range=[FloatingPointRange(from_value=1.0,
+                                                         to_value=10000.0)])).value
         self.add_post_set_parameters_callback(self._on_parameters_set)
-        # executor-running wall time without a new tick (see _watchdog)
-        self._silence = ExecutorSilence()
-        self.create_timer(0.1, self._watchdog, clock=Clock(clock_type=ClockType.STEADY_TIME))
-        self.create_service(Trigger, SERVICE_STOP, self._on_stop)
+        self._tick: Tick | None = None
+        self._decided_key: tuple[int, int] | None = None    # (stamp, revision) last decided
+        self._ref_bytes: bytes | None = None                # the reference sent for it
+        self._ref_topic = None
+        self._expected_source = Controller.NONE             # who should command the next tick
+        # the last finite readings: the status never carries a non-finite number
+        self._good_position_m = 0.0
+        self._good_force_n = 0.0
+        self._waiting: tuple[object, object] | None = None  # (request header, response)
+        self.response_notes: list[str] = []    # appended to the next answer (e.g. recording)
+        self._status_key = None
+        self._next_status_ns = 0
+        self.statuses_published = 0
+        self.references_published = 0
+        self.published: Counter = Counter()     # messages per (relative) topic
+        self._status_now = (0, None, '')          # the newest status: stamp, numbers, text
+        self._refs = {controller: self.create_publisher(StageReference, topic, GRAPH_QOS)
+                      for controller, topic in REFERENCE_TOPICS.items()}
+        self._ref_name = TOPIC_POSITION_REFERENCE
+        self._status_pub = self.create_publisher(SupervisorStatus, TOPIC_STATUS, GRAPH_QOS)
+        self._outcome_pub = self.create_publisher(SupervisorStatus, TOPIC_OUTCOME, LATCHED_QOS)
+        self.create_subscription(PlantTick, TOPIC_TICK, self._on_tick, GRAPH_QOS, raw=True)
+        self.grasp_service = DeferredService(self, Grasp, SERVICE_GRASP, self._on_grasp)
         self.release_service = DeferredService(self, Trigger, SERVICE_RELEASE, self._on_release)
+        self.move_service = DeferredService(self, Move, SERVICE_MOVE, self._on_move)
+        self.create_service(Trigger, SERVICE_STOP, self._on_stop)
+        steady = Clock(clock_type=ClockType.STEADY_TIME)
+        self._silence = ExecutorSilence()       # executor-running wall time without progress
+        self.create_timer(WATCHDOG_PERIOD_S, self._watchdog, clock=steady)
+        self.create_timer(HEARTBEAT_PERIOD_S, self._heartbeat, clock=steady)
+
+    def _on_config_change(self, config, keys) -> None:
+        """Thresholds apply from the next tick; a running request keeps the setpoints it was
+        given (a new force law applies to the next request)."""
+        self.config = config
+        self.logic.params = config.supervisor
+        self.get_logger().info(f'{", ".join(keys)} changed: in effect from the next tick')
 
     def _on_parameters_set(self, parameters) -> None:
-        """An accepted ``tick_timeout_s`` (the descriptor's range refuses the rest) applies from
-        the watchdog's next check on."""
+        """Accepted values apply from the next check or tick (the descriptors refuse the rest)."""
         for p in parameters:
             if p.name == 'tick_timeout_s':
                 self.tick_timeout_s = float(p.value)
+            elif p.name == 'status_rate_hz':
+                self.status_rate_hz = float(p.value)
 
-    def _progress(self) -> None:
-        """A tick was decided (or a grasp started): the watchdog's silence starts afresh."""
-        self._silence.reset()
-
-    # ------------------------------------------------------------------ measurements
-    def _on_joint(self, msg: JointState) -> None:
-        self._joint = msg
-        if msg.position and math.isfinite(msg.position[0]):
-            self._good_position_m = msg.position[0]
-        self._try_decide()
-
-    def _on_force(self, msg: ForceSensor) -> None:
-        self._force = msg
-        if math.isfinite(msg.force_n):
-            self._good_force_n = msg.force_n
-        self._try_decide()
-
-    def _on_motor(self, msg: MotorState) -> None:
-        if math.isfinite(msg.voltage_v):
-            self._good_voltage_v = msg.voltage_v
-
-    def _latest_tick(self) -> int | None:
-        """Stamp of the newest tick for which both measurements are here, else None."""
-        j, f = self._joint, self._force
-        if j is None or f is None:
-            return None
-        t_ns = time_to_ns(j.header.stamp)
-        return t_ns if t_ns == time_to_ns(f.header.stamp) else None
-
-    def _try_decide(self) -> None:
-        t_ns = self._latest_tick()
-        if t_ns is None or t_ns == self._last_decided_ns or not self.logic.busy:
+    # ------------------------------------------------------------------ the tick
+    def _on_tick(self, data: bytes) -> None:
+        tick = Tick._make(decode(TICK_LAYOUT, data, PlantTick))
+        key = (tick.stamp_ns, tick.revision)
+        if key == self._decided_key:            # the plant is still waiting: send it again
+            if self._ref_bytes is not None:
+                self._ref_topic.publish(self._ref_bytes)
+                self.published[self._ref_name] += 1
             return
-        self._last_decided_ns = t_ns
-        self._progress()
-        position = self._joint.position[0] if self._joint.position else math.nan
-        speed = self._joint.velocity[0] if self._joint.velocity else 0.0
-        decision = self.logic.step(t_ns, position, self._force.force_n, self._force.voltage_v,
-                                   speed)
-        self._publish(t_ns, decision)
-        if decision.finished:
+        self._decided_key = key
+        self._tick = tick
+        if math.isfinite(tick.position_m):
+            self._good_position_m = tick.position_m
+        if math.isfinite(tick.force_n):
+            self._good_force_n = tick.force_n
+        if tick.applied_source == self._expected_source or not self.logic.running:
+            self._silence.reset()               # the named stage's command moved the plant
+        decision, ref = self._decide(tick)
+        self._expected_source = decision.active
+        if ref is not None:
+            self._ref_topic = self._refs[decision.active]
+            self._ref_name = REFERENCE_TOPICS[decision.active]
+            self._ref_bytes = REFERENCE_LAYOUT.pack(*ref)
+            self._ref_topic.publish(self._ref_bytes)
+            self.references_published += 1
+            self.published[self._ref_name] += 1
+        else:
+            self._ref_bytes = None
+        self._publish_status(tick.stamp_ns)
+        if decision.answer is not None:
             self._complete(decision)
 
-    def _publish(self, t_ns: int, d: Decision) -> None:
-        m = self._status_msg
-        m.header.stamp = ns_to_time(t_ns)
-        m.phase = int(d.phase)
-        m.active_controller = int(d.active)
-        m.switch_criterion = int(d.switch_criterion)
-        m.grasp_id = self._grasp_id
-        m.outcome = int(d.outcome)
-        m.position_setpoint_m = d.position_setpoint_m
-        m.approach_setpoint_m = d.approach_setpoint_m
-        m.force_setpoint_n = d.force_setpoint_n
-        # the last finite readings: a non-finite one (sensor dropout) is never passed on
-        m.position_m = self._good_position_m
-        m.force_n = self._good_force_n
-        m.width_m = self.config.plant.max_travel_m - m.position_m
-        m.contact = self.logic.contact_ns is not None
-        m.seed_voltage_v = self._good_voltage_v
-        m.message = d.message if d.finished else ''
-        self._status_pub.publish(m)
-        self.statuses_published += 1
-        if d.finished:
-            self._outcome_pub.publish(m)     # latched: the last outcome, for late subscribers
-
-    # ------------------------------------------------------------------ service
-    def _on_grasp(self, request: Grasp.Request, header) -> None:
-        """Start a grasp, or refuse it at once; a started grasp is answered in _complete()."""
-        response = Grasp.Response()
-        message = self._start(request, response)
-        if message:
-            response.success = False
-            response.outcome = Grasp.Response.OUTCOME_REFUSED
-            response.message = message
-            self.get_logger().warn(f'grasp {message}')
-            self.grasp_service.reply(header, response)
+    def _publish_status(self, t_ns: int, force: bool = False) -> None:
+        """At the status rate, on every change, or when ``force``d (heartbeat, a request)."""
+        d = self.logic
+        key = (d.phase, d.active, d.stage_id, d.outcome, d.pending_request)
+        if not force and key == self._status_key and t_ns < self._next_status_ns:
+            return
+        self._status_key = key
+        period = round(1e9 / self.status_rate_hz)
+        self._next_status_ns = (t_ns // period + 1) * period
+        tg = d.targets
+        position_m = self._good_position_m
+        values = (int(d.phase), int(d.active), int(d.switch_criterion), d.grasp_id, d.stage_id,
+                  int(d.outcome), d.running, int(d.pending_request),
+                  tg.position_setpoint_m if tg else 0.0, tg.approach_setpoint_m if tg else 0.0,
+                  tg.force_setpoint_n if tg else 0.0, d.mass_kg, position_m, self._good_force_n,
+                  self.config.plant.max_travel_m - position_m, d.contact_ns is not None)
+        message = d.message if d.outcome is not Outcome.UNKNOWN else ''
+        self._status_now = (t_ns, values, message)
+        if message:                             # the rare status with a text: the general way
+            self._status_pub.publish(status_message(t_ns, values, message))
         else:
-            self._pending = (header, response)
+            self._status_pub.publish(status_template().pack(*split_ns(t_ns), *values))
+        self.statuses_published += 1
+        self.published[TOPIC_STATUS] += 1
 
-    def _start(self, request: Grasp.Request, response: Grasp.Response) -> str:
-        """Validate and start; returns a refusal message, or '' when the grasp has started."""
-        if self.logic.busy:
-            return ('refused: a release is running' if self.logic.releasing
-                    else 'refused: a grasp is already running')
-        try:
-            targets = validate_request(
-                GraspRequest(request.width_m, request.mass_kg, request.friction_coefficient,
-                             request.acceleration_mps2, request.timeout_s,
-                             request.width_tolerance_m),
-                self.config.plant, self.config.supervisor)
-        except RequestError as exc:
-            return f'refused: {exc}'
+    def _heartbeat(self) -> None:
+        self._publish_status(self._tick.stamp_ns if self._tick else 0, force=True)
+
+    # ------------------------------------------------------------------ requests
+    def _refusal(self, kind: str) -> str:
+        """Why a request of ``kind`` cannot start now ('' when it can)."""
+        if self.logic.running or self.logic.pending:
+            what = self.logic.kind if self.logic.running else 'request'
+            return (f'refused: a {what} is running (grasp {self.logic.grasp_id}, phase '
+                    f'{self.logic.phase.name}); call {self.resolve_service_name(SERVICE_STOP)} '
+                    'first'
+                    if kind == RequestKind.RELEASE else
+                    f'refused: a {what} is {"running" if self.logic.running else "waiting"}')
         missing = self._missing_peers()
         if missing:
             return f'refused: graph not ready, not yet discovered: {missing}'
-        t_ns = self._latest_tick()
-        if t_ns is None:
-            return 'refused: no measurement from plant_simulator yet'
-        if not (math.isfinite(self._force.force_n) and math.isfinite(self._force.voltage_v)):
-            return (f'refused: the force sensor reads force {self._force.force_n!r} N, voltage '
-                    f'{self._force.voltage_v!r} V (sensor dropout); a grasp needs it')
-        position = self._joint.position[0] if self._joint.position else math.nan
-        if not math.isfinite(position):
-            return (f'refused: the finger position sensor reads {position!r} m (sensor dropout); '
-                    'a grasp needs it')
-        self._grasp_id += 1
-        response.grasp_id = self._grasp_id
-        response.position_setpoint_m = targets.position_setpoint_m
-        response.force_setpoint_n = targets.force_setpoint_n
-        self.get_logger().info(
-            f'grasp {self._grasp_id}: width {request.width_m:g} m, mass {request.mass_kg:g} kg '
-            f'-> position {targets.position_setpoint_m:.4f} m, force '
-            f'{targets.force_setpoint_n:.3f} N')
-        decision = self.logic.start(targets, t_ns, self._force.voltage_v)
-        self._last_decided_ns = t_ns
-        self._progress()
-        self._publish(t_ns, decision)
+        tick = self._tick
+        if tick is None:
+            return f'refused: no measurement from {NODE_PLANT} yet'
+        if not math.isfinite(tick.position_m):
+            what = {RequestKind.RELEASE: 'opening', RequestKind.MOVE: 'a move'}.get(
+                kind, 'a grasp')
+            return (f'refused: the finger position sensor reads {tick.position_m!r} m (sensor '
+                    f'dropout); {what} under position control needs it')
+        if kind == RequestKind.GRASP and not (math.isfinite(tick.force_n)
+                                              and math.isfinite(tick.sensor_voltage_v)):
+            return (f'refused: the force sensor reads force {tick.force_n!r} N, voltage '
+                    f'{tick.sensor_voltage_v!r} V (sensor dropout); a grasp needs it')
         return ''
-
-    def _watchdog(self) -> None:
-        """Lockstep stalls if a node dies: end the grasp as FAULT, naming who went silent.
-
-        Only time in which the executor demonstrably ran counts (``ExecutorSilence``, shared
-        with the controllers' status watchdog): after a stall of the whole process, ticks queued
-        behind this timer are not silence."""
-        busy = self.logic.busy
-        silent_s = self._silence.check(counting=busy)
-        if not busy or silent_s < self.tick_timeout_s:
-            return
-        active = self._status_msg.active_controller
-        expected = {SupervisorStatus.CONTROLLER_POSITION: 'position_controller',
-                    SupervisorStatus.CONTROLLER_FORCE: 'force_controller'}.get(active, '?')
-        commanders = {i.node_name for i in self.get_publishers_info_by_topic(TOPIC_MOTOR_COMMAND)}
-        plants = {i.node_name for i in self.get_publishers_info_by_topic(TOPIC_JOINT_STATES)}
-        if expected not in commanders:
-            who = f'{expected} is gone (no publisher on {TOPIC_MOTOR_COMMAND})'
-        elif 'plant_simulator' not in plants:
-            who = 'plant_simulator is gone (no publisher on ' + TOPIC_JOINT_STATES + ')'
-        else:
-            who = f'{expected} did not answer or plant_simulator did not advance'
-        message = (f'fault: no new tick for {silent_s:.2f} s of wall time at '
-                   f't={(self._last_decided_ns or 0) * 1e-9:.4f} s: {who}')
-        self.get_logger().error(message)
-        decision = self.logic.fault(message)
-        self._publish(self._last_decided_ns or 0, decision)
-        self._complete(decision)
 
     def _missing_peers(self) -> str:
         """Lockstep cannot recover a lost tick: start only when every peer is discovered."""
         missing = []
-        if self.count_subscribers(TOPIC_STATUS) < 3:          # plant + both controllers
-            missing.append(f'{TOPIC_STATUS} subscribers (plant_simulator, position_controller, '
-                           'force_controller)')
+        for controller, pub in self._refs.items():
+            if pub.get_subscription_count() < 1:
+                missing.append(f'{pub.topic_name} subscriber ({STAGE_NODES[controller]})')
         if self.count_publishers(TOPIC_MOTOR_COMMAND) < 2:
-            missing.append(f'{TOPIC_MOTOR_COMMAND} publishers (both controllers)')
+            missing.append(f'{self.resolve_topic_name(TOPIC_MOTOR_COMMAND)} publishers (both '
+                           'controllers)')
         return '; '.join(missing)
 
-    def _complete(self, decision: Decision) -> None:
-        """The grasp has ended: answer the waiting request with its outcome."""
-        pending, self._pending = self._pending, None
-        what = 'release' if self.logic.phase is Phase.RELEASING or \
-            decision.outcome is Outcome.RELEASED else 'grasp'
-        self.get_logger().info(f'{what} {self._grasp_id}: {decision.outcome.name}: '
-                               f'{decision.message}')
-        if pending is None:
+    def _on_grasp(self, request: Grasp.Request, header) -> None:
+        """Accept a grasp, or refuse it at once; an accepted grasp is answered in _complete()."""
+        response = Grasp.Response()
+        message = self._refusal(RequestKind.GRASP)
+        if not message:
+            try:
+                targets = validate_request(
+                    GraspRequest(request.width_m, request.mass_kg, request.friction_coefficient,
+                                 request.acceleration_mps2, request.timeout_s,
+                                 request.width_tolerance_m),
+                    self.config.plant, self.config.supervisor)
+                self.logic.request_grasp(targets, request.mass_kg,
+                                         after_ns=self._tick.stamp_ns)
+            except RequestError as exc:
+                message = f'refused: {exc}'
+        if message:
+            response.success = False
+            response.outcome = Outcome.REFUSED
+            response.message = message
+            self.get_logger().warning(f'grasp {message}')
+            self.grasp_service.reply(header, response)
             return
-        header, response = pending
-        if isinstance(response, Trigger.Response):            # a release
-            response.success = decision.outcome is Outcome.RELEASED
-            response.message = f'{decision.outcome.name}: {decision.message}'
-            self.release_service.reply(header, response)
-            return
-        response.success = decision.outcome is Outcome.HOLDING
-        response.outcome = int(decision.outcome)
-        response.message = decision.message
-        position = self._good_position_m            # the last finite readings
-        response.final_position_m = position
-        response.final_width_m = self.config.plant.max_travel_m - position
-        response.final_force_n = self._good_force_n
-        if self.logic.switch_ns is not None:
-            response.switch_time_s = (self.logic.switch_ns - self.logic.start_ns) * 1e-9
-        self.grasp_service.reply(header, response)
+        response.grasp_id = self.logic.grasp_id + 1
+        response.position_setpoint_m = targets.position_setpoint_m
+        response.force_setpoint_n = targets.force_setpoint_n
+        self.get_logger().info(
+            f'grasp {response.grasp_id}: width {request.width_m:g} m, mass {request.mass_kg:g} '
+            f'kg -> position {targets.position_setpoint_m:.4f} m, force '
+            f'{targets.force_setpoint_n:.3f} N')
+        self._waiting = (header, response)
+        self._silence.reset()
+        self._publish_status(self._tick.stamp_ns, force=True)     # wakes a paused simulation
 
     def _on_release(self, request: Trigger.Request, header) -> None:
-        """Open the fingers (position stage to fully open), or refuse at once; answered in
-        _complete() when the finger is there."""
+        """Open the fingers (position stage to fully open), or refuse at once."""
         response = Trigger.Response()
-        message = ''
-        if self.logic.busy:
-            message = (f'refused: a {"release" if self.logic.releasing else "grasp"} is running '
-                       f'(grasp {self._grasp_id}, phase {self.logic.phase.name}); call '
-                       f'{SERVICE_STOP} first')
-        else:
-            missing = self._missing_peers()
-            t_ns = self._latest_tick()
-            if missing:
-                message = f'refused: graph not ready, not yet discovered: {missing}'
-            elif t_ns is None:
-                message = 'refused: no measurement from plant_simulator yet'
-            else:
-                p = self._joint.position[0] if self._joint.position else math.nan
-                if not math.isfinite(p):
-                    message = (f'refused: the finger position sensor reads {p!r} m (sensor '
-                               'dropout); opening under position control needs it')
+        message = self._refusal(RequestKind.RELEASE)
+        if not message:
+            try:
+                self.logic.request_release(after_ns=self._tick.stamp_ns)
+            except RequestError as exc:
+                message = f'refused: {exc}'
         if message:
             response.success = False
             response.message = message
-            self.get_logger().warn(f'release {message}')
+            self.get_logger().warning(f'release {message}')
             self.release_service.reply(header, response)
             return
-        self._grasp_id += 1
-        self.get_logger().info(f'release {self._grasp_id}: opening from '
-                               f'{self._joint.position[0]:.5f} m')
-        decision = self.logic.start_release(t_ns)
-        self._pending = (header, response)
-        self._last_decided_ns = t_ns
-        self._progress()
-        self._publish(t_ns, decision)
+        self.get_logger().info(f'release {self.logic.grasp_id + 1}: opening from '
+                               f'{self._tick.position_m:.5f} m')
+        self._waiting = (header, response)
+        self._silence.reset()
+        self._publish_status(self._tick.stamp_ns, force=True)
+
+    def _on_move(self, request: Move.Request, header) -> None:
+        """Accept a move, or refuse it at once; an accepted move is answered in _complete()."""
+        response = Move.Response()
+        message = self._refusal(RequestKind.MOVE)
+        if not message:
+            try:
+                targets = validate_move(
+                    MoveRequest(request.width_m, request.speed_mps, request.max_effort_n,
+                                request.timeout_s),
+                    self.config.plant, self.config.supervisor)
+                self.logic.request_move(targets, after_ns=self._tick.stamp_ns)
+            except RequestError as exc:
+                message = f'refused: {exc}'
+        if message:
+            response.success = False
+            response.outcome = Outcome.REFUSED
+            response.message = message
+            self._fill_move_state(response)
+            self.get_logger().warning(f'move {message}')
+            self.move_service.reply(header, response)
+            return
+        self.get_logger().info(
+            f'move {self.logic.grasp_id + 1}: width {request.width_m:g} m -> position '
+            f'{targets.position_setpoint_m:.4f} m at most at {targets.speed_mps:g} m/s, '
+            f'{targets.max_effort_n:.3f} N')
+        self._waiting = (header, response)
+        self._silence.reset()
+        self._publish_status(self._tick.stamp_ns, force=True)     # wakes a paused simulation
+
+    def _fill_move_state(self, response: Move.Response) -> None:
+        """Fill in a move's answer the finger's state: the last finite readings."""
+        response.position_m = self._good_position_m
+        response.width_m = self.config.plant.max_travel_m - self._good_position_m
+        response.effort_n = self._good_force_n
 
     def _on_stop(self, request: Trigger.Request, response: Trigger.Response):
-        """Stop the running grasp now: no controller drives the motor from this tick on."""
-        if not self.logic.busy:
+        """End the running request or the hold now; the position stage then holds the finger."""
+        what = self.logic.kind or 'grasp'
+        decision = self.stop_grasp('stopped on request (stop)')
+        if decision is None:
             response.success = False
-            response.message = 'no grasp is running'
+            response.message = ('nothing to stop: no grasp, hold, release or move is running, '
+                                'no stalled move presses')
             return response
-        what = 'release' if self.logic.releasing else 'grasp'
-        self.stop_grasp('stopped on request (/gripper/stop)')
         response.success = True
-        response.message = f'{what} {self._grasp_id} stopped'
+        response.message = f'{what} {self.logic.grasp_id} stopped'
         return response
+
+    def stop_grasp(self, message: str = 'stopped on request'):
+        """End the running request (STOPPED); the decision, or None with nothing to stop."""
+        decision = self.logic.stop(message)
+        if decision is not None:
+            self._publish_status(self._tick.stamp_ns if self._tick else 0, force=True)
+            self._complete(decision)
+        return decision
+
+    def _complete(self, decision) -> None:
+        """An answer: latch it, and answer the waiting request with it."""
+        self._outcome_pub.publish(status_message(*self._status_now))
+        what = self.logic.kind or 'grasp'
+        self.get_logger().info(f'{what} {self.logic.grasp_id}: {decision.answer.name}: '
+                               f'{decision.message}')
+        waiting, self._waiting = self._waiting, None
+        if waiting is None:
+            return
+        header, response = waiting
+        notes, self.response_notes = self.response_notes, []
+        message = '; '.join([decision.message, *notes])
+        if isinstance(response, Trigger.Response):            # a release
+            response.success = decision.answer is Outcome.RELEASED
+            response.message = f'{decision.answer.name}: {message}'
+            self.release_service.reply(header, response)
+            return
+        if isinstance(response, Move.Response):
+            response.outcome = int(decision.answer)
+            response.reached_goal = response.success = decision.answer is Outcome.MOVED
+            response.stalled = decision.answer is Outcome.STALLED
+            response.message = message
+            response.grasp_id = self.logic.grasp_id
+            self._fill_move_state(response)
+            self.move_service.reply(header, response)
+            return
+        logic = self.logic
+        response.success = decision.answer is Outcome.HOLDING
+        response.outcome = int(decision.answer)
+        response.message = message
+        response.grasp_id = logic.grasp_id
+        response.final_position_m = self._good_position_m      # the last finite readings
+        response.final_width_m = self.config.plant.max_travel_m - self._good_position_m
+        response.final_force_n = self._good_force_n
+        if logic.switch_ns is not None:
+            response.switch_time_s = (logic.switch_ns - logic.start_ns) * 1e-9
+        self.grasp_service.reply(header, response)
+
+    # ------------------------------------------------------------------ watchdog
+    def _watchdog(self) -> None:
+        """Lockstep stalls if a node dies: end the request as FAULT, naming who went silent.
+
+        Only time in which the executor demonstrably ran counts (``ExecutorSilence``): after a
+        stall of the whole process, ticks queued behind this timer are not silence."""
+        running = self.logic.running
+        silent_s = self._silence.check(counting=running)
+        if not running or silent_s < self.tick_timeout_s:
+            return
+        expected = STAGE_NODES.get(self.logic.active, '?')
+        commanders = {i.node_name for i in self.get_publishers_info_by_topic(
+            self.resolve_topic_name(TOPIC_MOTOR_COMMAND))}
+        plants = {i.node_name for i in self.get_publishers_info_by_topic(
+            self.resolve_topic_name(TOPIC_TICK))}
+        if expected not in commanders:
+            who = f'{expected} is gone (no publisher on {TOPIC_MOTOR_COMMAND})'
+        elif NODE_PLANT not in plants:
+            who = f'{NODE_PLANT} is gone (no publisher on {TOPIC_TICK})'
+        else:
+            who = f'{expected} did not answer or {NODE_PLANT} did not advance'
+        t_ns = self._tick.stamp_ns if self._tick else 0
+        message = (f'fault: no progress for {silent_s:.2f} s of wall time at '
+                   f't={t_ns * 1e-9:.4f} s: {who}')
+        self.get_logger().error(message)
+        decision = self.logic.fault(message)
+        self._expected_source = Controller.NONE
+        self._publish_status(t_ns, force=True)
+        self._complete(decision)
 
     def destroy_node(self):
         self.grasp_service.destroy()
         self.release_service.destroy()
+        self.move_service.destroy()
         return super().destroy_node()
 
-    def stop_grasp(self, message: str = 'stopped on request') -> None:
-        """End the running grasp (STOPPED); the plant stops advancing."""
-        if not self.logic.busy:
-            return
-        decision = self.logic.stop(message)
-        t_ns = self._last_decided_ns or 0
-        self._publish(t_ns, decision)
-        self._complete(decision)
 
 
 def main(args=None):
-    rclpy.init(args=args)
-    node = None
-    try:
-        node = SupervisorNode()
-        rclpy.spin(node)
-    except ConfigError as exc:
-        print(f'supervisor: {exc}', file=sys.stderr)
-        return 2
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    return run_node(SupervisorNode, NODE_SUPERVISOR, args, (SERVICE_GRASP,))
 
 
 if __name__ == '__main__':

@@ -1,0 +1,555 @@
+"""Recording a running graph: one bag per grasp, from inside the graph's process.
+
+A :class:`GraphTap` subscribes (raw) to every topic of one gripper's graph only while it
+records, and starts recording only once every publisher has matched it, so that no message
+of the grasp is missed. :func:`recorded_grasp` places the object, records the grasp and what
+follows it until simulated time stands still (fast mode: the hold scenario, a lift, played
+out) or ``linger_s`` of simulated time after the answer (realtime). :class:`ServeRecorder`
+records one bag per request made by other processes (``grasp_demo --serve``).
+
+A recorder that fails (a full disk) never stops the graph: recording ends with one line that
+names the bag and how many messages it holds, the bag stays readable up to there, and the
+grasp goes on.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from datetime import datetime
+import functools
+import os
+from pathlib import Path
+import struct
+import threading
+import time
+
+from gripper_ros.bags.reader import BagError, read_bag
+from gripper_ros.bags.recorder import BagRecorder, BagRecorderError
+from gripper_ros.bags.schema import import_message_class
+from gripper_ros.core.stages import Reference
+from gripper_ros.nodes.common import GRAPH_QOS, wait_until
+from gripper_ros.wire import (GRAPH_TOPICS, LOOP_TOPICS, Outcome, Phase, qualified,
+                              REFERENCE_LAYOUT, TOPIC_FORCE_REFERENCE, TOPIC_MOTOR_COMMAND,
+                              TOPIC_POSITION_REFERENCE, TOPIC_TICK)
+
+BAG_FORMAT = 2
+"""custom_data gripper_ros.format: 2 = the lockstep loop topics (loop/tick, references,
+loop/motor_command); 1 (absent) = bags with a tick message per topic (joint_states...)."""
+MATCH_TIMEOUT_S = 10.0
+
+
+class RecordingError(RuntimeError):
+    """Recording could not start or stopped early; the message is one line."""
+
+
+@dataclass
+class RecordedGrasp:
+    """A grasp's answer, its bag, and what the graph published while it recorded.
+
+    ``published``: messages per topic (fast mode; in realtime simulated time runs on and it is
+    empty).
+    """
+
+    response: object
+    bag_dir: Path | None
+    published: dict
+    recorded: dict
+    wall_s: float
+    final_outcome: Outcome = Outcome.UNKNOWN    # after the hold scenario (a lift) played out
+    final_message: str = ''
+    recording_error: str = ''
+    notes: list = field(default_factory=list)
+
+
+_STAMP = struct.Struct('<q')
+"""Every lockstep message begins, after its 4-byte CDR header, with its tick's stamp_ns."""
+
+
+def _stamp_of(data: bytes) -> int:
+    return _STAMP.unpack_from(data, 4)[0]
+
+
+class GraphTap:
+    """Raw subscriptions on every topic of ``graph`` that forward to a sink while recording.
+
+    A sink records a window of whole ticks: from a start tick, whose measurement, decision and
+    command it holds, up to an end tick it holds nothing of. DDS does not order messages of
+    different topics, so the window is kept by the stamps the lockstep messages carry, and a
+    sink closes only once the command of its last tick is in.
+    """
+
+    def __init__(self, graph, topics: dict[str, str] | None = None):
+        self.graph = graph
+        self.node = graph.client_node
+        self.topics = {qualified(graph.namespace, t): msgtype
+                       for t, msgtype in (topics or GRAPH_TOPICS).items()}
+        self.sink: BagRecorder | None = None
+        self.error = ''                          # why the last sink stopped early
+        self.on_reference = None                 # called with each reference's values
+        self.on_tick = None                      # called with each tick's stamp
+        self.on_closed = None                    # called with a sink the tap finished
+        self.on_error = None                     # called with the message of a failed sink
+        self.received = dict.fromkeys(self.topics, 0)
+        self._tick_topic = qualified(graph.namespace, TOPIC_TICK)
+        self._command_topic = qualified(graph.namespace, TOPIC_MOTOR_COMMAND)
+        self._loop_topics = {qualified(graph.namespace, t) for t in LOOP_TOPICS}
+        self._reference_topics = {qualified(graph.namespace, t) for t in
+                                  (TOPIC_POSITION_REFERENCE, TOPIC_FORCE_REFERENCE)}
+        self._last_tick: tuple[int, bytes] | None = None
+        self._this_tick: list[tuple[str, bytes, int]] = []   # loop messages of the newest tick
+        self._held: tuple[int, bytes] | None = None   # the newest tick, written with its decision
+        self._decided_ns: int | None = None     # newest stamp of a reference or command seen
+        self._last_command_ns: int | None = None
+        self._start_ns: int | None = None       # the window: ticks start_ns <= t < end_ns
+        self._end_ns: int | None = None
+        self._last_written_tick_ns: int | None = None
+        self._start_at_next_tick = False
+        self._closing_since: float | None = None
+        self._lock = threading.Lock()
+        self._subs = []
+
+    def open(self) -> GraphTap:  # noqa: A003 - a tap is opened and closed like a file
+        """Subscribe, and wait until every publisher of the graph has matched this tap."""
+        baseline = {t: [p.get_subscription_count() for p in self._publishers(t)]
+                    for t in self.topics}
+        for topic, msgtype in self.topics.items():
+            self._subs.append(self.node.create_subscription(
+                import_message_class(msgtype), topic,
+                functools.partial(self._on_message, topic), GRAPH_QOS, raw=True))
+        matched = wait_until(lambda: all(
+            p.get_subscription_count() > n for t in self.topics
+            for p, n in zip(self._publishers(t), baseline[t])), MATCH_TIMEOUT_S)
+        if not matched:
+            self.close()
+            raise RecordingError(f'the recorder was not matched by every publisher within '
+                                 f'{MATCH_TIMEOUT_S:g} s')
+        return self
+
+    def _publishers(self, topic: str) -> list:
+        return [p for node in self.graph.nodes if node is not self.node
+                for p in node.publishers if p.topic_name == topic]
+
+    # ------------------------------------------------------------------ the window
+    def start(self, sink: BagRecorder, at: str = 'now') -> None:
+        """Record into ``sink`` from ``at``.
+
+        ``now`` (time stands still: nothing is in flight), ``next_tick``, or ``last_tick`` (the
+        newest tick, whose decision is being handled).
+        """
+        if self.sink is not None:
+            self._finish()                      # a sink still closing ends here
+        self.error = ''
+        self._end_ns = self._last_written_tick_ns = self._closing_since = None
+        self._last_command_ns = None
+        self._start_at_next_tick = at == 'next_tick'
+        self._start_ns = None
+        if at == 'last_tick' and self._last_tick is not None:
+            self._start_ns = self._last_tick[0]
+            self.sink = sink
+            self._held = None
+            for topic, data, stamp in self._this_tick:     # the tick, and what came of it
+                if stamp == self._start_ns:
+                    self._write(sink, topic, data, stamp)
+            return
+        self.sink = None if self._start_at_next_tick else sink
+        self._pending_sink = sink
+
+    def flush(self) -> None:
+        """Write a tick still held for its decision (time stands still: none is coming)."""
+        held, self._held = self._held, None
+        if held is not None:
+            self._keep(self._tick_topic, held[1], held[0])
+
+    def stop_at(self, end_ns: int | None = None) -> None:
+        """End the window before tick ``end_ns`` (default: the next tick to come).
+
+        The sink closes once the command of its last tick is in (:attr:`on_closed`).
+        """
+        if self.sink is None:
+            return
+        self._end_ns = end_ns if end_ns is not None else -1
+        self._closing_since = time.monotonic()
+        if self._held is not None and end_ns is not None and self._held[0] >= end_ns:
+            self._held = None                   # that tick belongs after the window
+        if end_ns is not None and self._last_written_tick_ns is not None and \
+                self._last_command_ns == self._last_written_tick_ns:
+            self._finish()                      # nothing of the last tick is in flight
+
+    def stop(self, timeout_s: float = 2.0) -> BagRecorder | None:
+        """End the window at the next tick and wait until the sink is whole.
+
+        When no tick comes within ``timeout_s`` (simulated time stands still) it ends now.
+        """
+        sink = self.sink
+        if sink is None:
+            return None
+        self.stop_at()
+        wait_until(lambda: self.sink is None, timeout_s)
+        self._finish()
+        return sink
+
+    def _finish(self) -> None:
+        with self._lock:
+            sink, self.sink = self.sink, None
+            self._end_ns = self._closing_since = None
+        if sink is not None and self.on_closed is not None:
+            self.on_closed(sink)
+
+    def check_closing(self, grace_s: float = 0.5) -> None:
+        """Finish a sink whose last command has not come for ``grace_s`` (a node gone)."""
+        if self._closing_since is not None and time.monotonic() - self._closing_since > grace_s:
+            self._finish()
+
+    def _on_message(self, topic: str, data: bytes) -> None:
+        self.received[topic] += 1
+        if topic not in self._loop_topics:
+            sink = self.sink
+            if sink is not None and self._end_ns is None:
+                self._write(sink, topic, data)
+            return
+        stamp = _stamp_of(data)
+        if topic == self._tick_topic:
+            held, self._held = self._held, (stamp, data)
+            if held is not None:
+                self._keep(self._tick_topic, held[1], held[0])   # a tick nobody answered
+            if self._decided_ns is not None and stamp <= self._decided_ns:
+                self._held = None               # its decision came first: write it now
+                self._keep(topic, data, stamp)
+            self._last_tick = (stamp, data)
+            self._this_tick = []
+            if self._start_at_next_tick:
+                self._start_at_next_tick = False
+                self._start_ns, self.sink = stamp, self._pending_sink
+            if self._end_ns == -1 and self.sink is not None:
+                self._end_ns = stamp
+            if self.on_tick is not None:
+                self.on_tick(stamp)
+        else:
+            if topic in self._reference_topics and self.on_reference is not None:
+                values = REFERENCE_LAYOUT.unpack(data)
+                if values is not None:
+                    self.on_reference(values)
+            held = self._held
+            if held is not None and held[0] == stamp:
+                self._held = None
+                self._keep(self._tick_topic, held[1], stamp)
+            self._decided_ns = stamp if self._decided_ns is None else max(stamp, self._decided_ns)
+            self._keep(topic, data, stamp)
+        self._this_tick.append((topic, data, stamp))
+
+    def _keep(self, topic: str, data: bytes, stamp: int) -> None:
+        """Write a lockstep message if its tick is inside the window."""
+        sink = self.sink
+        if sink is None or (self._start_ns is not None and stamp < self._start_ns) or \
+                (self._end_ns is not None and self._end_ns != -1 and stamp >= self._end_ns):
+            return
+        self._write(sink, topic, data, stamp)
+        if topic == self._command_topic:
+            self._last_command_ns = stamp
+            if self._end_ns is not None and stamp == self._last_written_tick_ns:
+                self._finish()                  # the last tick is whole
+
+    def _write(self, sink: BagRecorder, topic: str, data: bytes, stamp: int | None = None):
+        try:
+            sink.write(topic, data, stamp)      # a loop message: logged at its tick's time
+        except Exception as exc:  # noqa: BLE001 - a recorder error never stops the graph
+            self._fail(sink, exc)
+            return
+        if topic == self._tick_topic:
+            self._last_written_tick_ns = stamp
+
+    def _fail(self, sink: BagRecorder, exc: BaseException) -> None:
+        with self._lock:
+            if self.sink is not sink:
+                return
+            self.sink = None
+        count = sink.message_count
+        try:
+            sink.close()
+        except Exception:  # noqa: BLE001 - the first error is the one to report
+            pass
+        readable = _readable_messages(sink)
+        reason = getattr(exc, 'strerror', None) or str(exc)
+        lost = f' ({count - readable} more were still buffered and are lost)' \
+            if count > readable else ''
+        self.error = (f'recording stopped: {sink.bag_dir}: {reason}; the bag holds {readable} '
+                      f'messages, readable up to there{lost}')
+        if self.on_error is not None:
+            self.on_error(self.error)
+
+    def close(self) -> None:
+        for sub in self._subs:
+            self.node.destroy_subscription(sub)
+        self._subs = []
+
+    def __enter__(self) -> GraphTap:
+        return self.open()
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+
+def _readable_messages(sink: BagRecorder) -> int:
+    """How many messages a reader gets back from a bag whose recording failed (read back:
+    a write that failed may have left a chunk whole without its index)."""
+    try:
+        return read_bag(sink.bag_dir, allow_empty=True).message_count
+    except BagError:
+        return sink.readable_count
+
+
+def graph_tap(graph) -> GraphTap:
+    """Give the graph's one tap, subscribed at its first recording, kept while the graph lives.
+
+    A reader created anew for every grasp can be matched by an idle writer and still be sent
+    nothing (seen with Fast DDS: the force stage's references and commands of a later grasp),
+    so a graph that records keeps its tap; a graph that never records has none and pays
+    nothing for it.
+    """
+    tap = getattr(graph, 'recording_tap', None)
+    if tap is None:
+        tap = GraphTap(graph).open()
+        graph.recording_tap = tap
+        graph.close_hooks.append(tap.close)
+    return tap
+
+
+def bag_metadata(graph, request: dict, placed: dict) -> dict:
+    """custom_data of a grasp bag: all a closed-loop re-run needs, and the format."""
+    return {'gripper_ros': {'format': BAG_FORMAT, 'namespace': graph.namespace,
+                            'time_mode': graph.options.time_mode,
+                            'state_rate_hz': float(graph.plant.state_rate_hz)},
+            'request': request, 'object': placed,
+            'controllers': graph.controller_settings(),
+            'config': graph.config_data()}
+
+
+def unique_bag_dir(parent: Path, stem: str) -> Path:
+    """Create a new folder under ``parent`` named after ``stem``, never one that exists.
+
+    The name carries the process id and a counter, and the folder is created atomically.
+    """
+    parent.mkdir(parents=True, exist_ok=True)
+    for n in range(1000):
+        candidate = parent / f'{stem}_{os.getpid()}' if n == 0 else \
+            parent / f'{stem}_{os.getpid()}_{n}'
+        try:
+            candidate.mkdir()
+        except FileExistsError:
+            continue
+        return candidate
+    raise RecordingError(f'no free bag folder name for {stem} under {parent}')
+
+
+def recorded_grasp(graph, bag_dir, width_m: float, mass_kg: float,
+                   friction_coefficient: float = 0.0, stiffness_n_per_m: float = 0.0,
+                   damping_n_s_per_m: float = 0.0, overwrite: bool = False,
+                   wall_timeout_s: float = 600.0, width_tolerance_m: float = 0.0,
+                   object_width_m: float | None = None, acceleration_mps2: float = 0.0,
+                   linger_s: float = 0.5, stop_on_error: bool = False,
+                   **hold) -> RecordedGrasp:
+    """Place the object, record every topic of the graph into ``bag_dir`` and grasp it.
+
+    ``hold`` sets the object's hold and lift fields and a fault for the grasp (SetObject:
+    ``fault``, ``fault_at_s``, ``fault_time_constant_s``), all recorded with the object. The
+    bag is closed (summary, metadata.yaml) whatever happens, Ctrl-C included.
+    ``stop_on_error``: a recording that fails stops the grasp at once (STOPPED: the position
+    stage holds the finger where it is); else the grasp goes on unrecorded. Either way
+    :attr:`RecordedGrasp.recording_error` says what failed.
+    """
+    placed_width = graph.simulated_width_m(width_m, object_width_m)
+    placed = graph.set_object(placed_width, stiffness_n_per_m, damping_n_s_per_m, **hold)
+    if not placed.success:
+        raise RecordingError(f'set_object: {placed.message}')
+    if graph.options.time_mode == 'fast':
+        graph.wait_still()              # the placement's tick is answered before recording
+    request = {'width_m': width_m, 'mass_kg': mass_kg,
+               'friction_coefficient': friction_coefficient,
+               'acceleration_mps2': acceleration_mps2, 'width_tolerance_m': width_tolerance_m}
+    obj = {'width_m': placed_width, 'stiffness_n_per_m': stiffness_n_per_m,
+           'damping_n_s_per_m': damping_n_s_per_m,
+           **{k: int(v) if k == 'fault' else float(v) for k, v in hold.items()}}
+    tap = graph_tap(graph)
+    try:
+        recorder = BagRecorder(graph.client_node, bag_dir, tap.topics, overwrite=overwrite,
+                               subscribe=False, time_source=lambda: graph.sim_time_ns,
+                               custom_data=bag_metadata(graph, request, obj))
+    except BagRecorderError as exc:
+        raise RecordingError(str(exc)) from None
+    response = None
+    before = graph.published_counts()
+    received_before = dict(tap.received)
+    fast = graph.options.time_mode == 'fast'
+    if stop_on_error:
+        tap.on_error = lambda message: graph.supervisor.stop_grasp(message)
+    tap.start(recorder, 'now' if fast else 'next_tick')     # fast: nothing is in flight
+    t0 = time.perf_counter()
+    try:
+        response = graph.grasp(width_m, mass_kg, friction_coefficient, acceleration_mps2,
+                               wall_timeout_s=wall_timeout_s,
+                               width_tolerance_m=width_tolerance_m)
+        _play_out(graph, linger_s)
+    finally:
+        tap.on_error = None
+        if fast:
+            _drain_published(graph, tap, recorder, before, received_before)
+            tap.sink = None             # time stands still: the last tick is whole
+            published = _published_since(graph, tap, before)
+        else:
+            tap.stop()                  # realtime: at a tick, once the last one is whole
+            published = {}              # (time runs on: no count to compare with)
+        logic = graph.supervisor.logic
+        final, message = logic.outcome, logic.message
+        if not recorder.closed:
+            if response is not None:
+                recorder.set_custom_data({
+                    'outcome': Outcome(response.outcome).name, 'success': response.success,
+                    'message': response.message, 'final_outcome': final.name,
+                    'final_message': message,
+                    'position_setpoint_m': response.position_setpoint_m,
+                    'force_setpoint_n': response.force_setpoint_n})
+            recorder.close()
+        recorded = dict(recorder.counts)
+    return RecordedGrasp(response, Path(bag_dir), published, recorded,
+                         time.perf_counter() - t0, final, message, tap.error)
+
+
+def _play_out(graph, linger_s: float) -> None:
+    """After the answer: until simulated time stands still (fast), or ``linger_s`` of it."""
+    if graph.options.time_mode == 'fast':
+        graph.wait_still()
+        return
+    until = graph.sim_time_ns + round(linger_s * 1e9)
+    wait_until(lambda: graph.sim_time_ns >= until, timeout_s=max(10.0, 10 * linger_s))
+
+
+def _published_since(graph, tap: GraphTap, before: dict) -> dict:
+    return {qualified(graph.namespace, t): n - before.get(t, 0)
+            for t, n in graph.published_counts().items()
+            if qualified(graph.namespace, t) in tap.topics}
+
+
+def _drain_published(graph, tap: GraphTap, recorder: BagRecorder, before: dict,
+                     received_before: dict, timeout_s: float = 10.0) -> None:
+    """Wait until the tap has received every message published since ``before``.
+
+    Time stands still then; a tick the tap still holds for its decision is written.
+    """
+    published = _published_since(graph, tap, before)
+    wait_until(lambda: recorder.closed or all(
+        tap.received[t] - received_before[t] >= n for t, n in published.items()), timeout_s)
+    tap.flush()
+
+
+class ServeRecorder:
+    """Serve mode: one bag per grasp or move, whoever requested it, under ``output_dir``.
+
+    The tap watches the stage references: the first reference of a new grasp opens a bag
+    (with the tick it decides), the tick ``linger_s`` of simulated time after the grasp's
+    answer closes it, as does the first reference of another request, or simulated time
+    standing still after the answer (fast mode). Each bag holds whole ticks.
+    """
+
+    def __init__(self, graph, output_dir, linger_s: float = 0.5):
+        from rclpy.clock import Clock, ClockType
+        self.graph = graph
+        self.output_dir = Path(output_dir)
+        self.linger_s = linger_s
+        self.bags: list[Path] = []
+        self.errors: list[str] = []
+        self._grasp_id: int | None = None       # the grasp being recorded
+        self._close_at_ns: int | None = None
+        self._answered_wall: float | None = None
+        self._last_received = 0
+        self.tap = graph_tap(graph)
+        self.tap.on_reference = self._on_reference
+        self.tap.on_tick = self._on_tick
+        self.tap.on_closed = self._close_sink
+        graph.close_hooks.append(self.close)
+        self._timer = graph.client_node.create_timer(
+            0.05, self._check, clock=Clock(clock_type=ClockType.STEADY_TIME))
+
+    @property
+    def recording(self) -> bool:
+        return self.tap.sink is not None
+
+    def _on_reference(self, values: tuple) -> None:
+        ref = Reference._make(values)
+        grasp_id, phase, outcome = ref.grasp_id, ref.phase, ref.outcome
+        if grasp_id != self._grasp_id:
+            self._close_bag(ref.stamp_ns)
+            self._grasp_id = grasp_id
+            if phase in (Phase.POSITION, Phase.MOVING) and outcome == Outcome.UNKNOWN:
+                self._open(grasp_id, 'grasp' if phase == Phase.POSITION else 'move')
+        elif self.tap.sink is not None and outcome != Outcome.UNKNOWN and \
+                self._close_at_ns is None:
+            self._close_at_ns = ref.stamp_ns + round(self.linger_s * 1e9)
+            self._answered_wall = time.monotonic()
+
+    def _on_tick(self, stamp_ns: int) -> None:
+        if self._close_at_ns is not None and self.tap.sink is not None and \
+                stamp_ns >= self._close_at_ns:
+            self._close_at_ns = None
+            self.tap.stop_at(stamp_ns)          # before this tick: whole ticks only
+
+    def _open(self, grasp_id: int, kind: str) -> None:
+        stamp = datetime.now().strftime('%Y%m%d_%H%M%S')
+        try:
+            bag_dir = unique_bag_dir(self.output_dir, f'{kind}_{stamp}_id{grasp_id}')
+            sink = BagRecorder(
+                self.graph.client_node, bag_dir, self.tap.topics, subscribe=False,
+                time_source=lambda: self.graph.sim_time_ns, overwrite=True,
+                custom_data={'gripper_ros': {'format': BAG_FORMAT,
+                                             'namespace': self.graph.namespace,
+                                             'time_mode': self.graph.options.time_mode},
+                             'controllers': self.graph.controller_settings(),
+                             'config': self.graph.config_data()})
+        except (OSError, BagRecorderError, RecordingError) as exc:
+            self._report(f'recording not started under {self.output_dir}: '
+                         f'{getattr(exc, "strerror", None) or exc}')
+            return
+        self._close_at_ns = self._answered_wall = None
+        self.bags.append(bag_dir)
+        self.tap.start(sink, 'last_tick')          # the tick this first decision is for
+
+    def _check(self) -> None:
+        self.tap.check_closing()
+        if self.tap.error:
+            self._report(self.tap.error)
+            self.tap.error = ''
+        received = sum(self.tap.received.values())
+        still = received == self._last_received
+        self._last_received = received
+        if still and self._answered_wall is not None and self.tap.sink is not None and \
+                time.monotonic() - self._answered_wall > 0.1:
+            self._close_bag()                   # fast mode: simulated time stands still
+
+    def _report(self, message: str) -> None:
+        self.errors.append(message)
+        self.graph.client_node.get_logger().error(message)
+        self.graph.supervisor.response_notes.append(message)
+
+    def _close_bag(self, before_ns: int | None = None) -> None:
+        """Close the bag now, or (``before_ns``) before that tick, once the last one is whole."""
+        self._close_at_ns = self._answered_wall = None
+        if before_ns is not None and self.tap.sink is not None:
+            sink = self.tap.sink
+            self.tap.stop_at(before_ns)
+            if self.tap.sink is sink:           # its last command may still be in flight
+                return
+        sink, self.tap.sink = self.tap.sink, None
+        self._close_sink(sink)
+
+    def _close_sink(self, sink) -> None:
+        if sink is not None and not sink.closed:
+            try:
+                sink.close()
+            except Exception as exc:  # noqa: BLE001 - reported, never raised into the graph
+                self._report(f'closing {sink.bag_dir} failed: {exc}')
+
+    def close(self) -> None:
+        """End recording (the graph is shutting down): a bag open now ends with whole ticks."""
+        self._timer.cancel()
+        self.tap.on_closed = None
+        sink = self.tap.stop()                  # the executor still runs the tap here
+        self._close_sink(sink)
+        self._close_bag()

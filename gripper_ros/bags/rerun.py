@@ -1,0 +1,825 @@
+"""Closed-loop what-if: a recorded grasp re-run without ROS, with changed gains or controllers.
+
+``bag_replay BAG --resimulate --closed-loop [--config FILE] [--set SECTION.KEY=VALUE ...]
+[--position-controller K] [--force-controller K] [--approach-force-margin M]`` (or
+:func:`whatif`) takes from a grasp bag (format 2, its custom_data) the request, the object
+placed (compliance, hold and lift, a scheduled fault), the controller kinds and the
+configuration in effect, applies the changes asked for, and grasps again in closed loop with
+:func:`gripper_ros.core.headless.simulate_grasp`: the plant, supervisor and stage code the node
+graph runs, wired as the graph wires them in fast mode, tick for tick. Unlike the open-loop
+``--resimulate`` the plant answers the new commands, so a new gain's effect on position, force,
+contact peak and settling is seen. Both the recording and the re-run are analysed by
+:func:`gripper_ros.bags.analyze.analyze_series`, from series built by the same code
+(:func:`gripper_ros.bags.series.lockstep_series`).
+
+Without a change the re-run equals the recording: every field of every tick, reference and
+command (grasp and stage ids and the world revision counted on from the recording's first).
+"""
+from __future__ import annotations
+
+from collections import namedtuple
+import copy
+from dataclasses import asdict, dataclass, field, fields
+import json
+import math
+import os
+from pathlib import Path
+from typing import Any, Sequence
+
+from gripper_ros.bags.analyze import analyze_series, format_cell, GraspMetrics
+from gripper_ros.bags.reader import Bag, BagError, open_bag
+from gripper_ros.bags.resimulate import build_stages, load_resim_config
+from gripper_ros.bags.series import bag_namespace, GraspSeries, load_grasp_series, \
+    lockstep_series
+from gripper_ros.core.config import ConfigError, GripperConfig, parse_config
+from gripper_ros.core.headless import HeadlessGrasp, simulate_grasp
+from gripper_ros.core.plant import check_fault, GraspObject, Lift
+from gripper_ros.core.stages import (DEFAULT_APPROACH_FORCE_MARGIN, DEFAULT_FORCE_CONTROLLER,
+                                     DEFAULT_POSITION_CONTROLLER)
+from gripper_ros.core.supervisor import GraspRequest, RequestError, validate_request
+from gripper_ros.wire import Controller, FaultKind, Outcome, Phase
+import numpy as np
+import yaml
+
+REQUEST_FIELDS = tuple(f.name for f in fields(GraspRequest))
+"""What a bag's ``request`` may hold (the Grasp request's fields, in order)."""
+OBJECT_FIELDS = {
+    'width_m': 'object_width_m', 'stiffness_n_per_m': 'stiffness_n_per_m',
+    'damping_n_s_per_m': 'damping_n_s_per_m', 'mass_kg': 'object_mass_kg',
+    'static_friction': 'static_friction', 'kinetic_friction': 'kinetic_friction',
+    'pad_length_m': 'pad_length_m'}
+"""A bag's ``object`` fields (SetObject names) -> simulate_grasp's keyword."""
+LIFT_FIELDS = ('lift_acceleration_mps2', 'lift_delay_s', 'lift_duration_s')
+FAULT_FIELDS = ('fault', 'fault_at_s', 'fault_time_constant_s')
+STATUS_FIELDS = ('phase', 'active_controller', 'switch_criterion', 'grasp_id', 'outcome',
+                 'position_setpoint_m', 'force_setpoint_n', 'position_m', 'force_n', 'contact',
+                 'stage_id', 'approach_setpoint_m')
+_Status = namedtuple('_Status', STATUS_FIELDS)
+"""The supervisor's state on a tick it changed (what supervisor/status reports on change)."""
+DEFAULT_STATE_RATE_HZ = 100.0
+"""The plant node's default state_rate_hz (bags that do not record it)."""
+
+
+class RerunError(BagError):
+    """A bag, option or configuration a closed-loop re-run cannot use (one line)."""
+
+
+# --- what the bag recorded ---------------------------------------------------------------------
+
+@dataclass
+class GraspRecord:
+    """What a closed-loop re-run takes from a grasp bag."""
+
+    path: Path
+    series: GraspSeries
+    request: dict
+    obj: dict
+    controllers: dict
+    config: GripperConfig               # the configuration in effect while it was recorded
+    time_mode: str
+    grasp_start_ns: int                 # the grasp's first tick (its first POSITION decision)
+    hold_s: float                       # realtime: recorded time after the answer (fast: 0)
+    grasp: dict = field(default_factory=dict)   # simulate_grasp's request and object keywords
+    state_rate_hz: float = DEFAULT_STATE_RATE_HZ    # of the plant's sim/object_state
+    after_fault: bool = False           # the graph was in FAULT before: its idle tick unpowered
+
+    @property
+    def truncated(self) -> bool:
+        return self.series.truncated
+
+
+def _mapping(custom: dict, key: str, path, why: str) -> dict:
+    value = custom.get(key)
+    if not isinstance(value, dict):
+        serve = ', as in bags recorded by grasp_demo --serve' if key == 'request' else ''
+        raise RerunError(f'{path}: no recorded {why} (custom_data "{key}"{serve}); a '
+                         f'closed-loop re-run needs the request, the object and the '
+                         f'configuration')
+    return value
+
+
+def load_record(bag: Bag | str | os.PathLike) -> GraspRecord:
+    """Read what a re-run takes from ``bag``; RerunError (one line) when it cannot be re-run."""
+    bag = open_bag(bag)
+    custom = bag.custom_data_parsed()
+    info = custom.get('gripper_ros')
+    try:
+        fmt, ns = bag_namespace(bag)
+    except BagError:
+        if not isinstance(info, dict):
+            raise RerunError(f'{bag.path}: not a gripper_ros grasp bag (no gripper_ros '
+                             f'custom_data and no <namespace>/loop/tick topic)') from None
+        raise
+    if fmt == 1:
+        raise RerunError(f'{bag.path}: a bag of format 1 (recorded before the lockstep protocol) '
+                         f'holds neither the request nor the object placed; only the open-loop '
+                         f'--resimulate can use it')
+    request = _mapping(custom, 'request', bag.path, 'request')
+    obj = _mapping(custom, 'object', bag.path, 'object')
+    data = _mapping(custom, 'config', bag.path, 'configuration')
+    controllers = custom.get('controllers') if isinstance(custom.get('controllers'), dict) else {}
+    try:
+        config = parse_config(copy.deepcopy(data), f'{bag.path} (recorded config)')
+    except ConfigError as exc:
+        raise RerunError(_one_line(exc)) from None
+    for name, value in request.items():
+        if name not in REQUEST_FIELDS:
+            raise RerunError(f'{bag.path}: recorded request field "{name}" is not re-run')
+        _number(value, f'{bag.path}: recorded request "{name}"')
+    for name in ('width_m', 'mass_kg'):
+        if name not in request:
+            raise RerunError(f'{bag.path}: the recorded request has no "{name}"')
+    known = set(OBJECT_FIELDS) | set(LIFT_FIELDS) | set(FAULT_FIELDS) | {'open_fingers'}
+    for name, value in obj.items():
+        if name not in known:
+            raise RerunError(f'{bag.path}: recorded object field "{name}" is not re-run')
+        _number(value, f'{bag.path}: recorded object "{name}"')
+    if obj.get('open_fingers', 1.0) != 1.0:
+        raise RerunError(f'{bag.path}: the object was placed without opening the fingers; a '
+                         f're-run starts from fully open')
+    grasp = _grasp_keywords(bag.path, request, obj)
+    series = load_grasp_series(bag, ns)
+    st = series.status
+    starts = np.flatnonzero((st.phase == Phase.POSITION) & (st.outcome == Outcome.UNKNOWN))
+    if starts.size == 0:
+        raise RerunError(f'{bag.path}: no grasp starts in the bag (no POSITION decision)')
+    start_ns = int(series.references['stamp_ns'][starts[0]])
+    same = series.references['grasp_id'] == series.references['grasp_id'][starts[0]]
+    answered = np.flatnonzero(same & (series.references['outcome'] != Outcome.UNKNOWN))
+    time_mode = str(info.get('time_mode', 'fast')) if isinstance(info, dict) else 'fast'
+    hold_s = 0.0
+    if time_mode != 'fast' and answered.size and series.ticks['stamp_ns'].size:
+        hold_s = (int(series.ticks['stamp_ns'][-1]) -
+                  int(series.references['stamp_ns'][answered[0]])) * 1e-9
+    rate = info.get('state_rate_hz', DEFAULT_STATE_RATE_HZ) if isinstance(info, dict) else \
+        DEFAULT_STATE_RATE_HZ
+    rate = _number(rate, f'{bag.path}: recorded state_rate_hz')
+    if rate <= 0.0:
+        raise RerunError(f'{bag.path}: recorded state_rate_hz must be > 0, got {rate!r}')
+    first = np.flatnonzero(series.ticks['stamp_ns'] == start_ns)
+    after_fault = bool(first.size) and \
+        int(series.ticks['applied_source'][first[0]]) == Controller.NONE
+    return GraspRecord(bag.path, series, dict(request), dict(obj), dict(controllers), config,
+                       time_mode, start_ns, hold_s, grasp, rate, after_fault)
+
+
+def _grasp_keywords(path, request: dict, obj: dict) -> dict:
+    """Give simulate_grasp's keywords for the recorded request and object.
+
+    They are read as sim/set_object reads them: a lift only with a duration, a fault checked as
+    the plant checks it.
+    """
+    out = {name: float(request.get(name, 0.0)) for name in REQUEST_FIELDS}
+    for name, keyword in OBJECT_FIELDS.items():
+        if name in obj:
+            out[keyword] = float(obj[name])
+    try:
+        if float(obj.get('lift_duration_s', 0.0)) > 0.0:
+            out['lift'] = Lift(*(float(obj.get(name, 0.0)) for name in LIFT_FIELDS))
+        kind = int(obj.get('fault', 0))
+        if kind != obj.get('fault', 0):
+            raise ValueError(f'fault must be a FaultKind code, got {obj["fault"]!r}')
+        if kind != FaultKind.NONE:
+            at_s, tau = (float(obj.get(name, 0.0)) for name in FAULT_FIELDS[1:])
+            check_fault(kind, at_s, tau, GraspObject(
+                0.0, float(obj.get('stiffness_n_per_m', 0.0))).rigid)
+            out['fault'] = (FaultKind(kind), at_s, tau)
+    except ValueError as exc:
+        raise RerunError(f'{path}: the recorded object cannot be placed again: '
+                         f'{_one_line(exc)}') from None
+    return out
+
+
+def _number(value, what: str) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or \
+            not math.isfinite(value):
+        raise RerunError(f'{what} must be a finite number, got {value!r}')
+    return float(value)
+
+
+def _one_line(text: object) -> str:
+    return ' '.join(str(text).split())
+
+
+# --- the changes -------------------------------------------------------------------------------
+
+def parse_assignment(text: str, option: str = '--set') -> tuple[str, Any]:
+    """``SECTION.KEY=VALUE`` -> (dotted key, value read as YAML); ConfigError when malformed."""
+    key, sep, value = text.partition('=')
+    key = key.strip()
+    if not sep or not key or not value.strip() or '.' not in key:
+        raise ConfigError(f'bad {option} {text!r} (expected SECTION.KEY=VALUE)')
+    return key, _value(value.strip())
+
+
+def parse_sweep(text: str) -> tuple[str, list]:
+    """``SECTION.KEY=V1,V2,...`` -> (dotted key, values); ConfigError when malformed."""
+    key, _ = parse_assignment(text, '--sweep')
+    values = [v.strip() for v in text.partition('=')[2].split(',')]
+    if not values or any(not v for v in values):
+        raise ConfigError(f'bad --sweep {text!r} (expected SECTION.KEY=V1,V2,...)')
+    return key, [_value(v) for v in values]
+
+
+def _value(text: str):
+    try:
+        value = yaml.safe_load(text)
+    except yaml.YAMLError:
+        return text
+    if isinstance(value, str):
+        try:
+            return float(value)             # YAML 1.1 reads 1e5 as a string
+        except ValueError:
+            pass
+    return value
+
+
+def apply_settings(data: dict, settings: Sequence[tuple[str, Any]], source: str) -> dict:
+    """Copy the config mapping ``data`` with each dotted key set to its value.
+
+    A key must be one the mapping holds (as a node declares only the keys of its config file
+    as parameters); ConfigError names an unknown key and what its section holds.
+    """
+    out = copy.deepcopy(data)
+    for key, value in settings:
+        parts = key.split('.')
+        node = out
+        for depth, part in enumerate(parts):
+            where = '.'.join(parts[:depth])
+            if not isinstance(node, dict) or part not in node:
+                has = ', '.join(sorted(node)) if isinstance(node, dict) else 'no keys'
+                raise ConfigError(f'unknown config key "{key}" in {source} '
+                                  f'({where or "the top level"} has: {has})')
+            if depth == len(parts) - 1:
+                if isinstance(node[part], dict):
+                    raise ConfigError(f'"{key}" is a section of {source}, not a value (it has: '
+                                      f'{", ".join(sorted(node[part]))})')
+                node[part] = value
+            else:
+                node = node[part]
+    return out
+
+
+def _flat(data: dict, prefix: str = '') -> dict[str, Any]:
+    out = {}
+    for key, value in data.items():
+        if isinstance(value, dict):
+            out.update(_flat(value, f'{prefix}{key}.'))
+        else:
+            out[f'{prefix}{key}'] = value
+    return out
+
+
+@dataclass
+class Changes:
+    """What to change for a re-run (None or empty: as recorded)."""
+
+    config_path: str | None = None
+    settings: list[tuple[str, Any]] = field(default_factory=list)
+    position_controller: str | None = None
+    force_controller: str | None = None
+    approach_force_margin: float | None = None
+
+
+@dataclass
+class RerunSetup:
+    """The configuration and controllers of one re-run, and how they differ from the record."""
+
+    config: GripperConfig
+    position_controller: str
+    force_controller: str
+    approach_force_margin: float
+    changes: list[str]                  # one line per difference from the recording
+
+
+def resolve(record: GraspRecord, changes: Changes | None = None) -> RerunSetup:
+    """Build the re-run's configuration and controllers; ConfigError (one line) if unusable."""
+    changes = changes or Changes()
+    base = record.config
+    if changes.config_path:
+        base = load_resim_config(changes.config_path)
+    data = apply_settings(base.data, changes.settings, base.source) if changes.settings \
+        else base.data
+    source = base.source + (' with ' + ', '.join(f'{k}={v}' for k, v in changes.settings)
+                            if changes.settings else '')
+    try:
+        config = parse_config(copy.deepcopy(data), source)
+    except ConfigError as exc:
+        raise ConfigError(_one_line(exc)) from None
+    rec = record.controllers
+    position = changes.position_controller or rec.get('position_controller') or \
+        DEFAULT_POSITION_CONTROLLER.value
+    force = changes.force_controller or rec.get('force_controller') or \
+        DEFAULT_FORCE_CONTROLLER.value
+    margin = changes.approach_force_margin
+    if margin is None:
+        margin = rec.get('approach_force_margin', DEFAULT_APPROACH_FORCE_MARGIN)
+    if isinstance(margin, bool) or not isinstance(margin, (int, float)) or \
+            not (math.isfinite(margin) and margin >= 0.0):
+        raise ConfigError(f'approach_force_margin must be finite and >= 0, got {margin!r}')
+    position_stage, force_stage = build_stages(config, position, force, float(margin))
+    _request(record, config)            # the re-run's supervisor must accept the request
+    out = RerunSetup(config, position_stage.kind.value, force_stage.kind.value,
+                     float(force_stage.approach_margin), [])
+    before, after = _flat(record.config.data), _flat(config.data)
+    for key in sorted(set(before) | set(after)):
+        if before.get(key, '(none)') != after.get(key, '(none)'):
+            out.changes.append(f'{key} {before.get(key, "(none)")} -> {after.get(key, "(none)")}')
+    recorded = (rec.get('position_controller') or DEFAULT_POSITION_CONTROLLER.value,
+                rec.get('force_controller') or DEFAULT_FORCE_CONTROLLER.value,
+                float(rec.get('approach_force_margin', DEFAULT_APPROACH_FORCE_MARGIN)))
+    for name, was, now in zip(('position_controller', 'force_controller',
+                               'approach_force_margin'), recorded,
+                              (out.position_controller, out.force_controller,
+                               out.approach_force_margin)):
+        if was != now:
+            out.changes.append(f'{name} {was:g} -> {now:g}' if isinstance(now, float)
+                               else f'{name} {was} -> {now}')
+    return out
+
+
+def _request(record: GraspRecord, config: GripperConfig) -> None:
+    """Refuse (ConfigError) a configuration whose supervisor refuses the recorded request."""
+    r = record.request
+    request = GraspRequest(*(float(r.get(name, 0.0)) for name in REQUEST_FIELDS))
+    try:
+        validate_request(request, config.plant, config.supervisor)
+    except RequestError as exc:
+        raise ConfigError(f"{config.source}: the re-run's supervisor refuses the recorded "
+                          f'request: {_one_line(exc)}') from None
+
+
+# --- the re-run --------------------------------------------------------------------------------
+
+@dataclass
+class Rerun:
+    """One closed-loop re-run: its setup, the headless grasp, its series and figures.
+
+    ``difference`` is '' when the re-run equals the recording, else where it first differs;
+    None when changes were applied (nothing to hold it to).
+    """
+
+    setup: RerunSetup
+    headless: HeadlessGrasp
+    series: GraspSeries
+    metrics: GraspMetrics
+    difference: str | None = None
+    value: Any = None                   # the swept value (a sweep's row)
+
+
+class _Trace:
+    """Every tick of a headless grasp, as a bag holds it.
+
+    The tick, its reference and command, the supervisor's state when it changed, and the held
+    object's ground truth when the plant node publishes it (on the grid of
+    ``state_period_ns`` and when the hold state changes).
+    """
+
+    def __init__(self, state_period_ns: int):
+        self.ticks, self.refs, self.cmds, self.statuses, self.objects = [], [], [], [], []
+        self._state = None
+        self._period_ns = state_period_ns
+        self._next_object_ns = None
+        self._hold_state = None
+
+    def __call__(self, plant, tick, d, ref, cmd) -> None:
+        self.ticks.append(tick)
+        if ref is not None:
+            self.refs.append(ref)
+            self.cmds.append(cmd)
+        state = (d.phase, d.active, d.switch_criterion, d.grasp_id, d.outcome, d.stage_id,
+                 d.contact)
+        if state != self._state:
+            self._state = state
+            self.statuses.append((tick.stamp_ns, _Status(
+                int(d.phase), int(d.active), int(d.switch_criterion), d.grasp_id,
+                int(d.outcome), d.position_setpoint_m, d.force_setpoint_n, tick.position_m,
+                tick.force_n, d.contact, d.stage_id, d.approach_setpoint_m)))
+        if self._next_object_ns is None or tick.stamp_ns >= self._next_object_ns or \
+                plant.hold_state is not self._hold_state:
+            o = plant.object_state
+            self._hold_state = o.state
+            self._next_object_ns = (tick.stamp_ns // self._period_ns + 1) * self._period_ns
+            self.objects.append((tick.stamp_ns * 1e-9, int(o.state), o.slip_m, o.slip_speed_mps,
+                                 o.load_n, o.capacity_n))
+
+    def series(self, record: GraspRecord, first_ns: int, start_ns: int,
+               label: str) -> GraspSeries:
+        """Build the series from tick ``first_ns`` on (the recording's first, or the start).
+
+        The object's ground truth from the grasp's start ``start_ns`` on (the plant published
+        the idle tick's when the object was placed, before the recording began); the grasp id,
+        stage id and revision go on from the recording's at the grasp's start.
+        """
+        rec = record.series.references
+        first = np.flatnonzero(rec['stamp_ns'] == record.grasp_start_ns)[0]
+        ticks = [t for t in self.ticks if t.stamp_ns >= first_ns]
+        refs = [r for r in self.refs if r.stamp_ns >= first_ns]
+        cmds = [c for c in self.cmds if c.stamp_ns >= first_ns]
+        statuses = [(t, s) for t, s in self.statuses if t >= first_ns]
+        ours = [r for r in refs if r.stamp_ns == start_ns]
+        if ours:
+            shift = {'grasp_id': int(rec['grasp_id'][first]) - ours[0].grasp_id,
+                     'stage_id': int(rec['stage_id'][first]) - ours[0].stage_id,
+                     'revision': int(rec['revision'][first]) - ours[0].revision}
+            ticks = [t._replace(revision=t.revision + shift['revision']) for t in ticks]
+            refs = [r._replace(**{k: getattr(r, k) + v for k, v in shift.items()}) for r in refs]
+            cmds = [c._replace(**{k: getattr(c, k) + v for k, v in shift.items()}) for c in cmds]
+            statuses = [(t, s._replace(grasp_id=s.grasp_id + shift['grasp_id'],
+                                       stage_id=s.stage_id + shift['stage_id']))
+                        for t, s in statuses]
+        objects = [o for o in self.objects if o[0] >= start_ns * 1e-9]
+        return lockstep_series(Path(label), record.series.namespace, ticks, refs, cmds,
+                               statuses, objects,
+                               start_ns=ticks[0].stamp_ns if ticks else first_ns,
+                               end_ns=ticks[-1].stamp_ns if ticks else first_ns)
+
+
+def run(record: GraspRecord, setup: RerunSetup, label: str = 're-run') -> Rerun:
+    """Grasp again, headless, with ``setup``.
+
+    One position tick before the recorded grasp's first tick the fingers are fully open at
+    rest, as when the graph placed the object.
+    """
+    state_period_ns = round(1e9 / record.state_rate_hz)
+    trace = _Trace(state_period_ns)
+    # the tick before the grasp: the position stage's hold, or 0 V for a state period (FAULT)
+    idle_ns = state_period_ns if record.after_fault else \
+        round(record.config.position.sample_time_s * 1e9)
+    try:
+        h = simulate_grasp(setup.config, start_ns=record.grasp_start_ns - idle_ns,
+                           idle_unpowered_s=idle_ns * 1e-9 if record.after_fault else 0.0,
+                           hold_s=record.hold_s, position_controller=setup.position_controller,
+                           force_controller=setup.force_controller,
+                           approach_force_margin=setup.approach_force_margin, trace=trace,
+                           **record.grasp)
+    except RequestError as exc:
+        raise ConfigError(f"{setup.config.source}: the re-run's supervisor refuses the "
+                          f'recorded request: {_one_line(exc)}') from None
+    except ValueError as exc:
+        raise RerunError(f'{record.path}: the recorded object cannot be placed again: '
+                         f'{_one_line(exc)}') from None
+    recorded_ticks = record.series.ticks['stamp_ns']
+    first_ns = max(int(recorded_ticks[0]), int(h.t_ns[0])) if recorded_ticks.size else \
+        h.start_ns
+    series = trace.series(record, first_ns, h.start_ns, label)
+    metrics = analyze_series(series, setup.config.plant.voltage_limit_v)
+    metrics.bag = label
+    out = Rerun(setup, h, series, metrics)
+    if not setup.changes and not record.truncated:
+        out.difference = series_difference(record.series, series, first_ns, h.start_ns)
+    return out
+
+
+def _bits(values: np.ndarray) -> np.ndarray:
+    values = np.ascontiguousarray(values)
+    return values.view(np.int64) if values.dtype == np.float64 else values
+
+
+def series_difference(recorded: GraspSeries, rerun: GraspSeries, first_ns: int,
+                      objects_from_ns: int | None = None) -> str:
+    """Say where the re-run first differs from the recording ('' when nowhere).
+
+    Every field of every tick, reference and command of the recording from tick ``first_ns``
+    on, and of every object state from ``objects_from_ns`` (default the same), is compared bit
+    for bit with the re-run's; the answer is one line.
+    """
+    objects = {}
+    for name, series in (('recorded', recorded), ('rerun', rerun)):
+        o = series.objects
+        objects[name] = {} if o is None else {
+            'stamp_ns': np.rint(o.t_s * 1e9).astype(np.int64), 'state': o.state,
+            'slip_m': o.slip_m, 'slip_speed_mps': o.slip_speed_mps, 'load_n': o.load_n,
+            'capacity_n': o.capacity_n}
+    for kind, rec, new in (('tick', recorded.ticks, rerun.ticks),
+                           ('reference', recorded.references, rerun.references),
+                           ('command', recorded.commands, rerun.commands),
+                           ('object state', objects['recorded'], objects['rerun'])):
+        if not rec:
+            continue
+        from_ns = objects_from_ns if kind == 'object state' and objects_from_ns is not None \
+            else first_ns
+        keep = rec['stamp_ns'] >= from_ns
+        count = int(np.count_nonzero(keep))
+        if count != new['stamp_ns'].size:
+            return (f'{count} {kind}s recorded from t = {from_ns * 1e-9:.4f} s, '
+                    f'{new["stamp_ns"].size} re-run')
+        for name, column in rec.items():
+            a, b = _bits(column[keep]), _bits(new[name])
+            differ = np.flatnonzero(a != b)
+            if differ.size:
+                i = differ[0]
+                return (f'{kind} {name} differs first at t = '
+                        f'{rec["stamp_ns"][keep][i] * 1e-9:.4f} s ({kind} {i}): '
+                        f'{column[keep][i]!r} recorded, {new[name][i]!r} re-run')
+    return ''
+
+
+@dataclass
+class WhatIf:
+    """A recording and its re-runs (one, or one per value of a sweep)."""
+
+    record: GraspRecord
+    recorded: GraspMetrics
+    reruns: list[Rerun]
+    sweep_key: str | None = None
+
+    @property
+    def recorded_value(self):
+        """The swept key's value in the recorded configuration."""
+        if self.sweep_key is None:
+            return None
+        return _flat(self.record.config.data).get(self.sweep_key)
+
+
+def whatif(bag: Bag | str | os.PathLike, changes: Changes | None = None,
+           sweep: tuple[str, Sequence] | None = None) -> WhatIf:
+    """Re-run a recorded grasp with ``changes``, once or once per value of ``sweep``.
+
+    ``sweep`` = (dotted key, values) is applied on top of the changes. Every setup is checked
+    before the first re-run: RerunError (the bag) or ConfigError (an option, key or value),
+    one line.
+    """
+    record = load_record(bag)
+    recorded = analyze_series(record.series, record.config.plant.voltage_limit_v)
+    changes = changes or Changes()
+    if sweep is None:
+        setups = [(None, resolve(record, changes))]
+    else:
+        key, values = sweep
+        setups = []
+        for value in values:
+            one = copy.copy(changes)
+            one.settings = list(changes.settings) + [(key, value)]
+            setups.append((value, resolve(record, one)))
+    reruns = []
+    for value, setup in setups:
+        label = 're-run' if sweep is None else f're-run {sweep[0]}={value}'
+        r = run(record, setup, label)
+        r.value = value
+        reruns.append(r)
+    return WhatIf(record, recorded, reruns, None if sweep is None else sweep[0])
+
+
+# --- output ------------------------------------------------------------------------------------
+
+SKIPPED = ('bag', 'grasp_id', 'truncated', 'grasp_start_s', 'grasp_end_s')
+"""GraspMetrics fields that say which grasp, not how it went."""
+
+
+def metrics_dict(m: GraspMetrics) -> dict[str, Any]:
+    """Give a grasp's figures (bag_analyze's) by name.
+
+    ``answer_time_s`` (from the start to the answer) takes the place of the absolute start and
+    end.
+    """
+    out = {k: v for k, v in asdict(m).items() if k not in SKIPPED}
+    out = {'outcome': out.pop('outcome'), 'final_outcome': out.pop('final_outcome'),
+           'answer_time_s': m.grasp_end_s - m.grasp_start_s, **out}
+    return out
+
+
+def _difference(recorded, rerun):
+    if isinstance(recorded, str) or isinstance(rerun, str):
+        return None if recorded == rerun else 'changed'
+    if not (math.isfinite(recorded) and math.isfinite(rerun)):
+        return None if (math.isnan(recorded) and math.isnan(rerun)) or recorded == rerun \
+            else 'changed'
+    return rerun - recorded
+
+
+def _signed(value) -> str:
+    if isinstance(value, float):
+        return '0' if value == 0.0 else f'{value:+.4g}'
+    return format_cell(value)
+
+
+def _json_value(value):
+    if isinstance(value, float) and not math.isfinite(value):
+        return None if math.isnan(value) else ('inf' if value > 0 else '-inf')
+    if isinstance(value, dict):
+        return {k: _json_value(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_json_value(v) for v in value]
+    return value
+
+
+def _rows(w: WhatIf, r: Rerun) -> list[tuple[str, Any, Any, Any]]:
+    rec, new = metrics_dict(w.recorded), metrics_dict(r.metrics)
+    rows = []
+    for key in rec:
+        a, b = rec[key], new[key]
+        if a in ('', None) and b in ('', None):
+            continue
+        if isinstance(a, float) and isinstance(b, float) and math.isnan(a) and math.isnan(b):
+            continue                    # not applicable on either side (no lift, no loss)
+        rows.append((key, a, b, _difference(a, b)))
+    return rows
+
+
+def _header(w: WhatIf) -> list[str]:
+    rec = w.record
+    r = w.reruns[0]
+    ctl = rec.controllers
+    truncated = '  (TRUNCATED: recorded figures cover the part recovered)' \
+        if rec.truncated else ''
+    lines = [f'bag:          {rec.path}{truncated}',
+             f'recorded:     position {ctl.get("position_controller", "?")}, force '
+             f'{ctl.get("force_controller", "?")}, approach_force_margin '
+             f'{float(ctl.get("approach_force_margin", DEFAULT_APPROACH_FORCE_MARGIN)):g}; '
+             f'{rec.time_mode} mode',
+             "re-run:       closed loop, headless (the graph's plant, supervisor and stages, "
+             'tick for tick)']
+    if w.sweep_key is None:
+        lines.append(f'controllers:  position {r.setup.position_controller}, force '
+                     f'{r.setup.force_controller}, approach_force_margin '
+                     f'{r.setup.approach_force_margin:g}')
+        lines.append('changes:      ' + ('; '.join(r.setup.changes) or 'none'))
+    return lines
+
+
+def _series_line(r: Rerun) -> str:
+    if r.difference is None:
+        return ''
+    if r.difference == '':
+        n = r.series.ticks['stamp_ns'].size
+        return (f'series:       identical to the recording ({n} ticks, '
+                f'{r.series.references["stamp_ns"].size} references and commands, bit for bit)')
+    return f'series:       NOT identical to the recording: {r.difference}'
+
+
+def to_table(w: WhatIf) -> str:
+    """Side by side: each figure recorded, re-run, and the difference (re-run - recorded)."""
+    r = w.reruns[0]
+    lines = _header(w)
+    if _series_line(r):
+        lines.append(_series_line(r))
+    lines.append('')
+    header = ('metric', 'recorded', 're-run', 'difference')
+    body = [(k, format_cell(a), format_cell(b), _signed(d)) for k, a, b, d in _rows(w, r)]
+    widths = [max(len(line[c]) for line in [header] + body) for c in range(4)]
+    lines.append('  '.join(h.ljust(n) for h, n in zip(header, widths)).rstrip())
+    lines.append('  '.join('-' * n for n in widths))
+    lines.extend('  '.join(c.ljust(n) for c, n in zip(line, widths)).rstrip() for line in body)
+    return '\n'.join(lines)
+
+
+def to_json(w: WhatIf) -> str:
+    """Give the side-by-side table as JSON: ``recorded``, ``rerun``, ``difference``."""
+    r = w.reruns[0]
+    rec, new = metrics_dict(w.recorded), metrics_dict(r.metrics)
+    out = {'bag': str(w.record.path), 'time_mode': w.record.time_mode,
+           'recorded_controllers': w.record.controllers,
+           'controllers': {'position_controller': r.setup.position_controller,
+                           'force_controller': r.setup.force_controller,
+                           'approach_force_margin': r.setup.approach_force_margin},
+           'changes': r.setup.changes,
+           'series_identical': None if r.difference is None else r.difference == '',
+           'series_difference': r.difference or None,
+           'recorded': rec, 'rerun': new,
+           'difference': {k: d for k, _, _, d in _rows(w, r)}}
+    return json.dumps(_json_value(out), indent=2)
+
+
+SWEEP_COLUMNS = (
+    ('outcome', 'outcome', 1.0), ('final_outcome', 'final', 1.0),
+    ('time_to_contact_s', 'contact s', 1.0), ('switch_time_s', 'switch s', 1.0),
+    ('answer_time_s', 'answer s', 1.0), ('position_settling_s', 'pos settle s', 1.0),
+    ('position_overshoot_pct', 'pos OS %', 1.0), ('position_rms_m', 'pos RMS mm', 1e3),
+    ('force_settling_s', 'F settle ms', 1e3), ('force_overshoot_pct', 'F OS %', 1.0),
+    ('force_rms_n', 'F RMS N', 1.0), ('peak_force_ratio', 'peak/F_sp', 1.0),
+    ('time_at_voltage_limit_s', 'at limit s', 1.0))
+"""The sweep table's columns: metric, heading, scale."""
+
+
+def _sweep_cell(value, scale: float) -> str:
+    if isinstance(value, float) and math.isfinite(value):
+        return f'{value * scale:.4g}'
+    return format_cell(value)
+
+
+def sweep_table(w: WhatIf) -> str:
+    """One row per swept value (the recording first), so the best value can be picked."""
+    lines = _header(w)
+    lines.append(f'sweep:        {w.sweep_key} (recorded: {w.recorded_value})')
+    r = w.reruns[0]
+    lines.append(f'controllers:  position {r.setup.position_controller}, force '
+                 f'{r.setup.force_controller}, approach_force_margin '
+                 f'{r.setup.approach_force_margin:g}')
+    lines.append('')
+    header = [w.sweep_key] + [h for _, h, _ in SWEEP_COLUMNS]
+    body = [[f'recorded ({w.recorded_value})'] +
+            [_sweep_cell(metrics_dict(w.recorded)[k], s) for k, _, s in SWEEP_COLUMNS]]
+    for run_ in w.reruns:
+        m = metrics_dict(run_.metrics)
+        mark = ' (= recording)' if run_.difference == '' else ''
+        body.append([f'{run_.value}{mark}'] + [_sweep_cell(m[k], s) for k, _, s in SWEEP_COLUMNS])
+    widths = [max(len(line[c]) for line in [header] + body) for c in range(len(header))]
+    lines.append('  '.join(h.ljust(n) for h, n in zip(header, widths)).rstrip())
+    lines.append('  '.join('-' * n for n in widths))
+    lines.extend('  '.join(c.ljust(n) for c, n in zip(line, widths)).rstrip() for line in body)
+    return '\n'.join(lines)
+
+
+def sweep_json(w: WhatIf) -> str:
+    """Give the sweep as JSON: ``recorded`` and ``rerun`` (one entry per value)."""
+    out = {'bag': str(w.record.path), 'sweep': w.sweep_key,
+           'recorded_value': w.recorded_value,
+           'recorded': metrics_dict(w.recorded),
+           'rerun': [{'value': r.value, 'changes': r.setup.changes,
+                      'series_identical': None if r.difference is None else r.difference == '',
+                      **metrics_dict(r.metrics)} for r in w.reruns]}
+    return json.dumps(_json_value(out), indent=2)
+
+
+# --- figure ------------------------------------------------------------------------------------
+
+RERUN_COLORS = ('tab:red', 'tab:blue', 'tab:green', 'tab:purple', 'tab:brown', 'tab:olive',
+                'tab:cyan', 'tab:pink')
+ZOOM_MARGIN_S = 0.03
+"""The right-hand column starts this long before each grasp's switch to the force stage."""
+
+
+def _phase_times(m: GraspMetrics) -> tuple[float, float, float]:
+    """(switch, answer, end of the hold) in seconds from the grasp start."""
+    end = m.grasp_end_s - m.grasp_start_s
+    switch = m.switch_time_s if math.isfinite(m.switch_time_s) else end
+    return switch, end, end + (m.hold_s if math.isfinite(m.hold_s) else 0.0)
+
+
+def plot(w: WhatIf, path: str) -> None:
+    """Draw recorded and re-run position, force, motor and FSR voltage on shared time axes.
+
+    On the left time runs from the grasp start over the whole grasp; on the right it runs from
+    each grasp's switch to the force stage, so that the force stages lie over each other. The
+    recording is drawn in black and its stages are shaded (as bag_analyze and grasp_demo shade
+    them); each re-run's switch and answer are marked in its colour.
+    """
+    import matplotlib
+    matplotlib.use('Agg')
+    import matplotlib.pyplot as plt
+
+    runs = [('recorded', w.record.series, w.recorded, 'k', w.record.config)]
+    for i, r in enumerate(w.reruns):
+        label = 're-run' if w.sweep_key is None else f'{w.sweep_key}={r.value}'
+        runs.append((label, r.series, r.metrics, RERUN_COLORS[i % len(RERUN_COLORS)],
+                     r.setup.config))
+    times = [_phase_times(m) for _, _, m, _, _ in runs]     # (switch, answer, hold end)
+    columns = ((0.0, max(t[2] for t in times)),             # (from, to) of each column
+               (-ZOOM_MARGIN_S, max(t[2] - t[0] for t in times)))
+    fig, axes = plt.subplots(4, 2, figsize=(13, 9.5), sharex='col', squeeze=False,
+                             gridspec_kw={'width_ratios': [3, 2]})
+    rec_switch, rec_end, rec_hold = times[0]
+    labels = ('position (mm)', 'force (N)', 'motor voltage (V)', 'FSR voltage (V)')
+    for col, (lo, hi) in enumerate(columns):
+        shift = rec_switch if col else 0.0                  # the recording's zero on this side
+        for row in range(4):
+            ax = axes[row][col]
+            first = row == 0 and col == 0
+            ax.axvspan(-shift, rec_switch - shift, color='tab:blue', alpha=0.08,
+                       label='position stage (recorded)' if first else None)
+            if rec_end > rec_switch:
+                ax.axvspan(rec_switch - shift, rec_end - shift, color='tab:orange', alpha=0.10,
+                           label='force stage (recorded)' if first else None)
+            if rec_hold > rec_end:
+                ax.axvspan(rec_end - shift, rec_hold - shift, color='tab:green', alpha=0.08,
+                           label='hold after the answer (recorded)' if first else None)
+            for (label, s, m, color, config), (switch, end, _) in zip(runs, times):
+                zero = m.grasp_start_s + (switch if col else 0.0)
+                t = s.joint.t_s - zero
+                keep = (t >= lo) & (t <= hi)
+                y = (s.joint.position_m * 1e3, s.sensor.force_n, s.motor.voltage_v,
+                     s.sensor.voltage_v)[row]
+                width = 1.6 if color == 'k' else 1.1
+                if row == 2:            # each voltage holds over the interval ending at its stamp
+                    ax.step(t[keep], y[keep], where='pre', lw=width, color=color,
+                            label=label if first else None)
+                else:
+                    ax.plot(t[keep], y[keep], lw=width, color=color,
+                            label=label if first else None)
+                if color != 'k':
+                    if not col:
+                        ax.axvline(switch, color=color, ls='--', lw=0.8)
+                    ax.axvline(end - (switch if col else 0.0), color=color, ls=':', lw=0.8)
+                setpoint = (m.position_setpoint_m * 1e3, m.force_setpoint_n, None, None)[row]
+                if setpoint is not None and math.isfinite(setpoint) and color == 'k':
+                    ax.axhline(setpoint, ls='--', lw=0.8, color='grey',
+                               label='setpoint' if first else None)
+                if row == 2 and color == 'k':
+                    for limit in (config.plant.voltage_limit_v, -config.plant.voltage_limit_v):
+                        ax.axhline(limit, ls=':', lw=0.8, color='grey')
+            ax.set_xlim(lo, hi)
+            if col == 0:
+                ax.set_ylabel(labels[row])
+            ax.grid(True, alpha=0.3)
+    axes[3][0].set_xlabel('time from the grasp start (s)')
+    axes[3][1].set_xlabel('time from the switch to the force stage (s)')
+    changes = '; '.join(w.reruns[0].setup.changes) if w.sweep_key is None else \
+        f'sweep {w.sweep_key}'
+    outcomes = ', '.join(f'{label} {m.outcome}' for label, _, m, _, _ in runs)
+    fig.suptitle(f'{w.record.path.name}: {changes or "no change"}\n{outcomes}; dashed: switch, '
+                 f'dotted: answer of each re-run', fontsize=9)
+    axes[0][0].legend(fontsize=7, loc='best')
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)

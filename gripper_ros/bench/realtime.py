@@ -1,0 +1,240 @@
+"""bench_realtime: does the simulated gripper keep the wall clock's pace, and at what CPU cost?
+
+    ros2 run gripper_ros bench_realtime                  # idle 5 s, grasp, hold 5 s
+    ros2 run gripper_ros bench_realtime --seconds 10 --no-record --json
+
+``grasp_demo --serve`` runs in a child process, exactly as a user starts it (realtime time,
+real-time factor 1, bags per grasp unless ``--no-record``). From this process, over DDS, the
+benchmark watches ``/clock``, ``joint_states`` and ``sim/status`` and reads the child's CPU
+time from /proc, in two windows of ``--seconds`` wall seconds each:
+
+- idle: no request; the position stage holds the open fingers (10 ms ticks);
+- holding: after a grasp of the 0.1 m / 0.75 kg object of Table V answered HOLDING, the force
+  loop holding it (0.1 ms ticks).
+
+For each window: the achieved real-time factor (simulated seconds per wall second, from the
+stamps of ``joint_states``; 1.0 is the aim, and the plant never runs ahead of the wall
+clock), the rates of ``/clock`` and ``joint_states`` against ``state_rate_hz``, the plant's own
+figure from ``sim/status``, and the child's CPU time as a share of one core.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import signal
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from typing import Any, Dict, Optional, Sequence
+
+from gripper_ros.bench.common import call, process_cpu_s
+from gripper_ros.bench.pingpong import BenchError
+
+GRASP = (0.10, 0.75)                   # Table V's third object: the longest force stage
+STATE_RATE_HZ = 100.0                  # grasp_demo --serve's state_rate_hz
+_UP_TIMEOUT_S = 30.0
+
+
+class _Watcher:
+    """Counts and stamps of the streams a ROS system would use, seen from another process."""
+
+    def __init__(self, namespace: str) -> None:
+        import rclpy
+        from gripper_interfaces.msg import SimStatus
+        from gripper_interfaces.srv import Grasp, SetObject
+        from rclpy.experimental import EventsExecutor
+        from rosgraph_msgs.msg import Clock
+        from sensor_msgs.msg import JointState
+        from std_srvs.srv import Trigger
+        from gripper_ros.nodes.common import GRAPH_QOS, SERVICE_QOS, spin_until_stopped
+        from gripper_ros.nodes.loop_io import joint_state_template
+        from gripper_ros.wire import (FINGER_JOINT, SERVICE_GRASP, SERVICE_RELEASE,
+                                      SERVICE_SET_OBJECT, TOPIC_CLOCK, TOPIC_JOINT_STATES,
+                                      TOPIC_SIM_STATUS, qualified)
+        self.context = rclpy.Context()
+        rclpy.init(args=[], context=self.context)
+        self.node = rclpy.create_node('bench_realtime_watcher', context=self.context)
+        self._lock = threading.Lock()
+        self.clock_count = 0
+        self.joint_count = 0
+        self.joint_first_last_ns: list = [None, None]
+        self.sim_rtf: list = []
+        self._joint_layout = joint_state_template(FINGER_JOINT, 'gripper_base')
+        self.node.create_subscription(Clock, TOPIC_CLOCK, self._on_clock, GRAPH_QOS, raw=True)
+        self.joint_sub = self.node.create_subscription(
+            JointState, qualified(namespace, TOPIC_JOINT_STATES), self._on_joint, GRAPH_QOS,
+            raw=True)
+        self.node.create_subscription(SimStatus, qualified(namespace, TOPIC_SIM_STATUS),
+                                      self._on_sim_status, GRAPH_QOS)
+        self.grasp = self.node.create_client(Grasp, qualified(namespace, SERVICE_GRASP),
+                                             qos_profile=SERVICE_QOS)
+        self.release = self.node.create_client(Trigger, qualified(namespace, SERVICE_RELEASE))
+        self.set_object = self.node.create_client(SetObject,
+                                                  qualified(namespace, SERVICE_SET_OBJECT))
+        self.executor = EventsExecutor(context=self.context)
+        self.executor.add_node(self.node)
+        self._stop = rclpy.task.Future()
+        self._thread = threading.Thread(target=spin_until_stopped,
+                                        args=(self.executor, self._stop), daemon=True)
+        self._thread.start()
+
+    def _on_clock(self, _data: bytes) -> None:
+        with self._lock:
+            self.clock_count += 1
+
+    def _on_joint(self, data: bytes) -> None:
+        values = self._joint_layout.unpack(data)
+        if values is None:
+            from rclpy.serialization import deserialize_message
+            from sensor_msgs.msg import JointState
+            msg = deserialize_message(data, JointState)
+            values = (msg.header.stamp.sec, msg.header.stamp.nanosec)
+        t_ns = values[0] * 1_000_000_000 + values[1]
+        with self._lock:
+            self.joint_count += 1
+            if self.joint_first_last_ns[0] is None:
+                self.joint_first_last_ns[0] = t_ns
+            self.joint_first_last_ns[1] = t_ns
+
+    def _on_sim_status(self, msg) -> None:
+        with self._lock:
+            self.sim_rtf.append(msg.real_time_factor)
+
+    def snapshot(self) -> Dict[str, Any]:
+        with self._lock:
+            return {'clock': self.clock_count, 'joint': self.joint_count,
+                    'joint_ns': self.joint_first_last_ns[1], 'sim_rtf': len(self.sim_rtf)}
+
+    def call(self, client, request, timeout_s: float):
+        return call(client, request, timeout_s)
+
+    def close(self) -> None:
+        self._stop.set_result(True)
+        self._thread.join(5.0)
+        self.executor.shutdown(timeout_sec=1.0)
+        self.node.destroy_node()
+        self.context.try_shutdown()
+
+
+def _window(watcher: _Watcher, pid: int, seconds: float) -> Dict[str, Any]:
+    """Streams, simulated time and CPU over ``seconds`` of wall time."""
+    a, cpu0, t0 = watcher.snapshot(), process_cpu_s(pid), time.perf_counter()
+    time.sleep(seconds)
+    b, cpu1, t1 = watcher.snapshot(), process_cpu_s(pid), time.perf_counter()
+    wall = t1 - t0
+    with watcher._lock:
+        sim_rtf = watcher.sim_rtf[a['sim_rtf']:b['sim_rtf']]
+    sim_s = (b['joint_ns'] - a['joint_ns']) * 1e-9 if a['joint_ns'] and b['joint_ns'] else 0.0
+    return {'wall_s': wall, 'sim_s': sim_s, 'rtf': sim_s / wall,
+            'clock_hz': (b['clock'] - a['clock']) / wall,
+            'joint_states_hz': (b['joint'] - a['joint']) / wall,
+            'plant_reported_rtf': min(sim_rtf) if sim_rtf else float('nan'),
+            'cpu_share': (cpu1 - cpu0) / wall}
+
+
+def measure(seconds: float, record: bool) -> Dict[str, Any]:
+    """Idle and holding windows of a ``grasp_demo --serve`` child."""
+    from gripper_interfaces.srv import Grasp, SetObject
+    from std_srvs.srv import Trigger
+    from gripper_ros.wire import Outcome
+    namespace = f'bench_realtime_{os.getpid()}'
+    with tempfile.TemporaryDirectory(prefix='bench_realtime_') as tmp:
+        cmd = [sys.executable, '-m', 'gripper_ros.apps.grasp_demo', '--serve', '--namespace',
+               namespace, '--output', tmp, '--ros-args', '--log-level', 'warn']
+        if not record:
+            cmd.insert(-3, '--no-record')
+        child = subprocess.Popen(cmd, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
+                                 stderr=subprocess.PIPE, text=True)
+        watcher = None
+        try:
+            watcher = _Watcher(namespace)
+            deadline = time.monotonic() + _UP_TIMEOUT_S
+            while not (watcher.grasp.service_is_ready() and watcher.set_object.service_is_ready()
+                       and watcher.snapshot()['joint'] > 10):
+                if child.poll() is not None:
+                    raise BenchError(f'grasp_demo --serve exited ({child.returncode}): '
+                                     f'{child.stderr.read().strip()[-300:]}')
+                if time.monotonic() > deadline:
+                    raise BenchError('grasp_demo --serve did not come up')
+                time.sleep(0.05)
+            time.sleep(0.5)
+            idle = _window(watcher, child.pid, seconds)
+            placed = watcher.call(watcher.set_object, SetObject.Request(width_m=GRASP[0]), 30.0)
+            if not placed.success:
+                raise BenchError(f'set_object: {placed.message}')
+            t0 = time.perf_counter()
+            response = watcher.call(watcher.grasp, Grasp.Request(width_m=GRASP[0],
+                                                                 mass_kg=GRASP[1]), 120.0)
+            grasp_wall_s = time.perf_counter() - t0
+            if response.outcome != Outcome.HOLDING:
+                raise BenchError(f'the grasp ended {Outcome(response.outcome).name}: '
+                                 f'{response.message}')
+            time.sleep(1.0)                  # the serve bag closes 0.5 s after the answer
+            holding = _window(watcher, child.pid, seconds)
+            watcher.call(watcher.release, Trigger.Request(), 60.0)
+            return {'record': record, 'seconds': seconds, 'state_rate_hz': STATE_RATE_HZ,
+                    'grasp': {'width_m': GRASP[0], 'mass_kg': GRASP[1],
+                              'wall_s': grasp_wall_s},
+                    'idle': idle, 'holding': holding}
+        finally:
+            if watcher is not None:
+                watcher.close()
+            if child.poll() is None:
+                child.send_signal(signal.SIGINT)
+                try:
+                    child.wait(15.0)
+                except subprocess.TimeoutExpired:
+                    child.kill()
+                    child.wait()
+            child.stderr.close()
+
+
+def format_report(r: Dict[str, Any]) -> str:
+    lines = [f"bench_realtime: grasp_demo --serve{'' if r['record'] else ' --no-record'} "
+             f"(realtime, real-time factor 1, state_rate_hz {r['state_rate_hz']:g}) watched "
+             f"from another process, {r['seconds']:g} s per window; CPU: the serving "
+             f"process, share of one core", '',
+             f'{"window":>8s} {"RTF":>6s} {"plant RTF":>9s} {"/clock Hz":>10s} '
+             f'{"joint_states Hz":>15s} {"CPU share":>9s}']
+    for name in ('idle', 'holding'):
+        w = r[name]
+        lines.append(f'{name:>8s} {w["rtf"]:6.3f} {w["plant_reported_rtf"]:9.3f} '
+                     f'{w["clock_hz"]:10.1f} {w["joint_states_hz"]:15.1f} '
+                     f'{w["cpu_share"]:9.2f}')
+    g = r['grasp']
+    lines.append('')
+    lines.append(f'grasp of {g["width_m"]:g} m / {g["mass_kg"]:g} kg answered HOLDING after '
+                 f'{g["wall_s"]:.2f} s of wall time')
+    lines.append('RTF: simulated s per wall s from the joint_states stamps (aim 1.0, never '
+                 'above); plant RTF: the lowest sim/status figure in the window')
+    return '\n'.join(lines)
+
+
+def main(args: Optional[Sequence[str]] = None) -> int:
+    os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
+    p = argparse.ArgumentParser(prog='bench_realtime', description=__doc__.splitlines()[0])
+    p.add_argument('--seconds', type=float, default=5.0,
+                   help='wall seconds per window (default 5)')
+    p.add_argument('--no-record', dest='record', action='store_false',
+                   help='serve without recording bags')
+    p.add_argument('--json', action='store_true', help='print JSON instead of the table')
+    opts = p.parse_args(list(sys.argv[1:] if args is None else args))
+    if not (0.5 <= opts.seconds <= 600.0):
+        print('bench_realtime: error: --seconds must be in [0.5, 600]', file=sys.stderr)
+        return 2
+    try:
+        report = measure(opts.seconds, opts.record)
+    except BenchError as exc:
+        print(f'bench_realtime: error: {exc}', file=sys.stderr)
+        return 1
+    except KeyboardInterrupt:
+        return 130
+    print(json.dumps(report, indent=2) if opts.json else format_report(report))
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())

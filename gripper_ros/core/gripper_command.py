@@ -1,0 +1,85 @@
+"""control_msgs ParallelGripperCommand in terms of a move, without control_msgs or rclpy.
+
+MoveIt's parallel-gripper handle sends a ``sensor_msgs/JointState`` command: the position of
+the gripper joint (here ``finger_joint``, the finger's travel from fully open, m), optionally a
+most velocity and a most effort per joint (MoveIt fills the effort, 0 when the trajectory has
+none), and names that may be empty. The result is the gripper's state as a JointState and
+GripperCommand's ``stalled`` and ``reached_goal``. The functions here map both ways on plain
+attributes, so the mapping is tested without control_msgs; the action node fills the messages.
+"""
+from __future__ import annotations
+
+import enum
+import math
+
+from gripper_ros.core.supervisor import MoveRequest, RequestError
+from gripper_ros.wire import FINGER_JOINT, Outcome
+
+
+class GoalEnd(enum.Enum):
+    """How an action goal ends."""
+
+    SUCCEEDED = 'succeeded'
+    ABORTED = 'aborted'
+    CANCELED = 'canceled'
+
+
+def move_request_of(command, travel_m: float, joint: str = FINGER_JOINT) -> MoveRequest:
+    """Return the move a ParallelGripperCommand ``command`` (a JointState) asks for.
+
+    With names, the entry named ``joint`` is used (other joints are refused: this gripper has
+    one); without names, exactly one position. A velocity or effort entry that is missing or
+    0 means the default speed and the motor's effort limit. RequestError says what is wrong;
+    the ranges of speed and effort are checked with the move (``validate_move``).
+    """
+    names = list(command.name)
+    positions = list(command.position)
+    if names:
+        others = sorted(set(names) - {joint})
+        if others:
+            raise RequestError(f'command names joints {others}; this gripper has one joint, '
+                               f'{joint!r}')
+        index = names.index(joint)
+        if len(positions) <= index:
+            raise RequestError(f'command names {names} but gives {len(positions)} positions')
+    elif len(positions) != 1:
+        raise RequestError(f'command must give one position (of {joint!r}), got '
+                           f'{len(positions)}')
+    else:
+        index = 0
+    position_m = positions[index]
+    if not (isinstance(position_m, (int, float)) and math.isfinite(position_m)
+            and 0.0 <= position_m <= travel_m):
+        raise RequestError(f'position of {joint!r} must be in [0, {travel_m:g}] m (the travel '
+                           f'of the finger from fully open), got {position_m!r}')
+    velocities, efforts = list(command.velocity), list(command.effort)
+    speed_mps = velocities[index] if len(velocities) > index else 0.0
+    effort_n = efforts[index] if len(efforts) > index else 0.0
+    return MoveRequest(travel_m - position_m, float(speed_mps), float(effort_n))
+
+
+def joint_state_fields(position_m: float, effort_n: float,
+                       joint: str = FINGER_JOINT) -> dict:
+    """Return the fields of the JointState that reports the gripper's state (no velocity)."""
+    return {'name': [joint], 'position': [float(position_m)], 'velocity': [],
+            'effort': [float(effort_n)]}
+
+
+def result_fields(move_result) -> dict:
+    """Return ParallelGripperCommand.Result's fields from a srv/Move answer."""
+    return {'state': joint_state_fields(move_result.position_m, move_result.effort_n),
+            'stalled': bool(move_result.stalled),
+            'reached_goal': bool(move_result.reached_goal)}
+
+
+def goal_end(move_result, allow_stalling: bool, cancel_requested: bool) -> GoalEnd:
+    """Return how a goal ends after the move's answer ``move_result``.
+
+    Succeeded on reaching the goal, or on a stall when stalls are allowed (as
+    ros2_controllers' ``allow_stalling``); canceled when a cancel stopped the move.
+    """
+    if cancel_requested and move_result.outcome == Outcome.STOPPED:
+        return GoalEnd.CANCELED
+    if move_result.reached_goal or (allow_stalling and move_result.stalled):
+        return GoalEnd.SUCCEEDED
+    return GoalEnd.ABORTED

@@ -1,0 +1,222 @@
+"""move_action_server: the move as actions, ours and the standard parallel-gripper one.
+
+A thin front end over the graph's ``move`` and ``stop`` services and ``supervisor/status``,
+as ``grasp_action_server`` is for the grasp:
+
+- ``move_action`` (gripper_interfaces/action/Move): a goal becomes a ``move`` call, feedback
+  comes from the status (phase, position, opening, force), a cancel calls ``stop`` (the move
+  ends STOPPED, the goal canceled). Succeeded only when the width was reached.
+- ``gripper_cmd`` (control_msgs/action/ParallelGripperCommand), served when control_msgs is
+  importable (a system ROS 2 Jazzy), so that MoveIt's parallel-gripper controller handle
+  (``action_ns: gripper_cmd``) drives this gripper: the command's ``finger_joint`` position
+  (travel from fully open, m) and optional velocity and effort become the move
+  (:mod:`gripper_ros.core.gripper_command`); a malformed command is rejected. The result is
+  the finger's JointState, ``stalled`` and ``reached_goal``; the goal succeeds on reaching
+  the goal, and on a stall only with ``allow_stalling`` (as ros2_controllers' parallel gripper
+  controller). Feedback is the finger's JointState.
+
+One goal at a time (the gripper does one request at a time): a goal while another executes is
+aborted at once (REFUSED in our result). Feedback is throttled to ``feedback_period_s`` of wall
+time and sent on every phase change.
+"""
+from __future__ import annotations
+
+import sys
+import time
+
+from gripper_interfaces.action import Move as MoveAction
+from gripper_interfaces.msg import SupervisorStatus
+from gripper_interfaces.srv import Move
+from gripper_ros.core.gripper_command import (goal_end, GoalEnd, joint_state_fields,
+                                              move_request_of, result_fields)
+from gripper_ros.core.supervisor import RequestError, validate_move
+from gripper_ros.nodes.common import (declare_config, default_namespace, GRAPH_QOS, run_node,
+                                      SERVICE_QOS)
+from gripper_ros.nodes.loop_io import read_status, StatusView
+from gripper_ros.wire import (ACTION_GRIPPER_CMD, ACTION_MOVE, NODE_MOVE_ACTION, Outcome, Phase,
+                              SERVICE_MOVE, SERVICE_STOP, TOPIC_STATUS)
+from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
+from rclpy.action import ActionServer, CancelResponse, GoalResponse
+from rclpy.node import Node
+from std_msgs.msg import Header
+from std_srvs.srv import Trigger
+
+try:  # a system ROS 2 Jazzy has it; the ros-jazzy wheels do not
+    from control_msgs.action import ParallelGripperCommand
+    from sensor_msgs.msg import JointState
+except ImportError:  # pragma: no cover - depends on the installation
+    ParallelGripperCommand = None
+
+_REQUEST_FIELDS = ('width_m', 'speed_mps', 'max_effort_n', 'timeout_s')
+_RESULT_FIELDS = ('success', 'outcome', 'message', 'position_m', 'width_m', 'effort_n',
+                  'stalled', 'reached_goal', 'grasp_id')
+
+
+class MoveActionServer(Node):
+    def __init__(self, **kwargs):
+        super().__init__(NODE_MOVE_ACTION, **default_namespace(kwargs))
+        self.config = declare_config(self)
+        self.travel_m = self.config.plant.max_travel_m
+        self.feedback_period_s = self.declare_parameter(
+            'feedback_period_s', 0.05, ParameterDescriptor(
+                description='minimum wall seconds between two feedback messages of one phase',
+                floating_point_range=[FloatingPointRange(from_value=0.0, to_value=10.0)])).value
+        self.allow_stalling = self.declare_parameter(
+            'allow_stalling', False, ParameterDescriptor(
+                description=f'{ACTION_GRIPPER_CMD}: a stalled move (blocked by an object at '
+                            'the effort limit) succeeds rather than aborts')).value
+        self.add_post_set_parameters_callback(self._on_parameters_set)
+        self._move = self.create_client(Move, SERVICE_MOVE, qos_profile=SERVICE_QOS)
+        self._stop = self.create_client(Trigger, SERVICE_STOP)
+        self.create_subscription(SupervisorStatus, TOPIC_STATUS, self._on_status, GRAPH_QOS,
+                                 raw=True)
+        self._status_data: bytes | None = None   # the newest status, read when needed
+        self._goal = None                 # the goal handle being executed
+        self._feedback = None             # makes its feedback from a status
+        self._goal_grasp_id: int | None = None
+        self._goal_start_ns: int | None = None
+        self._last_feedback_wall = 0.0
+        self._last_phase: int | None = None
+        self.feedback_published = 0
+        self._servers = [ActionServer(self, MoveAction, ACTION_MOVE,
+                                      execute_callback=self._execute_move,
+                                      goal_callback=self._accept,
+                                      cancel_callback=self._on_cancel)]
+        self.gripper_command_served = ParallelGripperCommand is not None
+        if self.gripper_command_served:
+            self._servers.append(ActionServer(self, ParallelGripperCommand, ACTION_GRIPPER_CMD,
+                                              execute_callback=self._execute_gripper_command,
+                                              goal_callback=self._check_gripper_command,
+                                              cancel_callback=self._on_cancel))
+
+    def _on_parameters_set(self, parameters) -> None:
+        """Apply accepted values from the next status or result on."""
+        for p in parameters:
+            if p.name == 'feedback_period_s':
+                self.feedback_period_s = float(p.value)
+            elif p.name == 'allow_stalling':
+                self.allow_stalling = bool(p.value)
+
+    # ------------------------------------------------------------------ goals
+    def _accept(self, _goal_request) -> GoalResponse:
+        """Accept every move goal: the supervisor decides (a refusal is a REFUSED result)."""
+        return GoalResponse.ACCEPT
+
+    def _check_gripper_command(self, goal_request) -> GoalResponse:
+        """Reject a command that is no move of this gripper (as ros2_controllers does)."""
+        try:
+            validate_move(move_request_of(goal_request.command, self.travel_m),
+                          self.config.plant, self.config.supervisor)
+        except RequestError as exc:
+            self.get_logger().warning(f'{ACTION_GRIPPER_CMD} goal rejected: {exc}')
+            return GoalResponse.REJECT
+        return GoalResponse.ACCEPT
+
+    def _on_cancel(self, goal_handle) -> CancelResponse:
+        """Cancel = stop the running move; the service then answers STOPPED."""
+        if goal_handle is self._goal and self._stop.service_is_ready():
+            self._stop.call_async(Trigger.Request())
+            return CancelResponse.ACCEPT
+        return CancelResponse.REJECT
+
+    async def _call_move(self, goal_handle, request: Move.Request, feedback) -> Move.Response:
+        """Return the move service's answer for this goal (REFUSED, uncalled, when busy)."""
+        refusal = ''
+        if not self._move.service_is_ready():
+            refusal = f'{SERVICE_MOVE} is not available'
+        elif self._goal is not None:
+            refusal = 'refused: a move goal is already executing'
+        if refusal:
+            status = read_status(self._status_data) if self._status_data else None
+            position_m = status.position_m if status is not None else 0.0
+            return Move.Response(outcome=int(Outcome.REFUSED), message=refusal,
+                                 position_m=position_m, width_m=self.travel_m - position_m,
+                                 effort_n=status.force_n if status is not None else 0.0)
+        self._goal, self._feedback = goal_handle, feedback
+        self._goal_grasp_id = self._goal_start_ns = self._last_phase = None
+        try:
+            return await self._move.call_async(request)
+        finally:
+            self._goal = self._feedback = None
+
+    async def _execute_move(self, goal_handle) -> MoveAction.Result:
+        goal = goal_handle.request
+        request = Move.Request(**{f: getattr(goal, f) for f in _REQUEST_FIELDS})
+        response = await self._call_move(goal_handle, request, self._move_feedback)
+        result = MoveAction.Result(**{f: getattr(response, f) for f in _RESULT_FIELDS})
+        self._end(goal_handle, goal_end(response, False, goal_handle.is_cancel_requested))
+        return result
+
+    async def _execute_gripper_command(self, goal_handle):
+        move = move_request_of(goal_handle.request.command, self.travel_m)   # checked at goal
+        request = Move.Request(width_m=move.width_m, speed_mps=move.speed_mps,
+                               max_effort_n=move.max_effort_n)
+        response = await self._call_move(goal_handle, request, self._gripper_feedback)
+        if response.outcome == Outcome.REFUSED:
+            self.get_logger().warning(f'{ACTION_GRIPPER_CMD} goal aborted: {response.message}')
+        fields = result_fields(response)
+        result = ParallelGripperCommand.Result(state=JointState(**fields.pop('state')), **fields)
+        self._end(goal_handle, goal_end(response, self.allow_stalling,
+                                        goal_handle.is_cancel_requested))
+        return result
+
+    @staticmethod
+    def _end(goal_handle, end: GoalEnd) -> None:
+        if end is GoalEnd.CANCELED:
+            goal_handle.canceled()
+        elif end is GoalEnd.SUCCEEDED:
+            goal_handle.succeed()
+        else:
+            goal_handle.abort()
+
+    # ------------------------------------------------------------------ feedback
+    def _move_feedback(self, msg: StatusView) -> MoveAction.Feedback:
+        return MoveAction.Feedback(
+            grasp_id=msg.grasp_id, phase=msg.phase,
+            elapsed_s=(_stamp_ns(msg) - self._goal_start_ns) * 1e-9,
+            position_m=msg.position_m, width_m=self.travel_m - msg.position_m,
+            force_n=msg.force_n)
+
+    def _gripper_feedback(self, msg: StatusView):
+        header = Header()
+        header.stamp.sec, header.stamp.nanosec = msg.sec, msg.nanosec
+        return ParallelGripperCommand.Feedback(
+            state=JointState(header=header, **joint_state_fields(msg.position_m, msg.force_n)))
+
+    def _on_status(self, data: bytes) -> None:
+        self._status_data = data
+        goal, feedback = self._goal, self._feedback
+        if goal is None or not goal.is_active:
+            return
+        msg = read_status(data)
+        if self._goal_grasp_id is None:
+            if msg.phase != Phase.MOVING:
+                return                         # a status of an earlier request
+            self._goal_grasp_id = msg.grasp_id
+            self._goal_start_ns = _stamp_ns(msg)
+        if msg.grasp_id != self._goal_grasp_id:
+            return
+        now = time.monotonic()
+        if msg.phase == self._last_phase and \
+                now - self._last_feedback_wall < self.feedback_period_s:
+            return
+        self._last_phase, self._last_feedback_wall = msg.phase, now
+        goal.publish_feedback(feedback(msg))
+        self.feedback_published += 1
+
+    def destroy_node(self):
+        for server in self._servers:
+            server.destroy()
+        return super().destroy_node()
+
+
+def _stamp_ns(status: StatusView) -> int:
+    return status.sec * 1_000_000_000 + status.nanosec
+
+
+def main(args=None):
+    return run_node(MoveActionServer, NODE_MOVE_ACTION, args)
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -1,0 +1,123 @@
+"""One gripper per namespace: a node or graph refuses to start where its names are taken.
+
+Two checks, before anything is published:
+
+- a claim on this machine: one lock file per (domain, namespace, node name), held with
+  ``flock`` while the node lives, so a second plant or supervisor in the namespace is refused
+  at once, in this process or another, and a killed process frees its names;
+- discovery: the node names and service servers already on the domain in the namespace, which
+  also finds a gripper on another host. DDS discovery across processes can take seconds, so
+  this check alone would let a graph started right after another one through.
+"""
+from __future__ import annotations
+
+import fcntl
+import os
+import re
+import tempfile
+import time
+from pathlib import Path
+
+from rclpy.node import Node
+
+from gripper_ros.nodes.common import StartupError
+from gripper_ros.wire import DEFAULT_NAMESPACE, qualified
+
+DISCOVERY_WAIT_S = 0.5
+
+
+def claims_dir() -> Path:
+    """Where the claims of this user live (``GRIPPER_ROS_CLAIMS_DIR`` overrides it)."""
+    base = os.environ.get('GRIPPER_ROS_CLAIMS_DIR') or \
+        os.path.join(os.environ.get('XDG_RUNTIME_DIR') or tempfile.gettempdir(),
+                     f'gripper_ros_claims.{os.getuid()}')
+    return Path(base)
+
+
+class NameClaim:
+    """The names of one node or graph in its namespace on its domain, held while it runs."""
+
+    def __init__(self, files: list):
+        self._files = files
+
+    @classmethod
+    def take(cls, node_names: tuple[str, ...], services: tuple[str, ...] = (), context=None,
+             namespace: str | None = None) -> NameClaim:
+        """Claim ``node_names`` in ``namespace`` (default: the default one as the command line
+        remaps it, ``-r __ns:=/left``); StartupError naming what is found when one of them, or
+        a server of one of the relative ``services``, exists already."""
+        import rclpy
+        kw = {'namespace': DEFAULT_NAMESPACE if namespace is None else namespace}
+        if context is not None:
+            kw['context'] = context
+        probe = rclpy.create_node('gripper_startup_probe', enable_rosout=False,
+                                  start_parameter_services=False, **kw)
+        ctx = context or rclpy.get_default_context()
+        domain = ctx.get_domain_id()
+        where = probe.get_namespace()
+        claim = None
+        try:
+            claim, held = cls._lock(domain, where, node_names)
+            found = held or taken_names(probe, node_names, services)
+        finally:
+            probe.destroy_node()
+        if found:
+            if claim is not None:
+                claim.release()
+            raise StartupError(f'namespace {where} is taken on ROS_DOMAIN_ID {domain}: found '
+                               f'{", ".join(found)}')
+        return claim
+
+    @classmethod
+    def _lock(cls, domain: int, namespace: str, node_names) -> tuple[NameClaim, list[str]]:
+        folder = claims_dir() / f'domain_{domain}' / (
+            re.sub(r'[^A-Za-z0-9_]', '_', namespace.strip('/')) or '_root')
+        folder.mkdir(parents=True, exist_ok=True)
+        files, held = [], []
+        for name in node_names:
+            f = open(folder / f'{name}.lock', 'a+')  # noqa: SIM115 - held until release()
+            try:
+                fcntl.flock(f, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except BlockingIOError:
+                f.seek(0)
+                owner = f.read().strip()
+                f.close()
+                held.append(f'{qualified(namespace.strip("/"), name)}'
+                            + (f' (process {owner} on this machine)' if owner else ''))
+                continue
+            f.seek(0)
+            f.truncate()
+            f.write(str(os.getpid()))
+            f.flush()
+            files.append(f)
+        return cls(files), held
+
+    def release(self) -> None:
+        """Give the names up (also done by the system when the process ends)."""
+        for f in self._files:
+            try:
+                f.close()
+            except OSError:
+                pass
+        self._files = []
+
+
+def taken_names(node: Node, node_names: tuple[str, ...] = (), services: tuple[str, ...] = (),
+                wait_s: float = DISCOVERY_WAIT_S) -> list[str]:
+    """What of ``node_names`` and relative ``services`` (a server; a client waiting for one is
+    welcome) exists in ``node``'s namespace on the domain after ``wait_s`` of discovery,
+    checked twice so that a node that was just shut down is not mistaken for a running one."""
+    namespace = node.get_namespace()
+    found: list[str] = []
+    for _attempt in range(2):
+        time.sleep(wait_s)
+        nodes = {(ns.rstrip('/') or '/', n) for n, ns in node.get_node_names_and_namespaces()}
+        ours = namespace.rstrip('/') or '/'
+        found = [qualified(namespace.strip('/'), n) for n in node_names if (ours, n) in nodes]
+        names = {s for s, _ in node.get_service_names_and_types()}   # clients' names too
+        found += [f'service {name}' for name in
+                  (qualified(namespace.strip('/'), s) for s in services)
+                  if name in names and node.count_services(name) > 0]
+        if not found:
+            return []
+    return found

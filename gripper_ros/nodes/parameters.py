@@ -1,0 +1,108 @@
+"""The configuration as ROS parameters: the file gives the defaults, the parameters the truth.
+
+Every key of the config sections a node uses is declared as a parameter named by its dotted
+path (``position_control.mpc_pd.kc``, ``supervisor.force_law``), with the value of the config
+file (``config_file``, default the installed ``config/gripper.yaml``) as its default, so that
+``ros2 param get/set``, rqt_reconfigure and ``--params-file`` (a standard
+``node: ros__parameters:`` YAML, nested or dotted) work as for any ROS node. A node's own
+sections are writable; the sections it only reads (the plant model a controller predicts
+with) are read-only there. Every value, at start-up and at run time, goes through the one
+config reader (:func:`gripper_ros.core.config.parse_config`): a bad one is refused with the
+reader's message naming the key, and nothing changes.
+"""
+from __future__ import annotations
+
+import copy
+from typing import Callable
+
+from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
+from rclpy.node import Node
+
+from gripper_ros.core.config import ConfigError, GripperConfig, load_config, parse_config
+
+INTEGER_KEYS = frozenset({'horizon', 'control_horizon'})
+"""Leaf keys whose values are whole numbers (the DMC horizons); every other number is a double."""
+
+
+def flatten(data: dict, prefix: str = '') -> dict[str, object]:
+    """``{'a': {'b': 1}}`` -> ``{'a.b': 1}``."""
+    out = {}
+    for key, value in data.items():
+        name = f'{prefix}{key}'
+        if isinstance(value, dict):
+            out.update(flatten(value, name + '.'))
+        else:
+            out[name] = value
+    return out
+
+
+def _as_parameter_value(dotted: str, value):
+    """A config value in the type its parameter is declared with."""
+    if isinstance(value, (bool, str)):
+        return value
+    if isinstance(value, (int, float)):
+        return int(value) if dotted.rsplit('.', 1)[-1] in INTEGER_KEYS else float(value)
+    return value
+
+
+def _set(data: dict, dotted: str, value) -> None:
+    *parents, leaf = dotted.split('.')
+    for part in parents:
+        data = data[part]
+    data[leaf] = value
+
+
+class ConfigParameters:
+    """The config sections of one node as its ROS parameters.
+
+    ``on_change(config, keys)`` is called (on the executor thread, between callbacks) after an
+    accepted change, with the new :class:`GripperConfig` and the dotted keys that changed.
+    """
+
+    def __init__(self, node: Node, writable: tuple[str, ...], read_only: tuple[str, ...] = (),
+                 on_change: Callable[[GripperConfig, list[str]], None] | None = None):
+        path = node.declare_parameter('config_file', '', ParameterDescriptor(
+            description='YAML file of every default, read once at start-up',
+            read_only=True)).value
+        base = load_config(path or None)
+        self.source = base.source
+        self.writable = tuple(writable)
+        self.data = copy.deepcopy(base.data)
+        self.keys: set[str] = set()
+        self._on_change = on_change
+        for section in (*writable, *read_only):
+            if section not in self.data:
+                continue
+            for dotted, value in flatten(self.data[section], section + '.').items():
+                declared = node.declare_parameter(
+                    dotted, _as_parameter_value(dotted, value), ParameterDescriptor(
+                        description=f'{section} (config/gripper.yaml)',
+                        read_only=section in read_only)).value
+                _set(self.data, dotted, declared)
+                self.keys.add(dotted)
+        self.config = parse_config(self.data, self.source)   # start-up overrides, validated
+        self._pending: dict | None = None
+        node.add_on_set_parameters_callback(self._validate)
+        node.add_post_set_parameters_callback(self._apply)
+
+    def _validate(self, parameters) -> SetParametersResult:
+        changes = {p.name: p.value for p in parameters if p.name in self.keys}
+        if not changes:
+            return SetParametersResult(successful=True)
+        candidate = copy.deepcopy(self.data)
+        for name, value in changes.items():
+            _set(candidate, name, value)
+        try:
+            config = parse_config(candidate, self.source)
+        except ConfigError as exc:
+            return SetParametersResult(successful=False, reason=' '.join(str(exc).split()))
+        self._pending = (candidate, config, sorted(changes))
+        return SetParametersResult(successful=True)
+
+    def _apply(self, parameters) -> None:
+        pending, self._pending = self._pending, None
+        if pending is None:
+            return
+        self.data, self.config, keys = pending
+        if self._on_change is not None:
+            self._on_change(self.config, keys)

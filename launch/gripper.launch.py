@@ -1,0 +1,53 @@
+"""The gripper's node graph for a system ROS 2: one process per node.
+
+    ros2 launch gripper_ros gripper.launch.py
+    ros2 launch gripper_ros gripper.launch.py namespace:=left time_mode:=fast
+
+Launch arguments: ``namespace`` (default ``gripper``: ``/gripper/grasp``, ``/gripper/move``,
+``/gripper/gripper_cmd``, ...), ``config_file`` (default: the installed
+``share/gripper_ros/config/gripper.yaml``; each node reads it once at start-up),
+``time_mode`` (``realtime``, the default, paced to the wall clock; ``fast``: as fast as the
+loop goes, paused between requests),
+``real_time_factor`` (realtime: simulated seconds per wall second) and ``publish_clock``
+(``/clock``, one simulator per ROS graph). The nodes: plant_simulator, position_controller,
+force_controller, supervisor, grasp_action_server and move_action_server (which also serves
+control_msgs ParallelGripperCommand on ``gripper_cmd`` where control_msgs is installed).
+"""
+from launch import LaunchDescription
+from launch.actions import DeclareLaunchArgument
+from launch.substitutions import LaunchConfiguration, PathJoinSubstitution
+from launch_ros.actions import Node
+from launch_ros.parameter_descriptions import ParameterValue
+from launch_ros.substitutions import FindPackageShare
+
+PACKAGE = 'gripper_ros'
+ARGUMENTS = (
+    ('namespace', 'gripper', 'namespace of every node, topic, service and action'),
+    ('config_file', PathJoinSubstitution([FindPackageShare(PACKAGE), 'config', 'gripper.yaml']),
+     'config YAML (every constant and gain)'),
+    ('time_mode', 'realtime', 'realtime (paced to the wall clock) or fast'),
+    ('real_time_factor', '1.0', 'realtime: simulated seconds per wall second'),
+    ('publish_clock', 'true', 'publish /clock'),
+)
+NODES = ('plant_simulator', 'position_controller', 'force_controller', 'supervisor',
+         'grasp_action_server', 'move_action_server')
+"""Each the executable and the node name (the same)."""
+
+
+def generate_launch_description() -> LaunchDescription:
+    """Return the launch arguments and one Node action per node of the graph."""
+    config = {'config_file': ParameterValue(LaunchConfiguration('config_file'), value_type=str)}
+    plant = {
+        'time_mode': ParameterValue(LaunchConfiguration('time_mode'), value_type=str),
+        'real_time_factor': ParameterValue(LaunchConfiguration('real_time_factor'),
+                                           value_type=float),
+        'publish_clock': ParameterValue(LaunchConfiguration('publish_clock'), value_type=bool),
+    }
+    actions = [DeclareLaunchArgument(name, default_value=default, description=description)
+               for name, default, description in ARGUMENTS]
+    for name in NODES:
+        parameters = [config, plant] if name == 'plant_simulator' else [config]
+        actions.append(Node(package=PACKAGE, executable=name, name=name,
+                            namespace=LaunchConfiguration('namespace'),
+                            parameters=parameters, output='screen', emulate_tty=True))
+    return LaunchDescription(actions)

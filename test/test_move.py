@@ -1,0 +1,565 @@
+"""The move (srv/Move, action/Move, control_msgs ParallelGripperCommand's mapping).
+
+A move drives the finger to a width with the request's speed and effort as the position
+stage's limits. Known answers: the speed limit is never exceeded and is reached on a long move;
+on a rigid object (the paper's contact: the force follows the motor torque) the finger stops at
+the face and presses with exactly the stall force of the capped voltage, the effort limit; the
+finger comes to rest within the tolerance of the width. The core is tested headless, the
+service and the action over the live graph (fast mode), the ParallelGripperCommand mapping on
+stand-in objects (no control_msgs).
+"""
+import math
+import threading
+import time
+from types import SimpleNamespace
+
+from gripper_ros.core.config import load_config
+from gripper_ros.core.gripper_command import (goal_end, GoalEnd, joint_state_fields,
+                                              move_request_of, result_fields)
+from gripper_ros.core.headless import MoveRequest, simulate_moves
+from gripper_ros.core.supervisor import (GraspRequest, GraspSupervisor, MoveTargets,
+                                         RequestError, validate_move, validate_request)
+from gripper_ros.wire import Controller, FINGER_JOINT, Outcome, Phase
+import numpy as np
+import pytest
+
+CONFIG = load_config()
+P, S = CONFIG.plant, CONFIG.supervisor
+TRAVEL_M = P.max_travel_m
+MS = 1_000_000
+SPEED_SLACK = 1e-9          # relative: the cap holds the speed at the limit to rounding
+
+
+def _targets(width_m=0.05, speed_mps=0.02, max_effort_n=0.0, timeout_s=0.0) -> MoveTargets:
+    return validate_move(MoveRequest(width_m, speed_mps, max_effort_n, timeout_s), P, S)
+
+
+# ====================================================================== request validation
+def test_defaults_resolve_from_the_config():
+    t = _targets(0.05, 0.0, 0.0)
+    assert t.position_setpoint_m == pytest.approx(TRAVEL_M - 0.05)
+    assert t.speed_mps == S.move_default_speed_mps
+    assert t.max_effort_n == pytest.approx(P.max_force_n)   # the motor's limit ...
+    assert t.voltage_limit_v == 0.0                          # ... is no cap below 24 V
+    t = _targets(0.05, 0.02, 5.0)
+    assert t.voltage_limit_v == pytest.approx(5.0 / P.stall_force_per_volt_n)
+    assert _targets(0.0).position_setpoint_m == TRAVEL_M          # closed
+    assert _targets(TRAVEL_M).position_setpoint_m == 0.0          # fully open
+
+
+@pytest.mark.parametrize('fields, words', [
+    ({'width_m': math.nan}, 'width_m must be a finite'),
+    ({'speed_mps': math.inf}, 'speed_mps must be a finite'),
+    ({'max_effort_n': -math.inf}, 'max_effort_n must be a finite'),
+    ({'width_m': True}, 'width_m must be a finite'),
+    ({'width_m': -1e-6}, 'width_m must be in'),
+    ({'width_m': TRAVEL_M + 1e-6}, 'width_m must be in'),
+    ({'speed_mps': -0.01}, 'speed_mps must be in'),
+    ({'speed_mps': S.move_rest_speed_mps}, 'speed_mps must be in'),
+    ({'speed_mps': P.max_free_speed_mps * 1.01}, 'speed_mps must be in'),
+    ({'max_effort_n': -1.0}, 'max_effort_n must be in'),
+    ({'max_effort_n': P.max_force_n * 1.01}, 'max_effort_n must be in'),
+    ({'timeout_s': -1.0}, 'timeout_s must be in'),
+    ({'timeout_s': 1e9}, 'timeout_s must be in'),
+])
+def test_bad_moves_are_refused_with_the_reason(fields, words):
+    req = {'width_m': 0.05, 'speed_mps': 0.02, 'max_effort_n': 5.0}
+    req.update(fields)
+    with pytest.raises(RequestError, match=words):
+        validate_move(MoveRequest(**req), P, S)
+
+
+def test_a_move_is_refused_while_a_request_runs_and_may_follow_a_hold():
+    sup = GraspSupervisor(P, S)
+    sup.step(0, 0.0, 0.0, 0.005)
+    sup.request_grasp(validate_request(GraspRequest(0.05, 1.0), P, S), 1.0, after_ns=0)
+    with pytest.raises(RequestError, match='already waiting'):
+        sup.request_move(_targets())
+    sup.step(10 * MS, 0.0, 0.0, 0.005)
+    with pytest.raises(RequestError, match='grasp is running'):
+        sup.request_move(_targets())
+    sup.stop()
+    sup.request_move(_targets(), after_ns=10 * MS)
+    d = sup.step(20 * MS, 0.01, 0.0, 0.005)
+    assert d.phase is Phase.MOVING and d.active is Controller.POSITION and d.running
+    with pytest.raises(RequestError, match='move is running'):
+        sup.request_move(_targets())
+    assert (d.speed_limit_mps, d.voltage_limit_v) == (0.02, 0.0)
+
+
+def test_stop_during_a_move_holds_the_finger_where_it_is():
+    sup = GraspSupervisor(P, S)
+    sup.step(0, 0.0, 0.0, 0.005)
+    sup.request_move(_targets(0.05, 0.02, 5.0), after_ns=0)
+    sup.step(10 * MS, 0.0, 0.0, 0.005)
+    sup.step(20 * MS, 0.0123, 0.0, 0.005, speed_mps=0.01)
+    d = sup.stop()
+    assert d.outcome is Outcome.STOPPED and d.active is Controller.POSITION
+    assert d.position_setpoint_m == 0.0123                   # not back where the move began
+    assert (d.speed_limit_mps, d.voltage_limit_v) == (0.0, 0.0)
+
+
+def test_stop_ends_the_press_of_a_stalled_move_where_it_stalled():
+    sup = GraspSupervisor(P, S)
+    sup.step(0, 0.0, 0.0, 0.005)
+    sup.request_move(_targets(0.0, 0.02, 5.0), after_ns=0)
+    sup.step(10 * MS, 0.0, 0.0, 0.005)
+    d = sup.step(20 * MS, 0.1, 5.0, 3.0)               # at rest on an object, at the limit
+    assert d.answer is Outcome.STALLED and sup.pressing
+    assert (d.position_setpoint_m, d.speed_limit_mps) == (TRAVEL_M, 0.02)   # presses on
+    assert d.voltage_limit_v == pytest.approx(5.0 / P.stall_force_per_volt_n)
+    d = sup.stop()
+    assert d.outcome is Outcome.STOPPED and not sup.pressing
+    assert (d.position_setpoint_m, d.speed_limit_mps, d.voltage_limit_v) == (0.1, 0.0, 0.0)
+    assert sup.stop() is None
+
+
+# ====================================================================== headless moves
+@pytest.mark.parametrize('speed_mps', [0.005, 0.02, 0.05])
+def test_a_move_reaches_its_width_never_faster_than_the_limit(speed_mps):
+    run = simulate_moves(CONFIG, [MoveRequest(0.05, speed_mps)])
+    (answer,) = run.answers
+    assert answer.outcome is Outcome.MOVED and answer.reached_goal and not answer.stalled
+    goal_m = TRAVEL_M - 0.05
+    assert abs(answer.position_m - goal_m) <= S.move_tolerance_m
+    assert abs(run.velocity_mps[-1]) <= S.move_rest_speed_mps
+    top = np.max(np.abs(run.velocity_mps))
+    assert top <= speed_mps * (1 + SPEED_SLACK)
+    # 0.1 m is long enough to reach the limit: the speed rises to it (within 1 %)
+    assert top >= 0.99 * speed_mps
+    # and the move takes what the travel at that speed takes, not much more
+    travel_s = goal_m / speed_mps
+    assert travel_s < (answer.answer_ns - answer.start_ns) * 1e-9 < 1.5 * travel_s + 1.0
+
+
+@pytest.mark.parametrize('effort_n', [2.0, 5.0, 20.0])
+def test_a_move_onto_a_rigid_object_stalls_pressing_with_the_effort_limit(effort_n):
+    run = simulate_moves(CONFIG, [MoveRequest(0.02, 0.02, effort_n)], object_width_m=0.05)
+    (answer,) = run.answers
+    assert answer.outcome is Outcome.STALLED and answer.stalled and not answer.reached_goal
+    assert answer.position_m == pytest.approx(TRAVEL_M - 0.05, abs=1e-12)   # at the face
+    # rigid contact: the force follows the current towards the stall force of the capped
+    # voltage, the effort limit, and never passes it
+    assert S.move_stall_force_fraction * effort_n <= answer.effort_n <= effort_n * (1 + 1e-9)
+    assert np.max(run.peak_force_n) <= effort_n * (1 + 1e-9)
+    # stalled as soon as the force sensor tells it: no waiting out move_stall_timeout_s
+    touch_ns = run.t_ns[np.argmax(run.force_n > 0.0)]
+    assert (answer.answer_ns - touch_ns) * 1e-9 < S.move_stall_timeout_s / 10
+    assert np.max(np.abs(run.velocity_mps)) <= 0.02 * (1 + SPEED_SLACK)
+
+
+def test_after_a_stall_the_finger_keeps_pressing_with_the_effort_limit():
+    run = simulate_moves(CONFIG, [MoveRequest(0.02, 0.02, 5.0)], object_width_m=0.05,
+                         hold_s=1.0)
+    (stalled,) = run.answers
+    after = run.t_ns > stalled.answer_ns
+    assert (run.t_ns[-1] - stalled.answer_ns) * 1e-9 >= 1.0
+    assert np.allclose(run.force_n[after], 5.0, rtol=1e-9)     # the last command stays
+    assert np.all(run.phase[after] == Phase.DONE)
+
+
+def test_a_move_opens_the_fingers_after_a_stall():
+    run = simulate_moves(CONFIG, [MoveRequest(0.02, 0.02, 5.0), MoveRequest(0.12, 0.04)],
+                         object_width_m=0.05)
+    stalled, opened = run.answers
+    assert stalled.outcome is Outcome.STALLED and opened.outcome is Outcome.MOVED
+    assert abs(opened.position_m - (TRAVEL_M - 0.12)) <= S.move_tolerance_m
+    assert opened.effort_n == 0.0
+    after = run.t_ns >= opened.start_ns
+    assert np.max(np.abs(run.velocity_mps[after])) <= 0.04 * (1 + SPEED_SLACK)
+
+
+def test_a_move_that_cannot_move_stalls_after_the_rest_timeout():
+    """An effort limit whose stall voltage drives the free finger slower than "at rest"."""
+    effort_n = 0.5 * S.move_rest_speed_mps / P.free_speed_per_volt_mps * \
+        P.stall_force_per_volt_n
+    run = simulate_moves(CONFIG, [MoveRequest(0.05, 0.02, effort_n)])
+    (answer,) = run.answers
+    assert answer.outcome is Outcome.STALLED and 'at rest for' in answer.message
+    assert (answer.answer_ns - answer.start_ns) * 1e-9 == pytest.approx(
+        S.move_stall_timeout_s, abs=0.011)
+    assert answer.effort_n == 0.0                            # nothing was touched
+
+
+def test_a_move_out_of_time_is_a_timeout():
+    run = simulate_moves(CONFIG, [MoveRequest(0.0, 0.01, 0.0, 0.5)])
+    (answer,) = run.answers
+    assert answer.outcome is Outcome.TIMEOUT and 'not done within 0.5 s' in answer.message
+
+
+def test_the_same_moves_twice_are_bit_identical():
+    moves = [MoveRequest(0.02, 0.03, 7.0), MoveRequest(0.1, 0.05)]
+    a = simulate_moves(CONFIG, moves, object_width_m=0.06)
+    b = simulate_moves(CONFIG, moves, object_width_m=0.06)
+    for name in ('t_ns', 'position_m', 'velocity_mps', 'force_n', 'motor_voltage_v'):
+        assert np.array_equal(getattr(a, name), getattr(b, name)), name
+
+
+def test_every_position_controller_keeps_the_speed_limit():
+    for kind in ('pd', 'pid'):
+        run = simulate_moves(CONFIG, [MoveRequest(0.05, 0.02, 10.0)], object_width_m=0.08,
+                             position_controller=kind)
+        assert np.max(np.abs(run.velocity_mps)) <= 0.02 * (1 + SPEED_SLACK), kind
+        assert np.max(run.peak_force_n) <= 10.0 * (1 + 1e-9), kind
+
+
+@pytest.mark.parametrize('field', ['speed_limit_mps', 'voltage_limit_v'])
+@pytest.mark.parametrize('bad', [math.nan, math.inf])
+def test_the_position_stage_never_acts_on_a_non_finite_limit(field, bad):
+    from gripper_ros.core.stages import LockstepAnswerer, PositionStageController, Reference
+
+    answerer = LockstepAnswerer(PositionStageController(CONFIG))
+    ref = Reference(10 * MS, 1, 1, 0, int(Phase.MOVING), 0, int(Controller.POSITION), True,
+                    False, 0.1, 0.1, 5.0, 0.05, 0.0, 0.0, 0.0, **{field: bad})
+    answer = answerer.answer(ref)
+    assert not answer.finite and answer.voltage_v == 0.0 and field in answer.reason
+    good = ref._replace(stamp_ns=20 * MS, **{field: 0.02})
+    assert answerer.answer(good).finite
+
+
+def test_the_voltage_limit_caps_only_the_push_towards_the_setpoint():
+    from gripper_ros.core.stages import PositionStageController, Reference
+
+    stage = PositionStageController(CONFIG, 'pd')
+    cap_v = 5.0 / P.stall_force_per_volt_n
+    closing = Reference(0, 1, 1, 0, int(Phase.MOVING), 0, int(Controller.POSITION), True,
+                        False, 0.1, 0.1, 5.0, 0.05, 0.0, 0.0, 0.0, 0.0, cap_v)
+    stage.activate(closing, 0.05)
+    assert stage.compute(closing, 0.05)[0] == pytest.approx(cap_v)      # 50 mm short: capped
+    # closing towards the setpoint: the closing push is capped, braking (opening) is not
+    assert stage.controller.output_limits == (-P.voltage_limit_v, pytest.approx(cap_v))
+    opening = closing._replace(position_m=0.15)                        # the setpoint behind
+    stage.activate(opening, 0.15)
+    assert stage.compute(opening, 0.15)[0] == pytest.approx(-cap_v)
+    assert stage.controller.output_limits == (pytest.approx(-cap_v), P.voltage_limit_v)
+
+
+# ====================================================================== ParallelGripperCommand
+def _command(position=(), name=(), velocity=(), effort=()):
+    """Return a stand-in for sensor_msgs/JointState with the four sequences."""
+    return SimpleNamespace(name=list(name), position=list(position), velocity=list(velocity),
+                           effort=list(effort))
+
+
+def test_moveits_goal_maps_to_a_move_with_the_default_speed_and_the_motors_effort():
+    # MoveIt's parallel-gripper handle: one position, no names, effort 0 unless the trajectory
+    # gave one, no velocity
+    move = move_request_of(_command(position=[0.1], effort=[0.0]), TRAVEL_M)
+    assert move == MoveRequest(TRAVEL_M - 0.1, 0.0, 0.0)
+    t = validate_move(move, P, S)
+    assert t.speed_mps == S.move_default_speed_mps and t.voltage_limit_v == 0.0
+    assert t.position_setpoint_m == pytest.approx(0.1)
+
+
+def test_a_named_command_with_velocity_and_effort_gives_them_as_limits():
+    move = move_request_of(_command(name=[FINGER_JOINT], position=[0.04], velocity=[0.03],
+                                    effort=[8.0]), TRAVEL_M)
+    assert move == MoveRequest(TRAVEL_M - 0.04, 0.03, 8.0)
+
+
+@pytest.mark.parametrize('command, words', [
+    (_command(position=[]), 'one position'),
+    (_command(position=[0.1, 0.1]), 'one position'),
+    (_command(name=['left', FINGER_JOINT], position=[0.1, 0.1]), "joints \\['left'\\]"),
+    (_command(name=[FINGER_JOINT], position=[]), 'gives 0 positions'),
+    (_command(position=[math.nan]), 'must be in'),
+    (_command(position=[-0.001]), 'must be in'),
+    (_command(position=[TRAVEL_M + 0.001]), 'must be in'),
+])
+def test_a_malformed_command_is_refused_with_the_reason(command, words):
+    with pytest.raises(RequestError, match=words):
+        move_request_of(command, TRAVEL_M)
+
+
+def test_a_negative_velocity_or_effort_is_refused_by_the_move():
+    for command in (_command(position=[0.1], velocity=[-0.01]),
+                    _command(position=[0.1], effort=[-1.0])):
+        with pytest.raises(RequestError, match='must be in'):
+            validate_move(move_request_of(command, TRAVEL_M), P, S)
+
+
+def _answer(outcome, position_m=0.1, effort_n=5.0):
+    return SimpleNamespace(outcome=int(outcome), position_m=position_m, effort_n=effort_n,
+                           stalled=outcome is Outcome.STALLED,
+                           reached_goal=outcome is Outcome.MOVED)
+
+
+def test_the_result_is_the_finger_joint_state_with_stalled_and_reached_goal():
+    fields = result_fields(_answer(Outcome.STALLED, 0.1, 5.0))
+    assert fields == {'state': {'name': [FINGER_JOINT], 'position': [0.1], 'velocity': [],
+                                'effort': [5.0]},
+                      'stalled': True, 'reached_goal': False}
+    assert result_fields(_answer(Outcome.MOVED))['reached_goal'] is True
+    assert joint_state_fields(0.02, 0.0)['position'] == [0.02]
+
+
+@pytest.mark.parametrize('outcome, allow_stalling, cancel, end', [
+    (Outcome.MOVED, False, False, GoalEnd.SUCCEEDED),
+    (Outcome.STALLED, False, False, GoalEnd.ABORTED),
+    (Outcome.STALLED, True, False, GoalEnd.SUCCEEDED),
+    (Outcome.STOPPED, False, True, GoalEnd.CANCELED),
+    (Outcome.STOPPED, False, False, GoalEnd.ABORTED),
+    (Outcome.REFUSED, True, False, GoalEnd.ABORTED),
+    (Outcome.TIMEOUT, True, False, GoalEnd.ABORTED),
+    (Outcome.FAULT, True, True, GoalEnd.ABORTED),
+])
+def test_how_the_goal_ends(outcome, allow_stalling, cancel, end):
+    assert goal_end(_answer(outcome), allow_stalling, cancel) is end
+
+
+# ====================================================================== the live graph
+@pytest.fixture(scope='module')
+def graph():
+    from rclpy.action import ActionClient
+    from sensor_msgs.msg import JointState
+
+    from gripper_interfaces.action import Move as MoveAction
+    from gripper_ros.nodes.common import GRAPH_QOS
+    from gripper_ros.nodes.graph import GraphOptions, GripperGraph
+    from gripper_ros.wire import ACTION_MOVE, TOPIC_JOINT_STATES
+
+    with GripperGraph.in_own_context(GraphOptions(namespace='move_test')) as g:
+        g.joint_states = []
+        g.run_in_executor(lambda: g.client_node.create_subscription(
+            JointState, TOPIC_JOINT_STATES, g.joint_states.append, GRAPH_QOS))
+        g.action_client = ActionClient(g.client_node, MoveAction, ACTION_MOVE)
+        assert g.action_client.wait_for_server(timeout_sec=10.0)
+        assert g.set_object(0.0).success             # a first tick, nothing between the fingers
+        yield g
+        g.action_client.destroy()
+
+
+def _speeds_since(graph, t0_ns):
+    graph.wait_still()
+    time.sleep(0.2)                                  # the last joint states delivered
+    stamp = [m.header.stamp.sec * 1_000_000_000 + m.header.stamp.nanosec
+             for m in graph.joint_states]
+    return np.array([m.velocity[0] for m, t in zip(graph.joint_states, stamp) if t >= t0_ns])
+
+
+def test_the_move_service_reaches_the_width_within_the_speed_limit(graph):
+    assert graph.set_object(0.0, open_fingers=True).success
+    t0 = graph.sim_time_ns
+    answer = graph.move(0.04, 0.03)
+    assert answer.success and answer.reached_goal and not answer.stalled
+    assert answer.outcome == Outcome.MOVED
+    assert abs(answer.width_m - 0.04) <= S.move_tolerance_m
+    assert answer.width_m == pytest.approx(TRAVEL_M - answer.position_m, abs=1e-12)
+    speeds = _speeds_since(graph, t0)
+    assert speeds.size > 100
+    assert np.max(np.abs(speeds)) <= 0.03 * (1 + SPEED_SLACK)
+    assert np.max(np.abs(speeds)) >= 0.99 * 0.03
+
+
+def test_the_move_service_stalls_on_an_object_at_the_effort_limit(graph):
+    assert graph.set_object(0.08, open_fingers=True).success
+    answer = graph.move(0.0, 0.04, 6.0)
+    assert answer.stalled and not answer.reached_goal and not answer.success
+    assert answer.outcome == Outcome.STALLED
+    assert answer.width_m == pytest.approx(0.08, abs=1e-9)
+    assert S.move_stall_force_fraction * 6.0 <= answer.effort_n <= 6.0 * (1 + 1e-9)
+    assert 'at the effort limit' in answer.message
+    opened = graph.move(TRAVEL_M)                    # opening ends the press
+    assert opened.reached_goal and opened.effort_n == 0.0
+
+
+def test_the_graphs_move_is_the_headless_move_tick_for_tick(graph):
+    """The nodes run the core's lockstep code: the same move gives the same series."""
+    assert graph.set_object(0.07, open_fingers=True).success
+    graph.wait_still()
+    t0 = graph.sim_time_ns
+    graph.joint_states.clear()
+    answer = graph.move(0.03, 0.04, 8.0)
+    graph.wait_still()
+    time.sleep(0.2)
+    run = simulate_moves(CONFIG, [MoveRequest(0.03, 0.04, 8.0)], object_width_m=0.07,
+                         start_ns=t0)
+    (headless,) = run.answers
+    assert (answer.outcome, answer.position_m, answer.effort_n) == \
+        (int(headless.outcome), headless.position_m, headless.effort_n)
+    position_at = dict(zip(run.t_ns.tolist(), run.position_m.tolist()))
+    graph_series = {m.header.stamp.sec * 1_000_000_000 + m.header.stamp.nanosec: m.position[0]
+                    for m in graph.joint_states}
+    common = sorted(set(graph_series) & set(position_at))
+    assert len(common) > 0.9 * len(position_at)
+    assert all(graph_series[t] == position_at[t] for t in common)
+
+
+@pytest.mark.parametrize('width_m, speed_mps, effort_n, why', [
+    (math.nan, 0.02, 0.0, 'width_m'),
+    (-0.01, 0.02, 0.0, 'width_m'),
+    (0.05, 1.0, 0.0, 'speed_mps'),
+    (0.05, 0.02, 1e3, 'max_effort_n'),
+])
+def test_a_bad_move_is_refused_and_nothing_moves(graph, width_m, speed_mps, effort_n, why):
+    ticks = graph.plant.ticks_published
+    answer = graph.move(width_m, speed_mps, effort_n)
+    assert answer.outcome == Outcome.REFUSED and not answer.success
+    assert not answer.stalled and not answer.reached_goal
+    assert why in answer.message
+    graph.wait_still()
+    assert graph.plant.ticks_published == ticks
+
+
+def test_a_move_while_a_grasp_waits_to_start_is_refused(graph):
+    from gripper_interfaces.srv import Grasp
+
+    assert graph.set_object(0.06, open_fingers=True).success
+    assert graph.pause().success                     # the grasp cannot start while paused
+    future = graph._grasp.call_async(Grasp.Request(width_m=0.06, mass_kg=0.5))
+    deadline = time.monotonic() + 10.0
+    while not graph.supervisor.logic.pending and time.monotonic() < deadline:
+        time.sleep(0.005)
+    assert graph.supervisor.logic.pending
+    answer = graph.move(0.1)
+    assert answer.outcome == Outcome.REFUSED and 'waiting' in answer.message
+    assert graph.resume().success
+    done = threading.Event()
+    future.add_done_callback(lambda _f: done.set())
+    assert done.wait(60.0) and future.result().outcome == Outcome.HOLDING
+    # a move may follow the hold: it ends the hold and opens the fingers
+    answer = graph.move(TRAVEL_M, 0.05)
+    assert answer.reached_goal and not graph.supervisor.logic.holding
+
+
+def _wait(future, timeout_s=120.0):
+    done = threading.Event()
+    future.add_done_callback(lambda _f: done.set())
+    assert done.wait(timeout_s), 'no answer in time'
+    return future.result()
+
+
+def test_the_move_action_gives_feedback_and_the_service_result(graph):
+    from action_msgs.msg import GoalStatus
+
+    from gripper_interfaces.action import Move as MoveAction
+
+    assert graph.set_object(0.07, open_fingers=True).success
+    feedback = []
+    handle = _wait(graph.action_client.send_goal_async(
+        MoveAction.Goal(width_m=0.03, speed_mps=0.03, max_effort_n=4.0),
+        feedback_callback=lambda m: feedback.append(m.feedback)))
+    assert handle.accepted
+    wrapped = _wait(handle.get_result_async())
+    result = wrapped.result
+    assert wrapped.status == GoalStatus.STATUS_ABORTED            # stalled: not reached
+    assert result.stalled and result.outcome == Outcome.STALLED
+    assert result.width_m == pytest.approx(0.07, abs=1e-9)
+    assert S.move_stall_force_fraction * 4.0 <= result.effort_n <= 4.0 * (1 + 1e-9)
+    assert feedback and all(f.grasp_id == result.grasp_id for f in feedback)
+    assert feedback[0].phase == Phase.MOVING
+    widths = [f.width_m for f in feedback]
+    assert widths == sorted(widths, reverse=True)                 # closing, never back
+    assert all(f.width_m == pytest.approx(TRAVEL_M - f.position_m, abs=1e-12) for f in feedback)
+    handle = _wait(graph.action_client.send_goal_async(MoveAction.Goal(width_m=0.1)))
+    wrapped = _wait(handle.get_result_async())
+    assert wrapped.status == GoalStatus.STATUS_SUCCEEDED and wrapped.result.reached_goal
+
+
+def test_cancelling_the_move_action_stops_the_move(graph):
+    from action_msgs.msg import GoalStatus
+
+    from gripper_interfaces.action import Move as MoveAction
+
+    assert graph.set_object(0.0, open_fingers=True).success
+    feedback = []
+    handle = _wait(graph.action_client.send_goal_async(
+        MoveAction.Goal(width_m=0.0, speed_mps=0.002),     # 75 s of simulated travel
+        feedback_callback=lambda m: feedback.append(m.feedback)))
+    deadline = time.monotonic() + 30.0
+    while not feedback and time.monotonic() < deadline:
+        time.sleep(0.005)
+    assert feedback, 'no feedback before cancel'
+    assert len(_wait(handle.cancel_goal_async()).goals_canceling) == 1
+    wrapped = _wait(handle.get_result_async())
+    assert wrapped.status == GoalStatus.STATUS_CANCELED
+    assert wrapped.result.outcome == Outcome.STOPPED
+    assert wrapped.result.width_m > 0.01
+
+
+def test_parallel_gripper_command_on_gripper_cmd_drives_the_move(graph):
+    """Drive the move with MoveIt's parallel-gripper action, where control_msgs is installed."""
+    try:
+        from control_msgs.action import ParallelGripperCommand
+    except ImportError:
+        pytest.skip('control_msgs is not installable from the ros-jazzy wheels; run on a '
+                    'system ROS 2 Jazzy')
+    from action_msgs.msg import GoalStatus
+    from rclpy.action import ActionClient
+    from rclpy.parameter import Parameter
+    from sensor_msgs.msg import JointState
+
+    from gripper_ros.wire import ACTION_GRIPPER_CMD
+
+    assert graph.move_action_server.gripper_command_served
+    client = graph.run_in_executor(lambda: ActionClient(
+        graph.client_node, ParallelGripperCommand, ACTION_GRIPPER_CMD))
+    assert client.wait_for_server(timeout_sec=10.0)
+
+    def send(command, allow_stalling=False):
+        graph.move_action_server.set_parameters(
+            [Parameter('allow_stalling', value=allow_stalling)])
+        feedback = []
+        handle = _wait(client.send_goal_async(ParallelGripperCommand.Goal(command=command),
+                                              feedback_callback=feedback.append))
+        if not handle.accepted:
+            return None, None, feedback
+        wrapped = _wait(handle.get_result_async())
+        return wrapped.status, wrapped.result, feedback
+
+    try:
+        assert graph.set_object(0.06, open_fingers=True).success
+        # as MoveIt's handle sends it: a position, no names, the effort given
+        close = JointState(position=[TRAVEL_M], effort=[5.0])
+        status, result, feedback = send(close)
+        assert status == GoalStatus.STATUS_ABORTED                  # stalled, not allowed
+        assert result.stalled and not result.reached_goal
+        assert list(result.state.name) == [FINGER_JOINT]
+        assert result.state.position[0] == pytest.approx(TRAVEL_M - 0.06, abs=1e-9)
+        assert S.move_stall_force_fraction * 5.0 <= result.state.effort[0] <= 5.0 * (1 + 1e-9)
+        assert feedback and list(feedback[-1].feedback.state.name) == [FINGER_JOINT]
+        status, result, _ = send(close, allow_stalling=True)         # still pressing there
+        assert status == GoalStatus.STATUS_SUCCEEDED and result.stalled
+        opened = JointState(name=[FINGER_JOINT], position=[0.02], velocity=[0.04])
+        status, result, _ = send(opened)
+        assert status == GoalStatus.STATUS_SUCCEEDED and result.reached_goal
+        assert abs(result.state.position[0] - 0.02) <= S.move_tolerance_m
+        for bad in (JointState(position=[0.05, 0.05]),
+                    JointState(name=['other_joint'], position=[0.05]),
+                    JointState(position=[TRAVEL_M + 0.01])):
+            ticks = graph.plant.ticks_published
+            assert send(bad)[0] is None                              # rejected at the goal
+            assert graph.plant.ticks_published == ticks
+    finally:
+        graph.run_in_executor(client.destroy)
+
+
+def test_serve_mode_records_a_move_in_a_bag_of_its_own(tmp_path):
+    from gripper_ros.bags.recording import ServeRecorder
+    from gripper_ros.bags.series import load_grasp_series
+    from gripper_ros.nodes.graph import GraphOptions, GripperGraph
+    with GripperGraph.in_own_context(GraphOptions(namespace='move_serve',
+                                                  time_mode='fast')) as g:
+        serve = ServeRecorder(g, tmp_path)
+        assert g.set_object(0.0, open_fingers=True).success
+        answer = g.move(0.04, 0.03)
+        assert answer.success and answer.reached_goal
+        assert _wait(lambda: serve.bags and not serve.recording, 10.0)
+    assert serve.errors == []
+    [bag] = serve.bags
+    assert bag.name.startswith('move_')
+    series = load_grasp_series(bag)
+    phases = set(series.status.phase.tolist())
+    assert int(Phase.MOVING) in phases and int(Phase.POSITION) not in phases
+    assert TRAVEL_M - series.joint.position_m[-1] == pytest.approx(answer.width_m, abs=1e-9)
+    # whole ticks: one command and one measurement per tick
+    assert series.ticks['stamp_ns'].size == series.commands['stamp_ns'].size > 100
+
+
+def _wait(predicate, timeout_s: float) -> bool:
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        if predicate():
+            return True
+        time.sleep(0.02)
+    return False

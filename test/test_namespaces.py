@@ -1,0 +1,163 @@
+"""Two namespaced grippers side by side on one domain, and one graph per namespace.
+
+A bimanual robot: ``left`` and ``right`` grasp at the same time, in one process and in two.
+Known answers: each holds its own object at its own width; each bag holds only its own topics
+(``/clock`` is in none: a bag's time is its own messages' stamps) and, per topic, exactly what
+its own graph published: one reference and one command for each of its own ticks. A second graph
+in a namespace already taken exits 2 with one line naming what it found, and publishes nothing.
+"""
+import subprocess
+import sys
+import threading
+import time
+
+import pytest
+
+from gripper_ros.bags.reader import read_bag
+from gripper_ros.bags.recording import recorded_grasp
+from gripper_ros.nodes.common import StartupError
+from gripper_ros.nodes.graph import GraphOptions, GripperGraph
+from gripper_ros.wire import (TOPIC_FORCE_REFERENCE, TOPIC_MOTOR_COMMAND,
+                              TOPIC_POSITION_REFERENCE, TOPIC_TICK, Outcome, qualified)
+
+OBJECTS = {'left': (0.05, 1.69), 'right': (0.10, 0.75)}
+
+
+def _check_bag(bag_dir, namespace):
+    bag = read_bag(bag_dir)
+    counts = {t.name: t.count for t in bag.topics.values() if t.count}
+    assert all(t.startswith(f'/{namespace}/') for t in counts), sorted(counts)
+    ticks = counts[qualified(namespace, TOPIC_TICK)]
+    references = counts.get(qualified(namespace, TOPIC_POSITION_REFERENCE), 0) + \
+        counts.get(qualified(namespace, TOPIC_FORCE_REFERENCE), 0)
+    assert ticks > 500
+    assert references == counts[qualified(namespace, TOPIC_MOTOR_COMMAND)] == ticks
+    return counts
+
+
+@pytest.fixture
+def two_grippers():
+    graphs = {'left': GripperGraph.in_own_context(GraphOptions(namespace='left')),
+              'right': GripperGraph.in_own_context(GraphOptions(namespace='right',
+                                                                publish_clock=False))}
+    try:
+        yield graphs
+    finally:
+        for g in graphs.values():
+            g.close()
+
+
+def test_left_and_right_in_one_process_each_hold_their_object_with_a_clean_bag(
+        two_grippers, tmp_path):
+    runs = {}
+
+    def grasp(name):
+        width, mass = OBJECTS[name]
+        runs[name] = recorded_grasp(two_grippers[name], tmp_path / name, width, mass)
+
+    threads = [threading.Thread(target=grasp, args=(name,)) for name in OBJECTS]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join(timeout=180)
+    for name, (width, _mass) in OBJECTS.items():
+        run = runs[name]
+        assert run.response.outcome == Outcome.HOLDING, run.response.message
+        assert run.response.final_width_m == pytest.approx(width, rel=0.02)
+        assert not run.recording_error
+        recorded = {t: n for t, n in run.recorded.items() if n}
+        assert recorded == {t: n for t, n in run.published.items() if n}   # its own, all
+        assert _check_bag(run.bag_dir, name) == recorded
+
+
+def test_left_and_right_in_two_processes_each_hold_their_object_with_a_clean_bag(tmp_path):
+    procs = {}
+    for name, (width, mass) in OBJECTS.items():
+        cmd = [sys.executable, '-m', 'gripper_ros.apps.grasp_demo', '--namespace', name,
+               '--width', str(width), '--mass', str(mass), '--output', str(tmp_path / name),
+               '--no-plot'] + (['--no-clock'] if name == 'right' else [])
+        procs[name] = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                                       text=True, stdin=subprocess.DEVNULL)
+    for name, proc in procs.items():
+        out, err = proc.communicate(timeout=180)
+        assert proc.returncode == 0, out + err
+        bags = [p for p in (tmp_path / name).iterdir() if p.is_dir()]
+        assert len(bags) == 1
+        _check_bag(bags[0], name)
+
+
+def test_a_second_graph_in_a_taken_namespace_exits_2_and_publishes_nothing():
+    first = GripperGraph.in_own_context(GraphOptions(namespace='taken'))
+    try:
+        ticks = qualified('taken', TOPIC_TICK)
+        publishers = []
+        stop = threading.Event()
+
+        def watch():
+            while not stop.is_set():
+                publishers.append(first.client_node.count_publishers(ticks))
+                time.sleep(0.01)
+
+        watcher = threading.Thread(target=watch)
+        watcher.start()
+        result = subprocess.run(
+            [sys.executable, '-m', 'gripper_ros.apps.grasp_demo', '--namespace', 'taken',
+             '--width', '0.05', '--mass', '1.69', '--no-record'],
+            capture_output=True, text=True, timeout=60, stdin=subprocess.DEVNULL)
+        time.sleep(0.3)
+        stop.set()
+        watcher.join()
+        assert result.returncode == 2, result.stdout + result.stderr
+        lines = [line for line in result.stderr.splitlines() if line.strip()]
+        assert lines == [lines[0]] and 'namespace /taken is taken' in lines[0]
+        assert '/taken/plant_simulator (process ' in lines[0] and '/taken/supervisor' in lines[0]
+        assert set(publishers) == {1}, 'the refused graph published a tick'
+        with pytest.raises(StartupError, match='taken'):     # in one process, the same
+            GripperGraph.in_own_context(GraphOptions(namespace='taken'))
+        assert first.set_object(0.05).success and first.grasp(0.05, 1.69).success
+    finally:
+        first.close()
+
+
+@pytest.mark.parametrize('module, found', [
+    ('plant_simulator_node', '/taken_node/plant_simulator'),
+    ('supervisor_node', '/taken_node/supervisor')])
+def test_a_standalone_node_in_a_taken_namespace_exits_2_in_one_line(module, found):
+    first = GripperGraph.in_own_context(GraphOptions(namespace='taken_node'))
+    try:
+        result = subprocess.run(
+            [sys.executable, '-m', f'gripper_ros.nodes.{module}', '--ros-args', '-r',
+             '__ns:=/taken_node'], capture_output=True, text=True, timeout=60,
+            stdin=subprocess.DEVNULL)
+        assert result.returncode == 2, result.stdout + result.stderr
+        assert 'Traceback' not in result.stderr and found in result.stderr, result.stderr
+    finally:
+        first.close()
+
+
+def test_a_gripper_claimed_elsewhere_is_still_found_by_discovery(tmp_path, monkeypatch):
+    """A graph whose claims live elsewhere (another machine, another user) is found on the
+    domain: its plant, its supervisor and its grasp server."""
+    monkeypatch.setenv('GRIPPER_ROS_CLAIMS_DIR', str(tmp_path / 'there'))
+    first = GripperGraph.in_own_context(GraphOptions(namespace='elsewhere'))
+    try:
+        monkeypatch.setenv('GRIPPER_ROS_CLAIMS_DIR', str(tmp_path / 'here'))
+        with pytest.raises(StartupError) as refused:
+            GripperGraph.in_own_context(GraphOptions(namespace='elsewhere'))
+        message = str(refused.value)
+        assert 'process' not in message
+        for found in ('/elsewhere/plant_simulator', '/elsewhere/supervisor',
+                      'service /elsewhere/grasp'):
+            assert found in message
+    finally:
+        first.close()
+
+
+def test_names_are_free_again_once_the_graph_is_closed():
+    first = GripperGraph.in_own_context(GraphOptions(namespace='reused'))
+    first.close()
+    second = GripperGraph.in_own_context(GraphOptions(namespace='reused'))
+    try:
+        assert second.set_object(0.05).success
+    finally:
+        second.close()

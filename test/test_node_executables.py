@@ -1,0 +1,190 @@
+"""Every node executable's exit code, as a user or a launch file sees it.
+
+``python -m gripper_ros.nodes.<module>``, each case in a namespace of its own: stopped with
+Ctrl-C (SIGINT) or SIGTERM once it runs (it answers a parameter request), it exits 0 with no
+traceback; given a bad start-up parameter (out of range, of the wrong type, not one of the
+allowed words) it exits 2 with one line on stderr naming the parameter, and no traceback; a
+second one started beside a running one exits 2 with one line naming the taken name. The
+cases run side by side in one module fixture (a node start costs about a second); each test
+reads its own case's result.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+import signal
+import subprocess
+import sys
+import time
+
+from gripper_ros.wire import (NODE_FORCE_CONTROLLER, NODE_GRASP_ACTION, NODE_MOVE_ACTION,
+                              NODE_PLANT, NODE_POSITION_CONTROLLER, NODE_SUPERVISOR)
+import pytest
+from rcl_interfaces.srv import GetParameters
+import rclpy
+from rclpy.context import Context
+from rclpy.executors import SingleThreadedExecutor
+
+MODULES = {NODE_PLANT: 'plant_simulator_node',
+           NODE_POSITION_CONTROLLER: 'position_controller_node',
+           NODE_FORCE_CONTROLLER: 'force_controller_node',
+           NODE_SUPERVISOR: 'supervisor_node',
+           NODE_GRASP_ACTION: 'grasp_action_node',
+           NODE_MOVE_ACTION: 'move_action_node'}
+SIGNALS = {'sigint': signal.SIGINT, 'sigterm': signal.SIGTERM}
+WRONG_TYPE = "expecting type 'DOUBLE'"
+BAD_PARAMETERS = [   # (node, parameter, value as typed after -p name:=, words in the line)
+    (NODE_PLANT, 'time_mode', 'sideways', 'must be realtime or fast'),
+    (NODE_PLANT, 'real_time_factor', '0.0', 'out of range'),
+    (NODE_POSITION_CONTROLLER, 'status_timeout_s', 'soon', WRONG_TYPE),
+    (NODE_POSITION_CONTROLLER, 'controller', 'bangbang', 'must be one of'),
+    (NODE_FORCE_CONTROLLER, 'controller', 'bangbang', 'must be one of'),
+    (NODE_FORCE_CONTROLLER, 'status_timeout_s', '5', WRONG_TYPE),          # an integer
+    (NODE_SUPERVISOR, 'tick_timeout_s', '0.0', 'out of range'),
+    (NODE_SUPERVISOR, 'tick_timeout_s', '0', WRONG_TYPE),
+    (NODE_GRASP_ACTION, 'feedback_period_s', '-1.0', 'out of range'),
+    (NODE_GRASP_ACTION, 'feedback_period_s', '-1', WRONG_TYPE),
+    (NODE_MOVE_ACTION, 'feedback_period_s', '-1.0', 'out of range'),
+    (NODE_GRASP_ACTION, 'executor', 'threads', 'must be one of'),          # run_node's own
+]
+RUNNING_TIMEOUT_S = 60.0
+NODES_DIR = Path(__file__).resolve().parents[1] / 'gripper_ros' / 'nodes'
+
+
+@dataclass
+class Case:
+    node: str
+    namespace: str
+    args: list[str]
+    stop: signal.Signals | None = None       # None: the node must refuse to start
+    twin: Case | None = None                 # a second one started beside it once it runs
+    proc: subprocess.Popen | None = None
+    answered: bool = False                   # it answered a parameter request before the signal
+    returncode: int | None = None
+    stderr: str = ''
+
+
+def _start(case: Case) -> None:
+    case.proc = subprocess.Popen(
+        [sys.executable, '-m', f'gripper_ros.nodes.{MODULES[case.node]}', '--ros-args', '-r',
+         f'__ns:=/{case.namespace}', *case.args], stdin=subprocess.DEVNULL,
+        stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+
+
+def _wait_until_running(cases: list[Case]) -> None:
+    """Mark each case whose node answers ``get_parameters`` (its executor spins)."""
+    context = Context()
+    rclpy.init(context=context)
+    try:
+        probe = rclpy.create_node('exit_code_probe', context=context,
+                                  start_parameter_services=False)
+        executor = SingleThreadedExecutor(context=context)
+        executor.add_node(probe)
+        clients = {id(c): probe.create_client(
+            GetParameters, f'/{c.namespace}/{c.node}/get_parameters') for c in cases}
+        futures = {}
+        deadline = time.monotonic() + RUNNING_TIMEOUT_S
+        while time.monotonic() < deadline and not all(c.answered for c in cases):
+            for c in cases:
+                if c.answered or c.proc.poll() is not None:
+                    continue
+                future = futures.get(id(c))
+                if future is None and clients[id(c)].service_is_ready():
+                    futures[id(c)] = clients[id(c)].call_async(
+                        GetParameters.Request(names=['use_sim_time']))
+                elif future is not None and future.done():
+                    c.answered = future.result() is not None
+            executor.spin_once(timeout_sec=0.02)
+        executor.shutdown()
+        probe.destroy_node()
+    finally:
+        rclpy.try_shutdown(context=context)
+
+
+def _cases() -> dict[str, Case]:
+    cases = {}
+    for node in MODULES:
+        for label, sig in SIGNALS.items():
+            cases[f'{node}-{label}'] = Case(node, f'exit_{node}_{label}', [], stop=sig)
+    for k, (node, parameter, value, _words) in enumerate(BAD_PARAMETERS):
+        cases[f'{node}-{parameter}:={value}'] = Case(node, f'exit_{node}_bad_{k}',
+                                                     ['-p', f'{parameter}:={value}'])
+    return cases
+
+
+@pytest.fixture(scope='module')
+def results():
+    """Every case at once: started, the running ones signalled, each waited for."""
+    cases = _cases()
+    try:
+        for case in cases.values():
+            _start(case)
+        stopped = [c for c in cases.values() if c.stop is not None]
+        _wait_until_running(stopped)
+        for case in stopped:
+            if case.stop is signal.SIGINT and case.answered:
+                case.twin = Case(case.node, case.namespace, [])
+                _start(case.twin)
+        for case in stopped:                    # each twin ends before its first one is stopped
+            if case.twin is not None:
+                _finish(case.twin)
+        for case in stopped:
+            if case.answered and case.proc.poll() is None:
+                case.proc.send_signal(case.stop)
+        for case in cases.values():
+            if case.stop is not None and not case.answered:
+                case.proc.kill()                # never ran: its test fails saying so
+            _finish(case)
+    finally:
+        for case in cases.values():
+            for proc in (case.proc, case.twin.proc if case.twin else None):
+                if proc is not None and proc.poll() is None:
+                    proc.kill()
+                    proc.wait()
+    return cases
+
+
+def _finish(case: Case) -> None:
+    case.stderr = case.proc.communicate(timeout=60)[1]
+    case.returncode = case.proc.returncode
+
+
+@pytest.mark.parametrize('node', list(MODULES))
+@pytest.mark.parametrize('label', list(SIGNALS))
+def test_a_running_node_stopped_by_a_signal_exits_0(results, node, label):
+    case = results[f'{node}-{label}']
+    assert case.answered, f'{node} never answered a parameter request: {case.stderr[-2000:]}'
+    assert case.returncode == 0, (case.returncode, case.stderr[-2000:])
+    assert 'Traceback' not in case.stderr, case.stderr[-2000:]
+
+
+@pytest.mark.parametrize('node, parameter, value, words', BAD_PARAMETERS)
+def test_a_bad_start_up_parameter_exits_2_in_one_line(results, node, parameter, value, words):
+    case = results[f'{node}-{parameter}:={value}']
+    assert case.returncode == 2, (case.returncode, case.stderr[-2000:])
+    assert 'Traceback' not in case.stderr
+    lines = case.stderr.strip().splitlines()
+    assert len(lines) == 1, case.stderr
+    assert lines[0].startswith(f'{node}: ') and parameter in lines[0] and words in lines[0], \
+        lines[0]
+
+
+@pytest.mark.parametrize('node', list(MODULES))
+def test_a_second_node_beside_a_running_one_exits_2_in_one_line(results, node):
+    first = results[f'{node}-sigint']
+    assert first.twin is not None, f'{node} never ran: {first.stderr[-2000:]}'
+    twin = first.twin
+    assert twin.returncode == 2, (twin.returncode, twin.stderr[-2000:])
+    assert 'Traceback' not in twin.stderr
+    lines = twin.stderr.strip().splitlines()
+    assert len(lines) == 1, twin.stderr
+    assert lines[0].startswith(f'{node}: namespace /{first.namespace} is taken'), lines[0]
+    assert f'/{first.namespace}/{node}' in lines[0], lines[0]
+
+
+def test_every_node_executable_is_here_with_a_bad_start_up_parameter():
+    """A node module with a ``main()`` is an executable: each one is in MODULES."""
+    executables = {p.stem for p in NODES_DIR.glob('*.py')
+                   if '\ndef main(' in p.read_text(encoding='utf-8')}
+    assert executables == set(MODULES.values())
+    assert {node for node, *_ in BAD_PARAMETERS} == set(MODULES)

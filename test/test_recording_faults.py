@@ -1,0 +1,158 @@
+"""A recording that fails never stops the gripper, and bag names never collide.
+
+A full disk is an ENOSPC from the bag file's ``write``, injected where the recorder opens it
+(the one call a full disk makes fail first). Known answers: the error names the bag and the
+number of messages a reader gets back from it, and that number is what ``read_bag`` reads;
+``grasp_demo`` stops the grasp and exits 2 at once with that one line; a serving graph reports
+it in the grasp's answer and serves and records the next grasp.
+"""
+import errno
+import re
+import subprocess
+import sys
+import time
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+
+import pytest
+
+from gripper_ros.bags import recorder as recorder_module
+from gripper_ros.bags.reader import read_bag
+from gripper_ros.bags.recording import ServeRecorder, unique_bag_dir
+from gripper_ros.nodes.graph import GraphOptions, GripperGraph
+from gripper_ros.wire import Outcome
+
+FULL_AFTER_BYTES = 40_000          # a few chunks into the first grasp's bag
+
+_FULL_DISK = '''
+import builtins, errno, sys
+import gripper_ros.bags.recorder as recorder
+limit = int(sys.argv[1])
+real_open = builtins.open
+
+class Full:
+    def __init__(self, f):
+        self.f, self.n = f, 0
+    def write(self, data):
+        if self.n + len(data) > limit:
+            raise OSError(errno.ENOSPC, 'No space left on device')
+        self.n += len(data)
+        return self.f.write(data)
+    def __getattr__(self, name):
+        return getattr(self.f, name)
+
+def full_open(path, mode='r', *args, **kwargs):
+    f = real_open(path, mode, *args, **kwargs)
+    return Full(f) if str(path).endswith('.mcap') and 'w' in mode else f
+
+recorder.open = full_open
+from gripper_ros.apps.grasp_demo import main
+sys.exit(main(sys.argv[2:]))
+'''
+
+
+class _FullFile:
+    """A bag file on a disk with ``limit`` bytes free."""
+
+    def __init__(self, f, limit):
+        self.f, self.n, self.limit = f, 0, limit
+
+    def write(self, data):
+        if self.n + len(data) > self.limit:
+            raise OSError(errno.ENOSPC, 'No space left on device')
+        self.n += len(data)
+        return self.f.write(data)
+
+    def __getattr__(self, name):
+        return getattr(self.f, name)
+
+
+def _readable_count(message: str) -> int:
+    return int(re.search(r'the bag holds (\d+) messages, readable up to there', message)[1])
+
+
+def test_grasp_demo_on_a_full_disk_stops_at_once_with_one_line_and_a_readable_bag(tmp_path):
+    t0 = time.monotonic()
+    result = subprocess.run(
+        [sys.executable, '-c', _FULL_DISK, str(FULL_AFTER_BYTES), '--output', str(tmp_path),
+         '--no-plot'], capture_output=True, text=True, timeout=120, stdin=subprocess.DEVNULL)
+    assert result.returncode == 2, result.stdout + result.stderr
+    assert 'Traceback' not in result.stderr
+    errors = [line for line in result.stderr.splitlines() if line.startswith('grasp_demo:')]
+    assert len(errors) == 1, result.stderr
+    line = errors[0]
+    assert 'No space left on device' in line
+    bags = sorted(p for p in tmp_path.iterdir() if p.is_dir())
+    assert len(bags) == 1, 'the first grasp only: the demo stops there'
+    assert str(bags[0]) in line
+    bag = read_bag(bags[0])
+    assert bag.message_count == _readable_count(line) > 0
+    assert '[2/3]' not in result.stdout
+    assert time.monotonic() - t0 < 120
+
+
+@pytest.fixture
+def serving(tmp_path):
+    graph = GripperGraph.in_own_context(GraphOptions(namespace='serve_full_disk',
+                                                     time_mode='fast'))
+    recorder = ServeRecorder(graph, tmp_path)
+    try:
+        yield graph, recorder
+    finally:
+        graph.close()
+
+
+def test_serve_reports_a_full_disk_in_the_answer_and_serves_and_records_the_next_grasp(
+        serving, tmp_path, monkeypatch):
+    graph, recorder = serving
+    real_open = open
+    monkeypatch.setattr(recorder_module, 'open', lambda path, mode='r': _FullFile(
+        real_open(path, mode), FULL_AFTER_BYTES), raising=False)
+    assert graph.set_object(0.01).success
+    first = graph.grasp(0.01, 1.27)
+    assert first.outcome == Outcome.HOLDING, 'the grasp itself goes on'
+    assert 'recording stopped' in first.message and 'No space left on device' in first.message
+    assert recorder.errors and recorder.errors[0] in first.message
+    bag = read_bag(recorder.bags[0])
+    assert bag.message_count == _readable_count(recorder.errors[0]) > 0
+
+    monkeypatch.setattr(recorder_module, 'open', real_open, raising=False)   # space again
+    graph.release()
+    assert graph.set_object(0.05).success
+    second = graph.grasp(0.05, 1.69)
+    assert second.outcome == Outcome.HOLDING and 'recording' not in second.message
+    graph.wait_still()
+    time.sleep(0.3)                                  # the bag closes once time stands still
+    assert len(recorder.bags) == 2                   # one per grasp (a release is not one)
+    assert not read_bag(recorder.bags[-1]).truncated
+
+
+def test_a_taken_bag_folder_name_is_never_reused(tmp_path):
+    stem = 'grasp_20261201_120000_id1'
+    first = unique_bag_dir(tmp_path, stem)
+    (tmp_path / f'{first.name}_1').mkdir()           # someone else's, by chance
+    second = unique_bag_dir(tmp_path, stem)
+    assert len({first, second, tmp_path / f'{first.name}_1'}) == 3
+    assert first.is_dir() and second.is_dir()
+
+
+_NAMER = '''
+import sys
+from pathlib import Path
+from gripper_ros.bags.recording import unique_bag_dir
+for _ in range(int(sys.argv[2])):
+    print(unique_bag_dir(Path(sys.argv[1]), 'grasp_20261201_120000_id1'))
+'''
+
+
+def test_two_servers_naming_bags_in_one_folder_in_the_same_second_never_collide(tmp_path):
+    """Four processes, and threads within one, each take 50 names for the same stem at once."""
+    procs = [subprocess.Popen([sys.executable, '-c', _NAMER, str(tmp_path), '50'],
+                              stdout=subprocess.PIPE, text=True) for _ in range(4)]
+    with ThreadPoolExecutor(4) as pool:
+        here = list(pool.map(lambda _: str(unique_bag_dir(tmp_path, 'grasp_20261201_120000_id1')),
+                             range(50)))
+    names = here + [line for p in procs for line in p.communicate(timeout=60)[0].split()]
+    assert all(p.returncode == 0 for p in procs)
+    assert len(names) == 250 == len(set(names))
+    assert len([p for p in Path(tmp_path).iterdir() if p.is_dir()]) == 250
