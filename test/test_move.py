@@ -544,7 +544,7 @@ def test_serve_mode_records_a_move_in_a_bag_of_its_own(tmp_path):
         assert g.set_object(0.0, open_fingers=True).success
         answer = g.move(0.04, 0.03)
         assert answer.success and answer.reached_goal
-        assert _wait(lambda: serve.bags and not serve.recording, 10.0)
+        assert _wait_until(lambda: serve.bags and not serve.recording, 10.0)
     assert serve.errors == []
     [bag] = serve.bags
     assert bag.name.startswith('move_')
@@ -556,7 +556,7 @@ def test_serve_mode_records_a_move_in_a_bag_of_its_own(tmp_path):
     assert series.ticks['stamp_ns'].size == series.commands['stamp_ns'].size > 100
 
 
-def _wait(predicate, timeout_s: float) -> bool:
+def _wait_until(predicate, timeout_s: float) -> bool:
     deadline = time.monotonic() + timeout_s
     while time.monotonic() < deadline:
         if predicate():
