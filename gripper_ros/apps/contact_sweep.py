@@ -42,7 +42,7 @@ import time
 from gripper_ros.core.config import ConfigError, load_config
 
 WIDTHS_M = (0.005, 0.02, 0.05, 0.08, 0.11, 0.14)
-MASSES_KG = (0.1, 0.5, 1.0, 3.0, None)          # None: the heaviest 24 V can hold
+MASSES_KG = (0.1, 0.5, 1.0, 2.0, None)          # None: the heaviest 24 V can hold
 STIFFNESSES_N_PER_M = (1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8)
 DAMPING_RATIOS = (0.01, 0.1, 1.0)
 # uncertain widths: a reduced grid, the object placed 0, 0.02, 1 and 2 tolerances into the band
