@@ -22,6 +22,7 @@ from rclpy.parameter import Parameter
 from rclpy.task import Future
 from std_srvs.srv import Trigger
 
+from gripper_ros.core.config import load_config
 from gripper_ros.core.stages import DEFAULT_FORCE_CONTROLLER
 from gripper_ros.nodes.common import (SERVICE_QOS, ExecutorKind, call_and_wait, make_executor,
                                       spin_until_stopped)
@@ -72,6 +73,7 @@ class GripperGraph:
             kw['context'] = context
         self.nodes: list = []
         self.close_hooks: list = []          # run first by close() (e.g. open recordings)
+        load_config(opts.config_file or None)   # a bad file is refused before a name is taken
         self._claim = NameClaim.take((NODE_PLANT, NODE_SUPERVISOR), (SERVICE_GRASP,), context,
                                      self.namespace) if opts.check_names else None
         try:
