@@ -307,16 +307,16 @@ def test_stiff_object_in_the_graph_no_spike_and_bit_identical_to_headless(graph,
 
 
 def test_width_tolerance_through_the_service_meets_a_wider_object_at_the_setpoint(graph, tmp_path):
-    """Request 50 mm +- 12 mm, place a 60 mm object: it is held at its real face.
+    """Request 50 mm +- 12 mm, place a 62 mm object: it is held at its real face.
 
     The position stage stops short of the widest face (status approach_setpoint_m) and the
     object is met with at most F_sp.
     """
     run = recorded_grasp(graph, tmp_path / 'wider', 0.05, 1.69, width_tolerance_m=0.012,
-                         object_width_m=0.06)
+                         object_width_m=0.062)
     r = run.response
     assert r.success and r.outcome == Outcome.HOLDING, r.message
-    assert r.final_width_m == pytest.approx(0.06, abs=1e-6)
+    assert r.final_width_m == pytest.approx(0.062, abs=1e-6)
     series = load_grasp_series(run.bag_dir)
     assert np.max(series.sensor.peak_force_n) <= 1.10 * r.force_setpoint_n
     grasp = np.isin(series.status.phase, (Phase.POSITION, Phase.FORCE))

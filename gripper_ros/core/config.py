@@ -42,12 +42,12 @@ class PlantParams:
 
     @property
     def force_lever_m(self) -> float:
-        """Motor torque per newton of gripping force, eta * p * N1/N2 (eq. 12)."""
+        """Return eta p N1/N2: motor torque per newton of gripping force (eq. 12)."""
         return self.efficiency * self.pitch_m * self.gear_ratio
 
     @property
     def travel_per_rad_m(self) -> float:
-        """Finger travel per motor radian, p / (2 pi) (eq. 10)."""
+        """Return p / (2 pi): finger travel per motor radian (eq. 10)."""
         return self.pitch_m / (2.0 * math.pi)
 
     @property
@@ -132,17 +132,22 @@ class PositionControlParams:
 
 @dataclass(frozen=True)
 class ContactForceTuning:
-    """The contact-aware force stage (gripper_ros/contact_force.py), ours."""
+    """The contact-aware force stage (gripper_ros/core/contact_force.py), ours."""
 
-    approach_time_constant_s: float      # before contact, speed reference = gap / this ...
-    contact_speed_mps_per_n: float       # ... + this x F_sp: the speed at which contact is made
-    contact_force_fraction: float        # contact once the force exceeds this x F_sp
-    force_gain_v_per_n: float            # Kp on the force error after contact
-    damping_ratio: float                 # of the spring mode, via velocity damping
-    max_damping_v_s_per_m: float         # damping gain cap (also the approach tracking gain)
+    design_stiffness_n_per_m: float      # stiffest object the contact speed is designed for
+    design_damping_ratio: float          # ... and its damping ratio (against the reflected mass)
+    band_design_stiffness_n_per_m: float  # ... within a width tolerance band
+    impact_force_fraction: float         # impact at the contact speed <= this x F_sp (in (0, 1))
+    braking_deceleration_mps2: float     # the speed profiles' deceleration
+    contact_force_n: float               # contact once the measured force exceeds this
+    untouched_overtravel_m: float        # past the narrowest face by this, untouched: V_ff
+    force_gain_v_per_n: float            # extra Kp on the force error after contact
+    damping_ratio: float                 # of the closed loop on the estimated spring
+    servo_sample_gain: float             # most of a speed error the servo corrects per sample
+    max_damping_v_s_per_m: float         # speed-servo gain cap
     integral_gain_v_per_n_s: float       # model-error trim, only while at rest in contact
-    integral_speed_band_mps: float       # "at rest": |finger speed| below this
-    min_travel_for_stiffness_m: float    # stiffness F/d estimated once d exceeds this
+    integral_speed_band_mps: float       # "at rest": |finger speed| below this ...
+    integral_rate_fraction: float        # ... and |de/dt| tau_k below this x |e|
 
 
 @dataclass(frozen=True)
@@ -182,6 +187,8 @@ class SupervisorParams:
     release_settle_s: float = 0.05       # ... for this long
     position_switch_speed_mps: float = 0.0  # switch 1 also needs |speed| <= this (0: paper's)
     width_tolerance_m: float = 0.0       # default +- on a request's width (Franka's epsilon)
+    force_settle_horizon_s: float = 0.0  # settled: |e| + this x |dF/dt| within the band ...
+    force_settle_speed_mps: float = 0.0  # ... and the finger slower than this (0: no bound)
     force_law: ForceLaw = ForceLaw.FRICTION
     grip_safety_factor: float = 1.5      # k of the friction law (>= 1)
     # The move (srv/Move, control_msgs ParallelGripperCommand).
@@ -207,7 +214,7 @@ class GripperConfig:
 
 
 def default_config_path() -> Path:
-    """Return the installed ``share/gripper_ros/config/gripper.yaml``, else the source copy."""
+    """Return the installed ``share/gripper_ros/config/gripper.yaml``, else the tree's copy."""
     env = os.environ.get('GRIPPER_ROS_CONFIG')
     if env:
         return Path(env)
@@ -328,7 +335,11 @@ def parse_config(data: dict, source: str = '<dict>') -> GripperConfig:
         mpc_pi_dmc=_dmc(_section(frc, 'mpc_pi', 'force_control'), 'force_control.mpc_pi'),
         contact_aware=_build(ContactForceTuning, _section(frc, 'contact_aware', 'force_control'),
                              'force_control.contact_aware',
+                             force_gain_v_per_n={'nonnegative': True},
                              integral_gain_v_per_n_s={'nonnegative': True}))
+    if not force.contact_aware.impact_force_fraction < 1.0:
+        raise ConfigError('"force_control.contact_aware.impact_force_fraction" must be in (0, 1), '
+                          f'got {force.contact_aware.impact_force_fraction!r}')
     if not force.closed_loop_pole < 1.0:
         raise ConfigError('"force_control.closed_loop_pole" must be in [0, 1) for a stable loop, '
                           f'got {force.closed_loop_pole!r}')
@@ -346,6 +357,8 @@ def parse_config(data: dict, source: str = '<dict>') -> GripperConfig:
                  release_settle_s={'nonnegative': True},
                  position_switch_speed_mps={'nonnegative': True},
                  width_tolerance_m={'nonnegative': True},
+                 force_settle_horizon_s={'nonnegative': True},
+                 force_settle_speed_mps={'nonnegative': True},
                  force_law={'choices': ForceLaw})
     if not sup.grip_safety_factor >= 1.0:
         raise ConfigError('"supervisor.grip_safety_factor" must be >= 1 (a grip that knowingly '

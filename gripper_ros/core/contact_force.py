@@ -1,46 +1,64 @@
-"""Force stage for rigid *and* compliant objects: no contact spike on either (no ROS).
+"""Force stage for rigid and compliant objects of unknown stiffness: no contact spike (no ROS).
 
-Why the paper's PI is not enough. On the paper's rigid contact the finger stalls and force is
-the motor current (eq. 13): a first-order loop with L/R = 0.1 ms, which our PI settles in
-0.35 ms. On a compliant object the force is the spring's, ``F = k d``, and the motor must move
-the finger to change it: the spring and the motor inertia reflected through the lead screw form
-a lightly damped mode,
+The plant seen from the finger. Through the lead screw the motor is a mass, a damper and a
+force source on the finger (eqs. 9-12), in finger coordinates:
 
-    omega_n^2 = k * lever * rho / J,       zeta = b_m / (2 sqrt(k * lever * rho * J)),
+    m_r x'' = K_stall e - c_r x' - F,     m_r = J / (lever rho),  c_r = (b_m + k_t k_b / R) /
+    (lever rho),  K_stall = k_t / (lever R)
 
 (``lever`` = eta p N1/N2, the motor torque per newton, eq. 12; ``rho`` = p / 2 pi, the travel per
-motor radian, eq. 10). With Table I: 13.5 rad/s and zeta = 0.033 at k = 1e5 N/m (stiff), 1.35
-rad/s and zeta = 0.33 at 1e3 N/m (soft). A PI with the rigid loop's integral gain drives that
-mode unstable (`contact_sweep --compliant --force-controller pi`: peaks 1.7-6.1x the setpoint
-and the finger bounces off), and any approach speed ``v`` is turned into
-a force ``~ v k / omega_n`` (7400 N per m/s at 1e5 N/m): 10 mm/s gives 74 N.
+motor radian, eq. 10; the electrical lag L/R = 0.1 ms is left out here and kept in the plant).
+Table I gives ``m_r`` = 546 kg, ``c_r`` = 485 N s/m, ``K_stall`` = 1.391 N/V. An object is a
+Kelvin-Voigt contact ``F = k d + c d'``; its *damping ratio* is taken against the contact mode
+with the reflected mass, ``zeta = c / (2 sqrt(k m_r))``, so ``omega_n = sqrt(k / m_r)``: 0.43
+rad/s at 1e2 N/m, 428 rad/s at 1e8 N/m. A rigid object is the paper's contact (the finger stops
+dead and the force is the motor's, eq. 13).
 
-What this controller does, each force sample, knowing neither the stiffness nor the damping:
+Why the approach speed is the whole problem. A finger arriving at speed ``v`` puts ``c v`` on the
+object at once (the damper, whatever the motor does) and the momentum ``m_r v`` into the spring,
+``v sqrt(k m_r)``: the free impact peaks at ``h(zeta) v sqrt(k m_r)`` with ``h = max(1, 2 zeta)``.
+No controller acts before the object is touched, so the contact speed must satisfy that bound
+for the stiffest object it may meet. This stage designs the contact speed for a *design*
+stiffness ``k_d`` and damping ratio ``zeta_d`` (``tuning.design_*``) and an impact share
+``beta`` of the setpoint (``tuning.impact_force_fraction``, below the loss watch's fraction so
+that the impact alone never arms it):
 
-1. Feed-forward ``V_ff = F_sp / K_stall`` (``K_stall`` = 1.391 N/V, the stall force per volt):
-   stalled against any object, rigid or compliant, this voltage holds exactly ``F_sp``.
-2. Before contact, a speed reference ``v_ref = gap / tau + v_min``, with ``gap`` the distance to
-   the expected face and ``v_min`` proportional to ``F_sp``, tracked by the damping term: the
-   finger arrives at the face at ``v_min`` (tens of um/s for light objects), so that the
-   impact adds little force. Past the expected face with nothing touched (a narrower object,
-   or none) the reference is dropped and the motor gets exactly ``V_ff``: safe on any rigid
-   object, and NO_OBJECT is found quickly instead of after a crawl.
-3. After contact, force feedback ``Kp (F_sp - F)`` (stable on the rigid electrical loop: its
-   discrete pole ``a - b Kp`` stays inside the unit circle) plus velocity damping ``-Kv v``,
-   with ``Kv`` chosen each sample from the stiffness estimated as ``F / d`` (``d`` the travel
-   since contact) so that the spring mode has damping ratio ``zeta``; rigid contact gives
-   ``v = 0`` and the damping has nothing to do.
-4. A small integral on the force error corrects model error (a real motor's friction, a stall
-   gain that is not 1.391 N/V); it integrates only while the finger is at rest in contact, so it
-   cannot wind up during a slow compression.
+    v_c = alpha F_sp,   alpha = beta / (h(zeta_d) sqrt(k_d m_r)).
 
-The velocity comes from successive position samples (exact in simulation; a real gripper would
-use the motor encoder's speed). Everything is clamped to the motor's +-24 V.
+What it does each force sample, knowing neither the stiffness nor the exact width:
+
+1. Feed-forward ``V_ff = F_sp / K_stall``: stalled against any object it holds ``F_sp``.
+2. A speed servo ``Kv (v_ref - v)``, with the finger speed from successive positions.
+3. Before contact, ``v_ref = s(gap) + v_c`` with ``gap`` the distance to the face of the *widest*
+   object the request allows and ``s(r)`` a braking profile at the deceleration ``a`` that ends
+   in a first-order approach of time constant ``tau`` (:meth:`speed_profile_mps`). The finger
+   reaches that face at ``v_c`` and crosses the tolerance band at ``v_c``. The output is never
+   above ``V_ff``, so a rigid object met anywhere gets at most ``F_sp`` (the paper's contact);
+   braking is not limited. Past the face of the narrowest object with nothing touched the
+   object is narrower than requested, or absent: the motor gets ``V_ff`` (NO_OBJECT quickly).
+4. From the first force sample above ``tuning.contact_force_n`` on, the same servo tracks
+   ``v_ref = s((F_sp - F) / k_hat)``: the finger moves towards the compression that gives
+   ``F_sp`` on a spring of stiffness ``k_hat = min(F / d, k_d)`` (``d`` the travel since
+   contact; rigid contact gives ``d = 0``, hence ``k_d``; within a tolerance the cap is the
+   band design stiffness). With ``tau = 1 / (alpha k_d)`` the
+   reference is continuous at contact (``v_c (1 - F / F_sp)``) and, on a spring of any
+   stiffness ``k = k_hat``, the force approaches ``F_sp`` first-order with time constant ``tau``
+   (plus the object's own creep ``c / k``); a soft object is compressed along the braking
+   profile instead, at up to full voltage.
+5. ``Kv`` is chosen each sample from ``k_hat`` for a closed-loop damping ratio
+   ``tuning.damping_ratio`` of ``m_r s^2 + (D + c_r) s + k (1 + K_stall Kp) + D / tau``
+   (``D = K_stall Kv``), the spring mode with the servo and the force reference acting on it.
+   On a rigid object the speed is 0 and the servo term is a force gain ``Kv / (k_d tau)``.
+6. A small integral on the force error trims model error (friction, a stall gain that is not
+   1.391 N/V); it integrates only the error the loop leaves standing, with the finger at rest
+   in contact and the error decaying much slower than the loop's rate ``1 / tau_k``.
+
+Everything is clamped to the motor's +-24 V. The per-sample cost is two square roots.
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
+import math
 
 from gripper_ros.core.config import ContactForceTuning, PlantParams
 
@@ -53,15 +71,20 @@ class ContactForceTerms:
     force_v: float = 0.0
     damping_v: float = 0.0
     integral_v: float = 0.0
-    stiffness_n_per_m: float = math.inf   # estimate since contact (inf: rigid or none yet)
+    stiffness_n_per_m: float = math.inf   # k_hat since contact (inf before contact)
     damping_gain_v_s_per_m: float = 0.0
     speed_ref_mps: float = 0.0
     in_contact: bool = False
     output_v: float = 0.0
 
 
+def impact_factor(damping_ratio: float) -> float:
+    """Bound the free-impact peak of a Kelvin-Voigt contact per ``v sqrt(k m)``: max(1, 2 zeta)."""
+    return max(1.0, 2.0 * damping_ratio)
+
+
 class ContactForceController:
-    """``step(force_setpoint_n, force_n, position_m, face_m)`` once per ``dt_s``."""
+    """``step(force_setpoint_n, force_n, position_m, face_m, width_tolerance_m)`` per ``dt_s``."""
 
     def __init__(self, plant: PlantParams, tuning: ContactForceTuning, dt_s: float):
         if not (math.isfinite(dt_s) and dt_s > 0.0):
@@ -69,85 +92,198 @@ class ContactForceController:
         self.plant = plant
         self.tuning = tuning
         self.dt_s = dt_s
+        t = tuning
+        lever_rho = plant.force_lever_m * plant.travel_per_rad_m
         self.stall_force_per_volt_n = plant.stall_force_per_volt_n
-        # motor torque per (m/s of finger speed) of damping gain, and spring torque per (N/m)
-        self._torque_per_speed_gain = (plant.torque_constant_n_m_per_a / plant.resistance_ohm
-                                       * plant.travel_per_rad_m)
-        self._spring_to_motor = plant.force_lever_m * plant.travel_per_rad_m
+        self.reflected_mass_kg = plant.inertia_kg_m2 / lever_rho
+        self.reflected_damping_n_s_per_m = (
+            plant.damping_n_m_s_per_rad + plant.torque_constant_n_m_per_a
+            * plant.back_emf_v_s_per_rad / plant.resistance_ohm) / lever_rho
+        self.contact_speed_mps_per_n = t.impact_force_fraction / (
+            impact_factor(t.design_damping_ratio)
+            * math.sqrt(t.design_stiffness_n_per_m * self.reflected_mass_kg))
+        self.time_constant_s = 1.0 / (self.contact_speed_mps_per_n * t.design_stiffness_n_per_m)
+        self.band_speed_mps_per_n = self.contact_speed_mps_per_n * math.sqrt(
+            t.design_stiffness_n_per_m / t.band_design_stiffness_n_per_m)
+        self._two_a = 2.0 * t.braking_deceleration_mps2
+        # damping-gain quadratic, X = D + c_r:  X^2 - 2 q X - 4 z^2 m (k (1 + K Kp) - c_r / tau),
+        # q = 2 z^2 m / tau
+        self._z2m = t.damping_ratio ** 2 * self.reflected_mass_kg
+        self._spring_factor = 1.0 + self.stall_force_per_volt_n * t.force_gain_v_per_n
+        # worst object damping over its stiffness, c / k = 2 zeta_d sqrt(m_r / k), and the
+        # sample-gain bound on 1 / tau_k (see loop_time_constant_s)
+        self._two_zeta_sqrt_m = 2.0 * t.design_damping_ratio * math.sqrt(self.reflected_mass_kg)
+        self._kappa_over_dt = t.servo_sample_gain / dt_s
         self.output_limits = (-plant.voltage_limit_v, plant.voltage_limit_v)
+        self._approach_gain_v_s_per_m = self.damping_gain_for(t.design_stiffness_n_per_m)
+        # the loop on a spring at the stiffness cap (rigid contact too), computed once: at an
+        # exact width the design's, within a tolerance the band design's
+        k_band = min(t.band_design_stiffness_n_per_m, t.design_stiffness_n_per_m)
+        tau_band = self.loop_time_constant_s(k_band)
+        self._capped_loop = {False: (t.design_stiffness_n_per_m, self.time_constant_s,
+                                     self._approach_gain_v_s_per_m),
+                             True: (k_band, tau_band, self.damping_gain_for(k_band, tau_band))}
         self.terms = ContactForceTerms()
         self.reset()
 
     def reset(self, position_m: float | None = None) -> None:
-        """A new force stage; ``position_m`` is where the finger is now (speed taken as 0)."""
+        """Start a new force stage; ``position_m`` is where the finger is now (speed 0)."""
         self._prev_position_m = position_m
         self._contact_position_m: float | None = None
+        self._prev_force_n = 0.0
         self._integral_v = 0.0
         self.terms = ContactForceTerms()
 
-    def damping_gain_for(self, stiffness_n_per_m: float, force_gain_v_per_n: float) -> float:
-        """Kv (V per m/s) giving the spring mode damping ratio ``tuning.damping_ratio``."""
-        t = self.tuning
-        if not math.isfinite(stiffness_n_per_m):
-            return t.max_damping_v_s_per_m
-        spring = stiffness_n_per_m * self._spring_to_motor * (
-            1.0 + self.stall_force_per_volt_n * force_gain_v_per_n)   # the P gain stiffens it
-        needed = 2.0 * t.damping_ratio * math.sqrt(spring * self.plant.inertia_kg_m2) \
-            - self.plant.damping_n_m_s_per_rad
-        return min(max(needed, 0.0) / self._torque_per_speed_gain, t.max_damping_v_s_per_m)
+    def contact_speed_mps(self, force_setpoint_n: float, width_tolerance_m: float = 0.0
+                          ) -> float:
+        """Return the speed at which the finger meets the object.
+
+        ``alpha F_sp`` at an exact width; within a tolerance the band's speed, designed for
+        ``tuning.band_design_stiffness_n_per_m``.
+        """
+        per_n = self.band_speed_mps_per_n if width_tolerance_m > 0.0 else \
+            self.contact_speed_mps_per_n
+        return per_n * force_setpoint_n
+
+    def loop_time_constant_s(self, stiffness_n_per_m: float) -> float:
+        """Return ``tau_k``, the force loop's time constant on a spring of this stiffness.
+
+        ``tau`` unless the object's damper would make the speed servo too fast to sample: with
+        the reference ``(F_sp - F) / (k tau_k)`` a damper ``c`` feeds the speed back through
+        the force with gain ``c / (k tau_k)``, so the servo (about ``4 / tau_k`` per second,
+        see :meth:`damping_gain_for`) corrects ``4 dt / tau_k (1 + c / (k tau_k))`` of a speed
+        error per sample. That must stay below ``tuning.servo_sample_gain`` for the most damped
+        object of this stiffness, ``c / k = 2 zeta_d sqrt(m_r / k)``: a quadratic in
+        ``1 / tau_k``.
+        """
+        b = self._two_zeta_sqrt_m / math.sqrt(stiffness_n_per_m)
+        rate = (math.sqrt(1.0 + b * self._kappa_over_dt) - 1.0) / (2.0 * b)
+        return max(self.time_constant_s, 1.0 / rate)
+
+    def damping_gain_for(self, stiffness_n_per_m: float, time_constant_s: float | None = None
+                         ) -> float:
+        """Return Kv (V per m/s) for the loop damping ratio ``tuning.damping_ratio``.
+
+        On a spring of this stiffness, with the force reference's time constant (default
+        ``tau``).
+        """
+        tau = self.time_constant_s if time_constant_s is None else time_constant_s
+        k = min(stiffness_n_per_m, self.tuning.design_stiffness_n_per_m)
+        q = 2.0 * self._z2m / tau
+        c_r = self.reflected_damping_n_s_per_m
+        disc = q * q + 4.0 * self._z2m * (k * self._spring_factor - c_r / tau)
+        x = q + math.sqrt(disc) if disc > 0.0 else q
+        return min(max(x - c_r, 0.0) / self.stall_force_per_volt_n,
+                   self.tuning.max_damping_v_s_per_m)
+
+    def speed_profile_mps(self, distance_m: float, time_constant_s: float | None = None
+                          ) -> float:
+        """Return the speed to cover ``distance_m`` and stop there.
+
+        ``r / tau`` up to ``a tau^2``, beyond it the braking parabola ``sqrt(2 a (r - a tau^2 /
+        2))`` (deceleration ``a``; the two meet with the same speed and deceleration); odd in r.
+        """
+        tau = self.time_constant_s if time_constant_s is None else time_constant_s
+        r = abs(distance_m)
+        linear_m = 0.5 * self._two_a * tau * tau
+        v = r / tau if r <= linear_m else math.sqrt(self._two_a * (r - 0.5 * linear_m))
+        return v if distance_m >= 0.0 else -v
 
     def step(self, force_setpoint_n: float, force_n: float, position_m: float,
-             face_m: float) -> float:
-        """Motor voltage for the coming sample. ``face_m``: the object's expected face."""
-        for name, value in (('force_setpoint_n', force_setpoint_n), ('force_n', force_n),
-                            ('position_m', position_m), ('face_m', face_m)):
-            if not math.isfinite(value):
-                raise ValueError(f'non-finite input {name}={value!r}')
+             face_m: float, width_tolerance_m: float = 0.0) -> float:
+        """Return the motor voltage for the coming sample.
+
+        ``face_m``: the expected object's face; the object may be up to ``width_tolerance_m``
+        wider or narrower.
+        """
+        if not (math.isfinite(force_setpoint_n) and math.isfinite(force_n)
+                and math.isfinite(position_m) and math.isfinite(face_m)
+                and math.isfinite(width_tolerance_m)):
+            raise ValueError(f'non-finite input: force_setpoint_n={force_setpoint_n!r}, '
+                             f'force_n={force_n!r}, position_m={position_m!r}, '
+                             f'face_m={face_m!r}, width_tolerance_m={width_tolerance_m!r}')
         t = self.tuning
         prev = self._prev_position_m
         speed = 0.0 if prev is None else (position_m - prev) / self.dt_s
         self._prev_position_m = position_m
+        prev_force_n, self._prev_force_n = self._prev_force_n, force_n
         feedforward = force_setpoint_n / self.stall_force_per_volt_n
-        in_contact = force_n > t.contact_force_fraction * force_setpoint_n
-        terms = ContactForceTerms(feedforward_v=feedforward, in_contact=in_contact)
+        terms = self.terms
+        terms.feedforward_v = feedforward
         low, high = self.output_limits
-        if not in_contact and self._contact_position_m is None:
-            # approach: track a speed that falls with the gap to the expected face and arrives
-            # there at v_min. Past that face with nothing touched the object is narrower than
-            # requested, or absent: go on at the stall voltage of F_sp (safe on any rigid
-            # object), so that NO_OBJECT is found in a fraction of a second, not after a crawl.
-            v_min = t.contact_speed_mps_per_n * force_setpoint_n
-            past_face_untouched = position_m > face_m and force_n <= 0.0
-            v_ref = math.inf if past_face_untouched else \
-                max(face_m - position_m, 0.0) / t.approach_time_constant_s + v_min
-            kv = t.max_damping_v_s_per_m
-            # never more than the feed-forward: a rigid face met at any speed then stalls the
-            # motor at exactly F_sp (the paper's contact); braking is not limited
-            output = min(feedforward + kv * (v_ref - speed), feedforward)
+        contact_x = self._contact_position_m
+        if contact_x is None and force_n > t.contact_force_n:
+            # the object was touched during the last sample; the travel into it starts here
+            contact_x = self._contact_position_m = position_m
+        if contact_x is None:
+            terms.in_contact = False
+            v_c = (self.band_speed_mps_per_n if width_tolerance_m > 0.0
+                   else self.contact_speed_mps_per_n) * force_setpoint_n
+            if position_m > face_m + width_tolerance_m + t.untouched_overtravel_m:
+                # past the narrowest object's face, nothing touched: narrower than allowed, or
+                # absent. The stall voltage of F_sp is safe on any rigid object and finds
+                # NO_OBJECT in a fraction of a second instead of after a crawl.
+                output = feedforward
+                v_ref = math.inf
+            else:
+                gap = face_m - width_tolerance_m - position_m
+                v_ref, accel_ref = v_c, 0.0
+                if gap > 0.0:
+                    r_lin = 0.5 * self._two_a * self.time_constant_s ** 2
+                    if gap <= r_lin:
+                        profile = gap / self.time_constant_s
+                        accel_ref = -speed / self.time_constant_s
+                    else:
+                        profile = math.sqrt(self._two_a * (gap - 0.5 * r_lin))
+                        accel_ref = -0.5 * self._two_a * speed / profile
+                    v_ref += profile
+                kv = self._approach_gain_v_s_per_m
+                # the force the free finger needs to follow v_ref (drag and deceleration), the
+                # servo for the rest; never more than the feed-forward: a rigid face met at any
+                # speed then stalls the motor at F_sp at most (the paper's contact); braking is
+                # not limited
+                output = min(kv * (v_ref - speed) + (
+                    self.reflected_damping_n_s_per_m * v_ref
+                    + self.reflected_mass_kg * accel_ref) / self.stall_force_per_volt_n,
+                    feedforward)
             terms.speed_ref_mps = v_ref
-            terms.damping_gain_v_s_per_m = kv
+            terms.damping_gain_v_s_per_m = self._approach_gain_v_s_per_m
             terms.damping_v = output - feedforward
+            terms.force_v = 0.0
+            terms.stiffness_n_per_m = math.inf
         else:
-            if self._contact_position_m is None:
-                self._contact_position_m = position_m
-                # the backward difference still holds the approach speed; a rigid face has
-                # just stopped the finger dead, and damping that stale speed would pull it off
-                speed = 0.0
-            travel = position_m - self._contact_position_m
-            stiffness = force_n / travel if travel > t.min_travel_for_stiffness_m else math.inf
-            kp = t.force_gain_v_per_n
-            kv = self.damping_gain_for(stiffness, kp)
+            terms.in_contact = True
+            travel = position_m - contact_x
+            # F / d, at most the stiffness the contact speed was designed for and at least the
+            # softest spring that can give F_sp within the travel; no travel (rigid contact)
+            # is k_d's loop, the only one whose speed reference is a safe force gain there
+            k_cap, tau_cap, kv_cap = self._capped_loop[width_tolerance_m > 0.0 and travel > 0.0]
+            k_soft = force_setpoint_n / self.plant.max_travel_m
             error = force_setpoint_n - force_n
-            at_rest = abs(speed) <= t.integral_speed_band_mps
+            if force_n >= k_cap * travel:
+                stiffness, tau_k, kv = k_cap, tau_cap, kv_cap
+            else:
+                stiffness = max(force_n / travel, k_soft)
+                tau_k = self.loop_time_constant_s(stiffness)
+                kv = self.damping_gain_for(stiffness, tau_k)
+            v_ref = self.speed_profile_mps(error / stiffness, tau_k)
+            # trim only the error the loop leaves standing: the finger at rest and the error
+            # decaying slower than integral_rate_fraction of the loop's own rate 1 / tau_k (a
+            # stiff object is compressed at a few um/s, so rest alone would integrate the ramp)
+            standing = abs(speed) <= t.integral_speed_band_mps and \
+                abs(force_n - prev_force_n) * tau_k <= \
+                t.integral_rate_fraction * abs(error) * self.dt_s
             integral = self._integral_v + (t.integral_gain_v_per_n_s * error * self.dt_s
-                                           if at_rest else 0.0)
-            output = feedforward + kp * error + integral - kv * speed
-            terms.force_v, terms.damping_v = kp * error, -kv * speed
-            terms.stiffness_n_per_m, terms.damping_gain_v_s_per_m = stiffness, kv
+                                           if standing else 0.0)
+            force_v = t.force_gain_v_per_n * error
+            damping_v = kv * (v_ref - speed)
+            output = feedforward + force_v + integral + damping_v
             if low <= output <= high:          # anti-windup: keep the integral only unsaturated
                 self._integral_v = integral
-            terms.integral_v = self._integral_v
+            terms.force_v, terms.damping_v = force_v, damping_v
+            terms.stiffness_n_per_m, terms.damping_gain_v_s_per_m = stiffness, kv
+            terms.speed_ref_mps = v_ref
+        terms.integral_v = self._integral_v
         output = min(max(output, low), high)
         terms.output_v = output
-        self.terms = terms
         return output

@@ -11,6 +11,7 @@ sweeps over many objects are practical.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+import math
 from typing import Callable
 
 from gripper_ros.core.config import GripperConfig
@@ -55,7 +56,32 @@ class HeadlessGrasp:
 
     @property
     def peak_contact_force_n(self) -> float:
+        """Largest contact force, between samples included, over the grasp and the hold."""
         return float(np.max(self.peak_force_n))
+
+    @property
+    def time_to_answer_s(self) -> float:
+        """From the request to the grasp service's answer (inf without one)."""
+        if self.answer_ns is None:
+            return math.inf
+        return (self.answer_ns - self.start_ns) * 1e-9
+
+    @property
+    def continued_hold(self) -> slice:
+        """The samples after a HOLDING answer (empty without one or without ``hold_s``)."""
+        if self.answer is not Outcome.HOLDING:
+            return slice(0, 0)
+        return slice(int(np.searchsorted(self.t_ns, self.answer_ns, side='right')), None)
+
+    def hold_force_range_n(self) -> tuple[float, float]:
+        """Return (min, max) of the force over the continued hold; (nan, nan) without one.
+
+        The max includes the peaks between samples.
+        """
+        hold = self.continued_hold
+        if self.force_n[hold].size == 0:
+            return math.nan, math.nan
+        return float(np.min(self.force_n[hold])), float(np.max(self.peak_force_n[hold]))
 
     @property
     def duration_s(self) -> float:

@@ -196,8 +196,9 @@ class ForceStageController:
     def compute(self, ref, measurement: float) -> tuple[float, float]:
         """Return (voltage_v, inner_setpoint) for this tick; the cap ends at first contact."""
         if self.contact_aware:
-            voltage = self.controller.step(ref.force_setpoint_n, measurement,
-                                           ref.position_m, ref.position_setpoint_m)
+            face_m = ref.position_setpoint_m
+            voltage = self.controller.step(ref.force_setpoint_n, measurement, ref.position_m,
+                                           face_m, max(face_m - ref.approach_setpoint_m, 0.0))
             return voltage, ref.force_setpoint_n
         if not self._contact and ref.contact:
             self._contact = True

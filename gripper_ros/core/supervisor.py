@@ -295,6 +295,8 @@ class GraspSupervisor:
         self._revision: int | None = None       # the plant's world revision last seen
         self._baseline_voltage_v = 0.0
         self._in_band_since_ns: int | None = None
+        self._prev_force_t_ns: int | None = None    # previous FORCE-phase tick (settle rate)
+        self._prev_force_n = 0.0
         self._gripped = False                   # force reached lost_force_fraction x F_sp
         self._low_since_ns: int | None = None
         self._t_ns = 0
@@ -434,6 +436,8 @@ class GraspSupervisor:
         self.hold_position_m = None
         self.end_ns = None
         self._in_band_since_ns = None
+        self._prev_force_t_ns = None
+        self._prev_force_n = 0.0
         self._gripped = False
         self._low_since_ns = None
         self._rest_since_ns = None
@@ -528,7 +532,10 @@ class GraspSupervisor:
             elif sensor_rise:
                 self._switch(SwitchCriterion.SENSOR_VOLTAGE, t_ns)
         elif self.phase is Phase.FORCE:
-            self._step_force_settle(t_ns, position_m, force_n)
+            if self._force_settled(t_ns, force_n, speed_mps):
+                self.settled_ns = t_ns
+                self.hold_position_m = position_m
+                self.phase = Phase.HOLDING
         if self.phase is Phase.HOLDING and \
                 (t_ns - self.settled_ns) * 1e-9 >= p.hold_watch_s:
             self.outcome = Outcome.HOLDING
@@ -543,19 +550,34 @@ class GraspSupervisor:
                              f'force {force_n:.3f} N)', position_m=position_m)
         return None
 
-    def _step_force_settle(self, t_ns: int, position_m: float, force_n: float) -> None:
-        """FORCE -> HOLDING once the force has stayed within its band for the hold time."""
+    def _force_settled(self, t_ns: int, force_n: float, speed_mps: float) -> bool:
+        """Apply the force stage's settle criterion, once per FORCE-phase tick.
+
+        Settled once, for ``force_settle_hold_s`` on end, every tick has had
+        ``|F - F_sp| + T |dF/dt| <= band`` (``T`` = ``force_settle_horizon_s``, ``dF/dt`` from the
+        previous tick) and the finger slower than ``force_settle_speed_mps``. A force
+        oscillation ``A sin(w t)`` with ``w >= 1 / T`` gives ``|e| + T |de/dt| >= A`` at every
+        instant, so none larger than the band is ever taken for settled; ``T`` is the period over
+        2 pi of the slowest contact mode of the envelope. The speed bound keeps the creep of a
+        damped object after HOLDING (at most ``speed x c / k``) inside the loss watch's margin.
+        """
         p, tg = self.params, self.targets
-        band = p.force_settle_band_fraction * tg.force_setpoint_n
-        if abs(force_n - tg.force_setpoint_n) <= band:
-            if self._in_band_since_ns is None:
-                self._in_band_since_ns = t_ns
-            if (t_ns - self._in_band_since_ns) * 1e-9 >= p.force_settle_hold_s:
-                self.settled_ns = t_ns
-                self.hold_position_m = position_m
-                self.phase = Phase.HOLDING
-        else:
+        prev_t_ns, prev_force_n = self._prev_force_t_ns, self._prev_force_n
+        self._prev_force_t_ns, self._prev_force_n = t_ns, force_n
+        if prev_t_ns is None or t_ns <= prev_t_ns:
             self._in_band_since_ns = None
+            return False
+        rate = (force_n - prev_force_n) / ((t_ns - prev_t_ns) * 1e-9)
+        band = p.force_settle_band_fraction * tg.force_setpoint_n
+        steady = (abs(force_n - tg.force_setpoint_n) + p.force_settle_horizon_s * abs(rate)
+                  <= band and (p.force_settle_speed_mps <= 0.0
+                               or abs(speed_mps) <= p.force_settle_speed_mps))
+        if not steady:
+            self._in_band_since_ns = None
+            return False
+        if self._in_band_since_ns is None:
+            self._in_band_since_ns = t_ns
+        return (t_ns - self._in_band_since_ns) * 1e-9 >= p.force_settle_hold_s
 
     def _object_lost(self, t_ns: int, position_m: float, force_n: float) -> Outcome | None:
         """After contact: a force collapse, or the finger moving on past the held position."""
@@ -654,6 +676,7 @@ class GraspSupervisor:
         return None
 
     def _switch(self, criterion: SwitchCriterion, t_ns: int) -> None:
+        self._prev_force_t_ns = None          # the settle criterion's force rate starts here
         self.phase = Phase.FORCE
         self.switch_criterion = criterion
         self.switch_ns = t_ns

@@ -16,6 +16,7 @@ import threading
 import time
 
 from gripper_interfaces.srv import Grasp, Move, SetObject, SimStep
+from gripper_ros.core.config import load_config
 from gripper_ros.core.stages import DEFAULT_FORCE_CONTROLLER
 from gripper_ros.nodes.common import (call_and_wait, ExecutorKind, make_executor, SERVICE_QOS,
                                       spin_until_stopped)
@@ -71,6 +72,7 @@ class GripperGraph:
             kw['context'] = context
         self.nodes: list = []
         self.close_hooks: list = []          # run first by close() (e.g. open recordings)
+        load_config(opts.config_file or None)   # a bad file is refused before a name is taken
         self._claim = NameClaim.take((NODE_PLANT, NODE_SUPERVISOR), (SERVICE_GRASP,), context,
                                      self.namespace) if opts.check_names else None
         try:
