@@ -23,11 +23,6 @@ PLUGINS = ('flake8-builtins', 'flake8-comprehensions', 'flake8-docstrings',
 # from the rest, so that test_flake8 stays green for everything else. test_flake8_pending is a
 # strict xfail while this is not empty, so the suite passes, and fails once they pass: empty it.
 PENDING = (
-    'gripper_ros/apps/contact_sweep.py',
-    'gripper_ros/core/contact_force.py',
-    'gripper_ros/core/headless.py',
-    'gripper_ros/core/supervisor.py',
-    'test/test_contact_force.py',
     'test/test_contact_sweep.py',
     'test/test_grasp_logic.py',
 )
