@@ -14,9 +14,8 @@ from gripper_interfaces.msg import SupervisorStatus
 from rclpy.action import ActionClient
 
 from gripper_ros.core.config import load_config
-from gripper_ros.core.supervisor import Outcome
 from gripper_ros.nodes.graph import GripperGraph
-from gripper_ros.wire import ACTION_GRASP
+from gripper_ros.wire import ACTION_GRASP, Outcome
 
 CONFIG = load_config()
 TRAVEL_M = CONFIG.plant.max_travel_m

@@ -11,8 +11,9 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from gripper_ros.core.config import load_config
-from gripper_ros.core.supervisor import GraspRequest, Outcome, RequestError, validate_request
+from gripper_ros.core.requests import GraspRequest, RequestError, validate_request
 from gripper_ros.nodes.graph import GripperGraph
+from gripper_ros.wire import Outcome
 
 CONFIG = load_config()
 

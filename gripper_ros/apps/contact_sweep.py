@@ -120,7 +120,7 @@ def max_mass_kg(config) -> float:
 
 def _force_setpoint_n(config, mass_kg: float) -> float:
     """Return the configured force law's setpoint for ``mass_kg`` (what the supervisor asks)."""
-    from gripper_ros.core.supervisor import force_setpoint_n
+    from gripper_ros.core.requests import force_setpoint_n
     sup, p = config.supervisor, config.plant
     return force_setpoint_n(mass_kg, sup.friction_coefficient, p.gravity_mps2,
                             sup.acceleration_mps2, sup.force_law, sup.grip_safety_factor)

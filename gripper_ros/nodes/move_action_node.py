@@ -29,7 +29,7 @@ from gripper_interfaces.msg import SupervisorStatus
 from gripper_interfaces.srv import Move
 from gripper_ros.core.gripper_command import (goal_end, GoalEnd, joint_state_fields,
                                               move_request_of, result_fields)
-from gripper_ros.core.supervisor import RequestError, validate_move
+from gripper_ros.core.requests import RequestError, validate_move
 from gripper_ros.nodes.common import (declare_config, default_namespace, GRAPH_QOS, run_node,
                                       SERVICE_QOS)
 from gripper_ros.nodes.loop_io import read_status, StatusView

@@ -31,9 +31,9 @@ from rclpy.node import Node
 from std_srvs.srv import Trigger
 
 from gripper_ros.core.lockstep import SupervisorSide, Tick
-from gripper_ros.core.supervisor import (GraspRequest, GraspSupervisor, MoveRequest,
-                                         RequestError, RequestKind, validate_move,
-                                         validate_request)
+from gripper_ros.core.requests import (GraspRequest, MoveRequest, RequestError, validate_move,
+                                       validate_request)
+from gripper_ros.core.supervisor import GraspSupervisor, RequestKind
 from gripper_ros.nodes.common import (GRAPH_QOS, LATCHED_QOS, DeferredService, ExecutorSilence,
                                       default_namespace, run_node)
 from gripper_ros.nodes.loop_io import decode, split_ns, status_message, status_template
