@@ -39,7 +39,7 @@ import multiprocessing
 import sys
 import time
 
-from gripper_ros.core.config import ConfigError, load_config
+from gripper_ros.apps.common import load_config_or_report
 
 WIDTHS_M = (0.005, 0.02, 0.05, 0.08, 0.11, 0.14)
 MASSES_KG = (0.1, 0.5, 1.0, 2.0, None)          # None: the heaviest 24 V can hold
@@ -479,10 +479,8 @@ def main(argv: list[str] | None = None) -> int:
         print('contact_sweep: --hold-s must be finite and >= 0, --jobs >= 1 and '
               '--band-design-stiffness finite and > 0', file=sys.stderr)
         return 2
-    try:
-        config = load_config(args.config)
-    except ConfigError as exc:
-        print(f'contact_sweep: {exc}', file=sys.stderr)
+    config = load_config_or_report('contact_sweep', args.config)
+    if config is None:
         return 2
     if band_k is not None:
         tuning = dataclasses.replace(config.force.contact_aware,
