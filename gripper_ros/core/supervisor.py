@@ -37,8 +37,8 @@ import math
 
 from gripper_ros.core.config import PlantParams, SupervisorParams
 from gripper_ros.core.requests import GraspTargets, MoveTargets, RequestError
-from gripper_ros.wire import Controller
-from gripper_ros.wire import Outcome, PendingRequest, Phase, SwitchCriterion
+from gripper_ros.wire import Controller, Outcome, PendingRequest, Phase, SwitchCriterion
+
 
 class Decision:
     """The supervisor's verdict for one tick; the same object, updated in place, every tick.
@@ -76,6 +76,8 @@ class Decision:
 
 
 class RequestKind:
+    """The kinds of request the supervisor runs (also the words its log and refusals use)."""
+
     GRASP = 'grasp'
     RELEASE = 'release'
     MOVE = 'move'
@@ -184,8 +186,8 @@ class GraspSupervisor:
             raise RequestError(f'a {self.kind} is running (phase {self.phase.name})')
 
     def request_grasp(self, targets: GraspTargets, mass_kg: float = 0.0,
-                      after_ns: int | None = None) -> None:
-        """Accept a grasp: it starts at the first tick later than ``after_ns``.
+                      after_ns: int | None = None) -> GraspTargets:
+        """Accept a grasp and return its targets; it starts at the first tick after ``after_ns``.
 
         By default that is the next tick decided; its sensor voltage is the no-contact baseline.
 
@@ -195,10 +197,11 @@ class GraspSupervisor:
         """
         self._refuse_if_busy()
         self._pending = (RequestKind.GRASP, targets, float(mass_kg), after_ns)
+        return targets
 
     def request_release(self, open_position_m: float = 0.0, timeout_s: float | None = None,
-                        after_ns: int | None = None) -> None:
-        """Accept a release: the position stage to ``open_position_m``.
+                        after_ns: int | None = None) -> GraspTargets:
+        """Accept a release (return its targets): the position stage to ``open_position_m``.
 
         It starts at the first tick later than ``after_ns`` (see :meth:`request_grasp`).
         """
@@ -208,17 +211,19 @@ class GraspSupervisor:
             raise RequestError(f'open position must be in [0, {self.plant.max_travel_m:g}) m, '
                                f'got {open_position_m!r}')
         timeout = self.params.timeout_s if timeout_s is None else timeout_s
-        self._pending = (RequestKind.RELEASE, GraspTargets(open_position_m, 0.0, 0.0, timeout),
-                         0.0, after_ns)
+        targets = GraspTargets(open_position_m, 0.0, 0.0, timeout)
+        self._pending = (RequestKind.RELEASE, targets, 0.0, after_ns)
+        return targets
 
-    def request_move(self, targets: MoveTargets, after_ns: int | None = None) -> None:
-        """Accept a move (:func:`validate_move`).
+    def request_move(self, targets: MoveTargets, after_ns: int | None = None) -> MoveTargets:
+        """Accept a move (:func:`validate_move`) and return its targets.
 
         It starts at the first tick later than ``after_ns`` (see :meth:`request_grasp`). A move
         may follow a hold; the hold ends when it starts.
         """
         self._refuse_if_busy()
         self._pending = (RequestKind.MOVE, targets, 0.0, after_ns)
+        return targets
 
     def stop(self, message: str = 'stopped on request') -> Decision | None:
         """End the running request, the hold, a stalled move's press or a waiting request now.
