@@ -248,9 +248,14 @@ def _grasp(config, force_controller, hold_s, case: SweepCase):
 
 
 def _pool_map(fn, items, jobs: int):
+    """Map ``fn`` over ``items`` in ``jobs`` worker processes.
+
+    The workers come from a fork server, not a fork of this process: a fork of a process with
+    threads running (an rclpy executor, DDS) can inherit a lock held mid-call and hang.
+    """
     if jobs <= 1 or len(items) <= 1:
         return [fn(i) for i in items]
-    with multiprocessing.get_context('fork').Pool(jobs) as pool:
+    with multiprocessing.get_context('forkserver').Pool(jobs) as pool:
         return pool.map(fn, items, chunksize=1)
 
 
