@@ -248,13 +248,13 @@ class SupervisorNode(Node):
     def _on_grasp(self, request: Grasp.Request, header) -> None:
         """Accept a grasp, or refuse it at once."""
         response = Grasp.Response()
-        plant, sup, after_ns = self.config.plant, self.config.supervisor, self._tick.stamp_ns
+        plant, sup = self.config.plant, self.config.supervisor
         targets = self._accept(RequestKind.GRASP, self.grasp_service, header, response,
                                lambda: self.logic.request_grasp(validate_request(GraspRequest(
                                    request.width_m, request.mass_kg,
                                    request.friction_coefficient, request.acceleration_mps2,
                                    request.timeout_s, request.width_tolerance_m), plant, sup),
-                                   request.mass_kg, after_ns=after_ns))
+                                   request.mass_kg, after_ns=self._tick.stamp_ns))
         if targets is None:
             return
         response.grasp_id = self.logic.grasp_id + 1
@@ -279,11 +279,12 @@ class SupervisorNode(Node):
     def _on_move(self, request: Move.Request, header) -> None:
         """Accept a move, or refuse it at once."""
         response = Move.Response()
-        plant, sup, after_ns = self.config.plant, self.config.supervisor, self._tick.stamp_ns
+        plant, sup = self.config.plant, self.config.supervisor
         targets = self._accept(RequestKind.MOVE, self.move_service, header, response,
                                lambda: self.logic.request_move(validate_move(MoveRequest(
                                    request.width_m, request.speed_mps, request.max_effort_n,
-                                   request.timeout_s), plant, sup), after_ns=after_ns),
+                                   request.timeout_s), plant, sup),
+                                   after_ns=self._tick.stamp_ns),
                                self._fill_move_state)
         if targets is None:
             return
