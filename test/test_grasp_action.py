@@ -11,9 +11,8 @@ from action_msgs.msg import GoalStatus
 from gripper_interfaces.action import Grasp as GraspAction
 from gripper_interfaces.msg import SupervisorStatus
 from gripper_ros.core.config import load_config
-from gripper_ros.core.supervisor import Outcome
 from gripper_ros.nodes.graph import GripperGraph
-from gripper_ros.wire import ACTION_GRASP
+from gripper_ros.wire import ACTION_GRASP, Outcome
 import pytest
 from rclpy.action import ActionClient
 

@@ -13,7 +13,7 @@ import subprocess
 import time
 
 from ament_index_python.packages import get_package_prefix, get_package_share_directory
-from gripper_ros.core.supervisor import Outcome
+from gripper_ros.wire import Outcome
 import pytest
 
 try:

@@ -17,8 +17,9 @@ from gripper_ros.core.config import load_config
 from gripper_ros.core.gripper_command import (goal_end, GoalEnd, joint_state_fields,
                                               move_request_of, result_fields)
 from gripper_ros.core.headless import MoveRequest, simulate_moves
-from gripper_ros.core.supervisor import (GraspRequest, GraspSupervisor, MoveTargets,
-                                         RequestError, validate_move, validate_request)
+from gripper_ros.core.requests import (GraspRequest, MoveTargets, RequestError, validate_move,
+                                       validate_request)
+from gripper_ros.core.supervisor import GraspSupervisor
 from gripper_ros.wire import Controller, FINGER_JOINT, Outcome, Phase
 import numpy as np
 import pytest

@@ -39,7 +39,7 @@ import multiprocessing
 import sys
 import time
 
-from gripper_ros.core.config import ConfigError, load_config
+from gripper_ros.apps.common import load_config_or_report
 
 WIDTHS_M = (0.005, 0.02, 0.05, 0.08, 0.11, 0.14)
 MASSES_KG = (0.1, 0.5, 1.0, 2.0, None)          # None: the heaviest 24 V can hold
@@ -120,7 +120,7 @@ def max_mass_kg(config) -> float:
 
 def _force_setpoint_n(config, mass_kg: float) -> float:
     """Return the configured force law's setpoint for ``mass_kg`` (what the supervisor asks)."""
-    from gripper_ros.core.supervisor import force_setpoint_n
+    from gripper_ros.core.requests import force_setpoint_n
     sup, p = config.supervisor, config.plant
     return force_setpoint_n(mass_kg, sup.friction_coefficient, p.gravity_mps2,
                             sup.acceleration_mps2, sup.force_law, sup.grip_safety_factor)
@@ -248,9 +248,14 @@ def _grasp(config, force_controller, hold_s, case: SweepCase):
 
 
 def _pool_map(fn, items, jobs: int):
+    """Map ``fn`` over ``items`` in ``jobs`` worker processes.
+
+    The workers come from a fork server, not a fork of this process: a fork of a process with
+    threads running (an rclpy executor, DDS) can inherit a lock held mid-call and hang.
+    """
     if jobs <= 1 or len(items) <= 1:
         return [fn(i) for i in items]
-    with multiprocessing.get_context('fork').Pool(jobs) as pool:
+    with multiprocessing.get_context('forkserver').Pool(jobs) as pool:
         return pool.map(fn, items, chunksize=1)
 
 
@@ -479,10 +484,8 @@ def main(argv: list[str] | None = None) -> int:
         print('contact_sweep: --hold-s must be finite and >= 0, --jobs >= 1 and '
               '--band-design-stiffness finite and > 0', file=sys.stderr)
         return 2
-    try:
-        config = load_config(args.config)
-    except ConfigError as exc:
-        print(f'contact_sweep: {exc}', file=sys.stderr)
+    config = load_config_or_report('contact_sweep', args.config)
+    if config is None:
         return 2
     if band_k is not None:
         tuning = dataclasses.replace(config.force.contact_aware,

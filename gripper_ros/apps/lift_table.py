@@ -21,7 +21,7 @@ from gripper_ros.apps.grasp_demo import LIFT_DELAY_S, LIFT_DURATION_S, PAPER_OBJ
 from gripper_ros.core.config import ConfigError, ForceLaw, load_config
 from gripper_ros.core.headless import simulate_grasp
 from gripper_ros.core.plant import Lift
-from gripper_ros.core.supervisor import RequestError
+from gripper_ros.core.requests import RequestError
 
 HOLD_AFTER_LIFT_S = 0.5
 """Simulated time kept after the lift ends, so that a late loss is seen."""

@@ -13,7 +13,8 @@ import json
 import math
 import sys
 
-from gripper_ros.core.config import ConfigError, GripperConfig, load_config
+from gripper_ros.apps.common import load_config_or_report
+from gripper_ros.core.config import GripperConfig
 from gripper_ros.core.controllers import (force_pi_gains, ForceControllerKind,
                                           make_force_controller, make_position_controller,
                                           PositionControllerKind)
@@ -134,10 +135,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument('--config', help='YAML file (default: the installed config/gripper.yaml)')
     parser.add_argument('--json', action='store_true', help='print rows as JSON')
     args = parser.parse_args(argv)
-    try:
-        config = load_config(args.config)
-    except ConfigError as exc:
-        print(f'paper_tables: {exc}', file=sys.stderr)
+    config = load_config_or_report('paper_tables', args.config)
+    if config is None:
         return 2
     pos = position_rows(config)
     frc = force_rows(config)

@@ -33,7 +33,8 @@ import json
 import math
 import sys
 
-from gripper_ros.core.config import ConfigError, GripperConfig, load_config
+from gripper_ros.apps.common import load_config_or_report
+from gripper_ros.core.config import GripperConfig
 from gripper_ros.core.controllers import make_plant
 from gripper_ros.core.metrics import SETTLING_BAND
 import numpy as np
@@ -221,10 +222,8 @@ def main(argv: list[str] | None = None) -> int:
                         help='RMS horizon, s (default %(default)g)')
     parser.add_argument('--json', action='store_true', help='print the figures as JSON')
     args = parser.parse_args(argv)
-    try:
-        config = load_config(args.config)
-    except ConfigError as exc:
-        print(f'position_limit: {exc}', file=sys.stderr)
+    config = load_config_or_report('position_limit', args.config)
+    if config is None:
         return 2
     if not 0.0 < args.setpoint < config.plant.max_travel_m:
         print(f'position_limit: setpoint must be in (0, {config.plant.max_travel_m:g}) m',

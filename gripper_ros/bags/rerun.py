@@ -34,9 +34,9 @@ from gripper_ros.bags.series import bag_namespace, GraspSeries, load_grasp_serie
 from gripper_ros.core.config import ConfigError, GripperConfig, parse_config
 from gripper_ros.core.headless import HeadlessGrasp, simulate_grasp
 from gripper_ros.core.plant import check_fault, GraspObject, Lift
+from gripper_ros.core.requests import GraspRequest, RequestError, validate_request
 from gripper_ros.core.stages import (DEFAULT_APPROACH_FORCE_MARGIN, DEFAULT_FORCE_CONTROLLER,
                                      DEFAULT_POSITION_CONTROLLER)
-from gripper_ros.core.supervisor import GraspRequest, RequestError, validate_request
 from gripper_ros.wire import Controller, FaultKind, Outcome, Phase
 import numpy as np
 import yaml

@@ -8,6 +8,7 @@ TICK_AIM = 3.0              # a graph tick at most this many ping-pong round tri
 FORCE_RTF_AIM = 1.0         # the force stage at least real time
 POSITION_RTF_AIM = 20.0     # the position stage at least 20x real time
 PROCESSES_AIM = 2.0         # one process per node at most 2x one process
+HOPS_PER_TICK = 3           # plant -> supervisor -> stage controller -> plant
 
 
 def _median(values):
@@ -57,6 +58,14 @@ def ratios(res: Dict[str, Any]) -> Dict[str, float]:
     for kind, p in procs.items():
         one = p['one_process']
         out[f'processes_over_one_process_{kind}'] = p['all']['wall_s'] / one['all']['wall_s']
+        across = res.get('pingpong_processes', {}).get(kind)
+        if across is not None:
+            # A tick is three hops (plant, supervisor, stage): across processes each costs at
+            # least half a cross-process round trip in place of half an in-process one.
+            tick_us = one['all']['us_per_tick']
+            extra_us = HOPS_PER_TICK / 2 * (across['us_per_round_trip']
+                                            - pp[kind]['us_per_round_trip'])
+            out[f'processes_floor_over_one_process_{kind}'] = (tick_us + extra_us) / tick_us
         for row, base in zip(p['grasps'], one['grasps']):
             row['over_one_process'] = row['wall_s'] / base['wall_s']
     if 'events' in pp and 'single' in pp:
@@ -190,6 +199,10 @@ def format_report(report: Dict[str, Any]) -> str:
         if key in rat:
             lines.append(f'  {kind}: the floor of that: a ping-pong across two processes is '
                          f'{rat[key]:.2f}x the one in one process')
+        key = f'processes_floor_over_one_process_{kind}'
+        if key in rat:
+            lines.append(f'  {kind}: so the {HOPS_PER_TICK} hops of a tick across processes '
+                         f'cost at least {rat[key]:.2f}x the one-process tick')
     for key, text in (('pingpong_events_over_single', 'ping-pong events/single round trips/s'),
                       ('graph_events_over_single', 'graph events/single ticks/s'),
                       ('demo_single_over_events', 'demo wall single/events')):

@@ -128,7 +128,7 @@ def client_worker() -> int:
     from gripper_interfaces.srv import Grasp, SetObject
 
     from gripper_ros.apps.grasp_client import _call
-    from gripper_ros.core.supervisor import Outcome
+    from gripper_ros.wire import Outcome
 
     out = sys.stdout
     sys.stdout = sys.stderr          # nothing but protocol lines on the real stdout

@@ -12,7 +12,7 @@ from __future__ import annotations
 import enum
 import math
 
-from gripper_ros.core.supervisor import MoveRequest, RequestError
+from gripper_ros.core.requests import MoveRequest, RequestError
 from gripper_ros.wire import FINGER_JOINT, Outcome
 
 

@@ -18,13 +18,12 @@ from gripper_ros.core.config import GripperConfig
 from gripper_ros.core.controllers import make_plant
 from gripper_ros.core.lockstep import PlantSide, StageSide, SupervisorSide
 from gripper_ros.core.plant import check_fault, GraspObject, Lift
+from gripper_ros.core.requests import GraspRequest, MoveRequest, validate_move, validate_request
 from gripper_ros.core.stages import (DEFAULT_APPROACH_FORCE_MARGIN, DEFAULT_FORCE_CONTROLLER,
                                      DEFAULT_POSITION_CONTROLLER, ForceStageController,
                                      PositionStageController)
-from gripper_ros.core.supervisor import (GraspRequest, GraspSupervisor, MoveRequest, Outcome,
-                                         Phase, SwitchCriterion, validate_move,
-                                         validate_request)
-from gripper_ros.wire import Controller, FaultKind
+from gripper_ros.core.supervisor import GraspSupervisor
+from gripper_ros.wire import Controller, FaultKind, Outcome, Phase, SwitchCriterion
 import numpy as np
 
 

@@ -1,10 +1,13 @@
-"""Grasp supervisor state machine and request validation (no rclpy).
+"""Grasp supervisor: the state machine of grasp, hold, release and move requests (no rclpy).
 
 Stages (paper sec. IV): POSITION (MPC-PD drives the finger to ``L_ls - width``) until either
 switching criterion holds - the position is within +-2 % of its setpoint, or the force-sensor
-voltage has risen by more than its threshold - then FORCE (to :func:`force_setpoint_n`:
-``k m (g + a) / (2 mu_s)`` by default, eq. 23's ``mu_s m (g + a)`` with ``supervisor.force_law:
-paper``) until the force has stayed within its band for a hold time: HOLDING. Exactly one
+voltage has risen by more than its threshold - then FORCE (to the request's setpoint,
+:func:`gripper_ros.core.requests.force_setpoint_n`) until the force has settled: HOLDING.
+Settled means ``|F - F_sp| + T |dF/dt|`` within the band and the finger slower than
+``force_settle_speed_mps`` on every tick for ``force_settle_hold_s``, ``T`` being the slowest
+contact mode's time scale (``force_settle_horizon_s``), so that no swing through the band is
+taken for settled. Exactly one
 controller is active at any tick; the decision for each tick is a :class:`Decision`.
 
 Loss watch: once the force has reached ``lost_force_fraction`` of its setpoint after contact, a
@@ -30,176 +33,11 @@ position-controlled gripper keeps its command.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
 import math
 
-from gripper_ros.core.config import ForceLaw, PlantParams, SupervisorParams
-from gripper_ros.wire import Controller
-from gripper_ros.wire import Outcome, PendingRequest, Phase, SwitchCriterion
-
-MAX_TIMEOUT_S = 600.0  # simulated seconds; a longer grasp is a mistake, not a request
-
-
-class RequestError(ValueError):
-    """A grasp request that must be refused; the message says why, with the numbers."""
-
-
-@dataclass(frozen=True)
-class GraspRequest:
-    width_m: float
-    mass_kg: float
-    friction_coefficient: float = 0.0   # 0 = default
-    acceleration_mps2: float = 0.0
-    timeout_s: float = 0.0              # 0 = default
-    width_tolerance_m: float = 0.0      # 0 = default
-
-
-@dataclass(frozen=True)
-class MoveRequest:
-    width_m: float
-    speed_mps: float = 0.0              # 0 = default
-    max_effort_n: float = 0.0           # 0 = the motor's limit
-    timeout_s: float = 0.0              # 0 = the travel at speed + the default timeout
-
-
-@dataclass(frozen=True)
-class MoveTargets:
-    """What a valid move resolves to; the attributes the status reads are a grasp's names."""
-
-    position_setpoint_m: float          # the goal, L_ls - width
-    speed_mps: float
-    max_effort_n: float                 # the effort limit (the motor's when the request gave 0)
-    voltage_limit_v: float              # its stall voltage; 0 = no cap below the plant's
-    timeout_s: float                    # 0 = the travel at speed + the default timeout
-    tolerance_m: float
-    friction_coefficient: float = 0.0
-    width_tolerance_m: float = 0.0
-
-    @property
-    def approach_setpoint_m(self) -> float:
-        return self.position_setpoint_m
-
-    @property
-    def force_setpoint_n(self) -> float:
-        """The status' force setpoint of a move: its effort limit."""
-        return self.max_effort_n
-
-
-@dataclass(frozen=True)
-class GraspTargets:
-    """What a valid request resolves to."""
-
-    position_setpoint_m: float          # expected face, L_ls - width
-    force_setpoint_n: float
-    friction_coefficient: float
-    timeout_s: float
-    width_tolerance_m: float = 0.0
-
-    @property
-    def approach_setpoint_m(self) -> float:
-        """The position stage's target: the face of the widest object the request allows."""
-        return self.position_setpoint_m - self.width_tolerance_m
-
-
-def force_setpoint_n(mass_kg: float, friction_coefficient: float, gravity_mps2: float,
-                     acceleration_mps2: float, law: ForceLaw, safety_factor: float) -> float:
-    """Grip force to hold ``m`` under ``g + a`` by friction ``mu_s`` on the two finger pads.
-
-    ``FRICTION``: each pad holds at most ``mu_s F``, so ``F_sp = k m (g + a) / (2 mu_s)`` with the
-    safety factor ``k``. ``PAPER``: eq. 23 as printed, ``F_sp = mu_s m (g + a)`` (``k`` unused).
-    """
-    if law is ForceLaw.PAPER:
-        return friction_coefficient * mass_kg * (gravity_mps2 + acceleration_mps2)
-    return safety_factor * mass_kg * (gravity_mps2 + acceleration_mps2) / (
-        2.0 * friction_coefficient)
-
-
-def _force_law_text(law: ForceLaw, mu: float, mass_kg: float, g_plus_a: float,
-                    safety_factor: float) -> str:
-    """Write the setpoint's formula with the request's numbers, for a refusal."""
-    if law is ForceLaw.PAPER:
-        return f'paper law, eq. 23: mu_s={mu:g} x m={mass_kg:g} kg x (g+a)={g_plus_a:g} m/s^2'
-    return (f'friction law: k={safety_factor:g} x m={mass_kg:g} kg x (g+a)={g_plus_a:g} m/s^2 '
-            f'/ (2 mu_s={2.0 * mu:g})')
-
-
-def validate_request(req: GraspRequest, plant: PlantParams,
-                     sup: SupervisorParams) -> GraspTargets:
-    """Resolve defaults and refuse anything non-finite, out of range or beyond 24 V."""
-    for name in ('width_m', 'mass_kg', 'friction_coefficient', 'acceleration_mps2', 'timeout_s',
-                 'width_tolerance_m'):
-        value = getattr(req, name)
-        if not isinstance(value, (int, float)) or isinstance(value, bool) or \
-                not math.isfinite(value):
-            raise RequestError(f'{name} must be a finite number, got {value!r}')
-    if not 0.0 < req.width_m < plant.max_travel_m:
-        raise RequestError(f'width_m must be in (0, {plant.max_travel_m:g}) m (the finger '
-                           f'travel), got {req.width_m!r}')
-    if req.mass_kg <= 0.0:
-        raise RequestError(f'mass_kg must be > 0, got {req.mass_kg!r}')
-    if req.friction_coefficient < 0.0:
-        raise RequestError(f'friction_coefficient must be >= 0 (0 = default '
-                           f'{sup.friction_coefficient:g}), got {req.friction_coefficient!r}')
-    if req.acceleration_mps2 < 0.0:
-        raise RequestError(f'acceleration_mps2 must be >= 0, got {req.acceleration_mps2!r}')
-    if not 0.0 <= req.timeout_s <= MAX_TIMEOUT_S:
-        raise RequestError(f'timeout_s must be in [0, {MAX_TIMEOUT_S:g}] s (0 = default '
-                           f'{sup.timeout_s:g}), got {req.timeout_s!r}')
-    if req.width_tolerance_m < 0.0:
-        raise RequestError(f'width_tolerance_m must be >= 0 (0 = default '
-                           f'{sup.width_tolerance_m:g}), got {req.width_tolerance_m!r}')
-    tolerance = req.width_tolerance_m or sup.width_tolerance_m
-    if not req.width_m + tolerance < plant.max_travel_m:
-        raise RequestError(f'width_m + width_tolerance_m must be < {plant.max_travel_m:g} m (the '
-                           f'finger travel), got {req.width_m:g} + {tolerance:g} m')
-    mu = req.friction_coefficient or sup.friction_coefficient
-    accel = req.acceleration_mps2 or sup.acceleration_mps2
-    law, k = sup.force_law, sup.grip_safety_factor
-    force = force_setpoint_n(req.mass_kg, mu, plant.gravity_mps2, accel, law, k)
-    if force > plant.max_force_n:
-        raise RequestError(
-            f'force setpoint {force:.2f} N ('
-            f'{_force_law_text(law, mu, req.mass_kg, plant.gravity_mps2 + accel, k)}) exceeds '
-            f'the {plant.max_force_n:.2f} N the motor can hold at {plant.voltage_limit_v:g} V')
-    if force <= 0.0:
-        raise RequestError(f'force setpoint must be > 0 N, got {force!r}')
-    return GraspTargets(plant.max_travel_m - req.width_m, force, mu,
-                        req.timeout_s or sup.timeout_s, tolerance)
-
-
-def _check_finite(req, names) -> None:
-    for name in names:
-        value = getattr(req, name)
-        if not isinstance(value, (int, float)) or isinstance(value, bool) or \
-                not math.isfinite(value):
-            raise RequestError(f'{name} must be a finite number, got {value!r}')
-
-
-def validate_move(req: MoveRequest, plant: PlantParams, sup: SupervisorParams) -> MoveTargets:
-    """Resolve a move's defaults and refuse anything non-finite or out of range."""
-    _check_finite(req, ('width_m', 'speed_mps', 'max_effort_n', 'timeout_s'))
-    if not 0.0 <= req.width_m <= plant.max_travel_m:
-        raise RequestError(f'width_m must be in [0, {plant.max_travel_m:g}] m (0 = closed, '
-                           f'{plant.max_travel_m:g} = fully open), got {req.width_m!r}')
-    top_speed = plant.max_free_speed_mps
-    if req.speed_mps != 0.0 and not sup.move_rest_speed_mps < req.speed_mps <= top_speed:
-        raise RequestError(
-            f'speed_mps must be in ({sup.move_rest_speed_mps:g}, {top_speed:.6g}] m/s (at rest '
-            f'below; the free speed at {plant.voltage_limit_v:g} V above) or 0 (default '
-            f'{sup.move_default_speed_mps:g}), got {req.speed_mps!r}')
-    if req.max_effort_n != 0.0 and not 0.0 < req.max_effort_n <= plant.max_force_n:
-        raise RequestError(
-            f'max_effort_n must be in (0, {plant.max_force_n:.6g}] N (the force of '
-            f'{plant.voltage_limit_v:g} V at stall) or 0 (the limit of the motor), '
-            f'got {req.max_effort_n!r}')
-    if not 0.0 <= req.timeout_s <= MAX_TIMEOUT_S:
-        raise RequestError(f'timeout_s must be in [0, {MAX_TIMEOUT_S:g}] s (0 = the travel at '
-                           f'speed + {sup.timeout_s:g} s), got {req.timeout_s!r}')
-    effort = req.max_effort_n or plant.max_force_n
-    cap_v = req.max_effort_n / plant.stall_force_per_volt_n if req.max_effort_n else 0.0
-    return MoveTargets(plant.max_travel_m - req.width_m,
-                       req.speed_mps or sup.move_default_speed_mps, effort, cap_v,
-                       req.timeout_s, sup.move_tolerance_m)
+from gripper_ros.core.config import PlantParams, SupervisorParams
+from gripper_ros.core.requests import GraspTargets, MoveTargets, RequestError
+from gripper_ros.wire import Controller, Outcome, PendingRequest, Phase, SwitchCriterion
 
 
 class Decision:
@@ -238,6 +76,8 @@ class Decision:
 
 
 class RequestKind:
+    """The kinds of request the supervisor runs (also the words its log and refusals use)."""
+
     GRASP = 'grasp'
     RELEASE = 'release'
     MOVE = 'move'
@@ -346,8 +186,8 @@ class GraspSupervisor:
             raise RequestError(f'a {self.kind} is running (phase {self.phase.name})')
 
     def request_grasp(self, targets: GraspTargets, mass_kg: float = 0.0,
-                      after_ns: int | None = None) -> None:
-        """Accept a grasp: it starts at the first tick later than ``after_ns``.
+                      after_ns: int | None = None) -> GraspTargets:
+        """Accept a grasp and return its targets; it starts at the first tick after ``after_ns``.
 
         By default that is the next tick decided; its sensor voltage is the no-contact baseline.
 
@@ -357,10 +197,11 @@ class GraspSupervisor:
         """
         self._refuse_if_busy()
         self._pending = (RequestKind.GRASP, targets, float(mass_kg), after_ns)
+        return targets
 
     def request_release(self, open_position_m: float = 0.0, timeout_s: float | None = None,
-                        after_ns: int | None = None) -> None:
-        """Accept a release: the position stage to ``open_position_m``.
+                        after_ns: int | None = None) -> GraspTargets:
+        """Accept a release (return its targets): the position stage to ``open_position_m``.
 
         It starts at the first tick later than ``after_ns`` (see :meth:`request_grasp`).
         """
@@ -370,17 +211,19 @@ class GraspSupervisor:
             raise RequestError(f'open position must be in [0, {self.plant.max_travel_m:g}) m, '
                                f'got {open_position_m!r}')
         timeout = self.params.timeout_s if timeout_s is None else timeout_s
-        self._pending = (RequestKind.RELEASE, GraspTargets(open_position_m, 0.0, 0.0, timeout),
-                         0.0, after_ns)
+        targets = GraspTargets(open_position_m, 0.0, 0.0, timeout)
+        self._pending = (RequestKind.RELEASE, targets, 0.0, after_ns)
+        return targets
 
-    def request_move(self, targets: MoveTargets, after_ns: int | None = None) -> None:
-        """Accept a move (:func:`validate_move`).
+    def request_move(self, targets: MoveTargets, after_ns: int | None = None) -> MoveTargets:
+        """Accept a move (:func:`validate_move`) and return its targets.
 
         It starts at the first tick later than ``after_ns`` (see :meth:`request_grasp`). A move
         may follow a hold; the hold ends when it starts.
         """
         self._refuse_if_busy()
         self._pending = (RequestKind.MOVE, targets, 0.0, after_ns)
+        return targets
 
     def stop(self, message: str = 'stopped on request') -> Decision | None:
         """End the running request, the hold, a stalled move's press or a waiting request now.

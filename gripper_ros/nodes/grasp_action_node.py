@@ -20,13 +20,13 @@ import time
 from gripper_interfaces.action import Grasp as GraspAction
 from gripper_interfaces.msg import SupervisorStatus
 from gripper_interfaces.srv import Grasp
-from gripper_ros.nodes.common import (declare_config, default_namespace, GRAPH_QOS, run_node,
-                                      SERVICE_QOS)
+from gripper_ros.nodes.common import (accept_goal, cancel_by_stop, declare_config,
+                                      default_namespace, GRAPH_QOS, run_node, SERVICE_QOS)
 from gripper_ros.nodes.loop_io import read_status
 from gripper_ros.wire import (ACTION_GRASP, NODE_GRASP_ACTION, Outcome, Phase, SERVICE_GRASP,
                               SERVICE_STOP, TOPIC_STATUS)
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
-from rclpy.action import ActionServer, CancelResponse, GoalResponse
+from rclpy.action import ActionServer
 from rclpy.node import Node
 from std_srvs.srv import Trigger
 
@@ -58,7 +58,7 @@ class GraspActionServer(Node):
         self.feedback_published = 0
         self._server = ActionServer(self, GraspAction, ACTION_GRASP,
                                     execute_callback=self._execute,
-                                    goal_callback=self._on_goal,
+                                    goal_callback=accept_goal,
                                     cancel_callback=self._on_cancel)
 
     def _on_parameters_set(self, parameters) -> None:
@@ -71,16 +71,9 @@ class GraspActionServer(Node):
                 self.feedback_period_s = float(p.value)
 
     # ------------------------------------------------------------------ goals
-    def _on_goal(self, _goal_request) -> GoalResponse:
-        """Accept every goal: the supervisor decides (a refusal is a REFUSED result with why)."""
-        return GoalResponse.ACCEPT
-
-    def _on_cancel(self, goal_handle) -> CancelResponse:
+    def _on_cancel(self, goal_handle):
         """Cancel = stop the running grasp; the service then answers STOPPED."""
-        if goal_handle is self._goal and self._stop.service_is_ready():
-            self._stop.call_async(Trigger.Request())
-            return CancelResponse.ACCEPT
-        return CancelResponse.REJECT
+        return cancel_by_stop(goal_handle, self._goal, self._stop)
 
     async def _execute(self, goal_handle) -> GraspAction.Result:
         goal = goal_handle.request

@@ -29,14 +29,14 @@ from gripper_interfaces.msg import SupervisorStatus
 from gripper_interfaces.srv import Move
 from gripper_ros.core.gripper_command import (goal_end, GoalEnd, joint_state_fields,
                                               move_request_of, result_fields)
-from gripper_ros.core.supervisor import RequestError, validate_move
-from gripper_ros.nodes.common import (declare_config, default_namespace, GRAPH_QOS, run_node,
-                                      SERVICE_QOS)
+from gripper_ros.core.requests import RequestError, validate_move
+from gripper_ros.nodes.common import (accept_goal, cancel_by_stop, declare_config,
+                                      default_namespace, GRAPH_QOS, run_node, SERVICE_QOS)
 from gripper_ros.nodes.loop_io import read_status, StatusView
 from gripper_ros.wire import (ACTION_GRIPPER_CMD, ACTION_MOVE, NODE_MOVE_ACTION, Outcome, Phase,
                               SERVICE_MOVE, SERVICE_STOP, TOPIC_STATUS)
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
-from rclpy.action import ActionServer, CancelResponse, GoalResponse
+from rclpy.action import ActionServer, GoalResponse
 from rclpy.node import Node
 from std_msgs.msg import Header
 from std_srvs.srv import Trigger
@@ -80,7 +80,7 @@ class MoveActionServer(Node):
         self.feedback_published = 0
         self._servers = [ActionServer(self, MoveAction, ACTION_MOVE,
                                       execute_callback=self._execute_move,
-                                      goal_callback=self._accept,
+                                      goal_callback=accept_goal,
                                       cancel_callback=self._on_cancel)]
         self.gripper_command_served = ParallelGripperCommand is not None
         if self.gripper_command_served:
@@ -98,10 +98,6 @@ class MoveActionServer(Node):
                 self.allow_stalling = bool(p.value)
 
     # ------------------------------------------------------------------ goals
-    def _accept(self, _goal_request) -> GoalResponse:
-        """Accept every move goal: the supervisor decides (a refusal is a REFUSED result)."""
-        return GoalResponse.ACCEPT
-
     def _check_gripper_command(self, goal_request) -> GoalResponse:
         """Reject a command that is no move of this gripper (as ros2_controllers does)."""
         try:
@@ -112,12 +108,9 @@ class MoveActionServer(Node):
             return GoalResponse.REJECT
         return GoalResponse.ACCEPT
 
-    def _on_cancel(self, goal_handle) -> CancelResponse:
+    def _on_cancel(self, goal_handle):
         """Cancel = stop the running move; the service then answers STOPPED."""
-        if goal_handle is self._goal and self._stop.service_is_ready():
-            self._stop.call_async(Trigger.Request())
-            return CancelResponse.ACCEPT
-        return CancelResponse.REJECT
+        return cancel_by_stop(goal_handle, self._goal, self._stop)
 
     async def _call_move(self, goal_handle, request: Move.Request, feedback) -> Move.Response:
         """Return the move service's answer for this goal (REFUSED, uncalled, when busy)."""

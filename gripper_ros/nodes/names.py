@@ -49,20 +49,32 @@ class NameClaim:
         server of one of the relative ``services``, exists already.
         """
         import rclpy
-        kw = {'namespace': DEFAULT_NAMESPACE if namespace is None else namespace}
-        if context is not None:
-            kw['context'] = context
-        probe = rclpy.create_node('gripper_startup_probe', enable_rosout=False,
-                                  start_parameter_services=False, **kw)
         ctx = context or rclpy.get_default_context()
         domain = ctx.get_domain_id()
-        where = probe.get_namespace()
+        probe = None
+
+        def make_probe():
+            kw = {'namespace': DEFAULT_NAMESPACE if namespace is None else namespace}
+            if context is not None:
+                kw['context'] = context
+            return rclpy.create_node('gripper_startup_probe', enable_rosout=False,
+                                     start_parameter_services=False, **kw)
+
         claim = None
         try:
+            if namespace is None:              # as the command line remaps it: ask a node
+                probe = make_probe()
+                where = probe.get_namespace()
+            else:
+                where = '/' + namespace.strip('/')
             claim, held = cls._lock(domain, where, node_names)
-            found = held or taken_names(probe, node_names, services)
+            found = held
+            if not held:                       # no claim here: ask the domain's discovery
+                probe = probe or make_probe()
+                found = taken_names(probe, node_names, services)
         finally:
-            probe.destroy_node()
+            if probe is not None:
+                probe.destroy_node()
         if found:
             if claim is not None:
                 claim.release()

@@ -26,9 +26,9 @@ import sys
 from gripper_interfaces.msg import PlantTick, StageReference, SupervisorStatus
 from gripper_interfaces.srv import Grasp, Move
 from gripper_ros.core.lockstep import SupervisorSide, Tick
-from gripper_ros.core.supervisor import (GraspRequest, GraspSupervisor, MoveRequest,
-                                         RequestError, RequestKind, validate_move,
-                                         validate_request)
+from gripper_ros.core.requests import (GraspRequest, MoveRequest, RequestError, validate_move,
+                                       validate_request)
+from gripper_ros.core.supervisor import GraspSupervisor, RequestKind
 from gripper_ros.nodes.common import (default_namespace, DeferredService, ExecutorSilence,
                                       GRAPH_QOS, LATCHED_QOS, run_node)
 from gripper_ros.nodes.loop_io import decode, split_ns, status_message, status_template
@@ -217,27 +217,46 @@ class SupervisorNode(Node):
                            'controllers)')
         return '; '.join(missing)
 
-    def _on_grasp(self, request: Grasp.Request, header) -> None:
-        """Accept a grasp, or refuse it at once; an accepted grasp is answered in _complete()."""
-        response = Grasp.Response()
-        message = self._refusal(RequestKind.GRASP)
+    def _accept(self, kind: str, service, header, response, start, on_refusal=None):
+        """Start a request, or answer its refusal at once.
+
+        ``start()`` validates and starts the request and returns its targets (RequestError
+        refuses it). Return the targets, or None once refused; an accepted request is answered
+        in _complete().
+        """
+        message = self._refusal(kind)
         if not message:
             try:
-                targets = validate_request(
-                    GraspRequest(request.width_m, request.mass_kg, request.friction_coefficient,
-                                 request.acceleration_mps2, request.timeout_s,
-                                 request.width_tolerance_m),
-                    self.config.plant, self.config.supervisor)
-                self.logic.request_grasp(targets, request.mass_kg,
-                                         after_ns=self._tick.stamp_ns)
+                return start()
             except RequestError as exc:
                 message = f'refused: {exc}'
-        if message:
-            response.success = False
+        response.success = False
+        if hasattr(response, 'outcome'):
             response.outcome = Outcome.REFUSED
-            response.message = message
-            self.get_logger().warning(f'grasp {message}')
-            self.grasp_service.reply(header, response)
+        response.message = message
+        if on_refusal is not None:
+            on_refusal(response)
+        self.get_logger().warning(f'{kind} {message}')
+        service.reply(header, response)
+        return None
+
+    def _await_answer(self, header, response) -> None:
+        """Hold the accepted request's reply until it ends; the status wakes a paused sim."""
+        self._waiting = (header, response)
+        self._silence.reset()
+        self._publish_status(self._tick.stamp_ns, force=True)
+
+    def _on_grasp(self, request: Grasp.Request, header) -> None:
+        """Accept a grasp, or refuse it at once."""
+        response = Grasp.Response()
+        plant, sup = self.config.plant, self.config.supervisor
+        targets = self._accept(RequestKind.GRASP, self.grasp_service, header, response,
+                               lambda: self.logic.request_grasp(validate_request(GraspRequest(
+                                   request.width_m, request.mass_kg,
+                                   request.friction_coefficient, request.acceleration_mps2,
+                                   request.timeout_s, request.width_tolerance_m), plant, sup),
+                                   request.mass_kg, after_ns=self._tick.stamp_ns))
+        if targets is None:
             return
         response.grasp_id = self.logic.grasp_id + 1
         response.position_setpoint_m = targets.position_setpoint_m
@@ -246,59 +265,35 @@ class SupervisorNode(Node):
             f'grasp {response.grasp_id}: width {request.width_m:g} m, mass {request.mass_kg:g} '
             f'kg -> position {targets.position_setpoint_m:.4f} m, force '
             f'{targets.force_setpoint_n:.3f} N')
-        self._waiting = (header, response)
-        self._silence.reset()
-        self._publish_status(self._tick.stamp_ns, force=True)     # wakes a paused simulation
+        self._await_answer(header, response)
 
     def _on_release(self, request: Trigger.Request, header) -> None:
         """Open the fingers (position stage to fully open), or refuse at once."""
         response = Trigger.Response()
-        message = self._refusal(RequestKind.RELEASE)
-        if not message:
-            try:
-                self.logic.request_release(after_ns=self._tick.stamp_ns)
-            except RequestError as exc:
-                message = f'refused: {exc}'
-        if message:
-            response.success = False
-            response.message = message
-            self.get_logger().warning(f'release {message}')
-            self.release_service.reply(header, response)
+        if self._accept(RequestKind.RELEASE, self.release_service, header, response,
+                        lambda: self.logic.request_release(after_ns=self._tick.stamp_ns)) is None:
             return
         self.get_logger().info(f'release {self.logic.grasp_id + 1}: opening from '
                                f'{self._tick.position_m:.5f} m')
-        self._waiting = (header, response)
-        self._silence.reset()
-        self._publish_status(self._tick.stamp_ns, force=True)
+        self._await_answer(header, response)
 
     def _on_move(self, request: Move.Request, header) -> None:
-        """Accept a move, or refuse it at once; an accepted move is answered in _complete()."""
+        """Accept a move, or refuse it at once."""
         response = Move.Response()
-        message = self._refusal(RequestKind.MOVE)
-        if not message:
-            try:
-                targets = validate_move(
-                    MoveRequest(request.width_m, request.speed_mps, request.max_effort_n,
-                                request.timeout_s),
-                    self.config.plant, self.config.supervisor)
-                self.logic.request_move(targets, after_ns=self._tick.stamp_ns)
-            except RequestError as exc:
-                message = f'refused: {exc}'
-        if message:
-            response.success = False
-            response.outcome = Outcome.REFUSED
-            response.message = message
-            self._fill_move_state(response)
-            self.get_logger().warning(f'move {message}')
-            self.move_service.reply(header, response)
+        plant, sup = self.config.plant, self.config.supervisor
+        targets = self._accept(RequestKind.MOVE, self.move_service, header, response,
+                               lambda: self.logic.request_move(validate_move(MoveRequest(
+                                   request.width_m, request.speed_mps, request.max_effort_n,
+                                   request.timeout_s), plant, sup),
+                                   after_ns=self._tick.stamp_ns),
+                               self._fill_move_state)
+        if targets is None:
             return
         self.get_logger().info(
             f'move {self.logic.grasp_id + 1}: width {request.width_m:g} m -> position '
             f'{targets.position_setpoint_m:.4f} m at most at {targets.speed_mps:g} m/s, '
             f'{targets.max_effort_n:.3f} N')
-        self._waiting = (header, response)
-        self._silence.reset()
-        self._publish_status(self._tick.stamp_ns, force=True)     # wakes a paused simulation
+        self._await_answer(header, response)
 
     def _fill_move_state(self, response: Move.Response) -> None:
         """Fill in a move's answer the finger's state: the last finite readings."""

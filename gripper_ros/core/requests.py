@@ -1,0 +1,179 @@
+"""Grasp and move requests: their fields, validation and the grip force law (no rclpy).
+
+A request is refused (:class:`RequestError`, the reason with the numbers) when a value is
+non-finite, out of range, or asks for more force than 24 V can hold; a valid one resolves its
+defaults from the configuration into :class:`GraspTargets` or :class:`MoveTargets`, what the
+supervisor runs. The grip force is :func:`force_setpoint_n`: ``k m (g + a) / (2 mu_s)`` (two
+pads of friction, safety factor ``k``) by default, eq. 23's ``mu_s m (g + a)`` with
+``supervisor.force_law: paper``.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+import math
+
+from gripper_ros.core.config import ForceLaw, PlantParams, SupervisorParams
+
+MAX_TIMEOUT_S = 600.0  # simulated seconds; a longer grasp is a mistake, not a request
+
+
+class RequestError(ValueError):
+    """A grasp request that must be refused; the message says why, with the numbers."""
+
+
+@dataclass(frozen=True)
+class GraspRequest:
+    width_m: float
+    mass_kg: float
+    friction_coefficient: float = 0.0   # 0 = default
+    acceleration_mps2: float = 0.0
+    timeout_s: float = 0.0              # 0 = default
+    width_tolerance_m: float = 0.0      # 0 = default
+
+
+@dataclass(frozen=True)
+class MoveRequest:
+    width_m: float
+    speed_mps: float = 0.0              # 0 = default
+    max_effort_n: float = 0.0           # 0 = the motor's limit
+    timeout_s: float = 0.0              # 0 = the travel at speed + the default timeout
+
+
+@dataclass(frozen=True)
+class MoveTargets:
+    """What a valid move resolves to; the attributes the status reads are a grasp's names."""
+
+    position_setpoint_m: float          # the goal, L_ls - width
+    speed_mps: float
+    max_effort_n: float                 # the effort limit (the motor's when the request gave 0)
+    voltage_limit_v: float              # its stall voltage; 0 = no cap below the plant's
+    timeout_s: float                    # 0 = the travel at speed + the default timeout
+    tolerance_m: float
+    friction_coefficient: float = 0.0
+    width_tolerance_m: float = 0.0
+
+    @property
+    def approach_setpoint_m(self) -> float:
+        return self.position_setpoint_m
+
+    @property
+    def force_setpoint_n(self) -> float:
+        """The status' force setpoint of a move: its effort limit."""
+        return self.max_effort_n
+
+
+@dataclass(frozen=True)
+class GraspTargets:
+    """What a valid request resolves to."""
+
+    position_setpoint_m: float          # expected face, L_ls - width
+    force_setpoint_n: float
+    friction_coefficient: float
+    timeout_s: float
+    width_tolerance_m: float = 0.0
+
+    @property
+    def approach_setpoint_m(self) -> float:
+        """The position stage's target: the face of the widest object the request allows."""
+        return self.position_setpoint_m - self.width_tolerance_m
+
+
+def force_setpoint_n(mass_kg: float, friction_coefficient: float, gravity_mps2: float,
+                     acceleration_mps2: float, law: ForceLaw, safety_factor: float) -> float:
+    """Grip force to hold ``m`` under ``g + a`` by friction ``mu_s`` on the two finger pads.
+
+    ``FRICTION``: each pad holds at most ``mu_s F``, so ``F_sp = k m (g + a) / (2 mu_s)`` with the
+    safety factor ``k``. ``PAPER``: eq. 23 as printed, ``F_sp = mu_s m (g + a)`` (``k`` unused).
+    """
+    if law is ForceLaw.PAPER:
+        return friction_coefficient * mass_kg * (gravity_mps2 + acceleration_mps2)
+    return safety_factor * mass_kg * (gravity_mps2 + acceleration_mps2) / (
+        2.0 * friction_coefficient)
+
+
+def _force_law_text(law: ForceLaw, mu: float, mass_kg: float, g_plus_a: float,
+                    safety_factor: float) -> str:
+    """Write the setpoint's formula with the request's numbers, for a refusal."""
+    if law is ForceLaw.PAPER:
+        return f'paper law, eq. 23: mu_s={mu:g} x m={mass_kg:g} kg x (g+a)={g_plus_a:g} m/s^2'
+    return (f'friction law: k={safety_factor:g} x m={mass_kg:g} kg x (g+a)={g_plus_a:g} m/s^2 '
+            f'/ (2 mu_s={2.0 * mu:g})')
+
+
+def validate_request(req: GraspRequest, plant: PlantParams,
+                     sup: SupervisorParams) -> GraspTargets:
+    """Resolve defaults and refuse anything non-finite, out of range or beyond 24 V."""
+    for name in ('width_m', 'mass_kg', 'friction_coefficient', 'acceleration_mps2', 'timeout_s',
+                 'width_tolerance_m'):
+        value = getattr(req, name)
+        if not isinstance(value, (int, float)) or isinstance(value, bool) or \
+                not math.isfinite(value):
+            raise RequestError(f'{name} must be a finite number, got {value!r}')
+    if not 0.0 < req.width_m < plant.max_travel_m:
+        raise RequestError(f'width_m must be in (0, {plant.max_travel_m:g}) m (the finger '
+                           f'travel), got {req.width_m!r}')
+    if req.mass_kg <= 0.0:
+        raise RequestError(f'mass_kg must be > 0, got {req.mass_kg!r}')
+    if req.friction_coefficient < 0.0:
+        raise RequestError(f'friction_coefficient must be >= 0 (0 = default '
+                           f'{sup.friction_coefficient:g}), got {req.friction_coefficient!r}')
+    if req.acceleration_mps2 < 0.0:
+        raise RequestError(f'acceleration_mps2 must be >= 0, got {req.acceleration_mps2!r}')
+    if not 0.0 <= req.timeout_s <= MAX_TIMEOUT_S:
+        raise RequestError(f'timeout_s must be in [0, {MAX_TIMEOUT_S:g}] s (0 = default '
+                           f'{sup.timeout_s:g}), got {req.timeout_s!r}')
+    if req.width_tolerance_m < 0.0:
+        raise RequestError(f'width_tolerance_m must be >= 0 (0 = default '
+                           f'{sup.width_tolerance_m:g}), got {req.width_tolerance_m!r}')
+    tolerance = req.width_tolerance_m or sup.width_tolerance_m
+    if not req.width_m + tolerance < plant.max_travel_m:
+        raise RequestError(f'width_m + width_tolerance_m must be < {plant.max_travel_m:g} m (the '
+                           f'finger travel), got {req.width_m:g} + {tolerance:g} m')
+    mu = req.friction_coefficient or sup.friction_coefficient
+    accel = req.acceleration_mps2 or sup.acceleration_mps2
+    law, k = sup.force_law, sup.grip_safety_factor
+    force = force_setpoint_n(req.mass_kg, mu, plant.gravity_mps2, accel, law, k)
+    if force > plant.max_force_n:
+        raise RequestError(
+            f'force setpoint {force:.2f} N ('
+            f'{_force_law_text(law, mu, req.mass_kg, plant.gravity_mps2 + accel, k)}) exceeds '
+            f'the {plant.max_force_n:.2f} N the motor can hold at {plant.voltage_limit_v:g} V')
+    if force <= 0.0:
+        raise RequestError(f'force setpoint must be > 0 N, got {force!r}')
+    return GraspTargets(plant.max_travel_m - req.width_m, force, mu,
+                        req.timeout_s or sup.timeout_s, tolerance)
+
+
+def _check_finite(req, names) -> None:
+    for name in names:
+        value = getattr(req, name)
+        if not isinstance(value, (int, float)) or isinstance(value, bool) or \
+                not math.isfinite(value):
+            raise RequestError(f'{name} must be a finite number, got {value!r}')
+
+
+def validate_move(req: MoveRequest, plant: PlantParams, sup: SupervisorParams) -> MoveTargets:
+    """Resolve a move's defaults and refuse anything non-finite or out of range."""
+    _check_finite(req, ('width_m', 'speed_mps', 'max_effort_n', 'timeout_s'))
+    if not 0.0 <= req.width_m <= plant.max_travel_m:
+        raise RequestError(f'width_m must be in [0, {plant.max_travel_m:g}] m (0 = closed, '
+                           f'{plant.max_travel_m:g} = fully open), got {req.width_m!r}')
+    top_speed = plant.max_free_speed_mps
+    if req.speed_mps != 0.0 and not sup.move_rest_speed_mps < req.speed_mps <= top_speed:
+        raise RequestError(
+            f'speed_mps must be in ({sup.move_rest_speed_mps:g}, {top_speed:.6g}] m/s (at rest '
+            f'below; the free speed at {plant.voltage_limit_v:g} V above) or 0 (default '
+            f'{sup.move_default_speed_mps:g}), got {req.speed_mps!r}')
+    if req.max_effort_n != 0.0 and not 0.0 < req.max_effort_n <= plant.max_force_n:
+        raise RequestError(
+            f'max_effort_n must be in (0, {plant.max_force_n:.6g}] N (the force of '
+            f'{plant.voltage_limit_v:g} V at stall) or 0 (the limit of the motor), '
+            f'got {req.max_effort_n!r}')
+    if not 0.0 <= req.timeout_s <= MAX_TIMEOUT_S:
+        raise RequestError(f'timeout_s must be in [0, {MAX_TIMEOUT_S:g}] s (0 = the travel at '
+                           f'speed + {sup.timeout_s:g} s), got {req.timeout_s!r}')
+    effort = req.max_effort_n or plant.max_force_n
+    cap_v = req.max_effort_n / plant.stall_force_per_volt_n if req.max_effort_n else 0.0
+    return MoveTargets(plant.max_travel_m - req.width_m,
+                       req.speed_mps or sup.move_default_speed_mps, effort, cap_v,
+                       req.timeout_s, sup.move_tolerance_m)
