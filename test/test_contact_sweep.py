@@ -4,8 +4,8 @@ Each grasp is the node graph's logic run headless (bit-identical to the graph, s
 test_graph.py), held on for 1 s after HOLDING. Known answers: the paper's PI hits a compliant
 object many times over its setpoint, ours must stay within 1.10x; no grasp may hold sooner than
 full voltage throughout would even reach the held position; the held force is the friction
-law's k m (g + a) / (2 mu_s); within a tolerance the object is reached after its distance into the band divided by
-the band speed. The full envelope is `contact_sweep` (docs/contact_sweep.txt).
+law's k m (g + a) / (2 mu_s); within a tolerance the object is reached after its distance into
+the band divided by the band speed. The full envelope is `contact_sweep` (docs/contact_sweep.txt).
 """
 import dataclasses
 import math

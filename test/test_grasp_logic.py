@@ -90,7 +90,7 @@ NO_WATCH = dataclasses.replace(S, hold_watch_s=0.0)   # the answer comes when th
 
 
 def start(width=0.05, mass=1.69, params=S, **kw):
-    """A supervisor whose grasp started at t = 0 (requested during the idle tick before)."""
+    """Return a supervisor whose grasp started at t = 0 (requested during the idle tick before)."""
     sup = GraspSupervisor(P, params)
     idle = sup.step(-10 * MS, 0.0, 0.0, 0.005)
     assert idle.phase is Phase.IDLE and idle.active is Controller.POSITION and not idle.running
@@ -114,8 +114,10 @@ def test_without_a_request_the_position_stage_holds_the_finger_where_it_is():
 
 
 def test_a_request_starts_at_the_first_tick_after_the_one_it_arrived_at():
-    """Whether or not the supervisor had decided that tick yet: deterministic under any
-    timing of the service call."""
+    """Start at that tick whether or not the supervisor had decided it yet.
+
+    So the start is deterministic under any timing of the service call.
+    """
     for decided_first in (True, False):
         sup = GraspSupervisor(P, S)
         if decided_first:
@@ -469,7 +471,7 @@ def test_with_a_tolerance_the_switch_is_around_the_widest_face_no_object_beyond_
 
 # ------------------------------------------------------------------ after the HOLDING answer
 def answered():
-    """A grasp answered HOLDING (the hold goes on), and the time of the answer."""
+    """Return a grasp answered HOLDING (the hold goes on), and the time of the answer."""
     sup, t = holding()
     f_sp = sup.targets.force_setpoint_n
     while sup.answer_ns is None:

@@ -19,14 +19,6 @@ ROOT = Path(__file__).resolve().parents[1]
 PLUGINS = ('flake8-builtins', 'flake8-comprehensions', 'flake8-docstrings',
            'flake8-import-order', 'flake8-quotes')
 
-# Files whose lint fixes come with a change of their own: linted by test_flake8_pending, apart
-# from the rest, so that test_flake8 stays green for everything else. test_flake8_pending is a
-# strict xfail while this is not empty, so the suite passes, and fails once they pass: empty it.
-PENDING = (
-    'test/test_contact_sweep.py',
-    'test/test_grasp_logic.py',
-)
-
 
 def _python_scripts():
     """Return the helper scripts in ``scripts/`` that are Python, by suffix or shebang."""
@@ -66,18 +58,6 @@ def _flake8(monkeypatch, argv):
 @pytest.mark.flake8
 @pytest.mark.linter
 def test_flake8(monkeypatch):
-    """Every Python file of the project but the pending ones passes flake8."""
-    rc, errors = _flake8(monkeypatch, [*_linted(), '--exclude', *PENDING])
+    """Every Python file of the project passes flake8."""
+    rc, errors = _flake8(monkeypatch, _linted())
     assert rc == 0, f'{len(errors)} flake8 violations:\n' + '\n'.join(errors)
-
-
-@pytest.mark.flake8
-@pytest.mark.linter
-@pytest.mark.xfail(bool(PENDING), strict=True,
-                   reason='PENDING files are linted after the merge of the branch changing them')
-def test_flake8_pending(monkeypatch):
-    """The pending files pass flake8 too."""
-    if not PENDING:
-        pytest.skip('no file is pending')
-    rc, errors = _flake8(monkeypatch, list(PENDING))
-    assert rc == 0, f'{len(errors)} flake8 violations in PENDING:\n' + '\n'.join(errors)

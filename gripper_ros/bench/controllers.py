@@ -23,9 +23,8 @@ controllers work on realistic, changing signals. ``--warmup`` steps precede the 
 Reported: median and 99th percentile in us, both as multiples of the baseline, and as a
 fraction of the paper's 100 us force sampling time (and of the controller's own sampling time).
 
-The cost per tick through the node graph (6 publications and 19 subscription callbacks per
-tick, ~1 ms) is measured by ``bench_graph`` (docs/BENCHMARKS.md): the controller step is a few
-percent of it.
+The cost of a tick through the node graph, of which a controller step is one part, is what
+``bench_graph`` measures (docs/BENCHMARKS.md).
 """
 from __future__ import annotations
 
@@ -249,8 +248,8 @@ def format_report(rep: dict) -> str:
     lines.append('x base: multiple of the baseline call (same timer overhead included); '
                  "/100us: fraction of the paper's 0.1 ms force sampling time; own ts: of the "
                  "controller's own sampling time (force 0.1 ms, position 10 ms); plant step: "
-                 'GripperPlant.step over one such period. Through the '
-                 'node graph a tick costs ~1 ms: see bench_graph.')
+                 'GripperPlant.step over one such period. A tick through the node graph: '
+                 'bench_graph.')
     return '\n'.join(lines)
 
 
