@@ -35,6 +35,7 @@ from gripper_ros.wire import (COMMAND_LAYOUT, LOOP_TOPICS, qualified,  # noqa: E
                               REFERENCE_LAYOUT, TICK_LAYOUT, TOPIC_CLOCK, TOPIC_FORCE_REFERENCE,
                               TOPIC_JOINT_STATES, TOPIC_MOTOR_COMMAND, TOPIC_POSITION_REFERENCE,
                               TOPIC_STATUS, TOPIC_TICK)
+from helpers import copy_mcap  # noqa: E402
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 from rosbags.rosbag2 import StoragePlugin, Writer  # noqa: E402
@@ -223,24 +224,8 @@ def rechunk(src: Path, dst: Path, chunk_size: int = 16 * 1024) -> Path:
 
     (rosbags writes 1 MiB chunks, so a small bag is one chunk: cut anywhere, nothing survives.)
     """
-    from mcap.reader import make_reader
-    from mcap.writer import Writer as McapWriter
     dst.mkdir(parents=True)
-    out_path = dst / f'{dst.name}_0.mcap'
-    with open(next(src.glob('*.mcap')), 'rb') as fin, open(out_path, 'wb') as fout:
-        reader = make_reader(fin)
-        summary = reader.get_summary()
-        writer = McapWriter(fout, chunk_size=chunk_size)
-        writer.start(profile='ros2', library='test')
-        schema_ids = {sid: writer.register_schema(s.name, s.encoding, s.data)
-                      for sid, s in summary.schemas.items()}
-        channel_ids = {cid: writer.register_channel(c.topic, c.message_encoding,
-                                                    schema_ids[c.schema_id], c.metadata)
-                       for cid, c in summary.channels.items()}
-        for _, channel, message in reader.iter_messages(log_time_order=False):
-            writer.add_message(channel_ids[channel.id], message.log_time, message.data,
-                               message.publish_time, message.sequence)
-        writer.finish()
+    copy_mcap(next(src.glob('*.mcap')), dst / f'{dst.name}_0.mcap', chunk_size=chunk_size)
     return dst
 
 

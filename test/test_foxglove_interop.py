@@ -23,6 +23,7 @@ from gripper_ros.bags.recording import recorded_grasp
 from gripper_ros.bags.schema import find_interface_file, message_definition, SCHEMA_SEPARATOR
 from gripper_ros.bags.series import load_grasp_series
 from gripper_ros.wire import DEFAULT_NAMESPACE, GRAPH_TOPICS, qualified
+from helpers import copy_mcap
 import numpy as np
 import pytest
 import yaml
@@ -286,33 +287,12 @@ def _old_form(text: str) -> str:
 @pytest.fixture(scope='module')
 def old_bag(fresh, tmp_path_factory) -> Path:
     """Rewrite the fresh bag record for record, only with old-form schema texts."""
-    from mcap.reader import make_reader
-    from mcap.writer import CompressionType, Writer
     _, bag_dir, _ = fresh
     src = next(bag_dir.glob('*.mcap'))
     out_dir = tmp_path_factory.mktemp('old') / bag_dir.name
     out_dir.mkdir()
     shutil.copy(bag_dir / 'metadata.yaml', out_dir / 'metadata.yaml')
-    with open(src, 'rb') as fin, open(out_dir / src.name, 'wb') as fout:
-        reader = make_reader(fin)
-        header = reader.get_header()
-        summary = reader.get_summary()
-        writer = Writer(fout, compression=CompressionType.ZSTD)
-        writer.start(profile=header.profile, library=header.library)
-        schema_ids = {}
-        for sid, schema in summary.schemas.items():
-            text = _old_form(schema.data.decode('utf-8'))
-            schema_ids[sid] = writer.register_schema(schema.name, schema.encoding,
-                                                     text.encode('utf-8'))
-        channel_ids = {cid: writer.register_channel(c.topic, c.message_encoding,
-                                                    schema_ids[c.schema_id], c.metadata)
-                       for cid, c in summary.channels.items()}
-        for _, channel, message in reader.iter_messages(log_time_order=False):
-            writer.add_message(channel_ids[channel.id], message.log_time, message.data,
-                               message.publish_time, message.sequence)
-        for record in reader.iter_metadata():
-            writer.add_metadata(record.name, record.metadata)
-        writer.finish()
+    copy_mcap(src, out_dir / src.name, schema_text=_old_form)
     return out_dir
 
 

@@ -538,6 +538,7 @@ def test_parallel_gripper_command_on_gripper_cmd_drives_the_move(graph):
 def test_serve_mode_records_a_move_in_a_bag_of_its_own(tmp_path):
     from gripper_ros.bags.recording import ServeRecorder
     from gripper_ros.bags.series import load_grasp_series
+    from gripper_ros.nodes.common import wait_until
     from gripper_ros.nodes.graph import GraphOptions, GripperGraph
     with GripperGraph.in_own_context(GraphOptions(namespace='move_serve',
                                                   time_mode='fast')) as g:
@@ -545,7 +546,7 @@ def test_serve_mode_records_a_move_in_a_bag_of_its_own(tmp_path):
         assert g.set_object(0.0, open_fingers=True).success
         answer = g.move(0.04, 0.03)
         assert answer.success and answer.reached_goal
-        assert _wait_until(lambda: serve.bags and not serve.recording, 10.0)
+        assert wait_until(lambda: serve.bags and not serve.recording, 10.0)
     assert serve.errors == []
     [bag] = serve.bags
     assert bag.name.startswith('move_')
@@ -555,12 +556,3 @@ def test_serve_mode_records_a_move_in_a_bag_of_its_own(tmp_path):
     assert TRAVEL_M - series.joint.position_m[-1] == pytest.approx(answer.width_m, abs=1e-9)
     # whole ticks: one command and one measurement per tick
     assert series.ticks['stamp_ns'].size == series.commands['stamp_ns'].size > 100
-
-
-def _wait_until(predicate, timeout_s: float) -> bool:
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        if predicate():
-            return True
-        time.sleep(0.02)
-    return False

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import copy
 from dataclasses import asdict
+import functools
 import json
 from pathlib import Path
 
@@ -30,6 +31,7 @@ from gripper_ros.core.headless import simulate_grasp
 from gripper_ros.nodes.common import wait_until
 from gripper_ros.nodes.graph import GraphOptions, GripperGraph
 from gripper_ros.wire import FaultKind, Outcome
+from helpers import run_main
 import numpy as np
 import pytest
 from rosbags.rosbag2 import StoragePlugin, Writer
@@ -70,12 +72,7 @@ def bags(tmp_path_factory):
     return {name: (r if isinstance(r, Path) else Path(r.bag_dir)) for name, r in runs.items()}
 
 
-def _cli(argv, capsys):
-    try:
-        code = bag_replay.main(argv)
-    except SystemExit as exc:
-        code = exc.code
-    return code, capsys.readouterr()
+_cli = functools.partial(run_main, bag_replay.main)      # (argv, capsys)
 
 
 def _one_line_exit_2(argv, capsys) -> str:

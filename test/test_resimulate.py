@@ -9,6 +9,7 @@ recorded measurements are then fed through the controllers of a configuration:
 from __future__ import annotations
 
 import copy
+import functools
 import json
 import math
 from pathlib import Path
@@ -21,6 +22,7 @@ from gripper_ros.core.config import ConfigError, default_config_path, load_confi
 from gripper_ros.core.stages import (ForceStageController, LockstepAnswerer,
                                      PositionStageController, Reference)
 from gripper_ros.nodes.graph import GripperGraph
+from helpers import run_main
 import pytest
 import yaml
 
@@ -52,12 +54,7 @@ def _write(path: Path, text: str) -> Path:
     return path
 
 
-def _run_cli(argv, capsys):
-    try:
-        code = bag_replay.main(argv)
-    except SystemExit as exc:
-        code = exc.code
-    return code, capsys.readouterr()
+_run_cli = functools.partial(run_main, bag_replay.main)      # (argv, capsys)
 
 
 # --- the nodes and re-simulation share one implementation ---------------------------------------

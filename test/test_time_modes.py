@@ -76,24 +76,24 @@ def _stamps_every_state_period(samples):
     assert gaps == {STATE_PERIOD_NS}, sorted(gaps)[:5]
 
 
-@pytest.fixture
-def realtime():
-    graph = GripperGraph.in_own_context(GraphOptions(time_mode='realtime',
-                                                     namespace='time_modes_realtime'))
+def _graph_with_streams(time_mode: str):
+    """Yield a graph in ``time_mode`` (a namespace of its own) and its watched streams."""
+    graph = GripperGraph.in_own_context(GraphOptions(time_mode=time_mode,
+                                                     namespace=f'time_modes_{time_mode}'))
     try:
         yield graph, Streams(graph)
     finally:
         graph.close()
+
+
+@pytest.fixture
+def realtime():
+    yield from _graph_with_streams('realtime')
 
 
 @pytest.fixture
 def fast():
-    graph = GripperGraph.in_own_context(GraphOptions(time_mode='fast',
-                                                     namespace='time_modes_fast'))
-    try:
-        yield graph, Streams(graph)
-    finally:
-        graph.close()
+    yield from _graph_with_streams('fast')
 
 
 def test_realtime_streams_idle_and_after_holding_never_ahead_of_the_wall_clock(realtime):
