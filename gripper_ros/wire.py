@@ -11,7 +11,10 @@ namespace is ``gripper``. ``/clock`` is global, as everywhere in ROS.
 from __future__ import annotations
 
 import enum
+import re
 import struct
+
+import numpy as np
 
 DEFAULT_NAMESPACE = 'gripper'
 
@@ -202,6 +205,10 @@ CDR_LITTLE_ENDIAN = b'\x00\x01\x00\x00'
 """The encapsulation header of a little-endian plain-CDR payload (the first four bytes)."""
 
 
+_NUMPY_OF_STRUCT = {'q': '<i8', 'I': '<u4', 'B': 'u1', 'd': '<f8'}
+"""The numpy type of each struct code the loop layouts use."""
+
+
 class LoopLayout:
     """The serialised form of one fixed-size lockstep message type.
 
@@ -212,9 +219,12 @@ class LoopLayout:
     int64/float64, counted from the end of the header) and its padding to a multiple of 4
     written out. A message in another encapsulation (big-endian) or of another size is not for
     the fast path: :meth:`unpack` returns None and the caller deserialises it the general way.
+
+    ``dtype`` is the same message as a numpy record (natural alignment, no header): what the
+    compiled core reads and writes, one field per message field with the message's type.
     """
 
-    __slots__ = ('msgtype', 'fields', 'size', '_reader', '_writer')
+    __slots__ = ('msgtype', 'fields', 'size', 'dtype', '_reader', '_writer')
 
     def __init__(self, msgtype: str, fields: tuple[str, ...], body: str):
         self.msgtype = msgtype
@@ -222,6 +232,12 @@ class LoopLayout:
         self._reader = struct.Struct('<4x' + body)
         self._writer = struct.Struct('<4s' + body)
         self.size = self._reader.size
+        codes = [code for count, code in re.findall(r'(\d*)([a-zA-Z])', body) if code != 'x'
+                 for _ in range(int(count or 1))]
+        if len(codes) != len(fields):
+            raise ValueError(f'{msgtype}: {len(fields)} fields but {len(codes)} in {body!r}')
+        self.dtype = np.dtype([(name, _NUMPY_OF_STRUCT[code]) for name, code in zip(fields, codes)],
+                              align=True)
 
     def pack(self, *values) -> bytes:
         """Return the CDR bytes of a message with ``values`` in field order (bools as 0/1)."""
