@@ -30,6 +30,12 @@ the effort limit (the force sensor tells contact), or has been at rest short of 
 ``move_stall_timeout_s``. Either way the position stage then keeps the move's last command (the
 goal, the limits): a stalled move goes on pressing with at most its effort, as a
 position-controlled gripper keeps its command.
+
+The state machine is compiled (numba): :func:`supervisor_step` and :func:`supervisor_decide`
+run on the state record :data:`SUPERVISOR_STATE`, called tick by tick by the supervisor node
+and by the compiled headless loop alike. :class:`GraspSupervisor` is the Python face of that
+record: it takes requests, reads the state and writes the outcome messages, whose numbers the
+kernel keeps.
 """
 from __future__ import annotations
 
@@ -38,41 +44,13 @@ import math
 from gripper_ros.core.config import PlantParams, SupervisorParams
 from gripper_ros.core.requests import GraspTargets, MoveTargets, RequestError
 from gripper_ros.wire import Controller, Outcome, PendingRequest, Phase, SwitchCriterion
+import numba
+import numpy as np
 
-
-class Decision:
-    """The supervisor's verdict for one tick; the same object, updated in place, every tick.
-
-    ``answer`` is the outcome this tick produced for the request (the grasp service answers
-    now, the outcome is latched), or None.
-    """
-
-    __slots__ = ('t_ns', 'phase', 'active', 'switch_criterion', 'outcome', 'grasp_id',
-                 'stage_id', 'running', 'contact', 'position_setpoint_m', 'approach_setpoint_m',
-                 'force_setpoint_n', 'speed_limit_mps', 'voltage_limit_v', 'message', 'answer')
-
-    def __init__(self):
-        self.t_ns = 0
-        self.phase = Phase.IDLE
-        self.active = Controller.NONE
-        self.switch_criterion = SwitchCriterion.NONE
-        self.outcome = Outcome.UNKNOWN
-        self.grasp_id = 0
-        self.stage_id = 0
-        self.running = False
-        self.contact = False
-        self.position_setpoint_m = 0.0
-        self.approach_setpoint_m = 0.0
-        self.force_setpoint_n = 0.0
-        self.speed_limit_mps = 0.0          # the position stage's limits (a move's): speed,
-        self.voltage_limit_v = 0.0          # 0 = none; voltage towards the setpoint, 0 = 24 V
-        self.message = ''
-        self.answer: Outcome | None = None
-
-    @property
-    def finished(self) -> bool:
-        """The request has been answered (it may go on holding, phase HOLDING)."""
-        return self.outcome is not Outcome.UNKNOWN
+NO_NS = -1
+"""An ``*_ns`` field that holds no time (every simulated time is >= 0)."""
+NO_ANSWER = -1
+"""A decision that answers nothing this tick."""
 
 
 class RequestKind:
@@ -83,11 +61,600 @@ class RequestKind:
     MOVE = 'move'
 
 
-PENDING_CODES = {None: PendingRequest.NONE, RequestKind.GRASP: PendingRequest.GRASP,
-                 RequestKind.RELEASE: PendingRequest.RELEASE,
-                 RequestKind.MOVE: PendingRequest.MOVE}
-START_PHASES = {RequestKind.GRASP: Phase.POSITION, RequestKind.RELEASE: Phase.RELEASING,
-                RequestKind.MOVE: Phase.MOVING}
+KIND_CODES = {RequestKind.GRASP: PendingRequest.GRASP, RequestKind.RELEASE: PendingRequest.RELEASE,
+              RequestKind.MOVE: PendingRequest.MOVE}
+"""Each request kind's code in the state record (``kind``, ``pend_kind``; 0 = none)."""
+KIND_NAMES = {int(code): kind for kind, code in KIND_CODES.items()}
+
+_TARGET_FIELDS = ('position_setpoint_m', 'approach_setpoint_m', 'force_setpoint_n',
+                  'friction_coefficient', 'timeout_s', 'width_tolerance_m', 'speed_mps',
+                  'max_effort_n', 'voltage_limit_v', 'tolerance_m')
+"""A request's targets as the kernel reads them (a grasp's move fields are 0)."""
+
+SUPERVISOR_STATE = np.dtype(
+    [('t_ns', 'i8'), ('kind', 'i4'), ('phase', 'i4'), ('switch_criterion', 'i4'),
+     ('outcome', 'i4'), ('active', 'i4'), ('answer', 'i4'), ('grasp_id', 'i8'),
+     ('stage_id', 'i8'), ('mass_kg', 'f8'), ('start_ns', 'i8'), ('switch_ns', 'i8'),
+     ('contact_ns', 'i8'), ('settled_ns', 'i8'), ('end_ns', 'i8'), ('answer_ns', 'i8'),
+     ('hold_position_m', 'f8'),            # NaN: not holding
+     ('idle_hold_m', 'f8'),                # where the position stage holds without a request
+     ('idle_limit_v', 'f8'),               # ... its voltage cap (0: the plant's limit)
+     ('idle_speed_limit_mps', 'f8'),       # ... its speed limit (0: none)
+     ('position_m', 'f8'),                 # last position measured in a request (NaN: none)
+     ('move_timeout_s', 'f8'), ('rest_since_ns', 'i8'),
+     ('revision', 'i8'),                   # the plant's world revision last seen (-1: none)
+     ('baseline_voltage_v', 'f8'), ('in_band_since_ns', 'i8'),
+     ('prev_force_t_ns', 'i8'), ('prev_force_n', 'f8'),    # previous FORCE tick (settle rate)
+     ('gripped', 'b1'),                    # force reached lost_force_fraction x F_sp
+     ('low_since_ns', 'i8'),
+     ('seed_voltage_v', 'f8'),             # the last finite applied voltage (a stage's seed)
+     ('msg_code', 'i4'), ('msg_seq', 'i8'),  # the current message: a code, numbers in msg_*
+     ('tg_kind', 'i4')]                    # the current request's targets (0: none yet)
+    + [('tg_' + name, 'f8') for name in _TARGET_FIELDS]
+    + [('pend_kind', 'i4'), ('pend_mass_kg', 'f8'), ('pend_after_ns', 'i8')]   # 0: none
+    + [('pend_' + name, 'f8') for name in _TARGET_FIELDS]
+    + [('d_answer', 'i4'), ('d_running', 'b1'), ('d_contact', 'b1'),   # the tick's decision
+       ('d_position_setpoint_m', 'f8'), ('d_approach_setpoint_m', 'f8'),
+       ('d_force_setpoint_n', 'f8'), ('d_speed_limit_mps', 'f8'), ('d_voltage_limit_v', 'f8')],
+    align=True)
+"""Everything the state machine remembers between ticks, and the decision of the last one."""
+
+_PARAM_FIELDS = ('position_tolerance_fraction', 'position_switch_speed_mps',
+                 'sensor_voltage_threshold_v', 'force_settle_band_fraction',
+                 'force_settle_hold_s', 'force_settle_horizon_s', 'force_settle_speed_mps',
+                 'timeout_s', 'no_object_margin_m', 'hold_watch_s', 'lost_force_fraction',
+                 'lost_force_hold_s', 'release_tolerance_m', 'release_settle_s',
+                 'move_rest_speed_mps', 'move_stall_force_fraction', 'move_stall_timeout_s')
+SUPERVISOR_PARAMS = np.dtype([(name, 'f8') for name in _PARAM_FIELDS], align=True)
+"""The :class:`SupervisorParams` the tick reads."""
+
+# Messages: a code and the numbers the text needs (msg_f, msg_i), written by the kernel at the
+# instant the outcome happens and formatted by GraspSupervisor.message.
+MSG_NONE = 0
+MSG_TEXT = 1                  # a text given from Python (stop, fault)
+MSG_SENSOR_FAULT = 2
+MSG_NO_OBJECT = 3
+MSG_LOST_FORCE = 4
+MSG_LOST_MOVED_ON = 5
+MSG_HOLDING = 6
+MSG_GRASP_TIMEOUT = 7
+MSG_RELEASED = 8
+MSG_RELEASE_TIMEOUT = 9
+MSG_MOVED = 10
+MSG_STALLED_PRESSING = 11
+MSG_STALLED_AT_REST = 12
+MSG_MOVE_TIMEOUT = 13
+MSG_FLOATS = 8
+MSG_INTS = 6
+
+_kernel = numba.njit(cache=True)
+
+
+# ------------------------------------------------------------------ the compiled state machine
+@_kernel
+def _running(s) -> bool:
+    """Tell whether a request is in progress (it needs simulated time until answered)."""
+    return s.kind != 0 and s.outcome == Outcome.UNKNOWN
+
+
+@_kernel
+def _holding(s) -> bool:
+    """Tell whether a grasp was answered HOLDING and the force stage goes on holding."""
+    return s.phase == Phase.HOLDING and s.outcome == Outcome.HOLDING
+
+
+@_kernel
+def _pressing(s) -> bool:
+    """Tell whether a stalled move's last command is in force (the finger presses)."""
+    return s.outcome == Outcome.STALLED and s.idle_speed_limit_mps > 0.0 and \
+        s.active == Controller.POSITION
+
+
+@_kernel
+def _assign(s, controller) -> None:
+    """Hand the motor to ``controller`` from this tick on; it restarts (new stage)."""
+    s.active = controller
+    s.stage_id += 1
+
+
+@_kernel
+def _hold_here(s, position_m, limit_v, speed_limit_mps) -> None:
+    """Let the position stage hold the finger at ``position_m`` (no request running)."""
+    if math.isfinite(position_m):
+        s.idle_hold_m = position_m
+    s.idle_limit_v = limit_v
+    s.idle_speed_limit_mps = speed_limit_mps
+    _assign(s, Controller.POSITION)
+
+
+@_kernel
+def _last_position(s) -> float:
+    """Where to hold when a request or hold ends: the held, last measured or idle position."""
+    if not math.isnan(s.hold_position_m):
+        return s.hold_position_m
+    if _running(s) and not math.isnan(s.position_m):
+        return s.position_m
+    return s.idle_hold_m
+
+
+@_kernel
+def _end(s, phase, outcome, msg_code, hold, position_m, move_limits) -> int:
+    """End the request (or the hold) with ``outcome``; the position stage holds, or nothing.
+
+    ``position_m`` NaN: where the finger is (:func:`_last_position`). ``move_limits``: hold
+    with the move's speed and voltage limits.
+    """
+    if hold and math.isnan(position_m):
+        position_m = _last_position(s)
+    s.phase = phase
+    s.outcome = outcome
+    s.msg_code = msg_code
+    s.msg_seq += 1
+    s.end_ns = s.t_ns
+    if hold:
+        if move_limits:
+            _hold_here(s, position_m, s.tg_voltage_limit_v, s.tg_speed_mps)
+        else:
+            _hold_here(s, position_m, 0.0, 0.0)
+    else:
+        s.active = Controller.NONE
+        s.stage_id += 1
+    return outcome
+
+
+@_kernel
+def _reset(s, t_ns) -> None:
+    s.outcome = Outcome.UNKNOWN
+    s.answer = Outcome.UNKNOWN
+    s.answer_ns = NO_NS
+    s.switch_criterion = SwitchCriterion.NONE
+    s.start_ns = t_ns
+    s.t_ns = t_ns
+    s.switch_ns = NO_NS
+    s.contact_ns = NO_NS
+    s.settled_ns = NO_NS
+    s.hold_position_m = math.nan
+    s.end_ns = NO_NS
+    s.in_band_since_ns = NO_NS
+    s.prev_force_t_ns = NO_NS
+    s.prev_force_n = 0.0
+    s.gripped = False
+    s.low_since_ns = NO_NS
+    s.rest_since_ns = NO_NS
+    s.msg_code = MSG_NONE
+    s.msg_seq += 1
+
+
+@_kernel
+def _take_pending(s) -> None:
+    """Make the waiting request the current one (its targets, mass and a new id)."""
+    s.kind = s.pend_kind
+    s.tg_kind = s.pend_kind
+    s.mass_kg = s.pend_mass_kg
+    s.tg_position_setpoint_m = s.pend_position_setpoint_m
+    s.tg_approach_setpoint_m = s.pend_approach_setpoint_m
+    s.tg_force_setpoint_n = s.pend_force_setpoint_n
+    s.tg_friction_coefficient = s.pend_friction_coefficient
+    s.tg_timeout_s = s.pend_timeout_s
+    s.tg_width_tolerance_m = s.pend_width_tolerance_m
+    s.tg_speed_mps = s.pend_speed_mps
+    s.tg_max_effort_n = s.pend_max_effort_n
+    s.tg_voltage_limit_v = s.pend_voltage_limit_v
+    s.tg_tolerance_m = s.pend_tolerance_m
+    s.pend_kind = 0
+    s.grasp_id += 1
+
+
+@_kernel
+def _start(s, p, t_ns, position_m, sensor_voltage_v) -> None:
+    _take_pending(s)
+    if s.kind == PendingRequest.GRASP:
+        s.phase = Phase.POSITION
+    elif s.kind == PendingRequest.RELEASE:
+        s.phase = Phase.RELEASING
+    else:
+        s.phase = Phase.MOVING
+    _reset(s, t_ns)
+    s.baseline_voltage_v = sensor_voltage_v
+    if s.kind == PendingRequest.MOVE:
+        timeout_s = s.tg_timeout_s
+        s.move_timeout_s = timeout_s if timeout_s != 0.0 else (
+            p.timeout_s + abs(s.tg_position_setpoint_m - position_m) / s.tg_speed_mps)
+    _assign(s, Controller.POSITION)
+
+
+@_kernel
+def _switch(s, criterion, t_ns) -> None:
+    s.prev_force_t_ns = NO_NS          # the settle criterion's force rate starts here
+    s.phase = Phase.FORCE
+    s.switch_criterion = criterion
+    s.switch_ns = t_ns
+    _assign(s, Controller.FORCE)
+
+
+@_kernel
+def _snapshot_into(s, msg_i) -> None:
+    """Where in the grasp the event happened: msg_i[1] 1 after HOLDING, msg_i[2] since when."""
+    if _holding(s) and s.end_ns != NO_NS:
+        msg_i[1] = 1
+        msg_i[2] = s.t_ns - s.end_ns
+    else:
+        msg_i[1] = 0
+        msg_i[2] = s.t_ns - s.start_ns
+
+
+@_kernel
+def _force_settled(s, p, t_ns, force_n, speed_mps) -> bool:
+    """Apply the force stage's settle criterion, once per FORCE-phase tick.
+
+    Settled once, for ``force_settle_hold_s`` on end, every tick has had ``|F - F_sp| + T
+    |dF/dt| <= band`` (``T`` = ``force_settle_horizon_s``, ``dF/dt`` from the previous tick)
+    and the finger slower than ``force_settle_speed_mps``. A force oscillation ``A sin(w t)``
+    with ``w >= 1 / T`` gives ``|e| + T |de/dt| >= A`` at every instant, so none larger than
+    the band is ever taken for settled; the speed bound keeps the creep of a damped object
+    after HOLDING inside the loss watch's margin.
+    """
+    prev_t_ns = s.prev_force_t_ns
+    prev_force_n = s.prev_force_n
+    s.prev_force_t_ns = t_ns
+    s.prev_force_n = force_n
+    if prev_t_ns == NO_NS or t_ns <= prev_t_ns:
+        s.in_band_since_ns = NO_NS
+        return False
+    rate = (force_n - prev_force_n) / ((t_ns - prev_t_ns) * 1e-9)
+    band = p.force_settle_band_fraction * s.tg_force_setpoint_n
+    steady = (abs(force_n - s.tg_force_setpoint_n) + p.force_settle_horizon_s * abs(rate)
+              <= band and (p.force_settle_speed_mps <= 0.0
+                           or abs(speed_mps) <= p.force_settle_speed_mps))
+    if not steady:
+        s.in_band_since_ns = NO_NS
+        return False
+    if s.in_band_since_ns == NO_NS:
+        s.in_band_since_ns = t_ns
+    return (t_ns - s.in_band_since_ns) * 1e-9 >= p.force_settle_hold_s
+
+
+@_kernel
+def _object_lost(s, p, msg_f, msg_i, t_ns, position_m, force_n) -> int:
+    """After contact: a force collapse, or the finger moving on past the held position."""
+    floor = p.lost_force_fraction * s.tg_force_setpoint_n
+    if force_n >= floor:
+        s.gripped = True
+        s.low_since_ns = NO_NS
+    elif s.gripped:
+        if s.low_since_ns == NO_NS:
+            s.low_since_ns = t_ns
+        low_s = (t_ns - s.low_since_ns) * 1e-9
+        if low_s >= p.lost_force_hold_s:
+            msg_i[0] = t_ns
+            _snapshot_into(s, msg_i)
+            msg_i[3] = s.low_since_ns
+            msg_f[0] = force_n
+            msg_f[1] = p.lost_force_fraction
+            msg_f[2] = s.tg_force_setpoint_n
+            msg_f[3] = floor
+            msg_f[4] = position_m
+            return _end(s, Phase.FAILED, Outcome.OBJECT_LOST, MSG_LOST_FORCE, True,
+                        position_m, False)
+    if not math.isnan(s.hold_position_m) and \
+            position_m > s.hold_position_m + p.no_object_margin_m:
+        msg_i[0] = t_ns
+        _snapshot_into(s, msg_i)
+        msg_f[0] = position_m
+        msg_f[1] = s.hold_position_m
+        msg_f[2] = p.no_object_margin_m
+        msg_f[3] = force_n
+        return _end(s, Phase.FAILED, Outcome.OBJECT_LOST, MSG_LOST_MOVED_ON, True, position_m,
+                    False)
+    return NO_ANSWER
+
+
+@_kernel
+def _step_release(s, p, msg_f, msg_i, t_ns, position_m) -> int:
+    if abs(position_m - s.tg_position_setpoint_m) <= p.release_tolerance_m:
+        if s.in_band_since_ns == NO_NS:
+            s.in_band_since_ns = t_ns
+        if (t_ns - s.in_band_since_ns) * 1e-9 >= p.release_settle_s:
+            msg_f[0] = position_m
+            msg_f[1] = s.tg_position_setpoint_m
+            msg_i[0] = t_ns
+            msg_i[1] = s.start_ns
+            return _end(s, Phase.DONE, Outcome.RELEASED, MSG_RELEASED, True, position_m, False)
+    else:
+        s.in_band_since_ns = NO_NS
+    if (t_ns - s.start_ns) * 1e-9 > s.tg_timeout_s:
+        msg_f[0] = s.tg_timeout_s
+        msg_f[1] = position_m
+        return _end(s, Phase.FAILED, Outcome.TIMEOUT, MSG_RELEASE_TIMEOUT, True, position_m,
+                    False)
+    return NO_ANSWER
+
+
+@_kernel
+def _step_move(s, p, msg_f, msg_i, t_ns, position_m, force_n, sensor_voltage_v,
+               speed_mps) -> int:
+    """End a move MOVED, STALLED or TIMEOUT; the position stage drives it meanwhile."""
+    goal = s.tg_position_setpoint_m
+    elapsed_s = (t_ns - s.start_ns) * 1e-9
+    if s.contact_ns == NO_NS and \
+            sensor_voltage_v - s.baseline_voltage_v > p.sensor_voltage_threshold_v:
+        s.contact_ns = t_ns
+    error_m = goal - position_m                   # > 0: still to close
+    at_rest = abs(speed_mps) <= p.move_rest_speed_mps
+    msg_f[0] = position_m                         # where: position, goal, force, elapsed
+    msg_f[1] = goal
+    msg_f[2] = force_n
+    msg_i[0] = t_ns
+    msg_i[1] = s.start_ns
+    if not at_rest:
+        s.rest_since_ns = NO_NS
+    elif abs(error_m) <= s.tg_tolerance_m:
+        return _end(s, Phase.DONE, Outcome.MOVED, MSG_MOVED, True, goal, True)
+    else:
+        if s.rest_since_ns == NO_NS:
+            s.rest_since_ns = t_ns
+        rest_s = (t_ns - s.rest_since_ns) * 1e-9
+        fraction = p.move_stall_force_fraction
+        # closing onto an obstacle, pressing at the effort limit (False for a NaN force)
+        pressing = error_m > 0.0 and fraction * s.tg_max_effort_n <= force_n and \
+            force_n <= s.tg_max_effort_n / fraction
+        if pressing or rest_s >= p.move_stall_timeout_s:
+            msg_f[3] = error_m
+            msg_f[4] = s.tg_max_effort_n
+            msg_i[2] = s.rest_since_ns
+            return _end(s, Phase.DONE, Outcome.STALLED,
+                        MSG_STALLED_PRESSING if pressing else MSG_STALLED_AT_REST, True, goal,
+                        True)
+    if elapsed_s > s.move_timeout_s:
+        msg_f[3] = s.move_timeout_s
+        return _end(s, Phase.FAILED, Outcome.TIMEOUT, MSG_MOVE_TIMEOUT, True, position_m, False)
+    return NO_ANSWER
+
+
+@_kernel
+def _step_request(s, p, msg_f, msg_i, t_ns, position_m, force_n, sensor_voltage_v,
+                  speed_mps) -> int:
+    phase = s.phase
+    position_only = phase == Phase.RELEASING or phase == Phase.MOVING   # no force needed
+    bad_position = not math.isfinite(position_m)
+    bad_force = not position_only and not (math.isfinite(force_n)
+                                           and math.isfinite(sensor_voltage_v))
+    if bad_position or bad_force:
+        msg_i[0] = t_ns
+        msg_i[1] = s.start_ns
+        msg_i[2] = 1 if bad_position else 0
+        msg_i[3] = 1 if bad_force else 0
+        msg_i[4] = 0 if _holding(s) else s.kind          # 0: the hold
+        msg_f[0] = position_m
+        msg_f[1] = force_n
+        msg_f[2] = sensor_voltage_v
+        return _end(s, Phase.FAILED, Outcome.FAULT, MSG_SENSOR_FAULT, False, math.nan, False)
+    s.position_m = position_m                          # finite: where a stop holds
+    if position_only:
+        if phase == Phase.RELEASING:
+            return _step_release(s, p, msg_f, msg_i, t_ns, position_m)
+        return _step_move(s, p, msg_f, msg_i, t_ns, position_m, force_n, sensor_voltage_v,
+                          speed_mps)
+    sensor_rise = sensor_voltage_v - s.baseline_voltage_v > p.sensor_voltage_threshold_v
+    if sensor_rise and s.contact_ns == NO_NS:
+        s.contact_ns = t_ns
+    farthest_face_m = s.tg_position_setpoint_m + s.tg_width_tolerance_m   # narrowest object
+    if s.contact_ns == NO_NS and position_m > farthest_face_m + p.no_object_margin_m:
+        msg_f[0] = s.tg_position_setpoint_m
+        msg_f[1] = s.tg_width_tolerance_m
+        msg_f[2] = position_m
+        msg_f[3] = farthest_face_m
+        return _end(s, Phase.FAILED, Outcome.NO_OBJECT, MSG_NO_OBJECT, True, position_m, False)
+    if s.contact_ns != NO_NS:
+        lost = _object_lost(s, p, msg_f, msg_i, t_ns, position_m, force_n)
+        if lost != NO_ANSWER:
+            return lost
+    if _holding(s):
+        return NO_ANSWER
+    if s.phase == Phase.POSITION:
+        tol = p.position_tolerance_fraction * s.tg_position_setpoint_m
+        slow = p.position_switch_speed_mps <= 0.0 or abs(speed_mps) <= p.position_switch_speed_mps
+        if abs(position_m - s.tg_approach_setpoint_m) <= tol and slow:
+            _switch(s, SwitchCriterion.POSITION_TOLERANCE, t_ns)
+        elif sensor_rise:
+            _switch(s, SwitchCriterion.SENSOR_VOLTAGE, t_ns)
+    elif s.phase == Phase.FORCE:
+        if _force_settled(s, p, t_ns, force_n, speed_mps):
+            s.settled_ns = t_ns
+            s.hold_position_m = position_m
+            s.phase = Phase.HOLDING
+    if s.phase == Phase.HOLDING and (t_ns - s.settled_ns) * 1e-9 >= p.hold_watch_s:
+        s.outcome = Outcome.HOLDING
+        s.end_ns = t_ns
+        msg_f[0] = force_n
+        msg_f[1] = s.tg_force_setpoint_n
+        msg_f[2] = position_m
+        s.msg_code = MSG_HOLDING
+        s.msg_seq += 1
+        return Outcome.HOLDING
+    if (t_ns - s.start_ns) * 1e-9 > s.tg_timeout_s:
+        msg_f[0] = s.tg_timeout_s
+        msg_f[1] = position_m
+        msg_f[2] = force_n
+        msg_i[0] = s.phase
+        return _end(s, Phase.FAILED, Outcome.TIMEOUT, MSG_GRASP_TIMEOUT, True, position_m, False)
+    return NO_ANSWER
+
+
+@_kernel
+def _fill(s, answer) -> None:
+    """Write the tick's decision: who drives, with which setpoints and limits, what answers."""
+    s.d_answer = answer
+    s.d_running = _running(s)
+    s.d_contact = s.contact_ns != NO_NS
+    if answer != NO_ANSWER and s.answer_ns == NO_NS:
+        s.answer = answer
+        s.answer_ns = s.t_ns
+    if s.active == Controller.POSITION and not s.d_running:
+        s.d_position_setpoint_m = s.idle_hold_m
+        s.d_approach_setpoint_m = s.idle_hold_m
+        s.d_force_setpoint_n = s.tg_force_setpoint_n if s.tg_kind != 0 else 0.0
+        s.d_voltage_limit_v = s.idle_limit_v
+        s.d_speed_limit_mps = s.idle_speed_limit_mps
+    elif s.tg_kind != 0:
+        s.d_position_setpoint_m = s.tg_position_setpoint_m
+        s.d_approach_setpoint_m = s.tg_approach_setpoint_m
+        s.d_force_setpoint_n = s.tg_force_setpoint_n
+        if s.phase == Phase.MOVING:
+            s.d_voltage_limit_v = s.tg_voltage_limit_v
+            s.d_speed_limit_mps = s.tg_speed_mps
+        else:
+            s.d_voltage_limit_v = 0.0
+            s.d_speed_limit_mps = 0.0
+    else:
+        s.d_position_setpoint_m = 0.0
+        s.d_approach_setpoint_m = 0.0
+        s.d_force_setpoint_n = 0.0
+        s.d_voltage_limit_v = 0.0
+        s.d_speed_limit_mps = 0.0
+
+
+@_kernel
+def supervisor_step(k, t_ns, position_m, force_n, sensor_voltage_v, speed_mps,
+                    revision) -> None:
+    """Advance the state machine with the measurements of tick ``t_ns``; the decision in ``k``.
+
+    ``speed_mps`` is the finger's speed (the position switch's speed condition);
+    ``revision`` counts changes of the simulated world (a new object, fingers reset): the
+    position stage then holds the finger where it now is.
+    """
+    state, params, msg_f, msg_i = k
+    s = state[0]
+    p = params[0]
+    s.t_ns = t_ns
+    answer = NO_ANSWER
+    if s.revision != revision:
+        first = s.revision == NO_NS
+        s.revision = revision
+        if not (_running(s) or _holding(s)) and (first or s.active == Controller.POSITION):
+            _hold_here(s, position_m, 0.0, 0.0)   # after a FAULT nothing drives until a request
+    if s.pend_kind != 0 and (s.pend_after_ns == NO_NS or t_ns > s.pend_after_ns) and \
+            math.isfinite(position_m):
+        _start(s, p, t_ns, position_m, sensor_voltage_v)
+    if _running(s) or _holding(s):
+        answer = _step_request(s, p, msg_f, msg_i, t_ns, position_m, force_n, sensor_voltage_v,
+                               speed_mps)
+    _fill(s, answer)
+
+
+@_kernel
+def supervisor_decide(k, tick, ref) -> bool:
+    """Decide ``tick`` (a PlantTick record) and address ``ref`` (a StageReference record).
+
+    Returns False when no stage is named (after a FAULT). The reference relays the tick's
+    measurement as read, a non-finite one included (the stage then holds 0 V); the seed voltage
+    is the last finite applied one, since no measurement of the stage depends on it.
+    """
+    t = tick[0]
+    supervisor_step(k, t.stamp_ns, t.position_m, t.force_n, t.sensor_voltage_v, t.velocity_mps,
+                    t.revision)
+    s = k[0][0]
+    if math.isfinite(t.motor_voltage_v):
+        s.seed_voltage_v = t.motor_voltage_v
+    if s.active == Controller.NONE:
+        return False
+    r = ref[0]
+    r.stamp_ns = t.stamp_ns
+    r.grasp_id = s.grasp_id
+    r.stage_id = s.stage_id
+    r.revision = t.revision
+    r.phase = s.phase
+    r.outcome = s.outcome
+    r.controller = s.active
+    r.running = s.d_running
+    r.contact = s.d_contact
+    r.position_setpoint_m = s.d_position_setpoint_m
+    r.approach_setpoint_m = s.d_approach_setpoint_m
+    r.force_setpoint_n = s.d_force_setpoint_n
+    r.position_m = t.position_m
+    r.velocity_mps = t.velocity_mps
+    r.force_n = t.force_n
+    r.seed_voltage_v = s.seed_voltage_v
+    r.speed_limit_mps = s.d_speed_limit_mps
+    r.voltage_limit_v = s.d_voltage_limit_v
+    return True
+
+
+@_kernel
+def supervisor_stop(k) -> bool:
+    """End the running request, the hold, a stalled move's press or a waiting request: STOPPED.
+
+    False with nothing to stop. The message is the text the caller gives (MSG_TEXT).
+    """
+    s = k[0][0]
+    if s.pend_kind != 0 and not _running(s):
+        _take_pending(s)                     # answered at once, it never starts
+        _reset(s, s.t_ns)
+    elif _pressing(s):                       # where the move stalled
+        _end(s, Phase.DONE, Outcome.STOPPED, MSG_TEXT, True, s.position_m, False)
+        _fill(s, Outcome.STOPPED)
+        return True
+    elif not (_running(s) or _holding(s)):
+        return False
+    _end(s, Phase.DONE, Outcome.STOPPED, MSG_TEXT, True, math.nan, False)
+    _fill(s, Outcome.STOPPED)
+    return True
+
+
+@_kernel
+def supervisor_fault(k) -> bool:
+    """End the running request or the hold as FAULT: no controller drives the motor."""
+    s = k[0][0]
+    if not (_running(s) or _holding(s)):
+        _fill(s, NO_ANSWER)
+        return False
+    _end(s, Phase.FAILED, Outcome.FAULT, MSG_TEXT, False, math.nan, False)
+    _fill(s, Outcome.FAULT)
+    return True
+
+
+# ------------------------------------------------------------------ the Python face
+def _ns_or_none(value) -> int | None:
+    return None if value == NO_NS else int(value)
+
+
+class Decision:
+    """The supervisor's verdict for the last tick: a view of its state, current at any time.
+
+    ``answer`` is the outcome this tick produced for the request (the grasp service answers
+    now, the outcome is latched), or None.
+    """
+
+    __slots__ = ('_owner',)
+
+    def __init__(self, owner: GraspSupervisor):
+        self._owner = owner
+
+    t_ns = property(lambda self: int(self._owner._s['t_ns']))
+    phase = property(lambda self: Phase(self._owner._s['phase']))
+    active = property(lambda self: Controller(self._owner._s['active']))
+    switch_criterion = property(lambda self: SwitchCriterion(self._owner._s['switch_criterion']))
+    outcome = property(lambda self: Outcome(self._owner._s['outcome']))
+    grasp_id = property(lambda self: int(self._owner._s['grasp_id']))
+    stage_id = property(lambda self: int(self._owner._s['stage_id']))
+    running = property(lambda self: bool(self._owner._s['d_running']))
+    contact = property(lambda self: bool(self._owner._s['d_contact']))
+    position_setpoint_m = property(lambda self: float(self._owner._s['d_position_setpoint_m']))
+    approach_setpoint_m = property(lambda self: float(self._owner._s['d_approach_setpoint_m']))
+    force_setpoint_n = property(lambda self: float(self._owner._s['d_force_setpoint_n']))
+    speed_limit_mps = property(lambda self: float(self._owner._s['d_speed_limit_mps']))
+    voltage_limit_v = property(lambda self: float(self._owner._s['d_voltage_limit_v']))
+    message = property(lambda self: self._owner.message)
+
+    @property
+    def answer(self) -> Outcome | None:
+        answer = self._owner._s['d_answer']
+        return None if answer == NO_ANSWER else Outcome(answer)
+
+    @property
+    def finished(self) -> bool:
+        """The request has been answered (it may go on holding, phase HOLDING)."""
+        return self.outcome is not Outcome.UNKNOWN
 
 
 class GraspSupervisor:
@@ -102,88 +669,144 @@ class GraspSupervisor:
     :meth:`request_release`, :meth:`request_move`). ``running`` says whether the
     request still needs simulated time; ``stage_id`` grows whenever a controller is
     (re)assigned, so that it restarts from the measured state.
+
+    ``kernel`` is the tuple of arrays the compiled functions take: the state record, the
+    parameters, and the numbers of the current message.
     """
 
     def __init__(self, plant: PlantParams, params: SupervisorParams):
         self.plant = plant
+        state = np.zeros(1, SUPERVISOR_STATE)
+        self._s = state[0]                      # a view: reads and writes go to the record
+        for name in SUPERVISOR_STATE.names:
+            if name.endswith('_ns'):
+                self._s[name] = NO_NS
+        for name in ('hold_position_m', 'position_m'):
+            self._s[name] = math.nan
+        self._s['revision'] = NO_NS
+        self._s['d_answer'] = NO_ANSWER
+        self._s['t_ns'] = 0
+        self._params = np.zeros(1, SUPERVISOR_PARAMS)
+        self.kernel = (state, self._params, np.zeros(MSG_FLOATS), np.zeros(MSG_INTS, np.int64))
         self.params = params
-        self.targets: GraspTargets | None = None
-        self.kind: str | None = None            # the current request's kind, None before any
-        self.phase = Phase.IDLE
-        self.switch_criterion = SwitchCriterion.NONE
-        self.outcome = Outcome.UNKNOWN
-        self.grasp_id = 0
-        self.stage_id = 0
-        self.mass_kg = 0.0                      # the current grasp request's object mass
-        self.start_ns = 0
-        self.switch_ns: int | None = None
-        self.contact_ns: int | None = None
-        self.settled_ns: int | None = None      # force first settled (phase HOLDING from here)
-        self.hold_position_m: float | None = None
-        self.end_ns: int | None = None          # when the request was answered or ended
-        self.answer = Outcome.UNKNOWN            # what the current request was answered
-        self.answer_ns: int | None = None        # ... and when (the grasp service's answer)
-        self.message = ''
-        self._pending: tuple | None = None      # (kind, targets, mass_kg) starting next tick
-        self._active = Controller.NONE
-        self._idle_hold_m = 0.0                 # where the position stage holds without a request
-        self._idle_limit_v = 0.0                # ... and its voltage cap (0: the plant's limit)
-        self._position_m: float | None = None   # the last position measured in a request
-        self._idle_speed_limit_mps = 0.0        # ... and its speed limit (0: none)
-        self._move_timeout_s = 0.0
-        self._rest_since_ns: int | None = None  # a move: the finger at rest since
-        self._revision: int | None = None       # the plant's world revision last seen
-        self._baseline_voltage_v = 0.0
-        self._in_band_since_ns: int | None = None
-        self._prev_force_t_ns: int | None = None    # previous FORCE-phase tick (settle rate)
-        self._prev_force_n = 0.0
-        self._gripped = False                   # force reached lost_force_fraction x F_sp
-        self._low_since_ns: int | None = None
-        self._t_ns = 0
-        self._decision = Decision()
+        self._targets: GraspTargets | MoveTargets | None = None
+        self._pending_targets: GraspTargets | MoveTargets | None = None
+        self._text = ''                          # a message given by stop() or fault()
+        self._message = (-1, '')                 # (msg_seq, text) formatted last
+        self._decision = Decision(self)
+
+    # ------------------------------------------------------------------ parameters
+    @property
+    def params(self) -> SupervisorParams:
+        return self._params_obj
+
+    @params.setter
+    def params(self, params: SupervisorParams) -> None:
+        """Set new thresholds; they take effect from the next tick."""
+        self._params_obj = params
+        record = self._params[0]
+        for name in _PARAM_FIELDS:
+            record[name] = getattr(params, name)
 
     # ------------------------------------------------------------------ state
+    kind = property(lambda self: KIND_NAMES.get(int(self._s['kind'])),
+                    doc="The current request's kind, None before any.")
+    phase = property(lambda self: Phase(self._s['phase']))
+    switch_criterion = property(lambda self: SwitchCriterion(self._s['switch_criterion']))
+    outcome = property(lambda self: Outcome(self._s['outcome']))
+    grasp_id = property(lambda self: int(self._s['grasp_id']))
+    stage_id = property(lambda self: int(self._s['stage_id']))
+    mass_kg = property(lambda self: float(self._s['mass_kg']),
+                       doc="The current grasp request's object mass.")
+    start_ns = property(lambda self: int(self._s['start_ns']))
+    switch_ns = property(lambda self: _ns_or_none(self._s['switch_ns']))
+    contact_ns = property(lambda self: _ns_or_none(self._s['contact_ns']))
+    settled_ns = property(lambda self: _ns_or_none(self._s['settled_ns']),
+                          doc='Force first settled (phase HOLDING from here).')
+    end_ns = property(lambda self: _ns_or_none(self._s['end_ns']),
+                      doc='When the request was answered or ended.')
+    answer = property(lambda self: Outcome(self._s['answer']),
+                      doc='What the current request was answered.')
+    answer_ns = property(lambda self: _ns_or_none(self._s['answer_ns']),
+                         doc="... and when (the grasp service's answer).")
+    active = property(lambda self: Controller(self._s['active']))
+
+    @property
+    def hold_position_m(self) -> float | None:
+        value = float(self._s['hold_position_m'])
+        return None if math.isnan(value) else value
+
+    @property
+    def targets(self) -> GraspTargets | MoveTargets | None:
+        """Return what the current request aims at; a waiting one's once it has started."""
+        if self._pending_targets is not None and self._s['pend_kind'] == 0:
+            self._targets, self._pending_targets = self._pending_targets, None
+        return self._targets
+
     @property
     def running(self) -> bool:
         """A grasp or release is in progress (it needs simulated time until it is answered)."""
-        return self.kind is not None and self.outcome is Outcome.UNKNOWN
+        return bool(self._s['kind'] != 0 and self._s['outcome'] == Outcome.UNKNOWN)
 
     busy = running
 
     @property
     def releasing(self) -> bool:
-        return self.running and self.phase is Phase.RELEASING
+        return self.running and bool(self._s['phase'] == Phase.RELEASING)
 
     @property
     def holding(self) -> bool:
         """A grasp was answered HOLDING and the force stage goes on holding the object."""
-        return self.phase is Phase.HOLDING and self.outcome is Outcome.HOLDING
+        return bool(self._s['phase'] == Phase.HOLDING and self._s['outcome'] == Outcome.HOLDING)
 
     @property
     def pressing(self) -> bool:
         """A stalled move's last command is in force: the finger presses at its limits."""
-        return self.outcome is Outcome.STALLED and self._idle_speed_limit_mps > 0.0 and \
-            self._active is Controller.POSITION
+        return bool(self._s['outcome'] == Outcome.STALLED and
+                    self._s['idle_speed_limit_mps'] > 0.0 and
+                    self._s['active'] == Controller.POSITION)
 
     @property
     def pending(self) -> bool:
-        return self._pending is not None
+        return bool(self._s['pend_kind'] != 0)
 
     @property
     def pending_request(self) -> PendingRequest:
         """What request waits to start at the next tick (the status' ``pending_request``)."""
-        return PENDING_CODES[self._pending[0] if self._pending is not None else None]
+        return PendingRequest(self._s['pend_kind'])
 
     @property
-    def active(self) -> Controller:
-        return self._active
+    def decision(self) -> Decision:
+        """The decision of the last tick (the same object, always current)."""
+        return self._decision
+
+    @property
+    def message(self) -> str:
+        """The current request's outcome, in words with its numbers ('' while none)."""
+        seq = int(self._s['msg_seq'])
+        if self._message[0] != seq:
+            self._message = (seq, self._format_message(int(self._s['msg_code'])))
+        return self._message[1]
 
     # ------------------------------------------------------------------ requests
     def _refuse_if_busy(self) -> None:
-        if self._pending is not None:
-            raise RequestError(f'a {self._pending[0]} request is already waiting to start')
+        if self.pending:
+            raise RequestError(f'a {KIND_NAMES[int(self._s["pend_kind"])]} request is already '
+                               'waiting to start')
         if self.running:
             raise RequestError(f'a {self.kind} is running (phase {self.phase.name})')
+
+    def _wait(self, kind: str, targets, mass_kg: float, after_ns: int | None):
+        """Write a request that starts at the first tick after ``after_ns`` (None: the next)."""
+        self.targets                            # the one that started before becomes current
+        s = self._s
+        for name in _TARGET_FIELDS:
+            s['pend_' + name] = getattr(targets, name, 0.0)
+        s['pend_mass_kg'] = mass_kg
+        s['pend_after_ns'] = NO_NS if after_ns is None else after_ns
+        s['pend_kind'] = KIND_CODES[kind]
+        self._pending_targets = targets
+        return targets
 
     def request_grasp(self, targets: GraspTargets, mass_kg: float = 0.0,
                       after_ns: int | None = None) -> GraspTargets:
@@ -196,8 +819,7 @@ class GraspSupervisor:
         may follow a hold; the hold ends when it starts.
         """
         self._refuse_if_busy()
-        self._pending = (RequestKind.GRASP, targets, float(mass_kg), after_ns)
-        return targets
+        return self._wait(RequestKind.GRASP, targets, float(mass_kg), after_ns)
 
     def request_release(self, open_position_m: float = 0.0, timeout_s: float | None = None,
                         after_ns: int | None = None) -> GraspTargets:
@@ -212,8 +834,7 @@ class GraspSupervisor:
                                f'got {open_position_m!r}')
         timeout = self.params.timeout_s if timeout_s is None else timeout_s
         targets = GraspTargets(open_position_m, 0.0, 0.0, timeout)
-        self._pending = (RequestKind.RELEASE, targets, 0.0, after_ns)
-        return targets
+        return self._wait(RequestKind.RELEASE, targets, 0.0, after_ns)
 
     def request_move(self, targets: MoveTargets, after_ns: int | None = None) -> MoveTargets:
         """Accept a move (:func:`validate_move`) and return its targets.
@@ -222,8 +843,7 @@ class GraspSupervisor:
         may follow a hold; the hold ends when it starts.
         """
         self._refuse_if_busy()
-        self._pending = (RequestKind.MOVE, targets, 0.0, after_ns)
-        return targets
+        return self._wait(RequestKind.MOVE, targets, 0.0, after_ns)
 
     def stop(self, message: str = 'stopped on request') -> Decision | None:
         """End the running request, the hold, a stalled move's press or a waiting request now.
@@ -232,74 +852,16 @@ class GraspSupervisor:
         or None with nothing to stop. From the next tick the position stage holds the finger
         where it is, without a move's limits.
         """
-        if self._pending is not None and not self.running:
-            kind, targets, mass, _ = self._pending  # answered at once, it never starts
-            self._pending = None
-            self.grasp_id += 1
-            self.kind, self.targets, self.mass_kg = kind, targets, mass
-            self._reset(self._t_ns)
-        elif self.pressing:                         # where the move stalled
-            self._end(Phase.DONE, Outcome.STOPPED, message, position_m=self._position_m)
-            return self._fill(Outcome.STOPPED)
-        elif not (self.running or self.holding):
+        if not supervisor_stop(self.kernel):
             return None
-        self._end(Phase.DONE, Outcome.STOPPED, message)
-        return self._fill(Outcome.STOPPED)
+        self._text = message
+        return self._decision
 
     def fault(self, message: str) -> Decision:
         """End the running request or the hold as FAULT: no controller drives the motor."""
-        if not (self.running or self.holding):
-            return self._fill()
-        self._end(Phase.FAILED, Outcome.FAULT, message, hold=False)
-        return self._fill(Outcome.FAULT)
-
-    def _start(self, t_ns: int, position_m: float, sensor_voltage_v: float) -> None:
-        kind, targets, mass, _ = self._pending
-        self._pending = None
-        self.grasp_id += 1
-        self.kind, self.targets, self.mass_kg = kind, targets, mass
-        self.phase = START_PHASES[kind]
-        self._reset(t_ns)
-        self._baseline_voltage_v = sensor_voltage_v
-        if kind == RequestKind.MOVE:
-            self._move_timeout_s = targets.timeout_s or (
-                self.params.timeout_s
-                + abs(targets.position_setpoint_m - position_m) / targets.speed_mps)
-        self._assign(Controller.POSITION)
-
-    def _reset(self, t_ns: int) -> None:
-        self.outcome = Outcome.UNKNOWN
-        self.answer = Outcome.UNKNOWN
-        self.answer_ns = None
-        self.switch_criterion = SwitchCriterion.NONE
-        self.start_ns = self._t_ns = t_ns
-        self.switch_ns = None
-        self.contact_ns = None
-        self.settled_ns = None
-        self.hold_position_m = None
-        self.end_ns = None
-        self._in_band_since_ns = None
-        self._prev_force_t_ns = None
-        self._prev_force_n = 0.0
-        self._gripped = False
-        self._low_since_ns = None
-        self._rest_since_ns = None
-        self.message = ''
-
-    def _assign(self, controller: Controller) -> None:
-        """Hand the motor to ``controller`` from this tick on; it restarts (new stage)."""
-        self._active = controller
-        self.stage_id += 1
-
-    def _hold_here(self, position_m: float, limits: MoveTargets | None = None) -> None:
-        """Let the position stage hold the finger at ``position_m`` (no request running).
-
-        With a move's speed and voltage ``limits`` (None: none but the plant's).
-        """
-        self._idle_hold_m = position_m if math.isfinite(position_m) else self._idle_hold_m
-        self._idle_limit_v = limits.voltage_limit_v if limits is not None else 0.0
-        self._idle_speed_limit_mps = limits.speed_mps if limits is not None else 0.0
-        self._assign(Controller.POSITION)
+        if supervisor_fault(self.kernel):
+            self._text = message
+        return self._decision
 
     # ------------------------------------------------------------------ the tick
     def step(self, t_ns: int, position_m: float, force_n: float, sensor_voltage_v: float,
@@ -310,284 +872,68 @@ class GraspSupervisor:
         ``revision`` counts changes of the simulated world (a new object, fingers reset): the
         position stage then holds the finger where it now is.
         """
-        self._t_ns = t_ns
-        answer = None
-        if self._revision != revision:
-            first = self._revision is None
-            self._revision = revision
-            if not (self.running or self.holding) and \
-                    (first or self._active is Controller.POSITION):
-                self._hold_here(position_m)       # after a FAULT nothing drives until a request
-        pending = self._pending
-        if pending is not None and (pending[3] is None or t_ns > pending[3]) and \
-                math.isfinite(position_m):
-            self._start(t_ns, position_m, sensor_voltage_v)
-        if self.running or self.holding:
-            answer = self._step_request(t_ns, position_m, force_n, sensor_voltage_v, speed_mps)
-        return self._fill(answer)
+        supervisor_step(self.kernel, t_ns, float(position_m), float(force_n),
+                        float(sensor_voltage_v), float(speed_mps), revision)
+        return self._decision
 
-    def _step_request(self, t_ns, position_m, force_n, sensor_voltage_v, speed_mps):
-        phase = self.phase
-        position_only = phase is Phase.RELEASING or phase is Phase.MOVING   # no force needed
-        bad = []
-        if not math.isfinite(position_m):
-            bad.append(f'finger position sensor (joint state) reads {position_m!r} m')
-        if not position_only and not (math.isfinite(force_n)
-                                      and math.isfinite(sensor_voltage_v)):
-            bad.append(f'force sensor reads force {force_n!r} N, voltage '
-                       f'{sensor_voltage_v!r} V (sensor dropout)')
-        if bad:
-            what = 'hold' if self.holding else self.kind
-            return self._end(Phase.FAILED, Outcome.FAULT,
-                             f'fault at t={t_ns * 1e-9:.4f} s ({(t_ns - self.start_ns) * 1e-9:.4f}'
-                             f' s into the {what}): ' + '; '.join(bad) +
-                             '; no controller drives the motor from here on', hold=False)
-        self._position_m = position_m                   # finite: where a stop holds
-        if position_only:
-            if phase is Phase.RELEASING:
-                return self._step_release(t_ns, position_m)
-            return self._step_move(t_ns, position_m, force_n, sensor_voltage_v, speed_mps)
-        p, tg = self.params, self.targets
-        sensor_rise = sensor_voltage_v - self._baseline_voltage_v > p.sensor_voltage_threshold_v
-        if sensor_rise and self.contact_ns is None:
-            self.contact_ns = t_ns
-        farthest_face_m = tg.position_setpoint_m + tg.width_tolerance_m   # narrowest object
-        if self.contact_ns is None and position_m > farthest_face_m + p.no_object_margin_m:
-            return self._end(
-                Phase.FAILED, Outcome.NO_OBJECT,
-                f'no object: the finger passed the expected face ({tg.position_setpoint_m:.4f} m'
-                + (f' + {tg.width_tolerance_m * 1e3:g} mm tolerance'
-                   if tg.width_tolerance_m else '') +
-                f') by {(position_m - farthest_face_m) * 1e3:.2f} mm without contact',
-                position_m=position_m)
-        if self.contact_ns is not None:
-            lost = self._object_lost(t_ns, position_m, force_n)
-            if lost is not None:
-                return lost
-        if self.holding:
-            return None
-        if self.phase is Phase.POSITION:
-            tol = p.position_tolerance_fraction * tg.position_setpoint_m
-            slow = (p.position_switch_speed_mps <= 0.0
-                    or abs(speed_mps) <= p.position_switch_speed_mps)
-            if abs(position_m - tg.approach_setpoint_m) <= tol and slow:
-                self._switch(SwitchCriterion.POSITION_TOLERANCE, t_ns)
-            elif sensor_rise:
-                self._switch(SwitchCriterion.SENSOR_VOLTAGE, t_ns)
-        elif self.phase is Phase.FORCE:
-            if self._force_settled(t_ns, force_n, speed_mps):
-                self.settled_ns = t_ns
-                self.hold_position_m = position_m
-                self.phase = Phase.HOLDING
-        if self.phase is Phase.HOLDING and \
-                (t_ns - self.settled_ns) * 1e-9 >= p.hold_watch_s:
-            self.outcome = Outcome.HOLDING
-            self.end_ns = t_ns
-            self.message = (f'holding {force_n:.3f} N (setpoint {tg.force_setpoint_n:.3f} N) '
-                            f'at {position_m:.5f} m')
-            return Outcome.HOLDING
-        if (t_ns - self.start_ns) * 1e-9 > tg.timeout_s:
-            return self._end(Phase.FAILED, Outcome.TIMEOUT,
-                             f'not settled within {tg.timeout_s:g} s of simulated time '
-                             f'(phase {self.phase.name}, position {position_m:.5f} m, '
-                             f'force {force_n:.3f} N)', position_m=position_m)
-        return None
-
-    def _force_settled(self, t_ns: int, force_n: float, speed_mps: float) -> bool:
-        """Apply the force stage's settle criterion, once per FORCE-phase tick.
-
-        Settled once, for ``force_settle_hold_s`` on end, every tick has had
-        ``|F - F_sp| + T |dF/dt| <= band`` (``T`` = ``force_settle_horizon_s``, ``dF/dt`` from the
-        previous tick) and the finger slower than ``force_settle_speed_mps``. A force
-        oscillation ``A sin(w t)`` with ``w >= 1 / T`` gives ``|e| + T |de/dt| >= A`` at every
-        instant, so none larger than the band is ever taken for settled; ``T`` is the period over
-        2 pi of the slowest contact mode of the envelope. The speed bound keeps the creep of a
-        damped object after HOLDING (at most ``speed x c / k``) inside the loss watch's margin.
-        """
-        p, tg = self.params, self.targets
-        prev_t_ns, prev_force_n = self._prev_force_t_ns, self._prev_force_n
-        self._prev_force_t_ns, self._prev_force_n = t_ns, force_n
-        if prev_t_ns is None or t_ns <= prev_t_ns:
-            self._in_band_since_ns = None
-            return False
-        rate = (force_n - prev_force_n) / ((t_ns - prev_t_ns) * 1e-9)
-        band = p.force_settle_band_fraction * tg.force_setpoint_n
-        steady = (abs(force_n - tg.force_setpoint_n) + p.force_settle_horizon_s * abs(rate)
-                  <= band and (p.force_settle_speed_mps <= 0.0
-                               or abs(speed_mps) <= p.force_settle_speed_mps))
-        if not steady:
-            self._in_band_since_ns = None
-            return False
-        if self._in_band_since_ns is None:
-            self._in_band_since_ns = t_ns
-        return (t_ns - self._in_band_since_ns) * 1e-9 >= p.force_settle_hold_s
-
-    def _object_lost(self, t_ns: int, position_m: float, force_n: float) -> Outcome | None:
-        """After contact: a force collapse, or the finger moving on past the held position."""
-        p, tg = self.params, self.targets
-        floor = p.lost_force_fraction * tg.force_setpoint_n
-        t_s = t_ns * 1e-9
-        if force_n >= floor:
-            self._gripped = True
-            self._low_since_ns = None
-        elif self._gripped:
-            if self._low_since_ns is None:
-                self._low_since_ns = t_ns
-            low_s = (t_ns - self._low_since_ns) * 1e-9
-            if low_s >= p.lost_force_hold_s:
-                return self._end(
-                    Phase.FAILED, Outcome.OBJECT_LOST,
-                    f'object lost at t={t_s:.4f} s{self._into()}: force {force_n:.3f} N has '
-                    f'been below {p.lost_force_fraction:g} x the setpoint '
-                    f'{tg.force_setpoint_n:.3f} N = {floor:.3f} N for {low_s * 1e3:.2f} ms '
-                    f'(since t={self._low_since_ns * 1e-9:.4f} s); finger at {position_m:.5f} m',
-                    position_m=position_m)
-        if self.hold_position_m is not None and \
-                position_m > self.hold_position_m + p.no_object_margin_m:
-            return self._end(
-                Phase.FAILED, Outcome.OBJECT_LOST,
-                f'object lost at t={t_s:.4f} s{self._into()}: the finger moved on '
-                f'{(position_m - self.hold_position_m) * 1e3:.2f} mm past the held position '
-                f'{self.hold_position_m:.5f} m (margin {p.no_object_margin_m * 1e3:g} mm); '
-                f'force {force_n:.3f} N', position_m=position_m)
-        return None
-
-    def _into(self) -> str:
-        """Where in the grasp an event happened, for its message."""
-        if self.holding and self.end_ns is not None:
-            return f', {(self._t_ns - self.end_ns) * 1e-9:.4f} s after HOLDING'
-        return f', {(self._t_ns - self.start_ns) * 1e-9:.4f} s into the grasp'
-
-    def _step_release(self, t_ns: int, position_m: float) -> Outcome | None:
-        p, tg = self.params, self.targets
-        if abs(position_m - tg.position_setpoint_m) <= p.release_tolerance_m:
-            if self._in_band_since_ns is None:
-                self._in_band_since_ns = t_ns
-            if (t_ns - self._in_band_since_ns) * 1e-9 >= p.release_settle_s:
-                return self._end(
-                    Phase.DONE, Outcome.RELEASED,
-                    f'released: finger at {position_m:.5f} m (open position '
-                    f'{tg.position_setpoint_m:.5f} m, opening '
-                    f'{self.plant.max_travel_m - position_m:.5f} m) after '
-                    f'{(t_ns - self.start_ns) * 1e-9:.3f} s', position_m=position_m)
-        else:
-            self._in_band_since_ns = None
-        if (t_ns - self.start_ns) * 1e-9 > tg.timeout_s:
-            return self._end(Phase.FAILED, Outcome.TIMEOUT,
-                             f'release not done within {tg.timeout_s:g} s of simulated time '
-                             f'(finger at {position_m:.5f} m)', position_m=position_m)
-        return None
-
-    def _step_move(self, t_ns: int, position_m: float, force_n: float, sensor_voltage_v: float,
-                   speed_mps: float) -> Outcome | None:
-        """End a move MOVED, STALLED or TIMEOUT; the position stage drives it meanwhile."""
-        p, tg = self.params, self.targets
-        goal = tg.position_setpoint_m
-        elapsed_s = (t_ns - self.start_ns) * 1e-9
-        if self.contact_ns is None and \
-                sensor_voltage_v - self._baseline_voltage_v > p.sensor_voltage_threshold_v:
-            self.contact_ns = t_ns
-        error_m = goal - position_m                   # > 0: still to close
-        at_rest = abs(speed_mps) <= p.move_rest_speed_mps
-        where = (f'finger at {position_m:.5f} m (opening '
-                 f'{self.plant.max_travel_m - position_m:.5f} m, goal '
-                 f'{self.plant.max_travel_m - goal:.5f} m), force {force_n:.3f} N, after '
-                 f'{elapsed_s:.3f} s')
-        if not at_rest:
-            self._rest_since_ns = None
-        elif abs(error_m) <= tg.tolerance_m:
-            return self._end(Phase.DONE, Outcome.MOVED, f'moved: {where}', position_m=goal,
-                             limits=tg)
-        else:
-            if self._rest_since_ns is None:
-                self._rest_since_ns = t_ns
-            rest_s = (t_ns - self._rest_since_ns) * 1e-9
-            fraction = p.move_stall_force_fraction
-            # closing onto an obstacle, pressing at the effort limit (False for a NaN force)
-            pressing = error_m > 0.0 and \
-                fraction * tg.max_effort_n <= force_n <= tg.max_effort_n / fraction
-            if pressing or rest_s >= p.move_stall_timeout_s:
-                why = (f'pressing with {force_n:.3f} N at the effort limit '
-                       f'{tg.max_effort_n:.3f} N' if pressing else f'at rest for {rest_s:.3f} s')
-                return self._end(Phase.DONE, Outcome.STALLED,
-                                 f'stalled {abs(error_m) * 1e3:.2f} mm short of the goal, '
-                                 f'{why}: {where}', position_m=goal, limits=tg)
-        if elapsed_s > self._move_timeout_s:
-            return self._end(Phase.FAILED, Outcome.TIMEOUT,
-                             f'move not done within {self._move_timeout_s:g} s of simulated '
-                             f'time: {where}', position_m=position_m)
-        return None
-
-    def _switch(self, criterion: SwitchCriterion, t_ns: int) -> None:
-        self._prev_force_t_ns = None          # the settle criterion's force rate starts here
-        self.phase = Phase.FORCE
-        self.switch_criterion = criterion
-        self.switch_ns = t_ns
-        self._assign(Controller.FORCE)
-
-    def _end(self, phase: Phase, outcome: Outcome, message: str, *, hold: bool = True,
-             position_m: float | None = None, limits: MoveTargets | None = None) -> Outcome:
-        """End the request (or the hold).
-
-        The position stage holds the finger from this tick on (``hold``; at ``position_m``,
-        default where it is; with a move's ``limits``), or nothing drives the motor (a FAULT).
-        """
-        if hold and position_m is None:
-            position_m = self._last_position()      # (while the request still runs)
-        self.phase = phase
-        self.outcome = outcome
-        self.message = message
-        self.end_ns = self._t_ns
-        if hold:
-            self._hold_here(position_m, limits)
-        else:
-            self._active = Controller.NONE
-            self.stage_id += 1
-        return outcome
-
-    def _last_position(self) -> float:
-        """Return where to hold when a request or hold ends.
-
-        The held position of a hold, else where the finger was last measured in the running
-        request, else the idle hold.
-        """
-        if self.hold_position_m is not None:
-            return self.hold_position_m
-        if self.running and self._position_m is not None:
-            return self._position_m
-        return self._idle_hold_m
-
-    def _fill(self, answer: Outcome | None = None) -> Decision:
-        d = self._decision
-        d.t_ns = self._t_ns
-        d.phase = self.phase
-        d.active = self._active
-        d.switch_criterion = self.switch_criterion
-        d.outcome = self.outcome
-        d.grasp_id = self.grasp_id
-        d.stage_id = self.stage_id
-        d.running = self.running
-        d.contact = self.contact_ns is not None
-        d.message = self.message
-        d.answer = answer
-        if answer is not None and self.answer_ns is None:
-            self.answer, self.answer_ns = answer, self._t_ns
-        tg = self.targets
-        if self._active is Controller.POSITION and not self.running:
-            d.position_setpoint_m = d.approach_setpoint_m = self._idle_hold_m
-            d.force_setpoint_n = tg.force_setpoint_n if tg is not None else 0.0
-            d.voltage_limit_v = self._idle_limit_v
-            d.speed_limit_mps = self._idle_speed_limit_mps
-        elif tg is not None:
-            d.position_setpoint_m = tg.position_setpoint_m
-            d.approach_setpoint_m = tg.approach_setpoint_m
-            d.force_setpoint_n = tg.force_setpoint_n
-            if self.phase is Phase.MOVING:
-                d.voltage_limit_v = tg.voltage_limit_v
-                d.speed_limit_mps = tg.speed_mps
-            else:
-                d.voltage_limit_v = d.speed_limit_mps = 0.0
-        else:
-            d.position_setpoint_m = d.approach_setpoint_m = d.force_setpoint_n = 0.0
-            d.voltage_limit_v = d.speed_limit_mps = 0.0
-        return d
+    # ------------------------------------------------------------------ messages
+    def _format_message(self, code: int) -> str:
+        """Today's outcome message in words, from the numbers the kernel kept at that instant."""
+        if code == MSG_NONE:
+            return ''
+        if code == MSG_TEXT:
+            return self._text
+        _, _, f, i = self.kernel
+        f = [float(v) for v in f]
+        i = [int(v) for v in i]
+        travel = self.plant.max_travel_m
+        if code == MSG_SENSOR_FAULT:
+            bad = []
+            if i[2]:
+                bad.append(f'finger position sensor (joint state) reads {f[0]!r} m')
+            if i[3]:
+                bad.append(f'force sensor reads force {f[1]!r} N, voltage {f[2]!r} V (sensor '
+                           'dropout)')
+            what = KIND_NAMES[i[4]] if i[4] else 'hold'
+            return (f'fault at t={i[0] * 1e-9:.4f} s ({(i[0] - i[1]) * 1e-9:.4f} s into the '
+                    f'{what}): ' + '; '.join(bad) +
+                    '; no controller drives the motor from here on')
+        if code == MSG_NO_OBJECT:
+            return (f'no object: the finger passed the expected face ({f[0]:.4f} m'
+                    + (f' + {f[1] * 1e3:g} mm tolerance' if f[1] else '') +
+                    f') by {(f[2] - f[3]) * 1e3:.2f} mm without contact')
+        if code in (MSG_LOST_FORCE, MSG_LOST_MOVED_ON):
+            into = (f', {i[2] * 1e-9:.4f} s after HOLDING' if i[1] else
+                    f', {i[2] * 1e-9:.4f} s into the grasp')
+            if code == MSG_LOST_FORCE:
+                return (f'object lost at t={i[0] * 1e-9:.4f} s{into}: force {f[0]:.3f} N has '
+                        f'been below {f[1]:g} x the setpoint {f[2]:.3f} N = {f[3]:.3f} N for '
+                        f'{(i[0] - i[3]) * 1e-9 * 1e3:.2f} ms (since t={i[3] * 1e-9:.4f} s); '
+                        f'finger at {f[4]:.5f} m')
+            return (f'object lost at t={i[0] * 1e-9:.4f} s{into}: the finger moved on '
+                    f'{(f[0] - f[1]) * 1e3:.2f} mm past the held position {f[1]:.5f} m '
+                    f'(margin {f[2] * 1e3:g} mm); force {f[3]:.3f} N')
+        if code == MSG_HOLDING:
+            return f'holding {f[0]:.3f} N (setpoint {f[1]:.3f} N) at {f[2]:.5f} m'
+        if code == MSG_GRASP_TIMEOUT:
+            return (f'not settled within {f[0]:g} s of simulated time (phase '
+                    f'{Phase(i[0]).name}, position {f[1]:.5f} m, force {f[2]:.3f} N)')
+        if code == MSG_RELEASED:
+            return (f'released: finger at {f[0]:.5f} m (open position {f[1]:.5f} m, opening '
+                    f'{travel - f[0]:.5f} m) after {(i[0] - i[1]) * 1e-9:.3f} s')
+        if code == MSG_RELEASE_TIMEOUT:
+            return (f'release not done within {f[0]:g} s of simulated time (finger at '
+                    f'{f[1]:.5f} m)')
+        where = (f'finger at {f[0]:.5f} m (opening {travel - f[0]:.5f} m, goal '
+                 f'{travel - f[1]:.5f} m), force {f[2]:.3f} N, after '
+                 f'{(i[0] - i[1]) * 1e-9:.3f} s')
+        if code == MSG_MOVED:
+            return f'moved: {where}'
+        if code in (MSG_STALLED_PRESSING, MSG_STALLED_AT_REST):
+            why = (f'pressing with {f[2]:.3f} N at the effort limit {f[4]:.3f} N'
+                   if code == MSG_STALLED_PRESSING else
+                   f'at rest for {(i[0] - i[2]) * 1e-9:.3f} s')
+            return f'stalled {abs(f[3]) * 1e3:.2f} mm short of the goal, {why}: {where}'
+        if code == MSG_MOVE_TIMEOUT:
+            return f'move not done within {f[3]:g} s of simulated time: {where}'
+        raise ValueError(f'unknown message code {code}')
