@@ -57,7 +57,7 @@ from gripper_ros.core.hold import (check_finite_nonnegative, hold_advance, hold_
                                    hold_capacity_n, HOLD_DTYPE, hold_fire_events, hold_live,
                                    hold_load_n, hold_remove, hold_scenario_in_progress,
                                    hold_stays_stuck, HoldModel, HoldState, Lift, ObjectState)
-from gripper_ros.wire import FaultKind
+from gripper_ros.wire import FaultKind, TICK_LAYOUT
 import numba
 import numpy as np
 from scipy.linalg import expm
@@ -489,6 +489,12 @@ def _set_object(k, width_m, stiffness, damping, mass_kg, static_friction, kineti
     k[K_HOLD][0].live = 0
     _clear_faults(k)
     _refresh_contact_state(s, p)
+
+
+@numba.njit(cache=True)
+def _use_default_object(k, stiffness, damping):
+    """Place a new plant's object: width 0 (nothing), the contact defaults' stiffness."""
+    _use_object(k[K_STATE][0], k[K_PARAMS][0], 0.0, stiffness, damping, 0.0, 0.0, 0.0, 0.0)
 
 
 @numba.njit(cache=True)
@@ -944,6 +950,37 @@ def _slip_capacity_at(k, t_s):
     return _slip_capacity_n(k[K_STATE][0], t_s)
 
 
+_warmed_up = []
+
+
+def _warm_up(kernel: tuple) -> None:
+    """Load (or compile) every kernel the facade calls, once per process, on a scratch copy.
+
+    A kernel's first call loads its machine code from numba's cache (tens of ms; seconds when
+    it must compile): done here, a node's first lift or fault does not stall its loop.
+    """
+    if _warmed_up:
+        return
+    k = tuple(a.copy() for a in kernel)
+    _reset(k, True)
+    _set_object(k, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+    k[K_STATE][0]['x'] = 0.5 * k[K_PARAMS][0]['max_travel_m']
+    _reset(k, False)
+    _step_and_sample(k, 0.0, 1)             # free motion: a table miss, scipy's expm loaded
+    _touch_object(k)
+    plant_sample(k)
+    plant_read_tick(k, np.zeros(1, TICK_LAYOUT.dtype), 0, 0)
+    _object_state(k)
+    plant_begin_hold(k, 0, 0.0)
+    plant_scenario_in_progress(k)
+    plant_schedule_fault(k, 1, 0, DEFAULT_SLIP_TIME_CONSTANT_S)
+    plant_fault_scheduled(k)
+    plant_cancel_fault(k)
+    _clear_faults(k)
+    _slip_capacity_at(k, 0.0)
+    _warmed_up.append(True)
+
+
 # ----------------------------------------------------------------------------- the facade
 class GripperPlant:
     """Exact-discretised motor + lead screw + contact. Call :meth:`step` with a held voltage.
@@ -969,9 +1006,10 @@ class GripperPlant:
         """The kernel buffers: (state, params, hold, sensor, fired faults, table keys, table)."""
         self._s = state[0]
         self._h = hold[0]
-        _use_object(self._s, self.kernel[K_PARAMS][0], 0.0, default.stiffness_n_per_m,
-                    default.damping_n_s_per_m, 0.0, 0.0, 0.0, 0.0)
+        _use_default_object(self.kernel, float(default.stiffness_n_per_m),
+                            float(default.damping_n_s_per_m))
         self.reset()
+        _warm_up(self.kernel)
 
     # ----------------------------------------------------------------- records for callers
     def snapshot(self) -> tuple:
