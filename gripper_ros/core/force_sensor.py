@@ -33,22 +33,31 @@ SENSOR_DTYPE = np.dtype([
 """The sensor's parameters and its dropout flag, as one record."""
 
 
-@numba.njit(cache=True)
-def fsr_resistance_ohm(sensor, force_n):
-    """FSR resistance at ``force_n``: open below the activation force, ``R_1N / F`` above."""
-    r = sensor[0]
+@numba.njit(cache=True, inline='always')
+def fsr_resistance_ohm(r, force_n):
+    """FSR resistance at ``force_n`` (sensor record ``r``): open below activation, R_1N / F."""
     if force_n < r.activation_force_n:
         return r.open_resistance_ohm
     fsr = r.fsr_resistance_at_1n_ohm / force_n
     return fsr if fsr < r.open_resistance_ohm else r.open_resistance_ohm
 
 
-@numba.njit(cache=True)
-def fsr_voltage_v(sensor, force_n):
-    """Divider output ``V_supply R_m / (R_m + R_fsr(F))`` at ``force_n``."""
-    r = sensor[0]
+@numba.njit(cache=True, inline='always')
+def fsr_voltage_v(r, force_n):
+    """Divider output ``V_supply R_m / (R_m + R_fsr(F))`` at ``force_n`` (sensor record ``r``)."""
     r_m = r.measuring_resistor_ohm
-    return r.supply_v * r_m / (r_m + fsr_resistance_ohm(sensor, force_n))
+    return r.supply_v * r_m / (r_m + fsr_resistance_ohm(r, force_n))
+
+
+# Array-level entry points for Python (FsrVoltageDivider): the kernels above on ``sensor[0]``.
+@numba.njit(cache=True)
+def _resistance_ohm(sensor, force_n):
+    return fsr_resistance_ohm(sensor[0], force_n)
+
+
+@numba.njit(cache=True)
+def _voltage_v(sensor, force_n):
+    return fsr_voltage_v(sensor[0], force_n)
 
 
 class FsrVoltageDivider:
@@ -81,11 +90,11 @@ class FsrVoltageDivider:
 
     def resistance_ohm(self, force_n: float) -> float:
         """FSR resistance at ``force_n`` (ohm)."""
-        return fsr_resistance_ohm(self.record, force_n)
+        return _resistance_ohm(self.record, float(force_n))
 
     def voltage_v(self, force_n: float) -> float:
         """Divider output at ``force_n`` (V)."""
-        return fsr_voltage_v(self.record, force_n)
+        return _voltage_v(self.record, float(force_n))
 
     @property
     def activation_step_v(self) -> float:

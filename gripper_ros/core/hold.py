@@ -19,9 +19,9 @@ closed form (constant relative acceleration), and finds the exact instants of sl
 of the loss inside it. The caller (:class:`gripper_ros.core.plant.GripperPlant`) splits its steps
 at the lift's start and end (:attr:`HoldModel.next_event_ns`) and at the loss.
 
-The model is a set of compiled kernels (``hold_*``) over a 1-element record array
-(:data:`HOLD_DTYPE`): the plant's kernels step the plant's own hold record, and
-:class:`HoldModel` is the Python view of one record (standalone, or the plant's).
+The model is a set of compiled kernels (``hold_*``) over one :data:`HOLD_DTYPE` record: the
+plant's kernels step the plant's own hold record, and :class:`HoldModel` is the Python view of
+a 1-element record array (standalone, or the plant's).
 """
 from __future__ import annotations
 
@@ -102,9 +102,8 @@ class ObjectState:
 
 
 @numba.njit(cache=True)
-def hold_begin(hold, t_ns, mass_kg):
+def hold_begin(h, t_ns, mass_kg):
     """Start the lift's clock at ``t_ns``; 1 (nothing changed) if the object is off its support."""
-    h = hold[0]
     if h.state != HoldState.RESTING:
         return 1
     h.mass_kg = mass_kg
@@ -117,14 +116,13 @@ def hold_begin(hold, t_ns, mass_kg):
 
 
 @numba.njit(cache=True)
-def hold_scenario_in_progress(hold, t_ns, after_lift_ns):
+def hold_scenario_in_progress(h, t_ns, after_lift_ns):
     """Whether a lift is still to be played out at ``t_ns``.
 
     True while it is to come, going on, the object sliding, or less than ``after_lift_ns``
     since the lift ended or the object was lost (the gripper's answer to a loss is part of
     the scenario).
     """
-    h = hold[0]
     if h.lift_start_ns == -1:
         return False                        # no lift: the object stays on its support
     if h.lost_ns != -1:
@@ -136,36 +134,33 @@ def hold_scenario_in_progress(hold, t_ns, after_lift_ns):
     return t_ns < h.lift_end_ns + after_lift_ns
 
 
-@numba.njit(cache=True)
-def hold_live(hold):
+@numba.njit(cache=True, inline='always')
+def hold_live(h):
     """Tell whether the model must be stepped: a lift pending, or the object lifted and held."""
-    h = hold[0]
     return h.next_event_ns != -1 or h.state == HoldState.STUCK or \
         h.state == HoldState.SLIDING
 
 
 @numba.njit(cache=True)
-def hold_load_n(hold):
+def hold_load_n(h):
     """Tangential load on the pads now (0 unless lifted and between the pads)."""
-    h = hold[0]
     if h.state == HoldState.STUCK or h.state == HoldState.SLIDING:
         return h.mass_kg * (h.gravity_mps2 + h.acceleration_mps2)
     return 0.0
 
 
 @numba.njit(cache=True)
-def hold_capacity_n(hold, force_n):
+def hold_capacity_n(h, force_n):
     """Most the two pads hold by static friction at grip force ``force_n``."""
-    return 2.0 * hold[0].static_friction * (force_n if force_n > 0.0 else 0.0)
+    return 2.0 * h.static_friction * (force_n if force_n > 0.0 else 0.0)
 
 
-@numba.njit(cache=True)
-def hold_stays_stuck(hold, force_n, until_ns):
+@numba.njit(cache=True, inline='always')
+def hold_stays_stuck(h, force_n, until_ns):
     """Tell whether it stays stuck at grip ``force_n``, with no event before ``until_ns``.
 
     The step then needs no splitting: advancing it would change nothing.
     """
-    h = hold[0]
     event_ns = h.next_event_ns
     return h.state == HoldState.STUCK and (event_ns == -1 or event_ns >= until_ns) and \
         h.mass_kg * (h.gravity_mps2 + h.acceleration_mps2) <= \
@@ -173,9 +168,8 @@ def hold_stays_stuck(hold, force_n, until_ns):
 
 
 @numba.njit(cache=True)
-def hold_fire_events(hold, t_ns):
+def hold_fire_events(h, t_ns):
     """Apply the lift's start and end if they are due at ``t_ns``."""
-    h = hold[0]
     while h.next_event_ns != -1 and h.next_event_ns <= t_ns:
         if h.state == HoldState.RESTING:            # the lift starts: off its support
             h.state = HoldState.STUCK
@@ -187,21 +181,19 @@ def hold_fire_events(hold, t_ns):
 
 
 @numba.njit(cache=True)
-def hold_remove(hold):
+def hold_remove(h):
     """Take the object away (not slid out): nothing is held from now on."""
-    h = hold[0]
     h.state = HoldState.NONE
     h.slip_speed_mps = 0.0
     h.next_event_ns = -1
 
 
 @numba.njit(cache=True)
-def hold_advance(hold, force_n, dt_s):
+def hold_advance(h, force_n, dt_s):
     """Integrate ``dt_s`` at grip force ``force_n`` and the present ``a``, both constant.
 
     Returns the time into the interval at which the object is lost, or NaN.
     """
-    h = hold[0]
     state = h.state
     if state != HoldState.STUCK and state != HoldState.SLIDING:
         return math.nan
@@ -242,6 +234,52 @@ def _time_to_travel(distance_m, v0_mps, accel_mps2):
         return math.inf
     denom = v0_mps + math.sqrt(disc)
     return math.inf if denom <= 0.0 else 2.0 * distance_m / denom
+
+
+# Array-level entry points for Python (HoldModel): each runs the kernel above on ``hold[0]``.
+@numba.njit(cache=True)
+def _begin(hold, t_ns, mass_kg):
+    return hold_begin(hold[0], t_ns, mass_kg)
+
+
+@numba.njit(cache=True)
+def _scenario_in_progress(hold, t_ns, after_lift_ns):
+    return hold_scenario_in_progress(hold[0], t_ns, after_lift_ns)
+
+
+@numba.njit(cache=True)
+def _live(hold):
+    return hold_live(hold[0])
+
+
+@numba.njit(cache=True)
+def _load_n(hold):
+    return hold_load_n(hold[0])
+
+
+@numba.njit(cache=True)
+def _capacity_n(hold, force_n):
+    return hold_capacity_n(hold[0], force_n)
+
+
+@numba.njit(cache=True)
+def _stays_stuck(hold, force_n, until_ns):
+    return hold_stays_stuck(hold[0], force_n, until_ns)
+
+
+@numba.njit(cache=True)
+def _fire_events(hold, t_ns):
+    hold_fire_events(hold[0], t_ns)
+
+
+@numba.njit(cache=True)
+def _remove(hold):
+    hold_remove(hold[0])
+
+
+@numba.njit(cache=True)
+def _advance(hold, force_n, dt_s):
+    return hold_advance(hold[0], force_n, dt_s)
 
 
 def _optional_ns(value) -> int | None:
@@ -302,44 +340,44 @@ class HoldModel:
 
     def begin(self, t_ns: int, mass_kg: float) -> None:
         """Start the lift's clock at ``t_ns`` (HOLDING declared); the object weighs ``mass_kg``."""
-        if hold_begin(self.record, t_ns, mass_kg):
+        if _begin(self.record, t_ns, mass_kg):
             raise ValueError(f'the object is already off its support ({self.state.name}); '
                              'place an object again before a new hold')
 
     def scenario_in_progress(self, t_ns: int, after_lift_ns: int) -> bool:
         """Whether a lift is still to be played out at ``t_ns`` (see hold_scenario_in_progress)."""
-        return hold_scenario_in_progress(self.record, t_ns, after_lift_ns)
+        return _scenario_in_progress(self.record, t_ns, after_lift_ns)
 
     @property
     def live(self) -> bool:
         """True while the model must be stepped: a lift pending, or the object lifted and held."""
-        return hold_live(self.record)
+        return _live(self.record)
 
     @property
     def load_n(self) -> float:
         """Tangential load on the pads now (0 unless lifted and between the pads)."""
-        return hold_load_n(self.record)
+        return _load_n(self.record)
 
     def capacity_n(self, force_n: float) -> float:
         """Most the two pads hold by static friction at grip force ``force_n``."""
-        return hold_capacity_n(self.record, float(force_n))
+        return _capacity_n(self.record, float(force_n))
 
     def stays_stuck(self, force_n: float, until_ns: int) -> bool:
         """Tell whether it stays stuck at grip ``force_n``, with no event before ``until_ns``."""
-        return hold_stays_stuck(self.record, float(force_n), until_ns)
+        return _stays_stuck(self.record, float(force_n), until_ns)
 
     def fire_events(self, t_ns: int) -> None:
         """Apply the lift's start and end if they are due at ``t_ns``."""
-        hold_fire_events(self.record, t_ns)
+        _fire_events(self.record, t_ns)
 
     def remove(self) -> None:
         """Take the object away (not slid out): nothing is held from now on."""
-        hold_remove(self.record)
+        _remove(self.record)
 
     def advance(self, force_n: float, dt_s: float) -> float | None:
         """Integrate ``dt_s`` at grip force ``force_n`` and the present ``a``, both constant.
 
         Returns the time into the interval at which the object is lost, or None.
         """
-        loss_s = hold_advance(self.record, float(force_n), float(dt_s))
+        loss_s = _advance(self.record, float(force_n), float(dt_s))
         return None if math.isnan(loss_s) else loss_s

@@ -321,11 +321,9 @@ def _discretise_from_kernel(r, ind, kb, kt, inertia, b, rho, lever, kind, dt_s, 
                        damping, x_c)
 
 
-@numba.njit(cache=True)
-def _disc_entry(k, kind, dt_s):
+@numba.njit(cache=True, inline='always')
+def _disc_entry(s, p, keys, coef, kind, dt_s):
     """Row of the discretisation table for ``kind`` over ``dt_s`` (computed on a miss)."""
-    s = k[K_STATE][0]
-    keys = k[K_DISC_KEYS]
     if kind == DISC_COMPLIANT:
         stiffness = s.stiffness_n_per_m
         damping = s.damping_n_s_per_m
@@ -343,7 +341,12 @@ def _disc_entry(k, kind, dt_s):
                 keys[j, 3] == damping and keys[j, 4] == x_c:
             s.disc_last = j
             return j
-    p = k[K_PARAMS][0]
+    return _disc_miss(s, p, keys, coef, kind, dt_s, stiffness, damping, x_c)
+
+
+@numba.njit(cache=True)
+def _disc_miss(s, p, keys, coef, kind, dt_s, stiffness, damping, x_c):
+    """Compute a discretisation in Python (scipy expm) and store it in the table."""
     r = p.resistance_ohm
     ind = p.inductance_h
     kb = p.kb
@@ -362,7 +365,6 @@ def _disc_entry(k, kind, dt_s):
     keys[j, 2] = stiffness
     keys[j, 3] = damping
     keys[j, 4] = x_c
-    coef = k[K_DISC_COEF]
     for n in range(15):
         coef[j, n] = out[n]
     s.disc_next = (j + 1) % DISC_TABLE_SIZE
@@ -373,7 +375,7 @@ def _disc_entry(k, kind, dt_s):
 
 
 # ----------------------------------------------------------------------------- kernels
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline='always')
 def _slip_capacity_n(s, t_s):
     """Force the slipping object can still resist at ``t_s`` (inf when not slipping)."""
     if not s.has_slip:
@@ -382,7 +384,7 @@ def _slip_capacity_n(s, t_s):
     return s.slip_f_0_n * math.exp(-(d if d > 0.0 else 0.0) / s.slip_tau_s)
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline='always')
 def _force(s, p):
     """Contact force now (N): motor torque on a rigid face, Kelvin-Voigt, a slip's capacity."""
     state = s.contact
@@ -468,10 +470,14 @@ def _touch_object(k):
 @numba.njit(cache=True)
 def _clear_faults(k):
     """No scheduled fault, a working sensor, no slip."""
-    s = k[K_STATE][0]
+    _clear_fault_state(k[K_STATE][0], k[K_SENSOR][0])
+
+
+@numba.njit(cache=True)
+def _clear_fault_state(s, sensor):
     s.fault_kind = FaultKind.NONE
     s.fired_count = 0
-    k[K_SENSOR][0].dropped_out = 0
+    sensor.dropped_out = 0
     s.has_slip = 0
     if s.contact == CONTACT_SLIPPING:
         s.w = 0.0
@@ -487,7 +493,7 @@ def _set_object(k, width_m, stiffness, damping, mass_kg, static_friction, kineti
     _use_object(s, p, width_m, stiffness, damping, mass_kg, static_friction, kinetic_friction,
                 pad_length_m)
     k[K_HOLD][0].live = 0
-    _clear_faults(k)
+    _clear_fault_state(s, k[K_SENSOR][0])
     _refresh_contact_state(s, p)
 
 
@@ -498,23 +504,19 @@ def _use_default_object(k, stiffness, damping):
 
 
 @numba.njit(cache=True)
-def _end_hold(k):
-    hold = k[K_HOLD]
-    h = hold[0]
+def _end_hold(h):
     if h.has_hold and h.state != HoldState.LOST:
-        hold_remove(hold)
+        hold_remove(h)
     h.live = 0
 
 
 @numba.njit(cache=True)
-def _remove_object(k, lost):
+def _remove_object(s, p, h, lost):
     """Nothing between the fingers from now on (slid out of the pads if ``lost``)."""
-    s = k[K_STATE][0]
-    p = k[K_PARAMS][0]
     s.has_slip = 0
     _use_object(s, p, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)   # the fingers would meet at L_ls
     if not lost:
-        _end_hold(k)
+        _end_hold(h)
     state = s.contact
     if (state == CONTACT_RIGID or state == CONTACT_COMPLIANT or state == CONTACT_SLIPPING) \
             and s.x < p.max_travel_m:
@@ -523,14 +525,11 @@ def _remove_object(k, lost):
 
 
 @numba.njit(cache=True)
-def _fire_fault(k):
+def _fire_fault(s, p, h, sensor, fired):
     """Fire the scheduled fault (its instant has come)."""
-    s = k[K_STATE][0]
-    p = k[K_PARAMS][0]
     kind = s.fault_kind
     at_ns = s.fault_at_ns
     s.fault_kind = FaultKind.NONE
-    fired = k[K_FIRED]
     n = s.fired_count
     if n == fired.shape[0]:                # full: drop the oldest
         for r in range(n - 1):
@@ -541,13 +540,13 @@ def _fire_fault(k):
     fired[n, 1] = at_ns
     s.fired_count = n + 1
     if kind == FaultKind.SENSOR_DROPOUT:
-        k[K_SENSOR][0].dropped_out = 1
+        sensor.dropped_out = 1
     elif kind == FaultKind.OBJECT_REMOVED:
-        _remove_object(k, False)
+        _remove_object(s, p, h, False)
     elif kind == FaultKind.OBJECT_SLIPPING:
         f_0 = _force(s, p)
         if f_0 <= 0.0:
-            _remove_object(k, False)
+            _remove_object(s, p, h, False)
         else:
             s.has_slip = 1
             s.slip_t_f_s = at_ns * 1e-9
@@ -555,11 +554,10 @@ def _fire_fault(k):
             s.slip_tau_s = s.fault_time_constant_s
 
 
-@numba.njit(cache=True)
-def _advance_free(k, e, dt_s):
+@numba.njit(cache=True, inline='always')
+def _advance_free(s, p, keys, coef, e, dt_s):
     """Exact ZOH step of free motion."""
-    s = k[K_STATE][0]
-    c = k[K_DISC_COEF][_disc_entry(k, DISC_FREE, dt_s)]
+    c = coef[_disc_entry(s, p, keys, coef, DISC_FREE, dt_s)]
     i = s.i
     w = s.w
     x = s.x
@@ -568,11 +566,10 @@ def _advance_free(k, e, dt_s):
     s.x = c[8] * i + c[9] * w + c[10] * x + c[11] + c[14] * e
 
 
-@numba.njit(cache=True)
-def _advance_compliant(k, e, dt_s):
+@numba.njit(cache=True, inline='always')
+def _advance_compliant(s, p, keys, coef, e, dt_s):
     """Exact ZOH step of the finger compressing a Kelvin-Voigt object."""
-    s = k[K_STATE][0]
-    c = k[K_DISC_COEF][_disc_entry(k, DISC_COMPLIANT, dt_s)]
+    c = coef[_disc_entry(s, p, keys, coef, DISC_COMPLIANT, dt_s)]
     i = s.i
     w = s.w
     x = s.x
@@ -581,7 +578,7 @@ def _advance_compliant(k, e, dt_s):
     s.x = c[8] * i + c[9] * w + c[10] * x + c[11] + c[14] * e
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline='always')
 def _free_step_is_safe(s, p, e, dt_s):
     """Tell whether free motion over dt can reach neither stop (rigorous reach bound).
 
@@ -602,7 +599,7 @@ def _free_step_is_safe(s, p, e, dt_s):
     return s.x - reach > 0.0 and s.x + reach < s.x_c
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline='always')
 def _compliant_force_rate(s, p):
     """D/dt of the Kelvin-Voigt force ``k d + c d'`` in the present state (N/s)."""
     stiffness = s.stiffness_n_per_m
@@ -614,21 +611,19 @@ def _compliant_force_rate(s, p):
     return stiffness * v + damping * accel
 
 
-@numba.njit(cache=True)
-def _advance_compliant_in_one_step(k, e, dt_s):
+@numba.njit(cache=True, inline='always')
+def _advance_compliant_in_one_step(s, p, keys, coef, e, dt_s):
     """Step a compliant contact over ``dt_s`` at once; False (state kept) if it may not.
 
     It may not if the finger has left the face at the end (separation is then located on
     the sub-step grid), or if the force has an interior maximum above both ends (the peak is
     then found on the grid as well).
     """
-    s = k[K_STATE][0]
-    p = k[K_PARAMS][0]
     i0 = s.i
     w0 = s.w
     x0 = s.x
     rate0 = _compliant_force_rate(s, p)
-    _advance_compliant(k, e, dt_s)
+    _advance_compliant(s, p, keys, coef, e, dt_s)
     depth = s.x - s.x_c
     if depth > 0.0 and s.stiffness_n_per_m * depth \
             + s.damping_n_s_per_m * s.w * p.rho >= 0.0:
@@ -644,7 +639,7 @@ def _advance_compliant_in_one_step(k, e, dt_s):
     return False
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline='always')
 def _detect_contact(s, p):
     """After a free sub-step: arrival on the object (or the other finger) or the open stop."""
     x_c = s.x_c
@@ -664,7 +659,7 @@ def _detect_contact(s, p):
         s.contact = CONTACT_OPEN_STOP
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline='always')
 def _detect_separation(s, p):
     """After a compliant sub-step: free once out of the face or pulling on it."""
     depth = s.x - s.x_c
@@ -673,7 +668,7 @@ def _detect_separation(s, p):
         s.contact = CONTACT_FREE
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline='always')
 def _advance_stalled(s, p, e, dt_s):
     """Finger held by a rigid object or the open stop: only the current moves (first order).
 
@@ -698,20 +693,18 @@ def _advance_stalled(s, p, e, dt_s):
 
 
 @numba.njit(cache=True)
-def _advance_slipping(k, e, dt_s, remaining_s):
+def _advance_slipping(s, p, h, keys, coef, e, dt_s, remaining_s):
     """One sub-step of a gripped, slipping rigid object; returns the time left after it."""
-    s = k[K_STATE][0]
-    p = k[K_PARAMS][0]
     cap = _slip_capacity_n(s, s.t_now_s)
     if cap < SLIP_GONE_FRACTION * s.slip_f_0_n:
-        _remove_object(k, False)                   # slid out: nothing left to grip
+        _remove_object(s, p, h, False)             # slid out: nothing left to grip
         return remaining_s
     if s.contact == CONTACT_RIGID:
         if p.kt * s.i / p.lever <= cap:             # the object holds: stalled, as usual
             left = _advance_stalled(s, p, e, dt_s)
             return remaining_s - dt_s + left
         s.contact = CONTACT_SLIPPING               # pushing harder than it can resist
-    c = k[K_DISC_COEF][_disc_entry(k, DISC_LOADED, dt_s)]
+    c = coef[_disc_entry(s, p, keys, coef, DISC_LOADED, dt_s)]
     i = s.i
     w = s.w
     x = s.x
@@ -725,7 +718,7 @@ def _advance_slipping(k, e, dt_s, remaining_s):
         s.w = 0.0
         s.has_slip = 0
         _use_object(s, p, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
-        _end_hold(k)
+        _end_hold(h)
         s.contact = CONTACT_RIGID
     else:                                          # the face recedes
         _use_object(s, p, end - s.x, s.stiffness_n_per_m, s.damping_n_s_per_m, s.mass_kg,
@@ -736,39 +729,38 @@ def _advance_slipping(k, e, dt_s, remaining_s):
     return remaining_s - dt_s
 
 
-@numba.njit(cache=True)
-def _integrate(k, e, duration_s, start_s):
+@numba.njit(cache=True, inline='always')
+def _integrate(s, p, h, keys, coef, e, duration_s, start_s):
     """Advance ``duration_s`` at voltage ``e``; returns the contact force at its end."""
-    s = k[K_STATE][0]
-    p = k[K_PARAMS][0]
     remaining = duration_s
-    h = p.h
+    sub = p.h
     one_step = True       # a compliant interval may be one exact step until it is not
     force = s.peak
     while remaining > 1e-15:
         s.t_now_s = start_s + (duration_s - remaining)
         state = s.contact
         if s.has_slip and (state == CONTACT_RIGID or state == CONTACT_SLIPPING):
-            remaining = _advance_slipping(k, e, remaining if remaining < h else h, remaining)
+            remaining = _advance_slipping(s, p, h, keys, coef, e,
+                                          remaining if remaining < sub else sub, remaining)
         elif state == CONTACT_FREE:
             if _free_step_is_safe(s, p, e, remaining):
-                _advance_free(k, e, remaining)
+                _advance_free(s, p, keys, coef, e, remaining)
                 remaining = 0.0
             else:
-                dt = remaining if remaining < h else h
-                _advance_free(k, e, dt)
+                dt = remaining if remaining < sub else sub
+                _advance_free(s, p, keys, coef, e, dt)
                 remaining -= dt
                 _detect_contact(s, p)
         elif state == CONTACT_RIGID or state == CONTACT_OPEN_STOP:
             remaining = _advance_stalled(s, p, e, remaining)
         else:
             if one_step and remaining <= s.compliant_one_step_s and \
-                    _advance_compliant_in_one_step(k, e, remaining):
+                    _advance_compliant_in_one_step(s, p, keys, coef, e, remaining):
                 remaining = 0.0
             else:
                 one_step = False   # the rest of this interval on the sub-step grid
-                dt = remaining if remaining < h else h
-                _advance_compliant(k, e, dt)
+                dt = remaining if remaining < sub else sub
+                _advance_compliant(s, p, keys, coef, e, dt)
                 remaining -= dt
                 _detect_separation(s, p)
         force = _force(s, p)
@@ -778,22 +770,18 @@ def _integrate(k, e, duration_s, start_s):
 
 
 @numba.njit(cache=True)
-def _step_in_pieces(k, e, t_ns, end_ns):
+def _step_in_pieces(s, p, h, sensor, fired, keys, coef, e, t_ns, end_ns):
     """Integrate ``[t_ns, end_ns]`` split at the fault, the lift's start and end, the loss.
 
     An event at ``end_ns`` itself takes effect in the next step (after this sample).
     """
-    s = k[K_STATE][0]
-    p = k[K_PARAMS][0]
-    hold = k[K_HOLD]
-    h = hold[0]
     while t_ns < end_ns:
         if s.fault_kind != FaultKind.NONE and s.fault_at_ns <= t_ns:
-            _fire_fault(k)
+            _fire_fault(s, p, h, sensor, fired)
         live = h.live != 0
         if live:
-            hold_fire_events(hold, t_ns)
-            if not hold_live(hold):
+            hold_fire_events(h, t_ns)
+            if not hold_live(h):
                 h.live = 0
                 live = False
         piece_end_ns = end_ns
@@ -805,19 +793,19 @@ def _step_in_pieces(k, e, t_ns, end_ns):
                 piece_end_ns = event_ns
             if h.state == HoldState.SLIDING and t_ns + p.h_ns < piece_end_ns:
                 piece_end_ns = t_ns + p.h_ns      # refresh the grip force while sliding
-            loss_s = hold_advance(hold, _force(s, p), (piece_end_ns - t_ns) * 1e-9)
+            loss_s = hold_advance(h, _force(s, p), (piece_end_ns - t_ns) * 1e-9)
             if not math.isnan(loss_s):
                 loss_ns = t_ns + round(loss_s * 1e9)
                 if piece_end_ns < loss_ns:
                     loss_ns = piece_end_ns
                 if loss_ns > t_ns:
-                    _integrate(k, e, (loss_ns - t_ns) * 1e-9, t_ns * 1e-9)
+                    _integrate(s, p, h, keys, coef, e, (loss_ns - t_ns) * 1e-9, t_ns * 1e-9)
                 h.lost_ns = loss_ns
-                _remove_object(k, True)
+                _remove_object(s, p, h, True)
                 h.live = 0
                 t_ns = loss_ns
                 continue
-        _integrate(k, e, (piece_end_ns - t_ns) * 1e-9, t_ns * 1e-9)
+        _integrate(s, p, h, keys, coef, e, (piece_end_ns - t_ns) * 1e-9, t_ns * 1e-9)
         t_ns = piece_end_ns
 
 
@@ -827,18 +815,20 @@ def plant_step(k, voltage_v, duration_ns):
     """Hold ``voltage_v`` (clipped to the supply) for ``duration_ns`` >= 1 (validated)."""
     s = k[K_STATE][0]
     p = k[K_PARAMS][0]
+    h = k[K_HOLD][0]
+    keys = k[K_DISC_KEYS]
+    coef = k[K_DISC_COEF]
     limit = p.limit_v
     e = limit if voltage_v > limit else (-limit if voltage_v < -limit else voltage_v)
     s.voltage = e
     s.peak = _force(s, p)
     start_ns = s.t_ns
     end_ns = start_ns + duration_ns
-    hold = k[K_HOLD]
     if s.fault_kind == FaultKind.NONE and (
-            hold[0].live == 0 or hold_stays_stuck(hold, s.peak, end_ns)):
-        _integrate(k, e, duration_ns * 1e-9, start_ns * 1e-9)
+            h.live == 0 or hold_stays_stuck(h, s.peak, end_ns)):
+        _integrate(s, p, h, keys, coef, e, duration_ns * 1e-9, start_ns * 1e-9)
     else:
-        _step_in_pieces(k, e, start_ns, end_ns)
+        _step_in_pieces(s, p, h, k[K_SENSOR][0], k[K_FIRED], keys, coef, e, start_ns, end_ns)
     s.t_ns = end_ns
     s.t_now_s = end_ns * 1e-9
 
@@ -848,9 +838,9 @@ def plant_sample(k):
     """Return what the sensors and motor report now, as PlantSample's fields in order."""
     s = k[K_STATE][0]
     p = k[K_PARAMS][0]
-    sensor = k[K_SENSOR]
+    sensor = k[K_SENSOR][0]
     force = _force(s, p)
-    if sensor[0].dropped_out:
+    if sensor.dropped_out:
         measured = math.nan
         sensor_v = math.nan
         peak = math.nan
@@ -885,23 +875,22 @@ def plant_read_tick(k, tick, revision, applied_source):
 @numba.njit(cache=True)
 def plant_begin_hold(k, t_ns, grasp_mass_kg):
     """Start the lift's clock at ``t_ns``; 1 (nothing changed) if the object left its support."""
-    hold = k[K_HOLD]
-    h = hold[0]
+    h = k[K_HOLD][0]
     if not h.has_hold or h.state == HoldState.NONE:
         return 0
     mass = h.mass_kg if h.mass_kg != 0.0 else grasp_mass_kg
-    if hold_begin(hold, t_ns, mass):
+    if hold_begin(h, t_ns, mass):
         return 1
-    h.live = 1 if hold_live(hold) else 0
+    h.live = 1 if hold_live(h) else 0
     return 0
 
 
 @numba.njit(cache=True)
 def plant_scenario_in_progress(k):
     """Whether a hold scenario (a lift) is still to be played out."""
-    hold = k[K_HOLD]
-    return hold[0].has_hold != 0 and hold_scenario_in_progress(
-        hold, k[K_STATE][0].t_ns, k[K_PARAMS][0].after_lift_ns)
+    h = k[K_HOLD][0]
+    return h.has_hold != 0 and hold_scenario_in_progress(
+        h, k[K_STATE][0].t_ns, k[K_PARAMS][0].after_lift_ns)
 
 
 @numba.njit(cache=True)
@@ -928,15 +917,14 @@ def plant_fault_scheduled(k):
 @numba.njit(cache=True)
 def _object_state(k):
     """Return the held object's (state, slip, speed, load, capacity, lost_ns/-1, lift a)."""
-    hold = k[K_HOLD]
-    h = hold[0]
+    h = k[K_HOLD][0]
     if not h.has_hold:
         return (HoldState.NONE, 0.0, 0.0, 0.0, 0.0, -1, 0.0)
     if h.state == HoldState.NONE:
         return (HoldState.NONE, h.slip_m, 0.0, 0.0, 0.0, -1, 0.0)
     s = k[K_STATE][0]
-    return (h.state, h.slip_m, h.slip_speed_mps, hold_load_n(hold),
-            hold_capacity_n(hold, _force(s, k[K_PARAMS][0])), h.lost_ns, h.acceleration_mps2)
+    return (h.state, h.slip_m, h.slip_speed_mps, hold_load_n(h),
+            hold_capacity_n(h, _force(s, k[K_PARAMS][0])), h.lost_ns, h.acceleration_mps2)
 
 
 @numba.njit(cache=True)
