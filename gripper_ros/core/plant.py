@@ -43,6 +43,18 @@ simulated instant, the step is split there):
   (:class:`gripper_ros.core.force_sensor.FsrVoltageDivider`); the mechanics are unaffected.
 
 Effects last until the next :meth:`GripperPlant.set_object` (a new object, a repaired sensor).
+
+Compiled core (numba): the state lives in numpy records, and ``GripperPlant.kernel`` is the
+tuple ``k`` of the plant's buffers, indexed by ``K_*``: the state (:data:`STATE_DTYPE`), the
+constants (:data:`PARAMS_DTYPE`), the object's hold (:data:`gripper_ros.core.hold.HOLD_DTYPE`),
+the sensor (:data:`gripper_ros.core.force_sensor.SENSOR_DTYPE`, the record the plant's
+:class:`FsrVoltageDivider` wraps), the faults fired since ``set_object`` (int64 rows ``(kind,
+t_ns)``) and the table of discretisations (keys ``(kind, dt_s, k, c, x_c)``, 15 coefficients
+each). The entry points :func:`plant_step`, :func:`plant_read_tick`, :func:`plant_begin_hold`,
+:func:`plant_scenario_in_progress`, :func:`plant_schedule_fault`, :func:`plant_cancel_fault` and
+:func:`plant_fault_scheduled` take ``k`` and are called by the facade and by compiled loops. The
+matrix exponential stays in Python (:func:`_discretise`, scipy): a table miss calls it in object
+mode, so every coefficient is the one the Python plant used.
 """
 from __future__ import annotations
 
@@ -992,14 +1004,22 @@ class GripperPlant:
                        sensor.record, np.zeros((MAX_FIRED_FAULTS, 2), np.int64),
                        np.zeros((DISC_TABLE_SIZE, 5)), np.zeros((DISC_TABLE_SIZE, 15)))
         """The kernel buffers: (state, params, hold, sensor, fired faults, table keys, table)."""
-        self._s = state[0]
-        self._h = hold[0]
         _use_default_object(self.kernel, float(default.stiffness_n_per_m),
                             float(default.damping_n_s_per_m))
         self.reset()
         _warm_up(self.kernel)
 
     # ----------------------------------------------------------------- records for callers
+    @property
+    def _s(self) -> np.void:
+        """The state record (looked up each time: a deep copy of the plant has its own)."""
+        return self.kernel[K_STATE][0]
+
+    @property
+    def _h(self) -> np.void:
+        """The hold record."""
+        return self.kernel[K_HOLD][0]
+
     def snapshot(self) -> tuple:
         """Return a copy of the whole state (for :meth:`restore` after a refused change)."""
         return tuple(a.copy() for a in self.kernel), self._lift
@@ -1168,7 +1188,6 @@ class GripperPlant:
     @t_ns.setter
     def t_ns(self, value: int) -> None:
         self._s['t_ns'] = value
-        self._s['t_now_s'] = value * 1e-9
 
     @property
     def t_s(self) -> float:
@@ -1178,6 +1197,10 @@ class GripperPlant:
     def impact_energy_lost_j(self) -> float:
         """Kinetic energy lost in arrivals on a rigid face or the open stop since the reset."""
         return float(self._s['impact_energy_lost_j'])
+
+    @impact_energy_lost_j.setter
+    def impact_energy_lost_j(self, value: float) -> None:
+        self._s['impact_energy_lost_j'] = value
 
     @property
     def contact_position_m(self) -> float:
