@@ -10,12 +10,54 @@ by a wire-break check). The driver then marks the sample invalid the ROS way, wi
 NaN voltage (cf. REP 117: NaN for an invalid reading), rather than passing on the 0 V a broken
 divider would show: 0 V is within ADC resolution of the no-contact output (4.995 mV) and would
 read as "no force", i.e. as a lost object, and a force loop would wind up on it.
+
+The divider's law is a compiled kernel over a 1-element record array (:data:`SENSOR_DTYPE`),
+shared by the plant's kernels and by :class:`FsrVoltageDivider`.
 """
 from __future__ import annotations
 
 import math
 
 from gripper_ros.core.config import ForceSensorParams
+import numba
+import numpy as np
+
+SENSOR_DTYPE = np.dtype([
+    ('supply_v', np.float64),
+    ('measuring_resistor_ohm', np.float64),
+    ('fsr_resistance_at_1n_ohm', np.float64),
+    ('open_resistance_ohm', np.float64),
+    ('activation_force_n', np.float64),
+    ('dropped_out', np.uint8),          # 1: every reading is invalid (NaN) until repaired
+], align=True)
+"""The sensor's parameters and its dropout flag, as one record."""
+
+
+@numba.njit(cache=True, inline='always')
+def fsr_resistance_ohm(r, force_n):
+    """FSR resistance at ``force_n`` (sensor record ``r``): open below activation, R_1N / F."""
+    if force_n < r.activation_force_n:
+        return r.open_resistance_ohm
+    fsr = r.fsr_resistance_at_1n_ohm / force_n
+    return fsr if fsr < r.open_resistance_ohm else r.open_resistance_ohm
+
+
+@numba.njit(cache=True, inline='always')
+def fsr_voltage_v(r, force_n):
+    """Divider output ``V_supply R_m / (R_m + R_fsr(F))`` at ``force_n`` (sensor record ``r``)."""
+    r_m = r.measuring_resistor_ohm
+    return r.supply_v * r_m / (r_m + fsr_resistance_ohm(r, force_n))
+
+
+# Array-level entry points for Python (FsrVoltageDivider): the kernels above on ``sensor[0]``.
+@numba.njit(cache=True)
+def _resistance_ohm(sensor, force_n):
+    return fsr_resistance_ohm(sensor[0], force_n)
+
+
+@numba.njit(cache=True)
+def _voltage_v(sensor, force_n):
+    return fsr_voltage_v(sensor[0], force_n)
 
 
 class FsrVoltageDivider:
@@ -23,7 +65,22 @@ class FsrVoltageDivider:
 
     def __init__(self, params: ForceSensorParams):
         self.params = params
-        self.dropped_out = False     # True: every reading is invalid (NaN) until repaired
+        self.record = np.zeros(1, SENSOR_DTYPE)   # what the plant's kernels read and write
+        r = self.record[0]
+        r['supply_v'] = params.supply_v
+        r['measuring_resistor_ohm'] = params.measuring_resistor_ohm
+        r['fsr_resistance_at_1n_ohm'] = params.fsr_resistance_at_1n_ohm
+        r['open_resistance_ohm'] = params.open_resistance_ohm
+        r['activation_force_n'] = params.activation_force_n
+
+    @property
+    def dropped_out(self) -> bool:
+        """True: every reading is invalid (NaN) until repaired."""
+        return bool(self.record[0]['dropped_out'])
+
+    @dropped_out.setter
+    def dropped_out(self, value: bool) -> None:
+        self.record[0]['dropped_out'] = bool(value)
 
     def read(self, force_n: float) -> tuple[float, float]:
         """``(force_n, voltage_v)`` as the sensor reports them; both NaN after a dropout."""
@@ -32,15 +89,12 @@ class FsrVoltageDivider:
         return force_n, self.voltage_v(force_n)
 
     def resistance_ohm(self, force_n: float) -> float:
-        p = self.params
-        if force_n < p.activation_force_n:
-            return p.open_resistance_ohm
-        return min(p.open_resistance_ohm, p.fsr_resistance_at_1n_ohm / force_n)
+        """FSR resistance at ``force_n`` (ohm)."""
+        return _resistance_ohm(self.record, float(force_n))
 
     def voltage_v(self, force_n: float) -> float:
-        p = self.params
-        r_m = p.measuring_resistor_ohm
-        return p.supply_v * r_m / (r_m + self.resistance_ohm(force_n))
+        """Divider output at ``force_n`` (V)."""
+        return _voltage_v(self.record, float(force_n))
 
     @property
     def activation_step_v(self) -> float:

@@ -71,13 +71,13 @@ class PlantSide:
         ``fault`` (kind, seconds after the next grasp's start, time constant) is armed when
         that grasp starts.
         """
-        saved = dict(vars(self.plant))
+        saved = self.plant.snapshot()
         try:
             if open_fingers:
                 self.plant.reset(open_fingers=True)
             self.plant.set_object(obj, **hold)
         except ValueError:
-            vars(self.plant).update(saved)      # refused: the plant is as it was
+            self.plant.restore(saved)           # refused: the plant is as it was
             raise
         self._fault = None if fault is None or fault[0] is FaultKind.NONE else fault
         self._fault_grasp = None

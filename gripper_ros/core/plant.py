@@ -43,19 +43,34 @@ simulated instant, the step is split there):
   (:class:`gripper_ros.core.force_sensor.FsrVoltageDivider`); the mechanics are unaffected.
 
 Effects last until the next :meth:`GripperPlant.set_object` (a new object, a repaired sensor).
+
+Compiled core (numba): the state lives in numpy records, and ``GripperPlant.kernel`` is the
+tuple ``k`` of the plant's buffers, indexed by ``K_*``: the state (:data:`STATE_DTYPE`), the
+constants (:data:`PARAMS_DTYPE`), the object's hold (:data:`gripper_ros.core.hold.HOLD_DTYPE`),
+the sensor (:data:`gripper_ros.core.force_sensor.SENSOR_DTYPE`, the record the plant's
+:class:`FsrVoltageDivider` wraps), the faults fired since ``set_object`` (int64 rows ``(kind,
+t_ns)``) and the table of discretisations (keys ``(kind, dt_s, k, c, x_c)``, 15 coefficients
+each). The entry points :func:`plant_step`, :func:`plant_read_tick`, :func:`plant_begin_hold`,
+:func:`plant_scenario_in_progress`, :func:`plant_schedule_fault`, :func:`plant_cancel_fault` and
+:func:`plant_fault_scheduled` take ``k`` and are called by the facade and by compiled loops. The
+matrix exponential stays in Python (:func:`_discretise`, scipy): a table miss calls it in object
+mode, so every coefficient is the one the Python plant used.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 import enum
 import math
 from typing import NamedTuple
 
 from gripper_ros.core.config import ContactParams, PlantParams
-from gripper_ros.core.force_sensor import FsrVoltageDivider
-from gripper_ros.core.hold import (check_finite_nonnegative, HoldModel, HoldState, Lift,
-                                   ObjectState)
-from gripper_ros.wire import FaultKind
+from gripper_ros.core.force_sensor import fsr_voltage_v, FsrVoltageDivider
+from gripper_ros.core.hold import (check_finite_nonnegative, hold_advance, hold_begin,
+                                   hold_capacity_n, HOLD_DTYPE, hold_fire_events, hold_live,
+                                   hold_load_n, hold_remove, hold_scenario_in_progress,
+                                   hold_stays_stuck, HoldModel, HoldState, Lift, ObjectState)
+from gripper_ros.wire import FaultKind, TICK_LAYOUT
+import numba
 import numpy as np
 from scipy.linalg import expm
 
@@ -114,13 +129,6 @@ class ContactState(enum.Enum):
     OPEN_STOP = 'open_stop'            # resting on the fully-open end stop
 
 
-_FREE = ContactState.FREE
-_SLIPPING = ContactState.SLIPPING
-_RIGID = ContactState.RIGID_OBJECT
-_COMPLIANT = ContactState.COMPLIANT_OBJECT
-_OPEN_STOP = ContactState.OPEN_STOP
-
-
 @dataclass(frozen=True)
 class GraspObject:
     """What lies between the fingers. width 0 = nothing (the fingers meet at full travel).
@@ -140,9 +148,6 @@ class GraspObject:
     @property
     def rigid(self) -> bool:
         return self.stiffness_n_per_m == 0.0
-
-
-_NOTHING = GraspObject(0.0)
 
 
 class PlantSample(NamedTuple):
@@ -166,84 +171,873 @@ class PlantSample(NamedTuple):
 
 _new_tuple = tuple.__new__
 
-# Discretisations shared by all plants with the same parameters (a sweep builds many plants):
-# params -> {kind key -> {dt_s -> flat coefficients}}.
-_SHARED_CACHES: dict[PlantParams, dict] = {}
+# ----------------------------------------------------------------------------- kernel buffers
+# Contact-state codes of the ``contact`` field (ContactState in the facade).
+CONTACT_FREE = 0
+CONTACT_SLIPPING = 1
+CONTACT_RIGID = 2
+CONTACT_COMPLIANT = 3
+CONTACT_OPEN_STOP = 4
+_CONTACT_STATES = (ContactState.FREE, ContactState.SLIPPING, ContactState.RIGID_OBJECT,
+                   ContactState.COMPLIANT_OBJECT, ContactState.OPEN_STOP)
+
+# Discretisation kinds (column 0 of the table's keys).
+DISC_FREE = 0
+DISC_COMPLIANT = 1
+DISC_LOADED = 2
+DISC_TABLE_SIZE = 64          # entries of the plant's table (a grasp uses about 8)
+MAX_FIRED_FAULTS = 16         # fired faults kept since set_object (the oldest are dropped)
+
+# The entries of the tuple ``GripperPlant.kernel``.
+K_STATE, K_PARAMS, K_HOLD, K_SENSOR, K_FIRED, K_DISC_KEYS, K_DISC_COEF = range(7)
+
+PARAMS_DTYPE = np.dtype([
+    ('rho', np.float64),                   # p / (2 pi), m per motor rad (eq. 10)
+    ('lever', np.float64),                 # eta p N1/N2, N m of torque per N of force (eq. 12)
+    ('tau_e', np.float64),                 # L / R (s)
+    ('kt', np.float64),
+    ('kb', np.float64),
+    ('resistance_ohm', np.float64),
+    ('inductance_h', np.float64),
+    ('inertia_kg_m2', np.float64),
+    ('damping_n_m_s_per_rad', np.float64),
+    ('max_travel_m', np.float64),
+    ('h', np.float64),                     # contact_substep_s
+    ('h_ns', np.int64),
+    ('limit_v', np.float64),
+    ('reach_feedback', np.float64),        # k_t k_b / R + b (free-reach bound)
+    ('after_lift_ns', np.int64),           # contact.after_lift_s in ns
+    ('two', np.float64),                   # 2.0 read at run time: w ** two is Python's w ** 2
+], align=True)
+"""The plant's constants (Table I and derived), as one record."""
+
+STATE_DTYPE = np.dtype([
+    ('t_ns', np.int64),                    # simulated time, integer ns
+    ('t_now_s', np.float64),               # time of the piece being integrated (slip capacity)
+    ('i', np.float64),                     # armature current (A)
+    ('w', np.float64),                     # motor speed (rad/s)
+    ('x', np.float64),                     # finger travel from fully open (m)
+    ('voltage', np.float64),               # applied (clipped) armature voltage (V)
+    ('contact', np.int64),                 # CONTACT_* code
+    ('peak', np.float64),                  # largest force in the step (N)
+    ('impact_energy_lost_j', np.float64),
+    ('width_m', np.float64),               # the object (GraspObject's fields)
+    ('stiffness_n_per_m', np.float64),
+    ('damping_n_s_per_m', np.float64),
+    ('mass_kg', np.float64),
+    ('static_friction', np.float64),
+    ('kinetic_friction', np.float64),
+    ('pad_length_m', np.float64),
+    ('x_c', np.float64),                   # travel at which the finger touches the object
+    ('compliant_one_step_s', np.float64),
+    ('has_slip', np.uint8),                # an OBJECT_SLIPPING fault is acting
+    ('slip_t_f_s', np.float64),
+    ('slip_f_0_n', np.float64),
+    ('slip_tau_s', np.float64),
+    ('fault_kind', np.int64),              # FaultKind scheduled, NONE = none
+    ('fault_at_ns', np.int64),
+    ('fault_time_constant_s', np.float64),
+    ('fired_count', np.int64),             # rows of the fired-faults array in use
+    ('disc_count', np.int64),              # entries of the discretisation table in use
+    ('disc_next', np.int64),               # the entry a miss overwrites once it is full
+    ('disc_last', np.int64),               # the entry last found (looked at first)
+], align=True)
+"""The plant's mutable state: mechanics, object, slip, scheduled fault, table bookkeeping."""
 
 
-def _bounded_entry(store: dict, key) -> dict:
-    """``store[key]``, a dict made on first use; a store grown past the bound starts afresh."""
-    entry = store.get(key)
-    if entry is None:
-        if len(store) > MAX_CACHED_DISCRETISATIONS:
-            store.clear()
-        entry = store[key] = {}
-    return entry
+def _plant_params_record(params: PlantParams, contact: ContactParams) -> np.ndarray:
+    p = params
+    rec = np.zeros(1, PARAMS_DTYPE)
+    r = rec[0]
+    r['rho'] = p.travel_per_rad_m
+    r['lever'] = p.force_lever_m
+    r['tau_e'] = p.inductance_h / p.resistance_ohm
+    r['kt'] = p.torque_constant_n_m_per_a
+    r['kb'] = p.back_emf_v_s_per_rad
+    r['resistance_ohm'] = p.resistance_ohm
+    r['inductance_h'] = p.inductance_h
+    r['inertia_kg_m2'] = p.inertia_kg_m2
+    r['damping_n_m_s_per_rad'] = p.damping_n_m_s_per_rad
+    r['max_travel_m'] = p.max_travel_m
+    r['h'] = p.contact_substep_s
+    r['h_ns'] = max(1, round(p.contact_substep_s * 1e9))
+    r['limit_v'] = p.voltage_limit_v
+    # Free-reach bound (see _free_step_is_safe): |omega'| <= (k_t I + b W) / J.
+    r['reach_feedback'] = (p.torque_constant_n_m_per_a * p.back_emf_v_s_per_rad
+                           / p.resistance_ohm + p.damping_n_m_s_per_rad)
+    r['after_lift_ns'] = round(contact.after_lift_s * 1e9)
+    r['two'] = 2.0
+    return rec
 
 
+# ----------------------------------------------------------------------------- discretisation
+# Exact ZOH coefficients, shared by all plants (a sweep builds many):
+# (constants, kind, dt_s, k, c, x_c) -> 15 coefficients.
+_DISCRETISATIONS: dict[tuple, np.ndarray] = {}
+
+
+def _discretise(raw: tuple, kind: int, dt_s: float, stiffness: float, damping: float,
+                x_c: float) -> np.ndarray:
+    """Exact ZOH over ``dt_s`` (scipy expm), flat: 15 coefficients.
+
+    ``raw`` = (R, L, k_b, k_t, J, b, rho, lever). Free and compliant: ``Ad`` rows 0-2 of the
+    augmented state ``[i, omega, x, 1]`` (4 each, so the contact's affine term discretises
+    exactly) and ``Bd`` (3). Loaded (free motion with two held inputs, voltage and a load force
+    in N): ``Ad`` (3 x 3) then ``Bd`` (3 x 2), row by row.
+    """
+    key = (raw, kind, dt_s, stiffness, damping, x_c)
+    cached = _DISCRETISATIONS.get(key)
+    if cached is not None:
+        return cached
+    r, ind, kb, kt, inertia, b, rho, lever = raw
+    a_free = np.array([[-r / ind, -kb / ind, 0.0],
+                       [kt / inertia, -b / inertia, 0.0],
+                       [0.0, rho, 0.0]])
+    b0 = 1.0 / ind
+    if kind == DISC_LOADED:
+        m = np.zeros((5, 5))
+        m[:3, :3] = a_free * dt_s
+        m[0, 3] = b0 * dt_s
+        m[1, 4] = -lever / inertia * dt_s
+        phi = expm(m)
+        out = np.concatenate((phi[:3, :3].ravel(), phi[:3, 3:5].ravel()))
+    else:
+        a = np.zeros((4, 4))
+        a[:3, :3] = a_free
+        if kind == DISC_COMPLIANT:
+            a[1, 1] -= lever * damping * rho / inertia
+            a[1, 2] -= lever * stiffness / inertia
+            a[1, 3] += lever * stiffness * x_c / inertia
+        m = np.zeros((5, 5))
+        m[:4, :4] = a * dt_s
+        m[0, 4] = b0 * dt_s
+        phi = expm(m)
+        out = np.concatenate((phi[:3, :4].ravel(), phi[:3, 4]))
+    if len(_DISCRETISATIONS) > 4 * MAX_CACHED_DISCRETISATIONS:
+        _DISCRETISATIONS.clear()
+    _DISCRETISATIONS[key] = out
+    return out
+
+
+def _raw_constants(params: PlantParams) -> tuple:
+    p = params
+    return (p.resistance_ohm, p.inductance_h, p.back_emf_v_s_per_rad,
+            p.torque_constant_n_m_per_a, p.inertia_kg_m2, p.damping_n_m_s_per_rad,
+            p.travel_per_rad_m, p.force_lever_m)
+
+
+def _discretise_from_kernel(r, ind, kb, kt, inertia, b, rho, lever, kind, dt_s, stiffness,
+                            damping, x_c):
+    """:func:`_discretise` for the kernels' table (called in object mode on a miss)."""
+    return _discretise((r, ind, kb, kt, inertia, b, rho, lever), int(kind), dt_s, stiffness,
+                       damping, x_c)
+
+
+@numba.njit(cache=True, inline='always')
+def _disc_entry(s, p, keys, coef, kind, dt_s):
+    """Row of the discretisation table for ``kind`` over ``dt_s`` (computed on a miss)."""
+    if kind == DISC_COMPLIANT:
+        stiffness = s.stiffness_n_per_m
+        damping = s.damping_n_s_per_m
+        x_c = s.x_c
+    else:
+        stiffness = 0.0
+        damping = 0.0
+        x_c = 0.0
+    j = s.disc_last
+    if j < s.disc_count and keys[j, 0] == kind and keys[j, 1] == dt_s and \
+            keys[j, 2] == stiffness and keys[j, 3] == damping and keys[j, 4] == x_c:
+        return j
+    for j in range(s.disc_count):
+        if keys[j, 0] == kind and keys[j, 1] == dt_s and keys[j, 2] == stiffness and \
+                keys[j, 3] == damping and keys[j, 4] == x_c:
+            s.disc_last = j
+            return j
+    return _disc_miss(s, p, keys, coef, kind, dt_s, stiffness, damping, x_c)
+
+
+@numba.njit(cache=True)
+def _disc_miss(s, p, keys, coef, kind, dt_s, stiffness, damping, x_c):
+    """Compute a discretisation in Python (scipy expm) and store it in the table."""
+    r = p.resistance_ohm
+    ind = p.inductance_h
+    kb = p.kb
+    kt = p.kt
+    inertia = p.inertia_kg_m2
+    b = p.damping_n_m_s_per_rad
+    rho = p.rho
+    lever = p.lever
+    fkind = float(kind)
+    with numba.objmode(out='float64[:]'):
+        out = _discretise_from_kernel(r, ind, kb, kt, inertia, b, rho, lever, fkind, dt_s,
+                                      stiffness, damping, x_c)
+    j = s.disc_next
+    keys[j, 0] = kind
+    keys[j, 1] = dt_s
+    keys[j, 2] = stiffness
+    keys[j, 3] = damping
+    keys[j, 4] = x_c
+    for n in range(15):
+        coef[j, n] = out[n]
+    s.disc_next = (j + 1) % DISC_TABLE_SIZE
+    if s.disc_count < DISC_TABLE_SIZE:
+        s.disc_count += 1
+    s.disc_last = j
+    return j
+
+
+# ----------------------------------------------------------------------------- kernels
+@numba.njit(cache=True, inline='always')
+def _slip_capacity_n(s, t_s):
+    """Force the slipping object can still resist at ``t_s`` (inf when not slipping)."""
+    if not s.has_slip:
+        return math.inf
+    d = t_s - s.slip_t_f_s
+    return s.slip_f_0_n * math.exp(-(d if d > 0.0 else 0.0) / s.slip_tau_s)
+
+
+@numba.njit(cache=True, inline='always')
+def _force(s, p):
+    """Contact force now (N): motor torque on a rigid face, Kelvin-Voigt, a slip's capacity."""
+    state = s.contact
+    if state == CONTACT_RIGID:
+        motor = p.kt * s.i / p.lever
+        if not motor > 0.0:
+            motor = 0.0
+        if not s.has_slip:
+            return motor
+        cap = _slip_capacity_n(s, s.t_now_s)
+        return cap if cap < motor else motor
+    if state == CONTACT_COMPLIANT:
+        force = s.stiffness_n_per_m * (s.x - s.x_c) + s.damping_n_s_per_m * s.w * p.rho
+        return force if force > 0.0 else 0.0
+    if state == CONTACT_SLIPPING:
+        return _slip_capacity_n(s, s.t_now_s)
+    return 0.0
+
+
+@numba.njit(cache=True)
+def _refresh_contact_state(s, p):
+    """Re-derive the contact state after a reset or a new object."""
+    x_c = s.x_c
+    if s.x <= 0.0:
+        s.x = 0.0
+        s.contact = CONTACT_OPEN_STOP
+    elif s.x >= x_c:
+        rigid = s.stiffness_n_per_m == 0.0
+        s.contact = CONTACT_RIGID if rigid else CONTACT_COMPLIANT
+        if rigid:
+            s.x = x_c
+    else:
+        s.contact = CONTACT_FREE
+
+
+@numba.njit(cache=True)
+def _use_object(s, p, width_m, stiffness, damping, mass_kg, static_friction, kinetic_friction,
+                pad_length_m):
+    """Make the object between the fingers the given one (geometry; spring mode)."""
+    s.width_m = width_m
+    s.stiffness_n_per_m = stiffness
+    s.damping_n_s_per_m = damping
+    s.mass_kg = mass_kg
+    s.static_friction = static_friction
+    s.kinetic_friction = kinetic_friction
+    s.pad_length_m = pad_length_m
+    s.x_c = p.max_travel_m - width_m
+    if stiffness == 0.0:
+        s.compliant_one_step_s = 0.0
+    else:
+        spring_rad_s = math.sqrt(p.lever * stiffness * p.rho / p.inertia_kg_m2)
+        s.compliant_one_step_s = COMPLIANT_ONE_STEP_PHASE_RAD / spring_rad_s
+
+
+@numba.njit(cache=True)
+def _reset(k, open_fingers):
+    """Motor at rest; optionally the finger back at the fully-open stop."""
+    s = k[K_STATE][0]
+    p = k[K_PARAMS][0]
+    s.i = 0.0
+    s.w = 0.0
+    if open_fingers:
+        s.x = 0.0
+    s.voltage = 0.0
+    s.contact = CONTACT_OPEN_STOP if s.x <= 0.0 else CONTACT_FREE
+    s.peak = 0.0
+    s.impact_energy_lost_j = 0.0
+    _refresh_contact_state(s, p)
+
+
+@numba.njit(cache=True)
+def _touch_object(k):
+    """Put the finger at rest just touching the object, motor off."""
+    s = k[K_STATE][0]
+    s.i = 0.0
+    s.w = 0.0
+    s.x = s.x_c
+    s.voltage = 0.0
+    s.peak = 0.0
+    s.contact = CONTACT_RIGID if s.stiffness_n_per_m == 0.0 else CONTACT_COMPLIANT
+
+
+@numba.njit(cache=True)
+def _clear_faults(k):
+    """No scheduled fault, a working sensor, no slip."""
+    _clear_fault_state(k[K_STATE][0], k[K_SENSOR][0])
+
+
+@numba.njit(cache=True)
+def _clear_fault_state(s, sensor):
+    s.fault_kind = FaultKind.NONE
+    s.fired_count = 0
+    sensor.dropped_out = 0
+    s.has_slip = 0
+    if s.contact == CONTACT_SLIPPING:
+        s.w = 0.0
+        s.contact = CONTACT_RIGID
+
+
+@numba.njit(cache=True)
+def _set_object(k, width_m, stiffness, damping, mass_kg, static_friction, kinetic_friction,
+                pad_length_m):
+    """Place a validated object (the hold record is already the object's)."""
+    s = k[K_STATE][0]
+    p = k[K_PARAMS][0]
+    _use_object(s, p, width_m, stiffness, damping, mass_kg, static_friction, kinetic_friction,
+                pad_length_m)
+    k[K_HOLD][0].live = 0
+    _clear_fault_state(s, k[K_SENSOR][0])
+    _refresh_contact_state(s, p)
+
+
+@numba.njit(cache=True)
+def _use_default_object(k, stiffness, damping):
+    """Place a new plant's object: width 0 (nothing), the contact defaults' stiffness."""
+    _use_object(k[K_STATE][0], k[K_PARAMS][0], 0.0, stiffness, damping, 0.0, 0.0, 0.0, 0.0)
+
+
+@numba.njit(cache=True)
+def _end_hold(h):
+    if h.has_hold and h.state != HoldState.LOST:
+        hold_remove(h)
+    h.live = 0
+
+
+@numba.njit(cache=True)
+def _remove_object(s, p, h, lost):
+    """Nothing between the fingers from now on (slid out of the pads if ``lost``)."""
+    s.has_slip = 0
+    _use_object(s, p, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)   # the fingers would meet at L_ls
+    if not lost:
+        _end_hold(h)
+    state = s.contact
+    if (state == CONTACT_RIGID or state == CONTACT_COMPLIANT or state == CONTACT_SLIPPING) \
+            and s.x < p.max_travel_m:
+        s.contact = CONTACT_FREE
+    _refresh_contact_state(s, p)
+
+
+@numba.njit(cache=True)
+def _fire_fault(s, p, h, sensor, fired):
+    """Fire the scheduled fault (its instant has come)."""
+    kind = s.fault_kind
+    at_ns = s.fault_at_ns
+    s.fault_kind = FaultKind.NONE
+    n = s.fired_count
+    if n == fired.shape[0]:                # full: drop the oldest
+        for r in range(n - 1):
+            fired[r, 0] = fired[r + 1, 0]
+            fired[r, 1] = fired[r + 1, 1]
+        n -= 1
+    fired[n, 0] = kind
+    fired[n, 1] = at_ns
+    s.fired_count = n + 1
+    if kind == FaultKind.SENSOR_DROPOUT:
+        sensor.dropped_out = 1
+    elif kind == FaultKind.OBJECT_REMOVED:
+        _remove_object(s, p, h, False)
+    elif kind == FaultKind.OBJECT_SLIPPING:
+        f_0 = _force(s, p)
+        if f_0 <= 0.0:
+            _remove_object(s, p, h, False)
+        else:
+            s.has_slip = 1
+            s.slip_t_f_s = at_ns * 1e-9
+            s.slip_f_0_n = f_0
+            s.slip_tau_s = s.fault_time_constant_s
+
+
+@numba.njit(cache=True, inline='always')
+def _advance_free(s, p, keys, coef, e, dt_s):
+    """Exact ZOH step of free motion."""
+    c = coef[_disc_entry(s, p, keys, coef, DISC_FREE, dt_s)]
+    i = s.i
+    w = s.w
+    x = s.x
+    s.i = c[0] * i + c[1] * w + c[2] * x + c[3] + c[12] * e
+    s.w = c[4] * i + c[5] * w + c[6] * x + c[7] + c[13] * e
+    s.x = c[8] * i + c[9] * w + c[10] * x + c[11] + c[14] * e
+
+
+@numba.njit(cache=True, inline='always')
+def _advance_compliant(s, p, keys, coef, e, dt_s):
+    """Exact ZOH step of the finger compressing a Kelvin-Voigt object."""
+    c = coef[_disc_entry(s, p, keys, coef, DISC_COMPLIANT, dt_s)]
+    i = s.i
+    w = s.w
+    x = s.x
+    s.i = c[0] * i + c[1] * w + c[2] * x + c[3] + c[12] * e
+    s.w = c[4] * i + c[5] * w + c[6] * x + c[7] + c[13] * e
+    s.x = c[8] * i + c[9] * w + c[10] * x + c[11] + c[14] * e
+
+
+@numba.njit(cache=True, inline='always')
+def _free_step_is_safe(s, p, e, dt_s):
+    """Tell whether free motion over dt can reach neither stop (rigorous reach bound).
+
+    With ``W = sup |omega|`` over the step, ``|i| <= max(|i0|, (|e| + k_b W) / R)`` and
+    ``|omega'| <= (k_t |i| + b W) / J``; with ``W <= |omega0| + alpha dt`` this gives
+    ``alpha <= (k_t I0 + b |omega0|) / (J - (k_t k_b / R + b) dt)``, ``I0 = max(|i0|,
+    (|e| + k_b |omega0|) / R)``, and the reach ``rho (|omega0| dt + alpha dt^2 / 2)``.
+    """
+    slack = p.inertia_kg_m2 - p.reach_feedback * dt_s
+    if slack <= 0.0:
+        return False
+    w0 = abs(s.w)
+    i_abs = abs(s.i)
+    i_emf = (abs(e) + p.kb * w0) / p.resistance_ohm
+    i0 = i_emf if i_emf > i_abs else i_abs
+    alpha = (p.kt * i0 + p.damping_n_m_s_per_rad * w0) / slack
+    reach = (p.rho * (w0 + 0.5 * alpha * dt_s) + FREE_REACH_MARGIN_MPS) * dt_s
+    return s.x - reach > 0.0 and s.x + reach < s.x_c
+
+
+@numba.njit(cache=True, inline='always')
+def _compliant_force_rate(s, p):
+    """D/dt of the Kelvin-Voigt force ``k d + c d'`` in the present state (N/s)."""
+    stiffness = s.stiffness_n_per_m
+    damping = s.damping_n_s_per_m
+    v = s.w * p.rho
+    force = stiffness * (s.x - s.x_c) + damping * v
+    accel = (p.kt * s.i - p.damping_n_m_s_per_rad * s.w
+             - p.lever * force) / p.inertia_kg_m2 * p.rho
+    return stiffness * v + damping * accel
+
+
+@numba.njit(cache=True, inline='always')
+def _advance_compliant_in_one_step(s, p, keys, coef, e, dt_s):
+    """Step a compliant contact over ``dt_s`` at once; False (state kept) if it may not.
+
+    It may not if the finger has left the face at the end (separation is then located on
+    the sub-step grid), or if the force has an interior maximum above both ends (the peak is
+    then found on the grid as well).
+    """
+    i0 = s.i
+    w0 = s.w
+    x0 = s.x
+    rate0 = _compliant_force_rate(s, p)
+    _advance_compliant(s, p, keys, coef, e, dt_s)
+    depth = s.x - s.x_c
+    if depth > 0.0 and s.stiffness_n_per_m * depth \
+            + s.damping_n_s_per_m * s.w * p.rho >= 0.0:
+        if rate0 <= 0.0:
+            return True
+        rate1 = _compliant_force_rate(s, p)
+        if rate1 >= 0.0 or rate0 * rate0 * dt_s / (2.0 * (rate0 - rate1)) <= \
+                PEAK_RESOLUTION_N:
+            return True
+    s.i = i0
+    s.w = w0
+    s.x = x0
+    return False
+
+
+@numba.njit(cache=True, inline='always')
+def _detect_contact(s, p):
+    """After a free sub-step: arrival on the object (or the other finger) or the open stop."""
+    x_c = s.x_c
+    if s.x >= x_c:
+        if s.stiffness_n_per_m == 0.0:
+            mass_equiv = p.inertia_kg_m2
+            s.impact_energy_lost_j += 0.5 * mass_equiv * s.w ** p.two
+            s.x = x_c
+            s.w = 0.0
+            s.contact = CONTACT_RIGID
+        else:
+            s.contact = CONTACT_COMPLIANT
+    elif s.x <= 0.0:
+        s.impact_energy_lost_j += 0.5 * p.inertia_kg_m2 * s.w ** p.two
+        s.x = 0.0
+        s.w = 0.0
+        s.contact = CONTACT_OPEN_STOP
+
+
+@numba.njit(cache=True, inline='always')
+def _detect_separation(s, p):
+    """After a compliant sub-step: free once out of the face or pulling on it."""
+    depth = s.x - s.x_c
+    if depth <= 0.0 or s.stiffness_n_per_m * depth + s.damping_n_s_per_m * s.w * \
+            p.rho < 0.0:
+        s.contact = CONTACT_FREE
+
+
+@numba.njit(cache=True, inline='always')
+def _advance_stalled(s, p, e, dt_s):
+    """Finger held by a rigid object or the open stop: only the current moves (first order).
+
+    Returns the time left in the interval after the finger leaves the stop (0 if it stays).
+    """
+    i_inf = e / p.resistance_ohm
+    i0 = s.i
+    # The stop holds while the motor torque (sign of the current) pushes into it.
+    into = 1.0 if s.contact == CONTACT_RIGID else -1.0
+    if into * i0 < 0.0:
+        t_leave = 0.0
+    elif into * i_inf >= 0.0:
+        t_leave = math.inf
+    else:  # the current decays through zero on its way to i_inf
+        t_leave = p.tau_e * math.log((i0 - i_inf) / (0.0 - i_inf))
+    if t_leave >= dt_s:
+        s.i = i_inf + (i0 - i_inf) * math.exp(-dt_s / p.tau_e)
+        return 0.0
+    s.i = i_inf + (i0 - i_inf) * math.exp(-t_leave / p.tau_e)
+    s.contact = CONTACT_FREE
+    return dt_s - t_leave
+
+
+@numba.njit(cache=True)
+def _advance_slipping(s, p, h, keys, coef, e, dt_s, remaining_s):
+    """One sub-step of a gripped, slipping rigid object; returns the time left after it."""
+    cap = _slip_capacity_n(s, s.t_now_s)
+    if cap < SLIP_GONE_FRACTION * s.slip_f_0_n:
+        _remove_object(s, p, h, False)             # slid out: nothing left to grip
+        return remaining_s
+    if s.contact == CONTACT_RIGID:
+        if p.kt * s.i / p.lever <= cap:             # the object holds: stalled, as usual
+            left = _advance_stalled(s, p, e, dt_s)
+            return remaining_s - dt_s + left
+        s.contact = CONTACT_SLIPPING               # pushing harder than it can resist
+    c = coef[_disc_entry(s, p, keys, coef, DISC_LOADED, dt_s)]
+    i = s.i
+    w = s.w
+    x = s.x
+    # Ad (3 x 3) then Bd (3 x 2) row by row; the sum starts at 0 as Python's sum() does.
+    s.i = 0.0 + c[0] * i + c[1] * w + c[2] * x + c[9] * e + c[10] * cap
+    s.w = 0.0 + c[3] * i + c[4] * w + c[5] * x + c[11] * e + c[12] * cap
+    s.x = 0.0 + c[6] * i + c[7] * w + c[8] * x + c[13] * e + c[14] * cap
+    end = p.max_travel_m
+    if s.x >= end:                                 # the object is gone, the fingers meet
+        s.x = end
+        s.w = 0.0
+        s.has_slip = 0
+        _use_object(s, p, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+        _end_hold(h)
+        s.contact = CONTACT_RIGID
+    else:                                          # the face recedes
+        _use_object(s, p, end - s.x, s.stiffness_n_per_m, s.damping_n_s_per_m, s.mass_kg,
+                    s.static_friction, s.kinetic_friction, s.pad_length_m)
+        if s.w <= 0.0:                             # the finger stopped: it grips again
+            s.w = 0.0
+            s.contact = CONTACT_RIGID
+    return remaining_s - dt_s
+
+
+@numba.njit(cache=True, inline='always')
+def _integrate(s, p, h, keys, coef, e, duration_s, start_s):
+    """Advance ``duration_s`` at voltage ``e``; returns the contact force at its end."""
+    remaining = duration_s
+    sub = p.h
+    one_step = True       # a compliant interval may be one exact step until it is not
+    force = s.peak
+    while remaining > 1e-15:
+        s.t_now_s = start_s + (duration_s - remaining)
+        state = s.contact
+        if s.has_slip and (state == CONTACT_RIGID or state == CONTACT_SLIPPING):
+            remaining = _advance_slipping(s, p, h, keys, coef, e,
+                                          remaining if remaining < sub else sub, remaining)
+        elif state == CONTACT_FREE:
+            if _free_step_is_safe(s, p, e, remaining):
+                _advance_free(s, p, keys, coef, e, remaining)
+                remaining = 0.0
+            else:
+                dt = remaining if remaining < sub else sub
+                _advance_free(s, p, keys, coef, e, dt)
+                remaining -= dt
+                _detect_contact(s, p)
+        elif state == CONTACT_RIGID or state == CONTACT_OPEN_STOP:
+            remaining = _advance_stalled(s, p, e, remaining)
+        else:
+            if one_step and remaining <= s.compliant_one_step_s and \
+                    _advance_compliant_in_one_step(s, p, keys, coef, e, remaining):
+                remaining = 0.0
+            else:
+                one_step = False   # the rest of this interval on the sub-step grid
+                dt = remaining if remaining < sub else sub
+                _advance_compliant(s, p, keys, coef, e, dt)
+                remaining -= dt
+                _detect_separation(s, p)
+        force = _force(s, p)
+        if force > s.peak:
+            s.peak = force
+    return force
+
+
+@numba.njit(cache=True)
+def _step_in_pieces(s, p, h, sensor, fired, keys, coef, e, t_ns, end_ns):
+    """Integrate ``[t_ns, end_ns]`` split at the fault, the lift's start and end, the loss.
+
+    An event at ``end_ns`` itself takes effect in the next step (after this sample).
+    """
+    while t_ns < end_ns:
+        if s.fault_kind != FaultKind.NONE and s.fault_at_ns <= t_ns:
+            _fire_fault(s, p, h, sensor, fired)
+        live = h.live != 0
+        if live:
+            hold_fire_events(h, t_ns)
+            if not hold_live(h):
+                h.live = 0
+                live = False
+        piece_end_ns = end_ns
+        if s.fault_kind != FaultKind.NONE and s.fault_at_ns < piece_end_ns:
+            piece_end_ns = s.fault_at_ns
+        if live:
+            event_ns = h.next_event_ns
+            if event_ns != -1 and event_ns < piece_end_ns:
+                piece_end_ns = event_ns
+            if h.state == HoldState.SLIDING and t_ns + p.h_ns < piece_end_ns:
+                piece_end_ns = t_ns + p.h_ns      # refresh the grip force while sliding
+            loss_s = hold_advance(h, _force(s, p), (piece_end_ns - t_ns) * 1e-9)
+            if not math.isnan(loss_s):
+                loss_ns = t_ns + round(loss_s * 1e9)
+                if piece_end_ns < loss_ns:
+                    loss_ns = piece_end_ns
+                if loss_ns > t_ns:
+                    _integrate(s, p, h, keys, coef, e, (loss_ns - t_ns) * 1e-9, t_ns * 1e-9)
+                h.lost_ns = loss_ns
+                _remove_object(s, p, h, True)
+                h.live = 0
+                t_ns = loss_ns
+                continue
+        _integrate(s, p, h, keys, coef, e, (piece_end_ns - t_ns) * 1e-9, t_ns * 1e-9)
+        t_ns = piece_end_ns
+
+
+# ----------------------------------------------------------------------------- entry points
+@numba.njit(cache=True)
+def plant_step(k, voltage_v, duration_ns):
+    """Hold ``voltage_v`` (clipped to the supply) for ``duration_ns`` >= 1 (validated)."""
+    s = k[K_STATE][0]
+    p = k[K_PARAMS][0]
+    h = k[K_HOLD][0]
+    keys = k[K_DISC_KEYS]
+    coef = k[K_DISC_COEF]
+    limit = p.limit_v
+    e = limit if voltage_v > limit else (-limit if voltage_v < -limit else voltage_v)
+    s.voltage = e
+    s.peak = _force(s, p)
+    start_ns = s.t_ns
+    end_ns = start_ns + duration_ns
+    if s.fault_kind == FaultKind.NONE and (
+            h.live == 0 or hold_stays_stuck(h, s.peak, end_ns)):
+        _integrate(s, p, h, keys, coef, e, duration_ns * 1e-9, start_ns * 1e-9)
+    else:
+        _step_in_pieces(s, p, h, k[K_SENSOR][0], k[K_FIRED], keys, coef, e, start_ns, end_ns)
+    s.t_ns = end_ns
+    s.t_now_s = end_ns * 1e-9
+
+
+@numba.njit(cache=True)
+def plant_sample(k):
+    """Return what the sensors and motor report now, as PlantSample's fields in order."""
+    s = k[K_STATE][0]
+    p = k[K_PARAMS][0]
+    sensor = k[K_SENSOR][0]
+    force = _force(s, p)
+    if sensor.dropped_out:
+        measured = math.nan
+        sensor_v = math.nan
+        peak = math.nan
+    else:
+        measured = force
+        sensor_v = fsr_voltage_v(sensor, force)
+        peak = force if force > s.peak else s.peak
+    w = s.w
+    # Only the contact states give a force, so "in contact" is "force > 0".
+    return (s.t_ns, s.x, w * p.rho, measured, peak, s.i, w, s.voltage, sensor_v,
+            force > 0.0)
+
+
+@numba.njit(cache=True)
+def plant_read_tick(k, tick, revision, applied_source):
+    """Fill the 1-element TICK record array ``tick`` with the measurement now."""
+    (t_ns, x, v, measured, peak, i, w, voltage, sensor_v, _contact) = plant_sample(k)
+    r = tick[0]
+    r.stamp_ns = t_ns
+    r.position_m = x
+    r.velocity_mps = v
+    r.force_n = measured
+    r.peak_force_n = peak
+    r.sensor_voltage_v = sensor_v
+    r.motor_voltage_v = voltage
+    r.current_a = i
+    r.speed_rad_s = w
+    r.applied_source = applied_source
+    r.revision = revision
+
+
+@numba.njit(cache=True)
+def plant_begin_hold(k, t_ns, grasp_mass_kg):
+    """Start the lift's clock at ``t_ns``; 1 (nothing changed) if the object left its support."""
+    h = k[K_HOLD][0]
+    if not h.has_hold or h.state == HoldState.NONE:
+        return 0
+    mass = h.mass_kg if h.mass_kg != 0.0 else grasp_mass_kg
+    if hold_begin(h, t_ns, mass):
+        return 1
+    h.live = 1 if hold_live(h) else 0
+    return 0
+
+
+@numba.njit(cache=True)
+def plant_scenario_in_progress(k):
+    """Whether a hold scenario (a lift) is still to be played out."""
+    h = k[K_HOLD][0]
+    return h.has_hold != 0 and hold_scenario_in_progress(
+        h, k[K_STATE][0].t_ns, k[K_PARAMS][0].after_lift_ns)
+
+
+@numba.njit(cache=True)
+def plant_schedule_fault(k, kind, at_ns, time_constant_s):
+    """Fire ``kind`` at ``at_ns`` (>= now; replaces a scheduled one; NONE cancels)."""
+    s = k[K_STATE][0]
+    s.fault_kind = kind
+    s.fault_at_ns = at_ns if at_ns > s.t_ns else s.t_ns
+    s.fault_time_constant_s = time_constant_s
+
+
+@numba.njit(cache=True)
+def plant_cancel_fault(k):
+    """Drop a scheduled fault that has not fired (its effects, once fired, stay)."""
+    k[K_STATE][0].fault_kind = FaultKind.NONE
+
+
+@numba.njit(cache=True)
+def plant_fault_scheduled(k):
+    """Whether a fault is scheduled and has not fired."""
+    return k[K_STATE][0].fault_kind != FaultKind.NONE
+
+
+@numba.njit(cache=True)
+def _object_state(k):
+    """Return the held object's (state, slip, speed, load, capacity, lost_ns/-1, lift a)."""
+    h = k[K_HOLD][0]
+    if not h.has_hold:
+        return (HoldState.NONE, 0.0, 0.0, 0.0, 0.0, -1, 0.0)
+    if h.state == HoldState.NONE:
+        return (HoldState.NONE, h.slip_m, 0.0, 0.0, 0.0, -1, 0.0)
+    s = k[K_STATE][0]
+    return (h.state, h.slip_m, h.slip_speed_mps, hold_load_n(h),
+            hold_capacity_n(h, _force(s, k[K_PARAMS][0])), h.lost_ns, h.acceleration_mps2)
+
+
+@numba.njit(cache=True)
+def _step_and_sample(k, voltage_v, duration_ns):
+    plant_step(k, voltage_v, duration_ns)
+    return plant_sample(k)
+
+
+@numba.njit(cache=True)
+def _slip_capacity_at(k, t_s):
+    return _slip_capacity_n(k[K_STATE][0], t_s)
+
+
+_warmed_up = []
+
+
+def _warm_up(kernel: tuple) -> None:
+    """Load (or compile) every kernel the facade calls, once per process, on a scratch copy.
+
+    A kernel's first call loads its machine code from numba's cache (tens of ms; seconds when
+    it must compile): done here, a node's first lift or fault does not stall its loop.
+    """
+    if _warmed_up:
+        return
+    k = tuple(a.copy() for a in kernel)
+    _reset(k, True)
+    _set_object(k, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+    k[K_STATE][0]['x'] = 0.5 * k[K_PARAMS][0]['max_travel_m']
+    _reset(k, False)
+    _step_and_sample(k, 0.0, 1)             # free motion: a table miss, scipy's expm loaded
+    _touch_object(k)
+    plant_sample(k)
+    plant_read_tick(k, np.zeros(1, TICK_LAYOUT.dtype), 0, 0)
+    _object_state(k)
+    plant_begin_hold(k, 0, 0.0)
+    plant_scenario_in_progress(k)
+    plant_schedule_fault(k, 1, 0, DEFAULT_SLIP_TIME_CONSTANT_S)
+    plant_fault_scheduled(k)
+    plant_cancel_fault(k)
+    _clear_faults(k)
+    _slip_capacity_at(k, 0.0)
+    _warmed_up.append(True)
+
+
+# ----------------------------------------------------------------------------- the facade
 class GripperPlant:
-    """Exact-discretised motor + lead screw + contact. Call :meth:`step` with a held voltage."""
+    """Exact-discretised motor + lead screw + contact. Call :meth:`step` with a held voltage.
+
+    The state lives in numpy records (the tuple :attr:`kernel`, see ``K_*``); every step and
+    reading runs the compiled kernels above. This class validates and formats.
+    """
 
     def __init__(self, params: PlantParams, sensor: FsrVoltageDivider,
                  contact: ContactParams | None = None):
         self.params = params
         self.sensor = sensor
-        p = params
-        self._rho = p.travel_per_rad_m
-        self._lever = p.force_lever_m
-        self._tau_e = p.inductance_h / p.resistance_ohm
-        self._kt = p.torque_constant_n_m_per_a
-        self._h = p.contact_substep_s
-        self._h_ns = max(1, round(p.contact_substep_s * 1e9))
-        self._limit_v = p.voltage_limit_v
-        # Free-reach bound (see _free_step_is_safe): |omega'| <= (k_t I + b W) / J.
-        self._reach_feedback = (p.torque_constant_n_m_per_a * p.back_emf_v_s_per_rad
-                                / p.resistance_ohm + p.damping_n_m_s_per_rad)
-        self._a_free = np.array([
-            [-p.resistance_ohm / p.inductance_h, -p.back_emf_v_s_per_rad / p.inductance_h, 0.0],
-            [p.torque_constant_n_m_per_a / p.inertia_kg_m2,
-             -p.damping_n_m_s_per_rad / p.inertia_kg_m2, 0.0],
-            [0.0, self._rho, 0.0]])
-        self._b = np.array([1.0 / p.inductance_h, 0.0, 0.0])
-        self._caches = _bounded_entry(_SHARED_CACHES, params)
-        self._free_cache = _bounded_entry(self._caches, 'free')
-        self._loaded_cache = _bounded_entry(self._caches, 'loaded')
         self.contact_defaults = contact or ContactParams(0.0, 0.0)
         default = self.contact_defaults
-        self.impact_energy_lost_j = 0.0
-        self.t_ns = 0  # simulated time in integer nanoseconds: exact, the lockstep's tick key
-        self.scheduled_fault: ScheduledFault | None = None
-        self.fired_faults: list[tuple[FaultKind, int]] = []   # (kind, t_ns) since set_object
-        self._slip: tuple[float, float, float] | None = None   # (t_f s, F_0 N, tau s)
-        self._t_now_s = 0.0
-        self._x = 0.0
+        self._raw = _raw_constants(params)
         self._lift: Lift | None = None
-        self._hold: HoldModel | None = None          # the object's tangential hold, if any
-        self._hold_live: HoldModel | None = None     # the same while it must be stepped
-        self._use_object(GraspObject(0.0, default.stiffness_n_per_m, default.damping_n_s_per_m))
+        state = np.zeros(1, STATE_DTYPE)
+        hold = np.zeros(1, HOLD_DTYPE)
+        hold[0]['state'] = HoldState.NONE
+        self.kernel = (state, _plant_params_record(params, self.contact_defaults), hold,
+                       sensor.record, np.zeros((MAX_FIRED_FAULTS, 2), np.int64),
+                       np.zeros((DISC_TABLE_SIZE, 5)), np.zeros((DISC_TABLE_SIZE, 15)))
+        """The kernel buffers: (state, params, hold, sensor, fired faults, table keys, table)."""
+        _use_default_object(self.kernel, float(default.stiffness_n_per_m),
+                            float(default.damping_n_s_per_m))
         self.reset()
+        _warm_up(self.kernel)
+
+    # ----------------------------------------------------------------- records for callers
+    @property
+    def _s(self) -> np.void:
+        """The state record (looked up each time: a deep copy of the plant has its own)."""
+        return self.kernel[K_STATE][0]
+
+    @property
+    def _h(self) -> np.void:
+        """The hold record."""
+        return self.kernel[K_HOLD][0]
+
+    def snapshot(self) -> tuple:
+        """Return a copy of the whole state (for :meth:`restore` after a refused change)."""
+        return tuple(a.copy() for a in self.kernel), self._lift
+
+    def restore(self, saved: tuple) -> None:
+        """Put back a :meth:`snapshot` (the buffers stay the same arrays)."""
+        arrays, self._lift = saved
+        for a, b in zip(self.kernel, arrays):
+            a[...] = b
 
     # ----------------------------------------------------------------- set-up
     def reset(self, open_fingers: bool = True) -> None:
         """Motor at rest; optionally the finger back at the fully-open stop. Time keeps running."""
-        self._i = 0.0
-        self._w = 0.0
-        if open_fingers:
-            self._x = 0.0
-        self._voltage = 0.0
-        self._state = _OPEN_STOP if self._x <= 0.0 else _FREE
-        self._peak = 0.0
-        self.impact_energy_lost_j = 0.0
-        self._refresh_contact_state()
+        _reset(self.kernel, bool(open_fingers))
 
     def touch_object(self) -> None:
         """Put the finger at rest just touching the object, motor off (force-loop studies)."""
-        self._i = 0.0
-        self._w = 0.0
-        self._x = self._x_c
-        self._voltage = 0.0
-        self._peak = 0.0
-        self._state = _RIGID if self.object.rigid else _COMPLIANT
+        _touch_object(self.kernel)
 
     def set_object(self, obj: GraspObject, lift: Lift | None = None) -> None:
         """Place an object (its fixed-finger face is the fixed finger; the other face at x_c).
@@ -260,14 +1054,19 @@ class GripperPlant:
         if lift is not None and not isinstance(lift, Lift):
             raise ValueError(f'lift must be a Lift or None, got {lift!r}')
         hold = self._hold_model_for(obj, lift)
-        if self._x > self.params.max_travel_m - obj.width_m:
+        if self._s['x'] > self.params.max_travel_m - obj.width_m:
             raise ValueError('the finger is already past the new object surface; open first')
-        self._use_object(obj)
+        if hold is None:
+            self._h['has_hold'] = 0
+            self._h['state'] = HoldState.NONE
+        else:
+            self.kernel[K_HOLD][0] = hold.record[0]
+            self._h['has_hold'] = 1
         self._lift = lift
-        self._hold = hold
-        self._hold_live = None
-        self.clear_faults()
-        self._refresh_contact_state()
+        _set_object(self.kernel, float(obj.width_m), float(obj.stiffness_n_per_m),
+                    float(obj.damping_n_s_per_m), float(obj.mass_kg),
+                    float(obj.static_friction), float(obj.kinetic_friction),
+                    float(obj.pad_length_m))
 
     def _hold_model_for(self, obj: GraspObject, lift: Lift | None) -> HoldModel | None:
         """Build the hold of ``obj``, its friction resolved against the defaults (ValueError)."""
@@ -286,21 +1085,14 @@ class GripperPlant:
                              f'{d.pad_length_m!r}), got {pad_m!r}')
         return HoldModel(obj.mass_kg, mu_s, mu_k, pad_m, self.params.gravity_mps2, lift)
 
-    def _use_object(self, obj: GraspObject) -> None:
-        """Make ``obj`` the object between the fingers (geometry and discretisations)."""
-        self.object = obj
-        self._x_c = self.params.max_travel_m - obj.width_m
-        if obj.rigid:
-            self._compliant_cache = None
-            self._compliant_one_step_s = 0.0
-        else:
-            self._compliant_cache = _bounded_entry(
-                self._caches, ('compliant', obj.stiffness_n_per_m, obj.damping_n_s_per_m,
-                               self._x_c))
-            p = self.params
-            spring_rad_s = math.sqrt(self._lever * obj.stiffness_n_per_m * self._rho
-                                     / p.inertia_kg_m2)
-            self._compliant_one_step_s = COMPLIANT_ONE_STEP_PHASE_RAD / spring_rad_s
+    @property
+    def object(self) -> GraspObject:  # noqa: A003 - today's attribute name
+        """What lies between the fingers now (a slipping object's width shrinks)."""
+        s = self._s
+        return GraspObject(float(s['width_m']), float(s['stiffness_n_per_m']),
+                           float(s['damping_n_s_per_m']), float(s['mass_kg']),
+                           float(s['static_friction']), float(s['kinetic_friction']),
+                           float(s['pad_length_m']))
 
     # ----------------------------------------------------------------- holding a lifted object
     def begin_hold(self, t_ns: int, grasp_mass_kg: float = 0.0) -> None:
@@ -314,11 +1106,10 @@ class GripperPlant:
         if isinstance(t_ns, bool) or not isinstance(t_ns, int) or t_ns < 0:
             raise ValueError(f'hold t_ns must be an integer >= 0, got {t_ns!r}')
         mass = check_finite_nonnegative('hold', 'grasp_mass_kg', grasp_mass_kg)
-        hold = self._hold
-        if hold is None or hold.state is HoldState.NONE:
-            return
-        hold.begin(t_ns, hold.mass_kg or mass)
-        self._hold_live = hold if hold.live else None
+        if plant_begin_hold(self.kernel, t_ns, mass):
+            raise ValueError(f'the object is already off its support '
+                             f'({HoldState(int(self._h["state"])).name}); '
+                             'place an object again before a new hold')
 
     @property
     def lift(self) -> Lift | None:
@@ -326,54 +1117,59 @@ class GripperPlant:
         return self._lift
 
     @property
+    def _hold(self) -> HoldModel | None:
+        """The object's tangential hold (a view of the plant's hold record), if any."""
+        return HoldModel.view(self.kernel[K_HOLD], self._lift) if self._h['has_hold'] else None
+
+    @property
     def hold_state(self) -> HoldState:
         """What the held object does now (cheap: for a per-step check)."""
-        hold = self._hold
-        return HoldState.NONE if hold is None else hold.state
+        return HoldState(int(self._h['state'])) if self._h['has_hold'] else HoldState.NONE
 
     @property
     def object_state(self) -> ObjectState:
         """The grasped object's hold: state, slip, load against the static capacity, loss time."""
-        hold = self._hold
-        if hold is None:
-            return ObjectState(HoldState.NONE)
-        if hold.state is HoldState.NONE:
-            return ObjectState(HoldState.NONE, hold.slip_m, 0.0, 0.0, 0.0, None)
-        return ObjectState(hold.state, hold.slip_m, hold.slip_speed_mps, hold.load_n,
-                           hold.capacity_n(self._force()), hold.lost_ns, hold.acceleration_mps2)
+        state, slip, speed, load, capacity, lost_ns, accel = _object_state(self.kernel)
+        return ObjectState(HoldState(state), slip, speed, load, capacity,
+                           None if lost_ns == -1 else lost_ns, accel)
 
     def scenario_in_progress(self) -> bool:
         """Whether a hold scenario (a lift) is still to be played out.
 
         While it is, simulated time must go on in fast mode after the grasp was answered.
         """
-        hold = self._hold
-        return hold is not None and hold.scenario_in_progress(
-            self.t_ns, round(self.contact_defaults.after_lift_s * 1e9))
+        return plant_scenario_in_progress(self.kernel)
 
     # ----------------------------------------------------------------- fault injection
     def schedule_fault(self, kind, at_ns: int,
                        time_constant_s: float = DEFAULT_SLIP_TIME_CONSTANT_S) -> ScheduledFault:
         """Fire ``kind`` at simulated time ``at_ns`` (>= now; replaces a scheduled one)."""
         kind, tau = check_fault(kind, 0.0, time_constant_s, self.object.rigid)
-        at_ns = max(int(at_ns), self.t_ns)
-        self.scheduled_fault = None if kind is FaultKind.NONE else \
-            ScheduledFault(kind, at_ns, tau)
+        plant_schedule_fault(self.kernel, int(kind), int(at_ns), float(tau))
         return self.scheduled_fault
+
+    @property
+    def scheduled_fault(self) -> ScheduledFault | None:
+        """The fault to fire (None: none scheduled, or it has fired)."""
+        s = self._s
+        if s['fault_kind'] == FaultKind.NONE:
+            return None
+        return ScheduledFault(FaultKind(int(s['fault_kind'])), int(s['fault_at_ns']),
+                              float(s['fault_time_constant_s']))
+
+    @property
+    def fired_faults(self) -> list[tuple[FaultKind, int]]:
+        """(kind, t_ns) of each fault fired since set_object."""
+        rows = self.kernel[K_FIRED][:int(self._s['fired_count'])]
+        return [(FaultKind(int(kind)), int(at_ns)) for kind, at_ns in rows]
 
     def cancel_fault(self) -> None:
         """Drop a scheduled fault that has not fired (its effects, once fired, stay)."""
-        self.scheduled_fault = None
+        plant_cancel_fault(self.kernel)
 
     def clear_faults(self) -> None:
         """No scheduled fault, a working sensor, no slip."""
-        self.scheduled_fault = None
-        self.fired_faults = []
-        self.sensor.dropped_out = False
-        self._slip = None
-        if self._state is _SLIPPING:
-            self._w = 0.0
-            self._state = _RIGID
+        _clear_faults(self.kernel)
 
     @property
     def sensor_dropped_out(self) -> bool:
@@ -381,49 +1177,39 @@ class GripperPlant:
 
     def slip_capacity_n(self, t_s: float | None = None) -> float:
         """Force the slipping object can still resist at ``t_s`` (inf when not slipping)."""
-        if self._slip is None:
-            return math.inf
-        t_f, f_0, tau = self._slip
-        t = self._t_now_s if t_s is None else t_s
-        return f_0 * math.exp(-max(0.0, t - t_f) / tau)
+        return _slip_capacity_at(self.kernel, float(self._s['t_now_s'] if t_s is None else t_s))
 
-    def _fire_fault(self, fault: ScheduledFault) -> None:
-        self.scheduled_fault = None
-        self.fired_faults.append((fault.kind, fault.at_ns))
-        if fault.kind is FaultKind.SENSOR_DROPOUT:
-            self.sensor.dropped_out = True
-        elif fault.kind is FaultKind.OBJECT_REMOVED:
-            self._remove_object()
-        elif fault.kind is FaultKind.OBJECT_SLIPPING:
-            f_0 = self._force()
-            if f_0 <= 0.0:
-                self._remove_object()
-            else:
-                self._slip = (fault.at_ns * 1e-9, f_0, fault.time_constant_s)
+    # ----------------------------------------------------------------- state read-outs
+    @property
+    def t_ns(self) -> int:
+        """Simulated time in integer nanoseconds: exact, the lockstep's tick key."""
+        return int(self._s['t_ns'])
 
-    def _remove_object(self, lost: bool = False) -> None:
-        """Nothing between the fingers from now on (slid out of the pads if ``lost``)."""
-        self._slip = None
-        self._use_object(_NOTHING)              # nothing: the fingers would meet at L_ls
-        if not lost:
-            self._end_hold()
-        if self._state in (_RIGID, _COMPLIANT, _SLIPPING) and self._x < self.params.max_travel_m:
-            self._state = _FREE
-        self._refresh_contact_state()
-
-    def _end_hold(self) -> None:
-        if self._hold is not None and self._hold.state is not HoldState.LOST:
-            self._hold.remove()
-        self._hold_live = None
+    @t_ns.setter
+    def t_ns(self, value: int) -> None:
+        self._s['t_ns'] = value
 
     @property
     def t_s(self) -> float:
         return self.t_ns * 1e-9
 
     @property
+    def impact_energy_lost_j(self) -> float:
+        """Kinetic energy lost in arrivals on a rigid face or the open stop since the reset."""
+        return float(self._s['impact_energy_lost_j'])
+
+    @impact_energy_lost_j.setter
+    def impact_energy_lost_j(self, value: float) -> None:
+        self._s['impact_energy_lost_j'] = value
+
+    @property
     def contact_position_m(self) -> float:
         """Finger travel at which it touches the object."""
-        return self._x_c
+        return float(self._s['x_c'])
+
+    @property
+    def contact_state(self) -> ContactState:
+        return _CONTACT_STATES[self._s['contact']]
 
     # ----------------------------------------------------------------- model facts
     def position_transfer_function(self) -> tuple[np.ndarray, np.ndarray]:
@@ -439,7 +1225,7 @@ class GripperPlant:
     def force_transfer_function(self) -> tuple[np.ndarray, np.ndarray]:
         """Eq. 13, F_gr(s)/E_a(s) with the finger stalled, as (numerator, denominator)."""
         p = self.params
-        return (np.array([p.torque_constant_n_m_per_a / self._lever]),
+        return (np.array([p.torque_constant_n_m_per_a / p.force_lever_m]),
                 np.array([p.inductance_h, p.resistance_ohm]))
 
     def stall_force_n(self, voltage_v: float) -> float:
@@ -452,38 +1238,22 @@ class GripperPlant:
         w = p.torque_constant_n_m_per_a * voltage_v / (
             p.damping_n_m_s_per_rad * p.resistance_ohm
             + p.torque_constant_n_m_per_a * p.back_emf_v_s_per_rad)
-        return w * self._rho
+        return w * p.travel_per_rad_m
 
     def discrete_free_model(self, dt_s: float) -> tuple[np.ndarray, np.ndarray]:
         """Exact ZOH model of free motion: ``s[k+1] = Ad s[k] + Bd e[k]``, s = [i, omega, x]."""
-        c = self._free(dt_s)
+        c = _discretise(self._raw, DISC_FREE, dt_s, 0.0, 0.0, 0.0).tolist()
         return np.array([c[0:3], c[4:7], c[8:11]]), np.array(c[12:15])
 
     def discrete_force_model(self, dt_s: float) -> tuple[float, float]:
         """Exact ZOH of eq. 13: ``F[k+1] = a F[k] + b e[k]`` on a rigid object."""
-        a = math.exp(-dt_s / self._tau_e)
+        a = math.exp(-dt_s / self.kernel[K_PARAMS][0]['tau_e'])
         return a, self.params.stall_force_per_volt_n * (1.0 - a)
 
     # ----------------------------------------------------------------- simulation
-    @property
-    def contact_state(self) -> ContactState:
-        return self._state
-
     def sample(self) -> PlantSample:
-        return self._sample(self._force())
-
-    def _sample(self, force: float) -> PlantSample:
-        sensor = self.sensor
-        if sensor.dropped_out:
-            measured = sensor_v = peak = math.nan
-        else:
-            measured = force
-            sensor_v = sensor.voltage_v(force)
-            peak = force if force > self._peak else self._peak
-        w = self._w
-        # Only the contact states give a force, so "in contact" is "force > 0".
-        return _new_tuple(PlantSample, (self.t_ns, self._x, w * self._rho, measured, peak,
-                                        self._i, w, self._voltage, sensor_v, force > 0.0))
+        """Return what the sensors and motor report now."""
+        return _new_tuple(PlantSample, plant_sample(self.kernel))
 
     def step(self, voltage_v: float, duration_s: float) -> PlantSample:
         """Hold ``voltage_v`` (clipped to the supply, the H-bridge limit) for ``duration_s``."""
@@ -494,324 +1264,5 @@ class GripperPlant:
             raise ValueError(f'duration must be at least 1 ns, got {duration_s!r}')
         if not -math.inf < voltage_v < math.inf:
             raise ValueError(f'voltage must be finite, got {voltage_v!r}')
-        limit = self._limit_v
-        e = limit if voltage_v > limit else (-limit if voltage_v < -limit else voltage_v)
-        self._voltage = e
-        self._peak = self._force()
-        start_ns = self.t_ns
-        end_ns = start_ns + duration_ns
-        hold = self._hold_live
-        if self.scheduled_fault is None and (
-                hold is None or hold.stays_stuck(self._peak, end_ns)):
-            force = self._integrate(e, duration_ns * 1e-9, start_ns * 1e-9)
-        else:
-            self._step_in_pieces(e, start_ns, end_ns)
-            force = None
-        self.t_ns = end_ns
-        self._t_now_s = end_ns * 1e-9
-        if force is None or self._slip is not None:   # a slip capacity is read at the end time
-            force = self._force()
-        return self._sample(force)
-
-    def _step_in_pieces(self, e: float, t_ns: int, end_ns: int) -> None:
-        """Integrate ``[t_ns, end_ns]`` split at the fault, the lift's start and end, the loss.
-
-        An event at ``end_ns`` itself takes effect in the next step (after this sample).
-        """
-        while t_ns < end_ns:
-            fault = self.scheduled_fault
-            if fault is not None and fault.at_ns <= t_ns:
-                self._fire_fault(fault)
-                fault = self.scheduled_fault
-            hold = self._hold_live
-            if hold is not None:
-                hold.fire_events(t_ns)
-                if not hold.live:
-                    hold = self._hold_live = None
-            piece_end_ns = end_ns
-            if fault is not None and fault.at_ns < piece_end_ns:
-                piece_end_ns = fault.at_ns
-            if hold is not None:
-                event_ns = hold.next_event_ns
-                if event_ns is not None and event_ns < piece_end_ns:
-                    piece_end_ns = event_ns
-                if hold.state is HoldState.SLIDING and t_ns + self._h_ns < piece_end_ns:
-                    piece_end_ns = t_ns + self._h_ns      # refresh the grip force while sliding
-                loss_s = hold.advance(self._force(), (piece_end_ns - t_ns) * 1e-9)
-                if loss_s is not None:
-                    loss_ns = min(piece_end_ns, t_ns + round(loss_s * 1e9))
-                    if loss_ns > t_ns:
-                        self._integrate(e, (loss_ns - t_ns) * 1e-9, t_ns * 1e-9)
-                    hold.lost_ns = loss_ns
-                    self._remove_object(lost=True)
-                    self._hold_live = None
-                    t_ns = loss_ns
-                    continue
-            self._integrate(e, (piece_end_ns - t_ns) * 1e-9, t_ns * 1e-9)
-            t_ns = piece_end_ns
-
-    def _integrate(self, e: float, duration_s: float, start_s: float) -> float:
-        """Advance ``duration_s`` at voltage ``e``; returns the contact force at its end."""
-        remaining = duration_s
-        h = self._h
-        one_step = True       # a compliant interval may be one exact step until it is not
-        force = self._peak
-        while remaining > 1e-15:
-            self._t_now_s = start_s + (duration_s - remaining)
-            state = self._state
-            if self._slip is not None and (state is _RIGID or state is _SLIPPING):
-                remaining = self._advance_slipping(e, min(h, remaining), remaining)
-            elif state is _FREE:
-                if self._free_step_is_safe(e, remaining):
-                    self._advance_free(e, remaining)
-                    remaining = 0.0
-                else:
-                    dt = min(h, remaining)
-                    self._advance_free(e, dt)
-                    remaining -= dt
-                    self._detect_contact()
-            elif state is _RIGID or state is _OPEN_STOP:
-                remaining = self._advance_stalled(e, remaining)
-            else:
-                if one_step and remaining <= self._compliant_one_step_s and \
-                        self._advance_compliant_in_one_step(e, remaining):
-                    remaining = 0.0
-                else:
-                    one_step = False   # the rest of this interval on the sub-step grid
-                    dt = min(h, remaining)
-                    self._advance_compliant(e, dt)
-                    remaining -= dt
-                    self._detect_separation()
-            force = self._force()
-            if force > self._peak:
-                self._peak = force
-        return force
-
-    # ----------------------------------------------------------------- internals
-    def _motor_force_n(self) -> float:
-        """Return the force the motor torque pushes with through the lead screw (eq. 12)."""
-        return self._kt * self._i / self._lever
-
-    def _force(self) -> float:
-        state = self._state
-        if state is _RIGID:
-            motor = self._kt * self._i / self._lever
-            if not motor > 0.0:
-                motor = 0.0
-            return motor if self._slip is None else min(motor, self.slip_capacity_n())
-        if state is _COMPLIANT:
-            obj = self.object
-            force = obj.stiffness_n_per_m * (self._x - self._x_c) \
-                + obj.damping_n_s_per_m * self._w * self._rho
-            return force if force > 0.0 else 0.0
-        if state is _SLIPPING:
-            return self.slip_capacity_n()
-        return 0.0
-
-    def _refresh_contact_state(self) -> None:
-        """Re-derive the contact state after a reset or a new object."""
-        x_c = self._x_c
-        if self._x <= 0.0:
-            self._x = 0.0
-            self._state = _OPEN_STOP
-        elif self._x >= x_c:
-            self._state = _RIGID if self.object.rigid else _COMPLIANT
-            if self.object.rigid:
-                self._x = x_c
-        else:
-            self._state = _FREE
-
-    def _discretise(self, compliant: bool, dt_s: float) -> tuple:
-        """Exact ZOH over ``dt_s``: flat ``(Ad row 0 (4), row 1 (4), row 2 (4), Bd (3))``."""
-        # Augmented state [i, omega, x, 1] so the contact's affine term discretises exactly.
-        a = np.zeros((4, 4))
-        a[:3, :3] = self._a_free
-        if compliant:
-            p, obj = self.params, self.object
-            k, c = obj.stiffness_n_per_m, obj.damping_n_s_per_m
-            a[1, 1] -= self._lever * c * self._rho / p.inertia_kg_m2
-            a[1, 2] -= self._lever * k / p.inertia_kg_m2
-            a[1, 3] += self._lever * k * self._x_c / p.inertia_kg_m2
-        m = np.zeros((5, 5))
-        m[:4, :4] = a * dt_s
-        m[0, 4] = self._b[0] * dt_s
-        phi = expm(m)
-        return tuple(phi[:3, :4].ravel().tolist()) + tuple(phi[:3, 4].tolist())
-
-    def _free(self, dt_s: float) -> tuple:
-        cache = self._free_cache
-        c = cache.get(dt_s)
-        if c is None:
-            c = self._store(cache, dt_s, self._discretise(False, dt_s))
-        return c
-
-    @staticmethod
-    def _store(cache: dict, key, discretisation):
-        """Cache a discretisation (bounded: a long run with many hold times stays small)."""
-        if len(cache) > MAX_CACHED_DISCRETISATIONS:
-            cache.clear()
-        cache[key] = discretisation
-        return discretisation
-
-    def _advance_free(self, e: float, dt_s: float) -> None:
-        c = self._free_cache.get(dt_s)
-        if c is None:
-            c = self._free(dt_s)
-        i, w, x = self._i, self._w, self._x
-        self._i = c[0] * i + c[1] * w + c[2] * x + c[3] + c[12] * e
-        self._w = c[4] * i + c[5] * w + c[6] * x + c[7] + c[13] * e
-        self._x = c[8] * i + c[9] * w + c[10] * x + c[11] + c[14] * e
-
-    def _advance_compliant(self, e: float, dt_s: float) -> None:
-        cache = self._compliant_cache
-        c = cache.get(dt_s)
-        if c is None:
-            c = self._store(cache, dt_s, self._discretise(True, dt_s))
-        i, w, x = self._i, self._w, self._x
-        self._i = c[0] * i + c[1] * w + c[2] * x + c[3] + c[12] * e
-        self._w = c[4] * i + c[5] * w + c[6] * x + c[7] + c[13] * e
-        self._x = c[8] * i + c[9] * w + c[10] * x + c[11] + c[14] * e
-
-    def _free_step_is_safe(self, e: float, dt_s: float) -> bool:
-        """Tell whether free motion over dt can reach neither stop (rigorous reach bound).
-
-        With ``W = sup |omega|`` over the step, ``|i| <= max(|i0|, (|e| + k_b W) / R)`` and
-        ``|omega'| <= (k_t |i| + b W) / J``; with ``W <= |omega0| + alpha dt`` this gives
-        ``alpha <= (k_t I0 + b |omega0|) / (J - (k_t k_b / R + b) dt)``, ``I0 = max(|i0|,
-        (|e| + k_b |omega0|) / R)``, and the reach ``rho (|omega0| dt + alpha dt^2 / 2)``.
-        """
-        p = self.params
-        slack = p.inertia_kg_m2 - self._reach_feedback * dt_s
-        if slack <= 0.0:
-            return False
-        w0 = abs(self._w)
-        i0 = max(abs(self._i), (abs(e) + p.back_emf_v_s_per_rad * w0) / p.resistance_ohm)
-        alpha = (self._kt * i0 + p.damping_n_m_s_per_rad * w0) / slack
-        reach = (self._rho * (w0 + 0.5 * alpha * dt_s) + FREE_REACH_MARGIN_MPS) * dt_s
-        return self._x - reach > 0.0 and self._x + reach < self._x_c
-
-    def _advance_compliant_in_one_step(self, e: float, dt_s: float) -> bool:
-        """Step a compliant contact over ``dt_s`` at once; False (state kept) if it may not.
-
-        It may not if the finger has left the face at the end (separation is then located on
-        the sub-step grid), or if the force has an interior maximum above both ends (the peak is
-        then found on the grid as well).
-        """
-        i0, w0, x0 = self._i, self._w, self._x
-        rate0 = self._compliant_force_rate()
-        self._advance_compliant(e, dt_s)
-        obj = self.object
-        depth = self._x - self._x_c
-        if depth > 0.0 and obj.stiffness_n_per_m * depth \
-                + obj.damping_n_s_per_m * self._w * self._rho >= 0.0:
-            if rate0 <= 0.0:
-                return True
-            rate1 = self._compliant_force_rate()
-            if rate1 >= 0.0 or rate0 * rate0 * dt_s / (2.0 * (rate0 - rate1)) <= \
-                    PEAK_RESOLUTION_N:
-                return True
-        self._i, self._w, self._x = i0, w0, x0
-        return False
-
-    def _compliant_force_rate(self) -> float:
-        """D/dt of the Kelvin-Voigt force ``k d + c d'`` in the present state (N/s)."""
-        p, obj = self.params, self.object
-        k, c = obj.stiffness_n_per_m, obj.damping_n_s_per_m
-        v = self._w * self._rho
-        force = k * (self._x - self._x_c) + c * v
-        accel = (self._kt * self._i - p.damping_n_m_s_per_rad * self._w
-                 - self._lever * force) / p.inertia_kg_m2 * self._rho
-        return k * v + c * accel
-
-    def _detect_contact(self) -> None:
-        x_c = self._x_c
-        if self._x >= x_c:
-            if self.object.rigid:
-                mass_equiv = self.params.inertia_kg_m2
-                self.impact_energy_lost_j += 0.5 * mass_equiv * self._w ** 2
-                self._x = x_c
-                self._w = 0.0
-                self._state = _RIGID
-            else:
-                self._state = _COMPLIANT
-        elif self._x <= 0.0:
-            self.impact_energy_lost_j += 0.5 * self.params.inertia_kg_m2 * self._w ** 2
-            self._x = 0.0
-            self._w = 0.0
-            self._state = _OPEN_STOP
-
-    def _detect_separation(self) -> None:
-        obj = self.object
-        depth = self._x - self._x_c
-        if depth <= 0.0 or obj.stiffness_n_per_m * depth + obj.damping_n_s_per_m * self._w * \
-                self._rho < 0.0:
-            self._state = _FREE
-
-    def _advance_stalled(self, e: float, dt_s: float) -> float:
-        """Finger held by a rigid object or the open stop: only the current moves (first order).
-
-        Returns the time left in the interval after the finger leaves the stop (0 if it stays).
-        """
-        i_inf = e / self.params.resistance_ohm
-        i0 = self._i
-        # The stop holds while the motor torque (sign of the current) pushes into it.
-        into = 1.0 if self._state is _RIGID else -1.0
-        if into * i0 < 0.0:
-            t_leave = 0.0
-        elif into * i_inf >= 0.0:
-            t_leave = math.inf
-        else:  # the current decays through zero on its way to i_inf
-            t_leave = self._tau_e * math.log((i0 - i_inf) / (0.0 - i_inf))
-        if t_leave >= dt_s:
-            self._i = i_inf + (i0 - i_inf) * math.exp(-dt_s / self._tau_e)
-            return 0.0
-        self._i = i_inf + (i0 - i_inf) * math.exp(-t_leave / self._tau_e)
-        self._state = _FREE
-        return dt_s - t_leave
-
-    # ----------------------------------------------------------------- slipping object
-    def _advance_slipping(self, e: float, dt_s: float, remaining_s: float) -> float:
-        """One sub-step of a gripped, slipping rigid object; returns the time left after it."""
-        p = self.params
-        cap = self.slip_capacity_n()
-        if cap < SLIP_GONE_FRACTION * self._slip[1]:
-            self._remove_object()                       # slid out: nothing left to grip
-            return remaining_s
-        if self._state is _RIGID:
-            if self._motor_force_n() <= cap:             # the object holds: stalled, as usual
-                left = self._advance_stalled(e, dt_s)
-                return remaining_s - dt_s + left
-            self._state = _SLIPPING                     # pushing harder than it can resist
-        ad, bd = self._discretise_loaded(dt_s)
-        s = (self._i, self._w, self._x)
-        u = (e, cap)
-        self._i, self._w, self._x = (
-            sum(ad[r][c] * s[c] for c in range(3)) + bd[r][0] * u[0] + bd[r][1] * u[1]
-            for r in range(3))
-        end = p.max_travel_m
-        if self._x >= end:                              # the object is gone, the fingers meet
-            self._x = end
-            self._w = 0.0
-            self._slip = None
-            self._use_object(_NOTHING)
-            self._end_hold()
-            self._state = _RIGID
-        else:
-            self._use_object(replace(self.object, width_m=end - self._x))   # the face recedes
-            if self._w <= 0.0:                          # the finger stopped: it grips again
-                self._w = 0.0
-                self._state = _RIGID
-        return remaining_s - dt_s
-
-    def _discretise_loaded(self, dt_s: float):
-        """Exact ZOH of free motion with two held inputs: voltage and a load force (N)."""
-        cache = self._loaded_cache
-        cached = cache.get(dt_s)
-        if cached is not None:
-            return cached
-        m = np.zeros((5, 5))
-        m[:3, :3] = self._a_free * dt_s
-        m[0, 3] = self._b[0] * dt_s
-        m[1, 4] = -self._lever / self.params.inertia_kg_m2 * dt_s
-        phi = expm(m)
-        return self._store(cache, dt_s, (phi[:3, :3].tolist(), phi[:3, 3:5].tolist()))
+        return _new_tuple(PlantSample, _step_and_sample(self.kernel, float(voltage_v),
+                                                        duration_ns))
