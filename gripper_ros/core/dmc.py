@@ -43,7 +43,7 @@ import enum
 import math
 from typing import Callable
 
-from gripper_ros.core.pid import (LAW_NUMBERS, LAW_OK, law_error, PID, pid_reset,
+from gripper_ros.core.pid import (law_error, LAW_NUMBERS, LAW_OK, PID, pid_reset,
                                   pid_setpoint_for_output, pid_setpoint_range, pid_step_checked,
                                   py_max, py_min)
 import numba

@@ -31,12 +31,12 @@ import enum
 import math
 
 from gripper_ros.core.config import ConfigError, GripperConfig
-from gripper_ros.core.contact_force import contact_reset, contact_step, CONTACT_DTYPE
+from gripper_ros.core.contact_force import CONTACT_DTYPE, contact_reset, contact_step
 from gripper_ros.core.controllers import (ForceControllerKind, make_force_controller,
                                           make_position_controller, PositionControllerKind)
 from gripper_ros.core.dmc import (CASCADE_DTYPE, cascade_reset, cascade_step, null_dmc,
                                   null_governor)
-from gripper_ros.core.pid import (LAW_NUMBERS, LAW_OK, law_error, PID_DTYPE, pid_reset,
+from gripper_ros.core.pid import (law_error, LAW_NUMBERS, LAW_OK, PID_DTYPE, pid_reset,
                                   pid_step_checked, py_max, py_min)
 from gripper_ros.wire import COMMAND_LAYOUT, Controller, REFERENCE_LAYOUT
 import numba
@@ -183,7 +183,7 @@ def _position_apply_limits(k, r, measurement):
 
 @numba.njit(cache=True)
 def _force_apply_limits(k, r):
-    """The PI's limits: capped before contact at the margin's stall voltage."""
+    """Set the PI's limits: capped before contact at the margin's stall voltage."""
     s = k[3][0]
     low, high = s.full_low, s.full_high
     if not s.contact and s.approach_margin > 0.0:
