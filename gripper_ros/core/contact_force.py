@@ -65,8 +65,8 @@ from dataclasses import dataclass
 import math
 
 from gripper_ros.core.config import ContactForceTuning, PlantParams
-from gripper_ros.core.pid import (LAW_CONTACT_INPUT, law_error, LAW_MATH_DOMAIN, LAW_NUMBERS,
-                                  LAW_OK, LAW_ZERO_DIVISION, py_max, py_min)
+from gripper_ros.core.pid import (as_record, LAW_CONTACT_INPUT, law_error, LAW_MATH_DOMAIN,
+                                  LAW_NUMBERS, LAW_OK, LAW_ZERO_DIVISION, py_max, py_min)
 import numba
 import numpy as np
 
@@ -137,7 +137,7 @@ CONTACT_DTYPE = np.dtype([
 @numba.njit(cache=True)
 def contact_reset_terms(c):
     """Zero the last output's terms (``stiffness`` inf: nothing touched)."""
-    s = c[0]
+    s = as_record(c)
     s.feedforward_v = 0.0
     s.force_v = 0.0
     s.damping_v = 0.0
@@ -152,19 +152,19 @@ def contact_reset_terms(c):
 @numba.njit(cache=True)
 def contact_reset(c, has_position, position_m):
     """Start a new force stage at ``position_m`` (speed 0; ``has_position`` 0: unknown)."""
-    s = c[0]
+    s = as_record(c)
     s.has_prev_position = 1 if has_position else 0
     s.prev_position_m = position_m if has_position else 0.0
     s.has_contact = 0
     s.prev_force_n = 0.0
     s.integral = 0.0
-    contact_reset_terms(c)
+    contact_reset_terms(s)
 
 
 @numba.njit(cache=True)
 def contact_loop_time_constant_s(c, stiffness_n_per_m):
     """Return (code, tau_k): see :meth:`ContactForceController.loop_time_constant_s`."""
-    s = c[0]
+    s = as_record(c)
     if stiffness_n_per_m < 0.0:
         return LAW_MATH_DOMAIN, 0.0
     root = math.sqrt(stiffness_n_per_m)
@@ -185,7 +185,7 @@ def contact_loop_time_constant_s(c, stiffness_n_per_m):
 @numba.njit(cache=True)
 def contact_damping_gain_for(c, stiffness_n_per_m, time_constant_s):
     """Return (code, Kv): see :meth:`ContactForceController.damping_gain_for`."""
-    s = c[0]
+    s = as_record(c)
     tau = time_constant_s
     k = py_min(stiffness_n_per_m, s.design_stiffness_n_per_m)
     if tau == 0.0:
@@ -201,7 +201,7 @@ def contact_damping_gain_for(c, stiffness_n_per_m, time_constant_s):
 @numba.njit(cache=True)
 def contact_speed_profile_mps(c, distance_m, time_constant_s):
     """Return (code, speed): see :meth:`ContactForceController.speed_profile_mps`."""
-    s = c[0]
+    s = as_record(c)
     tau = time_constant_s
     r = abs(distance_m)
     linear_m = 0.5 * s.two_a * tau * tau
@@ -229,7 +229,7 @@ def contact_step(c, force_setpoint_n, force_n, position_m, face_m, width_toleran
         numbers[3] = face_m
         numbers[4] = width_tolerance_m
         return LAW_CONTACT_INPUT, 0.0
-    s = c[0]
+    s = as_record(c)
     speed = (position_m - s.prev_position_m) / s.dt_s if s.has_prev_position else 0.0
     s.has_prev_position = 1
     s.prev_position_m = position_m
@@ -297,15 +297,15 @@ def contact_step(c, force_setpoint_n, force_n, position_m, face_m, width_toleran
             if travel == 0.0:
                 return LAW_ZERO_DIVISION, 0.0
             stiffness = py_max(force_n / travel, k_soft)
-            code, tau_k = contact_loop_time_constant_s(c, stiffness)
+            code, tau_k = contact_loop_time_constant_s(s, stiffness)
             if code != LAW_OK:
                 return code, 0.0
-            code, kv = contact_damping_gain_for(c, stiffness, tau_k)
+            code, kv = contact_damping_gain_for(s, stiffness, tau_k)
             if code != LAW_OK:
                 return code, 0.0
         if stiffness == 0.0:
             return LAW_ZERO_DIVISION, 0.0
-        code, v_ref = contact_speed_profile_mps(c, error / stiffness, tau_k)
+        code, v_ref = contact_speed_profile_mps(s, error / stiffness, tau_k)
         if code != LAW_OK:
             return code, 0.0
         # trim only the error the loop leaves standing: the finger at rest and the error

@@ -43,7 +43,7 @@ import enum
 import math
 from typing import Callable
 
-from gripper_ros.core.pid import (law_error, LAW_NUMBERS, LAW_OK, PID, pid_reset,
+from gripper_ros.core.pid import (as_record, law_error, LAW_NUMBERS, LAW_OK, PID, pid_reset,
                                   pid_setpoint_for_output, pid_setpoint_range, pid_step_checked,
                                   py_max, py_min)
 import numba
@@ -78,29 +78,41 @@ DMC_DTYPE = np.dtype([
     ('has_limits', 'u1'),                  # 0: no output_limits (None)
     ('limit_low', 'f8'), ('limit_high', 'f8'),
 ], align=True)
-"""One DMC's scalars; its arrays are the step response, the first gain row, the prediction
-(N + 1) and a work vector (N): the kernels take ``d = (record, step_response, k0, prediction,
-work)``."""
+"""One DMC's scalars. Its vectors are one float buffer of :func:`dmc_buffer_size` (N): the
+step response (N), the first gain row (N), the prediction (N + 1) and a work vector (N)."""
+
+
+def dmc_buffer_size(horizon: int) -> int:
+    """Return the length of a DMC's vector buffer for this horizon."""
+    return 4 * horizon + 1
 
 
 @numba.njit(cache=True)
-def dmc_reset(d, measurement, output):
+def dmc_vectors(d, buf):
+    """Return (step_response, k0, prediction, work): views into the DMC's buffer."""
+    n = as_record(d).horizon
+    return buf[0:n], buf[n:2 * n], buf[2 * n:3 * n + 1], buf[3 * n + 1:4 * n + 1]
+
+
+@numba.njit(cache=True)
+def dmc_reset(d, buf, measurement, output):
     """At rest: output steady at ``measurement``, manipulated variable at ``output``."""
-    s = d[0][0]
-    d[3][:] = measurement
+    s = as_record(d)
+    n = s.horizon
+    buf[2 * n:3 * n + 1] = measurement
     s.last_output = output
     s.last_move = 0.0
 
 
 @numba.njit(cache=True)
-def dmc_step(d, setpoint, measurement, has_range, range_low, range_high):
+def dmc_step(d, buf, setpoint, measurement, has_range, range_low, range_high):
     """One sample (eqs. 19-22): returns the new manipulated variable.
 
     With ``has_range`` the output is narrowed to [range_low, range_high] for this sample only;
     the prediction is updated with the move actually made.
     """
-    record, step_response, k0, pred, error = d
-    s = record[0]
+    s = as_record(d)
+    step_response, k0, pred, error = dmc_vectors(s, buf)
     n = s.horizon
     correction = measurement - pred[0]                       # eq. 22
     for j in range(n):
@@ -126,21 +138,27 @@ class DynamicMatrixControl:
 
     ``prediction[j]`` is the output expected j samples ahead from the moves made so far; the
     measured-minus-predicted difference (eq. 22) shifts the whole prediction (constant output
-    disturbance), which gives offset-free tracking. ``kernel`` is the kernels' ``d``.
+    disturbance), which gives offset-free tracking. ``record`` and ``buffer`` are the kernels'
+    state (a stage may re-home them into its own arrays).
     """
 
     def __init__(self, step_response: np.ndarray, control_horizon: int, move_suppression: float,
                  output_limits: tuple[float, float] | None = None):
-        self.step_response = np.ascontiguousarray(step_response, dtype=float)
-        self.horizon = self.step_response.size
+        self.step_response = np.asarray(step_response, dtype=float)
+        self.horizon = n = self.step_response.size
         self.gain = dmc_gain(self.step_response, control_horizon, move_suppression)
-        self._k0 = np.ascontiguousarray(self.gain[0])
         self.record = np.zeros(1, DMC_DTYPE)
-        self.record[0]['horizon'] = self.horizon
-        self.kernel = (self.record, self.step_response, self._k0,
-                       np.zeros(self.horizon + 1), np.zeros(self.horizon))
+        self.record[0]['horizon'] = n
+        self.buffer = np.zeros(dmc_buffer_size(n))
+        self.buffer[0:n] = self.step_response
+        self.buffer[n:2 * n] = self.gain[0]
         self.output_limits = output_limits
         self.reset(0.0, 0.0)
+
+    @property
+    def kernel(self) -> tuple:
+        """(record, buffer): what the ``dmc_*`` kernels take."""
+        return (self.record, self.buffer)
 
     @property
     def output_limits(self) -> tuple[float, float] | None:
@@ -164,11 +182,12 @@ class DynamicMatrixControl:
 
     def reset(self, measurement: float, output: float) -> None:
         """At rest: output steady at ``measurement``, manipulated variable at ``output``."""
-        dmc_reset(self.kernel, float(measurement), float(output))
+        dmc_reset(self.record, self.buffer, float(measurement), float(output))
 
     @property
     def prediction(self) -> np.ndarray:
-        return self.kernel[3].copy()
+        n = self.horizon
+        return self.buffer[2 * n:3 * n + 1].copy()
 
     def step(self, setpoint: float, measurement: float,
              output_range: tuple[float, float] | None = None) -> float:
@@ -178,7 +197,7 @@ class DynamicMatrixControl:
         out of saturation); the prediction is updated with the move actually made.
         """
         low, high = (0.0, 0.0) if output_range is None else output_range
-        return dmc_step(self.kernel, float(setpoint), float(measurement),
+        return dmc_step(self.record, self.buffer, float(setpoint), float(measurement),
                         output_range is not None, float(low), float(high))
 
 
@@ -216,31 +235,47 @@ GOVERNOR_DTYPE = np.dtype([
     ('braking_v', 'f8'),
     ('phase', 'i8'),            # PHASE_ACCELERATE, PHASE_BRAKE or PHASE_DMC
     ('direction', 'f8'),        # +1 / -1: the direction of the move being governed
+    ('rows', 'i8'),             # samples + 1: rows of the precomputed responses
 ], align=True)
-"""One governor's scalars; the kernels take ``g = (record, ad, bd, state, free, forced, ahead,
-traj)``: the ZOH model (3 x 3, 3), the state estimate [i, omega, x], the [omega, x] rows of the
-powers of ``Ad`` (2 (samples + 1) x 3), the forced responses ((samples + 1) x 2) and two work
-vectors (3, 2 (samples + 1))."""
+"""One governor's scalars. Its vectors are one float buffer (:func:`governor_buffer_size`):
+``Ad`` (3 x 3), ``Bd`` (3), the state estimate [i, omega, x] (3), a work state (3), the
+[omega, x] rows of the powers of ``Ad`` (2 rows x 3), the forced responses (rows x 2) and a work
+trajectory (2 rows)."""
+
+
+def governor_buffer_size(rows: int) -> int:
+    """Return the length of a governor's vector buffer for ``rows`` = samples + 1."""
+    return 18 + 10 * rows
 
 
 @numba.njit(cache=True)
-def governor_reset(g, measurement):
+def governor_vectors(g, buf):
+    """Return (ad, bd, state, ahead, free, forced, traj): views into the governor's buffer."""
+    rows = as_record(g).rows
+    free_end = 18 + 6 * rows
+    forced_end = free_end + 2 * rows
+    return (buf[0:9].reshape((3, 3)), buf[9:12], buf[12:15], buf[15:18],
+            buf[18:free_end].reshape((2 * rows, 3)),
+            buf[free_end:forced_end].reshape((rows, 2)), buf[forced_end:forced_end + 2 * rows])
+
+
+@numba.njit(cache=True)
+def governor_reset(g, buf, measurement):
     """At rest at ``measurement``; the next move starts with ACCELERATE."""
-    state = g[3]
-    state[0] = 0.0
-    state[1] = 0.0
-    state[2] = measurement
-    g[0][0].phase = PHASE_ACCELERATE
+    buf[12] = 0.0
+    buf[13] = 0.0
+    buf[14] = measurement
+    as_record(g).phase = PHASE_ACCELERATE
 
 
 @numba.njit(cache=True)
-def governor_stop_position(g, state, direction):
+def governor_stop_position(g, buf, state, direction):
     """Where the finger comes to rest (speed through zero) braking at ``braking_v``."""
-    s = g[0][0]
-    forced, traj = g[5], g[7]
-    np.dot(g[4], state, traj)
+    s = as_record(g)
+    _, _, _, _, free, forced, traj = governor_vectors(s, buf)
+    np.dot(free, state, traj)
     scale = direction * s.braking_v
-    last = forced.shape[0] - 1
+    last = s.rows - 1
     for k in range(last + 1):
         if not direction * (traj[2 * k] - scale * forced[k, 0]) > 0.0:
             return traj[2 * k + 1] - scale * forced[k, 1]
@@ -248,33 +283,33 @@ def governor_stop_position(g, state, direction):
 
 
 @numba.njit(cache=True)
-def _governor_ahead(g, voltage):
-    """Fill ``ahead`` with the model state one sample on at ``voltage``."""
-    bd, ahead = g[2], g[6]
-    np.dot(g[1], g[3], ahead)
+def _governor_ahead(g, buf, voltage):
+    """Fill and return ``ahead``: the model state one sample on at ``voltage``."""
+    ad, bd, state, ahead, _, _, _ = governor_vectors(g, buf)
+    np.dot(ad, state, ahead)
     for j in range(3):
         ahead[j] = ahead[j] + bd[j] * voltage
     return ahead
 
 
 @numba.njit(cache=True)
-def governor_command(g, setpoint, measurement):
+def governor_command(g, buf, setpoint, measurement):
     """Return (forced, voltage): the voltage to hold over the coming sample, if forced.
 
     ``forced`` False once the DMC is in charge.
     """
-    s = g[0][0]
-    g[3][2] = measurement
+    s = as_record(g)
+    buf[14] = measurement
     if s.phase == PHASE_ACCELERATE:
         d = 1.0 if setpoint >= measurement else -1.0
         s.direction = d
-        ahead = _governor_ahead(g, d * s.limit_v)
-        if d * (governor_stop_position(g, ahead, d) - setpoint) < 0.0:
+        ahead = _governor_ahead(s, buf, d * s.limit_v)
+        if d * (governor_stop_position(s, buf, ahead, d) - setpoint) < 0.0:
             return True, d * s.limit_v
         s.phase = PHASE_BRAKE
     if s.phase == PHASE_BRAKE:
         d = s.direction
-        ahead = _governor_ahead(g, -d * s.braking_v)
+        ahead = _governor_ahead(s, buf, -d * s.braking_v)
         if d * ahead[1] > 0.0:
             return True, -d * s.braking_v
         s.phase = PHASE_DMC
@@ -282,10 +317,10 @@ def governor_command(g, setpoint, measurement):
 
 
 @numba.njit(cache=True)
-def governor_applied(g, voltage):
+def governor_applied(g, buf, voltage):
     """Book the voltage held over the sample that starts now."""
-    ahead = _governor_ahead(g, voltage)
-    g[3][:] = ahead
+    ahead = _governor_ahead(g, buf, voltage)
+    buf[12:15] = ahead
 
 
 class BrakingGovernor:
@@ -306,30 +341,39 @@ class BrakingGovernor:
     the forced samples predicts from moves it did not choose and, with the paper's light move
     suppression, chatters between +-limit near the setpoint (measured: ~570 sign changes in 20 s).
     The stop position is one matrix-vector product over precomputed powers of ``Ad``
-    (``samples`` long, enough to stop from full speed). ``kernel`` is the kernels' ``g``.
+    (``samples`` long, enough to stop from full speed). ``record`` and ``buffer`` are the
+    kernels' state (a stage may re-home them into its own arrays).
     """
 
     def __init__(self, ad: np.ndarray, bd: np.ndarray, limit_v: float, braking_v: float,
                  samples: int = 700):
         if not 0.0 < braking_v <= limit_v:
             raise ValueError(f'braking voltage must be in (0, {limit_v}], got {braking_v!r}')
-        self.ad = np.ascontiguousarray(ad, dtype=float)
-        self.bd = np.ascontiguousarray(bd, dtype=float)
+        self.ad = np.asarray(ad, dtype=float)
+        self.bd = np.asarray(bd, dtype=float)
         powers = np.empty((samples + 1, 3, 3))
         steps = np.zeros((samples + 1, 3))
         powers[0] = np.eye(3)
         for k in range(samples):
             powers[k + 1] = self.ad @ powers[k]
             steps[k + 1] = steps[k] + powers[k] @ self.bd
-        self._free = np.ascontiguousarray(powers[:, 1:, :].reshape(-1, 3))   # [omega, x] rows
-        self._forced = np.ascontiguousarray(steps[:, 1:])
+        rows = samples + 1
         self.record = np.zeros(1, GOVERNOR_DTYPE)
-        self.kernel = (self.record, self.ad, self.bd, np.zeros(3), self._free, self._forced,
-                       np.zeros(3), np.zeros(self._free.shape[0]))
+        self.record[0]['rows'] = rows
+        self.buffer = np.zeros(governor_buffer_size(rows))
+        self.buffer[0:9] = self.ad.ravel()
+        self.buffer[9:12] = self.bd
+        self.buffer[18:18 + 6 * rows] = powers[:, 1:, :].ravel()       # [omega, x] rows
+        self.buffer[18 + 6 * rows:18 + 8 * rows] = steps[:, 1:].ravel()
         self.limit_v = float(limit_v)
         self.braking_v = float(braking_v)
         self.record[0]['direction'] = 1.0
         self.phase = GovernorPhase.ACCELERATE
+
+    @property
+    def kernel(self) -> tuple:
+        """(record, buffer): what the ``governor_*`` kernels take."""
+        return (self.record, self.buffer)
 
     @property
     def limit_v(self) -> float:
@@ -358,42 +402,30 @@ class BrakingGovernor:
     @property
     def state(self) -> np.ndarray:
         """The model's state estimate [i, omega, x] (a copy)."""
-        return self.kernel[3].copy()
+        return self.buffer[12:15].copy()
 
     @state.setter
     def state(self, value) -> None:
-        self.kernel[3][:] = value
+        self.buffer[12:15] = value
 
     def reset(self, measurement: float) -> None:
         """At rest at ``measurement``; the next move starts with ACCELERATE."""
-        governor_reset(self.kernel, float(measurement))
+        governor_reset(self.record, self.buffer, float(measurement))
 
     def stop_position(self, state: np.ndarray, direction: float) -> float:
         """Where the finger comes to rest (speed through zero) braking at ``braking_v``."""
-        return governor_stop_position(self.kernel, np.ascontiguousarray(state, dtype=float),
-                                      float(direction))
+        return governor_stop_position(self.record, self.buffer,
+                                      np.ascontiguousarray(state, dtype=float), float(direction))
 
     def command(self, setpoint: float, measurement: float) -> float | None:
         """Voltage to hold over the coming sample, or None once the DMC is in charge."""
-        forced, voltage = governor_command(self.kernel, float(setpoint), float(measurement))
+        forced, voltage = governor_command(self.record, self.buffer, float(setpoint),
+                                           float(measurement))
         return voltage if forced else None
 
     def applied(self, voltage: float) -> None:
         """Book the voltage held over the sample that starts now."""
-        governor_applied(self.kernel, float(voltage))
-
-
-def null_governor() -> tuple:
-    """Return a governor ``g`` of the right types for a cascade without one (never used)."""
-    return (np.zeros(1, GOVERNOR_DTYPE), np.zeros((3, 3)), np.zeros(3), np.zeros(3),
-            np.zeros((2, 3)), np.zeros((1, 2)), np.zeros(3), np.zeros(2))
-
-
-def null_dmc() -> tuple:
-    """Return a DMC ``d`` of the right types for a stage without one (never used)."""
-    record = np.zeros(1, DMC_DTYPE)
-    record[0]['horizon'] = 1
-    return (record, np.zeros(1), np.zeros(1), np.zeros(2), np.zeros(1))
+        governor_applied(self.record, self.buffer, float(voltage))
 
 
 CASCADE_DTYPE = np.dtype([
@@ -403,21 +435,22 @@ CASCADE_DTYPE = np.dtype([
     ('last_forced', 'f8'),             # the governor's voltage this sample (0: DMC free)
 ], align=True)
 """One cascade's flags and outputs; the kernels take it with the inner PID's record, the DMC's
-``d`` and the governor's ``g``."""
+record and buffer and the governor's (placeholders of the same types without a governor)."""
 
 
 @numba.njit(cache=True)
-def cascade_reset(c, p, d, g, measurement, output):
+def cascade_reset(c, p, d, dbuf, g, gbuf, measurement, output):
     """At rest at ``measurement``, the inner loop starting from ``output``."""
-    dmc_reset(d, measurement, measurement)
+    s = as_record(c)
+    dmc_reset(d, dbuf, measurement, measurement)
     pid_reset(p, output, True, measurement, True, measurement)
-    c[0].last_inner_setpoint = measurement
-    if c[0].has_governor:
-        governor_reset(g, measurement)
+    s.last_inner_setpoint = measurement
+    if s.has_governor:
+        governor_reset(g, gbuf, measurement)
 
 
 @numba.njit(cache=True)
-def _cascade_forced(c, p, d, g, voltage, measurement, numbers):
+def _cascade_forced(s, p, d, dbuf, g, gbuf, voltage, measurement, numbers):
     """Governor sample: the inner PD is handed the setpoint that gives ``voltage``.
 
     The cascade's structure stays (the MPC layer sets the PD's setpoint); the DMC, which did
@@ -429,38 +462,42 @@ def _cascade_forced(c, p, d, g, voltage, measurement, numbers):
     code, output = pid_step_checked(p, held, measurement, numbers)
     if code != LAW_OK:
         return code, 0.0
-    dmc_reset(d, measurement, measurement)
-    c[0].last_inner_setpoint = held
-    c[0].last_forced = voltage
-    governor_applied(g, output)
+    dmc_reset(d, dbuf, measurement, measurement)
+    s.last_inner_setpoint = held
+    s.last_forced = voltage
+    governor_applied(g, gbuf, output)
     return LAW_OK, output
 
 
 @numba.njit(cache=True)
-def cascade_step(c, p, d, g, setpoint, measurement, numbers):
+def cascade_step(c, p, d, dbuf, g, gbuf, setpoint, measurement, numbers):
     """Return (code, output): one sample of the cascade (``code`` LAW_OK unless refused)."""
-    s = c[0]
+    s = as_record(c)
+    inner = as_record(p)
+    model = as_record(d)
+    governor = as_record(g)
     has_range = False
     low, high = 0.0, 0.0
     s.last_forced = 0.0
     if s.respect_inner_limits:
-        if s.has_governor and g[0][0].phase != PHASE_DMC:
-            forced, voltage = governor_command(g, setpoint, measurement)
+        if s.has_governor and governor.phase != PHASE_DMC:
+            forced, voltage = governor_command(governor, gbuf, setpoint, measurement)
             if forced:
-                return _cascade_forced(c, p, d, g, voltage, measurement, numbers)
+                return _cascade_forced(s, inner, model, dbuf, governor, gbuf, voltage,
+                                       measurement, numbers)
             # handover, at rest: both loops start afresh from here, nothing remembered
             # of the forced samples (no derivative kick, no booked moves)
-            dmc_reset(d, measurement, measurement)
-            pid_reset(p, 0.0, True, measurement, True, measurement)
+            dmc_reset(model, dbuf, measurement, measurement)
+            pid_reset(inner, 0.0, True, measurement, True, measurement)
         has_range = True
-        low, high = pid_setpoint_range(p, measurement)
-    inner_setpoint = dmc_step(d, setpoint, measurement, has_range, low, high)
+        low, high = pid_setpoint_range(inner, measurement)
+    inner_setpoint = dmc_step(model, dbuf, setpoint, measurement, has_range, low, high)
     s.last_inner_setpoint = inner_setpoint
-    code, output = pid_step_checked(p, inner_setpoint, measurement, numbers)
+    code, output = pid_step_checked(inner, inner_setpoint, measurement, numbers)
     if code != LAW_OK:
         return code, 0.0
     if s.has_governor:
-        governor_applied(g, output)
+        governor_applied(governor, gbuf, output)
     return LAW_OK, output
 
 
@@ -479,6 +516,7 @@ class CascadedMpc:
                  governor: BrakingGovernor | None = None):
         self.record = np.zeros(1, CASCADE_DTYPE)
         self._numbers = np.zeros(LAW_NUMBERS)
+        self._no_governor = (np.zeros(1, GOVERNOR_DTYPE), np.zeros(governor_buffer_size(1)))
         self.dmc = dmc
         self.inner = inner
         self.respect_inner_limits = respect_inner_limits
@@ -491,7 +529,6 @@ class CascadedMpc:
     @governor.setter
     def governor(self, governor: BrakingGovernor | None) -> None:
         self._governor = governor
-        self._g = null_governor() if governor is None else governor.kernel
         self.record[0]['has_governor'] = governor is not None
 
     @property
@@ -512,16 +549,15 @@ class CascadedMpc:
 
     @property
     def kernel(self) -> tuple:
-        """(cascade record, inner PID record, the DMC's ``d``, the governor's ``g``)."""
-        return (self.record, self.inner.record, self.dmc.kernel, self._g)
+        """(cascade, inner PID, DMC record, DMC buffer, governor record, governor buffer)."""
+        g = self._no_governor if self._governor is None else self._governor.kernel
+        return (self.record, self.inner.record) + self.dmc.kernel + g
 
     def reset(self, measurement: float, output: float = 0.0) -> None:
-        c, p, d, g = self.kernel
-        cascade_reset(c, p, d, g, float(measurement), float(output))
+        cascade_reset(*self.kernel, float(measurement), float(output))
 
     def step(self, setpoint: float, measurement: float) -> float:
-        c, p, d, g = self.kernel
-        code, output = cascade_step(c, p, d, g, float(setpoint), float(measurement),
+        code, output = cascade_step(*self.kernel, float(setpoint), float(measurement),
                                     self._numbers)
         if code != LAW_OK:
             raise law_error(code, self._numbers)

@@ -26,6 +26,8 @@ import math
 
 from gripper_ros.core.config import PidGains
 import numba
+from numba import types
+from numba.extending import overload
 import numpy as np
 
 
@@ -67,6 +69,22 @@ def law_error(code: int, numbers) -> Exception:
     return RuntimeError(f'unknown control-law code {code}')
 
 
+def as_record(x):
+    """Return the record of a 1-element record array, or the record itself.
+
+    Kernels take either: a Python façade passes its 1-element array (a record passed from
+    Python would be a copy), compiled callers pass records (no reference counting).
+    """
+    return x[0] if isinstance(x, np.ndarray) else x
+
+
+@overload(as_record)
+def _as_record(x):
+    if isinstance(x, types.Array):
+        return lambda x: x[0]
+    return lambda x: x
+
+
 @numba.njit(cache=True)
 def py_max(a, b):
     """Python's ``max(a, b)``: ``a`` unless ``b > a`` (NaN handled as Python does)."""
@@ -100,14 +118,14 @@ PID_DTYPE = np.dtype([
 @numba.njit(cache=True)
 def pid_clamp(p, value):
     """Clamp ``value`` to the output limits."""
-    s = p[0]
+    s = as_record(p)
     return py_min(s.high, py_max(s.low, value))
 
 
 @numba.njit(cache=True)
 def pid_reset(p, output, has_setpoint, setpoint, has_measurement, measurement):
     """Forget the past; with setpoint and measurement the next step returns ``output``."""
-    s = p[0]
+    s = as_record(p)
     s.has_prev_error = 0
     s.has_prev_measurement = 1 if has_measurement else 0
     s.prev_measurement = measurement if has_measurement else 0.0
@@ -117,17 +135,17 @@ def pid_reset(p, output, has_setpoint, setpoint, has_measurement, measurement):
         s.prev_error = error
         p_term = s.kc * (s.setpoint_weight * setpoint - measurement)
         # the next step adds ki*dt*e to the integral: seed it so that step returns `output`
-        s.integral = (pid_clamp(p, output) - p_term - s.ki * s.dt_s * error
+        s.integral = (pid_clamp(s, output) - p_term - s.ki * s.dt_s * error
                       if s.ki > 0.0 else 0.0)
     else:
-        s.integral = pid_clamp(p, output) if s.ki > 0.0 else 0.0
-    s.last_output = pid_clamp(p, output)
+        s.integral = pid_clamp(s, output) if s.ki > 0.0 else 0.0
+    s.last_output = pid_clamp(s, output)
 
 
 @numba.njit(cache=True)
 def pid_terms(p, setpoint, measurement):
     """Proportional, integral and derivative terms of the next sample (nothing committed)."""
-    s = p[0]
+    s = as_record(p)
     error = setpoint - measurement
     p_term = s.kc * (s.setpoint_weight * setpoint - measurement)
     if s.kd == 0.0:
@@ -143,17 +161,18 @@ def pid_terms(p, setpoint, measurement):
 @numba.njit(cache=True)
 def pid_output_line(p, measurement):
     """Return (base, slope): the next unclamped output is ``base + slope * setpoint``."""
-    p0, i0, d0 = pid_terms(p, 0.0, measurement)
+    s = as_record(p)
+    p0, i0, d0 = pid_terms(s, 0.0, measurement)
     base = 0.0 + p0 + i0 + d0
-    p1, i1, d1 = pid_terms(p, 1.0, measurement)
+    p1, i1, d1 = pid_terms(s, 1.0, measurement)
     return base, (0.0 + p1 + i1 + d1) - base
 
 
 @numba.njit(cache=True)
 def pid_setpoint_range(p, measurement):
     """Setpoints for which the next output stays inside the limits (-inf, inf: any)."""
-    base, slope = pid_output_line(p, measurement)
-    s = p[0]
+    s = as_record(p)
+    base, slope = pid_output_line(s, measurement)
     if slope <= 0.0:
         return -math.inf, math.inf
     return (s.low - base) / slope, (s.high - base) / slope
@@ -165,20 +184,21 @@ def pid_setpoint_for_output(p, output, measurement):
 
     ``LAW_NO_SLOPE`` when the output does not depend on the setpoint.
     """
-    base, slope = pid_output_line(p, measurement)
+    s = as_record(p)
+    base, slope = pid_output_line(s, measurement)
     if slope <= 0.0:
         return LAW_NO_SLOPE, 0.0
-    return LAW_OK, (pid_clamp(p, output) - base) / slope
+    return LAW_OK, (pid_clamp(s, output) - base) / slope
 
 
 @numba.njit(cache=True)
 def pid_step(p, setpoint, measurement):
     """One sample on finite inputs: returns the clamped output and books the terms."""
-    s = p[0]
+    s = as_record(p)
     error = setpoint - measurement
-    p_term, integral, d_term = pid_terms(p, setpoint, measurement)
+    p_term, integral, d_term = pid_terms(s, setpoint, measurement)
     raw = p_term + integral + d_term
-    output = pid_clamp(p, raw)
+    output = pid_clamp(s, raw)
     saturated = output != raw
     if saturated and s.conditional and s.ki > 0.0:
         # Integrate only as far as the limit, never further into saturation.
@@ -186,7 +206,7 @@ def pid_step(p, setpoint, measurement):
             integral = py_max(s.integral, py_min(integral, s.high - p_term - d_term))
         elif raw < s.low and error < 0.0:
             integral = py_min(s.integral, py_max(integral, s.low - p_term - d_term))
-        output = pid_clamp(p, p_term + integral + d_term)
+        output = pid_clamp(s, p_term + integral + d_term)
     s.integral = integral
     s.has_prev_error = 1
     s.prev_error = error

@@ -34,10 +34,10 @@ from gripper_ros.core.config import ConfigError, GripperConfig
 from gripper_ros.core.contact_force import CONTACT_DTYPE, contact_reset, contact_step
 from gripper_ros.core.controllers import (ForceControllerKind, make_force_controller,
                                           make_position_controller, PositionControllerKind)
-from gripper_ros.core.dmc import (CASCADE_DTYPE, cascade_reset, cascade_step, null_dmc,
-                                  null_governor)
-from gripper_ros.core.pid import (law_error, LAW_NUMBERS, LAW_OK, PID_DTYPE, pid_reset,
-                                  pid_step_checked, py_max, py_min)
+from gripper_ros.core.dmc import (CASCADE_DTYPE, cascade_reset, cascade_step, dmc_buffer_size,
+                                  DMC_DTYPE, governor_buffer_size, GOVERNOR_DTYPE)
+from gripper_ros.core.pid import (as_record, law_error, LAW_NUMBERS, LAW_OK, PID_DTYPE,
+                                  pid_reset, pid_step_checked, py_max, py_min)
 from gripper_ros.wire import COMMAND_LAYOUT, Controller, REFERENCE_LAYOUT
 import numba
 import numpy as np
@@ -124,33 +124,44 @@ BOOK_DTYPE = np.dtype([
 REFERENCE_DTYPE = REFERENCE_LAYOUT.dtype
 COMMAND_DTYPE = COMMAND_LAYOUT.dtype
 
-KERNEL_LAYOUT = ('book', 'reference_numbers', 'law_numbers', 'stage', 'pid', 'cascade',
-                 'dmc', 'dmc_step_response', 'dmc_k0', 'dmc_prediction', 'dmc_work',
-                 'governor', 'governor_ad', 'governor_bd', 'governor_state', 'governor_free',
-                 'governor_forced', 'governor_ahead', 'governor_traj', 'contact')
-"""What ``k[i]`` holds: the book (:data:`BOOK_DTYPE`), the reference numbers as read
-(``NUMBER_FIELDS`` order, 7) and a refusing law's numbers (5), the stage (:data:`STAGE_DTYPE`),
-the PID (the PD/PID/PI, or a cascade's inner loop), the cascade, the DMC's ``d`` (record, step
-response, first gain row, prediction, work), the governor's ``g`` (record, Ad, Bd, state, free
-and forced responses, two work vectors) and the contact-aware stage. Parts a kind does not use
-are placeholders of the same types, so every stage compiles to one :func:`stage_answer`."""
+STATE_DTYPE = np.dtype([
+    ('book', BOOK_DTYPE), ('stage', STAGE_DTYPE), ('pid', PID_DTYPE),
+    ('cascade', CASCADE_DTYPE), ('dmc', DMC_DTYPE), ('governor', GOVERNOR_DTYPE),
+    ('contact', CONTACT_DTYPE),
+], align=True)
+"""Every record of one stage controller, nested: the book, the stage, the PID (the PD/PID/PI
+or a cascade's inner loop), the cascade, the DMC, the governor and the contact-aware stage.
+Parts a kind does not use are placeholders, so every stage compiles to one
+:func:`stage_answer`. The law façades view their part (``controller.record`` is
+``state['pid']`` ...)."""
+
+LAW_AT = 0                                 # vectors[0:5]: a refusing law's numbers
+REFERENCE_AT = LAW_AT + LAW_NUMBERS        # vectors[5:12]: the reference numbers as read
+DMC_AT = REFERENCE_AT + len(NUMBER_FIELDS)  # vectors[12:]: the DMC's buffer, the governor's
+
+KERNEL_LAYOUT = ('state', 'vectors')
+"""``k = (state, vectors)``: ``state`` a 1-element :data:`STATE_DTYPE` array, ``vectors`` one
+float array: a refusing law's numbers (5, ``LAW_AT``), the reference numbers as read
+(``NUMBER_FIELDS`` order, 7, ``REFERENCE_AT``), the DMC's buffer (``DMC_AT``,
+:func:`~gripper_ros.core.dmc.dmc_buffer_size`) and the governor's buffer after it
+(:func:`~gripper_ros.core.dmc.governor_buffer_size`). Two arrays, so a call costs few
+reference counts: the kernels below pass records."""
 
 
 # --- kernels ---------------------------------------------------------------------------------
 @numba.njit(cache=True)
-def _dmc_of(k):
-    return (k[6], k[7], k[8], k[9], k[10])
+def stage_buffers(st, vectors):
+    """Return (law numbers, reference numbers, DMC buffer, governor buffer) of a stage."""
+    dmc_end = DMC_AT + 4 * st.dmc.horizon + 1
+    return (vectors[LAW_AT:REFERENCE_AT], vectors[REFERENCE_AT:DMC_AT],
+            vectors[DMC_AT:dmc_end], vectors[dmc_end:])
 
 
 @numba.njit(cache=True)
-def _governor_of(k):
-    return (k[11], k[12], k[13], k[14], k[15], k[16], k[17], k[18])
-
-
-@numba.njit(cache=True)
-def position_voltage_cap_v(k, r, toward_speed_mps):
-    """Return the most voltage towards the setpoint this tick (``r`` a reference record)."""
-    s = k[3][0]
+def position_voltage_cap_v(state, ref, toward_speed_mps):
+    """Return the most voltage towards the setpoint this tick (``ref`` a reference record)."""
+    s = as_record(state).stage
+    r = as_record(ref)
     cap = s.full_v
     if r.voltage_limit_v > 0.0:
         cap = py_min(cap, r.voltage_limit_v)
@@ -162,83 +173,93 @@ def position_voltage_cap_v(k, r, toward_speed_mps):
 
 
 @numba.njit(cache=True)
-def _position_apply_limits(k, r, measurement):
+def _position_apply_limits(st, r, measurement):
     """Set this tick's output limits (only a move's reference changes them)."""
-    s = k[3][0]
+    s = st.stage
     if r.voltage_limit_v == 0.0 and r.speed_limit_mps == 0.0:
         low, high = -s.full_v, s.full_v
     elif r.approach_setpoint_m >= measurement:
-        low, high = -s.full_v, position_voltage_cap_v(k, r, r.velocity_mps)
+        low, high = -s.full_v, position_voltage_cap_v(st, r, r.velocity_mps)
     else:
-        low, high = -position_voltage_cap_v(k, r, -r.velocity_mps), s.full_v
+        low, high = -position_voltage_cap_v(st, r, -r.velocity_mps), s.full_v
     if not (low == s.limit_low and high == s.limit_high):
         s.limit_low = low
         s.limit_high = high
-        p = k[4][0]
+        p = st.pid
         p.low = low
         p.high = high
-        if s.kind == KIND_MPC_PD and k[5][0].has_governor:
-            k[11][0].limit_v = py_min(-low, high)
+        if s.kind == KIND_MPC_PD and st.cascade.has_governor:
+            st.governor.limit_v = py_min(-low, high)
 
 
 @numba.njit(cache=True)
-def _force_apply_limits(k, r):
+def _force_apply_limits(st, r):
     """Set the PI's limits: capped before contact at the margin's stall voltage."""
-    s = k[3][0]
+    s = st.stage
     low, high = s.full_low, s.full_high
     if not s.contact and s.approach_margin > 0.0:
         cap = s.approach_margin * r.force_setpoint_n / s.stall_force_per_volt_n
         high = py_min(high, cap)
-    p = k[4][0]
+    p = st.pid
     p.low = low
     p.high = high
 
 
 @numba.njit(cache=True)
-def stage_activate(k, r, measurement):
+def stage_activate(state, vectors, ref, measurement):
     """Restart the law for a new stage (position: from rest; force: approach or seeded PI)."""
-    s = k[3][0]
+    st = as_record(state)
+    r = as_record(ref)
+    s = st.stage
+    _, _, dbuf, gbuf = stage_buffers(st, vectors)
     if s.source == Controller.POSITION:
-        _position_apply_limits(k, r, measurement)
+        _position_apply_limits(st, r, measurement)
         if s.kind == KIND_MPC_PD:
-            cascade_reset(k[5], k[4], _dmc_of(k), _governor_of(k), measurement, 0.0)
+            cascade_reset(st.cascade, st.pid, st.dmc, dbuf, st.governor, gbuf, measurement, 0.0)
         else:
-            pid_reset(k[4], 0.0, False, 0.0, True, measurement)
+            pid_reset(st.pid, 0.0, False, 0.0, True, measurement)
         return
     s.contact = 0
     if s.kind == KIND_CONTACT_AWARE:       # speed-shaped approach from where the finger is now
-        contact_reset(k[19], True, r.position_m)
+        contact_reset(st.contact, True, r.position_m)
         return
-    _force_apply_limits(k, r)
+    _force_apply_limits(st, r)
     if s.kind == KIND_MPC_PI:
-        cascade_reset(k[5], k[4], _dmc_of(k), _governor_of(k), measurement, r.seed_voltage_v)
+        cascade_reset(st.cascade, st.pid, st.dmc, dbuf, st.governor, gbuf, measurement,
+                      r.seed_voltage_v)
     else:
-        pid_reset(k[4], r.seed_voltage_v, True, r.force_setpoint_n, True, measurement)
+        pid_reset(st.pid, r.seed_voltage_v, True, r.force_setpoint_n, True, measurement)
 
 
 @numba.njit(cache=True)
-def stage_compute(k, r, measurement):
-    """Return (code, voltage_v, inner_setpoint) for this tick (``code`` LAW_OK unless refused)."""
-    s = k[3][0]
-    numbers = k[2]
+def stage_compute(state, vectors, ref, measurement):
+    """Return (code, voltage_v, inner_setpoint) for this tick (``code`` LAW_OK unless refused).
+
+    A refusing law's numbers are in ``vectors[LAW_AT:]``.
+    """
+    st = as_record(state)
+    r = as_record(ref)
+    s = st.stage
+    numbers = vectors[LAW_AT:REFERENCE_AT]
     if s.source == Controller.POSITION:
-        _position_apply_limits(k, r, measurement)
+        _position_apply_limits(st, r, measurement)
         setpoint = r.approach_setpoint_m
     else:
         setpoint = r.force_setpoint_n
         if s.kind == KIND_CONTACT_AWARE:
             face_m = r.position_setpoint_m
-            code, voltage = contact_step(k[19], setpoint, measurement, r.position_m, face_m,
+            code, voltage = contact_step(st.contact, setpoint, measurement, r.position_m, face_m,
                                          py_max(face_m - r.approach_setpoint_m, 0.0), numbers)
             return code, voltage, setpoint
         if not s.contact and r.contact:    # the cap ends at first contact
             s.contact = 1
-            _force_apply_limits(k, r)
+            _force_apply_limits(st, r)
     if s.kind == KIND_MPC_PD or s.kind == KIND_MPC_PI:
-        code, voltage = cascade_step(k[5], k[4], _dmc_of(k), _governor_of(k), setpoint,
-                                     measurement, numbers)
-        return code, voltage, k[5][0].last_inner_setpoint
-    code, voltage = pid_step_checked(k[4], setpoint, measurement, numbers)
+        _, _, dbuf, gbuf = stage_buffers(st, vectors)
+        code, voltage = cascade_step(st.cascade, st.pid, st.dmc, dbuf, st.governor, gbuf,
+                                     setpoint, measurement, numbers)
+        return code, voltage, st.cascade.last_inner_setpoint
+    code, voltage = pid_step_checked(st.pid, setpoint, measurement, numbers)
     return code, voltage, setpoint
 
 
@@ -249,8 +270,8 @@ def answer_open(book, reference_numbers, ref, measurement):
     Each (stage_id, stamp_ns) is answered once; a non-finite measurement or reference number
     is never acted on.
     """
-    b = book[0]
-    r = ref[0]
+    b = as_record(book)
+    r = as_record(ref)
     if b.has_answered and b.answered_stage_id == r.stage_id and \
             b.answered_stamp_ns == r.stamp_ns:
         return ANSWER_REPEATED
@@ -285,7 +306,7 @@ def answer_close(book, law_numbers, code, voltage, inner):
 
     Either way the law's state is no longer trustworthy: it restarts at the next good tick.
     """
-    b = book[0]
+    b = as_record(book)
     if code != LAW_OK:                     # a law that refuses its numbers
         b.active_stage = -1
         b.reason = REASON_LAW
@@ -308,20 +329,23 @@ def stage_answer(k, ref, cmd):
     restart the law on a new stage, hold 0 V (reason in the book) on a non-finite measurement
     or reference number, a refused or non-finite output.
     """
+    st = k[0][0]
+    vectors = k[1]
     r = ref[0]
-    book = k[0]
-    s = k[3][0]
+    s = st.stage
+    book = st.book
     measurement = r.position_m if s.source == Controller.POSITION else r.force_n
-    reason = answer_open(book, k[1], ref, measurement)
+    reason = answer_open(book, vectors[REFERENCE_AT:DMC_AT], r, measurement)
     if reason == ANSWER_REPEATED:
         return False
     finite, voltage, inner = 0, 0.0, 0.0
     if reason == REASON_NONE:
-        if book[0].active_stage != r.stage_id:
-            stage_activate(k, r, measurement)
-            book[0].active_stage = r.stage_id
-        code, voltage, inner = stage_compute(k, r, measurement)
-        finite, voltage, inner = answer_close(book, k[2], code, voltage, inner)
+        if book.active_stage != r.stage_id:
+            stage_activate(st, vectors, r, measurement)
+            book.active_stage = r.stage_id
+        code, voltage, inner = stage_compute(st, vectors, r, measurement)
+        finite, voltage, inner = answer_close(book, vectors[LAW_AT:REFERENCE_AT], code,
+                                              voltage, inner)
     c = cmd[0]
     c.stamp_ns = r.stamp_ns
     c.grasp_id = r.grasp_id
@@ -354,9 +378,9 @@ def numbers_mask(names) -> int:
     return mask
 
 
-def new_book(names=REFERENCE_NUMBERS) -> np.ndarray:
-    """Return a fresh book: nothing answered, no stage active, checking ``names``."""
-    book = np.zeros(1, BOOK_DTYPE)
+def reset_book(book: np.ndarray, names=REFERENCE_NUMBERS) -> np.ndarray:
+    """Reset ``book`` (1-element array): nothing answered, no stage active, checking ``names``."""
+    book[0] = np.zeros(1, BOOK_DTYPE)[0]
     book[0]['active_stage'] = -1
     book[0]['numbers_mask'] = numbers_mask(names)
     return book
@@ -396,37 +420,62 @@ def fill_reference(ref, out: np.ndarray) -> np.ndarray:
     return out
 
 
+def _rehome(facade, state: np.ndarray, field: str) -> None:
+    """Move a law façade's record into ``state[field]``: both then share the same memory."""
+    state[0][field] = facade.record[0]
+    facade.record = state[field]
+
+
 class _KernelStage:
-    """What both stage façades share: the kernel tuple and the Python entry points over it."""
+    """What both stage façades share: the kernel ``k`` and the Python entry points over it."""
 
     reference_numbers = REFERENCE_NUMBERS
 
     def _build_kernel(self, kind, pid=None, cascade=None, contact=None) -> None:
-        self.record = np.zeros(1, STAGE_DTYPE)
-        s = self.record[0]
+        """Gather the laws' records and buffers into ``k = (state, vectors)``."""
+        self.state = state = np.zeros(1, STATE_DTYPE)
+        dmc = cascade.dmc if cascade is not None else None
+        governor = cascade.governor if cascade is not None else None
+        dmc_size = dmc_buffer_size(dmc.horizon if dmc is not None else 1)
+        rows = int(governor.record[0]['rows']) if governor is not None else 1
+        self.vectors = vectors = np.zeros(DMC_AT + dmc_size + governor_buffer_size(rows))
+        st = state[0]
+        st['dmc']['horizon'] = 1
+        st['governor']['rows'] = 1
+        if cascade is not None:
+            pid = cascade.inner
+            _rehome(cascade, state, 'cascade')
+            vectors[DMC_AT:DMC_AT + dmc_size] = dmc.buffer
+            dmc.buffer = vectors[DMC_AT:DMC_AT + dmc_size]
+            _rehome(dmc, state, 'dmc')
+            if governor is not None:
+                vectors[DMC_AT + dmc_size:] = governor.buffer
+                governor.buffer = vectors[DMC_AT + dmc_size:]
+                _rehome(governor, state, 'governor')
+        if pid is not None:
+            _rehome(pid, state, 'pid')
+        if contact is not None:
+            _rehome(contact, state, 'contact')
+        s = st['stage']
         s['source'] = int(self.source)
         s['kind'] = KIND_CODES[kind]
         s['sample_time_s'] = self.sample_time_s
-        if cascade is not None:
-            c, p, d, g = cascade.kernel
-        else:
-            c, d, g = np.zeros(1, CASCADE_DTYPE), null_dmc(), null_governor()
-            p = pid.record if pid is not None else np.zeros(1, PID_DTYPE)
-        self.kernel = (new_book(self.reference_numbers), np.zeros(len(NUMBER_FIELDS)),
-                       np.zeros(LAW_NUMBERS), self.record, p, c) + d + g + (
-            contact.record if contact is not None else np.zeros(1, CONTACT_DTYPE),)
+        reset_book(state['book'], self.reference_numbers)
+        self.record = state['stage']
+        self.kernel = (state, vectors)
         self._ref = np.zeros(1, REFERENCE_DTYPE)
 
     def activate(self, ref, measurement: float) -> None:
         """Restart the law for a new stage."""
-        stage_activate(self.kernel, fill_reference(ref, self._ref)[0], float(measurement))
+        stage_activate(self.state, self.vectors, fill_reference(ref, self._ref),
+                       float(measurement))
 
     def compute(self, ref, measurement: float) -> tuple[float, float]:
         """Return (voltage_v, inner_setpoint) for this tick (the law's exception if refused)."""
-        code, voltage, inner = stage_compute(self.kernel, fill_reference(ref, self._ref)[0],
-                                             float(measurement))
+        code, voltage, inner = stage_compute(self.state, self.vectors,
+                                             fill_reference(ref, self._ref), float(measurement))
         if code != LAW_OK:
-            raise law_error(code, self.kernel[2])
+            raise law_error(code, self.vectors[LAW_AT:REFERENCE_AT])
         return voltage, inner
 
 
@@ -469,7 +518,7 @@ class PositionStageController(_KernelStage):
 
         ``toward_speed_mps`` is the finger's speed towards the setpoint.
         """
-        return position_voltage_cap_v(self.kernel, fill_reference(ref, self._ref)[0],
+        return position_voltage_cap_v(self.state, fill_reference(ref, self._ref),
                                       float(toward_speed_mps))
 
     @staticmethod
@@ -554,12 +603,15 @@ class LockstepAnswerer:
         self.numbers = getattr(stage, 'reference_numbers', REFERENCE_NUMBERS)
         self._kernel = getattr(stage, 'kernel', None)
         if self._kernel is not None:
-            self._book, self._reference_numbers, self._law_numbers = self._kernel[:3]
-            self._book[:] = new_book(self.numbers)
+            state, vectors = self._kernel
+            self._book = state['book']
+            self._reference_numbers = vectors[REFERENCE_AT:DMC_AT]
+            self._law_numbers = vectors[LAW_AT:REFERENCE_AT]
         else:
-            self._book = new_book(self.numbers)
+            self._book = np.zeros(1, BOOK_DTYPE)
             self._reference_numbers = np.zeros(len(NUMBER_FIELDS))
             self._law_numbers = np.zeros(LAW_NUMBERS)
+        reset_book(self._book, self.numbers)
         self._ref = np.zeros(1, REFERENCE_DTYPE)
         self._cmd = np.zeros(1, COMMAND_DTYPE)
 
