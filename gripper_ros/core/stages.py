@@ -106,9 +106,9 @@ STAGE_DTYPE = np.dtype([
 ANSWER_REPEATED = -1
 REASON_NONE = 0
 REASON_MEASUREMENT = 1     # 'non-finite measurement'
-REASON_REFERENCE = 2       # 'non-finite reference (...)': book bad_mask, k[1] the numbers
-REASON_LAW = 3             # 'control law failed: ...': book law_code, k[2] its numbers
-REASON_OUTPUT = 4          # 'non-finite output (...)': k[2][0] voltage, k[2][1] inner setpoint
+REASON_REFERENCE = 2       # 'non-finite reference (...)': book bad_mask, the numbers as read
+REASON_LAW = 3             # 'control law failed: ...': book law_code, the law's numbers
+REASON_OUTPUT = 4          # 'non-finite output (...)': law numbers [0] voltage, [1] inner
 
 BOOK_DTYPE = np.dtype([
     ('has_answered', 'u1'),                # 0: nothing answered yet (None)
