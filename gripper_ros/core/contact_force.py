@@ -54,6 +54,10 @@ What it does each force sample, knowing neither the stiffness nor the exact widt
    in contact and the error decaying much slower than the loop's rate ``1 / tau_k``.
 
 Everything is clamped to the motor's +-24 V. The per-sample cost is two square roots.
+
+The per-sample work is compiled (``contact_*`` kernels over one :data:`CONTACT_DTYPE` record,
+shared with the force stage's kernel); :class:`ContactForceController` computes the design
+numbers at construction and is the Python façade over the kernels.
 """
 from __future__ import annotations
 
@@ -61,6 +65,10 @@ from dataclasses import dataclass
 import math
 
 from gripper_ros.core.config import ContactForceTuning, PlantParams
+from gripper_ros.core.pid import (as_record, LAW_CONTACT_INPUT, law_error, LAW_MATH_DOMAIN,
+                                  LAW_NUMBERS, LAW_OK, LAW_ZERO_DIVISION, py_max, py_min)
+import numba
+import numpy as np
 
 
 @dataclass
@@ -83,8 +91,253 @@ def impact_factor(damping_ratio: float) -> float:
     return max(1.0, 2.0 * damping_ratio)
 
 
+CONTACT_DTYPE = np.dtype([
+    # design numbers (constant after construction)
+    ('dt_s', 'f8'),
+    ('stall_force_per_volt_n', 'f8'),
+    ('reflected_mass_kg', 'f8'),
+    ('reflected_damping_n_s_per_m', 'f8'),
+    ('contact_speed_mps_per_n', 'f8'),
+    ('time_constant_s', 'f8'),
+    ('band_speed_mps_per_n', 'f8'),
+    ('two_a', 'f8'),                         # 2 x braking deceleration (m/s^2)
+    ('z2m', 'f8'),                           # zeta^2 m_r
+    ('spring_factor', 'f8'),                 # 1 + K_stall Kp
+    ('two_zeta_sqrt_m', 'f8'),               # 2 zeta_d sqrt(m_r)
+    ('kappa_over_dt', 'f8'),                 # servo sample gain / dt (1/s)
+    ('low', 'f8'), ('high', 'f8'),           # output_limits (V)
+    ('approach_gain_v_s_per_m', 'f8'),
+    ('cap_k', 'f8'), ('cap_tau', 'f8'), ('cap_kv', 'f8'),                # capped loop, exact
+    ('band_k', 'f8'), ('band_tau', 'f8'), ('band_kv', 'f8'),             # ... within a band
+    ('max_travel_m', 'f8'),
+    # tuning (ContactForceTuning fields used per sample)
+    ('contact_force_n', 'f8'),
+    ('untouched_overtravel_m', 'f8'),
+    ('integral_speed_band_mps', 'f8'),
+    ('integral_rate_fraction', 'f8'),
+    ('integral_gain_v_per_n_s', 'f8'),
+    ('force_gain_v_per_n', 'f8'),
+    ('design_stiffness_n_per_m', 'f8'),
+    ('max_damping_v_s_per_m', 'f8'),
+    # state
+    ('has_prev_position', 'u1'),             # 0: no previous position (None)
+    ('prev_position_m', 'f8'),
+    ('has_contact', 'u1'),                   # 0: not touched yet (None)
+    ('contact_position_m', 'f8'),
+    ('prev_force_n', 'f8'),
+    ('integral', 'f8'),                      # the integral term (V)
+    # the last output's terms (ContactForceTerms)
+    ('feedforward_v', 'f8'), ('force_v', 'f8'), ('damping_v', 'f8'), ('integral_v', 'f8'),
+    ('stiffness_n_per_m', 'f8'), ('damping_gain_v_s_per_m', 'f8'), ('speed_ref_mps', 'f8'),
+    ('in_contact', 'u1'), ('output_v', 'f8'),
+], align=True)
+"""One contact-aware force stage: design numbers, state and last terms (1-element array)."""
+
+
+@numba.njit(cache=True)
+def contact_reset_terms(c):
+    """Zero the last output's terms (``stiffness`` inf: nothing touched)."""
+    s = as_record(c)
+    s.feedforward_v = 0.0
+    s.force_v = 0.0
+    s.damping_v = 0.0
+    s.integral_v = 0.0
+    s.stiffness_n_per_m = math.inf
+    s.damping_gain_v_s_per_m = 0.0
+    s.speed_ref_mps = 0.0
+    s.in_contact = 0
+    s.output_v = 0.0
+
+
+@numba.njit(cache=True)
+def contact_reset(c, has_position, position_m):
+    """Start a new force stage at ``position_m`` (speed 0; ``has_position`` 0: unknown)."""
+    s = as_record(c)
+    s.has_prev_position = 1 if has_position else 0
+    s.prev_position_m = position_m if has_position else 0.0
+    s.has_contact = 0
+    s.prev_force_n = 0.0
+    s.integral = 0.0
+    contact_reset_terms(s)
+
+
+@numba.njit(cache=True)
+def contact_loop_time_constant_s(c, stiffness_n_per_m):
+    """Return (code, tau_k): see :meth:`ContactForceController.loop_time_constant_s`."""
+    s = as_record(c)
+    if stiffness_n_per_m < 0.0:
+        return LAW_MATH_DOMAIN, 0.0
+    root = math.sqrt(stiffness_n_per_m)
+    if root == 0.0:
+        return LAW_ZERO_DIVISION, 0.0
+    b = s.two_zeta_sqrt_m / root
+    radicand = 1.0 + b * s.kappa_over_dt
+    if radicand < 0.0:
+        return LAW_MATH_DOMAIN, 0.0
+    if 2.0 * b == 0.0:
+        return LAW_ZERO_DIVISION, 0.0
+    rate = (math.sqrt(radicand) - 1.0) / (2.0 * b)
+    if rate == 0.0:
+        return LAW_ZERO_DIVISION, 0.0
+    return LAW_OK, py_max(s.time_constant_s, 1.0 / rate)
+
+
+@numba.njit(cache=True)
+def contact_damping_gain_for(c, stiffness_n_per_m, time_constant_s):
+    """Return (code, Kv): see :meth:`ContactForceController.damping_gain_for`."""
+    s = as_record(c)
+    tau = time_constant_s
+    k = py_min(stiffness_n_per_m, s.design_stiffness_n_per_m)
+    if tau == 0.0:
+        return LAW_ZERO_DIVISION, 0.0
+    q = 2.0 * s.z2m / tau
+    c_r = s.reflected_damping_n_s_per_m
+    disc = q * q + 4.0 * s.z2m * (k * s.spring_factor - c_r / tau)
+    x = q + math.sqrt(disc) if disc > 0.0 else q
+    return LAW_OK, py_min(py_max(x - c_r, 0.0) / s.stall_force_per_volt_n,
+                          s.max_damping_v_s_per_m)
+
+
+@numba.njit(cache=True)
+def contact_speed_profile_mps(c, distance_m, time_constant_s):
+    """Return (code, speed): see :meth:`ContactForceController.speed_profile_mps`."""
+    s = as_record(c)
+    tau = time_constant_s
+    r = abs(distance_m)
+    linear_m = 0.5 * s.two_a * tau * tau
+    if r <= linear_m:
+        if tau == 0.0:
+            return LAW_ZERO_DIVISION, 0.0
+        v = r / tau
+    else:
+        radicand = s.two_a * (r - 0.5 * linear_m)
+        if radicand < 0.0:
+            return LAW_MATH_DOMAIN, 0.0
+        v = math.sqrt(radicand)
+    return LAW_OK, (v if distance_m >= 0.0 else -v)
+
+
+@numba.njit(cache=True)
+def contact_step(c, force_setpoint_n, force_n, position_m, face_m, width_tolerance_m, numbers):
+    """Return (code, voltage) for the coming sample (``code`` LAW_OK unless refused)."""
+    if not (math.isfinite(force_setpoint_n) and math.isfinite(force_n)
+            and math.isfinite(position_m) and math.isfinite(face_m)
+            and math.isfinite(width_tolerance_m)):
+        numbers[0] = force_setpoint_n
+        numbers[1] = force_n
+        numbers[2] = position_m
+        numbers[3] = face_m
+        numbers[4] = width_tolerance_m
+        return LAW_CONTACT_INPUT, 0.0
+    s = as_record(c)
+    speed = (position_m - s.prev_position_m) / s.dt_s if s.has_prev_position else 0.0
+    s.has_prev_position = 1
+    s.prev_position_m = position_m
+    prev_force_n = s.prev_force_n
+    s.prev_force_n = force_n
+    feedforward = force_setpoint_n / s.stall_force_per_volt_n
+    s.feedforward_v = feedforward
+    low, high = s.low, s.high
+    if not s.has_contact and force_n > s.contact_force_n:
+        # the object was touched during the last sample; the travel into it starts here
+        s.has_contact = 1
+        s.contact_position_m = position_m
+    if not s.has_contact:
+        s.in_contact = 0
+        v_c = (s.band_speed_mps_per_n if width_tolerance_m > 0.0
+               else s.contact_speed_mps_per_n) * force_setpoint_n
+        if position_m > face_m + width_tolerance_m + s.untouched_overtravel_m:
+            # past the narrowest object's face, nothing touched: narrower than allowed, or
+            # absent. The stall voltage of F_sp is safe on any rigid object and finds
+            # NO_OBJECT in a fraction of a second instead of after a crawl.
+            output = feedforward
+            v_ref = math.inf
+        else:
+            gap = face_m - width_tolerance_m - position_m
+            v_ref, accel_ref = v_c, 0.0
+            if gap > 0.0:
+                tau = s.time_constant_s
+                r_lin = 0.5 * s.two_a * tau ** 2
+                if gap <= r_lin:
+                    profile = gap / tau
+                    accel_ref = -speed / tau
+                else:
+                    profile = math.sqrt(s.two_a * (gap - 0.5 * r_lin))
+                    accel_ref = -0.5 * s.two_a * speed / profile
+                v_ref += profile
+            kv = s.approach_gain_v_s_per_m
+            # the force the free finger needs to follow v_ref (drag and deceleration), the
+            # servo for the rest; never more than the feed-forward: a rigid face met at any
+            # speed then stalls the motor at F_sp at most (the paper's contact); braking is
+            # not limited
+            output = py_min(kv * (v_ref - speed) + (
+                s.reflected_damping_n_s_per_m * v_ref
+                + s.reflected_mass_kg * accel_ref) / s.stall_force_per_volt_n,
+                feedforward)
+        s.speed_ref_mps = v_ref
+        s.damping_gain_v_s_per_m = s.approach_gain_v_s_per_m
+        s.damping_v = output - feedforward
+        s.force_v = 0.0
+        s.stiffness_n_per_m = math.inf
+    else:
+        s.in_contact = 1
+        travel = position_m - s.contact_position_m
+        # F / d, at most the stiffness the contact speed was designed for and at least the
+        # softest spring that can give F_sp within the travel; no travel (rigid contact)
+        # is k_d's loop, the only one whose speed reference is a safe force gain there
+        if width_tolerance_m > 0.0 and travel > 0.0:
+            k_cap, tau_cap, kv_cap = s.band_k, s.band_tau, s.band_kv
+        else:
+            k_cap, tau_cap, kv_cap = s.cap_k, s.cap_tau, s.cap_kv
+        k_soft = force_setpoint_n / s.max_travel_m
+        error = force_setpoint_n - force_n
+        if force_n >= k_cap * travel:
+            stiffness, tau_k, kv = k_cap, tau_cap, kv_cap
+        else:
+            if travel == 0.0:
+                return LAW_ZERO_DIVISION, 0.0
+            stiffness = py_max(force_n / travel, k_soft)
+            code, tau_k = contact_loop_time_constant_s(s, stiffness)
+            if code != LAW_OK:
+                return code, 0.0
+            code, kv = contact_damping_gain_for(s, stiffness, tau_k)
+            if code != LAW_OK:
+                return code, 0.0
+        if stiffness == 0.0:
+            return LAW_ZERO_DIVISION, 0.0
+        code, v_ref = contact_speed_profile_mps(s, error / stiffness, tau_k)
+        if code != LAW_OK:
+            return code, 0.0
+        # trim only the error the loop leaves standing: the finger at rest and the error
+        # decaying slower than integral_rate_fraction of the loop's own rate 1 / tau_k (a
+        # stiff object is compressed at a few um/s, so rest alone would integrate the ramp)
+        standing = abs(speed) <= s.integral_speed_band_mps and \
+            abs(force_n - prev_force_n) * tau_k <= \
+            s.integral_rate_fraction * abs(error) * s.dt_s
+        integral = s.integral + (s.integral_gain_v_per_n_s * error * s.dt_s
+                                 if standing else 0.0)
+        force_v = s.force_gain_v_per_n * error
+        damping_v = kv * (v_ref - speed)
+        output = feedforward + force_v + integral + damping_v
+        if low <= output <= high:          # anti-windup: keep the integral only unsaturated
+            s.integral = integral
+        s.force_v = force_v
+        s.damping_v = damping_v
+        s.stiffness_n_per_m = stiffness
+        s.damping_gain_v_s_per_m = kv
+        s.speed_ref_mps = v_ref
+    s.integral_v = s.integral
+    output = py_min(py_max(output, low), high)
+    s.output_v = output
+    return LAW_OK, output
+
+
 class ContactForceController:
-    """``step(force_setpoint_n, force_n, position_m, face_m, width_tolerance_m)`` per ``dt_s``."""
+    """``step(force_setpoint_n, force_n, position_m, face_m, width_tolerance_m)`` per ``dt_s``.
+
+    The design numbers, the state and the last terms live in the 1-element
+    :data:`CONTACT_DTYPE` array ``record`` (the force stage's kernel works on the same one).
+    """
 
     def __init__(self, plant: PlantParams, tuning: ContactForceTuning, dt_s: float):
         if not (math.isfinite(dt_s) and dt_s > 0.0):
@@ -92,6 +345,9 @@ class ContactForceController:
         self.plant = plant
         self.tuning = tuning
         self.dt_s = dt_s
+        self._numbers = np.zeros(LAW_NUMBERS)
+        self.record = r = np.zeros(1, CONTACT_DTYPE)
+        s = r[0]
         t = tuning
         lever_rho = plant.force_lever_m * plant.travel_per_rad_m
         self.stall_force_per_volt_n = plant.stall_force_per_volt_n
@@ -105,34 +361,59 @@ class ContactForceController:
         self.time_constant_s = 1.0 / (self.contact_speed_mps_per_n * t.design_stiffness_n_per_m)
         self.band_speed_mps_per_n = self.contact_speed_mps_per_n * math.sqrt(
             t.design_stiffness_n_per_m / t.band_design_stiffness_n_per_m)
-        self._two_a = 2.0 * t.braking_deceleration_mps2
+        self.output_limits = (-plant.voltage_limit_v, plant.voltage_limit_v)
+        s['dt_s'] = dt_s
+        s['stall_force_per_volt_n'] = self.stall_force_per_volt_n
+        s['reflected_mass_kg'] = self.reflected_mass_kg
+        s['reflected_damping_n_s_per_m'] = self.reflected_damping_n_s_per_m
+        s['contact_speed_mps_per_n'] = self.contact_speed_mps_per_n
+        s['time_constant_s'] = self.time_constant_s
+        s['band_speed_mps_per_n'] = self.band_speed_mps_per_n
+        s['two_a'] = 2.0 * t.braking_deceleration_mps2
         # damping-gain quadratic, X = D + c_r:  X^2 - 2 q X - 4 z^2 m (k (1 + K Kp) - c_r / tau),
         # q = 2 z^2 m / tau
-        self._z2m = t.damping_ratio ** 2 * self.reflected_mass_kg
-        self._spring_factor = 1.0 + self.stall_force_per_volt_n * t.force_gain_v_per_n
+        s['z2m'] = t.damping_ratio ** 2 * self.reflected_mass_kg
+        s['spring_factor'] = 1.0 + self.stall_force_per_volt_n * t.force_gain_v_per_n
         # worst object damping over its stiffness, c / k = 2 zeta_d sqrt(m_r / k), and the
         # sample-gain bound on 1 / tau_k (see loop_time_constant_s)
-        self._two_zeta_sqrt_m = 2.0 * t.design_damping_ratio * math.sqrt(self.reflected_mass_kg)
-        self._kappa_over_dt = t.servo_sample_gain / dt_s
-        self.output_limits = (-plant.voltage_limit_v, plant.voltage_limit_v)
-        self._approach_gain_v_s_per_m = self.damping_gain_for(t.design_stiffness_n_per_m)
+        s['two_zeta_sqrt_m'] = 2.0 * t.design_damping_ratio * math.sqrt(self.reflected_mass_kg)
+        s['kappa_over_dt'] = t.servo_sample_gain / dt_s
+        s['low'], s['high'] = self.output_limits
+        s['max_travel_m'] = plant.max_travel_m
+        for name in ('contact_force_n', 'untouched_overtravel_m', 'integral_speed_band_mps',
+                     'integral_rate_fraction', 'integral_gain_v_per_n_s', 'force_gain_v_per_n',
+                     'design_stiffness_n_per_m', 'max_damping_v_s_per_m'):
+            s[name] = getattr(t, name)
+        approach = self.damping_gain_for(t.design_stiffness_n_per_m)
+        s['approach_gain_v_s_per_m'] = approach
         # the loop on a spring at the stiffness cap (rigid contact too), computed once: at an
         # exact width the design's, within a tolerance the band design's
         k_band = min(t.band_design_stiffness_n_per_m, t.design_stiffness_n_per_m)
         tau_band = self.loop_time_constant_s(k_band)
-        self._capped_loop = {False: (t.design_stiffness_n_per_m, self.time_constant_s,
-                                     self._approach_gain_v_s_per_m),
-                             True: (k_band, tau_band, self.damping_gain_for(k_band, tau_band))}
-        self.terms = ContactForceTerms()
+        s['cap_k'], s['cap_tau'], s['cap_kv'] = (t.design_stiffness_n_per_m, self.time_constant_s,
+                                                 approach)
+        s['band_k'], s['band_tau'] = k_band, tau_band
+        s['band_kv'] = self.damping_gain_for(k_band, tau_band)
         self.reset()
+
+    @property
+    def terms(self) -> ContactForceTerms:
+        s = self.record[0]
+        return ContactForceTerms(
+            float(s['feedforward_v']), float(s['force_v']), float(s['damping_v']),
+            float(s['integral_v']), float(s['stiffness_n_per_m']),
+            float(s['damping_gain_v_s_per_m']), float(s['speed_ref_mps']),
+            bool(s['in_contact']), float(s['output_v']))
+
+    def _checked(self, code: int, value: float) -> float:
+        if code != LAW_OK:
+            raise law_error(code, self._numbers)
+        return value
 
     def reset(self, position_m: float | None = None) -> None:
         """Start a new force stage; ``position_m`` is where the finger is now (speed 0)."""
-        self._prev_position_m = position_m
-        self._contact_position_m: float | None = None
-        self._prev_force_n = 0.0
-        self._integral_v = 0.0
-        self.terms = ContactForceTerms()
+        contact_reset(self.record, position_m is not None,
+                      0.0 if position_m is None else float(position_m))
 
     def contact_speed_mps(self, force_setpoint_n: float, width_tolerance_m: float = 0.0
                           ) -> float:
@@ -156,9 +437,8 @@ class ContactForceController:
         object of this stiffness, ``c / k = 2 zeta_d sqrt(m_r / k)``: a quadratic in
         ``1 / tau_k``.
         """
-        b = self._two_zeta_sqrt_m / math.sqrt(stiffness_n_per_m)
-        rate = (math.sqrt(1.0 + b * self._kappa_over_dt) - 1.0) / (2.0 * b)
-        return max(self.time_constant_s, 1.0 / rate)
+        return self._checked(*contact_loop_time_constant_s(self.record,
+                                                           float(stiffness_n_per_m)))
 
     def damping_gain_for(self, stiffness_n_per_m: float, time_constant_s: float | None = None
                          ) -> float:
@@ -168,13 +448,8 @@ class ContactForceController:
         ``tau``).
         """
         tau = self.time_constant_s if time_constant_s is None else time_constant_s
-        k = min(stiffness_n_per_m, self.tuning.design_stiffness_n_per_m)
-        q = 2.0 * self._z2m / tau
-        c_r = self.reflected_damping_n_s_per_m
-        disc = q * q + 4.0 * self._z2m * (k * self._spring_factor - c_r / tau)
-        x = q + math.sqrt(disc) if disc > 0.0 else q
-        return min(max(x - c_r, 0.0) / self.stall_force_per_volt_n,
-                   self.tuning.max_damping_v_s_per_m)
+        return self._checked(*contact_damping_gain_for(self.record, float(stiffness_n_per_m),
+                                                       float(tau)))
 
     def speed_profile_mps(self, distance_m: float, time_constant_s: float | None = None
                           ) -> float:
@@ -184,10 +459,8 @@ class ContactForceController:
         2))`` (deceleration ``a``; the two meet with the same speed and deceleration); odd in r.
         """
         tau = self.time_constant_s if time_constant_s is None else time_constant_s
-        r = abs(distance_m)
-        linear_m = 0.5 * self._two_a * tau * tau
-        v = r / tau if r <= linear_m else math.sqrt(self._two_a * (r - 0.5 * linear_m))
-        return v if distance_m >= 0.0 else -v
+        return self._checked(*contact_speed_profile_mps(self.record, float(distance_m),
+                                                        float(tau)))
 
     def step(self, force_setpoint_n: float, force_n: float, position_m: float,
              face_m: float, width_tolerance_m: float = 0.0) -> float:
@@ -196,94 +469,6 @@ class ContactForceController:
         ``face_m``: the expected object's face; the object may be up to ``width_tolerance_m``
         wider or narrower.
         """
-        if not (math.isfinite(force_setpoint_n) and math.isfinite(force_n)
-                and math.isfinite(position_m) and math.isfinite(face_m)
-                and math.isfinite(width_tolerance_m)):
-            raise ValueError(f'non-finite input: force_setpoint_n={force_setpoint_n!r}, '
-                             f'force_n={force_n!r}, position_m={position_m!r}, '
-                             f'face_m={face_m!r}, width_tolerance_m={width_tolerance_m!r}')
-        t = self.tuning
-        prev = self._prev_position_m
-        speed = 0.0 if prev is None else (position_m - prev) / self.dt_s
-        self._prev_position_m = position_m
-        prev_force_n, self._prev_force_n = self._prev_force_n, force_n
-        feedforward = force_setpoint_n / self.stall_force_per_volt_n
-        terms = self.terms
-        terms.feedforward_v = feedforward
-        low, high = self.output_limits
-        contact_x = self._contact_position_m
-        if contact_x is None and force_n > t.contact_force_n:
-            # the object was touched during the last sample; the travel into it starts here
-            contact_x = self._contact_position_m = position_m
-        if contact_x is None:
-            terms.in_contact = False
-            v_c = (self.band_speed_mps_per_n if width_tolerance_m > 0.0
-                   else self.contact_speed_mps_per_n) * force_setpoint_n
-            if position_m > face_m + width_tolerance_m + t.untouched_overtravel_m:
-                # past the narrowest object's face, nothing touched: narrower than allowed, or
-                # absent. The stall voltage of F_sp is safe on any rigid object and finds
-                # NO_OBJECT in a fraction of a second instead of after a crawl.
-                output = feedforward
-                v_ref = math.inf
-            else:
-                gap = face_m - width_tolerance_m - position_m
-                v_ref, accel_ref = v_c, 0.0
-                if gap > 0.0:
-                    r_lin = 0.5 * self._two_a * self.time_constant_s ** 2
-                    if gap <= r_lin:
-                        profile = gap / self.time_constant_s
-                        accel_ref = -speed / self.time_constant_s
-                    else:
-                        profile = math.sqrt(self._two_a * (gap - 0.5 * r_lin))
-                        accel_ref = -0.5 * self._two_a * speed / profile
-                    v_ref += profile
-                kv = self._approach_gain_v_s_per_m
-                # the force the free finger needs to follow v_ref (drag and deceleration), the
-                # servo for the rest; never more than the feed-forward: a rigid face met at any
-                # speed then stalls the motor at F_sp at most (the paper's contact); braking is
-                # not limited
-                output = min(kv * (v_ref - speed) + (
-                    self.reflected_damping_n_s_per_m * v_ref
-                    + self.reflected_mass_kg * accel_ref) / self.stall_force_per_volt_n,
-                    feedforward)
-            terms.speed_ref_mps = v_ref
-            terms.damping_gain_v_s_per_m = self._approach_gain_v_s_per_m
-            terms.damping_v = output - feedforward
-            terms.force_v = 0.0
-            terms.stiffness_n_per_m = math.inf
-        else:
-            terms.in_contact = True
-            travel = position_m - contact_x
-            # F / d, at most the stiffness the contact speed was designed for and at least the
-            # softest spring that can give F_sp within the travel; no travel (rigid contact)
-            # is k_d's loop, the only one whose speed reference is a safe force gain there
-            k_cap, tau_cap, kv_cap = self._capped_loop[width_tolerance_m > 0.0 and travel > 0.0]
-            k_soft = force_setpoint_n / self.plant.max_travel_m
-            error = force_setpoint_n - force_n
-            if force_n >= k_cap * travel:
-                stiffness, tau_k, kv = k_cap, tau_cap, kv_cap
-            else:
-                stiffness = max(force_n / travel, k_soft)
-                tau_k = self.loop_time_constant_s(stiffness)
-                kv = self.damping_gain_for(stiffness, tau_k)
-            v_ref = self.speed_profile_mps(error / stiffness, tau_k)
-            # trim only the error the loop leaves standing: the finger at rest and the error
-            # decaying slower than integral_rate_fraction of the loop's own rate 1 / tau_k (a
-            # stiff object is compressed at a few um/s, so rest alone would integrate the ramp)
-            standing = abs(speed) <= t.integral_speed_band_mps and \
-                abs(force_n - prev_force_n) * tau_k <= \
-                t.integral_rate_fraction * abs(error) * self.dt_s
-            integral = self._integral_v + (t.integral_gain_v_per_n_s * error * self.dt_s
-                                           if standing else 0.0)
-            force_v = t.force_gain_v_per_n * error
-            damping_v = kv * (v_ref - speed)
-            output = feedforward + force_v + integral + damping_v
-            if low <= output <= high:          # anti-windup: keep the integral only unsaturated
-                self._integral_v = integral
-            terms.force_v, terms.damping_v = force_v, damping_v
-            terms.stiffness_n_per_m, terms.damping_gain_v_s_per_m = stiffness, kv
-            terms.speed_ref_mps = v_ref
-        terms.integral_v = self._integral_v
-        output = min(max(output, low), high)
-        terms.output_v = output
-        return output
+        return self._checked(*contact_step(self.record, float(force_setpoint_n), float(force_n),
+                                           float(position_m), float(face_m),
+                                           float(width_tolerance_m), self._numbers))

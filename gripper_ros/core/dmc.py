@@ -31,6 +31,11 @@ Rejected: a DMC that constrains the predicted inner voltage over the horizon (a 
 cannot express the bang-bang plan with n_u = 10 consecutive moves followed by a constant
 setpoint, and tracking a precomputed minimum-time trajectory with this DMC lags (both slower
 than the clamp alone in trials).
+
+The per-sample work (DMC step, governor command and bookkeeping, cascade step) is compiled:
+``dmc_*``, ``governor_*`` and ``cascade_*`` kernels over records and arrays shared with the
+stage kernels of :mod:`gripper_ros.core.stages`; the classes below are the Python façades that
+build the models (step responses, gains, powers of ``Ad``) and call the kernels.
 """
 from __future__ import annotations
 
@@ -38,7 +43,10 @@ import enum
 import math
 from typing import Callable
 
-from gripper_ros.core.pid import PID
+from gripper_ros.core.pid import (as_record, law_error, LAW_NUMBERS, LAW_OK, PID, pid_reset,
+                                  pid_setpoint_for_output, pid_setpoint_range, pid_step_checked,
+                                  py_max, py_min)
+import numba
 import numpy as np
 
 
@@ -63,32 +71,123 @@ def dmc_gain(step_response: np.ndarray, control_horizon: int,
     return np.linalg.solve(a.T @ a + move_suppression * np.eye(control_horizon), a.T)
 
 
+DMC_DTYPE = np.dtype([
+    ('horizon', 'i8'),                     # N: samples of the step response
+    ('last_output', 'f8'),                 # the manipulated variable now
+    ('last_move', 'f8'),
+    ('has_limits', 'u1'),                  # 0: no output_limits (None)
+    ('limit_low', 'f8'), ('limit_high', 'f8'),
+], align=True)
+"""One DMC's scalars. Its vectors are one float buffer of :func:`dmc_buffer_size` (N): the
+step response (N), the first gain row (N), the prediction (N + 1) and a work vector (N)."""
+
+
+def dmc_buffer_size(horizon: int) -> int:
+    """Return the length of a DMC's vector buffer for this horizon."""
+    return 4 * horizon + 1
+
+
+@numba.njit(cache=True)
+def dmc_vectors(d, buf):
+    """Return (step_response, k0, prediction, work): views into the DMC's buffer."""
+    n = as_record(d).horizon
+    return buf[0:n], buf[n:2 * n], buf[2 * n:3 * n + 1], buf[3 * n + 1:4 * n + 1]
+
+
+@numba.njit(cache=True)
+def dmc_reset(d, buf, measurement, output):
+    """At rest: output steady at ``measurement``, manipulated variable at ``output``."""
+    s = as_record(d)
+    n = s.horizon
+    buf[2 * n:3 * n + 1] = measurement
+    s.last_output = output
+    s.last_move = 0.0
+
+
+@numba.njit(cache=True)
+def dmc_step(d, buf, setpoint, measurement, has_range, range_low, range_high):
+    """One sample (eqs. 19-22): returns the new manipulated variable.
+
+    With ``has_range`` the output is narrowed to [range_low, range_high] for this sample only;
+    the prediction is updated with the move actually made.
+    """
+    s = as_record(d)
+    step_response, k0, pred, error = dmc_vectors(s, buf)
+    n = s.horizon
+    correction = measurement - pred[0]                       # eq. 22
+    for j in range(n):
+        error[j] = setpoint - (pred[j + 1] + correction)     # eq. 19
+    move = np.dot(k0, error)                                 # eq. 20, first move
+    output = s.last_output + move
+    if s.has_limits:
+        output = py_min(s.limit_high, py_max(s.limit_low, output))
+    if has_range:
+        output = py_min(range_high, py_max(range_low, output))
+    move = output - s.last_output
+    for j in range(n):
+        pred[j + 1] += step_response[j] * move               # eq. 21
+    for j in range(n):
+        pred[j] = pred[j + 1]                                # advance one sample
+    s.last_output = output
+    s.last_move = move
+    return output
+
+
 class DynamicMatrixControl:
     """Receding-horizon DMC on a unit-step-response model ``a_1..a_N`` (N = horizon).
 
     ``prediction[j]`` is the output expected j samples ahead from the moves made so far; the
     measured-minus-predicted difference (eq. 22) shifts the whole prediction (constant output
-    disturbance), which gives offset-free tracking.
+    disturbance), which gives offset-free tracking. ``record`` and ``buffer`` are the kernels'
+    state (a stage may re-home them into its own arrays).
     """
 
     def __init__(self, step_response: np.ndarray, control_horizon: int, move_suppression: float,
                  output_limits: tuple[float, float] | None = None):
         self.step_response = np.asarray(step_response, dtype=float)
-        self.horizon = self.step_response.size
+        self.horizon = n = self.step_response.size
         self.gain = dmc_gain(self.step_response, control_horizon, move_suppression)
-        self._k0 = np.ascontiguousarray(self.gain[0])
+        self.record = np.zeros(1, DMC_DTYPE)
+        self.record[0]['horizon'] = n
+        self.buffer = np.zeros(dmc_buffer_size(n))
+        self.buffer[0:n] = self.step_response
+        self.buffer[n:2 * n] = self.gain[0]
         self.output_limits = output_limits
         self.reset(0.0, 0.0)
 
+    @property
+    def kernel(self) -> tuple:
+        """(record, buffer): what the ``dmc_*`` kernels take."""
+        return (self.record, self.buffer)
+
+    @property
+    def output_limits(self) -> tuple[float, float] | None:
+        s = self.record[0]
+        return (float(s['limit_low']), float(s['limit_high'])) if s['has_limits'] else None
+
+    @output_limits.setter
+    def output_limits(self, limits: tuple[float, float] | None) -> None:
+        s = self.record[0]
+        s['has_limits'] = limits is not None
+        if limits is not None:
+            s['limit_low'], s['limit_high'] = limits
+
+    @property
+    def last_output(self) -> float:
+        return float(self.record[0]['last_output'])
+
+    @property
+    def last_move(self) -> float:
+        return float(self.record[0]['last_move'])
+
     def reset(self, measurement: float, output: float) -> None:
         """At rest: output steady at ``measurement``, manipulated variable at ``output``."""
-        self._prediction = np.full(self.horizon + 1, float(measurement))
-        self.last_output = float(output)
-        self.last_move = 0.0
+        dmc_reset(self.record, self.buffer, float(measurement), float(output))
 
     @property
     def prediction(self) -> np.ndarray:
-        return self._prediction.copy()
+        n = self.horizon
+        return self.buffer[2 * n:3 * n + 1].copy()
 
     def step(self, setpoint: float, measurement: float,
              output_range: tuple[float, float] | None = None) -> float:
@@ -97,20 +196,9 @@ class DynamicMatrixControl:
         ``output_range`` narrows the output for this sample only (e.g. what keeps an inner loop
         out of saturation); the prediction is updated with the move actually made.
         """
-        pred = self._prediction
-        correction = measurement - pred[0]                       # eq. 22
-        error = setpoint - (pred[1:] + correction)               # eq. 19
-        move = float(self._k0 @ error)                           # eq. 20, first move
-        output = self.last_output + move
-        for limits in (self.output_limits, output_range):
-            if limits is not None:
-                output = min(limits[1], max(limits[0], output))
-        move = output - self.last_output
-        pred[1:] += self.step_response * move                    # eq. 21
-        pred[:-1] = pred[1:]                                     # advance one sample
-        self.last_output = output
-        self.last_move = move
-        return output
+        low, high = (0.0, 0.0) if output_range is None else output_range
+        return dmc_step(self.record, self.buffer, float(setpoint), float(measurement),
+                        output_range is not None, float(low), float(high))
 
 
 def closed_loop_step_response(model_step: Callable[[float], float], controller: PID,
@@ -136,6 +224,105 @@ class GovernorPhase(enum.Enum):
     DMC = 'dmc'                 # handed over: the DMC (over the PD) finishes and holds
 
 
+GOVERNOR_PHASES = (GovernorPhase.ACCELERATE, GovernorPhase.BRAKE, GovernorPhase.DMC)
+"""The governor's phase by its code in :data:`GOVERNOR_DTYPE` (0, 1, 2)."""
+PHASE_ACCELERATE = 0
+PHASE_BRAKE = 1
+PHASE_DMC = 2
+
+GOVERNOR_DTYPE = np.dtype([
+    ('limit_v', 'f8'),          # accelerating voltage
+    ('braking_v', 'f8'),
+    ('phase', 'i8'),            # PHASE_ACCELERATE, PHASE_BRAKE or PHASE_DMC
+    ('direction', 'f8'),        # +1 / -1: the direction of the move being governed
+    ('rows', 'i8'),             # samples + 1: rows of the precomputed responses
+], align=True)
+"""One governor's scalars. Its vectors are one float buffer (:func:`governor_buffer_size`):
+``Ad`` (3 x 3), ``Bd`` (3), the state estimate [i, omega, x] (3), a work state (3), the
+[omega, x] rows of the powers of ``Ad`` (2 rows x 3), the forced responses (rows x 2) and a work
+trajectory (2 rows)."""
+
+
+def governor_buffer_size(rows: int) -> int:
+    """Return the length of a governor's vector buffer for ``rows`` = samples + 1."""
+    return 18 + 10 * rows
+
+
+@numba.njit(cache=True)
+def governor_vectors(g, buf):
+    """Return (ad, bd, state, ahead, free, forced, traj): views into the governor's buffer."""
+    rows = as_record(g).rows
+    free_end = 18 + 6 * rows
+    forced_end = free_end + 2 * rows
+    return (buf[0:9].reshape((3, 3)), buf[9:12], buf[12:15], buf[15:18],
+            buf[18:free_end].reshape((2 * rows, 3)),
+            buf[free_end:forced_end].reshape((rows, 2)), buf[forced_end:forced_end + 2 * rows])
+
+
+@numba.njit(cache=True)
+def governor_reset(g, buf, measurement):
+    """At rest at ``measurement``; the next move starts with ACCELERATE."""
+    buf[12] = 0.0
+    buf[13] = 0.0
+    buf[14] = measurement
+    as_record(g).phase = PHASE_ACCELERATE
+
+
+@numba.njit(cache=True)
+def governor_stop_position(g, buf, state, direction):
+    """Where the finger comes to rest (speed through zero) braking at ``braking_v``."""
+    s = as_record(g)
+    _, _, _, _, free, forced, traj = governor_vectors(s, buf)
+    np.dot(free, state, traj)
+    scale = direction * s.braking_v
+    last = s.rows - 1
+    for k in range(last + 1):
+        if not direction * (traj[2 * k] - scale * forced[k, 0]) > 0.0:
+            return traj[2 * k + 1] - scale * forced[k, 1]
+    return traj[2 * last + 1] - scale * forced[last, 1]
+
+
+@numba.njit(cache=True)
+def _governor_ahead(g, buf, voltage):
+    """Fill and return ``ahead``: the model state one sample on at ``voltage``."""
+    ad, bd, state, ahead, _, _, _ = governor_vectors(g, buf)
+    np.dot(ad, state, ahead)
+    for j in range(3):
+        ahead[j] = ahead[j] + bd[j] * voltage
+    return ahead
+
+
+@numba.njit(cache=True)
+def governor_command(g, buf, setpoint, measurement):
+    """Return (forced, voltage): the voltage to hold over the coming sample, if forced.
+
+    ``forced`` False once the DMC is in charge.
+    """
+    s = as_record(g)
+    buf[14] = measurement
+    if s.phase == PHASE_ACCELERATE:
+        d = 1.0 if setpoint >= measurement else -1.0
+        s.direction = d
+        ahead = _governor_ahead(s, buf, d * s.limit_v)
+        if d * (governor_stop_position(s, buf, ahead, d) - setpoint) < 0.0:
+            return True, d * s.limit_v
+        s.phase = PHASE_BRAKE
+    if s.phase == PHASE_BRAKE:
+        d = s.direction
+        ahead = _governor_ahead(s, buf, -d * s.braking_v)
+        if d * ahead[1] > 0.0:
+            return True, -d * s.braking_v
+        s.phase = PHASE_DMC
+    return False, 0.0
+
+
+@numba.njit(cache=True)
+def governor_applied(g, buf, voltage):
+    """Book the voltage held over the sample that starts now."""
+    ahead = _governor_ahead(g, buf, voltage)
+    buf[12:15] = ahead
+
+
 class BrakingGovernor:
     """Minimum-time move under the voltage limit, then the DMC: one switch, one handover.
 
@@ -154,7 +341,8 @@ class BrakingGovernor:
     the forced samples predicts from moves it did not choose and, with the paper's light move
     suppression, chatters between +-limit near the setpoint (measured: ~570 sign changes in 20 s).
     The stop position is one matrix-vector product over precomputed powers of ``Ad``
-    (``samples`` long, enough to stop from full speed).
+    (``samples`` long, enough to stop from full speed). ``record`` and ``buffer`` are the
+    kernels' state (a stage may re-home them into its own arrays).
     """
 
     def __init__(self, ad: np.ndarray, bd: np.ndarray, limit_v: float, braking_v: float,
@@ -163,53 +351,154 @@ class BrakingGovernor:
             raise ValueError(f'braking voltage must be in (0, {limit_v}], got {braking_v!r}')
         self.ad = np.asarray(ad, dtype=float)
         self.bd = np.asarray(bd, dtype=float)
-        self.limit_v = float(limit_v)
-        self.braking_v = float(braking_v)
         powers = np.empty((samples + 1, 3, 3))
         steps = np.zeros((samples + 1, 3))
         powers[0] = np.eye(3)
         for k in range(samples):
             powers[k + 1] = self.ad @ powers[k]
             steps[k + 1] = steps[k] + powers[k] @ self.bd
-        self._free = np.ascontiguousarray(powers[:, 1:, :].reshape(-1, 3))   # [omega, x] rows
-        self._forced = np.ascontiguousarray(steps[:, 1:])
-        self.state = np.zeros(3)
+        rows = samples + 1
+        self.record = np.zeros(1, GOVERNOR_DTYPE)
+        self.record[0]['rows'] = rows
+        self.buffer = np.zeros(governor_buffer_size(rows))
+        self.buffer[0:9] = self.ad.ravel()
+        self.buffer[9:12] = self.bd
+        self.buffer[18:18 + 6 * rows] = powers[:, 1:, :].ravel()       # [omega, x] rows
+        self.buffer[18 + 6 * rows:18 + 8 * rows] = steps[:, 1:].ravel()
+        self.limit_v = float(limit_v)
+        self.braking_v = float(braking_v)
+        self.record[0]['direction'] = 1.0
         self.phase = GovernorPhase.ACCELERATE
-        self._direction = 1.0
+
+    @property
+    def kernel(self) -> tuple:
+        """(record, buffer): what the ``governor_*`` kernels take."""
+        return (self.record, self.buffer)
+
+    @property
+    def limit_v(self) -> float:
+        return float(self.record[0]['limit_v'])
+
+    @limit_v.setter
+    def limit_v(self, value: float) -> None:
+        self.record[0]['limit_v'] = value
+
+    @property
+    def braking_v(self) -> float:
+        return float(self.record[0]['braking_v'])
+
+    @braking_v.setter
+    def braking_v(self, value: float) -> None:
+        self.record[0]['braking_v'] = value
+
+    @property
+    def phase(self) -> GovernorPhase:
+        return GOVERNOR_PHASES[self.record[0]['phase']]
+
+    @phase.setter
+    def phase(self, value: GovernorPhase) -> None:
+        self.record[0]['phase'] = GOVERNOR_PHASES.index(value)
+
+    @property
+    def state(self) -> np.ndarray:
+        """The model's state estimate [i, omega, x] (a copy)."""
+        return self.buffer[12:15].copy()
+
+    @state.setter
+    def state(self, value) -> None:
+        self.buffer[12:15] = value
 
     def reset(self, measurement: float) -> None:
         """At rest at ``measurement``; the next move starts with ACCELERATE."""
-        self.state = np.array([0.0, 0.0, float(measurement)])
-        self.phase = GovernorPhase.ACCELERATE
+        governor_reset(self.record, self.buffer, float(measurement))
 
     def stop_position(self, state: np.ndarray, direction: float) -> float:
         """Where the finger comes to rest (speed through zero) braking at ``braking_v``."""
-        traj = (self._free @ state).reshape(-1, 2) - (direction * self.braking_v) * self._forced
-        moving = direction * traj[:, 0] > 0.0
-        k = int(np.argmin(moving)) if not moving.all() else moving.size - 1
-        return float(traj[k, 1])
+        return governor_stop_position(self.record, self.buffer,
+                                      np.ascontiguousarray(state, dtype=float), float(direction))
 
     def command(self, setpoint: float, measurement: float) -> float | None:
         """Voltage to hold over the coming sample, or None once the DMC is in charge."""
-        self.state[2] = measurement
-        if self.phase is GovernorPhase.ACCELERATE:
-            d = 1.0 if setpoint >= measurement else -1.0
-            self._direction = d
-            ahead = self.ad @ self.state + self.bd * (d * self.limit_v)
-            if d * (self.stop_position(ahead, d) - setpoint) < 0.0:
-                return d * self.limit_v
-            self.phase = GovernorPhase.BRAKE
-        if self.phase is GovernorPhase.BRAKE:
-            d = self._direction
-            ahead = self.ad @ self.state + self.bd * (-d * self.braking_v)
-            if d * ahead[1] > 0.0:
-                return -d * self.braking_v
-            self.phase = GovernorPhase.DMC
-        return None
+        forced, voltage = governor_command(self.record, self.buffer, float(setpoint),
+                                           float(measurement))
+        return voltage if forced else None
 
     def applied(self, voltage: float) -> None:
         """Book the voltage held over the sample that starts now."""
-        self.state = self.ad @ self.state + self.bd * voltage
+        governor_applied(self.record, self.buffer, float(voltage))
+
+
+CASCADE_DTYPE = np.dtype([
+    ('respect_inner_limits', 'u1'),
+    ('has_governor', 'u1'),            # 0: no braking governor (None)
+    ('last_inner_setpoint', 'f8'),     # the DMC's output (the inner loop's setpoint)
+    ('last_forced', 'f8'),             # the governor's voltage this sample (0: DMC free)
+], align=True)
+"""One cascade's flags and outputs; the kernels take it with the inner PID's record, the DMC's
+record and buffer and the governor's (placeholders of the same types without a governor)."""
+
+
+@numba.njit(cache=True)
+def cascade_reset(c, p, d, dbuf, g, gbuf, measurement, output):
+    """At rest at ``measurement``, the inner loop starting from ``output``."""
+    s = as_record(c)
+    dmc_reset(d, dbuf, measurement, measurement)
+    pid_reset(p, output, True, measurement, True, measurement)
+    s.last_inner_setpoint = measurement
+    if s.has_governor:
+        governor_reset(g, gbuf, measurement)
+
+
+@numba.njit(cache=True)
+def _cascade_forced(s, p, d, dbuf, g, gbuf, voltage, measurement, numbers):
+    """Governor sample: the inner PD is handed the setpoint that gives ``voltage``.
+
+    The cascade's structure stays (the MPC layer sets the PD's setpoint); the DMC, which did
+    not choose the move, is held at the measurement.
+    """
+    code, held = pid_setpoint_for_output(p, voltage, measurement)
+    if code != LAW_OK:
+        return code, 0.0
+    code, output = pid_step_checked(p, held, measurement, numbers)
+    if code != LAW_OK:
+        return code, 0.0
+    dmc_reset(d, dbuf, measurement, measurement)
+    s.last_inner_setpoint = held
+    s.last_forced = voltage
+    governor_applied(g, gbuf, output)
+    return LAW_OK, output
+
+
+@numba.njit(cache=True)
+def cascade_step(c, p, d, dbuf, g, gbuf, setpoint, measurement, numbers):
+    """Return (code, output): one sample of the cascade (``code`` LAW_OK unless refused)."""
+    s = as_record(c)
+    inner = as_record(p)
+    model = as_record(d)
+    governor = as_record(g)
+    has_range = False
+    low, high = 0.0, 0.0
+    s.last_forced = 0.0
+    if s.respect_inner_limits:
+        if s.has_governor and governor.phase != PHASE_DMC:
+            forced, voltage = governor_command(governor, gbuf, setpoint, measurement)
+            if forced:
+                return _cascade_forced(s, inner, model, dbuf, governor, gbuf, voltage,
+                                       measurement, numbers)
+            # handover, at rest: both loops start afresh from here, nothing remembered
+            # of the forced samples (no derivative kick, no booked moves)
+            dmc_reset(model, dbuf, measurement, measurement)
+            pid_reset(inner, 0.0, True, measurement, True, measurement)
+        has_range = True
+        low, high = pid_setpoint_range(inner, measurement)
+    inner_setpoint = dmc_step(model, dbuf, setpoint, measurement, has_range, low, high)
+    s.last_inner_setpoint = inner_setpoint
+    code, output = pid_step_checked(inner, inner_setpoint, measurement, numbers)
+    if code != LAW_OK:
+        return code, 0.0
+    if s.has_governor:
+        governor_applied(governor, gbuf, output)
+    return LAW_OK, output
 
 
 class CascadedMpc:
@@ -219,56 +508,57 @@ class CascadedMpc:
     range that keeps the inner loop's voltage within its limits, and the DMC books the move it
     actually made: the inner loop stays linear, as the DMC's model assumes, so neither loop
     winds up. Without it (the paper's structure) the inner loop saturates and the DMC, which
-    predicts with the unsaturated model, winds up.
+    predicts with the unsaturated model, winds up. The inner PID, the DMC and the governor are
+    façades over the very records the kernels (and a stage's kernel) work on.
     """
 
     def __init__(self, dmc: DynamicMatrixControl, inner: PID, respect_inner_limits: bool = True,
                  governor: BrakingGovernor | None = None):
+        self.record = np.zeros(1, CASCADE_DTYPE)
+        self._numbers = np.zeros(LAW_NUMBERS)
+        self._no_governor = (np.zeros(1, GOVERNOR_DTYPE), np.zeros(governor_buffer_size(1)))
         self.dmc = dmc
         self.inner = inner
         self.respect_inner_limits = respect_inner_limits
         self.governor = governor
-        self.last_inner_setpoint = 0.0
-        self.last_forced = 0.0       # the governor's voltage this sample (0: DMC free)
+
+    @property
+    def governor(self) -> BrakingGovernor | None:
+        return self._governor
+
+    @governor.setter
+    def governor(self, governor: BrakingGovernor | None) -> None:
+        self._governor = governor
+        self.record[0]['has_governor'] = governor is not None
+
+    @property
+    def respect_inner_limits(self) -> bool:
+        return bool(self.record[0]['respect_inner_limits'])
+
+    @respect_inner_limits.setter
+    def respect_inner_limits(self, value: bool) -> None:
+        self.record[0]['respect_inner_limits'] = bool(value)
+
+    @property
+    def last_inner_setpoint(self) -> float:
+        return float(self.record[0]['last_inner_setpoint'])
+
+    @property
+    def last_forced(self) -> float:
+        return float(self.record[0]['last_forced'])
+
+    @property
+    def kernel(self) -> tuple:
+        """(cascade, inner PID, DMC record, DMC buffer, governor record, governor buffer)."""
+        g = self._no_governor if self._governor is None else self._governor.kernel
+        return (self.record, self.inner.record) + self.dmc.kernel + g
 
     def reset(self, measurement: float, output: float = 0.0) -> None:
-        self.dmc.reset(measurement, measurement)
-        self.inner.reset(output, measurement, measurement)
-        self.last_inner_setpoint = measurement
-        if self.governor is not None:
-            self.governor.reset(measurement)
+        cascade_reset(*self.kernel, float(measurement), float(output))
 
     def step(self, setpoint: float, measurement: float) -> float:
-        bounds = None
-        self.last_forced = 0.0
-        if self.respect_inner_limits:
-            governor = self.governor
-            if governor is not None and governor.phase is not GovernorPhase.DMC:
-                forced_v = governor.command(setpoint, measurement)
-                if forced_v is not None:
-                    return self._forced(forced_v, measurement)
-                # handover, at rest: both loops start afresh from here, nothing remembered
-                # of the forced samples (no derivative kick, no booked moves)
-                self.dmc.reset(measurement, measurement)
-                self.inner.reset(0.0, measurement, measurement)
-            bounds = self.inner.setpoint_range(measurement)
-        inner_setpoint = self.dmc.step(setpoint, measurement, bounds)
-        self.last_inner_setpoint = inner_setpoint
-        output = self.inner.step(inner_setpoint, measurement)
-        if self.governor is not None:
-            self.governor.applied(output)
-        return output
-
-    def _forced(self, voltage_v: float, measurement: float) -> float:
-        """Governor sample: the inner PD is handed the setpoint that gives ``voltage_v``.
-
-        The cascade's structure stays (the MPC layer sets the PD's setpoint); the DMC, which
-        did not choose the move, is held at the measurement.
-        """
-        held = self.inner.setpoint_for_output(voltage_v, measurement)
-        output = self.inner.step(held, measurement)
-        self.dmc.reset(measurement, measurement)
-        self.last_inner_setpoint = held
-        self.last_forced = voltage_v
-        self.governor.applied(output)
+        code, output = cascade_step(*self.kernel, float(setpoint), float(measurement),
+                                    self._numbers)
+        if code != LAW_OK:
+            raise law_error(code, self._numbers)
         return output

@@ -11,6 +11,12 @@ The output is clamped to ``output_limits`` (the motor's +-24 V). Anti-windup by 
 integration: the integrator does not move in a direction that would push a saturated output
 further into saturation. :meth:`reset` with an output value gives bumpless transfer: the
 integrator is seeded so the first output equals the command already on the motor.
+
+The per-sample work is compiled (``pid_*`` kernels over one :data:`PID_DTYPE` record, the
+state shared with the stage kernels of :mod:`gripper_ros.core.stages`); :class:`PID` is the
+Python façade that validates and calls them. This module also holds what every compiled law
+shares: Python's ``min``/``max`` semantics (:func:`py_min`, :func:`py_max`) and the codes of a
+law that refuses its numbers (``LAW_*``, formatted by :func:`law_error`).
 """
 from __future__ import annotations
 
@@ -19,6 +25,10 @@ import enum
 import math
 
 from gripper_ros.core.config import PidGains
+import numba
+from numba import types
+from numba.extending import overload
+import numpy as np
 
 
 class DerivativeOn(enum.Enum):
@@ -29,6 +39,196 @@ class DerivativeOn(enum.Enum):
 class AntiWindup(enum.Enum):
     NONE = 'none'                  # plain integrator (what winds up)
     CONDITIONAL = 'conditional'    # stop integrating while saturated in the same direction
+
+
+# --- what a compiled law returns when it refuses its numbers (today's exceptions) ----------
+LAW_OK = 0
+LAW_PID_INPUT = 1        # ValueError: non-finite PID input (law numbers: setpoint, measurement)
+LAW_NO_SLOPE = 2         # ValueError: the output does not depend on the setpoint
+LAW_CONTACT_INPUT = 3    # ValueError: non-finite contact-stage input (its five numbers)
+LAW_ZERO_DIVISION = 4    # ZeroDivisionError: float division by zero
+LAW_MATH_DOMAIN = 5      # ValueError: math domain error (square root of a negative number)
+LAW_NUMBERS = 5
+"""Length of the float array a compiled law writes the numbers of its refusal into."""
+
+
+def law_error(code: int, numbers) -> Exception:
+    """Return today's exception for a compiled law's refusal ``code`` and its ``numbers``."""
+    v = [float(x) for x in numbers]
+    if code == LAW_PID_INPUT:
+        return ValueError(f'non-finite input: setpoint={v[0]!r}, measurement={v[1]!r}')
+    if code == LAW_NO_SLOPE:
+        return ValueError('the output does not depend on the setpoint (kc = 0?)')
+    if code == LAW_CONTACT_INPUT:
+        return ValueError(f'non-finite input: force_setpoint_n={v[0]!r}, force_n={v[1]!r}, '
+                          f'position_m={v[2]!r}, face_m={v[3]!r}, width_tolerance_m={v[4]!r}')
+    if code == LAW_ZERO_DIVISION:
+        return ZeroDivisionError('float division by zero')
+    if code == LAW_MATH_DOMAIN:
+        return ValueError('math domain error')
+    return RuntimeError(f'unknown control-law code {code}')
+
+
+def as_record(x):
+    """Return the record of a 1-element record array, or the record itself.
+
+    Kernels take either: a Python façade passes its 1-element array (a record passed from
+    Python would be a copy), compiled callers pass records (no reference counting).
+    """
+    return x[0] if isinstance(x, np.ndarray) else x
+
+
+@overload(as_record)
+def _as_record(x):
+    if isinstance(x, types.Array):
+        return lambda x: x[0]
+    return lambda x: x
+
+
+@numba.njit(cache=True)
+def py_max(a, b):
+    """Python's ``max(a, b)``: ``a`` unless ``b > a`` (NaN handled as Python does)."""
+    return b if b > a else a
+
+
+@numba.njit(cache=True)
+def py_min(a, b):
+    """Python's ``min(a, b)``: ``a`` unless ``b < a``."""
+    return b if b < a else a
+
+
+PID_DTYPE = np.dtype([
+    ('kc', 'f8'), ('ki', 'f8'), ('kd', 'f8'),       # gains (kc in output per input unit)
+    ('dt_s', 'f8'),
+    ('low', 'f8'), ('high', 'f8'),                  # output_limits
+    ('setpoint_weight', 'f8'),
+    ('derivative_on_measurement', 'u1'),            # DerivativeOn.MEASUREMENT (0: ERROR)
+    ('conditional', 'u1'),                          # AntiWindup.CONDITIONAL (0: NONE)
+    ('has_prev_error', 'u1'),                       # 0: no previous error (None)
+    ('has_prev_measurement', 'u1'),                 # 0: no previous measurement (None)
+    ('prev_error', 'f8'), ('prev_measurement', 'f8'),
+    ('integral', 'f8'),
+    ('last_output', 'f8'),
+    ('proportional', 'f8'), ('integral_term', 'f8'), ('derivative', 'f8'),   # last terms
+    ('output', 'f8'), ('saturated', 'u1'),
+], align=True)
+"""One PID's gains, limits, memory and last terms (a 1-element array is the kernels' state)."""
+
+
+@numba.njit(cache=True)
+def pid_clamp(p, value):
+    """Clamp ``value`` to the output limits."""
+    s = as_record(p)
+    return py_min(s.high, py_max(s.low, value))
+
+
+@numba.njit(cache=True)
+def pid_reset(p, output, has_setpoint, setpoint, has_measurement, measurement):
+    """Forget the past; with setpoint and measurement the next step returns ``output``."""
+    s = as_record(p)
+    s.has_prev_error = 0
+    s.has_prev_measurement = 1 if has_measurement else 0
+    s.prev_measurement = measurement if has_measurement else 0.0
+    if has_setpoint and has_measurement:
+        error = setpoint - measurement
+        s.has_prev_error = 1
+        s.prev_error = error
+        p_term = s.kc * (s.setpoint_weight * setpoint - measurement)
+        # the next step adds ki*dt*e to the integral: seed it so that step returns `output`
+        s.integral = (pid_clamp(s, output) - p_term - s.ki * s.dt_s * error
+                      if s.ki > 0.0 else 0.0)
+    else:
+        s.integral = pid_clamp(s, output) if s.ki > 0.0 else 0.0
+    s.last_output = pid_clamp(s, output)
+
+
+@numba.njit(cache=True)
+def pid_terms(p, setpoint, measurement):
+    """Proportional, integral and derivative terms of the next sample (nothing committed)."""
+    s = as_record(p)
+    error = setpoint - measurement
+    p_term = s.kc * (s.setpoint_weight * setpoint - measurement)
+    if s.kd == 0.0:
+        d_term = 0.0
+    elif s.derivative_on_measurement:
+        d_term = (-s.kd * (measurement - s.prev_measurement) / s.dt_s
+                  if s.has_prev_measurement else 0.0)
+    else:
+        d_term = s.kd * (error - s.prev_error) / s.dt_s if s.has_prev_error else 0.0
+    return p_term, s.integral + s.ki * s.dt_s * error, d_term
+
+
+@numba.njit(cache=True)
+def pid_output_line(p, measurement):
+    """Return (base, slope): the next unclamped output is ``base + slope * setpoint``."""
+    s = as_record(p)
+    p0, i0, d0 = pid_terms(s, 0.0, measurement)
+    base = 0.0 + p0 + i0 + d0
+    p1, i1, d1 = pid_terms(s, 1.0, measurement)
+    return base, (0.0 + p1 + i1 + d1) - base
+
+
+@numba.njit(cache=True)
+def pid_setpoint_range(p, measurement):
+    """Setpoints for which the next output stays inside the limits (-inf, inf: any)."""
+    s = as_record(p)
+    base, slope = pid_output_line(s, measurement)
+    if slope <= 0.0:
+        return -math.inf, math.inf
+    return (s.low - base) / slope, (s.high - base) / slope
+
+
+@numba.njit(cache=True)
+def pid_setpoint_for_output(p, output, measurement):
+    """Return (code, setpoint): the setpoint for which the next output is ``output``.
+
+    ``LAW_NO_SLOPE`` when the output does not depend on the setpoint.
+    """
+    s = as_record(p)
+    base, slope = pid_output_line(s, measurement)
+    if slope <= 0.0:
+        return LAW_NO_SLOPE, 0.0
+    return LAW_OK, (pid_clamp(s, output) - base) / slope
+
+
+@numba.njit(cache=True)
+def pid_step(p, setpoint, measurement):
+    """One sample on finite inputs: returns the clamped output and books the terms."""
+    s = as_record(p)
+    error = setpoint - measurement
+    p_term, integral, d_term = pid_terms(s, setpoint, measurement)
+    raw = p_term + integral + d_term
+    output = pid_clamp(s, raw)
+    saturated = output != raw
+    if saturated and s.conditional and s.ki > 0.0:
+        # Integrate only as far as the limit, never further into saturation.
+        if raw > s.high and error > 0.0:
+            integral = py_max(s.integral, py_min(integral, s.high - p_term - d_term))
+        elif raw < s.low and error < 0.0:
+            integral = py_min(s.integral, py_max(integral, s.low - p_term - d_term))
+        output = pid_clamp(s, p_term + integral + d_term)
+    s.integral = integral
+    s.has_prev_error = 1
+    s.prev_error = error
+    s.has_prev_measurement = 1
+    s.prev_measurement = measurement
+    s.last_output = output
+    s.proportional = p_term
+    s.integral_term = integral
+    s.derivative = d_term
+    s.output = output
+    s.saturated = 1 if saturated else 0
+    return output
+
+
+@numba.njit(cache=True)
+def pid_step_checked(p, setpoint, measurement, numbers):
+    """Return (code, output): :func:`pid_step`, or ``LAW_PID_INPUT`` on a non-finite input."""
+    if not (math.isfinite(setpoint) and math.isfinite(measurement)):
+        numbers[0] = setpoint
+        numbers[1] = measurement
+        return LAW_PID_INPUT, 0.0
+    return LAW_OK, pid_step(p, setpoint, measurement)
 
 
 @dataclass
@@ -43,7 +243,11 @@ class PidTerms:
 
 
 class PID:
-    """One PD, PI or PID loop; ``step(setpoint, measurement)`` once per ``dt_s``."""
+    """One PD, PI or PID loop; ``step(setpoint, measurement)`` once per ``dt_s``.
+
+    The state is the 1-element :data:`PID_DTYPE` array ``record`` (shared with the kernels of
+    any cascade or stage built on this loop).
+    """
 
     def __init__(self, gains: PidGains, dt_s: float, output_limits: tuple[float, float],
                  derivative_on: DerivativeOn = DerivativeOn.ERROR,
@@ -58,14 +262,77 @@ class PID:
             value = getattr(gains, name)
             if not (math.isfinite(value) and value >= 0.0):
                 raise ValueError(f'gain {name} must be finite and >= 0, got {value!r}')
+        self.record = np.zeros(1, PID_DTYPE)
         self.gains = gains
         self.dt_s = dt_s
         self.output_limits = (float(low), float(high))
         self.derivative_on = derivative_on
         self.anti_windup = anti_windup
         self.setpoint_weight = setpoint_weight
-        self.terms = PidTerms()
         self.reset()
+
+    @property
+    def gains(self) -> PidGains:
+        return self._gains
+
+    @gains.setter
+    def gains(self, gains: PidGains) -> None:
+        self._gains = gains
+        s = self.record[0]
+        s['kc'], s['ki'], s['kd'] = gains.kc, gains.ki, gains.kd
+
+    @property
+    def dt_s(self) -> float:
+        return float(self.record[0]['dt_s'])
+
+    @dt_s.setter
+    def dt_s(self, value: float) -> None:
+        self.record[0]['dt_s'] = value
+
+    @property
+    def output_limits(self) -> tuple[float, float]:
+        s = self.record[0]
+        return (float(s['low']), float(s['high']))
+
+    @output_limits.setter
+    def output_limits(self, limits: tuple[float, float]) -> None:
+        s = self.record[0]
+        s['low'], s['high'] = limits
+
+    @property
+    def derivative_on(self) -> DerivativeOn:
+        return (DerivativeOn.MEASUREMENT if self.record[0]['derivative_on_measurement']
+                else DerivativeOn.ERROR)
+
+    @derivative_on.setter
+    def derivative_on(self, value: DerivativeOn) -> None:
+        self.record[0]['derivative_on_measurement'] = value is DerivativeOn.MEASUREMENT
+
+    @property
+    def anti_windup(self) -> AntiWindup:
+        return AntiWindup.CONDITIONAL if self.record[0]['conditional'] else AntiWindup.NONE
+
+    @anti_windup.setter
+    def anti_windup(self, value: AntiWindup) -> None:
+        self.record[0]['conditional'] = value is AntiWindup.CONDITIONAL
+
+    @property
+    def setpoint_weight(self) -> float:
+        return float(self.record[0]['setpoint_weight'])
+
+    @setpoint_weight.setter
+    def setpoint_weight(self, value: float) -> None:
+        self.record[0]['setpoint_weight'] = value
+
+    @property
+    def last_output(self) -> float:
+        return float(self.record[0]['last_output'])
+
+    @property
+    def terms(self) -> PidTerms:
+        s = self.record[0]
+        return PidTerms(float(s['proportional']), float(s['integral_term']),
+                        float(s['derivative']), float(s['output']), bool(s['saturated']))
 
     def reset(self, output: float = 0.0, setpoint: float | None = None,
               measurement: float | None = None) -> None:
@@ -74,42 +341,9 @@ class PID:
         With ``output`` (and the current setpoint/measurement) the next :meth:`step` starts
         from that output: bumpless transfer from another controller.
         """
-        self._prev_error: float | None = None
-        self._prev_measurement: float | None = measurement
-        if setpoint is not None and measurement is not None:
-            error = setpoint - measurement
-            self._prev_error = error
-            p_term = self.gains.kc * (self.setpoint_weight * setpoint - measurement)
-            # the next step adds ki*dt*e to the integral: seed it so that step returns `output`
-            self._integral = (self._clamp(output) - p_term - self.gains.ki * self.dt_s * error
-                              if self.gains.ki > 0.0 else 0.0)
-        else:
-            self._integral = self._clamp(output) if self.gains.ki > 0.0 else 0.0
-        self.last_output = self._clamp(output)
-
-    def _clamp(self, value: float) -> float:
-        low, high = self.output_limits
-        return min(high, max(low, value))
-
-    def _terms(self, setpoint: float, measurement: float) -> tuple[float, float, float]:
-        """Proportional, integral and derivative terms of the next sample (nothing committed)."""
-        g = self.gains
-        error = setpoint - measurement
-        p_term = g.kc * (self.setpoint_weight * setpoint - measurement)
-        if g.kd == 0.0:
-            d_term = 0.0
-        elif self.derivative_on is DerivativeOn.MEASUREMENT:
-            prev = self._prev_measurement
-            d_term = 0.0 if prev is None else -g.kd * (measurement - prev) / self.dt_s
-        else:
-            prev = self._prev_error
-            d_term = 0.0 if prev is None else g.kd * (error - prev) / self.dt_s
-        return p_term, self._integral + g.ki * self.dt_s * error, d_term
-
-    def _output_line(self, measurement: float) -> tuple[float, float]:
-        """Return (base, slope): the next unclamped output is ``base + slope * setpoint``."""
-        base = sum(self._terms(0.0, measurement))
-        return base, sum(self._terms(1.0, measurement)) - base
+        pid_reset(self.record, float(output), setpoint is not None,
+                  0.0 if setpoint is None else float(setpoint), measurement is not None,
+                  0.0 if measurement is None else float(measurement))
 
     def setpoint_range(self, measurement: float) -> tuple[float, float]:
         """Setpoints for which the next output stays inside the limits.
@@ -117,44 +351,21 @@ class PID:
         The output is affine in the setpoint. A cascade's outer loop uses this so the inner
         loop never saturates.
         """
-        base, slope = self._output_line(measurement)
-        low, high = self.output_limits
-        if slope <= 0.0:
-            return (-math.inf, math.inf)
-        return ((low - base) / slope, (high - base) / slope)
+        return pid_setpoint_range(self.record, float(measurement))
 
     def setpoint_for_output(self, output: float, measurement: float) -> float:
         """Setpoint for which the next output is exactly ``output`` (inside the limits)."""
-        base, slope = self._output_line(measurement)
-        if slope <= 0.0:
-            raise ValueError('the output does not depend on the setpoint (kc = 0?)')
-        return (self._clamp(output) - base) / slope
+        code, setpoint = pid_setpoint_for_output(self.record, float(output), float(measurement))
+        if code != LAW_OK:
+            raise law_error(code, ())
+        return setpoint
 
     def step(self, setpoint: float, measurement: float) -> float:
         """One sample: returns the clamped output (e.g. armature voltage)."""
         if not (math.isfinite(setpoint) and math.isfinite(measurement)):
             raise ValueError(f'non-finite input: setpoint={setpoint!r}, '
                              f'measurement={measurement!r}')
-        g = self.gains
-        error = setpoint - measurement
-        p_term, integral, d_term = self._terms(setpoint, measurement)
-        raw = p_term + integral + d_term
-        output = self._clamp(raw)
-        saturated = output != raw
-        if saturated and self.anti_windup is AntiWindup.CONDITIONAL and g.ki > 0.0:
-            low, high = self.output_limits
-            # Integrate only as far as the limit, never further into saturation.
-            if raw > high and error > 0.0:
-                integral = max(self._integral, min(integral, high - p_term - d_term))
-            elif raw < low and error < 0.0:
-                integral = min(self._integral, max(integral, low - p_term - d_term))
-            output = self._clamp(p_term + integral + d_term)
-        self._integral = integral
-        self._prev_error = error
-        self._prev_measurement = measurement
-        self.last_output = output
-        self.terms = PidTerms(p_term, integral, d_term, output, saturated)
-        return output
+        return pid_step(self.record, float(setpoint), float(measurement))
 
 
 def first_order_pi_by_pole_placement(a: float, b: float, dt_s: float,

@@ -18,6 +18,11 @@ and ``bag_replay --resimulate`` run the very same code and get bit-identical com
 
 A *reference* is anything with the fields of ``gripper_interfaces/msg/StageReference``:
 :data:`Reference` (built from the message's bytes), the rclpy message, or a test double.
+
+The per-tick work is one compiled entry point, :func:`stage_answer` (``k, ref, cmd``), over a
+stage's ``kernel`` tuple ``k`` (layout in :data:`KERNEL_LAYOUT`); the compiled headless loop
+calls it, and the classes below are Python façades over the same records. A 0 V answer's
+reason is a code plus numbers in ``k`` (``REASON_*``); :func:`reason_text` formats today's text.
 """
 from __future__ import annotations
 
@@ -26,9 +31,16 @@ import enum
 import math
 
 from gripper_ros.core.config import ConfigError, GripperConfig
+from gripper_ros.core.contact_force import CONTACT_DTYPE, contact_reset, contact_step
 from gripper_ros.core.controllers import (ForceControllerKind, make_force_controller,
                                           make_position_controller, PositionControllerKind)
-from gripper_ros.wire import Controller, REFERENCE_LAYOUT
+from gripper_ros.core.dmc import (CASCADE_DTYPE, cascade_reset, cascade_step, dmc_buffer_size,
+                                  DMC_DTYPE, governor_buffer_size, GOVERNOR_DTYPE)
+from gripper_ros.core.pid import (as_record, law_error, LAW_NUMBERS, LAW_OK, PID_DTYPE,
+                                  pid_reset, pid_step_checked, py_max, py_min)
+from gripper_ros.wire import COMMAND_LAYOUT, Controller, REFERENCE_LAYOUT
+import numba
+import numpy as np
 
 SOURCE_POSITION = Controller.POSITION
 SOURCE_FORCE = Controller.FORCE
@@ -40,6 +52,14 @@ DEFAULT_APPROACH_FORCE_MARGIN = 1.0
 Reference = namedtuple('Reference', REFERENCE_LAYOUT.fields, defaults=(0.0, 0.0))
 """One StageReference's fields, in message order (``Reference._make(values)``); the last two,
 a move's ``speed_limit_mps`` and ``voltage_limit_v``, default to 0 (no limit)."""
+
+REFERENCE_NUMBERS = ('position_setpoint_m', 'approach_setpoint_m', 'force_setpoint_n',
+                     'seed_voltage_v', 'position_m')
+"""The reference fields a stage computes with; a non-finite one is never acted on."""
+LIMIT_NUMBERS = ('speed_limit_mps', 'voltage_limit_v')
+"""... and the position stage's limits (a stage's ``reference_numbers`` name all it uses)."""
+NUMBER_FIELDS = REFERENCE_NUMBERS + LIMIT_NUMBERS
+"""Bit i of a book's ``numbers_mask`` / ``bad_mask`` is ``NUMBER_FIELDS[i]``."""
 
 
 def parse_kind(kind_cls: type[enum.Enum], value, name: str = 'controller'):
@@ -53,7 +73,413 @@ def parse_kind(kind_cls: type[enum.Enum], value, name: str = 'controller'):
                           f'{[k.value for k in kind_cls]}, got {value!r}') from None
 
 
-class PositionStageController:
+# --- records ---------------------------------------------------------------------------------
+KIND_PD = 0
+KIND_PID = 1
+KIND_MPC_PD = 2
+KIND_CONTACT_AWARE = 3
+KIND_PI = 4
+KIND_MPC_PI = 5
+KIND_CODES = {PositionControllerKind.PD: KIND_PD, PositionControllerKind.PID: KIND_PID,
+              PositionControllerKind.MPC_PD: KIND_MPC_PD,
+              ForceControllerKind.CONTACT_AWARE: KIND_CONTACT_AWARE,
+              ForceControllerKind.PI: KIND_PI, ForceControllerKind.MPC_PI: KIND_MPC_PI}
+"""A stage's ``kind`` code in :data:`STAGE_DTYPE`."""
+
+STAGE_DTYPE = np.dtype([
+    ('source', 'i8'),                      # Controller.POSITION or Controller.FORCE
+    ('kind', 'i8'),                        # KIND_*
+    ('sample_time_s', 'f8'),               # the command's hold_s
+    # position stage
+    ('full_v', 'f8'),                      # the plant's voltage limit
+    ('limit_low', 'f8'), ('limit_high', 'f8'),     # this tick's output limits
+    ('speed_gain_limit', 'f8'),            # V per m/s of the speed limit
+    ('speed_gain_speed', 'f8'),            # V per m/s of the speed towards the setpoint
+    # force stage
+    ('approach_margin', 'f8'),
+    ('contact', 'u1'),                     # contact seen since activation (PI / MPC-PI cap off)
+    ('full_low', 'f8'), ('full_high', 'f8'),       # the PI's limits without the cap
+    ('stall_force_per_volt_n', 'f8'),
+], align=True)
+"""A stage controller's kind, limits and flags (both stages; each uses its share)."""
+
+ANSWER_REPEATED = -1
+REASON_NONE = 0
+REASON_MEASUREMENT = 1     # 'non-finite measurement'
+REASON_REFERENCE = 2       # 'non-finite reference (...)': book bad_mask, the numbers as read
+REASON_LAW = 3             # 'control law failed: ...': book law_code, the law's numbers
+REASON_OUTPUT = 4          # 'non-finite output (...)': law numbers [0] voltage, [1] inner
+
+BOOK_DTYPE = np.dtype([
+    ('has_answered', 'u1'),                # 0: nothing answered yet (None)
+    ('answered_stage_id', 'i8'), ('answered_stamp_ns', 'i8'),
+    ('active_stage', 'i8'),                # the stage the law was started for; -1: none
+    ('numbers_mask', 'i8'),                # NUMBER_FIELDS checked (the stage's numbers)
+    ('reason', 'i8'),                      # REASON_* of the last answer
+    ('bad_mask', 'i8'),                    # REASON_REFERENCE: the non-finite NUMBER_FIELDS
+    ('law_code', 'i8'),                    # REASON_LAW: the law's LAW_* code
+], align=True)
+"""The lockstep bookkeeping of one controller around a stage."""
+
+REFERENCE_DTYPE = REFERENCE_LAYOUT.dtype
+COMMAND_DTYPE = COMMAND_LAYOUT.dtype
+
+STATE_DTYPE = np.dtype([
+    ('book', BOOK_DTYPE), ('stage', STAGE_DTYPE), ('pid', PID_DTYPE),
+    ('cascade', CASCADE_DTYPE), ('dmc', DMC_DTYPE), ('governor', GOVERNOR_DTYPE),
+    ('contact', CONTACT_DTYPE),
+], align=True)
+"""Every record of one stage controller, nested: the book, the stage, the PID (the PD/PID/PI
+or a cascade's inner loop), the cascade, the DMC, the governor and the contact-aware stage.
+Parts a kind does not use are placeholders, so every stage compiles to one
+:func:`stage_answer`. The law façades view their part (``controller.record`` is
+``state['pid']`` ...)."""
+
+LAW_AT = 0                                 # vectors[0:5]: a refusing law's numbers
+REFERENCE_AT = LAW_AT + LAW_NUMBERS        # vectors[5:12]: the reference numbers as read
+DMC_AT = REFERENCE_AT + len(NUMBER_FIELDS)  # vectors[12:]: the DMC's buffer, the governor's
+
+KERNEL_LAYOUT = ('state', 'vectors')
+"""``k = (state, vectors)``: ``state`` a 1-element :data:`STATE_DTYPE` array, ``vectors`` one
+float array: a refusing law's numbers (5, ``LAW_AT``), the reference numbers as read
+(``NUMBER_FIELDS`` order, 7, ``REFERENCE_AT``), the DMC's buffer (``DMC_AT``,
+:func:`~gripper_ros.core.dmc.dmc_buffer_size`) and the governor's buffer after it
+(:func:`~gripper_ros.core.dmc.governor_buffer_size`). Two arrays, so a call costs few
+reference counts: the kernels below pass records."""
+
+
+# --- kernels ---------------------------------------------------------------------------------
+@numba.njit(cache=True)
+def stage_buffers(st, vectors):
+    """Return (law numbers, reference numbers, DMC buffer, governor buffer) of a stage."""
+    dmc_end = DMC_AT + 4 * st.dmc.horizon + 1
+    return (vectors[LAW_AT:REFERENCE_AT], vectors[REFERENCE_AT:DMC_AT],
+            vectors[DMC_AT:dmc_end], vectors[dmc_end:])
+
+
+@numba.njit(cache=True)
+def position_voltage_cap_v(state, ref, toward_speed_mps):
+    """Return the most voltage towards the setpoint this tick (``ref`` a reference record)."""
+    s = as_record(state).stage
+    r = as_record(ref)
+    cap = s.full_v
+    if r.voltage_limit_v > 0.0:
+        cap = py_min(cap, r.voltage_limit_v)
+    limit = r.speed_limit_mps
+    if limit > 0.0:
+        cap = py_min(cap, py_max(0.0, s.speed_gain_limit * limit
+                                 - s.speed_gain_speed * toward_speed_mps))
+    return cap
+
+
+@numba.njit(cache=True)
+def _position_apply_limits(st, r, measurement):
+    """Set this tick's output limits (only a move's reference changes them)."""
+    s = st.stage
+    if r.voltage_limit_v == 0.0 and r.speed_limit_mps == 0.0:
+        low, high = -s.full_v, s.full_v
+    elif r.approach_setpoint_m >= measurement:
+        low, high = -s.full_v, position_voltage_cap_v(st, r, r.velocity_mps)
+    else:
+        low, high = -position_voltage_cap_v(st, r, -r.velocity_mps), s.full_v
+    if not (low == s.limit_low and high == s.limit_high):
+        s.limit_low = low
+        s.limit_high = high
+        p = st.pid
+        p.low = low
+        p.high = high
+        if s.kind == KIND_MPC_PD and st.cascade.has_governor:
+            st.governor.limit_v = py_min(-low, high)
+
+
+@numba.njit(cache=True)
+def _force_apply_limits(st, r):
+    """Set the PI's limits: capped before contact at the margin's stall voltage."""
+    s = st.stage
+    low, high = s.full_low, s.full_high
+    if not s.contact and s.approach_margin > 0.0:
+        cap = s.approach_margin * r.force_setpoint_n / s.stall_force_per_volt_n
+        high = py_min(high, cap)
+    p = st.pid
+    p.low = low
+    p.high = high
+
+
+@numba.njit(cache=True)
+def stage_activate(state, vectors, ref, measurement):
+    """Restart the law for a new stage (position: from rest; force: approach or seeded PI)."""
+    st = as_record(state)
+    r = as_record(ref)
+    s = st.stage
+    _, _, dbuf, gbuf = stage_buffers(st, vectors)
+    if s.source == Controller.POSITION:
+        _position_apply_limits(st, r, measurement)
+        if s.kind == KIND_MPC_PD:
+            cascade_reset(st.cascade, st.pid, st.dmc, dbuf, st.governor, gbuf, measurement, 0.0)
+        else:
+            pid_reset(st.pid, 0.0, False, 0.0, True, measurement)
+        return
+    s.contact = 0
+    if s.kind == KIND_CONTACT_AWARE:       # speed-shaped approach from where the finger is now
+        contact_reset(st.contact, True, r.position_m)
+        return
+    _force_apply_limits(st, r)
+    if s.kind == KIND_MPC_PI:
+        cascade_reset(st.cascade, st.pid, st.dmc, dbuf, st.governor, gbuf, measurement,
+                      r.seed_voltage_v)
+    else:
+        pid_reset(st.pid, r.seed_voltage_v, True, r.force_setpoint_n, True, measurement)
+
+
+@numba.njit(cache=True)
+def stage_compute(state, vectors, ref, measurement):
+    """Return (code, voltage_v, inner_setpoint) for this tick (``code`` LAW_OK unless refused).
+
+    A refusing law's numbers are in ``vectors[LAW_AT:]``.
+    """
+    st = as_record(state)
+    r = as_record(ref)
+    s = st.stage
+    numbers = vectors[LAW_AT:REFERENCE_AT]
+    if s.source == Controller.POSITION:
+        _position_apply_limits(st, r, measurement)
+        setpoint = r.approach_setpoint_m
+    else:
+        setpoint = r.force_setpoint_n
+        if s.kind == KIND_CONTACT_AWARE:
+            face_m = r.position_setpoint_m
+            code, voltage = contact_step(st.contact, setpoint, measurement, r.position_m, face_m,
+                                         py_max(face_m - r.approach_setpoint_m, 0.0), numbers)
+            return code, voltage, setpoint
+        if not s.contact and r.contact:    # the cap ends at first contact
+            s.contact = 1
+            _force_apply_limits(st, r)
+    if s.kind == KIND_MPC_PD or s.kind == KIND_MPC_PI:
+        _, _, dbuf, gbuf = stage_buffers(st, vectors)
+        code, voltage = cascade_step(st.cascade, st.pid, st.dmc, dbuf, st.governor, gbuf,
+                                     setpoint, measurement, numbers)
+        return code, voltage, st.cascade.last_inner_setpoint
+    code, voltage = pid_step_checked(st.pid, setpoint, measurement, numbers)
+    return code, voltage, setpoint
+
+
+@numba.njit(cache=True)
+def answer_open(book, reference_numbers, ref, measurement):
+    """Start answering ``ref``: ANSWER_REPEATED, REASON_NONE (go on) or the reason for 0 V.
+
+    Each (stage_id, stamp_ns) is answered once; a non-finite measurement or reference number
+    is never acted on.
+    """
+    b = as_record(book)
+    r = as_record(ref)
+    if b.has_answered and b.answered_stage_id == r.stage_id and \
+            b.answered_stamp_ns == r.stamp_ns:
+        return ANSWER_REPEATED
+    b.has_answered = 1
+    b.answered_stage_id = r.stage_id
+    b.answered_stamp_ns = r.stamp_ns
+    b.reason = REASON_NONE
+    if not math.isfinite(measurement):
+        b.reason = REASON_MEASUREMENT
+        return REASON_MEASUREMENT
+    reference_numbers[0] = r.position_setpoint_m
+    reference_numbers[1] = r.approach_setpoint_m
+    reference_numbers[2] = r.force_setpoint_n
+    reference_numbers[3] = r.seed_voltage_v
+    reference_numbers[4] = r.position_m
+    reference_numbers[5] = r.speed_limit_mps
+    reference_numbers[6] = r.voltage_limit_v
+    bad = 0
+    for i in range(7):
+        if (b.numbers_mask >> i) & 1 and not math.isfinite(reference_numbers[i]):
+            bad |= 1 << i
+    if bad:
+        b.bad_mask = bad
+        b.reason = REASON_REFERENCE
+        return REASON_REFERENCE
+    return REASON_NONE
+
+
+@numba.njit(cache=True)
+def answer_close(book, law_numbers, code, voltage, inner):
+    """Return (finite, voltage, inner): the law's answer, or 0 V when it refused or went bad.
+
+    Either way the law's state is no longer trustworthy: it restarts at the next good tick.
+    """
+    b = as_record(book)
+    if code != LAW_OK:                     # a law that refuses its numbers
+        b.active_stage = -1
+        b.reason = REASON_LAW
+        b.law_code = code
+        return 0, 0.0, 0.0
+    if not (math.isfinite(voltage) and math.isfinite(inner)):
+        b.active_stage = -1
+        b.reason = REASON_OUTPUT
+        law_numbers[0] = voltage
+        law_numbers[1] = inner
+        return 0, 0.0, 0.0
+    return 1, voltage, inner
+
+
+@numba.njit(cache=True)
+def stage_answer(k, ref, cmd):
+    """Answer the reference record ``ref`` into the command record ``cmd``; False if repeated.
+
+    Today's ``LockstepAnswerer.answer`` and the command ``lockstep.StageSide.answer`` builds:
+    restart the law on a new stage, hold 0 V (reason in the book) on a non-finite measurement
+    or reference number, a refused or non-finite output.
+    """
+    st = k[0][0]
+    vectors = k[1]
+    r = ref[0]
+    s = st.stage
+    book = st.book
+    measurement = r.position_m if s.source == Controller.POSITION else r.force_n
+    reason = answer_open(book, vectors[REFERENCE_AT:DMC_AT], r, measurement)
+    if reason == ANSWER_REPEATED:
+        return False
+    finite, voltage, inner = 0, 0.0, 0.0
+    if reason == REASON_NONE:
+        if book.active_stage != r.stage_id:
+            stage_activate(st, vectors, r, measurement)
+            book.active_stage = r.stage_id
+        code, voltage, inner = stage_compute(st, vectors, r, measurement)
+        finite, voltage, inner = answer_close(book, vectors[LAW_AT:REFERENCE_AT], code,
+                                              voltage, inner)
+    c = cmd[0]
+    c.stamp_ns = r.stamp_ns
+    c.grasp_id = r.grasp_id
+    c.stage_id = r.stage_id
+    c.revision = r.revision
+    c.source = s.source
+    c.phase = r.phase
+    c.outcome = r.outcome
+    c.running = r.running
+    c.finite = finite
+    c.voltage_v = voltage
+    c.hold_s = s.sample_time_s
+    c.inner_setpoint = inner
+    return True
+
+
+position_stage_answer = stage_answer
+force_stage_answer = stage_answer
+
+
+# --- façades ---------------------------------------------------------------------------------
+def numbers_mask(names) -> int:
+    """Return the ``numbers_mask`` of these reference fields (each one of NUMBER_FIELDS)."""
+    mask = 0
+    for name in names:
+        if name not in NUMBER_FIELDS:
+            raise ValueError(f'{name!r} is not a reference number the stages check '
+                             f'({", ".join(NUMBER_FIELDS)})')
+        mask |= 1 << NUMBER_FIELDS.index(name)
+    return mask
+
+
+def reset_book(book: np.ndarray, names=REFERENCE_NUMBERS) -> np.ndarray:
+    """Reset ``book`` (1-element array): nothing answered, no stage active, checking ``names``."""
+    book[0] = np.zeros(1, BOOK_DTYPE)[0]
+    book[0]['active_stage'] = -1
+    book[0]['numbers_mask'] = numbers_mask(names)
+    return book
+
+
+def reason_text(book, reference_numbers, law_numbers, names=NUMBER_FIELDS) -> str:
+    """Return today's text for the last answer's 0 V reason ('' when it was answered).
+
+    ``names``: the stage's reference numbers, in the order they are listed.
+    """
+    b = book[0]
+    reason = int(b['reason'])
+    if reason == REASON_MEASUREMENT:
+        return 'non-finite measurement'
+    if reason == REASON_REFERENCE:
+        bad = [f'{n}={float(reference_numbers[NUMBER_FIELDS.index(n)])!r}' for n in names
+               if (int(b['bad_mask']) >> NUMBER_FIELDS.index(n)) & 1]
+        return f'non-finite reference ({", ".join(bad)})'
+    if reason == REASON_LAW:
+        return f'control law failed: {law_error(int(b["law_code"]), law_numbers)}'
+    if reason == REASON_OUTPUT:
+        return (f'non-finite output (voltage {float(law_numbers[0])!r}, inner setpoint '
+                f'{float(law_numbers[1])!r})')
+    return ''
+
+
+_LIMIT_DEFAULTS = {'speed_limit_mps': 0.0, 'voltage_limit_v': 0.0}
+
+
+def fill_reference(ref, out: np.ndarray) -> np.ndarray:
+    """Write ``ref`` (a :data:`Reference`, an rclpy message, a double) into the record ``out``."""
+    if type(ref) is Reference:
+        out[0] = ref
+    else:
+        out[0] = tuple(getattr(ref, name) if name not in _LIMIT_DEFAULTS
+                       else getattr(ref, name, 0.0) for name in REFERENCE_LAYOUT.fields)
+    return out
+
+
+def _rehome(facade, state: np.ndarray, field: str) -> None:
+    """Move a law façade's record into ``state[field]``: both then share the same memory."""
+    state[0][field] = facade.record[0]
+    facade.record = state[field]
+
+
+class _KernelStage:
+    """What both stage façades share: the kernel ``k`` and the Python entry points over it."""
+
+    reference_numbers = REFERENCE_NUMBERS
+
+    def _build_kernel(self, kind, pid=None, cascade=None, contact=None) -> None:
+        """Gather the laws' records and buffers into ``k = (state, vectors)``."""
+        self.state = state = np.zeros(1, STATE_DTYPE)
+        dmc = cascade.dmc if cascade is not None else None
+        governor = cascade.governor if cascade is not None else None
+        dmc_size = dmc_buffer_size(dmc.horizon if dmc is not None else 1)
+        rows = int(governor.record[0]['rows']) if governor is not None else 1
+        self.vectors = vectors = np.zeros(DMC_AT + dmc_size + governor_buffer_size(rows))
+        st = state[0]
+        st['dmc']['horizon'] = 1
+        st['governor']['rows'] = 1
+        if cascade is not None:
+            pid = cascade.inner
+            _rehome(cascade, state, 'cascade')
+            vectors[DMC_AT:DMC_AT + dmc_size] = dmc.buffer
+            dmc.buffer = vectors[DMC_AT:DMC_AT + dmc_size]
+            _rehome(dmc, state, 'dmc')
+            if governor is not None:
+                vectors[DMC_AT + dmc_size:] = governor.buffer
+                governor.buffer = vectors[DMC_AT + dmc_size:]
+                _rehome(governor, state, 'governor')
+        if pid is not None:
+            _rehome(pid, state, 'pid')
+        if contact is not None:
+            _rehome(contact, state, 'contact')
+        s = st['stage']
+        s['source'] = int(self.source)
+        s['kind'] = KIND_CODES[kind]
+        s['sample_time_s'] = self.sample_time_s
+        reset_book(state['book'], self.reference_numbers)
+        self.record = state['stage']
+        self.kernel = (state, vectors)
+        self._ref = np.zeros(1, REFERENCE_DTYPE)
+
+    def activate(self, ref, measurement: float) -> None:
+        """Restart the law for a new stage."""
+        stage_activate(self.state, self.vectors, fill_reference(ref, self._ref),
+                       float(measurement))
+
+    def compute(self, ref, measurement: float) -> tuple[float, float]:
+        """Return (voltage_v, inner_setpoint) for this tick (the law's exception if refused)."""
+        code, voltage, inner = stage_compute(self.state, self.vectors,
+                                             fill_reference(ref, self._ref), float(measurement))
+        if code != LAW_OK:
+            raise law_error(code, self.vectors[LAW_AT:REFERENCE_AT])
+        return voltage, inner
+
+
+class PositionStageController(_KernelStage):
     """The position controller node's control law (10 ms, Table II), with a move's limits.
 
     A reference's ``voltage_limit_v`` and ``speed_limit_mps`` (> 0; 0 = none) cap the voltage
@@ -66,6 +492,7 @@ class PositionStageController:
     """
 
     source = SOURCE_POSITION
+    reference_numbers = REFERENCE_NUMBERS + LIMIT_NUMBERS
 
     def __init__(self, config: GripperConfig,
                  kind: PositionControllerKind | str = DEFAULT_POSITION_CONTROLLER):
@@ -73,70 +500,34 @@ class PositionStageController:
         self.kind = parse_kind(PositionControllerKind, kind)
         self.controller = make_position_controller(config, self.kind)
         self.sample_time_s = config.position.sample_time_s
-        self.reference_numbers = REFERENCE_NUMBERS + LIMIT_NUMBERS
         mpc = self.kind is PositionControllerKind.MPC_PD
-        self._pid = self.controller.inner if mpc else self.controller
-        self._governor = self.controller.governor if mpc else None
+        self._build_kernel(self.kind, pid=None if mpc else self.controller,
+                           cascade=self.controller if mpc else None)
         plant = config.plant
-        self._full_v = plant.voltage_limit_v
-        self._limits = self._full_limits = (-self._full_v, self._full_v)
+        s = self.record[0]
+        s['full_v'] = plant.voltage_limit_v
+        s['limit_low'], s['limit_high'] = -plant.voltage_limit_v, plant.voltage_limit_v
         # speed one sample on: a v + (1 - a) k_v u; the cap u puts it at v_lim - pole (v_lim - v)
         a = math.exp(-self.sample_time_s / plant.mechanical_time_constant_s)
         pole = config.position.speed_limit_pole
         gain = 1.0 / ((1.0 - a) * plant.free_speed_per_volt_mps)
-        self._speed_gain_v_per_mps = ((1.0 - pole) * gain, (a - pole) * gain)
+        s['speed_gain_limit'], s['speed_gain_speed'] = (1.0 - pole) * gain, (a - pole) * gain
 
     def voltage_cap_v(self, ref, toward_speed_mps: float) -> float:
         """Return the most voltage towards the setpoint this tick.
 
         ``toward_speed_mps`` is the finger's speed towards the setpoint.
         """
-        cap = self._full_v
-        if ref.voltage_limit_v > 0.0:
-            cap = min(cap, ref.voltage_limit_v)
-        limit = ref.speed_limit_mps
-        if limit > 0.0:
-            k_limit, k_speed = self._speed_gain_v_per_mps
-            cap = min(cap, max(0.0, k_limit * limit - k_speed * toward_speed_mps))
-        return cap
-
-    def _apply_limits(self, ref, measurement: float) -> None:
-        """Set this tick's output limits (only a move's reference changes them)."""
-        if ref.voltage_limit_v == 0.0 and ref.speed_limit_mps == 0.0:
-            limits = self._full_limits
-        elif ref.approach_setpoint_m >= measurement:
-            limits = (-self._full_v, self.voltage_cap_v(ref, ref.velocity_mps))
-        else:
-            limits = (-self.voltage_cap_v(ref, -ref.velocity_mps), self._full_v)
-        if limits != self._limits:
-            self._limits = limits
-            self._pid.output_limits = limits
-            if self._governor is not None:
-                self._governor.limit_v = min(-limits[0], limits[1])
+        return position_voltage_cap_v(self.state, fill_reference(ref, self._ref),
+                                      float(toward_speed_mps))
 
     @staticmethod
     def measurement(ref) -> float:
         """Return what this stage controls, from the tick's reference: the finger position."""
         return ref.position_m
 
-    def activate(self, ref, measurement: float) -> None:
-        """Start from rest at the measured position with the motor off."""
-        self._apply_limits(ref, measurement)
-        if self.kind is PositionControllerKind.MPC_PD:
-            self.controller.reset(measurement, 0.0)
-        else:
-            self.controller.reset(0.0, measurement=measurement)
 
-    def compute(self, ref, measurement: float) -> tuple[float, float]:
-        """Return (voltage_v, inner_setpoint) for this tick."""
-        self._apply_limits(ref, measurement)
-        setpoint = ref.approach_setpoint_m
-        voltage = self.controller.step(setpoint, measurement)
-        inner = getattr(self.controller, 'last_inner_setpoint', setpoint)
-        return voltage, inner
-
-
-class ForceStageController:
+class ForceStageController(_KernelStage):
     """The force controller node's control law (force sampling time, bumpless, approach cap)."""
 
     source = SOURCE_FORCE
@@ -155,9 +546,21 @@ class ForceStageController:
         self._pi = None if self.contact_aware else (
             self.controller.inner if self.kind is ForceControllerKind.MPC_PI
             else self.controller)
-        self._full_limits = None if self.contact_aware else self._pi.output_limits
         self.sample_time_s = config.force.sample_time_s
-        self._contact = False
+        self._build_kernel(self.kind,
+                           pid=self.controller if self.kind is ForceControllerKind.PI else None,
+                           cascade=(self.controller if self.kind is ForceControllerKind.MPC_PI
+                                    else None),
+                           contact=self.controller if self.contact_aware else None)
+        s = self.record[0]
+        s['approach_margin'] = margin
+        s['stall_force_per_volt_n'] = config.plant.stall_force_per_volt_n
+        if not self.contact_aware:
+            s['full_low'], s['full_high'] = self._pi.output_limits
+
+    @property
+    def _contact(self) -> bool:
+        return bool(self.record[0]['contact'])
 
     @property
     def capped(self) -> bool:
@@ -172,47 +575,6 @@ class ForceStageController:
     def measurement(ref) -> float:
         """Return what this stage controls, from the tick's reference: the gripping force."""
         return ref.force_n
-
-    def activate(self, ref, measurement: float) -> None:
-        """Restart: the contact-aware approach from where the finger is, or the PI seeded."""
-        self._contact = False
-        if self.contact_aware:       # speed-shaped approach from where the finger is now
-            self.controller.reset(ref.position_m)
-            return
-        self._apply_limits(ref)
-        if self.kind is ForceControllerKind.MPC_PI:
-            self.controller.reset(measurement, ref.seed_voltage_v)
-        else:
-            self.controller.reset(ref.seed_voltage_v, ref.force_setpoint_n, measurement)
-
-    def _apply_limits(self, ref) -> None:
-        low, high = self._full_limits
-        if not self._contact and self.approach_margin > 0.0:
-            cap = (self.approach_margin * ref.force_setpoint_n
-                   / self.config.plant.stall_force_per_volt_n)
-            high = min(high, cap)
-        self._pi.output_limits = (low, high)
-
-    def compute(self, ref, measurement: float) -> tuple[float, float]:
-        """Return (voltage_v, inner_setpoint) for this tick; the cap ends at first contact."""
-        if self.contact_aware:
-            face_m = ref.position_setpoint_m
-            voltage = self.controller.step(ref.force_setpoint_n, measurement, ref.position_m,
-                                           face_m, max(face_m - ref.approach_setpoint_m, 0.0))
-            return voltage, ref.force_setpoint_n
-        if not self._contact and ref.contact:
-            self._contact = True
-            self._apply_limits(ref)
-        voltage = self.controller.step(ref.force_setpoint_n, measurement)
-        inner = getattr(self.controller, 'last_inner_setpoint', ref.force_setpoint_n)
-        return voltage, inner
-
-
-REFERENCE_NUMBERS = ('position_setpoint_m', 'approach_setpoint_m', 'force_setpoint_n',
-                     'seed_voltage_v', 'position_m')
-"""The reference fields a stage computes with; a non-finite one is never acted on."""
-LIMIT_NUMBERS = ('speed_limit_mps', 'voltage_limit_v')
-"""... and the position stage's limits (a stage's ``reference_numbers`` name all it uses)."""
 
 
 class TickAnswer(namedtuple('TickAnswer', 'voltage_v inner_setpoint finite reason',
@@ -231,30 +593,73 @@ class LockstepAnswerer:
 
     A stage is anything with ``source``, ``measurement(ref)``, ``activate(ref, measurement)``
     and ``compute(ref, measurement)``. Call :meth:`answer` with every reference addressed to
-    this controller.
+    this controller. A stage with a ``kernel`` (the stage controllers above) is answered by
+    :func:`stage_answer` on its own book; any other stage by the same bookkeeping kernels
+    around its Python ``activate`` / ``compute``.
     """
 
     def __init__(self, stage):
         self.stage = stage
         self.numbers = getattr(stage, 'reference_numbers', REFERENCE_NUMBERS)
-        self.answered: tuple[int, int] | None = None    # (stage_id, stamp) last answered
-        self.active_stage: int | None = None            # the stage the law was started for
+        self._kernel = getattr(stage, 'kernel', None)
+        if self._kernel is not None:
+            state, vectors = self._kernel
+            self._book = state['book']
+            self._reference_numbers = vectors[REFERENCE_AT:DMC_AT]
+            self._law_numbers = vectors[LAW_AT:REFERENCE_AT]
+        else:
+            self._book = np.zeros(1, BOOK_DTYPE)
+            self._reference_numbers = np.zeros(len(NUMBER_FIELDS))
+            self._law_numbers = np.zeros(LAW_NUMBERS)
+        reset_book(self._book, self.numbers)
+        self._ref = np.zeros(1, REFERENCE_DTYPE)
+        self._cmd = np.zeros(1, COMMAND_DTYPE)
+
+    @property
+    def answered(self) -> tuple[int, int] | None:
+        """(stage_id, stamp) last answered."""
+        b = self._book[0]
+        return ((int(b['answered_stage_id']), int(b['answered_stamp_ns']))
+                if b['has_answered'] else None)
+
+    @answered.setter
+    def answered(self, key: tuple[int, int] | None) -> None:
+        b = self._book[0]
+        b['has_answered'] = key is not None
+        if key is not None:
+            b['answered_stage_id'], b['answered_stamp_ns'] = key
+
+    @property
+    def active_stage(self) -> int | None:
+        """The stage the law was started for."""
+        active = int(self._book[0]['active_stage'])
+        return None if active < 0 else active
+
+    @active_stage.setter
+    def active_stage(self, stage_id: int | None) -> None:
+        self._book[0]['active_stage'] = -1 if stage_id is None else stage_id
+
+    @property
+    def reason(self) -> str:
+        """Why the last answer held 0 V ('' when it did not)."""
+        return reason_text(self._book, self._reference_numbers, self._law_numbers, self.numbers)
 
     def answer(self, ref) -> TickAnswer | None:
         """Return the command for this tick, or None when this (stage, stamp) was answered."""
-        key = (ref.stage_id, ref.stamp_ns)
-        if key == self.answered:
-            return None
-        self.answered = key
+        fill_reference(ref, self._ref)
+        if self._kernel is not None:
+            if not stage_answer(self._kernel, self._ref, self._cmd):
+                return None
+            c = self._cmd[0]
+            if c['finite']:
+                return TickAnswer(float(c['voltage_v']), float(c['inner_setpoint']))
+            return TickAnswer(0.0, 0.0, finite=False, reason=self.reason)
         measurement = self.stage.measurement(ref)
-        if not math.isfinite(measurement):
-            return TickAnswer(0.0, 0.0, finite=False, reason='non-finite measurement')
-        for name in self.numbers:
-            if not math.isfinite(getattr(ref, name)):
-                bad = [f'{n}={getattr(ref, n)!r}' for n in self.numbers
-                       if not math.isfinite(getattr(ref, n))]
-                return TickAnswer(0.0, 0.0, finite=False,
-                                  reason=f'non-finite reference ({", ".join(bad)})')
+        reason = answer_open(self._book, self._reference_numbers, self._ref, float(measurement))
+        if reason == ANSWER_REPEATED:
+            return None
+        if reason != REASON_NONE:
+            return TickAnswer(0.0, 0.0, finite=False, reason=self.reason)
         try:
             if self.active_stage != ref.stage_id:
                 self.stage.activate(ref, measurement)
@@ -263,10 +668,8 @@ class LockstepAnswerer:
         except (ValueError, ArithmeticError) as exc:    # a law that refuses its numbers
             self.active_stage = None
             return TickAnswer(0.0, 0.0, finite=False, reason=f'control law failed: {exc}')
-        if not (math.isfinite(voltage) and math.isfinite(inner)):
-            # the law's state is no longer trustworthy: start afresh at the next finite tick
-            self.active_stage = None
-            return TickAnswer(0.0, 0.0, finite=False,
-                              reason=f'non-finite output (voltage {voltage!r}, inner setpoint '
-                                     f'{inner!r})')
+        finite, _, _ = answer_close(self._book, self._law_numbers, LAW_OK, float(voltage),
+                                    float(inner))
+        if not finite:
+            return TickAnswer(0.0, 0.0, finite=False, reason=self.reason)
         return TickAnswer(voltage, inner)
