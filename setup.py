@@ -43,6 +43,7 @@ setup(
             'bench_controllers = gripper_ros.bench.controllers:main',
             'lift_table = gripper_ros.apps.lift_table:main',
             'bench_realtime = gripper_ros.bench.realtime:main',
+            'bench_headless = gripper_ros.bench.headless:main',
         ],
     },
 )

@@ -218,22 +218,24 @@ def arrival_floors_s(config, setpoints_m, dt_s: float = 1.0e-4) -> list[float]:
     return [floors[s] for s in setpoints_m]
 
 
-def _rest_floor_s(config, setpoint_m: float) -> float:
-    from gripper_ros.apps.position_limit import minimum_time_floor
-    return minimum_time_floor(config, setpoint_m, config.position.sample_time_s).rest_time_s
+def _rest_floors_s(config, setpoints_m: list[float]) -> list[float]:
+    from gripper_ros.apps.position_limit import minimum_rest_times_s
+    return minimum_rest_times_s(config, setpoints_m, config.position.sample_time_s)
 
 
-def _grasp(config, force_controller, hold_s, case: SweepCase):
-    """Run one grasp of the sweep (module level: it runs in worker processes)."""
-    from gripper_ros.core.headless import simulate_grasp
-    from gripper_ros.core.supervisor import RequestError
+def _case_keywords(case: SweepCase, force_controller, hold_s: float) -> dict:
+    """Return :func:`simulate_grasp`'s keywords for one case of the sweep."""
     kinds = {} if force_controller is None else {'force_controller': force_controller}
-    try:
-        g = simulate_grasp(config, case.width_m, case.mass_kg, object_width_m=case.object_width_m,
-                           stiffness_n_per_m=case.stiffness_n_per_m,
-                           damping_n_s_per_m=case.damping_n_s_per_m,
-                           width_tolerance_m=case.width_tolerance_m, hold_s=hold_s, **kinds)
-    except RequestError:
+    return dict(width_m=case.width_m, mass_kg=case.mass_kg, object_width_m=case.object_width_m,
+                stiffness_n_per_m=case.stiffness_n_per_m,
+                damping_n_s_per_m=case.damping_n_s_per_m,
+                width_tolerance_m=case.width_tolerance_m, hold_s=hold_s, **kinds)
+
+
+def _summary(case: dict, g):
+    """One grasp's figures (runs in the worker: only these come back); None when refused."""
+    from gripper_ros.core.requests import RequestError
+    if isinstance(g, RequestError):
         return None                 # beyond what 24 V can hold: refused, not swept
     f_sp = g.force_setpoint_n
     held = g.outcome.name == 'HOLDING'
@@ -247,28 +249,21 @@ def _grasp(config, force_controller, hold_s, case: SweepCase):
             g.time_to_answer_s if held else math.inf, lo / f_sp, hi / f_sp, drift)
 
 
-def _pool_map(fn, items, jobs: int):
-    """Map ``fn`` over ``items`` in ``jobs`` worker processes.
-
-    The workers come from a fork server, not a fork of this process: a fork of a process with
-    threads running (an rclpy executor, DDS) can inherit a lock held mid-call and hang.
-    """
-    if jobs <= 1 or len(items) <= 1:
-        return [fn(i) for i in items]
-    with multiprocessing.get_context('forkserver').Pool(jobs) as pool:
-        return pool.map(fn, items, chunksize=1)
-
-
 def sweep(config, cases: list[SweepCase], force_controller: str | None = None,
           hold_s: float = DEFAULT_HOLD_S, jobs: int = 1) -> list[SweepRow]:
     """Grasp every case (``jobs`` processes) with its floors; refused requests are dropped."""
+    from gripper_ros.core.headless import map_cases, simulate_grasps
     positions = [round(held_position_m(config, c) / FLOOR_POSITION_ROUND_M)
                  * FLOOR_POSITION_ROUND_M for c in cases]
     distinct = sorted(set(positions))
-    rest = dict(zip(distinct, _pool_map(functools.partial(_rest_floor_s, config), distinct,
-                                        jobs)))
+    parts = max(1, min(jobs, len(distinct)))     # one ordered search per worker
+    share = -(-len(distinct) // parts)
+    chains = [distinct[i:i + share] for i in range(0, len(distinct), share)]
+    rest = dict(zip(distinct, (f for chain in map_cases(
+        functools.partial(_rest_floors_s, config), chains, jobs) for f in chain)))
     reach = dict(zip(distinct, arrival_floors_s(config, distinct)))
-    results = _pool_map(functools.partial(_grasp, config, force_controller, hold_s), cases, jobs)
+    results = simulate_grasps(config, [_case_keywords(c, force_controller, hold_s)
+                                       for c in cases], jobs, summarize=_summary)
     rows = []
     for case, x_m, res in zip(cases, positions, results):
         if res is None:

@@ -114,9 +114,12 @@ def _solve_lp(n: int, limit: float, a_eq, b_eq, a_ub=None, b_ub=None):
                    bounds=[(-limit, limit)] * n, method='highs', **kwargs)
 
 
-def _bisect(feasible, n_max: int, start: int = 32) -> tuple[int, np.ndarray]:
-    """Smallest n in [1, n_max] with ``feasible(n)`` (monotone) and its solution."""
-    lo, hi = 0, min(start, n_max)
+def _bisect(feasible, n_max: int, start: int = 32, lower: int = 0) -> tuple[int, np.ndarray]:
+    """Smallest n in [1, n_max] with ``feasible(n)`` (monotone) and its solution.
+
+    ``lower``: an n known to be infeasible (0: none).
+    """
+    lo, hi = lower, min(start, n_max)
     best = feasible(hi)
     while best is None:                      # doubling search for a feasible length
         if hi >= n_max:
@@ -138,6 +141,40 @@ def _switch_time(u: np.ndarray, limit: float, dt_s: float) -> float:
     return float(below[0] * dt_s) if below.size else math.inf
 
 
+def _rest_inputs(markov: np.ndarray, n: int, limit: float, setpoint_m: float):
+    """Return inputs |u| <= limit that bring the finger to rest at the setpoint in n samples."""
+    res = _solve_lp(n, limit, _terminal_matrix(markov, n), np.array([0.0, 0.0, setpoint_m]))
+    return res.x if res.status == 0 else None
+
+
+def minimum_rest_times_s(config: GripperConfig, setpoints_m, dt_s: float | None = None,
+                         max_time_s: float = 20.0) -> list[float]:
+    """Return the minimum time from rest at fully open to rest at each setpoint.
+
+    The ``rest`` floor of :func:`minimum_time_floor` alone (its band floor costs three times
+    as much), for sweeps over many setpoints. The system is linear from rest, so a rest at ``r``
+    reachable in n samples makes every rest nearer than ``r`` reachable in n too (scale the
+    inputs): the floor grows with the setpoint, and the setpoints are searched in order, each
+    from the one before.
+    """
+    dt = config.position.sample_time_s if dt_s is None else dt_s
+    limit = config.plant.voltage_limit_v
+    n_max = int(round(max_time_s / dt))
+    markov = _markov(config, dt, n_max + 1)
+    floors = {}
+    n_lower = 0
+    for r in sorted({float(abs(x)) for x in setpoints_m}):
+        def feasible(n, r=r):
+            return _rest_inputs(markov, n, limit, r)
+        if n_lower and feasible(n_lower) is not None:
+            n = n_lower
+        else:
+            n, _ = _bisect(feasible, n_max, start=max(1, n_lower + 1), lower=n_lower)
+        floors[r] = n * dt
+        n_lower = n
+    return [floors[float(abs(x))] for x in setpoints_m]
+
+
 def minimum_time_floor(config: GripperConfig, setpoint_m: float = DEFAULT_SETPOINT_M,
                        dt_s: float | None = None, band: float = SETTLING_BAND,
                        max_time_s: float = 20.0) -> MinimumTimeFloor:
@@ -151,8 +188,7 @@ def minimum_time_floor(config: GripperConfig, setpoint_m: float = DEFAULT_SETPOI
     markov = _markov(config, dt, n_max + tail + 1)
 
     def rest(n: int):
-        res = _solve_lp(n, limit, _terminal_matrix(markov, n), np.array([0.0, 0.0, r]))
-        return res.x if res.status == 0 else None
+        return _rest_inputs(markov, n, limit, r)
 
     def in_band(n: int):
         total = n + tail

@@ -6,16 +6,20 @@ where" and "what model the DMC predicts with" are decided, once, for nodes, tabl
 from __future__ import annotations
 
 import enum
+import functools
 
-from gripper_ros.core.config import DmcTuning, GripperConfig, PidGains
+from gripper_ros.core.config import (DmcTuning, ForceSensorParams, GripperConfig, PidGains,
+                                     PlantParams)
 from gripper_ros.core.contact_force import ContactForceController
 from gripper_ros.core.dmc import (BrakingGovernor, CascadedMpc, closed_loop_step_response,
                                   DynamicMatrixControl)
 from gripper_ros.core.force_sensor import FsrVoltageDivider
 from gripper_ros.core.pid import AntiWindup, DerivativeOn, first_order_pi_by_pole_placement, PID
 from gripper_ros.core.plant import GripperPlant
+import numpy as np
 
 UNSATURATED_V = 1e12  # limits used when building a DMC's linear model
+MODEL_CACHE_SIZE = 64  # DMC models kept per process: building one costs tens of ms, a grasp few
 
 
 class PositionControllerKind(enum.Enum):
@@ -46,15 +50,24 @@ def _position_inner(config: GripperConfig, gains: PidGains, limits) -> PID:
 
 def position_step_response(config: GripperConfig, gains: PidGains, samples: int):
     """Unit-step response of PD + plant (exact ZOH, unsaturated): the MPC-PD's DMC model."""
-    plant = make_plant(config)
-    ad, bd = plant.discrete_free_model(config.position.sample_time_s)
+    return _position_step_response(config.plant, config.force_sensor,
+                                   config.position.sample_time_s, gains, samples).copy()
+
+
+@functools.lru_cache(maxsize=MODEL_CACHE_SIZE)
+def _position_step_response(plant_params: PlantParams, sensor_params: ForceSensorParams,
+                            sample_time_s: float, gains: PidGains, samples: int) -> np.ndarray:
+    """:func:`position_step_response`, once per plant, sampling time, gains and length."""
+    plant = GripperPlant(plant_params, FsrVoltageDivider(sensor_params))
+    ad, bd = plant.discrete_free_model(sample_time_s)
     state = [0.0, 0.0, 0.0]
 
     def model_step(u: float) -> float:
         state[:] = list(ad @ state + bd * u)
         return state[2]
 
-    inner = _position_inner(config, gains, (-UNSATURATED_V, UNSATURATED_V))
+    inner = PID(gains, sample_time_s, (-UNSATURATED_V, UNSATURATED_V), DerivativeOn.ERROR,
+                AntiWindup.CONDITIONAL)
     return closed_loop_step_response(model_step, inner, samples)
 
 

@@ -11,19 +11,26 @@ sweeps over many objects are practical.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+import functools
 import math
-from typing import Callable
+import multiprocessing
+import os
+import time
+from typing import Callable, Sequence
 
 from gripper_ros.core.config import GripperConfig
 from gripper_ros.core.controllers import make_plant
-from gripper_ros.core.lockstep import PlantSide, StageSide, SupervisorSide
+from gripper_ros.core.lockstep import (Command, PlantSide, side_accept, side_needs_time,
+                                       side_step, StageSide, SupervisorSide, Tick)
 from gripper_ros.core.plant import check_fault, GraspObject, Lift
-from gripper_ros.core.requests import GraspRequest, MoveRequest, validate_move, validate_request
+from gripper_ros.core.requests import (GraspRequest, MoveRequest, RequestError, validate_move,
+                                       validate_request)
 from gripper_ros.core.stages import (DEFAULT_APPROACH_FORCE_MARGIN, DEFAULT_FORCE_CONTROLLER,
                                      DEFAULT_POSITION_CONTROLLER, ForceStageController,
-                                     PositionStageController)
-from gripper_ros.core.supervisor import GraspSupervisor
+                                     PositionStageController, Reference, stage_answer)
+from gripper_ros.core.supervisor import GraspSupervisor, NO_NS, supervisor_decide
 from gripper_ros.wire import Controller, FaultKind, Outcome, Phase, SwitchCriterion
+import numba
 import numpy as np
 
 
@@ -87,6 +94,152 @@ class HeadlessGrasp:
         return (self.end_ns - self.start_ns) * 1e-9
 
 
+LOOP_STATE = np.dtype([('woken', 'b1'), ('named', 'b1'), ('done', 'b1'),
+                       ('hold_ns', 'i8'), ('hold_until_ns', 'i8'), ('rows', 'i8')], align=True)
+"""The compiled loop's own state: resumable when its row buffers fill up."""
+ROWS = ('position_m', 'force_n', 'peak_force_n', 'motor_voltage_v', 'sensor_voltage_v')
+"""The per-tick float series a headless grasp keeps, in the order of its row buffer."""
+FIRST_ROWS = 4096
+"""Rows a grasp's series buffers start with (they double when full)."""
+CHUNKS_PER_JOB = 4
+"""A batch is cut into this many chunks per worker process: few tasks, balanced load."""
+
+
+@numba.njit(cache=True)
+def _keep_row(rows_t, rows_f, rows_phase, n, tick, phase) -> None:
+    t = tick[0]
+    rows_t[n] = t.stamp_ns
+    rows_f[n, 0] = t.position_m
+    rows_f[n, 1] = t.force_n
+    rows_f[n, 2] = t.peak_force_n
+    rows_f[n, 3] = t.motor_voltage_v
+    rows_f[n, 4] = t.sensor_voltage_v
+    rows_phase[n] = phase
+
+
+@numba.njit(cache=True)
+def run_lockstep(loop, side, plant_k, supervisor_k, position_k, force_k, tick, ref, cmd,
+                 rows_t, rows_f, rows_phase) -> bool:
+    """Run the graph's loop in fast mode from ``tick`` until simulated time would pause.
+
+    Each tick: keep its row, let the named stage answer, the plant react and hold the command,
+    the supervisor decide the next tick. Returns False when the row buffers are full (call
+    again with larger ones: everything resumes from the records).
+    """
+    state = loop[0]
+    supervisor = supervisor_k[0][0]
+    n = state.rows
+    while True:
+        if n == rows_t.shape[0]:
+            state.rows = n
+            return False
+        _keep_row(rows_t, rows_f, rows_phase, n, tick, supervisor.phase)
+        n += 1
+        if state.hold_until_ns == NO_NS and supervisor.answer_ns != NO_NS:
+            state.hold_until_ns = supervisor.answer_ns + state.hold_ns
+        if not state.named:
+            break                                   # a FAULT: nothing drives the motor
+        if ref[0].controller == Controller.POSITION:
+            stage_answer(position_k, ref, cmd)
+        else:
+            stage_answer(force_k, ref, cmd)
+        side_accept(side, plant_k, cmd)
+        needed = side_needs_time(plant_k, cmd) or state.woken or (
+            state.hold_until_ns != NO_NS and tick[0].stamp_ns < state.hold_until_ns)
+        if not needed:
+            break                                   # fast mode: simulated time pauses
+        state.woken = False
+        side_step(side, plant_k, cmd, tick)
+        state.named = supervisor_decide(supervisor_k, tick, ref)
+    state.rows = n
+    state.done = True
+    return True
+
+
+class _Loop:
+    """One headless grasp's plant, supervisor and stages, wired as the graph wires them."""
+
+    def __init__(self, config, plant_side, supervisor, position_stage, force_stage):
+        self.plant_side = plant_side
+        self.supervisor = supervisor
+        self.sup_side = SupervisorSide(supervisor)
+        self.stages = {Controller.POSITION: StageSide(position_stage),
+                       Controller.FORCE: StageSide(force_stage)}
+        self.tick = plant_side.tick_record
+        self.ref = self.sup_side.reference_record
+        self.cmd = plant_side.command_record
+        self.state = np.zeros(1, LOOP_STATE)
+        self.state[0]['hold_until_ns'] = NO_NS
+        self.rows_t = np.zeros(0, np.int64)
+        self.rows_f = np.zeros((0, len(ROWS)))
+        self.rows_phase = np.zeros(0, np.int8)
+
+    def decide(self) -> bool:
+        named = self.sup_side.decide_record(self.tick)
+        self.state[0]['named'] = named
+        return named
+
+    def _grow(self) -> None:
+        size = max(FIRST_ROWS, 2 * self.rows_t.shape[0])
+        n = int(self.state[0]['rows'])
+        for name in ('rows_t', 'rows_f', 'rows_phase'):
+            old = getattr(self, name)
+            new = np.zeros((size,) + old.shape[1:], old.dtype)
+            new[:n] = old[:n]
+            setattr(self, name, new)
+
+    def keep_row(self) -> None:
+        """Keep the present tick's row (the Python-driven loop)."""
+        if self.state[0]['rows'] == self.rows_t.shape[0]:
+            self._grow()
+        n = int(self.state[0]['rows'])
+        _keep_row(self.rows_t, self.rows_f, self.rows_phase, n, self.tick,
+                  int(self.supervisor.decision.phase))
+        self.state[0]['rows'] = n + 1
+
+    def run(self) -> None:
+        """Run compiled until simulated time pauses."""
+        ps = self.plant_side
+        while not run_lockstep(self.state, ps.state, ps.plant.kernel, self.supervisor.kernel,
+                               self.stages[Controller.POSITION].stage.kernel,
+                               self.stages[Controller.FORCE].stage.kernel, self.tick, self.ref,
+                               self.cmd, self.rows_t, self.rows_f, self.rows_phase):
+            self._grow()
+
+    def run_traced(self, trace: Callable) -> None:
+        """Run tick by tick from Python, calling ``trace`` every tick: the same kernels."""
+        state = self.state[0]
+        while True:
+            self.keep_row()
+            sup = self.supervisor
+            if state['hold_until_ns'] == NO_NS and sup.answer_ns is not None:
+                state['hold_until_ns'] = sup.answer_ns + state['hold_ns']
+            tick = Tick._make(self.tick[0].item())
+            if not state['named']:
+                trace(self.plant_side.plant, tick, sup.decision, None, None)
+                break
+            ref = Reference._make(self.ref[0].item())
+            side = self.stages[Controller(ref.controller)]
+            side.answer_record(self.ref)
+            self.cmd[0] = side.command_record[0]
+            trace(self.plant_side.plant, tick, sup.decision, ref,
+                  Command._make(self.cmd[0].item()))
+            self.plant_side.accept(self.cmd)
+            needed = self.plant_side.needs_time(self.cmd) or state['woken'] or (
+                state['hold_until_ns'] != NO_NS and tick.stamp_ns < state['hold_until_ns'])
+            if not needed:
+                break
+            state['woken'] = False
+            self.plant_side.step(self.cmd)
+            self.decide()
+
+    def series(self) -> tuple:
+        n = int(self.state[0]['rows'])
+        f = self.rows_f[:n]
+        return (self.rows_t[:n].copy(), *(f[:, j].copy() for j in range(len(ROWS))),
+                self.rows_phase[:n].copy())
+
+
 def simulate_grasp(config: GripperConfig, width_m: float, mass_kg: float, *,
                    object_width_m: float | None = None, stiffness_n_per_m: float = 0.0,
                    damping_n_s_per_m: float = 0.0, friction_coefficient: float = 0.0,
@@ -117,7 +270,8 @@ def simulate_grasp(config: GripperConfig, width_m: float, mass_kg: float, *,
     request, and the plant steps unpowered for one state period). ``trace``, when
     given, is called every tick with (plant, tick, decision, reference, command) before the
     plant reacts to the command (reference and command None on the tick no stage is named);
-    the decision is the supervisor's reused object, to be read at once.
+    the decision is the supervisor's reused object, to be read at once. Without ``trace`` the
+    loop runs compiled; with it, tick by tick from Python over the same compiled functions.
     """
     targets = validate_request(GraspRequest(width_m, mass_kg, friction_coefficient,
                                             acceleration_mps2, timeout_s, width_tolerance_m),
@@ -134,53 +288,85 @@ def simulate_grasp(config: GripperConfig, width_m: float, mass_kg: float, *,
         fault = (kind, fault[1], tau)
     plant_side.set_object(obj, fault=fault, lift=lift)
     supervisor = GraspSupervisor(config.plant, config.supervisor)
-    decide = SupervisorSide(supervisor).decide
-    position_stage = PositionStageController(config, position_controller)
-    force_stage = ForceStageController(config, force_controller, approach_force_margin)
-    stages = {Controller.POSITION: StageSide(position_stage),
-              Controller.FORCE: StageSide(force_stage)}
-    tick = plant_side.tick()
-    decision, ref = decide(tick)                    # the position stage holds the open fingers
-    supervisor.request_grasp(targets, mass_kg, after_ns=tick.stamp_ns)
-    woken = True                                    # the request wakes the paused simulation
-    hold_until_ns = None
-    rows = []
+    loop = _Loop(config, plant_side, supervisor,
+                 PositionStageController(config, position_controller),
+                 ForceStageController(config, force_controller, approach_force_margin))
+    state = loop.state[0]
+    state['hold_ns'] = round(hold_s * 1e9)
+    plant_side.tick()
+    loop.decide()                                   # the position stage holds the open fingers
+    supervisor.request_grasp(targets, mass_kg, after_ns=int(loop.tick[0]['stamp_ns']))
+    state['woken'] = True                           # the request wakes the paused simulation
     if idle_unpowered_s > 0.0:
-        rows.append((tick.stamp_ns, tick.position_m, tick.force_n, tick.peak_force_n,
-                     tick.motor_voltage_v, tick.sensor_voltage_v, int(decision.phase)))
+        loop.keep_row()
         if trace is not None:
-            trace(plant, tick, decision, None, None)
-        tick = plant_side.step_unpowered(idle_unpowered_s)
-        decision, ref = decide(tick)
-        woken = False
-    while True:
-        rows.append((tick.stamp_ns, tick.position_m, tick.force_n, tick.peak_force_n,
-                     tick.motor_voltage_v, tick.sensor_voltage_v, int(decision.phase)))
-        if hold_until_ns is None and supervisor.answer_ns is not None:
-            hold_until_ns = supervisor.answer_ns + round(hold_s * 1e9)
-        if ref is None:
-            if trace is not None:
-                trace(plant, tick, decision, None, None)
-            break                                   # a FAULT: nothing drives the motor
-        cmd = stages[ref.controller].answer(ref)
-        if trace is not None:
-            trace(plant, tick, decision, ref, cmd)
-        plant_side.accept(cmd)
-        needed = plant_side.needs_time(cmd) or woken or \
-            (hold_until_ns is not None and tick.stamp_ns < hold_until_ns)
-        if not needed:
-            break                                   # fast mode: simulated time pauses
-        woken = False
-        tick = plant_side.step(cmd)
-        decision, ref = decide(tick)
-    cols = list(zip(*rows))
+            trace(plant, Tick._make(loop.tick[0].item()), supervisor.decision, None, None)
+        plant_side.step_unpowered(idle_unpowered_s)
+        loop.decide()
+        state['woken'] = False
+    if trace is None:
+        loop.run()
+    else:
+        loop.run_traced(trace)
     s = supervisor
     return HeadlessGrasp(
         s.outcome, s.message, s.switch_criterion, targets.position_setpoint_m,
-        targets.force_setpoint_n, s.start_ns, s.switch_ns, s.contact_ns, tick.stamp_ns,
-        s.answer, s.answer_ns, np.array(cols[0], dtype=np.int64),
-        *(np.array(c, dtype=float) for c in cols[1:6]), np.array(cols[6], dtype=np.int8),
-        s.end_ns, plant.object_state.slip_m, plant.object_state.lost_ns)
+        targets.force_setpoint_n, s.start_ns, s.switch_ns, s.contact_ns,
+        int(loop.tick[0]['stamp_ns']), s.answer, s.answer_ns, *loop.series(), s.end_ns,
+        plant.object_state.slip_m, plant.object_state.lost_ns)
+
+
+def _run_chunk(fn: Callable, chunk: list) -> list:
+    """Run ``fn`` over one chunk of cases in a worker (module level: it is pickled)."""
+    return [fn(case) for case in chunk]
+
+
+def map_cases(fn: Callable, cases: Sequence, jobs: int | None = None,
+              chunks_per_job: int = CHUNKS_PER_JOB) -> list:
+    """Return ``[fn(case) for case in cases]``, computed in ``jobs`` processes.
+
+    ``jobs`` None = one per core, 1 = in this process. Cases go to the workers in chunks
+    (``chunks_per_job`` per worker), so that the cost of sending a task stays small against a
+    grasp of a few milliseconds. The workers come from a fork server, not a fork of this
+    process: a fork of a process with threads running (an rclpy executor, DDS) can inherit a
+    lock held mid-call and hang. The result is the same whatever ``jobs`` is.
+    """
+    cases = list(cases)
+    if jobs is None:
+        jobs = os.cpu_count() or 1
+    if jobs < 1:
+        raise ValueError(f'jobs must be >= 1, got {jobs!r}')
+    if jobs == 1 or len(cases) <= 1:
+        return [fn(case) for case in cases]
+    size = max(1, math.ceil(len(cases) / (jobs * chunks_per_job)))
+    chunks = [cases[i:i + size] for i in range(0, len(cases), size)]
+    with multiprocessing.get_context('forkserver').Pool(min(jobs, len(chunks))) as pool:
+        results = pool.map(functools.partial(_run_chunk, fn), chunks, chunksize=1)
+    return [r for chunk in results for r in chunk]
+
+
+def _grasp_case(config: GripperConfig, summarize: Callable | None, case: dict):
+    """One case of :func:`simulate_grasps`: the grasp, or the RequestError that refused it."""
+    case = dict(case)
+    config = case.pop('config', config)
+    try:
+        result = simulate_grasp(config, **case)
+    except RequestError as exc:
+        result = exc
+    return result if summarize is None else summarize(case, result)
+
+
+def simulate_grasps(config: GripperConfig, cases: Sequence[dict], jobs: int | None = None,
+                    summarize: Callable | None = None) -> list:
+    """Run many grasps (:func:`simulate_grasp` keywords, one dict a case) over the cores.
+
+    Each result is the :class:`HeadlessGrasp`, or the :class:`RequestError` that refused the
+    request; a case may carry its own ``config``. ``summarize(case, result)``, when given, runs
+    in the worker and its (small, picklable) return value comes back instead: a sweep of
+    long grasps then sends no series between processes. The results are in the cases' order
+    and the same bytes whatever ``jobs`` is.
+    """
+    return map_cases(functools.partial(_grasp_case, config, summarize), cases, jobs)
 
 
 @dataclass
@@ -269,5 +455,25 @@ def simulate_moves(config: GripperConfig, moves, *, object_width_m: float = 0.0,
                          np.array(cols[6], dtype=np.int8), np.array(cols[7], dtype=float))
 
 
-__all__ = ['HeadlessGrasp', 'HeadlessMoves', 'MoveAnswer', 'MoveRequest', 'Phase',
-           'simulate_grasp', 'simulate_moves']
+def warm_up(config: GripperConfig | None = None) -> float:
+    """Compile (or load from numba's cache) every kernel a grasp, a move and a trace use.
+
+    Set-up calls this once, so that the first ``grasp_demo`` pays no compilation; returns the
+    seconds it took.
+    """
+    from gripper_ros.core.config import load_config
+    from gripper_ros.core.controllers import ForceControllerKind, PositionControllerKind
+    start = time.perf_counter()
+    config = config or load_config()
+    for position in PositionControllerKind:
+        for force in ForceControllerKind:
+            simulate_grasp(config, 0.1, 0.5, stiffness_n_per_m=1e5, damping_n_s_per_m=50.0,
+                           position_controller=position, force_controller=force,
+                           timeout_s=0.05)
+    simulate_grasp(config, 0.1, 0.5, timeout_s=0.05, trace=lambda *_: None)
+    simulate_moves(config, [MoveRequest(0.148, speed_mps=0.02, max_effort_n=5.0, timeout_s=0.02)])
+    return time.perf_counter() - start
+
+
+__all__ = ['HeadlessGrasp', 'HeadlessMoves', 'map_cases', 'MoveAnswer', 'MoveRequest', 'Phase',
+           'simulate_grasp', 'simulate_grasps', 'simulate_moves', 'warm_up']

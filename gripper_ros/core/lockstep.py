@@ -2,19 +2,27 @@
 
 Each tick ``t_k``: the plant measures (:class:`Tick`), the supervisor decides and sends a
 :class:`Reference` to the stage it names, that stage answers with a :class:`Command`, and the
-plant holds the command's voltage for its ``hold_s``. The nodes move these tuples over DDS as
+plant holds the command's voltage for its ``hold_s``. The nodes move these messages over DDS as
 bytes (:mod:`gripper_ros.wire` layouts); :mod:`gripper_ros.core.headless` hands them over
-directly. Both call exactly the code below, so a headless grasp equals the graph's tick for tick.
+inside one compiled loop. Both call exactly the compiled functions below (numba), on the
+messages as records (``TICK_LAYOUT.dtype`` and so on), so a headless grasp equals the graph's
+tick for tick.
 """
 from __future__ import annotations
 
 from collections import namedtuple
 import math
 
-from gripper_ros.core.plant import GraspObject, GripperPlant, PlantSample
-from gripper_ros.core.stages import LockstepAnswerer, Reference
-from gripper_ros.core.supervisor import Decision, GraspSupervisor
-from gripper_ros.wire import COMMAND_LAYOUT, Controller, FaultKind, Outcome, Phase, TICK_LAYOUT
+from gripper_ros.core.plant import (GraspObject, GripperPlant, plant_begin_hold,
+                                    plant_cancel_fault, plant_fault_scheduled, plant_read_tick,
+                                    plant_scenario_in_progress, plant_schedule_fault,
+                                    plant_step)
+from gripper_ros.core.stages import LockstepAnswerer, Reference, stage_answer, TickAnswer
+from gripper_ros.core.supervisor import Decision, GraspSupervisor, NO_NS, supervisor_decide
+from gripper_ros.wire import (COMMAND_LAYOUT, Controller, FaultKind, Outcome, Phase,
+                              REFERENCE_LAYOUT, TICK_LAYOUT)
+import numba
+import numpy as np
 
 Tick = namedtuple('Tick', TICK_LAYOUT.fields)
 """One PlantTick's fields, in message order."""
@@ -24,8 +32,34 @@ Command = namedtuple('Command', COMMAND_LAYOUT.fields)
 MAX_HOLD_S = 1.0
 """A command held longer than this is refused as malformed."""
 
+PLANT_SIDE_STATE = np.dtype(
+    [('revision', 'i8'),               # +1 on every change of the simulated world
+     ('applied_source', 'i4'),
+     ('grasp_mass_kg', 'f8'),          # the requested mass of the grasp (from its status)
+     ('fault_kind', 'i4'),             # a fault to arm at the next grasp's start (NONE: none)
+     ('fault_at_s', 'f8'), ('fault_time_constant_s', 'f8'),
+     ('fault_grasp', 'i8'),            # the grasp it was armed for (-1: none)
+     ('echo_grasp', 'i8'),             # grasp id of the last accepted command
+     ('hold_begun_for', 'i8')],        # the grasp whose hold clock was started (-1: none)
+    align=True)
+"""The plant side's bookkeeping between ticks (beside the plant's own state)."""
 
-def tick_of(sample: PlantSample, revision: int, applied_source: int) -> Tick:
+_kernel = numba.njit(cache=True)
+
+
+def new_record(layout, count: int = 1) -> np.ndarray:
+    """Return ``count`` zeroed records of a loop message (a 1-element array by default)."""
+    return np.zeros(count, layout.dtype)
+
+
+def record_of(layout, values) -> np.ndarray:
+    """Return a 1-element record array holding ``values`` (a message's fields, in order)."""
+    record = new_record(layout)
+    record[0] = tuple(values)
+    return record
+
+
+def tick_of(sample, revision: int, applied_source: int) -> Tick:
     """Return the tick message of a plant sample."""
     return Tick(sample.t_ns, sample.position_m, sample.velocity_mps, sample.force_n,
                 sample.peak_force_n, sample.sensor_voltage_v, sample.voltage_v,
@@ -43,26 +77,104 @@ def command_problem(cmd: Command) -> str:
     return ''
 
 
+# ------------------------------------------------------------------ the plant side, compiled
+@_kernel
+def side_accept(side, plant_k, cmd) -> None:
+    """React to the decision ``cmd`` echoes, at the tick it answers.
+
+    A scheduled fault is armed when a grasp starts (its first command) and dropped when the
+    grasp ends before it fired; the hold clock of a lift starts when the grasp is answered
+    HOLDING.
+    """
+    s = side[0]
+    c = cmd[0]
+    if c.grasp_id != s.echo_grasp:
+        s.echo_grasp = c.grasp_id
+        if s.fault_kind != FaultKind.NONE and c.phase == Phase.POSITION:
+            plant_schedule_fault(plant_k, s.fault_kind,
+                                 c.stamp_ns + round(s.fault_at_s * 1e9), s.fault_time_constant_s)
+            s.fault_kind = FaultKind.NONE
+            s.fault_grasp = c.grasp_id
+    if c.outcome != Outcome.UNKNOWN and plant_fault_scheduled(plant_k) and \
+            c.grasp_id == s.fault_grasp:
+        plant_cancel_fault(plant_k)            # the grasp ended before its fault fired
+    if c.phase == Phase.HOLDING and c.outcome == Outcome.HOLDING and \
+            s.hold_begun_for != c.grasp_id:
+        s.hold_begun_for = c.grasp_id
+        plant_begin_hold(plant_k, c.stamp_ns, s.grasp_mass_kg)   # 1: left its support before
+
+
+@_kernel
+def side_needs_time(plant_k, cmd) -> bool:
+    """Tell whether simulated time must go on after ``cmd`` in fast mode.
+
+    It must for a request in progress, or a hold scenario (a lift) still to be played out.
+    """
+    return cmd[0].running != 0 or plant_scenario_in_progress(plant_k)
+
+
+@_kernel
+def side_step(side, plant_k, cmd, tick) -> None:
+    """Hold the command's voltage for its ``hold_s``; ``tick`` becomes the next tick."""
+    c = cmd[0]
+    s = side[0]
+    s.applied_source = c.source
+    plant_step(plant_k, c.voltage_v, round(c.hold_s * 1e9))
+    plant_read_tick(plant_k, tick, s.revision, c.source)
+
+
+@_kernel
+def side_step_unpowered(side, plant_k, duration_ns, tick) -> None:
+    """No command came: the motor is held at 0 V (a driver's command timeout)."""
+    s = side[0]
+    s.applied_source = Controller.NONE
+    plant_step(plant_k, 0.0, duration_ns)
+    plant_read_tick(plant_k, tick, s.revision, Controller.NONE)
+
+
+@_kernel
+def side_read_tick(side, plant_k, tick) -> None:
+    """``tick``: the plant's measurement now."""
+    s = side[0]
+    plant_read_tick(plant_k, tick, s.revision, s.applied_source)
+
+
 class PlantSide:
     """The plant's share of a tick: the measurement, the command's echo, the step.
 
-    The echo of each accepted command tells the plant, at that exact tick, what the supervisor
-    decided: a scheduled fault is armed when a grasp starts (its first command), and the hold
-    clock of a lift starts when the grasp is answered HOLDING.
+    ``state`` is its bookkeeping record; the tick, command and reference records it fills are
+    ``tick_record`` and ``command_record``.
     """
 
     def __init__(self, plant: GripperPlant):
         self.plant = plant
-        self.revision = 0                   # +1 on every change of the simulated world
-        self.applied_source = Controller.NONE
-        self.grasp_mass_kg = 0.0            # the requested mass of the grasp (from its status)
-        self._fault: tuple[FaultKind, float, float] | None = None   # (kind, at_s, tau) to arm
-        self._fault_grasp: int | None = None
-        self._echo_grasp = 0                # grasp id of the last accepted command
-        self._hold_begun_for: int | None = None
+        self.state = np.zeros(1, PLANT_SIDE_STATE)
+        self._s = self.state[0]
+        self._s['applied_source'] = Controller.NONE
+        for name in ('fault_grasp', 'hold_begun_for'):
+            self._s[name] = NO_NS
+        self.tick_record = new_record(TICK_LAYOUT)
+        self.command_record = new_record(COMMAND_LAYOUT)
+
+    revision = property(lambda self: int(self._s['revision']),
+                        doc='+1 on every change of the simulated world.')
+    applied_source = property(lambda self: Controller(self._s['applied_source']))
+
+    @property
+    def grasp_mass_kg(self) -> float:
+        """The requested mass of the grasp (the plant's mass of an object that gives none)."""
+        return float(self._s['grasp_mass_kg'])
+
+    @grasp_mass_kg.setter
+    def grasp_mass_kg(self, value: float) -> None:
+        self._s['grasp_mass_kg'] = value
+
+    def _tick(self) -> Tick:
+        return Tick._make(self.tick_record[0].item())
 
     def tick(self) -> Tick:
-        return tick_of(self.plant.sample(), self.revision, self.applied_source)
+        side_read_tick(self.state, self.plant.kernel, self.tick_record)
+        return self._tick()
 
     def set_object(self, obj: GraspObject, open_fingers: bool = False,
                    fault: tuple[FaultKind, float, float] | None = None, **hold) -> None:
@@ -71,56 +183,51 @@ class PlantSide:
         ``fault`` (kind, seconds after the next grasp's start, time constant) is armed when
         that grasp starts.
         """
-        saved = self.plant.snapshot()
+        saved = [array.copy() for array in self.plant.kernel]
+        saved_vars = dict(vars(self.plant))
         try:
             if open_fingers:
                 self.plant.reset(open_fingers=True)
             self.plant.set_object(obj, **hold)
         except ValueError:
-            self.plant.restore(saved)           # refused: the plant is as it was
+            for array, copy in zip(self.plant.kernel, saved):   # refused: as it was
+                array[...] = copy
+            vars(self.plant).update(saved_vars)
             raise
-        self._fault = None if fault is None or fault[0] is FaultKind.NONE else fault
-        self._fault_grasp = None
-        self._hold_begun_for = None
-        self.applied_source = Controller.NONE
-        self.revision += 1
+        s = self._s
+        if fault is None or fault[0] is FaultKind.NONE:
+            s['fault_kind'] = FaultKind.NONE
+        else:
+            s['fault_kind'], s['fault_at_s'], s['fault_time_constant_s'] = fault
+        s['fault_grasp'] = NO_NS
+        s['hold_begun_for'] = NO_NS
+        s['applied_source'] = Controller.NONE
+        s['revision'] += 1
+
+    def _command(self, cmd) -> np.ndarray:
+        record = self.command_record
+        if cmd is not record:
+            record[0] = tuple(cmd)
+        return record
 
     def accept(self, cmd: Command) -> None:
         """React to the decision ``cmd`` echoes, at the tick it answers."""
-        if cmd.grasp_id != self._echo_grasp:
-            self._echo_grasp = cmd.grasp_id
-            if self._fault is not None and cmd.phase == Phase.POSITION:
-                kind, at_s, tau = self._fault
-                self._fault = None
-                self._fault_grasp = cmd.grasp_id
-                self.plant.schedule_fault(kind, cmd.stamp_ns + round(at_s * 1e9), tau)
-        if cmd.outcome != Outcome.UNKNOWN and self.plant.scheduled_fault is not None and \
-                cmd.grasp_id == self._fault_grasp:
-            self.plant.cancel_fault()            # the grasp ended before its fault fired
-        if cmd.phase == Phase.HOLDING and cmd.outcome == Outcome.HOLDING and \
-                self._hold_begun_for != cmd.grasp_id:
-            self._hold_begun_for = cmd.grasp_id
-            try:
-                self.plant.begin_hold(cmd.stamp_ns, self.grasp_mass_kg)
-            except ValueError:
-                pass            # the object left its support in an earlier hold: no new lift
+        side_accept(self.state, self.plant.kernel, self._command(cmd))
 
     def needs_time(self, cmd: Command) -> bool:
-        """Tell whether simulated time must go on after ``cmd`` in fast mode.
-
-        It must for a request in progress, or a hold scenario (a lift) still to be played out.
-        """
-        return bool(cmd.running) or self.plant.scenario_in_progress()
+        """Tell whether simulated time must go on after ``cmd`` in fast mode."""
+        return bool(side_needs_time(self.plant.kernel, self._command(cmd)))
 
     def step(self, cmd: Command) -> Tick:
         """Hold the command's voltage for its ``hold_s``; the next tick."""
-        self.applied_source = cmd.source
-        return tick_of(self.plant.step(cmd.voltage_v, cmd.hold_s), self.revision, cmd.source)
+        side_step(self.state, self.plant.kernel, self._command(cmd), self.tick_record)
+        return self._tick()
 
     def step_unpowered(self, duration_s: float) -> Tick:
         """No command came: the motor is held at 0 V (a driver's command timeout)."""
-        self.applied_source = Controller.NONE
-        return tick_of(self.plant.step(0.0, duration_s), self.revision, Controller.NONE)
+        side_step_unpowered(self.state, self.plant.kernel, round(duration_s * 1e9),
+                            self.tick_record)
+        return self._tick()
 
 
 class SupervisorSide:
@@ -128,26 +235,26 @@ class SupervisorSide:
 
     def __init__(self, supervisor: GraspSupervisor):
         self.supervisor = supervisor
-        self._seed_v = 0.0
+        self.tick_record = new_record(TICK_LAYOUT)
+        self.reference_record = new_record(REFERENCE_LAYOUT)
+
+    def decide_record(self, tick: np.ndarray) -> bool:
+        """Decide the tick record ``tick``; True when ``reference_record`` names a stage."""
+        return bool(supervisor_decide(self.supervisor.kernel, tick, self.reference_record))
 
     def decide(self, tick: Tick) -> tuple[Decision, Reference | None]:
         """Return the decision for ``tick`` and the reference to the stage it names (or None).
 
         The reference relays the tick's measurement as read, a non-finite one included (the
-        stage then holds 0 V); the seed voltage is the last finite applied one, since no
-        measurement of the stage depends on it.
+        stage then holds 0 V); the seed voltage is the last finite applied one.
         """
-        d = self.supervisor.step(tick.stamp_ns, tick.position_m, tick.force_n,
-                                 tick.sensor_voltage_v, tick.velocity_mps, tick.revision)
-        if math.isfinite(tick.motor_voltage_v):
-            self._seed_v = tick.motor_voltage_v
-        if d.active is Controller.NONE:
-            return d, None
-        return d, Reference(tick.stamp_ns, d.grasp_id, d.stage_id, tick.revision,
-                            int(d.phase), int(d.outcome), int(d.active), d.running, d.contact,
-                            d.position_setpoint_m, d.approach_setpoint_m, d.force_setpoint_n,
-                            tick.position_m, tick.velocity_mps, tick.force_n, self._seed_v,
-                            d.speed_limit_mps, d.voltage_limit_v)
+        record = self.tick_record
+        record[0] = tuple(tick)
+        named = self.decide_record(record)
+        decision = self.supervisor.decision
+        if not named:
+            return decision, None
+        return decision, Reference._make(self.reference_record[0].item())
 
 
 class StageSide:
@@ -156,14 +263,25 @@ class StageSide:
     def __init__(self, stage):
         self.stage = stage
         self.answerer = LockstepAnswerer(stage)
-        self.last_answer = None                 # the TickAnswer of the last command
+        self.reference_record = new_record(REFERENCE_LAYOUT)
+        self.command_record = new_record(COMMAND_LAYOUT)
+
+    @property
+    def last_answer(self) -> TickAnswer:
+        """The answer of the last command (with the reason when 0 V was held)."""
+        c = self.command_record[0]
+        if c['finite']:
+            return TickAnswer(float(c['voltage_v']), float(c['inner_setpoint']))
+        return TickAnswer(0.0, 0.0, finite=False, reason=self.answerer.reason)
+
+    def answer_record(self, ref: np.ndarray) -> bool:
+        """Answer the reference record ``ref`` into ``command_record``; False: answered before."""
+        return bool(stage_answer(self.stage.kernel, ref, self.command_record))
 
     def answer(self, ref: Reference) -> Command | None:
         """Return the command for ``ref``, or None when that (stage, stamp) was answered."""
-        a = self.answerer.answer(ref)
-        if a is None:
+        record = self.reference_record
+        record[0] = tuple(ref)
+        if not self.answer_record(record):
             return None
-        self.last_answer = a
-        return Command(ref.stamp_ns, ref.grasp_id, ref.stage_id, ref.revision,
-                       int(self.stage.source), ref.phase, ref.outcome, ref.running, a.finite,
-                       a.voltage_v, self.stage.sample_time_s, a.inner_setpoint)
+        return Command._make(self.command_record[0].item())
