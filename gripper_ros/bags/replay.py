@@ -272,6 +272,8 @@ def build_parser() -> argparse.ArgumentParser:
                            'position_control.mpc_pd.kc=900')
     loop.add_argument('--sweep', default=None, metavar='SECTION.KEY=V1,V2,...',
                       help='re-run once per value and print one row per value')
+    loop.add_argument('--jobs', type=int, default=None, metavar='N',
+                      help="a sweep's worker processes (default: one per core)")
     loop.add_argument('--plot', default=None, metavar='FILE.png',
                       help='draw recorded and re-run position, force, motor and FSR voltage')
     return parser
@@ -354,7 +356,9 @@ def _run_closed_loop(args: argparse.Namespace) -> int:
         sweep = rerun.parse_sweep(args.sweep) if args.sweep else None
         changes = rerun.Changes(args.config or args.resimulate or None, settings,
                                 args.position_controller, args.force_controller, margin)
-        result = rerun.whatif(args.bag, changes, sweep)
+        if args.jobs is not None and args.jobs < 1:
+            _fail(f'--jobs must be >= 1, got {args.jobs}', code=2)
+        result = rerun.whatif(args.bag, changes, sweep, args.jobs)
     except (ConfigError, BagError) as exc:
         _fail(str(exc), code=2)
     if sweep is None:
@@ -375,7 +379,7 @@ def _run_closed_loop(args: argparse.Namespace) -> int:
     return 0
 
 
-CLOSED_LOOP_OPTIONS = ('config', 'sweep', 'plot')
+CLOSED_LOOP_OPTIONS = ('config', 'sweep', 'plot', 'jobs')
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -20,6 +20,7 @@ from __future__ import annotations
 from collections import namedtuple
 import copy
 from dataclasses import asdict, dataclass, field, fields
+import functools
 import json
 import math
 import os
@@ -32,7 +33,7 @@ from gripper_ros.bags.resimulate import build_stages, load_resim_config
 from gripper_ros.bags.series import bag_namespace, GraspSeries, load_grasp_series, \
     lockstep_series
 from gripper_ros.core.config import ConfigError, GripperConfig, parse_config
-from gripper_ros.core.headless import HeadlessGrasp, simulate_grasp
+from gripper_ros.core.headless import HeadlessGrasp, map_cases, simulate_grasp
 from gripper_ros.core.plant import check_fault, GraspObject, Lift
 from gripper_ros.core.requests import GraspRequest, RequestError, validate_request
 from gripper_ros.core.stages import (DEFAULT_APPROACH_FORCE_MARGIN, DEFAULT_FORCE_CONTROLLER,
@@ -532,13 +533,22 @@ class WhatIf:
         return _flat(self.record.config.data).get(self.sweep_key)
 
 
+def _run_value(record: GraspRecord, item: tuple) -> Rerun:
+    """One re-run of a sweep (module level: it runs in worker processes)."""
+    value, setup, label = item
+    r = run(record, setup, label)
+    r.value = value
+    return r
+
+
 def whatif(bag: Bag | str | os.PathLike, changes: Changes | None = None,
-           sweep: tuple[str, Sequence] | None = None) -> WhatIf:
+           sweep: tuple[str, Sequence] | None = None, jobs: int | None = None) -> WhatIf:
     """Re-run a recorded grasp with ``changes``, once or once per value of ``sweep``.
 
-    ``sweep`` = (dotted key, values) is applied on top of the changes. Every setup is checked
-    before the first re-run: RerunError (the bag) or ConfigError (an option, key or value),
-    one line.
+    ``sweep`` = (dotted key, values) is applied on top of the changes; its re-runs go to
+    ``jobs`` processes (None: one per core) by the batch engine of the headless loop. Every
+    setup is checked before the first re-run: RerunError (the bag) or ConfigError (an option,
+    key or value), one line.
     """
     record = load_record(bag)
     recorded = analyze_series(record.series, record.config.plant.voltage_limit_v)
@@ -552,12 +562,10 @@ def whatif(bag: Bag | str | os.PathLike, changes: Changes | None = None,
             one = copy.copy(changes)
             one.settings = list(changes.settings) + [(key, value)]
             setups.append((value, resolve(record, one)))
-    reruns = []
-    for value, setup in setups:
-        label = 're-run' if sweep is None else f're-run {sweep[0]}={value}'
-        r = run(record, setup, label)
-        r.value = value
-        reruns.append(r)
+    items = [(value, setup, 're-run' if sweep is None else f're-run {sweep[0]}={value}')
+             for value, setup in setups]
+    reruns = map_cases(functools.partial(_run_value, record), items,
+                       1 if sweep is None else jobs)
     return WhatIf(record, recorded, reruns, None if sweep is None else sweep[0])
 
 

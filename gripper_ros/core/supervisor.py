@@ -89,6 +89,7 @@ SUPERVISOR_STATE = np.dtype(
      ('low_since_ns', 'i8'),
      ('seed_voltage_v', 'f8'),             # the last finite applied voltage (a stage's seed)
      ('msg_code', 'i4'), ('msg_seq', 'i8'),  # the current message: a code, numbers in msg_*
+     ('status_key', 'i8'),                 # phase, active, outcome and stage in one number
      ('tg_kind', 'i4')]                    # the current request's targets (0: none yet)
     + [('tg_' + name, 'f8') for name in _TARGET_FIELDS]
     + [('pend_kind', 'i4'), ('pend_mass_kg', 'f8'), ('pend_after_ns', 'i8')]   # 0: none
@@ -485,6 +486,7 @@ def _step_request(s, p, msg_f, msg_i, t_ns, position_m, force_n, sensor_voltage_
 def _fill(s, answer) -> None:
     """Write the tick's decision: who drives, with which setpoints and limits, what answers."""
     s.d_answer = answer
+    s.status_key = ((s.stage_id * 16 + s.outcome) * 16 + s.active) * 16 + s.phase
     s.d_running = _running(s)
     s.d_contact = s.contact_ns != NO_NS
     if answer != NO_ANSWER and s.answer_ns == NO_NS:
@@ -769,6 +771,11 @@ class GraspSupervisor:
     @property
     def pending(self) -> bool:
         return bool(self._s['pend_kind'] != 0)
+
+    @property
+    def status_key(self) -> int:
+        """A number that changes whenever the phase, the driver, the outcome or the stage does."""
+        return int(self._s['status_key']) * 4 + int(self._s['pend_kind'])
 
     @property
     def pending_request(self) -> PendingRequest:

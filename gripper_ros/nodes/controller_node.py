@@ -25,8 +25,8 @@ from gripper_ros.core.stages import Reference
 from gripper_ros.nodes.common import default_namespace, ExecutorSilence, GRAPH_QOS
 from gripper_ros.nodes.loop_io import decode, read_status
 from gripper_ros.nodes.parameters import ConfigParameters
-from gripper_ros.wire import (COMMAND_LAYOUT, Controller, NODE_PLANT, REFERENCE_LAYOUT,
-                              TOPIC_MOTOR_COMMAND, TOPIC_STATUS, TOPIC_TICK)
+from gripper_ros.wire import (CDR_LITTLE_ENDIAN, COMMAND_LAYOUT, Controller, NODE_PLANT,
+                              REFERENCE_LAYOUT, TOPIC_MOTOR_COMMAND, TOPIC_STATUS, TOPIC_TICK)
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
@@ -102,25 +102,27 @@ class LockstepController(Node):
 
     # lockstep ------------------------------------------------------------------
     def _on_reference(self, data: bytes) -> None:
-        ref = Reference._make(decode(REFERENCE_LAYOUT, data, StageReference))
+        values = decode(REFERENCE_LAYOUT, data, StageReference)
+        ref = Reference._make(values)
         self._last_ref = ref
         self._named = True
         if self._next_stage is not None and ref.stage_id != self.side.answerer.active_stage:
             self.stage, self._next_stage = self._next_stage, None      # a new stage begins
             self.controller = self.stage.controller
             self.side = StageSide(self.stage)
-        cmd = self.side.answer(ref)
-        if cmd is None:                           # asked again: the plant is still waiting
-            if self._last_command is not None:
+        side = self.side
+        side.reference_record[0] = values
+        if not side.answer_record(side.reference_record):
+            if self._last_command is not None:    # asked again: the plant is still waiting
                 self._pub.publish(self._last_command)
                 self.published[TOPIC_MOTOR_COMMAND] += 1
             return
-        if not cmd.finite:
+        if not side.command_record[0]['finite']:
             self.nonfinite_answers += 1
             self.get_logger().error(f'{self.side.last_answer.reason} at t={ref.stamp_ns} '
                                     f'(measurement {self.stage.measurement(ref)!r}): holding 0 V',
                                     throttle_duration_sec=1.0)
-        self._last_command = COMMAND_LAYOUT.pack(*cmd)
+        self._last_command = CDR_LITTLE_ENDIAN + side.command_record.tobytes()
         self._pub.publish(self._last_command)
         self.commands_published += 1
         self.published[TOPIC_MOTOR_COMMAND] += 1

@@ -37,11 +37,12 @@ from gripper_ros.nodes.loop_io import (clock_template, decode, force_sensor_temp
                                        joint_state_template, object_state_template,
                                        read_status, split_ns, StatusView)
 from gripper_ros.nodes.parameters import ConfigParameters
-from gripper_ros.wire import (COMMAND_LAYOUT, Controller, FINGER_JOINT, NODE_PLANT, Outcome, Phase,
-                              SERVICE_PAUSE, SERVICE_RESUME, SERVICE_SET_OBJECT, SERVICE_STEP,
-                              TICK_LAYOUT, TimeMode, TOPIC_CLOCK, TOPIC_FORCE_SENSOR,
-                              TOPIC_JOINT_STATES, TOPIC_MOTOR_COMMAND, TOPIC_OBJECT_STATE,
-                              TOPIC_SIM_STATUS, TOPIC_STATUS, TOPIC_TICK)
+from gripper_ros.wire import (CDR_LITTLE_ENDIAN, COMMAND_LAYOUT, Controller, FINGER_JOINT,
+                              NODE_PLANT, Outcome, Phase, SERVICE_PAUSE, SERVICE_RESUME,
+                              SERVICE_SET_OBJECT, SERVICE_STEP, TICK_LAYOUT, TimeMode,
+                              TOPIC_CLOCK, TOPIC_FORCE_SENSOR, TOPIC_JOINT_STATES,
+                              TOPIC_MOTOR_COMMAND, TOPIC_OBJECT_STATE, TOPIC_SIM_STATUS,
+                              TOPIC_STATUS, TOPIC_TICK)
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
@@ -177,7 +178,8 @@ class PlantSimulatorNode(Node):
 
     # ------------------------------------------------------------------ lockstep
     def _on_command(self, data: bytes) -> None:
-        cmd = Command._make(decode(COMMAND_LAYOUT, data, MotorCommand))
+        values = decode(COMMAND_LAYOUT, data, MotorCommand)
+        cmd = Command._make(values)
         pending = self._pending
         if cmd.stamp_ns != self._tick.stamp_ns or cmd.revision != self.side.revision or \
                 (pending is not None and cmd.stage_id <= pending.stage_id):
@@ -190,7 +192,8 @@ class PlantSimulatorNode(Node):
                                     f'source {cmd.source}: {problem}; motor held at 0 V',
                                     throttle_duration_sec=1.0)
             return
-        self.side.accept(cmd)
+        self.side.command_record[0] = values    # what the kernels read
+        self.side.accept(self.side.command_record)
         self._pending = self._last_echo = cmd
         self._unpowered = False
         self._try_step()
@@ -229,7 +232,8 @@ class PlantSimulatorNode(Node):
             elif self._paused:
                 return
             elif self.time_mode is TimeMode.FAST:
-                if not (self._woken or (cmd is not None and self.side.needs_time(cmd))):
+                if not (self._woken or (cmd is not None
+                                        and self.side.needs_time(self.side.command_record))):
                     self._set_advancing(False)
                     return                      # nothing needs time: it pauses here
             else:
@@ -245,7 +249,7 @@ class PlantSimulatorNode(Node):
             self._woken = False
             self._pending = None
             self._set_advancing(True)
-            self._tick = self.side.step(cmd) if cmd is not None else \
+            self._tick = self.side.step(self.side.command_record) if cmd is not None else \
                 self.side.step_unpowered(hold_ns * 1e-9)
             self._publish_tick()
             if self._tick.stamp_ns >= self._next_state_ns or self._hold_state_changed():
@@ -279,7 +283,7 @@ class PlantSimulatorNode(Node):
             self._try_step()
 
     def _publish_tick(self) -> None:
-        self._tick_bytes = TICK_LAYOUT.pack(*self._tick)
+        self._tick_bytes = CDR_LITTLE_ENDIAN + self.side.tick_record.tobytes()
         self._tick_pub.publish(self._tick_bytes)
         self._tick_wall = time.monotonic()
         self.ticks_published += 1

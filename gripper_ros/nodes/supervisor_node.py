@@ -33,9 +33,9 @@ from gripper_ros.nodes.common import (default_namespace, DeferredService, Execut
                                       GRAPH_QOS, LATCHED_QOS, run_node)
 from gripper_ros.nodes.loop_io import decode, split_ns, status_message, status_template
 from gripper_ros.nodes.parameters import ConfigParameters
-from gripper_ros.wire import (Controller, NODE_FORCE_CONTROLLER, NODE_PLANT,
+from gripper_ros.wire import (CDR_LITTLE_ENDIAN, Controller, NODE_FORCE_CONTROLLER, NODE_PLANT,
                               NODE_POSITION_CONTROLLER, NODE_SUPERVISOR, Outcome,
-                              REFERENCE_LAYOUT, SERVICE_GRASP, SERVICE_MOVE, SERVICE_RELEASE,
+                              SERVICE_GRASP, SERVICE_MOVE, SERVICE_RELEASE,
                               SERVICE_STOP, TICK_LAYOUT, TOPIC_FORCE_REFERENCE,
                               TOPIC_MOTOR_COMMAND, TOPIC_OUTCOME, TOPIC_POSITION_REFERENCE,
                               TOPIC_STATUS, TOPIC_TICK)
@@ -59,7 +59,7 @@ class SupervisorNode(Node):
                                            on_change=self._on_config_change)
         self.config = self.parameters.config
         self.logic = GraspSupervisor(self.config.plant, self.config.supervisor)
-        self._decide = SupervisorSide(self.logic).decide
+        self._side = SupervisorSide(self.logic)
         self.tick_timeout_s = self.declare_parameter(
             'tick_timeout_s', 2.0, ParameterDescriptor(
                 description='wall seconds without progress (a tick commanded by the named '
@@ -121,7 +121,8 @@ class SupervisorNode(Node):
 
     # ------------------------------------------------------------------ the tick
     def _on_tick(self, data: bytes) -> None:
-        tick = Tick._make(decode(TICK_LAYOUT, data, PlantTick))
+        values = decode(TICK_LAYOUT, data, PlantTick)
+        tick = Tick._make(values)
         key = (tick.stamp_ns, tick.revision)
         if key == self._decided_key:            # the plant is still waiting: send it again
             if self._ref_bytes is not None:
@@ -136,12 +137,16 @@ class SupervisorNode(Node):
             self._good_force_n = tick.force_n
         if tick.applied_source == self._expected_source or not self.logic.running:
             self._silence.reset()               # the named stage's command moved the plant
-        decision, ref = self._decide(tick)
-        self._expected_source = decision.active
-        if ref is not None:
-            self._ref_topic = self._refs[decision.active]
-            self._ref_name = REFERENCE_TOPICS[decision.active]
-            self._ref_bytes = REFERENCE_LAYOUT.pack(*ref)
+        side = self._side
+        side.tick_record[0] = values
+        named = side.decide_record(side.tick_record)
+        decision = self.logic.decision
+        active = self.logic.active
+        self._expected_source = active
+        if named:
+            self._ref_topic = self._refs[active]
+            self._ref_name = REFERENCE_TOPICS[active]
+            self._ref_bytes = CDR_LITTLE_ENDIAN + side.reference_record.tobytes()
             self._ref_topic.publish(self._ref_bytes)
             self.references_published += 1
             self.published[self._ref_name] += 1
@@ -154,7 +159,7 @@ class SupervisorNode(Node):
     def _publish_status(self, t_ns: int, force: bool = False) -> None:
         """At the status rate, on every change, or when ``force``d (heartbeat, a request)."""
         d = self.logic
-        key = (d.phase, d.active, d.stage_id, d.outcome, d.pending_request)
+        key = d.status_key
         if not force and key == self._status_key and t_ns < self._next_status_ns:
             return
         self._status_key = key
