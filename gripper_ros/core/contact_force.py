@@ -162,6 +162,14 @@ def contact_reset(c, has_position, position_m):
 
 
 @numba.njit(cache=True)
+def contact_speed_mps(c, force_setpoint_n, width_tolerance_m):
+    """Return the speed at which the finger meets the object (see the façade's method)."""
+    s = as_record(c)
+    return (s.band_speed_mps_per_n if width_tolerance_m > 0.0
+            else s.contact_speed_mps_per_n) * force_setpoint_n
+
+
+@numba.njit(cache=True)
 def contact_loop_time_constant_s(c, stiffness_n_per_m):
     """Return (code, tau_k): see :meth:`ContactForceController.loop_time_constant_s`."""
     s = as_record(c)
@@ -244,8 +252,7 @@ def contact_step(c, force_setpoint_n, force_n, position_m, face_m, width_toleran
         s.contact_position_m = position_m
     if not s.has_contact:
         s.in_contact = 0
-        v_c = (s.band_speed_mps_per_n if width_tolerance_m > 0.0
-               else s.contact_speed_mps_per_n) * force_setpoint_n
+        v_c = contact_speed_mps(s, force_setpoint_n, width_tolerance_m)
         if position_m > face_m + width_tolerance_m + s.untouched_overtravel_m:
             # past the narrowest object's face, nothing touched: narrower than allowed, or
             # absent. The stall voltage of F_sp is safe on any rigid object and finds
@@ -361,7 +368,6 @@ class ContactForceController:
         self.time_constant_s = 1.0 / (self.contact_speed_mps_per_n * t.design_stiffness_n_per_m)
         self.band_speed_mps_per_n = self.contact_speed_mps_per_n * math.sqrt(
             t.design_stiffness_n_per_m / t.band_design_stiffness_n_per_m)
-        self.output_limits = (-plant.voltage_limit_v, plant.voltage_limit_v)
         s['dt_s'] = dt_s
         s['stall_force_per_volt_n'] = self.stall_force_per_volt_n
         s['reflected_mass_kg'] = self.reflected_mass_kg
@@ -378,7 +384,7 @@ class ContactForceController:
         # sample-gain bound on 1 / tau_k (see loop_time_constant_s)
         s['two_zeta_sqrt_m'] = 2.0 * t.design_damping_ratio * math.sqrt(self.reflected_mass_kg)
         s['kappa_over_dt'] = t.servo_sample_gain / dt_s
-        s['low'], s['high'] = self.output_limits
+        self.output_limits = (-plant.voltage_limit_v, plant.voltage_limit_v)
         s['max_travel_m'] = plant.max_travel_m
         for name in ('contact_force_n', 'untouched_overtravel_m', 'integral_speed_band_mps',
                      'integral_rate_fraction', 'integral_gain_v_per_n_s', 'force_gain_v_per_n',
@@ -395,6 +401,16 @@ class ContactForceController:
         s['band_k'], s['band_tau'] = k_band, tau_band
         s['band_kv'] = self.damping_gain_for(k_band, tau_band)
         self.reset()
+
+    @property
+    def output_limits(self) -> tuple[float, float]:
+        s = self.record[0]
+        return (float(s['low']), float(s['high']))
+
+    @output_limits.setter
+    def output_limits(self, limits: tuple[float, float]) -> None:
+        s = self.record[0]
+        s['low'], s['high'] = limits
 
     @property
     def terms(self) -> ContactForceTerms:
@@ -422,9 +438,7 @@ class ContactForceController:
         ``alpha F_sp`` at an exact width; within a tolerance the band's speed, designed for
         ``tuning.band_design_stiffness_n_per_m``.
         """
-        per_n = self.band_speed_mps_per_n if width_tolerance_m > 0.0 else \
-            self.contact_speed_mps_per_n
-        return per_n * force_setpoint_n
+        return contact_speed_mps(self.record, float(force_setpoint_n), float(width_tolerance_m))
 
     def loop_time_constant_s(self, stiffness_n_per_m: float) -> float:
         """Return ``tau_k``, the force loop's time constant on a spring of this stiffness.

@@ -588,6 +588,12 @@ class TickAnswer(namedtuple('TickAnswer', 'voltage_v inner_setpoint finite reaso
     __slots__ = ()
 
 
+# where the answerer reads a command record: its finite byte, and its two float64 numbers
+_FINITE_BYTE = COMMAND_DTYPE.fields['finite'][1]
+_VOLTAGE_AT, _INNER_AT = (COMMAND_DTYPE.fields[name][1] // 8
+                          for name in ('voltage_v', 'inner_setpoint'))
+
+
 class LockstepAnswerer:
     """The lockstep bookkeeping of one controller around a stage.
 
@@ -614,6 +620,8 @@ class LockstepAnswerer:
         reset_book(self._book, self.numbers)
         self._ref = np.zeros(1, REFERENCE_DTYPE)
         self._cmd = np.zeros(1, COMMAND_DTYPE)
+        self._cmd_bytes = self._cmd.view(np.uint8)
+        self._cmd_floats = self._cmd.view(np.float64)
 
     @property
     def answered(self) -> tuple[int, int] | None:
@@ -650,9 +658,9 @@ class LockstepAnswerer:
         if self._kernel is not None:
             if not stage_answer(self._kernel, self._ref, self._cmd):
                 return None
-            c = self._cmd[0]
-            if c['finite']:
-                return TickAnswer(float(c['voltage_v']), float(c['inner_setpoint']))
+            if self._cmd_bytes[_FINITE_BYTE]:
+                numbers = self._cmd_floats.tolist()
+                return TickAnswer(numbers[_VOLTAGE_AT], numbers[_INNER_AT])
             return TickAnswer(0.0, 0.0, finite=False, reason=self.reason)
         measurement = self.stage.measurement(ref)
         reason = answer_open(self._book, self._reference_numbers, self._ref, float(measurement))
