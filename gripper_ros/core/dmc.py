@@ -40,6 +40,7 @@ build the models (step responses, gains, powers of ``Ad``) and call the kernels.
 from __future__ import annotations
 
 import enum
+import functools
 import math
 from typing import Callable
 
@@ -226,6 +227,8 @@ class GovernorPhase(enum.Enum):
 
 GOVERNOR_PHASES = (GovernorPhase.ACCELERATE, GovernorPhase.BRAKE, GovernorPhase.DMC)
 """The governor's phase by its code in :data:`GOVERNOR_DTYPE` (0, 1, 2)."""
+GOVERNOR_TABLES_CACHED = 16
+"""Governor tables kept per process: 700 samples of powers of Ad cost a few ms to build."""
 PHASE_ACCELERATE = 0
 PHASE_BRAKE = 1
 PHASE_DMC = 2
@@ -323,6 +326,22 @@ def governor_applied(g, buf, voltage):
     buf[12:15] = ahead
 
 
+@functools.lru_cache(maxsize=GOVERNOR_TABLES_CACHED)
+def _governor_tables(ad_bytes: bytes, bd_bytes: bytes, samples: int):
+    """``Ad^k`` and the forced response ``sum Ad^j Bd`` for k <= samples, once per model."""
+    ad = np.frombuffer(ad_bytes).reshape(3, 3)
+    bd = np.frombuffer(bd_bytes)
+    powers = np.empty((samples + 1, 3, 3))
+    steps = np.zeros((samples + 1, 3))
+    powers[0] = np.eye(3)
+    for k in range(samples):
+        powers[k + 1] = ad @ powers[k]
+        steps[k + 1] = steps[k] + powers[k] @ bd
+    powers.flags.writeable = False
+    steps.flags.writeable = False
+    return powers, steps
+
+
 class BrakingGovernor:
     """Minimum-time move under the voltage limit, then the DMC: one switch, one handover.
 
@@ -351,12 +370,7 @@ class BrakingGovernor:
             raise ValueError(f'braking voltage must be in (0, {limit_v}], got {braking_v!r}')
         self.ad = np.asarray(ad, dtype=float)
         self.bd = np.asarray(bd, dtype=float)
-        powers = np.empty((samples + 1, 3, 3))
-        steps = np.zeros((samples + 1, 3))
-        powers[0] = np.eye(3)
-        for k in range(samples):
-            powers[k + 1] = self.ad @ powers[k]
-            steps[k + 1] = steps[k] + powers[k] @ self.bd
+        powers, steps = _governor_tables(self.ad.tobytes(), self.bd.tobytes(), samples)
         rows = samples + 1
         self.record = np.zeros(1, GOVERNOR_DTYPE)
         self.record[0]['rows'] = rows
