@@ -623,7 +623,7 @@ def _compliant_force_rate(s, p):
     return stiffness * v + damping * accel
 
 
-@numba.njit(cache=True, inline='always')
+@numba.njit(cache=True)
 def _advance_compliant_in_one_step(s, p, keys, coef, e, dt_s):
     """Step a compliant contact over ``dt_s`` at once; False (state kept) if it may not.
 
@@ -741,7 +741,7 @@ def _advance_slipping(s, p, h, keys, coef, e, dt_s, remaining_s):
     return remaining_s - dt_s
 
 
-@numba.njit(cache=True, inline='always')
+@numba.njit(cache=True)
 def _integrate(s, p, h, keys, coef, e, duration_s, start_s):
     """Advance ``duration_s`` at voltage ``e``; returns the contact force at its end."""
     remaining = duration_s
