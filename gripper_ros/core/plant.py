@@ -88,8 +88,10 @@ COMPLIANT_ONE_STEP_PHASE_RAD = 0.1
 PEAK_RESOLUTION_N = 1e-9
 
 __all__ = ['ContactState', 'DEFAULT_SLIP_TIME_CONSTANT_S', 'FaultKind', 'GraspObject',
-           'GripperPlant', 'HoldState', 'Lift', 'ObjectState', 'PlantSample', 'ScheduledFault',
-           'check_fault']
+           'GripperPlant', 'HoldState', 'Lift', 'ObjectState', 'PARAMS_DTYPE', 'PlantSample',
+           'STATE_DTYPE', 'ScheduledFault', 'check_fault', 'plant_begin_hold',
+           'plant_cancel_fault', 'plant_fault_scheduled', 'plant_read_tick', 'plant_sample',
+           'plant_scenario_in_progress', 'plant_schedule_fault', 'plant_step']
 
 
 @dataclass(frozen=True)
@@ -218,7 +220,7 @@ STATE_DTYPE = np.dtype([
     ('w', np.float64),                     # motor speed (rad/s)
     ('x', np.float64),                     # finger travel from fully open (m)
     ('voltage', np.float64),               # applied (clipped) armature voltage (V)
-    ('contact', np.int64),                 # CONTACT_* code
+    ('contact', np.int64),                 # CONTACT_* code (the facade's ContactState)
     ('peak', np.float64),                  # largest force in the step (N)
     ('impact_energy_lost_j', np.float64),
     ('width_m', np.float64),               # the object (GraspObject's fields)
@@ -623,7 +625,7 @@ def _compliant_force_rate(s, p):
     return stiffness * v + damping * accel
 
 
-@numba.njit(cache=True, inline='always')
+@numba.njit(cache=True)
 def _advance_compliant_in_one_step(s, p, keys, coef, e, dt_s):
     """Step a compliant contact over ``dt_s`` at once; False (state kept) if it may not.
 
@@ -741,7 +743,7 @@ def _advance_slipping(s, p, h, keys, coef, e, dt_s, remaining_s):
     return remaining_s - dt_s
 
 
-@numba.njit(cache=True, inline='always')
+@numba.njit(cache=True)
 def _integrate(s, p, h, keys, coef, e, duration_s, start_s):
     """Advance ``duration_s`` at voltage ``e``; returns the contact force at its end."""
     remaining = duration_s
