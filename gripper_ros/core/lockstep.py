@@ -183,16 +183,13 @@ class PlantSide:
         ``fault`` (kind, seconds after the next grasp's start, time constant) is armed when
         that grasp starts.
         """
-        saved = [array.copy() for array in self.plant.kernel]
-        saved_vars = dict(vars(self.plant))
+        saved = self.plant.snapshot()
         try:
             if open_fingers:
                 self.plant.reset(open_fingers=True)
             self.plant.set_object(obj, **hold)
         except ValueError:
-            for array, copy in zip(self.plant.kernel, saved):   # refused: as it was
-                array[...] = copy
-            vars(self.plant).update(saved_vars)
+            self.plant.restore(saved)           # refused: the plant is as it was
             raise
         s = self._s
         if fault is None or fault[0] is FaultKind.NONE:
