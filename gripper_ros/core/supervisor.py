@@ -200,7 +200,7 @@ def _end(s, phase, outcome, msg_code, hold, position_m, move_limits) -> int:
     else:
         s.active = Controller.NONE
         s.stage_id += 1
-    return outcome
+    return s.outcome
 
 
 @_kernel
@@ -472,7 +472,7 @@ def _step_request(s, p, msg_f, msg_i, t_ns, position_m, force_n, sensor_voltage_
         msg_f[2] = position_m
         s.msg_code = MSG_HOLDING
         s.msg_seq += 1
-        return Outcome.HOLDING
+        return s.outcome
     if (t_ns - s.start_ns) * 1e-9 > s.tg_timeout_s:
         msg_f[0] = s.tg_timeout_s
         msg_f[1] = position_m
