@@ -101,6 +101,9 @@ ROWS = ('position_m', 'force_n', 'peak_force_n', 'motor_voltage_v', 'sensor_volt
 """The per-tick float series a headless grasp keeps, in the order of its row buffer."""
 FIRST_ROWS = 4096
 """Rows a grasp's series buffers start with (they double when full)."""
+WORKER_PRELOAD = 'gripper_ros.core.batch_worker'
+"""Imported once by the batch engine's fork server, so that each worker forks with the compiled
+core loaded instead of loading it itself."""
 CHUNKS_PER_JOB = 4
 """A batch is cut into this many chunks per worker process: few tasks, balanced load."""
 
@@ -340,7 +343,9 @@ def map_cases(fn: Callable, cases: Sequence, jobs: int | None = None,
         return [fn(case) for case in cases]
     size = max(1, math.ceil(len(cases) / (jobs * chunks_per_job)))
     chunks = [cases[i:i + size] for i in range(0, len(cases), size)]
-    with multiprocessing.get_context('forkserver').Pool(min(jobs, len(chunks))) as pool:
+    context = multiprocessing.get_context('forkserver')
+    context.set_forkserver_preload([WORKER_PRELOAD])
+    with context.Pool(min(jobs, len(chunks))) as pool:
         results = pool.map(functools.partial(_run_chunk, fn), chunks, chunksize=1)
     return [r for chunk in results for r in chunk]
 
@@ -453,6 +458,15 @@ def simulate_moves(config: GripperConfig, moves, *, object_width_m: float = 0.0,
     return HeadlessMoves(answers, np.array(cols[0], dtype=np.int64),
                          *(np.array(c, dtype=float) for c in cols[1:6]),
                          np.array(cols[6], dtype=np.int8), np.array(cols[7], dtype=float))
+
+
+def warm_up_worker() -> None:
+    """Load the kernels a batch of grasps uses (a short grasp; errors are the batch's to see)."""
+    from gripper_ros.core.config import load_config
+    try:
+        simulate_grasp(load_config(), 0.1, 0.5, timeout_s=0.05)
+    except Exception:           # noqa: B902 - a bad config file is reported by the batch itself
+        pass
 
 
 def warm_up(config: GripperConfig | None = None) -> float:
