@@ -262,17 +262,7 @@ class GraphTap:
             if self.sink is not sink:
                 return
             self.sink = None
-        count = sink.message_count
-        try:
-            sink.close()
-        except Exception:  # noqa: BLE001 - the first error is the one to report
-            pass
-        readable = _readable_messages(sink)
-        reason = getattr(exc, 'strerror', None) or str(exc)
-        lost = f' ({count - readable} more were still buffered and are lost)' \
-            if count > readable else ''
-        self.error = (f'recording stopped: {sink.bag_dir}: {reason}; the bag holds {readable} '
-                      f'messages, readable up to there{lost}')
+        self.error = failure_message(sink, exc)
         if self.on_error is not None:
             self.on_error(self.error)
 
@@ -297,6 +287,25 @@ def _readable_messages(sink: BagRecorder) -> int:
         return read_bag(sink.bag_dir, allow_empty=True).message_count
     except BagError:
         return sink.readable_count
+
+
+def failure_message(sink: BagRecorder, exc: BaseException) -> str:
+    """Close a bag whose recording failed and say so in one line.
+
+    The line names the bag, the error, the messages a reader gets back and those lost: every
+    message handed to the recorder is either readable or counted as lost.
+    """
+    count = sink.accepted_count
+    try:
+        sink.close()
+    except Exception:  # noqa: BLE001 - the first error is the one to report
+        pass
+    readable = _readable_messages(sink)
+    reason = getattr(exc, 'strerror', None) or str(exc)
+    lost = f' ({count - readable} more were still buffered and are lost)' \
+        if count > readable else ''
+    return (f'recording stopped: {sink.bag_dir}: {reason}; the bag holds {readable} '
+            f'messages, readable up to there{lost}')
 
 
 def graph_tap(graph) -> GraphTap:
@@ -402,14 +411,17 @@ def recorded_grasp(graph, bag_dir, width_m: float, mass_kg: float,
         logic = graph.supervisor.logic
         final, message = logic.outcome, logic.message
         if not recorder.closed:
-            if response is not None:
-                recorder.set_custom_data({
-                    'outcome': Outcome(response.outcome).name, 'success': response.success,
-                    'message': response.message, 'final_outcome': final.name,
-                    'final_message': message,
-                    'position_setpoint_m': response.position_setpoint_m,
-                    'force_setpoint_n': response.force_setpoint_n})
-            recorder.close()
+            try:
+                if response is not None:
+                    recorder.set_custom_data({
+                        'outcome': Outcome(response.outcome).name,
+                        'success': response.success, 'message': response.message,
+                        'final_outcome': final.name, 'final_message': message,
+                        'position_setpoint_m': response.position_setpoint_m,
+                        'force_setpoint_n': response.force_setpoint_n})
+                recorder.close()
+            except Exception as exc:  # noqa: BLE001 - a writer that failed after the last tick
+                tap.error = failure_message(recorder, recorder.failure or exc)
         recorded = dict(recorder.counts)
     return RecordedGrasp(response, Path(bag_dir), published, recorded,
                          time.perf_counter() - t0, final, message, tap.error)
@@ -543,10 +555,13 @@ class ServeRecorder:
 
     def _close_sink(self, sink) -> None:
         if sink is not None and not sink.closed:
+            if sink.failure is not None:        # the writer failed after the last message
+                self._report(failure_message(sink, sink.failure))
+                return
             try:
                 sink.close()
             except Exception as exc:  # noqa: BLE001 - reported, never raised into the graph
-                self._report(f'closing {sink.bag_dir} failed: {exc}')
+                self._report(failure_message(sink, sink.failure or exc))
 
     def close(self) -> None:
         """End recording (the graph is shutting down): a bag open now ends with whole ticks."""
