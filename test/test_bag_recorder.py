@@ -368,3 +368,85 @@ def test_truncated_recorder_file(recorded, node_factory, tmp_path, capsys):
     assert exc_info.value.code == EXIT_TRUNCATED
     assert wait_until(lambda: len(got[JS]) == n_js)
     assert got[JS] == _recorded_bytes(tmp_path / 'run1', JS)[:n_js]
+
+
+# --- the writer thread ------------------------------------------------------------------------
+
+class _LoggedFile:
+    """A bag file that notes which thread wrote how many bytes."""
+
+    def __init__(self, f, log):
+        self.f, self.log = f, log
+
+    def write(self, data):
+        self.log.append((threading.current_thread().name, len(data)))
+        return self.f.write(data)
+
+    def __getattr__(self, name):
+        return getattr(self.f, name)
+
+
+def test_write_only_queues_and_the_writer_thread_writes_the_file(node_factory, tmp_path,
+                                                                 monkeypatch):
+    """The caller of write() (an executor thread in a graph) never touches the file."""
+    from gripper_ros.bags import recorder as recorder_module
+    from rclpy.serialization import serialize_message
+    log, real_open = [], open
+    monkeypatch.setattr(recorder_module, 'open', lambda path, mode='r': _LoggedFile(
+        real_open(path, mode), log), raising=False)
+    rec = BagRecorder(node_factory('queued'), tmp_path / 'queued', {JS: STD_TOPICS[JS]},
+                      subscribe=False, flush_every_messages=50)
+    here = threading.current_thread().name
+    before = len(log)
+    n = 200
+    for k in range(n):
+        rec.write(JS, serialize_message(joint_state(k)), k)
+    assert rec.accepted_count == n
+    assert wait_until(lambda: rec.readable_count == n)
+    written = log[before:]
+    assert written and all(name != here for name, _ in written)
+    assert {name for name, _ in written} == {f'bag_writer {rec.bag_dir.name}'}
+    rec.close()
+    bag = read_bag(tmp_path / 'queued')
+    assert bag.message_count == n and not bag.truncated
+    assert [m.log_time_ns for m in bag.messages] == list(range(n))
+
+
+def test_a_writer_failure_is_raised_by_the_next_write_and_nothing_is_lost_silently(
+        node_factory, tmp_path, monkeypatch):
+    """A full disk in the writer thread: write() raises it; queued messages are counted."""
+    import errno
+    from gripper_ros.bags import recorder as recorder_module
+    from rclpy.serialization import serialize_message
+
+    class Full:
+        def __init__(self, f):
+            self.f, self.n = f, 0
+
+        def write(self, data):
+            if self.n + len(data) > 3000:
+                raise OSError(errno.ENOSPC, 'No space left on device')
+            self.n += len(data)
+            return self.f.write(data)
+
+        def __getattr__(self, name):
+            return getattr(self.f, name)
+
+    real_open = open
+    monkeypatch.setattr(recorder_module, 'open', lambda path, mode='r': Full(
+        real_open(path, mode)), raising=False)
+    rec = BagRecorder(node_factory('full'), tmp_path / 'full', {JS: STD_TOPICS[JS]},
+                      subscribe=False, flush_every_messages=10)
+    data = serialize_message(joint_state(1))
+    with pytest.raises(OSError, match='No space left'):
+        for k in range(100_000):
+            rec.write(JS, data, k)
+            if k % 10 == 9:
+                wait_until(lambda: rec.failure is not None or rec.message_count > k, 1.0)
+    assert isinstance(rec.failure, OSError)
+    assert rec.accepted_count > rec.readable_count > 0
+    with pytest.raises(BagRecorderError, match='No space left'):
+        rec.close()
+    # a chunk can be whole on disk while its index did not fit: a reader gets it back too
+    readable = read_bag(tmp_path / 'full', allow_empty=True).message_count
+    assert rec.readable_count <= readable <= rec.accepted_count
