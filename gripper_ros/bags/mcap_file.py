@@ -13,19 +13,23 @@ every MCAP reader reads it.
 from __future__ import annotations
 
 from collections import defaultdict
+from itertools import chain
 import struct
 from typing import BinaryIO, Iterable, Mapping
 import zlib
 
 from mcap.data_stream import RecordBuilder
 from mcap.opcode import Opcode
-from mcap.records import (Channel, Chunk, ChunkIndex, DataEnd, Footer, Header, MessageIndex,
-                          Metadata, MetadataIndex, Schema, Statistics, SummaryOffset)
+from mcap.records import (Channel, Chunk, ChunkIndex, DataEnd, Footer, Header, Metadata,
+                          MetadataIndex, Schema, Statistics, SummaryOffset)
 from mcap.writer import CompressionType
 
 MAGIC = b'\x89MCAP0\r\n'
 _MESSAGE = struct.Struct('<BQHIQQ')     # opcode, record length, channel, sequence, log, publish
 _MESSAGE_FIELDS_SIZE = _MESSAGE.size - 9  # what the record length counts before the data
+_INDEX_HEAD = struct.Struct('<BQHI')     # opcode, record length, channel, entries' byte length
+_INDEX_FIELDS_SIZE = _INDEX_HEAD.size - 9
+_INDEX_ENTRY = struct.Struct('<QQ')      # log ns, offset
 _FOOTER_FIELDS = struct.Struct('<BQQQ')
 _FOOTER_LENGTH = 8 + 8 + 4
 _SEQUENCE_MASK = 0xFFFFFFFF
@@ -40,6 +44,16 @@ def _compressor(compression: CompressionType):
         import lz4.frame
         return 'lz4', lz4.frame.compress
     return '', bytes
+
+
+def _message_index(channel: int, entries: list[tuple[int, int]]) -> bytes:
+    """Return a MessageIndex record (``mcap.records.MessageIndex``'s bytes) in one pack.
+
+    ``entries``: (log ns, offset in the chunk's records) of each message of ``channel``.
+    """
+    size = _INDEX_ENTRY.size * len(entries)
+    head = _INDEX_HEAD.pack(Opcode.MESSAGE_INDEX, _INDEX_FIELDS_SIZE + size, channel, size)
+    return head + struct.pack(f'<{2 * len(entries)}Q', *chain.from_iterable(entries))
 
 
 class McapFile:
@@ -127,12 +141,14 @@ class McapFile:
             compression=self._compression, data=data, message_start_time=start,
             message_end_time=end, uncompressed_crc=zlib.crc32(raw), uncompressed_size=len(raw)))
         index_offsets = {}
-        builder = RecordBuilder()
+        index_parts = []
+        index_length = 0
         for channel, entries in sorted(indexes.items()):
-            index_offsets[channel] = self._offset + builder.count
-            MessageIndex(channel_id=channel, records=entries).write(builder)
-        index_length = builder.count
-        self._write(builder.end())
+            index_offsets[channel] = self._offset + index_length
+            part = _message_index(channel, entries)
+            index_parts.append(part)
+            index_length += len(part)
+        self._write(b''.join(index_parts))
         self._chunk_indexes.append(ChunkIndex(
             message_start_time=start, message_end_time=end, chunk_start_offset=chunk_start,
             chunk_length=chunk_length, message_index_offsets=index_offsets,
