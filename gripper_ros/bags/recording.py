@@ -126,13 +126,19 @@ class GraphTap:
         """Make ``publisher.publish`` also hand what it publishes to :meth:`_on_message`.
 
         The message goes to DDS first, exactly as before; a message object (the few state
-        topics not packed by template) is serialised here, bytes are taken as they are.
+        topics not packed by template) is serialised here, bytes are taken as they are. An
+        error of the tap ends the recording (one line), never the node that published.
         """
         publish, on_message, topic = publisher.publish, self._on_message, publisher.topic_name
 
         def tapped(msg) -> None:
             publish(msg)
-            on_message(topic, msg if isinstance(msg, bytes) else serialize_message(msg))
+            try:
+                on_message(topic, msg if isinstance(msg, bytes) else serialize_message(msg))
+            except Exception as exc:  # noqa: BLE001 - a recorder error never stops the graph
+                sink = self.sink
+                if sink is not None:
+                    self._fail(sink, exc)
 
         publisher.publish = tapped
         self._tapped.append(publisher)
