@@ -8,9 +8,13 @@ channels with ``offered_qos_profiles``/``topic_type_hash``, a ``rosbag2`` metada
 ``metadata.yaml`` version 9; so ``ros2 bag info/play``, Foxglove, ``rosbags`` and ``mcap`` all
 read it.
 
-The writer runs in a thread of its own: a message handed to the recorder is only appended to a
-queue (its bytes and times), so that the executor thread that receives it never waits for the
-MCAP encoding, the compression or the file.
+A message handed to the recorder is only appended to a queue (its bytes and times); once a
+chunk's worth is queued, the chunk is encoded in one pass, compressed and written. Per message,
+the executor thread that hands it over pays for an append and a share of that pass, not for the
+``mcap`` writer's per-message Python. The pass stays in the caller's thread on purpose: a
+writer thread measured slower, since it shares the GIL with the executor and takes it in the
+middle of ticks (docs/BENCHMARKS.md, "Recording"). A timer thread writes what waits longer
+than ``flush_every_s``.
 """
 from __future__ import annotations
 
@@ -40,8 +44,7 @@ BAG_VERSION = 9
 _NS_PER_S = 1_000_000_000
 _INFINITE_NS = 0x7FFFFFFFFFFFFFFF  # RMW_DURATION_INFINITE
 WRITER_PERIOD_S = 0.02
-"""How often the writer thread takes what was queued: a batch, so that the thread wakes (and
-takes the GIL) some 50 times a second, not once a message."""
+"""How often the timer thread looks for messages waiting longer than ``flush_every_s``."""
 
 
 class PublishTime(enum.Enum):
@@ -110,22 +113,22 @@ class BagRecorder:
     that knows the tick better passes its own ``time_source``. ``publish_time`` is the same
     (``PublishTime.RECEIVE``) or the DDS source timestamp (``PublishTime.SOURCE``, wall time).
 
-    Threads: a received message is queued (bytes and times, nothing else) and a writer thread
-    encodes, compresses and writes the queue every :data:`WRITER_PERIOD_S`. :attr:`counts`
-    are the messages written; :attr:`accepted_count` also those still queued. A writer that
-    fails (a full disk) stops writing; the next :meth:`write` raises its error, so the caller
-    learns of it, and the messages still queued are counted in :attr:`accepted_count`, never
-    dropped without a trace.
+    Batches: a received message is queued (bytes and times, nothing else); every
+    ``flush_every_messages`` messages the queue becomes one chunk, encoded, compressed and
+    written by the call that filled it. :attr:`counts` are the messages taken, queued or
+    written. A write that fails (a full disk) stops the recorder and is raised; one that fails
+    in the timer thread is raised by the next :meth:`write`. Either way the caller learns of it
+    and the messages taken but not readable are counted (:attr:`accepted_count` against what a
+    reader gets back), never dropped without a trace.
 
-    Loss bound on SIGKILL: the writer is flushed (chunk closed and written to the OS) after every
-    ``flush_every_messages`` messages written, and every ``flush_every_s`` seconds of wall time
-    when something is pending. A killed process therefore loses at most the last
-    ``flush_every_messages - 1`` messages written, those received in the last ``flush_every_s``
-    seconds, and the queue of the last :data:`WRITER_PERIOD_S`; everything before reads back
-    with ``gripper_ros.bags.reader.read_bag`` (flagged truncated). No fsync: a power cut can
-    lose more. ``close()`` (also on context-manager exit, even after an exception, and at
-    interpreter exit) writes the queue, the summary, the ``rosbag2`` record and
-    ``metadata.yaml``.
+    Loss bound on SIGKILL: a chunk is closed and written to the OS every
+    ``flush_every_messages`` messages and, by the timer thread, when messages have waited
+    ``flush_every_s`` seconds of wall time. A killed process therefore loses at most the last
+    ``flush_every_messages - 1`` messages and at most those of the last ``flush_every_s``
+    seconds; everything before reads back with ``gripper_ros.bags.reader.read_bag`` (flagged
+    truncated). No fsync: a power cut can lose more. ``close()`` (also on context-manager exit,
+    even after an exception, and at interpreter exit) writes the queue, the summary, the
+    ``rosbag2`` record and ``metadata.yaml``.
     """
 
     def __init__(self, node: Node, bag_dir: str | os.PathLike,
@@ -172,7 +175,8 @@ class BagRecorder:
                             for t, d in definitions.items()}
         self._channel_ids: dict[str, int] = {}
         self._topic_meta: dict[str, dict] = {}
-        self._counts = dict.fromkeys(self._topics, 0)
+        self._counts = dict.fromkeys(self._topics, 0)    # messages taken, queued or written
+        self._sequence = dict.fromkeys(self._topics, 0)  # messages written: the next sequence
         self._first_ns: int | None = None
         self._last_ns: int | None = None
         self._chunk: list[tuple] = []           # the chunk being filled, as McapFile takes it
@@ -180,7 +184,7 @@ class BagRecorder:
         self._readable = 0                      # of those, in chunks written to the file
         self._last_flush = time.monotonic()
         self._queue: deque = deque()            # (topic, data, log ns, publish ns)
-        self._accepted = 0                      # messages queued, written or not
+        self._lost = 0                          # received after the writer failed
         self._failure: BaseException | None = None
         self._stop = threading.Event()
         if custom_data:
@@ -208,20 +212,18 @@ class BagRecorder:
 
     @property
     def counts(self) -> dict[str, int]:
-        """Messages written per topic so far."""
-        with self._lock:
-            return dict(self._counts)
+        """Messages taken per topic so far (written, or queued to be)."""
+        return dict(self._counts)
 
     @property
     def message_count(self) -> int:
-        """Messages written so far (queued ones not yet: see :attr:`accepted_count`)."""
-        with self._lock:
-            return sum(self._counts.values())
+        """Messages taken so far (written, or queued to be)."""
+        return sum(self._counts.values())
 
     @property
     def accepted_count(self) -> int:
         """Messages handed to the recorder, whether written yet or still queued."""
-        return self._accepted
+        return sum(self._counts.values()) + self._lost
 
     @property
     def readable_count(self) -> int:
@@ -271,8 +273,11 @@ class BagRecorder:
             t_ns = int(self._time_source())
         if self._closed:
             return
-        self._queue.append((topic, data, t_ns, t_ns))
-        self._accepted += 1
+        self._counts[topic] += 1
+        queue = self._queue
+        queue.append((topic, data, t_ns, t_ns))
+        if len(queue) >= self._flush_every_messages:
+            self._write_chunks()
 
     def flush(self) -> None:
         """Write everything received so far to the file (ends the current chunk)."""
@@ -343,27 +348,45 @@ class BagRecorder:
         """Queue a message of one of this recorder's own subscriptions."""
         if self._closed or self._failure is not None:
             if not self._closed:
-                self._accepted += 1             # received and lost: counted, never silent
+                self._lost += 1                 # received and lost: counted, never silent
             return
         t_ns = int(self._time_source())
         if self._publish_time is PublishTime.SOURCE and isinstance(info, dict):
             publish_ns = int(info.get('source_timestamp', t_ns))
         else:
             publish_ns = t_ns
-        self._queue.append((topic, data, t_ns, publish_ns))
-        self._accepted += 1
+        self._counts[topic] += 1
+        queue = self._queue
+        queue.append((topic, data, t_ns, publish_ns))
+        if len(queue) >= self._flush_every_messages:
+            try:
+                self._write_chunks()
+            except Exception:  # noqa: BLE001 - kept in failure; a callback must not raise
+                pass
+
+    def _write_chunks(self) -> None:
+        """Encode, compress and write the queue as whole chunks, in the caller's thread."""
+        with self._lock:
+            if not self._closed and self._failure is None:
+                self._guarded(self._drain_locked)
 
     def _run(self) -> None:
-        """Write the queue every ``WRITER_PERIOD_S`` and flush by time (the writer thread)."""
+        """Write what waits longer than ``flush_every_s`` (the timer thread).
+
+        It checks every ``WRITER_PERIOD_S`` and does nothing while messages keep coming, so
+        that it seldom takes the GIL from the executor.
+        """
         while not self._stop.wait(WRITER_PERIOD_S):
+            if time.monotonic() - self._last_flush < self._flush_every_s:
+                continue
             with self._lock:
                 if self._closed or self._failure is not None:
                     return
+                if not (self._queue or self._chunk):
+                    continue
                 try:
                     self._drain_locked()
-                    if self._chunk and \
-                            time.monotonic() - self._last_flush >= self._flush_every_s:
-                        self._flush_locked()
+                    self._flush_locked()
                 except Exception as exc:  # noqa: BLE001 - kept; the next write() raises it
                     self._failure = exc
                     return
@@ -383,7 +406,7 @@ class BagRecorder:
     def _drain_locked(self) -> None:
         """Move every queued message into chunks, in the order received; write full chunks."""
         queue, chunk = self._queue, self._chunk
-        counts, channel_ids = self._counts, self._channel_ids
+        counts, channel_ids = self._sequence, self._channel_ids
         every = self._flush_every_messages
         popleft, append = queue.popleft, chunk.append
         first, last = self._first_ns, self._last_ns
