@@ -236,8 +236,8 @@ class LoopLayout:
                  for _ in range(int(count or 1))]
         if len(codes) != len(fields):
             raise ValueError(f'{msgtype}: {len(fields)} fields but {len(codes)} in {body!r}')
-        self.dtype = np.dtype([(name, _NUMPY_OF_STRUCT[code]) for name, code in zip(fields, codes)],
-                              align=True)
+        self.dtype = np.dtype([(name, _NUMPY_OF_STRUCT[code])
+                               for name, code in zip(fields, codes)], align=True)
 
     def pack(self, *values) -> bytes:
         """Return the CDR bytes of a message with ``values`` in field order (bools as 0/1)."""
