@@ -1,14 +1,13 @@
 """An MCAP file written a chunk at a time: the encoding half of the bag recorder.
 
 Why not ``mcap.writer.Writer``: it takes one message a call and spends some microseconds of
-Python on each (a record object, statistics, the chunk builder's index). A recorder's writer
-thread shares the GIL with the executor that runs the simulation, so every microsecond it
-spends in Python is one the executor waits for. Here a whole chunk of messages is encoded in
-one loop of ``struct`` packs and joined once; compression, the CRCs and the file write are C
-code that releases the GIL. Every record other than a message is ``mcap.records``' own, and
-the layout (chunks, their message indexes, a summary with schemas, channels, statistics,
-chunk and metadata indexes, summary offsets, CRCs) is what ``mcap.writer.Writer`` writes, so
-every MCAP reader reads it.
+Python on each (a record object, statistics, the chunk builder's index), and the recorder runs
+in the executor's thread (or shares the GIL with it), so every microsecond of it is one the
+simulation waits for. Here a whole chunk of messages is encoded in one loop of ``struct``
+packs and joined once; compression, the CRCs and the file write are C code. Every record
+other than a message is ``mcap.records``' own, and the layout (chunks, their message indexes,
+a summary with schemas, channels, statistics, chunk and metadata indexes, summary offsets,
+CRCs) is what ``mcap.writer.Writer`` writes, so every MCAP reader reads it.
 """
 from __future__ import annotations
 
@@ -59,7 +58,7 @@ def _message_index(channel: int, entries: list[tuple[int, int]]) -> bytes:
 class McapFile:
     """Write an MCAP file to ``stream``: schemas, channels, chunks of messages, metadata.
 
-    Not thread-safe: one thread (the recorder's writer, under its lock) calls it.
+    Not thread-safe: the recorder calls it under its lock.
     """
 
     def __init__(self, stream: BinaryIO, profile: str, library: str,

@@ -199,7 +199,7 @@ class BagRecorder:
             node.create_subscription(classes[topic], topic,
                                      functools.partial(self._on_message, topic), qos, raw=True)
             for topic in self._topics] if subscribe else []
-        self._thread = threading.Thread(target=self._run, name=f'bag_writer {self._bag_dir.name}',
+        self._thread = threading.Thread(target=self._run, name=f'bag_timer {self._bag_dir.name}',
                                         daemon=True)
         self._thread.start()
         atexit.register(self.close)
@@ -396,7 +396,7 @@ class BagRecorder:
             raise self._failure
 
     def _guarded(self, action: Callable[[], Any]) -> None:
-        """Run a writer action; an error stops the writer as one in its thread does."""
+        """Run a writer action; an error stops the recorder as one in the timer thread does."""
         try:
             action()
         except Exception as exc:

@@ -2,7 +2,7 @@
 
 A :class:`GraphTap` sees every message the graph's nodes publish on its topics, in the
 publish call itself, so that no message of a grasp is missed and the tick pays for no
-subscription of its own; a :class:`BagRecorder` writes them from its own thread.
+subscription of its own; a :class:`BagRecorder` queues them and writes a chunk at a time.
 :func:`recorded_grasp` places the object, records the grasp and what
 follows it until simulated time stands still (fast mode: the hold scenario, a lift, played
 out) or ``linger_s`` of simulated time after the answer (realtime). :class:`ServeRecorder`
@@ -74,8 +74,7 @@ class GraphTap:
     subscription of its own would add a DDS delivery and an executor callback to every loop
     message, about 8 us each, the largest part of what recording cost the tick. What a
     publisher hands to DDS is handed here too, in the same call, so the counts recorded equal
-    the counts published by construction. The sink only queues it (:class:`BagRecorder`'s
-    writer thread writes).
+    the counts published by construction. The sink queues it and writes a chunk at a time.
 
     A sink records a window of whole ticks: from a start tick, whose measurement, decision and
     command it holds, up to an end tick it holds nothing of. The window is kept by the stamps
