@@ -368,3 +368,95 @@ def test_truncated_recorder_file(recorded, node_factory, tmp_path, capsys):
     assert exc_info.value.code == EXIT_TRUNCATED
     assert wait_until(lambda: len(got[JS]) == n_js)
     assert got[JS] == _recorded_bytes(tmp_path / 'run1', JS)[:n_js]
+
+
+# --- the writer thread ------------------------------------------------------------------------
+
+class _LoggedFile:
+    """A bag file that notes which thread wrote how many bytes."""
+
+    def __init__(self, f, log):
+        self.f, self.log = f, log
+
+    def write(self, data):
+        self.log.append((threading.current_thread().name, len(data)))
+        return self.f.write(data)
+
+    def __getattr__(self, name):
+        return getattr(self.f, name)
+
+
+def test_write_queues_and_the_file_is_written_a_chunk_at_a_time(node_factory, tmp_path,
+                                                                monkeypatch):
+    """A message costs the caller a queue append; the file sees one write per chunk and index."""
+    from gripper_ros.bags import recorder as recorder_module
+    from rclpy.serialization import serialize_message
+    log, real_open = [], open
+    monkeypatch.setattr(recorder_module, 'open', lambda path, mode='r': _LoggedFile(
+        real_open(path, mode), log), raising=False)
+    every, n = 50, 200
+    rec = BagRecorder(node_factory('queued'), tmp_path / 'queued', {JS: STD_TOPICS[JS]},
+                      subscribe=False, flush_every_messages=every)
+    data = serialize_message(joint_state(1))
+    before = len(log)
+    for k in range(every - 1):
+        rec.write(JS, data, k)
+    assert len(log) == before and rec.readable_count == 0      # queued, nothing written
+    for k in range(every - 1, n):
+        rec.write(JS, data, k)
+    assert rec.readable_count == n and rec.message_count == n
+    assert len(log) - before == 1 + 2 * (n // every)      # the channel; a chunk, its index each
+    rec.close()
+    bag = read_bag(tmp_path / 'queued')
+    assert bag.message_count == n and not bag.truncated
+    assert [m.log_time_ns for m in bag.messages] == list(range(n))
+
+
+def test_messages_left_waiting_are_written_by_the_timer(node_factory, tmp_path):
+    """Fewer than a chunk, and nothing more comes: written within ``flush_every_s``."""
+    from rclpy.serialization import serialize_message
+    rec = BagRecorder(node_factory('waiting'), tmp_path / 'waiting', {JS: STD_TOPICS[JS]},
+                      subscribe=False, flush_every_messages=100, flush_every_s=0.1)
+    for k in range(7):
+        rec.write(JS, serialize_message(joint_state(k)), k)
+    assert wait_until(lambda: rec.readable_count == 7, 5.0)
+    assert read_bag(tmp_path / 'waiting', allow_empty=True).message_count == 7
+    rec.close()
+
+
+def test_a_writer_failure_is_raised_by_the_next_write_and_nothing_is_lost_silently(
+        node_factory, tmp_path, monkeypatch):
+    """A full disk: write() raises it; messages taken but not readable are counted."""
+    import errno
+    from gripper_ros.bags import recorder as recorder_module
+    from rclpy.serialization import serialize_message
+
+    class Full:
+        def __init__(self, f):
+            self.f, self.n = f, 0
+
+        def write(self, data):
+            if self.n + len(data) > 3000:
+                raise OSError(errno.ENOSPC, 'No space left on device')
+            self.n += len(data)
+            return self.f.write(data)
+
+        def __getattr__(self, name):
+            return getattr(self.f, name)
+
+    real_open = open
+    monkeypatch.setattr(recorder_module, 'open', lambda path, mode='r': Full(
+        real_open(path, mode)), raising=False)
+    rec = BagRecorder(node_factory('full'), tmp_path / 'full', {JS: STD_TOPICS[JS]},
+                      subscribe=False, flush_every_messages=10)
+    data = serialize_message(joint_state(1))
+    with pytest.raises(OSError, match='No space left'):
+        for k in range(100_000):
+            rec.write(JS, data, k)
+    assert isinstance(rec.failure, OSError)
+    assert rec.accepted_count > rec.readable_count > 0
+    with pytest.raises(BagRecorderError, match='No space left'):
+        rec.close()
+    # a chunk can be whole on disk while its index did not fit: a reader gets it back too
+    readable = read_bag(tmp_path / 'full', allow_empty=True).message_count
+    assert rec.readable_count <= readable <= rec.accepted_count

@@ -10,13 +10,14 @@ from concurrent.futures import ThreadPoolExecutor
 import errno
 from pathlib import Path
 import re
+import signal
 import subprocess
 import sys
 import time
 
 from gripper_ros.bags import recorder as recorder_module
 from gripper_ros.bags.reader import read_bag
-from gripper_ros.bags.recording import ServeRecorder, unique_bag_dir
+from gripper_ros.bags.recording import recorded_grasp, ServeRecorder, unique_bag_dir
 from gripper_ros.nodes.graph import GraphOptions, GripperGraph
 from gripper_ros.wire import Outcome
 import pytest
@@ -155,3 +156,67 @@ def test_two_servers_naming_bags_in_one_folder_in_the_same_second_never_collide(
     assert all(p.returncode == 0 for p in procs)
     assert len(names) == 250 == len(set(names))
     assert len([p for p in Path(tmp_path).iterdir() if p.is_dir()]) == 250
+
+
+@pytest.fixture
+def graph(tmp_path):
+    graph = GripperGraph.in_own_context(GraphOptions(namespace='late_failure', time_mode='fast'))
+    try:
+        yield graph
+    finally:
+        graph.close()
+
+
+def test_a_writer_failing_after_the_last_tick_ends_the_recording_with_one_line(
+        graph, tmp_path, monkeypatch):
+    """The bag's writer fails as the bag is finished: the one line, the answer stands.
+
+    The bag reads back up to the failure, as many messages as the line says.
+    """
+    from gripper_ros.bags.mcap_file import McapFile
+
+    def full(self):
+        raise OSError(errno.ENOSPC, 'No space left on device')
+
+    monkeypatch.setattr(McapFile, 'finish', full)
+    run = recorded_grasp(graph, tmp_path / 'late', 0.05, 1.69)
+    assert run.response.outcome == Outcome.HOLDING
+    assert run.recording_error.startswith(f'recording stopped: {tmp_path / "late"}: '
+                                          'No space left on device')
+    assert read_bag(tmp_path / 'late').message_count == _readable_count(run.recording_error) > 0
+
+
+def test_the_tap_adds_no_subscription_and_counts_equal_published(graph, tmp_path):
+    """Recording taps the publishers: no DDS reader of its own, every message published seen."""
+    run = recorded_grasp(graph, tmp_path / 'tapped', 0.1, 0.75)
+    assert not run.recording_error
+    assert run.recorded == run.published and all(n > 0 for n in run.published.values())
+    assert read_bag(tmp_path / 'tapped').counts() == run.published
+    tap = graph.recording_tap
+    assert not [s for node in graph.nodes for s in node.subscriptions
+                if s.topic_name in tap.topics and node is graph.client_node]
+    publishers = list(tap._tapped)
+    assert publishers
+    tap.close()
+    assert all('publish' not in vars(p) for p in publishers)   # the class's own publish again
+
+
+def test_a_second_signal_while_closing_leaves_a_complete_bag_and_no_traceback(tmp_path):
+    proc = subprocess.Popen([sys.executable, '-m', 'gripper_ros.apps.grasp_demo', '--width',
+                             '0.01', '--mass', '1.27', '--time-mode', 'realtime', '--output',
+                             str(tmp_path), '--no-plot', '--namespace', 'second_signal'],
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    for line in proc.stdout:
+        if 'grasping width' in line:
+            break
+    time.sleep(1.0)                         # well inside the grasp
+    proc.send_signal(signal.SIGINT)
+    time.sleep(0.05)                        # while the bag is being closed
+    proc.send_signal(signal.SIGINT)
+    out, _ = proc.communicate(timeout=30)
+    assert proc.returncode == 130, out
+    assert 'Traceback' not in out
+    bags = sorted(tmp_path.glob('grasp_*'))
+    assert len(bags) == 1 and (bags[0] / 'metadata.yaml').is_file()
+    bag = read_bag(bags[0])
+    assert not bag.truncated and bag.message_count > 0

@@ -133,7 +133,7 @@ def main(argv: list[str] | None = None) -> int:
     # stops its executor, closes its bags and only then shuts the context down.
     rclpy.init(args=None if argv is None else [], signal_handler_options=SignalHandlerOptions.NO)
     # SIGTERM (e.g. from a process manager) ends the demo like Ctrl-C: bags are closed.
-    previous_sigterm = signal.signal(signal.SIGTERM, _raise_keyboard_interrupt)
+    previous = {sig: signal.signal(sig, _raise_keyboard_interrupt) for sig in _STOP_SIGNALS}
     graph = None
     try:
         graph = GripperGraph(GraphOptions(
@@ -163,11 +163,26 @@ def main(argv: list[str] | None = None) -> int:
         if graph is not None:
             graph.close()
         rclpy.try_shutdown()
-        signal.signal(signal.SIGTERM, previous_sigterm)
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+
+
+_STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
 
 
 def _raise_keyboard_interrupt(signum, frame):
+    """End the demo (the first Ctrl-C or SIGTERM); a later one must not cut its closing short.
+
+    The KeyboardInterrupt unwinds into the code that closes the graph and its bags; a second
+    exception raised in there would leave a bag without its summary and print a traceback.
+    """
+    for sig in _STOP_SIGNALS:
+        signal.signal(sig, _while_closing)
     raise KeyboardInterrupt
+
+
+def _while_closing(signum, frame):
+    print('grasp_demo: closing the bags, then exiting', file=sys.stderr, flush=True)
 
 
 def _serve(graph, args) -> int:

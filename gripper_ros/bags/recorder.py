@@ -2,14 +2,24 @@
 
 Why not rosbag2: it is not installable here (no ``ros2 bag``); why not ``rosbags``' Writer: it
 aborts without summary or metadata.yaml when an exception leaves its ``with`` block, and it
-cannot flush. This recorder writes the rosbag2 MCAP layout with the ``mcap`` library directly
-(``ros2`` profile, ``ros2msg`` schemas with their dependencies, ``cdr`` channels with
-``offered_qos_profiles``/``topic_type_hash``, a ``rosbag2`` metadata record, ``metadata.yaml``
-version 9), so ``ros2 bag info/play``, Foxglove, ``rosbags`` and ``mcap`` all read it.
+cannot flush. This recorder writes the rosbag2 MCAP layout itself (:mod:`mcap_file`, from
+``mcap``'s records): ``ros2`` profile, ``ros2msg`` schemas with their dependencies, ``cdr``
+channels with ``offered_qos_profiles``/``topic_type_hash``, a ``rosbag2`` metadata record,
+``metadata.yaml`` version 9; so ``ros2 bag info/play``, Foxglove, ``rosbags`` and ``mcap`` all
+read it.
+
+A message handed to the recorder is only appended to a queue (its bytes and times); once a
+chunk's worth is queued, the chunk is encoded in one pass, compressed and written. Per message,
+the executor thread that hands it over pays for an append and a share of that pass, not for the
+``mcap`` writer's per-message Python. The pass stays in the caller's thread on purpose: a
+writer thread measured slower, since it shares the GIL with the executor and takes it in the
+middle of ticks (docs/BENCHMARKS.md, "Recording"). A timer thread writes what waits longer
+than ``flush_every_s``.
 """
 from __future__ import annotations
 
 import atexit
+from collections import deque
 import enum
 import functools
 import json
@@ -17,13 +27,14 @@ import os
 from pathlib import Path
 import shutil
 import threading
+import time
 from typing import Any, Callable, Mapping
 
+from gripper_ros.bags.mcap_file import McapFile
 from gripper_ros.bags.reader import CUSTOM_DATA_RECORD
 from gripper_ros.bags.schema import import_message_class, message_definition, type_hash_from_share
 from gripper_ros.bags.series import GRASP_TOPICS
-from mcap.writer import CompressionType, Writer
-from rclpy.clock import Clock, ClockType
+from mcap.writer import CompressionType
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 import yaml
@@ -32,6 +43,8 @@ ROS_DISTRO = 'jazzy'
 BAG_VERSION = 9
 _NS_PER_S = 1_000_000_000
 _INFINITE_NS = 0x7FFFFFFFFFFFFFFF  # RMW_DURATION_INFINITE
+WRITER_PERIOD_S = 0.02
+"""How often the timer thread looks for messages waiting longer than ``flush_every_s``."""
 
 
 class PublishTime(enum.Enum):
@@ -100,14 +113,22 @@ class BagRecorder:
     that knows the tick better passes its own ``time_source``. ``publish_time`` is the same
     (``PublishTime.RECEIVE``) or the DDS source timestamp (``PublishTime.SOURCE``, wall time).
 
-    Loss bound on SIGKILL: the writer is flushed (chunk closed and written to the OS) after every
-    ``flush_every_messages`` messages and, while the node is spun, by a steady-clock timer every
-    ``flush_every_s`` seconds when something is pending. A killed process therefore loses at most
-    the last ``flush_every_messages - 1`` messages, and at most those received in the last
-    ``flush_every_s`` seconds of wall time when the executor is running; everything before reads
-    back with ``gripper_ros.bags.reader.read_bag`` (flagged truncated). No fsync: a power cut
-    can lose more. ``close()`` (also on context-manager exit, even after an exception, and at
-    interpreter exit) writes the summary, the ``rosbag2`` record and ``metadata.yaml``.
+    Batches: a received message is queued (bytes and times, nothing else); every
+    ``flush_every_messages`` messages the queue becomes one chunk, encoded, compressed and
+    written by the call that filled it. :attr:`counts` are the messages taken, queued or
+    written. A write that fails (a full disk) stops the recorder and is raised; one that fails
+    in the timer thread is raised by the next :meth:`write`. Either way the caller learns of it
+    and the messages taken but not readable are counted (:attr:`accepted_count` against what a
+    reader gets back), never dropped without a trace.
+
+    Loss bound on SIGKILL: a chunk is closed and written to the OS every
+    ``flush_every_messages`` messages and, by the timer thread, when messages have waited
+    ``flush_every_s`` seconds of wall time. A killed process therefore loses at most the last
+    ``flush_every_messages - 1`` messages and at most those of the last ``flush_every_s``
+    seconds; everything before reads back with ``gripper_ros.bags.reader.read_bag`` (flagged
+    truncated). No fsync: a power cut can lose more. ``close()`` (also on context-manager exit,
+    even after an exception, and at interpreter exit) writes the queue, the summary, the
+    ``rosbag2`` record and ``metadata.yaml``.
     """
 
     def __init__(self, node: Node, bag_dir: str | os.PathLike,
@@ -129,8 +150,9 @@ class BagRecorder:
             raise BagRecorderError('no topics to record')
         self._time_source = time_source or (lambda: node.get_clock().now().nanoseconds)
         self._flush_every_messages = int(flush_every_messages)
+        self._flush_every_s = float(flush_every_s)
         self._publish_time = publish_time
-        self._lock = threading.RLock()
+        self._lock = threading.RLock()          # the MCAP writer and everything it counts
         self._closed = False
         self._custom_data: dict[str, str] = {}
 
@@ -146,18 +168,25 @@ class BagRecorder:
         _prepare_dir(self._bag_dir, overwrite)
         self._mcap_path = self._bag_dir / f'{self._bag_dir.name}_0.mcap'
         self._file = open(self._mcap_path, 'wb')  # noqa: SIM115 - closed in close()
-        self._writer = Writer(self._file, compression=compression)
-        self._writer.start(profile='ros2', library='gripper_ros.bags.recorder (mcap python)')
-        self._schema_ids = {t: self._writer.register_schema(t, 'ros2msg', d.encode('utf-8'))
+        self._writer = McapFile(self._file, profile='ros2',
+                                library='gripper_ros.bags.recorder (mcap python)',
+                                compression=compression)
+        self._schema_ids = {t: self._writer.add_schema(t, 'ros2msg', d.encode('utf-8'))
                             for t, d in definitions.items()}
         self._channel_ids: dict[str, int] = {}
         self._topic_meta: dict[str, dict] = {}
-        self._counts = dict.fromkeys(self._topics, 0)
+        self._counts = dict.fromkeys(self._topics, 0)    # messages taken, queued or written
+        self._sequence = dict.fromkeys(self._topics, 0)  # messages written: the next sequence
         self._first_ns: int | None = None
         self._last_ns: int | None = None
-        self._pending = 0
+        self._chunk: list[tuple] = []           # the chunk being filled, as McapFile takes it
         self._total = 0                         # messages handed to the writer
         self._readable = 0                      # of those, in chunks written to the file
+        self._last_flush = time.monotonic()
+        self._queue: deque = deque()            # (topic, data, log ns, publish ns)
+        self._lost = 0                          # received after the writer failed
+        self._failure: BaseException | None = None
+        self._stop = threading.Event()
         if custom_data:
             self.set_custom_data(custom_data)
 
@@ -170,8 +199,9 @@ class BagRecorder:
             node.create_subscription(classes[topic], topic,
                                      functools.partial(self._on_message, topic), qos, raw=True)
             for topic in self._topics] if subscribe else []
-        self._timer = node.create_timer(flush_every_s, self._on_flush_timer,
-                                        clock=Clock(clock_type=ClockType.STEADY_TIME))
+        self._thread = threading.Thread(target=self._run, name=f'bag_timer {self._bag_dir.name}',
+                                        daemon=True)
+        self._thread.start()
         atexit.register(self.close)
 
     # --- public API ---------------------------------------------------------------------------
@@ -182,14 +212,18 @@ class BagRecorder:
 
     @property
     def counts(self) -> dict[str, int]:
-        """Messages written per topic so far."""
-        with self._lock:
-            return dict(self._counts)
+        """Messages taken per topic so far (written, or queued to be)."""
+        return dict(self._counts)
 
     @property
     def message_count(self) -> int:
-        with self._lock:
-            return sum(self._counts.values())
+        """Messages taken so far (written, or queued to be)."""
+        return sum(self._counts.values())
+
+    @property
+    def accepted_count(self) -> int:
+        """Messages handed to the recorder, whether written yet or still queued."""
+        return sum(self._counts.values()) + self._lost
 
     @property
     def readable_count(self) -> int:
@@ -204,36 +238,59 @@ class BagRecorder:
     def closed(self) -> bool:
         return self._closed
 
+    @property
+    def failure(self) -> BaseException | None:
+        """The error that stopped the writer, if one did."""
+        return self._failure
+
     def set_custom_data(self, data: Mapping[str, Any]) -> None:
         """Merge key/values into custom_data (e.g. grasp request and outcome).
 
         Non-string values are stored as JSON. They are also written at once as an MCAP metadata
-        record and flushed, so even a killed recording keeps them.
+        record and flushed, after every message queued before, so even a killed recording keeps
+        them.
         """
         with self._lock:
             if self._closed:
                 raise BagRecorderError('recorder is closed')
             self._custom_data.update({str(k): _custom_value(v) for k, v in data.items()})
-            self._writer.add_metadata(CUSTOM_DATA_RECORD, dict(self._custom_data))
-            self._flush_locked()
+            self._raise_failure()
+            self._guarded(self._drain_locked)
+            self._guarded(self._flush_locked)
+            self._guarded(lambda: self._writer.add_metadata(CUSTOM_DATA_RECORD,
+                                                            dict(self._custom_data)))
+            self._guarded(self._writer.flush)
 
     def write(self, topic: str, data: bytes, t_ns: int | None = None) -> None:
         """Record one serialized message received on ``topic`` (for subscribe=False).
 
-        ``t_ns`` is its log time (default: now, by the time source).
+        ``t_ns`` is its log time (default: now, by the time source). Raises the writer's error
+        once it has failed (an ``OSError`` for a full disk).
         """
-        self._on_message(topic, data, None, t_ns)
+        if self._failure is not None:
+            raise self._failure
+        if t_ns is None:
+            t_ns = int(self._time_source())
+        if self._closed:
+            return
+        self._counts[topic] += 1
+        queue = self._queue
+        queue.append((topic, data, t_ns, t_ns))
+        if len(queue) >= self._flush_every_messages:
+            self._write_chunks()
 
     def flush(self) -> None:
         """Write everything received so far to the file (ends the current chunk)."""
         with self._lock:
-            if not self._closed:
-                self._flush_locked()
+            if not self._closed and self._failure is None:
+                self._guarded(self._drain_locked)
+                self._guarded(self._flush_locked)
 
     def close(self) -> None:
-        """Stop recording, finish the MCAP (summary, ``rosbag2`` record) and write metadata.yaml.
+        """Stop recording, write the queue, finish the MCAP and write metadata.yaml.
 
-        Idempotent; safe after the node or rclpy context is gone.
+        The MCAP ends with its summary and the ``rosbag2`` record. Idempotent; safe after the
+        node or rclpy context is gone.
         """
         with self._lock:
             if self._closed:
@@ -245,12 +302,17 @@ class BagRecorder:
                 self._node.destroy_subscription(sub)
             except Exception:  # noqa: BLE001 - node already destroyed / context shut down
                 pass
-        try:
-            self._node.destroy_timer(self._timer)
-        except Exception:  # noqa: BLE001
-            pass
+        self._stop.set()
+        if self._thread is not threading.current_thread():
+            self._thread.join()
         with self._lock:
-            errors = []
+            errors = [] if self._failure is None else [self._failure]
+            if not errors:
+                try:
+                    self._drain_locked()
+                    self._flush_locked()
+                except Exception as exc:  # noqa: BLE001
+                    errors.append(exc)
             try:
                 for topic in self._topics:            # topics that never got a message
                     self._channel_locked(topic)
@@ -282,43 +344,104 @@ class BagRecorder:
 
     # --- internals ----------------------------------------------------------------------------
 
-    def _on_message(self, topic: str, data: bytes, info: Any = None,
-                    t_ns: int | None = None) -> None:
-        if t_ns is None:
-            t_ns = int(self._time_source())
-        with self._lock:
-            if self._closed:
-                return
-            if self._publish_time is PublishTime.SOURCE and isinstance(info, dict):
-                publish_ns = int(info.get('source_timestamp', t_ns))
-            else:
-                publish_ns = t_ns
-            channel_id = self._channel_ids.get(topic)
-            if channel_id is None:
-                channel_id = self._channel_locked(topic)
-            count = self._counts[topic]
-            self._writer.add_message(channel_id, t_ns, data, publish_ns, count & 0xFFFFFFFF)
-            self._counts[topic] = count + 1
-            self._total += 1
-            if self._first_ns is None:
-                self._first_ns = self._last_ns = t_ns
-            elif t_ns < self._first_ns:
-                self._first_ns = t_ns
-            elif t_ns > self._last_ns:
-                self._last_ns = t_ns
-            self._pending += 1
-            if self._pending >= self._flush_every_messages:
-                self._flush_locked()
+    def _on_message(self, topic: str, data: bytes, info: Any = None) -> None:
+        """Queue a message of one of this recorder's own subscriptions."""
+        if self._closed or self._failure is not None:
+            if not self._closed:
+                self._lost += 1                 # received and lost: counted, never silent
+            return
+        t_ns = int(self._time_source())
+        if self._publish_time is PublishTime.SOURCE and isinstance(info, dict):
+            publish_ns = int(info.get('source_timestamp', t_ns))
+        else:
+            publish_ns = t_ns
+        self._counts[topic] += 1
+        queue = self._queue
+        queue.append((topic, data, t_ns, publish_ns))
+        if len(queue) >= self._flush_every_messages:
+            try:
+                self._write_chunks()
+            except Exception:  # noqa: BLE001 - kept in failure; a callback must not raise
+                pass
 
-    def _on_flush_timer(self) -> None:
+    def _write_chunks(self) -> None:
+        """Encode, compress and write the queue as whole chunks, in the caller's thread."""
         with self._lock:
-            if not self._closed and self._pending:
-                self._flush_locked()
+            if not self._closed and self._failure is None:
+                self._guarded(self._drain_locked)
+
+    def _run(self) -> None:
+        """Write what waits longer than ``flush_every_s`` (the timer thread).
+
+        It checks every ``WRITER_PERIOD_S`` and does nothing while messages keep coming, so
+        that it seldom takes the GIL from the executor.
+        """
+        while not self._stop.wait(WRITER_PERIOD_S):
+            if time.monotonic() - self._last_flush < self._flush_every_s:
+                continue
+            with self._lock:
+                if self._closed or self._failure is not None:
+                    return
+                if not (self._queue or self._chunk):
+                    continue
+                try:
+                    self._drain_locked()
+                    self._flush_locked()
+                except Exception as exc:  # noqa: BLE001 - kept; the next write() raises it
+                    self._failure = exc
+                    return
+
+    def _raise_failure(self) -> None:
+        if self._failure is not None:
+            raise self._failure
+
+    def _guarded(self, action: Callable[[], Any]) -> None:
+        """Run a writer action; an error stops the recorder as one in the timer thread does."""
+        try:
+            action()
+        except Exception as exc:
+            self._failure = exc
+            raise
+
+    def _drain_locked(self) -> None:
+        """Move every queued message into chunks, in the order received; write full chunks."""
+        queue, chunk = self._queue, self._chunk
+        counts, channel_ids = self._sequence, self._channel_ids
+        every = self._flush_every_messages
+        popleft, append = queue.popleft, chunk.append
+        first, last = self._first_ns, self._last_ns
+        try:
+            while queue:
+                topic, data, t_ns, publish_ns = popleft()
+                channel_id = channel_ids.get(topic)
+                if channel_id is None:
+                    channel_id = self._channel_locked(topic)
+                count = counts[topic]
+                counts[topic] = count + 1
+                append((channel_id, count, t_ns, publish_ns, data))
+                if first is None:
+                    first = last = t_ns
+                elif t_ns < first:
+                    first = t_ns
+                elif t_ns > last:
+                    last = t_ns
+                if len(chunk) >= every:
+                    self._flush_locked()
+        finally:
+            self._first_ns, self._last_ns = first, last
 
     def _flush_locked(self) -> None:
+        """Write the chunk being filled (if any) and hand the file's buffer to the OS."""
+        chunk = self._chunk
+        if chunk:
+            self._total += len(chunk)
+            try:
+                self._writer.add_chunk(chunk)
+            finally:
+                chunk.clear()                   # in place: the drain loop appends to it
         self._writer.flush()
-        self._pending = 0
         self._readable = self._total
+        self._last_flush = time.monotonic()
 
     def _publisher_qos_and_hash(self, topic: str, msgtype: str) -> tuple[list, str]:
         """Offered QoS profiles of the current publishers and the type hash (rosbag2 does so)."""
@@ -339,7 +462,7 @@ class BagRecorder:
             msgtype = self._topics[topic]
             profiles, type_hash = self._publisher_qos_and_hash(topic, msgtype)
             self._topic_meta[topic] = {'qos': profiles, 'type_hash': type_hash}
-            channel_id = self._writer.register_channel(
+            channel_id = self._writer.add_channel(
                 topic=topic, message_encoding='cdr', schema_id=self._schema_ids[msgtype],
                 metadata={'offered_qos_profiles': yaml.safe_dump(profiles, sort_keys=False)
                           .strip() if profiles else '',

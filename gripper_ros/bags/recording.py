@@ -1,8 +1,9 @@
 """Recording a running graph: one bag per grasp, from inside the graph's process.
 
-A :class:`GraphTap` subscribes (raw) to every topic of one gripper's graph only while it
-records, and starts recording only once every publisher has matched it, so that no message
-of the grasp is missed. :func:`recorded_grasp` places the object, records the grasp and what
+A :class:`GraphTap` sees every message the graph's nodes publish on its topics, in the
+publish call itself, so that no message of a grasp is missed and the tick pays for no
+subscription of its own; a :class:`BagRecorder` queues them and writes a chunk at a time.
+:func:`recorded_grasp` places the object, records the grasp and what
 follows it until simulated time stands still (fast mode: the hold scenario, a lift, played
 out) or ``linger_s`` of simulated time after the answer (realtime). :class:`ServeRecorder`
 records one bag per request made by other processes (``grasp_demo --serve``).
@@ -15,7 +16,6 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from datetime import datetime
-import functools
 import os
 from pathlib import Path
 import struct
@@ -24,17 +24,16 @@ import time
 
 from gripper_ros.bags.reader import BagError, read_bag
 from gripper_ros.bags.recorder import BagRecorder, BagRecorderError
-from gripper_ros.bags.schema import import_message_class
 from gripper_ros.core.stages import Reference
-from gripper_ros.nodes.common import GRAPH_QOS, wait_until
+from gripper_ros.nodes.common import wait_until
 from gripper_ros.wire import (GRAPH_TOPICS, LOOP_TOPICS, Outcome, Phase, qualified,
                               REFERENCE_LAYOUT, TOPIC_FORCE_REFERENCE, TOPIC_MOTOR_COMMAND,
                               TOPIC_POSITION_REFERENCE, TOPIC_TICK)
+from rclpy.serialization import serialize_message
 
 BAG_FORMAT = 2
 """custom_data gripper_ros.format: 2 = the lockstep loop topics (loop/tick, references,
 loop/motor_command); 1 (absent) = bags with a tick message per topic (joint_states...)."""
-MATCH_TIMEOUT_S = 10.0
 
 
 class RecordingError(RuntimeError):
@@ -69,12 +68,17 @@ def _stamp_of(data: bytes) -> int:
 
 
 class GraphTap:
-    """Raw subscriptions on every topic of ``graph`` that forward to a sink while recording.
+    """Every message the graph's nodes publish on its topics, forwarded to a sink while recording.
+
+    The tap sits in the publishers themselves (:meth:`open`), not in DDS subscriptions: a
+    subscription of its own would add a DDS delivery and an executor callback to every loop
+    message, about 8 us each, the largest part of what recording cost the tick. What a
+    publisher hands to DDS is handed here too, in the same call, so the counts recorded equal
+    the counts published by construction. The sink queues it and writes a chunk at a time.
 
     A sink records a window of whole ticks: from a start tick, whose measurement, decision and
-    command it holds, up to an end tick it holds nothing of. DDS does not order messages of
-    different topics, so the window is kept by the stamps the lockstep messages carry, and a
-    sink closes only once the command of its last tick is in.
+    command it holds, up to an end tick it holds nothing of. The window is kept by the stamps
+    the lockstep messages carry, and a sink closes only once the command of its last tick is in.
     """
 
     def __init__(self, graph, topics: dict[str, str] | None = None):
@@ -105,28 +109,38 @@ class GraphTap:
         self._start_at_next_tick = False
         self._closing_since: float | None = None
         self._lock = threading.Lock()
-        self._subs = []
+        self._tapped = []                        # publishers whose publish() is tapped
 
     def open(self) -> GraphTap:  # noqa: A003 - a tap is opened and closed like a file
-        """Subscribe, and wait until every publisher of the graph has matched this tap."""
-        baseline = {t: [p.get_subscription_count() for p in self._publishers(t)]
-                    for t in self.topics}
-        for topic, msgtype in self.topics.items():
-            self._subs.append(self.node.create_subscription(
-                import_message_class(msgtype), topic,
-                functools.partial(self._on_message, topic), GRAPH_QOS, raw=True))
-        matched = wait_until(lambda: all(
-            p.get_subscription_count() > n for t in self.topics
-            for p, n in zip(self._publishers(t), baseline[t])), MATCH_TIMEOUT_S)
-        if not matched:
-            self.close()
-            raise RecordingError(f'the recorder was not matched by every publisher within '
-                                 f'{MATCH_TIMEOUT_S:g} s')
+        """Tap every publisher of the graph's topics: what each publishes is seen here at once."""
+        for node in self.graph.nodes:
+            if node is self.node:
+                continue
+            for publisher in node.publishers:
+                if publisher.topic_name in self.topics:
+                    self._tap_publisher(publisher)
         return self
 
-    def _publishers(self, topic: str) -> list:
-        return [p for node in self.graph.nodes if node is not self.node
-                for p in node.publishers if p.topic_name == topic]
+    def _tap_publisher(self, publisher) -> None:
+        """Make ``publisher.publish`` also hand what it publishes to :meth:`_on_message`.
+
+        The message goes to DDS first, exactly as before; a message object (the few state
+        topics not packed by template) is serialised here, bytes are taken as they are. An
+        error of the tap ends the recording (one line), never the node that published.
+        """
+        publish, on_message, topic = publisher.publish, self._on_message, publisher.topic_name
+
+        def tapped(msg) -> None:
+            publish(msg)
+            try:
+                on_message(topic, msg if isinstance(msg, bytes) else serialize_message(msg))
+            except Exception as exc:  # noqa: BLE001 - a recorder error never stops the graph
+                sink = self.sink
+                if sink is not None:
+                    self._fail(sink, exc)
+
+        publisher.publish = tapped
+        self._tapped.append(publisher)
 
     # ------------------------------------------------------------------ the window
     def start(self, sink: BagRecorder, at: str = 'now') -> None:
@@ -262,24 +276,14 @@ class GraphTap:
             if self.sink is not sink:
                 return
             self.sink = None
-        count = sink.message_count
-        try:
-            sink.close()
-        except Exception:  # noqa: BLE001 - the first error is the one to report
-            pass
-        readable = _readable_messages(sink)
-        reason = getattr(exc, 'strerror', None) or str(exc)
-        lost = f' ({count - readable} more were still buffered and are lost)' \
-            if count > readable else ''
-        self.error = (f'recording stopped: {sink.bag_dir}: {reason}; the bag holds {readable} '
-                      f'messages, readable up to there{lost}')
-        if self.on_error is not None:
-            self.on_error(self.error)
+        self.error = failure_message(sink, exc)
+        if self.on_error is not None:           # not inside the publish of a node's callback
+            self.graph.executor.create_task(self.on_error, self.error)
 
     def close(self) -> None:
-        for sub in self._subs:
-            self.node.destroy_subscription(sub)
-        self._subs = []
+        for publisher in self._tapped:
+            del publisher.publish                # the class's own again
+        self._tapped = []
 
     def __enter__(self) -> GraphTap:
         return self.open()
@@ -299,13 +303,32 @@ def _readable_messages(sink: BagRecorder) -> int:
         return sink.readable_count
 
 
-def graph_tap(graph) -> GraphTap:
-    """Give the graph's one tap, subscribed at its first recording, kept while the graph lives.
+def failure_message(sink: BagRecorder, exc: BaseException) -> str:
+    """Close a bag whose recording failed and say so in one line.
 
-    A reader created anew for every grasp can be matched by an idle writer and still be sent
-    nothing (seen with Fast DDS: the force stage's references and commands of a later grasp),
-    so a graph that records keeps its tap; a graph that never records has none and pays
-    nothing for it.
+    The line names the bag, the error, the messages a reader gets back and those lost: every
+    message handed to the recorder is either readable or counted as lost.
+    """
+    count = sink.accepted_count
+    try:
+        sink.close()
+    except Exception:  # noqa: BLE001 - the first error is the one to report
+        pass
+    readable = _readable_messages(sink)
+    if isinstance(exc, BagRecorderError) and exc.__cause__ is not None:
+        exc = exc.__cause__                     # what failed, not that closing did
+    reason = getattr(exc, 'strerror', None) or str(exc)
+    lost = f' ({count - readable} more were still buffered and are lost)' \
+        if count > readable else ''
+    return (f'recording stopped: {sink.bag_dir}: {reason}; the bag holds {readable} '
+            f'messages, readable up to there{lost}')
+
+
+def graph_tap(graph) -> GraphTap:
+    """Give the graph's one tap, opened at its first recording, kept while the graph lives.
+
+    A graph that never records has none and pays nothing for it; while no bag is open the tap
+    costs a counter and a few comparisons a message.
     """
     tap = getattr(graph, 'recording_tap', None)
     if tap is None:
@@ -396,20 +419,28 @@ def recorded_grasp(graph, bag_dir, width_m: float, mass_kg: float,
             _drain_published(graph, tap, recorder, before, received_before)
             tap.sink = None             # time stands still: the last tick is whole
             published = _published_since(graph, tap, before)
+            unseen = {t: n - (tap.received[t] - received_before[t])
+                      for t, n in published.items() if tap.received[t] - received_before[t] < n}
+            if unseen and not tap.error:
+                tap.error = (f'recording incomplete: {bag_dir}: published but never seen by the '
+                             f'recorder: {unseen}')
         else:
             tap.stop()                  # realtime: at a tick, once the last one is whole
             published = {}              # (time runs on: no count to compare with)
         logic = graph.supervisor.logic
         final, message = logic.outcome, logic.message
         if not recorder.closed:
-            if response is not None:
-                recorder.set_custom_data({
-                    'outcome': Outcome(response.outcome).name, 'success': response.success,
-                    'message': response.message, 'final_outcome': final.name,
-                    'final_message': message,
-                    'position_setpoint_m': response.position_setpoint_m,
-                    'force_setpoint_n': response.force_setpoint_n})
-            recorder.close()
+            try:
+                if response is not None:
+                    recorder.set_custom_data({
+                        'outcome': Outcome(response.outcome).name,
+                        'success': response.success, 'message': response.message,
+                        'final_outcome': final.name, 'final_message': message,
+                        'position_setpoint_m': response.position_setpoint_m,
+                        'force_setpoint_n': response.force_setpoint_n})
+                recorder.close()
+            except Exception as exc:  # noqa: BLE001 - a writer that failed after the last tick
+                tap.error = failure_message(recorder, recorder.failure or exc)
         recorded = dict(recorder.counts)
     return RecordedGrasp(response, Path(bag_dir), published, recorded,
                          time.perf_counter() - t0, final, message, tap.error)
@@ -543,10 +574,13 @@ class ServeRecorder:
 
     def _close_sink(self, sink) -> None:
         if sink is not None and not sink.closed:
+            if sink.failure is not None:        # the writer failed after the last message
+                self._report(failure_message(sink, sink.failure))
+                return
             try:
                 sink.close()
             except Exception as exc:  # noqa: BLE001 - reported, never raised into the graph
-                self._report(f'closing {sink.bag_dir} failed: {exc}')
+                self._report(failure_message(sink, sink.failure or exc))
 
     def close(self) -> None:
         """End recording (the graph is shutting down): a bag open now ends with whole ticks."""

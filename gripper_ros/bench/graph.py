@@ -9,7 +9,8 @@ under the same machine load:
 1. baseline: a lockstep std_msgs/Float64 ping-pong between two nodes in one executor
    (:mod:`gripper_ros.bench.pingpong`), and between two processes (the floor of step 3); and
    the transport floor of a tick: the three loop messages passed round a ring of three nodes
-   with nothing done in the callbacks, bare and with the recorder's three subscriptions;
+   with nothing done in the callbacks, bare and with a raw DDS tap on each hop (what a recorder
+   subscribing over DDS would add; the graph's recorder taps the publishers);
 2. graph: :class:`~gripper_ros.nodes.graph.GripperGraph` (the four nodes and the client, one
    executor thread) grasps each object of Table V through the real ``grasp`` service, in fast
    time, releasing between objects as ``grasp_demo`` does; ``--record`` records each grasp

@@ -303,7 +303,8 @@ def measure_ring(executor_kind: str, seconds: float, taps: bool = False) -> Dict
 
     Three nodes in one executor pass the three loop messages (PlantTick, StageReference,
     MotorCommand) round a lockstep ring, as bytes on raw subscriptions with no work in the
-    callbacks; ``taps`` adds one more raw subscription on each hop, as the recorder has. One lap
+    callbacks; ``taps`` adds one more raw subscription on each hop, as a recorder subscribing
+    over DDS would (the graph's recorder taps the publishers instead). One lap
     is one tick.
     """
     import rclpy

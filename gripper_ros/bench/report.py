@@ -138,7 +138,9 @@ def format_report(report: Dict[str, Any]) -> str:
     for kind, ring in res.get('ring', {}).items():
         lines.append(f'{kind:>8s} floor of a tick: the three loop messages round a ring of three '
                      f'nodes, {ring["bare"]["us_per_tick"]:.1f} us bare, '
-                     f'{ring["tapped"]["us_per_tick"]:.1f} us with a raw tap on each hop')
+                     f'{ring["tapped"]["us_per_tick"]:.1f} us with a raw DDS tap on each hop '
+                     f'(what a recorder subscribing over DDS would add; the tap is in the '
+                     f'publishers)')
     lines += ['', '2. graph, one process: one grasp per Table V object, fast time, '
               + ('recorded as grasp_demo records' if s['record'] else 'not recorded')
               + '; x pp = us/tick over the ping-pong round trip', _GRASP_HEAD]
@@ -183,10 +185,10 @@ def format_report(report: Dict[str, Any]) -> str:
         tick = rat[f'graph_tick_over_pingpong_{kind}']
         lines.append(f'  {kind}: graph tick / ping-pong round trip {tick:.2f}x: '
                      + _verdict(tick, TICK_AIM, True))
-        floor = rat.get(f'ring_{"tapped" if s["record"] else "bare"}_over_pingpong_{kind}')
+        floor = rat.get(f'ring_bare_over_pingpong_{kind}')   # recorded or not: no DDS tap
         if floor is not None:
-            lines.append(f'  {kind}: its transport floor (ring of the loop messages'
-                         f'{", tapped" if s["record"] else ""}) {floor:.2f}x')
+            lines.append(f'  {kind}: its transport floor (ring of the loop messages) '
+                         f'{floor:.2f}x')
         for stage, aim in (('force', FORCE_RTF_AIM), ('position', POSITION_RTF_AIM)):
             rtf = (g['all'][stage] or {}).get('rtf', float('nan'))
             lines.append(f'  {kind}: {stage} stage {_f(rtf, ".3f", 0)}x real time: '
