@@ -12,7 +12,9 @@ Times, in ONE process run (so that ratios compare figures taken under the same m
   the ratio of the two.
 - ``simulate_grasps`` of ``--batch`` grasps (the Table V objects in turn) with ``--jobs``
   worker processes each, the batch entry point sweeps use; figure: ticks a second over the
-  batch, and the ratio to one process.
+  batch, and the ratio to one process. The engine's fork server is started first, once, and
+  timed apart; and the cost of one task through the engine is measured on trivial tasks sent
+  one a task.
 
 The first call of each path is a warm-up (numba loads its compiled code from the cache then);
 its time is reported apart as ``first_call_s``.
@@ -29,6 +31,8 @@ import time
 
 TABLE_V = ((0.01, 1.27), (0.05, 1.69), (0.1, 0.75))
 """The paper's Table V objects: width (m), mass (kg)."""
+OVERHEAD_ITEMS = 400
+"""Trivial tasks sent one a task through the engine to measure what a task costs it."""
 
 
 def _ticks(config, width_m: float, mass_kg: float, hold_s: float, traced: bool) -> int:
@@ -52,7 +56,7 @@ def measure(repeat: int = 5, hold_s: float = 1.0, batch: int = 32,
             jobs_list=(1, 2)) -> dict:
     """Return every figure of the benchmark (see the module docstring)."""
     from gripper_ros.core.config import load_config
-    from gripper_ros.core.headless import simulate_grasps
+    from gripper_ros.core.headless import map_cases, simulate_grasps
     config = load_config()
     out = {'platform': platform.platform(), 'cpus': os.cpu_count(), 'hold_s': hold_s,
            'grasps': []}
@@ -75,6 +79,13 @@ def measure(repeat: int = 5, hold_s: float = 1.0, batch: int = 32,
         out['grasps'].append(row)
     cases = [{'width_m': TABLE_V[i % 3][0], 'mass_kg': TABLE_V[i % 3][1], 'hold_s': hold_s}
              for i in range(batch)]
+    start = time.perf_counter()           # the engine's fork server starts once per process
+    simulate_grasps(config, cases[:max(jobs_list)], jobs=max(jobs_list), summarize=_batch_ticks)
+    out['engine_start_s'] = time.perf_counter() - start
+    items = list(range(OVERHEAD_ITEMS))
+    start = time.perf_counter()
+    map_cases(abs, items, jobs=max(jobs_list), chunks_per_job=OVERHEAD_ITEMS)
+    out['per_task_overhead_us'] = (time.perf_counter() - start) / OVERHEAD_ITEMS * 1e6
     out['batch'] = []
     for jobs in jobs_list:
         start = time.perf_counter()
@@ -98,6 +109,8 @@ def report(r: dict) -> str:
         lines.append(f'{g["width_m"]:8.3f} {g["mass_kg"]:8.2f} {g["ticks"]:7d} '
                      f'{g["compiled_ticks_per_s"]:17,.0f} {g["python_driven_ticks_per_s"]:22,.0f} '
                      f'{g["compiled_over_python_driven"]:7.1f}')
+    lines.append(f'batch engine: fork server started in {r["engine_start_s"]:.2f} s (once per '
+                 f'process, not in the figures below); {r["per_task_overhead_us"]:.0f} us a task')
     lines.append(f'{"jobs":>8s} {"grasps":>8s} {"ticks":>9s} {"wall s":>8s} {"ticks/s":>12s} '
                  f'{"x 1st":>6s}')
     for b in r['batch']:
