@@ -10,11 +10,13 @@ sweeps over many objects are practical.
 """
 from __future__ import annotations
 
+from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
 import functools
 import math
 import multiprocessing
 import os
+import sys
 import time
 from typing import Callable, Sequence
 
@@ -339,15 +341,25 @@ def map_cases(fn: Callable, cases: Sequence, jobs: int | None = None,
         jobs = os.cpu_count() or 1
     if jobs < 1:
         raise ValueError(f'jobs must be >= 1, got {jobs!r}')
-    if jobs == 1 or len(cases) <= 1:
+    if jobs == 1 or len(cases) <= 1 or not _workers_can_start():
         return [fn(case) for case in cases]
     size = max(1, math.ceil(len(cases) / (jobs * chunks_per_job)))
     chunks = [cases[i:i + size] for i in range(0, len(cases), size)]
     context = multiprocessing.get_context('forkserver')
     context.set_forkserver_preload([WORKER_PRELOAD])
-    with context.Pool(min(jobs, len(chunks))) as pool:
-        results = pool.map(functools.partial(_run_chunk, fn), chunks, chunksize=1)
+    with ProcessPoolExecutor(min(jobs, len(chunks)), mp_context=context) as pool:
+        results = list(pool.map(functools.partial(_run_chunk, fn), chunks))
     return [r for chunk in results for r in chunk]
+
+
+def _workers_can_start() -> bool:
+    """Tell whether worker processes can start here.
+
+    A worker re-imports the main script by its path; a script read from standard input has
+    none, and its workers would die at start. (A worker that dies raises BrokenProcessPool.)
+    """
+    path = getattr(sys.modules.get('__main__'), '__file__', None)
+    return path is None or os.path.isfile(path)
 
 
 def _grasp_case(config: GripperConfig, summarize: Callable | None, case: dict):
