@@ -1,0 +1,77 @@
+"""The compiled headless loop and the batch engine over the cores (no ROS).
+
+- The compiled loop and the same kernels driven tick by tick from Python (``trace=``) give the
+  same series, bit for bit, and the same answer.
+- ``simulate_grasps`` gives, for every case, what ``simulate_grasp`` gives in this process,
+  whatever the number of worker processes; a refused request comes back as its RequestError;
+  ``summarize`` runs in the worker and only its result comes back.
+- Bad ``jobs`` are refused.
+"""
+from __future__ import annotations
+
+from gripper_ros.core.config import load_config
+from gripper_ros.core.headless import map_cases, simulate_grasp, simulate_grasps
+from gripper_ros.core.requests import RequestError
+from gripper_ros.wire import Outcome
+import numpy as np
+import pytest
+
+CONFIG = load_config()
+SERIES = ('t_ns', 'position_m', 'force_n', 'peak_force_n', 'motor_voltage_v',
+          'sensor_voltage_v', 'phase')
+CASES = [
+    {'width_m': 0.14, 'mass_kg': 0.5, 'hold_s': 0.05},
+    {'width_m': 0.12, 'mass_kg': 1.0, 'stiffness_n_per_m': 1e5, 'damping_n_s_per_m': 50.0},
+    {'width_m': 0.13, 'mass_kg': 50.0},                    # beyond what 24 V can hold: refused
+    {'width_m': 0.14, 'mass_kg': 0.3, 'object_width_m': 0.0},          # nothing there
+    {'width_m': 0.125, 'mass_kg': 0.8, 'position_controller': 'pd', 'force_controller': 'pi'},
+]
+
+
+def _same(a, b) -> bool:
+    return a.outcome is b.outcome and a.answer_ns == b.answer_ns and a.message == b.message \
+        and all(np.array_equal(getattr(a, n), getattr(b, n), equal_nan=True) for n in SERIES)
+
+
+def _outcome_and_ticks(case: dict, result):
+    """Summary made in the worker (module level: it is pickled)."""
+    if isinstance(result, RequestError):
+        return 'refused'
+    return result.outcome.name, len(result.t_ns)
+
+
+def test_compiled_loop_equals_the_kernels_driven_from_python():
+    ticks = []
+    for case in (CASES[1], CASES[4]):
+        compiled = simulate_grasp(CONFIG, **case)
+        traced = simulate_grasp(CONFIG, **case, trace=lambda *args: ticks.append(args[1]))
+        assert compiled.outcome is Outcome.HOLDING
+        assert _same(compiled, traced)
+        assert [t.stamp_ns for t in ticks] == compiled.t_ns.tolist()
+        ticks.clear()
+
+
+@pytest.mark.parametrize('jobs', [1, 2])
+def test_a_batch_gives_what_each_grasp_gives_alone(jobs):
+    results = simulate_grasps(CONFIG, CASES, jobs=jobs)
+    assert len(results) == len(CASES)
+    for case, result in zip(CASES, results):
+        if case['mass_kg'] == 50.0:
+            assert isinstance(result, RequestError) and 'exceeds' in str(result)
+            continue
+        assert _same(result, simulate_grasp(CONFIG, **case))
+    assert [r.outcome for r in results if not isinstance(r, RequestError)] == \
+        [Outcome.HOLDING, Outcome.HOLDING, Outcome.NO_OBJECT, Outcome.HOLDING]
+
+
+def test_summaries_come_back_in_the_order_of_the_cases():
+    summaries = simulate_grasps(CONFIG, CASES, jobs=2, summarize=_outcome_and_ticks)
+    assert summaries[2] == 'refused'
+    assert summaries == [_outcome_and_ticks(c, simulate_grasp(CONFIG, **c))
+                         if c['mass_kg'] != 50.0 else 'refused' for c in CASES]
+
+
+@pytest.mark.parametrize('jobs', [0, -1])
+def test_bad_jobs_are_refused(jobs):
+    with pytest.raises(ValueError, match='jobs must be >= 1'):
+        map_cases(abs, [1, 2, 3], jobs=jobs)
