@@ -273,7 +273,8 @@ def build_parser() -> argparse.ArgumentParser:
     loop.add_argument('--sweep', default=None, metavar='SECTION.KEY=V1,V2,...',
                       help='re-run once per value and print one row per value')
     loop.add_argument('--jobs', type=int, default=None, metavar='N',
-                      help="a sweep's worker processes (default: one per core)")
+                      help="a sweep's worker processes (default 1: starting workers costs "
+                           'about 2 s, more than a few re-runs)')
     loop.add_argument('--plot', default=None, metavar='FILE.png',
                       help='draw recorded and re-run position, force, motor and FSR voltage')
     return parser
@@ -358,7 +359,7 @@ def _run_closed_loop(args: argparse.Namespace) -> int:
                                 args.position_controller, args.force_controller, margin)
         if args.jobs is not None and args.jobs < 1:
             _fail(f'--jobs must be >= 1, got {args.jobs}', code=2)
-        result = rerun.whatif(args.bag, changes, sweep, args.jobs)
+        result = rerun.whatif(args.bag, changes, sweep, args.jobs or 1)
     except (ConfigError, BagError) as exc:
         _fail(str(exc), code=2)
     if sweep is None:
