@@ -48,6 +48,7 @@ BAD_PARAMETERS = [   # (node, parameter, value as typed after -p name:=, words i
     (NODE_GRASP_ACTION, 'executor', 'threads', 'must be one of'),          # run_node's own
 ]
 RUNNING_TIMEOUT_S = 60.0
+ASK_AGAIN_S = 2.0
 NODES_DIR = Path(__file__).resolve().parents[1] / 'gripper_ros' / 'nodes'
 
 
@@ -88,12 +89,15 @@ def _wait_until_running(cases: list[Case]) -> None:
             for c in cases:
                 if c.answered or c.proc.poll() is not None:
                     continue
-                future = futures.get(id(c))
-                if future is None and clients[id(c)].service_is_ready():
-                    futures[id(c)] = clients[id(c)].call_async(
-                        GetParameters.Request(names=['use_sim_time']))
-                elif future is not None and future.done():
+                future, asked = futures.get(id(c), (None, 0.0))
+                if future is not None and future.done():
                     c.answered = future.result() is not None
+                elif clients[id(c)].service_is_ready() and (
+                        future is None or time.monotonic() - asked > ASK_AGAIN_S):
+                    # asked again: a node still starting may drop an answer to a client it has
+                    # not yet discovered (rmw: "failed to send response (timeout)")
+                    futures[id(c)] = (clients[id(c)].call_async(
+                        GetParameters.Request(names=['use_sim_time'])), time.monotonic())
             executor.spin_once(timeout_sec=0.02)
         executor.shutdown()
         probe.destroy_node()
