@@ -498,7 +498,43 @@ def warm_up(config: GripperConfig | None = None) -> float:
                            timeout_s=0.05)
     simulate_grasp(config, 0.1, 0.5, timeout_s=0.05, trace=lambda *_: None)
     simulate_moves(config, [MoveRequest(0.148, speed_mps=0.02, max_effort_n=5.0, timeout_s=0.02)])
+    _warm_up_faces(config)
     return time.perf_counter() - start
+
+
+def _warm_up_faces(config: GripperConfig) -> None:
+    """Call, once, what the nodes and the tools call from Python one tick at a time.
+
+    A kernel called from Python is compiled for Python's argument types, apart from the same
+    kernel inside the compiled loop.
+    """
+    from gripper_ros.core.controllers import ForceControllerKind, PositionControllerKind
+    from gripper_ros.core.stages import LockstepAnswerer
+    plant = make_plant(config)
+    side = PlantSide(plant)
+    side.set_object(GraspObject(0.05, 0.0, 0.0, 1.0), lift=Lift(1.0, 0.0, 0.01),
+                    fault=(FaultKind.OBJECT_REMOVED, 0.01, 0.0))
+    tick = side.tick()
+    side.step_unpowered(0.001)
+    plant.sample()
+    plant.step(1.0, 1e-4)
+    plant.object_state
+    plant.begin_hold(plant.t_ns, 1.0)
+    plant.schedule_fault(FaultKind.SENSOR_DROPOUT, plant.t_ns + 1000)
+    plant.cancel_fault()
+    supervisor = GraspSupervisor(config.plant, config.supervisor)
+    decision, ref = SupervisorSide(supervisor).decide(tick)
+    supervisor.step(tick.stamp_ns + 1, tick.position_m, tick.force_n, tick.sensor_voltage_v)
+    supervisor.request_release()
+    supervisor.stop()
+    supervisor.request_release()
+    supervisor.step(tick.stamp_ns + 2, tick.position_m, tick.force_n, tick.sensor_voltage_v)
+    supervisor.fault('warm-up')
+    supervisor.message
+    for kind in PositionControllerKind:
+        LockstepAnswerer(PositionStageController(config, kind)).answer(ref)
+    for kind in ForceControllerKind:
+        LockstepAnswerer(ForceStageController(config, kind)).answer(ref)
 
 
 __all__ = ['HeadlessGrasp', 'HeadlessMoves', 'map_cases', 'MoveAnswer', 'MoveRequest', 'Phase',
