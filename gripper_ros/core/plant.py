@@ -569,21 +569,9 @@ def _fire_fault(s, p, h, sensor, fired):
 
 
 @numba.njit(cache=True, inline='always')
-def _advance_free(s, p, keys, coef, e, dt_s):
-    """Exact ZOH step of free motion."""
-    c = coef[_disc_entry(s, p, keys, coef, DISC_FREE, dt_s)]
-    i = s.i
-    w = s.w
-    x = s.x
-    s.i = c[0] * i + c[1] * w + c[2] * x + c[3] + c[12] * e
-    s.w = c[4] * i + c[5] * w + c[6] * x + c[7] + c[13] * e
-    s.x = c[8] * i + c[9] * w + c[10] * x + c[11] + c[14] * e
-
-
-@numba.njit(cache=True, inline='always')
-def _advance_compliant(s, p, keys, coef, e, dt_s):
-    """Exact ZOH step of the finger compressing a Kelvin-Voigt object."""
-    c = coef[_disc_entry(s, p, keys, coef, DISC_COMPLIANT, dt_s)]
+def _advance_zoh(s, p, keys, coef, kind, e, dt_s):
+    """Exact ZOH step of free motion (DISC_FREE) or of compressing a Kelvin-Voigt object."""
+    c = coef[_disc_entry(s, p, keys, coef, kind, dt_s)]
     i = s.i
     w = s.w
     x = s.x
@@ -637,7 +625,7 @@ def _advance_compliant_in_one_step(s, p, keys, coef, e, dt_s):
     w0 = s.w
     x0 = s.x
     rate0 = _compliant_force_rate(s, p)
-    _advance_compliant(s, p, keys, coef, e, dt_s)
+    _advance_zoh(s, p, keys, coef, DISC_COMPLIANT, e, dt_s)
     depth = s.x - s.x_c
     if depth > 0.0 and s.stiffness_n_per_m * depth \
             + s.damping_n_s_per_m * s.w * p.rho >= 0.0:
@@ -758,11 +746,11 @@ def _integrate(s, p, h, keys, coef, e, duration_s, start_s):
                                           remaining if remaining < sub else sub, remaining)
         elif state == CONTACT_FREE:
             if _free_step_is_safe(s, p, e, remaining):
-                _advance_free(s, p, keys, coef, e, remaining)
+                _advance_zoh(s, p, keys, coef, DISC_FREE, e, remaining)
                 remaining = 0.0
             else:
                 dt = remaining if remaining < sub else sub
-                _advance_free(s, p, keys, coef, e, dt)
+                _advance_zoh(s, p, keys, coef, DISC_FREE, e, dt)
                 remaining -= dt
                 _detect_contact(s, p)
         elif state == CONTACT_RIGID or state == CONTACT_OPEN_STOP:
@@ -774,7 +762,7 @@ def _integrate(s, p, h, keys, coef, e, duration_s, start_s):
             else:
                 one_step = False   # the rest of this interval on the sub-step grid
                 dt = remaining if remaining < sub else sub
-                _advance_compliant(s, p, keys, coef, e, dt)
+                _advance_zoh(s, p, keys, coef, DISC_COMPLIANT, e, dt)
                 remaining -= dt
                 _detect_separation(s, p)
         force = _force(s, p)
