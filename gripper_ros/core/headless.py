@@ -164,7 +164,7 @@ def run_lockstep(loop, side, plant_k, supervisor_k, position_k, force_k, tick, r
 class _Loop:
     """One headless grasp's plant, supervisor and stages, wired as the graph wires them."""
 
-    def __init__(self, config, plant_side, supervisor, position_stage, force_stage):
+    def __init__(self, plant_side, supervisor, position_stage, force_stage):
         self.plant_side = plant_side
         self.supervisor = supervisor
         self.sup_side = SupervisorSide(supervisor)
@@ -293,7 +293,7 @@ def simulate_grasp(config: GripperConfig, width_m: float, mass_kg: float, *,
         fault = (kind, fault[1], tau)
     plant_side.set_object(obj, fault=fault, lift=lift)
     supervisor = GraspSupervisor(config.plant, config.supervisor)
-    loop = _Loop(config, plant_side, supervisor,
+    loop = _Loop(plant_side, supervisor,
                  PositionStageController(config, position_controller),
                  ForceStageController(config, force_controller, approach_force_margin))
     state = loop.state[0]

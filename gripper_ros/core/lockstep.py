@@ -52,20 +52,6 @@ def new_record(layout, count: int = 1) -> np.ndarray:
     return np.zeros(count, layout.dtype)
 
 
-def record_of(layout, values) -> np.ndarray:
-    """Return a 1-element record array holding ``values`` (a message's fields, in order)."""
-    record = new_record(layout)
-    record[0] = tuple(values)
-    return record
-
-
-def tick_of(sample, revision: int, applied_source: int) -> Tick:
-    """Return the tick message of a plant sample."""
-    return Tick(sample.t_ns, sample.position_m, sample.velocity_mps, sample.force_n,
-                sample.peak_force_n, sample.sensor_voltage_v, sample.voltage_v,
-                sample.current_a, sample.speed_rad_s, applied_source, revision)
-
-
 def command_problem(cmd: Command) -> str:
     """Why the plant must refuse ``cmd`` ('' when it is usable)."""
     if not math.isfinite(cmd.voltage_v):
