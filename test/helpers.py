@@ -1,8 +1,16 @@
-"""What several test modules share: running a console main, and writing an MCAP file again."""
+"""What several test modules share.
+
+Running a console main, writing an MCAP file again, and holding a closed-loop re-run to its
+recording.
+"""
 from __future__ import annotations
 
+from dataclasses import asdict
+import json
 from pathlib import Path
 from typing import Callable
+
+import numpy as np
 
 
 def run_main(main: Callable, argv: list, capsys) -> tuple:
@@ -15,6 +23,29 @@ def run_main(main: Callable, argv: list, capsys) -> tuple:
     except SystemExit as exc:
         code = exc.code
     return code, capsys.readouterr()
+
+
+def assert_rerun_equals_recording(w) -> None:
+    """Hold a what-if re-run without changes (``rerun.whatif(bag)``) to its recording.
+
+    No series differs (``series_difference`` checks every field); the plotted series are equal
+    bit for bit; every figure is the recorded one.
+    """
+    r = w.reruns[0]
+    assert r.difference == '', r.difference
+    rec, new = w.record.series, r.series
+    for a, b in ((rec.ticks['force_n'], new.ticks['force_n']),
+                 (rec.ticks['position_m'], new.ticks['position_m']),
+                 (rec.joint.position_m, new.joint.position_m),
+                 (rec.sensor.force_n, new.sensor.force_n),
+                 (rec.motor.voltage_v, new.motor.voltage_v),
+                 (rec.sensor.voltage_v, new.sensor.voltage_v),
+                 (rec.commands['voltage_v'], new.commands['voltage_v']),
+                 (rec.objects.slip_m, new.objects.slip_m)):
+        assert a.size > 0 and np.array_equal(a, b, equal_nan=True)
+    figures = {k: v for k, v in asdict(w.recorded).items() if k != 'bag'}
+    again = {k: v for k, v in asdict(r.metrics).items() if k != 'bag'}
+    assert json.dumps(figures, sort_keys=True) == json.dumps(again, sort_keys=True)
 
 
 def copy_mcap(src: Path, dst: Path, *, schema_text: Callable[[str], str] | None = None,

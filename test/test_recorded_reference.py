@@ -9,12 +9,10 @@ the time of every phase.
 """
 from __future__ import annotations
 
-from dataclasses import asdict
-import json
 from pathlib import Path
 
 from gripper_ros.bags import rerun
-import numpy as np
+from helpers import assert_rerun_equals_recording
 import pytest
 
 BAGS = Path(__file__).resolve().parent / 'data' / 'python_core_bags'
@@ -29,17 +27,9 @@ RECORDED = {   # what grasp_demo answered when it recorded them, and the outcome
 @pytest.mark.parametrize('name', sorted(RECORDED))
 def test_interpreted_core_bag_reruns_identically_on_the_compiled_core(name):
     w = rerun.whatif(BAGS / name)
-    r = w.reruns[0]
     assert not w.record.truncated
-    assert r.difference == '', r.difference
-    rec, new = w.record.series, r.series
-    for a, b in ((rec.ticks['force_n'], new.ticks['force_n']),
-                 (rec.ticks['position_m'], new.ticks['position_m']),
-                 (rec.commands['voltage_v'], new.commands['voltage_v']),
-                 (rec.objects.slip_m, new.objects.slip_m)):
-        assert a.size > 0 and np.array_equal(a, b, equal_nan=True)
-    # every figure, the time of contact, of the switch and of the answer among them
-    figures = {k: v for k, v in asdict(w.recorded).items() if k != 'bag'}
-    again = {k: v for k, v in asdict(r.metrics).items() if k != 'bag'}
-    assert json.dumps(figures, sort_keys=True) == json.dumps(again, sort_keys=True)
+    # every tick, reference, command and object state; every figure, the times of contact,
+    # of the switch and of the answer among them
+    assert_rerun_equals_recording(w)
+    r = w.reruns[0]
     assert (r.metrics.outcome, r.metrics.final_outcome) == RECORDED[name]
