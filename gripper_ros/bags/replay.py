@@ -274,7 +274,7 @@ def build_parser() -> argparse.ArgumentParser:
                       help='re-run once per value and print one row per value')
     loop.add_argument('--jobs', type=int, default=None, metavar='N',
                       help="a sweep's worker processes (default 1: starting workers costs "
-                           'about 2 s, more than a few re-runs)')
+                           'about a second, more than a few re-runs)')
     loop.add_argument('--plot', default=None, metavar='FILE.png',
                       help='draw recorded and re-run position, force, motor and FSR voltage')
     return parser
