@@ -423,6 +423,7 @@ def plot(study, multi: bool, max_peak_ratio: float, out: Path) -> list[Path]:
     ax.plot([t.user_attrs['worst_peak_ratio'] for t in front],
             [t.user_attrs['median_time_s'] for t in front], 'k-', label='Pareto front')
     ax.axvline(max_peak_ratio, color='r', ls='--', label=f'{max_peak_ratio:g} x F_sp')
+    ax.set_xscale('log')                    # a spike is hundreds of times F_sp
     ax.set_xlabel('worst peak contact force / F_sp')
     ax.set_ylabel('median time to a steady hold (s)')
     ax.set_title(f'{study.study_name}: time against peak')
