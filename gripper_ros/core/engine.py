@@ -40,6 +40,14 @@ class EngineError(RuntimeError):
     """The engine could not run a batch (no scheduler at the address, a worker lost)."""
 
 
+def _quiet_logs() -> None:
+    """Log only errors of this process's scheduler: its start and shut-down are no news."""
+    import distributed  # noqa: F401 - its import configures the loggers set below
+    for name in [*logging.root.manager.loggerDict, 'distributed']:
+        if name.startswith('distributed'):
+            logging.getLogger(name).setLevel(logging.ERROR)
+
+
 def _close_all() -> None:
     for client in (*_local.values(), *_remote.values()):
         try:
@@ -59,13 +67,14 @@ atexit.register(_close_all)
 def local_client(workers: int):
     """Return this process's local Dask client with ``workers`` worker processes.
 
-    One thread each (a grasp holds the GIL), no dashboard; started on first use.
+    One thread each (a grasp holds the GIL), the dashboard on a free port; started on first use.
     """
     client = _local.get(workers)
     if client is None or client.status != 'running':
         from distributed import Client, LocalCluster
+        _quiet_logs()
         cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                               dashboard_address=None, preload=[WORKER_PRELOAD],
+                               dashboard_address=':0', preload=[WORKER_PRELOAD],
                                silence_logs=logging.ERROR)
         client = _local[workers] = Client(cluster, set_as_default=False)
     return client
