@@ -351,19 +351,19 @@ def config_yaml(config, values: dict, note: str) -> str:
 def format_table(trials: list, params: list[Param], multi: bool, max_peak_ratio: float,
                  total: int, infeasible: int, pruned: int) -> str:
     """Return the best trials as a table (the Pareto front with ``multi``)."""
-    head = f'{"trial":>5s} ' + ' '.join(f'{p.key:>{max(12, len(p.key))}s}' for p in params) + \
+    head = f'{"trial":>5s} ' + ' '.join(f'{f"p{i + 1}":>10s}' for i in range(len(params))) + \
         f' {"median s":>9s} {"mean s":>8s} {"peak/F_sp":>9s} {"not held":>8s} {"unsettled":>9s}'
     title = 'Pareto front (median time to hold vs worst peak), feasible trials' if multi else \
         'best feasible trials'
     lines = [f'tune: {total} trials finished, {infeasible} broke a constraint (peak > '
              f'{max_peak_ratio:g} x F_sp, an object not held, or a hold out of the settle '
-             f'band), {pruned} refused by the config reader; {title}:', head]
+             f'band), {pruned} refused by the config reader; {title}:',
+             *(f'  p{i + 1} = {p.key}' for i, p in enumerate(params)), head]
     for t in trials:
         a = t.user_attrs
-        lines.append(f'{t.number:5d} ' + ' '.join(
-            f'{t.params[p.key]:>{max(12, len(p.key))}.6g}' for p in params)
-            + f' {a["median_time_s"]:9.3f} {a["mean_time_s"]:8.3f} {a["worst_peak_ratio"]:9.4f}'
-            f' {a["not_held"]:8d} {a["unsettled"]:9d}')
+        values = ' '.join(f'{t.params[p.key]:10.5g}' for p in params)
+        lines.append(f'{t.number:5d} {values} {a["median_time_s"]:9.3f} {a["mean_time_s"]:8.3f} '
+                     f'{a["worst_peak_ratio"]:9.4f} {a["not_held"]:8d} {a["unsettled"]:9d}')
     if not trials:
         lines.append('  (none)')
     return '\n'.join(lines)

@@ -273,8 +273,8 @@ def build_parser() -> argparse.ArgumentParser:
     loop.add_argument('--sweep', default=None, metavar='SECTION.KEY=V1,V2,...',
                       help='re-run once per value and print one row per value')
     loop.add_argument('--jobs', type=int, default=None, metavar='N',
-                      help="a sweep's worker processes (default 1: starting workers costs "
-                           'about a second, more than a few re-runs)')
+                      help="a sweep's local worker processes (default 1: starting the Dask "
+                           'workers costs seconds, more than a few re-runs)')
     loop.add_argument('--scheduler', default=None, metavar='tcp://HOST:8786',
                       help="run a sweep's re-runs on the Dask cluster of this scheduler")
     loop.add_argument('--plot', default=None, metavar='FILE.png',
