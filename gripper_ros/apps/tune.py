@@ -561,6 +561,10 @@ def _run(args, base, params, cases, holdout, out: Path) -> int:
     except EngineError as exc:
         print(f'{PROG}: {exc}', file=sys.stderr)
         return 2
+    except KeyboardInterrupt:
+        print(f'{PROG}: interrupted; the finished trials are kept in {storage}: the same command '
+              'resumes the study', file=sys.stderr)
+        return 130
     trials = finished(study)
     pruned = len(study.get_trials(deepcopy=False, states=(TrialState.PRUNED,)))
     best = best_trials(study, args.multi)
