@@ -44,6 +44,7 @@ setup(
             'lift_table = gripper_ros.apps.lift_table:main',
             'bench_realtime = gripper_ros.bench.realtime:main',
             'bench_headless = gripper_ros.bench.headless:main',
+            'tune = gripper_ros.apps.tune:main',
         ],
     },
 )

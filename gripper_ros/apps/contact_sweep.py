@@ -1,12 +1,15 @@
 """contact_sweep: peak contact force, losses and time to a steady hold over the object envelope.
 
     ros2 run gripper_ros contact_sweep [--quick | --compliant] [--exact-only | --band-only]
-                                      [--band-design-stiffness N_PER_M] [--hold-s S] [--jobs N]
+                                      [--band-design-stiffness N_PER_M] [--hold-s S]
+                                      [--jobs N | --scheduler tcp://HOST:8786] [--quiet]
                                       [--force-controller contact_aware|pi|mpc_pi]
                                       [--plot FILE.png] [--json] [--config FILE]
 
 Each grasp runs the node graph's logic without ROS (:mod:`gripper_ros.core.headless`,
-bit-identical to the graph), then holds on for ``--hold-s`` (default 1 s) with the plant and the
+bit-identical to the graph), through the batch engine (:mod:`gripper_ros.core.engine`: local
+worker processes, or a Dask cluster with ``--scheduler``; the table is the same either way),
+then holds on for ``--hold-s`` (default 1 s) with the plant and the
 force stage running, to check that HOLDING was only declared once the force had settled.
 
 The envelope (default): rigid contact (the paper's eq. 13) and Kelvin-Voigt objects
@@ -59,6 +62,11 @@ QUICK_STIFFNESSES_N_PER_M = (1e2, 1e4, 1e6, 1e8)
 QUICK_DAMPING_RATIOS = (0.01, 1.0)
 QUICK_WIDTHS_M = (0.005, 0.14)
 QUICK_MASSES_KG = (0.1, None)
+# held out of --quick (tune's default check): the envelope's inside, none of its corners
+HOLDOUT_STIFFNESSES_N_PER_M = (1e3, 1e5, 1e7)
+HOLDOUT_DAMPING_RATIOS = (0.1,)
+HOLDOUT_WIDTHS_M = (0.02, 0.08)
+HOLDOUT_MASSES_KG = (0.5, 2.0)
 DEFAULT_HOLD_S = 1.0
 FLOOR_POSITION_ROUND_M = 1e-5                   # floors are computed on this grid of positions
 
@@ -179,6 +187,16 @@ def quick_cases(config) -> tuple[list[SweepCase], int]:
                        widths=QUICK_WIDTHS_M, masses=QUICK_MASSES_KG)
 
 
+def holdout_cases(config) -> tuple[list[SweepCase], int]:
+    """Return the envelope's inside at the exact width: objects none of :func:`quick_cases` is.
+
+    Rigid and 1e3, 1e5, 1e7 N/m at a damping ratio of 0.1, 20 and 80 mm, 0.5 and 2 kg.
+    """
+    return build_cases(config, kinds=_kinds(config, HOLDOUT_STIFFNESSES_N_PER_M,
+                                            HOLDOUT_DAMPING_RATIOS),
+                       widths=HOLDOUT_WIDTHS_M, masses=HOLDOUT_MASSES_KG)
+
+
 def compliant_cases(config, widths=WIDTHS_M, masses=MASSES_KG) -> tuple[list[SweepCase], int]:
     """Return rigid plus the former sweep's stiff (1e5 N/m) and soft (1e3 N/m) objects."""
     m_r = reflected_mass_kg(config)
@@ -232,7 +250,7 @@ def _case_keywords(case: SweepCase, force_controller, hold_s: float) -> dict:
                 width_tolerance_m=case.width_tolerance_m, hold_s=hold_s, **kinds)
 
 
-def _summary(case: dict, g):
+def grasp_summary(case: dict, g):
     """One grasp's figures (runs in the worker: only these come back); None when refused."""
     from gripper_ros.core.requests import RequestError
     if isinstance(g, RequestError):
@@ -250,9 +268,15 @@ def _summary(case: dict, g):
 
 
 def sweep(config, cases: list[SweepCase], force_controller: str | None = None,
-          hold_s: float = DEFAULT_HOLD_S, jobs: int = 1) -> list[SweepRow]:
-    """Grasp every case (``jobs`` processes) with its floors; refused requests are dropped."""
+          hold_s: float = DEFAULT_HOLD_S, jobs: int = 1, *, scheduler=None,
+          progress=None) -> list[SweepRow]:
+    """Grasp every case with its floors; refused requests are dropped.
+
+    ``jobs``, ``scheduler``, ``progress`` (called with the number of grasps done): the engine's.
+    """
     from gripper_ros.core.headless import map_cases, simulate_grasps
+    if scheduler is not None and not isinstance(scheduler, str):
+        jobs = max(1, sum(scheduler.nthreads().values()))
     positions = [round(held_position_m(config, c) / FLOOR_POSITION_ROUND_M)
                  * FLOOR_POSITION_ROUND_M for c in cases]
     distinct = sorted(set(positions))
@@ -260,10 +284,12 @@ def sweep(config, cases: list[SweepCase], force_controller: str | None = None,
     share = -(-len(distinct) // parts)
     chains = [distinct[i:i + share] for i in range(0, len(distinct), share)]
     rest = dict(zip(distinct, (f for chain in map_cases(
-        functools.partial(_rest_floors_s, config), chains, jobs) for f in chain)))
+        functools.partial(_rest_floors_s, config), chains, jobs, scheduler=scheduler)
+        for f in chain)))
     reach = dict(zip(distinct, arrival_floors_s(config, distinct)))
     results = simulate_grasps(config, [_case_keywords(c, force_controller, hold_s)
-                                       for c in cases], jobs, summarize=_summary)
+                                       for c in cases], jobs, summarize=grasp_summary,
+                              scheduler=scheduler, progress=progress)
     rows = []
     for case, x_m, res in zip(cases, positions, results):
         if res is None:
@@ -286,7 +312,7 @@ def band_speed_mps(config, force_setpoint_n: float) -> float:
 
 
 def summary(config, rows: list[SweepRow], excluded: int, hold_s: float,
-            elapsed_s: float | None = None, jobs: int = 1) -> str:
+            elapsed_s: float | None = None, jobs: int | str = 1) -> str:
     """Return the verdict: worst peak, losses, the continued hold, time to hold vs floor."""
     sup = config.supervisor
     band = sup.force_settle_band_fraction
@@ -294,7 +320,8 @@ def summary(config, rows: list[SweepRow], excluded: int, hold_s: float,
     banded = [r for r in rows if r.width_tolerance_m > 0.0]
     lines = [f'contact_sweep: {len(rows)} grasps ({len(exact)} at the exact width, '
              f'{len(banded)} within a tolerance)'
-             + (f' in {elapsed_s:.0f} s wall on {jobs} process(es)' if elapsed_s else '')
+             + (f' in {elapsed_s:.0f} s wall on ' + (f'{jobs} process(es)' if isinstance(
+                 jobs, int) else f'the cluster at {jobs}') if elapsed_s else '')
              + f'; {excluded} objects left out: squashed flat before F_sp (F_sp / k >= width)']
     if not rows:
         return '\n'.join(lines)
@@ -465,8 +492,14 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument('--hold-s', type=float, default=DEFAULT_HOLD_S,
                         help='continued hold after HOLDING, checked against the settle band '
                              '(default %(default)s s)')
-    parser.add_argument('--jobs', type=int, default=multiprocessing.cpu_count(),
-                        help='worker processes (default: one per CPU)')
+    engine = parser.add_mutually_exclusive_group()
+    engine.add_argument('--jobs', type=int, default=multiprocessing.cpu_count(),
+                        help='local worker processes (default: one per CPU; 1 = this process)')
+    engine.add_argument('--scheduler', metavar='tcp://HOST:8786',
+                        help='run the grasps on the Dask cluster of this scheduler (started with '
+                             '`dask scheduler` and `dask worker` on each machine)')
+    parser.add_argument('--quiet', action='store_true',
+                        help='no progress bar (it is shown only on a terminal anyway)')
     parser.add_argument('--force-controller', choices=[k.value for k in ForceControllerKind],
                         help="force stage (default: the graph's default, contact_aware); pi or "
                              'mpc_pi show the paper structure on compliant objects')
@@ -479,6 +512,13 @@ def main(argv: list[str] | None = None) -> int:
         print('contact_sweep: --hold-s must be finite and >= 0, --jobs >= 1 and '
               '--band-design-stiffness finite and > 0', file=sys.stderr)
         return 2
+    if args.scheduler is not None:
+        from gripper_ros.core.engine import check_address
+        try:
+            check_address(args.scheduler)
+        except ValueError as exc:
+            print(f'contact_sweep: {exc}', file=sys.stderr)
+            return 2
     config = load_config_or_report('contact_sweep', args.config)
     if config is None:
         return 2
@@ -494,14 +534,23 @@ def main(argv: list[str] | None = None) -> int:
     else:
         cases, excluded = envelope_cases(config, exact=not args.band_only,
                                          band=not args.exact_only)
+    from gripper_ros.core.engine import EngineError
+    from gripper_ros.progress import progress_bar
     start = time.monotonic()
-    rows = sweep(config, cases, args.force_controller, args.hold_s, args.jobs)
+    try:
+        with progress_bar(len(cases), 'contact_sweep', quiet=args.quiet) as bar:
+            rows = sweep(config, cases, args.force_controller, args.hold_s, args.jobs,
+                         scheduler=args.scheduler, progress=bar.update)
+    except EngineError as exc:
+        print(f'contact_sweep: {exc}', file=sys.stderr)
+        return 2
     elapsed_s = time.monotonic() - start
     if args.json:
         print(json.dumps([{k: None if isinstance(v, float) and not math.isfinite(v) else v
                            for k, v in asdict(r).items()} for r in rows], indent=1))
     else:
-        print(summary(config, rows, excluded, args.hold_s, elapsed_s, args.jobs))
+        print(summary(config, rows, excluded, args.hold_s, elapsed_s,
+                      args.scheduler or args.jobs))
         print()
         print(format_rows(rows))
     if args.plot:

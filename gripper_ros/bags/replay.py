@@ -273,8 +273,10 @@ def build_parser() -> argparse.ArgumentParser:
     loop.add_argument('--sweep', default=None, metavar='SECTION.KEY=V1,V2,...',
                       help='re-run once per value and print one row per value')
     loop.add_argument('--jobs', type=int, default=None, metavar='N',
-                      help="a sweep's worker processes (default 1: starting workers costs "
-                           'about a second, more than a few re-runs)')
+                      help="a sweep's local worker processes (default 1: starting the Dask "
+                           'workers costs seconds, more than a few re-runs)')
+    loop.add_argument('--scheduler', default=None, metavar='tcp://HOST:8786',
+                      help="run a sweep's re-runs on the Dask cluster of this scheduler")
     loop.add_argument('--plot', default=None, metavar='FILE.png',
                       help='draw recorded and re-run position, force, motor and FSR voltage')
     return parser
@@ -345,6 +347,8 @@ def _run_closed_loop(args: argparse.Namespace) -> int:
     """
     from gripper_ros.bags import rerun
     from gripper_ros.core.config import ConfigError
+    from gripper_ros.core.engine import check_address, EngineError
+    from gripper_ros.progress import progress_bar
     if args.resimulate and args.config and args.resimulate != args.config:
         _fail('give the configuration once: --resimulate CONFIG.yaml or --config FILE', code=2)
     if args.plot and not args.plot.lower().endswith('.png'):
@@ -359,8 +363,13 @@ def _run_closed_loop(args: argparse.Namespace) -> int:
                                 args.position_controller, args.force_controller, margin)
         if args.jobs is not None and args.jobs < 1:
             _fail(f'--jobs must be >= 1, got {args.jobs}', code=2)
-        result = rerun.whatif(args.bag, changes, sweep, args.jobs or 1)
-    except (ConfigError, BagError) as exc:
+        if args.scheduler is not None:
+            check_address(args.scheduler)
+        with progress_bar(len(sweep[1]) if sweep else 1, PROG, 're-run',
+                          quiet=args.quiet or sweep is None) as bar:
+            result = rerun.whatif(args.bag, changes, sweep, args.jobs or 1,
+                                  scheduler=args.scheduler, progress=bar.update)
+    except (ConfigError, BagError, EngineError, ValueError) as exc:
         _fail(str(exc), code=2)
     if sweep is None:
         print(rerun.to_json(result) if args.json else rerun.to_table(result))
@@ -380,7 +389,7 @@ def _run_closed_loop(args: argparse.Namespace) -> int:
     return 0
 
 
-CLOSED_LOOP_OPTIONS = ('config', 'sweep', 'plot', 'jobs')
+CLOSED_LOOP_OPTIONS = ('config', 'sweep', 'plot', 'jobs', 'scheduler')
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -542,11 +542,13 @@ def _run_value(record: GraspRecord, item: tuple) -> Rerun:
 
 
 def whatif(bag: Bag | str | os.PathLike, changes: Changes | None = None,
-           sweep: tuple[str, Sequence] | None = None, jobs: int | None = None) -> WhatIf:
+           sweep: tuple[str, Sequence] | None = None, jobs: int | None = None, *,
+           scheduler: str | None = None, progress=None) -> WhatIf:
     """Re-run a recorded grasp with ``changes``, once or once per value of ``sweep``.
 
     ``sweep`` = (dotted key, values) is applied on top of the changes; its re-runs go to
-    ``jobs`` processes (None: one per core) by the batch engine of the headless loop. Every
+    ``jobs`` local processes (None: one per core) or the Dask cluster at ``scheduler`` by the
+    batch engine (:func:`gripper_ros.core.engine.map_cases`, with its ``progress``). Every
     setup is checked before the first re-run: RerunError (the bag) or ConfigError (an option,
     key or value), one line.
     """
@@ -565,7 +567,8 @@ def whatif(bag: Bag | str | os.PathLike, changes: Changes | None = None,
     items = [(value, setup, 're-run' if sweep is None else f're-run {sweep[0]}={value}')
              for value, setup in setups]
     reruns = map_cases(functools.partial(_run_value, record), items,
-                       1 if sweep is None else jobs)
+                       1 if sweep is None else jobs,
+                       scheduler=None if sweep is None else scheduler, progress=progress)
     return WhatIf(record, recorded, reruns, None if sweep is None else sweep[0])
 
 

@@ -2,6 +2,7 @@
 
     ros2 run gripper_ros bench_headless                  # Table V, each held on for 1 s
     ros2 run gripper_ros bench_headless --repeat 20 --batch 64 --jobs 1 2 --json
+    ros2 run gripper_ros bench_headless --scheduler tcp://HOST:8786   # an existing cluster
 
 Times, in ONE process run (so that ratios compare figures taken under the same machine load):
 
@@ -10,11 +11,14 @@ Times, in ONE process run (so that ratios compare figures taken under the same m
   same compiled functions (``trace=``: what a loop driven from Python, like the graph's nodes,
   costs without DDS). Figure: simulated ticks per wall second (median of ``--repeat``), and
   the ratio of the two.
-- ``simulate_grasps`` of ``--batch`` grasps (the Table V objects in turn) with ``--jobs``
-  worker processes each, the batch entry point sweeps use; figure: ticks a second over the
-  batch, and the ratio to one process. The engine's fork server is started first, once, and
-  timed apart; and the cost of one task through the engine is measured on trivial tasks sent
-  one a task.
+- ``simulate_grasps`` of ``--batch`` grasps (the Table V objects in turn), the batch entry point
+  sweeps use, through the engine (:mod:`gripper_ros.core.engine`): in this process (the
+  baseline), on a local Dask cluster of each ``--jobs`` worker processes, and through a
+  scheduler with ``--scheduler-workers`` workers (``dask scheduler`` and ``dask worker``
+  started here on localhost, or the cluster at ``--scheduler``). Figure: ticks a second over
+  the batch (median of 3 runs), and its ratio to this process. Each engine is started and
+  warmed up first (the batch once: a worker's first grasps load code), timed apart; and the
+  cost of one task through the engine is measured on trivial tasks sent one a task.
 
 The first call of each path is a warm-up (numba loads its compiled code from the cache then);
 its time is reported apart as ``first_call_s``.
@@ -22,6 +26,7 @@ its time is reported apart as ``first_call_s``.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import os
 import platform
@@ -33,6 +38,8 @@ TABLE_V = ((0.01, 1.27), (0.05, 1.69), (0.1, 0.75))
 """The paper's Table V objects: width (m), mass (kg)."""
 OVERHEAD_ITEMS = 400
 """Trivial tasks sent one a task through the engine to measure what a task costs it."""
+BATCH_RUNS = 3
+"""Timed runs of the batch on each engine (median)."""
 
 
 def _ticks(config, width_m: float, mass_kg: float, hold_s: float, traced: bool) -> int:
@@ -52,11 +59,12 @@ def _batch_ticks(case: dict, result) -> int:
     return len(result.t_ns)
 
 
-def measure(repeat: int = 5, hold_s: float = 1.0, batch: int = 32,
-            jobs_list=(1, 2)) -> dict:
+def measure(repeat: int = 5, hold_s: float = 1.0, batch: int = 32, jobs_list=(1, 2),
+            scheduler_workers: int = 2, scheduler: str | None = None) -> dict:
     """Return every figure of the benchmark (see the module docstring)."""
     from gripper_ros.core.config import load_config
-    from gripper_ros.core.headless import map_cases, simulate_grasps
+    from gripper_ros.core.engine import dask_cluster, local_client, map_cases, remote_client
+    from gripper_ros.core.headless import simulate_grasps
     config = load_config()
     out = {'platform': platform.platform(), 'cpus': os.cpu_count(), 'hold_s': hold_s,
            'grasps': []}
@@ -79,24 +87,46 @@ def measure(repeat: int = 5, hold_s: float = 1.0, batch: int = 32,
         out['grasps'].append(row)
     cases = [{'width_m': TABLE_V[i % 3][0], 'mass_kg': TABLE_V[i % 3][1], 'hold_s': hold_s}
              for i in range(batch)]
-    start = time.perf_counter()           # the engine's fork server starts once per process
-    simulate_grasps(config, cases[:max(jobs_list)], jobs=max(jobs_list), summarize=_batch_ticks)
-    out['engine_start_s'] = time.perf_counter() - start
-    items = list(range(OVERHEAD_ITEMS))
-    start = time.perf_counter()
-    map_cases(abs, items, jobs=max(jobs_list), chunks_per_job=OVERHEAD_ITEMS)
-    out['per_task_overhead_us'] = (time.perf_counter() - start) / OVERHEAD_ITEMS * 1e6
-    out['batch'] = []
+    out['batch'], out['engine_start_s'] = [], {}
+    _time_batch(out, config, cases, 'this process', 1, None)
     for jobs in jobs_list:
         start = time.perf_counter()
-        ticks = sum(simulate_grasps(config, cases, jobs=jobs, summarize=_batch_ticks))
-        wall_s = time.perf_counter() - start
-        out['batch'].append({'jobs': jobs, 'grasps': batch, 'ticks': ticks, 'wall_s': wall_s,
-                             'ticks_per_s': ticks / wall_s})
+        client = local_client(jobs)
+        simulate_grasps(config, cases, summarize=_batch_ticks, scheduler=client)
+        out['engine_start_s'][f'local {jobs}'] = time.perf_counter() - start
+        _time_batch(out, config, cases, 'local cluster', jobs, client)
+    items = list(range(OVERHEAD_ITEMS))
+    start = time.perf_counter()
+    map_cases(abs, items, scheduler=local_client(max(jobs_list)),
+              chunks_per_job=OVERHEAD_ITEMS)
+    out['per_task_overhead_us'] = (time.perf_counter() - start) / OVERHEAD_ITEMS * 1e6
+    if scheduler is not None or scheduler_workers:
+        with contextlib.ExitStack() as stack:
+            start = time.perf_counter()
+            address = scheduler or stack.enter_context(dask_cluster(scheduler_workers))
+            client = remote_client(address)
+            workers = len(client.nthreads())
+            simulate_grasps(config, cases, summarize=_batch_ticks, scheduler=client)
+            out['engine_start_s'][f'scheduler {workers}'] = time.perf_counter() - start
+            _time_batch(out, config, cases, 'scheduler', workers, client)
     base = out['batch'][0]['ticks_per_s']
     for row in out['batch']:
         row['over_first'] = row['ticks_per_s'] / base
     return out
+
+
+def _time_batch(out: dict, config, cases: list, engine: str, workers: int, client) -> None:
+    """Time the batch on one engine: the median of BATCH_RUNS runs."""
+    from gripper_ros.core.headless import simulate_grasps
+    walls = []
+    for _ in range(BATCH_RUNS):
+        start = time.perf_counter()
+        ticks = sum(simulate_grasps(config, cases, jobs=1, summarize=_batch_ticks,
+                                    scheduler=client))
+        walls.append(time.perf_counter() - start)
+    wall_s = statistics.median(walls)
+    out['batch'].append({'engine': engine, 'workers': workers, 'grasps': len(cases),
+                         'ticks': ticks, 'wall_s': wall_s, 'ticks_per_s': ticks / wall_s})
 
 
 def report(r: dict) -> str:
@@ -109,13 +139,14 @@ def report(r: dict) -> str:
         lines.append(f'{g["width_m"]:8.3f} {g["mass_kg"]:8.2f} {g["ticks"]:7d} '
                      f'{g["compiled_ticks_per_s"]:17,.0f} {g["python_driven_ticks_per_s"]:22,.0f} '
                      f'{g["compiled_over_python_driven"]:7.1f}')
-    lines.append(f'batch engine: fork server started in {r["engine_start_s"]:.2f} s (once per '
-                 f'process, not in the figures below); {r["per_task_overhead_us"]:.0f} us a task')
-    lines.append(f'{"jobs":>8s} {"grasps":>8s} {"ticks":>9s} {"wall s":>8s} {"ticks/s":>12s} '
-                 f'{"x 1st":>6s}')
+    starts = ', '.join(f'{k} worker(s) {v:.2f} s' for k, v in r['engine_start_s'].items())
+    lines.append(f'batch engine (Dask): started and warmed up (the batch once) in {starts} (not '
+                 f'in the figures below); {r["per_task_overhead_us"]:.0f} us a task')
+    lines.append(f'{"engine":>14s} {"workers":>8s} {"grasps":>7s} {"ticks":>9s} {"wall s":>8s} '
+                 f'{"ticks/s":>12s} {"x this process":>15s}')
     for b in r['batch']:
-        lines.append(f'{b["jobs"]:8d} {b["grasps"]:8d} {b["ticks"]:9d} {b["wall_s"]:8.3f} '
-                     f'{b["ticks_per_s"]:12,.0f} {b["over_first"]:6.2f}')
+        lines.append(f'{b["engine"]:>14s} {b["workers"]:8d} {b["grasps"]:7d} {b["ticks"]:9d} '
+                     f'{b["wall_s"]:8.3f} {b["ticks_per_s"]:12,.0f} {b["over_first"]:15.2f}')
     return '\n'.join(lines)
 
 
@@ -126,7 +157,12 @@ def main(argv=None) -> int:
                         help='seconds held on after HOLDING (default 1)')
     parser.add_argument('--batch', type=int, default=32, help='grasps in the batch')
     parser.add_argument('--jobs', type=int, nargs='+', default=[1, 2],
-                        help='worker processes of each batch run (default 1 2)')
+                        help='worker processes of each local-cluster run (default 1 2)')
+    parser.add_argument('--scheduler-workers', type=int, default=2,
+                        help='start dask scheduler and this many dask workers here for the '
+                             'scheduler run (default 2; 0 = no scheduler run)')
+    parser.add_argument('--scheduler', metavar='tcp://HOST:8786',
+                        help='time the scheduler run on this existing cluster instead')
     parser.add_argument('--json', action='store_true', help='print JSON')
     args = parser.parse_args(argv)
     for name in ('repeat', 'batch'):
@@ -134,9 +170,16 @@ def main(argv=None) -> int:
             parser.error(f'--{name.replace("_", "-")} must be >= 1')
     if not (args.hold_s >= 0.0 and args.hold_s <= 60.0):
         parser.error('--hold-s must be in [0, 60]')
-    if any(j < 1 for j in args.jobs):
-        parser.error('--jobs must be >= 1')
-    result = measure(args.repeat, args.hold_s, args.batch, args.jobs)
+    if any(j < 1 for j in args.jobs) or args.scheduler_workers < 0:
+        parser.error('--jobs must be >= 1 and --scheduler-workers >= 0')
+    if args.scheduler is not None:
+        from gripper_ros.core.engine import check_address
+        try:
+            check_address(args.scheduler)
+        except ValueError as exc:
+            parser.error(str(exc))
+    result = measure(args.repeat, args.hold_s, args.batch, args.jobs, args.scheduler_workers,
+                     args.scheduler)
     print(json.dumps(result, indent=2) if args.json else report(result))
     return 0
 

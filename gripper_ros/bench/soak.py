@@ -404,7 +404,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('--grasp-timeout', type=float, default=300.0, help='wall s per grasp call')
     p.add_argument('--json', action='store_true', help='JSON on stdout instead of the text')
     p.add_argument('--json-file', default='', help='also write the JSON report here')
-    p.add_argument('--quiet', action='store_true', help='no per-grasp progress on stderr')
+    p.add_argument('--quiet', action='store_true',
+                   help='no progress on stderr (a bar on a terminal, else a line a grasp)')
     p.add_argument('--client-worker', action='store_true', help=argparse.SUPPRESS)
     return p
 
@@ -423,18 +424,24 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     from gripper_ros.nodes.graph import GraphError, GraphOptions, GripperGraph
     from gripper_ros.nodes.common import ExecutorKind
+    from gripper_ros.progress import progress_bar
 
     objects = OBJECT_SETS[args.objects]
     keep = bool(args.output) or args.keep_bags
     bag_root = Path(args.output) if args.output else Path(tempfile.mkdtemp(prefix='bench_soak_'))
     bag_root.mkdir(parents=True, exist_ok=True)
 
+    bar = progress_bar(args.grasps, 'bench_soak', quiet=args.quiet)
+
     def progress(r: GraspRow):
-        if not args.quiet:
-            print(f'[{r.index}/{args.grasps}] {r.width_m:g} m {r.mass_kg:g} kg {r.outcome} '
-                  f'{r.wall_s:.2f} s, {r.ticks} ticks, counts '
-                  f'{"match" if r.counts_match else "MISMATCH"}, RSS {r.rss_kb / 1024:.1f} MiB',
-                  file=sys.stderr, flush=True)
+        line = (f'{r.width_m:g} m {r.mass_kg:g} kg {r.outcome} {r.wall_s:.2f} s, {r.ticks} '
+                f'ticks, counts {"match" if r.counts_match else "MISMATCH"}, RSS '
+                f'{r.rss_kb / 1024:.1f} MiB')
+        if not bar.disable:                     # a terminal: count, rate, time left
+            bar.set_postfix_str(line, refresh=False)
+            bar.update(1)
+        elif not args.quiet:                    # a log: one line a grasp
+            print(f'[{r.index}/{args.grasps}] {line}', file=sys.stderr, flush=True)
 
     rclpy.init(args=[])
     graph = worker = None
@@ -451,6 +458,7 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         error, code = 'interrupted', 130
     finally:
+        bar.close()
         if worker is not None:
             worker.close()
         if graph is not None:

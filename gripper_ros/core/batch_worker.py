@@ -1,9 +1,9 @@
-"""Imported by the fork server of the batch engine (:func:`gripper_ros.core.headless.map_cases`).
+"""Preloaded by each worker of the batch engine (:mod:`gripper_ros.core.engine`).
 
-The fork server forks every worker process of a batch. Importing this module there loads the
-compiled core from numba's cache (and the DMC models of the default configuration) once, by
-running one short grasp, so that each worker starts with it in memory: a worker that loaded it
-itself would pay about a second before its first grasp, a large share of a short batch.
+``LocalCluster(preload=...)`` and ``dask worker --preload gripper_ros.core.batch_worker``
+import this module as the worker starts: it loads the compiled core from numba's cache (and
+the DMC models of the default configuration) by running one short grasp, so that the worker's
+first task does not pay about a second for it.
 """
 from gripper_ros.core.headless import warm_up_worker
 

@@ -10,18 +10,15 @@ sweeps over many objects are practical.
 """
 from __future__ import annotations
 
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
 import functools
 import math
-import multiprocessing
-import os
-import sys
 import time
 from typing import Callable, Sequence
 
 from gripper_ros.core.config import GripperConfig
 from gripper_ros.core.controllers import make_plant
+from gripper_ros.core.engine import map_cases
 from gripper_ros.core.lockstep import (Command, PlantSide, side_accept, side_needs_time,
                                        side_step, StageSide, SupervisorSide, Tick)
 from gripper_ros.core.plant import check_fault, GraspObject, Lift
@@ -103,11 +100,6 @@ ROWS = ('position_m', 'force_n', 'peak_force_n', 'motor_voltage_v', 'sensor_volt
 """The per-tick float series a headless grasp keeps, in the order of its row buffer."""
 FIRST_ROWS = 4096
 """Rows a grasp's series buffers start with (they double when full)."""
-WORKER_PRELOAD = 'gripper_ros.core.batch_worker'
-"""Imported once by the batch engine's fork server, so that each worker forks with the compiled
-core loaded instead of loading it itself."""
-CHUNKS_PER_JOB = 4
-"""A batch is cut into this many chunks per worker process: few tasks, balanced load."""
 
 
 @numba.njit(cache=True)
@@ -321,47 +313,6 @@ def simulate_grasp(config: GripperConfig, width_m: float, mass_kg: float, *,
         plant.object_state.slip_m, plant.object_state.lost_ns)
 
 
-def _run_chunk(fn: Callable, chunk: list) -> list:
-    """Run ``fn`` over one chunk of cases in a worker (module level: it is pickled)."""
-    return [fn(case) for case in chunk]
-
-
-def map_cases(fn: Callable, cases: Sequence, jobs: int | None = None,
-              chunks_per_job: int = CHUNKS_PER_JOB) -> list:
-    """Return ``[fn(case) for case in cases]``, computed in ``jobs`` processes.
-
-    ``jobs`` None = one per core, 1 = in this process. Cases go to the workers in chunks
-    (``chunks_per_job`` per worker), so that the cost of sending a task stays small against a
-    grasp of a few milliseconds. The workers come from a fork server, not a fork of this
-    process: a fork of a process with threads running (an rclpy executor, DDS) can inherit a
-    lock held mid-call and hang. The result is the same whatever ``jobs`` is.
-    """
-    cases = list(cases)
-    if jobs is None:
-        jobs = os.cpu_count() or 1
-    if jobs < 1:
-        raise ValueError(f'jobs must be >= 1, got {jobs!r}')
-    if jobs == 1 or len(cases) <= 1 or not _workers_can_start():
-        return [fn(case) for case in cases]
-    size = max(1, math.ceil(len(cases) / (jobs * chunks_per_job)))
-    chunks = [cases[i:i + size] for i in range(0, len(cases), size)]
-    context = multiprocessing.get_context('forkserver')
-    context.set_forkserver_preload([WORKER_PRELOAD])
-    with ProcessPoolExecutor(min(jobs, len(chunks)), mp_context=context) as pool:
-        results = list(pool.map(functools.partial(_run_chunk, fn), chunks))
-    return [r for chunk in results for r in chunk]
-
-
-def _workers_can_start() -> bool:
-    """Tell whether worker processes can start here.
-
-    A worker re-imports the main script by its path; a script read from standard input has
-    none, and its workers would die at start. (A worker that dies raises BrokenProcessPool.)
-    """
-    path = getattr(sys.modules.get('__main__'), '__file__', None)
-    return path is None or os.path.isfile(path)
-
-
 def _grasp_case(config: GripperConfig, summarize: Callable | None, case: dict):
     """One case of :func:`simulate_grasps`: the grasp, or the RequestError that refused it."""
     case = dict(case)
@@ -374,16 +325,19 @@ def _grasp_case(config: GripperConfig, summarize: Callable | None, case: dict):
 
 
 def simulate_grasps(config: GripperConfig, cases: Sequence[dict], jobs: int | None = None,
-                    summarize: Callable | None = None) -> list:
-    """Run many grasps (:func:`simulate_grasp` keywords, one dict a case) over the cores.
+                    summarize: Callable | None = None, *, scheduler=None,
+                    progress: Callable[[int], None] | None = None) -> list:
+    """Run many grasps (:func:`simulate_grasp` keywords, one dict a case) through the engine.
 
     Each result is the :class:`HeadlessGrasp`, or the :class:`RequestError` that refused the
     request; a case may carry its own ``config``. ``summarize(case, result)``, when given, runs
     in the worker and its (small, picklable) return value comes back instead: a sweep of
-    long grasps then sends no series between processes. The results are in the cases' order
-    and the same bytes whatever ``jobs`` is.
+    long grasps then sends no series between processes. ``jobs``, ``scheduler`` and
+    ``progress`` are :func:`gripper_ros.core.engine.map_cases`'s. The results are in the cases'
+    order and the same bytes whatever the engine and the worker count.
     """
-    return map_cases(functools.partial(_grasp_case, config, summarize), cases, jobs)
+    return map_cases(functools.partial(_grasp_case, config, summarize), cases, jobs,
+                     scheduler=scheduler, progress=progress)
 
 
 @dataclass

@@ -1,0 +1,58 @@
+"""The batch engine on a real Dask cluster: ``dask scheduler`` and two ``dask worker`` processes.
+
+The cluster is started once for the module, with the commands the README gives for a cluster of
+machines (on localhost here). Known answers: ``contact_sweep --quick --scheduler ADDR`` prints
+the same table, byte for byte, as the sweep run in one process; a batch comes back in the
+cases' order with every case counted once by the progress callback; a malformed address is
+refused in one line with exit 2.
+"""
+from __future__ import annotations
+
+import functools
+
+from gripper_ros.apps import contact_sweep
+from gripper_ros.core.engine import check_address, chunked, dask_cluster, map_cases
+import pytest
+
+
+@pytest.fixture(scope='module')
+def scheduler():
+    with dask_cluster(workers=2) as address:
+        yield address
+
+
+def _sweep_json(capsys, *args) -> str:
+    assert contact_sweep.main(['--quick', '--json', '--quiet', *args]) == 0
+    return capsys.readouterr().out
+
+
+def test_contact_sweep_on_the_cluster_prints_the_local_table(scheduler, capsys):
+    remote = _sweep_json(capsys, '--scheduler', scheduler)
+    local = _sweep_json(capsys, '--jobs', '1')
+    assert remote == local
+    assert remote.count('"outcome": "HOLDING"') == 30
+
+
+def test_a_batch_comes_back_in_order_and_progress_counts_every_case(scheduler):
+    done = []
+    cases = list(range(37))
+    # a builtin: the workers import what they run, and they cannot import this test module
+    out = map_cases(functools.partial(pow, 3), cases, scheduler=scheduler, progress=done.append)
+    assert out == [3 ** x for x in cases]
+    assert sum(done) == len(cases) and len(done) == len(chunked(cases, 2))
+
+
+def test_chunks_keep_every_case_once_in_order():
+    cases = list(range(101))
+    chunks = chunked(cases, workers=2, chunks_per_worker=4)
+    assert len(chunks) == 8 and [x for c in chunks for x in c] == cases
+
+
+@pytest.mark.parametrize('address', ['localhost:8786', 'tcp://host', 'tcp://host:0',
+                                     'http://host:8786', 'tcp://host:port'])
+def test_a_malformed_scheduler_address_is_refused_in_one_line(address, capsys):
+    with pytest.raises(ValueError, match='tcp://HOST:8786'):
+        check_address(address)
+    assert contact_sweep.main(['--quick', '--scheduler', address]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith('contact_sweep: --scheduler')
