@@ -37,6 +37,8 @@ setup(
             'bag_info = gripper_ros.bags.info:main',
             'bag_replay = gripper_ros.bags.replay:main',
             'bag_analyze = gripper_ros.bags.analyze:main',
+            'bag_identify = gripper_ros.bags.identify:main',
+            'excite = gripper_ros.apps.excite:main',
             'bench_graph = gripper_ros.bench.graph:main',
             'contact_sweep = gripper_ros.apps.contact_sweep:main',
             'bench_soak = gripper_ros.bench.soak:main',

@@ -335,13 +335,18 @@ def _residuals(runs, scales, config, base_theta, free, log_values, part):
     return np.concatenate(out)
 
 
-def nrmse(simulated: np.ndarray, recorded: np.ndarray) -> float:
-    """RMS error over the recorded range (NaN samples left out; NaN for a flat channel)."""
+def nrmse(simulated: np.ndarray, recorded: np.ndarray, span: float | None = None) -> float:
+    """RMS error over ``span`` (default the recorded range); NaN samples left out.
+
+    NaN for a flat channel.
+    """
     ok = np.isfinite(recorded) & np.isfinite(simulated)
-    if ok.sum() < 2 or np.ptp(recorded[ok]) == 0.0:
+    if span is None:
+        span = float(np.ptp(recorded[ok])) if ok.sum() else 0.0
+    if ok.sum() < 2 or not span > 0.0:
         return math.nan
     err = simulated[ok] - recorded[ok]
-    return float(np.sqrt(np.mean(err ** 2)) / np.ptp(recorded[ok]))
+    return float(np.sqrt(np.mean(err ** 2)) / span)
 
 
 def identify(runs: list[Run], config: GripperConfig) -> Identified:
@@ -404,7 +409,8 @@ def identify(runs: list[Run], config: GripperConfig) -> Identified:
         sim = simulate(run, plant, config)
         simulated[run.name] = sim
         held = slice(run.fit_end, None)
-        table[run.name] = {c: nrmse(sim[held, j], run.measured[c][held])
+        table[run.name] = {c: nrmse(sim[held, j], run.measured[c][held],
+                                    float(np.nanmax(run.measured[c]) - np.nanmin(run.measured[c])))
                            for j, c in enumerate(CHANNELS)}
     return Identified(plant, config, seed, [PARAMETERS[j] for j in free], not_excited, combos,
                       stderr, table, warnings, simulated, float(result.cost), int(result.nfev))
