@@ -20,7 +20,9 @@ Method.
 2. Output error (:func:`identify`): ``scipy.optimize.least_squares`` on the package's own
    compiled plant (:func:`gripper_ros.core.plant.plant_step`, so the voltage limit and contact
    are in the model) driven by the recorded voltages over the first ``1 - HELD_OUT_SHARE`` of
-   each run; residuals per channel divided by the channel's spread. Standard errors from the
+   each run; residuals per channel divided by the channel's spread, then (``REWEIGHTINGS``)
+   by the channel's own residual RMS, so that a precise sensor counts for what it is worth.
+   Standard errors from the
    Jacobian, ``cov = s^2 (J^T J)^-1``, carried to the combinations by their gradients.
 3. A parameter whose 10 % change moves the simulated channels by less than
    ``EXCITED_SENSITIVITY`` of their spread is not excited: it stays at its configured value and
@@ -45,6 +47,8 @@ MIN_FREE_SAMPLES = 50           # fewer free-motion samples identify nothing
 SEED_MIN_HOLD_TAU_E = 20.0      # seed samples: held at least this many electrical time constants
 RIGID_FORCE_SHARE = 0.05        # rigid-contact samples for the seed: force above this x the peak
 EXCITED_SENSITIVITY = 1e-4      # RMS change of normalised outputs for a 10 % parameter change
+REWEIGHTINGS = 1                # fits again with each channel weighed by its residual's RMS
+RESIDUAL_FLOOR = 1e-9           # a channel's residual RMS as a share of its spread, at least
 CHANNELS = ('position_m', 'speed_rad_s', 'current_a', 'force_n')
 """The measured signals fitted, as the loop's PlantTick names them."""
 
@@ -372,16 +376,27 @@ def identify(runs: list[Run], config: GripperConfig) -> Identified:
                             f'simulated signals by less than {EXCITED_SENSITIVITY:g} of their '
                             f'spread); it stays at its configured value')
     free = np.array([j for j, n in enumerate(PARAMETERS) if n not in not_excited])
-    result = least_squares(
-        lambda lv: _residuals(runs, scales, config, theta0, free, lv, 'fit'),
-        np.log(theta0[free]), method='trf', x_scale=1.0, diff_step=1e-6, xtol=1e-10,
-        ftol=1e-10, gtol=1e-10, max_nfev=200)
+    labels = np.concatenate([np.full(r.fit_end, j) for r in runs
+                             for j, c in enumerate(CHANNELS) if scales[c] > 0.0])
+    start = np.log(theta0[free])
+    nfev = 0
+    for _ in range(REWEIGHTINGS + 1):
+        result = least_squares(
+            lambda lv: _residuals(runs, scales, config, theta0, free, lv, 'fit'),
+            start, method='trf', x_scale=1.0, diff_step=1e-6, xtol=1e-12, ftol=1e-12,
+            gtol=1e-12, max_nfev=200)
+        nfev += result.nfev
+        start = result.x
+        # Weigh each channel by its own residual (the maximum-likelihood weights of sensors
+        # with different noise): the precise channels then pin the parameters.
+        for j, c in enumerate(CHANNELS):
+            if scales[c] > 0.0:
+                rms = math.sqrt(float(np.mean(result.fun[labels == j] ** 2)))
+                scales[c] *= max(rms, RESIDUAL_FLOOR)
     theta = theta0.copy()
     theta[free] = np.exp(result.x)
     plant = plant_of(theta, config.plant)
     # Each channel's own residual variance weighs its rows (noise differs per sensor).
-    labels = np.concatenate([np.full(r.fit_end, j) for r in runs
-                             for j, c in enumerate(CHANNELS) if scales[c] > 0.0])
     weights = np.ones(labels.size)
     dof = max(1.0, (result.fun.size - free.size) / result.fun.size)
     for j in np.unique(labels):
@@ -413,7 +428,7 @@ def identify(runs: list[Run], config: GripperConfig) -> Identified:
                                     float(np.nanmax(run.measured[c]) - np.nanmin(run.measured[c])))
                            for j, c in enumerate(CHANNELS)}
     return Identified(plant, config, seed, [PARAMETERS[j] for j in free], not_excited, combos,
-                      stderr, table, warnings, simulated, float(result.cost), int(result.nfev))
+                      stderr, table, warnings, simulated, float(result.cost), nfev)
 
 
 def _with_plant(config: GripperConfig, plant: PlantParams) -> dict:
