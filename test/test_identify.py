@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import copy
 import itertools
+import json
 import math
 from pathlib import Path
 
@@ -18,7 +19,7 @@ from gripper_ros.core.excitation import (check_spec, excitation_moves, Excitatio
                                          free_band_m, MAX_SECONDS, STOP_WIDTH_M,
                                          TRAVEL_MARGIN_M)
 from gripper_ros.core.headless import simulate_grasp, simulate_moves
-from gripper_ros.identify.fit import (check_run, combinations, COMBINATION_NEEDS, identify,
+from gripper_ros.identify.fit import (check_run, COMBINATION_NEEDS, combinations, identify,
                                       IdentifyError, linear_seed, nrmse, Run)
 from helpers import run_main
 import numpy as np
@@ -44,7 +45,7 @@ def _config(scale: dict, noise: dict | None) -> object:
 
 
 def _excitation_run(config, spec: ExcitationSpec = SPEC, name: str = 'excitation') -> Run:
-    """The experiment headless (the graph's loop, tick for tick), cut at ``spec.seconds``."""
+    """Run the experiment headless (the graph's loop, tick for tick), cut at ``spec.seconds``."""
     moves = list(itertools.islice(excitation_moves(spec, config.plant), 12))
     h = simulate_moves(config, moves, object_width_m=STOP_WIDTH_M if spec.hold else 0.0)
     keep = h.t_ns <= h.t_ns[0] + round(spec.seconds * 1e9)
@@ -141,7 +142,7 @@ def test_linear_seed_recovers_the_exact_zoh_first_order_model():
 
 
 def test_linear_seed_on_the_plant_is_the_closed_form_of_table_i():
-    """The package's plant (with its 0.1 ms electrical pole) against the first-order closed form."""
+    """Hold the plant (its 0.1 ms electrical pole included) to the first-order closed form."""
     p = PAPER.plant
     seed = linear_seed([_excitation_run(PAPER)], p)
     assert seed.mechanical_time_constant_s == pytest.approx(p.mechanical_time_constant_s,
@@ -234,3 +235,39 @@ def test_bag_identify_refuses_bags_it_cannot_use_in_one_line(tmp_path, capsys):
                       'no loop ticks with the motor voltage')
     _one_line_refusal([str(DATA / 'lift_paper_law_lost')], capsys, 'scenario')
     _one_line_refusal([str(tmp_path / 'nothing')], capsys, 'bag_identify: ')
+
+
+# ------------------------------------------------------------------ the console programs
+def test_excite_records_a_bag_that_bag_identify_fits(tmp_path, capfd):
+    """The experiment on its own graph (capfd: the events executor needs real file handles)."""
+    from gripper_ros.apps import excite
+    code, captured = run_main(excite.main, ['--output', str(tmp_path), '--seconds', '6',
+                                            '--amplitude-v', '18', '--seed', '2'], capfd)
+    assert code == 0, captured.err
+    bags = [line[len('bag: '):] for line in captured.out.splitlines()
+            if line.startswith('bag: ')]
+    assert len(bags) == 1 and Path(bags[0]).is_dir()
+    run = bag_identify.load_run(bags[0])
+    assert (run.t_ns[-1] - run.t_ns[0]) * 1e-9 <= 6.0 + 0.011   # the last tick's 10 ms
+    assert run.measured['position_m'].max() <= PAPER.plant.max_travel_m - STOP_WIDTH_M
+    code, captured = run_main(bag_identify.main, [bags[0], '--json', '--output',
+                                                  str(tmp_path / 'identified.yaml')], capfd)
+    assert code == 0, captured.err
+    out = json.loads(captured.out)
+    assert set(out['plant']) == set(PAPER.data['plant'])
+    for name, value in combinations(PAPER.plant).items():
+        if out['combinations'][name]['stderr'] is not None:
+            assert out['combinations'][name]['value'] == pytest.approx(value, rel=0.02), name
+    assert load_config(tmp_path / 'identified.yaml').plant.resistance_ohm == \
+        out['plant']['resistance_ohm']
+
+
+@pytest.mark.parametrize('argv, match', [(['--seconds', '0'], 'seconds'),
+                                         (['--amplitude-v', '30'], 'amplitude_v'),
+                                         (['--seed', '-3'], 'seed')])
+def test_excite_refuses_bad_parameters_in_one_line(argv, match, tmp_path, capfd):
+    from gripper_ros.apps import excite
+    code, captured = run_main(excite.main, ['--output', str(tmp_path)] + argv, capfd)
+    lines = captured.err.strip().splitlines()
+    assert code == 2 and len(lines) == 1 and match in lines[0], captured.err
+    assert not any(tmp_path.iterdir())

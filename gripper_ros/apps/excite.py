@@ -15,10 +15,12 @@ import argparse
 from datetime import datetime
 import os
 from pathlib import Path
+import signal
 import sys
 import time
 
 EXCITATION_FORMAT = 1       # custom_data 'excitation' layout
+_STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -69,7 +71,11 @@ def main(argv: list[str] | None = None) -> int:
         check_spec(spec, load_config(args.config or None).plant)
     except (ValueError, ConfigError) as exc:
         return _fail(str(exc))
-    rclpy.init(args=None if argv is None else [])
+    from rclpy.signals import SignalHandlerOptions
+    # Ctrl-C and SIGTERM end the experiment here (KeyboardInterrupt), not inside rclpy: the
+    # graph stops and the bag is closed first (as grasp_demo does).
+    rclpy.init(args=None if argv is None else [], signal_handler_options=SignalHandlerOptions.NO)
+    previous = {sig: signal.signal(sig, _raise_keyboard_interrupt) for sig in _STOP_SIGNALS}
     graph = None
     try:
         graph = GripperGraph(GraphOptions(config_file=args.config, namespace=namespace,
@@ -89,6 +95,12 @@ def main(argv: list[str] | None = None) -> int:
         if graph is not None:
             graph.close()
         rclpy.try_shutdown()
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+
+
+def _raise_keyboard_interrupt(signum, frame):
+    raise KeyboardInterrupt
 
 
 def run_excitation(graph, spec) -> str:
