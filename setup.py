@@ -32,6 +32,7 @@ setup(
             'grasp_client = gripper_ros.apps.grasp_client:main',
             'grasp_action_server = gripper_ros.nodes.grasp_action_node:main',
             'move_action_server = gripper_ros.nodes.move_action_node:main',
+            'excitation_server = gripper_ros.nodes.excitation_node:main',
             'paper_tables = gripper_ros.apps.paper_tables:main',
             'position_limit = gripper_ros.apps.position_limit:main',
             'bag_info = gripper_ros.bags.info:main',

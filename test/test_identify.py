@@ -271,3 +271,41 @@ def test_excite_refuses_bad_parameters_in_one_line(argv, match, tmp_path, capfd)
     lines = captured.err.strip().splitlines()
     assert code == 2 and len(lines) == 1 and match in lines[0], captured.err
     assert not any(tmp_path.iterdir())
+
+
+def test_the_excite_service_runs_beside_move_refuses_bad_parameters_and_stops_on_stop():
+    from gripper_ros.nodes.common import wait_until
+    from gripper_ros.nodes.graph import GraphOptions, GripperGraph
+    from gripper_ros.wire import SERVICE_EXCITE
+    from rclpy.parameter import Parameter
+    from std_srvs.srv import Trigger
+
+    with GripperGraph.in_own_context(GraphOptions(namespace='excite_test')) as g:
+        node = g.excitation_server
+
+        def set_parameter(name, value):
+            return g.run_in_executor(lambda: node.set_parameters(
+                [Parameter(f'excitation.{name}', value=value)]))[0]
+        client = g.run_in_executor(
+            lambda: g.client_node.create_client(Trigger, SERVICE_EXCITE))
+        assert client.wait_for_service(timeout_sec=10.0)
+        assert g.set_object(STOP_WIDTH_M).success
+        g.wait_still()
+        refused = set_parameter('amplitude_v', 99.0)
+        assert not refused.successful and 'amplitude_v' in refused.reason
+        assert node.spec.amplitude_v == ExcitationSpec().amplitude_v     # nothing changed
+        assert set_parameter('seconds', 3.0).successful
+        start = g.sim_time_ns
+        answer = g.call(client, Trigger.Request(), 60.0)
+        assert answer.success and 'moves in' in answer.message, answer.message
+        assert 3.0 <= (g.sim_time_ns - start) * 1e-9 <= 3.0 + 0.05
+        assert set_parameter('seconds', 120.0).successful
+        start = g.sim_time_ns
+        future = client.call_async(Trigger.Request())
+        assert wait_until(lambda: g.sim_time_ns > start + round(2e9), 30.0)
+        assert g.stop().success
+        assert wait_until(future.done, 30.0)
+        answer = future.result()
+        assert not answer.success and answer.message.startswith('ended by STOPPED'), \
+            answer.message
+        assert (g.sim_time_ns - start) * 1e-9 < 60.0

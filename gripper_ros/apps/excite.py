@@ -109,21 +109,15 @@ def run_excitation(graph, spec) -> str:
     Returns how it ended; a move that ends otherwise than MOVED, STALLED or TIMEOUT (a
     ``stop``, a refusal, a fault) ends the experiment at once.
     """
-    from gripper_ros.core.excitation import excitation_moves
+    from gripper_ros.core.excitation import ExcitationRun
     from gripper_ros.wire import Outcome
-    plant = graph.plant.config.plant
-    start_ns = graph.sim_time_ns
-    moves = 0
-    for move in excitation_moves(spec, plant):
-        left_s = spec.seconds - (graph.sim_time_ns - start_ns) * 1e-9
-        if left_s <= 0.0:
+    run = ExcitationRun(spec, graph.plant.config.plant, graph.sim_time_ns)
+    while (move := run.next_move(graph.sim_time_ns)) is not None:
+        answer = graph.move(move.width_m, move.speed_mps, move.max_effort_n,
+                            timeout_s=move.timeout_s)
+        if not run.answered(Outcome(answer.outcome).name, answer.message):
             break
-        answer = graph.move(move.width_m, move.speed_mps, move.max_effort_n, timeout_s=left_s)
-        moves += 1
-        outcome = Outcome(answer.outcome)
-        if outcome not in (Outcome.MOVED, Outcome.STALLED, Outcome.TIMEOUT):
-            return f'ended by {outcome.name} after {moves} moves: {answer.message}'
-    return f'{moves} moves in {(graph.sim_time_ns - start_ns) * 1e-9:.2f} s'
+    return run.summary(graph.sim_time_ns)
 
 
 def recorded_excitation(graph, output: Path, spec) -> tuple[Path, str]:

@@ -97,3 +97,48 @@ def excitation_moves(spec: ExcitationSpec, plant: PlantParams) -> Iterator[MoveR
         speed = float(rng.uniform(*SPEED_SHARE)) * free_speed
         yield MoveRequest(plant.max_travel_m - target, speed, effort)
         x = target
+
+
+CONTINUING_OUTCOMES = ('MOVED', 'STALLED', 'TIMEOUT')
+"""Move outcomes after which the experiment goes on; any other (STOPPED, REFUSED, FAULT) ends
+it at once."""
+
+
+class ExcitationRun:
+    """The experiment's progress, the same for the console app and the service.
+
+    Ask :meth:`next_move` with the simulated time now for the next request (None: done), send
+    it, and hand its outcome's name to :meth:`answered`, which says whether to go on.
+    """
+
+    def __init__(self, spec: ExcitationSpec, plant: PlantParams, start_ns: int):
+        self.spec = check_spec(spec, plant)
+        self._moves = excitation_moves(spec, plant)
+        self.start_ns = start_ns
+        self.moves = 0
+        self.ended_by = ''            # the outcome that ended it early ('' = ran its time)
+        self.message = ''
+
+    def next_move(self, now_ns: int) -> MoveRequest | None:
+        """Return the next move, its timeout the time left; None once time is up or ended."""
+        left_s = self.spec.seconds - (now_ns - self.start_ns) * 1e-9
+        if self.ended_by or left_s <= 0.0:
+            return None
+        move = next(self._moves)
+        return MoveRequest(move.width_m, move.speed_mps, move.max_effort_n, left_s)
+
+    def answered(self, outcome_name: str, message: str = '') -> bool:
+        """Count an answered move; False (ended) unless it is a continuing outcome."""
+        self.moves += 1
+        if outcome_name in CONTINUING_OUTCOMES:
+            return True
+        self.ended_by, self.message = outcome_name, message
+        return False
+
+    def summary(self, now_ns: int) -> str:
+        """Say how the experiment ended, in one line."""
+        elapsed = (now_ns - self.start_ns) * 1e-9
+        if self.ended_by:
+            return (f'ended by {self.ended_by} after {self.moves} moves, {elapsed:.2f} s: '
+                    f'{self.message}')
+        return f'{self.moves} moves in {elapsed:.2f} s'
