@@ -12,6 +12,7 @@ through the ``move`` service, so ``stop`` ends it at once. The bag is written un
 from __future__ import annotations
 
 import argparse
+import copy
 from datetime import datetime
 import os
 from pathlib import Path
@@ -38,6 +39,14 @@ def build_parser() -> argparse.ArgumentParser:
                         '(default %(default)g)')
     p.add_argument('--seed', type=int, default=d.seed,
                    help='seed of the pseudo-random sequence (default %(default)d)')
+    p.add_argument('--position-noise-m', type=float, default=None,
+                   help='sensor_noise.position_noise_m of the simulated plant (default: the '
+                        "config's)")
+    p.add_argument('--force-noise-n', type=float, default=None,
+                   help='sensor_noise.force_noise_n of the simulated plant (default: the '
+                        "config's)")
+    p.add_argument('--noise-seed', type=int, default=None,
+                   help="sensor_noise.seed of the simulated plant (default: the config's)")
     p.add_argument('--no-hold', action='store_true',
                    help='free motion only: no press on the rigid stop (no force model)')
     p.add_argument('--namespace', default=DEFAULT_NAMESPACE,
@@ -59,16 +68,27 @@ def main(argv: list[str] | None = None) -> int:
                                                      ['excite', *argv])[1:])
     from gripper_ros.bags.recorder import BagRecorderError
     from gripper_ros.bags.recording import RecordingError
-    from gripper_ros.core.config import ConfigError, load_config
+    from gripper_ros.core.config import ConfigError, load_config, parse_config
     from gripper_ros.core.excitation import check_spec, ExcitationSpec
     from gripper_ros.nodes.common import StartupError
     from gripper_ros.nodes.graph import GraphError, GraphOptions, GripperGraph
     from gripper_ros.wire import check_namespace
 
     spec = ExcitationSpec(args.seconds, args.amplitude_v, args.seed, not args.no_hold)
+    noise = {f'sensor_noise.{key}': float(value) for key, value in (   # doubles, as declared
+        ('position_noise_m', args.position_noise_m), ('force_noise_n', args.force_noise_n),
+        ('seed', args.noise_seed)) if value is not None}
     try:
         namespace = check_namespace(args.namespace)
-        check_spec(spec, load_config(args.config or None).plant)
+        config = load_config(args.config or None)
+        check_spec(spec, config.plant)
+        if noise:
+            if 'sensor_noise' not in config.data:
+                raise ConfigError(f'{config.source} has no sensor_noise section to set')
+            data = copy.deepcopy(config.data)
+            for dotted, value in noise.items():
+                data['sensor_noise'][dotted.split('.')[1]] = value
+            parse_config(data, 'the noise options')      # the reader's checks, named
     except (ValueError, ConfigError) as exc:
         return _fail(str(exc))
     from rclpy.signals import SignalHandlerOptions
@@ -79,7 +99,7 @@ def main(argv: list[str] | None = None) -> int:
     graph = None
     try:
         graph = GripperGraph(GraphOptions(config_file=args.config, namespace=namespace,
-                                          time_mode='fast'))
+                                          time_mode='fast', plant_parameters=noise))
         bag_dir, outcome = recorded_excitation(graph, Path(args.output), spec)
         print(f'excite: {outcome}', flush=True)
         print(f'bag: {bag_dir}', flush=True)

@@ -1,6 +1,7 @@
 """bag_identify: fit the plant (Table I) to recorded bags and write a config with the result.
 
     bag_identify BAG... [--output identified.yaml] [--json] [--plot fit.png] [--config FILE]
+                 [--compare FILE]
 
 Every bag's ticks give the voltage applied and the measured position, motor speed, current and
 force; the fit (:mod:`gripper_ros.identify.fit`) reports the identifiable combinations with
@@ -33,6 +34,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help='write the configuration with the identified plant keys here')
     p.add_argument('--json', action='store_true', help='print the result as one JSON object')
     p.add_argument('--plot', default=None, metavar='PNG', help='draw recorded vs simulated')
+    p.add_argument('--compare', default=None, metavar='FILE',
+                   help="print each combination of this configuration's plant beside the "
+                        'identified one, with the relative difference')
     p.add_argument('--config', default='',
                    help='configuration giving the fixed keys and the starting point '
                         '(default: installed)')
@@ -101,13 +105,22 @@ def _finite(value):
     return float(value) if isinstance(value, (int, float)) and math.isfinite(value) else None
 
 
-def print_report(result, out=sys.stdout) -> None:
-    from gripper_ros.identify.fit import COMBINATIONS, FIXED_PLANT_KEYS, NOT_SEPARABLE
-    print(f'{"combination":30s} {"value":>13s} {"std error":>11s}  unit', file=out)
+def print_report(result, out=sys.stdout, compare=None) -> None:
+    """Print the combinations (beside those of ``compare``, a config), the keys, the checks."""
+    from gripper_ros.identify.fit import (COMBINATIONS, combinations, FIXED_PLANT_KEYS,
+                                          NOT_SEPARABLE)
+    other = combinations(compare.plant) if compare is not None else {}
+    extra = f' {"compared":>13s} {"difference":>10s}' if other else ''
+    print(f'{"combination":30s} {"value":>13s} {"std error":>11s}{extra}  unit', file=out)
     for name, (unit, _) in COMBINATIONS.items():
         err = result.stderr[name]
         err_text = f'{err:11.3g}' if math.isfinite(err) else f'{"not excited":>11s}'
-        print(f'{name:30s} {result.combinations[name]:13.6g} {err_text}  {unit}', file=out)
+        value = result.combinations[name]
+        extra = f' {other[name]:13.6g} {100.0 * (value / other[name] - 1.0):+9.4f}%' \
+            if other else ''
+        print(f'{name:30s} {value:13.6g} {err_text}{extra}  {unit}', file=out)
+    if other:
+        print(f'compared: {compare.source}', file=out)
     print(f'fitted: {", ".join(result.fitted)}', file=out)
     print(f'fixed: {", ".join(FIXED_PLANT_KEYS)}', file=out)
     print(f'not separable: {NOT_SEPARABLE}', file=out)
@@ -168,6 +181,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     from gripper_ros.identify.fit import identify, IdentifyError
     try:
         config = load_resim_config(args.config or None)
+        compare = load_resim_config(args.compare) if args.compare else None
         runs = [load_run(b) for b in args.bags]
         result = identify(runs, config)
         result.config()                     # the reader must accept what is written
@@ -183,7 +197,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     if args.json:
         print(json.dumps(result_dict(result), indent=1))
     else:
-        print_report(result)
+        print_report(result, compare=compare)
         if args.output:
             print(f'wrote {args.output}')
         if args.plot:
