@@ -183,9 +183,11 @@ def _place(k, x, w, i):
     _refresh_contact_state(s, k[K_PARAMS][0])
 
 
-def simulate(run: Run, plant_params: PlantParams, config: GripperConfig) -> np.ndarray:
+def simulate(run: Run, plant_params: PlantParams, config: GripperConfig,
+             x0_m: float | None = None) -> np.ndarray:
     """Simulate the package's plant (ideal sensors) from the run's first tick under its voltages.
 
+    ``x0_m``: the finger's first position (default: the recorded one, within the travel).
     Columns in :data:`CHANNELS` order.
     """
     plant = GripperPlant(plant_params, FsrVoltageDivider(config.force_sensor), config.contact)
@@ -194,7 +196,7 @@ def simulate(run: Run, plant_params: PlantParams, config: GripperConfig) -> np.n
     plant.t_ns = int(run.t_ns[0])
     m = run.measured
     x_c = plant_params.max_travel_m - run.object_width_m
-    x0 = min(max(float(m['position_m'][0]), 0.0), x_c)
+    x0 = min(max(float(m['position_m'][0] if x0_m is None else x0_m), 0.0), x_c)
     _place(plant.kernel, x0, float(m['speed_rad_s'][0]), float(m['current_a'][0]))
     out = np.zeros((len(run.t_ns), len(CHANNELS)))
     _run_plant(plant.kernel, run.t_ns, run.voltage_v, out)
@@ -323,13 +325,15 @@ def _scales(runs: list[Run]) -> dict[str, float]:
     return out
 
 
-def _residuals(runs, scales, config, base_theta, free, log_values, part):
+def _residuals(runs, scales, config, base_theta, free, values, part):
+    """Weighted residuals; ``values`` = log theta[free], then each run's first position."""
     theta = base_theta.copy()
-    theta[free] = np.exp(log_values)
+    theta[free] = np.exp(values[:free.size])
     plant = plant_of(theta, config.plant)
+    x0s = values[free.size:] if values.size > free.size else [None] * len(runs)
     out = []
-    for run in runs:
-        sim = simulate(run, plant, config)
+    for run, x0 in zip(runs, x0s):
+        sim = simulate(run, plant, config, x0)
         rows = slice(0, run.fit_end) if part == 'fit' else slice(run.fit_end, None)
         for j, c in enumerate(CHANNELS):
             if scales[c] > 0.0:
@@ -378,13 +382,18 @@ def identify(runs: list[Run], config: GripperConfig) -> Identified:
     free = np.array([j for j, n in enumerate(PARAMETERS) if n not in not_excited])
     labels = np.concatenate([np.full(r.fit_end, j) for r in runs
                              for j, c in enumerate(CHANNELS) if scales[c] > 0.0])
-    start = np.log(theta0[free])
+    # The first position is fitted too: a noisy first reading would offset the whole run.
+    ends = [config.plant.max_travel_m - r.object_width_m for r in runs]
+    start = np.concatenate((np.log(theta0[free]), [
+        min(max(float(r.measured['position_m'][0]), 0.0), end) for r, end in zip(runs, ends)]))
+    lower = np.concatenate((np.full(free.size, -np.inf), np.zeros(len(runs))))
+    upper = np.concatenate((np.full(free.size, np.inf), ends))
     nfev = 0
     for _ in range(REWEIGHTINGS + 1):
         result = least_squares(
             lambda lv: _residuals(runs, scales, config, theta0, free, lv, 'fit'),
-            start, method='trf', x_scale=1.0, diff_step=1e-6, xtol=1e-12, ftol=1e-12,
-            gtol=1e-12, max_nfev=200)
+            start, bounds=(lower, upper), method='trf', x_scale=1.0, diff_step=1e-6,
+            xtol=1e-12, ftol=1e-12, gtol=1e-12, max_nfev=200)
         nfev += result.nfev
         start = result.x
         # Weigh each channel by its own residual (the maximum-likelihood weights of sensors
@@ -394,7 +403,8 @@ def identify(runs: list[Run], config: GripperConfig) -> Identified:
                 rms = math.sqrt(float(np.mean(result.fun[labels == j] ** 2)))
                 scales[c] *= max(rms, RESIDUAL_FLOOR)
     theta = theta0.copy()
-    theta[free] = np.exp(result.x)
+    theta[free] = np.exp(result.x[:free.size])
+    x0s = result.x[free.size:]
     plant = plant_of(theta, config.plant)
     # Each channel's own residual variance weighs its rows (noise differs per sensor).
     weights = np.ones(labels.size)
@@ -403,8 +413,11 @@ def identify(runs: list[Run], config: GripperConfig) -> Identified:
         rows = labels == j
         var = max(float(np.mean(result.fun[rows] ** 2)) / dof, 1e-24)
         weights[rows] = 1.0 / math.sqrt(var)
-    jac = result.jac * weights[:, None]
-    cov_log = np.linalg.pinv(jac.T @ jac)
+    # (J^T J)^-1 from J's singular values, none dropped: a weakly determined direction keeps
+    # its large variance (a truncating pseudo-inverse would call it exact).
+    _, sing, vt = np.linalg.svd(result.jac * weights[:, None], full_matrices=False)
+    with np.errstate(divide='ignore'):
+        cov_log = (vt.T / sing ** 2) @ vt
     combos = combinations(plant)
     stderr = {}
     for name in COMBINATIONS:
@@ -412,7 +425,7 @@ def identify(runs: list[Run], config: GripperConfig) -> Identified:
         if any(n in not_excited for n in needs):
             stderr[name] = math.nan
             continue
-        grad = np.zeros(free.size)
+        grad = np.zeros(result.x.size)          # the first positions: no share
         for jj, j in enumerate(free):
             bumped = theta.copy()
             bumped[j] *= math.exp(1e-6)
@@ -420,8 +433,8 @@ def identify(runs: list[Run], config: GripperConfig) -> Identified:
                 / 1e-6
         stderr[name] = float(math.sqrt(max(0.0, grad @ cov_log @ grad)))
     simulated, table = {}, {}
-    for run in runs:
-        sim = simulate(run, plant, config)
+    for run, x0 in zip(runs, x0s):
+        sim = simulate(run, plant, config, float(x0))
         simulated[run.name] = sim
         held = slice(run.fit_end, None)
         table[run.name] = {c: nrmse(sim[held, j], run.measured[c][held],
