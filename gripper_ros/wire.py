@@ -46,6 +46,8 @@ SERVICE_SET_OBJECT = 'sim/set_object'
 SERVICE_PAUSE = 'sim/pause'
 SERVICE_RESUME = 'sim/resume'
 SERVICE_STEP = 'sim/step'
+SERVICE_EXCITE = 'excite'
+"""std_srvs/Trigger: the identification experiment (excitation_server)."""
 ACTION_GRASP = 'grasp_action'
 ACTION_MOVE = 'move_action'
 ACTION_GRIPPER_CMD = 'gripper_cmd'
@@ -57,6 +59,7 @@ NODE_FORCE_CONTROLLER = 'force_controller'
 NODE_SUPERVISOR = 'supervisor'
 NODE_GRASP_ACTION = 'grasp_action_server'
 NODE_MOVE_ACTION = 'move_action_server'
+NODE_EXCITATION = 'excitation_server'
 
 FINGER_JOINT = 'finger_joint'
 

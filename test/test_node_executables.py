@@ -17,8 +17,9 @@ import subprocess
 import sys
 import time
 
-from gripper_ros.wire import (NODE_FORCE_CONTROLLER, NODE_GRASP_ACTION, NODE_MOVE_ACTION,
-                              NODE_PLANT, NODE_POSITION_CONTROLLER, NODE_SUPERVISOR)
+from gripper_ros.wire import (NODE_EXCITATION, NODE_FORCE_CONTROLLER, NODE_GRASP_ACTION,
+                              NODE_MOVE_ACTION, NODE_PLANT, NODE_POSITION_CONTROLLER,
+                              NODE_SUPERVISOR)
 import pytest
 from rcl_interfaces.srv import GetParameters
 import rclpy
@@ -30,7 +31,8 @@ MODULES = {NODE_PLANT: 'plant_simulator_node',
            NODE_FORCE_CONTROLLER: 'force_controller_node',
            NODE_SUPERVISOR: 'supervisor_node',
            NODE_GRASP_ACTION: 'grasp_action_node',
-           NODE_MOVE_ACTION: 'move_action_node'}
+           NODE_MOVE_ACTION: 'move_action_node',
+           NODE_EXCITATION: 'excitation_node'}
 SIGNALS = {'sigint': signal.SIGINT, 'sigterm': signal.SIGTERM}
 WRONG_TYPE = "expecting type 'DOUBLE'"
 BAD_PARAMETERS = [   # (node, parameter, value as typed after -p name:=, words in the line)
@@ -45,6 +47,7 @@ BAD_PARAMETERS = [   # (node, parameter, value as typed after -p name:=, words i
     (NODE_GRASP_ACTION, 'feedback_period_s', '-1.0', 'out of range'),
     (NODE_GRASP_ACTION, 'feedback_period_s', '-1', WRONG_TYPE),
     (NODE_MOVE_ACTION, 'feedback_period_s', '-1.0', 'out of range'),
+    (NODE_EXCITATION, 'excitation.amplitude_v', '99.0', 'amplitude_v must be in'),
     (NODE_GRASP_ACTION, 'executor', 'threads', 'must be one of'),          # run_node's own
 ]
 RUNNING_TIMEOUT_S = 60.0

@@ -659,12 +659,42 @@ def _series_line(r: Rerun) -> str:
     return f'series:       NOT identical to the recording: {r.difference}'
 
 
+def series_nrmse(recorded: GraspSeries, rerun: GraspSeries) -> dict[str, float]:
+    """NRMSE of the re-run's position and force against the recording's, tick by tick.
+
+    Over the ticks both have at the same instant; RMS difference over the recording's range.
+    """
+    from gripper_ros.identify.fit import nrmse
+    a, b = recorded.ticks, rerun.ticks
+    if not a or not b:
+        return {}
+    _, ia, ib = np.intersect1d(a['stamp_ns'], b['stamp_ns'], return_indices=True)
+    out = {}
+    for name in ('position_m', 'force_n'):
+        rec = np.asarray(a[name], dtype=float)
+        span = float(np.nanmax(rec) - np.nanmin(rec)) if rec.size else 0.0
+        out[name] = nrmse(np.asarray(b[name], dtype=float)[ib], rec[ia], span)
+    return out
+
+
+def _nrmse_line(w: WhatIf, r: Rerun) -> str:
+    if r.difference == '':
+        return ''
+    values = series_nrmse(w.record.series, r.series)
+    if not values:
+        return ''
+    return ('nrmse:        ' + ', '.join(f'{k} {v:.3g}' for k, v in values.items()) +
+            ' (re-run against recorded, at the same instants, over the recorded range)')
+
+
 def to_table(w: WhatIf) -> str:
     """Side by side: each figure recorded, re-run, and the difference (re-run - recorded)."""
     r = w.reruns[0]
     lines = _header(w)
     if _series_line(r):
         lines.append(_series_line(r))
+    if _nrmse_line(w, r):
+        lines.append(_nrmse_line(w, r))
     lines.append('')
     header = ('metric', 'recorded', 're-run', 'difference')
     body = [(k, format_cell(a), format_cell(b), _signed(d)) for k, a, b, d in _rows(w, r)]
@@ -687,6 +717,8 @@ def to_json(w: WhatIf) -> str:
            'changes': r.setup.changes,
            'series_identical': None if r.difference is None else r.difference == '',
            'series_difference': r.difference or None,
+           'series_nrmse': series_nrmse(w.record.series, r.series) if r.difference != ''
+           else {},
            'recorded': rec, 'rerun': new,
            'difference': {k: d for k, _, _, d in _rows(w, r)}}
     return json.dumps(_json_value(out), indent=2)

@@ -106,6 +106,27 @@ class ForceSensorParams:
 
 
 @dataclass(frozen=True)
+class SensorNoiseParams:
+    """Measurement noise of the simulated position and force sensors (all 0 = ideal sensors).
+
+    Gaussian noise of the given standard deviation, then rounding to the quantum (an ADC or
+    encoder step); the noise of a sample is a function of ``seed`` and the sample's instant,
+    so a run is reproducible and a repeated reading of one instant reads the same.
+    """
+
+    position_noise_m: float = 0.0
+    position_quantum_m: float = 0.0
+    force_noise_n: float = 0.0
+    force_quantum_n: float = 0.0
+    seed: int = 0
+
+    @property
+    def enabled(self) -> bool:
+        return any((self.position_noise_m, self.position_quantum_m, self.force_noise_n,
+                    self.force_quantum_n))
+
+
+@dataclass(frozen=True)
 class PidGains:
     kc: float
     ki: float = 0.0
@@ -210,6 +231,8 @@ class GripperConfig:
     supervisor: SupervisorParams
     source: str
     data: dict = field(default_factory=dict, compare=False, hash=False, repr=False)
+    sensor_noise: SensorNoiseParams = SensorNoiseParams()
+    """Off when the file has no ``sensor_noise`` section."""
     """The mapping the values were read from (what a bag records, what re-runs start from)."""
 
 
@@ -375,8 +398,16 @@ def parse_config(data: dict, source: str = '<dict>') -> GripperConfig:
                           f'("supervisor.move_rest_speed_mps" = {sup.move_rest_speed_mps!r}, '
                           f'{plant.max_free_speed_mps:.6g}] m/s (the free speed at '
                           f'"plant.voltage_limit_v"), got {sup.move_default_speed_mps!r}')
+    noise = SensorNoiseParams()
+    if 'sensor_noise' in data:
+        noise_rules = {f.name: {'nonnegative': True} for f in fields(SensorNoiseParams)}
+        noise_rules['seed'] = {'nonnegative': True, 'integer': True}
+        noise = _build(SensorNoiseParams, _section(data, 'sensor_noise', source), 'sensor_noise',
+                       **noise_rules)
+        if noise.seed >= 2 ** 63:
+            raise ConfigError(f'"sensor_noise.seed" must be < 2**63, got {noise.seed!r}')
     return GripperConfig(plant, contact, sensor, position, force, sup, source,
-                         copy.deepcopy(data))
+                         copy.deepcopy(data), noise)
 
 
 def load_config(path: str | os.PathLike | None = None) -> GripperConfig:

@@ -35,7 +35,8 @@ class ForceControllerKind(enum.Enum):
 
 
 def make_plant(config: GripperConfig) -> GripperPlant:
-    return GripperPlant(config.plant, FsrVoltageDivider(config.force_sensor), config.contact)
+    return GripperPlant(config.plant, FsrVoltageDivider(config.force_sensor, config.sensor_noise),
+                        config.contact)
 
 
 def _limits(config: GripperConfig) -> tuple[float, float]:

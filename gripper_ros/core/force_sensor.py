@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import math
 
-from gripper_ros.core.config import ForceSensorParams
+from gripper_ros.core.config import ForceSensorParams, SensorNoiseParams
 import numba
 import numpy as np
 
@@ -29,8 +29,54 @@ SENSOR_DTYPE = np.dtype([
     ('open_resistance_ohm', np.float64),
     ('activation_force_n', np.float64),
     ('dropped_out', np.uint8),          # 1: every reading is invalid (NaN) until repaired
+    # Measurement noise (config ``sensor_noise``) of the plant's position and force readings.
+    ('noisy', np.uint8),                # 0: ideal readings (the noise below is not drawn)
+    ('position_noise_m', np.float64),
+    ('position_quantum_m', np.float64),
+    ('force_noise_n', np.float64),
+    ('force_quantum_n', np.float64),
+    ('noise_seed', np.uint64),
 ], align=True)
-"""The sensor's parameters and its dropout flag, as one record."""
+"""The sensor's parameters, its dropout flag and the readings' noise, as one record."""
+
+NOISE_CHANNEL_POSITION = 1
+NOISE_CHANNEL_FORCE = 2
+_GOLDEN = np.uint64(0x9E3779B97F4A7C15)
+_MIX_1 = np.uint64(0xBF58476D1CE4E5B9)
+_MIX_2 = np.uint64(0x94D049BB133111EB)
+_TWO_POW_MINUS_53 = 2.0 ** -53
+
+
+@numba.njit(cache=True, inline='always')
+def _mix64(z):
+    """SplitMix64's finaliser: a well-mixed 64-bit word from a counter (uint64 throughout)."""
+    z = z + _GOLDEN
+    z = (z ^ (z >> np.uint64(30))) * _MIX_1
+    z = (z ^ (z >> np.uint64(27))) * _MIX_2
+    return z ^ (z >> np.uint64(31))
+
+
+@numba.njit(cache=True)
+def gaussian_at(seed, channel, t_ns):
+    """Draw a standard normal keyed by (seed, channel, instant): counter-based, reproducible.
+
+    Box-Muller on two uniforms in (0, 1) from SplitMix64 of the key, so a reading depends on
+    the simulated instant only, never on how often or in which process it was read.
+    """
+    key = _mix64(np.uint64(seed) ^ _mix64(np.uint64(channel) ^ _mix64(np.uint64(t_ns))))
+    u1 = (float(key >> np.uint64(11)) + 0.5) * _TWO_POW_MINUS_53
+    u2 = (float(_mix64(key) >> np.uint64(11)) + 0.5) * _TWO_POW_MINUS_53
+    return math.sqrt(-2.0 * math.log(u1)) * math.cos(2.0 * math.pi * u2)
+
+
+@numba.njit(cache=True)
+def noisy_reading(r, value, channel, t_ns, sigma, quantum):
+    """``value`` as a noisy, quantised sensor reports it at ``t_ns`` (sensor record ``r``)."""
+    if sigma > 0.0:
+        value = value + sigma * gaussian_at(r.noise_seed, channel, t_ns)
+    if quantum > 0.0:
+        value = quantum * math.floor(value / quantum + 0.5)
+    return value
 
 
 @numba.njit(cache=True, inline='always')
@@ -63,10 +109,17 @@ def _voltage_v(sensor, force_n):
 class FsrVoltageDivider:
     """``V_out = V_supply * R_m / (R_m + R_fsr(F))`` with an ideal activation threshold."""
 
-    def __init__(self, params: ForceSensorParams):
+    def __init__(self, params: ForceSensorParams, noise: SensorNoiseParams | None = None):
         self.params = params
+        self.noise = noise or SensorNoiseParams()
         self.record = np.zeros(1, SENSOR_DTYPE)   # what the plant's kernels read and write
         r = self.record[0]
+        r['noisy'] = self.noise.enabled
+        r['position_noise_m'] = self.noise.position_noise_m
+        r['position_quantum_m'] = self.noise.position_quantum_m
+        r['force_noise_n'] = self.noise.force_noise_n
+        r['force_quantum_n'] = self.noise.force_quantum_n
+        r['noise_seed'] = self.noise.seed
         r['supply_v'] = params.supply_v
         r['measuring_resistor_ohm'] = params.measuring_resistor_ohm
         r['fsr_resistance_at_1n_ohm'] = params.fsr_resistance_at_1n_ohm

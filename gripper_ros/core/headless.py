@@ -373,6 +373,8 @@ class HeadlessMoves:
     motor_voltage_v: np.ndarray = field(repr=False, default=None)
     phase: np.ndarray = field(repr=False, default=None)
     approach_setpoint_m: np.ndarray = field(repr=False, default=None)
+    current_a: np.ndarray = field(repr=False, default=None)
+    speed_rad_s: np.ndarray = field(repr=False, default=None)
 
 
 def simulate_moves(config: GripperConfig, moves, *, object_width_m: float = 0.0,
@@ -401,7 +403,7 @@ def simulate_moves(config: GripperConfig, moves, *, object_width_m: float = 0.0,
     while True:
         rows.append((tick.stamp_ns, tick.position_m, tick.velocity_mps, tick.force_n,
                      tick.peak_force_n, tick.motor_voltage_v, int(decision.phase),
-                     decision.approach_setpoint_m))
+                     decision.approach_setpoint_m, tick.current_a, tick.speed_rad_s))
         if decision.answer is not None:
             answers.append(MoveAnswer(decision.answer, decision.message, supervisor.start_ns,
                                       tick.stamp_ns, tick.position_m, tick.force_n))
@@ -423,7 +425,8 @@ def simulate_moves(config: GripperConfig, moves, *, object_width_m: float = 0.0,
     cols = list(zip(*rows))
     return HeadlessMoves(answers, np.array(cols[0], dtype=np.int64),
                          *(np.array(c, dtype=float) for c in cols[1:6]),
-                         np.array(cols[6], dtype=np.int8), np.array(cols[7], dtype=float))
+                         np.array(cols[6], dtype=np.int8), np.array(cols[7], dtype=float),
+                         np.array(cols[8], dtype=float), np.array(cols[9], dtype=float))
 
 
 def warm_up_worker() -> None:

@@ -64,7 +64,9 @@ import math
 from typing import NamedTuple
 
 from gripper_ros.core.config import ContactParams, PlantParams
-from gripper_ros.core.force_sensor import fsr_voltage_v, FsrVoltageDivider
+from gripper_ros.core.force_sensor import (fsr_voltage_v, FsrVoltageDivider,
+                                           NOISE_CHANNEL_FORCE, NOISE_CHANNEL_POSITION,
+                                           noisy_reading)
 from gripper_ros.core.hold import (check_finite_nonnegative, hold_advance, hold_begin,
                                    hold_capacity_n, HOLD_DTYPE, hold_fire_events, hold_live,
                                    hold_load_n, hold_remove, hold_scenario_in_progress,
@@ -842,17 +844,24 @@ def plant_sample(k):
     p = k[K_PARAMS][0]
     sensor = k[K_SENSOR][0]
     force = _force(s, p)
+    x = s.x
     if sensor.dropped_out:
         measured = math.nan
         sensor_v = math.nan
         peak = math.nan
     else:
         measured = force
-        sensor_v = fsr_voltage_v(sensor, force)
+        if sensor.noisy:
+            measured = noisy_reading(sensor, force, NOISE_CHANNEL_FORCE, s.t_ns,
+                                     sensor.force_noise_n, sensor.force_quantum_n)
+        sensor_v = fsr_voltage_v(sensor, measured)
         peak = force if force > s.peak else s.peak
+    if sensor.noisy:
+        x = noisy_reading(sensor, x, NOISE_CHANNEL_POSITION, s.t_ns, sensor.position_noise_m,
+                          sensor.position_quantum_m)
     w = s.w
     # Only the contact states give a force, so "in contact" is "force > 0".
-    return (s.t_ns, s.x, w * p.rho, measured, peak, s.i, w, s.voltage, sensor_v,
+    return (s.t_ns, x, w * p.rho, measured, peak, s.i, w, s.voltage, sensor_v,
             force > 0.0)
 
 

@@ -20,6 +20,7 @@ from gripper_ros.core.config import load_config
 from gripper_ros.core.stages import DEFAULT_FORCE_CONTROLLER
 from gripper_ros.nodes.common import (call_and_wait, ExecutorKind, make_executor, SERVICE_QOS,
                                       spin_until_stopped)
+from gripper_ros.nodes.excitation_node import ExcitationServer
 from gripper_ros.nodes.force_controller_node import ForceControllerNode
 from gripper_ros.nodes.grasp_action_node import GraspActionServer
 from gripper_ros.nodes.move_action_node import MoveActionServer
@@ -104,12 +105,14 @@ class GripperGraph:
         self.nodes.append(self.supervisor)
         self.client_node = rclpy.create_node('grasp_demo_client', **kw)
         self.nodes.append(self.client_node)
-        self.action_server = self.move_action_server = None
+        self.action_server = self.move_action_server = self.excitation_server = None
         if opts.action_server:
             self.action_server = GraspActionServer(parameter_overrides=cfg, **kw)
             self.nodes.append(self.action_server)
             self.move_action_server = MoveActionServer(parameter_overrides=cfg, **kw)
             self.nodes.append(self.move_action_server)
+            self.excitation_server = ExcitationServer(parameter_overrides=cfg, **kw)
+            self.nodes.append(self.excitation_server)
         self.executor = make_executor(opts.executor, self.context)
         for node in self.nodes:
             self.executor.add_node(node)

@@ -72,7 +72,8 @@ class PlantSimulatorNode(Node):
 
     def __init__(self, **kwargs):
         super().__init__(NODE_PLANT, **default_namespace(kwargs))
-        self.parameters = ConfigParameters(self, (), ('plant', 'contact', 'force_sensor'))
+        self.parameters = ConfigParameters(
+            self, (), ('plant', 'contact', 'force_sensor', 'sensor_noise'))
         self.config = self.parameters.config
         self.side = PlantSide(make_plant(self.config))
         self.plant = self.side.plant

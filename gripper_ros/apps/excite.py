@@ -1,0 +1,180 @@
+"""excite: run the identification experiment on its own gripper graph and record it as a bag.
+
+    ros2 run gripper_ros excite --seconds 20 --amplitude-v 12 --seed 1
+    ros2 run gripper_ros excite --config hidden.yaml --output bags
+
+The gripper goes through a seeded sequence of moves inside its travel at pseudo-random speeds,
+the driving voltage capped at ``--amplitude-v``, and (unless ``--no-hold``) every few moves it
+presses on a rigid stop for the force model (:mod:`gripper_ros.core.excitation`). It all goes
+through the ``move`` service, so ``stop`` ends it at once. The bag is written under
+``--output`` and its path printed as ``bag: PATH``; ``bag_identify PATH`` fits the plant to it.
+"""
+from __future__ import annotations
+
+import argparse
+import copy
+from datetime import datetime
+import os
+from pathlib import Path
+import signal
+import sys
+import time
+
+EXCITATION_FORMAT = 1       # custom_data 'excitation' layout
+_STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    from gripper_ros.core.excitation import ExcitationSpec, MAX_SECONDS, MIN_SECONDS
+    from gripper_ros.wire import DEFAULT_NAMESPACE
+    d = ExcitationSpec()
+    p = argparse.ArgumentParser(prog='excite', description=__doc__.splitlines()[0])
+    p.add_argument('--config', default='', help='YAML parameter file (default: installed)')
+    p.add_argument('--output', default='bags', help='folder for the bag (default %(default)s)')
+    p.add_argument('--seconds', type=float, default=d.seconds,
+                   help=f'simulated duration, in [{MIN_SECONDS:g}, {MAX_SECONDS:g}] '
+                        '(default %(default)g)')
+    p.add_argument('--amplitude-v', type=float, default=d.amplitude_v,
+                   help="most voltage that drives the finger, up to the plant's limit "
+                        '(default %(default)g)')
+    p.add_argument('--seed', type=int, default=d.seed,
+                   help='seed of the pseudo-random sequence (default %(default)d)')
+    p.add_argument('--position-noise-m', type=float, default=None,
+                   help='sensor_noise.position_noise_m of the simulated plant (default: the '
+                        "config's)")
+    p.add_argument('--force-noise-n', type=float, default=None,
+                   help='sensor_noise.force_noise_n of the simulated plant (default: the '
+                        "config's)")
+    p.add_argument('--noise-seed', type=int, default=None,
+                   help="sensor_noise.seed of the simulated plant (default: the config's)")
+    p.add_argument('--no-hold', action='store_true',
+                   help='free motion only: no press on the rigid stop (no force model)')
+    p.add_argument('--namespace', default=DEFAULT_NAMESPACE,
+                   help='ROS namespace of this gripper (default %(default)s)')
+    return p
+
+
+def _fail(message: str) -> int:
+    print(f'excite: {message}', file=sys.stderr)
+    return 2
+
+
+def main(argv: list[str] | None = None) -> int:
+    os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
+    import rclpy
+    from rclpy.utilities import remove_ros_args
+
+    args = build_parser().parse_args(remove_ros_args(sys.argv if argv is None else
+                                                     ['excite', *argv])[1:])
+    from gripper_ros.bags.recorder import BagRecorderError
+    from gripper_ros.bags.recording import RecordingError
+    from gripper_ros.core.config import ConfigError, load_config, parse_config
+    from gripper_ros.core.excitation import check_spec, ExcitationSpec
+    from gripper_ros.nodes.common import StartupError
+    from gripper_ros.nodes.graph import GraphError, GraphOptions, GripperGraph
+    from gripper_ros.wire import check_namespace
+
+    spec = ExcitationSpec(args.seconds, args.amplitude_v, args.seed, not args.no_hold)
+    noise = {f'sensor_noise.{key}': float(value) for key, value in (   # doubles, as declared
+        ('position_noise_m', args.position_noise_m), ('force_noise_n', args.force_noise_n),
+        ('seed', args.noise_seed)) if value is not None}
+    try:
+        namespace = check_namespace(args.namespace)
+        config = load_config(args.config or None)
+        check_spec(spec, config.plant)
+        if noise:
+            if 'sensor_noise' not in config.data:
+                raise ConfigError(f'{config.source} has no sensor_noise section to set')
+            data = copy.deepcopy(config.data)
+            for dotted, value in noise.items():
+                data['sensor_noise'][dotted.split('.')[1]] = value
+            parse_config(data, 'the noise options')      # the reader's checks, named
+    except (ValueError, ConfigError) as exc:
+        return _fail(str(exc))
+    from rclpy.signals import SignalHandlerOptions
+    # Ctrl-C and SIGTERM end the experiment here (KeyboardInterrupt), not inside rclpy: the
+    # graph stops and the bag is closed first (as grasp_demo does).
+    rclpy.init(args=None if argv is None else [], signal_handler_options=SignalHandlerOptions.NO)
+    previous = {sig: signal.signal(sig, _raise_keyboard_interrupt) for sig in _STOP_SIGNALS}
+    graph = None
+    try:
+        graph = GripperGraph(GraphOptions(config_file=args.config, namespace=namespace,
+                                          time_mode='fast', plant_parameters=noise))
+        bag_dir, outcome = recorded_excitation(graph, Path(args.output), spec)
+        print(f'excite: {outcome}', flush=True)
+        print(f'bag: {bag_dir}', flush=True)
+        return 0
+    except (ConfigError, StartupError, ValueError) as exc:
+        return _fail(str(exc))
+    except (GraphError, BagRecorderError, RecordingError, RuntimeError) as exc:
+        return _fail(str(exc))
+    except KeyboardInterrupt:
+        print('excite: interrupted; bag closed', file=sys.stderr)
+        return 130
+    finally:
+        if graph is not None:
+            graph.close()
+        rclpy.try_shutdown()
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+
+
+def _raise_keyboard_interrupt(signum, frame):
+    raise KeyboardInterrupt
+
+
+def run_excitation(graph, spec) -> str:
+    """Send the experiment's moves until ``spec.seconds`` of simulated time have passed.
+
+    Returns how it ended; a move that ends otherwise than MOVED, STALLED or TIMEOUT (a
+    ``stop``, a refusal, a fault) ends the experiment at once.
+    """
+    from gripper_ros.core.excitation import ExcitationRun
+    from gripper_ros.wire import Outcome
+    run = ExcitationRun(spec, graph.plant.config.plant, graph.sim_time_ns)
+    while (move := run.next_move(graph.sim_time_ns)) is not None:
+        answer = graph.move(move.width_m, move.speed_mps, move.max_effort_n,
+                            timeout_s=move.timeout_s)
+        if not run.answered(Outcome(answer.outcome).name, answer.message):
+            break
+    return run.summary(graph.sim_time_ns)
+
+
+def recorded_excitation(graph, output: Path, spec) -> tuple[Path, str]:
+    """Place the rigid stop, record every topic of the graph and run the experiment."""
+    from gripper_ros.bags.recorder import BagRecorder
+    from gripper_ros.bags.recording import (_drain_published, bag_metadata, graph_tap,
+                                            RecordingError, unique_bag_dir)
+    from gripper_ros.core.excitation import STOP_WIDTH_M
+    width = STOP_WIDTH_M if spec.hold else 0.0
+    placed = graph.set_object(width)
+    if not placed.success:
+        raise RecordingError(f'set_object: {placed.message}')
+    graph.wait_still()
+    stamp = datetime.now().strftime('%Y%m%d_%H%M%S')
+    bag_dir = unique_bag_dir(output, f'excite_{stamp}_{spec.seconds:g}s_{spec.amplitude_v:g}V_'
+                                     f'seed{spec.seed}')
+    custom = bag_metadata(graph, {}, {'width_m': width, 'stiffness_n_per_m': 0.0,
+                                      'damping_n_s_per_m': 0.0})
+    custom['excitation'] = {'format': EXCITATION_FORMAT, 'seconds': spec.seconds,
+                            'amplitude_v': spec.amplitude_v, 'seed': spec.seed,
+                            'hold': spec.hold}
+    tap = graph_tap(graph)
+    recorder = BagRecorder(graph.client_node, bag_dir, tap.topics, overwrite=True,
+                           subscribe=False, time_source=lambda: graph.sim_time_ns,
+                           custom_data=custom)
+    before = graph.published_counts()
+    received_before = dict(tap.received)
+    tap.start(recorder, 'now')
+    t0 = time.perf_counter()
+    try:
+        outcome = run_excitation(graph, spec)
+        graph.wait_still()
+    finally:
+        _drain_published(graph, tap, recorder, before, received_before)
+        tap.sink = None
+        if not recorder.closed:
+            recorder.close()
+    if tap.error:
+        raise RecordingError(tap.error)
+    return bag_dir, f'{outcome} (wall {time.perf_counter() - t0:.1f} s)'

@@ -1,0 +1,1 @@
+"""System identification of the gripper plant from recorded runs (no rclpy)."""
