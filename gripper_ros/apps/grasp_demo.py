@@ -56,6 +56,18 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('--lift', type=float, default=0.0, metavar='A',
                    help='after HOLDING the arm lifts the object at A m/s^2 upward (the request '
                         'carries a = A for the force law); 0 = no lift')
+    p.add_argument('--profile', default=None, metavar='NAME:A[,HZ]',
+                   help="the arm's motion after HOLDING, along the pads: step:A (= --lift A), "
+                        'pick-and-place:A (up, across, down; +-A m/s^2 trapezoids over the '
+                        'duration) or shake:A,HZ (A sin(2 pi HZ t)); the request carries a = A')
+    p.add_argument('--object-mass', type=float, default=0.0, metavar='KG',
+                   help="the simulated object's real mass, not told to the controller "
+                        '(0 = the requested --mass)')
+    p.add_argument('--static-friction', type=float, default=0.0, metavar='MU',
+                   help="the simulated object's real mu_s on the pads, not told to the "
+                        'controller (0 = configured default)')
+    p.add_argument('--kinetic-friction', type=float, default=0.0, metavar='MU',
+                   help='its real mu_k (<= mu_s; 0 = configured default)')
     p.add_argument('--lift-delay', type=float, default=LIFT_DELAY_S,
                    help='seconds from HOLDING to the lift (default %(default)g)')
     p.add_argument('--lift-duration', type=float, default=LIFT_DURATION_S,
@@ -109,10 +121,20 @@ def main(argv: list[str] | None = None) -> int:
     for w, m in objects:
         if not (math.isfinite(w) and math.isfinite(m)):
             return _fail(f'width and mass must be finite, got {w!r}, {m!r}')
-    for name in ('lift', 'lift_delay', 'lift_duration'):
+    for name in ('lift', 'lift_delay', 'lift_duration', 'object_mass', 'static_friction',
+                 'kinetic_friction'):
         value = getattr(args, name)
         if not (math.isfinite(value) and value >= 0.0):
             return _fail(f'--{name.replace("_", "-")} must be finite and >= 0, got {value!r}')
+    if args.profile is not None:
+        from gripper_ros.core.hold import parse_profile
+        if args.lift:
+            return _fail('--lift and --profile do not go together (--lift A is step:A)')
+        try:
+            args.profile = parse_profile(args.profile)
+        except ValueError as exc:
+            return _fail(f'--profile: {exc}')
+        args.lift = args.profile[1]
 
     from gripper_ros.bags.recorder import BagRecorderError
     from gripper_ros.bags.recording import RecordingError, ServeRecorder
@@ -209,11 +231,20 @@ def _bag_dir(output: Path, i: int, width_m: float, mass_kg: float, overwrite: bo
 
 
 def _lift(args) -> dict:
-    """Return the SetObject lift fields of ``--lift`` (none without a lift)."""
+    """Return the SetObject fields of the real object and of ``--lift`` or ``--profile``.
+
+    Only the object's fields that were given; no lift fields without a lift.
+    """
+    out = {name: getattr(args, key) for key, name in (
+        ('object_mass', 'mass_kg'), ('static_friction', 'static_friction'),
+        ('kinetic_friction', 'kinetic_friction')) if getattr(args, key)}
     if not args.lift:
-        return {}
-    return {'lift_acceleration_mps2': args.lift, 'lift_delay_s': args.lift_delay,
-            'lift_duration_s': args.lift_duration}
+        return out
+    out.update({'lift_acceleration_mps2': args.lift, 'lift_delay_s': args.lift_delay,
+                'lift_duration_s': args.lift_duration})
+    if args.profile is not None:
+        out.update({'lift_profile': int(args.profile[0]), 'lift_frequency_hz': args.profile[2]})
+    return out
 
 
 def _grasp_one(graph, args, width_m: float, mass_kg: float, i: int, n: int) -> GraspRecord:

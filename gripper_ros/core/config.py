@@ -94,6 +94,9 @@ class ContactParams:
     kinetic_friction: float = 0.4      # mu_k while the object slides; <= mu_s
     pad_length_m: float = 0.02         # the object is out once it has slid this far
     after_lift_s: float = 0.5          # fast mode plays a lift out this long after it ends
+    # Cattaneo-Mindlin pre-sliding of each pad (core/hold.py): its initial tangential
+    # stiffness; 0 (a file that predates it) = rigid pads, the Coulomb law alone.
+    pad_tangential_stiffness_n_per_m: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -305,7 +308,8 @@ def parse_config(data: dict, source: str = '<dict>') -> GripperConfig:
     contact = _build(ContactParams, _section(data, 'contact', source), 'contact',
                      stiffness_n_per_m={'nonnegative': True},
                      damping_n_s_per_m={'nonnegative': True},
-                     after_lift_s={'nonnegative': True})
+                     after_lift_s={'nonnegative': True},
+                     pad_tangential_stiffness_n_per_m={'nonnegative': True})
     if contact.kinetic_friction > contact.static_friction:
         raise ConfigError('"contact.kinetic_friction" must be <= "contact.static_friction" '
                           f'({contact.static_friction!r}), got {contact.kinetic_friction!r}')
