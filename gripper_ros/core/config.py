@@ -109,6 +109,34 @@ class ForceSensorParams:
 
 
 @dataclass(frozen=True)
+class PadSensorParams:
+    """Each pad's shear and displacement sensing (core/pad_sensor.py); defaults when absent."""
+
+    shear_resolution_n: float = 1.0 / 320.0
+    shear_noise_n: float = 0.002
+    shear_bandwidth_hz: float = 1000.0
+    shear_latency_s: float = 0.0003
+    displacement_resolution_m: float = 1.0e-6
+    displacement_noise_m: float = 0.5e-6
+    displacement_bandwidth_hz: float = 1000.0
+    displacement_latency_s: float = 0.0003
+
+    @property
+    def shear(self):
+        """The shear channel's :class:`gripper_ros.core.pad_sensor.ChannelSpec`."""
+        from gripper_ros.core.pad_sensor import ChannelSpec
+        return ChannelSpec(self.shear_resolution_n, self.shear_noise_n,
+                           self.shear_bandwidth_hz, self.shear_latency_s)
+
+    @property
+    def displacement(self):
+        """The displacement channel's :class:`gripper_ros.core.pad_sensor.ChannelSpec`."""
+        from gripper_ros.core.pad_sensor import ChannelSpec
+        return ChannelSpec(self.displacement_resolution_m, self.displacement_noise_m,
+                           self.displacement_bandwidth_hz, self.displacement_latency_s)
+
+
+@dataclass(frozen=True)
 class PidGains:
     kc: float
     ki: float = 0.0
@@ -214,6 +242,7 @@ class GripperConfig:
     source: str
     data: dict = field(default_factory=dict, compare=False, hash=False, repr=False)
     """The mapping the values were read from (what a bag records, what re-runs start from)."""
+    pad_sensor: PadSensorParams = field(default_factory=PadSensorParams)
 
 
 def default_config_path() -> Path:
@@ -379,8 +408,11 @@ def parse_config(data: dict, source: str = '<dict>') -> GripperConfig:
                           f'("supervisor.move_rest_speed_mps" = {sup.move_rest_speed_mps!r}, '
                           f'{plant.max_free_speed_mps:.6g}] m/s (the free speed at '
                           f'"plant.voltage_limit_v"), got {sup.move_default_speed_mps!r}')
+    pads = _build(PadSensorParams, _section(data, 'pad_sensor', source)
+                  if 'pad_sensor' in data else {}, 'pad_sensor',
+                  **{f.name: {'nonnegative': True} for f in fields(PadSensorParams)})
     return GripperConfig(plant, contact, sensor, position, force, sup, source,
-                         copy.deepcopy(data))
+                         copy.deepcopy(data), pads)
 
 
 def load_config(path: str | os.PathLike | None = None) -> GripperConfig:
