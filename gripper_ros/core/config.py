@@ -137,6 +137,22 @@ class PadSensorParams:
 
 
 @dataclass(frozen=True)
+class LoadGripParams:
+    """The load-tracking grip's settings (core/load_grip.py); defaults when absent."""
+
+    grip_margin: float = 1.25
+    mu_start: float = 0.3
+    mu_safety: float = 0.95
+    touch_force_n: float = 2.0
+    slip_speed_mps: float = 0.005
+    slip_window_s: float = 0.002
+    slip_rest_s: float = 0.005
+    min_samples: int = 200
+    release_rate_n_per_s: float = 300.0
+    overload_slip_s: float = 0.02
+
+
+@dataclass(frozen=True)
 class PidGains:
     kc: float
     ki: float = 0.0
@@ -243,6 +259,7 @@ class GripperConfig:
     data: dict = field(default_factory=dict, compare=False, hash=False, repr=False)
     """The mapping the values were read from (what a bag records, what re-runs start from)."""
     pad_sensor: PadSensorParams = field(default_factory=PadSensorParams)
+    load_grip: LoadGripParams = field(default_factory=LoadGripParams)
 
 
 def default_config_path() -> Path:
@@ -411,8 +428,16 @@ def parse_config(data: dict, source: str = '<dict>') -> GripperConfig:
     pads = _build(PadSensorParams, _section(data, 'pad_sensor', source)
                   if 'pad_sensor' in data else {}, 'pad_sensor',
                   **{f.name: {'nonnegative': True} for f in fields(PadSensorParams)})
+    grip = _build(LoadGripParams, _section(data, 'load_grip', source)
+                  if 'load_grip' in data else {}, 'load_grip',
+                  min_samples={'positive': True, 'integer': True})
+    if not 1.0 <= grip.grip_margin:
+        raise ConfigError('"load_grip.grip_margin" must be >= 1 (a grip that knowingly holds '
+                          f'less than the load), got {grip.grip_margin!r}')
+    if not grip.mu_safety <= 1.0:
+        raise ConfigError(f'"load_grip.mu_safety" must be in (0, 1], got {grip.mu_safety!r}')
     return GripperConfig(plant, contact, sensor, position, force, sup, source,
-                         copy.deepcopy(data), pads)
+                         copy.deepcopy(data), pads, grip)
 
 
 def load_config(path: str | os.PathLike | None = None) -> GripperConfig:

@@ -350,6 +350,28 @@ def hold_drive(h, t_ns, accel_mps2, after_ns):
 
 
 @numba.njit(cache=True)
+def hold_schedule_lift(h, accel_mps2, delay_s, duration_s, profile, frequency_hz):
+    """Give a held object a lift after the hold began (checked by :class:`Lift` first).
+
+    Its delay counts from the start of the hold, as a lift given with the object does; 1
+    (nothing changed) unless the object is on its support with its hold begun.
+    """
+    if h.hold_ns == -1 or h.state != HoldState.RESTING:
+        return 1
+    h.has_lift = 1
+    h.lift_acceleration_mps2 = accel_mps2
+    h.lift_delay_s = delay_s
+    h.lift_duration_s = duration_s
+    h.lift_profile = profile
+    h.lift_frequency_hz = frequency_hz
+    h.lift_event = 0
+    h.lift_start_ns = h.hold_ns + round(delay_s * 1e9)
+    h.lift_end_ns = h.lift_start_ns + round(duration_s * 1e9)
+    h.next_event_ns = h.lift_start_ns
+    return 0
+
+
+@numba.njit(cache=True)
 def hold_remove(h):
     """Take the object away (not slid out): nothing is held from now on."""
     h.state = HoldState.NONE
