@@ -61,10 +61,11 @@ def _case(config, case: dict) -> dict:
             'within': need_n <= config.plant.max_force_n, 'note': run.note}
 
 
-def study_cases(masses, frictions) -> list[dict]:
+def study_cases(masses, frictions, stiffness_n_per_m=0.0, damping_n_s_per_m=0.0) -> list[dict]:
     """Every (law, mass, friction, profile) of the study, as keyword dicts."""
     return [{'label': label, 'law': law, 'declared': declared, 'mass_kg': m, 'mu_s': mu,
-             'profile': text, 'profile_label': name}
+             'profile': text, 'profile_label': name, 'stiffness_n_per_m': stiffness_n_per_m,
+             'damping_n_s_per_m': damping_n_s_per_m}
             for label, law, declared in LAWS for m in masses for mu in frictions
             for name, text in PROFILES]
 
@@ -89,6 +90,14 @@ def summarise(rows: list[dict]) -> list[str]:
                    f'{sum(means) / len(means) if means else math.nan:11.3f} '
                    f'{max(maxes, default=math.nan):10.3f} '
                    f'{max(peaks, default=math.nan):9.4f}')
+    tracking = [r for r in rows if r['law'] == 'load_tracking' and r['within'] and
+                r['outcome'] in ('HOLDING', 'OBJECT_LOST')]
+    for what, key in (('slip', 'slip_m'), ('mean margin', 'mean_margin')):
+        worst = max(tracking, key=lambda r: r[key], default=None)
+        if worst is not None:
+            out.append(f'load-tracking, largest {what}: {worst["mass_kg"]:g} kg, mu_s '
+                       f'{worst["mu_s"]:g}, {worst["profile_label"]}: slip '
+                       f'{worst["slip_m"] * 1e3:.3f} mm, margin mean {worst["mean_margin"]:.3f}')
     beyond = [r for r in rows if r['law'] == 'load_tracking' and not r['within']]
     said = [r for r in beyond if math.isfinite(r['overload_s']) and (
         not math.isfinite(r['lost_s']) or r['overload_s'] < r['lost_s'])]
@@ -112,6 +121,7 @@ def plot_pick_and_place(config, path: str, mass_kg: float = 0.6, mu_s: float = 0
     from gripper_ros.wire import LiftProfile
     lift = Lift(3.0, LIFT_DELAY_S, LIFT_DURATION_S, LiftProfile.PICK_AND_PLACE)
     fig, axes = plt.subplots(3, 1, figsize=(8, 8), sharex=True)
+    reference = None
     for law, declared, name in (('load_tracking', 1.0, 'load-tracking (mass, mu unknown)'),
                                 ('friction', 0.75, 'friction law, mass 25 % low')):
         run = simulate_load_grip(config, WIDTH_M, mass_kg, mu_s, KINETIC_SHARE * mu_s, lift,
@@ -122,8 +132,11 @@ def plot_pick_and_place(config, path: str, mass_kg: float = 0.6, mu_s: float = 0
         axes[0].plot(t, rows[:, 1], label=f'{name}: grip F')
         axes[1].plot(t, rows[:, 1] / limit.clip(min=1e-9), label=name)
         axes[2].plot(t, rows[:, 5] * 1e3, label=name)
+        if reference is None:                          # the load-tracking run lasts it all
+            reference = (t, limit, rows[:, 3])
+    t, limit, load = reference
     axes[0].plot(t, limit, 'k--', label='slip limit m (g + a) / (2 mu_s)')
-    axes[0].plot(t, rows[:, 3], 'k:', label='load m (g + a)')
+    axes[0].plot(t, load, 'k:', label='load m (g + a)')
     axes[0].set_ylabel('N')
     axes[1].set_ylabel('grip / slip limit')
     axes[1].set_ylim(0.0, 3.0)
@@ -142,6 +155,9 @@ def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(prog='grip_study', description=__doc__.splitlines()[0])
     p.add_argument('--masses', default='0.1,0.6,1.2,2.2', help='kg, comma-separated')
     p.add_argument('--frictions', default='0.3,0.5,1.0', help='mu_s, comma-separated')
+    p.add_argument('--stiffness', type=float, default=0.0,
+                   help='object contact stiffness N/m (0 = rigid)')
+    p.add_argument('--damping', type=float, default=0.0, help='object contact damping N s/m')
     p.add_argument('--plot', default=None, help='write the pick-and-place figure here (PNG)')
     p.add_argument('--jobs', type=int, default=1, help='processes (default 1)')
     p.add_argument('--config', default=None, help='YAML parameter file (default: installed)')
@@ -152,6 +168,12 @@ def main(argv: list[str] | None = None) -> int:
     except ValueError as exc:
         print(f'grip_study: {exc}', file=sys.stderr)
         return 2
+    for name in ('stiffness', 'damping'):
+        value = getattr(args, name)
+        if not (math.isfinite(value) and value >= 0.0):
+            print(f'grip_study: --{name} must be finite and >= 0, got {value!r}',
+                  file=sys.stderr)
+            return 2
     if args.jobs < 1:
         print(f'grip_study: --jobs must be >= 1, got {args.jobs}', file=sys.stderr)
         return 2
@@ -160,11 +182,13 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     import functools
     from gripper_ros.core.headless import map_cases
-    rows = map_cases(functools.partial(_case, config), study_cases(masses, frictions),
+    rows = map_cases(functools.partial(_case, config),
+                     study_cases(masses, frictions, args.stiffness, args.damping),
                      jobs=args.jobs)
     print(f'{len(rows)} grasps: {WIDTH_M * 1e3:g} mm objects of {args.masses} kg, mu_s '
           f'{args.frictions} (mu_k = {KINETIC_SHARE:g} mu_s); arm: '
-          + ', '.join(name for name, _ in PROFILES) + '; rigid')
+          + ', '.join(name for name, _ in PROFILES) + '; ' +
+          (f'{args.stiffness:g} N/m, {args.damping:g} N s/m' if args.stiffness else 'rigid'))
     for line in summarise(rows):
         print(line)
     if args.plot:

@@ -54,6 +54,10 @@ MU_GRID = np.round(np.arange(0.20, 1.2001, 0.01), 2)
 """The friction coefficients the estimator tells apart."""
 NEIGHBOURS = 5
 """An estimate is believed once the candidates this many grid steps away fit clearly worse."""
+NEIGHBOUR_SIGNIFICANCE = 25.0
+"""How much worse, in units of noise variance / samples (a 5-sigma difference)."""
+SEPARATION_NOISES = 20.0
+"""The whole grid must span this many noise variances: the load and grip have moved."""
 STUCK_HEADROOM = 1.1
 """A stuck pad carrying Q / F has mu_s at least this much above it (the slip test's model)."""
 SLIP_SHARE = 0.5
@@ -111,7 +115,7 @@ def make_law(params: LoadGripParams, max_force_n: float, tangential_stiffness_n_
     r['overload_samples'] = max(1, round(params.overload_slip_s / dt_s))
     r['min_samples'] = params.min_samples
     noise_var = displacement_noise_m ** 2 + displacement_resolution_m ** 2 / 12.0
-    r['separation'] = 20.0 * noise_var
+    r['separation'] = SEPARATION_NOISES * noise_var
     r['dt_s'] = dt_s
     r['release_rate_n_per_s'] = params.release_rate_n_per_s
     r['mu_probe'] = MU_GRID[-1]
@@ -195,8 +199,9 @@ def law_step(g, history, sums, grid, t_ns, shear_n, displacement_m, force_n):
                 lo, best = var, j
             if var > hi:
                 hi = var
-        if g.count >= g.min_samples and best > 0 and hi - lo > g.separation and \
-                _distinct(sums, g.count, best, g.separation):
+        if g.count >= g.min_samples and 0 < best < grid.shape[0] - 1 and \
+                hi - lo > g.separation and \
+                _distinct(sums, g.count, best, g.separation / SEPARATION_NOISES):
             g.mu_est = g.mu_safety * grid[best]
             g.estimated = 1
     # Not yet measured: the grip relaxes (at the release rate) towards the least friction's
@@ -222,14 +227,18 @@ def law_step(g, history, sums, grid, t_ns, shear_n, displacement_m, force_n):
 
 
 @numba.njit(cache=True)
-def _distinct(sums, count, best, separation):
-    """Tell whether the candidates ``NEIGHBOURS`` grid steps away fit clearly worse."""
+def _distinct(sums, count, best, noise_var):
+    """Tell whether the candidates ``NEIGHBOURS`` grid steps away fit measurably worse.
+
+    Their residual variance must exceed the best's by ``NEIGHBOUR_SIGNIFICANCE`` times what
+    the sensor's noise alone would give over ``count`` samples.
+    """
     mean = sums[0, best] / count
     low = sums[1, best] / count - mean * mean
     for j in (best - NEIGHBOURS, best + NEIGHBOURS):
         if 0 <= j < sums.shape[1]:
             m = sums[0, j] / count
-            if sums[1, j] / count - m * m - low < 0.2 * separation:
+            if sums[1, j] / count - m * m - low < NEIGHBOUR_SIGNIFICANCE * noise_var / count:
                 return False
     return True
 
