@@ -84,7 +84,6 @@ GRIP_DTYPE = np.dtype([
     ('force_setpoint_n', np.float64),
     ('slipping', np.uint8),
     ('mu_at_slip', np.float64),
-    ('mu_probe', np.float64),          # the friction the grip relaxes towards, unmeasured
     ('slipping_saturated', np.int64),  # samples slipping with the grip at its most
     ('quiet', np.int64),
     ('head', np.int64),
@@ -118,7 +117,6 @@ def make_law(params: LoadGripParams, max_force_n: float, tangential_stiffness_n_
     r['separation'] = SEPARATION_NOISES * noise_var
     r['dt_s'] = dt_s
     r['release_rate_n_per_s'] = params.release_rate_n_per_s
-    r['mu_probe'] = MU_GRID[-1]
     r['mu_est'] = params.mu_start
     r['force_setpoint_n'] = params.touch_force_n
     r['overload_ns'] = -1
@@ -206,7 +204,7 @@ def law_step(g, history, sums, grid, t_ns, shear_n, displacement_m, force_n):
             g.estimated = 1
     # Not yet measured: the grip relaxes (at the release rate) towards the least friction's
     # grip; the incipient slip it brings on is what measures mu.
-    mu = g.mu_est if g.estimated or g.slipping or load_n == 0.0 else g.mu_probe
+    mu = g.mu_est if g.estimated or g.slipping or load_n == 0.0 else grid[-1]
     need_n = load_n / (2.0 * g.mu_est)
     setpoint = g.k_margin * load_n / (2.0 * mu)
     if setpoint < g.touch_force_n:
