@@ -289,7 +289,8 @@ def _summarise(graph, records: list[GraspRecord], args) -> None:
     print(f'\n{"width m":>8s} {"mass kg":>8s} {"outcome":>11s} {"contact s":>10s} '
           f'{"switch s":>9s} {"criterion":>18s} {"pos err mm":>11s} {"force N":>8s} '
           f'{"F_sp N":>8s} {"peak N":>8s} {"peak/F_sp":>9s} {"max|V|":>7s} '
-          + (f'{"slip mm":>8s} {"lost s":>7s} ' if lifted else '') + f'{"wall s":>7s}')
+          + (f'{"slip mm":>8s} {"lost s":>7s} {"margin":>6s} {"max":>6s} ' if lifted else '')
+          + f'{"wall s":>7s}')
     series, rows = [], []
     if not args.no_record:
         from gripper_ros.bags.analyze import analyze_series
@@ -310,7 +311,9 @@ def _summarise(graph, records: list[GraspRecord], args) -> None:
                      f'{resp.force_setpoint_n:8.3f} {m.peak_contact_force_n:8.3f} '
                      f'{m.peak_force_ratio:9.3f} {m.max_abs_voltage_v:7.2f}')
             if lifted:
-                extra += f' {_dash(m.max_slip_m * 1e3, "8.2f")} {_dash(m.lost_at_s, "7.3f")}'
+                extra += (f' {_dash(m.max_slip_m * 1e3, "8.2f")} {_dash(m.lost_at_s, "7.3f")}'
+                          f' {_dash(m.hold_margin_mean, "6.2f")}'
+                          f' {_dash(m.hold_margin_max, "6.2f")}')
         else:
             extra = (f'{"":>10s} {resp.switch_time_s:9.3f} {"":>18s} {pos_err_mm:11.4f} '
                      f'{resp.final_force_n:8.3f} {resp.force_setpoint_n:8.3f} {"":>8s} '
