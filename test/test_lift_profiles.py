@@ -122,3 +122,27 @@ def test_command_line_profiles_read_as_the_lift_fields(text, expected):
 def test_a_bad_command_line_profile_is_one_line_naming_it(text, says):
     with pytest.raises(ValueError, match=says):
         parse_profile(text)
+
+
+def test_a_shake_recorded_by_grasp_demo_reruns_bit_for_bit(tmp_path):
+    """grasp_demo --profile records the profile with the object; a re-run plays the same shake."""
+    import subprocess
+    import sys
+
+    from gripper_ros.bags import rerun
+    from helpers import assert_rerun_equals_recording
+    out = tmp_path / 'bags'
+    demo = subprocess.run(
+        [sys.executable, '-m', 'gripper_ros.apps.grasp_demo', '--width', '0.05', '--mass',
+         '0.6', '--profile', 'shake:3,2', '--lift-duration', '0.5', '--object-mass', '0.6',
+         '--static-friction', '0.3', '--kinetic-friction', '0.24', '--force-law', 'paper',
+         '--output', str(out), '--no-plot'],
+        capture_output=True, text=True, timeout=300, stdin=subprocess.DEVNULL)
+    assert demo.returncode == 1, demo.stdout + demo.stderr      # eq. 23 at mu_s 0.3: lost
+    assert 'OBJECT_LOST' in demo.stdout
+    (bag,) = [p for p in out.iterdir() if p.is_dir()]
+    w = rerun.whatif(bag)
+    assert w.record.obj['lift_profile'] == LiftProfile.SHAKE
+    assert w.record.obj['lift_frequency_hz'] == 2.0
+    assert_rerun_equals_recording(w)
+    assert w.reruns[0].metrics.final_outcome == 'OBJECT_LOST'

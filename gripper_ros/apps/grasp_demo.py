@@ -247,6 +247,14 @@ def _lift(args) -> dict:
     return out
 
 
+def _recorded(fields: dict) -> dict:
+    """Return ``fields`` as recorded_grasp takes them (the object's mass by its own name)."""
+    out = dict(fields)
+    if 'mass_kg' in out:
+        out['object_mass_kg'] = out.pop('mass_kg')
+    return out
+
+
 def _grasp_one(graph, args, width_m: float, mass_kg: float, i: int, n: int) -> GraspRecord:
     from gripper_ros.bags.recording import RecordingError, recorded_grasp
     from gripper_ros.nodes.graph import GraphError
@@ -271,7 +279,7 @@ def _grasp_one(graph, args, width_m: float, mass_kg: float, i: int, n: int) -> G
                          args.stiffness, args.damping, args.overwrite,
                          width_tolerance_m=args.width_tolerance,
                          object_width_m=args.object_width, acceleration_mps2=args.lift,
-                         stop_on_error=True, **_lift(args))
+                         stop_on_error=True, **_recorded(_lift(args)))
     if run.recording_error:
         raise RecordingError(run.recording_error)
     return GraspRecord(width_m, mass_kg, run.response, run.bag_dir, run.wall_s,
