@@ -45,6 +45,7 @@ setup(
             'bench_soak = gripper_ros.bench.soak:main',
             'bench_controllers = gripper_ros.bench.controllers:main',
             'lift_table = gripper_ros.apps.lift_table:main',
+            'grip_study = gripper_ros.apps.grip_study:main',
             'bench_realtime = gripper_ros.bench.realtime:main',
             'bench_headless = gripper_ros.bench.headless:main',
             'tune = gripper_ros.apps.tune:main',

@@ -37,6 +37,9 @@ TOPIC_OUTCOME = 'supervisor/outcome'
 """The final status of the last request, latched (transient local, depth 1)."""
 TOPIC_OBJECT_STATE = 'sim/object_state'
 TOPIC_SIM_STATUS = 'sim/status'
+TOPIC_LOAD_ACCELERATION = 'sim/load_acceleration'
+"""geometry_msgs/AccelStamped, an arm (simulator) -> plant: the arm's acceleration while it holds;
+``accel.linear.z`` (upward, m/s^2) loads the pads with gravity."""
 
 SERVICE_GRASP = 'grasp'
 SERVICE_STOP = 'stop'
@@ -154,6 +157,14 @@ class FaultKind(enum.IntEnum):
     SENSOR_DROPOUT = 3
 
 
+class LiftProfile(enum.IntEnum):
+    """``SetObject.Request.LIFT_*``: how the arm moves the held object (core/hold.py)."""
+
+    STEP = 0
+    PICK_AND_PLACE = 1
+    SHAKE = 2
+
+
 class HoldState(enum.IntEnum):
     """``ObjectState.STATE_*``: the grasped object along the finger pads (ground truth)."""
 
@@ -188,6 +199,7 @@ WIRE_CODES = (
     (Outcome, 'gripper_interfaces.srv', 'Grasp.Response', 'OUTCOME_'),
     (FaultKind, 'gripper_interfaces.srv', 'SetObject.Request', 'FAULT_'),
     (HoldState, 'gripper_interfaces.msg', 'ObjectState', 'STATE_'),
+    (LiftProfile, 'gripper_interfaces.srv', 'SetObject.Request', 'LIFT_'),
     (TimeMode, 'gripper_interfaces.msg', 'SimStatus', 'TIME_MODE_'),
     (PendingRequest, 'gripper_interfaces.msg', 'SupervisorStatus', 'REQUEST_'),
 )

@@ -72,15 +72,23 @@ def test_grasp_demo_lift_ends_lost_under_eq_23_and_holding_under_friction(tmp_pa
     assert 'OBJECT_LOST' in line
     headless = next(r for r in rows if r['width_m'] == 0.1 and r['a'] == 5.0
                     and r['law'] == 'paper')
-    slip_mm, lost_s = (float(x) for x in line.split()[-3:-1])
+    slip_mm, lost_s, margin_mean, margin_max = (float(x) for x in line.split()[-5:-1])
     assert lost_s == pytest.approx(headless['lost_s'], abs=1e-3)
     assert slip_mm == pytest.approx(headless['slip_m'] * 1e3, abs=0.01)
     assert 'answered HOLDING, then OBJECT_LOST' in paper.stdout
+    # eq. 23's grip over the slip limit: 2 mu_s (mu_s m (g + a)) / (m (g + a)) = 2 mu_s^2
+    mu_s = load_config().contact.static_friction
+    assert margin_mean == margin_max == pytest.approx(2 * mu_s ** 2, abs=0.005)
 
     friction = _demo(tmp_path, 'friction')
     assert friction.returncode == 0, friction.stdout + friction.stderr
     line = next(s for s in friction.stdout.splitlines() if s.strip().startswith('0.100'))
-    assert ' HOLDING ' in line and line.split()[-2] == '-'
+    assert ' HOLDING ' in line and line.split()[-4] == '-'
+    # the friction law's grip, k m (g + a) / (2 mu_s), is k (g + a) / g over the slip limit
+    # once the lift ends (weight alone), k during it
+    cfg = load_config()
+    k, g = cfg.supervisor.grip_safety_factor, cfg.plant.gravity_mps2
+    assert float(line.split()[-2]) == pytest.approx(k * (g + 5.0) / g, abs=0.005)
 
 
 @pytest.mark.parametrize('argv, message', [

@@ -56,6 +56,18 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('--lift', type=float, default=0.0, metavar='A',
                    help='after HOLDING the arm lifts the object at A m/s^2 upward (the request '
                         'carries a = A for the force law); 0 = no lift')
+    p.add_argument('--profile', default=None, metavar='NAME:A[,HZ]',
+                   help="the arm's motion after HOLDING, along the pads: step:A (= --lift A), "
+                        'pick-and-place:A (up, across, down; +-A m/s^2 trapezoids over the '
+                        'duration) or shake:A,HZ (A sin(2 pi HZ t)); the request carries a = A')
+    p.add_argument('--object-mass', type=float, default=0.0, metavar='KG',
+                   help="the simulated object's real mass, not told to the controller "
+                        '(0 = the requested --mass)')
+    p.add_argument('--static-friction', type=float, default=0.0, metavar='MU',
+                   help="the simulated object's real mu_s on the pads, not told to the "
+                        'controller (0 = configured default)')
+    p.add_argument('--kinetic-friction', type=float, default=0.0, metavar='MU',
+                   help='its real mu_k (<= mu_s; 0 = configured default)')
     p.add_argument('--lift-delay', type=float, default=LIFT_DELAY_S,
                    help='seconds from HOLDING to the lift (default %(default)g)')
     p.add_argument('--lift-duration', type=float, default=LIFT_DURATION_S,
@@ -109,10 +121,20 @@ def main(argv: list[str] | None = None) -> int:
     for w, m in objects:
         if not (math.isfinite(w) and math.isfinite(m)):
             return _fail(f'width and mass must be finite, got {w!r}, {m!r}')
-    for name in ('lift', 'lift_delay', 'lift_duration'):
+    for name in ('lift', 'lift_delay', 'lift_duration', 'object_mass', 'static_friction',
+                 'kinetic_friction'):
         value = getattr(args, name)
         if not (math.isfinite(value) and value >= 0.0):
             return _fail(f'--{name.replace("_", "-")} must be finite and >= 0, got {value!r}')
+    if args.profile is not None:
+        from gripper_ros.core.hold import parse_profile
+        if args.lift:
+            return _fail('--lift and --profile do not go together (--lift A is step:A)')
+        try:
+            args.profile = parse_profile(args.profile)
+        except ValueError as exc:
+            return _fail(f'--profile: {exc}')
+        args.lift = args.profile[1]
 
     from gripper_ros.bags.recorder import BagRecorderError
     from gripper_ros.bags.recording import RecordingError, ServeRecorder
@@ -209,11 +231,28 @@ def _bag_dir(output: Path, i: int, width_m: float, mass_kg: float, overwrite: bo
 
 
 def _lift(args) -> dict:
-    """Return the SetObject lift fields of ``--lift`` (none without a lift)."""
+    """Return the SetObject fields of the real object and of ``--lift`` or ``--profile``.
+
+    Only the object's fields that were given; no lift fields without a lift.
+    """
+    out = {name: getattr(args, key) for key, name in (
+        ('object_mass', 'mass_kg'), ('static_friction', 'static_friction'),
+        ('kinetic_friction', 'kinetic_friction')) if getattr(args, key)}
     if not args.lift:
-        return {}
-    return {'lift_acceleration_mps2': args.lift, 'lift_delay_s': args.lift_delay,
-            'lift_duration_s': args.lift_duration}
+        return out
+    out.update({'lift_acceleration_mps2': args.lift, 'lift_delay_s': args.lift_delay,
+                'lift_duration_s': args.lift_duration})
+    if args.profile is not None:
+        out.update({'lift_profile': int(args.profile[0]), 'lift_frequency_hz': args.profile[2]})
+    return out
+
+
+def _recorded(fields: dict) -> dict:
+    """Return ``fields`` as recorded_grasp takes them (the object's mass by its own name)."""
+    out = dict(fields)
+    if 'mass_kg' in out:
+        out['object_mass_kg'] = out.pop('mass_kg')
+    return out
 
 
 def _grasp_one(graph, args, width_m: float, mass_kg: float, i: int, n: int) -> GraspRecord:
@@ -240,7 +279,7 @@ def _grasp_one(graph, args, width_m: float, mass_kg: float, i: int, n: int) -> G
                          args.stiffness, args.damping, args.overwrite,
                          width_tolerance_m=args.width_tolerance,
                          object_width_m=args.object_width, acceleration_mps2=args.lift,
-                         stop_on_error=True, **_lift(args))
+                         stop_on_error=True, **_recorded(_lift(args)))
     if run.recording_error:
         raise RecordingError(run.recording_error)
     return GraspRecord(width_m, mass_kg, run.response, run.bag_dir, run.wall_s,
@@ -258,7 +297,8 @@ def _summarise(graph, records: list[GraspRecord], args) -> None:
     print(f'\n{"width m":>8s} {"mass kg":>8s} {"outcome":>11s} {"contact s":>10s} '
           f'{"switch s":>9s} {"criterion":>18s} {"pos err mm":>11s} {"force N":>8s} '
           f'{"F_sp N":>8s} {"peak N":>8s} {"peak/F_sp":>9s} {"max|V|":>7s} '
-          + (f'{"slip mm":>8s} {"lost s":>7s} ' if lifted else '') + f'{"wall s":>7s}')
+          + (f'{"slip mm":>8s} {"lost s":>7s} {"margin":>6s} {"max":>6s} ' if lifted else '')
+          + f'{"wall s":>7s}')
     series, rows = [], []
     if not args.no_record:
         from gripper_ros.bags.analyze import analyze_series
@@ -279,7 +319,9 @@ def _summarise(graph, records: list[GraspRecord], args) -> None:
                      f'{resp.force_setpoint_n:8.3f} {m.peak_contact_force_n:8.3f} '
                      f'{m.peak_force_ratio:9.3f} {m.max_abs_voltage_v:7.2f}')
             if lifted:
-                extra += f' {_dash(m.max_slip_m * 1e3, "8.2f")} {_dash(m.lost_at_s, "7.3f")}'
+                extra += (f' {_dash(m.max_slip_m * 1e3, "8.2f")} {_dash(m.lost_at_s, "7.3f")}'
+                          f' {_dash(m.hold_margin_mean, "6.2f")}'
+                          f' {_dash(m.hold_margin_max, "6.2f")}')
         else:
             extra = (f'{"":>10s} {resp.switch_time_s:9.3f} {"":>18s} {pos_err_mm:11.4f} '
                      f'{resp.final_force_n:8.3f} {resp.force_setpoint_n:8.3f} {"":>8s} '

@@ -62,6 +62,8 @@ class GraspMetrics:
     max_slip_m: float = math.nan        # ground truth: the most the object slid on the pads
     lost_at_s: float = math.nan         # ground truth: when it left the grip, after the answer
     loss_detected_s: float = math.nan   # when the supervisor reported OBJECT_LOST, after it
+    hold_margin_mean: float = math.nan  # ground truth: grip over the slip limit while lifted,
+    hold_margin_max: float = math.nan   # 2 mu_s F / m (g + a) (sim/object_state's samples)
 
 
 class AnalysisError(BagError):
@@ -220,6 +222,12 @@ def _hold_figures(series: GraspSeries, stages: Stages) -> dict:
         gone = np.flatnonzero(obj.state == HoldState.LOST)
         if gone.size:
             figures['lost_at_s'] = float(obj.t_s[gone[0]] - stages.end_s)
+        lifted = ((obj.state == HoldState.STUCK) | (obj.state == HoldState.SLIDING)) & \
+            (obj.load_n > 0.0)
+        if np.any(lifted):
+            margin = obj.capacity_n[lifted] / obj.load_n[lifted]
+            figures['hold_margin_mean'] = float(np.mean(margin))
+            figures['hold_margin_max'] = float(np.max(margin))
     return figures
 
 

@@ -371,7 +371,7 @@ def recorded_grasp(graph, bag_dir, width_m: float, mass_kg: float,
                    wall_timeout_s: float = 600.0, width_tolerance_m: float = 0.0,
                    object_width_m: float | None = None, acceleration_mps2: float = 0.0,
                    linger_s: float = 0.5, stop_on_error: bool = False,
-                   **hold) -> RecordedGrasp:
+                   object_mass_kg: float = 0.0, **hold) -> RecordedGrasp:
     """Place the object, record every topic of the graph into ``bag_dir`` and grasp it.
 
     ``hold`` sets the object's hold and lift fields and a fault for the grasp (SetObject:
@@ -379,8 +379,11 @@ def recorded_grasp(graph, bag_dir, width_m: float, mass_kg: float,
     bag is closed (summary, metadata.yaml) whatever happens, Ctrl-C included.
     ``stop_on_error``: a recording that fails stops the grasp at once (STOPPED: the position
     stage holds the finger where it is); else the grasp goes on unrecorded. Either way
-    :attr:`RecordedGrasp.recording_error` says what failed.
+    :attr:`RecordedGrasp.recording_error` says what failed. ``object_mass_kg`` > 0: the object's
+    real mass (SetObject ``mass_kg``), not the request's.
     """
+    if object_mass_kg:
+        hold = {**hold, 'mass_kg': object_mass_kg}
     placed_width = graph.simulated_width_m(width_m, object_width_m)
     placed = graph.set_object(placed_width, stiffness_n_per_m, damping_n_s_per_m, **hold)
     if not placed.success:

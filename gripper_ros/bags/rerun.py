@@ -50,7 +50,9 @@ OBJECT_FIELDS = {
     'static_friction': 'static_friction', 'kinetic_friction': 'kinetic_friction',
     'pad_length_m': 'pad_length_m'}
 """A bag's ``object`` fields (SetObject names) -> simulate_grasp's keyword."""
-LIFT_FIELDS = ('lift_acceleration_mps2', 'lift_delay_s', 'lift_duration_s')
+LIFT_FIELDS = ('lift_acceleration_mps2', 'lift_delay_s', 'lift_duration_s', 'lift_profile',
+               'lift_frequency_hz')
+"""A bag's lift fields, Lift's arguments in order (a bag without the last two: a step)."""
 FAULT_FIELDS = ('fault', 'fault_at_s', 'fault_time_constant_s')
 STATUS_FIELDS = ('phase', 'active_controller', 'switch_criterion', 'grasp_id', 'outcome',
                  'position_setpoint_m', 'force_setpoint_n', 'position_m', 'force_n', 'contact',
@@ -176,7 +178,11 @@ def _grasp_keywords(path, request: dict, obj: dict) -> dict:
             out[keyword] = float(obj[name])
     try:
         if float(obj.get('lift_duration_s', 0.0)) > 0.0:
-            out['lift'] = Lift(*(float(obj.get(name, 0.0)) for name in LIFT_FIELDS))
+            values = [float(obj.get(name, 0.0)) for name in LIFT_FIELDS]
+            if values[3] != int(values[3]):
+                raise ValueError(f'lift_profile must be a LiftProfile code, got {values[3]!r}')
+            values[3] = int(values[3])
+            out['lift'] = Lift(*values)
         kind = int(obj.get('fault', 0))
         if kind != obj.get('fault', 0):
             raise ValueError(f'fault must be a FaultKind code, got {obj["fault"]!r}')

@@ -94,6 +94,9 @@ class ContactParams:
     kinetic_friction: float = 0.4      # mu_k while the object slides; <= mu_s
     pad_length_m: float = 0.02         # the object is out once it has slid this far
     after_lift_s: float = 0.5          # fast mode plays a lift out this long after it ends
+    # Cattaneo-Mindlin pre-sliding of each pad (core/hold.py): its initial tangential
+    # stiffness; 0 (a file that predates it) = rigid pads, the Coulomb law alone.
+    pad_tangential_stiffness_n_per_m: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -124,6 +127,50 @@ class SensorNoiseParams:
     def enabled(self) -> bool:
         return any((self.position_noise_m, self.position_quantum_m, self.force_noise_n,
                     self.force_quantum_n))
+
+
+@dataclass(frozen=True)
+class PadSensorParams:
+    """Each pad's shear and displacement sensing (core/pad_sensor.py); defaults when absent."""
+
+    shear_resolution_n: float = 1.0 / 320.0
+    shear_noise_n: float = 0.002
+    shear_bandwidth_hz: float = 1000.0
+    shear_latency_s: float = 0.0003
+    displacement_resolution_m: float = 1.0e-6
+    displacement_noise_m: float = 0.5e-6
+    displacement_bandwidth_hz: float = 1000.0
+    displacement_latency_s: float = 0.0003
+
+    @property
+    def shear(self):
+        """The shear channel's :class:`gripper_ros.core.pad_sensor.ChannelSpec`."""
+        from gripper_ros.core.pad_sensor import ChannelSpec
+        return ChannelSpec(self.shear_resolution_n, self.shear_noise_n,
+                           self.shear_bandwidth_hz, self.shear_latency_s)
+
+    @property
+    def displacement(self):
+        """The displacement channel's :class:`gripper_ros.core.pad_sensor.ChannelSpec`."""
+        from gripper_ros.core.pad_sensor import ChannelSpec
+        return ChannelSpec(self.displacement_resolution_m, self.displacement_noise_m,
+                           self.displacement_bandwidth_hz, self.displacement_latency_s)
+
+
+@dataclass(frozen=True)
+class LoadGripParams:
+    """The load-tracking grip's settings (core/load_grip.py); defaults when absent."""
+
+    grip_margin: float = 1.25
+    mu_start: float = 0.3
+    mu_safety: float = 0.95
+    touch_force_n: float = 2.0
+    slip_speed_mps: float = 0.005
+    slip_window_s: float = 0.002
+    slip_rest_s: float = 0.005
+    min_samples: int = 200
+    release_rate_n_per_s: float = 300.0
+    overload_slip_s: float = 0.02
 
 
 @dataclass(frozen=True)
@@ -231,9 +278,11 @@ class GripperConfig:
     supervisor: SupervisorParams
     source: str
     data: dict = field(default_factory=dict, compare=False, hash=False, repr=False)
+    """The mapping the values were read from (what a bag records, what re-runs start from)."""
     sensor_noise: SensorNoiseParams = SensorNoiseParams()
     """Off when the file has no ``sensor_noise`` section."""
-    """The mapping the values were read from (what a bag records, what re-runs start from)."""
+    pad_sensor: PadSensorParams = field(default_factory=PadSensorParams)
+    load_grip: LoadGripParams = field(default_factory=LoadGripParams)
 
 
 def default_config_path() -> Path:
@@ -328,7 +377,8 @@ def parse_config(data: dict, source: str = '<dict>') -> GripperConfig:
     contact = _build(ContactParams, _section(data, 'contact', source), 'contact',
                      stiffness_n_per_m={'nonnegative': True},
                      damping_n_s_per_m={'nonnegative': True},
-                     after_lift_s={'nonnegative': True})
+                     after_lift_s={'nonnegative': True},
+                     pad_tangential_stiffness_n_per_m={'nonnegative': True})
     if contact.kinetic_friction > contact.static_friction:
         raise ConfigError('"contact.kinetic_friction" must be <= "contact.static_friction" '
                           f'({contact.static_friction!r}), got {contact.kinetic_friction!r}')
@@ -406,8 +456,20 @@ def parse_config(data: dict, source: str = '<dict>') -> GripperConfig:
                        **noise_rules)
         if noise.seed >= 2 ** 63:
             raise ConfigError(f'"sensor_noise.seed" must be < 2**63, got {noise.seed!r}')
+    pads = _build(PadSensorParams, _section(data, 'pad_sensor', source)
+                  if 'pad_sensor' in data else {}, 'pad_sensor',
+                  **{f.name: {'nonnegative': True} for f in fields(PadSensorParams)})
+    grip = _build(LoadGripParams, _section(data, 'load_grip', source)
+                  if 'load_grip' in data else {}, 'load_grip',
+                  min_samples={'positive': True, 'integer': True})
+    if not 1.0 <= grip.grip_margin:
+        raise ConfigError('"load_grip.grip_margin" must be >= 1 (a grip that knowingly holds '
+                          f'less than the load), got {grip.grip_margin!r}')
+    if not grip.mu_safety <= 1.0:
+        raise ConfigError(f'"load_grip.mu_safety" must be in (0, 1], got {grip.mu_safety!r}')
     return GripperConfig(plant, contact, sensor, position, force, sup, source,
-                         copy.deepcopy(data), noise)
+                         copy.deepcopy(data), sensor_noise=noise, pad_sensor=pads,
+                         load_grip=grip)
 
 
 def load_config(path: str | os.PathLike | None = None) -> GripperConfig:

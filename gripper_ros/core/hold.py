@@ -10,9 +10,28 @@ normal grip force ``F`` holds it through friction on both pads:
   the static condition then holds);
 * it is lost once it has slid the pad length ``L``.
 
-A :class:`Lift` has an acceleration ``a``, a delay counted from the moment the grasp is declared
-HOLDING (:meth:`HoldModel.begin`) and a duration: ``a(t) = a`` during ``[t_lift, t_lift +
-duration]`` and 0 after it; from ``t_lift`` on the object is off its support for good.
+Before gross slip each pad shears elastically with partial slip at the rim of its contact
+(Cattaneo 1938, Mindlin 1949; K. L. Johnson, *Contact Mechanics*, 1985, sec. 7.2): a pad of
+initial tangential stiffness ``k_t`` under normal force ``F`` and shear ``Q`` displaces the object
+by ``delta(Q) = delta_s [1 - (1 - Q / (mu_s F))^(2/3)]``, ``delta_s = 3 mu_s F / (2 k_t)``. Its
+compliance ``d delta / dQ = (1 / k_t) (1 - Q / (mu_s F))^(-1/3)`` grows without bound as ``Q``
+nears ``mu_s F``: incipient slip shows in the pads' shear and displacement before the object
+moves as a whole. The law is quasi-static (the pad's tangential mode is far faster than the
+grip) and, on unloading, follows the same curve (Mindlin-Deresiewicz hysteresis is left out);
+it moves the object by ``delta`` without changing when or how it slides, so ``k_t -> inf``
+(``0`` in the record: rigid pads) is the Coulomb law above, exactly.
+
+A :class:`Lift` is the arm's vertical motion (along the pads, with gravity): an acceleration
+``A``, a delay counted from the moment the grasp is declared HOLDING (:meth:`HoldModel.begin`),
+a duration ``D`` and a profile (``wire.LiftProfile``); from ``t_lift`` on the object is off its
+support for good, and ``a = 0`` after ``t_lift + D``:
+
+* ``STEP``: ``a(t) = A`` over ``[t_lift, t_lift + D]``;
+* ``PICK_AND_PLACE``: up, across and down, each ``D / 3``, up and down with a trapezoidal
+  velocity that accelerates over the first quarter of its third and decelerates over the last:
+  ``a = +A, 0, -A`` (up), ``0`` (across: horizontal, not along the pads), ``-A, 0, +A`` (down);
+* ``SHAKE``: ``a(t) = A sin(2 pi f (t - t_lift))``, held at its value in the middle of each
+  :data:`SHAKE_SAMPLE_S` (the force loop's period), so that every piece has a constant ``a``.
 
 :meth:`HoldModel.advance` integrates one interval over which ``F`` and ``a`` are constant, in
 closed form (constant relative acceleration), and finds the exact instants of slide -> stick and
@@ -28,11 +47,17 @@ from __future__ import annotations
 from dataclasses import dataclass
 import math
 
-from gripper_ros.wire import HoldState
+from gripper_ros.wire import HoldState, LiftProfile
 import numba
 import numpy as np
 
 MAX_LIFT_TIME_S = 600.0        # a lift's delay or duration beyond this is a mistake
+SHAKE_SAMPLE_S = 1.0e-4        # a shake's acceleration is constant over pieces this long
+SHAKE_SAMPLE_NS = round(SHAKE_SAMPLE_S * 1e9)
+MAX_SHAKE_FREQUENCY_HZ = 100.0  # 50 pieces a period at the fastest
+PICK_AND_PLACE_QUARTERS = 12   # D / 12: each ramp of the pick-and-place's trapezoids
+# the pick-and-place's accelerations (x A) from each breakpoint (in D / 12) to the next
+_PICK_AND_PLACE = ((0, 1.0), (1, 0.0), (3, -1.0), (4, 0.0), (8, -1.0), (9, 0.0), (11, 1.0))
 
 HOLD_DTYPE = np.dtype([
     ('has_hold', np.uint8),            # the plant: an object with a hold is between the pads
@@ -55,6 +80,11 @@ HOLD_DTYPE = np.dtype([
     ('lift_end_ns', np.int64),         # -1: no lift begun
     ('lost_ns', np.int64),             # -1: not lost
     ('next_event_ns', np.int64),       # -1: no lift event to come
+    ('tangential_stiffness_n_per_m', np.float64),  # k_t per pad; 0: rigid pads (Coulomb)
+    ('lift_profile', np.int64),        # LiftProfile
+    ('lift_frequency_hz', np.float64),  # SHAKE
+    ('lift_event', np.int64),          # index of the profile's next breakpoint
+    ('driven_until_ns', np.int64),     # a live load (hold_drive) plays out until then; 0: none
 ], align=True)
 """One object's tangential hold (times in integer ns, -1 = none)."""
 
@@ -78,14 +108,53 @@ class Lift:
     acceleration_mps2: float
     delay_s: float = 0.0
     duration_s: float = 0.0
+    profile: LiftProfile = LiftProfile.STEP
+    frequency_hz: float = 0.0          # SHAKE only
 
     def __post_init__(self):
-        for name in ('acceleration_mps2', 'delay_s', 'duration_s'):
+        for name in ('acceleration_mps2', 'delay_s', 'duration_s', 'frequency_hz'):
             check_finite_nonnegative('lift', name, getattr(self, name))
         for name in ('delay_s', 'duration_s'):
             if getattr(self, name) > MAX_LIFT_TIME_S:
                 raise ValueError(f'lift {name} must be <= {MAX_LIFT_TIME_S:g} s, '
                                  f'got {getattr(self, name)!r}')
+        try:
+            object.__setattr__(self, 'profile', LiftProfile(self.profile))
+        except ValueError:
+            raise ValueError(f'lift profile must be one of '
+                             f'{[int(p) for p in LiftProfile]}, got {self.profile!r}') from None
+        if self.profile == LiftProfile.SHAKE and \
+                not 0.0 < self.frequency_hz <= MAX_SHAKE_FREQUENCY_HZ:
+            raise ValueError(f'lift frequency_hz of a shake must be in (0, '
+                             f'{MAX_SHAKE_FREQUENCY_HZ:g}] Hz, got {self.frequency_hz!r}')
+
+
+PROFILE_NAMES = {'step': LiftProfile.STEP, 'pick-and-place': LiftProfile.PICK_AND_PLACE,
+                 'shake': LiftProfile.SHAKE}
+"""The profiles' names on a command line (``--profile NAME:A[,HZ]``)."""
+
+
+def parse_profile(text: str) -> tuple[LiftProfile, float, float]:
+    """Read ``step:A``, ``pick-and-place:A`` or ``shake:A,HZ`` as (profile, A m/s^2, f Hz).
+
+    ValueError, in one line naming what is wrong, for anything else.
+    """
+    name, _, numbers = text.partition(':')
+    if name not in PROFILE_NAMES or not numbers:
+        raise ValueError(f'profile must be step:A, pick-and-place:A or shake:A,HZ, got '
+                         f'{text!r}')
+    profile = PROFILE_NAMES[name]
+    parts = numbers.split(',')
+    if len(parts) != (2 if profile == LiftProfile.SHAKE else 1):
+        raise ValueError(f'profile {name} takes {"A,HZ" if profile == LiftProfile.SHAKE else "A"}'
+                         f', got {numbers!r}')
+    try:
+        values = [float(v) for v in parts]
+    except ValueError:
+        raise ValueError(f'profile {name}: numbers expected, got {numbers!r}') from None
+    accel, hz = values[0], (values[1] if len(values) > 1 else 0.0)
+    Lift(accel, 0.0, 1.0, profile, hz)          # checks A and f, naming the field
+    return profile, accel, hz
 
 
 @dataclass(frozen=True)
@@ -99,6 +168,8 @@ class ObjectState:
     capacity_n: float = 0.0        # most the pads can hold by static friction, 2 mu_s F
     lost_ns: int | None = None     # simulated time at which it left the pads
     lift_acceleration_mps2: float = 0.0   # the arm's upward acceleration now
+    shear_n: float = 0.0           # tangential force on each pad (friction it carries)
+    presliding_m: float = 0.0      # each pad's elastic (partial-slip) displacement of the object
 
 
 @numba.njit(cache=True)
@@ -108,6 +179,7 @@ def hold_begin(h, t_ns, mass_kg):
         return 1
     h.mass_kg = mass_kg
     h.hold_ns = t_ns
+    h.lift_event = 0
     if h.has_lift:
         h.lift_start_ns = t_ns + round(h.lift_delay_s * 1e9)
         h.lift_end_ns = h.lift_start_ns + round(h.lift_duration_s * 1e9)
@@ -129,6 +201,8 @@ def hold_scenario_in_progress(h, t_ns, after_lift_ns):
         return t_ns < h.lost_ns + after_lift_ns
     if h.state == HoldState.NONE:
         return False                        # taken away
+    if t_ns < h.driven_until_ns:
+        return True                         # a live load came less than after_lift_ns ago
     if h.next_event_ns != -1 or h.state == HoldState.SLIDING:
         return True
     return t_ns < h.lift_end_ns + after_lift_ns
@@ -155,6 +229,51 @@ def hold_capacity_n(h, force_n):
     return 2.0 * h.static_friction * (force_n if force_n > 0.0 else 0.0)
 
 
+@numba.njit(cache=True)
+def hold_shear_n(h, force_n):
+    """Tangential force on each pad at grip ``force_n``: half the load while stuck, mu_k F sliding.
+
+    Signed along the load (positive: the load pulls the object down the pads).
+    """
+    grip_n = force_n if force_n > 0.0 else 0.0
+    if h.state == HoldState.STUCK:
+        return 0.5 * h.mass_kg * (h.gravity_mps2 + h.acceleration_mps2)
+    if h.state == HoldState.SLIDING:
+        return h.kinetic_friction * grip_n
+    return 0.0
+
+
+@numba.njit(cache=True)
+def presliding_m(shear_n, normal_n, static_friction, tangential_stiffness_n_per_m):
+    """Cattaneo-Mindlin displacement of a pad under ``shear_n`` (signed) and ``normal_n``.
+
+    ``3 mu_s N / (2 k_t) [1 - (1 - |Q| / (mu_s N))^(2/3)]`` with the sign of ``Q``, capped at
+    gross slip (``|Q| = mu_s N``); 0 for rigid pads (``k_t = 0``) or no normal force.
+    """
+    limit_n = static_friction * normal_n
+    if tangential_stiffness_n_per_m <= 0.0 or limit_n <= 0.0:
+        return 0.0
+    ratio = abs(shear_n) / limit_n
+    if ratio > 1.0:
+        ratio = 1.0
+    full_m = 1.5 * limit_n / tangential_stiffness_n_per_m
+    out = full_m * (1.0 - (1.0 - ratio) ** (2.0 / 3.0))
+    return out if shear_n >= 0.0 else -out
+
+
+@numba.njit(cache=True)
+def hold_presliding_m(h, force_n):
+    """Each pad's elastic displacement of the object now, at grip ``force_n`` (0 when rigid).
+
+    While the object slides as a whole the pad carries mu_k F and stays sheared by it.
+    """
+    if h.state != HoldState.STUCK and h.state != HoldState.SLIDING:
+        return 0.0
+    grip_n = force_n if force_n > 0.0 else 0.0
+    return presliding_m(hold_shear_n(h, grip_n), grip_n, h.static_friction,
+                        h.tangential_stiffness_n_per_m)
+
+
 @numba.njit(cache=True, inline='always')
 def hold_stays_stuck(h, force_n, until_ns):
     """Tell whether it stays stuck at grip ``force_n``, with no event before ``until_ns``.
@@ -169,15 +288,87 @@ def hold_stays_stuck(h, force_n, until_ns):
 
 @numba.njit(cache=True)
 def hold_fire_events(h, t_ns):
-    """Apply the lift's start and end if they are due at ``t_ns``."""
+    """Apply the lift's breakpoints (start, profile changes, end) that are due at ``t_ns``."""
     while h.next_event_ns != -1 and h.next_event_ns <= t_ns:
         if h.state == HoldState.RESTING:            # the lift starts: off its support
             h.state = HoldState.STUCK
-            h.acceleration_mps2 = h.lift_acceleration_mps2
-            h.next_event_ns = h.lift_end_ns
-        else:                                       # the lift ends: weight alone
-            h.acceleration_mps2 = 0.0
-            h.next_event_ns = -1
+        _lift_segment(h)
+
+
+@numba.njit(cache=True)
+def _lift_segment(h):
+    """Enter the profile's segment that starts at ``h.next_event_ns``: set ``a`` and its end."""
+    i = h.lift_event
+    h.lift_event = i + 1
+    start_ns = h.lift_start_ns
+    end_ns = h.lift_end_ns
+    a_max = h.lift_acceleration_mps2
+    at_ns = h.next_event_ns
+    if at_ns >= end_ns:                             # the lift ends: weight alone
+        h.acceleration_mps2 = 0.0
+        h.next_event_ns = -1
+        return
+    if h.lift_profile == LiftProfile.PICK_AND_PLACE:
+        quarters, scale = _PICK_AND_PLACE[i] if i < len(_PICK_AND_PLACE) else (12, 0.0)
+        h.acceleration_mps2 = scale * a_max
+        if i + 1 < len(_PICK_AND_PLACE):
+            nxt = start_ns + round((end_ns - start_ns) * _PICK_AND_PLACE[i + 1][0] /
+                                   PICK_AND_PLACE_QUARTERS)
+        else:
+            nxt = end_ns
+    elif h.lift_profile == LiftProfile.SHAKE:
+        nxt = at_ns + SHAKE_SAMPLE_NS
+        if nxt > end_ns:
+            nxt = end_ns
+        mid_s = 0.5 * ((at_ns - start_ns) + (nxt - start_ns)) * 1e-9
+        h.acceleration_mps2 = a_max * math.sin(2.0 * math.pi * h.lift_frequency_hz * mid_s)
+    else:                                           # STEP
+        h.acceleration_mps2 = a_max
+        nxt = end_ns
+    h.next_event_ns = nxt if nxt > at_ns else end_ns
+
+
+@numba.njit(cache=True)
+def hold_drive(h, t_ns, accel_mps2, after_ns):
+    """Let a live arm set ``a`` from ``t_ns`` on; 1 (nothing changed) unless the hold has begun.
+
+    The object leaves its support if it was on it, a profile still running stops, and the
+    scenario lasts ``after_ns`` past the last live value (fast mode plays it out).
+    """
+    if h.hold_ns == -1 or not (h.state == HoldState.RESTING or h.state == HoldState.STUCK or
+                               h.state == HoldState.SLIDING):
+        return 1
+    if h.state == HoldState.RESTING:
+        h.state = HoldState.STUCK
+    if h.lift_start_ns == -1:
+        h.lift_start_ns = t_ns
+        h.lift_end_ns = t_ns
+    h.next_event_ns = -1
+    h.acceleration_mps2 = accel_mps2
+    h.driven_until_ns = t_ns + after_ns
+    return 0
+
+
+@numba.njit(cache=True)
+def hold_schedule_lift(h, accel_mps2, delay_s, duration_s, profile, frequency_hz):
+    """Give a held object a lift after the hold began (checked by :class:`Lift` first).
+
+    Its delay counts from the start of the hold, as a lift given with the object does; 1
+    (nothing changed) unless the object is on its support with its hold begun.
+    """
+    if h.hold_ns == -1 or h.state != HoldState.RESTING:
+        return 1
+    h.has_lift = 1
+    h.lift_acceleration_mps2 = accel_mps2
+    h.lift_delay_s = delay_s
+    h.lift_duration_s = duration_s
+    h.lift_profile = profile
+    h.lift_frequency_hz = frequency_hz
+    h.lift_event = 0
+    h.lift_start_ns = h.hold_ns + round(delay_s * 1e9)
+    h.lift_end_ns = h.lift_start_ns + round(duration_s * 1e9)
+    h.next_event_ns = h.lift_start_ns
+    return 0
 
 
 @numba.njit(cache=True)
@@ -263,6 +454,16 @@ def _capacity_n(hold, force_n):
 
 
 @numba.njit(cache=True)
+def _shear_n(hold, force_n):
+    return hold_shear_n(hold[0], force_n)
+
+
+@numba.njit(cache=True)
+def _presliding_m(hold, force_n):
+    return hold_presliding_m(hold[0], force_n)
+
+
+@numba.njit(cache=True)
 def _stays_stuck(hold, force_n, until_ns):
     return hold_stays_stuck(hold[0], force_n, until_ns)
 
@@ -270,6 +471,11 @@ def _stays_stuck(hold, force_n, until_ns):
 @numba.njit(cache=True)
 def _fire_events(hold, t_ns):
     hold_fire_events(hold[0], t_ns)
+
+
+@numba.njit(cache=True)
+def _drive(hold, t_ns, accel_mps2, after_ns):
+    return hold_drive(hold[0], t_ns, accel_mps2, after_ns)
 
 
 @numba.njit(cache=True)
@@ -293,9 +499,11 @@ class HoldModel:
     """
 
     def __init__(self, mass_kg: float, static_friction: float, kinetic_friction: float,
-                 pad_length_m: float, gravity_mps2: float, lift: Lift | None):
+                 pad_length_m: float, gravity_mps2: float, lift: Lift | None,
+                 tangential_stiffness_n_per_m: float = 0.0):
         self.record = np.zeros(1, HOLD_DTYPE)
         r = self.record[0]
+        r['tangential_stiffness_n_per_m'] = tangential_stiffness_n_per_m
         r['mass_kg'] = mass_kg
         r['static_friction'] = static_friction
         r['kinetic_friction'] = kinetic_friction
@@ -306,6 +514,8 @@ class HoldModel:
             r['lift_acceleration_mps2'] = lift.acceleration_mps2
             r['lift_delay_s'] = lift.delay_s
             r['lift_duration_s'] = lift.duration_s
+            r['lift_profile'] = int(lift.profile)
+            r['lift_frequency_hz'] = lift.frequency_hz
         r['state'] = HoldState.RESTING
         for name in ('hold_ns', 'lift_start_ns', 'lift_end_ns', 'lost_ns', 'next_event_ns'):
             r[name] = -1
@@ -327,6 +537,8 @@ class HoldModel:
     kinetic_friction = property(lambda self: float(self._get('kinetic_friction')))
     pad_length_m = property(lambda self: float(self._get('pad_length_m')))
     gravity_mps2 = property(lambda self: float(self._get('gravity_mps2')))
+    tangential_stiffness_n_per_m = property(
+        lambda self: float(self._get('tangential_stiffness_n_per_m')))
     state = property(lambda self: HoldState(int(self._get('state'))))
     slip_m = property(lambda self: float(self._get('slip_m')))
     slip_speed_mps = property(lambda self: float(self._get('slip_speed_mps')))
@@ -362,6 +574,14 @@ class HoldModel:
         """Most the two pads hold by static friction at grip force ``force_n``."""
         return _capacity_n(self.record, float(force_n))
 
+    def shear_n(self, force_n: float) -> float:
+        """Tangential force on each pad at grip ``force_n`` (see hold_shear_n)."""
+        return _shear_n(self.record, float(force_n))
+
+    def presliding_m(self, force_n: float) -> float:
+        """Each pad's Cattaneo-Mindlin displacement of the object at grip ``force_n``."""
+        return _presliding_m(self.record, float(force_n))
+
     def stays_stuck(self, force_n: float, until_ns: int) -> bool:
         """Tell whether it stays stuck at grip ``force_n``, with no event before ``until_ns``."""
         return _stays_stuck(self.record, float(force_n), until_ns)
@@ -369,6 +589,10 @@ class HoldModel:
     def fire_events(self, t_ns: int) -> None:
         """Apply the lift's start and end if they are due at ``t_ns``."""
         _fire_events(self.record, t_ns)
+
+    def drive(self, t_ns: int, accel_mps2: float, after_ns: int = 0) -> bool:
+        """Set the arm's acceleration live from ``t_ns`` (see hold_drive); False if not held."""
+        return _drive(self.record, t_ns, float(accel_mps2), after_ns) == 0
 
     def remove(self) -> None:
         """Take the object away (not slid out): nothing is held from now on."""

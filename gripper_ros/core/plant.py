@@ -68,9 +68,10 @@ from gripper_ros.core.force_sensor import (fsr_voltage_v, FsrVoltageDivider,
                                            NOISE_CHANNEL_FORCE, NOISE_CHANNEL_POSITION,
                                            noisy_reading)
 from gripper_ros.core.hold import (check_finite_nonnegative, hold_advance, hold_begin,
-                                   hold_capacity_n, HOLD_DTYPE, hold_fire_events, hold_live,
-                                   hold_load_n, hold_remove, hold_scenario_in_progress,
-                                   hold_stays_stuck, HoldModel, HoldState, Lift, ObjectState)
+                                   hold_capacity_n, hold_drive, HOLD_DTYPE, hold_fire_events,
+                                   hold_live, hold_load_n, hold_presliding_m, hold_remove,
+                                   hold_scenario_in_progress, hold_shear_n, hold_stays_stuck,
+                                   HoldModel, HoldState, Lift, ObjectState)
 from gripper_ros.wire import FaultKind, TICK_LAYOUT
 import numba
 import numpy as np
@@ -897,6 +898,17 @@ def plant_begin_hold(k, t_ns, grasp_mass_kg):
 
 
 @numba.njit(cache=True)
+def plant_drive_load(k, accel_mps2):
+    """Set the arm's acceleration live from now on; 1 (nothing changed) if nothing is held."""
+    h = k[K_HOLD][0]
+    if not h.has_hold or hold_drive(h, k[K_STATE][0].t_ns, accel_mps2,
+                                    k[K_PARAMS][0].after_lift_ns):
+        return 1
+    h.live = 1
+    return 0
+
+
+@numba.njit(cache=True)
 def plant_scenario_in_progress(k):
     """Whether a hold scenario (a lift) is still to be played out."""
     h = k[K_HOLD][0]
@@ -927,15 +939,20 @@ def plant_fault_scheduled(k):
 
 @numba.njit(cache=True)
 def _object_state(k):
-    """Return the held object's (state, slip, speed, load, capacity, lost_ns/-1, lift a)."""
+    """Return the held object's state, slip, speed, load, capacity, lost_ns/-1, lift a, ...
+
+    ... and each pad's shear and pre-sliding displacement.
+    """
     h = k[K_HOLD][0]
     if not h.has_hold:
-        return (HoldState.NONE, 0.0, 0.0, 0.0, 0.0, -1, 0.0)
+        return (HoldState.NONE, 0.0, 0.0, 0.0, 0.0, -1, 0.0, 0.0, 0.0)
     if h.state == HoldState.NONE:
-        return (HoldState.NONE, h.slip_m, 0.0, 0.0, 0.0, -1, 0.0)
+        return (HoldState.NONE, h.slip_m, 0.0, 0.0, 0.0, -1, 0.0, 0.0, 0.0)
     s = k[K_STATE][0]
+    force = _force(s, k[K_PARAMS][0])
     return (h.state, h.slip_m, h.slip_speed_mps, hold_load_n(h),
-            hold_capacity_n(h, _force(s, k[K_PARAMS][0])), h.lost_ns, h.acceleration_mps2)
+            hold_capacity_n(h, force), h.lost_ns, h.acceleration_mps2,
+            hold_shear_n(h, force), hold_presliding_m(h, force))
 
 
 @numba.njit(cache=True)
@@ -1082,7 +1099,8 @@ class GripperPlant:
         if not pad_m > 0.0:
             raise ValueError(f'object pad_length_m must be > 0 (0 = the contact default '
                              f'{d.pad_length_m!r}), got {pad_m!r}')
-        return HoldModel(obj.mass_kg, mu_s, mu_k, pad_m, self.params.gravity_mps2, lift)
+        return HoldModel(obj.mass_kg, mu_s, mu_k, pad_m, self.params.gravity_mps2, lift,
+                         d.pad_tangential_stiffness_n_per_m)
 
     @property
     def object(self) -> GraspObject:  # noqa: A003 - today's attribute name
@@ -1128,9 +1146,24 @@ class GripperPlant:
     @property
     def object_state(self) -> ObjectState:
         """The grasped object's hold: state, slip, load against the static capacity, loss time."""
-        state, slip, speed, load, capacity, lost_ns, accel = _object_state(self.kernel)
+        (state, slip, speed, load, capacity, lost_ns, accel, shear,
+         presliding) = _object_state(self.kernel)
         return ObjectState(HoldState(state), slip, speed, load, capacity,
-                           None if lost_ns == -1 else lost_ns, accel)
+                           None if lost_ns == -1 else lost_ns, accel, shear, presliding)
+
+    def drive_load(self, accel_mps2: float) -> None:
+        """Set the arm's upward acceleration from now on (a live arm: ``sim/load_acceleration``).
+
+        The load on the pads becomes ``m (g + a)``; an object still on its support leaves it; a
+        lift profile still running stops. ValueError (nothing changes) for a non-finite value or
+        when no grasp holds an object.
+        """
+        if isinstance(accel_mps2, bool) or not isinstance(accel_mps2, (int, float)) or \
+                not math.isfinite(accel_mps2):
+            raise ValueError(f'load acceleration must be a finite number, got {accel_mps2!r}')
+        if plant_drive_load(self.kernel, float(accel_mps2)):
+            raise ValueError('no grasp holds an object: a load acceleration applies only after '
+                             'HOLDING, while the object is between the pads')
 
     def scenario_in_progress(self) -> bool:
         """Whether a hold scenario (a lift) is still to be played out.

@@ -221,8 +221,8 @@ class GripperGraph:
             damping_n_s_per_m=float(damping_n_s_per_m), open_fingers=open_fingers,
             fault=int(fault), fault_at_s=float(fault_at_s),
             fault_time_constant_s=float(fault_time_constant_s))
-        for name, value in hold.items():
-            setattr(request, name, float(value))
+        for name, value in hold.items():        # each as its field's type (lift_profile: int)
+            setattr(request, name, type(getattr(request, name))(value))
         return self.call(self._set_object, request, timeout_s)
 
     def grasp(self, width_m: float, mass_kg: float, friction_coefficient: float = 0.0,

@@ -25,6 +25,7 @@ import math
 import sys
 import time
 
+from geometry_msgs.msg import AccelStamped
 from gripper_interfaces.msg import (ForceSensor, MotorCommand, ObjectState, PlantTick, SimStatus,
                                     SupervisorStatus)
 from gripper_interfaces.srv import SetObject, SimStep
@@ -41,8 +42,8 @@ from gripper_ros.wire import (CDR_LITTLE_ENDIAN, COMMAND_LAYOUT, Controller, FIN
                               NODE_PLANT, Outcome, Phase, SERVICE_PAUSE, SERVICE_RESUME,
                               SERVICE_SET_OBJECT, SERVICE_STEP, TICK_LAYOUT, TimeMode,
                               TOPIC_CLOCK, TOPIC_FORCE_SENSOR, TOPIC_JOINT_STATES,
-                              TOPIC_MOTOR_COMMAND, TOPIC_OBJECT_STATE, TOPIC_SIM_STATUS,
-                              TOPIC_STATUS, TOPIC_TICK)
+                              TOPIC_LOAD_ACCELERATION, TOPIC_MOTOR_COMMAND,
+                              TOPIC_OBJECT_STATE, TOPIC_SIM_STATUS, TOPIC_STATUS, TOPIC_TICK)
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
@@ -137,6 +138,9 @@ class PlantSimulatorNode(Node):
                                  raw=True)
         self.create_subscription(SupervisorStatus, TOPIC_STATUS, self._on_status, GRAPH_QOS,
                                  raw=True)
+        self.create_subscription(AccelStamped, TOPIC_LOAD_ACCELERATION,
+                                 self._on_load_acceleration, GRAPH_QOS)
+        self.loads_refused = 0
         self.create_service(SetObject, SERVICE_SET_OBJECT, self._on_set_object)
         self.create_service(Trigger, SERVICE_PAUSE, self._on_pause)
         self.create_service(Trigger, SERVICE_RESUME, self._on_resume)
@@ -198,6 +202,18 @@ class PlantSimulatorNode(Node):
         self._pending = self._last_echo = cmd
         self._unpowered = False
         self._try_step()
+
+    def _on_load_acceleration(self, msg: AccelStamped) -> None:
+        """Take a live arm's upward acceleration: it loads the held object's pads from now."""
+        try:
+            self.plant.drive_load(msg.accel.linear.z)
+        except ValueError as exc:
+            self.loads_refused += 1
+            self.get_logger().warning(f'{TOPIC_LOAD_ACCELERATION} ignored: {exc}',
+                                      throttle_duration_sec=1.0)
+            return
+        self._publish_state(force=True)
+        self._try_step()                        # fast mode: the load needs simulated time
 
     def _on_status(self, data: bytes) -> None:
         msg = read_status(data)
@@ -463,7 +479,8 @@ class PlantSimulatorNode(Node):
                               request.static_friction, request.kinetic_friction,
                               request.pad_length_m)
             lift = Lift(request.lift_acceleration_mps2, request.lift_delay_s,
-                        request.lift_duration_s) if request.lift_duration_s > 0.0 else None
+                        request.lift_duration_s, request.lift_profile,
+                        request.lift_frequency_hz) if request.lift_duration_s > 0.0 else None
             kind, tau = check_fault(request.fault, request.fault_at_s,
                                     request.fault_time_constant_s, obj.rigid)
             self.side.set_object(obj, request.open_fingers, (kind, request.fault_at_s, tau),

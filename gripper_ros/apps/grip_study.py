@@ -1,0 +1,201 @@
+"""grip_study: the load-tracking grip against the fixed laws, over masses, frictions, arm motions.
+
+    ros2 run gripper_ros grip_study [--masses 0.1,0.6,1.2,2.2] [--frictions 0.3,0.5,1.0]
+                                    [--plot docs/grip_study.png] [--jobs N]
+
+Every object is grasped headless (the graph's supervisor and contact stage, compiled) and held
+through each arm motion; its mass and pad friction (mu_k = 0.8 mu_s) are unknown to the
+load-tracking grip, and the fixed laws are told the mass (true, or 25 % low) with the configured
+mu_s. Per law: losses, slip, the grip's mean and largest margin over the slip limit m (g + a) /
+(2 mu_s) while lifted, and the peak at contact over the setpoint. Cases beyond what 24 V holds
+are counted apart, with whether the load-tracking grip said so before the object fell.
+"""
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+
+from gripper_ros.apps.common import load_config_or_report
+
+PROFILES = (('static', 'step:0'), ('step 2', 'step:2'), ('step 5', 'step:5'),
+            ('pick-and-place 3', 'pick-and-place:3'), ('shake 3 @ 2 Hz', 'shake:3,2'))
+"""The arm's motions of the study: (label, --profile text)."""
+LAWS = (('load-tracking (mass, mu unknown)', 'load_tracking', 1.0),
+        ('friction, true mass', 'friction', 1.0),
+        ('friction, mass 25 % low', 'friction', 0.75),
+        ('paper eq. 23, true mass', 'paper', 1.0))
+"""(label, law, declared mass / true mass)."""
+WIDTH_M = 0.05
+KINETIC_SHARE = 0.8
+LIFT_DELAY_S = 0.2
+LIFT_DURATION_S = 1.2              # a pick-and-place: 0.4 s up, across, down
+
+
+def _floats(text: str, name: str) -> list[float]:
+    try:
+        values = [float(v) for v in text.split(',')]
+    except ValueError:
+        raise ValueError(f'--{name} must be numbers separated by commas, got {text!r}') from None
+    for v in values:
+        if not (math.isfinite(v) and v > 0.0):
+            raise ValueError(f'--{name} values must be finite and > 0, got {v!r}')
+    return values
+
+
+def _case(config, case: dict) -> dict:
+    from gripper_ros.core.hold import Lift, parse_profile
+    from gripper_ros.core.load_grip import simulate_load_grip
+    profile, accel, hz = parse_profile(case['profile'])
+    lift = Lift(accel, LIFT_DELAY_S, LIFT_DURATION_S, profile, hz)
+    run = simulate_load_grip(config, WIDTH_M, case['mass_kg'], case['mu_s'],
+                             KINETIC_SHARE * case['mu_s'], lift, case['law'],
+                             case['mass_kg'] * case['declared'],
+                             stiffness_n_per_m=case.get('stiffness_n_per_m', 0.0),
+                             damping_n_s_per_m=case.get('damping_n_s_per_m', 0.0))
+    g = config.plant.gravity_mps2
+    need_n = config.load_grip.grip_margin * case['mass_kg'] * (g + accel) / (2.0 * case['mu_s'])
+    return {**case, 'outcome': run.outcome, 'slip_m': run.slip_m, 'lost_s': run.lost_s,
+            'overload_s': run.overload_s, 'mean_margin': run.mean_margin,
+            'max_margin': run.max_margin, 'peak_ratio': run.contact_peak_ratio,
+            'within': need_n <= config.plant.max_force_n, 'note': run.note}
+
+
+def study_cases(masses, frictions, stiffness_n_per_m=0.0, damping_n_s_per_m=0.0) -> list[dict]:
+    """Every (law, mass, friction, profile) of the study, as keyword dicts."""
+    return [{'label': label, 'law': law, 'declared': declared, 'mass_kg': m, 'mu_s': mu,
+             'profile': text, 'profile_label': name, 'stiffness_n_per_m': stiffness_n_per_m,
+             'damping_n_s_per_m': damping_n_s_per_m}
+            for label, law, declared in LAWS for m in masses for mu in frictions
+            for name, text in PROFILES]
+
+
+def summarise(rows: list[dict]) -> list[str]:
+    """Return the study's table: a line per law (within 24 V), then the cases beyond it."""
+    out = [f'{"law":34s} {"cases":>5s} {"lost":>5s} {"refused":>7s} {"slip mm max":>11s} '
+           f'{"slip mm sum":>11s} {"margin mean":>11s} {"margin max":>10s} '
+           f'{"peak/F_sp":>9s}']
+    for label, *_ in LAWS:
+        mine = [r for r in rows if r['label'] == label and r['within']]
+        held = [r for r in mine if r['outcome'] in ('HOLDING', 'OBJECT_LOST')]
+        lost = sum(r['outcome'] == 'OBJECT_LOST' for r in mine)
+        refused = sum(r['outcome'] == 'REFUSED' for r in mine)
+        kept = [r for r in held if r['outcome'] == 'HOLDING']
+        slips = [r['slip_m'] * 1e3 for r in held]
+        means = [r['mean_margin'] for r in kept if math.isfinite(r['mean_margin'])]
+        maxes = [r['max_margin'] for r in kept if math.isfinite(r['max_margin'])]
+        peaks = [r['peak_ratio'] for r in held if math.isfinite(r['peak_ratio'])]
+        out.append(f'{label:34s} {len(mine):5d} {lost:5d} {refused:7d} '
+                   f'{max(slips, default=math.nan):11.3f} {sum(slips):11.3f} '
+                   f'{sum(means) / len(means) if means else math.nan:11.3f} '
+                   f'{max(maxes, default=math.nan):10.3f} '
+                   f'{max(peaks, default=math.nan):9.4f}')
+    tracking = [r for r in rows if r['law'] == 'load_tracking' and r['within'] and
+                r['outcome'] in ('HOLDING', 'OBJECT_LOST')]
+    for what, key in (('slip', 'slip_m'), ('mean margin', 'mean_margin')):
+        worst = max(tracking, key=lambda r: r[key], default=None)
+        if worst is not None:
+            out.append(f'load-tracking, largest {what}: {worst["mass_kg"]:g} kg, mu_s '
+                       f'{worst["mu_s"]:g}, {worst["profile_label"]}: slip '
+                       f'{worst["slip_m"] * 1e3:.3f} mm, margin mean {worst["mean_margin"]:.3f}')
+    beyond = [r for r in rows if r['law'] == 'load_tracking' and not r['within']]
+    said = [r for r in beyond if math.isfinite(r['overload_s']) and (
+        not math.isfinite(r['lost_s']) or r['overload_s'] < r['lost_s'])]
+    out.append(f'beyond 24 V (load-tracking): {len(beyond)} cases, {len(said)} said overload '
+               f'before the object fell, '
+               f'{sum(r["outcome"] == "OBJECT_LOST" for r in beyond)} lost')
+    worst = max(beyond, key=lambda r: r['mass_kg'] * r['mu_s'] ** -1, default=None)
+    if worst is not None:
+        out.append(f'  e.g. {worst["mass_kg"]:g} kg, mu_s {worst["mu_s"]:g}, '
+                   f'{worst["profile_label"]}: {worst["outcome"]}; {worst["note"]}')
+    return out
+
+
+def plot_pick_and_place(config, path: str, mass_kg: float = 0.6, mu_s: float = 0.3) -> None:
+    """Grip force, load and slip over a pick-and-place: load-tracking vs the wrong-mass law."""
+    import matplotlib
+    matplotlib.use('Agg')
+    import matplotlib.pyplot as plt
+    from gripper_ros.core.hold import Lift
+    from gripper_ros.core.load_grip import simulate_load_grip
+    from gripper_ros.wire import LiftProfile
+    lift = Lift(3.0, LIFT_DELAY_S, LIFT_DURATION_S, LiftProfile.PICK_AND_PLACE)
+    fig, axes = plt.subplots(3, 1, figsize=(8, 8), sharex=True)
+    reference = None
+    for law, declared, name in (('load_tracking', 1.0, 'load-tracking (mass, mu unknown)'),
+                                ('friction', 0.75, 'friction law, mass 25 % low')):
+        run = simulate_load_grip(config, WIDTH_M, mass_kg, mu_s, KINETIC_SHARE * mu_s, lift,
+                                 law, mass_kg * declared, decimate=10)
+        rows = run.rows
+        t = (rows[:, 0] - rows[0, 0]) * 1e-9
+        limit = rows[:, 3] / (2.0 * mu_s)
+        axes[0].plot(t, rows[:, 1], label=f'{name}: grip F')
+        axes[1].plot(t, rows[:, 1] / limit.clip(min=1e-9), label=name)
+        axes[2].plot(t, rows[:, 5] * 1e3, label=name)
+        if reference is None:                          # the load-tracking run lasts it all
+            reference = (t, limit, rows[:, 3])
+    t, limit, load = reference
+    axes[0].plot(t, limit, 'k--', label='slip limit m (g + a) / (2 mu_s)')
+    axes[0].plot(t, load, 'k:', label='load m (g + a)')
+    axes[0].set_ylabel('N')
+    axes[1].set_ylabel('grip / slip limit')
+    axes[1].set_ylim(0.0, 3.0)
+    axes[1].axhline(1.0, color='k', lw=0.5)
+    axes[2].set_ylabel('slip mm')
+    axes[2].set_xlabel('s after HOLDING')
+    for ax in axes:
+        ax.legend(fontsize=7)
+    fig.suptitle(f'pick-and-place +-3 m/s^2, {mass_kg:g} kg, mu_s {mu_s:g}')
+    fig.tight_layout()
+    fig.savefig(path, dpi=90)
+    plt.close(fig)
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(prog='grip_study', description=__doc__.splitlines()[0])
+    p.add_argument('--masses', default='0.1,0.6,1.2,2.2', help='kg, comma-separated')
+    p.add_argument('--frictions', default='0.3,0.5,1.0', help='mu_s, comma-separated')
+    p.add_argument('--stiffness', type=float, default=0.0,
+                   help='object contact stiffness N/m (0 = rigid)')
+    p.add_argument('--damping', type=float, default=0.0, help='object contact damping N s/m')
+    p.add_argument('--plot', default=None, help='write the pick-and-place figure here (PNG)')
+    p.add_argument('--jobs', type=int, default=1, help='processes (default 1)')
+    p.add_argument('--config', default=None, help='YAML parameter file (default: installed)')
+    args = p.parse_args(argv)
+    try:
+        masses = _floats(args.masses, 'masses')
+        frictions = _floats(args.frictions, 'frictions')
+    except ValueError as exc:
+        print(f'grip_study: {exc}', file=sys.stderr)
+        return 2
+    for name in ('stiffness', 'damping'):
+        value = getattr(args, name)
+        if not (math.isfinite(value) and value >= 0.0):
+            print(f'grip_study: --{name} must be finite and >= 0, got {value!r}',
+                  file=sys.stderr)
+            return 2
+    if args.jobs < 1:
+        print(f'grip_study: --jobs must be >= 1, got {args.jobs}', file=sys.stderr)
+        return 2
+    config = load_config_or_report('grip_study', args.config)
+    if config is None:
+        return 2
+    import functools
+    from gripper_ros.core.headless import map_cases
+    rows = map_cases(functools.partial(_case, config),
+                     study_cases(masses, frictions, args.stiffness, args.damping),
+                     jobs=args.jobs)
+    print(f'{len(rows)} grasps: {WIDTH_M * 1e3:g} mm objects of {args.masses} kg, mu_s '
+          f'{args.frictions} (mu_k = {KINETIC_SHARE:g} mu_s); arm: '
+          + ', '.join(name for name, _ in PROFILES) + '; ' +
+          (f'{args.stiffness:g} N/m, {args.damping:g} N s/m' if args.stiffness else 'rigid'))
+    for line in summarise(rows):
+        print(line)
+    if args.plot:
+        plot_pick_and_place(config, args.plot)
+        print(f'figure: {args.plot}')
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())

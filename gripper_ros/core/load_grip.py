@@ -1,0 +1,437 @@
+"""The load-tracking grip: an object of unknown mass and friction held with the least force.
+
+As a human does (Johansson and Westling 1984): close to a light touch, then let the grip force
+follow the load the pads feel, ``F_sp(t) = k F_load(t) / (2 mu_est)``, with a margin ``k`` of
+1.2-1.4 over the slip limit, and raise it at once when the object slips.
+
+* ``F_load`` is the sum of the two pads' shear readings (``core/pad_sensor.py``).
+* ``mu_est`` starts at a conservative ``mu_start`` and is measured from the incipient slip:
+  while the object is stuck each pad's displacement follows Cattaneo-Mindlin, ``delta = b +
+  3 mu F / (2 k_t) [1 - (1 - Q / (mu F))^(2/3)]`` (``core/hold.py``), with the pads' own
+  tangential stiffness ``k_t`` and an offset ``b`` left by any earlier slip. For each ``mu`` of
+  a grid the law keeps the running mean and variance of ``delta - delta_CM(Q, F, mu)`` over
+  the samples since the last slip; the ``mu`` whose residual varies least is the estimate, once
+  the grid tells the candidates apart (the grip's own rise and the arm's motion sweep ``Q /
+  F``). It is used times ``mu_safety`` (< 1), so that a noisy estimate errs towards force.
+* A slip is the displacement growing faster than ``slip_speed_mps`` over ``slip_window_s``:
+  ``mu_est`` drops to what the pads then carry, ``Q / F`` (kinetic friction, a lower bound of
+  the static one), so ``F_sp`` jumps to ``k`` times the force at once, and again each sample
+  while the slip lasts.
+* Until ``mu`` is measured the grip relaxes at ``release_rate_n_per_s`` towards the grip of
+  the most friction expected; the incipient slip this brings on is what the fit reads. The grip
+  never goes below the touch force.
+* Overload: when the load needs more than ``max_force_n`` at ``mu_est`` (margin 1), or the
+  object slips for ``overload_slip_s`` with the grip at ``max_force_n``, the law says so
+  (``overload_ns``) while the object is still between the pads.
+
+:func:`run_load_grip` is the hold compiled: pads' truth -> sensors -> law -> the force stage
+(the same contact-aware stage kernel as the graph's) -> the plant, each force sample.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+import enum
+import math
+
+from gripper_ros.core.config import ForceLaw, GripperConfig, LoadGripParams
+from gripper_ros.core.controllers import make_plant
+from gripper_ros.core.headless import _Loop
+from gripper_ros.core.hold import (hold_presliding_m, hold_schedule_lift, hold_shear_n,
+                                   HoldState, Lift, presliding_m)
+from gripper_ros.core.lockstep import PlantSide
+from gripper_ros.core.pad_sensor import (CHANNEL_DTYPE, channel_step, make_channel,
+                                         MAX_LATENCY_SAMPLES)
+from gripper_ros.core.plant import GraspObject, K_HOLD, plant_read_tick, plant_step
+from gripper_ros.core.requests import GraspRequest, RequestError, validate_request
+from gripper_ros.core.stages import (ForceStageController, PositionStageController,
+                                     stage_answer)
+from gripper_ros.core.supervisor import GraspSupervisor
+from gripper_ros.wire import Controller, Outcome
+import numba
+import numpy as np
+
+MU_GRID = np.round(np.arange(0.20, 1.2001, 0.01), 2)
+"""The friction coefficients the estimator tells apart."""
+NEIGHBOURS = 5
+"""An estimate is believed once the candidates this many grid steps away fit clearly worse."""
+NEIGHBOUR_SIGNIFICANCE = 25.0
+"""How much worse, in units of noise variance / samples (a 5-sigma difference)."""
+SEPARATION_NOISES = 20.0
+"""The whole grid must span this many noise variances: the load and grip have moved."""
+STUCK_HEADROOM = 1.1
+"""A stuck pad carrying Q / F has mu_s at least this much above it (the slip test's model)."""
+SLIP_SHARE = 0.5
+"""A fast displacement is a slip only while the pads carry this share of mu_est F or more."""
+SATURATED = 0.98
+"""A slip with the grip at this share of the most 24 V holds is an overload."""
+
+GRIP_DTYPE = np.dtype([
+    ('k_margin', np.float64),
+    ('mu_start', np.float64),
+    ('mu_safety', np.float64),
+    ('touch_force_n', np.float64),
+    ('max_force_n', np.float64),
+    ('tangential_stiffness_n_per_m', np.float64),
+    ('slip_speed_mps', np.float64),
+    ('window', np.int64),              # samples over which the slip speed is measured
+    ('rest', np.int64),                # samples below it that end a slip
+    ('overload_samples', np.int64),    # slipping this long at the most 24 V gives: overload
+    ('min_samples', np.int64),         # before an estimate is believed
+    ('separation', np.float64),        # residual variance the grid must span (m^2)
+    ('dt_s', np.float64),
+    ('release_rate_n_per_s', np.float64),
+    ('mu_est', np.float64),
+    ('force_setpoint_n', np.float64),
+    ('slipping', np.uint8),
+    ('mu_at_slip', np.float64),
+    ('slipping_saturated', np.int64),  # samples slipping with the grip at its most
+    ('quiet', np.int64),
+    ('head', np.int64),
+    ('filled', np.int64),
+    ('count', np.int64),
+    ('slips', np.int64),
+    ('estimated', np.uint8),
+    ('overload_ns', np.int64),         # -1: never
+    ('overload_need_n', np.float64),
+], align=True)
+"""The law's settings and state."""
+
+
+def make_law(params: LoadGripParams, max_force_n: float, tangential_stiffness_n_per_m: float,
+             dt_s: float, displacement_noise_m: float, displacement_resolution_m: float):
+    """Return the law's (record, displacement history, residual sums) for samples ``dt_s``."""
+    rec = np.zeros(1, GRIP_DTYPE)
+    r = rec[0]
+    r['k_margin'] = params.grip_margin
+    r['mu_start'] = params.mu_start
+    r['mu_safety'] = params.mu_safety
+    r['touch_force_n'] = params.touch_force_n
+    r['max_force_n'] = max_force_n
+    r['tangential_stiffness_n_per_m'] = tangential_stiffness_n_per_m
+    r['slip_speed_mps'] = params.slip_speed_mps
+    r['window'] = max(1, round(params.slip_window_s / dt_s))
+    r['rest'] = max(1, round(params.slip_rest_s / dt_s))
+    r['overload_samples'] = max(1, round(params.overload_slip_s / dt_s))
+    r['min_samples'] = params.min_samples
+    noise_var = displacement_noise_m ** 2 + displacement_resolution_m ** 2 / 12.0
+    r['separation'] = SEPARATION_NOISES * noise_var
+    r['dt_s'] = dt_s
+    r['release_rate_n_per_s'] = params.release_rate_n_per_s
+    r['mu_est'] = params.mu_start
+    r['force_setpoint_n'] = params.touch_force_n
+    r['overload_ns'] = -1
+    history = np.zeros((3, int(r['window']) + 1))
+    sums = np.zeros((2, MU_GRID.size))
+    return rec, history, sums
+
+
+@numba.njit(cache=True)
+def law_step(g, history, sums, grid, t_ns, shear_n, displacement_m, force_n):
+    """Take one sample of the pads (mean shear per pad, mean displacement) and the grip force.
+
+    ``history`` (3 x window + 1) keeps the last displacements, shears and forces. Returns the
+    force setpoint.
+    """
+    n = history.shape[1]
+    head = g.head
+    old = (head + 1) % n
+    history[0, head] = displacement_m
+    history[1, head] = shear_n
+    history[2, head] = force_n
+    g.head = old
+    if g.filled < n:
+        g.filled += 1
+    load_n = 2.0 * shear_n if shear_n > 0.0 else 0.0
+    grip_n = force_n if force_n > 0.0 else 0.0
+    speed = 0.0
+    if g.filled == n:
+        # what the pads' own shear explains of the displacement (Cattaneo-Mindlin at the
+        # friction believed) is not a slip: a load that jumps moves the object that far
+        # the friction believed, but never less than the pads are seen to carry stuck
+        grip_old = history[2, old] if history[2, old] > 0.0 else 0.0
+        mu = g.mu_est / g.mu_safety
+        for carried in (shear_n / grip_n if grip_n > 0.0 else 0.0,
+                        history[1, old] / grip_old if grip_old > 0.0 else 0.0):
+            if STUCK_HEADROOM * carried > mu:
+                mu = STUCK_HEADROOM * carried
+        k_t = g.tangential_stiffness_n_per_m
+        sheared = presliding_m(shear_n, grip_n, mu, k_t) - presliding_m(
+            history[1, old], grip_old, mu, k_t)
+        speed = (displacement_m - history[0, old] - sheared) / ((n - 1) * g.dt_s)
+    felt = shear_n / grip_n if grip_n > 0.0 else 0.0
+    # a slip: the object runs down the pads while they carry near all friction gives (a load
+    # that jumps moves it fast too, but within the pads' shear, at a small Q / F)
+    reference = g.mu_at_slip if g.slipping else g.mu_est
+    if speed > g.slip_speed_mps and felt >= SLIP_SHARE * reference:
+        if not g.slipping:
+            g.slips += 1
+            g.mu_at_slip = g.mu_est
+            g.estimated = 0                            # measure it again once it sticks
+        g.slipping = 1
+        g.quiet = 0
+        if felt < g.mu_est:                            # kinetic: a lower bound of mu_s
+            g.mu_est = felt if felt > grid[0] else grid[0]
+        if g.slipping_saturated < g.overload_samples and \
+                grip_n >= SATURATED * g.max_force_n:
+            g.slipping_saturated += 1
+        g.count = 0
+        for j in range(sums.shape[1]):
+            sums[0, j] = 0.0
+            sums[1, j] = 0.0
+    elif g.slipping:
+        g.quiet += 1
+        if g.quiet >= g.rest:
+            g.slipping = 0
+            g.slipping_saturated = 0
+    elif grip_n > 0.0 and load_n > 0.0:
+        g.count += 1
+        best, lo, hi = -1, math.inf, 0.0
+        for j in range(grid.shape[0]):
+            e = displacement_m - presliding_m(shear_n, grip_n, grid[j],
+                                              g.tangential_stiffness_n_per_m)
+            sums[0, j] += e
+            sums[1, j] += e * e
+            mean = sums[0, j] / g.count
+            var = sums[1, j] / g.count - mean * mean
+            if var < lo:
+                lo, best = var, j
+            if var > hi:
+                hi = var
+        if g.count >= g.min_samples and 0 < best < grid.shape[0] - 1 and \
+                hi - lo > g.separation and \
+                _distinct(sums, g.count, best, g.separation / SEPARATION_NOISES):
+            g.mu_est = g.mu_safety * grid[best]
+            g.estimated = 1
+    # Not yet measured: the grip relaxes (at the release rate) towards the least friction's
+    # grip; the incipient slip it brings on is what measures mu.
+    mu = g.mu_est if g.estimated or g.slipping or load_n == 0.0 else grid[-1]
+    need_n = load_n / (2.0 * g.mu_est)
+    setpoint = g.k_margin * load_n / (2.0 * mu)
+    if setpoint < g.touch_force_n:
+        setpoint = g.touch_force_n                     # never below the touch
+    lowest = g.force_setpoint_n - g.release_rate_n_per_s * g.dt_s
+    if g.slipping:
+        lowest = g.force_setpoint_n                    # a slip never lowers the grip
+    if setpoint < lowest:
+        setpoint = lowest                              # let go slowly, as a hand does
+    if setpoint > g.max_force_n:
+        setpoint = g.max_force_n
+    if g.overload_ns == -1 and ((g.estimated and need_n > g.max_force_n) or
+                                g.slipping_saturated >= g.overload_samples):
+        g.overload_ns = t_ns
+        g.overload_need_n = need_n
+    g.force_setpoint_n = setpoint
+    return setpoint
+
+
+@numba.njit(cache=True)
+def _distinct(sums, count, best, noise_var):
+    """Tell whether the candidates ``NEIGHBOURS`` grid steps away fit measurably worse.
+
+    Their residual variance must exceed the best's by ``NEIGHBOUR_SIGNIFICANCE`` times what
+    the sensor's noise alone would give over ``count`` samples.
+    """
+    mean = sums[0, best] / count
+    low = sums[1, best] / count - mean * mean
+    for j in (best - NEIGHBOURS, best + NEIGHBOURS):
+        if 0 <= j < sums.shape[1]:
+            m = sums[0, j] / count
+            if sums[1, j] / count - m * m - low < NEIGHBOUR_SIGNIFICANCE * noise_var / count:
+                return False
+    return True
+
+
+ROW_FIELDS = ('t_ns', 'force_n', 'force_setpoint_n', 'load_n', 'capacity_n', 'slip_m',
+              'shear_reading_n', 'displacement_reading_m', 'mu_est', 'state')
+
+
+@numba.njit(cache=True)
+def run_load_grip(plant_k, force_k, ref, cmd, tick, g, history, sums, grid, channels, buffers,
+                  end_ns, decimate, rows, fixed):
+    """Hold with the law from the present tick until ``end_ns`` or the object is gone.
+
+    ``channels``: the five sensor records (shear of pad 1, 2; displacement of pad 1, 2; the
+    normal force on pad 1's load cell, which the law reads with the shear it divides), ``buffers``
+    their delay lines (5 x n). ``fixed``: hold the law record's setpoint instead
+    (the fixed laws, for comparison). Keeps every ``decimate``-th sample in ``rows``
+    (ROW_FIELDS); returns the number of rows kept.
+    """
+    h = plant_k[K_HOLD][0]
+    kept = 0
+    i = 0
+    while tick[0].stamp_ns < end_ns:
+        t = tick[0]
+        force = t.force_n
+        state = h.state
+        held = state == HoldState.STUCK or state == HoldState.SLIDING
+        shear = hold_shear_n(h, force) if held else 0.0
+        disp = hold_presliding_m(h, force) + h.slip_m if held else 0.0
+        q = 0.5 * (channel_step(channels[0], buffers[0], shear) +
+                   channel_step(channels[1], buffers[1], shear))
+        d = 0.5 * (channel_step(channels[2], buffers[2], disp) +
+                   channel_step(channels[3], buffers[3], disp))
+        normal = channel_step(channels[4], buffers[4], force)   # the load cell's third axis
+        if fixed:
+            setpoint = g[0].force_setpoint_n
+        else:
+            setpoint = law_step(g[0], history, sums, grid, t.stamp_ns, q, d, normal)
+        if i % decimate == 0 and kept < rows.shape[0]:
+            load = h.mass_kg * (h.gravity_mps2 + h.acceleration_mps2) if held else 0.0
+            cap = 2.0 * h.static_friction * (force if force > 0.0 else 0.0)
+            rows[kept, 0] = t.stamp_ns
+            rows[kept, 1] = force
+            rows[kept, 2] = setpoint
+            rows[kept, 3] = load
+            rows[kept, 4] = cap
+            rows[kept, 5] = h.slip_m
+            rows[kept, 6] = q
+            rows[kept, 7] = d
+            rows[kept, 8] = g[0].mu_est
+            rows[kept, 9] = state
+            kept += 1
+        i += 1
+        r = ref[0]
+        r.stamp_ns = t.stamp_ns
+        r.revision = t.revision
+        r.force_setpoint_n = setpoint
+        r.position_m = t.position_m
+        r.velocity_mps = t.velocity_mps
+        r.force_n = force
+        r.seed_voltage_v = t.motor_voltage_v
+        r.running = 1
+        stage_answer(force_k, ref, cmd)
+        c = cmd[0]
+        plant_step(plant_k, c.voltage_v, round(c.hold_s * 1e9))
+        plant_read_tick(plant_k, tick, t.revision, c.source)
+        if state == HoldState.LOST or state == HoldState.NONE:
+            break
+    return kept
+
+
+@numba.njit(cache=True)
+def _schedule_lift(plant_k, accel, delay_s, duration_s, profile, hz):
+    h = plant_k[K_HOLD][0]
+    if hold_schedule_lift(h, accel, delay_s, duration_s, profile, hz):
+        return 1
+    h.live = 1
+    return 0
+
+
+class GripLaw(str, enum.Enum):
+    """The grip laws a study compares."""
+
+    LOAD_TRACKING = 'load_tracking'
+    FRICTION = 'friction'
+    PAPER = 'paper'
+
+
+@dataclass
+class GripRun:
+    """One grasp and hold: what a user sees of it, and its series (ROW_FIELDS)."""
+
+    outcome: str                       # HOLDING, OBJECT_LOST, REFUSED, or the grasp's outcome
+    note: str
+    contact_peak_ratio: float          # peak force at contact / the grasp's setpoint
+    slip_m: float
+    lost_s: float                      # after the lift's start; NaN: never
+    overload_s: float                  # when the law said overload, after the lift's start
+    mean_margin: float                 # grip / slip limit m (g + a) / (2 mu_s), while lifted
+    max_margin: float
+    min_margin: float
+    rows: np.ndarray = field(repr=False, default_factory=lambda: np.zeros((0, len(ROW_FIELDS))))
+
+
+def simulate_load_grip(config: GripperConfig, width_m: float, mass_kg: float,
+                       static_friction: float, kinetic_friction: float, lift: Lift | None,
+                       law: GripLaw | str = GripLaw.LOAD_TRACKING,
+                       declared_mass_kg: float | None = None,
+                       stiffness_n_per_m: float = 0.0, damping_n_s_per_m: float = 0.0,
+                       params: LoadGripParams | None = None, after_s: float = 0.5,
+                       decimate: int = 10, seed: int = 1) -> GripRun:
+    """Grasp an object of ``mass_kg`` and pad friction ``mu_s, mu_k`` and hold it through ``lift``.
+
+    ``load_tracking``: the request carries no mass; the contact stage closes to the touch force
+    and the law then sets the grip. ``friction`` / ``paper``: the request declares
+    ``declared_mass_kg`` (default: the true mass) and the lift's ``A`` and the configured mu_s,
+    as a user of the fixed laws must; the grip stays at that setpoint.
+    """
+    law = GripLaw(law)
+    params = params or config.load_grip
+    sup = config.supervisor
+    accel = lift.acceleration_mps2 if lift is not None else 0.0
+    declared = mass_kg if declared_mass_kg is None else declared_mass_kg
+    if law is GripLaw.LOAD_TRACKING:
+        targets = validate_request(GraspRequest(width_m, declared), config.plant, sup)
+        targets = replace(targets, force_setpoint_n=params.touch_force_n)
+    else:
+        law_sup = replace(sup, force_law=ForceLaw(law.value))
+        try:
+            targets = validate_request(GraspRequest(width_m, declared, 0.0, accel),
+                                       config.plant, law_sup)
+        except RequestError as exc:
+            return GripRun('REFUSED', str(exc), math.nan, math.nan, math.nan, math.nan,
+                           math.nan, math.nan, math.nan)
+    plant = make_plant(config)
+    side = PlantSide(plant)
+    side.grasp_mass_kg = mass_kg
+    side.set_object(GraspObject(width_m, stiffness_n_per_m, damping_n_s_per_m, mass_kg,
+                                static_friction, kinetic_friction))
+    supervisor = GraspSupervisor(config.plant, sup)
+    loop = _Loop(side, supervisor, PositionStageController(config),
+                 ForceStageController(config))
+    side.tick()
+    loop.decide()
+    supervisor.request_grasp(targets, declared, after_ns=int(loop.tick[0]['stamp_ns']))
+    loop.state[0]['woken'] = True
+    loop.run()
+    series = loop.series()
+    peak = float(np.nanmax(series[3])) if series[3].size else math.nan
+    ratio = peak / targets.force_setpoint_n
+    if supervisor.outcome is not Outcome.HOLDING:
+        return GripRun(supervisor.outcome.name, supervisor.message, ratio, 0.0, math.nan,
+                       math.nan, math.nan, math.nan, math.nan)
+    start_ns = int(loop.tick[0]['stamp_ns'])
+    end_ns = start_ns + round(((lift.delay_s + lift.duration_s) if lift else 0.0) * 1e9) + \
+        round(after_s * 1e9)
+    lift_start_ns = start_ns
+    if lift is not None:
+        if _schedule_lift(plant.kernel, lift.acceleration_mps2, lift.delay_s, lift.duration_s,
+                          int(lift.profile), lift.frequency_hz):
+            raise RuntimeError('the lift could not be scheduled: the hold has not begun')
+        lift_start_ns = int(plant.kernel[K_HOLD][0]['lift_start_ns'])
+    dt_s = config.force.sample_time_s
+    pads = config.pad_sensor
+    g, history, sums = make_law(params, config.plant.max_force_n,
+                                config.contact.pad_tangential_stiffness_n_per_m, dt_s,
+                                pads.displacement_noise_m, pads.displacement_resolution_m)
+    if law is not GripLaw.LOAD_TRACKING:
+        g[0]['force_setpoint_n'] = targets.force_setpoint_n
+    channels = np.zeros(5, CHANNEL_DTYPE)
+    buffers = np.zeros((5, MAX_LATENCY_SAMPLES))
+    for i, spec in enumerate((pads.shear, pads.shear, pads.displacement, pads.displacement,
+                              pads.shear)):
+        rec, _ = make_channel(spec, dt_s, seed * 5 + i)
+        channels[i] = rec[0]
+    rows = np.zeros(((end_ns - start_ns) // round(dt_s * 1e9) // decimate + 2, len(ROW_FIELDS)))
+    kept = run_load_grip(plant.kernel, loop.stages[Controller.FORCE].stage.kernel, loop.ref,
+                         loop.cmd, loop.tick, g, history, sums, MU_GRID, channels, buffers,
+                         end_ns, decimate, rows, law is not GripLaw.LOAD_TRACKING)
+    rows = rows[:kept]
+    state = plant.object_state
+    lost_s = math.nan if state.lost_ns is None else (state.lost_ns - lift_start_ns) * 1e-9
+    over = int(g[0]['overload_ns'])
+    overload_s = math.nan if over == -1 else (over - lift_start_ns) * 1e-9
+    lifted = (rows[:, 3] > 0.0) & ((rows[:, 9] == HoldState.STUCK) |
+                                   (rows[:, 9] == HoldState.SLIDING))
+    limit = rows[lifted, 3] / (2.0 * static_friction)
+    margin = rows[lifted, 1] / limit if limit.size else np.zeros(0)
+    outcome = 'OBJECT_LOST' if state.lost_ns is not None else 'HOLDING'
+    note = ''
+    if over != -1:
+        note = (f"overload said {overload_s:.3f} s after the lift's start: "
+                f'{g[0]["overload_need_n"]:.2f} N needed, {config.plant.max_force_n:.2f} N '
+                f'at {config.plant.voltage_limit_v:g} V')
+    return GripRun(outcome, note, ratio, float(np.max(rows[:, 5])) if kept else 0.0, lost_s,
+                   overload_s, float(margin.mean()) if margin.size else math.nan,
+                   float(margin.max()) if margin.size else math.nan,
+                   float(margin.min()) if margin.size else math.nan, rows)

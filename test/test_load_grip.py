@@ -1,0 +1,118 @@
+"""The load-tracking grip: mu from the incipient slip, slip answered at once, overload said first.
+
+Known answers: fed a stuck pad's Cattaneo-Mindlin displacement while its grip sweeps, the law
+finds the pad's mu to the grid's step and sets ``F_sp = k F_load / (2 mu_safety mu)``; a
+displacement that runs faster than the slip speed with the pads carrying near mu F raises the
+setpoint at once; an object of unknown mass is grasped headless and held through a
+pick-and-place with the same bits on every run; an object heavier than 24 V can hold is
+declared overloaded before it leaves the pads.
+"""
+import math
+
+from gripper_ros.core.config import load_config
+from gripper_ros.core.hold import Lift, presliding_m
+from gripper_ros.core.load_grip import (law_step, make_law, MU_GRID, simulate_load_grip)
+from gripper_ros.wire import LiftProfile
+import numpy as np
+import pytest
+
+CONFIG = load_config()
+P = CONFIG.load_grip
+K_T = CONFIG.contact.pad_tangential_stiffness_n_per_m
+MAX_N = CONFIG.plant.max_force_n
+DT_S = CONFIG.force.sample_time_s
+
+
+def law():
+    return make_law(P, MAX_N, K_T, DT_S, 0.0, 0.0)
+
+
+@pytest.mark.parametrize('mu', [0.4, 0.6, 0.9])
+def test_mu_is_read_from_the_incipient_slip_and_sets_the_grip(mu):
+    g, history, sums = law()
+    q = 5.0                                            # each pad's shear: a 10 N load
+    for i in range(600):                               # the grip sweeps 30 N -> 14 N
+        f = 30.0 - 16.0 * i / 600
+        law_step(g[0], history, sums, MU_GRID, i, q, presliding_m(q, f, mu, K_T), f)
+    assert g[0]['estimated'] == 1
+    assert g[0]['mu_est'] == pytest.approx(P.mu_safety * mu, abs=0.011)
+    # held still from then on, the setpoint comes down to k F_load / (2 mu_est), no faster
+    # than the release rate, and stays there
+    f = 14.0
+    for i in range(600, 3000):
+        sp = law_step(g[0], history, sums, MU_GRID, i, q, presliding_m(q, f, mu, K_T), f)
+    assert sp == pytest.approx(max(P.touch_force_n,
+                                   P.grip_margin * 2 * q / (2 * g[0]['mu_est'])), rel=1e-12)
+
+
+def test_a_slip_raises_the_grip_at_once():
+    g, history, sums = law()
+    f, q = 10.0, 4.0                                   # carrying 0.4 F per pad
+    d = presliding_m(q, f, 0.5, K_T)
+    for i in range(100):
+        before = law_step(g[0], history, sums, MU_GRID, i, q, d, f)
+    window = int(g[0]['window'])
+    speed = 4 * P.slip_speed_mps
+    for i in range(100, 100 + window + 1):             # the object runs down the pads
+        d += speed * DT_S
+        sp = law_step(g[0], history, sums, MU_GRID, i, q, d, f)
+    assert g[0]['slipping'] == 1 and g[0]['slips'] == 1
+    # mu_est is at most what the pads carry while it slides (kinetic: a lower bound of mu_s)
+    assert g[0]['mu_est'] == min(P.mu_start, q / f)
+    assert sp >= P.grip_margin * f > before            # k times the force, within the window
+
+
+def pick_and_place():
+    return Lift(3.0, 0.2, 1.2, LiftProfile.PICK_AND_PLACE)
+
+
+def test_unknown_mass_held_through_a_pick_and_place_bit_identically():
+    runs = [simulate_load_grip(CONFIG, 0.05, 0.6, 0.3, 0.24, pick_and_place(),
+                               'load_tracking', decimate=1) for _ in range(2)]
+    a, b = runs
+    assert a.outcome == 'HOLDING' and math.isnan(a.lost_s)
+    assert a.slip_m < 0.5e-3 and a.contact_peak_ratio <= 1.10
+    assert 1.0 < a.mean_margin < 1.5                   # measured 1.41 (docs: grip_study)
+    assert np.array_equal(a.rows, b.rows) and a.rows.shape[0] > 10_000
+
+
+def test_the_fixed_laws_stay_selectable_and_the_wrong_mass_loses_it():
+    wrong = simulate_load_grip(CONFIG, 0.05, 0.6, 0.3, 0.24, pick_and_place(), 'friction',
+                               0.45)
+    paper = simulate_load_grip(CONFIG, 0.05, 0.6, 0.5, 0.4, pick_and_place(), 'paper')
+    right = simulate_load_grip(CONFIG, 0.05, 0.6, 0.5, 0.4, pick_and_place(), 'friction')
+    assert wrong.outcome == 'OBJECT_LOST' and paper.outcome == 'OBJECT_LOST'
+    assert right.outcome == 'HOLDING' and right.slip_m == 0.0
+    # the friction law's grip: k m (g + A) / (2 mu_s), the mu_s configured
+    g = CONFIG.plant.gravity_mps2
+    f_sp = CONFIG.supervisor.grip_safety_factor * 0.6 * (g + 3.0) / (
+        2 * CONFIG.supervisor.friction_coefficient)
+    assert right.rows[-1, 2] == pytest.approx(f_sp)
+
+
+def test_an_overload_is_said_before_the_object_falls():
+    run = simulate_load_grip(CONFIG, 0.05, 2.2, 0.3, 0.24, Lift(0.0, 0.2, 1.0),
+                             'load_tracking')
+    need_n = 2.2 * CONFIG.plant.gravity_mps2 / (2 * 0.3)
+    assert need_n > MAX_N
+    assert math.isfinite(run.overload_s)
+    assert run.outcome == 'HOLDING' or run.overload_s < run.lost_s
+    assert f'{MAX_N:.2f} N at 24 V' in run.note
+
+
+def test_grip_study_prints_a_row_per_law_and_refuses_bad_input():
+    from gripper_ros.apps.grip_study import main
+    import contextlib
+    import io
+    out = io.StringIO()
+    with contextlib.redirect_stdout(out):
+        assert main(['--masses', '1.2', '--frictions', '0.5']) == 0
+    lines = out.getvalue().splitlines()
+    row = next(line for line in lines if line.startswith('load-tracking (mass'))
+    cases, lost = row.split()[4:6]
+    assert (cases, lost) == ('5', '0')                  # five motions, none lost
+    assert sum(line.startswith(('friction,', 'paper')) for line in lines) == 3
+    err = io.StringIO()
+    with contextlib.redirect_stderr(err):
+        assert main(['--masses', '1,nan']) == 2
+    assert err.getvalue().count('\n') == 1 and '--masses' in err.getvalue()
