@@ -114,7 +114,8 @@ class PlantSimulatorNode(Node):
         self._last_echo: Command | None = None
         self._tick = self.side.tick()
         self._tick_bytes = TICK_LAYOUT.pack(*self._tick)
-        self._tick_wall = time.monotonic()      # when the current tick was published
+        self._tick_wall = time.monotonic()      # when the current tick was (re)published
+        self._tick_first_wall = self._tick_wall  # when it was first published
         self._woken = False                     # a request is waiting for simulated time
         self._paused = False
         self._budget: tuple[str, int] | None = None    # sim/step: ('ticks', n) or ('until', ns)
@@ -301,7 +302,7 @@ class PlantSimulatorNode(Node):
     def _publish_tick(self) -> None:
         self._tick_bytes = CDR_LITTLE_ENDIAN + self.side.tick_record.tobytes()
         self._tick_pub.publish(self._tick_bytes)
-        self._tick_wall = time.monotonic()
+        self._tick_wall = self._tick_first_wall = time.monotonic()
         self.ticks_published += 1
         self.published[TOPIC_TICK] += 1
 
@@ -369,7 +370,7 @@ class PlantSimulatorNode(Node):
         if self._unpowered and self.time_mode is TimeMode.REALTIME and not self._pacing:
             self._try_step()                    # nobody commands: time goes on at 0 V
             return
-        silent_s = now - self._tick_wall
+        silent_s = now - self._tick_first_wall  # a republished tick is no answer
         if self.time_mode is TimeMode.REALTIME and not self._unpowered and \
                 silent_s >= self.command_timeout_s:
             self._unpowered = True
@@ -377,7 +378,7 @@ class PlantSimulatorNode(Node):
                 f'no command for t={self._tick.stamp_ns * 1e-9:.4f} s in {silent_s:.2f} s: '
                 'motor held at 0 V, time goes on', throttle_duration_sec=5.0)
             self._try_step()
-        elif silent_s >= REPUBLISH_AFTER_S and not self._unpowered:
+        elif now - self._tick_wall >= REPUBLISH_AFTER_S and not self._unpowered:
             self._tick_pub.publish(self._tick_bytes)      # nobody answered: a late peer
             self.published[TOPIC_TICK] += 1
             self._tick_wall = now
