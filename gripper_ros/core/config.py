@@ -229,8 +229,8 @@ def default_config_path() -> Path:
 
 
 MAX_HORIZON = 2000
-"""Most samples of a DMC step-response model: its matrices and its per-tick work grow with it
-(700 for the position stage and 100 for the force stage take about a millisecond to build)."""
+"""Most samples of a DMC step-response model: its matrices, their build when a parameter
+changes and its work every tick grow with it (the shipped horizons are 700 and 100)."""
 
 BOUNDS: dict[str, tuple[float, float]] = {
     # key (dotted, or the leaf name of every key so named): [low, high], both allowed; the
