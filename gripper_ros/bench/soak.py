@@ -68,6 +68,14 @@ def rss_kb() -> int:
     return int(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss)
 
 
+def open_fds() -> int:
+    """Open file descriptors of this process (entries of /proc/self/fd); -1 where unknown."""
+    try:
+        return len(os.listdir('/proc/self/fd'))
+    except OSError:
+        return -1
+
+
 @dataclass
 class GraspRow:
     index: int
@@ -84,6 +92,7 @@ class GraspRow:
     counts_match: bool
     sim_duration_ns: int
     bag: str
+    fds: int = -1
 
 
 @dataclass
@@ -111,6 +120,9 @@ class SoakReport:
     total_wall_s: float
     machine: dict
     rows: list = field(default_factory=list)
+    fds_start: int = -1
+    fds_warm: int = -1
+    fds_end: int = -1
 
 
 # ------------------------------------------------------------------ client process
@@ -264,6 +276,7 @@ def run_soak(graph, worker: _WorkerClient, objects, grasps: int, bag_root: Path,
     rows = [] if rows is None else rows
     marks = {} if marks is None else marks
     marks['start'] = rss_kb()
+    marks['fds_start'] = open_fds()
     for i in range(grasps):
         width, mass = objects[i % len(objects)]
         if client == 'worker':
@@ -300,10 +313,11 @@ def run_soak(graph, worker: _WorkerClient, objects, grasps: int, bag_root: Path,
                        resp.get('message', ''), wall, rss_kb(),
                        published.get(qualified(graph.namespace, TOPIC_TICK), 0), published,
                        recorded, match,
-                       int(check['span_ns']), str(bag) if keep_bags else '')
+                       int(check['span_ns']), str(bag) if keep_bags else '', open_fds())
         rows.append(row)
         if i + 1 == min(warmup, grasps):
             marks['warm'] = row.rss_kb
+            marks['fds_warm'] = row.fds
         if progress is not None:
             progress(row)
     marks.setdefault('warm', marks['start'])
@@ -352,7 +366,10 @@ def summarise(rows: list, marks: dict, objects, warmup: int, executor: str, clie
         machine={'python': platform.python_version(), 'cpus': os.cpu_count(),
                  'load_avg': list(os.getloadavg()),
                  'rmw': os.environ.get('RMW_IMPLEMENTATION', 'rmw_fastrtps_cpp (default)')},
-        rows=[asdict(r) for r in rows])
+        rows=[asdict(r) for r in rows],
+        fds_start=marks.get('fds_start', -1),
+        fds_warm=marks.get('fds_warm', rows[0].fds if rows else -1),
+        fds_end=rows[-1].fds if rows else -1)
 
 
 def format_report(rep: SoakReport) -> str:
@@ -369,6 +386,8 @@ def format_report(rep: SoakReport) -> str:
         f'; growth after warm-up {rep.rss_growth_after_warmup_kb * mb:+.2f} MiB '
         f'(slope {rep.rss_slope_after_warmup_kb_per_grasp:+.1f} KiB/grasp), since start '
         f'{(rep.rss_end_kb - rep.rss_start_kb) * mb:+.1f} MiB',
+        f'open file descriptors of the serving process: start {rep.fds_start}, after warm-up '
+        f'{rep.fds_warm}, end {rep.fds_end}',
         f'wall per grasp: median first {min(DRIFT_WINDOW, rep.grasps)} '
         f'{rep.wall_first_median_s:.3f} s, last {min(DRIFT_WINDOW, rep.grasps)} '
         f'{rep.wall_last_median_s:.3f} s, drift ratio {rep.wall_drift_ratio:.3f}',
