@@ -295,8 +295,10 @@ def run_soak(graph, worker: _WorkerClient, objects, grasps: int, bag_root: Path,
         else:
             resp = _grasp_client_exe(width, mass, grasp_timeout_s + 30.0)
         wall = time.perf_counter() - t0
-        closed = wait_until(lambda: len(recorder.bags) > n_bags and not recorder.recording,
-                            10.0)
+        # the tap lets go of a bag just before its writer finishes it: wait for the finished
+        # file, else the check may read it mid-close and call it truncated
+        closed = wait_until(lambda: len(recorder.bags) > n_bags and not recorder.recording
+                            and _finished(recorder.bags[-1]), 10.0)
         # every lockstep message published from the grasp's request on (state topics are
         # sampled on the grid of simulated time, and the request's own status precedes it)
         published = {qualified(graph.namespace, t): n - before.get(t, 0)
@@ -324,6 +326,21 @@ def run_soak(graph, worker: _WorkerClient, objects, grasps: int, bag_root: Path,
     marks['end'] = rows[-1].rss_kb if rows else marks['start']
     recorder.close()
     return rows, marks
+
+
+def _finished(bag: Path) -> bool:
+    """Whether every MCAP file of ``bag`` ends with the magic its writer writes last."""
+    from gripper_ros.bags.mcap_file import MAGIC
+    files = list(Path(bag).glob('*.mcap'))
+    for f in files:
+        try:
+            with open(f, 'rb') as stream:
+                stream.seek(-len(MAGIC), os.SEEK_END)
+                if stream.read() != MAGIC:
+                    return False
+        except OSError:
+            return False
+    return bool(files)
 
 
 def _slope(xs, ys) -> float:
