@@ -287,3 +287,66 @@ def test_a_plant_whose_supervisor_died_keeps_its_clock():
         t0 = g.sim_time_ns
         time.sleep(1.0)
         assert (g.sim_time_ns - t0) * 1e-9 >= 0.5         # paced at 1: about 1 s on
+
+
+# ---------------------------------------------------------------- small: a plant killed
+def test_a_grasp_whose_plant_process_was_killed_says_the_plant_is_gone():
+    """A killed plant stays discovered for a while: the silence of its ticks tells."""
+    from gripper_interfaces.srv import Grasp, SetObject
+    from gripper_ros.nodes.common import call_and_wait, make_executor, ExecutorKind
+    from gripper_ros.nodes.force_controller_node import ForceControllerNode
+    from gripper_ros.nodes.position_controller_node import PositionControllerNode
+    from gripper_ros.nodes.supervisor_node import SupervisorNode
+    from rclpy.context import Context
+    from rclpy.parameter import Parameter
+    import subprocess
+    import sys
+    namespace = f'killed_plant_{os.getpid()}'
+    plant = subprocess.Popen(
+        [sys.executable, '-m', 'gripper_ros.nodes.plant_simulator_node', '--ros-args', '-r',
+         f'__ns:=/{namespace}', '-p', 'publish_clock:=false', '-p', 'time_mode:=realtime'],
+        stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    context = Context()
+    rclpy.init(context=context)
+    kw = {'namespace': namespace, 'context': context}
+    nodes = [SupervisorNode(parameter_overrides=[Parameter('tick_timeout_s', value=1.0)], **kw),
+             PositionControllerNode(**kw), ForceControllerNode(**kw)]
+    client = rclpy.create_node('killed_plant_client', **kw)
+    executor = make_executor(ExecutorKind.SINGLE, context)
+    for n in (*nodes, client):
+        executor.add_node(n)
+    spinner = threading.Thread(target=executor.spin, daemon=True)
+    spinner.start()
+    try:
+        place = client.create_client(SetObject, SERVICE_SET_OBJECT, qos_profile=SERVICE_QOS)
+        grasp = client.create_client(Grasp, 'grasp', qos_profile=SERVICE_QOS)
+        assert place.wait_for_service(timeout_sec=60.0) and grasp.wait_for_service(10.0)
+        placed = call_and_wait(place, SetObject.Request(width_m=WIDTH, open_fingers=True), 30.0)
+        assert placed is not None and placed.success
+        answers = []
+
+        def ask():
+            for _ in range(120):                  # refused until every peer is discovered
+                answer = call_and_wait(grasp, Grasp.Request(width_m=WIDTH, mass_kg=MASS), 60.0)
+                if answer is None or 'not yet discovered' not in answer.message:
+                    answers.append(answer)
+                    return
+                time.sleep(0.5)
+
+        asker = threading.Thread(target=ask, daemon=True)
+        asker.start()
+        assert _wait_for(lambda: nodes[0].logic.running, 60.0)
+        plant.kill()
+        plant.wait()
+        asker.join(30.0)
+        assert answers and answers[0] is not None
+        assert answers[0].outcome == Outcome.FAULT, answers[0].message
+        assert 'plant_simulator is gone' in answers[0].message, answers[0].message
+    finally:
+        if plant.poll() is None:
+            plant.kill()
+            plant.wait()
+        executor.shutdown(timeout_sec=1.0)
+        for n in (*nodes, client):
+            n.destroy_node()
+        rclpy.try_shutdown(context=context)

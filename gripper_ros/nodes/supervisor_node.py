@@ -23,6 +23,7 @@ from __future__ import annotations
 from collections import Counter
 import math
 import sys
+import time
 
 from gripper_interfaces.msg import PlantTick, SimStatus, StageReference, SupervisorStatus
 from gripper_interfaces.srv import Grasp, Move
@@ -34,6 +35,7 @@ from gripper_ros.nodes.common import (default_namespace, DeferredService, Execut
                                       GRAPH_QOS, LATCHED_QOS, run_node, SERVICE_QOS)
 from gripper_ros.nodes.loop_io import decode, split_ns, status_message, status_template
 from gripper_ros.nodes.parameters import ConfigParameters
+from gripper_ros.nodes.plant_simulator_node import REPUBLISH_AFTER_S
 from gripper_ros.wire import (CDR_LITTLE_ENDIAN, Controller, NODE_FORCE_CONTROLLER, NODE_PLANT,
                               NODE_POSITION_CONTROLLER, NODE_SUPERVISOR, Outcome,
                               SERVICE_GRASP, SERVICE_MOVE, SERVICE_RELEASE,
@@ -95,6 +97,7 @@ class SupervisorNode(Node):
         self._outcome_pub = self.create_publisher(SupervisorStatus, TOPIC_OUTCOME, LATCHED_QOS)
         self.create_subscription(PlantTick, TOPIC_TICK, self._on_tick, GRAPH_QOS, raw=True)
         self.sim_paused = False                 # the plant's sim/status says time is held
+        self._last_tick_wall = time.monotonic()  # any tick, a republished one included
         self.create_subscription(SimStatus, TOPIC_SIM_STATUS, self._on_sim_status, GRAPH_QOS)
         self.grasp_service = DeferredService(self, Grasp, SERVICE_GRASP, self._on_grasp)
         self.release_service = DeferredService(self, Trigger, SERVICE_RELEASE, self._on_release)
@@ -130,6 +133,7 @@ class SupervisorNode(Node):
 
     # ------------------------------------------------------------------ the tick
     def _on_tick(self, data: bytes) -> None:
+        self._last_tick_wall = time.monotonic()   # a repeat too: the plant is alive
         values = decode(TICK_LAYOUT, data, PlantTick)
         tick = Tick._make(values)
         key = (tick.stamp_ns, tick.revision)
@@ -390,10 +394,15 @@ class SupervisorNode(Node):
             self.resolve_topic_name(TOPIC_MOTOR_COMMAND))}
         plants = {i.node_name for i in self.get_publishers_info_by_topic(
             self.resolve_topic_name(TOPIC_TICK))}
+        tick_silent_s = time.monotonic() - self._last_tick_wall
         if expected not in commanders:
             who = f'{expected} is gone (no publisher on {TOPIC_MOTOR_COMMAND})'
         elif NODE_PLANT not in plants:
             who = f'{NODE_PLANT} is gone (no publisher on {TOPIC_TICK})'
+        elif tick_silent_s >= max(self.tick_timeout_s, 2 * REPUBLISH_AFTER_S):
+            # a live plant publishes an unanswered tick again every REPUBLISH_AFTER_S
+            who = (f'{NODE_PLANT} is gone or hung (no tick at all for {tick_silent_s:.2f} s; '
+                   f'a killed process stays discovered for a while)')
         else:
             who = f'{expected} did not answer or {NODE_PLANT} did not advance'
         t_ns = self._tick.stamp_ns if self._tick else 0
