@@ -160,3 +160,16 @@ def test_grasp_demo_refuses_an_output_it_cannot_write_in_one_line(tmp_path, make
     lines = captured.err.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith('grasp_demo: --output') and words in lines[0], \
         captured.err
+
+
+@pytest.mark.parametrize('content', [None, b'\x00\xff garbage: ['])
+def test_grasp_demo_refuses_a_bad_params_file_in_one_line(tmp_path, content, capsys):
+    from gripper_ros.apps import grasp_demo
+    path = tmp_path / 'params.yaml'
+    if content is not None:
+        path.write_bytes(content)
+    code, captured = run_main(grasp_demo.main, ['--no-record', '--no-plot', '--ros-args',
+                                                '--params-file', str(path)], capsys)
+    assert code == 2
+    lines = captured.err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith('grasp_demo: bad --ros-args'), captured.err

@@ -116,10 +116,14 @@ def _fail(message: str) -> int:
 def main(argv: list[str] | None = None) -> int:
     os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
     import rclpy
+    from rclpy._rclpy_pybind11 import RCLError
     from rclpy.utilities import remove_ros_args
 
-    args = build_parser().parse_args(remove_ros_args(sys.argv if argv is None else
-                                                     ['grasp_demo', *argv])[1:])
+    try:
+        user_args = remove_ros_args(sys.argv if argv is None else ['grasp_demo', *argv])[1:]
+    except RCLError as exc:          # e.g. a --params-file that is missing or not YAML
+        return _fail(f'bad --ros-args: {" ".join(str(exc).split())}')
+    args = build_parser().parse_args(user_args)
     if (args.width is None) != (args.mass is None):
         return _fail('--width and --mass go together')
     objects = PAPER_OBJECTS if args.width is None else ((args.width, args.mass),)
@@ -138,7 +142,6 @@ def main(argv: list[str] | None = None) -> int:
     from gripper_ros.nodes.graph import GraphError, GraphOptions, GripperGraph
     from gripper_ros.nodes.names import namespace_as_given
     from gripper_ros.wire import check_namespace
-    from rclpy._rclpy_pybind11 import RCLError
 
     try:
         check_namespace(args.namespace)
