@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import enum
 import re
+import string
 import struct
 
 import numpy as np
@@ -91,15 +92,27 @@ def qualified(namespace: str, name: str) -> str:
     return f'{ns}/{name}'
 
 
+NAME_CHARACTERS = frozenset(string.ascii_letters + string.digits + '_')
+"""What a part of a ROS name may hold (ASCII only: rcl refuses other letters)."""
+MAX_NAMESPACE_LENGTH = 190
+"""Longest namespace (without its slashes) allowed: every node's, topic's, service's and
+action's full name under it must fit rcl's limit (a graph comes up under 195 characters and not
+under 200, where rcl cannot name a node's ``~/get_type_description``); ``test_hostile_graph``
+grasps under this one."""
+
+
 def check_namespace(namespace: str) -> str:
     """``namespace`` without slashes at its ends, or ValueError saying what a ROS name allows."""
     ns = namespace.strip('/')
     parts = ns.split('/') if ns else []
     for part in parts:
-        if not part or not (part[0].isalpha() or part[0] == '_') or \
-                not all(c.isalnum() or c == '_' for c in part):
+        if not part or part[0].isdigit() or not set(part) <= NAME_CHARACTERS:
             raise ValueError(f'namespace {namespace!r} is not a ROS name: each part must start '
-                             'with a letter or _ and hold only letters, digits and _')
+                             'with an ASCII letter or _ and hold only ASCII letters, digits '
+                             'and _')
+    if len(ns) > MAX_NAMESPACE_LENGTH:
+        raise ValueError(f'namespace is {len(ns)} characters long; at most '
+                         f'{MAX_NAMESPACE_LENGTH} leave room for the names under it')
     return ns
 
 

@@ -84,3 +84,14 @@ def test_server_memory_does_not_grow_after_warm_up(soak):
           f'wall drift ratio {rep["wall_drift_ratio"]:.3f} (printed, not asserted)')
     assert growth < RSS_BOUND_KIB
     assert max(r['rss_kb'] for r in rows[WARMUP:]) - warm < RSS_BOUND_KIB
+
+
+def test_server_file_descriptors_do_not_grow_after_warm_up(soak):
+    """A bag, a recorder or a client left open would add at least one descriptor a grasp."""
+    _, rep = soak
+    rows = rep['rows']
+    assert rep['fds_warm'] == rows[WARMUP - 1]['fds'] > 0
+    assert rep['fds_end'] == rows[-1]['fds']
+    print(f'open fds start {rep["fds_start"]}, warm {rep["fds_warm"]}, end {rep["fds_end"]}')
+    assert len(rows) - WARMUP >= 3                 # a leak of one a grasp shows as >= 3
+    assert max(r['fds'] for r in rows[WARMUP:]) <= rep['fds_warm'] + 1   # one in passing

@@ -103,6 +103,23 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
+def _output_problem(folder: Path) -> str:
+    """Why bags and figures cannot be written under ``folder`` ('' when they can).
+
+    The folder is made if it is missing; a file in the way, a read-only place or a path that
+    cannot exist is said in one line before anything starts.
+    """
+    if folder.exists() and not folder.is_dir():
+        return f'--output {folder}: not a folder'
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        return f'--output {folder}: cannot make the folder: {exc.strerror}'
+    if not os.access(folder, os.W_OK | os.X_OK):
+        return f'--output {folder}: the folder is not writable'
+    return ''
+
+
 def _fail(message: str) -> int:
     print(f'grasp_demo: {message}', file=sys.stderr)
     return 2
@@ -111,10 +128,14 @@ def _fail(message: str) -> int:
 def main(argv: list[str] | None = None) -> int:
     os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
     import rclpy
+    from rclpy._rclpy_pybind11 import RCLError
     from rclpy.utilities import remove_ros_args
 
-    args = build_parser().parse_args(remove_ros_args(sys.argv if argv is None else
-                                                     ['grasp_demo', *argv])[1:])
+    try:
+        user_args = remove_ros_args(sys.argv if argv is None else ['grasp_demo', *argv])[1:]
+    except RCLError as exc:          # e.g. a --params-file that is missing or not YAML
+        return _fail(f'bad --ros-args: {" ".join(str(exc).split())}')
+    args = build_parser().parse_args(user_args)
     if (args.width is None) != (args.mass is None):
         return _fail('--width and --mass go together')
     objects = PAPER_OBJECTS if args.width is None else ((args.width, args.mass),)
@@ -139,21 +160,39 @@ def main(argv: list[str] | None = None) -> int:
     from gripper_ros.bags.recorder import BagRecorderError
     from gripper_ros.bags.recording import RecordingError, ServeRecorder
     from gripper_ros.core.config import ConfigError
-    from gripper_ros.nodes.common import ExecutorKind, StartupError
+    from gripper_ros.nodes.common import ExecutorKind, one_line, StartupError
     from gripper_ros.nodes.graph import GraphError, GraphOptions, GripperGraph
+    from gripper_ros.nodes.names import namespace_as_given
     from gripper_ros.wire import check_namespace
 
     try:
-        namespace = check_namespace(args.namespace)
+        check_namespace(args.namespace)
     except ValueError as exc:
         return _fail(str(exc))
+    if not (args.no_record and (args.serve or args.no_plot)):
+        problem = _output_problem(Path(args.output))
+        if problem:
+            return _fail(problem)
     if not (math.isfinite(args.real_time_factor) and 0.0 < args.real_time_factor <= 100.0):
         return _fail(f'--real-time-factor must be in (0, 100], got {args.real_time_factor!r}')
     time_mode = args.time_mode or ('realtime' if args.serve else 'fast')
     from rclpy.signals import SignalHandlerOptions
     # Ctrl-C and SIGTERM end the demo here (KeyboardInterrupt), not inside rclpy: the graph
     # stops its executor, closes its bags and only then shuts the context down.
-    rclpy.init(args=None if argv is None else [], signal_handler_options=SignalHandlerOptions.NO)
+    from rclpy.exceptions import InvalidNamespaceException
+    from rclpy.utilities import ok
+    try:
+        rclpy.init(args=None if argv is None else ['grasp_demo', *argv],
+                   signal_handler_options=SignalHandlerOptions.NO)
+        # one namespace, however it is given: --namespace, or a remap -r __ns:=/x (which wins,
+        # as for every ROS node): the banner, the name claim and the bags all use this one
+        namespace = check_namespace(namespace_as_given(args.namespace))
+    except (ValueError, InvalidNamespaceException) as exc:
+        if ok():
+            rclpy.try_shutdown()
+        return _fail(one_line(exc))
+    except RCLError as exc:
+        return _fail(f'bad --ros-args: {one_line(exc)}')
     # SIGTERM (e.g. from a process manager) ends the demo like Ctrl-C: bags are closed.
     previous = {sig: signal.signal(sig, _raise_keyboard_interrupt) for sig in _STOP_SIGNALS}
     graph = None

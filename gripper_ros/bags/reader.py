@@ -318,7 +318,12 @@ def _bag_files(path: Path) -> tuple[list[Path], dict]:
     storage = str(info.get('storage_identifier', 'mcap') or 'mcap')
     if storage != 'mcap':
         raise NotABagError(f'{path}: storage {storage!r} is not supported (only mcap)')
-    files = [path / rel for rel in info.get('relative_file_paths', []) or []]
+    files = [path / str(rel) for rel in info.get('relative_file_paths', []) or []]
+    inside = path.resolve()
+    for f in files:
+        if not f.resolve().is_relative_to(inside):
+            raise NotABagError(f'{path}: metadata.yaml lists {f.relative_to(path)}, which lies '
+                               'outside the bag folder; refusing to read it')
     files = [f for f in files if f.is_file()]
     if not files:
         files = sorted(path.glob('*.mcap'))

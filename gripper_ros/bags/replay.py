@@ -48,6 +48,14 @@ class ReplayOptions:
     progress: bool = True
 
 
+RATE_RANGE = (1e-3, 1e3)
+"""--rate: slower than a thousandth or faster than a thousand times is no replay."""
+MAX_OFFSET_S = 2 ** 63 * 1e-9
+"""--start-offset: a bag's stamps are int64 nanoseconds, so no bag is longer."""
+MAX_DELAY_S = 86400.0
+"""--delay: at most a day."""
+
+
 def parse_remap(items: Sequence[str]) -> dict[str, str]:
     """['old:=new', ...] -> {old: new}; ValueError with a one-line reason."""
     out = {}
@@ -55,6 +63,17 @@ def parse_remap(items: Sequence[str]) -> dict[str, str]:
         old, sep, new = item.partition(':=')
         if not sep or not old or not new:
             raise ValueError(f'bad --remap {item!r} (expected old:=new)')
+        from rclpy.exceptions import InvalidTopicNameException
+        from rclpy.expand_topic_name import expand_topic_name
+        from rclpy.validate_full_topic_name import validate_full_topic_name
+        from rclpy.validate_topic_name import validate_topic_name
+        try:                                 # as the publisher will: expanded under '/'
+            validate_topic_name(new)
+            validate_full_topic_name(expand_topic_name(new, PROG, '/'))
+        except InvalidTopicNameException as exc:
+            reason = str(exc).splitlines()[0]
+            raise ValueError(f'bad --remap {item!r}: {new!r} is not a topic name '
+                             f'({reason})') from None
         out[old] = new
     return out
 
@@ -293,10 +312,16 @@ def options_from_args(args: argparse.Namespace) -> ReplayOptions:
                         ('--delay', args.delay)):
         if not math.isfinite(value):
             raise ValueError(f'{name} must be finite')
-    if args.rate <= 0:
-        raise ValueError('--rate must be > 0')
+    if not RATE_RANGE[0] <= args.rate <= RATE_RANGE[1]:
+        raise ValueError(f'--rate must be in [{RATE_RANGE[0]:g}, {RATE_RANGE[1]:g}], '
+                         f'got {args.rate:g}')
     if args.start_offset < 0 or args.delay < 0:
         raise ValueError('--start-offset and --delay must be >= 0')
+    if args.start_offset > MAX_OFFSET_S:
+        raise ValueError(f'--start-offset must be <= {MAX_OFFSET_S:g} s (the span of a '
+                         f"bag's int64 nanosecond stamps), got {args.start_offset:g}")
+    if args.delay > MAX_DELAY_S:
+        raise ValueError(f'--delay must be <= {MAX_DELAY_S:g} s, got {args.delay:g}')
     if args.clock is not None and not (math.isfinite(args.clock) and args.clock >= 0):
         raise ValueError('--clock HZ must be >= 0')
     if args.wait_for_subscribers < 0:

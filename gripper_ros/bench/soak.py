@@ -68,6 +68,14 @@ def rss_kb() -> int:
     return int(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss)
 
 
+def open_fds() -> int:
+    """Open file descriptors of this process (entries of /proc/self/fd); -1 where unknown."""
+    try:
+        return len(os.listdir('/proc/self/fd'))
+    except OSError:
+        return -1
+
+
 @dataclass
 class GraspRow:
     index: int
@@ -84,6 +92,7 @@ class GraspRow:
     counts_match: bool
     sim_duration_ns: int
     bag: str
+    fds: int = -1
 
 
 @dataclass
@@ -111,6 +120,9 @@ class SoakReport:
     total_wall_s: float
     machine: dict
     rows: list = field(default_factory=list)
+    fds_start: int = -1
+    fds_warm: int = -1
+    fds_end: int = -1
 
 
 # ------------------------------------------------------------------ client process
@@ -264,6 +276,7 @@ def run_soak(graph, worker: _WorkerClient, objects, grasps: int, bag_root: Path,
     rows = [] if rows is None else rows
     marks = {} if marks is None else marks
     marks['start'] = rss_kb()
+    marks['fds_start'] = open_fds()
     for i in range(grasps):
         width, mass = objects[i % len(objects)]
         if client == 'worker':
@@ -282,8 +295,10 @@ def run_soak(graph, worker: _WorkerClient, objects, grasps: int, bag_root: Path,
         else:
             resp = _grasp_client_exe(width, mass, grasp_timeout_s + 30.0)
         wall = time.perf_counter() - t0
-        closed = wait_until(lambda: len(recorder.bags) > n_bags and not recorder.recording,
-                            10.0)
+        # the tap lets go of a bag just before its writer finishes it: wait for the finished
+        # file, else the check may read it mid-close and call it truncated
+        closed = wait_until(lambda: len(recorder.bags) > n_bags and not recorder.recording
+                            and _finished(recorder.bags[-1]), 10.0)
         # every lockstep message published from the grasp's request on (state topics are
         # sampled on the grid of simulated time, and the request's own status precedes it)
         published = {qualified(graph.namespace, t): n - before.get(t, 0)
@@ -300,16 +315,32 @@ def run_soak(graph, worker: _WorkerClient, objects, grasps: int, bag_root: Path,
                        resp.get('message', ''), wall, rss_kb(),
                        published.get(qualified(graph.namespace, TOPIC_TICK), 0), published,
                        recorded, match,
-                       int(check['span_ns']), str(bag) if keep_bags else '')
+                       int(check['span_ns']), str(bag) if keep_bags else '', open_fds())
         rows.append(row)
         if i + 1 == min(warmup, grasps):
             marks['warm'] = row.rss_kb
+            marks['fds_warm'] = row.fds
         if progress is not None:
             progress(row)
     marks.setdefault('warm', marks['start'])
     marks['end'] = rows[-1].rss_kb if rows else marks['start']
     recorder.close()
     return rows, marks
+
+
+def _finished(bag: Path) -> bool:
+    """Whether every MCAP file of ``bag`` ends with the magic its writer writes last."""
+    from gripper_ros.bags.mcap_file import MAGIC
+    files = list(Path(bag).glob('*.mcap'))
+    for f in files:
+        try:
+            with open(f, 'rb') as stream:
+                stream.seek(-len(MAGIC), os.SEEK_END)
+                if stream.read() != MAGIC:
+                    return False
+        except OSError:
+            return False
+    return bool(files)
 
 
 def _slope(xs, ys) -> float:
@@ -352,7 +383,10 @@ def summarise(rows: list, marks: dict, objects, warmup: int, executor: str, clie
         machine={'python': platform.python_version(), 'cpus': os.cpu_count(),
                  'load_avg': list(os.getloadavg()),
                  'rmw': os.environ.get('RMW_IMPLEMENTATION', 'rmw_fastrtps_cpp (default)')},
-        rows=[asdict(r) for r in rows])
+        rows=[asdict(r) for r in rows],
+        fds_start=marks.get('fds_start', -1),
+        fds_warm=marks.get('fds_warm', rows[0].fds if rows else -1),
+        fds_end=rows[-1].fds if rows else -1)
 
 
 def format_report(rep: SoakReport) -> str:
@@ -369,6 +403,8 @@ def format_report(rep: SoakReport) -> str:
         f'; growth after warm-up {rep.rss_growth_after_warmup_kb * mb:+.2f} MiB '
         f'(slope {rep.rss_slope_after_warmup_kb_per_grasp:+.1f} KiB/grasp), since start '
         f'{(rep.rss_end_kb - rep.rss_start_kb) * mb:+.1f} MiB',
+        f'open file descriptors of the serving process: start {rep.fds_start}, after warm-up '
+        f'{rep.fds_warm}, end {rep.fds_end}',
         f'wall per grasp: median first {min(DRIFT_WINDOW, rep.grasps)} '
         f'{rep.wall_first_median_s:.3f} s, last {min(DRIFT_WINDOW, rep.grasps)} '
         f'{rep.wall_last_median_s:.3f} s, drift ratio {rep.wall_drift_ratio:.3f}',

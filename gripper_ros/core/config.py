@@ -300,6 +300,159 @@ def default_config_path() -> Path:
     return Path(__file__).resolve().parents[2] / 'config' / CONFIG_FILE_NAME
 
 
+MAX_HORIZON = 2000
+"""Most samples of a DMC step-response model: its matrices, their build when a parameter
+changes and its work every tick grow with it (the shipped horizons are 700 and 100)."""
+
+BOUNDS: dict[str, tuple[float, float]] = {
+    # key (dotted, or the leaf name of every key so named): [low, high], both allowed; the
+    # key's own rule (> 0, >= 0, a whole number) and the cross-field checks apply as well (the
+    # keys with a range of their own, such as closed_loop_pole in [0, 1), are checked there)
+    'plant.inertia_kg_m2': (1e-7, 1.0),
+    'plant.damping_n_m_s_per_rad': (1e-7, 10.0),
+    'plant.gear_ratio': (0.01, 1000.0),
+    'plant.resistance_ohm': (1e-3, 1000.0),
+    'plant.inductance_h': (1e-7, 1.0),
+    'plant.pitch_m': (1e-4, 0.1),
+    'plant.torque_constant_n_m_per_a': (1e-4, 10.0),
+    'plant.back_emf_v_s_per_rad': (1e-4, 10.0),
+    'plant.efficiency': (0.0, 1.0),
+    'plant.max_travel_m': (1e-3, 1.0),
+    'plant.gravity_mps2': (0.1, 100.0),
+    'plant.voltage_limit_v': (0.1, 1000.0),
+    'plant.contact_substep_s': (1e-7, 1e-3),
+    'contact.stiffness_n_per_m': (0.0, 1e10),
+    'contact.damping_n_s_per_m': (0.0, 1e7),
+    'contact.static_friction': (0.0, 2.0),
+    'contact.kinetic_friction': (0.0, 2.0),
+    'contact.pad_length_m': (1e-4, 1.0),
+    'contact.after_lift_s': (0.0, 60.0),
+    'contact.pad_tangential_stiffness_n_per_m': (0.0, 1e10),
+    'force_sensor.supply_v': (0.1, 100.0),
+    'force_sensor.measuring_resistor_ohm': (1.0, 1e12),
+    'force_sensor.fsr_resistance_at_1n_ohm': (1.0, 1e12),
+    'force_sensor.open_resistance_ohm': (1.0, 1e12),
+    'force_sensor.activation_force_n': (1e-6, 100.0),
+    'position_control.sample_time_s': (1e-3, 0.1),
+    'position_control.mpc_pd_braking_voltage_v': (0.0, 1000.0),
+    'force_control.paper_sample_time_s': (5e-5, 0.01),
+    'force_control.sample_time_s': (5e-5, 0.01),
+    'kc': (0.0, 1e6),
+    'ki': (0.0, 1e6),
+    'kd': (0.0, 1e6),
+    'horizon': (1, MAX_HORIZON),
+    'control_horizon': (1, MAX_HORIZON),
+    'move_suppression': (1e-6, 1e6),
+    'force_control.contact_aware.design_stiffness_n_per_m': (1.0, 1e10),
+    'force_control.contact_aware.design_damping_ratio': (1e-3, 10.0),
+    'force_control.contact_aware.band_design_stiffness_n_per_m': (1.0, 1e10),
+    'force_control.contact_aware.braking_deceleration_mps2': (1e-4, 10.0),
+    'force_control.contact_aware.contact_force_n': (1e-9, 10.0),
+    'force_control.contact_aware.untouched_overtravel_m': (1e-9, 0.01),
+    'force_control.contact_aware.force_gain_v_per_n': (0.0, 1000.0),
+    'force_control.contact_aware.damping_ratio': (1e-3, 10.0),
+    'force_control.contact_aware.servo_sample_gain': (1e-3, 1.0),
+    'force_control.contact_aware.max_damping_v_s_per_m': (1.0, 1e9),
+    'force_control.contact_aware.integral_gain_v_per_n_s': (0.0, 1000.0),
+    'force_control.contact_aware.integral_speed_band_mps': (1e-7, 1.0),
+    'force_control.contact_aware.integral_rate_fraction': (1e-3, 1.0),
+    'supervisor.friction_coefficient': (0.01, 2.0),
+    'supervisor.acceleration_mps2': (0.0, 100.0),
+    'supervisor.position_tolerance_fraction': (1e-6, 0.5),
+    'supervisor.sensor_voltage_threshold_v': (1e-6, 100.0),
+    'supervisor.force_settle_band_fraction': (1e-6, 0.5),
+    'supervisor.force_settle_hold_s': (1e-6, 10.0),
+    'supervisor.timeout_s': (0.01, 3600.0),
+    'supervisor.no_object_margin_m': (1e-6, 0.1),
+    'supervisor.hold_watch_s': (0.0, 10.0),
+    'supervisor.lost_force_hold_s': (1e-6, 10.0),
+    'supervisor.release_tolerance_m': (1e-6, 0.1),
+    'supervisor.release_settle_s': (0.0, 10.0),
+    'supervisor.position_switch_speed_mps': (0.0, 1.0),
+    'supervisor.width_tolerance_m': (0.0, 0.1),
+    'supervisor.force_settle_horizon_s': (0.0, 100.0),
+    'supervisor.force_settle_speed_mps': (0.0, 1.0),
+    'supervisor.grip_safety_factor': (0.0, 10.0),
+    'supervisor.move_default_speed_mps': (1e-6, 10.0),
+    'supervisor.move_tolerance_m': (1e-6, 0.1),
+    'supervisor.move_rest_speed_mps': (1e-6, 1.0),
+    'supervisor.move_stall_timeout_s': (1e-3, 60.0),
+    'sensor_noise.position_noise_m': (0.0, 0.01),
+    'sensor_noise.position_quantum_m': (0.0, 0.01),
+    'sensor_noise.force_noise_n': (0.0, 100.0),
+    'sensor_noise.force_quantum_n': (0.0, 100.0),
+    'sensor_noise.seed': (0, 2 ** 63 - 1),
+    'pad_sensor.shear_resolution_n': (0.0, 10.0),
+    'pad_sensor.shear_noise_n': (0.0, 10.0),
+    'pad_sensor.shear_bandwidth_hz': (0.0, 1e6),
+    'pad_sensor.shear_latency_s': (0.0, 1.0),
+    'pad_sensor.displacement_resolution_m': (0.0, 0.01),
+    'pad_sensor.displacement_noise_m': (0.0, 0.01),
+    'pad_sensor.displacement_bandwidth_hz': (0.0, 1e6),
+    'pad_sensor.displacement_latency_s': (0.0, 1.0),
+    'load_grip.grip_margin': (1.0, 10.0),
+    'load_grip.mu_start': (0.01, 2.0),
+    'load_grip.mu_safety': (1e-3, 1.0),
+    'load_grip.touch_force_n': (1e-3, 100.0),
+    'load_grip.slip_speed_mps': (1e-6, 1.0),
+    'load_grip.slip_window_s': (1e-4, 1.0),
+    'load_grip.slip_rest_s': (0.0, 1.0),
+    'load_grip.min_samples': (1, 100000),
+    'load_grip.release_rate_n_per_s': (1e-3, 1e6),
+    'load_grip.overload_slip_s': (1e-4, 10.0),
+}
+"""Physically sensible bounds of every number in the config (``config/gripper.yaml`` lists
+them at its end; ``test_config`` ties that list to this table)."""
+
+
+def bounds_of(name: str) -> tuple[float, float] | None:
+    """Return the [low, high] of dotted key ``name`` (by its full name, else its leaf)."""
+    return BOUNDS.get(name) or BOUNDS.get(name.rsplit('.', 1)[-1])
+
+
+def bounds_text() -> str:
+    """Return the bounds as the comment block at the end of ``config/gripper.yaml``."""
+    lines = ['# Bounds (gripper_ros/core/config.py BOUNDS): every value must lie in [low, high];',
+             "# a key's own rule (> 0, a whole number) and the cross-field checks apply too."]
+    lines += [f'#   {key}: [{low:g}, {high:g}]' for key, (low, high) in BOUNDS.items()]
+    return '\n'.join(lines) + '\n'
+
+
+def known_keys() -> dict:
+    """Every key a config file may hold, as nested sections (a leaf is None)."""
+    def leaves(cls, extra=frozenset()):
+        return dict.fromkeys([f.name for f in fields(cls)] + sorted(extra))
+    gains, dmc = leaves(PidGains), leaves(DmcTuning)
+    return {
+        'plant': leaves(PlantParams), 'contact': leaves(ContactParams),
+        'force_sensor': leaves(ForceSensorParams),
+        'position_control': {'sample_time_s': None, 'pd': gains, 'pid': gains,
+                             'mpc_pd': {**gains, **dmc}, 'mpc_pd_braking_voltage_v': None,
+                             'speed_limit_pole': None},
+        'force_control': {'paper_sample_time_s': None, 'pi_paper': gains,
+                          'mpc_pi_paper': {**gains, **dmc}, 'sample_time_s': None,
+                          'closed_loop_pole': None, 'mpc_pi': dmc,
+                          'contact_aware': leaves(ContactForceTuning)},
+        'supervisor': leaves(SupervisorParams),
+        'sensor_noise': leaves(SensorNoiseParams), 'pad_sensor': leaves(PadSensorParams),
+        'load_grip': leaves(LoadGripParams),
+    }
+
+
+def _refuse_unknown(data: dict, known: dict, where: str = '') -> None:
+    """Refuse a key the package does not read (a typo), naming it and the closest known one."""
+    import difflib
+    for key, value in data.items():
+        name = f'{where}{key}'
+        if key not in known:
+            close = difflib.get_close_matches(str(key), [str(k) for k in known], n=1)
+            hint = f'; did you mean "{where}{close[0]}"?' if close else \
+                f'; known here: {", ".join(known)}'
+            raise ConfigError(f'unknown key "{name}"{hint}')
+        if isinstance(known[key], dict) and isinstance(value, dict):
+            _refuse_unknown(value, known[key], name + '.')
+
+
 def _section(data: dict, key: str, where: str) -> dict:
     value = data.get(key)
     if not isinstance(value, dict):
@@ -313,6 +466,10 @@ def _number(section: dict, key: str, where: str, *, positive: bool = False,
     if key not in section:
         raise ConfigError(f'missing key "{name}"')
     value = section[key]
+    if isinstance(value, str) and _reads_as_number(value):
+        raise ConfigError(f'"{name}" must be a number, got the text {value!r}: YAML reads a '
+                          'float only with a dot and a signed exponent (write 1.0e-3, not '
+                          '1e-3)')
     if isinstance(value, bool) or not isinstance(value, (int, float)):
         raise ConfigError(f'"{name}" must be a number, got {value!r}')
     value = float(value)
@@ -322,11 +479,23 @@ def _number(section: dict, key: str, where: str, *, positive: bool = False,
         raise ConfigError(f'"{name}" must be > 0, got {value!r}')
     if nonnegative and value < 0.0:
         raise ConfigError(f'"{name}" must be >= 0, got {value!r}')
+    bounds = bounds_of(name)
+    if bounds is not None and not bounds[0] <= value <= bounds[1]:
+        raise ConfigError(f'"{name}" must be in [{bounds[0]:g}, {bounds[1]:g}], '
+                          f'got {value!r}')
     if integer:
         if value != int(value):
             raise ConfigError(f'"{name}" must be a whole number, got {value!r}')
         return int(value)
     return value
+
+
+def _reads_as_number(text: str) -> bool:
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
 
 
 def _choice(section: dict, key: str, where: str, choices: type[enum.Enum]) -> enum.Enum:
@@ -373,6 +542,7 @@ def parse_config(data: dict, source: str = '<dict>') -> GripperConfig:
     """Validate a loaded YAML mapping into a :class:`GripperConfig`."""
     if not isinstance(data, dict):
         raise ConfigError(f'{source}: top level must be a mapping')
+    _refuse_unknown(data, known_keys())
     plant = _build(PlantParams, _section(data, 'plant', source), 'plant')
     contact = _build(ContactParams, _section(data, 'contact', source), 'contact',
                      stiffness_n_per_m={'nonnegative': True},
@@ -422,6 +592,12 @@ def parse_config(data: dict, source: str = '<dict>') -> GripperConfig:
                           f'{speed_pole:.6g}) (the open-loop pole of the finger speed over one '
                           f'sample; slower than that never reaches the limit), '
                           f'got {position.speed_limit_pole!r}')
+    for where, dmc in (('position_control.mpc_pd', position.mpc_pd_dmc),
+                       ('force_control.mpc_pi_paper', force.mpc_pi_paper_dmc),
+                       ('force_control.mpc_pi', force.mpc_pi_dmc)):
+        if dmc.control_horizon > dmc.horizon:
+            raise ConfigError(f'"{where}.control_horizon" must be <= "{where}.horizon" '
+                              f'({dmc.horizon}), got {dmc.control_horizon}')
     if position.mpc_pd_braking_voltage_v > plant.voltage_limit_v:
         raise ConfigError('"position_control.mpc_pd_braking_voltage_v" must be <= '
                           f'"plant.voltage_limit_v", got {position.mpc_pd_braking_voltage_v!r}')
@@ -479,8 +655,14 @@ def load_config(path: str | os.PathLike | None = None) -> GripperConfig:
         text = file_path.read_text(encoding='utf-8')
     except OSError as exc:
         raise ConfigError(f'cannot read config file {file_path}: {exc.strerror}') from None
+    except UnicodeDecodeError as exc:
+        raise ConfigError(f'config file {file_path} is not UTF-8 text (byte {exc.start}): '
+                          'is it a YAML file?') from None
     try:
         data = yaml.safe_load(text)
     except yaml.YAMLError as exc:
         raise ConfigError(f'config file {file_path} is not valid YAML: {exc}') from None
+    except RecursionError:
+        raise ConfigError(f'config file {file_path} is nested too deeply to be a gripper '
+                          'config') from None
     return parse_config(data, str(file_path))

@@ -90,7 +90,17 @@ def run_node(make_node: Callable[[], Node], name: str, args=None,
     from rclpy.task import Future
 
     from gripper_ros.nodes.names import NameClaim
-    rclpy.init(args=args)
+    from rclpy._rclpy_pybind11 import RCLError
+    from rclpy.utilities import remove_ros_args
+    try:
+        user_args = remove_ros_args(sys.argv if args is None else args)[1:]
+        if {'-h', '--help'} & set(user_args):
+            print(node_usage(name, make_node))
+            return 0
+        rclpy.init(args=args)
+    except RCLError as exc:              # e.g. a --params-file that is missing or not YAML
+        print(f'{name}: bad --ros-args: {one_line(exc)}', file=sys.stderr)
+        return EXIT_BAD_START
     node = executor = claim = None
     try:
         claim = NameClaim.take((name,), services)
@@ -105,7 +115,7 @@ def run_node(make_node: Callable[[], Node], name: str, args=None,
                                f'{[k.value for k in ExecutorKind]}, got {kind!r}') from None
         executor.add_node(node)
         spin_until_stopped(executor, Future())
-    except (ConfigError, ParameterException, StartupError, ValueError) as exc:
+    except (ConfigError, ParameterException, StartupError, ValueError, RCLError) as exc:
         print(f'{name}: {one_line(exc)}', file=sys.stderr)
         return EXIT_BAD_START
     except (KeyboardInterrupt, ExternalShutdownException):
@@ -119,6 +129,15 @@ def run_node(make_node: Callable[[], Node], name: str, args=None,
             claim.release()
         rclpy.try_shutdown()
     return 0
+
+
+def node_usage(name: str, make_node) -> str:
+    """Return what ``NODE --help`` prints: the node's docstring and how ROS arguments reach it."""
+    import inspect
+    doc = inspect.getdoc(sys.modules.get(getattr(make_node, '__module__', ''), None)) or ''
+    return (f'usage: {name} [--ros-args -r __ns:=/NAMESPACE -p NAME:=VALUE '
+            f'--params-file FILE ...]\n\n{doc}\n\nParameters: ros2 param list / describe '
+            f'on the running node; defaults in config/gripper.yaml.')
 
 
 def one_line(text: object) -> str:
@@ -228,6 +247,15 @@ def declare_config(node: Node) -> GripperConfig:
     return load_config(path or None)
 
 
+def keep_name_args(node_name: str) -> list[str]:
+    """Node arguments that keep ``node_name`` under a global ``-r __node:=OTHER`` remap.
+
+    ``launch_ros`` names a node with a global remap, which renames every node of the process;
+    a node's own arguments are looked up first, so a helper node keeps its name with these.
+    """
+    return ['--ros-args', '-r', f'__node:={node_name}']
+
+
 def server_node_name(node_name: str, service_name: str) -> str:
     """Name the private server node of a :class:`DeferredService`: ``<node>_<last>_server``."""
     base = service_name.rstrip('/').rsplit('/', 1)[-1]
@@ -250,9 +278,10 @@ class DeferredService:
         # one private node per service, named after it (node 'supervisor', '/gripper/grasp' ->
         # 'supervisor_grasp_server'): a node with two deferred services must not register one
         # name twice (rcl warns 'Publisher already registered for node name')
-        self._server_node = Node(server_node_name(node.get_name(), name),
-                                 namespace=node.get_namespace(), context=node.context,
-                                 start_parameter_services=False)
+        server_name = server_node_name(node.get_name(), name)
+        self._server_node = Node(server_name, namespace=node.get_namespace(),
+                                 context=node.context, start_parameter_services=False,
+                                 cli_args=keep_name_args(server_name))
         self._service = self._server_node.create_service(srv_type, name, self._not_spun,
                                                          qos_profile=SERVICE_QOS)
         self._on_request = on_request

@@ -52,7 +52,8 @@ class LockstepController(Node):
     def __init__(self, name: str, **kwargs):
         super().__init__(name, **default_namespace(kwargs))
         self.parameters = ConfigParameters(self, (self.section,), ('plant',),
-                                           on_change=self._on_config_change)
+                                           on_change=self._on_config_change,
+                                           check=self.build_stage)
         self.config = self.parameters.config
         self._next_stage = None                   # built from changed gains, not yet in use
         self.declare_stage_parameters()
@@ -91,9 +92,9 @@ class LockstepController(Node):
     def build_stage(self, config):
         raise NotImplementedError
 
-    def _on_config_change(self, config, keys) -> None:
+    def _on_config_change(self, config, keys, stage) -> None:
         self.config = config
-        self._next_stage = self.build_stage(config)     # checked now, used from the next stage
+        self._next_stage = stage                 # built by the check, used from the next stage
         self.get_logger().info(f'{", ".join(keys)} changed: in effect from the next stage')
 
     @property

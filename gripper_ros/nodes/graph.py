@@ -122,14 +122,14 @@ class GripperGraph:
                                         name='gripper_graph_executor', daemon=True)
         self._thread.start()
         client = self.client_node.create_client
-        self._set_object = client(SetObject, SERVICE_SET_OBJECT)
+        self._set_object = client(SetObject, SERVICE_SET_OBJECT, qos_profile=SERVICE_QOS)
         self._grasp = client(Grasp, SERVICE_GRASP, qos_profile=SERVICE_QOS)
-        self._release = client(Trigger, SERVICE_RELEASE)
+        self._release = client(Trigger, SERVICE_RELEASE, qos_profile=SERVICE_QOS)
         self._move = client(Move, SERVICE_MOVE, qos_profile=SERVICE_QOS)
-        self._stop_client = client(Trigger, SERVICE_STOP)
-        self._pause = client(Trigger, SERVICE_PAUSE)
-        self._resume = client(Trigger, SERVICE_RESUME)
-        self._step = client(SimStep, SERVICE_STEP)
+        self._stop_client = client(Trigger, SERVICE_STOP, qos_profile=SERVICE_QOS)
+        self._pause = client(Trigger, SERVICE_PAUSE, qos_profile=SERVICE_QOS)
+        self._resume = client(Trigger, SERVICE_RESUME, qos_profile=SERVICE_QOS)
+        self._step = client(SimStep, SERVICE_STEP, qos_profile=SERVICE_QOS)
         for c in (self._set_object, self._grasp, self._release, self._move):
             if not c.wait_for_service(timeout_sec=10.0):
                 raise GraphError(f'service {c.srv_name} did not come up')

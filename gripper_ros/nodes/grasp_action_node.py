@@ -47,7 +47,7 @@ class GraspActionServer(Node):
                 floating_point_range=[FloatingPointRange(from_value=0.0, to_value=10.0)])).value
         self.add_post_set_parameters_callback(self._on_parameters_set)
         self._grasp = self.create_client(Grasp, SERVICE_GRASP, qos_profile=SERVICE_QOS)
-        self._stop = self.create_client(Trigger, SERVICE_STOP)
+        self._stop = self.create_client(Trigger, SERVICE_STOP, qos_profile=SERVICE_QOS)
         self.create_subscription(SupervisorStatus, TOPIC_STATUS, self._on_status, GRAPH_QOS,
                                  raw=True)
         self._goal = None                 # the goal handle being executed

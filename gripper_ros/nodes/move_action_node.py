@@ -67,7 +67,7 @@ class MoveActionServer(Node):
                             'the effort limit) succeeds rather than aborts')).value
         self.add_post_set_parameters_callback(self._on_parameters_set)
         self._move = self.create_client(Move, SERVICE_MOVE, qos_profile=SERVICE_QOS)
-        self._stop = self.create_client(Trigger, SERVICE_STOP)
+        self._stop = self.create_client(Trigger, SERVICE_STOP, qos_profile=SERVICE_QOS)
         self.create_subscription(SupervisorStatus, TOPIC_STATUS, self._on_status, GRAPH_QOS,
                                  raw=True)
         self._status_data: bytes | None = None   # the newest status, read when needed

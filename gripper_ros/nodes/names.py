@@ -4,25 +4,30 @@ Two checks, before anything is published:
 
 - a claim on this machine: one lock file per (domain, namespace, node name), held with
   ``flock`` while the node lives, so a second plant or supervisor in the namespace is refused
-  at once, in this process or another, and a killed process frees its names;
+  at once, in this process or another, and a killed process frees its names. The namespace's
+  parts are nested folders (a part holds only letters, digits and ``_``), so two namespaces
+  never share a folder (``a/b`` and ``a_b``);
 - discovery: the node names and service servers already on the domain in the namespace, which
   also finds a gripper on another host. DDS discovery across processes can take seconds, so
   this check alone would let a graph started right after another one through.
+
+The probe that asks the domain keeps its own name under a global ``-r __node:=NAME`` remap
+(how ``launch_ros`` names a node), else it would find itself under the claimed name.
 """
 from __future__ import annotations
 
 import fcntl
 import os
 from pathlib import Path
-import re
 import tempfile
 import time
 
-from gripper_ros.nodes.common import StartupError
+from gripper_ros.nodes.common import keep_name_args, StartupError
 from gripper_ros.wire import DEFAULT_NAMESPACE, qualified
 from rclpy.node import Node
 
 DISCOVERY_WAIT_S = 0.5
+PROBE_NODE = 'gripper_startup_probe'
 
 
 def claims_dir() -> Path:
@@ -57,8 +62,9 @@ class NameClaim:
             kw = {'namespace': DEFAULT_NAMESPACE if namespace is None else namespace}
             if context is not None:
                 kw['context'] = context
-            return rclpy.create_node('gripper_startup_probe', enable_rosout=False,
-                                     start_parameter_services=False, **kw)
+            return rclpy.create_node(PROBE_NODE, enable_rosout=False,
+                                     start_parameter_services=False,
+                                     cli_args=keep_name_args(PROBE_NODE), **kw)
 
         claim = None
         try:
@@ -84,8 +90,7 @@ class NameClaim:
 
     @classmethod
     def _lock(cls, domain: int, namespace: str, node_names) -> tuple[NameClaim, list[str]]:
-        folder = claims_dir() / f'domain_{domain}' / (
-            re.sub(r'[^A-Za-z0-9_]', '_', namespace.strip('/')) or '_root')
+        folder = claim_folder(domain, namespace)
         folder.mkdir(parents=True, exist_ok=True)
         files, held = [], []
         for name in node_names:
@@ -114,6 +119,36 @@ class NameClaim:
             except OSError:
                 pass
         self._files = []
+
+
+def claim_folder(domain: int, namespace: str) -> Path:
+    """Return the folder of the claims in ``namespace``: one nested folder per namespace part.
+
+    Parts hold only letters, digits and ``_`` (``wire.check_namespace``), so no two namespaces
+    map to one folder, and no part is longer than a file name may be.
+    """
+    folder = claims_dir() / f'domain_{domain}' / 'ns'
+    for part in namespace.strip('/').split('/'):
+        if part:
+            folder = folder / part
+    return folder
+
+
+def namespace_as_given(default: str = DEFAULT_NAMESPACE, context=None) -> str:
+    """Return the namespace a node made with ``default`` gets, after the command line's remaps.
+
+    One source of truth for a graph whose namespace may come from an option or from
+    ``--ros-args -r __ns:=/x``: ask a node (the remap wins, as for every ROS node).
+    """
+    import rclpy
+    kw = {'context': context} if context is not None else {}
+    probe = rclpy.create_node(PROBE_NODE, namespace=default, enable_rosout=False,
+                              start_parameter_services=False,
+                              cli_args=keep_name_args(PROBE_NODE), **kw)
+    try:
+        return probe.get_namespace().strip('/')
+    finally:
+        probe.destroy_node()
 
 
 def taken_names(node: Node, node_names: tuple[str, ...] = (), services: tuple[str, ...] = (),

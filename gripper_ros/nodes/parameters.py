@@ -7,15 +7,16 @@ file (``config_file``, default the installed ``config/gripper.yaml``) as its def
 ``node: ros__parameters:`` YAML, nested or dotted) work as for any ROS node. A node's own
 sections are writable; the sections it only reads (the plant model a controller predicts
 with) are read-only there. Every value, at start-up and at run time, goes through the one
-config reader (:func:`gripper_ros.core.config.parse_config`): a bad one is refused with the
-reader's message naming the key, and nothing changes.
+config reader (:func:`gripper_ros.core.config.parse_config`), with its bounds and cross-field
+checks, and then through the node's own ``check`` (a controller builds the stage it would use):
+a bad one is refused with the message naming the key, and nothing changes.
 """
 from __future__ import annotations
 
 import copy
 from typing import Callable
 
-from gripper_ros.core.config import ConfigError, GripperConfig, load_config, parse_config
+from gripper_ros.core.config import GripperConfig, load_config, parse_config
 from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
 from rclpy.node import Node
 
@@ -54,12 +55,16 @@ def _set(data: dict, dotted: str, value) -> None:
 class ConfigParameters:
     """The config sections of one node as its ROS parameters.
 
-    ``on_change(config, keys)`` is called (on the executor thread, between callbacks) after an
-    accepted change, with the new :class:`GripperConfig` and the dotted keys that changed.
+    ``check(config)`` is called with a candidate config before a change is accepted: it returns
+    what ``on_change`` needs (a controller it built) or raises ValueError to refuse the change.
+    ``on_change(config, keys, checked)`` is called (on the executor thread, between callbacks)
+    after an accepted change, with the new :class:`GripperConfig`, the dotted keys that changed
+    and what ``check`` returned.
     """
 
     def __init__(self, node: Node, writable: tuple[str, ...], read_only: tuple[str, ...] = (),
-                 on_change: Callable[[GripperConfig, list[str]], None] | None = None):
+                 on_change: Callable[[GripperConfig, list[str], object], None] | None = None,
+                 check: Callable[[GripperConfig], object] | None = None):
         path = node.declare_parameter('config_file', '', ParameterDescriptor(
             description='YAML file of every default, read once at start-up',
             read_only=True)).value
@@ -69,6 +74,7 @@ class ConfigParameters:
         self.data = copy.deepcopy(base.data)
         self.keys: set[str] = set()
         self._on_change = on_change
+        self._check = check
         for section in (*writable, *read_only):
             if section not in self.data:
                 continue
@@ -93,15 +99,16 @@ class ConfigParameters:
             _set(candidate, name, value)
         try:
             config = parse_config(candidate, self.source)
-        except ConfigError as exc:
+            checked = self._check(config) if self._check is not None else None
+        except ValueError as exc:            # ConfigError too
             return SetParametersResult(successful=False, reason=' '.join(str(exc).split()))
-        self._pending = (candidate, config, sorted(changes))
+        self._pending = (candidate, config, sorted(changes), checked)
         return SetParametersResult(successful=True)
 
     def _apply(self, parameters) -> None:
         pending, self._pending = self._pending, None
         if pending is None:
             return
-        self.data, self.config, keys = pending
+        self.data, self.config, keys, checked = pending
         if self._on_change is not None:
-            self._on_change(self.config, keys)
+            self._on_change(self.config, keys, checked)

@@ -33,7 +33,7 @@ from gripper_ros.core.controllers import make_plant
 from gripper_ros.core.lockstep import Command, command_problem, PlantSide
 from gripper_ros.core.plant import check_fault, GraspObject, Lift
 from gripper_ros.nodes.common import (default_namespace, DeferredService, GRAPH_QOS, ns_to_time,
-                                      run_node, StartupError)
+                                      run_node, SERVICE_QOS, StartupError)
 from gripper_ros.nodes.loop_io import (clock_template, decode, force_sensor_template,
                                        joint_state_template, object_state_template,
                                        read_status, split_ns, StatusView)
@@ -66,6 +66,12 @@ MAX_LAG_S = 0.02
 time is not rushed to catch up; the achieved real-time factor shows the loss)."""
 SLEEP_LIMIT_S = 0.001
 """Realtime pacing: a wait this short is slept in place; a longer one is a timer."""
+STEP_BATCH = 100
+"""sim/step without commands: unpowered ticks taken in one callback before yielding."""
+MAX_STEP_S = 600.0
+"""sim/step: the most simulated time one request may ask for (duration_s)."""
+MAX_STEP_TICKS = 6_000_000
+"""sim/step: the most ticks one request may ask for (600 s of 0.1 ms force samples)."""
 
 
 class PlantSimulatorNode(Node):
@@ -110,7 +116,8 @@ class PlantSimulatorNode(Node):
         self._last_echo: Command | None = None
         self._tick = self.side.tick()
         self._tick_bytes = TICK_LAYOUT.pack(*self._tick)
-        self._tick_wall = time.monotonic()      # when the current tick was published
+        self._tick_wall = time.monotonic()      # when the current tick was (re)published
+        self._tick_first_wall = self._tick_wall  # when it was first published
         self._woken = False                     # a request is waiting for simulated time
         self._paused = False
         self._budget: tuple[str, int] | None = None    # sim/step: ('ticks', n) or ('until', ns)
@@ -141,9 +148,10 @@ class PlantSimulatorNode(Node):
         self.create_subscription(AccelStamped, TOPIC_LOAD_ACCELERATION,
                                  self._on_load_acceleration, GRAPH_QOS)
         self.loads_refused = 0
-        self.create_service(SetObject, SERVICE_SET_OBJECT, self._on_set_object)
-        self.create_service(Trigger, SERVICE_PAUSE, self._on_pause)
-        self.create_service(Trigger, SERVICE_RESUME, self._on_resume)
+        self.create_service(SetObject, SERVICE_SET_OBJECT, self._on_set_object,
+                            qos_profile=SERVICE_QOS)
+        self.create_service(Trigger, SERVICE_PAUSE, self._on_pause, qos_profile=SERVICE_QOS)
+        self.create_service(Trigger, SERVICE_RESUME, self._on_resume, qos_profile=SERVICE_QOS)
         self.step_service = DeferredService(self, SimStep, SERVICE_STEP, self._on_step)
         self._steady = Clock(clock_type=ClockType.STEADY_TIME)
         self._pace_timer = self.create_timer(1.0, self._on_pace_timer, clock=self._steady)
@@ -238,7 +246,12 @@ class PlantSimulatorNode(Node):
         return (t_next_ns - self._sim_anchor_ns) * 1e-9 / self.real_time_factor - wall_s
 
     def _try_step(self) -> None:
-        """Step when the gate of the time mode is open; without a command, step unpowered."""
+        """Step when the gate of the time mode is open; without a command, step unpowered.
+
+        Unpowered steps of a sim/step come in batches of ``STEP_BATCH``, between which the
+        executor serves other callbacks (a sim/pause ends the step).
+        """
+        batch = STEP_BATCH
         while True:
             cmd = self._pending
             if cmd is None and not self._unpowered:
@@ -274,6 +287,10 @@ class PlantSimulatorNode(Node):
             self._spend_budget()
             if cmd is not None or self.time_mode is TimeMode.FAST:
                 return                          # lockstep: the next step needs its command
+            batch -= 1
+            if self._budget is not None and batch <= 0:
+                self._wait(0.0)                 # go on after what else waits
+                return
 
     def _set_advancing(self, advancing: bool) -> None:
         """sim/status at once when simulated time starts or stops advancing (fast mode)."""
@@ -302,7 +319,7 @@ class PlantSimulatorNode(Node):
     def _publish_tick(self) -> None:
         self._tick_bytes = CDR_LITTLE_ENDIAN + self.side.tick_record.tobytes()
         self._tick_pub.publish(self._tick_bytes)
-        self._tick_wall = time.monotonic()
+        self._tick_wall = self._tick_first_wall = time.monotonic()
         self.ticks_published += 1
         self.published[TOPIC_TICK] += 1
 
@@ -367,7 +384,10 @@ class PlantSimulatorNode(Node):
             self._publish_sim_status()
         if self._pending is not None or self._paused:
             return
-        silent_s = now - self._tick_wall
+        if self._unpowered and self.time_mode is TimeMode.REALTIME and not self._pacing:
+            self._try_step()                    # nobody commands: time goes on at 0 V
+            return
+        silent_s = now - self._tick_first_wall  # a republished tick is no answer
         if self.time_mode is TimeMode.REALTIME and not self._unpowered and \
                 silent_s >= self.command_timeout_s:
             self._unpowered = True
@@ -375,7 +395,7 @@ class PlantSimulatorNode(Node):
                 f'no command for t={self._tick.stamp_ns * 1e-9:.4f} s in {silent_s:.2f} s: '
                 'motor held at 0 V, time goes on', throttle_duration_sec=5.0)
             self._try_step()
-        elif silent_s >= REPUBLISH_AFTER_S and not self._unpowered:
+        elif now - self._tick_wall >= REPUBLISH_AFTER_S and not self._unpowered:
             self._tick_pub.publish(self._tick_bytes)      # nobody answered: a late peer
             self.published[TOPIC_TICK] += 1
             self._tick_wall = now
@@ -391,15 +411,22 @@ class PlantSimulatorNode(Node):
         if self._budget[0] == 'ticks':
             self._budget = ('ticks', self._budget[1] - 1)
         if self._budget_done():
-            self._budget = None
-            self._anchor()
-            reply, self._step_reply = self._step_reply, None
-            if reply is not None:
-                header, response = reply
-                response.success = True
-                response.time_s = self.plant.t_ns * 1e-9
-                response.message = f'stepped to t={response.time_s:.6f} s'
-                self.step_service.reply(header, response)
+            self._end_step()
+
+    def _end_step(self, cut_short: str = '') -> None:
+        """Answer the running sim/step: done, or ``cut_short`` (success false) by a pause."""
+        if self._budget is None:
+            return
+        self._budget = None
+        self._anchor()
+        reply, self._step_reply = self._step_reply, None
+        if reply is not None:
+            header, response = reply
+            response.success = not cut_short
+            response.time_s = self.plant.t_ns * 1e-9
+            response.message = f'{cut_short}: ' if cut_short else ''
+            response.message += f'stepped to t={response.time_s:.6f} s'
+            self.step_service.reply(header, response)
 
     def _on_step(self, request: SimStep.Request, header) -> None:
         response = SimStep.Response()
@@ -411,8 +438,10 @@ class PlantSimulatorNode(Node):
             problem = f'duration_s must be finite and >= 0, got {duration!r}'
         elif (ticks > 0) == (duration > 0.0):
             problem = f'give exactly one of ticks ({ticks}) and duration_s ({duration:g}) > 0'
-        elif duration > 600.0:
-            problem = f'duration_s must be <= 600 s, got {duration:g}'
+        elif duration > MAX_STEP_S:
+            problem = f'duration_s must be <= {MAX_STEP_S:g} s, got {duration:g}'
+        elif ticks > MAX_STEP_TICKS:
+            problem = f'ticks must be <= {MAX_STEP_TICKS}, got {ticks}'
         if problem:
             response.success = False
             response.message = f'refused: {problem}'
@@ -429,6 +458,7 @@ class PlantSimulatorNode(Node):
         response.message = f'paused at t={self.plant.t_ns * 1e-9:.6f} s' if not self._paused \
             else 'already paused'
         self._paused = True
+        self._end_step('ended by sim/pause')
         self._publish_sim_status()
         return response
 

@@ -15,30 +15,33 @@ width at most at a speed and an effort and answers MOVED (reached_goal) or STALL
 ``supervisor/status`` carries the state for other programs: at ``status_rate_hz`` of simulated
 time, on every change, and once a second of wall time as a heartbeat. Each answer and each
 later loss is also latched on ``supervisor/outcome``. A request that makes no progress for
-``tick_timeout_s`` of wall time (a node gone) ends as FAULT naming who went silent.
+``tick_timeout_s`` of wall time (a node gone) ends as FAULT naming who went silent; while the
+plant says on ``sim/status`` that simulated time is paused (``sim/pause``), no wall time counts.
 """
 from __future__ import annotations
 
 from collections import Counter
 import math
 import sys
+import time
 
-from gripper_interfaces.msg import PlantTick, StageReference, SupervisorStatus
+from gripper_interfaces.msg import PlantTick, SimStatus, StageReference, SupervisorStatus
 from gripper_interfaces.srv import Grasp, Move
 from gripper_ros.core.lockstep import SupervisorSide, Tick
 from gripper_ros.core.requests import (GraspRequest, MoveRequest, RequestError, validate_move,
                                        validate_request)
 from gripper_ros.core.supervisor import GraspSupervisor, RequestKind
 from gripper_ros.nodes.common import (default_namespace, DeferredService, ExecutorSilence,
-                                      GRAPH_QOS, LATCHED_QOS, run_node)
+                                      GRAPH_QOS, LATCHED_QOS, run_node, SERVICE_QOS)
 from gripper_ros.nodes.loop_io import decode, split_ns, status_message, status_template
 from gripper_ros.nodes.parameters import ConfigParameters
+from gripper_ros.nodes.plant_simulator_node import REPUBLISH_AFTER_S
 from gripper_ros.wire import (CDR_LITTLE_ENDIAN, Controller, NODE_FORCE_CONTROLLER, NODE_PLANT,
                               NODE_POSITION_CONTROLLER, NODE_SUPERVISOR, Outcome,
                               SERVICE_GRASP, SERVICE_MOVE, SERVICE_RELEASE,
                               SERVICE_STOP, TICK_LAYOUT, TOPIC_FORCE_REFERENCE,
                               TOPIC_MOTOR_COMMAND, TOPIC_OUTCOME, TOPIC_POSITION_REFERENCE,
-                              TOPIC_STATUS, TOPIC_TICK)
+                              TOPIC_SIM_STATUS, TOPIC_STATUS, TOPIC_TICK)
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
@@ -93,16 +96,19 @@ class SupervisorNode(Node):
         self._status_pub = self.create_publisher(SupervisorStatus, TOPIC_STATUS, GRAPH_QOS)
         self._outcome_pub = self.create_publisher(SupervisorStatus, TOPIC_OUTCOME, LATCHED_QOS)
         self.create_subscription(PlantTick, TOPIC_TICK, self._on_tick, GRAPH_QOS, raw=True)
+        self.sim_paused = False                 # the plant's sim/status says time is held
+        self._last_tick_wall = time.monotonic()  # any tick, a republished one included
+        self.create_subscription(SimStatus, TOPIC_SIM_STATUS, self._on_sim_status, GRAPH_QOS)
         self.grasp_service = DeferredService(self, Grasp, SERVICE_GRASP, self._on_grasp)
         self.release_service = DeferredService(self, Trigger, SERVICE_RELEASE, self._on_release)
         self.move_service = DeferredService(self, Move, SERVICE_MOVE, self._on_move)
-        self.create_service(Trigger, SERVICE_STOP, self._on_stop)
+        self.create_service(Trigger, SERVICE_STOP, self._on_stop, qos_profile=SERVICE_QOS)
         steady = Clock(clock_type=ClockType.STEADY_TIME)
         self._silence = ExecutorSilence()       # executor-running wall time without progress
         self.create_timer(WATCHDOG_PERIOD_S, self._watchdog, clock=steady)
         self.create_timer(HEARTBEAT_PERIOD_S, self._heartbeat, clock=steady)
 
-    def _on_config_change(self, config, keys) -> None:
+    def _on_config_change(self, config, keys, _checked) -> None:
         """Apply new thresholds from the next tick; a running request keeps its setpoints.
 
         A new force law applies to the next request.
@@ -119,8 +125,15 @@ class SupervisorNode(Node):
             elif p.name == 'status_rate_hz':
                 self.status_rate_hz = float(p.value)
 
+    def _on_sim_status(self, msg: SimStatus) -> None:
+        """Follow sim/pause: simulated time held is no silence, so the watchdog waits with it."""
+        if self.sim_paused and not msg.paused:
+            self._silence.reset()
+        self.sim_paused = msg.paused
+
     # ------------------------------------------------------------------ the tick
     def _on_tick(self, data: bytes) -> None:
+        self._last_tick_wall = time.monotonic()   # a repeat too: the plant is alive
         values = decode(TICK_LAYOUT, data, PlantTick)
         tick = Tick._make(values)
         key = (tick.stamp_ns, tick.revision)
@@ -373,7 +386,7 @@ class SupervisorNode(Node):
         stall of the whole process, ticks queued behind this timer are not silence.
         """
         running = self.logic.running
-        silent_s = self._silence.check(counting=running)
+        silent_s = self._silence.check(counting=running and not self.sim_paused)
         if not running or silent_s < self.tick_timeout_s:
             return
         expected = STAGE_NODES.get(self.logic.active, '?')
@@ -381,10 +394,15 @@ class SupervisorNode(Node):
             self.resolve_topic_name(TOPIC_MOTOR_COMMAND))}
         plants = {i.node_name for i in self.get_publishers_info_by_topic(
             self.resolve_topic_name(TOPIC_TICK))}
+        tick_silent_s = time.monotonic() - self._last_tick_wall
         if expected not in commanders:
             who = f'{expected} is gone (no publisher on {TOPIC_MOTOR_COMMAND})'
         elif NODE_PLANT not in plants:
             who = f'{NODE_PLANT} is gone (no publisher on {TOPIC_TICK})'
+        elif tick_silent_s >= max(self.tick_timeout_s, 2 * REPUBLISH_AFTER_S):
+            # a live plant publishes an unanswered tick again every REPUBLISH_AFTER_S
+            who = (f'{NODE_PLANT} is gone or hung (no tick at all for {tick_silent_s:.2f} s; '
+                   f'a killed process stays discovered for a while)')
         else:
             who = f'{expected} did not answer or {NODE_PLANT} did not advance'
         t_ns = self._tick.stamp_ns if self._tick else 0
