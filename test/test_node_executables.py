@@ -1,8 +1,8 @@
 """Every node executable's exit code, as a user or a launch file sees it.
 
 ``python -m gripper_ros.nodes.<module>``, each case in a namespace of its own: stopped with
-Ctrl-C (SIGINT) or SIGTERM once it runs (it answers a parameter request), it exits 0 with no
-traceback; given a bad start-up parameter (out of range, of the wrong type, not one of the
+Ctrl-C (SIGINT) or SIGTERM once it runs (it answers a parameter request), it exits 0 within
+2 s, quietly; given a bad start-up parameter (out of range, of the wrong type, not one of the
 allowed words) it exits 2 with one line on stderr naming the parameter, and no traceback; a
 second one started beside a running one exits 2 with one line naming the taken name. The
 cases run side by side in one module fixture (a node start costs about a second); each test
@@ -48,6 +48,8 @@ BAD_PARAMETERS = [   # (node, parameter, value as typed after -p name:=, words i
     (NODE_GRASP_ACTION, 'executor', 'threads', 'must be one of'),          # run_node's own
 ]
 RUNNING_TIMEOUT_S = 60.0
+EXIT_WITHIN_S = 2.0
+ALARMING = ('Traceback', 'FATAL', 'ERROR', 'Fatal Python error')
 ASK_AGAIN_S = 2.0
 NODES_DIR = Path(__file__).resolve().parents[1] / 'gripper_ros' / 'nodes'
 
@@ -62,6 +64,7 @@ class Case:
     proc: subprocess.Popen | None = None
     answered: bool = False                   # it answered a parameter request before the signal
     returncode: int | None = None
+    exit_s: float = float('inf')             # from the signal to the exit
     stderr: str = ''
 
 
@@ -132,9 +135,16 @@ def results():
         for case in stopped:                    # each twin ends before its first one is stopped
             if case.twin is not None:
                 _finish(case.twin)
-        for case in stopped:
-            if case.answered and case.proc.poll() is None:
-                case.proc.send_signal(case.stop)
+        signalled = [c for c in stopped if c.answered and c.proc.poll() is None]
+        sent = time.monotonic()
+        for case in signalled:
+            case.proc.send_signal(case.stop)
+        while time.monotonic() - sent < EXIT_WITHIN_S + 10.0 and \
+                any(c.exit_s == float('inf') for c in signalled):
+            for case in signalled:
+                if case.exit_s == float('inf') and case.proc.poll() is not None:
+                    case.exit_s = time.monotonic() - sent
+            time.sleep(0.01)
         for case in cases.values():
             if case.stop is not None and not case.answered:
                 case.proc.kill()                # never ran: its test fails saying so
@@ -155,11 +165,13 @@ def _finish(case: Case) -> None:
 
 @pytest.mark.parametrize('node', list(MODULES))
 @pytest.mark.parametrize('label', list(SIGNALS))
-def test_a_running_node_stopped_by_a_signal_exits_0(results, node, label):
+def test_a_running_node_stopped_by_a_signal_exits_0_at_once_and_quietly(results, node, label):
+    """Exit 0 within EXIT_WITHIN_S of the signal; no traceback, nothing at FATAL or ERROR."""
     case = results[f'{node}-{label}']
     assert case.answered, f'{node} never answered a parameter request: {case.stderr[-2000:]}'
     assert case.returncode == 0, (case.returncode, case.stderr[-2000:])
-    assert 'Traceback' not in case.stderr, case.stderr[-2000:]
+    assert case.exit_s <= EXIT_WITHIN_S, (case.exit_s, case.stderr[-2000:])
+    assert not [w for w in ALARMING if w in case.stderr], case.stderr[-2000:]
 
 
 @pytest.mark.parametrize('node, parameter, value, words', BAD_PARAMETERS)
