@@ -39,11 +39,11 @@ BAD_PARAMETERS = [   # (node, parameter, value as typed after -p name:=, words i
     (NODE_POSITION_CONTROLLER, 'status_timeout_s', 'soon', WRONG_TYPE),
     (NODE_POSITION_CONTROLLER, 'controller', 'bangbang', 'must be one of'),
     (NODE_FORCE_CONTROLLER, 'controller', 'bangbang', 'must be one of'),
-    (NODE_FORCE_CONTROLLER, 'status_timeout_s', '5', WRONG_TYPE),          # an integer
+    (NODE_FORCE_CONTROLLER, 'status_timeout_s', '0', 'out of range'),      # an integer: 0.0
     (NODE_SUPERVISOR, 'tick_timeout_s', '0.0', 'out of range'),
-    (NODE_SUPERVISOR, 'tick_timeout_s', '0', WRONG_TYPE),
+    (NODE_SUPERVISOR, 'tick_timeout_s', 'true', WRONG_TYPE),
     (NODE_GRASP_ACTION, 'feedback_period_s', '-1.0', 'out of range'),
-    (NODE_GRASP_ACTION, 'feedback_period_s', '-1', WRONG_TYPE),
+    (NODE_GRASP_ACTION, 'feedback_period_s', '-1', 'out of range'),
     (NODE_MOVE_ACTION, 'feedback_period_s', '-1.0', 'out of range'),
     (NODE_GRASP_ACTION, 'executor', 'threads', 'must be one of'),          # run_node's own
 ]

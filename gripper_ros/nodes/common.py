@@ -287,8 +287,11 @@ def time_to_ns(stamp: Time) -> int:
 def declare_config(node: Node) -> GripperConfig:
     """Declare ``config_file`` (empty = the installed config/gripper.yaml) and load it.
 
-    A bad file raises ConfigError naming the key; the node does not start.
+    A bad file raises ConfigError naming the key; the node does not start. A whole number is
+    taken for every double parameter of the node (:func:`parameters.accept_whole_numbers`).
     """
+    from gripper_ros.nodes.parameters import accept_whole_numbers
+    accept_whole_numbers(node)
     path = node.declare_parameter('config_file', '', ParameterDescriptor(
         description='YAML file, read once at start-up', read_only=True)).value
     return load_config(path or None)
