@@ -204,3 +204,17 @@ def test_every_node_executable_is_here_with_a_bad_start_up_parameter():
                    if '\ndef main(' in p.read_text(encoding='utf-8')}
     assert executables == set(MODULES.values())
     assert {node for node, *_ in BAD_PARAMETERS} == set(MODULES)
+
+
+def test_a_bug_in_a_node_constructor_keeps_its_traceback():
+    """A ValueError raised by a node's own code is a bug, not a refused start: exit 1, traced."""
+    code = ('from gripper_ros.nodes.common import run_node\n'
+            'def broken():\n'
+            '    raise ValueError("a bug in the constructor")\n'
+            'raise SystemExit(run_node(broken, "broken_node", ["--ros-args", "-r", '
+            '"__ns:=/exit_broken_constructor"]))\n')
+    result = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True,
+                            timeout=60, stdin=subprocess.DEVNULL)
+    assert result.returncode == 1, (result.returncode, result.stderr[-2000:])
+    assert 'Traceback' in result.stderr and 'ValueError: a bug in the constructor' in \
+        result.stderr, result.stderr[-2000:]
