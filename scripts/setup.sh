@@ -186,20 +186,23 @@ else
   fi
   log "colcon build --symlink-install (gripper_interfaces, gripper_ros)${FORCE_CONFIGURE:+ with cmake re-configure}"
   # The repo root is itself a package, and colcon's crawler does not descend into a package's
-  # subdirectories, so the nested gripper_interfaces/ must be named explicitly.
+  # subdirectories, so the nested gripper_interfaces/ must be named explicitly. colcon writes no
+  # per-package logs without the colcon-output extension: the build's whole output (cmake,
+  # the compiler, setup.py) goes to BUILD_LOG, and its tail is shown when the build fails.
+  BUILD_LOG="$ROOT/log/setup_build.log"
+  mkdir -p "$ROOT/log"
   colcon --log-base "$ROOT/log" build \
     --paths "$ROOT" "$ROOT/gripper_interfaces" \
     --build-base "$ROOT/build" --install-base "$ROOT/install" \
     --symlink-install "${FORCE_CONFIGURE[@]}" \
-    --event-handlers console_direct- \
+    --event-handlers console_direct+ \
     --cmake-args -DPython3_EXECUTABLE="$PY" -DBUILD_TESTING=OFF \
-    </dev/null || {
-      log "colcon build FAILED; per-package logs follow (full logs: $ROOT/log/latest_build/)"
-      for f in "$ROOT"/log/latest_build/*/stdout_stderr.log; do
-        [[ -f "$f" ]] && { echo "===== $f (last 60 lines)" >&2; tail -n 60 "$f" >&2; }
-      done
+    </dev/null >"$BUILD_LOG" 2>&1 || {
+      log "colcon build FAILED; the last 80 lines of its output follow (all of it: $BUILD_LOG)"
+      tail -n 80 "$BUILD_LOG" >&2
       exit 1
     }
+  log "colcon build done (its output: $BUILD_LOG)"
   echo "$iface_hash" > "$IFACE_STAMP"
   echo "$build_hash" > "$BUILD_STAMP"
 fi
