@@ -88,7 +88,8 @@ if [[ "$(cat "$PIP_STAMP" 2>/dev/null || true)" != "$pip_hash" ]]; then
   export PIP_DISABLE_PIP_VERSION_CHECK=1 PIP_NO_INPUT=1
   if [[ "$MODE" == wheels ]]; then
     log "installing requirements-ros.txt + requirements.txt (first time: a few minutes)"
-    "$PY" -m pip install -q -r requirements-ros.txt -r requirements.txt 2> >(grep -v "^WARNING: Location '" >&2)
+    "$PY" -m pip install -q --no-compile -r requirements-ros.txt -r requirements.txt \
+      2> >(grep -v "^WARNING: Location '" >&2)
   else
     # keep what the system (apt) provides: drop "# sys:<module>" lines whose module imports
     filtered="$VENV/.requirements.filtered.txt"
@@ -102,8 +103,15 @@ for line in open(sys.argv[1]):
     print(line.rstrip())
 PYEOF
     log "installing requirements.txt on top of the system ROS ($(grep -c '^# provided by the system' "$filtered") lines provided by the system)"
-    "$PY" -m pip install -q -r "$filtered" 2> >(grep -v "^WARNING: Location '" >&2)
+    "$PY" -m pip install -q --no-compile -r "$filtered" 2> >(grep -v "^WARNING: Location '" >&2)
   fi
+  # --no-compile: byte-compiling every module of ~250 distributions was 140 s of a 199 s install
+  # (fresh venv, local wheels, the shared 2-core machine); most are never imported. Python
+  # compiles a module on its first import; this one writes the byte code of what the graph, the
+  # bag tools and the figures import, so that no later run (tests write none) pays for it again.
+  log "writing the byte code of the modules the gripper imports"
+  (cd /tmp && env -u PYTHONDONTWRITEBYTECODE "$PY" -c 'import numpy, scipy.linalg, scipy.signal, numba, yaml, mcap.reader, rosbags.typesys, matplotlib.pyplot, rclpy, rclpy.executors, rclpy.action' \
+    2>/dev/null) || log "(some of them do not import yet; they are compiled on first use)"
   echo "$pip_hash" > "$PIP_STAMP"
   rm -f "$VENV/.gripper_ros_cmake_fixed"
 else
@@ -186,20 +194,23 @@ else
   fi
   log "colcon build --symlink-install (gripper_interfaces, gripper_ros)${FORCE_CONFIGURE:+ with cmake re-configure}"
   # The repo root is itself a package, and colcon's crawler does not descend into a package's
-  # subdirectories, so the nested gripper_interfaces/ must be named explicitly.
+  # subdirectories, so the nested gripper_interfaces/ must be named explicitly. colcon writes no
+  # per-package logs without the colcon-output extension: the build's whole output (cmake,
+  # the compiler, setup.py) goes to BUILD_LOG, and its tail is shown when the build fails.
+  BUILD_LOG="$ROOT/log/setup_build.log"
+  mkdir -p "$ROOT/log"
   colcon --log-base "$ROOT/log" build \
     --paths "$ROOT" "$ROOT/gripper_interfaces" \
     --build-base "$ROOT/build" --install-base "$ROOT/install" \
     --symlink-install "${FORCE_CONFIGURE[@]}" \
-    --event-handlers console_direct- \
+    --event-handlers console_direct+ \
     --cmake-args -DPython3_EXECUTABLE="$PY" -DBUILD_TESTING=OFF \
-    </dev/null || {
-      log "colcon build FAILED; per-package logs follow (full logs: $ROOT/log/latest_build/)"
-      for f in "$ROOT"/log/latest_build/*/stdout_stderr.log; do
-        [[ -f "$f" ]] && { echo "===== $f (last 60 lines)" >&2; tail -n 60 "$f" >&2; }
-      done
+    </dev/null >"$BUILD_LOG" 2>&1 || {
+      log "colcon build FAILED; the last 80 lines of its output follow (all of it: $BUILD_LOG)"
+      tail -n 80 "$BUILD_LOG" >&2
       exit 1
     }
+  log "colcon build done (its output: $BUILD_LOG)"
   echo "$iface_hash" > "$IFACE_STAMP"
   echo "$build_hash" > "$BUILD_STAMP"
 fi

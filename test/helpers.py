@@ -8,9 +8,27 @@ from __future__ import annotations
 from dataclasses import asdict
 import json
 from pathlib import Path
+import re
 from typing import Callable
 
 import numpy as np
+
+
+README = Path(__file__).resolve().parents[1] / 'README.md'
+
+
+def claimed_peak_ratio() -> float:
+    """Return the worst contact peak / F_sp the README claims ("ours stay within 1.0007x").
+
+    Tests hold every grasp to it, so that the claim and the code cannot drift apart.
+    """
+    text = ' '.join(README.read_text(encoding='utf-8').split())
+    return float(re.search(r'ours stay within (\d+\.\d+)x', text).group(1))
+
+
+def within_claimed_peak(peak_ratio: float) -> bool:
+    """Tell whether ``peak_ratio`` is within the claim at the claim's four decimals."""
+    return round(peak_ratio, 4) <= claimed_peak_ratio()
 
 
 def run_main(main: Callable, argv: list, capsys) -> tuple:

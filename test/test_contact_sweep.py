@@ -2,18 +2,21 @@
 
 Each grasp is the node graph's logic run headless (bit-identical to the graph, see
 test_graph.py), held on for 1 s after HOLDING. Known answers: the paper's PI hits a compliant
-object many times over its setpoint, ours must stay within 1.10x; no grasp may hold sooner than
-full voltage throughout would even reach the held position; the held force is the friction
-law's k m (g + a) / (2 mu_s); within a tolerance the object is reached after its distance into
-the band divided by the band speed. The full envelope is `contact_sweep` (docs/contact_sweep.txt).
+object many times over its setpoint, ours must stay within the README's claim (1.0007x); no
+grasp may hold sooner than full voltage throughout would even reach the held position; the
+held force is the friction law's k m (g + a) / (2 mu_s); within a tolerance the object is
+reached after its distance into the band divided by the band speed. The full envelope is
+`contact_sweep` (docs/contact_sweep.txt).
 """
 import dataclasses
 import math
 
-from gripper_ros.apps.contact_sweep import (band_speed_mps, main, max_mass_kg, quick_cases,
-                                            reflected_mass_kg, rigid_cases, sweep, SweepCase)
+from gripper_ros.apps.contact_sweep import (band_speed_mps, format_rows, main, max_mass_kg,
+                                            quick_cases, reflected_mass_kg, rigid_cases, sweep,
+                                            SweepCase)
 from gripper_ros.core.config import ForceLaw, load_config
 from gripper_ros.core.headless import simulate_grasp
+from helpers import within_claimed_peak
 import pytest
 
 CONFIG = load_config()
@@ -43,7 +46,7 @@ def test_the_reduced_envelope_is_held_without_a_spike_and_without_a_loss(quick_r
     assert {z for k, z in kinds if k} == {0.01, 1.0}
     assert {r.mass_kg for r in quick_rows} == {0.1, max_mass_kg(CONFIG)}
     worst = max(quick_rows, key=lambda r: r.peak_ratio)
-    assert worst.peak_ratio <= 1.10, worst
+    assert within_claimed_peak(worst.peak_ratio), worst
     for r in quick_rows:
         assert r.outcome == 'HOLDING', r
 
@@ -83,7 +86,7 @@ def test_paper_pi_still_spikes_on_a_compliant_object():
 
 
 def test_every_rigid_object_in_reach_is_held_at_the_setpoint_near_the_rest_floor():
-    """Rigid objects over widths x masses: HOLDING, peak within 1.10x, near the floor.
+    """Rigid objects over widths x masses: HOLDING, peak within the claim, near the floor.
 
     Within 0.6 s of the at-rest floor: the switch waits for <= 2 mm/s, then the last
     micrometres are crossed at the contact speed.
@@ -92,12 +95,28 @@ def test_every_rigid_object_in_reach_is_held_at_the_setpoint_near_the_rest_floor
     rows = sweep(CONFIG, cases, hold_s=0.0, jobs=2)
     assert len(rows) == len(cases)
     for r in rows:
-        assert r.outcome == 'HOLDING' and r.peak_ratio <= 1.10, r
+        assert r.outcome == 'HOLDING' and within_claimed_peak(r.peak_ratio), r
         assert 0 < r.arrival_floor_s < r.approach_floor_s
         assert r.arrival_floor_s <= r.time_to_hold_s <= r.approach_floor_s + 0.6, r
 
 
-def test_cli_prints_a_table_and_rejects_a_bad_config(tmp_path, capsys):
+def test_cli_prints_the_sweep_it_ran(quick_rows, capsys):
+    """``contact_sweep --quick`` prints the verdict and one table row per grasp it ran.
+
+    The sweep is deterministic: the printed rows are the reduced envelope's, grasp for grasp,
+    and the verdict's worst peak is theirs.
+    """
+    assert main(['--quick', '--jobs', '2', '--hold-s', '1.0']) == 0
+    out = capsys.readouterr().out
+    verdict, table = out.split('\n\n', 1)
+    assert verdict.startswith(f'contact_sweep: {len(quick_rows)} grasps ')
+    worst = max(quick_rows, key=lambda r: r.peak_ratio)
+    assert f'worst peak at the exact width: {worst.peak_ratio:.4f} x F_sp' in verdict
+    assert f'outcomes: HOLDING {len(quick_rows)}' in verdict
+    assert table.rstrip('\n') == format_rows(quick_rows)
+
+
+def test_cli_rejects_a_bad_config_and_bad_options(tmp_path, capsys):
     bad = tmp_path / 'bad.yaml'
     bad.write_text('plant: [not, a, mapping]\n')
     assert main(['--config', str(bad)]) == 2
@@ -115,10 +134,10 @@ def test_within_a_tolerance_the_widest_object_is_met_without_a_spike(k, zeta):
     """Request 50 mm +- 5 mm, place a 55 mm object: met at the band speed and held.
 
     The position stage stops short of the widest face and the force stage meets it at the band
-    speed, within 1.10 x F_sp.
+    speed, within the claimed peak.
     """
     (r,) = sweep(CONFIG, [_band_case(k, zeta, 0.055, 1.0)], hold_s=0.2)
-    assert r.outcome == 'HOLDING' and r.peak_ratio <= 1.10, r
+    assert r.outcome == 'HOLDING' and within_claimed_peak(r.peak_ratio), r
 
 
 def test_within_a_tolerance_an_object_inside_the_band_costs_its_distance_over_the_band_speed():
@@ -130,7 +149,7 @@ def test_within_a_tolerance_an_object_inside_the_band_costs_its_distance_over_th
     at_edge, inside = sweep(CONFIG, [_band_case(1e8, 1.0, 0.055, m),
                                      _band_case(1e8, 1.0, 0.0548, m)], hold_s=0.0, jobs=2)
     crossing_s = 0.0002 / band_speed_mps(CONFIG, inside.force_setpoint_n)
-    assert inside.outcome == 'HOLDING' and inside.peak_ratio <= 1.10, inside
+    assert inside.outcome == 'HOLDING' and within_claimed_peak(inside.peak_ratio), inside
     assert inside.time_to_hold_s - at_edge.time_to_hold_s == pytest.approx(crossing_s, rel=0.05)
 
 

@@ -513,7 +513,9 @@ def test_bad_reading_at_rest_never_reaches_the_motor(idle_runs, index):
     assert all(math.isfinite(c[3]) and math.isfinite(c[4]) for c in run.commands)
     assert all(math.isfinite(v) for v in run.motor_voltages)
     at_t0 = [c for c in run.commands if c[1] == run.t0]
-    assert at_t0 and all(c[3] == 0.0 for c in at_t0) if run.field == 'position' else True
+    assert at_t0, run.commands                       # the tick of the bad reading is answered
+    if run.field == 'position':                      # the position stage acts on it: 0 V
+        assert all(c[3] == 0.0 for c in at_t0), at_t0
     assert run.nonfinite_answers == (1 if run.field == 'position' else 0)
     carriers = {n[0].rsplit('/', 1)[1] for n in run.nonfinite if n[2] == run.t0}
     assert carriers <= {'tick', 'position_reference'}, run.nonfinite

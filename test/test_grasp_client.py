@@ -23,6 +23,7 @@ def server(tmp_path_factory):
     deadline = time.monotonic() + 60
     for line in proc.stdout:
         if 'serving /gripper/grasp' in line or time.monotonic() > deadline:
+            proc.banner = line
             break
     yield proc
     if proc.poll() is None:
@@ -31,6 +32,38 @@ def server(tmp_path_factory):
             proc.wait(timeout=20)
         except subprocess.TimeoutExpired:
             proc.kill()
+
+
+PARAMETER_SERVICES = ('describe_parameters', 'get_parameter_types', 'get_parameters',
+                      'list_parameters', 'set_parameters', 'set_parameters_atomically',
+                      'get_type_description')
+
+
+def test_the_start_up_line_names_every_service_and_action_served(server):
+    """What ``grasp_demo --serve`` announces is what another process finds on the graph."""
+    import re
+
+    import rclpy
+    from rclpy.context import Context
+    announced = set(re.search(r'serving (.*), publishing', server.banner).group(1).split(', '))
+    context = Context()
+    rclpy.init(context=context)
+    try:
+        probe = rclpy.create_node('served_names_probe', context=context)
+        deadline = time.monotonic() + 20
+        while True:
+            names = [n for n, _ in probe.get_service_names_and_types()
+                     if n.startswith('/gripper/') and n.rsplit('/', 1)[1] not in
+                     PARAMETER_SERVICES]
+            served = {n for n in names if '/_action/' not in n} | {
+                n.split('/_action/')[0] for n in names if n.endswith('/_action/send_goal')}
+            if served >= announced or time.monotonic() > deadline:
+                break
+            time.sleep(0.2)
+        probe.destroy_node()
+    finally:
+        rclpy.try_shutdown(context=context)
+    assert served == announced, (sorted(served - announced), sorted(announced - served))
 
 
 def test_client_grasp_from_another_process_is_held(server):

@@ -238,14 +238,31 @@ def test_a_finger_still_creeping_is_not_settled():
 
 
 def test_leaving_the_band_restarts_the_hold_timer():
-    sup = start()
-    sup.step(10 * MS, 0.0995, 0.0, 0.005)
-    f_sp = sup.targets.force_setpoint_n
+    """In the band from 21 ms, out of it once half a hold later, back in: the hold starts again.
+
+    Without the excursion the force settles one hold after 21 ms (the control run); with it,
+    that instant passes in FORCE and the force settles one hold after its return.
+    """
     hold_ns = int(S.force_settle_hold_s * 1e9)
-    sup.step(20 * MS, 0.1, f_sp, 4.0)
-    sup.step(21 * MS, 0.1, f_sp * 1.05, 4.0)              # out of the 2 % band
-    d = sup.step(20 * MS + hold_ns, 0.1, f_sp, 4.0)
-    assert d.phase is Phase.FORCE
+    out_ns = 21 * MS + hold_ns // 2
+    back_ns = out_ns + 2 * MS                              # two samples back at the setpoint
+
+    def run(excursion: bool) -> list:
+        sup = start()
+        sup.step(10 * MS, 0.0995, 0.0, 0.005)
+        f_sp = sup.targets.force_setpoint_n
+        sup.step(20 * MS, 0.1, f_sp, 4.0)
+        sup.step(21 * MS, 0.1, f_sp, 4.0)                  # in the band, at rest
+        if excursion:
+            sup.step(out_ns, 0.1, f_sp * 1.05, 4.0)        # out of the 2 % band
+            sup.step(out_ns + MS, 0.1, f_sp, 4.0)
+            sup.step(back_ns, 0.1, f_sp, 4.0)
+        phases = [sup.step(21 * MS + hold_ns + MS, 0.1, f_sp, 4.0).phase]
+        phases.append(sup.step(back_ns + hold_ns + MS, 0.1, f_sp, 4.0).phase)
+        return phases
+
+    assert run(excursion=False)[0] is not Phase.FORCE       # the hold would have completed
+    assert run(excursion=True) == [Phase.FORCE, Phase.HOLDING]
 
 
 def test_no_object_when_the_finger_passes_the_face_without_contact():

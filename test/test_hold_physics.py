@@ -42,10 +42,6 @@ def grip_n(volts):
     return P.torque_constant_n_m_per_a * (volts / P.resistance_ohm) / P.force_lever_m
 
 
-def test_config_holds_the_pad_friction_defaults():
-    assert (MU_S, MU_K, PAD_M) == (0.5, 0.4, 0.02)
-
-
 # ------------------------------------------------------------------ the hold model alone
 def model(mass_kg=1.0, lift=None):
     return HoldModel(mass_kg, MU_S, MU_K, PAD_M, G, lift)

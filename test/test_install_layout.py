@@ -183,17 +183,22 @@ def test_generated_action_matches_action_file(name):
     _check(action.Feedback, feedback)
 
 
-def test_named_types_import():
+def test_named_types_go_over_the_wire_in_the_layout_the_nodes_read():
+    """A generated message, serialised by rclpy, is the bytes the lockstep layout packs."""
     from gripper_interfaces.msg import MotorCommand
     from gripper_interfaces.srv import Grasp
+    from gripper_ros.wire import CDR_LITTLE_ENDIAN, COMMAND_LAYOUT
+    from rclpy.serialization import deserialize_message, serialize_message
 
-    cmd = MotorCommand(source=MotorCommand.SOURCE_FORCE, voltage_v=1.5, hold_s=0.01)
-    assert (cmd.source, cmd.voltage_v, cmd.hold_s) == (2, 1.5, 0.01)
-    assert cmd.stamp_ns == 0 and cmd.finite is False
-    req = Grasp.Request(width_m=0.02, mass_kg=0.1)
-    assert req.width_m == 0.02
-    assert Grasp.Response.OUTCOME_HOLDING == 1
-    assert Grasp.Response().message == ''
+    cmd = MotorCommand(stamp_ns=123_456_789, grasp_id=7, source=MotorCommand.SOURCE_FORCE,
+                       voltage_v=1.5, hold_s=0.01, finite=True)
+    data = serialize_message(cmd)
+    fields = dict(zip(COMMAND_LAYOUT.fields, COMMAND_LAYOUT.unpack(data)))
+    assert data[:len(CDR_LITTLE_ENDIAN)] == CDR_LITTLE_ENDIAN
+    assert (fields['stamp_ns'], fields['grasp_id'], fields['source'], fields['voltage_v'],
+            fields['hold_s'], fields['finite']) == (123_456_789, 7, 2, 1.5, 0.01, True)
+    request = Grasp.Request(width_m=0.02, mass_kg=0.1)
+    assert deserialize_message(serialize_message(request), Grasp.Request) == request
 
 
 def test_every_interface_file_is_covered():

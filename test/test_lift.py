@@ -7,11 +7,12 @@ whatever its mass. Under the friction law (k >= 1) it never slips. The graph (gr
 DDS) and the headless loop agree on the instant of the loss to the tick.
 """
 import math
+from pathlib import Path
 import subprocess
 import sys
 
 from gripper_ros.apps.grasp_demo import LIFT_DELAY_S, LIFT_DURATION_S
-from gripper_ros.apps.lift_table import lift_rows
+from gripper_ros.apps.lift_table import lift_rows, markdown
 from gripper_ros.core.config import load_config
 import pytest
 
@@ -52,6 +53,17 @@ def test_under_the_friction_law_every_object_holds_without_slip_or_is_refused(co
         assert r['outcome'] == 'HOLDING', r
         assert r['force_setpoint_n'] == pytest.approx(needed)
         assert r['slip_m'] == 0.0 and math.isnan(r['lost_s'])
+
+
+def test_the_readme_lift_table_is_what_lift_table_prints(config):
+    """README quotes ``lift_table``: every row, the refusal line included, as it prints it."""
+    readme = (Path(__file__).resolve().parents[1] / 'README.md').read_text(encoding='utf-8')
+    quoted = [line for line in readme.splitlines() if line.startswith('| ')
+              and ('friction |' in line or 'paper |' in line or 'object (width' in line)]
+    printed = markdown(lift_rows(config, [0.0, 2.0, 5.0], LIFT_DELAY_S, LIFT_DURATION_S),
+                       LIFT_DELAY_S, LIFT_DURATION_S)
+    assert quoted == [line for line in printed.splitlines() if line.startswith('| ')
+                      and not line.startswith('|---')]
 
 
 def _demo(tmp_path, law):

@@ -285,13 +285,11 @@ def _answer(outcome, position_m=0.1, effort_n=5.0):
                            reached_goal=outcome is Outcome.MOVED)
 
 
-def test_the_result_is_the_finger_joint_state_with_stalled_and_reached_goal():
-    fields = result_fields(_answer(Outcome.STALLED, 0.1, 5.0))
-    assert fields == {'state': {'name': [FINGER_JOINT], 'position': [0.1], 'velocity': [],
-                                'effort': [5.0]},
-                      'stalled': True, 'reached_goal': False}
-    assert result_fields(_answer(Outcome.MOVED))['reached_goal'] is True
-    assert joint_state_fields(0.02, 0.0)['position'] == [0.02]
+def test_the_result_state_carries_a_velocity_only_when_one_is_known():
+    """Follow JointState's convention: an empty velocity means "not measured"."""
+    assert joint_state_fields(0.02, 0.0)['velocity'] == []
+    assert joint_state_fields(0.02, 0.0, -0.0)['velocity'] == [0.0]
+    assert result_fields(_answer(Outcome.MOVED), 0.004)['state']['velocity'] == [0.004]
 
 
 @pytest.mark.parametrize('outcome, allow_stalling, cancel, end', [
@@ -360,8 +358,13 @@ def test_the_move_service_stalls_on_an_object_at_the_effort_limit(graph):
     assert answer.width_m == pytest.approx(0.08, abs=1e-9)
     assert S.move_stall_force_fraction * 6.0 <= answer.effort_n <= 6.0 * (1 + 1e-9)
     assert 'at the effort limit' in answer.message
+    pressed = result_fields(answer, 0.0)              # gripper_cmd's result of this answer
+    assert pressed['stalled'] and not pressed['reached_goal']
+    assert pressed['state']['position'] == [answer.position_m]
+    assert pressed['state']['effort'] == [answer.effort_n]
     opened = graph.move(TRAVEL_M)                    # opening ends the press
     assert opened.reached_goal and opened.effort_n == 0.0
+    assert result_fields(opened, 0.0)['reached_goal'] and not result_fields(opened)['stalled']
 
 
 def test_the_graphs_move_is_the_headless_move_tick_for_tick(graph):
@@ -519,6 +522,12 @@ def test_parallel_gripper_command_on_gripper_cmd_drives_the_move(graph):
         assert result.state.position[0] == pytest.approx(TRAVEL_M - 0.06, abs=1e-9)
         assert S.move_stall_force_fraction * 5.0 <= result.state.effort[0] <= 5.0 * (1 + 1e-9)
         assert feedback and list(feedback[-1].feedback.state.name) == [FINGER_JOINT]
+        # stamped in simulated time, at or after the last feedback, with the measured velocity
+        stamp = result.state.header.stamp
+        last = feedback[-1].feedback.state.header.stamp
+        assert (stamp.sec, stamp.nanosec) >= (last.sec, last.nanosec) > (0, 0)
+        assert len(result.state.velocity) == 1 and abs(result.state.velocity[0]) < 0.001
+        assert len(feedback[-1].feedback.state.velocity) == 1
         status, result, _ = send(close, allow_stalling=True)         # still pressing there
         assert status == GoalStatus.STATUS_SUCCEEDED and result.stalled
         opened = JointState(name=[FINGER_JOINT], position=[0.02], velocity=[0.04])

@@ -17,6 +17,7 @@ import math
 import os
 from pathlib import Path
 import subprocess
+import time
 
 from gripper_ros.core.config import ConfigError
 from gripper_ros.nodes.force_controller_node import ForceControllerNode
@@ -26,7 +27,7 @@ from gripper_ros.nodes.parameters import flatten
 from gripper_ros.nodes.plant_simulator_node import PlantSimulatorNode
 from gripper_ros.nodes.position_controller_node import PositionControllerNode
 from gripper_ros.nodes.supervisor_node import SupervisorNode
-from gripper_ros.wire import DEFAULT_NAMESPACE
+from gripper_ros.wire import DEFAULT_NAMESPACE, Outcome
 import numpy as np
 import pytest
 from rcl_interfaces.msg import Parameter as ParameterMsg
@@ -203,7 +204,7 @@ def graph():
 def _service(graph, node_name, srv_type, suffix):
     key = (node_name, suffix)
     if key not in graph.param_clients:
-        name = f'/{DEFAULT_NAMESPACE}/{node_name}/{suffix}'
+        name = f'/{graph.namespace}/{node_name}/{suffix}'
         client = graph.param_client.create_client(srv_type, name)
         assert client.wait_for_service(timeout_sec=10.0), name
         graph.param_clients[key] = client
@@ -249,8 +250,8 @@ def _bad_values(descriptor):
             ('-inf', _double(-math.inf), 'out of range'),
             ('string', ParameterValue(type=ParameterType.PARAMETER_STRING, string_value='1.0'),
              'Wrong parameter type'),
-            ('integer', ParameterValue(type=ParameterType.PARAMETER_INTEGER, integer_value=1),
-             'Wrong parameter type'),
+            ('integer', ParameterValue(type=ParameterType.PARAMETER_INTEGER,
+                                       integer_value=math.floor(below)), 'out of range'),
             ('bool', ParameterValue(type=ParameterType.PARAMETER_BOOL, bool_value=True),
              'Wrong parameter type')]
 
@@ -342,35 +343,64 @@ def test_read_only_parameters_refuse_any_change(graph, descriptors):
     assert checked >= len(READ_ONLY) + sum(len(config_keys(n, 1)) for n in NODE_CLASSES)
 
 
-def test_accepted_controller_parameters_take_effect(graph):
-    """Accepted controller parameters reach what uses them.
+NEW_TIMEOUT_S = 0.6
+"""A watchdog timeout set at run time, well below each default (3 s and 2 s)."""
+WATCH_PERIOD_S = 0.1
+"""The last message before a kill came up to a check period early (watchdogs check at 20 Hz)."""
 
-    status_timeout_s is read by the watchdog on every check; approach_force_margin goes to the
-    force stage (used from the next grasp on).
+
+def _grasp_then_kill(node_name: str, timeout_parameter: str):
+    """Kill ``node_name`` mid-approach after its watcher's timeout was set at run time.
+
+    ``timeout_parameter`` of the watching node is set to NEW_TIMEOUT_S over its service, in a
+    graph of its own; returns the seconds from the kill until the watchdog acted, and the
+    grasp's answer (None when the supervisor was killed).
     """
-    for node in (graph.position, graph.force):
-        name = node.get_name()
-        assert _set(graph, name, 'status_timeout_s', _double(4.5)).successful
-        assert node.status_timeout_s == 4.5
-        assert _set(graph, name, 'status_timeout_s', _double(3.0)).successful
+    from gripper_interfaces.srv import Grasp
+
+    from gripper_ros.nodes.common import wait_until
+    watcher = 'supervisor' if node_name == 'plant_simulator' else 'position_controller'
+    with GripperGraph.in_own_context(GraphOptions(namespace='new_timeouts')) as g:
+        client = rclpy.create_node('parameter_client', context=g.context)
+        g.add_node(client)
+        g.param_client, g.param_clients = client, {}
+        assert _set(g, watcher, timeout_parameter, _double(NEW_TIMEOUT_S)).successful
+        assert g.set_object(0.10).success
+        pending = g._grasp.call_async(Grasp.Request(width_m=0.10, mass_kg=0.75))
+        ticks = g.plant.ticks_published
+        assert wait_until(lambda: g.plant.ticks_published >= ticks + 30, 30.0)
+        victim = g.plant if node_name == 'plant_simulator' else g.supervisor
+        g.kill_node(victim)
+        killed_at = time.monotonic()
+        if node_name == 'plant_simulator':
+            assert wait_until(pending.done, 10.0)
+            acted_s, answer = time.monotonic() - killed_at, pending.result()
+        else:
+            assert wait_until(lambda: g.position.watchdog_trips >= 1, 10.0)
+            acted_s, answer = time.monotonic() - killed_at, None
+            g._grasp.remove_pending_request(pending)
+    return acted_s, answer
+
+
+def test_a_new_status_timeout_is_the_one_the_controller_watchdog_fires_at():
+    """status_timeout_s set to 0.6 s: the supervisor killed, 0 V after 0.6 s, not the 3 s."""
+    acted_s, _ = _grasp_then_kill('supervisor', 'status_timeout_s')
+    assert NEW_TIMEOUT_S - WATCH_PERIOD_S <= acted_s < NEW_TIMEOUT_S + 1.0 < 3.0, acted_s
+
+
+def test_a_new_tick_timeout_is_the_one_the_supervisor_watchdog_fires_at():
+    """tick_timeout_s set to 0.6 s: the plant killed, FAULT after 0.6 s, not the 2 s."""
+    acted_s, answer = _grasp_then_kill('plant_simulator', 'tick_timeout_s')
+    assert answer.outcome == Outcome.FAULT, answer.message
+    assert NEW_TIMEOUT_S - WATCH_PERIOD_S <= acted_s < NEW_TIMEOUT_S + 1.0 < 2.0, acted_s
+
+
+def test_a_new_approach_margin_is_the_one_a_bag_records(graph):
+    """approach_force_margin reaches the force stage and the settings every bag records."""
     assert _set(graph, 'force_controller', 'approach_force_margin', _double(2.0)).successful
-    assert graph.force.stage.approach_margin == 2.0
-    # a bag records the margin in use, not the one the graph was started with
     assert graph.controller_settings()['approach_force_margin'] == 2.0
     assert _set(graph, 'force_controller', 'approach_force_margin', _double(1.0)).successful
-    assert graph.force.stage.approach_margin == 1.0
     assert graph.controller_settings()['approach_force_margin'] == 1.0
-
-
-def test_accepted_supervisor_and_action_parameters_take_effect(graph):
-    try:
-        assert _set(graph, 'supervisor', 'tick_timeout_s', _double(5.0)).successful
-        assert _set(graph, 'grasp_action_server', 'feedback_period_s', _double(0.5)).successful
-        assert graph.supervisor.tick_timeout_s == 5.0
-        assert graph.action_server.feedback_period_s == 0.5
-    finally:
-        _set(graph, 'supervisor', 'tick_timeout_s', _double(2.0))
-        _set(graph, 'grasp_action_server', 'feedback_period_s', _double(0.05))
 
 
 def test_config_file_cannot_be_changed_on_a_running_node(graph, descriptors):
@@ -407,6 +437,37 @@ def test_plant_answers_an_accepted_parameter_change(graph):
     assert result.successful, result.reason
     assert _get(graph, 'plant_simulator', 'use_sim_time') is False
     assert graph.set_object(0.10).success      # the plant still answers its own service
+
+
+def test_a_whole_number_is_taken_for_a_double_parameter_at_run_time(graph):
+    """``ros2 param set ... kc 900`` sends an INTEGER: it is 900.0, and the controller uses it."""
+    key = 'position_control.mpc_pd.kc'
+    before = _get(graph, 'position_controller', key)
+    try:
+        result = _set(graph, 'position_controller', key, ParameterValue(
+            type=ParameterType.PARAMETER_INTEGER, integer_value=900))
+        assert result.successful, result.reason
+        value = _get(graph, 'position_controller', key)
+        assert isinstance(value, float) and value == 900.0
+        assert graph.position.config.position.mpc_pd.kc == 900.0
+    finally:
+        assert _set(graph, 'position_controller', key, _double(before)).successful
+
+
+def test_a_whole_number_is_taken_for_a_double_parameter_at_start_up(own_context):
+    """``-p kc:=900`` and ``-p status_timeout_s:=5`` start the node; a horizon stays whole."""
+    node = PositionControllerNode(context=own_context, parameter_overrides=[
+        Parameter('position_control.mpc_pd.kc', value=900),
+        Parameter('status_timeout_s', value=5),
+        Parameter('position_control.mpc_pd.horizon', value=600)])
+    try:
+        assert node.config.position.mpc_pd.kc == 900.0
+        assert node.get_parameter('status_timeout_s').type_ is Parameter.Type.DOUBLE
+        assert node.status_timeout_s == 5.0
+        horizon = node.get_parameter('position_control.mpc_pd.horizon')
+        assert horizon.type_ is Parameter.Type.INTEGER and horizon.value == 600
+    finally:
+        node.destroy_node()
 
 
 # ---------------------------------------------------------------------- config keys at run time

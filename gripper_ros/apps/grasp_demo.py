@@ -16,7 +16,6 @@ from datetime import datetime
 import math
 import os
 from pathlib import Path
-import signal
 import sys
 import time
 
@@ -160,7 +159,8 @@ def main(argv: list[str] | None = None) -> int:
     from gripper_ros.bags.recorder import BagRecorderError
     from gripper_ros.bags.recording import RecordingError, ServeRecorder
     from gripper_ros.core.config import ConfigError
-    from gripper_ros.nodes.common import ExecutorKind, one_line, StartupError
+    from gripper_ros.nodes.common import (exit_without_a_last_collection, ExecutorKind, one_line,
+                                          StartupError, StopSignals)
     from gripper_ros.nodes.graph import GraphError, GraphOptions, GripperGraph
     from gripper_ros.nodes.names import namespace_as_given
     from gripper_ros.wire import check_namespace
@@ -177,8 +177,6 @@ def main(argv: list[str] | None = None) -> int:
         return _fail(f'--real-time-factor must be in (0, 100], got {args.real_time_factor!r}')
     time_mode = args.time_mode or ('realtime' if args.serve else 'fast')
     from rclpy.signals import SignalHandlerOptions
-    # Ctrl-C and SIGTERM end the demo here (KeyboardInterrupt), not inside rclpy: the graph
-    # stops its executor, closes its bags and only then shuts the context down.
     from rclpy.exceptions import InvalidNamespaceException
     from rclpy.utilities import ok
     try:
@@ -193,8 +191,13 @@ def main(argv: list[str] | None = None) -> int:
         return _fail(one_line(exc))
     except RCLError as exc:
         return _fail(f'bad --ros-args: {one_line(exc)}')
-    # SIGTERM (e.g. from a process manager) ends the demo like Ctrl-C: bags are closed.
-    previous = {sig: signal.signal(sig, _raise_keyboard_interrupt) for sig in _STOP_SIGNALS}
+    # Ctrl-C and SIGTERM end the demo here, not inside rclpy: the graph stops its executor,
+    # closes its bags and only then shuts the context down. Serving, a signal is the way to
+    # stop (exit 0); during grasps it interrupts the one running (KeyboardInterrupt, exit 130).
+    # A later signal is ignored: it must not cut the closing of a bag short.
+    exit_without_a_last_collection()
+    signals = StopSignals(on_first=None if args.serve else _raise_keyboard_interrupt)
+    signals.__enter__()
     graph = None
     try:
         graph = GripperGraph(GraphOptions(
@@ -208,7 +211,7 @@ def main(argv: list[str] | None = None) -> int:
         if args.serve:
             if not args.no_record:
                 ServeRecorder(graph, args.output)
-            return _serve(graph, args)
+            return _serve(graph, args, signals)
         records = [_grasp_one(graph, args, w, m, i, len(objects))
                    for i, (w, m) in enumerate(objects, 1)]
         _summarise(graph, records, args)
@@ -221,44 +224,33 @@ def main(argv: list[str] | None = None) -> int:
         print('grasp_demo: interrupted; bags closed', file=sys.stderr)
         return 130
     finally:
+        signals.on_first = None               # a signal from here on must not cut closing short
         if graph is not None:
             graph.close()
         rclpy.try_shutdown()
-        for sig, handler in previous.items():
-            signal.signal(sig, handler)
+        signals.__exit__()
 
 
-_STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
-
-
-def _raise_keyboard_interrupt(signum, frame):
-    """End the demo (the first Ctrl-C or SIGTERM); a later one must not cut its closing short.
-
-    The KeyboardInterrupt unwinds into the code that closes the graph and its bags; a second
-    exception raised in there would leave a bag without its summary and print a traceback.
-    """
-    for sig in _STOP_SIGNALS:
-        signal.signal(sig, _while_closing)
+def _raise_keyboard_interrupt(signum):
+    """Interrupt the grasp in progress (the first Ctrl-C or SIGTERM of a one-shot demo)."""
     raise KeyboardInterrupt
 
 
-def _while_closing(signum, frame):
-    print('grasp_demo: closing the bags, then exiting', file=sys.stderr, flush=True)
+SERVE_POLL_S = 0.1
+"""How often a serving demo looks for a stop signal, a dead executor or a shut context."""
 
 
-def _serve(graph, args) -> int:
-    from gripper_ros.wire import (ACTION_GRASP, SERVICE_GRASP, SERVICE_RELEASE,
-                                  SERVICE_SET_OBJECT, SERVICE_STEP, SERVICE_STOP, TOPIC_OUTCOME,
-                                  qualified)
+def _serve(graph, args, signals) -> int:
+    """Serve until a signal, or until the graph stops spinning (its context shut down)."""
+    from gripper_ros.wire import qualified, TOPIC_OUTCOME
     where = 'not recording' if args.no_record else f'one bag per grasp in {args.output}/'
-    names = ', '.join(qualified(graph.namespace, n) for n in (
-        SERVICE_GRASP, ACTION_GRASP, SERVICE_STOP, SERVICE_RELEASE, SERVICE_SET_OBJECT,
-        SERVICE_STEP))
+    names = ', '.join(qualified(graph.namespace, n) for n in graph.served_names())
     print(f'grasp_demo: serving {names}, publishing the latched '
           f'{qualified(graph.namespace, TOPIC_OUTCOME)} ({graph.options.time_mode} time, '
           f'{where}); Ctrl-C to stop', flush=True)
-    while True:
-        time.sleep(1.0)
+    while not signals.received and graph.spinning:
+        time.sleep(SERVE_POLL_S)
+    return 0
 
 
 def _bag_dir(output: Path, i: int, width_m: float, mass_kg: float, overwrite: bool) -> Path:

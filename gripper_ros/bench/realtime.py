@@ -2,11 +2,14 @@
 
     ros2 run gripper_ros bench_realtime                  # idle 5 s, grasp, hold 5 s
     ros2 run gripper_ros bench_realtime --seconds 10 --no-record --json
+    ros2 run gripper_ros bench_realtime --per-node       # one process per node, as the launch file
 
 ``grasp_demo --serve`` runs in a child process, exactly as a user starts it (realtime time,
-real-time factor 1, bags per grasp unless ``--no-record``). From this process, over DDS, the
-benchmark watches ``/clock``, ``joint_states`` and ``sim/status`` and reads the child's CPU
-time from /proc, in two windows of ``--seconds`` wall seconds each:
+real-time factor 1, bags per grasp unless ``--no-record``); with ``--per-node`` the six node
+executables run as six processes, started with the arguments ``launch_ros`` gives them (no
+bags; the graph of ``ros2 launch gripper_ros gripper.launch.py``). From this process, over
+DDS, the benchmark watches ``/clock``, ``joint_states`` and ``sim/status`` and reads the
+child's CPU time from /proc, in two windows of ``--seconds`` wall seconds each:
 
 - idle: no request; the position stage holds the open fingers (10 ms ticks);
 - holding: after a grasp of the 0.1 m / 0.75 kg object of Table V answered HOLDING, the force
@@ -15,7 +18,8 @@ time from /proc, in two windows of ``--seconds`` wall seconds each:
 For each window: the achieved real-time factor (simulated seconds per wall second, from the
 stamps of ``joint_states``; 1.0 is the aim, and the plant never runs ahead of the wall
 clock), the rates of ``/clock`` and ``joint_states`` against ``state_rate_hz``, the plant's own
-figure from ``sim/status``, and the child's CPU time as a share of one core.
+figure from ``sim/status``, and the child's CPU time as a share of one core (summed over the
+six with ``--per-node``).
 """
 from __future__ import annotations
 
@@ -119,11 +123,20 @@ class _Watcher:
         self.context.try_shutdown()
 
 
-def _window(watcher: _Watcher, pid: int, seconds: float) -> Dict[str, Any]:
-    """Streams, simulated time and CPU over ``seconds`` of wall time."""
-    a, cpu0, t0 = watcher.snapshot(), process_cpu_s(pid), time.perf_counter()
+PER_NODE_MODULES = ('plant_simulator_node', 'position_controller_node', 'force_controller_node',
+                    'supervisor_node', 'grasp_action_node', 'move_action_node')
+"""The node executables the launch file starts, one process each."""
+
+
+def _cpu_s(pids: Sequence[int]) -> float:
+    return sum(process_cpu_s(pid) for pid in pids)
+
+
+def _window(watcher: _Watcher, pids: Sequence[int], seconds: float) -> Dict[str, Any]:
+    """Streams, simulated time and CPU (summed over ``pids``) over ``seconds`` of wall time."""
+    a, cpu0, t0 = watcher.snapshot(), _cpu_s(pids), time.perf_counter()
     time.sleep(seconds)
-    b, cpu1, t1 = watcher.snapshot(), process_cpu_s(pid), time.perf_counter()
+    b, cpu1, t1 = watcher.snapshot(), _cpu_s(pids), time.perf_counter()
     wall = t1 - t0
     with watcher._lock:
         sim_rtf = watcher.sim_rtf[a['sim_rtf']:b['sim_rtf']]
@@ -135,68 +148,90 @@ def _window(watcher: _Watcher, pid: int, seconds: float) -> Dict[str, Any]:
             'cpu_share': (cpu1 - cpu0) / wall}
 
 
-def measure(seconds: float, record: bool) -> Dict[str, Any]:
-    """Idle and holding windows of a ``grasp_demo --serve`` child."""
+def _commands(namespace: str, output: str, record: bool, per_node: bool) -> list[list[str]]:
+    """Return the command line of each child: grasp_demo --serve, or one per node."""
+    if per_node:
+        return [[sys.executable, '-m', f'gripper_ros.nodes.{module}', '--ros-args', '-r',
+                 f'__ns:=/{namespace}', '--log-level', 'warn'] for module in PER_NODE_MODULES]
+    cmd = [sys.executable, '-m', 'gripper_ros.apps.grasp_demo', '--serve', '--namespace',
+           namespace, '--output', output, '--ros-args', '--log-level', 'warn']
+    if not record:
+        cmd.insert(-3, '--no-record')
+    return [cmd]
+
+
+def measure(seconds: float, record: bool, per_node: bool = False) -> Dict[str, Any]:
+    """Idle and holding windows of a ``grasp_demo --serve`` child, or of the six node children."""
     from gripper_interfaces.srv import Grasp, SetObject
     from std_srvs.srv import Trigger
     from gripper_ros.wire import Outcome
     namespace = f'bench_realtime_{os.getpid()}'
+    record = record and not per_node
     with tempfile.TemporaryDirectory(prefix='bench_realtime_') as tmp:
-        cmd = [sys.executable, '-m', 'gripper_ros.apps.grasp_demo', '--serve', '--namespace',
-               namespace, '--output', tmp, '--ros-args', '--log-level', 'warn']
-        if not record:
-            cmd.insert(-3, '--no-record')
-        child = subprocess.Popen(cmd, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
-                                 stderr=subprocess.PIPE, text=True)
+        children = [subprocess.Popen(cmd, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
+                                     stderr=subprocess.PIPE, text=True)
+                    for cmd in _commands(namespace, tmp, record, per_node)]
+        pids = [child.pid for child in children]
         watcher = None
         try:
             watcher = _Watcher(namespace)
             deadline = time.monotonic() + _UP_TIMEOUT_S
             while not (watcher.grasp.service_is_ready() and watcher.set_object.service_is_ready()
                        and watcher.snapshot()['joint'] > 10):
-                if child.poll() is not None:
-                    raise BenchError(f'grasp_demo --serve exited ({child.returncode}): '
-                                     f'{child.stderr.read().strip()[-300:]}')
+                for child in children:
+                    if child.poll() is not None:
+                        raise BenchError(f'{child.args[2]} exited ({child.returncode}): '
+                                         f'{child.stderr.read().strip()[-300:]}')
                 if time.monotonic() > deadline:
                     raise BenchError('grasp_demo --serve did not come up')
                 time.sleep(0.05)
             time.sleep(0.5)
-            idle = _window(watcher, child.pid, seconds)
+            idle = _window(watcher, pids, seconds)
             placed = watcher.call(watcher.set_object, SetObject.Request(width_m=GRASP[0]), 30.0)
             if not placed.success:
                 raise BenchError(f'set_object: {placed.message}')
             t0 = time.perf_counter()
-            response = watcher.call(watcher.grasp, Grasp.Request(width_m=GRASP[0],
-                                                                 mass_kg=GRASP[1]), 120.0)
+            while True:       # one process per node: refused until the supervisor heard all
+                response = watcher.call(watcher.grasp, Grasp.Request(width_m=GRASP[0],
+                                                                     mass_kg=GRASP[1]), 120.0)
+                if response.outcome != Outcome.REFUSED or time.monotonic() > deadline:
+                    break
+                time.sleep(0.2)
+                t0 = time.perf_counter()
             grasp_wall_s = time.perf_counter() - t0
             if response.outcome != Outcome.HOLDING:
                 raise BenchError(f'the grasp ended {Outcome(response.outcome).name}: '
                                  f'{response.message}')
             time.sleep(1.0)                  # the serve bag closes 0.5 s after the answer
-            holding = _window(watcher, child.pid, seconds)
+            holding = _window(watcher, pids, seconds)
             watcher.call(watcher.release, Trigger.Request(), 60.0)
-            return {'record': record, 'seconds': seconds, 'state_rate_hz': STATE_RATE_HZ,
+            return {'record': record, 'per_node': per_node, 'seconds': seconds,
+                    'state_rate_hz': STATE_RATE_HZ,
                     'grasp': {'width_m': GRASP[0], 'mass_kg': GRASP[1],
                               'wall_s': grasp_wall_s},
                     'idle': idle, 'holding': holding}
         finally:
             if watcher is not None:
                 watcher.close()
-            if child.poll() is None:
-                child.send_signal(signal.SIGINT)
+            for child in children:
+                if child.poll() is None:
+                    child.send_signal(signal.SIGINT)
+            for child in children:
                 try:
                     child.wait(15.0)
                 except subprocess.TimeoutExpired:
                     child.kill()
                     child.wait()
-            child.stderr.close()
+                child.stderr.close()
 
 
 def format_report(r: Dict[str, Any]) -> str:
-    lines = [f"bench_realtime: grasp_demo --serve{'' if r['record'] else ' --no-record'} "
+    graph = 'the six nodes, one process each (as the launch file starts them)' \
+        if r.get('per_node') else f"grasp_demo --serve{'' if r['record'] else ' --no-record'}"
+    lines = [f'bench_realtime: {graph} '
              f"(realtime, real-time factor 1, state_rate_hz {r['state_rate_hz']:g}) watched "
              f"from another process, {r['seconds']:g} s per window; CPU: the serving "
-             'process, share of one core', '',
+             'process(es), share of one core', '',
              f'{"window":>8s} {"RTF":>6s} {"plant RTF":>9s} {"/clock Hz":>10s} '
              f'{"joint_states Hz":>15s} {"CPU share":>9s}']
     for name in ('idle', 'holding'):
@@ -220,13 +255,15 @@ def main(args: Optional[Sequence[str]] = None) -> int:
                    help='wall seconds per window (default 5)')
     p.add_argument('--no-record', dest='record', action='store_false',
                    help='serve without recording bags')
+    p.add_argument('--per-node', action='store_true',
+                   help='run the six nodes as six processes, as the launch file does (no bags)')
     p.add_argument('--json', action='store_true', help='print JSON instead of the table')
     opts = p.parse_args(list(sys.argv[1:] if args is None else args))
     if not (0.5 <= opts.seconds <= 600.0):
         print('bench_realtime: error: --seconds must be in [0.5, 600]', file=sys.stderr)
         return 2
     try:
-        report = measure(opts.seconds, opts.record)
+        report = measure(opts.seconds, opts.record, opts.per_node)
     except BenchError as exc:
         print(f'bench_realtime: error: {exc}', file=sys.stderr)
         return 1

@@ -58,16 +58,21 @@ def move_request_of(command, travel_m: float, joint: str = FINGER_JOINT) -> Move
     return MoveRequest(travel_m - position_m, float(speed_mps), float(effort_n))
 
 
-def joint_state_fields(position_m: float, effort_n: float,
+def joint_state_fields(position_m: float, effort_n: float, velocity_mps: float | None = None,
                        joint: str = FINGER_JOINT) -> dict:
-    """Return the fields of the JointState that reports the gripper's state (no velocity)."""
-    return {'name': [joint], 'position': [float(position_m)], 'velocity': [],
+    """Return the fields of the JointState that reports the gripper's state.
+
+    The velocity is left empty (JointState's "not measured") only when none is known.
+    """
+    return {'name': [joint], 'position': [float(position_m)],
+            'velocity': [] if velocity_mps is None else [float(velocity_mps)],
             'effort': [float(effort_n)]}
 
 
-def result_fields(move_result) -> dict:
-    """Return ParallelGripperCommand.Result's fields from a srv/Move answer."""
-    return {'state': joint_state_fields(move_result.position_m, move_result.effort_n),
+def result_fields(move_result, velocity_mps: float | None = None) -> dict:
+    """Return ParallelGripperCommand.Result's fields from a srv/Move answer and the velocity."""
+    return {'state': joint_state_fields(move_result.position_m, move_result.effort_n,
+                                        velocity_mps),
             'stalled': bool(move_result.stalled),
             'reached_goal': bool(move_result.reached_goal)}
 

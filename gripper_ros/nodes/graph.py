@@ -28,9 +28,10 @@ from gripper_ros.nodes.names import NameClaim
 from gripper_ros.nodes.plant_simulator_node import PlantSimulatorNode
 from gripper_ros.nodes.position_controller_node import PositionControllerNode
 from gripper_ros.nodes.supervisor_node import SupervisorNode
-from gripper_ros.wire import (check_namespace, DEFAULT_NAMESPACE, NODE_PLANT, NODE_SUPERVISOR,
-                              SERVICE_GRASP, SERVICE_MOVE, SERVICE_PAUSE, SERVICE_RELEASE,
-                              SERVICE_RESUME, SERVICE_SET_OBJECT, SERVICE_STEP, SERVICE_STOP)
+from gripper_ros.wire import (ACTION_GRASP, ACTION_GRIPPER_CMD, ACTION_MOVE, check_namespace,
+                              DEFAULT_NAMESPACE, NODE_PLANT, NODE_SUPERVISOR, SERVICE_GRASP,
+                              SERVICE_MOVE, SERVICE_PAUSE, SERVICE_RELEASE, SERVICE_RESUME,
+                              SERVICE_SET_OBJECT, SERVICE_STEP, SERVICE_STOP)
 import rclpy
 from rclpy.context import Context
 from rclpy.parameter import Parameter
@@ -292,6 +293,23 @@ class GripperGraph:
         for node in (self.plant, self.supervisor, self.position, self.force):
             total.update(node.published)
         return total
+
+    def served_names(self) -> list[str]:
+        """Return every service and action this graph serves (relative names), services first."""
+        names = [SERVICE_GRASP, SERVICE_MOVE, SERVICE_STOP, SERVICE_RELEASE, SERVICE_SET_OBJECT,
+                 SERVICE_PAUSE, SERVICE_RESUME, SERVICE_STEP]
+        if self.action_server is not None:
+            names.append(ACTION_GRASP)
+        if self.move_action_server is not None:
+            names.append(ACTION_MOVE)
+            if self.move_action_server.gripper_command_served:
+                names.append(ACTION_GRIPPER_CMD)
+        return names
+
+    @property
+    def spinning(self) -> bool:
+        """True while the executor thread runs (it ends when the context is shut down)."""
+        return self._thread.is_alive() and rclpy.ok(context=self.executor.context)
 
     @property
     def sim_time_ns(self) -> int:

@@ -13,7 +13,8 @@ as ``grasp_action_server`` is for the grasp:
   (:mod:`gripper_ros.core.gripper_command`); a malformed command is rejected. The result is
   the finger's JointState, ``stalled`` and ``reached_goal``; the goal succeeds on reaching
   the goal, and on a stall only with ``allow_stalling`` (as ros2_controllers' parallel gripper
-  controller). Feedback is the finger's JointState.
+  controller). Feedback and result are the finger's JointState, stamped with the simulated
+  time of the newest status; its velocity is the newest ``joint_states`` sample's.
 
 One goal at a time (the gripper does one request at a time): a goal while another executes is
 aborted at once (REFUSED in our result). Feedback is throttled to ``feedback_period_s`` of wall
@@ -34,10 +35,11 @@ from gripper_ros.nodes.common import (accept_goal, cancel_by_stop, declare_confi
                                       default_namespace, GRAPH_QOS, run_node, SERVICE_QOS)
 from gripper_ros.nodes.loop_io import read_status, StatusView
 from gripper_ros.wire import (ACTION_GRIPPER_CMD, ACTION_MOVE, NODE_MOVE_ACTION, Outcome, Phase,
-                              SERVICE_MOVE, SERVICE_STOP, TOPIC_STATUS)
+                              SERVICE_MOVE, SERVICE_STOP, TOPIC_JOINT_STATES, TOPIC_STATUS)
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
 from rclpy.action import ActionServer, GoalResponse
 from rclpy.node import Node
+from rclpy.serialization import deserialize_message
 from std_msgs.msg import Header
 from std_srvs.srv import Trigger
 
@@ -83,7 +85,10 @@ class MoveActionServer(Node):
                                       goal_callback=accept_goal,
                                       cancel_callback=self._on_cancel)]
         self.gripper_command_served = ParallelGripperCommand is not None
+        self._joint_data: bytes | None = None    # the newest joint_states, read when needed
         if self.gripper_command_served:
+            self.create_subscription(JointState, TOPIC_JOINT_STATES, self._on_joint_state,
+                                     GRAPH_QOS, raw=True)
             self._servers.append(ActionServer(self, ParallelGripperCommand, ACTION_GRIPPER_CMD,
                                               execute_callback=self._execute_gripper_command,
                                               goal_callback=self._check_gripper_command,
@@ -147,8 +152,9 @@ class MoveActionServer(Node):
         response = await self._call_move(goal_handle, request, self._gripper_feedback)
         if response.outcome == Outcome.REFUSED:
             self.get_logger().warning(f'{ACTION_GRIPPER_CMD} goal aborted: {response.message}')
-        fields = result_fields(response)
-        result = ParallelGripperCommand.Result(state=JointState(**fields.pop('state')), **fields)
+        fields = result_fields(response, self._velocity_mps())
+        result = ParallelGripperCommand.Result(
+            state=JointState(header=self._status_header(), **fields.pop('state')), **fields)
         self._end(goal_handle, goal_end(response, self.allow_stalling,
                                         goal_handle.is_cancel_requested))
         return result
@@ -171,10 +177,28 @@ class MoveActionServer(Node):
             force_n=msg.force_n)
 
     def _gripper_feedback(self, msg: StatusView):
+        return ParallelGripperCommand.Feedback(state=JointState(
+            header=self._status_header(msg),
+            **joint_state_fields(msg.position_m, msg.force_n, self._velocity_mps())))
+
+    def _status_header(self, msg: StatusView | None = None) -> Header:
+        """Return a header stamped with the simulated time of ``msg`` (the newest status)."""
         header = Header()
-        header.stamp.sec, header.stamp.nanosec = msg.sec, msg.nanosec
-        return ParallelGripperCommand.Feedback(
-            state=JointState(header=header, **joint_state_fields(msg.position_m, msg.force_n)))
+        if msg is None and self._status_data is not None:
+            msg = read_status(self._status_data)
+        if msg is not None:
+            header.stamp.sec, header.stamp.nanosec = msg.sec, msg.nanosec
+        return header
+
+    def _on_joint_state(self, data: bytes) -> None:
+        self._joint_data = data
+
+    def _velocity_mps(self) -> float | None:
+        """Return the finger's velocity in the newest joint_states sample (None before one)."""
+        if self._joint_data is None:
+            return None
+        velocity = deserialize_message(self._joint_data, JointState).velocity
+        return float(velocity[0]) if len(velocity) else None
 
     def _on_status(self, data: bytes) -> None:
         self._status_data = data

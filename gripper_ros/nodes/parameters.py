@@ -17,8 +17,9 @@ import copy
 from typing import Callable
 
 from gripper_ros.core.config import GripperConfig, load_config, parse_config
-from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
+from rcl_interfaces.msg import ParameterDescriptor, ParameterType, SetParametersResult
 from rclpy.node import Node
+from rclpy.parameter import Parameter
 
 INTEGER_KEYS = frozenset({'horizon', 'control_horizon'})
 """Leaf keys whose values are whole numbers (the DMC horizons); every other number is a double."""
@@ -45,6 +46,37 @@ def _as_parameter_value(dotted: str, value):
     return value
 
 
+def _whole_number_as_double(parameter: Parameter) -> Parameter:
+    return Parameter(parameter.name, Parameter.Type.DOUBLE, float(parameter.value))
+
+
+def accept_whole_numbers(node: Node) -> None:
+    """Take a whole number for a double parameter, as users type it: ``kc 900`` is ``900.0``.
+
+    ``ros2 param set`` and ``-p name:=900`` send an INTEGER, which rclpy refuses for a DOUBLE.
+    A start-up override is converted before the node declares it (only the horizons of
+    ``INTEGER_KEYS`` are integers); a set at run time is converted when the parameter is a
+    declared double. Ranges and the config reader then check the value as for ``900.0``.
+    Call it first thing in a node's constructor; a second call does nothing.
+    """
+    if getattr(node, '_accepts_whole_numbers', False):
+        return
+    node._accepts_whole_numbers = True
+    overrides = node._parameter_overrides          # rclpy reads these at declare_parameter
+    for name, parameter in list(overrides.items()):
+        if parameter.type_ is Parameter.Type.INTEGER and \
+                name.rsplit('.', 1)[-1] not in INTEGER_KEYS:
+            overrides[name] = _whole_number_as_double(parameter)
+
+    def as_declared(parameters: list[Parameter]) -> list[Parameter]:
+        return [_whole_number_as_double(p)
+                if p.type_ is Parameter.Type.INTEGER and node.has_parameter(p.name)
+                and node.describe_parameter(p.name).type == ParameterType.PARAMETER_DOUBLE
+                else p for p in parameters]
+
+    node.add_pre_set_parameters_callback(as_declared)
+
+
 def _set(data: dict, dotted: str, value) -> None:
     *parents, leaf = dotted.split('.')
     for part in parents:
@@ -65,6 +97,7 @@ class ConfigParameters:
     def __init__(self, node: Node, writable: tuple[str, ...], read_only: tuple[str, ...] = (),
                  on_change: Callable[[GripperConfig, list[str], object], None] | None = None,
                  check: Callable[[GripperConfig], object] | None = None):
+        accept_whole_numbers(node)
         path = node.declare_parameter('config_file', '', ParameterDescriptor(
             description='YAML file of every default, read once at start-up',
             read_only=True)).value
