@@ -67,6 +67,7 @@ import math
 from gripper_ros.core.config import ContactForceTuning, PlantParams
 from gripper_ros.core.pid import (as_record, LAW_CONTACT_INPUT, law_error, LAW_MATH_DOMAIN,
                                   LAW_NUMBERS, LAW_OK, LAW_ZERO_DIVISION, py_max, py_min)
+from gripper_ros.core.records import RecordLimits
 import numba
 import numpy as np
 
@@ -402,15 +403,7 @@ class ContactForceController:
         s['band_kv'] = self.damping_gain_for(k_band, tau_band)
         self.reset()
 
-    @property
-    def output_limits(self) -> tuple[float, float]:
-        s = self.record[0]
-        return (float(s['low']), float(s['high']))
-
-    @output_limits.setter
-    def output_limits(self, limits: tuple[float, float]) -> None:
-        s = self.record[0]
-        s['low'], s['high'] = limits
+    output_limits = RecordLimits()
 
     @property
     def terms(self) -> ContactForceTerms:
