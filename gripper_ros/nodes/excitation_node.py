@@ -17,7 +17,7 @@ from gripper_interfaces.msg import SupervisorStatus
 from gripper_interfaces.srv import Move
 from gripper_ros.core.excitation import check_spec, ExcitationRun, ExcitationSpec
 from gripper_ros.nodes.common import (declare_config, default_namespace, DeferredService,
-                                      GRAPH_QOS, run_node, SERVICE_QOS)
+                                      GRAPH_QOS, run_node, SERVICE_QOS, StartupError)
 from gripper_ros.nodes.loop_io import read_status
 from gripper_ros.wire import (NODE_EXCITATION, Outcome, SERVICE_EXCITE, SERVICE_MOVE,
                               TOPIC_STATUS)
@@ -42,7 +42,7 @@ class ExcitationServer(Node):
         try:
             self.spec = check_spec(self._spec_with({}), self.config.plant)
         except ValueError as exc:          # check_spec's message starts with the field's name
-            raise ValueError(PARAMETER_PREFIX + str(exc)) from None
+            raise StartupError(PARAMETER_PREFIX + str(exc)) from None
         self.add_on_set_parameters_callback(self._check_parameters)
         self.add_post_set_parameters_callback(self._apply_parameters)
         self._move = self.create_client(Move, SERVICE_MOVE, qos_profile=SERVICE_QOS)
