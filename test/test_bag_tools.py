@@ -14,6 +14,8 @@ import math
 import os
 from pathlib import Path
 import shutil
+import subprocess
+import sys
 
 os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
 os.environ.setdefault('ROS_DOMAIN_ID', '78')
@@ -24,6 +26,7 @@ from gripper_ros.bags import replay as bag_replay  # noqa: E402
 from gripper_ros.bags.reader import (  # noqa: E402
     BagNotFoundError,
     EmptyBagError,
+    EXIT_CLOSED_PIPE,
     EXIT_ERROR,
     EXIT_TRUNCATED,
     MissingTopicsError,
@@ -490,3 +493,14 @@ def test_empty_bag_error_type(tmp_path):
 def test_missing_topics_error(tmp_path):
     with pytest.raises(MissingTopicsError, match='not a grasp bag: no <namespace>/loop/tick'):
         load_grasp_series(_clock_only_bag(tmp_path))
+
+
+@pytest.mark.parametrize('module, extra', [('analyze', ['--json']), ('info', [])])
+def test_output_into_a_pipe_closed_early_ends_quietly(grasp_bag, module, extra):
+    """``bag_analyze BAG --json | head -1``: the reader stops early; no traceback, exit 141."""
+    proc = subprocess.Popen([sys.executable, '-m', f'gripper_ros.bags.{module}', str(grasp_bag),
+                             *extra], stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    proc.stdout.close()                       # the reader is gone before the first line
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == EXIT_CLOSED_PIPE, err.decode()
+    assert err == b''

@@ -187,3 +187,37 @@ def test_signal_during_a_recorded_grasp_leaves_a_complete_bag(tmp_path, sig):
     assert (bags[0] / 'metadata.yaml').is_file()
     bag = read_bag(bags[0])
     assert not bag.truncated and bag.message_count > 0
+
+
+@pytest.mark.parametrize('sig', [signal.SIGINT, signal.SIGTERM])
+def test_client_action_stopped_mid_grasp_prints_the_servers_stopped_answer(tmp_path, sig):
+    """Ctrl-C on ``grasp_client --action`` cancels the goal and prints the server's answer."""
+    namespace = 'stopped_by_signal'           # a gripper of its own beside the module's server
+    server = subprocess.Popen([sys.executable, '-m', 'gripper_ros.apps.grasp_demo', '--serve',
+                               '--namespace', namespace, '--time-mode', 'realtime',
+                               '--output', str(tmp_path)],
+                              stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                              env=os.environ.copy())
+    client = None
+    try:
+        for line in server.stdout:
+            if f'serving /{namespace}/grasp' in line:
+                break
+        client = subprocess.Popen([sys.executable, '-m', 'gripper_ros.apps.grasp_client',
+                                   '--namespace', namespace, '--width', '0.01', '--mass', '1.27',
+                                   '--action'],
+                                  stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                                  env=os.environ.copy())
+        first = client.stdout.readline()          # the grasp runs: 3.8 s of paced time
+        assert first.startswith('feedback:'), first + client.stderr.read()
+        client.send_signal(sig)
+        out, err = client.communicate(timeout=30)
+    finally:
+        if client is not None and client.poll() is None:
+            client.kill()
+        server.send_signal(signal.SIGINT)
+        server.communicate(timeout=30)
+    assert client.returncode == 130, out + err
+    assert 'outcome: STOPPED' in out, out + err
+    assert 'cancelling the goal' in err and 'did not answer' not in err, err
+    assert 'Traceback' not in err, err

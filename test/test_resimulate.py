@@ -27,6 +27,8 @@ import pytest
 import yaml
 
 CONFIG = load_config()
+RECORDED_GRASP_ID: list[int] = []
+"""The id the recorded grasp got (the namespace's ids go on from earlier runs)."""
 CONFIG_DATA = yaml.safe_load(Path(default_config_path()).read_text(encoding='utf-8'))
 
 
@@ -38,6 +40,8 @@ def recorded(tmp_path_factory):
         run = recorded_grasp(graph, out / 'grasp', 0.05, 1.69)
         stages = (type(graph.position.stage), type(graph.force.stage))
     assert run.response.success, run.response.message
+    assert run.response.grasp_id >= 1          # ids go on across graphs of one namespace
+    RECORDED_GRASP_ID.append(run.response.grasp_id)
     return Path(run.bag_dir), stages
 
 
@@ -71,7 +75,7 @@ def test_recorded_config_reproduces_every_command_bitwise(recorded):
     bag_dir, _ = recorded
     report = resimulate_bag(bag_dir, None)              # the installed default config
     assert report.identical
-    assert report.grasp_ids == [1]
+    assert report.grasp_ids == RECORDED_GRASP_ID
     assert report.measurements_from_status == 0         # each reference carries its tick's
     counts = read_bag(bag_dir).counts()
     total = 0

@@ -16,7 +16,9 @@ first); ``--object-width`` places a different one (e.g. to see NO_OBJECT) and ``
 leaves the simulation as it is. ``--namespace left`` talks to the gripper ``/left``. Exit code:
 0 when the object is held, 1 for any other outcome, 2 when the graph cannot be reached.
 ``--action`` sends the grasp as a goal to ``/gripper/grasp_action`` instead, prints its feedback
-(phase, opening, force) as it comes, and cancels the goal on Ctrl-C (the grasp ends as STOPPED).
+(phase, opening, force) as it comes, and cancels the goal on Ctrl-C or SIGTERM: it prints the
+server's answer (outcome STOPPED) and exits 130. Without ``--action`` a signal exits 130 at once
+(a service call cannot be cancelled: ``/gripper/stop`` ends the grasp).
 
 ``--release`` opens the fingers instead (``/gripper/release``, std_srvs/Trigger; with a full
 ROS 2: ``ros2 service call /gripper/release std_srvs/srv/Trigger``): exit code 0 once open, 1 if
@@ -27,9 +29,15 @@ from __future__ import annotations
 import argparse
 import os
 import sys
+import time
 
+from gripper_ros.nodes.common import StopSignals
 from gripper_ros.wire import (ACTION_GRASP, check_namespace, DEFAULT_NAMESPACE, Outcome, Phase,
                               SERVICE_GRASP, SERVICE_RELEASE, SERVICE_SET_OBJECT)
+
+SPIN_SLICE_S = 0.1
+"""Wall seconds of one spin: how soon a stop signal is seen while waiting for an answer."""
+EXIT_INTERRUPTED = 130
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -56,12 +64,24 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
-def _call(node, client, request, timeout_s: float):
+def _spin_until(node, future, timeout_s: float, signals=None) -> bool:
+    """Spin until ``future`` is done, ``timeout_s`` has passed or a stop signal came."""
     import rclpy
+    deadline = time.monotonic() + timeout_s
+    while not future.done() and (signals is None or signals.received is None):
+        left = deadline - time.monotonic()
+        if left <= 0:
+            break
+        rclpy.spin_once(node, timeout_sec=min(SPIN_SLICE_S, left))
+    return future.done()
+
+
+def _call(node, client, request, timeout_s: float, signals=None):
     future = client.call_async(request)
-    rclpy.spin_until_future_complete(node, future, timeout_sec=timeout_s)
-    if not future.done():
+    if not _spin_until(node, future, timeout_s, signals):
         client.remove_pending_request(future)
+        if signals is not None and signals.received is not None:
+            raise KeyboardInterrupt
         return None
     return future.result()
 
@@ -73,9 +93,8 @@ def _request_fields(args) -> dict:
             'width_tolerance_m': args.width_tolerance}
 
 
-def _grasp_by_action(node, args):
+def _grasp_by_action(node, args, signals):
     """Send the goal, print feedback until the result; Ctrl-C cancels. None if no answer."""
-    import rclpy
     from gripper_interfaces.action import Grasp as GraspAction
     from rclpy.action import ActionClient
 
@@ -93,21 +112,20 @@ def _grasp_by_action(node, args):
 
     sent = client.send_goal_async(GraspAction.Goal(**_request_fields(args)),
                                   feedback_callback=on_feedback)
-    rclpy.spin_until_future_complete(node, sent, timeout_sec=args.call_timeout)
+    _spin_until(node, sent, args.call_timeout)     # a goal sent is cancelled, not abandoned
     if not sent.done() or not sent.result().accepted:
         return None
     handle = sent.result()
     result = handle.get_result_async()
-    try:
-        rclpy.spin_until_future_complete(node, result, timeout_sec=args.call_timeout)
-    except KeyboardInterrupt:
-        print('grasp_client: cancelling the goal', file=sys.stderr)
-        rclpy.spin_until_future_complete(node, handle.cancel_goal_async(), timeout_sec=args.wait)
-        rclpy.spin_until_future_complete(node, result, timeout_sec=args.wait)
+    if not _spin_until(node, result, args.call_timeout, signals) and \
+            signals.received is not None:
+        print('grasp_client: cancelling the goal', file=sys.stderr, flush=True)
+        _spin_until(node, handle.cancel_goal_async(), args.wait)
+        _spin_until(node, result, args.wait)
     return result.result().result if result.done() else None
 
 
-def _release(node, args) -> int:
+def _release(node, args, signals: StopSignals) -> int:
     from std_srvs.srv import Trigger
 
     client = node.create_client(Trigger, SERVICE_RELEASE)
@@ -115,7 +133,7 @@ def _release(node, args) -> int:
         print(f'grasp_client: service {SERVICE_RELEASE} not available after {args.wait:g} s',
               file=sys.stderr)
         return 2
-    response = _call(node, client, Trigger.Request(), args.call_timeout)
+    response = _call(node, client, Trigger.Request(), args.call_timeout, signals)
     if response is None:
         print(f'grasp_client: the release did not answer within {args.call_timeout:g} s',
               file=sys.stderr)
@@ -127,8 +145,7 @@ def _release(node, args) -> int:
 def main(argv: list[str] | None = None) -> int:
     os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
     import rclpy
-    from gripper_interfaces.srv import Grasp, SetObject
-    from rclpy.executors import ExternalShutdownException
+    from rclpy.signals import SignalHandlerOptions
     from rclpy.utilities import remove_ros_args
 
     parser = build_parser()
@@ -140,11 +157,21 @@ def main(argv: list[str] | None = None) -> int:
         namespace = check_namespace(args.namespace)
     except ValueError as exc:
         parser.error(str(exc))
-    rclpy.init(args=None if argv is None else [])
+    with StopSignals() as signals:
+        # the signal is seen here, not in rclpy: a cancelled goal's answer is still received
+        rclpy.init(args=None if argv is None else [],
+                   signal_handler_options=SignalHandlerOptions.NO)
+        return _run(rclpy, args, namespace, signals)
+
+
+def _run(rclpy, args, namespace: str, signals: StopSignals) -> int:
+    from gripper_interfaces.srv import Grasp, SetObject
+    from rclpy.executors import ExternalShutdownException
+
     node = rclpy.create_node('grasp_client', namespace=namespace)
     try:
         if args.release:
-            return _release(node, args)
+            return _release(node, args, signals)
         grasp = node.create_client(Grasp, SERVICE_GRASP)
         place = node.create_client(SetObject, SERVICE_SET_OBJECT)
         needed = [grasp] if args.no_place else [grasp, place]
@@ -158,21 +185,24 @@ def main(argv: list[str] | None = None) -> int:
             width = args.width if args.object_width is None else args.object_width
             request = SetObject.Request(width_m=width, stiffness_n_per_m=args.stiffness,
                                         open_fingers=True)
-            placed = _call(node, place, request, args.call_timeout)
+            placed = _call(node, place, request, args.call_timeout, signals)
             if placed is not None and not placed.success and 'is held' in placed.message:
                 print('grasp_client: an object is held: releasing it first', flush=True)
-                if _release(node, args) == 0:
-                    placed = _call(node, place, request, args.call_timeout)
+                if _release(node, args, signals) == 0:
+                    placed = _call(node, place, request, args.call_timeout, signals)
             if placed is None:
                 print('grasp_client: set_object did not answer', file=sys.stderr)
                 return 2
             if not placed.success:
                 print(f'grasp_client: set_object: {placed.message}', file=sys.stderr)
         if args.action:
-            response = _grasp_by_action(node, args)
+            response = _grasp_by_action(node, args, signals)
         else:
             response = _call(node, grasp, Grasp.Request(**_request_fields(args)),
-                             args.call_timeout)
+                             args.call_timeout, signals)
+        if response is None and signals.received is not None:
+            print('grasp_client: interrupted before the answer', file=sys.stderr)
+            return EXIT_INTERRUPTED
         if response is None:
             print(f'grasp_client: the grasp did not answer within {args.call_timeout:g} s',
                   file=sys.stderr)
@@ -186,9 +216,11 @@ def main(argv: list[str] | None = None) -> int:
               f'final_width_m: {response.final_width_m:.6f}\n'
               f'final_force_n: {response.final_force_n:.4f}\n'
               f'switch_time_s: {response.switch_time_s:.4f}\ngrasp_id: {response.grasp_id}')
+        if signals.received is not None:
+            return EXIT_INTERRUPTED
         return 0 if response.success else 1
     except (KeyboardInterrupt, ExternalShutdownException):
-        return 130
+        return EXIT_INTERRUPTED
     finally:
         node.destroy_node()
         rclpy.try_shutdown()

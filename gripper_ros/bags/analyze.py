@@ -19,7 +19,7 @@ import math
 import sys
 from typing import Sequence
 
-from gripper_ros.bags.reader import BagError, EXIT_ERROR, EXIT_TRUNCATED
+from gripper_ros.bags.reader import BagError, EXIT_ERROR, EXIT_TRUNCATED, quiet_on_closed_pipe
 from gripper_ros.bags.series import GraspSeries, load_grasp_series
 from gripper_ros.core.metrics import step_metrics
 from gripper_ros.wire import enum_name, HoldState, Outcome, Phase, SwitchCriterion
@@ -357,6 +357,7 @@ def _fail(message: str) -> None:
     sys.exit(EXIT_ERROR)
 
 
+@quiet_on_closed_pipe
 def main(argv: Sequence[str] | None = None) -> int:
     """Exit 0; 1 on bad input (one line on stderr); 3 when a bag was truncated (figures shown)."""
     args = build_parser().parse_args(argv)

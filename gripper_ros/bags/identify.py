@@ -20,6 +20,7 @@ from pathlib import Path
 import sys
 from typing import Sequence
 
+from gripper_ros.bags.reader import quiet_on_closed_pipe
 import numpy as np
 
 OBJECT_KEYS = ('width_m', 'stiffness_n_per_m', 'damping_n_s_per_m')
@@ -173,6 +174,7 @@ def write_config(result, path: Path, bags: list[str]) -> None:
                     encoding='utf-8')
 
 
+@quiet_on_closed_pipe
 def main(argv: Sequence[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     from gripper_ros.bags.reader import BagError

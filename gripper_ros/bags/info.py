@@ -10,7 +10,8 @@ import datetime as dt
 import sys
 from typing import Any, Sequence
 
-from gripper_ros.bags.reader import Bag, BagError, EXIT_ERROR, EXIT_TRUNCATED, read_bag
+from gripper_ros.bags.reader import (Bag, BagError, EXIT_ERROR, EXIT_TRUNCATED,
+                                     quiet_on_closed_pipe, read_bag)
 from gripper_ros.wire import Controller, enum_name, Outcome, Phase, SwitchCriterion, TOPIC_STATUS
 
 PROG = 'bag_info'
@@ -117,6 +118,7 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+@quiet_on_closed_pipe
 def main(argv: Sequence[str] | None = None) -> int:
     """Exit 0; 1 on bad input (one line on stderr); 3 when a bag was truncated (info printed)."""
     args = build_parser().parse_args(argv)

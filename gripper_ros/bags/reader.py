@@ -13,10 +13,13 @@ Every failure is a :class:`BagError` subclass whose ``str()`` is one line, fit f
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+import functools
 import json
 import os
 from pathlib import Path
-from typing import Any, Iterable, Iterator
+import signal
+import sys
+from typing import Any, Callable, Iterable, Iterator
 
 import yaml
 
@@ -24,6 +27,27 @@ EXIT_ERROR = 1
 """CLI exit code: bad input, nothing done."""
 EXIT_TRUNCATED = 3
 """CLI exit code: done, but the bag was damaged (only the complete messages were used)."""
+EXIT_CLOSED_PIPE = 128 + signal.SIGPIPE
+"""CLI exit code: the reader of the output stopped early (``| head``), as a shell reports it."""
+
+
+def quiet_on_closed_pipe(main: Callable[..., int]) -> Callable[..., int]:
+    """Wrap a CLI ``main``: output into a pipe whose reader stopped (``| head``) ends it quietly.
+
+    Without this, the print into the closed pipe is a BrokenPipeError traceback.
+    """
+    @functools.wraps(main)
+    def wrapper(*args, **kwargs) -> int:
+        try:
+            code = main(*args, **kwargs)
+            sys.stdout.flush()
+            return code
+        except BrokenPipeError:
+            devnull = os.open(os.devnull, os.O_WRONLY)
+            os.dup2(devnull, sys.stdout.fileno())      # the interpreter's last flush goes nowhere
+            return EXIT_CLOSED_PIPE
+    return wrapper
+
 
 CUSTOM_DATA_RECORD = 'gripper_ros/custom_data'
 """MCAP metadata record the recorder writes as soon as custom data is set (survives a kill)."""

@@ -20,6 +20,7 @@ from gripper_ros.bags.reader import (
     EXIT_ERROR,
     EXIT_TRUNCATED,
     MissingTopicsError,
+    quiet_on_closed_pipe,
     RawMessage,
     read_bag,
 )
@@ -417,6 +418,7 @@ def _run_closed_loop(args: argparse.Namespace) -> int:
 CLOSED_LOOP_OPTIONS = ('config', 'sweep', 'plot', 'jobs', 'scheduler')
 
 
+@quiet_on_closed_pipe
 def main(argv: Sequence[str] | None = None) -> int:
     """Replay a bag, or re-simulate it (open or closed loop).
 

@@ -815,6 +815,12 @@ class GraspSupervisor:
         self._pending_targets = targets
         return targets
 
+    def continue_ids_after(self, last_id: int) -> None:
+        """Make the next request ``last_id + 1`` (ids go on across restarts); before any."""
+        if self.kind is not None or self._s['pend_kind'] != 0:
+            raise RuntimeError('request ids can only be set before the first request')
+        self._s['grasp_id'] = int(last_id)
+
     def request_grasp(self, targets: GraspTargets, mass_kg: float = 0.0,
                       after_ns: int | None = None) -> GraspTargets:
         """Accept a grasp and return its targets; it starts at the first tick after ``after_ns``.

@@ -121,6 +121,46 @@ class NameClaim:
         self._files = []
 
 
+GRASP_ID_FILE = 'supervisor.last_grasp_id'
+GRASP_ID_MAX = 2 ** 32 - 1
+"""The wire's grasp_id is uint32: past it, ids start again from 1."""
+
+
+class GraspIds:
+    """The last request id a namespace's supervisor gave, kept beside the namespace's claims.
+
+    A restarted supervisor numbers its requests on from there, so the bags and statuses of one
+    namespace never carry one id twice while the claims folder lasts (it is in
+    ``XDG_RUNTIME_DIR``, or the temporary folder: a reboot or a logout may clear it).
+    """
+
+    def __init__(self, domain: int, namespace: str, warn=None):
+        self.path = claim_folder(domain, namespace) / GRASP_ID_FILE
+        self._warn = warn
+        self._warned = False
+
+    def last(self) -> int:
+        """Return the last id given in the namespace: 0 when none is kept or it is unreadable."""
+        try:
+            value = int(self.path.read_text(encoding='ascii').strip())
+        except (OSError, ValueError):
+            return 0
+        return value if 0 <= value < GRASP_ID_MAX else 0
+
+    def save(self, grasp_id: int) -> None:
+        """Keep ``grasp_id`` as the last one given (atomically; a failure only warns once)."""
+        tmp = self.path.with_name(f'{self.path.name}.{os.getpid()}.tmp')
+        try:
+            self.path.parent.mkdir(parents=True, exist_ok=True)
+            tmp.write_text(f'{int(grasp_id)}\n', encoding='ascii')
+            os.replace(tmp, self.path)
+        except OSError as exc:
+            if self._warn is not None and not self._warned:
+                self._warn(f'cannot keep the last grasp id in {self.path} ({exc.strerror}): a '
+                           'restarted supervisor would number its requests from 1 again')
+                self._warned = True
+
+
 def claim_folder(domain: int, namespace: str) -> Path:
     """Return the folder of the claims in ``namespace``: one nested folder per namespace part.
 

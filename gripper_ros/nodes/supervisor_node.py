@@ -34,6 +34,7 @@ from gripper_ros.core.supervisor import GraspSupervisor, RequestKind
 from gripper_ros.nodes.common import (default_namespace, DeferredService, ExecutorSilence,
                                       GRAPH_QOS, LATCHED_QOS, run_node, SERVICE_QOS)
 from gripper_ros.nodes.loop_io import decode, split_ns, status_message, status_template
+from gripper_ros.nodes.names import GraspIds
 from gripper_ros.nodes.parameters import ConfigParameters
 from gripper_ros.nodes.plant_simulator_node import REPUBLISH_AFTER_S
 from gripper_ros.wire import (CDR_LITTLE_ENDIAN, Controller, NODE_FORCE_CONTROLLER, NODE_PLANT,
@@ -62,6 +63,10 @@ class SupervisorNode(Node):
                                            on_change=self._on_config_change)
         self.config = self.parameters.config
         self.logic = GraspSupervisor(self.config.plant, self.config.supervisor)
+        # ids go on from the last one this namespace gave, across restarts of the supervisor
+        self._ids = GraspIds(self.context.get_domain_id(), self.get_namespace(),
+                             self.get_logger().warning)
+        self.logic.continue_ids_after(self._ids.last())
         self._side = SupervisorSide(self.logic)
         self.tick_timeout_s = self.declare_parameter(
             'tick_timeout_s', 2.0, ParameterDescriptor(
@@ -245,9 +250,12 @@ class SupervisorNode(Node):
         message = self._refusal(kind)
         if not message:
             try:
-                return start()
+                targets = start()
             except RequestError as exc:
                 message = f'refused: {exc}'
+            else:
+                self._ids.save(self.logic.grasp_id + 1)
+                return targets
         response.success = False
         if hasattr(response, 'outcome'):
             response.outcome = Outcome.REFUSED
