@@ -156,13 +156,14 @@ def main(argv: list[str] | None = None) -> int:
             return _fail(f'--profile: {exc}')
         args.lift = args.profile[1]
 
-    from gripper_ros.bags.recorder import BagRecorderError
-    from gripper_ros.bags.recording import RecordingError, ServeRecorder
+    from gripper_ros.bags.recorder import BagRecorderError, RecordingError
     from gripper_ros.core.config import ConfigError
-    from gripper_ros.nodes.common import (exit_without_a_last_collection, ExecutorKind, one_line,
-                                          StartupError, StopSignals)
     from gripper_ros.nodes.graph import GraphError, GraphOptions, GripperGraph
     from gripper_ros.nodes.names import namespace_as_given
+    from gripper_ros.nodes.process import ExecutorKind, exit_without_a_last_collection, StopSignals
+    from gripper_ros.nodes.recording import ServeRecorder
+    from gripper_ros.nodes.startup import StartupError
+    from gripper_ros.text import one_line
     from gripper_ros.wire import check_namespace
 
     try:
@@ -255,7 +256,7 @@ def _serve(graph, args, signals) -> int:
 
 def _bag_dir(output: Path, i: int, width_m: float, mass_kg: float, overwrite: bool) -> Path:
     """Return the bag folder of grasp ``i``: a fresh, unique one (the named one, ``overwrite``)."""
-    from gripper_ros.bags.recording import unique_bag_dir
+    from gripper_ros.bags.recorder import unique_bag_dir
     stamp = datetime.now().strftime('%Y%m%d_%H%M%S')
     stem = f'grasp_{stamp}_{i}_w{width_m * 1e3:.0f}mm_m{mass_kg:g}kg'
     return output / stem if overwrite else unique_bag_dir(output, stem)
@@ -287,8 +288,9 @@ def _recorded(fields: dict) -> dict:
 
 
 def _grasp_one(graph, args, width_m: float, mass_kg: float, i: int, n: int) -> GraspRecord:
-    from gripper_ros.bags.recording import RecordingError, recorded_grasp
+    from gripper_ros.bags.recorder import RecordingError
     from gripper_ros.nodes.graph import GraphError
+    from gripper_ros.nodes.recording import recorded_grasp
     lift = f', lifted at {args.lift:g} m/s^2' if args.lift else ''
     print(f'[{i}/{n}] grasping width {width_m:g} m, mass {mass_kg:g} kg{lift} ...', flush=True)
     if i > 1:                        # the previous object is still held: open the fingers

@@ -53,8 +53,9 @@ class _Watcher:
         from rosgraph_msgs.msg import Clock
         from sensor_msgs.msg import JointState
         from std_srvs.srv import Trigger
-        from gripper_ros.nodes.common import GRAPH_QOS, SERVICE_QOS, spin_until_stopped
         from gripper_ros.nodes.loop_io import joint_state_template
+        from gripper_ros.nodes.process import spin_until_stopped
+        from gripper_ros.nodes.qos import GRAPH_QOS, SERVICE_QOS
         from gripper_ros.wire import (FINGER_JOINT, SERVICE_GRASP, SERVICE_RELEASE,
                                       SERVICE_SET_OBJECT, TOPIC_CLOCK, TOPIC_JOINT_STATES,
                                       TOPIC_SIM_STATUS, qualified)

@@ -268,8 +268,8 @@ def run_soak(graph, worker: _WorkerClient, objects, grasps: int, bag_root: Path,
     ``rows``/``marks``, when given, are filled in place, so a caller still has the grasps done
     so far when a SoakError ends the run.
     """
-    from gripper_ros.bags.recording import ServeRecorder
-    from gripper_ros.nodes.common import wait_until
+    from gripper_ros.nodes.recording import ServeRecorder
+    from gripper_ros.nodes.services import wait_until
     from gripper_ros.wire import LOOP_TOPICS, TOPIC_TICK, qualified
     loop = [qualified(graph.namespace, t) for t in LOOP_TOPICS]
     recorder = ServeRecorder(graph, bag_root)
@@ -459,7 +459,7 @@ def main(argv: list[str] | None = None) -> int:
         print('bench_soak: --grasps must be >= 1 and --warmup >= 0', file=sys.stderr)
         return 2
     from gripper_ros.nodes.graph import GraphError, GraphOptions, GripperGraph
-    from gripper_ros.nodes.common import ExecutorKind
+    from gripper_ros.nodes.process import ExecutorKind
     from gripper_ros.progress import progress_bar
 
     objects = OBJECT_SETS[args.objects]

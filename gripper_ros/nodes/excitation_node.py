@@ -16,9 +16,13 @@ import sys
 from gripper_interfaces.msg import SupervisorStatus
 from gripper_interfaces.srv import Move
 from gripper_ros.core.excitation import check_spec, ExcitationRun, ExcitationSpec
-from gripper_ros.nodes.common import (declare_config, default_namespace, DeferredService,
-                                      GRAPH_QOS, run_node, SERVICE_QOS)
 from gripper_ros.nodes.loop_io import read_status
+from gripper_ros.nodes.names import default_namespace
+from gripper_ros.nodes.parameters import declare_config
+from gripper_ros.nodes.process import run_node
+from gripper_ros.nodes.qos import GRAPH_QOS, SERVICE_QOS
+from gripper_ros.nodes.services import DeferredService
+from gripper_ros.nodes.startup import StartupError
 from gripper_ros.wire import (NODE_EXCITATION, Outcome, SERVICE_EXCITE, SERVICE_MOVE,
                               TOPIC_STATUS)
 from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
@@ -42,7 +46,7 @@ class ExcitationServer(Node):
         try:
             self.spec = check_spec(self._spec_with({}), self.config.plant)
         except ValueError as exc:          # check_spec's message starts with the field's name
-            raise ValueError(PARAMETER_PREFIX + str(exc)) from None
+            raise StartupError(PARAMETER_PREFIX + str(exc)) from None
         self.add_on_set_parameters_callback(self._check_parameters)
         self.add_post_set_parameters_callback(self._apply_parameters)
         self._move = self.create_client(Move, SERVICE_MOVE, qos_profile=SERVICE_QOS)

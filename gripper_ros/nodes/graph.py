@@ -4,7 +4,7 @@ Used by ``grasp_demo``, the tests and the benchmarks: the nodes talk only over t
 services (DDS), the executor spins in a background thread, and requests go through
 ``sim/set_object``, ``grasp``, ``release``, ``move`` and ``stop`` exactly as from another
 process.
-Recording lives in :mod:`gripper_ros.bags.recording`.
+Recording lives in :mod:`gripper_ros.nodes.recording`.
 """
 from __future__ import annotations
 
@@ -18,8 +18,6 @@ import time
 from gripper_interfaces.srv import Grasp, Move, SetObject, SimStep
 from gripper_ros.core.config import load_config
 from gripper_ros.core.stages import DEFAULT_FORCE_CONTROLLER
-from gripper_ros.nodes.common import (call_and_wait, ExecutorKind, make_executor, SERVICE_QOS,
-                                      spin_until_stopped)
 from gripper_ros.nodes.excitation_node import ExcitationServer
 from gripper_ros.nodes.force_controller_node import ForceControllerNode
 from gripper_ros.nodes.grasp_action_node import GraspActionServer
@@ -27,6 +25,9 @@ from gripper_ros.nodes.move_action_node import MoveActionServer
 from gripper_ros.nodes.names import NameClaim
 from gripper_ros.nodes.plant_simulator_node import PlantSimulatorNode
 from gripper_ros.nodes.position_controller_node import PositionControllerNode
+from gripper_ros.nodes.process import ExecutorKind, make_executor, spin_until_stopped
+from gripper_ros.nodes.qos import SERVICE_QOS
+from gripper_ros.nodes.services import call_and_wait
 from gripper_ros.nodes.supervisor_node import SupervisorNode
 from gripper_ros.wire import (ACTION_GRASP, ACTION_GRIPPER_CMD, ACTION_MOVE, check_namespace,
                               DEFAULT_NAMESPACE, NODE_PLANT, NODE_SUPERVISOR, SERVICE_GRASP,

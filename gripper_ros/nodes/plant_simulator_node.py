@@ -32,12 +32,16 @@ from gripper_interfaces.srv import SetObject, SimStep
 from gripper_ros.core.controllers import make_plant
 from gripper_ros.core.lockstep import Command, command_problem, PlantSide
 from gripper_ros.core.plant import check_fault, GraspObject, Lift
-from gripper_ros.nodes.common import (default_namespace, DeferredService, GRAPH_QOS, ns_to_time,
-                                      run_node, SERVICE_QOS, StartupError)
 from gripper_ros.nodes.loop_io import (clock_template, decode, force_sensor_template,
                                        joint_state_template, object_state_template,
                                        read_status, split_ns, StatusView)
+from gripper_ros.nodes.names import default_namespace
 from gripper_ros.nodes.parameters import ConfigParameters
+from gripper_ros.nodes.process import run_node
+from gripper_ros.nodes.qos import GRAPH_QOS, SERVICE_QOS
+from gripper_ros.nodes.services import DeferredService
+from gripper_ros.nodes.stamps import ns_to_time
+from gripper_ros.nodes.startup import StartupError
 from gripper_ros.wire import (CDR_LITTLE_ENDIAN, COMMAND_LAYOUT, Controller, FINGER_JOINT,
                               NODE_PLANT, Outcome, Phase, SERVICE_PAUSE, SERVICE_RESUME,
                               SERVICE_SET_OBJECT, SERVICE_STEP, TICK_LAYOUT, TimeMode,

@@ -10,8 +10,8 @@ import sys
 
 from gripper_ros.core.controllers import PositionControllerKind
 from gripper_ros.core.stages import parse_kind, PositionStageController
-from gripper_ros.nodes.common import run_node
 from gripper_ros.nodes.controller_node import LockstepController
+from gripper_ros.nodes.process import run_node
 from gripper_ros.wire import Controller, NODE_POSITION_CONTROLLER, TOPIC_POSITION_REFERENCE
 from rcl_interfaces.msg import ParameterDescriptor
 
