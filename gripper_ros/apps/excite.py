@@ -72,7 +72,7 @@ def main(argv: list[str] | None = None) -> int:
     from gripper_ros.core.excitation import check_spec, ExcitationSpec
     from gripper_ros.nodes.graph import GraphError, GraphOptions, GripperGraph
     from gripper_ros.nodes.startup import StartupError
-    from gripper_ros.wire import check_namespace
+    from gripper_ros.wire import check_namespace, TimeMode
 
     spec = ExcitationSpec(args.seconds, args.amplitude_v, args.seed, not args.no_hold)
     noise = {f'sensor_noise.{key}': float(value) for key, value in (   # doubles, as declared
@@ -99,7 +99,8 @@ def main(argv: list[str] | None = None) -> int:
     graph = None
     try:
         graph = GripperGraph(GraphOptions(config_file=args.config, namespace=namespace,
-                                          time_mode='fast', plant_parameters=noise))
+                                          time_mode=TimeMode.FAST.parameter,
+                                          plant_parameters=noise))
         bag_dir, outcome = recorded_excitation(graph, Path(args.output), spec)
         print(f'excite: {outcome}', flush=True)
         print(f'bag: {bag_dir}', flush=True)

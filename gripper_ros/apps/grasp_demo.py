@@ -38,9 +38,11 @@ class GraspRecord:
 
 def build_parser() -> argparse.ArgumentParser:
     from gripper_ros.core.config import ForceLaw
-    from gripper_ros.core.controllers import ForceControllerKind
-    from gripper_ros.core.stages import DEFAULT_FORCE_CONTROLLER
-    from gripper_ros.wire import DEFAULT_NAMESPACE
+    from gripper_ros.core.controllers import ForceControllerKind, PositionControllerKind
+    from gripper_ros.core.stages import (DEFAULT_APPROACH_FORCE_MARGIN, DEFAULT_FORCE_CONTROLLER,
+                                         DEFAULT_POSITION_CONTROLLER)
+    from gripper_ros.nodes.process import ExecutorKind
+    from gripper_ros.wire import DEFAULT_NAMESPACE, TIME_MODE_CHOICES
     p = argparse.ArgumentParser(prog='grasp_demo', description=__doc__.splitlines()[0])
     p.add_argument('--width', type=float, help='object width (m); with --mass grasps one object')
     p.add_argument('--mass', type=float, help='object mass (kg)')
@@ -79,7 +81,7 @@ def build_parser() -> argparse.ArgumentParser:
                         'stop and sim/* from other processes')
     p.add_argument('--namespace', default=DEFAULT_NAMESPACE,
                    help='ROS namespace of this gripper (default %(default)s: /gripper/...)')
-    p.add_argument('--time-mode', choices=['realtime', 'fast'], default=None,
+    p.add_argument('--time-mode', choices=TIME_MODE_CHOICES, default=None,
                    help='realtime: paced to the wall clock, always running (default with '
                         '--serve); fast: as fast as the graph goes while a grasp runs (default)')
     p.add_argument('--real-time-factor', type=float, default=1.0,
@@ -90,12 +92,14 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('--output', default='bags', help='folder for bags and the figure')
     p.add_argument('--overwrite', action='store_true', help='replace existing bag folders')
     p.add_argument('--no-plot', action='store_true', help='do not write the figure')
-    p.add_argument('--executor', choices=['events', 'single'], default='events')
-    p.add_argument('--position-controller', choices=['mpc_pd', 'pd', 'pid'], default='mpc_pd')
+    p.add_argument('--executor', choices=[k.value for k in ExecutorKind],
+                   default=ExecutorKind.EVENTS.value)
+    p.add_argument('--position-controller', choices=[k.value for k in PositionControllerKind],
+                   default=DEFAULT_POSITION_CONTROLLER.value)
     p.add_argument('--force-controller', choices=[k.value for k in ForceControllerKind],
                    default=DEFAULT_FORCE_CONTROLLER.value,
                    help='contact_aware: rigid and compliant objects; pi / mpc_pi: the paper')
-    p.add_argument('--approach-force-margin', type=float, default=1.0,
+    p.add_argument('--approach-force-margin', type=float, default=DEFAULT_APPROACH_FORCE_MARGIN,
                    help='pi / mpc_pi: voltage cap before contact, x stall voltage of F_sp '
                         '(0 = off)')
     p.add_argument('--config', default='', help='YAML parameter file (default: installed)')
@@ -164,7 +168,7 @@ def main(argv: list[str] | None = None) -> int:
     from gripper_ros.nodes.recording import ServeRecorder
     from gripper_ros.nodes.startup import StartupError
     from gripper_ros.text import one_line
-    from gripper_ros.wire import check_namespace
+    from gripper_ros.wire import check_namespace, TimeMode
 
     try:
         check_namespace(args.namespace)
@@ -176,7 +180,7 @@ def main(argv: list[str] | None = None) -> int:
             return _fail(problem)
     if not (math.isfinite(args.real_time_factor) and 0.0 < args.real_time_factor <= 100.0):
         return _fail(f'--real-time-factor must be in (0, 100], got {args.real_time_factor!r}')
-    time_mode = args.time_mode or ('realtime' if args.serve else 'fast')
+    time_mode = args.time_mode or (TimeMode.REALTIME if args.serve else TimeMode.FAST).parameter
     from rclpy.signals import SignalHandlerOptions
     from rclpy.exceptions import InvalidNamespaceException
     from rclpy.utilities import ok

@@ -20,6 +20,7 @@ from pathlib import Path
 import sys
 from typing import Sequence
 
+from gripper_ros.text import one_line
 import numpy as np
 
 OBJECT_KEYS = ('width_m', 'stiffness_n_per_m', 'damping_n_s_per_m')
@@ -75,7 +76,7 @@ def load_run(path: str):
 
 
 def _fail(message: str) -> int:
-    print('bag_identify: ' + ' '.join(str(message).split()), file=sys.stderr)
+    print('bag_identify: ' + one_line(message), file=sys.stderr)
     return 2
 
 

@@ -34,6 +34,7 @@ from gripper_ros.bags.mcap_file import McapFile
 from gripper_ros.bags.reader import BagError, CUSTOM_DATA_RECORD, read_bag
 from gripper_ros.bags.schema import import_message_class, message_definition, type_hash_from_share
 from gripper_ros.bags.series import GRASP_TOPICS
+from gripper_ros.wire import GRAPH_QOS_DEPTH
 from mcap.writer import CompressionType
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
@@ -132,7 +133,7 @@ class BagRecorder:
     """
 
     def __init__(self, node: Node, bag_dir: str | os.PathLike,
-                 topics: Mapping[str, str] | None = None, *, qos_depth: int = 1000,
+                 topics: Mapping[str, str] | None = None, *, qos_depth: int = GRAPH_QOS_DEPTH,
                  time_source: Callable[[], int] | None = None,
                  flush_every_messages: int = 100, flush_every_s: float = 0.5,
                  custom_data: Mapping[str, Any] | None = None, overwrite: bool = False,

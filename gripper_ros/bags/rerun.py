@@ -38,7 +38,9 @@ from gripper_ros.core.plant import check_fault, GraspObject, Lift
 from gripper_ros.core.requests import GraspRequest, RequestError, validate_request
 from gripper_ros.core.stages import (DEFAULT_APPROACH_FORCE_MARGIN, DEFAULT_FORCE_CONTROLLER,
                                      DEFAULT_POSITION_CONTROLLER)
-from gripper_ros.wire import Controller, FaultKind, Outcome, Phase
+from gripper_ros.text import one_line
+from gripper_ros.wire import (Controller, DEFAULT_STATE_RATE_HZ, FaultKind, Outcome, Phase,
+                              TimeMode)
 import numpy as np
 import yaml
 
@@ -59,8 +61,6 @@ STATUS_FIELDS = ('phase', 'active_controller', 'switch_criterion', 'grasp_id', '
                  'stage_id', 'approach_setpoint_m')
 _Status = namedtuple('_Status', STATUS_FIELDS)
 """The supervisor's state on a tick it changed (what supervisor/status reports on change)."""
-DEFAULT_STATE_RATE_HZ = 100.0
-"""The plant node's default state_rate_hz (bags that do not record it)."""
 
 
 class RerunError(BagError):
@@ -124,7 +124,7 @@ def load_record(bag: Bag | str | os.PathLike) -> GraspRecord:
     try:
         config = parse_config(copy.deepcopy(data), f'{bag.path} (recorded config)')
     except ConfigError as exc:
-        raise RerunError(_one_line(exc)) from None
+        raise RerunError(one_line(exc)) from None
     for name, value in request.items():
         if name not in REQUEST_FIELDS:
             raise RerunError(f'{bag.path}: recorded request field "{name}" is not re-run')
@@ -149,9 +149,10 @@ def load_record(bag: Bag | str | os.PathLike) -> GraspRecord:
     start_ns = int(series.references['stamp_ns'][starts[0]])
     same = series.references['grasp_id'] == series.references['grasp_id'][starts[0]]
     answered = np.flatnonzero(same & (series.references['outcome'] != Outcome.UNKNOWN))
-    time_mode = str(info.get('time_mode', 'fast')) if isinstance(info, dict) else 'fast'
+    fast = TimeMode.FAST.parameter
+    time_mode = str(info.get('time_mode', fast)) if isinstance(info, dict) else fast
     hold_s = 0.0
-    if time_mode != 'fast' and answered.size and series.ticks['stamp_ns'].size:
+    if time_mode != fast and answered.size and series.ticks['stamp_ns'].size:
         hold_s = (int(series.ticks['stamp_ns'][-1]) -
                   int(series.references['stamp_ns'][answered[0]])) * 1e-9
     rate = info.get('state_rate_hz', DEFAULT_STATE_RATE_HZ) if isinstance(info, dict) else \
@@ -193,7 +194,7 @@ def _grasp_keywords(path, request: dict, obj: dict) -> dict:
             out['fault'] = (FaultKind(kind), at_s, tau)
     except ValueError as exc:
         raise RerunError(f'{path}: the recorded object cannot be placed again: '
-                         f'{_one_line(exc)}') from None
+                         f'{one_line(exc)}') from None
     return out
 
 
@@ -202,10 +203,6 @@ def _number(value, what: str) -> float:
             not math.isfinite(value):
         raise RerunError(f'{what} must be a finite number, got {value!r}')
     return float(value)
-
-
-def _one_line(text: object) -> str:
-    return ' '.join(str(text).split())
 
 
 # --- the changes -------------------------------------------------------------------------------
@@ -312,7 +309,7 @@ def resolve(record: GraspRecord, changes: Changes | None = None) -> RerunSetup:
     try:
         config = parse_config(copy.deepcopy(data), source)
     except ConfigError as exc:
-        raise ConfigError(_one_line(exc)) from None
+        raise ConfigError(one_line(exc)) from None
     rec = record.controllers
     position = changes.position_controller or rec.get('position_controller') or \
         DEFAULT_POSITION_CONTROLLER.value
@@ -353,7 +350,7 @@ def _request(record: GraspRecord, config: GripperConfig) -> None:
         validate_request(request, config.plant, config.supervisor)
     except RequestError as exc:
         raise ConfigError(f"{config.source}: the re-run's supervisor refuses the recorded "
-                          f'request: {_one_line(exc)}') from None
+                          f'request: {one_line(exc)}') from None
 
 
 # --- the re-run --------------------------------------------------------------------------------
@@ -462,10 +459,10 @@ def run(record: GraspRecord, setup: RerunSetup, label: str = 're-run') -> Rerun:
                            **record.grasp)
     except RequestError as exc:
         raise ConfigError(f"{setup.config.source}: the re-run's supervisor refuses the "
-                          f'recorded request: {_one_line(exc)}') from None
+                          f'recorded request: {one_line(exc)}') from None
     except ValueError as exc:
         raise RerunError(f'{record.path}: the recorded object cannot be placed again: '
-                         f'{_one_line(exc)}') from None
+                         f'{one_line(exc)}') from None
     recorded_ticks = record.series.ticks['stamp_ns']
     first_ns = max(int(recorded_ticks[0]), int(h.t_ns[0])) if recorded_ticks.size else \
         h.start_ns

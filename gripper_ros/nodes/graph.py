@@ -17,7 +17,8 @@ import time
 
 from gripper_interfaces.srv import Grasp, Move, SetObject, SimStep
 from gripper_ros.core.config import load_config
-from gripper_ros.core.stages import DEFAULT_FORCE_CONTROLLER
+from gripper_ros.core.stages import (DEFAULT_APPROACH_FORCE_MARGIN, DEFAULT_FORCE_CONTROLLER,
+                                     DEFAULT_POSITION_CONTROLLER)
 from gripper_ros.nodes.excitation_node import ExcitationServer
 from gripper_ros.nodes.force_controller_node import ForceControllerNode
 from gripper_ros.nodes.grasp_action_node import GraspActionServer
@@ -30,9 +31,10 @@ from gripper_ros.nodes.qos import SERVICE_QOS
 from gripper_ros.nodes.services import call_and_wait
 from gripper_ros.nodes.supervisor_node import SupervisorNode
 from gripper_ros.wire import (ACTION_GRASP, ACTION_GRIPPER_CMD, ACTION_MOVE, check_namespace,
-                              DEFAULT_NAMESPACE, NODE_PLANT, NODE_SUPERVISOR, SERVICE_GRASP,
-                              SERVICE_MOVE, SERVICE_PAUSE, SERVICE_RELEASE, SERVICE_RESUME,
-                              SERVICE_SET_OBJECT, SERVICE_STEP, SERVICE_STOP)
+                              DEFAULT_NAMESPACE, DEFAULT_STATE_RATE_HZ, NODE_PLANT,
+                              NODE_SUPERVISOR, SERVICE_GRASP, SERVICE_MOVE, SERVICE_PAUSE,
+                              SERVICE_RELEASE, SERVICE_RESUME, SERVICE_SET_OBJECT, SERVICE_STEP,
+                              SERVICE_STOP, TimeMode)
 import rclpy
 from rclpy.context import Context
 from rclpy.parameter import Parameter
@@ -49,13 +51,14 @@ class GraphOptions:
     executor: ExecutorKind = ExecutorKind.EVENTS
     config_file: str = ''
     namespace: str = DEFAULT_NAMESPACE
-    time_mode: str = 'fast'          # the graph of a demo, a test or a sweep; serve: realtime
+    # fast: the graph of a demo, a test or a sweep; serve: realtime
+    time_mode: str = TimeMode.FAST.parameter
     real_time_factor: float = 1.0
-    state_rate_hz: float = 100.0
+    state_rate_hz: float = DEFAULT_STATE_RATE_HZ
     publish_clock: bool = True
-    position_controller: str = 'mpc_pd'
+    position_controller: str = DEFAULT_POSITION_CONTROLLER.value
     force_controller: str = DEFAULT_FORCE_CONTROLLER.value
-    approach_force_margin: float = 1.0
+    approach_force_margin: float = DEFAULT_APPROACH_FORCE_MARGIN
     action_server: bool = True       # also serve the grasp and the move as actions
     check_names: bool = True         # refuse to start when the namespace is taken
     supervisor_parameters: dict = field(default_factory=dict)

@@ -1,11 +1,9 @@
 """The QoS of the graph's topics and services, one profile per kind of traffic."""
 from __future__ import annotations
 
+from gripper_ros.wire import GRAPH_QOS_DEPTH
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
-# Lockstep keeps at most a few messages in flight; the depth is there so that a slow recorder
-# callback never loses one (a reliable keep_last writer drops what its history cannot hold).
-GRAPH_QOS_DEPTH = 1000
 GRAPH_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=GRAPH_QOS_DEPTH,
                        reliability=ReliabilityPolicy.RELIABLE,
                        durability=DurabilityPolicy.VOLATILE)

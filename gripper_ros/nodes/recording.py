@@ -26,8 +26,8 @@ from gripper_ros.bags.recorder import (BAG_FORMAT, BagRecorder, BagRecorderError
 from gripper_ros.core.stages import Reference
 from gripper_ros.nodes.services import wait_until
 from gripper_ros.wire import (GRAPH_TOPICS, LOOP_TOPICS, Outcome, Phase, qualified,
-                              REFERENCE_LAYOUT, TOPIC_FORCE_REFERENCE, TOPIC_MOTOR_COMMAND,
-                              TOPIC_POSITION_REFERENCE, TOPIC_TICK)
+                              REFERENCE_LAYOUT, TimeMode, TOPIC_FORCE_REFERENCE,
+                              TOPIC_MOTOR_COMMAND, TOPIC_POSITION_REFERENCE, TOPIC_TICK)
 from rclpy.serialization import serialize_message
 
 
@@ -330,7 +330,7 @@ def recorded_grasp(graph, bag_dir, width_m: float, mass_kg: float,
     placed = graph.set_object(placed_width, stiffness_n_per_m, damping_n_s_per_m, **hold)
     if not placed.success:
         raise RecordingError(f'set_object: {placed.message}')
-    if graph.options.time_mode == 'fast':
+    if graph.options.time_mode == TimeMode.FAST.parameter:
         graph.wait_still()              # the placement's tick is answered before recording
     request = {'width_m': width_m, 'mass_kg': mass_kg,
                'friction_coefficient': friction_coefficient,
@@ -348,7 +348,7 @@ def recorded_grasp(graph, bag_dir, width_m: float, mass_kg: float,
     response = None
     before = graph.published_counts()
     received_before = dict(tap.received)
-    fast = graph.options.time_mode == 'fast'
+    fast = graph.options.time_mode == TimeMode.FAST.parameter
     if stop_on_error:
         tap.on_error = lambda message: graph.supervisor.stop_grasp(message)
     tap.start(recorder, 'now' if fast else 'next_tick')     # fast: nothing is in flight
@@ -393,7 +393,7 @@ def recorded_grasp(graph, bag_dir, width_m: float, mass_kg: float,
 
 def _play_out(graph, linger_s: float) -> None:
     """After the answer: until simulated time stands still (fast), or ``linger_s`` of it."""
-    if graph.options.time_mode == 'fast':
+    if graph.options.time_mode == TimeMode.FAST.parameter:
         graph.wait_still()
         return
     until = graph.sim_time_ns + round(linger_s * 1e9)
