@@ -105,9 +105,8 @@ def main(argv: list[str] | None = None) -> int:
         print(f'excite: {outcome}', flush=True)
         print(f'bag: {bag_dir}', flush=True)
         return 0
-    except (ConfigError, StartupError, ValueError) as exc:
-        return _fail(str(exc))
-    except (GraphError, BagRecorderError, RecordingError, RuntimeError) as exc:
+    except (ConfigError, StartupError, ValueError, GraphError, BagRecorderError, RecordingError,
+            RuntimeError) as exc:
         return _fail(str(exc))
     except KeyboardInterrupt:
         print('excite: interrupted; bag closed', file=sys.stderr)

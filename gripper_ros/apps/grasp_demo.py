@@ -145,11 +145,11 @@ def main(argv: list[str] | None = None) -> int:
     for w, m in objects:
         if not (math.isfinite(w) and math.isfinite(m)):
             return _fail(f'width and mass must be finite, got {w!r}, {m!r}')
-    for name in ('lift', 'lift_delay', 'lift_duration', 'object_mass', 'static_friction',
-                 'kinetic_friction'):
-        value = getattr(args, name)
-        if not (math.isfinite(value) and value >= 0.0):
-            return _fail(f'--{name.replace("_", "-")} must be finite and >= 0, got {value!r}')
+    from gripper_ros.apps.common import negative_option
+    negative = negative_option(args, ('lift', 'lift_delay', 'lift_duration', 'object_mass',
+                                      'static_friction', 'kinetic_friction'))
+    if negative:
+        return _fail(negative)
     if args.profile is not None:
         from gripper_ros.core.hold import parse_profile
         if args.lift:
@@ -221,9 +221,8 @@ def main(argv: list[str] | None = None) -> int:
                    for i, (w, m) in enumerate(objects, 1)]
         _summarise(graph, records, args)
         return 0 if all(r.final_outcome == 'HOLDING' for r in records) else 1
-    except (ConfigError, StartupError) as exc:
-        return _fail(str(exc))
-    except (GraphError, BagRecorderError, RecordingError, RuntimeError) as exc:
+    except (ConfigError, StartupError, GraphError, BagRecorderError, RecordingError,
+            RuntimeError) as exc:
         return _fail(str(exc))
     except KeyboardInterrupt:
         print('grasp_demo: interrupted; bags closed', file=sys.stderr)
