@@ -66,7 +66,8 @@ import math
 
 from gripper_ros.core.config import ContactForceTuning, PlantParams
 from gripper_ros.core.pid import (as_record, LAW_CONTACT_INPUT, law_error, LAW_MATH_DOMAIN,
-                                  LAW_NUMBERS, LAW_OK, LAW_ZERO_DIVISION, py_max, py_min)
+                                  LAW_NUMBERS, LAW_OK, LAW_ZERO_DIVISION, py_max, py_min,
+                                  RecordOutputLimits)
 import numba
 import numpy as np
 
@@ -339,7 +340,7 @@ def contact_step(c, force_setpoint_n, force_n, position_m, face_m, width_toleran
     return LAW_OK, output
 
 
-class ContactForceController:
+class ContactForceController(RecordOutputLimits):
     """``step(force_setpoint_n, force_n, position_m, face_m, width_tolerance_m)`` per ``dt_s``.
 
     The design numbers, the state and the last terms live in the 1-element
@@ -401,16 +402,6 @@ class ContactForceController:
         s['band_k'], s['band_tau'] = k_band, tau_band
         s['band_kv'] = self.damping_gain_for(k_band, tau_band)
         self.reset()
-
-    @property
-    def output_limits(self) -> tuple[float, float]:
-        s = self.record[0]
-        return (float(s['low']), float(s['high']))
-
-    @output_limits.setter
-    def output_limits(self, limits: tuple[float, float]) -> None:
-        s = self.record[0]
-        s['low'], s['high'] = limits
 
     @property
     def terms(self) -> ContactForceTerms:

@@ -242,7 +242,21 @@ class PidTerms:
     saturated: bool = False
 
 
-class PID:
+class RecordOutputLimits:
+    """``output_limits`` (low, high) of a controller whose record holds ``low`` and ``high``."""
+
+    @property
+    def output_limits(self) -> tuple[float, float]:
+        s = self.record[0]
+        return (float(s['low']), float(s['high']))
+
+    @output_limits.setter
+    def output_limits(self, limits: tuple[float, float]) -> None:
+        s = self.record[0]
+        s['low'], s['high'] = limits
+
+
+class PID(RecordOutputLimits):
     """One PD, PI or PID loop; ``step(setpoint, measurement)`` once per ``dt_s``.
 
     The state is the 1-element :data:`PID_DTYPE` array ``record`` (shared with the kernels of
@@ -288,16 +302,6 @@ class PID:
     @dt_s.setter
     def dt_s(self, value: float) -> None:
         self.record[0]['dt_s'] = value
-
-    @property
-    def output_limits(self) -> tuple[float, float]:
-        s = self.record[0]
-        return (float(s['low']), float(s['high']))
-
-    @output_limits.setter
-    def output_limits(self, limits: tuple[float, float]) -> None:
-        s = self.record[0]
-        s['low'], s['high'] = limits
 
     @property
     def derivative_on(self) -> DerivativeOn:
