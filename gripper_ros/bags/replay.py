@@ -374,7 +374,7 @@ def _run_closed_loop(args: argparse.Namespace) -> int:
     Exit 0 when it ran; 2 on bad input (the bag, an option, a key or value; one line on
     stderr); 3 when the bag was truncated (the recorded figures cover the part recovered).
     """
-    from gripper_ros.bags import rerun
+    from gripper_ros.bags import rerun, rerun_report
     from gripper_ros.core.config import ConfigError
     from gripper_ros.core.engine import check_address, EngineError
     from gripper_ros.progress import progress_bar
@@ -401,12 +401,12 @@ def _run_closed_loop(args: argparse.Namespace) -> int:
     except (ConfigError, BagError, EngineError, ValueError) as exc:
         _fail(str(exc), code=2)
     if sweep is None:
-        print(rerun.to_json(result) if args.json else rerun.to_table(result))
+        print(rerun_report.to_json(result) if args.json else rerun_report.to_table(result))
     else:
-        print(rerun.sweep_json(result) if args.json else rerun.sweep_table(result))
+        print(rerun_report.sweep_json(result) if args.json else rerun_report.sweep_table(result))
     if args.plot:
         try:
-            rerun.plot(result, args.plot)
+            rerun_report.plot(result, args.plot)
         except OSError as exc:
             _fail(f'cannot write {args.plot}: {exc.strerror or exc}', code=2)
         print(f'{PROG}: figure: {args.plot}', file=sys.stderr)
