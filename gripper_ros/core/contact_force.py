@@ -66,8 +66,8 @@ import math
 
 from gripper_ros.core.config import ContactForceTuning, PlantParams
 from gripper_ros.core.pid import (as_record, LAW_CONTACT_INPUT, law_error, LAW_MATH_DOMAIN,
-                                  LAW_NUMBERS, LAW_OK, LAW_ZERO_DIVISION, py_max, py_min,
-                                  RecordOutputLimits)
+                                  LAW_NUMBERS, LAW_OK, LAW_ZERO_DIVISION, py_max, py_min)
+from gripper_ros.core.records import RecordLimits
 import numba
 import numpy as np
 
@@ -340,7 +340,7 @@ def contact_step(c, force_setpoint_n, force_n, position_m, face_m, width_toleran
     return LAW_OK, output
 
 
-class ContactForceController(RecordOutputLimits):
+class ContactForceController:
     """``step(force_setpoint_n, force_n, position_m, face_m, width_tolerance_m)`` per ``dt_s``.
 
     The design numbers, the state and the last terms live in the 1-element
@@ -402,6 +402,8 @@ class ContactForceController(RecordOutputLimits):
         s['band_k'], s['band_tau'] = k_band, tau_band
         s['band_kv'] = self.damping_gain_for(k_band, tau_band)
         self.reset()
+
+    output_limits = RecordLimits()
 
     @property
     def terms(self) -> ContactForceTerms:

@@ -47,6 +47,7 @@ from typing import Callable
 from gripper_ros.core.pid import (as_record, law_error, LAW_NUMBERS, LAW_OK, PID, pid_reset,
                                   pid_setpoint_for_output, pid_setpoint_range, pid_step_checked,
                                   py_max, py_min)
+from gripper_ros.core.records import RecordField
 import numba
 import numpy as np
 
@@ -173,13 +174,9 @@ class DynamicMatrixControl:
         if limits is not None:
             s['limit_low'], s['limit_high'] = limits
 
-    @property
-    def last_output(self) -> float:
-        return float(self.record[0]['last_output'])
+    last_output = RecordField(writable=False)
 
-    @property
-    def last_move(self) -> float:
-        return float(self.record[0]['last_move'])
+    last_move = RecordField(writable=False)
 
     def reset(self, measurement: float, output: float) -> None:
         """At rest: output steady at ``measurement``, manipulated variable at ``output``."""
@@ -389,21 +386,9 @@ class BrakingGovernor:
         """(record, buffer): what the ``governor_*`` kernels take."""
         return (self.record, self.buffer)
 
-    @property
-    def limit_v(self) -> float:
-        return float(self.record[0]['limit_v'])
+    limit_v = RecordField()
 
-    @limit_v.setter
-    def limit_v(self, value: float) -> None:
-        self.record[0]['limit_v'] = value
-
-    @property
-    def braking_v(self) -> float:
-        return float(self.record[0]['braking_v'])
-
-    @braking_v.setter
-    def braking_v(self, value: float) -> None:
-        self.record[0]['braking_v'] = value
+    braking_v = RecordField()
 
     @property
     def phase(self) -> GovernorPhase:
@@ -545,21 +530,11 @@ class CascadedMpc:
         self._governor = governor
         self.record[0]['has_governor'] = governor is not None
 
-    @property
-    def respect_inner_limits(self) -> bool:
-        return bool(self.record[0]['respect_inner_limits'])
+    respect_inner_limits = RecordField(bool)
 
-    @respect_inner_limits.setter
-    def respect_inner_limits(self, value: bool) -> None:
-        self.record[0]['respect_inner_limits'] = bool(value)
+    last_inner_setpoint = RecordField(writable=False)
 
-    @property
-    def last_inner_setpoint(self) -> float:
-        return float(self.record[0]['last_inner_setpoint'])
-
-    @property
-    def last_forced(self) -> float:
-        return float(self.record[0]['last_forced'])
+    last_forced = RecordField(writable=False)
 
     @property
     def kernel(self) -> tuple:

@@ -25,6 +25,7 @@ import enum
 import math
 
 from gripper_ros.core.config import PidGains
+from gripper_ros.core.records import RecordField, RecordLimits
 import numba
 from numba import types
 from numba.extending import overload
@@ -242,21 +243,7 @@ class PidTerms:
     saturated: bool = False
 
 
-class RecordOutputLimits:
-    """``output_limits`` (low, high) of a controller whose record holds ``low`` and ``high``."""
-
-    @property
-    def output_limits(self) -> tuple[float, float]:
-        s = self.record[0]
-        return (float(s['low']), float(s['high']))
-
-    @output_limits.setter
-    def output_limits(self, limits: tuple[float, float]) -> None:
-        s = self.record[0]
-        s['low'], s['high'] = limits
-
-
-class PID(RecordOutputLimits):
+class PID:
     """One PD, PI or PID loop; ``step(setpoint, measurement)`` once per ``dt_s``.
 
     The state is the 1-element :data:`PID_DTYPE` array ``record`` (shared with the kernels of
@@ -295,13 +282,9 @@ class PID(RecordOutputLimits):
         s = self.record[0]
         s['kc'], s['ki'], s['kd'] = gains.kc, gains.ki, gains.kd
 
-    @property
-    def dt_s(self) -> float:
-        return float(self.record[0]['dt_s'])
+    dt_s = RecordField()
 
-    @dt_s.setter
-    def dt_s(self, value: float) -> None:
-        self.record[0]['dt_s'] = value
+    output_limits = RecordLimits()
 
     @property
     def derivative_on(self) -> DerivativeOn:
@@ -320,17 +303,9 @@ class PID(RecordOutputLimits):
     def anti_windup(self, value: AntiWindup) -> None:
         self.record[0]['conditional'] = value is AntiWindup.CONDITIONAL
 
-    @property
-    def setpoint_weight(self) -> float:
-        return float(self.record[0]['setpoint_weight'])
+    setpoint_weight = RecordField()
 
-    @setpoint_weight.setter
-    def setpoint_weight(self, value: float) -> None:
-        self.record[0]['setpoint_weight'] = value
-
-    @property
-    def last_output(self) -> float:
-        return float(self.record[0]['last_output'])
+    last_output = RecordField(writable=False)
 
     @property
     def terms(self) -> PidTerms:

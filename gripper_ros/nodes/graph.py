@@ -32,9 +32,9 @@ from gripper_ros.nodes.services import call_and_wait
 from gripper_ros.nodes.supervisor_node import SupervisorNode
 from gripper_ros.wire import (ACTION_GRASP, ACTION_GRIPPER_CMD, ACTION_MOVE, check_namespace,
                               DEFAULT_NAMESPACE, DEFAULT_STATE_RATE_HZ, NODE_PLANT,
-                              NODE_SUPERVISOR, SERVICE_GRASP, SERVICE_MOVE, SERVICE_PAUSE,
-                              SERVICE_RELEASE, SERVICE_RESUME, SERVICE_SET_OBJECT, SERVICE_STEP,
-                              SERVICE_STOP, TimeMode)
+                              NODE_SUPERVISOR, SERVICE_EXCITE, SERVICE_GRASP, SERVICE_MOVE,
+                              SERVICE_PAUSE, SERVICE_RELEASE, SERVICE_RESUME, SERVICE_SET_OBJECT,
+                              SERVICE_STEP, SERVICE_STOP, TimeMode)
 import rclpy
 from rclpy.context import Context
 from rclpy.parameter import Parameter
@@ -302,6 +302,8 @@ class GripperGraph:
         """Return every service and action this graph serves (relative names), services first."""
         names = [SERVICE_GRASP, SERVICE_MOVE, SERVICE_STOP, SERVICE_RELEASE, SERVICE_SET_OBJECT,
                  SERVICE_PAUSE, SERVICE_RESUME, SERVICE_STEP]
+        if self.excitation_server is not None:
+            names.append(SERVICE_EXCITE)
         if self.action_server is not None:
             names.append(ACTION_GRASP)
         if self.move_action_server is not None:
