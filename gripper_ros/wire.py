@@ -19,6 +19,14 @@ import numpy as np
 
 DEFAULT_NAMESPACE = 'gripper'
 
+# Lockstep keeps at most a few messages in flight; the depth is there so that a slow recorder
+# callback never loses one (a reliable keep_last writer drops what its history cannot hold).
+GRAPH_QOS_DEPTH = 1000
+"""History depth of every graph topic and service queue, the recorder's and the replay's."""
+
+DEFAULT_STATE_RATE_HZ = 100.0
+"""Rate (per simulated second) of joint_states, force_sensor, sim/object_state and /clock."""
+
 # --- lockstep topics: one message per tick each (see docs/ARCHITECTURE.md) ---------------------
 TOPIC_TICK = 'loop/tick'
 """PlantTick, plant -> supervisor: the measurement of tick t."""
@@ -64,6 +72,9 @@ NODE_SUPERVISOR = 'supervisor'
 NODE_GRASP_ACTION = 'grasp_action_server'
 NODE_MOVE_ACTION = 'move_action_server'
 NODE_EXCITATION = 'excitation_server'
+LAUNCHED_NODES = (NODE_PLANT, NODE_POSITION_CONTROLLER, NODE_FORCE_CONTROLLER, NODE_SUPERVISOR,
+                  NODE_GRASP_ACTION, NODE_MOVE_ACTION)
+"""What launch/gripper.launch.py starts, one process each; each the executable and the node."""
 
 FINGER_JOINT = 'finger_joint'
 
@@ -202,6 +213,15 @@ class TimeMode(enum.IntEnum):
 
     REALTIME = 0
     FAST = 1
+
+    @property
+    def parameter(self) -> str:
+        """The plant's ``time_mode`` parameter value: ``realtime`` or ``fast``."""
+        return self.name.lower()
+
+
+TIME_MODE_CHOICES = tuple(mode.parameter for mode in TimeMode)
+"""What ``time_mode`` (parameter, launch argument, ``--time-mode``) accepts."""
 
 
 WIRE_CODES = (

@@ -13,6 +13,8 @@ loop goes, paused between requests),
 force_controller, supervisor, grasp_action_server and move_action_server (which also serves
 control_msgs ParallelGripperCommand on ``gripper_cmd`` where control_msgs is installed).
 """
+from gripper_ros.wire import (DEFAULT_NAMESPACE, LAUNCHED_NODES, NODE_PLANT, TIME_MODE_CHOICES,
+                              TimeMode)
 from launch import LaunchDescription
 from launch.actions import DeclareLaunchArgument
 from launch.substitutions import LaunchConfiguration, PathJoinSubstitution
@@ -22,16 +24,14 @@ from launch_ros.substitutions import FindPackageShare
 
 PACKAGE = 'gripper_ros'
 ARGUMENTS = (
-    ('namespace', 'gripper', 'namespace of every node, topic, service and action'),
+    ('namespace', DEFAULT_NAMESPACE, 'namespace of every node, topic, service and action'),
     ('config_file', PathJoinSubstitution([FindPackageShare(PACKAGE), 'config', 'gripper.yaml']),
      'config YAML (every constant and gain)'),
-    ('time_mode', 'realtime', 'realtime (paced to the wall clock) or fast'),
+    ('time_mode', TimeMode.REALTIME.parameter,
+     f'{" or ".join(TIME_MODE_CHOICES)}: paced to the wall clock, or as fast as the loop goes'),
     ('real_time_factor', '1.0', 'realtime: simulated seconds per wall second'),
     ('publish_clock', 'true', 'publish /clock'),
 )
-NODES = ('plant_simulator', 'position_controller', 'force_controller', 'supervisor',
-         'grasp_action_server', 'move_action_server')
-"""Each the executable and the node name (the same)."""
 
 
 def generate_launch_description() -> LaunchDescription:
@@ -45,8 +45,8 @@ def generate_launch_description() -> LaunchDescription:
     }
     actions = [DeclareLaunchArgument(name, default_value=default, description=description)
                for name, default, description in ARGUMENTS]
-    for name in NODES:
-        parameters = [config, plant] if name == 'plant_simulator' else [config]
+    for name in LAUNCHED_NODES:
+        parameters = [config, plant] if name == NODE_PLANT else [config]
         actions.append(Node(package=PACKAGE, executable=name, name=name,
                             namespace=LaunchConfiguration('namespace'),
                             parameters=parameters, output='screen', emulate_tty=True))

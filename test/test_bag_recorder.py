@@ -20,7 +20,7 @@ from gripper_ros.bags import info as bag_info  # noqa: E402
 from gripper_ros.bags import replay as bag_replay  # noqa: E402
 from gripper_ros.bags.reader import EXIT_TRUNCATED, read_bag  # noqa: E402
 from gripper_ros.bags.recorder import BagRecorder, BagRecorderError  # noqa: E402
-from gripper_ros.nodes.common import wait_until  # noqa: E402
+from gripper_ros.nodes.services import wait_until  # noqa: E402
 import pytest  # noqa: E402
 import rclpy  # noqa: E402
 from rclpy.executors import SingleThreadedExecutor  # noqa: E402

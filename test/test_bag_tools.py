@@ -9,6 +9,7 @@ step (overshoot exp(-pi*zeta/sqrt(1-zeta^2))), a voltage saturated for exactly 5
 """
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 import os
@@ -339,6 +340,26 @@ def test_analysis_known_answers(grasp_bag, legacy_bag, which):
     assert m.time_at_voltage_limit_s == pytest.approx(V_LIMIT_TICKS * dt, abs=1e-9)
     assert m.final_position_error_m == pytest.approx(POS_SP_M * math.exp(-0.599 / TAU_S))
     assert abs(m.final_force_error_n) < 1e-3
+
+
+def test_time_at_the_limit_is_measured_against_the_limit_the_bag_recorded(grasp_bag):
+    """The limit comes from the bag's recorded config, else the installed config's 24 V.
+
+    The bag's command sits at 24 V for V_LIMIT_TICKS ticks and never above: a bag recorded
+    with a higher limit never reached it, one with exactly 24 V spent those ticks there.
+    """
+    series = load_grasp_series(grasp_bag)
+    assert 'config' not in series.custom_data          # the synthetic bag records none
+    installed = bag_analyze.analyze_series(series)
+    assert installed.time_at_voltage_limit_s == pytest.approx(V_LIMIT_TICKS * 1e-3, abs=1e-9)
+
+    def recorded_with(limit_v):
+        data = {**series.custom_data, 'config': {'plant': {'voltage_limit_v': limit_v}}}
+        return bag_analyze.analyze_series(dataclasses.replace(series, custom_data=data))
+
+    assert recorded_with(30.0).time_at_voltage_limit_s == 0.0
+    assert recorded_with(24.0).time_at_voltage_limit_s == pytest.approx(V_LIMIT_TICKS * 1e-3,
+                                                                        abs=1e-9)
 
 
 def test_analyze_cli_table_json_csv_plot(grasp_bag, tmp_path, capsys):

@@ -146,8 +146,9 @@ def test_stage_on_a_non_finite_measurement_before_activation_activates_later(bad
 # ====================================================================== the live graph
 rclpy = pytest.importorskip('rclpy')
 from gripper_ros.bags.schema import import_message_class  # noqa: E402, I100 (block after skip)
-from gripper_ros.nodes.common import GRAPH_QOS, wait_until  # noqa: E402
 from gripper_ros.nodes.graph import GraphOptions, GripperGraph  # noqa: E402
+from gripper_ros.nodes.qos import GRAPH_QOS  # noqa: E402
+from gripper_ros.nodes.services import wait_until  # noqa: E402
 from gripper_ros.wire import (Controller, DEFAULT_NAMESPACE, GRAPH_TOPICS,  # noqa: E402
                               Outcome, Phase, qualified, TICK_LAYOUT, TOPIC_MOTOR_COMMAND,
                               TOPIC_STATUS, TOPIC_TICK)

@@ -19,9 +19,9 @@ import shutil
 import subprocess
 
 from gripper_ros.bags.reader import read_bag
-from gripper_ros.bags.recording import recorded_grasp
 from gripper_ros.bags.schema import find_interface_file, message_definition, SCHEMA_SEPARATOR
 from gripper_ros.bags.series import load_grasp_series
+from gripper_ros.nodes.recording import recorded_grasp
 from gripper_ros.wire import DEFAULT_NAMESPACE, GRAPH_TOPICS, qualified
 from helpers import copy_mcap
 import numpy as np

@@ -16,9 +16,9 @@ import time
 
 from gripper_interfaces.srv import SetObject
 from gripper_ros.core.config import MAX_HORIZON
-from gripper_ros.nodes.common import SERVICE_QOS
 from gripper_ros.nodes.graph import GraphOptions, GripperGraph
 from gripper_ros.nodes.plant_simulator_node import MAX_STEP_TICKS
+from gripper_ros.nodes.qos import SERVICE_QOS
 from gripper_ros.wire import (MAX_NAMESPACE_LENGTH, NODE_POSITION_CONTROLLER, Outcome, Phase,
                               SERVICE_PAUSE, SERVICE_SET_OBJECT, SERVICE_STOP)
 import pytest
@@ -242,7 +242,7 @@ def test_a_plant_alone_in_realtime_keeps_its_clock_and_state_stream():
     from rclpy.context import Context
     from rclpy.executors import SingleThreadedExecutor
     from sensor_msgs.msg import JointState
-    from gripper_ros.nodes.common import GRAPH_QOS
+    from gripper_ros.nodes.qos import GRAPH_QOS
     import subprocess
     import sys
     namespace = f'alone_{os.getpid()}'
@@ -293,9 +293,10 @@ def test_a_plant_whose_supervisor_died_keeps_its_clock():
 def test_a_grasp_whose_plant_process_was_killed_says_the_plant_is_gone():
     """A killed plant stays discovered for a while: the silence of its ticks tells."""
     from gripper_interfaces.srv import Grasp, SetObject
-    from gripper_ros.nodes.common import call_and_wait, make_executor, ExecutorKind
     from gripper_ros.nodes.force_controller_node import ForceControllerNode
     from gripper_ros.nodes.position_controller_node import PositionControllerNode
+    from gripper_ros.nodes.process import ExecutorKind, make_executor
+    from gripper_ros.nodes.services import call_and_wait
     from gripper_ros.nodes.supervisor_node import SupervisorNode
     from rclpy.context import Context
     from rclpy.parameter import Parameter

@@ -277,8 +277,8 @@ def test_excite_refuses_bad_parameters_in_one_line(argv, match, tmp_path, capfd)
 
 
 def test_the_excite_service_runs_beside_move_refuses_bad_parameters_and_stops_on_stop():
-    from gripper_ros.nodes.common import wait_until
     from gripper_ros.nodes.graph import GraphOptions, GripperGraph
+    from gripper_ros.nodes.services import wait_until
     from gripper_ros.wire import SERVICE_EXCITE
     from rclpy.parameter import Parameter
     from std_srvs.srv import Trigger

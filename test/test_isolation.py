@@ -9,8 +9,8 @@ import os
 import threading
 import time
 
-from gripper_ros.nodes.common import GRAPH_QOS
 from gripper_ros.nodes.graph import GraphOptions, GripperGraph
+from gripper_ros.nodes.qos import GRAPH_QOS
 from gripper_ros.wire import DEFAULT_NAMESPACE, qualified, TOPIC_JOINT_STATES
 import pytest
 import rclpy

@@ -11,9 +11,9 @@ import subprocess
 import sys
 import time
 
-from gripper_ros.bags.recording import recorded_grasp
 from gripper_ros.bags.series import load_grasp_series
 from gripper_ros.nodes.graph import GripperGraph
+from gripper_ros.nodes.recording import recorded_grasp
 import numpy as np
 import pytest
 

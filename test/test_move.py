@@ -313,8 +313,8 @@ def graph():
     from sensor_msgs.msg import JointState
 
     from gripper_interfaces.action import Move as MoveAction
-    from gripper_ros.nodes.common import GRAPH_QOS
     from gripper_ros.nodes.graph import GraphOptions, GripperGraph
+    from gripper_ros.nodes.qos import GRAPH_QOS
     from gripper_ros.wire import ACTION_MOVE, TOPIC_JOINT_STATES
 
     with GripperGraph.in_own_context(GraphOptions(namespace='move_test')) as g:
@@ -545,10 +545,10 @@ def test_parallel_gripper_command_on_gripper_cmd_drives_the_move(graph):
 
 
 def test_serve_mode_records_a_move_in_a_bag_of_its_own(tmp_path):
-    from gripper_ros.bags.recording import ServeRecorder
     from gripper_ros.bags.series import load_grasp_series
-    from gripper_ros.nodes.common import wait_until
     from gripper_ros.nodes.graph import GraphOptions, GripperGraph
+    from gripper_ros.nodes.recording import ServeRecorder
+    from gripper_ros.nodes.services import wait_until
     with GripperGraph.in_own_context(GraphOptions(namespace='move_serve',
                                                   time_mode='fast')) as g:
         serve = ServeRecorder(g, tmp_path)

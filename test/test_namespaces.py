@@ -12,9 +12,9 @@ import threading
 import time
 
 from gripper_ros.bags.reader import read_bag
-from gripper_ros.bags.recording import recorded_grasp
-from gripper_ros.nodes.common import StartupError
 from gripper_ros.nodes.graph import GraphOptions, GripperGraph
+from gripper_ros.nodes.recording import recorded_grasp
+from gripper_ros.nodes.startup import StartupError
 from gripper_ros.wire import (Outcome, qualified, TOPIC_FORCE_REFERENCE, TOPIC_MOTOR_COMMAND,
                               TOPIC_POSITION_REFERENCE, TOPIC_TICK)
 import pytest

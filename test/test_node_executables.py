@@ -211,7 +211,7 @@ def test_every_node_executable_is_here_with_a_bad_start_up_parameter():
 
 def test_a_bug_in_a_node_constructor_keeps_its_traceback():
     """A ValueError raised by a node's own code is a bug, not a refused start: exit 1, traced."""
-    code = ('from gripper_ros.nodes.common import run_node\n'
+    code = ('from gripper_ros.nodes.process import run_node\n'
             'def broken():\n'
             '    raise ValueError("a bug in the constructor")\n'
             'raise SystemExit(run_node(broken, "broken_node", ["--ros-args", "-r", '

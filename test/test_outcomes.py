@@ -18,8 +18,8 @@ import time
 from gripper_interfaces.msg import MotorCommand, SupervisorStatus
 from gripper_interfaces.srv import Grasp, SetObject
 from gripper_ros.core.config import load_config
-from gripper_ros.nodes.common import GRAPH_QOS, LATCHED_QOS
 from gripper_ros.nodes.graph import GraphOptions, GripperGraph
+from gripper_ros.nodes.qos import GRAPH_QOS, LATCHED_QOS
 from gripper_ros.wire import (Controller, Outcome, Phase, TOPIC_MOTOR_COMMAND, TOPIC_OUTCOME,
                               TOPIC_STATUS)
 import pytest

@@ -358,7 +358,7 @@ def _grasp_then_kill(node_name: str, timeout_parameter: str):
     """
     from gripper_interfaces.srv import Grasp
 
-    from gripper_ros.nodes.common import wait_until
+    from gripper_ros.nodes.services import wait_until
     watcher = 'supervisor' if node_name == 'plant_simulator' else 'position_controller'
     with GripperGraph.in_own_context(GraphOptions(namespace='new_timeouts')) as g:
         client = rclpy.create_node('parameter_client', context=g.context)
@@ -510,10 +510,10 @@ def test_a_gain_set_over_the_parameter_services_takes_effect_at_the_next_stage(
     grasp's position stage runs with it, tick for tick as the headless loop with that gain.
     """
     import dataclasses
-    from gripper_ros.bags.recording import recorded_grasp
     from gripper_ros.bags.series import load_grasp_series
     from gripper_ros.core.config import load_config
     from gripper_ros.core.headless import simulate_grasp
+    from gripper_ros.nodes.recording import recorded_grasp
     key = 'position_control.mpc_pd.kc'
     shipped = SHIPPED_DATA['position_control']['mpc_pd']['kc']
     assert _get(graph, 'position_controller', key) == shipped

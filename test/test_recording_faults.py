@@ -17,8 +17,9 @@ import time
 
 from gripper_ros.bags import recorder as recorder_module
 from gripper_ros.bags.reader import read_bag
-from gripper_ros.bags.recording import recorded_grasp, ServeRecorder, unique_bag_dir
+from gripper_ros.bags.recorder import unique_bag_dir
 from gripper_ros.nodes.graph import GraphOptions, GripperGraph
+from gripper_ros.nodes.recording import recorded_grasp, ServeRecorder
 from gripper_ros.wire import Outcome
 import pytest
 
@@ -139,7 +140,7 @@ def test_a_taken_bag_folder_name_is_never_reused(tmp_path):
 _NAMER = """
 import sys
 from pathlib import Path
-from gripper_ros.bags.recording import unique_bag_dir
+from gripper_ros.bags.recorder import unique_bag_dir
 for _ in range(int(sys.argv[2])):
     print(unique_bag_dir(Path(sys.argv[1]), 'grasp_20261201_120000_id1'))
 """

@@ -23,12 +23,12 @@ from pathlib import Path
 
 from gripper_ros.bags import replay as bag_replay
 from gripper_ros.bags import rerun
-from gripper_ros.bags.recording import recorded_grasp, ServeRecorder
 from gripper_ros.core.config import ConfigError, load_config, parse_config
 from gripper_ros.core.controllers import position_step_response
 from gripper_ros.core.headless import simulate_grasp
-from gripper_ros.nodes.common import wait_until
 from gripper_ros.nodes.graph import GraphOptions, GripperGraph
+from gripper_ros.nodes.recording import recorded_grasp, ServeRecorder
+from gripper_ros.nodes.services import wait_until
 from gripper_ros.wire import FaultKind, Outcome
 from helpers import assert_rerun_equals_recording, run_main
 import numpy as np

@@ -11,9 +11,9 @@ import threading
 import time
 
 from gripper_ros.core.config import load_config
-from gripper_ros.nodes.common import GRAPH_QOS
 from gripper_ros.nodes.graph import GraphOptions, GripperGraph
 from gripper_ros.nodes.loop_io import clock_template, joint_state_template
+from gripper_ros.nodes.qos import GRAPH_QOS
 from gripper_ros.wire import FINGER_JOINT, Outcome, qualified, TOPIC_CLOCK, TOPIC_JOINT_STATES
 import pytest
 from rosgraph_msgs.msg import Clock

@@ -1,6 +1,7 @@
 """What the console apps share: the configuration loaded as a command line expects."""
 from __future__ import annotations
 
+import math
 import sys
 
 from gripper_ros.core.config import ConfigError, GripperConfig, load_config
@@ -16,3 +17,16 @@ def load_config_or_report(prog: str, path: str | None) -> GripperConfig | None:
     except ConfigError as exc:
         print(f'{prog}: {exc}', file=sys.stderr)
         return None
+
+
+def negative_option(args, names) -> str | None:
+    """Return the error of the first option in ``names`` not finite and >= 0; None if all are.
+
+    ``names`` are argparse destinations (``lift_delay``); the error names the option
+    (``--lift-delay``) and the value given.
+    """
+    for name in names:
+        value = getattr(args, name)
+        if not (math.isfinite(value) and value >= 0.0):
+            return f'--{name.replace("_", "-")} must be finite and >= 0, got {value!r}'
+    return None

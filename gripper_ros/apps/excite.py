@@ -67,12 +67,12 @@ def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(remove_ros_args(sys.argv if argv is None else
                                                      ['excite', *argv])[1:])
     from gripper_ros.bags.recorder import BagRecorderError
-    from gripper_ros.bags.recording import RecordingError
+    from gripper_ros.bags.recorder import RecordingError
     from gripper_ros.core.config import ConfigError, load_config, parse_config
     from gripper_ros.core.excitation import check_spec, ExcitationSpec
-    from gripper_ros.nodes.common import StartupError
     from gripper_ros.nodes.graph import GraphError, GraphOptions, GripperGraph
-    from gripper_ros.wire import check_namespace
+    from gripper_ros.nodes.startup import StartupError
+    from gripper_ros.wire import check_namespace, TimeMode
 
     spec = ExcitationSpec(args.seconds, args.amplitude_v, args.seed, not args.no_hold)
     noise = {f'sensor_noise.{key}': float(value) for key, value in (   # doubles, as declared
@@ -99,14 +99,14 @@ def main(argv: list[str] | None = None) -> int:
     graph = None
     try:
         graph = GripperGraph(GraphOptions(config_file=args.config, namespace=namespace,
-                                          time_mode='fast', plant_parameters=noise))
+                                          time_mode=TimeMode.FAST.parameter,
+                                          plant_parameters=noise))
         bag_dir, outcome = recorded_excitation(graph, Path(args.output), spec)
         print(f'excite: {outcome}', flush=True)
         print(f'bag: {bag_dir}', flush=True)
         return 0
-    except (ConfigError, StartupError, ValueError) as exc:
-        return _fail(str(exc))
-    except (GraphError, BagRecorderError, RecordingError, RuntimeError) as exc:
+    except (ConfigError, StartupError, ValueError, GraphError, BagRecorderError, RecordingError,
+            RuntimeError) as exc:
         return _fail(str(exc))
     except KeyboardInterrupt:
         print('excite: interrupted; bag closed', file=sys.stderr)
@@ -142,10 +142,9 @@ def run_excitation(graph, spec) -> str:
 
 def recorded_excitation(graph, output: Path, spec) -> tuple[Path, str]:
     """Place the rigid stop, record every topic of the graph and run the experiment."""
-    from gripper_ros.bags.recorder import BagRecorder
-    from gripper_ros.bags.recording import (_drain_published, bag_metadata, graph_tap,
-                                            RecordingError, unique_bag_dir)
+    from gripper_ros.bags.recorder import BagRecorder, RecordingError, unique_bag_dir
     from gripper_ros.core.excitation import STOP_WIDTH_M
+    from gripper_ros.nodes.recording import bag_metadata, drain_published, graph_tap
     width = STOP_WIDTH_M if spec.hold else 0.0
     placed = graph.set_object(width)
     if not placed.success:
@@ -171,7 +170,7 @@ def recorded_excitation(graph, output: Path, spec) -> tuple[Path, str]:
         outcome = run_excitation(graph, spec)
         graph.wait_still()
     finally:
-        _drain_published(graph, tap, recorder, before, received_before)
+        drain_published(graph, tap, recorder, before, received_before)
         tap.sink = None
         if not recorder.closed:
             recorder.close()

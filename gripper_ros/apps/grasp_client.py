@@ -31,7 +31,7 @@ import os
 import sys
 import time
 
-from gripper_ros.nodes.common import StopSignals
+from gripper_ros.nodes.process import StopSignals
 from gripper_ros.wire import (ACTION_GRASP, check_namespace, DEFAULT_NAMESPACE, Outcome, Phase,
                               SERVICE_GRASP, SERVICE_RELEASE, SERVICE_SET_OBJECT)
 

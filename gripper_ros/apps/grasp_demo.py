@@ -38,9 +38,11 @@ class GraspRecord:
 
 def build_parser() -> argparse.ArgumentParser:
     from gripper_ros.core.config import ForceLaw
-    from gripper_ros.core.controllers import ForceControllerKind
-    from gripper_ros.core.stages import DEFAULT_FORCE_CONTROLLER
-    from gripper_ros.wire import DEFAULT_NAMESPACE
+    from gripper_ros.core.controllers import ForceControllerKind, PositionControllerKind
+    from gripper_ros.core.stages import (DEFAULT_APPROACH_FORCE_MARGIN, DEFAULT_FORCE_CONTROLLER,
+                                         DEFAULT_POSITION_CONTROLLER)
+    from gripper_ros.nodes.process import ExecutorKind
+    from gripper_ros.wire import DEFAULT_NAMESPACE, TIME_MODE_CHOICES
     p = argparse.ArgumentParser(prog='grasp_demo', description=__doc__.splitlines()[0])
     p.add_argument('--width', type=float, help='object width (m); with --mass grasps one object')
     p.add_argument('--mass', type=float, help='object mass (kg)')
@@ -79,7 +81,7 @@ def build_parser() -> argparse.ArgumentParser:
                         'stop and sim/* from other processes')
     p.add_argument('--namespace', default=DEFAULT_NAMESPACE,
                    help='ROS namespace of this gripper (default %(default)s: /gripper/...)')
-    p.add_argument('--time-mode', choices=['realtime', 'fast'], default=None,
+    p.add_argument('--time-mode', choices=TIME_MODE_CHOICES, default=None,
                    help='realtime: paced to the wall clock, always running (default with '
                         '--serve); fast: as fast as the graph goes while a grasp runs (default)')
     p.add_argument('--real-time-factor', type=float, default=1.0,
@@ -90,12 +92,14 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('--output', default='bags', help='folder for bags and the figure')
     p.add_argument('--overwrite', action='store_true', help='replace existing bag folders')
     p.add_argument('--no-plot', action='store_true', help='do not write the figure')
-    p.add_argument('--executor', choices=['events', 'single'], default='events')
-    p.add_argument('--position-controller', choices=['mpc_pd', 'pd', 'pid'], default='mpc_pd')
+    p.add_argument('--executor', choices=[k.value for k in ExecutorKind],
+                   default=ExecutorKind.EVENTS.value)
+    p.add_argument('--position-controller', choices=[k.value for k in PositionControllerKind],
+                   default=DEFAULT_POSITION_CONTROLLER.value)
     p.add_argument('--force-controller', choices=[k.value for k in ForceControllerKind],
                    default=DEFAULT_FORCE_CONTROLLER.value,
                    help='contact_aware: rigid and compliant objects; pi / mpc_pi: the paper')
-    p.add_argument('--approach-force-margin', type=float, default=1.0,
+    p.add_argument('--approach-force-margin', type=float, default=DEFAULT_APPROACH_FORCE_MARGIN,
                    help='pi / mpc_pi: voltage cap before contact, x stall voltage of F_sp '
                         '(0 = off)')
     p.add_argument('--config', default='', help='YAML parameter file (default: installed)')
@@ -141,11 +145,11 @@ def main(argv: list[str] | None = None) -> int:
     for w, m in objects:
         if not (math.isfinite(w) and math.isfinite(m)):
             return _fail(f'width and mass must be finite, got {w!r}, {m!r}')
-    for name in ('lift', 'lift_delay', 'lift_duration', 'object_mass', 'static_friction',
-                 'kinetic_friction'):
-        value = getattr(args, name)
-        if not (math.isfinite(value) and value >= 0.0):
-            return _fail(f'--{name.replace("_", "-")} must be finite and >= 0, got {value!r}')
+    from gripper_ros.apps.common import negative_option
+    negative = negative_option(args, ('lift', 'lift_delay', 'lift_duration', 'object_mass',
+                                      'static_friction', 'kinetic_friction'))
+    if negative:
+        return _fail(negative)
     if args.profile is not None:
         from gripper_ros.core.hold import parse_profile
         if args.lift:
@@ -156,14 +160,15 @@ def main(argv: list[str] | None = None) -> int:
             return _fail(f'--profile: {exc}')
         args.lift = args.profile[1]
 
-    from gripper_ros.bags.recorder import BagRecorderError
-    from gripper_ros.bags.recording import RecordingError, ServeRecorder
+    from gripper_ros.bags.recorder import BagRecorderError, RecordingError
     from gripper_ros.core.config import ConfigError
-    from gripper_ros.nodes.common import (exit_without_a_last_collection, ExecutorKind, one_line,
-                                          StartupError, StopSignals)
     from gripper_ros.nodes.graph import GraphError, GraphOptions, GripperGraph
     from gripper_ros.nodes.names import namespace_as_given
-    from gripper_ros.wire import check_namespace
+    from gripper_ros.nodes.process import ExecutorKind, exit_without_a_last_collection, StopSignals
+    from gripper_ros.nodes.recording import ServeRecorder
+    from gripper_ros.nodes.startup import StartupError
+    from gripper_ros.text import one_line
+    from gripper_ros.wire import check_namespace, TimeMode
 
     try:
         check_namespace(args.namespace)
@@ -175,7 +180,7 @@ def main(argv: list[str] | None = None) -> int:
             return _fail(problem)
     if not (math.isfinite(args.real_time_factor) and 0.0 < args.real_time_factor <= 100.0):
         return _fail(f'--real-time-factor must be in (0, 100], got {args.real_time_factor!r}')
-    time_mode = args.time_mode or ('realtime' if args.serve else 'fast')
+    time_mode = args.time_mode or (TimeMode.REALTIME if args.serve else TimeMode.FAST).parameter
     from rclpy.signals import SignalHandlerOptions
     from rclpy.exceptions import InvalidNamespaceException
     from rclpy.utilities import ok
@@ -216,9 +221,8 @@ def main(argv: list[str] | None = None) -> int:
                    for i, (w, m) in enumerate(objects, 1)]
         _summarise(graph, records, args)
         return 0 if all(r.final_outcome == 'HOLDING' for r in records) else 1
-    except (ConfigError, StartupError) as exc:
-        return _fail(str(exc))
-    except (GraphError, BagRecorderError, RecordingError, RuntimeError) as exc:
+    except (ConfigError, StartupError, GraphError, BagRecorderError, RecordingError,
+            RuntimeError) as exc:
         return _fail(str(exc))
     except KeyboardInterrupt:
         print('grasp_demo: interrupted; bags closed', file=sys.stderr)
@@ -255,7 +259,7 @@ def _serve(graph, args, signals) -> int:
 
 def _bag_dir(output: Path, i: int, width_m: float, mass_kg: float, overwrite: bool) -> Path:
     """Return the bag folder of grasp ``i``: a fresh, unique one (the named one, ``overwrite``)."""
-    from gripper_ros.bags.recording import unique_bag_dir
+    from gripper_ros.bags.recorder import unique_bag_dir
     stamp = datetime.now().strftime('%Y%m%d_%H%M%S')
     stem = f'grasp_{stamp}_{i}_w{width_m * 1e3:.0f}mm_m{mass_kg:g}kg'
     return output / stem if overwrite else unique_bag_dir(output, stem)
@@ -287,8 +291,9 @@ def _recorded(fields: dict) -> dict:
 
 
 def _grasp_one(graph, args, width_m: float, mass_kg: float, i: int, n: int) -> GraspRecord:
-    from gripper_ros.bags.recording import RecordingError, recorded_grasp
+    from gripper_ros.bags.recorder import RecordingError
     from gripper_ros.nodes.graph import GraphError
+    from gripper_ros.nodes.recording import recorded_grasp
     lift = f', lifted at {args.lift:g} m/s^2' if args.lift else ''
     print(f'[{i}/{n}] grasping width {width_m:g} m, mass {mass_kg:g} kg{lift} ...', flush=True)
     if i > 1:                        # the previous object is still held: open the fingers

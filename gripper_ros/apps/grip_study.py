@@ -16,7 +16,7 @@ import argparse
 import math
 import sys
 
-from gripper_ros.apps.common import load_config_or_report
+from gripper_ros.apps.common import load_config_or_report, negative_option
 
 PROFILES = (('static', 'step:0'), ('step 2', 'step:2'), ('step 5', 'step:5'),
             ('pick-and-place 3', 'pick-and-place:3'), ('shake 3 @ 2 Hz', 'shake:3,2'))
@@ -168,12 +168,10 @@ def main(argv: list[str] | None = None) -> int:
     except ValueError as exc:
         print(f'grip_study: {exc}', file=sys.stderr)
         return 2
-    for name in ('stiffness', 'damping'):
-        value = getattr(args, name)
-        if not (math.isfinite(value) and value >= 0.0):
-            print(f'grip_study: --{name} must be finite and >= 0, got {value!r}',
-                  file=sys.stderr)
-            return 2
+    negative = negative_option(args, ('stiffness', 'damping'))
+    if negative:
+        print(f'grip_study: {negative}', file=sys.stderr)
+        return 2
     if args.jobs < 1:
         print(f'grip_study: --jobs must be >= 1, got {args.jobs}', file=sys.stderr)
         return 2

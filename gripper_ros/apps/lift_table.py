@@ -17,6 +17,7 @@ import dataclasses
 import math
 import sys
 
+from gripper_ros.apps.common import negative_option
 from gripper_ros.apps.grasp_demo import LIFT_DELAY_S, LIFT_DURATION_S, PAPER_OBJECTS
 from gripper_ros.core.config import ConfigError, ForceLaw, load_config
 from gripper_ros.core.headless import simulate_grasp
@@ -95,12 +96,10 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument('--lift-duration', type=float, default=LIFT_DURATION_S)
     p.add_argument('--config', default='', help='YAML parameter file (default: installed)')
     args = p.parse_args(argv)
-    for name in ('lift_delay', 'lift_duration'):
-        value = getattr(args, name)
-        if not (math.isfinite(value) and value >= 0.0):
-            print(f'lift_table: --{name.replace("_", "-")} must be finite and >= 0',
-                  file=sys.stderr)
-            return 2
+    negative = negative_option(args, ('lift_delay', 'lift_duration'))
+    if negative:
+        print(f'lift_table: {negative}', file=sys.stderr)
+        return 2
     try:
         config = load_config(args.config or None)
         rows = lift_rows(config, args.accelerations, args.lift_delay, args.lift_duration)

@@ -43,7 +43,7 @@ import statistics
 import sys
 import warnings
 
-from gripper_ros.apps.common import load_config_or_report
+from gripper_ros.apps.common import load_config_or_report, negative_option
 
 PROG = 'tune'
 ENVELOPES = ('quick', 'tablev', 'holdout')
@@ -491,10 +491,9 @@ def _check_args(args) -> None:
         raise TuneError('--trials and --top must be >= 1')
     if args.jobs is not None and args.jobs < 1:
         raise TuneError('--jobs must be >= 1')
-    for name in ('hold_s', 'peak_weight', 'max_peak_ratio'):
-        v = getattr(args, name)
-        if not (math.isfinite(v) and v >= 0.0):
-            raise TuneError(f'--{name.replace("_", "-")} must be finite and >= 0, got {v!r}')
+    negative = negative_option(args, ('hold_s', 'peak_weight', 'max_peak_ratio'))
+    if negative:
+        raise TuneError(negative)
     if args.scheduler is not None:
         from gripper_ros.core.engine import check_address
         try:

@@ -26,7 +26,6 @@ from gripper_ros.wire import enum_name, HoldState, Outcome, Phase, SwitchCriteri
 import numpy as np
 
 PROG = 'bag_analyze'
-VOLTAGE_LIMIT_V = 24.0
 LIMIT_TOL_V = 1e-9
 
 
@@ -125,8 +124,27 @@ def _time_at_limit(t_s: np.ndarray, voltage_v: np.ndarray, limit_v: float) -> fl
     return float(np.sum(dt[at_limit]))
 
 
-def analyze_series(series: GraspSeries, voltage_limit_v: float = VOLTAGE_LIMIT_V) -> GraspMetrics:
-    """All figures of one grasp (pure numpy; metrics from gripper_ros.core.metrics)."""
+def recorded_voltage_limit_v(series: GraspSeries) -> float:
+    """Return the command limit the bag was recorded with: its config's plant.voltage_limit_v.
+
+    A bag that holds no config (format 1) is read with the installed config's limit.
+    """
+    config = series.custom_data.get('config')
+    try:
+        limit_v = float(config['plant']['voltage_limit_v'])
+    except (TypeError, KeyError, ValueError):
+        from gripper_ros.core.config import load_config
+        return load_config().plant.voltage_limit_v
+    return limit_v
+
+
+def analyze_series(series: GraspSeries, voltage_limit_v: float | None = None) -> GraspMetrics:
+    """All figures of one grasp (pure numpy; metrics from gripper_ros.core.metrics).
+
+    ``voltage_limit_v`` (time at the limit) defaults to the limit the bag was recorded with.
+    """
+    if voltage_limit_v is None:
+        voltage_limit_v = recorded_voltage_limit_v(series)
     stages = find_stages(series)
     st, joint, sensor, motor, cmd = (series.status, series.joint, series.sensor, series.motor,
                                      series.command)
@@ -285,7 +303,7 @@ def to_table(rows: list[GraspMetrics]) -> str:
 
 
 def plot(series_list: list[GraspSeries], metrics: list[GraspMetrics], path: str,
-         voltage_limit_v: float = VOLTAGE_LIMIT_V) -> None:
+         voltage_limit_v: float | None = None) -> None:
     """Fig.-8-like grid: position, force, motor voltage, sensor voltage vs time; stages shaded."""
     import matplotlib
     matplotlib.use('Agg')
@@ -319,7 +337,9 @@ def plot(series_list: list[GraspSeries], metrics: list[GraspMetrics], path: str,
             if sp is not None and math.isfinite(sp):
                 ax.axhline(sp, ls='--', lw=0.8, color='tab:red', label='setpoint')
             if r == 2:
-                for lim in (voltage_limit_v, -voltage_limit_v):
+                limit_v = recorded_voltage_limit_v(s) if voltage_limit_v is None \
+                    else voltage_limit_v
+                for lim in (limit_v, -limit_v):
                     ax.axhline(lim, ls=':', lw=0.8, color='grey')
             if col == 0:
                 ax.set_ylabel(label)
@@ -344,8 +364,9 @@ def build_parser() -> argparse.ArgumentParser:
     fmt.add_argument('--json', action='store_true', help='print JSON instead of the table')
     fmt.add_argument('--csv', action='store_true', help='print CSV instead of the table')
     parser.add_argument('--plot', metavar='FILE.png', help='also write a Fig.-8-like plot')
-    parser.add_argument('--voltage-limit', type=float, default=VOLTAGE_LIMIT_V, metavar='V',
-                        help='armature voltage limit for the time-at-limit figure (default 24)')
+    parser.add_argument('--voltage-limit', type=float, default=None, metavar='V',
+                        help='armature voltage limit for the time-at-limit figure (default: '
+                             'plant.voltage_limit_v of the config the bag recorded)')
     parser.add_argument('--namespace', default=None,
                         help='the gripper to analyse when a bag holds several (default: the '
                              'one recorded)')
@@ -361,7 +382,8 @@ def _fail(message: str) -> None:
 def main(argv: Sequence[str] | None = None) -> int:
     """Exit 0; 1 on bad input (one line on stderr); 3 when a bag was truncated (figures shown)."""
     args = build_parser().parse_args(argv)
-    if not (args.voltage_limit > 0 and math.isfinite(args.voltage_limit)):
+    if args.voltage_limit is not None and not (args.voltage_limit > 0
+                                               and math.isfinite(args.voltage_limit)):
         _fail('--voltage-limit must be a positive number')
     if args.plot and not args.plot.lower().endswith('.png'):
         _fail(f'--plot needs a .png file name, got {args.plot!r}')

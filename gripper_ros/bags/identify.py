@@ -21,6 +21,7 @@ import sys
 from typing import Sequence
 
 from gripper_ros.bags.reader import quiet_on_closed_pipe
+from gripper_ros.text import one_line
 import numpy as np
 
 OBJECT_KEYS = ('width_m', 'stiffness_n_per_m', 'damping_n_s_per_m')
@@ -76,7 +77,7 @@ def load_run(path: str):
 
 
 def _fail(message: str) -> int:
-    print('bag_identify: ' + ' '.join(str(message).split()), file=sys.stderr)
+    print('bag_identify: ' + one_line(message), file=sys.stderr)
     return 2
 
 

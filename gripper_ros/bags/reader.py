@@ -21,6 +21,7 @@ import signal
 import sys
 from typing import Any, Callable, Iterable, Iterator
 
+from gripper_ros.text import one_line
 import yaml
 
 EXIT_ERROR = 1
@@ -77,10 +78,6 @@ class MissingTopicsError(BagError):
 
 class UnreadableBagError(BagError):
     """A file that cannot be read or decoded."""
-
-
-def _one_line(text: object) -> str:
-    return ' '.join(str(text).split())
 
 
 # --- raw bag reading --------------------------------------------------------------------------
@@ -190,7 +187,7 @@ class Bag:
             return self.typestore.deserialize_cdr(msg.data, msg.msgtype)
         except Exception as exc:  # noqa: BLE001 - any decoder failure is an unreadable bag
             raise UnreadableBagError(f'{self.path}: cannot decode {msg.msgtype} on {msg.topic}: '
-                                     f'{_one_line(exc)}') from None
+                                     f'{one_line(exc)}') from None
 
     def iter_decoded(self, topic: str) -> Iterator[tuple[RawMessage, Any]]:
         """(raw, decoded) for every message of one topic, in recorded order."""
@@ -219,7 +216,7 @@ def make_typestore(schemas: dict[str, str]):
             types = get_types_from_msg(text, name)
         except Exception as exc:  # noqa: BLE001
             raise UnreadableBagError(
-                f'schema of {name} does not parse: {_one_line(exc)}') from None
+                f'schema of {name} does not parse: {one_line(exc)}') from None
         store.register({k: v for k, v in types.items() if k not in store.fielddefs})
     return store
 
@@ -304,7 +301,7 @@ def _read_mcap(path: Path) -> _McapFile:
         except RecordLengthLimitExceeded:
             out.truncated, out.damage = True, 'file ends inside a record (length beyond the end)'
         except Exception as exc:  # noqa: BLE001 - zstd/lz4/struct/CRC errors in a damaged chunk
-            out.truncated, out.damage = True, f'damaged record: {_one_line(exc)}'
+            out.truncated, out.damage = True, f'damaged record: {one_line(exc)}'
     return out
 
 
@@ -312,7 +309,7 @@ def _load_metadata_yaml(path: Path) -> dict:
     try:
         data = yaml.safe_load(path.read_text(encoding='utf-8'))
     except (OSError, yaml.YAMLError, UnicodeDecodeError) as exc:
-        raise UnreadableBagError(f'{path}: unreadable metadata.yaml: {_one_line(exc)}') from None
+        raise UnreadableBagError(f'{path}: unreadable metadata.yaml: {one_line(exc)}') from None
     if not isinstance(data, dict) or not isinstance(data.get('rosbag2_bagfile_information'), dict):
         raise NotABagError(f'{path}: not rosbag2 metadata (no rosbag2_bagfile_information)')
     return data['rosbag2_bagfile_information']

@@ -31,9 +31,10 @@ import time
 from typing import Any, Callable, Mapping
 
 from gripper_ros.bags.mcap_file import McapFile
-from gripper_ros.bags.reader import CUSTOM_DATA_RECORD
+from gripper_ros.bags.reader import BagError, CUSTOM_DATA_RECORD, read_bag
 from gripper_ros.bags.schema import import_message_class, message_definition, type_hash_from_share
 from gripper_ros.bags.series import GRASP_TOPICS
+from gripper_ros.wire import GRAPH_QOS_DEPTH
 from mcap.writer import CompressionType
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
@@ -132,7 +133,7 @@ class BagRecorder:
     """
 
     def __init__(self, node: Node, bag_dir: str | os.PathLike,
-                 topics: Mapping[str, str] | None = None, *, qos_depth: int = 1000,
+                 topics: Mapping[str, str] | None = None, *, qos_depth: int = GRAPH_QOS_DEPTH,
                  time_source: Callable[[], int] | None = None,
                  flush_every_messages: int = 100, flush_every_s: float = 0.5,
                  custom_data: Mapping[str, Any] | None = None, overwrite: bool = False,
@@ -500,3 +501,61 @@ class BagRecorder:
             'custom_data': dict(self._custom_data),
             'ros_distro': ROS_DISTRO,
         }
+
+
+BAG_FORMAT = 2
+"""custom_data gripper_ros.format: 2 = the lockstep loop topics (loop/tick, references,
+loop/motor_command); 1 (absent) = bags with a tick message per topic (joint_states...)."""
+
+
+class RecordingError(RuntimeError):
+    """Recording could not start or stopped early; the message is one line."""
+
+
+def _readable_messages(sink: BagRecorder) -> int:
+    """Count the messages a reader gets back from a bag whose recording failed.
+
+    It is read back: a write that failed may have left a chunk whole without its index.
+    """
+    try:
+        return read_bag(sink.bag_dir, allow_empty=True).message_count
+    except BagError:
+        return sink.readable_count
+
+
+def failure_message(sink: BagRecorder, exc: BaseException) -> str:
+    """Close a bag whose recording failed and say so in one line.
+
+    The line names the bag, the error, the messages a reader gets back and those lost: every
+    message handed to the recorder is either readable or counted as lost.
+    """
+    count = sink.accepted_count
+    try:
+        sink.close()
+    except Exception:  # noqa: BLE001 - the first error is the one to report
+        pass
+    readable = _readable_messages(sink)
+    if isinstance(exc, BagRecorderError) and exc.__cause__ is not None:
+        exc = exc.__cause__                     # what failed, not that closing did
+    reason = getattr(exc, 'strerror', None) or str(exc)
+    lost = f' ({count - readable} more were still buffered and are lost)' \
+        if count > readable else ''
+    return (f'recording stopped: {sink.bag_dir}: {reason}; the bag holds {readable} '
+            f'messages, readable up to there{lost}')
+
+
+def unique_bag_dir(parent: Path, stem: str) -> Path:
+    """Create a new folder under ``parent`` named after ``stem``, never one that exists.
+
+    The name carries the process id and a counter, and the folder is created atomically.
+    """
+    parent.mkdir(parents=True, exist_ok=True)
+    for n in range(1000):
+        candidate = parent / f'{stem}_{os.getpid()}' if n == 0 else \
+            parent / f'{stem}_{os.getpid()}_{n}'
+        try:
+            candidate.mkdir()
+        except FileExistsError:
+            continue
+        return candidate
+    raise RecordingError(f'no free bag folder name for {stem} under {parent}')

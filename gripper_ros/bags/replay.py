@@ -25,10 +25,11 @@ from gripper_ros.bags.reader import (
     read_bag,
 )
 from gripper_ros.bags.schema import import_message_class
-from gripper_ros.wire import TOPIC_CLOCK
+from gripper_ros.core.controllers import ForceControllerKind, PositionControllerKind
+from gripper_ros.core.stages import DEFAULT_APPROACH_FORCE_MARGIN, DEFAULT_POSITION_CONTROLLER
+from gripper_ros.wire import GRAPH_QOS_DEPTH, TOPIC_CLOCK
 
 PROG = 'bag_replay'
-DEFAULT_DEPTH = 1000
 _PROGRESS_PERIOD_S = 0.1
 
 
@@ -110,8 +111,8 @@ def _qos_for(bag: Bag, topic: str):
                    else ReliabilityPolicy.RELIABLE)
     durability = (DurabilityPolicy.TRANSIENT_LOCAL if first.get('durability') == 'transient_local'
                   else DurabilityPolicy.VOLATILE)
-    depth = int(first.get('depth') or 0) or DEFAULT_DEPTH
-    return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=max(depth, DEFAULT_DEPTH),
+    depth = int(first.get('depth') or 0) or GRAPH_QOS_DEPTH
+    return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=max(depth, GRAPH_QOS_DEPTH),
                       reliability=reliability, durability=durability)
 
 
@@ -267,11 +268,11 @@ def build_parser() -> argparse.ArgumentParser:
     resim.add_argument('--resimulate', nargs='?', const='', default=None, metavar='CONFIG.yaml',
                        help='re-simulate with this config (no value: the installed default)')
     resim.add_argument('--position-controller', default=None,
-                       choices=['mpc_pd', 'pd', 'pid'],
+                       choices=[k.value for k in PositionControllerKind],
                        help='position controller kind (default: as recorded in the bag, '
                             'else the node default mpc_pd)')
     resim.add_argument('--force-controller', default=None,
-                       choices=['contact_aware', 'pi', 'mpc_pi'],
+                       choices=[k.value for k in ForceControllerKind],
                        help='force controller kind (default: as recorded, else pi: bags '
                             'from before the kind was recorded used pi)')
     resim.add_argument('--approach-force-margin', type=float, default=None, metavar='M',
@@ -336,8 +337,8 @@ def options_from_args(args: argparse.Namespace) -> ReplayOptions:
 
 def _run_resimulation(args: argparse.Namespace) -> int:
     """Exit 0 when it ran (identical or not); 1 bad bag/options, 2 bad config, 3 truncated bag."""
-    from gripper_ros.core.config import ConfigError
     from gripper_ros.bags.resimulate import load_resim_config, to_json, to_table
+    from gripper_ros.core.config import ConfigError
     try:
         config = load_resim_config(args.resimulate)
         bag = read_bag(args.bag)
@@ -345,11 +346,14 @@ def _run_resimulation(args: argparse.Namespace) -> int:
         recorded = bag.custom_data_parsed().get('controllers') or {}
         if not isinstance(recorded, dict):
             recorded = {}
-        position = args.position_controller or recorded.get('position_controller', 'mpc_pd')
-        force = args.force_controller or recorded.get('force_controller', 'pi')
+        position = args.position_controller or recorded.get(
+            'position_controller', DEFAULT_POSITION_CONTROLLER.value)
+        # bags from before the kind was recorded ran the PI
+        force = args.force_controller or recorded.get('force_controller',
+                                                      ForceControllerKind.PI.value)
         margin = args.approach_force_margin
         if margin is None:
-            margin = float(recorded.get('approach_force_margin', 1.0))
+            margin = float(recorded.get('approach_force_margin', DEFAULT_APPROACH_FORCE_MARGIN))
         if not (math.isfinite(margin) and margin >= 0.0):
             _fail('--approach-force-margin must be finite and >= 0')
         report = resimulate(bag, config, position_controller=position, force_controller=force,
@@ -371,7 +375,7 @@ def _run_closed_loop(args: argparse.Namespace) -> int:
     Exit 0 when it ran; 2 on bad input (the bag, an option, a key or value; one line on
     stderr); 3 when the bag was truncated (the recorded figures cover the part recovered).
     """
-    from gripper_ros.bags import rerun
+    from gripper_ros.bags import rerun, rerun_report
     from gripper_ros.core.config import ConfigError
     from gripper_ros.core.engine import check_address, EngineError
     from gripper_ros.progress import progress_bar
@@ -398,12 +402,12 @@ def _run_closed_loop(args: argparse.Namespace) -> int:
     except (ConfigError, BagError, EngineError, ValueError) as exc:
         _fail(str(exc), code=2)
     if sweep is None:
-        print(rerun.to_json(result) if args.json else rerun.to_table(result))
+        print(rerun_report.to_json(result) if args.json else rerun_report.to_table(result))
     else:
-        print(rerun.sweep_json(result) if args.json else rerun.sweep_table(result))
+        print(rerun_report.sweep_json(result) if args.json else rerun_report.sweep_table(result))
     if args.plot:
         try:
-            rerun.plot(result, args.plot)
+            rerun_report.plot(result, args.plot)
         except OSError as exc:
             _fail(f'cannot write {args.plot}: {exc.strerror or exc}', code=2)
         print(f'{PROG}: figure: {args.plot}', file=sys.stderr)

@@ -35,7 +35,7 @@ import struct
 from typing import Any
 
 from gripper_ros.bags.reader import Bag, BagError, open_bag
-from gripper_ros.bags.series import bag_namespace, LEGACY_NAMESPACE
+from gripper_ros.bags.series import bag_namespace, LEGACY_NAMESPACE, LEGACY_TOPICS
 from gripper_ros.core.config import ConfigError, default_config_path, GripperConfig, parse_config
 from gripper_ros.core.controllers import ForceControllerKind, PositionControllerKind
 from gripper_ros.core.lockstep import StageSide
@@ -43,6 +43,7 @@ from gripper_ros.core.stages import (DEFAULT_APPROACH_FORCE_MARGIN, DEFAULT_FORC
                                      DEFAULT_POSITION_CONTROLLER, ForceStageController,
                                      PositionStageController, Reference, SOURCE_FORCE,
                                      SOURCE_POSITION)
+from gripper_ros.text import one_line
 from gripper_ros.wire import (COMMAND_LAYOUT, qualified, REFERENCE_LAYOUT, TOPIC_FORCE_REFERENCE,
                               TOPIC_MOTOR_COMMAND, TOPIC_POSITION_REFERENCE)
 import yaml
@@ -54,10 +55,6 @@ STAGE_NAMES = {SOURCE_POSITION: 'position', SOURCE_FORCE: 'force'}
 
 class NothingToResimulateError(BagError):
     """A bag in which no controller was ever named active."""
-
-
-def _one_line(text: object) -> str:
-    return ' '.join(str(text).split())
 
 
 def _bits(value: float) -> int:
@@ -162,11 +159,11 @@ def load_resim_config(config_path: str | os.PathLike | None) -> GripperConfig:
         problem = getattr(exc, 'problem', None) or str(exc)
         where = f' (line {mark.line + 1}, column {mark.column + 1})' if mark is not None else ''
         raise ConfigError(f'config file {path} is not valid YAML: '
-                          f'{_one_line(problem)}{where}') from None
+                          f'{one_line(problem)}{where}') from None
     try:
         return parse_config(data, str(path))
     except ConfigError as exc:
-        raise ConfigError(_one_line(exc)) from None
+        raise ConfigError(one_line(exc)) from None
 
 
 def build_stages(config: GripperConfig,
@@ -185,7 +182,7 @@ def build_stages(config: GripperConfig,
         raise
     except (ValueError, ArithmeticError, ImportError) as exc:
         raise ConfigError(f'{config.source}: cannot build the controllers: '
-                          f'{_one_line(exc)}') from None
+                          f'{one_line(exc)}') from None
 
 
 def resimulate_bag(bag: Bag | str | os.PathLike, config: GripperConfig | str | os.PathLike | None,
@@ -335,8 +332,8 @@ class _RecordedCommand:
 
 def _legacy_ticks(bag: Bag):
     """Return references rebuilt from a bag of the earlier protocol, and its recorded commands."""
-    topic = {name: qualified(LEGACY_NAMESPACE, name) for name in
-             ('joint_states', 'force_sensor', 'supervisor/status', 'motor_command')}
+    topic = {name: qualified(LEGACY_NAMESPACE, name) for name in LEGACY_TOPICS
+             if name != 'motor_state'}          # the re-simulation needs no motor_state
     bag.require_topics(list(topic.values()))
     joint_at: dict[int, tuple[float, float]] = {}
     force_at: dict[int, float] = {}

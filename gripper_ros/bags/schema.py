@@ -14,6 +14,8 @@ import re
 import sys
 from typing import Iterator
 
+from gripper_ros.text import one_line
+
 SCHEMA_SEPARATOR = '=' * 80
 
 # How rosbag2 (rosbag2_cpp LocalMessageDefinitionSource, Jazzy) finds a .msg's dependencies:
@@ -32,10 +34,6 @@ _PRIMITIVES = frozenset({
 })
 _MAX_DEPTH = 50
 """rosbag2's ROSBAG2_CPP_LOCAL_MESSAGE_DEFINITION_SOURCE_MAX_RECURSION_DEPTH."""
-
-
-def _one_line(text: object) -> str:
-    return ' '.join(str(text).split())
 
 
 def msg_dependencies(text: str, package: str) -> list[str]:
@@ -142,5 +140,5 @@ def import_message_class(msgtype: str) -> type:
         module = importlib.import_module(f'{pkg}.{kind}')
         return getattr(module, name)
     except (ImportError, AttributeError) as exc:
-        raise LookupError(f'cannot import {msgtype} ({_one_line(exc)}): is {pkg} installed '
+        raise LookupError(f'cannot import {msgtype} ({one_line(exc)}): is {pkg} installed '
                           f'and install/setup.bash sourced?') from None

@@ -8,7 +8,7 @@ from gripper_ros.bench.pingpong import BenchError
 
 def call(client, request, timeout_s: float):
     """Return the response of a real service call, or raise BenchError when none came in time."""
-    from gripper_ros.nodes.common import call_and_wait
+    from gripper_ros.nodes.services import call_and_wait
     response = call_and_wait(client, request, timeout_s)
     if response is None:
         raise BenchError(f'{client.srv_name} did not answer within {timeout_s:g} s')

@@ -70,8 +70,8 @@ class PhaseObserver:
     def __init__(self, node, namespace: str, tick_count: Optional[Callable[[], int]],
                  cpu_s: Callable[[], float], stop: Callable[[], None]) -> None:
         from gripper_interfaces.msg import SupervisorStatus
-        from gripper_ros.nodes.common import GRAPH_QOS
         from gripper_ros.nodes.loop_io import read_status
+        from gripper_ros.nodes.qos import GRAPH_QOS
         from gripper_ros.wire import TOPIC_STATUS, qualified
         self._read_status = read_status
         self._tick_count, self._cpu_s, self._stop = tick_count, cpu_s, stop
@@ -176,10 +176,10 @@ def measure_graph(executor_kind: str, objects: Sequence[tuple], cap_s: float = 0
     As ``grasp_demo`` does: released between objects; recorded as it records with ``record``.
     """
     import rclpy
-    from gripper_ros.bags.recording import recorded_grasp
     from gripper_ros.core.config import ConfigError
-    from gripper_ros.nodes.common import ExecutorKind
     from gripper_ros.nodes.graph import GraphError, GraphOptions, GripperGraph
+    from gripper_ros.nodes.process import ExecutorKind
+    from gripper_ros.nodes.recording import recorded_grasp
     from gripper_ros.wire import Outcome
 
     context = rclpy.Context()
@@ -282,7 +282,7 @@ class _NodeProcesses:
         from rclpy.experimental import EventsExecutor
         from gripper_interfaces.srv import Grasp, SetObject
         from std_srvs.srv import Trigger
-        from gripper_ros.nodes.common import SERVICE_QOS
+        from gripper_ros.nodes.qos import SERVICE_QOS
         from gripper_ros.wire import (SERVICE_GRASP, SERVICE_RELEASE, SERVICE_SET_OBJECT,
                                       SERVICE_STOP, qualified)
         self.namespace = namespace
@@ -313,7 +313,7 @@ class _NodeProcesses:
         self._thread.start()
 
     def _spin(self) -> None:
-        from gripper_ros.nodes.common import spin_until_stopped
+        from gripper_ros.nodes.process import spin_until_stopped
         spin_until_stopped(self.executor, self._done)
 
     def wait_up(self) -> None:

@@ -311,7 +311,7 @@ def measure_ring(executor_kind: str, seconds: float, taps: bool = False) -> Dict
     from gripper_interfaces.msg import MotorCommand, PlantTick, StageReference
     from rclpy.node import Node
     from rclpy.task import Future
-    from gripper_ros.nodes.common import GRAPH_QOS
+    from gripper_ros.nodes.qos import GRAPH_QOS
     from gripper_ros.wire import COMMAND_LAYOUT, REFERENCE_LAYOUT, TICK_LAYOUT
     global _run_counter
     _run_counter += 1

@@ -36,9 +36,9 @@ from typing import Any, Dict, Optional, Sequence
 
 from gripper_ros.bench.common import call, process_cpu_s
 from gripper_ros.bench.pingpong import BenchError
+from gripper_ros.wire import DEFAULT_STATE_RATE_HZ
 
 GRASP = (0.10, 0.75)                   # Table V's third object: the longest force stage
-STATE_RATE_HZ = 100.0                  # grasp_demo --serve's state_rate_hz
 _UP_TIMEOUT_S = 30.0
 
 
@@ -53,8 +53,9 @@ class _Watcher:
         from rosgraph_msgs.msg import Clock
         from sensor_msgs.msg import JointState
         from std_srvs.srv import Trigger
-        from gripper_ros.nodes.common import GRAPH_QOS, SERVICE_QOS, spin_until_stopped
         from gripper_ros.nodes.loop_io import joint_state_template
+        from gripper_ros.nodes.process import spin_until_stopped
+        from gripper_ros.nodes.qos import GRAPH_QOS, SERVICE_QOS
         from gripper_ros.wire import (FINGER_JOINT, SERVICE_GRASP, SERVICE_RELEASE,
                                       SERVICE_SET_OBJECT, TOPIC_CLOCK, TOPIC_JOINT_STATES,
                                       TOPIC_SIM_STATUS, qualified)
@@ -206,7 +207,7 @@ def measure(seconds: float, record: bool, per_node: bool = False) -> Dict[str, A
             holding = _window(watcher, pids, seconds)
             watcher.call(watcher.release, Trigger.Request(), 60.0)
             return {'record': record, 'per_node': per_node, 'seconds': seconds,
-                    'state_rate_hz': STATE_RATE_HZ,
+                    'state_rate_hz': DEFAULT_STATE_RATE_HZ,
                     'grasp': {'width_m': GRASP[0], 'mass_kg': GRASP[1],
                               'wall_s': grasp_wall_s},
                     'idle': idle, 'holding': holding}

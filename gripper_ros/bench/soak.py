@@ -44,7 +44,8 @@ import sys
 import tempfile
 import time
 
-PAPER_OBJECTS = ((0.01, 1.27), (0.05, 1.69), (0.10, 0.75))        # Table V
+from gripper_ros.apps.grasp_demo import PAPER_OBJECTS
+
 # cheap: wide objects, short strokes (~1200-1400 plant ticks per grasp instead of 1500-2000)
 CHEAP_OBJECTS = ((0.10, 0.75), (0.12, 0.5), (0.14, 1.0))
 OBJECT_SETS = {'paper': PAPER_OBJECTS, 'cheap': CHEAP_OBJECTS}
@@ -268,8 +269,8 @@ def run_soak(graph, worker: _WorkerClient, objects, grasps: int, bag_root: Path,
     ``rows``/``marks``, when given, are filled in place, so a caller still has the grasps done
     so far when a SoakError ends the run.
     """
-    from gripper_ros.bags.recording import ServeRecorder
-    from gripper_ros.nodes.common import wait_until
+    from gripper_ros.nodes.recording import ServeRecorder
+    from gripper_ros.nodes.services import wait_until
     from gripper_ros.wire import LOOP_TOPICS, TOPIC_TICK, qualified
     loop = [qualified(graph.namespace, t) for t in LOOP_TOPICS]
     recorder = ServeRecorder(graph, bag_root)
@@ -459,7 +460,7 @@ def main(argv: list[str] | None = None) -> int:
         print('bench_soak: --grasps must be >= 1 and --warmup >= 0', file=sys.stderr)
         return 2
     from gripper_ros.nodes.graph import GraphError, GraphOptions, GripperGraph
-    from gripper_ros.nodes.common import ExecutorKind
+    from gripper_ros.nodes.process import ExecutorKind
     from gripper_ros.progress import progress_bar
 
     objects = OBJECT_SETS[args.objects]

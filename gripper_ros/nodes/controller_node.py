@@ -22,9 +22,11 @@ from collections import Counter
 from gripper_interfaces.msg import MotorCommand, StageReference, SupervisorStatus
 from gripper_ros.core.lockstep import StageSide
 from gripper_ros.core.stages import Reference
-from gripper_ros.nodes.common import default_namespace, ExecutorSilence, GRAPH_QOS
 from gripper_ros.nodes.loop_io import decode, read_status
+from gripper_ros.nodes.names import default_namespace
 from gripper_ros.nodes.parameters import ConfigParameters
+from gripper_ros.nodes.qos import GRAPH_QOS
+from gripper_ros.nodes.watchdog import ExecutorSilence
 from gripper_ros.wire import (CDR_LITTLE_ENDIAN, COMMAND_LAYOUT, Controller, NODE_PLANT,
                               REFERENCE_LAYOUT, TOPIC_MOTOR_COMMAND, TOPIC_STATUS, TOPIC_TICK)
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor

@@ -16,9 +16,13 @@ import sys
 from gripper_interfaces.msg import SupervisorStatus
 from gripper_interfaces.srv import Move
 from gripper_ros.core.excitation import check_spec, ExcitationRun, ExcitationSpec
-from gripper_ros.nodes.common import (declare_config, default_namespace, DeferredService,
-                                      GRAPH_QOS, run_node, SERVICE_QOS, StartupError)
 from gripper_ros.nodes.loop_io import read_status
+from gripper_ros.nodes.names import default_namespace
+from gripper_ros.nodes.parameters import declare_config
+from gripper_ros.nodes.process import run_node
+from gripper_ros.nodes.qos import GRAPH_QOS, SERVICE_QOS
+from gripper_ros.nodes.services import DeferredService
+from gripper_ros.nodes.startup import StartupError
 from gripper_ros.wire import (NODE_EXCITATION, Outcome, SERVICE_EXCITE, SERVICE_MOVE,
                               TOPIC_STATUS)
 from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult

@@ -14,8 +14,8 @@ import sys
 from gripper_ros.core.controllers import ForceControllerKind
 from gripper_ros.core.stages import (DEFAULT_APPROACH_FORCE_MARGIN, DEFAULT_FORCE_CONTROLLER,
                                      ForceStageController, parse_kind)
-from gripper_ros.nodes.common import run_node
 from gripper_ros.nodes.controller_node import LockstepController
+from gripper_ros.nodes.process import run_node
 from gripper_ros.wire import Controller, NODE_FORCE_CONTROLLER, TOPIC_FORCE_REFERENCE
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
 

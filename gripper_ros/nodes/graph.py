@@ -4,7 +4,7 @@ Used by ``grasp_demo``, the tests and the benchmarks: the nodes talk only over t
 services (DDS), the executor spins in a background thread, and requests go through
 ``sim/set_object``, ``grasp``, ``release``, ``move`` and ``stop`` exactly as from another
 process.
-Recording lives in :mod:`gripper_ros.bags.recording`.
+Recording lives in :mod:`gripper_ros.nodes.recording`.
 """
 from __future__ import annotations
 
@@ -17,9 +17,8 @@ import time
 
 from gripper_interfaces.srv import Grasp, Move, SetObject, SimStep
 from gripper_ros.core.config import load_config
-from gripper_ros.core.stages import DEFAULT_FORCE_CONTROLLER
-from gripper_ros.nodes.common import (call_and_wait, ExecutorKind, make_executor, SERVICE_QOS,
-                                      spin_until_stopped)
+from gripper_ros.core.stages import (DEFAULT_APPROACH_FORCE_MARGIN, DEFAULT_FORCE_CONTROLLER,
+                                     DEFAULT_POSITION_CONTROLLER)
 from gripper_ros.nodes.excitation_node import ExcitationServer
 from gripper_ros.nodes.force_controller_node import ForceControllerNode
 from gripper_ros.nodes.grasp_action_node import GraspActionServer
@@ -27,11 +26,15 @@ from gripper_ros.nodes.move_action_node import MoveActionServer
 from gripper_ros.nodes.names import NameClaim
 from gripper_ros.nodes.plant_simulator_node import PlantSimulatorNode
 from gripper_ros.nodes.position_controller_node import PositionControllerNode
+from gripper_ros.nodes.process import ExecutorKind, make_executor, spin_until_stopped
+from gripper_ros.nodes.qos import SERVICE_QOS
+from gripper_ros.nodes.services import call_and_wait
 from gripper_ros.nodes.supervisor_node import SupervisorNode
 from gripper_ros.wire import (ACTION_GRASP, ACTION_GRIPPER_CMD, ACTION_MOVE, check_namespace,
-                              DEFAULT_NAMESPACE, NODE_PLANT, NODE_SUPERVISOR, SERVICE_EXCITE,
-                              SERVICE_GRASP, SERVICE_MOVE, SERVICE_PAUSE, SERVICE_RELEASE,
-                              SERVICE_RESUME, SERVICE_SET_OBJECT, SERVICE_STEP, SERVICE_STOP)
+                              DEFAULT_NAMESPACE, DEFAULT_STATE_RATE_HZ, NODE_PLANT,
+                              NODE_SUPERVISOR, SERVICE_EXCITE, SERVICE_GRASP, SERVICE_MOVE,
+                              SERVICE_PAUSE, SERVICE_RELEASE, SERVICE_RESUME, SERVICE_SET_OBJECT,
+                              SERVICE_STEP, SERVICE_STOP, TimeMode)
 import rclpy
 from rclpy.context import Context
 from rclpy.parameter import Parameter
@@ -48,13 +51,14 @@ class GraphOptions:
     executor: ExecutorKind = ExecutorKind.EVENTS
     config_file: str = ''
     namespace: str = DEFAULT_NAMESPACE
-    time_mode: str = 'fast'          # the graph of a demo, a test or a sweep; serve: realtime
+    # fast: the graph of a demo, a test or a sweep; serve: realtime
+    time_mode: str = TimeMode.FAST.parameter
     real_time_factor: float = 1.0
-    state_rate_hz: float = 100.0
+    state_rate_hz: float = DEFAULT_STATE_RATE_HZ
     publish_clock: bool = True
-    position_controller: str = 'mpc_pd'
+    position_controller: str = DEFAULT_POSITION_CONTROLLER.value
     force_controller: str = DEFAULT_FORCE_CONTROLLER.value
-    approach_force_margin: float = 1.0
+    approach_force_margin: float = DEFAULT_APPROACH_FORCE_MARGIN
     action_server: bool = True       # also serve the grasp and the move as actions
     check_names: bool = True         # refuse to start when the namespace is taken
     supervisor_parameters: dict = field(default_factory=dict)

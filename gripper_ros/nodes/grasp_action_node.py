@@ -20,9 +20,12 @@ import time
 from gripper_interfaces.action import Grasp as GraspAction
 from gripper_interfaces.msg import SupervisorStatus
 from gripper_interfaces.srv import Grasp
-from gripper_ros.nodes.common import (accept_goal, cancel_by_stop, declare_config,
-                                      default_namespace, GRAPH_QOS, run_node, SERVICE_QOS)
+from gripper_ros.nodes.actions import accept_goal, cancel_by_stop
 from gripper_ros.nodes.loop_io import read_status
+from gripper_ros.nodes.names import default_namespace
+from gripper_ros.nodes.parameters import declare_config
+from gripper_ros.nodes.process import run_node
+from gripper_ros.nodes.qos import GRAPH_QOS, SERVICE_QOS
 from gripper_ros.wire import (ACTION_GRASP, NODE_GRASP_ACTION, Outcome, Phase, SERVICE_GRASP,
                               SERVICE_STOP, TOPIC_STATUS)
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor

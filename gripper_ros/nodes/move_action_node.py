@@ -31,9 +31,12 @@ from gripper_interfaces.srv import Move
 from gripper_ros.core.gripper_command import (goal_end, GoalEnd, joint_state_fields,
                                               move_request_of, result_fields)
 from gripper_ros.core.requests import RequestError, validate_move
-from gripper_ros.nodes.common import (accept_goal, cancel_by_stop, declare_config,
-                                      default_namespace, GRAPH_QOS, run_node, SERVICE_QOS)
+from gripper_ros.nodes.actions import accept_goal, cancel_by_stop
 from gripper_ros.nodes.loop_io import read_status, StatusView
+from gripper_ros.nodes.names import default_namespace
+from gripper_ros.nodes.parameters import declare_config
+from gripper_ros.nodes.process import run_node
+from gripper_ros.nodes.qos import GRAPH_QOS, SERVICE_QOS
 from gripper_ros.wire import (ACTION_GRIPPER_CMD, ACTION_MOVE, NODE_MOVE_ACTION, Outcome, Phase,
                               SERVICE_MOVE, SERVICE_STOP, TOPIC_JOINT_STATES, TOPIC_STATUS)
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor

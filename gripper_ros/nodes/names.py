@@ -22,7 +22,7 @@ from pathlib import Path
 import tempfile
 import time
 
-from gripper_ros.nodes.common import keep_name_args, StartupError
+from gripper_ros.nodes.startup import StartupError
 from gripper_ros.wire import DEFAULT_NAMESPACE, qualified
 from rclpy.node import Node
 
@@ -213,3 +213,21 @@ def taken_names(node: Node, node_names: tuple[str, ...] = (), services: tuple[st
         if not found:
             return []
     return found
+
+
+def keep_name_args(node_name: str) -> list[str]:
+    """Node arguments that keep ``node_name`` under a global ``-r __node:=OTHER`` remap.
+
+    ``launch_ros`` names a node with a global remap, which renames every node of the process;
+    a node's own arguments are looked up first, so a helper node keeps its name with these.
+    """
+    return ['--ros-args', '-r', f'__node:={node_name}']
+
+
+def default_namespace(kwargs: dict) -> dict:
+    """Return Node keyword arguments with the package's namespace unless one is given.
+
+    A remap ``-r __ns:=/left`` still wins, as for every ROS node.
+    """
+    kwargs.setdefault('namespace', DEFAULT_NAMESPACE)
+    return kwargs

@@ -17,6 +17,7 @@ import copy
 from typing import Callable
 
 from gripper_ros.core.config import GripperConfig, load_config, parse_config
+from gripper_ros.text import one_line
 from rcl_interfaces.msg import ParameterDescriptor, ParameterType, SetParametersResult
 from rclpy.node import Node
 from rclpy.parameter import Parameter
@@ -134,7 +135,7 @@ class ConfigParameters:
             config = parse_config(candidate, self.source)
             checked = self._check(config) if self._check is not None else None
         except ValueError as exc:            # ConfigError too
-            return SetParametersResult(successful=False, reason=' '.join(str(exc).split()))
+            return SetParametersResult(successful=False, reason=one_line(exc))
         self._pending = (candidate, config, sorted(changes), checked)
         return SetParametersResult(successful=True)
 
@@ -145,3 +146,15 @@ class ConfigParameters:
         self.data, self.config, keys, checked = pending
         if self._on_change is not None:
             self._on_change(self.config, keys, checked)
+
+
+def declare_config(node: Node) -> GripperConfig:
+    """Declare ``config_file`` (empty = the installed config/gripper.yaml) and load it.
+
+    A bad file raises ConfigError naming the key; the node does not start. A whole number is
+    taken for every double parameter of the node (:func:`parameters.accept_whole_numbers`).
+    """
+    accept_whole_numbers(node)
+    path = node.declare_parameter('config_file', '', ParameterDescriptor(
+        description='YAML file, read once at start-up', read_only=True)).value
+    return load_config(path or None)

@@ -32,18 +32,23 @@ from gripper_interfaces.srv import SetObject, SimStep
 from gripper_ros.core.controllers import make_plant
 from gripper_ros.core.lockstep import Command, command_problem, PlantSide
 from gripper_ros.core.plant import check_fault, GraspObject, Lift
-from gripper_ros.nodes.common import (default_namespace, DeferredService, GRAPH_QOS, ns_to_time,
-                                      run_node, SERVICE_QOS, StartupError)
 from gripper_ros.nodes.loop_io import (clock_template, decode, force_sensor_template,
                                        joint_state_template, object_state_template,
                                        read_status, split_ns, StatusView)
+from gripper_ros.nodes.names import default_namespace
 from gripper_ros.nodes.parameters import ConfigParameters
-from gripper_ros.wire import (CDR_LITTLE_ENDIAN, COMMAND_LAYOUT, Controller, FINGER_JOINT,
-                              NODE_PLANT, Outcome, Phase, SERVICE_PAUSE, SERVICE_RESUME,
-                              SERVICE_SET_OBJECT, SERVICE_STEP, TICK_LAYOUT, TimeMode,
-                              TOPIC_CLOCK, TOPIC_FORCE_SENSOR, TOPIC_JOINT_STATES,
-                              TOPIC_LOAD_ACCELERATION, TOPIC_MOTOR_COMMAND,
-                              TOPIC_OBJECT_STATE, TOPIC_SIM_STATUS, TOPIC_STATUS, TOPIC_TICK)
+from gripper_ros.nodes.process import run_node
+from gripper_ros.nodes.qos import GRAPH_QOS, SERVICE_QOS
+from gripper_ros.nodes.services import DeferredService
+from gripper_ros.nodes.stamps import ns_to_time
+from gripper_ros.nodes.startup import StartupError
+from gripper_ros.wire import (CDR_LITTLE_ENDIAN, COMMAND_LAYOUT, Controller,
+                              DEFAULT_STATE_RATE_HZ, FINGER_JOINT, NODE_PLANT, Outcome, Phase,
+                              SERVICE_PAUSE, SERVICE_RESUME, SERVICE_SET_OBJECT, SERVICE_STEP,
+                              TICK_LAYOUT, TIME_MODE_CHOICES, TimeMode, TOPIC_CLOCK,
+                              TOPIC_FORCE_SENSOR, TOPIC_JOINT_STATES, TOPIC_LOAD_ACCELERATION,
+                              TOPIC_MOTOR_COMMAND, TOPIC_OBJECT_STATE, TOPIC_SIM_STATUS,
+                              TOPIC_STATUS, TOPIC_TICK)
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
@@ -86,19 +91,20 @@ class PlantSimulatorNode(Node):
         self.plant = self.side.plant
         self.frame_id = self._param('frame_id', 'gripper_base',
                                     'frame_id of every published header', read_only=True)
-        mode = self._param('time_mode', 'realtime', 'realtime: paced to the wall clock, always '
-                           'advancing | fast: as fast as the graph goes while a request runs',
+        mode = self._param('time_mode', TimeMode.REALTIME.parameter,
+                           'realtime: paced to the wall clock, always advancing | fast: as '
+                           'fast as the graph goes while a request runs',
                            read_only=True)
         try:
             self.time_mode = TimeMode[str(mode).upper()]
         except KeyError:
-            raise StartupError(f'parameter "time_mode" must be realtime or fast, got '
-                               f'{mode!r}') from None
+            raise StartupError(f'parameter "time_mode" must be {" or ".join(TIME_MODE_CHOICES)}, '
+                               f'got {mode!r}') from None
         self.real_time_factor = self._param(
             'real_time_factor', 1.0, 'realtime: simulated seconds per wall second',
             (1e-3, 100.0))
         self.state_rate_hz = self._param(
-            'state_rate_hz', 100.0, 'rate (per simulated second) of joint_states, '
+            'state_rate_hz', DEFAULT_STATE_RATE_HZ, 'rate (per simulated second) of joint_states, '
             'force_sensor, sim/object_state and /clock', (1.0, 10000.0))
         self.command_timeout_s = self._param(
             'command_timeout_s', 1.0, 'realtime: wall seconds without a command before the '

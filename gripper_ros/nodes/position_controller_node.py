@@ -9,9 +9,10 @@ from __future__ import annotations
 import sys
 
 from gripper_ros.core.controllers import PositionControllerKind
-from gripper_ros.core.stages import parse_kind, PositionStageController
-from gripper_ros.nodes.common import run_node
+from gripper_ros.core.stages import (DEFAULT_POSITION_CONTROLLER, parse_kind,
+                                     PositionStageController)
 from gripper_ros.nodes.controller_node import LockstepController
+from gripper_ros.nodes.process import run_node
 from gripper_ros.wire import Controller, NODE_POSITION_CONTROLLER, TOPIC_POSITION_REFERENCE
 from rcl_interfaces.msg import ParameterDescriptor
 
@@ -26,8 +27,9 @@ class PositionControllerNode(LockstepController):
 
     def declare_stage_parameters(self) -> None:
         kind = self.declare_parameter(
-            'controller', PositionControllerKind.MPC_PD.value,
-            ParameterDescriptor(description='mpc_pd | pd | pid', read_only=True)).value
+            'controller', DEFAULT_POSITION_CONTROLLER.value,
+            ParameterDescriptor(description=' | '.join(k.value for k in PositionControllerKind),
+                                read_only=True)).value
         self.kind = parse_kind(PositionControllerKind, kind)
 
     def build_stage(self, config) -> PositionStageController:

@@ -31,12 +31,14 @@ from gripper_ros.core.lockstep import SupervisorSide, Tick
 from gripper_ros.core.requests import (GraspRequest, MoveRequest, RequestError, validate_move,
                                        validate_request)
 from gripper_ros.core.supervisor import GraspSupervisor, RequestKind
-from gripper_ros.nodes.common import (default_namespace, DeferredService, ExecutorSilence,
-                                      GRAPH_QOS, LATCHED_QOS, run_node, SERVICE_QOS)
 from gripper_ros.nodes.loop_io import decode, split_ns, status_message, status_template
-from gripper_ros.nodes.names import GraspIds
+from gripper_ros.nodes.names import default_namespace, GraspIds
 from gripper_ros.nodes.parameters import ConfigParameters
 from gripper_ros.nodes.plant_simulator_node import REPUBLISH_AFTER_S
+from gripper_ros.nodes.process import run_node
+from gripper_ros.nodes.qos import GRAPH_QOS, LATCHED_QOS, SERVICE_QOS
+from gripper_ros.nodes.services import DeferredService
+from gripper_ros.nodes.watchdog import ExecutorSilence
 from gripper_ros.wire import (CDR_LITTLE_ENDIAN, Controller, NODE_FORCE_CONTROLLER, NODE_PLANT,
                               NODE_POSITION_CONTROLLER, NODE_SUPERVISOR, Outcome,
                               SERVICE_GRASP, SERVICE_MOVE, SERVICE_RELEASE,

@@ -16,28 +16,19 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from datetime import datetime
-import os
 from pathlib import Path
 import struct
 import threading
 import time
 
-from gripper_ros.bags.reader import BagError, read_bag
-from gripper_ros.bags.recorder import BagRecorder, BagRecorderError
+from gripper_ros.bags.recorder import (BAG_FORMAT, BagRecorder, BagRecorderError, failure_message,
+                                       RecordingError, unique_bag_dir)
 from gripper_ros.core.stages import Reference
-from gripper_ros.nodes.common import wait_until
+from gripper_ros.nodes.services import wait_until
 from gripper_ros.wire import (GRAPH_TOPICS, LOOP_TOPICS, Outcome, Phase, qualified,
-                              REFERENCE_LAYOUT, TOPIC_FORCE_REFERENCE, TOPIC_MOTOR_COMMAND,
-                              TOPIC_POSITION_REFERENCE, TOPIC_TICK)
+                              REFERENCE_LAYOUT, TimeMode, TOPIC_FORCE_REFERENCE,
+                              TOPIC_MOTOR_COMMAND, TOPIC_POSITION_REFERENCE, TOPIC_TICK)
 from rclpy.serialization import serialize_message
-
-BAG_FORMAT = 2
-"""custom_data gripper_ros.format: 2 = the lockstep loop topics (loop/tick, references,
-loop/motor_command); 1 (absent) = bags with a tick message per topic (joint_states...)."""
-
-
-class RecordingError(RuntimeError):
-    """Recording could not start or stopped early; the message is one line."""
 
 
 @dataclass
@@ -292,38 +283,6 @@ class GraphTap:
         self.close()
 
 
-def _readable_messages(sink: BagRecorder) -> int:
-    """Count the messages a reader gets back from a bag whose recording failed.
-
-    It is read back: a write that failed may have left a chunk whole without its index.
-    """
-    try:
-        return read_bag(sink.bag_dir, allow_empty=True).message_count
-    except BagError:
-        return sink.readable_count
-
-
-def failure_message(sink: BagRecorder, exc: BaseException) -> str:
-    """Close a bag whose recording failed and say so in one line.
-
-    The line names the bag, the error, the messages a reader gets back and those lost: every
-    message handed to the recorder is either readable or counted as lost.
-    """
-    count = sink.accepted_count
-    try:
-        sink.close()
-    except Exception:  # noqa: BLE001 - the first error is the one to report
-        pass
-    readable = _readable_messages(sink)
-    if isinstance(exc, BagRecorderError) and exc.__cause__ is not None:
-        exc = exc.__cause__                     # what failed, not that closing did
-    reason = getattr(exc, 'strerror', None) or str(exc)
-    lost = f' ({count - readable} more were still buffered and are lost)' \
-        if count > readable else ''
-    return (f'recording stopped: {sink.bag_dir}: {reason}; the bag holds {readable} '
-            f'messages, readable up to there{lost}')
-
-
 def graph_tap(graph) -> GraphTap:
     """Give the graph's one tap, opened at its first recording, kept while the graph lives.
 
@@ -346,23 +305,6 @@ def bag_metadata(graph, request: dict, placed: dict) -> dict:
             'request': request, 'object': placed,
             'controllers': graph.controller_settings(),
             'config': graph.config_data()}
-
-
-def unique_bag_dir(parent: Path, stem: str) -> Path:
-    """Create a new folder under ``parent`` named after ``stem``, never one that exists.
-
-    The name carries the process id and a counter, and the folder is created atomically.
-    """
-    parent.mkdir(parents=True, exist_ok=True)
-    for n in range(1000):
-        candidate = parent / f'{stem}_{os.getpid()}' if n == 0 else \
-            parent / f'{stem}_{os.getpid()}_{n}'
-        try:
-            candidate.mkdir()
-        except FileExistsError:
-            continue
-        return candidate
-    raise RecordingError(f'no free bag folder name for {stem} under {parent}')
 
 
 def recorded_grasp(graph, bag_dir, width_m: float, mass_kg: float,
@@ -388,7 +330,7 @@ def recorded_grasp(graph, bag_dir, width_m: float, mass_kg: float,
     placed = graph.set_object(placed_width, stiffness_n_per_m, damping_n_s_per_m, **hold)
     if not placed.success:
         raise RecordingError(f'set_object: {placed.message}')
-    if graph.options.time_mode == 'fast':
+    if graph.options.time_mode == TimeMode.FAST.parameter:
         graph.wait_still()              # the placement's tick is answered before recording
     request = {'width_m': width_m, 'mass_kg': mass_kg,
                'friction_coefficient': friction_coefficient,
@@ -406,7 +348,7 @@ def recorded_grasp(graph, bag_dir, width_m: float, mass_kg: float,
     response = None
     before = graph.published_counts()
     received_before = dict(tap.received)
-    fast = graph.options.time_mode == 'fast'
+    fast = graph.options.time_mode == TimeMode.FAST.parameter
     if stop_on_error:
         tap.on_error = lambda message: graph.supervisor.stop_grasp(message)
     tap.start(recorder, 'now' if fast else 'next_tick')     # fast: nothing is in flight
@@ -419,7 +361,7 @@ def recorded_grasp(graph, bag_dir, width_m: float, mass_kg: float,
     finally:
         tap.on_error = None
         if fast:
-            _drain_published(graph, tap, recorder, before, received_before)
+            drain_published(graph, tap, recorder, before, received_before)
             tap.sink = None             # time stands still: the last tick is whole
             published = _published_since(graph, tap, before)
             unseen = {t: n - (tap.received[t] - received_before[t])
@@ -451,7 +393,7 @@ def recorded_grasp(graph, bag_dir, width_m: float, mass_kg: float,
 
 def _play_out(graph, linger_s: float) -> None:
     """After the answer: until simulated time stands still (fast), or ``linger_s`` of it."""
-    if graph.options.time_mode == 'fast':
+    if graph.options.time_mode == TimeMode.FAST.parameter:
         graph.wait_still()
         return
     until = graph.sim_time_ns + round(linger_s * 1e9)
@@ -464,8 +406,8 @@ def _published_since(graph, tap: GraphTap, before: dict) -> dict:
             if qualified(graph.namespace, t) in tap.topics}
 
 
-def _drain_published(graph, tap: GraphTap, recorder: BagRecorder, before: dict,
-                     received_before: dict, timeout_s: float = 10.0) -> None:
+def drain_published(graph, tap: GraphTap, recorder: BagRecorder, before: dict,
+                    received_before: dict, timeout_s: float = 10.0) -> None:
     """Wait until the tap has received every message published since ``before``.
 
     Time stands still then; a tick the tap still holds for its decision is written.

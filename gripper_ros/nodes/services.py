@@ -1,0 +1,93 @@
+"""Service tools: a server that answers later, a blocking call, and waiting on another thread."""
+from __future__ import annotations
+
+import time
+
+from gripper_ros.nodes.names import keep_name_args
+from gripper_ros.nodes.qos import SERVICE_QOS
+from rclpy.node import Node
+
+
+def call_and_wait(client, request, timeout_s: float):
+    """Call a service from a thread that is not the executor's; return the response.
+
+    None when none came within ``timeout_s`` (the pending request is dropped).
+    """
+    import threading
+    done = threading.Event()
+    future = client.call_async(request)
+    future.add_done_callback(lambda _f: done.set())
+    if not done.wait(timeout_s):
+        client.remove_pending_request(future)
+        return None
+    return future.result()
+
+
+def wait_until(predicate, timeout_s: float = 5.0, step_s: float = 0.005) -> bool:
+    """Poll ``predicate`` until it holds or ``timeout_s`` of wall time has passed.
+
+    Returns its last value (for callers that wait on another thread's spinning executor).
+    """
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        if predicate():
+            return True
+        time.sleep(step_s)
+    return predicate()
+
+
+def server_node_name(node_name: str, service_name: str) -> str:
+    """Name the private server node of a :class:`DeferredService`: ``<node>_<last>_server``."""
+    base = service_name.rstrip('/').rsplit('/', 1)[-1]
+    base = ''.join(c if c.isalnum() or c == '_' else '_' for c in base) or 'service'
+    return f'{node_name}_{base}_server'
+
+
+class DeferredService:
+    """A service server whose reply may be sent later, from another callback.
+
+    rclpy (Jazzy) sends a service callback's return value at once, and its EventsExecutor cannot
+    await an ``async`` callback. A grasp takes many lockstep ticks, so the request is taken from
+    the service handle by a 10 ms steady-clock timer on ``node`` (the server itself lives on a
+    private, never-spun node) and answered with :meth:`reply` when the grasp ends. Requests queue
+    in DDS meanwhile; each is handled in arrival order.
+    """
+
+    def __init__(self, node: Node, srv_type, name: str, on_request, poll_period_s: float = 0.01):
+        from rclpy.clock import Clock, ClockType
+        # one private node per service, named after it (node 'supervisor', '/gripper/grasp' ->
+        # 'supervisor_grasp_server'): a node with two deferred services must not register one
+        # name twice (rcl warns 'Publisher already registered for node name')
+        server_name = server_node_name(node.get_name(), name)
+        self._server_node = Node(server_name, namespace=node.get_namespace(),
+                                 context=node.context, start_parameter_services=False,
+                                 cli_args=keep_name_args(server_name))
+        self._service = self._server_node.create_service(srv_type, name, self._not_spun,
+                                                         qos_profile=SERVICE_QOS)
+        self._on_request = on_request
+        self._timer = node.create_timer(poll_period_s, self._poll,
+                                        clock=Clock(clock_type=ClockType.STEADY_TIME))
+
+    @staticmethod
+    def _not_spun(request, response):  # pragma: no cover - the server node is never spun
+        raise RuntimeError('DeferredService server node must not be added to an executor')
+
+    def _poll(self) -> None:
+        srv = self._service
+        while True:
+            with srv.handle:
+                request, header = srv.handle.service_take_request(srv.srv_type.Request)
+            if request is None:
+                return
+            self._on_request(request, header)
+
+    def reply(self, header, response) -> None:
+        self._service.send_response(response, header)
+
+    def destroy(self) -> None:
+        """Safe to call twice."""
+        if self._server_node is None:
+            return
+        self._timer.destroy()
+        self._server_node.destroy_node()
+        self._server_node = None
