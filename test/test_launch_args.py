@@ -19,20 +19,15 @@ import time
 
 from gripper_interfaces.srv import Grasp, SetObject
 from gripper_ros.core.config import default_config_path
-from gripper_ros.wire import (NODE_FORCE_CONTROLLER, NODE_GRASP_ACTION, NODE_MOVE_ACTION,
-                              NODE_PLANT, NODE_POSITION_CONTROLLER, NODE_SUPERVISOR, Outcome,
-                              SERVICE_GRASP, SERVICE_SET_OBJECT)
+from gripper_ros.nodes import LAUNCHED_MODULES
+from gripper_ros.wire import (NODE_PLANT, NODE_SUPERVISOR, Outcome, SERVICE_GRASP,
+                              SERVICE_SET_OBJECT)
 import pytest
 import rclpy
 from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
 
-MODULES = {NODE_PLANT: 'plant_simulator_node',
-           NODE_POSITION_CONTROLLER: 'position_controller_node',
-           NODE_FORCE_CONTROLLER: 'force_controller_node',
-           NODE_SUPERVISOR: 'supervisor_node',
-           NODE_GRASP_ACTION: 'grasp_action_node',
-           NODE_MOVE_ACTION: 'move_action_node'}
+MODULES = LAUNCHED_MODULES
 OVERRIDES = {NODE_PLANT: ['-p', 'real_time_factor:=1.0'],   # what a user adds after the file
              NODE_SUPERVISOR: ['-p', 'tick_timeout_s:=5.0']}
 WIDTH, MASS = 0.05, 1.69

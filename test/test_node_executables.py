@@ -17,6 +17,7 @@ import subprocess
 import sys
 import time
 
+from gripper_ros.nodes import NODE_MODULES
 from gripper_ros.wire import (NODE_EXCITATION, NODE_FORCE_CONTROLLER, NODE_GRASP_ACTION,
                               NODE_MOVE_ACTION, NODE_PLANT, NODE_POSITION_CONTROLLER,
                               NODE_SUPERVISOR)
@@ -26,13 +27,7 @@ import rclpy
 from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
 
-MODULES = {NODE_PLANT: 'plant_simulator_node',
-           NODE_POSITION_CONTROLLER: 'position_controller_node',
-           NODE_FORCE_CONTROLLER: 'force_controller_node',
-           NODE_SUPERVISOR: 'supervisor_node',
-           NODE_GRASP_ACTION: 'grasp_action_node',
-           NODE_MOVE_ACTION: 'move_action_node',
-           NODE_EXCITATION: 'excitation_node'}
+MODULES = NODE_MODULES
 SIGNALS = {'sigint': signal.SIGINT, 'sigterm': signal.SIGTERM}
 WRONG_TYPE = "expecting type 'DOUBLE'"
 BAD_PARAMETERS = [   # (node, parameter, value as typed after -p name:=, words in the line)

@@ -18,19 +18,14 @@ import subprocess
 import sys
 import time
 
-from gripper_ros.wire import (NODE_FORCE_CONTROLLER, NODE_GRASP_ACTION, NODE_MOVE_ACTION,
-                              NODE_PLANT, NODE_POSITION_CONTROLLER, NODE_SUPERVISOR)
+from gripper_ros.nodes import LAUNCHED_MODULES
+from gripper_ros.wire import NODE_PLANT
 import pytest
 
 EXIT_WITHIN_S = 2.0
 START_TIMEOUT_S = 90.0
 REPEATS = 1
-MODULES = {NODE_PLANT: 'plant_simulator_node',
-           NODE_POSITION_CONTROLLER: 'position_controller_node',
-           NODE_FORCE_CONTROLLER: 'force_controller_node',
-           NODE_SUPERVISOR: 'supervisor_node',
-           NODE_GRASP_ACTION: 'grasp_action_node',
-           NODE_MOVE_ACTION: 'move_action_node'}
+MODULES = LAUNCHED_MODULES
 ALARMING = ('Traceback', 'FATAL', 'ERROR', 'Fatal Python error', 'Exception')
 HOLD_OBJECT = ('--width', '0.1', '--mass', '0.75')   # Table V's widest: the shortest approach
 

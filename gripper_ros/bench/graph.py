@@ -44,11 +44,13 @@ from gripper_ros.bench.common import call, process_cpu_s
 from gripper_ros.bench.pingpong import (BenchError, EXECUTOR_KINDS, measure_pingpong,
                                         measure_ring)
 from gripper_ros.bench.report import format_report, median_of, ratios
-from gripper_ros.wire import Phase
+from gripper_ros.nodes import NODE_MODULES
+from gripper_ros.wire import (NODE_FORCE_CONTROLLER, NODE_PLANT, NODE_POSITION_CONTROLLER,
+                              NODE_SUPERVISOR, Phase)
 
 _MATCH_TIMEOUT_S = 20.0
-_NODE_MODULES = ('plant_simulator_node', 'position_controller_node', 'force_controller_node',
-                 'supervisor_node')
+_NODE_MODULES = tuple(NODE_MODULES[n] for n in (NODE_PLANT, NODE_POSITION_CONTROLLER,
+                                                NODE_FORCE_CONTROLLER, NODE_SUPERVISOR))
 _GRAPH_LOGGERS = ('plant_simulator', 'position_controller', 'force_controller', 'supervisor',
                   'grasp_demo_client', 'grasp_action_server', 'bench_graph_observer')
 _STAGES = {'position': Phase.POSITION, 'force': Phase.FORCE}

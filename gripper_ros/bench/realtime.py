@@ -36,6 +36,7 @@ from typing import Any, Dict, Optional, Sequence
 
 from gripper_ros.bench.common import call, process_cpu_s
 from gripper_ros.bench.pingpong import BenchError
+from gripper_ros.nodes import LAUNCHED_MODULES
 from gripper_ros.wire import DEFAULT_STATE_RATE_HZ
 
 GRASP = (0.10, 0.75)                   # Table V's third object: the longest force stage
@@ -124,8 +125,7 @@ class _Watcher:
         self.context.try_shutdown()
 
 
-PER_NODE_MODULES = ('plant_simulator_node', 'position_controller_node', 'force_controller_node',
-                    'supervisor_node', 'grasp_action_node', 'move_action_node')
+PER_NODE_MODULES = tuple(LAUNCHED_MODULES.values())
 """The node executables the launch file starts, one process each."""
 
 
