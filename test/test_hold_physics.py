@@ -328,3 +328,56 @@ def test_nothing_to_hold_without_an_object():
     plant = make_plant(CONFIG)
     plant.begin_hold(0, 1.0)
     assert plant.object_state.state is HoldState.NONE
+
+
+# ------------------------------------------------------------------ the lift-off
+def _slide_start_s(hold, f, end_s=1.0, dt_s=STEP_S):
+    """Step the model in force-loop periods at grip ``f``: the instant it first slides, or None."""
+    t_ns = 0
+    while t_ns * 1e-9 < end_s:
+        hold.fire_events(t_ns)
+        hold.advance(f, dt_s)
+        t_ns += STEP_NS
+        if hold.state is HoldState.SLIDING:
+            return t_ns * 1e-9
+    return None
+
+
+@pytest.mark.parametrize('lift_off_s', [0.05, 0.2])
+def test_the_lift_off_passes_the_weight_to_the_pads_linearly(lift_off_s):
+    """Over the lift-off the pads carry (t / T_off) m g: it slides from T_off 2 mu_s F / m g."""
+    m, f = 1.0, 3.0                                      # 2 mu_s F = 3 N < m g = 9.81 N
+    hold = HoldModel(m, MU_S, MU_K, PAD_M, G, Lift(0.0, 0.0, 10.0), lift_off_s=lift_off_s)
+    hold.begin(0, m)
+    hold.fire_events(0)
+    assert hold.load_n < 0.01 * m * G                    # the first piece: a sliver of it
+    expected_s = lift_off_s * 2.0 * MU_S * f / (m * G)
+    assert _slide_start_s(hold, f) == pytest.approx(expected_s, abs=2 * STEP_S)
+    hold.fire_events(round(1e9 * lift_off_s) + STEP_NS)  # past the lift-off: all of it
+    assert hold.load_n == m * G
+
+
+def test_a_grip_above_the_full_weight_never_slides_through_the_lift_off():
+    m = 1.0
+    f = 1.01 * m * G / (2.0 * MU_S)
+    hold = HoldModel(m, MU_S, MU_K, PAD_M, G, Lift(0.0, 0.0, 10.0), lift_off_s=0.1)
+    hold.begin(0, m)
+    assert _slide_start_s(hold, f, end_s=0.3) is None and hold.slip_m == 0.0
+
+
+def test_a_zero_lift_off_is_the_instant_lift_bit_for_bit():
+    runs = []
+    for kwargs in ({}, {'lift_off_s': 0.0}):
+        hold = HoldModel(1.0, MU_S, MU_K, PAD_M, G, Lift(2.0, 0.0, 0.05), **kwargs)
+        hold.begin(0, 1.0)
+        _slide_start_s(hold, 3.0, end_s=0.04)
+        runs.append(hold.record.copy())
+    for name in runs[0].dtype.names:                    # every field, bit for bit
+        assert runs[0][name].tobytes() == runs[1][name].tobytes(), name
+    assert runs[0][0]['slip_m'] > 0.0
+
+
+@pytest.mark.parametrize('bad', [-0.1, math.nan, math.inf])
+def test_a_bad_lift_off_is_refused_naming_it(bad):
+    with pytest.raises(ValueError, match='lift_off_s'):
+        HoldModel(1.0, MU_S, MU_K, PAD_M, G, None, lift_off_s=bad)

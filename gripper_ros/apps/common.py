@@ -1,6 +1,7 @@
 """What the console apps share: the configuration loaded as a command line expects."""
 from __future__ import annotations
 
+import copy
 import math
 import sys
 
@@ -30,3 +31,12 @@ def negative_option(args, names) -> str | None:
         if not (math.isfinite(value) and value >= 0.0):
             return f'--{name.replace("_", "-")} must be finite and >= 0, got {value!r}'
     return None
+
+
+def with_values(config, values: dict):
+    """Return ``config`` with each dotted key set; ConfigError (one line) if the reader refuses."""
+    from gripper_ros.bags.rerun import apply_settings
+    from gripper_ros.core.config import parse_config
+    data = apply_settings(config.data, sorted(values.items()), config.source)
+    source = config.source + ' with ' + ', '.join(f'{k}={v!r}' for k, v in sorted(values.items()))
+    return parse_config(copy.deepcopy(data), source)

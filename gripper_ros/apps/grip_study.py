@@ -16,7 +16,8 @@ import argparse
 import math
 import sys
 
-from gripper_ros.apps.common import load_config_or_report, negative_option
+from gripper_ros.apps.common import load_config_or_report, negative_option, with_values
+from gripper_ros.core.config import ConfigError
 
 PROFILES = (('static', 'step:0'), ('step 2', 'step:2'), ('step 5', 'step:5'),
             ('pick-and-place 3', 'pick-and-place:3'), ('shake 3 @ 2 Hz', 'shake:3,2'))
@@ -30,6 +31,7 @@ WIDTH_M = 0.05
 KINETIC_SHARE = 0.8
 LIFT_DELAY_S = 0.2
 LIFT_DURATION_S = 1.2              # a pick-and-place: 0.4 s up, across, down
+DEFAULT_LIFT_OFF_S = 0.1           # a hand's loading phase (Johansson and Westling 1984)
 
 
 def _floats(text: str, name: str) -> list[float]:
@@ -99,11 +101,14 @@ def summarise(rows: list[dict]) -> list[str]:
                        f'{worst["mu_s"]:g}, {worst["profile_label"]}: slip '
                        f'{worst["slip_m"] * 1e3:.3f} mm, margin mean {worst["mean_margin"]:.3f}')
     beyond = [r for r in rows if r['law'] == 'load_tracking' and not r['within']]
-    said = [r for r in beyond if math.isfinite(r['overload_s']) and (
-        not math.isfinite(r['lost_s']) or r['overload_s'] < r['lost_s'])]
-    out.append(f'beyond 24 V (load-tracking): {len(beyond)} cases, {len(said)} said overload '
-               f'before the object fell, '
-               f'{sum(r["outcome"] == "OBJECT_LOST" for r in beyond)} lost')
+    lost = [r for r in beyond if r['outcome'] == 'OBJECT_LOST']
+    warned = [r for r in lost if math.isfinite(r['overload_s']) and r['overload_s'] < r['lost_s']]
+    lead = [r['lost_s'] - r['overload_s'] for r in warned]
+    said = sum(math.isfinite(r['overload_s']) for r in beyond)
+    out.append(f'beyond 24 V (load-tracking): {len(beyond)} cases, {len(lost)} lost, '
+               f'{len(warned)} of them said overload before the object fell'
+               + (f' ({min(lead):.3f}-{max(lead):.3f} s before)' if lead else '')
+               + f'; overload said in {said} of {len(beyond)}')
     worst = max(beyond, key=lambda r: r['mass_kg'] * r['mu_s'] ** -1, default=None)
     if worst is not None:
         out.append(f'  e.g. {worst["mass_kg"]:g} kg, mu_s {worst["mu_s"]:g}, '
@@ -158,6 +163,9 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument('--stiffness', type=float, default=0.0,
                    help='object contact stiffness N/m (0 = rigid)')
     p.add_argument('--damping', type=float, default=0.0, help='object contact damping N s/m')
+    p.add_argument('--lift-off-s', type=float, default=DEFAULT_LIFT_OFF_S,
+                   help='the arm takes the weight off the support over this long '
+                        f'(default {DEFAULT_LIFT_OFF_S:g} s; 0 = at once)')
     p.add_argument('--plot', default=None, help='write the pick-and-place figure here (PNG)')
     p.add_argument('--jobs', type=int, default=1, help='processes (default 1)')
     p.add_argument('--config', default=None, help='YAML parameter file (default: installed)')
@@ -168,7 +176,7 @@ def main(argv: list[str] | None = None) -> int:
     except ValueError as exc:
         print(f'grip_study: {exc}', file=sys.stderr)
         return 2
-    negative = negative_option(args, ('stiffness', 'damping'))
+    negative = negative_option(args, ('stiffness', 'damping', 'lift_off_s'))
     if negative:
         print(f'grip_study: {negative}', file=sys.stderr)
         return 2
@@ -178,6 +186,11 @@ def main(argv: list[str] | None = None) -> int:
     config = load_config_or_report('grip_study', args.config)
     if config is None:
         return 2
+    try:
+        config = with_values(config, {'contact.lift_off_s': args.lift_off_s})
+    except ConfigError as exc:
+        print(f'grip_study: --lift-off-s: {exc}', file=sys.stderr)
+        return 2
     import functools
     from gripper_ros.core.headless import map_cases
     rows = map_cases(functools.partial(_case, config),
@@ -186,7 +199,8 @@ def main(argv: list[str] | None = None) -> int:
     print(f'{len(rows)} grasps: {WIDTH_M * 1e3:g} mm objects of {args.masses} kg, mu_s '
           f'{args.frictions} (mu_k = {KINETIC_SHARE:g} mu_s); arm: '
           + ', '.join(name for name, _ in PROFILES) + '; ' +
-          (f'{args.stiffness:g} N/m, {args.damping:g} N s/m' if args.stiffness else 'rigid'))
+          (f'{args.stiffness:g} N/m, {args.damping:g} N s/m' if args.stiffness else 'rigid') +
+          f'; lift-off {config.contact.lift_off_s:g} s')
     for line in summarise(rows):
         print(line)
     if args.plot:

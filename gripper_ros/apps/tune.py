@@ -34,7 +34,6 @@ Bad input: one line on stderr, exit 2; no feasible trial: exit 1.
 from __future__ import annotations
 
 import argparse
-import copy
 from dataclasses import dataclass
 import functools
 import math
@@ -43,7 +42,7 @@ import statistics
 import sys
 import warnings
 
-from gripper_ros.apps.common import load_config_or_report, negative_option
+from gripper_ros.apps.common import load_config_or_report, negative_option, with_values
 
 PROG = 'tune'
 ENVELOPES = ('quick', 'tablev', 'holdout')
@@ -201,15 +200,6 @@ def _envelope_file(path: str, config) -> list:
                                values.get('object_width_m', values['width_m']),
                                values.get('width_tolerance_m', 0.0), values['mass_kg']))
     return cases
-
-
-def with_values(config, values: dict):
-    """Return ``config`` with each dotted key set; ConfigError (one line) if the reader refuses."""
-    from gripper_ros.bags.rerun import apply_settings
-    from gripper_ros.core.config import parse_config
-    data = apply_settings(config.data, sorted(values.items()), config.source)
-    source = config.source + ' with ' + ', '.join(f'{k}={v!r}' for k, v in sorted(values.items()))
-    return parse_config(copy.deepcopy(data), source)
 
 
 # --- evaluation --------------------------------------------------------------------------------

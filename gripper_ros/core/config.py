@@ -97,6 +97,9 @@ class ContactParams:
     # Cattaneo-Mindlin pre-sliding of each pad (core/hold.py): its initial tangential
     # stiffness; 0 (a file that predates it) = rigid pads, the Coulomb law alone.
     pad_tangential_stiffness_n_per_m: float = 0.0
+    # The arm's lift-off (core/hold.py): the weight passes from the support to the pads over
+    # this long; 0 (a file that predates it) = all at once.
+    lift_off_s: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -164,9 +167,9 @@ class LoadGripParams:
     grip_margin: float = 1.25
     mu_start: float = 0.3
     mu_safety: float = 0.95
-    touch_force_n: float = 2.0
-    slip_speed_mps: float = 0.005
-    slip_window_s: float = 0.002
+    touch_force_n: float = 0.7
+    slip_speed_mps: float = 0.001
+    slip_window_s: float = 0.01
     slip_rest_s: float = 0.005
     min_samples: int = 200
     release_rate_n_per_s: float = 300.0
@@ -328,6 +331,7 @@ BOUNDS: dict[str, tuple[float, float]] = {
     'contact.pad_length_m': (1e-4, 1.0),
     'contact.after_lift_s': (0.0, 60.0),
     'contact.pad_tangential_stiffness_n_per_m': (0.0, 1e10),
+    'contact.lift_off_s': (0.0, 10.0),
     'force_sensor.supply_v': (0.1, 100.0),
     'force_sensor.measuring_resistor_ohm': (1.0, 1e12),
     'force_sensor.fsr_resistance_at_1n_ohm': (1.0, 1e12),
@@ -548,7 +552,8 @@ def parse_config(data: dict, source: str = '<dict>') -> GripperConfig:
                      stiffness_n_per_m={'nonnegative': True},
                      damping_n_s_per_m={'nonnegative': True},
                      after_lift_s={'nonnegative': True},
-                     pad_tangential_stiffness_n_per_m={'nonnegative': True})
+                     pad_tangential_stiffness_n_per_m={'nonnegative': True},
+                     lift_off_s={'nonnegative': True})
     if contact.kinetic_friction > contact.static_friction:
         raise ConfigError('"contact.kinetic_friction" must be <= "contact.static_friction" '
                           f'({contact.static_friction!r}), got {contact.kinetic_friction!r}')

@@ -23,8 +23,13 @@ it moves the object by ``delta`` without changing when or how it slides, so ``k_
 
 A :class:`Lift` is the arm's vertical motion (along the pads, with gravity): an acceleration
 ``A``, a delay counted from the moment the grasp is declared HOLDING (:meth:`HoldModel.begin`),
-a duration ``D`` and a profile (``wire.LiftProfile``); from ``t_lift`` on the object is off its
-support for good, and ``a = 0`` after ``t_lift + D``:
+a duration ``D`` and a profile (``wire.LiftProfile``); from ``t_lift`` on the object leaves its
+support for good, and ``a = 0`` after ``t_lift + D``. The weight passes from the support to the
+pads over the lift-off ``T_off`` (``contact.lift_off_s``), as the arm's rise stretches the pads'
+tangential compliance: the pads carry ``min(1, (t - t_lift) / T_off)`` of ``m (g + a)``, in
+pieces of :data:`SHAKE_SAMPLE_S` (a human's loading phase, over which grip and load rise
+together, lasts about 0.1-0.2 s: Johansson and Westling 1984). ``T_off = 0`` is the idealised
+instant lift-off, in which the whole weight lands on the pads at once:
 
 * ``STEP``: ``a(t) = A`` over ``[t_lift, t_lift + D]``;
 * ``PICK_AND_PLACE``: up, across and down, each ``D / 3``, up and down with a trapezoidal
@@ -85,6 +90,10 @@ HOLD_DTYPE = np.dtype([
     ('lift_frequency_hz', np.float64),  # SHAKE
     ('lift_event', np.int64),          # index of the profile's next breakpoint
     ('driven_until_ns', np.int64),     # a live load (hold_drive) plays out until then; 0: none
+    ('lift_off_ns', np.int64),         # the weight moves onto the pads over this; 0: at once
+    ('support_share', np.float64),     # share of the weight its support still carries
+    ('profile_next_ns', np.int64),     # the profile's next breakpoint; -1: none
+    ('ramp_next_ns', np.int64),        # the lift-off's next piece; -1: none
 ], align=True)
 """One object's tangential hold (times in integer ns, -1 = none)."""
 
@@ -183,7 +192,7 @@ def hold_begin(h, t_ns, mass_kg):
     if h.has_lift:
         h.lift_start_ns = t_ns + round(h.lift_delay_s * 1e9)
         h.lift_end_ns = h.lift_start_ns + round(h.lift_duration_s * 1e9)
-        h.next_event_ns = h.lift_start_ns
+        _first_event(h)
     return 0
 
 
@@ -215,11 +224,17 @@ def hold_live(h):
         h.state == HoldState.SLIDING
 
 
+@numba.njit(cache=True, inline='always')
+def _pads_load_n(h):
+    """Return the share of ``m (g + a)`` the pads carry (all of it once off its support)."""
+    return (1.0 - h.support_share) * (h.mass_kg * (h.gravity_mps2 + h.acceleration_mps2))
+
+
 @numba.njit(cache=True)
 def hold_load_n(h):
     """Tangential load on the pads now (0 unless lifted and between the pads)."""
     if h.state == HoldState.STUCK or h.state == HoldState.SLIDING:
-        return h.mass_kg * (h.gravity_mps2 + h.acceleration_mps2)
+        return _pads_load_n(h)
     return 0.0
 
 
@@ -237,7 +252,7 @@ def hold_shear_n(h, force_n):
     """
     grip_n = force_n if force_n > 0.0 else 0.0
     if h.state == HoldState.STUCK:
-        return 0.5 * h.mass_kg * (h.gravity_mps2 + h.acceleration_mps2)
+        return 0.5 * _pads_load_n(h)
     if h.state == HoldState.SLIDING:
         return h.kinetic_friction * grip_n
     return 0.0
@@ -282,31 +297,67 @@ def hold_stays_stuck(h, force_n, until_ns):
     """
     event_ns = h.next_event_ns
     return h.state == HoldState.STUCK and (event_ns == -1 or event_ns >= until_ns) and \
-        h.mass_kg * (h.gravity_mps2 + h.acceleration_mps2) <= \
-        2.0 * h.static_friction * force_n
+        _pads_load_n(h) <= 2.0 * h.static_friction * force_n
 
 
 @numba.njit(cache=True)
 def hold_fire_events(h, t_ns):
-    """Apply the lift's breakpoints (start, profile changes, end) that are due at ``t_ns``."""
+    """Apply the lift's breakpoints (start, lift-off pieces, profile changes, end) now due."""
     while h.next_event_ns != -1 and h.next_event_ns <= t_ns:
-        if h.state == HoldState.RESTING:            # the lift starts: off its support
+        at_ns = h.next_event_ns
+        if h.state == HoldState.RESTING:            # the lift starts: leaving its support
             h.state = HoldState.STUCK
-        _lift_segment(h)
+        if h.ramp_next_ns != -1 and h.ramp_next_ns <= at_ns:
+            _lift_off_piece(h, at_ns)
+        if h.profile_next_ns != -1 and h.profile_next_ns <= at_ns:
+            _lift_segment(h)
+        _next_event(h)
+
+
+@numba.njit(cache=True, inline='always')
+def _next_event(h):
+    """Set the next event: the profile's next breakpoint or the lift-off's next piece."""
+    p, r = h.profile_next_ns, h.ramp_next_ns
+    h.next_event_ns = p if r == -1 or (p != -1 and p <= r) else r
+
+
+@numba.njit(cache=True)
+def _first_event(h):
+    """Arm the lift's start: the profile's first segment and, with a lift-off, its first piece."""
+    h.profile_next_ns = h.lift_start_ns
+    h.ramp_next_ns = h.lift_start_ns if h.lift_off_ns > 0 else -1
+    h.support_share = 0.0
+    h.next_event_ns = h.lift_start_ns
+
+
+@numba.njit(cache=True)
+def _lift_off_piece(h, at_ns):
+    """Enter the lift-off's piece that starts at ``at_ns``: the support's share at its middle."""
+    end_ns = h.lift_start_ns + h.lift_off_ns
+    if at_ns >= end_ns:
+        h.support_share = 0.0
+        h.ramp_next_ns = -1
+        return
+    nxt = at_ns + SHAKE_SAMPLE_NS
+    if nxt > end_ns:
+        nxt = end_ns
+    mid_ns = 0.5 * ((at_ns - h.lift_start_ns) + (nxt - h.lift_start_ns))
+    h.support_share = 1.0 - mid_ns / h.lift_off_ns
+    h.ramp_next_ns = nxt
 
 
 @numba.njit(cache=True)
 def _lift_segment(h):
-    """Enter the profile's segment that starts at ``h.next_event_ns``: set ``a`` and its end."""
+    """Enter the profile's segment that starts at ``h.profile_next_ns``: set ``a`` and its end."""
     i = h.lift_event
     h.lift_event = i + 1
     start_ns = h.lift_start_ns
     end_ns = h.lift_end_ns
     a_max = h.lift_acceleration_mps2
-    at_ns = h.next_event_ns
+    at_ns = h.profile_next_ns
     if at_ns >= end_ns:                             # the lift ends: weight alone
         h.acceleration_mps2 = 0.0
-        h.next_event_ns = -1
+        h.profile_next_ns = -1
         return
     if h.lift_profile == LiftProfile.PICK_AND_PLACE:
         quarters, scale = _PICK_AND_PLACE[i] if i < len(_PICK_AND_PLACE) else (12, 0.0)
@@ -325,7 +376,7 @@ def _lift_segment(h):
     else:                                           # STEP
         h.acceleration_mps2 = a_max
         nxt = end_ns
-    h.next_event_ns = nxt if nxt > at_ns else end_ns
+    h.profile_next_ns = nxt if nxt > at_ns else end_ns
 
 
 @numba.njit(cache=True)
@@ -344,6 +395,9 @@ def hold_drive(h, t_ns, accel_mps2, after_ns):
         h.lift_start_ns = t_ns
         h.lift_end_ns = t_ns
     h.next_event_ns = -1
+    h.profile_next_ns = -1
+    h.ramp_next_ns = -1
+    h.support_share = 0.0                   # a live arm's load is on the pads at once
     h.acceleration_mps2 = accel_mps2
     h.driven_until_ns = t_ns + after_ns
     return 0
@@ -367,7 +421,7 @@ def hold_schedule_lift(h, accel_mps2, delay_s, duration_s, profile, frequency_hz
     h.lift_event = 0
     h.lift_start_ns = h.hold_ns + round(delay_s * 1e9)
     h.lift_end_ns = h.lift_start_ns + round(duration_s * 1e9)
-    h.next_event_ns = h.lift_start_ns
+    _first_event(h)
     return 0
 
 
@@ -377,6 +431,8 @@ def hold_remove(h):
     h.state = HoldState.NONE
     h.slip_speed_mps = 0.0
     h.next_event_ns = -1
+    h.profile_next_ns = -1
+    h.ramp_next_ns = -1
 
 
 @numba.njit(cache=True)
@@ -389,7 +445,7 @@ def hold_advance(h, force_n, dt_s):
     if state != HoldState.STUCK and state != HoldState.SLIDING:
         return math.nan
     grip_n = force_n if force_n > 0.0 else 0.0
-    load_n = h.mass_kg * (h.gravity_mps2 + h.acceleration_mps2)
+    load_n = _pads_load_n(h)
     if state == HoldState.STUCK:
         if load_n <= 2.0 * h.static_friction * grip_n:
             return math.nan
@@ -500,9 +556,10 @@ class HoldModel:
 
     def __init__(self, mass_kg: float, static_friction: float, kinetic_friction: float,
                  pad_length_m: float, gravity_mps2: float, lift: Lift | None,
-                 tangential_stiffness_n_per_m: float = 0.0):
+                 tangential_stiffness_n_per_m: float = 0.0, lift_off_s: float = 0.0):
         self.record = np.zeros(1, HOLD_DTYPE)
         r = self.record[0]
+        r['lift_off_ns'] = round(check_finite_nonnegative('lift', 'lift_off_s', lift_off_s) * 1e9)
         r['tangential_stiffness_n_per_m'] = tangential_stiffness_n_per_m
         r['mass_kg'] = mass_kg
         r['static_friction'] = static_friction
@@ -517,7 +574,8 @@ class HoldModel:
             r['lift_profile'] = int(lift.profile)
             r['lift_frequency_hz'] = lift.frequency_hz
         r['state'] = HoldState.RESTING
-        for name in ('hold_ns', 'lift_start_ns', 'lift_end_ns', 'lost_ns', 'next_event_ns'):
+        for name in ('hold_ns', 'lift_start_ns', 'lift_end_ns', 'lost_ns', 'next_event_ns',
+                     'profile_next_ns', 'ramp_next_ns'):
             r[name] = -1
         self.lift = lift
 

@@ -36,7 +36,8 @@ import math
 from gripper_ros.core.config import ForceLaw, GripperConfig, LoadGripParams
 from gripper_ros.core.controllers import make_plant
 from gripper_ros.core.headless import _Loop
-from gripper_ros.core.hold import (hold_presliding_m, hold_schedule_lift, hold_shear_n,
+from gripper_ros.core.hold import (hold_load_n, hold_presliding_m, hold_schedule_lift,
+                                   hold_shear_n,
                                    HoldState, Lift, presliding_m)
 from gripper_ros.core.lockstep import PlantSide
 from gripper_ros.core.pad_sensor import (CHANNEL_DTYPE, channel_step, make_channel,
@@ -60,7 +61,7 @@ SEPARATION_NOISES = 20.0
 """The whole grid must span this many noise variances: the load and grip have moved."""
 STUCK_HEADROOM = 1.1
 """A stuck pad carrying Q / F has mu_s at least this much above it (the slip test's model)."""
-SLIP_SHARE = 0.5
+SLIP_SHARE = 0.7
 """A fast displacement is a slip only while the pads carry this share of mu_est F or more."""
 SATURATED = 0.98
 """A slip with the grip at this share of the most 24 V holds is an overload."""
@@ -164,13 +165,17 @@ def law_step(g, history, sums, grid, t_ns, shear_n, displacement_m, force_n):
     reference = g.mu_at_slip if g.slipping else g.mu_est
     if speed > g.slip_speed_mps and felt >= SLIP_SHARE * reference:
         if not g.slipping:
+            estimated_before = g.estimated == 1 or g.slips > 0
             g.slips += 1
             g.mu_at_slip = g.mu_est
             g.estimated = 0                            # measure it again once it sticks
+            # kinetic friction, a lower bound of mu_s, read as the slip is seen (later
+            # samples of the slip lag the grip's rise and would read less); it replaces the
+            # conservative start, which it betters
+            if felt < g.mu_est or not estimated_before:
+                g.mu_est = felt if felt > grid[0] else grid[0]
         g.slipping = 1
         g.quiet = 0
-        if felt < g.mu_est:                            # kinetic: a lower bound of mu_s
-            g.mu_est = felt if felt > grid[0] else grid[0]
         if g.slipping_saturated < g.overload_samples and \
                 grip_n >= SATURATED * g.max_force_n:
             g.slipping_saturated += 1
@@ -203,8 +208,9 @@ def law_step(g, history, sums, grid, t_ns, shear_n, displacement_m, force_n):
             g.mu_est = g.mu_safety * grid[best]
             g.estimated = 1
     # Not yet measured: the grip relaxes (at the release rate) towards the least friction's
-    # grip; the incipient slip it brings on is what measures mu.
-    mu = g.mu_est if g.estimated or g.slipping or load_n == 0.0 else grid[-1]
+    # grip; the incipient slip it brings on is what measures mu. After a slip it relaxes no
+    # further than the friction that slip showed.
+    mu = g.mu_est if g.estimated or g.slipping or g.slips > 0 or load_n == 0.0 else grid[-1]
     need_n = load_n / (2.0 * g.mu_est)
     setpoint = g.k_margin * load_n / (2.0 * mu)
     if setpoint < g.touch_force_n:
@@ -276,7 +282,7 @@ def run_load_grip(plant_k, force_k, ref, cmd, tick, g, history, sums, grid, chan
         else:
             setpoint = law_step(g[0], history, sums, grid, t.stamp_ns, q, d, normal)
         if i % decimate == 0 and kept < rows.shape[0]:
-            load = h.mass_kg * (h.gravity_mps2 + h.acceleration_mps2) if held else 0.0
+            load = hold_load_n(h)
             cap = 2.0 * h.static_friction * (force if force > 0.0 else 0.0)
             rows[kept, 0] = t.stamp_ns
             rows[kept, 1] = force
@@ -335,7 +341,7 @@ class GripRun:
     slip_m: float
     lost_s: float                      # after the lift's start; NaN: never
     overload_s: float                  # when the law said overload, after the lift's start
-    mean_margin: float                 # grip / slip limit m (g + a) / (2 mu_s), while lifted
+    mean_margin: float                 # grip / slip limit m (g + a) / (2 mu_s), lifted off
     max_margin: float
     min_margin: float
     rows: np.ndarray = field(repr=False, default_factory=lambda: np.zeros((0, len(ROW_FIELDS))))
@@ -421,8 +427,10 @@ def simulate_load_grip(config: GripperConfig, width_m: float, mass_kg: float,
     lost_s = math.nan if state.lost_ns is None else (state.lost_ns - lift_start_ns) * 1e-9
     over = int(g[0]['overload_ns'])
     overload_s = math.nan if over == -1 else (over - lift_start_ns) * 1e-9
+    # the margin counts once the pads carry the whole weight (after the lift-off)
     lifted = (rows[:, 3] > 0.0) & ((rows[:, 9] == HoldState.STUCK) |
-                                   (rows[:, 9] == HoldState.SLIDING))
+                                   (rows[:, 9] == HoldState.SLIDING)) & \
+        (rows[:, 0] >= lift_start_ns + round(config.contact.lift_off_s * 1e9))
     limit = rows[lifted, 3] / (2.0 * static_friction)
     margin = rows[lifted, 1] / limit if limit.size else np.zeros(0)
     outcome = 'OBJECT_LOST' if state.lost_ns is not None else 'HOLDING'

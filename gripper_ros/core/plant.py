@@ -1100,7 +1100,7 @@ class GripperPlant:
             raise ValueError(f'object pad_length_m must be > 0 (0 = the contact default '
                              f'{d.pad_length_m!r}), got {pad_m!r}')
         return HoldModel(obj.mass_kg, mu_s, mu_k, pad_m, self.params.gravity_mps2, lift,
-                         d.pad_tangential_stiffness_n_per_m)
+                         d.pad_tangential_stiffness_n_per_m, d.lift_off_s)
 
     @property
     def object(self) -> GraspObject:  # noqa: A003 - today's attribute name
