@@ -94,8 +94,9 @@ def summarise(rows: list[dict]) -> list[str]:
                    f'{max(peaks, default=math.nan):9.4f}')
     tracking = [r for r in rows if r['law'] == 'load_tracking' and r['within'] and
                 r['outcome'] in ('HOLDING', 'OBJECT_LOST')]
-    for what, key in (('slip', 'slip_m'), ('mean margin', 'mean_margin')):
-        worst = max(tracking, key=lambda r: r[key], default=None)
+    held = [r for r in tracking if r['outcome'] == 'HOLDING']
+    for what, key, among in (('slip', 'slip_m', tracking), ('mean margin', 'mean_margin', held)):
+        worst = max(among, key=lambda r: r[key], default=None)
         if worst is not None:
             out.append(f'load-tracking, largest {what}: {worst["mass_kg"]:g} kg, mu_s '
                        f'{worst["mu_s"]:g}, {worst["profile_label"]}: slip '
@@ -114,6 +115,34 @@ def summarise(rows: list[dict]) -> list[str]:
         out.append(f'  e.g. {worst["mass_kg"]:g} kg, mu_s {worst["mu_s"]:g}, '
                    f'{worst["profile_label"]}: {worst["outcome"]}; {worst["note"]}')
     return out
+
+
+def fastest_grip_rise_s(config, stiffness_n_per_m: float, rise_n: float) -> float:
+    """Return the least time in which 24 V adds ``rise_n`` of grip on a spring of that stiffness.
+
+    The grip rises only as the finger compresses the object by ``rise_n / k``, and the finger
+    moves as the motor's inertia seen through the screw, ``m_r``, driven by at most the 24 V stall
+    force: accelerating then braking at ``F_24V / m_r`` covers it in ``2 sqrt(rise m_r / (k
+    F_24V))`` (drag and the object's damping only add to it).
+    """
+    from gripper_ros.apps.contact_sweep import reflected_mass_kg
+    return 2.0 * math.sqrt(rise_n * reflected_mass_kg(config) /
+                           (stiffness_n_per_m * config.plant.max_force_n))
+
+
+def soft_object_bound(config, masses, frictions, stiffness_n_per_m: float) -> str:
+    """Return the line that says how fast 24 V can raise the grip on this object."""
+    from gripper_ros.apps.contact_sweep import reflected_mass_kg
+    g = config.plant.gravity_mps2
+    need_n = min(config.load_grip.grip_margin * max(masses) * g / (2.0 * min(frictions)),
+                 config.plant.max_force_n)
+    rise_n = need_n - config.load_grip.touch_force_n
+    return (f'on {stiffness_n_per_m:g} N/m: from the {config.load_grip.touch_force_n:g} N touch '
+            f'to {need_n:.2f} N (k m g / (2 mu_s), the heaviest, least friction) takes at least '
+            f'{fastest_grip_rise_s(config, stiffness_n_per_m, rise_n):.3f} s at '
+            f'{config.plant.voltage_limit_v:g} V ({rise_n / stiffness_n_per_m * 1e3:.2f} mm of '
+            f'travel, finger mass {reflected_mass_kg(config):.0f} kg through the screw); the '
+            f'lift-off hands the weight over in {config.contact.lift_off_s:g} s')
 
 
 def plot_pick_and_place(config, path: str, mass_kg: float = 0.6, mu_s: float = 0.3) -> None:
@@ -203,6 +232,8 @@ def main(argv: list[str] | None = None) -> int:
           f'; lift-off {config.contact.lift_off_s:g} s')
     for line in summarise(rows):
         print(line)
+    if args.stiffness > 0.0:
+        print(soft_object_bound(config, masses, frictions, args.stiffness))
     if args.plot:
         plot_pick_and_place(config, args.plot)
         print(f'figure: {args.plot}')

@@ -166,7 +166,7 @@ class LoadGripParams:
 
     grip_margin: float = 1.25
     mu_start: float = 0.3
-    mu_safety: float = 0.95
+    mu_safety: float = 0.97
     touch_force_n: float = 0.7
     slip_speed_mps: float = 0.001
     slip_window_s: float = 0.01
@@ -219,6 +219,8 @@ class ContactForceTuning:
     integral_gain_v_per_n_s: float       # model-error trim, only while at rest in contact
     integral_speed_band_mps: float       # "at rest": |finger speed| below this ...
     integral_rate_fraction: float        # ... and |de/dt| tau_k below this x |e|
+    # a moving setpoint's rate, low-passed over this, leads the speed reference (0 = no filter)
+    setpoint_rate_time_constant_s: float = 0.01
 
 
 @dataclass(frozen=True)
@@ -356,6 +358,7 @@ BOUNDS: dict[str, tuple[float, float]] = {
     'force_control.contact_aware.force_gain_v_per_n': (0.0, 1000.0),
     'force_control.contact_aware.damping_ratio': (1e-3, 10.0),
     'force_control.contact_aware.servo_sample_gain': (1e-3, 1.0),
+    'force_control.contact_aware.setpoint_rate_time_constant_s': (0.0, 1.0),
     'force_control.contact_aware.max_damping_v_s_per_m': (1.0, 1e9),
     'force_control.contact_aware.integral_gain_v_per_n_s': (0.0, 1000.0),
     'force_control.contact_aware.integral_speed_band_mps': (1e-7, 1.0),
@@ -584,7 +587,8 @@ def parse_config(data: dict, source: str = '<dict>') -> GripperConfig:
         contact_aware=_build(ContactForceTuning, _section(frc, 'contact_aware', 'force_control'),
                              'force_control.contact_aware',
                              force_gain_v_per_n={'nonnegative': True},
-                             integral_gain_v_per_n_s={'nonnegative': True}))
+                             integral_gain_v_per_n_s={'nonnegative': True},
+                             setpoint_rate_time_constant_s={'nonnegative': True}))
     if not force.contact_aware.impact_force_fraction < 1.0:
         raise ConfigError('"force_control.contact_aware.impact_force_fraction" must be in (0, 1), '
                           f'got {force.contact_aware.impact_force_fraction!r}')

@@ -44,7 +44,9 @@ What it does each force sample, knowing neither the stiffness nor the exact widt
    reference is continuous at contact (``v_c (1 - F / F_sp)``) and, on a spring of any
    stiffness ``k = k_hat``, the force approaches ``F_sp`` first-order with time constant ``tau``
    (plus the object's own creep ``c / k``); a soft object is compressed along the braking
-   profile instead, at up to full voltage.
+   profile instead, at up to full voltage. A moving setpoint adds its rate over ``k_hat`` to
+   the reference (low-passed over ``tuning.setpoint_rate_time_constant_s``), so the force
+   follows a ramp without the first-order loop's lag; a constant setpoint adds exactly 0.
 5. ``Kv`` is chosen each sample from ``k_hat`` for a closed-loop damping ratio
    ``tuning.damping_ratio`` of ``m_r s^2 + (D + c_r) s + k (1 + K_stall Kp) + D / tau``
    (``D = K_stall Kv``), the spring mode with the servo and the force reference acting on it.
@@ -126,6 +128,10 @@ CONTACT_DTYPE = np.dtype([
     ('has_contact', 'u1'),                   # 0: not touched yet (None)
     ('contact_position_m', 'f8'),
     ('prev_force_n', 'f8'),
+    ('has_prev_setpoint', 'u1'),             # 0: the stage's first sample
+    ('prev_setpoint_n', 'f8'),
+    ('setpoint_rate_n_per_s', 'f8'),         # low-passed
+    ('rate_share', 'f8'),                    # 1 - exp(-dt / setpoint_rate_time_constant_s)
     ('integral', 'f8'),                      # the integral term (V)
     # the last output's terms (ContactForceTerms)
     ('feedforward_v', 'f8'), ('force_v', 'f8'), ('damping_v', 'f8'), ('integral_v', 'f8'),
@@ -158,6 +164,8 @@ def contact_reset(c, has_position, position_m):
     s.prev_position_m = position_m if has_position else 0.0
     s.has_contact = 0
     s.prev_force_n = 0.0
+    s.has_prev_setpoint = 0
+    s.setpoint_rate_n_per_s = 0.0
     s.integral = 0.0
     contact_reset_terms(s)
 
@@ -244,6 +252,11 @@ def contact_step(c, force_setpoint_n, force_n, position_m, face_m, width_toleran
     s.prev_position_m = position_m
     prev_force_n = s.prev_force_n
     s.prev_force_n = force_n
+    if s.has_prev_setpoint:
+        raw_rate = (force_setpoint_n - s.prev_setpoint_n) / s.dt_s
+        s.setpoint_rate_n_per_s += s.rate_share * (raw_rate - s.setpoint_rate_n_per_s)
+    s.has_prev_setpoint = 1
+    s.prev_setpoint_n = force_setpoint_n
     feedforward = force_setpoint_n / s.stall_force_per_volt_n
     s.feedforward_v = feedforward
     low, high = s.low, s.high
@@ -316,6 +329,9 @@ def contact_step(c, force_setpoint_n, force_n, position_m, face_m, width_toleran
         code, v_ref = contact_speed_profile_mps(s, error / stiffness, tau_k)
         if code != LAW_OK:
             return code, 0.0
+        # a moving setpoint: compress the spring at the speed that moves the force with it
+        # (exactly 0 for a constant setpoint)
+        v_ref += s.setpoint_rate_n_per_s / stiffness
         # trim only the error the loop leaves standing: the finger at rest and the error
         # decaying slower than integral_rate_fraction of the loop's own rate 1 / tau_k (a
         # stiff object is compressed at a few um/s, so rest alone would integrate the ramp)
@@ -370,6 +386,8 @@ class ContactForceController:
         self.band_speed_mps_per_n = self.contact_speed_mps_per_n * math.sqrt(
             t.design_stiffness_n_per_m / t.band_design_stiffness_n_per_m)
         s['dt_s'] = dt_s
+        s['rate_share'] = 1.0 if t.setpoint_rate_time_constant_s == 0.0 else \
+            -math.expm1(-dt_s / t.setpoint_rate_time_constant_s)
         s['stall_force_per_volt_n'] = self.stall_force_per_volt_n
         s['reflected_mass_kg'] = self.reflected_mass_kg
         s['reflected_damping_n_s_per_m'] = self.reflected_damping_n_s_per_m

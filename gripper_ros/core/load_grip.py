@@ -94,6 +94,7 @@ GRIP_DTYPE = np.dtype([
     ('estimated', np.uint8),
     ('overload_ns', np.int64),         # -1: never
     ('overload_need_n', np.float64),
+    ('mu_bound', np.float64),          # the most Q / F a slip showed: mu_s is at least this
 ], align=True)
 """The law's settings and state."""
 
@@ -168,6 +169,8 @@ def law_step(g, history, sums, grid, t_ns, shear_n, displacement_m, force_n):
             estimated_before = g.estimated == 1 or g.slips > 0
             g.slips += 1
             g.mu_at_slip = g.mu_est
+            if felt > g.mu_bound:
+                g.mu_bound = felt
             g.estimated = 0                            # measure it again once it sticks
             # kinetic friction, a lower bound of mu_s, read as the slip is seen (later
             # samples of the slip lag the grip's rise and would read less); it replaces the
@@ -205,7 +208,12 @@ def law_step(g, history, sums, grid, t_ns, shear_n, displacement_m, force_n):
         if g.count >= g.min_samples and 0 < best < grid.shape[0] - 1 and \
                 hi - lo > g.separation and \
                 _distinct(sums, g.count, best, g.separation / SEPARATION_NOISES):
-            g.mu_est = g.mu_safety * grid[best]
+            # a fit below what a slip showed the pads carrying is wrong: mu_s >= mu_k >= it;
+            # once measured, only a slip lowers the estimate (a later fit that drifts down
+            # without one has seen an undetected creep, not less friction)
+            fitted = g.mu_safety * (grid[best] if grid[best] > g.mu_bound else g.mu_bound)
+            if not g.estimated or fitted > g.mu_est:
+                g.mu_est = fitted
             g.estimated = 1
     # Not yet measured: the grip relaxes (at the release rate) towards the least friction's
     # grip; the incipient slip it brings on is what measures mu. After a slip it relaxes no
