@@ -85,7 +85,8 @@ class PlantSimulatorNode(Node):
     def __init__(self, **kwargs):
         super().__init__(NODE_PLANT, **default_namespace(kwargs))
         self.parameters = ConfigParameters(
-            self, (), ('plant', 'contact', 'force_sensor', 'sensor_noise'))
+            self, (), ('plant', 'contact', 'force_sensor', 'sensor_noise', 'pad_sensor',
+                       'force_control'))
         self.config = self.parameters.config
         self.side = PlantSide(make_plant(self.config))
         self.plant = self.side.plant
