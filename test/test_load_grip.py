@@ -10,8 +10,9 @@ declared overloaded before it leaves the pads.
 import math
 
 from gripper_ros.core.config import load_config
+from gripper_ros.core.grip_runs import simulate_load_grip
 from gripper_ros.core.hold import Lift, presliding_m
-from gripper_ros.core.load_grip import (law_step, make_law, MU_GRID, simulate_load_grip)
+from gripper_ros.core.load_grip import law_step, make_law, MU_GRID
 from gripper_ros.wire import LiftProfile
 import numpy as np
 import pytest
