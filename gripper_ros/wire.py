@@ -170,6 +170,7 @@ class Outcome(enum.IntEnum):
     RELEASED = 8
     MOVED = 9
     STALLED = 10
+    OVERLOADED = 11
 
 
 class FaultKind(enum.IntEnum):

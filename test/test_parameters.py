@@ -66,7 +66,8 @@ CONFIG_SECTIONS = {'plant_simulator': ((), ('plant', 'contact', 'force_sensor',
                                             'sensor_noise', 'pad_sensor', 'force_control')),
                    'position_controller': (('position_control',), ('plant',)),
                    'force_controller': (('force_control',), ('plant',)),
-                   'supervisor': (('supervisor',), ('plant',)),
+                   'supervisor': (('supervisor',), ('plant', 'contact', 'force_control',
+                                                    'pad_sensor', 'load_grip')),
                    'grasp_action_server': ((), ())}
 
 

@@ -78,7 +78,8 @@ def simulate_load_grip(config: GripperConfig, width_m: float, mass_kg: float,
     accel = lift.acceleration_mps2 if lift is not None else 0.0
     declared = mass_kg if declared_mass_kg is None else declared_mass_kg
     if law is GripLaw.LOAD_TRACKING:
-        targets = validate_request(GraspRequest(width_m, declared), config.plant, sup)
+        targets = validate_request(GraspRequest(width_m, declared), config.plant, sup,
+                                   config.load_grip)
         targets = replace(targets, force_setpoint_n=params.touch_force_n)
     else:
         law_sup = replace(sup, force_law=ForceLaw(law.value))

@@ -27,7 +27,7 @@ from gripper_ros.core.requests import (GraspRequest, MoveRequest, RequestError, 
 from gripper_ros.core.stages import (DEFAULT_APPROACH_FORCE_MARGIN, DEFAULT_FORCE_CONTROLLER,
                                      DEFAULT_POSITION_CONTROLLER, ForceStageController,
                                      PositionStageController, Reference, stage_answer)
-from gripper_ros.core.supervisor import GraspSupervisor, NO_NS, supervisor_decide
+from gripper_ros.core.supervisor import GraspSupervisor, load_law, NO_NS, supervisor_decide
 from gripper_ros.wire import Controller, FaultKind, Outcome, Phase, SwitchCriterion
 import numba
 import numpy as np
@@ -58,6 +58,13 @@ class HeadlessGrasp:
     final_ns: int | None = None         # when the final outcome was reached
     slip_m: float = 0.0                 # ground truth: how far the object slid on the pads
     lost_ns: int | None = None          # ground truth: when it left the pads
+    overload_ns: int | None = None      # when the load-tracking grip answered OVERLOADED
+    overload_need_n: float = math.nan   # ... the grip the load needed then
+    overload_limit_n: float = math.nan  # ... the most 24 V holds
+    pad1_shear_n: np.ndarray = field(repr=False, default=None)         # the ticks' pad readings
+    pad2_shear_n: np.ndarray = field(repr=False, default=None)
+    pad1_displacement_m: np.ndarray = field(repr=False, default=None)
+    pad2_displacement_m: np.ndarray = field(repr=False, default=None)
 
     @property
     def peak_contact_force_n(self) -> float:
@@ -96,7 +103,8 @@ class HeadlessGrasp:
 LOOP_STATE = np.dtype([('woken', 'b1'), ('named', 'b1'), ('done', 'b1'),
                        ('hold_ns', 'i8'), ('hold_until_ns', 'i8'), ('rows', 'i8')], align=True)
 """The compiled loop's own state: resumable when its row buffers fill up."""
-ROWS = ('position_m', 'force_n', 'peak_force_n', 'motor_voltage_v', 'sensor_voltage_v')
+ROWS = ('position_m', 'force_n', 'peak_force_n', 'motor_voltage_v', 'sensor_voltage_v',
+        'pad1_shear_n', 'pad2_shear_n', 'pad1_displacement_m', 'pad2_displacement_m')
 """The per-tick float series a headless grasp keeps, in the order of its row buffer."""
 FIRST_ROWS = 4096
 """Rows a grasp's series buffers start with (they double when full)."""
@@ -111,6 +119,10 @@ def _keep_row(rows_t, rows_f, rows_phase, n, tick, phase) -> None:
     rows_f[n, 2] = t.peak_force_n
     rows_f[n, 3] = t.motor_voltage_v
     rows_f[n, 4] = t.sensor_voltage_v
+    rows_f[n, 5] = t.pad1_shear_n
+    rows_f[n, 6] = t.pad2_shear_n
+    rows_f[n, 7] = t.pad1_displacement_m
+    rows_f[n, 8] = t.pad2_displacement_m
     rows_phase[n] = phase
 
 
@@ -272,7 +284,7 @@ def simulate_grasp(config: GripperConfig, width_m: float, mass_kg: float, *,
     """
     targets = validate_request(GraspRequest(width_m, mass_kg, friction_coefficient,
                                             acceleration_mps2, timeout_s, width_tolerance_m),
-                               config.plant, config.supervisor)
+                               config.plant, config.supervisor, config.load_grip)
     plant = make_plant(config)
     plant.t_ns = start_ns
     plant_side = PlantSide(plant)
@@ -284,7 +296,7 @@ def simulate_grasp(config: GripperConfig, width_m: float, mass_kg: float, *,
         kind, tau = check_fault(fault[0], fault[1], fault[2], obj.rigid)
         fault = (kind, fault[1], tau)
     plant_side.set_object(obj, fault=fault, lift=lift)
-    supervisor = GraspSupervisor(config.plant, config.supervisor)
+    supervisor = GraspSupervisor(config.plant, config.supervisor, load_law(config))
     loop = _Loop(plant_side, supervisor,
                  PositionStageController(config, position_controller),
                  ForceStageController(config, force_controller, approach_force_margin))
@@ -306,11 +318,14 @@ def simulate_grasp(config: GripperConfig, width_m: float, mass_kg: float, *,
     else:
         loop.run_traced(trace)
     s = supervisor
+    t_ns, *rows, phase = loop.series()
+    pads = dict(zip(ROWS[5:], rows[5:]))
     return HeadlessGrasp(
         s.outcome, s.message, s.switch_criterion, targets.position_setpoint_m,
         targets.force_setpoint_n, s.start_ns, s.switch_ns, s.contact_ns,
-        int(loop.tick[0]['stamp_ns']), s.answer, s.answer_ns, *loop.series(), s.end_ns,
-        plant.object_state.slip_m, plant.object_state.lost_ns)
+        int(loop.tick[0]['stamp_ns']), s.answer, s.answer_ns, t_ns, *rows[:5], phase,
+        s.end_ns, plant.object_state.slip_m, plant.object_state.lost_ns, s.overload_ns,
+        s.overload_need_n, config.plant.max_force_n, **pads)
 
 
 def _grasp_case(config: GripperConfig, summarize: Callable | None, case: dict):

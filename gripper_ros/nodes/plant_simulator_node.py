@@ -499,7 +499,8 @@ class PlantSimulatorNode(Node):
             return ''
         if state.running or getattr(state, 'pending_request', 0):
             return 'a grasp or release is running'
-        if state.phase == Phase.HOLDING and state.outcome == Outcome.HOLDING:
+        if state.phase == Phase.HOLDING and \
+                state.outcome in (Outcome.HOLDING, Outcome.OVERLOADED):
             return 'an object is held (release or stop first)'
         return ''
 
