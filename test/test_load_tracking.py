@@ -7,9 +7,12 @@ pick-and-place with at most 0.5 mm of slip (the issue's bound); a 2.2 kg object 
 needs 2.2 x 9.81 / (2 x 0.3) = 36.0 N at rest, more than the 33.39 N of 24 V, and the overload
 is answered, with both numbers, before the plant loses the object.
 """
+import math
+from pathlib import Path
 import threading
 
 from gripper_interfaces.msg import SupervisorStatus
+from gripper_ros.bags.analyze import analyze_series
 from gripper_ros.bags.series import load_grasp_series
 from gripper_ros.core.config import load_config
 from gripper_ros.core.headless import simulate_grasp
@@ -27,6 +30,7 @@ IDLE_TICK_NS = round(CONFIG.position.sample_time_s * 1e9)
 """A request starts one tick after the one it arrived at: the idle hold's position tick."""
 SLIP_BOUND_M = 0.5e-3
 PADS = ('pad1_shear_n', 'pad2_shear_n', 'pad1_displacement_m', 'pad2_displacement_m')
+OLD_BAG = Path(__file__).resolve().parent / 'data' / 'python_core_bags' / 'lift_paper_law_lost'
 
 HELD = {'object_mass_kg': 0.6, 'static_friction': 0.5, 'kinetic_friction': 0.4}
 PICK = Lift(3.0, 0.2, 1.0, LiftProfile.PICK_AND_PLACE)
@@ -102,6 +106,21 @@ def test_the_graph_runs_the_unknown_mass_grasp_tick_for_tick_as_headless(graph, 
     # and it is the run of the first test, shifted in time
     assert np.array_equal(h.force_n, headless_pick.force_n)
     assert np.array_equal(h.pad1_displacement_m, headless_pick.pad1_displacement_m)
+    m = analyze_series(series)
+    assert m.pad_shear_max_n == np.max(0.5 * (h.pad1_shear_n + h.pad2_shear_n))
+    assert math.isnan(m.overload_said_s)
+
+
+def test_a_bag_recorded_before_the_pad_readings_still_reads():
+    """Its PlantTick has no pad fields (the bag's own schema): they read 0, named absent."""
+    series = load_grasp_series(OLD_BAG)
+    assert series.absent == {f'tick.{name}' for name in PADS}
+    assert series.ticks['stamp_ns'].size > 1000
+    for name in PADS:
+        assert series.ticks[name].shape == series.ticks['stamp_ns'].shape
+        assert np.all(series.ticks[name] == 0.0)
+    m = analyze_series(series)
+    assert m.final_outcome == 'OBJECT_LOST' and math.isnan(m.pad_shear_max_n)
 
 
 class _Outcomes:
