@@ -15,6 +15,7 @@ from gripper_interfaces.msg import SupervisorStatus
 from gripper_ros.bags.analyze import analyze_series
 from gripper_ros.bags.series import load_grasp_series
 from gripper_ros.core.config import load_config
+from gripper_ros.core.grip_runs import simulate_load_grip
 from gripper_ros.core.headless import simulate_grasp
 from gripper_ros.core.hold import Lift
 from gripper_ros.nodes.graph import GripperGraph
@@ -83,6 +84,20 @@ def test_unknown_mass_is_held_through_a_pick_and_place_and_bit_identical(headles
                  *PADS):
         assert np.array_equal(getattr(h, name), getattr(again, name)), name
     assert (again.outcome, again.slip_m, again.end_ns) == (h.outcome, h.slip_m, h.end_ns)
+
+
+def test_the_study_holds_with_the_load_tracking_grip_the_graph_runs(headless_pick):
+    """grip_study's load-tracking case is the mass-0 grasp of the supervisor, row for row."""
+    run = simulate_load_grip(CONFIG, WIDTH_M, HELD['object_mass_kg'], HELD['static_friction'],
+                             HELD['kinetic_friction'], PICK, decimate=1,
+                             after_s=CONFIG.contact.after_lift_s,
+                             seed=CONFIG.sensor_noise.seed)
+    h = headless_pick
+    assert run.outcome == 'HOLDING' and run.slip_m == h.slip_m
+    held = h.t_ns >= h.answer_ns
+    assert np.array_equal(run.rows[:, 0], h.t_ns[held])
+    assert np.array_equal(run.rows[:, 1], h.force_n[held])
+    assert np.array_equal(run.rows[:, 2], h.setpoint_n[held])
 
 
 def test_the_graph_runs_the_unknown_mass_grasp_tick_for_tick_as_headless(graph, tmp_path,
