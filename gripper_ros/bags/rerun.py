@@ -346,7 +346,7 @@ def _request(record: GraspRecord, config: GripperConfig) -> None:
     r = record.request
     request = GraspRequest(*(float(r.get(name, 0.0)) for name in REQUEST_FIELDS))
     try:
-        validate_request(request, config.plant, config.supervisor)
+        validate_request(request, config.plant, config.supervisor, config.load_grip)
     except RequestError as exc:
         raise ConfigError(f"{config.source}: the re-run's supervisor refuses the recorded "
                           f'request: {one_line(exc)}') from None
