@@ -170,6 +170,7 @@ class Outcome(enum.IntEnum):
     RELEASED = 8
     MOVED = 9
     STALLED = 10
+    OVERLOADED = 11
 
 
 class FaultKind(enum.IntEnum):
@@ -309,8 +310,9 @@ class LoopLayout:
 TICK_LAYOUT = LoopLayout(
     'gripper_interfaces/msg/PlantTick',
     ('stamp_ns', 'position_m', 'velocity_mps', 'force_n', 'peak_force_n', 'sensor_voltage_v',
-     'motor_voltage_v', 'current_a', 'speed_rad_s', 'applied_source', 'revision'),
-    'q8dB3xI')
+     'motor_voltage_v', 'current_a', 'speed_rad_s', 'applied_source', 'revision',
+     'pad1_shear_n', 'pad2_shear_n', 'pad1_displacement_m', 'pad2_displacement_m'),
+    'q8dB3xI4d')
 REFERENCE_LAYOUT = LoopLayout(
     'gripper_interfaces/msg/StageReference',
     ('stamp_ns', 'grasp_id', 'stage_id', 'revision', 'phase', 'outcome', 'controller',

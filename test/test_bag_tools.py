@@ -140,7 +140,7 @@ def write_grasp_bag(path: Path, topics=None, n_ticks: int = N_TICKS, custom_data
             raw = {
                 TICK: TICK_LAYOUT.pack(t_ns, g['pos'], 0.0, g['force'], g['force'],
                                        0.2 + 0.4 * g['force'], _voltage(k), 0.1 * _voltage(k),
-                                       0.0, g['source'] if k else 0, 0),
+                                       0.0, g['source'] if k else 0, 0, 0.0, 0.0, 0.0, 0.0),
                 POS_REF if g['phase'] == 1 else FORCE_REF: REFERENCE_LAYOUT.pack(
                     t_ns, GRASP_ID, g['stage'], 0, g['phase'], g['outcome'], g['source'],
                     running, k >= K_CONTACT, POS_SP_M, POS_SP_M, FORCE_SP_N, g['pos'], 0.0,

@@ -166,7 +166,6 @@ BAD_REQUESTS = [
     {'width_m': 0.0, 'mass_kg': 1.0},
     {'width_m': -0.01, 'mass_kg': 1.0},
     {'width_m': L_LS, 'mass_kg': 1.0},
-    {'width_m': 0.05, 'mass_kg': 0.0},
     {'width_m': 0.05, 'mass_kg': -1.0},
     {'width_m': 0.05, 'mass_kg': 1.0, 'friction_coefficient': -0.5},
     {'width_m': 0.05, 'mass_kg': 1.0, 'timeout_s': math.nan},

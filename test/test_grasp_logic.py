@@ -39,6 +39,14 @@ def test_paper_law_is_eq23_as_printed():
     assert force_setpoint_n(2.0, 0.5, 9.81, 0.0, ForceLaw.PAPER, 1.5) == pytest.approx(9.81)
 
 
+def test_unknown_mass_closes_to_the_touch_force_and_tracks_the_load():
+    t = validate_request(GraspRequest(0.05, 0.0), P, S, CFG.load_grip)
+    assert t.load_tracking and t.force_setpoint_n == CFG.load_grip.touch_force_n
+    assert not targets().load_tracking
+    with pytest.raises(RequestError, match='load_grip'):   # a supervisor without the law
+        GraspSupervisor(P, S).request_grasp(t, 0.0)
+
+
 def test_defaults_are_resolved_from_config():
     t = targets()
     assert t.friction_coefficient == S.friction_coefficient
@@ -50,7 +58,7 @@ def test_defaults_are_resolved_from_config():
     ({'mass_kg': math.inf}, 'mass_kg must be a finite'),
     ({'width_m': 0.0}, 'width_m must be in'),
     ({'width_m': 0.15}, 'width_m must be in'),
-    ({'mass_kg': 0.0}, 'mass_kg must be > 0'),
+    ({'mass_kg': -0.1}, 'mass_kg must be > 0, or 0'),
     ({'friction_coefficient': -1e-9}, 'friction_coefficient must be >= 0'),
     ({'acceleration_mps2': -1.0}, 'acceleration_mps2 must be >= 0'),
     ({'timeout_s': 1e9}, 'timeout_s must be in'),

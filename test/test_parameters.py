@@ -63,10 +63,11 @@ READ_ONLY = {('position_controller', 'controller'), ('force_controller', 'contro
              ('plant_simulator', 'publish_clock')} | {(n, 'config_file') for n in NODE_CLASSES}
 # the config sections each node declares as parameters: (writable, read-only)
 CONFIG_SECTIONS = {'plant_simulator': ((), ('plant', 'contact', 'force_sensor',
-                                            'sensor_noise')),
+                                            'sensor_noise', 'pad_sensor', 'force_control')),
                    'position_controller': (('position_control',), ('plant',)),
                    'force_controller': (('force_control',), ('plant',)),
-                   'supervisor': (('supervisor',), ('plant',)),
+                   'supervisor': (('supervisor',), ('plant', 'contact', 'force_control',
+                                                    'pad_sensor', 'load_grip')),
                    'grasp_action_server': ((), ())}
 
 

@@ -122,7 +122,7 @@ def test_loop_layout_is_rclpys_own_serialisation(layout):
 
 def test_a_big_endian_message_is_left_to_the_general_decoder():
     layout = wire.TICK_LAYOUT
-    data = bytearray(layout.pack(*([0] + [0.0] * 8 + [0, 0])))
+    data = bytearray(layout.pack(*([0] + [0.0] * 8 + [0, 0] + [0.0] * 4)))
     data[1] = 0x00                                  # CDR_BE encapsulation
     assert layout.unpack(bytes(data)) is None
 

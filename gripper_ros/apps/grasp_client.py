@@ -43,7 +43,9 @@ EXIT_INTERRUPTED = 130
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog='grasp_client', description=__doc__.splitlines()[0])
     p.add_argument('--width', type=float, help='expected object width (m); needed for a grasp')
-    p.add_argument('--mass', type=float, help='object mass (kg); needed for a grasp')
+    p.add_argument('--mass', type=float,
+                   help='object mass (kg); needed for a grasp; 0 = unknown: the grip tracks '
+                        'the load the pads measure')
     p.add_argument('--release', action='store_true',
                    help='open the fingers (/gripper/release) instead of grasping')
     p.add_argument('--friction', type=float, default=0.0, help='mu_s (0 = supervisor default)')

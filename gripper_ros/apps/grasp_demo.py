@@ -45,7 +45,9 @@ def build_parser() -> argparse.ArgumentParser:
     from gripper_ros.wire import DEFAULT_NAMESPACE, TIME_MODE_CHOICES
     p = argparse.ArgumentParser(prog='grasp_demo', description=__doc__.splitlines()[0])
     p.add_argument('--width', type=float, help='object width (m); with --mass grasps one object')
-    p.add_argument('--mass', type=float, help='object mass (kg)')
+    p.add_argument('--mass', type=float,
+                   help='object mass (kg); 0 = unknown: the grip tracks the load the pads '
+                        'measure (load_grip), OVERLOADED when 24 V cannot hold it')
     p.add_argument('--friction', type=float, default=0.0, help='mu_s (0 = configured default)')
     p.add_argument('--stiffness', type=float, default=0.0,
                    help="object contact stiffness N/m (0 = rigid, the paper's model)")

@@ -47,7 +47,7 @@ def _floats(text: str, name: str) -> list[float]:
 
 def _case(config, case: dict) -> dict:
     from gripper_ros.core.hold import Lift, parse_profile
-    from gripper_ros.core.load_grip import simulate_load_grip
+    from gripper_ros.core.grip_runs import simulate_load_grip
     profile, accel, hz = parse_profile(case['profile'])
     lift = Lift(accel, LIFT_DELAY_S, LIFT_DURATION_S, profile, hz)
     run = simulate_load_grip(config, WIDTH_M, case['mass_kg'], case['mu_s'],
@@ -151,7 +151,7 @@ def plot_pick_and_place(config, path: str, mass_kg: float = 0.6, mu_s: float = 0
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt
     from gripper_ros.core.hold import Lift
-    from gripper_ros.core.load_grip import simulate_load_grip
+    from gripper_ros.core.grip_runs import simulate_load_grip
     from gripper_ros.wire import LiftProfile
     lift = Lift(3.0, LIFT_DELAY_S, LIFT_DURATION_S, LiftProfile.PICK_AND_PLACE)
     fig, axes = plt.subplots(3, 1, figsize=(8, 8), sharex=True)

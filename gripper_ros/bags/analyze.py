@@ -63,6 +63,8 @@ class GraspMetrics:
     loss_detected_s: float = math.nan   # when the supervisor reported OBJECT_LOST, after it
     hold_margin_mean: float = math.nan  # ground truth: grip over the slip limit while lifted,
     hold_margin_max: float = math.nan   # 2 mu_s F / m (g + a) (sim/object_state's samples)
+    overload_said_s: float = math.nan   # when the supervisor reported OVERLOADED, after the answer
+    pad_shear_max_n: float = math.nan   # the most the pads read of the load (their mean shear)
 
 
 class AnalysisError(BagError):
@@ -231,9 +233,16 @@ def _hold_figures(series: GraspSeries, stages: Stages) -> dict:
     final = enum_name(Outcome, int(st.outcome[same[-1]])) if same.size else ''
     last_tick_s = float(series.joint.t_s[-1]) if series.joint.t_s.size else stages.last_s
     lost = same[(st.outcome[same] == Outcome.OBJECT_LOST) & (st.t_s[same] > stages.end_s)]
+    over = same[st.outcome[same] == Outcome.OVERLOADED]
     figures = {'final_outcome': final, 'hold_s': max(0.0, last_tick_s - stages.end_s),
                'loss_detected_s': float(st.t_s[lost[0]] - stages.end_s) if lost.size
+               else math.nan,
+               'overload_said_s': float(st.t_s[over[0]] - stages.end_s) if over.size
                else math.nan}
+    ticks = series.ticks
+    if ticks and 'tick.pad1_shear_n' not in series.absent and ticks['stamp_ns'].size:
+        figures['pad_shear_max_n'] = float(np.max(0.5 * (ticks['pad1_shear_n'] +
+                                                         ticks['pad2_shear_n'])))
     obj = series.objects
     if obj is not None and obj.t_s.size:
         figures['max_slip_m'] = float(np.max(obj.slip_m))

@@ -140,6 +140,9 @@ class GraspSeries:
     """Format 2: every StageReference field as an array, in tick order."""
     commands: dict[str, np.ndarray] = field(default_factory=dict, repr=False)
     """Format 2: every MotorCommand field as an array, in tick order."""
+    absent: frozenset = frozenset()
+    """``kind.field`` (kind ``tick``, ``reference``, ``command``) of the loop messages' fields
+    the bag's own (older) message types lack: read as 0, never recorded."""
 
     @property
     def duration_s(self) -> float:
@@ -211,20 +214,21 @@ def _lockstep_series(bag: Bag, ns: str) -> GraspSeries:
     t_object = qualified(ns, TOPIC_OBJECT_STATE)
     bag.require_topics([t_tick])
     ticks, refs, cmds, statuses, objects = [], [], [], [], []
+    absent: set[str] = set()
     for raw in bag.messages:
         topic = raw.topic
         if topic == t_tick:
             values = TICK_LAYOUT.unpack(raw.data)
-            ticks.append(values if values is not None else _fields(bag.decode(raw),
-                                                                   TICK_LAYOUT.fields))
+            ticks.append(values if values is not None else _fields(
+                bag.decode(raw), TICK_LAYOUT.fields, 'tick', absent))
         elif topic in t_refs:
             values = REFERENCE_LAYOUT.unpack(raw.data)
-            refs.append(values if values is not None else _fields(bag.decode(raw),
-                                                                  REFERENCE_LAYOUT.fields))
+            refs.append(values if values is not None else _fields(
+                bag.decode(raw), REFERENCE_LAYOUT.fields, 'reference', absent))
         elif topic == t_cmd:
             values = COMMAND_LAYOUT.unpack(raw.data)
-            cmds.append(values if values is not None else _fields(bag.decode(raw),
-                                                                  COMMAND_LAYOUT.fields))
+            cmds.append(values if values is not None else _fields(
+                bag.decode(raw), COMMAND_LAYOUT.fields, 'command', absent))
         elif topic == t_status:
             m = bag.decode(raw)
             statuses.append((_stamp_ns(m), m))
@@ -235,7 +239,7 @@ def _lockstep_series(bag: Bag, ns: str) -> GraspSeries:
     return lockstep_series(bag.path, ns, ticks, refs, cmds, statuses, objects,
                            custom_data=bag.custom_data_parsed(), counts=bag.counts(),
                            start_ns=bag.start_ns, end_ns=bag.end_ns, size_bytes=bag.size_bytes,
-                           truncated=bag.truncated, damage=bag.damage)
+                           truncated=bag.truncated, damage=bag.damage, absent=frozenset(absent))
 
 
 _NO_BAG = {'custom_data': {}, 'counts': {}, 'start_ns': 0, 'end_ns': 0, 'size_bytes': 0,
@@ -260,7 +264,8 @@ def lockstep_series(path, ns: str, ticks: list[tuple], refs: list[tuple], cmds: 
                   key=_key(REFERENCE_LAYOUT, 'stamp_ns', 'stage_id'))
     cmds = sorted(_unique_by(cmds, _key(COMMAND_LAYOUT, 'stage_id', 'stamp_ns')),
                   key=_key(COMMAND_LAYOUT, 'stamp_ns', 'stage_id'))
-    tick = dict(zip(TICK_LAYOUT.fields, _columns(ticks, (np.int64,) + (float,) * 8 + (int, int))))
+    tick = dict(zip(TICK_LAYOUT.fields, _columns(
+        ticks, (np.int64,) + (float,) * 8 + (int, int) + (float,) * 4)))
     t_s = tick['stamp_ns'] * 1e-9
     f, i = float, int
     ref = dict(zip(REFERENCE_LAYOUT.fields, _columns(
@@ -295,8 +300,11 @@ def _key(layout, *names):
     return lambda values: tuple(values[i] for i in index)
 
 
-def _fields(msg, names) -> tuple:
-    """``msg``'s values of ``names``; 0 for a field its (older) type lacks."""
+def _fields(msg, names, kind: str, absent: set) -> tuple:
+    """``msg``'s values of ``names``; 0 for a field its (older) type lacks, named in ``absent``."""
+    for n in names:
+        if not hasattr(msg, n):
+            absent.add(f'{kind}.{n}')
     return tuple(getattr(msg, n, 0) for n in names)
 
 

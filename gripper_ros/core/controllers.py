@@ -36,7 +36,8 @@ class ForceControllerKind(enum.Enum):
 
 def make_plant(config: GripperConfig) -> GripperPlant:
     return GripperPlant(config.plant, FsrVoltageDivider(config.force_sensor, config.sensor_noise),
-                        config.contact)
+                        config.contact, config.pad_sensor, config.force.sample_time_s,
+                        config.sensor_noise.seed)
 
 
 def _limits(config: GripperConfig) -> tuple[float, float]:

@@ -19,15 +19,16 @@ from typing import Callable, Sequence
 from gripper_ros.core.config import GripperConfig
 from gripper_ros.core.controllers import make_plant
 from gripper_ros.core.engine import map_cases
+from gripper_ros.core.hold import hold_load_n
 from gripper_ros.core.lockstep import (Command, PlantSide, side_accept, side_needs_time,
                                        side_step, StageSide, SupervisorSide, Tick)
-from gripper_ros.core.plant import check_fault, GraspObject, Lift
+from gripper_ros.core.plant import check_fault, GraspObject, K_HOLD, Lift
 from gripper_ros.core.requests import (GraspRequest, MoveRequest, RequestError, validate_move,
                                        validate_request)
 from gripper_ros.core.stages import (DEFAULT_APPROACH_FORCE_MARGIN, DEFAULT_FORCE_CONTROLLER,
                                      DEFAULT_POSITION_CONTROLLER, ForceStageController,
                                      PositionStageController, Reference, stage_answer)
-from gripper_ros.core.supervisor import GraspSupervisor, NO_NS, supervisor_decide
+from gripper_ros.core.supervisor import GraspSupervisor, load_law, NO_NS, supervisor_decide
 from gripper_ros.wire import Controller, FaultKind, Outcome, Phase, SwitchCriterion
 import numba
 import numpy as np
@@ -58,6 +59,18 @@ class HeadlessGrasp:
     final_ns: int | None = None         # when the final outcome was reached
     slip_m: float = 0.0                 # ground truth: how far the object slid on the pads
     lost_ns: int | None = None          # ground truth: when it left the pads
+    overload_ns: int | None = None      # when the load-tracking grip answered OVERLOADED
+    overload_need_n: float = math.nan   # ... the grip the load needed then
+    overload_limit_n: float = math.nan  # ... the most 24 V holds
+    pad1_shear_n: np.ndarray = field(repr=False, default=None)         # the ticks' pad readings
+    pad2_shear_n: np.ndarray = field(repr=False, default=None)
+    pad1_displacement_m: np.ndarray = field(repr=False, default=None)
+    pad2_displacement_m: np.ndarray = field(repr=False, default=None)
+    setpoint_n: np.ndarray = field(repr=False, default=None)     # the reference's, each tick
+    load_n: np.ndarray = field(repr=False, default=None)         # truth: m (g + a) while held
+    slip_series_m: np.ndarray = field(repr=False, default=None)  # truth: the slide so far
+    hold_state: np.ndarray = field(repr=False, default=None)     # truth: HoldState
+    mu_est: np.ndarray = field(repr=False, default=None)         # the load-tracking law's
 
     @property
     def peak_contact_force_n(self) -> float:
@@ -96,21 +109,35 @@ class HeadlessGrasp:
 LOOP_STATE = np.dtype([('woken', 'b1'), ('named', 'b1'), ('done', 'b1'),
                        ('hold_ns', 'i8'), ('hold_until_ns', 'i8'), ('rows', 'i8')], align=True)
 """The compiled loop's own state: resumable when its row buffers fill up."""
-ROWS = ('position_m', 'force_n', 'peak_force_n', 'motor_voltage_v', 'sensor_voltage_v')
-"""The per-tick float series a headless grasp keeps, in the order of its row buffer."""
+ROWS = ('position_m', 'force_n', 'peak_force_n', 'motor_voltage_v', 'sensor_voltage_v',
+        'pad1_shear_n', 'pad2_shear_n', 'pad1_displacement_m', 'pad2_displacement_m',
+        'setpoint_n', 'load_n', 'slip_series_m', 'hold_state', 'mu_est')
+"""The per-tick float series a headless grasp keeps, in the order of its row buffer: the tick's
+fields, then the reference's force setpoint, the held object's truth (load m (g + a) while
+held, slip, HoldState) and the load-tracking law's friction estimate."""
 FIRST_ROWS = 4096
 """Rows a grasp's series buffers start with (they double when full)."""
 
 
 @numba.njit(cache=True)
-def _keep_row(rows_t, rows_f, rows_phase, n, tick, phase) -> None:
+def _keep_row(rows_t, rows_f, rows_phase, n, tick, phase, ref, plant_k, law) -> None:
     t = tick[0]
+    h = plant_k[K_HOLD][0]
     rows_t[n] = t.stamp_ns
     rows_f[n, 0] = t.position_m
     rows_f[n, 1] = t.force_n
     rows_f[n, 2] = t.peak_force_n
     rows_f[n, 3] = t.motor_voltage_v
     rows_f[n, 4] = t.sensor_voltage_v
+    rows_f[n, 5] = t.pad1_shear_n
+    rows_f[n, 6] = t.pad2_shear_n
+    rows_f[n, 7] = t.pad1_displacement_m
+    rows_f[n, 8] = t.pad2_displacement_m
+    rows_f[n, 9] = ref[0].force_setpoint_n
+    rows_f[n, 10] = hold_load_n(h) if h.has_hold else 0.0
+    rows_f[n, 11] = h.slip_m
+    rows_f[n, 12] = h.state
+    rows_f[n, 13] = law[0].mu_est
     rows_phase[n] = phase
 
 
@@ -130,7 +157,8 @@ def run_lockstep(loop, side, plant_k, supervisor_k, position_k, force_k, tick, r
         if n == rows_t.shape[0]:
             state.rows = n
             return False
-        _keep_row(rows_t, rows_f, rows_phase, n, tick, supervisor.phase)
+        _keep_row(rows_t, rows_f, rows_phase, n, tick, supervisor.phase, ref, plant_k,
+                  supervisor_k[4])
         n += 1
         if state.hold_until_ns == NO_NS and supervisor.answer_ns != NO_NS:
             state.hold_until_ns = supervisor.answer_ns + state.hold_ns
@@ -191,7 +219,8 @@ class _Loop:
             self._grow()
         n = int(self.state[0]['rows'])
         _keep_row(self.rows_t, self.rows_f, self.rows_phase, n, self.tick,
-                  int(self.supervisor.decision.phase))
+                  int(self.supervisor.decision.phase), self.ref, self.plant_side.plant.kernel,
+                  self.supervisor.kernel[4])
         self.state[0]['rows'] = n + 1
 
     def run(self) -> None:
@@ -272,7 +301,7 @@ def simulate_grasp(config: GripperConfig, width_m: float, mass_kg: float, *,
     """
     targets = validate_request(GraspRequest(width_m, mass_kg, friction_coefficient,
                                             acceleration_mps2, timeout_s, width_tolerance_m),
-                               config.plant, config.supervisor)
+                               config.plant, config.supervisor, config.load_grip)
     plant = make_plant(config)
     plant.t_ns = start_ns
     plant_side = PlantSide(plant)
@@ -284,7 +313,7 @@ def simulate_grasp(config: GripperConfig, width_m: float, mass_kg: float, *,
         kind, tau = check_fault(fault[0], fault[1], fault[2], obj.rigid)
         fault = (kind, fault[1], tau)
     plant_side.set_object(obj, fault=fault, lift=lift)
-    supervisor = GraspSupervisor(config.plant, config.supervisor)
+    supervisor = GraspSupervisor(config.plant, config.supervisor, load_law(config))
     loop = _Loop(plant_side, supervisor,
                  PositionStageController(config, position_controller),
                  ForceStageController(config, force_controller, approach_force_margin))
@@ -306,11 +335,14 @@ def simulate_grasp(config: GripperConfig, width_m: float, mass_kg: float, *,
     else:
         loop.run_traced(trace)
     s = supervisor
+    t_ns, *rows, phase = loop.series()
+    pads = dict(zip(ROWS[5:], rows[5:]))
     return HeadlessGrasp(
         s.outcome, s.message, s.switch_criterion, targets.position_setpoint_m,
         targets.force_setpoint_n, s.start_ns, s.switch_ns, s.contact_ns,
-        int(loop.tick[0]['stamp_ns']), s.answer, s.answer_ns, *loop.series(), s.end_ns,
-        plant.object_state.slip_m, plant.object_state.lost_ns)
+        int(loop.tick[0]['stamp_ns']), s.answer, s.answer_ns, t_ns, *rows[:5], phase,
+        s.end_ns, plant.object_state.slip_m, plant.object_state.lost_ns, s.overload_ns,
+        s.overload_need_n, config.plant.max_force_n, **pads)
 
 
 def _grasp_case(config: GripperConfig, summarize: Callable | None, case: dict):

@@ -63,7 +63,7 @@ import enum
 import math
 from typing import NamedTuple
 
-from gripper_ros.core.config import ContactParams, PlantParams
+from gripper_ros.core.config import ContactParams, PadSensorParams, PlantParams
 from gripper_ros.core.force_sensor import (fsr_voltage_v, FsrVoltageDivider,
                                            NOISE_CHANNEL_FORCE, NOISE_CHANNEL_POSITION,
                                            noisy_reading)
@@ -72,6 +72,8 @@ from gripper_ros.core.hold import (check_finite_nonnegative, hold_advance, hold_
                                    hold_live, hold_load_n, hold_presliding_m, hold_remove,
                                    hold_scenario_in_progress, hold_shear_n, hold_stays_stuck,
                                    HoldModel, HoldState, Lift, ObjectState)
+from gripper_ros.core.pad_sensor import (CHANNEL_DTYPE, channel_step, ChannelSpec, make_channel,
+                                         MAX_LATENCY_SAMPLES)
 from gripper_ros.wire import FaultKind, TICK_LAYOUT
 import numba
 import numpy as np
@@ -194,7 +196,12 @@ DISC_TABLE_SIZE = 64          # entries of the plant's table (a grasp uses about
 MAX_FIRED_FAULTS = 16         # fired faults kept since set_object (the oldest are dropped)
 
 # The entries of the tuple ``GripperPlant.kernel``.
-K_STATE, K_PARAMS, K_HOLD, K_SENSOR, K_FIRED, K_DISC_KEYS, K_DISC_COEF = range(7)
+K_STATE, K_PARAMS, K_HOLD, K_SENSOR, K_FIRED, K_DISC_KEYS, K_DISC_COEF, K_PADS, \
+    K_PAD_BUFFERS = range(9)
+
+# The pad channels (K_PADS rows, core/pad_sensor.py), in PlantTick's order of their readings.
+PAD_SHEAR_1, PAD_SHEAR_2, PAD_DISPLACEMENT_1, PAD_DISPLACEMENT_2 = range(4)
+PAD_CHANNELS = 4
 
 PARAMS_DTYPE = np.dtype([
     ('rho', np.float64),                   # p / (2 pi), m per motor rad (eq. 10)
@@ -213,6 +220,7 @@ PARAMS_DTYPE = np.dtype([
     ('reach_feedback', np.float64),        # k_t k_b / R + b (free-reach bound)
     ('after_lift_ns', np.int64),           # contact.after_lift_s in ns
     ('two', np.float64),                   # 2.0 read at run time: w ** two is Python's w ** 2
+    ('pad_dt_ns', np.int64),               # the pad channels' sample period
 ], align=True)
 """The plant's constants (Table I and derived), as one record."""
 
@@ -246,6 +254,7 @@ STATE_DTYPE = np.dtype([
     ('disc_count', np.int64),              # entries of the discretisation table in use
     ('disc_next', np.int64),               # the entry a miss overwrites once it is full
     ('disc_last', np.int64),               # the entry last found (looked at first)
+    ('pads_resting', np.uint8),            # the pad channels read 0: nothing is held
 ], align=True)
 """The plant's mutable state: mechanics, object, slip, scheduled fault, table bookkeeping."""
 
@@ -814,6 +823,55 @@ def _step_in_pieces(s, p, h, sensor, fired, keys, coef, e, t_ns, end_ns):
         t_ns = piece_end_ns
 
 
+# ----------------------------------------------------------------------------- pad sensing
+@numba.njit(cache=True)
+def _pads_rest(k):
+    """Nothing is held: every pad channel reads 0 with a history of 0 (no noise is drawn)."""
+    chans = k[K_PADS]
+    bufs = k[K_PAD_BUFFERS]
+    for i in range(PAD_CHANNELS):
+        c = chans[i]
+        for j in range(bufs.shape[1]):
+            bufs[i, j] = 0.0
+        c.filtered = 0.0
+        c.primed = 1
+        c.reading = 0.0
+
+
+@numba.njit(cache=True)
+def _pads_sample(k, duration_ns):
+    """Read each pad's shear and the object's displacement on it at the end of a step.
+
+    While the object is held (stuck or sliding) each channel takes one sample per ``pad_dt_ns``
+    of the step (at least one) of the value now; otherwise the channels rest at 0, so the
+    readings, and the noise drawn, depend only on the held samples since ``set_object``.
+    """
+    s = k[K_STATE][0]
+    p = k[K_PARAMS][0]
+    h = k[K_HOLD][0]
+    if h.has_hold == 0 or (h.state != HoldState.STUCK and h.state != HoldState.SLIDING):
+        if not s.pads_resting:
+            _pads_rest(k)
+            s.pads_resting = 1
+        return
+    s.pads_resting = 0
+    force = _force(s, p)
+    shear = hold_shear_n(h, force)
+    displacement = hold_presliding_m(h, force) + h.slip_m
+    n = 1
+    if p.pad_dt_ns > 0:
+        n = (duration_ns + p.pad_dt_ns // 2) // p.pad_dt_ns
+        if n < 1:
+            n = 1
+    chans = k[K_PADS]
+    bufs = k[K_PAD_BUFFERS]
+    for _ in range(n):
+        channel_step(chans[PAD_SHEAR_1], bufs[PAD_SHEAR_1], shear)
+        channel_step(chans[PAD_SHEAR_2], bufs[PAD_SHEAR_2], shear)
+        channel_step(chans[PAD_DISPLACEMENT_1], bufs[PAD_DISPLACEMENT_1], displacement)
+        channel_step(chans[PAD_DISPLACEMENT_2], bufs[PAD_DISPLACEMENT_2], displacement)
+
+
 # ----------------------------------------------------------------------------- entry points
 @numba.njit(cache=True)
 def plant_step(k, voltage_v, duration_ns):
@@ -836,6 +894,7 @@ def plant_step(k, voltage_v, duration_ns):
         _step_in_pieces(s, p, h, k[K_SENSOR][0], k[K_FIRED], keys, coef, e, start_ns, end_ns)
     s.t_ns = end_ns
     s.t_now_s = end_ns * 1e-9
+    _pads_sample(k, duration_ns)
 
 
 @numba.njit(cache=True)
@@ -882,6 +941,11 @@ def plant_read_tick(k, tick, revision, applied_source):
     r.speed_rad_s = w
     r.applied_source = applied_source
     r.revision = revision
+    pads = k[K_PADS]
+    r.pad1_shear_n = pads[PAD_SHEAR_1].reading
+    r.pad2_shear_n = pads[PAD_SHEAR_2].reading
+    r.pad1_displacement_m = pads[PAD_DISPLACEMENT_1].reading
+    r.pad2_displacement_m = pads[PAD_DISPLACEMENT_2].reading
 
 
 @numba.njit(cache=True)
@@ -1006,9 +1070,20 @@ class GripperPlant:
     """
 
     def __init__(self, params: PlantParams, sensor: FsrVoltageDivider,
-                 contact: ContactParams | None = None):
+                 contact: ContactParams | None = None, pads: PadSensorParams | None = None,
+                 pad_dt_s: float = 0.0, pad_seed: int = 0):
+        """Build the plant; ``pads`` sensed every ``pad_dt_s`` (None: exact pad readings).
+
+        ``pad_seed`` seeds the pads' noise, again at each :meth:`set_object`.
+        """
         self.params = params
         self.sensor = sensor
+        self.pads = pads
+        ideal = ChannelSpec(0.0, 0.0, 0.0, 0.0)
+        self._pad_specs = (ideal,) * PAD_CHANNELS if pads is None else (
+            pads.shear, pads.shear, pads.displacement, pads.displacement)
+        self._pad_dt_s = float(pad_dt_s) if pads is not None else 1.0
+        self._pad_seed = int(pad_seed)
         self.contact_defaults = contact or ContactParams(0.0, 0.0)
         default = self.contact_defaults
         self._raw = _raw_constants(params)
@@ -1018,8 +1093,14 @@ class GripperPlant:
         hold[0]['state'] = HoldState.NONE
         self.kernel = (state, _plant_params_record(params, self.contact_defaults), hold,
                        sensor.record, np.zeros((MAX_FIRED_FAULTS, 2), np.int64),
-                       np.zeros((DISC_TABLE_SIZE, 5)), np.zeros((DISC_TABLE_SIZE, 15)))
-        """The kernel buffers: (state, params, hold, sensor, fired faults, table keys, table)."""
+                       np.zeros((DISC_TABLE_SIZE, 5)), np.zeros((DISC_TABLE_SIZE, 15)),
+                       np.zeros(PAD_CHANNELS, CHANNEL_DTYPE),
+                       np.zeros((PAD_CHANNELS, MAX_LATENCY_SAMPLES)))
+        """The kernel buffers: (state, params, hold, sensor, fired faults, table keys, table,
+        pad channels, their delay lines)."""
+        if pads is not None:
+            self.kernel[K_PARAMS][0]['pad_dt_ns'] = round(self._pad_dt_s * 1e9)
+        self._seed_pads()
         _use_default_object(self.kernel, float(default.stiffness_n_per_m),
                             float(default.damping_n_s_per_m))
         self.reset()
@@ -1079,10 +1160,20 @@ class GripperPlant:
             self.kernel[K_HOLD][0] = hold.record[0]
             self._h['has_hold'] = 1
         self._lift = lift
+        self._seed_pads()
         _set_object(self.kernel, float(obj.width_m), float(obj.stiffness_n_per_m),
                     float(obj.damping_n_s_per_m), float(obj.mass_kg),
                     float(obj.static_friction), float(obj.kinetic_friction),
                     float(obj.pad_length_m))
+
+    def _seed_pads(self) -> None:
+        """Fresh pad channels (each its own noise stream from the seed), resting at 0."""
+        for i, spec in enumerate(self._pad_specs):
+            record, buffer = make_channel(spec, self._pad_dt_s,
+                                          (self._pad_seed * PAD_CHANNELS + i) % 2 ** 64)
+            self.kernel[K_PADS][i] = record[0]
+            self.kernel[K_PAD_BUFFERS][i] = buffer
+        self._s['pads_resting'] = 0
 
     def _hold_model_for(self, obj: GraspObject, lift: Lift | None) -> HoldModel | None:
         """Build the hold of ``obj``, its friction resolved against the defaults (ValueError)."""

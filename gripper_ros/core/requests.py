@@ -5,14 +5,16 @@ non-finite, out of range, or asks for more force than 24 V can hold; a valid one
 defaults from the configuration into :class:`GraspTargets` or :class:`MoveTargets`, what the
 supervisor runs. The grip force is :func:`force_setpoint_n`: ``k m (g + a) / (2 mu_s)`` (two
 pads of friction, safety factor ``k``) by default, eq. 23's ``mu_s m (g + a)`` with
-``supervisor.force_law: paper``.
+``supervisor.force_law: paper``. A request of mass 0 leaves the mass unknown: the grip then
+tracks the load the pads measure (:mod:`gripper_ros.core.load_grip`, run by the supervisor),
+from a touch at ``load_grip.touch_force_n``.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
 import math
 
-from gripper_ros.core.config import ForceLaw, PlantParams, SupervisorParams
+from gripper_ros.core.config import ForceLaw, LoadGripParams, PlantParams, SupervisorParams
 
 MAX_TIMEOUT_S = 600.0  # simulated seconds; a longer grasp is a mistake, not a request
 
@@ -24,7 +26,7 @@ class RequestError(ValueError):
 @dataclass(frozen=True)
 class GraspRequest:
     width_m: float
-    mass_kg: float
+    mass_kg: float                      # 0 = unknown: the load-tracking grip
     friction_coefficient: float = 0.0   # 0 = default
     acceleration_mps2: float = 0.0
     timeout_s: float = 0.0              # 0 = default
@@ -71,6 +73,7 @@ class GraspTargets:
     friction_coefficient: float
     timeout_s: float
     width_tolerance_m: float = 0.0
+    load_tracking: bool = False         # mass unknown: the grip follows the measured load
 
     @property
     def approach_setpoint_m(self) -> float:
@@ -100,9 +103,13 @@ def _force_law_text(law: ForceLaw, mu: float, mass_kg: float, g_plus_a: float,
             f'/ (2 mu_s={2.0 * mu:g})')
 
 
-def validate_request(req: GraspRequest, plant: PlantParams,
-                     sup: SupervisorParams) -> GraspTargets:
-    """Resolve defaults and refuse anything non-finite, out of range or beyond 24 V."""
+def validate_request(req: GraspRequest, plant: PlantParams, sup: SupervisorParams,
+                     load_grip: LoadGripParams | None = None) -> GraspTargets:
+    """Resolve defaults and refuse anything non-finite, out of range or beyond 24 V.
+
+    Mass 0: the load-tracking grip, whose contact stage closes to ``load_grip.touch_force_n``
+    (``load_grip`` None: its defaults).
+    """
     for name in ('width_m', 'mass_kg', 'friction_coefficient', 'acceleration_mps2', 'timeout_s',
                  'width_tolerance_m'):
         value = getattr(req, name)
@@ -112,8 +119,9 @@ def validate_request(req: GraspRequest, plant: PlantParams,
     if not 0.0 < req.width_m < plant.max_travel_m:
         raise RequestError(f'width_m must be in (0, {plant.max_travel_m:g}) m (the finger '
                            f'travel), got {req.width_m!r}')
-    if req.mass_kg <= 0.0:
-        raise RequestError(f'mass_kg must be > 0, got {req.mass_kg!r}')
+    if req.mass_kg < 0.0:
+        raise RequestError(f'mass_kg must be > 0, or 0 (unknown: the load-tracking grip), got '
+                           f'{req.mass_kg!r}')
     if req.friction_coefficient < 0.0:
         raise RequestError(f'friction_coefficient must be >= 0 (0 = default '
                            f'{sup.friction_coefficient:g}), got {req.friction_coefficient!r}')
@@ -130,6 +138,13 @@ def validate_request(req: GraspRequest, plant: PlantParams,
         raise RequestError(f'width_m + width_tolerance_m must be < {plant.max_travel_m:g} m (the '
                            f'finger travel), got {req.width_m:g} + {tolerance:g} m')
     mu = req.friction_coefficient or sup.friction_coefficient
+    if req.mass_kg == 0.0:
+        touch_n = (load_grip or LoadGripParams()).touch_force_n
+        if not 0.0 < touch_n <= plant.max_force_n:
+            raise RequestError(f'load_grip.touch_force_n must be in (0, {plant.max_force_n:.2f}] '
+                               f'N (the most {plant.voltage_limit_v:g} V holds), got {touch_n!r}')
+        return GraspTargets(plant.max_travel_m - req.width_m, touch_n, mu,
+                            req.timeout_s or sup.timeout_s, tolerance, load_tracking=True)
     accel = req.acceleration_mps2 or sup.acceleration_mps2
     law, k = sup.force_law, sup.grip_safety_factor
     force = force_setpoint_n(req.mass_kg, mu, plant.gravity_mps2, accel, law, k)

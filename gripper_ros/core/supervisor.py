@@ -41,7 +41,8 @@ from __future__ import annotations
 
 import math
 
-from gripper_ros.core.config import PlantParams, SupervisorParams
+from gripper_ros.core.config import GripperConfig, LoadGripParams, PlantParams, SupervisorParams
+from gripper_ros.core.load_grip import law_step, make_law, MU_GRID
 from gripper_ros.core.requests import GraspTargets, MoveTargets, RequestError
 from gripper_ros.wire import Controller, Outcome, PendingRequest, Phase, SwitchCriterion
 import numba
@@ -68,7 +69,7 @@ KIND_NAMES = {int(code): kind for kind, code in KIND_CODES.items()}
 
 _TARGET_FIELDS = ('position_setpoint_m', 'approach_setpoint_m', 'force_setpoint_n',
                   'friction_coefficient', 'timeout_s', 'width_tolerance_m', 'speed_mps',
-                  'max_effort_n', 'voltage_limit_v', 'tolerance_m')
+                  'max_effort_n', 'voltage_limit_v', 'tolerance_m', 'load_tracking')
 """A request's targets as the kernel reads them (a grasp's move fields are 0)."""
 
 SUPERVISOR_STATE = np.dtype(
@@ -90,6 +91,7 @@ SUPERVISOR_STATE = np.dtype(
      ('seed_voltage_v', 'f8'),             # the last finite applied voltage (a stage's seed)
      ('msg_code', 'i4'), ('msg_seq', 'i8'),  # the current message: a code, numbers in msg_*
      ('status_key', 'i8'),                 # phase, active, outcome and stage in one number
+     ('overload_ns', 'i8'),                # when the load-tracking grip said overload
      ('tg_kind', 'i4')]                    # the current request's targets (0: none yet)
     + [('tg_' + name, 'f8') for name in _TARGET_FIELDS]
     + [('pend_kind', 'i4'), ('pend_mass_kg', 'f8'), ('pend_after_ns', 'i8')]   # 0: none
@@ -125,6 +127,7 @@ MSG_MOVED = 10
 MSG_STALLED_PRESSING = 11
 MSG_STALLED_AT_REST = 12
 MSG_MOVE_TIMEOUT = 13
+MSG_OVERLOADED = 14
 MSG_FLOATS = 8
 MSG_INTS = 6
 
@@ -140,8 +143,9 @@ def _running(s) -> bool:
 
 @_kernel
 def _holding(s) -> bool:
-    """Tell whether a grasp was answered HOLDING and the force stage goes on holding."""
-    return s.phase == Phase.HOLDING and s.outcome == Outcome.HOLDING
+    """Tell whether a grasp was answered HOLDING (or OVERLOADED) and the force stage holds on."""
+    return s.phase == Phase.HOLDING and (s.outcome == Outcome.HOLDING or
+                                         s.outcome == Outcome.OVERLOADED)
 
 
 @_kernel
@@ -222,6 +226,7 @@ def _reset(s, t_ns) -> None:
     s.gripped = False
     s.low_since_ns = NO_NS
     s.rest_since_ns = NO_NS
+    s.overload_ns = NO_NS
     s.msg_code = MSG_NONE
     s.msg_seq += 1
 
@@ -242,6 +247,7 @@ def _take_pending(s) -> None:
     s.tg_max_effort_n = s.pend_max_effort_n
     s.tg_voltage_limit_v = s.pend_voltage_limit_v
     s.tg_tolerance_m = s.pend_tolerance_m
+    s.tg_load_tracking = s.pend_load_tracking
     s.pend_kind = 0
     s.grasp_id += 1
 
@@ -483,6 +489,52 @@ def _step_request(s, p, msg_f, msg_i, t_ns, position_m, force_n, sensor_voltage_
 
 
 @_kernel
+def _tracking(s) -> bool:
+    """Tell whether the load-tracking grip sets the force now: a mass-0 grasp from FORCE on."""
+    return s.tg_load_tracking != 0.0 and s.tg_kind == PendingRequest.GRASP and \
+        (s.phase == Phase.FORCE or s.phase == Phase.HOLDING) and (_running(s) or _holding(s))
+
+
+@_kernel
+def _law_reset(law, law_init, history, sums) -> None:
+    """Start a new grasp's law as :func:`gripper_ros.core.load_grip.make_law` made it."""
+    law[0] = law_init[0]
+    history[:, :] = 0.0
+    sums[:, :] = 0.0
+
+
+@_kernel
+def _track_load(s, msg_f, msg_i, law, history, sums, grid, t_ns, force_n, shear_n,
+                displacement_m, may_answer) -> int:
+    """Run the law on this tick's pads: its setpoint becomes the grasp's; OVERLOADED once.
+
+    The answer OVERLOADED comes the first tick the law has found the load beyond the most 24 V
+    holds (the next one when this tick already answered); the force stage goes on holding at
+    the law's setpoint (at most that force), the loss watch too.
+    """
+    g = law[0]
+    s.tg_force_setpoint_n = law_step(g, history, sums, grid, t_ns, shear_n, displacement_m,
+                                     force_n)
+    if g.overload_ns == -1 or s.overload_ns != NO_NS or not may_answer:
+        return NO_ANSWER
+    s.overload_ns = t_ns
+    msg_i[0] = t_ns
+    _snapshot_into(s, msg_i)
+    msg_f[0] = g.overload_need_n
+    msg_f[1] = g.max_force_n
+    msg_f[2] = force_n
+    msg_f[3] = 2.0 * shear_n
+    msg_f[4] = g.mu_est
+    s.phase = Phase.HOLDING
+    s.outcome = Outcome.OVERLOADED
+    if s.end_ns == NO_NS:                  # not answered before: answered now
+        s.end_ns = t_ns
+    s.msg_code = MSG_OVERLOADED
+    s.msg_seq += 1
+    return s.outcome
+
+
+@_kernel
 def _fill(s, answer) -> None:
     """Write the tick's decision: who drives, with which setpoints and limits, what answers."""
     s.d_answer = answer
@@ -518,14 +570,15 @@ def _fill(s, answer) -> None:
 
 @_kernel
 def supervisor_step(k, t_ns, position_m, force_n, sensor_voltage_v, speed_mps,
-                    revision) -> None:
+                    revision, shear_n, displacement_m) -> None:
     """Advance the state machine with the measurements of tick ``t_ns``; the decision in ``k``.
 
     ``speed_mps`` is the finger's speed (the position switch's speed condition);
     ``revision`` counts changes of the simulated world (a new object, fingers reset): the
-    position stage then holds the finger where it now is.
+    position stage then holds the finger where it now is. ``shear_n`` and ``displacement_m``
+    (a pad's mean) feed the load-tracking grip of a mass-0 grasp.
     """
-    state, params, msg_f, msg_i = k
+    state, params, msg_f, msg_i, law, law_init, history, sums, grid = k
     s = state[0]
     p = params[0]
     s.t_ns = t_ns
@@ -538,9 +591,16 @@ def supervisor_step(k, t_ns, position_m, force_n, sensor_voltage_v, speed_mps,
     if s.pend_kind != 0 and (s.pend_after_ns == NO_NS or t_ns > s.pend_after_ns) and \
             math.isfinite(position_m):
         _start(s, p, t_ns, position_m, sensor_voltage_v)
+        if s.kind == PendingRequest.GRASP:
+            _law_reset(law, law_init, history, sums)
     if _running(s) or _holding(s):
         answer = _step_request(s, p, msg_f, msg_i, t_ns, position_m, force_n, sensor_voltage_v,
                                speed_mps)
+    if _tracking(s) and math.isfinite(force_n):
+        overloaded = _track_load(s, msg_f, msg_i, law, history, sums, grid, t_ns, force_n,
+                                 shear_n, displacement_m, answer == NO_ANSWER)
+        if overloaded != NO_ANSWER:
+            answer = overloaded
     _fill(s, answer)
 
 
@@ -554,7 +614,8 @@ def supervisor_decide(k, tick, ref) -> bool:
     """
     t = tick[0]
     supervisor_step(k, t.stamp_ns, t.position_m, t.force_n, t.sensor_voltage_v, t.velocity_mps,
-                    t.revision)
+                    t.revision, 0.5 * (t.pad1_shear_n + t.pad2_shear_n),
+                    0.5 * (t.pad1_displacement_m + t.pad2_displacement_m))
     s = k[0][0]
     if math.isfinite(t.motor_voltage_v):
         s.seed_voltage_v = t.motor_voltage_v
@@ -616,6 +677,19 @@ def supervisor_fault(k) -> bool:
 
 
 # ------------------------------------------------------------------ the Python face
+def load_law(config: GripperConfig) -> tuple:
+    """Return the load-tracking grip of ``config`` for a supervisor (``make_law``'s arrays).
+
+    Sampled at the force stage's period, the pads' tangential stiffness and displacement
+    sensing as configured, at most the force 24 V holds.
+    """
+    pads = config.pad_sensor
+    return make_law(config.load_grip, config.plant.max_force_n,
+                    config.contact.pad_tangential_stiffness_n_per_m,
+                    config.force.sample_time_s, pads.displacement_noise_m,
+                    pads.displacement_resolution_m)
+
+
 def _ns_or_none(value) -> int | None:
     return None if value == NO_NS else int(value)
 
@@ -673,11 +747,18 @@ class GraspSupervisor:
     (re)assigned, so that it restarts from the measured state.
 
     ``kernel`` is the tuple of arrays the compiled functions take: the state record, the
-    parameters, and the numbers of the current message.
+    parameters, the numbers of the current message, and the load-tracking grip's record (and
+    a copy as it starts), history, sums and friction grid (:func:`load_law`).
+
+    A grasp of mass 0 (unknown) needs ``law``; without it such a request is refused.
     """
 
-    def __init__(self, plant: PlantParams, params: SupervisorParams):
+    def __init__(self, plant: PlantParams, params: SupervisorParams, law: tuple | None = None):
         self.plant = plant
+        self.tracks_load = law is not None
+        if law is None:                          # inert arrays of the kernel's types
+            law = make_law(LoadGripParams(), plant.max_force_n, 0.0, 1.0, 0.0, 0.0)
+        record, history, sums = law
         state = np.zeros(1, SUPERVISOR_STATE)
         self._s = state[0]                      # a view: reads and writes go to the record
         for name in SUPERVISOR_STATE.names:
@@ -689,7 +770,8 @@ class GraspSupervisor:
         self._s['d_answer'] = NO_ANSWER
         self._s['t_ns'] = 0
         self._params = np.zeros(1, SUPERVISOR_PARAMS)
-        self.kernel = (state, self._params, np.zeros(MSG_FLOATS), np.zeros(MSG_INTS, np.int64))
+        self.kernel = (state, self._params, np.zeros(MSG_FLOATS), np.zeros(MSG_INTS, np.int64),
+                       record.copy(), record.copy(), history, sums, MU_GRID.copy())
         self.params = params
         self._targets: GraspTargets | MoveTargets | None = None
         self._pending_targets: GraspTargets | MoveTargets | None = None
@@ -732,6 +814,16 @@ class GraspSupervisor:
     answer_ns = property(lambda self: _ns_or_none(self._s['answer_ns']),
                          doc="... and when (the grasp service's answer).")
     active = property(lambda self: Controller(self._s['active']))
+    overload_ns = property(lambda self: _ns_or_none(self._s['overload_ns']),
+                           doc='When the load-tracking grip said the load is beyond 24 V.')
+    force_setpoint_n = property(lambda self: float(self._s['tg_force_setpoint_n']),
+                                doc="The grasp's force setpoint now (the law's, tracking).")
+
+    @property
+    def overload_need_n(self) -> float:
+        """The grip the load needed when the law said overload (NaN: never)."""
+        g = self.kernel[4][0]
+        return float(g['overload_need_n']) if g['overload_ns'] != -1 else math.nan
 
     @property
     def hold_position_m(self) -> float | None:
@@ -758,8 +850,9 @@ class GraspSupervisor:
 
     @property
     def holding(self) -> bool:
-        """A grasp was answered HOLDING and the force stage goes on holding the object."""
-        return bool(self._s['phase'] == Phase.HOLDING and self._s['outcome'] == Outcome.HOLDING)
+        """A grasp was answered HOLDING (or OVERLOADED) and the force stage goes on holding."""
+        return bool(self._s['phase'] == Phase.HOLDING and
+                    self._s['outcome'] in (Outcome.HOLDING, Outcome.OVERLOADED))
 
     @property
     def pressing(self) -> bool:
@@ -832,6 +925,9 @@ class GraspSupervisor:
         may follow a hold; the hold ends when it starts.
         """
         self._refuse_if_busy()
+        if getattr(targets, 'load_tracking', False) and not self.tracks_load:
+            raise RequestError('mass_kg 0 (load-tracking grip) needs the load_grip settings, '
+                               'which this supervisor was not given')
         return self._wait(RequestKind.GRASP, targets, float(mass_kg), after_ns)
 
     def request_release(self, open_position_m: float = 0.0, timeout_s: float | None = None,
@@ -878,15 +974,18 @@ class GraspSupervisor:
 
     # ------------------------------------------------------------------ the tick
     def step(self, t_ns: int, position_m: float, force_n: float, sensor_voltage_v: float,
-             speed_mps: float = 0.0, revision: int = 0) -> Decision:
+             speed_mps: float = 0.0, revision: int = 0, shear_n: float = 0.0,
+             displacement_m: float = 0.0) -> Decision:
         """Advance the state machine with the measurements of tick ``t_ns``.
 
         ``speed_mps`` is the finger's speed (the position switch's speed condition);
         ``revision`` counts changes of the simulated world (a new object, fingers reset): the
-        position stage then holds the finger where it now is.
+        position stage then holds the finger where it now is. ``shear_n`` and
+        ``displacement_m`` are a pad's (the two pads' mean) readings.
         """
         supervisor_step(self.kernel, t_ns, float(position_m), float(force_n),
-                        float(sensor_voltage_v), float(speed_mps), revision)
+                        float(sensor_voltage_v), float(speed_mps), revision, float(shear_n),
+                        float(displacement_m))
         return self._decision
 
     # ------------------------------------------------------------------ messages
@@ -896,7 +995,7 @@ class GraspSupervisor:
             return ''
         if code == MSG_TEXT:
             return self._text
-        _, _, f, i = self.kernel
+        f, i = self.kernel[2:4]
         f = [float(v) for v in f]
         i = [int(v) for v in i]
         travel = self.plant.max_travel_m
@@ -949,4 +1048,11 @@ class GraspSupervisor:
             return f'stalled {abs(f[3]) * 1e3:.2f} mm short of the goal, {why}: {where}'
         if code == MSG_MOVE_TIMEOUT:
             return f'move not done within {f[3]:g} s of simulated time: {where}'
+        if code == MSG_OVERLOADED:
+            into = (f'{i[2] * 1e-9:.4f} s after HOLDING' if i[1] else
+                    f'{i[2] * 1e-9:.4f} s into the grasp')
+            return (f'overloaded at t={i[0] * 1e-9:.4f} s ({into}): the load {f[3]:.2f} N needs '
+                    f'{f[0]:.2f} N of grip at the measured friction {f[4]:.3f}, the most '
+                    f'{self.plant.voltage_limit_v:g} V holds is {f[1]:.2f} N; gripping with '
+                    f'{f[2]:.2f} N, at most that, while the object stays')
         raise ValueError(f'unknown message code {code}')

@@ -85,7 +85,8 @@ class PlantSimulatorNode(Node):
     def __init__(self, **kwargs):
         super().__init__(NODE_PLANT, **default_namespace(kwargs))
         self.parameters = ConfigParameters(
-            self, (), ('plant', 'contact', 'force_sensor', 'sensor_noise'))
+            self, (), ('plant', 'contact', 'force_sensor', 'sensor_noise', 'pad_sensor',
+                       'force_control'))
         self.config = self.parameters.config
         self.side = PlantSide(make_plant(self.config))
         self.plant = self.side.plant
@@ -498,7 +499,8 @@ class PlantSimulatorNode(Node):
             return ''
         if state.running or getattr(state, 'pending_request', 0):
             return 'a grasp or release is running'
-        if state.phase == Phase.HOLDING and state.outcome == Outcome.HOLDING:
+        if state.phase == Phase.HOLDING and \
+                state.outcome in (Outcome.HOLDING, Outcome.OVERLOADED):
             return 'an object is held (release or stop first)'
         return ''
 

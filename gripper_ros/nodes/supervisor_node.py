@@ -30,7 +30,7 @@ from gripper_interfaces.srv import Grasp, Move
 from gripper_ros.core.lockstep import SupervisorSide, Tick
 from gripper_ros.core.requests import (GraspRequest, MoveRequest, RequestError, validate_move,
                                        validate_request)
-from gripper_ros.core.supervisor import GraspSupervisor, RequestKind
+from gripper_ros.core.supervisor import GraspSupervisor, load_law, RequestKind
 from gripper_ros.nodes.loop_io import decode, split_ns, status_message, status_template
 from gripper_ros.nodes.names import default_namespace, GraspIds
 from gripper_ros.nodes.parameters import ConfigParameters
@@ -56,15 +56,19 @@ STAGE_NODES = {Controller.POSITION: NODE_POSITION_CONTROLLER,
                Controller.FORCE: NODE_FORCE_CONTROLLER}
 REFERENCE_TOPICS = {Controller.POSITION: TOPIC_POSITION_REFERENCE,
                     Controller.FORCE: TOPIC_FORCE_REFERENCE}
+SUPERVISOR_READS = ('plant', 'contact', 'force_control', 'pad_sensor', 'load_grip')
+"""Config sections the supervisor reads and does not change: the plant, and what the
+load-tracking grip needs (the pads' stiffness and sensing, the force stage's period)."""
 
 
 class SupervisorNode(Node):
     def __init__(self, **kwargs):
         super().__init__(NODE_SUPERVISOR, **default_namespace(kwargs))
-        self.parameters = ConfigParameters(self, ('supervisor',), ('plant',),
+        self.parameters = ConfigParameters(self, ('supervisor',), SUPERVISOR_READS,
                                            on_change=self._on_config_change)
         self.config = self.parameters.config
-        self.logic = GraspSupervisor(self.config.plant, self.config.supervisor)
+        self.logic = GraspSupervisor(self.config.plant, self.config.supervisor,
+                                     load_law(self.config))
         # ids go on from the last one this namespace gave, across restarts of the supervisor
         self._ids = GraspIds(self.context.get_domain_id(), self.get_namespace(),
                              self.get_logger().warning)
@@ -190,7 +194,7 @@ class SupervisorNode(Node):
         values = (int(d.phase), int(d.active), int(d.switch_criterion), d.grasp_id, d.stage_id,
                   int(d.outcome), d.running, int(d.pending_request),
                   tg.position_setpoint_m if tg else 0.0, tg.approach_setpoint_m if tg else 0.0,
-                  tg.force_setpoint_n if tg else 0.0, d.mass_kg, position_m, self._good_force_n,
+                  d.force_setpoint_n if tg else 0.0, d.mass_kg, position_m, self._good_force_n,
                   self.config.plant.max_travel_m - position_m, d.contact_ns is not None)
         message = d.message if d.outcome is not Outcome.UNKNOWN else ''
         self._status_now = (t_ns, values, message)
@@ -282,7 +286,8 @@ class SupervisorNode(Node):
                                lambda: self.logic.request_grasp(validate_request(GraspRequest(
                                    request.width_m, request.mass_kg,
                                    request.friction_coefficient, request.acceleration_mps2,
-                                   request.timeout_s, request.width_tolerance_m), plant, sup),
+                                   request.timeout_s, request.width_tolerance_m), plant, sup,
+                                   self.config.load_grip),
                                    request.mass_kg, after_ns=self._tick.stamp_ns))
         if targets is None:
             return
