@@ -298,7 +298,9 @@ def test_kinetic_friction_above_static_is_refused():
     ({'acceleration_mps2': math.nan}, 'acceleration_mps2'),
     ({'acceleration_mps2': 1.0, 'delay_s': -0.1}, 'delay_s'),
     ({'acceleration_mps2': 1.0, 'duration_s': math.inf}, 'duration_s'),
-    ({'acceleration_mps2': 1.0, 'delay_s': 1e4}, 'delay_s')])
+    ({'acceleration_mps2': 1.0, 'delay_s': 1e4}, 'delay_s'),
+    ({'acceleration_mps2': 1.0, 'lift_off_s': -0.1}, 'lift_off_s'),
+    ({'acceleration_mps2': 1.0, 'lift_off_s': 11.0}, 'lift_off_s')])
 def test_bad_lifts_are_refused_naming_the_field(kwargs, field):
     with pytest.raises(ValueError, match=field):
         Lift(**kwargs)
@@ -381,3 +383,16 @@ def test_a_zero_lift_off_is_the_instant_lift_bit_for_bit():
 def test_a_bad_lift_off_is_refused_naming_it(bad):
     with pytest.raises(ValueError, match='lift_off_s'):
         HoldModel(1.0, MU_S, MU_K, PAD_M, G, None, lift_off_s=bad)
+
+
+@pytest.mark.parametrize('lift_off_s, config_s, expected_s', [
+    (0.2, 0.0, 0.2), (0.0, 0.05, 0.05), (0.2, 0.05, 0.2), (0.0, 0.0, 0.0)])
+def test_a_lifts_own_lift_off_wins_and_0_means_the_configs(lift_off_s, config_s, expected_s):
+    """SetObject.lift_off_s (the Lift's) sets the hand-over; 0 leaves contact.lift_off_s."""
+    import dataclasses
+    from gripper_ros.core.plant import K_HOLD
+    config = dataclasses.replace(CONFIG, contact=dataclasses.replace(C, lift_off_s=config_s))
+    plant = make_plant(config)
+    plant.set_object(GraspObject(WIDTH_M, mass_kg=1.0),
+                     lift=Lift(1.0, 0.0, 1.0, lift_off_s=lift_off_s))
+    assert plant.kernel[K_HOLD][0]['lift_off_ns'] == round(expected_s * 1e9)

@@ -107,6 +107,9 @@ def test_grasp_demo_lift_ends_lost_under_eq_23_and_holding_under_friction(tmp_pa
     (['--lift', 'nan'], '--lift must be finite'),
     (['--lift', '-1'], '--lift must be finite and >= 0'),
     (['--lift', '2', '--lift-duration', 'inf'], '--lift-duration must be finite'),
+    (['--lift', '2', '--lift-off', 'nan'], '--lift-off must be finite'),
+    (['--lift', '2', '--lift-off', '11'], '--lift-off must be <= 10 s'),
+    (['--lift-off', '0.1'], '--lift-off needs a lift'),
 ])
 def test_grasp_demo_refuses_a_bad_lift(argv, message):
     result = subprocess.run([sys.executable, '-m', 'gripper_ros.apps.grasp_demo', *argv,

@@ -78,7 +78,9 @@ def test_unknown_mass_held_through_a_pick_and_place_bit_identically():
     a, b = runs
     assert a.outcome == 'HOLDING' and math.isnan(a.lost_s)
     assert a.slip_m < 0.5e-3 and a.contact_peak_ratio <= 1.10
-    assert 1.0 < a.mean_margin < 1.4                   # the aim (docs: grip_study)
+    # above the slip limit, and at most k over the kinetic friction (0.8 mu_s here) that a
+    # slip shows the law when it cannot measure mu_s
+    assert 1.0 < a.mean_margin <= P.grip_margin / 0.8
     assert np.array_equal(a.rows, b.rows) and a.rows.shape[0] > 10_000
 
 

@@ -63,6 +63,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="the arm's motion after HOLDING, along the pads: step:A (= --lift A), "
                         'pick-and-place:A (up, across, down; +-A m/s^2 trapezoids over the '
                         'duration) or shake:A,HZ (A sin(2 pi HZ t)); the request carries a = A')
+    p.add_argument('--lift-off', type=float, default=0.0, metavar='S',
+                   help='the arm hands the weight from the support to the pads over S seconds '
+                        '(a hand takes 0.1-0.2 s; 0 = contact.lift_off_s, 0 as shipped)')
     p.add_argument('--object-mass', type=float, default=0.0, metavar='KG',
                    help="the simulated object's real mass, not told to the controller "
                         '(0 = the requested --mass)')
@@ -149,9 +152,14 @@ def main(argv: list[str] | None = None) -> int:
             return _fail(f'width and mass must be finite, got {w!r}, {m!r}')
     from gripper_ros.apps.common import negative_option
     negative = negative_option(args, ('lift', 'lift_delay', 'lift_duration', 'object_mass',
-                                      'static_friction', 'kinetic_friction'))
+                                      'static_friction', 'kinetic_friction', 'lift_off'))
     if negative:
         return _fail(negative)
+    from gripper_ros.core.hold import MAX_LIFT_OFF_S
+    if args.lift_off > MAX_LIFT_OFF_S:
+        return _fail(f'--lift-off must be <= {MAX_LIFT_OFF_S:g} s, got {args.lift_off!r}')
+    if args.lift_off and not (args.lift or args.profile):
+        return _fail('--lift-off needs a lift (--lift or --profile)')
     if args.profile is not None:
         from gripper_ros.core.hold import parse_profile
         if args.lift:
@@ -279,6 +287,8 @@ def _lift(args) -> dict:
         return out
     out.update({'lift_acceleration_mps2': args.lift, 'lift_delay_s': args.lift_delay,
                 'lift_duration_s': args.lift_duration})
+    if args.lift_off:
+        out['lift_off_s'] = args.lift_off
     if args.profile is not None:
         out.update({'lift_profile': int(args.profile[0]), 'lift_frequency_hz': args.profile[2]})
     return out

@@ -61,7 +61,7 @@ class GraspMetrics:
     max_slip_m: float = math.nan        # ground truth: the most the object slid on the pads
     lost_at_s: float = math.nan         # ground truth: when it left the grip, after the answer
     loss_detected_s: float = math.nan   # when the supervisor reported OBJECT_LOST, after it
-    hold_margin_mean: float = math.nan  # ground truth: grip over the slip limit while lifted,
+    hold_margin_mean: float = math.nan  # ground truth: grip over the slip limit once lifted off,
     hold_margin_max: float = math.nan   # 2 mu_s F / m (g + a) (sim/object_state's samples)
     overload_said_s: float = math.nan   # when the supervisor reported OVERLOADED, after the answer
     pad_shear_max_n: float = math.nan   # the most the pads read of the load (their mean shear)
@@ -138,6 +138,23 @@ def recorded_voltage_limit_v(series: GraspSeries) -> float:
         from gripper_ros.core.config import load_config
         return load_config().plant.voltage_limit_v
     return limit_v
+
+
+def _lift_off_end_s(series: GraspSeries) -> float:
+    """Return when, after the answer, the pads carry the whole weight: lift delay + lift-off.
+
+    From the recorded object (its ``lift_off_s``, else the recorded config's
+    ``contact.lift_off_s``); 0 for a bag that holds neither (an instant lift).
+    """
+    obj = series.custom_data.get('object')
+    config = series.custom_data.get('config')
+    try:
+        delay_s = float(obj.get('lift_delay_s', 0.0))
+        lift_off_s = float(obj.get('lift_off_s', 0.0)) or \
+            float(config['contact'].get('lift_off_s', 0.0))
+    except (AttributeError, TypeError, KeyError, ValueError):
+        return 0.0
+    return delay_s + lift_off_s if math.isfinite(delay_s + lift_off_s) else 0.0
 
 
 def analyze_series(series: GraspSeries, voltage_limit_v: float | None = None) -> GraspMetrics:
@@ -250,7 +267,7 @@ def _hold_figures(series: GraspSeries, stages: Stages) -> dict:
         if gone.size:
             figures['lost_at_s'] = float(obj.t_s[gone[0]] - stages.end_s)
         lifted = ((obj.state == HoldState.STUCK) | (obj.state == HoldState.SLIDING)) & \
-            (obj.load_n > 0.0)
+            (obj.load_n > 0.0) & (obj.t_s >= stages.end_s + _lift_off_end_s(series))
         if np.any(lifted):
             margin = obj.capacity_n[lifted] / obj.load_n[lifted]
             figures['hold_margin_mean'] = float(np.mean(margin))

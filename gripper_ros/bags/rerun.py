@@ -52,7 +52,7 @@ OBJECT_FIELDS = {
     'pad_length_m': 'pad_length_m'}
 """A bag's ``object`` fields (SetObject names) -> simulate_grasp's keyword."""
 LIFT_FIELDS = ('lift_acceleration_mps2', 'lift_delay_s', 'lift_duration_s', 'lift_profile',
-               'lift_frequency_hz')
+               'lift_frequency_hz', 'lift_off_s')
 """A bag's lift fields, Lift's arguments in order (a bag without the last two: a step)."""
 FAULT_FIELDS = ('fault', 'fault_at_s', 'fault_time_constant_s')
 STATUS_FIELDS = ('phase', 'active_controller', 'switch_criterion', 'grasp_id', 'outcome',

@@ -57,6 +57,7 @@ import numba
 import numpy as np
 
 MAX_LIFT_TIME_S = 600.0        # a lift's delay or duration beyond this is a mistake
+MAX_LIFT_OFF_S = 10.0          # contact.lift_off_s's bound too
 SHAKE_SAMPLE_S = 1.0e-4        # a shake's acceleration is constant over pieces this long
 SHAKE_SAMPLE_NS = round(SHAKE_SAMPLE_S * 1e9)
 MAX_SHAKE_FREQUENCY_HZ = 100.0  # 50 pieces a period at the fastest
@@ -119,10 +120,14 @@ class Lift:
     duration_s: float = 0.0
     profile: LiftProfile = LiftProfile.STEP
     frequency_hz: float = 0.0          # SHAKE only
+    lift_off_s: float = 0.0            # the weight reaches the pads over this; 0: the config's
 
     def __post_init__(self):
-        for name in ('acceleration_mps2', 'delay_s', 'duration_s', 'frequency_hz'):
+        for name in ('acceleration_mps2', 'delay_s', 'duration_s', 'frequency_hz', 'lift_off_s'):
             check_finite_nonnegative('lift', name, getattr(self, name))
+        if self.lift_off_s > MAX_LIFT_OFF_S:
+            raise ValueError(f'lift lift_off_s must be <= {MAX_LIFT_OFF_S:g} s, '
+                             f'got {self.lift_off_s!r}')
         for name in ('delay_s', 'duration_s'):
             if getattr(self, name) > MAX_LIFT_TIME_S:
                 raise ValueError(f'lift {name} must be <= {MAX_LIFT_TIME_S:g} s, '

@@ -86,13 +86,23 @@ GRIP_DTYPE = np.dtype([
     ('overload_ns', np.int64),         # -1: never
     ('overload_need_n', np.float64),
     ('mu_bound', np.float64),          # the most Q / F a slip showed: mu_s is at least this
+    ('mu_ceiling', np.float64),        # the least estimate a slip proved too high
+    ('normal_delay', np.int64),        # the shear channel's latency, in samples
+    ('normal_alpha', np.float64),      # ... and its low-pass step share (1: none)
+    ('normal_filtered', np.float64),   # the grip force as that channel would read it
+    ('normal_primed', np.uint8),
 ], align=True)
 """The law's settings and state."""
 
 
 def make_law(params: LoadGripParams, max_force_n: float, tangential_stiffness_n_per_m: float,
-             dt_s: float, displacement_noise_m: float, displacement_resolution_m: float):
-    """Return the law's (record, displacement history, residual sums) for samples ``dt_s``."""
+             dt_s: float, displacement_noise_m: float, displacement_resolution_m: float,
+             shear_latency_s: float = 0.0, shear_bandwidth_hz: float = 0.0):
+    """Return the law's (record, displacement history, residual sums) for samples ``dt_s``.
+
+    The grip force it divides the shear by passes through the shear channel's latency and
+    bandwidth first, so that their ratio is not skewed while the grip moves.
+    """
     rec = np.zeros(1, GRIP_DTYPE)
     r = rec[0]
     r['k_margin'] = params.grip_margin
@@ -113,7 +123,11 @@ def make_law(params: LoadGripParams, max_force_n: float, tangential_stiffness_n_
     r['mu_est'] = params.mu_start
     r['force_setpoint_n'] = params.touch_force_n
     r['overload_ns'] = -1
-    history = np.zeros((3, int(r['window']) + 1))
+    r['mu_ceiling'] = math.inf
+    r['normal_delay'] = min(round(shear_latency_s / dt_s), int(r['window']))
+    r['normal_alpha'] = 1.0 if shear_bandwidth_hz == 0.0 else \
+        -math.expm1(-2.0 * math.pi * shear_bandwidth_hz * dt_s)
+    history = np.zeros((4, int(r['window']) + 1))
     sums = np.zeros((2, MU_GRID.size))
     return rec, history, sums
 
@@ -122,12 +136,21 @@ def make_law(params: LoadGripParams, max_force_n: float, tangential_stiffness_n_
 def law_step(g, history, sums, grid, t_ns, shear_n, displacement_m, force_n):
     """Take one sample of the pads (mean shear per pad, mean displacement) and the grip force.
 
-    ``history`` (3 x window + 1) keeps the last displacements, shears and forces. Returns the
-    force setpoint.
+    ``history`` (4 x window + 1) keeps the last displacements, shears, forces as the shear
+    channel reads them and forces as given. Returns the force setpoint.
     """
     n = history.shape[1]
     head = g.head
     old = (head + 1) % n
+    history[3, head] = force_n
+    delayed = history[3, (head - g.normal_delay) % n] if g.filled > g.normal_delay else \
+        history[3, (head - g.filled) % n]
+    if g.normal_primed:
+        g.normal_filtered += g.normal_alpha * (delayed - g.normal_filtered)
+    else:
+        g.normal_filtered = delayed
+        g.normal_primed = 1
+    force_n = g.normal_filtered
     history[0, head] = displacement_m
     history[1, head] = shear_n
     history[2, head] = force_n
@@ -160,6 +183,8 @@ def law_step(g, history, sums, grid, t_ns, shear_n, displacement_m, force_n):
             estimated_before = g.estimated == 1 or g.slips > 0
             g.slips += 1
             g.mu_at_slip = g.mu_est
+            if g.estimated and g.mu_est < g.mu_ceiling:
+                g.mu_ceiling = g.mu_est
             if felt > g.mu_bound:
                 g.mu_bound = felt
             g.estimated = 0                            # measure it again once it sticks
@@ -203,6 +228,8 @@ def law_step(g, history, sums, grid, t_ns, shear_n, displacement_m, force_n):
             # once measured, only a slip lowers the estimate (a later fit that drifts down
             # without one has seen an undetected creep, not less friction)
             fitted = g.mu_safety * (grid[best] if grid[best] > g.mu_bound else g.mu_bound)
+            if fitted > g.mu_ceiling:                  # it slipped there before
+                fitted = g.mu_ceiling
             if not g.estimated or fitted > g.mu_est:
                 g.mu_est = fitted
             g.estimated = 1

@@ -687,7 +687,8 @@ def load_law(config: GripperConfig) -> tuple:
     return make_law(config.load_grip, config.plant.max_force_n,
                     config.contact.pad_tangential_stiffness_n_per_m,
                     config.force.sample_time_s, pads.displacement_noise_m,
-                    pads.displacement_resolution_m)
+                    pads.displacement_resolution_m, pads.shear.latency_s,
+                    pads.shear.bandwidth_hz)
 
 
 def _ns_or_none(value) -> int | None:

@@ -518,7 +518,8 @@ class PlantSimulatorNode(Node):
                               request.pad_length_m)
             lift = Lift(request.lift_acceleration_mps2, request.lift_delay_s,
                         request.lift_duration_s, request.lift_profile,
-                        request.lift_frequency_hz) if request.lift_duration_s > 0.0 else None
+                        request.lift_frequency_hz, request.lift_off_s) \
+                if request.lift_duration_s > 0.0 else None
             kind, tau = check_fault(request.fault, request.fault_at_s,
                                     request.fault_time_constant_s, obj.rigid)
             self.side.set_object(obj, request.open_fingers, (kind, request.fault_at_s, tau),
