@@ -394,11 +394,15 @@ def summary(config, rows: list[SweepRow], excluded: int, hold_s: float,
             worst = max(sel, key=lambda r: r.peak_ratio)
             lines.append(f'worst peak {part}: {worst.peak_ratio:.4f} x F_sp '
                          f'({_describe(worst)}); limit 1.10')
+    chain = {name: (finger_n_per_m, pad_n_per_m1_5)
+             for name, finger_n_per_m, pad_n_per_m1_5 in finger_kinds()}
     for finger in sorted({r.finger for r in rows if r.finger}):
         sel = [r for r in rows if r.finger == finger]
         worst = max(sel, key=lambda r: r.peak_ratio)
         lost = sum(r.outcome == 'OBJECT_LOST' for r in sel)
-        lines.append(f'  {finger}: {len(sel)} grasps, worst peak {worst.peak_ratio:.4f} x F_sp '
+        finger_n_per_m, pad_n_per_m1_5 = chain.get(finger, (math.nan, math.nan))
+        lines.append(f'  {finger} (k_f {finger_n_per_m:.3g} N/m, k_p {pad_n_per_m1_5:.3g} '
+                     f'N/m^1.5): {len(sel)} grasps, worst peak {worst.peak_ratio:.4f} x F_sp '
                      f'({_describe(worst)}), {lost} lost')
     counts = {}
     for r in rows:

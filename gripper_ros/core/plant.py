@@ -715,10 +715,11 @@ def _advance_chain(s, p, keys, coef, e, dt_s):
     """One sub-step of the finger pressing through the chain (core/contact_chain.py).
 
     The motor is the exact ZOH model with the chain's force as a held load input, taken as the
-    mean of its values at the two ends (trapezoidal rule: no energy gained or lost by the
-    step); the object's damper is backward Euler, ``F = k_o d_o + c_o (d_o - d_prev) / dt``.
-    The end force solves the chain for the end travel, which depends on it linearly. Free
-    once the finger is back behind the object's face.
+    mean of its values at the two ends (trapezoidal rule: second order, and on an undamped
+    spring it neither adds nor removes energy); the object's damper is backward Euler,
+    ``F = k_o d_o + c_o (d_o - d_prev) / dt``. The end force solves the chain for the end
+    travel, which depends on it linearly. Free once the finger is back behind the object's
+    face.
     """
     c = coef[_disc_entry(s, p, keys, coef, DISC_LOADED, dt_s)]
     i = s.i
