@@ -26,7 +26,7 @@ tolerance past the widest. An object that would be squashed flat before it pushe
 ``--fingers``: the same contact stage on flexible fingers and nonlinear pads
 (:mod:`gripper_ros.core.contact_chain`): a printed finger, a rubber-dome pad, and both, each on
 rigid and Kelvin-Voigt objects from 1e2 to 1e8 N/m, at damping ratios 0.01 and 1, narrow to
-wide, light to the heaviest.
+wide, light to the heaviest, at the exact width; then the uncertain-width grid above.
 
 For each grasp: the outcome, the peak contact force (including between samples) over the grasp
 and the continued hold as a multiple of the setpoint, the force range over the continued hold,
@@ -229,18 +229,25 @@ def finger_kinds() -> tuple[tuple[str, float, float], ...]:
     return (('finger', finger, 0.0), ('pad', 0.0, pad), ('finger+pad', finger, pad))
 
 
-def finger_cases(config, widths=FINGER_WIDTHS_M, masses=FINGER_MASSES_KG
-                 ) -> tuple[list[SweepCase], int]:
-    """Return each chain kind over the quick grid's objects at ``widths`` x ``masses``."""
-    cases, excluded = [], 0
-    for name, finger, pad in finger_kinds():
-        these, left_out = build_cases(config, kinds=_kinds(config, QUICK_STIFFNESSES_N_PER_M,
-                                                           QUICK_DAMPING_RATIOS),
-                                      widths=widths, masses=masses)
-        cases += [dataclasses.replace(c, finger=name, finger_stiffness_n_per_m=finger,
-                                      pad_stiffness_n_per_m1_5=pad) for c in these]
-        excluded += left_out
-    return cases, excluded
+def finger_cases(config, widths=FINGER_WIDTHS_M, masses=FINGER_MASSES_KG, exact: bool = True,
+                 band: bool = True) -> tuple[list[SweepCase], int]:
+    """Return each chain kind over the quick grid's objects at ``widths`` x ``masses``.
+
+    ``band``: and over the default envelope's uncertain-width grid.
+    """
+    grid, excluded = [], 0
+    if exact:
+        grid, excluded = build_cases(config, kinds=_kinds(config, QUICK_STIFFNESSES_N_PER_M,
+                                                          QUICK_DAMPING_RATIOS),
+                                     widths=widths, masses=masses)
+    if band:
+        banded, band_excluded = envelope_cases(config, exact=False, band=True)
+        grid += banded
+        excluded += band_excluded
+    cases = [dataclasses.replace(c, finger=name, finger_stiffness_n_per_m=finger,
+                                 pad_stiffness_n_per_m1_5=pad)
+             for name, finger, pad in finger_kinds() for c in grid]
+    return cases, excluded * len(finger_kinds())
 
 
 def with_chain(config, case: SweepCase):
@@ -564,8 +571,8 @@ def main(argv: list[str] | None = None) -> int:
                       help='the reduced exact-width grid the tests run (corners of the envelope)')
     grid.add_argument('--fingers', action='store_true',
                       help='flexible fingers and nonlinear pads: a printed finger, a rubber-dome '
-                           'pad and both (core/contact_chain.py) on rigid and compliant objects '
-                           'at the exact width')
+                           'pad and both (core/contact_chain.py) on rigid and compliant objects, '
+                           'at the exact width and within a tolerance')
     grid.add_argument('--compliant', action='store_true',
                       help='only rigid, stiff (1e5 N/m) and soft (1e3 N/m) objects at the exact '
                            'width (the former sweep)')
@@ -621,7 +628,8 @@ def main(argv: list[str] | None = None) -> int:
     elif args.compliant:
         cases, excluded = compliant_cases(config)
     elif args.fingers:
-        cases, excluded = finger_cases(config)
+        cases, excluded = finger_cases(config, exact=not args.band_only,
+                                       band=not args.exact_only)
     else:
         cases, excluded = envelope_cases(config, exact=not args.band_only,
                                          band=not args.exact_only)
