@@ -1,6 +1,7 @@
 """contact_sweep: peak contact force, losses and time to a steady hold over the object envelope.
 
-    ros2 run gripper_ros contact_sweep [--quick | --compliant] [--exact-only | --band-only]
+    ros2 run gripper_ros contact_sweep [--quick | --compliant | --fingers]
+                                      [--exact-only | --band-only]
                                       [--band-design-stiffness N_PER_M] [--hold-s S]
                                       [--jobs N | --scheduler tcp://HOST:8786] [--quiet]
                                       [--force-controller contact_aware|pi|mpc_pi]
@@ -21,6 +22,11 @@ width; then a reduced grid at uncertain widths, the object placed at the widest 
 expected face and at the narrowest face of a +-1 mm and a +-5 mm tolerance, and 2 % of the
 tolerance past the widest. An object that would be squashed flat before it pushes back with F_sp
 (``F_sp / k >= width``) cannot be held by any gripper and is left out (counted).
+
+``--fingers``: the same contact stage on flexible fingers and nonlinear pads
+(:mod:`gripper_ros.core.contact_chain`): a printed finger, a rubber-dome pad, and both, each on
+rigid and Kelvin-Voigt objects from 1e2 to 1e8 N/m, at damping ratios 0.01 and 1, narrow to
+wide, light to the heaviest, at the exact width; then the uncertain-width grid above.
 
 For each grasp: the outcome, the peak contact force (including between samples) over the grasp
 and the continued hold as a multiple of the setpoint, the force range over the continued hold,
@@ -67,6 +73,10 @@ HOLDOUT_STIFFNESSES_N_PER_M = (1e3, 1e5, 1e7)
 HOLDOUT_DAMPING_RATIOS = (0.1,)
 HOLDOUT_WIDTHS_M = (0.02, 0.08)
 HOLDOUT_MASSES_KG = (0.5, 2.0)
+# --fingers: the chain kinds (name, finger k_f N/m, pad k_p N/m^1.5; core/contact_chain.py)
+# over objects of the quick grid's kinds, at these widths and masses
+FINGER_WIDTHS_M = (0.005, 0.05, 0.14)
+FINGER_MASSES_KG = (0.1, 1.0, None)
 DEFAULT_HOLD_S = 1.0
 FLOOR_POSITION_ROUND_M = 1e-5                   # floors are computed on this grid of positions
 
@@ -83,6 +93,9 @@ class SweepCase:
     object_width_m: float            # placed
     width_tolerance_m: float
     mass_kg: float
+    finger: str = ''                 # the chain kind ('': the configured fingers and pads)
+    finger_stiffness_n_per_m: float = 0.0
+    pad_stiffness_n_per_m1_5: float = 0.0
 
 
 @dataclass
@@ -107,6 +120,7 @@ class SweepRow:
     approach_floor_s: float          # minimum time to rest at the held position (10 ms)
     arrival_floor_s: float           # minimum time to reach it at all (24 V throughout)
     band_offset_m: float             # how far past the widest allowed face the object is
+    finger: str = ''                 # the chain kind ('': the configured fingers and pads)
 
     @property
     def settled(self) -> bool:
@@ -205,6 +219,47 @@ def compliant_cases(config, widths=WIDTHS_M, masses=MASSES_KG) -> tuple[list[Swe
     return build_cases(config, kinds=kinds, widths=widths, masses=masses)
 
 
+def finger_kinds() -> tuple[tuple[str, float, float], ...]:
+    """Return the chain kinds: (name, finger stiffness N/m, pad stiffness N/m^1.5)."""
+    from gripper_ros.core.contact_chain import (cantilever_stiffness_n_per_m,
+                                                hertz_pad_stiffness_n_per_m1_5, PRINTED_FINGER,
+                                                RUBBER_DOME_PAD)
+    finger = cantilever_stiffness_n_per_m(**PRINTED_FINGER)
+    pad = hertz_pad_stiffness_n_per_m1_5(**RUBBER_DOME_PAD)
+    return (('finger', finger, 0.0), ('pad', 0.0, pad), ('finger+pad', finger, pad))
+
+
+def finger_cases(config, widths=FINGER_WIDTHS_M, masses=FINGER_MASSES_KG, exact: bool = True,
+                 band: bool = True) -> tuple[list[SweepCase], int]:
+    """Return each chain kind over the quick grid's objects at ``widths`` x ``masses``.
+
+    ``band``: and over the default envelope's uncertain-width grid.
+    """
+    grid, excluded = [], 0
+    if exact:
+        grid, excluded = build_cases(config, kinds=_kinds(config, QUICK_STIFFNESSES_N_PER_M,
+                                                          QUICK_DAMPING_RATIOS),
+                                     widths=widths, masses=masses)
+    if band:
+        banded, band_excluded = envelope_cases(config, exact=False, band=True)
+        grid += banded
+        excluded += band_excluded
+    cases = [dataclasses.replace(c, finger=name, finger_stiffness_n_per_m=finger,
+                                 pad_stiffness_n_per_m1_5=pad)
+             for name, finger, pad in finger_kinds() for c in grid]
+    return cases, excluded * len(finger_kinds())
+
+
+def with_chain(config, case: SweepCase):
+    """Return ``config`` with the case's fingers and pads (unchanged for a configured case)."""
+    if not case.finger:
+        return config
+    contact = dataclasses.replace(config.contact,
+                                  finger_stiffness_n_per_m=case.finger_stiffness_n_per_m,
+                                  pad_normal_stiffness_n_per_m1_5=case.pad_stiffness_n_per_m1_5)
+    return dataclasses.replace(config, contact=contact)
+
+
 def rigid_cases(config, widths=WIDTHS_M, masses=MASSES_KG) -> tuple[list[SweepCase], int]:
     return build_cases(config, kinds=[('rigid', 0.0, 0.0, 0.0)], widths=widths, masses=masses)
 
@@ -212,6 +267,11 @@ def rigid_cases(config, widths=WIDTHS_M, masses=MASSES_KG) -> tuple[list[SweepCa
 def held_position_m(config, case: SweepCase) -> float:
     """Return where the finger rests when the object pushes back with F_sp."""
     face = config.plant.max_travel_m - case.object_width_m
+    if case.finger:
+        from gripper_ros.core.contact_chain import chain_compression_m
+        return face + chain_compression_m(_force_setpoint_n(config, case.mass_kg),
+                                          case.finger_stiffness_n_per_m,
+                                          case.pad_stiffness_n_per_m1_5, case.stiffness_n_per_m)
     if case.stiffness_n_per_m > 0.0:
         face += _force_setpoint_n(config, case.mass_kg) / case.stiffness_n_per_m
     return face
@@ -222,7 +282,8 @@ def arrival_floors_s(config, setpoints_m, dt_s: float = 1.0e-4) -> list[float]:
 
     At any speed: full voltage all the way (one run, read at each crossing). A true lower bound
     for any grasp under the limit; a rigid object that stops the finger dead (the paper's
-    contact) lets a grasp beat the at-rest floor, never this.
+    contact) lets a grasp beat the at-rest floor, never this. A setpoint at or past the full
+    travel (a chain compressed past it, which the free finger never reaches) has none (nan).
     """
     from gripper_ros.core.controllers import make_plant
     plant = make_plant(config)
@@ -230,6 +291,9 @@ def arrival_floors_s(config, setpoints_m, dt_s: float = 1.0e-4) -> list[float]:
     sample = plant.sample()
     floors = {}
     for setpoint_m in sorted(set(setpoints_m)):
+        if setpoint_m >= config.plant.max_travel_m:
+            floors[setpoint_m] = math.nan
+            continue
         while sample.position_m < setpoint_m:
             sample = plant.step(limit, dt_s)
         floors[setpoint_m] = sample.t_s
@@ -241,9 +305,14 @@ def _rest_floors_s(config, setpoints_m: list[float]) -> list[float]:
     return minimum_rest_times_s(config, setpoints_m, config.position.sample_time_s)
 
 
-def _case_keywords(case: SweepCase, force_controller, hold_s: float) -> dict:
-    """Return :func:`simulate_grasp`'s keywords for one case of the sweep."""
+def _case_keywords(case: SweepCase, force_controller, hold_s: float, config=None) -> dict:
+    """Return :func:`simulate_grasp`'s keywords for one case of the sweep.
+
+    A chain kind's case carries its own config (``config`` with its fingers and pads).
+    """
     kinds = {} if force_controller is None else {'force_controller': force_controller}
+    if case.finger:
+        kinds['config'] = with_chain(config, case)
     return dict(width_m=case.width_m, mass_kg=case.mass_kg, object_width_m=case.object_width_m,
                 stiffness_n_per_m=case.stiffness_n_per_m,
                 damping_n_s_per_m=case.damping_n_s_per_m,
@@ -269,10 +338,12 @@ def grasp_summary(case: dict, g):
 
 def sweep(config, cases: list[SweepCase], force_controller: str | None = None,
           hold_s: float = DEFAULT_HOLD_S, jobs: int = 1, *, scheduler=None,
-          progress=None) -> list[SweepRow]:
+          progress=None, rest_floors: bool = True) -> list[SweepRow]:
     """Grasp every case with its floors; refused requests are dropped.
 
     ``jobs``, ``scheduler``, ``progress`` (called with the number of grasps done): the engine's.
+    ``rest_floors`` False leaves the rest floor out (nan): it costs a linear programme per
+    held position, and the chain kinds' compressions give nearly every case its own.
     """
     from gripper_ros.core.headless import map_cases, simulate_grasps
     if scheduler is not None and not isinstance(scheduler, str):
@@ -285,9 +356,9 @@ def sweep(config, cases: list[SweepCase], force_controller: str | None = None,
     chains = [distinct[i:i + share] for i in range(0, len(distinct), share)]
     rest = dict(zip(distinct, (f for chain in map_cases(
         functools.partial(_rest_floors_s, config), chains, jobs, scheduler=scheduler)
-        for f in chain)))
+        for f in chain))) if rest_floors else dict.fromkeys(distinct, math.nan)
     reach = dict(zip(distinct, arrival_floors_s(config, distinct)))
-    results = simulate_grasps(config, [_case_keywords(c, force_controller, hold_s)
+    results = simulate_grasps(config, [_case_keywords(c, force_controller, hold_s, config)
                                        for c in cases], jobs, summarize=grasp_summary,
                               scheduler=scheduler, progress=progress)
     rows = []
@@ -299,7 +370,7 @@ def sweep(config, cases: list[SweepCase], force_controller: str | None = None,
             case.contact, case.stiffness_n_per_m, case.damping_ratio, case.damping_n_s_per_m,
             case.width_m, case.object_width_m, case.width_tolerance_m, case.mass_kg, outcome,
             f_sp, peak, peak / f_sp, t_hold, lo, hi, drift, x_m, rest[x_m], reach[x_m],
-            case.width_m + case.width_tolerance_m - case.object_width_m))
+            case.width_m + case.width_tolerance_m - case.object_width_m, case.finger))
     return rows
 
 
@@ -330,6 +401,16 @@ def summary(config, rows: list[SweepRow], excluded: int, hold_s: float,
             worst = max(sel, key=lambda r: r.peak_ratio)
             lines.append(f'worst peak {part}: {worst.peak_ratio:.4f} x F_sp '
                          f'({_describe(worst)}); limit 1.10')
+    chain = {name: (finger_n_per_m, pad_n_per_m1_5)
+             for name, finger_n_per_m, pad_n_per_m1_5 in finger_kinds()}
+    for finger in sorted({r.finger for r in rows if r.finger}):
+        sel = [r for r in rows if r.finger == finger]
+        worst = max(sel, key=lambda r: r.peak_ratio)
+        lost = sum(r.outcome == 'OBJECT_LOST' for r in sel)
+        finger_n_per_m, pad_n_per_m1_5 = chain.get(finger, (math.nan, math.nan))
+        lines.append(f'  {finger} (k_f {finger_n_per_m:.3g} N/m, k_p {pad_n_per_m1_5:.3g} '
+                     f'N/m^1.5): {len(sel)} grasps, worst peak {worst.peak_ratio:.4f} x F_sp '
+                     f'({_describe(worst)}), {lost} lost')
     counts = {}
     for r in rows:
         counts[r.outcome] = counts.get(r.outcome, 0) + 1
@@ -355,18 +436,19 @@ def summary(config, rows: list[SweepRow], excluded: int, hold_s: float,
     lines.append('time to hold at the exact width, minus the floors (s), per contact:')
     lines.append(f'  {"contact":>7s} {"zeta":>5s} {"n":>3s} {"held":>4s} '
                  f'{"- rest: median":>14s} {"max":>6s} {"- reach: min":>12s} {"max hold s":>10s}')
-    for key in sorted({(r.stiffness_n_per_m, r.damping_ratio) for r in exact}):
-        sel = [r for r in exact if (r.stiffness_n_per_m, r.damping_ratio) == key]
+    for key in sorted({(r.finger, r.stiffness_n_per_m, r.damping_ratio) for r in exact}):
+        sel = [r for r in exact if (r.finger, r.stiffness_n_per_m, r.damping_ratio) == key]
         ok = [r for r in sel if math.isfinite(r.time_to_hold_s)]
         over_rest = sorted(r.time_to_hold_s - r.approach_floor_s for r in ok)
         over_reach = [r.time_to_hold_s - r.arrival_floor_s for r in ok]
-        name = sel[0].contact
+        name = f'{key[0]} {sel[0].contact}' if key[0] else sel[0].contact
         if ok:
-            lines.append(f'  {name:>7s} {key[1]:5.2f} {len(sel):3d} {len(ok):4d} '
-                         f'{over_rest[len(over_rest) // 2]:14.2f} {over_rest[-1]:6.2f} '
+            lines.append(f'  {name:>7s} {key[2]:5.2f} {len(sel):3d} {len(ok):4d} '
+                         f'{_figure(over_rest[len(over_rest) // 2], 14)} '
+                         f'{_figure(over_rest[-1], 6)} '
                          f'{min(over_reach):12.2f} {max(r.time_to_hold_s for r in ok):10.2f}')
         else:
-            lines.append(f'  {name:>7s} {key[1]:5.2f} {len(sel):3d}    0')
+            lines.append(f'  {name:>7s} {key[2]:5.2f} {len(sel):3d}    0')
     if banded:
         per_n = band_speed_mps(config, 1.0)
         lines.append('within a tolerance: the band is crossed at the band speed '
@@ -381,9 +463,16 @@ def summary(config, rows: list[SweepRow], excluded: int, hold_s: float,
     return '\n'.join(lines)
 
 
+def _figure(value: float, width: int) -> str:
+    """Return ``value`` to two decimals in ``width`` characters, '-' if not computed (nan)."""
+    return f'{"-":>{width}s}' if math.isnan(value) else f'{value:{width}.2f}'
+
+
 def _describe(r: SweepRow) -> str:
     kind = 'rigid' if r.stiffness_n_per_m == 0.0 else \
         f'k {r.stiffness_n_per_m:.0e} N/m zeta {r.damping_ratio:g}'
+    if r.finger:
+        kind = f'{r.finger}, {kind}'
     where = f'{r.width_m * 1e3:g} mm'
     if r.width_tolerance_m:
         where += (f' +-{r.width_tolerance_m * 1e3:g} mm, placed {r.object_width_m * 1e3:g} mm')
@@ -391,13 +480,16 @@ def _describe(r: SweepRow) -> str:
 
 
 def format_rows(rows: list[SweepRow]) -> str:
-    lines = [f'{"k N/m":>7s} {"zeta":>5s} {"width":>6s} {"+-mm":>4s} {"placed":>6s} '
+    fingers = any(r.finger for r in rows)        # a column of the chain kind, if any
+    lead = f'{"fingers":>10s} ' if fingers else ''
+    lines = [lead + f'{"k N/m":>7s} {"zeta":>5s} {"width":>6s} {"+-mm":>4s} {"placed":>6s} '
              f'{"kg":>5s} {"outcome":>11s} {"F_sp N":>7s} {"peak/F_sp":>9s} '
              f'{"hold min":>8s} {"hold max":>8s} {"hold s":>7s} {"rest s":>7s} {"reach s":>7s}']
     for r in rows:
         k = 'rigid' if r.stiffness_n_per_m == 0.0 else f'{r.stiffness_n_per_m:.0e}'
         lines.append(
-            f'{k:>7s} {r.damping_ratio:5.2f} {r.width_m * 1e3:6.0f} '
+            (f'{r.finger:>10s} ' if fingers else '')
+            + f'{k:>7s} {r.damping_ratio:5.2f} {r.width_m * 1e3:6.0f} '
             f'{r.width_tolerance_m * 1e3:4.0f} {r.object_width_m * 1e3:6.1f} {r.mass_kg:5.2f} '
             f'{r.outcome:>11s} {r.force_setpoint_n:7.3f} {r.peak_ratio:9.4f} '
             f'{r.hold_min_ratio:8.4f} {r.hold_max_ratio:8.4f} {r.time_to_hold_s:7.2f} '
@@ -477,6 +569,10 @@ def main(argv: list[str] | None = None) -> int:
     grid = parser.add_mutually_exclusive_group()
     grid.add_argument('--quick', action='store_true',
                       help='the reduced exact-width grid the tests run (corners of the envelope)')
+    grid.add_argument('--fingers', action='store_true',
+                      help='flexible fingers and nonlinear pads: a printed finger, a rubber-dome '
+                           'pad and both (core/contact_chain.py) on rigid and compliant objects, '
+                           'at the exact width and within a tolerance')
     grid.add_argument('--compliant', action='store_true',
                       help='only rigid, stiff (1e5 N/m) and soft (1e3 N/m) objects at the exact '
                            'width (the former sweep)')
@@ -531,6 +627,9 @@ def main(argv: list[str] | None = None) -> int:
         cases, excluded = quick_cases(config)
     elif args.compliant:
         cases, excluded = compliant_cases(config)
+    elif args.fingers:
+        cases, excluded = finger_cases(config, exact=not args.band_only,
+                                       band=not args.exact_only)
     else:
         cases, excluded = envelope_cases(config, exact=not args.band_only,
                                          band=not args.exact_only)
@@ -540,7 +639,8 @@ def main(argv: list[str] | None = None) -> int:
     try:
         with progress_bar(len(cases), 'contact_sweep', quiet=args.quiet) as bar:
             rows = sweep(config, cases, args.force_controller, args.hold_s, args.jobs,
-                         scheduler=args.scheduler, progress=bar.update)
+                         scheduler=args.scheduler, progress=bar.update,
+                         rest_floors=not args.fingers)
     except EngineError as exc:
         print(f'contact_sweep: {exc}', file=sys.stderr)
         return 2

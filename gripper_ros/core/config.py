@@ -100,6 +100,11 @@ class ContactParams:
     # The arm's lift-off (core/hold.py): the weight passes from the support to the pads over
     # this long; 0 (a file that predates it) = all at once.
     lift_off_s: float = 0.0
+    # The normal chain (core/contact_chain.py): each finger's bending stiffness at its pad and
+    # each pad's Hertz stiffness (F = k_p delta^1.5); 0 (or a file that predates them) = a
+    # rigid finger, no pad: the object alone, as in the paper.
+    finger_stiffness_n_per_m: float = 0.0
+    pad_normal_stiffness_n_per_m1_5: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -334,6 +339,8 @@ BOUNDS: dict[str, tuple[float, float]] = {
     'contact.after_lift_s': (0.0, 60.0),
     'contact.pad_tangential_stiffness_n_per_m': (0.0, 1e10),
     'contact.lift_off_s': (0.0, 10.0),
+    'contact.finger_stiffness_n_per_m': (0.0, 1e10),
+    'contact.pad_normal_stiffness_n_per_m1_5': (0.0, 1e12),
     'force_sensor.supply_v': (0.1, 100.0),
     'force_sensor.measuring_resistor_ohm': (1.0, 1e12),
     'force_sensor.fsr_resistance_at_1n_ohm': (1.0, 1e12),
@@ -556,7 +563,9 @@ def parse_config(data: dict, source: str = '<dict>') -> GripperConfig:
                      damping_n_s_per_m={'nonnegative': True},
                      after_lift_s={'nonnegative': True},
                      pad_tangential_stiffness_n_per_m={'nonnegative': True},
-                     lift_off_s={'nonnegative': True})
+                     lift_off_s={'nonnegative': True},
+                     finger_stiffness_n_per_m={'nonnegative': True},
+                     pad_normal_stiffness_n_per_m1_5={'nonnegative': True})
     if contact.kinetic_friction > contact.static_friction:
         raise ConfigError('"contact.kinetic_friction" must be <= "contact.static_friction" '
                           f'({contact.static_friction!r}), got {contact.kinetic_friction!r}')

@@ -12,6 +12,12 @@ hold, matrix exponential) at whatever hold time a controller asks for. Contact w
 * compliant (Kelvin-Voigt): ``F = k d + c d'`` for penetration ``d = x - x_c > 0``; the force
   loads the motor through the same lever ``eta p N1/N2``.
 
+* flexible fingers and nonlinear pads (``contact.finger_stiffness_n_per_m``,
+  ``contact.pad_normal_stiffness_n_per_m1_5`` > 0): every contact, rigid or compliant object,
+  is the series chain finger - pad - object - pad - finger of
+  :mod:`gripper_ros.core.contact_chain`, one force through all, solved each sub-step. With both
+  keys 0 the two models above run unchanged.
+
 The fully-open end stop (``x = 0``) is rigid and senses no force; with no object the fingers meet
 at ``x = L_ls`` (a rigid object of width 0).
 
@@ -38,7 +44,7 @@ simulated instant, the step is split there):
   instant ``t_f``. While the motor pushes harder than ``C`` the finger advances against the
   constant load ``C`` (the face recedes with it) and the measured force is ``C``; once
   ``C < 1 %`` of ``F_0`` the object is out and gone. Fired while nothing is gripped
-  (``F_0 = 0``) it acts as a removal.
+  (``F_0 = 0``), or with flexible fingers or pads (the chain below), it acts as a removal.
 * ``SENSOR_DROPOUT``: the force sensor reports NaN force and voltage from then on
   (:class:`gripper_ros.core.force_sensor.FsrVoltageDivider`); the mechanics are unaffected.
 
@@ -64,6 +70,7 @@ import math
 from typing import NamedTuple
 
 from gripper_ros.core.config import ContactParams, PadSensorParams, PlantParams
+from gripper_ros.core.contact_chain import chain_solve, PADS_IN_CHAIN
 from gripper_ros.core.force_sensor import (fsr_voltage_v, FsrVoltageDivider,
                                            NOISE_CHANNEL_FORCE, NOISE_CHANNEL_POSITION,
                                            noisy_reading)
@@ -221,6 +228,10 @@ PARAMS_DTYPE = np.dtype([
     ('after_lift_ns', np.int64),           # contact.after_lift_s in ns
     ('two', np.float64),                   # 2.0 read at run time: w ** two is Python's w ** 2
     ('pad_dt_ns', np.int64),               # the pad channels' sample period
+    # flexible fingers and Hertz pads in series with the object (core/contact_chain.py)
+    ('chain', np.uint8),                   # 1: either is on; every contact is a chain
+    ('finger_compliance_m_per_n', np.float64),   # 2 / k_f, both fingers (0: rigid)
+    ('pad_stiffness_n_per_m1_5', np.float64),    # k_p of each pad (0: no pad)
 ], align=True)
 """The plant's constants (Table I and derived), as one record."""
 
@@ -255,6 +266,9 @@ STATE_DTYPE = np.dtype([
     ('disc_next', np.int64),               # the entry a miss overwrites once it is full
     ('disc_last', np.int64),               # the entry last found (looked at first)
     ('pads_resting', np.uint8),            # the pad channels read 0: nothing is held
+    ('chain_force_n', np.float64),         # the chain's force (contact_chain.py)
+    ('chain_object_m', np.float64),        # the object's own compression d_o in the chain
+    ('chain_pad_m', np.float64),           # each pad's compression (Newton's next start)
 ], align=True)
 """The plant's mutable state: mechanics, object, slip, scheduled fault, table bookkeeping."""
 
@@ -281,6 +295,10 @@ def _plant_params_record(params: PlantParams, contact: ContactParams) -> np.ndar
                            / p.resistance_ohm + p.damping_n_m_s_per_rad)
     r['after_lift_ns'] = round(contact.after_lift_s * 1e9)
     r['two'] = 2.0
+    finger_k = contact.finger_stiffness_n_per_m
+    r['finger_compliance_m_per_n'] = PADS_IN_CHAIN / finger_k if finger_k > 0.0 else 0.0
+    r['pad_stiffness_n_per_m1_5'] = contact.pad_normal_stiffness_n_per_m1_5
+    r['chain'] = 1 if finger_k > 0.0 or contact.pad_normal_stiffness_n_per_m1_5 > 0.0 else 0
     return rec
 
 
@@ -423,6 +441,8 @@ def _force(s, p):
         cap = _slip_capacity_n(s, s.t_now_s)
         return cap if cap < motor else motor
     if state == CONTACT_COMPLIANT:
+        if p.chain:
+            return s.chain_force_n
         force = s.stiffness_n_per_m * (s.x - s.x_c) + s.damping_n_s_per_m * s.w * p.rho
         return force if force > 0.0 else 0.0
     if state == CONTACT_SLIPPING:
@@ -438,10 +458,12 @@ def _refresh_contact_state(s, p):
         s.x = 0.0
         s.contact = CONTACT_OPEN_STOP
     elif s.x >= x_c:
-        rigid = s.stiffness_n_per_m == 0.0
+        rigid = s.stiffness_n_per_m == 0.0 and not p.chain
         s.contact = CONTACT_RIGID if rigid else CONTACT_COMPLIANT
         if rigid:
             s.x = x_c
+        if p.chain:
+            _chain_at_rest(s, p)
     else:
         s.contact = CONTACT_FREE
 
@@ -490,7 +512,9 @@ def _touch_object(k):
     s.x = s.x_c
     s.voltage = 0.0
     s.peak = 0.0
-    s.contact = CONTACT_RIGID if s.stiffness_n_per_m == 0.0 else CONTACT_COMPLIANT
+    s.contact = CONTACT_RIGID if s.stiffness_n_per_m == 0.0 and not \
+        k[K_PARAMS][0].chain else CONTACT_COMPLIANT
+    _chain_untouched(s)
 
 
 @numba.njit(cache=True)
@@ -571,7 +595,7 @@ def _fire_fault(s, p, h, sensor, fired):
         _remove_object(s, p, h, False)
     elif kind == FaultKind.OBJECT_SLIPPING:
         f_0 = _force(s, p)
-        if f_0 <= 0.0:
+        if f_0 <= 0.0 or p.chain:        # the decaying capacity is the rigid contact's
             _remove_object(s, p, h, False)
         else:
             s.has_slip = 1
@@ -658,7 +682,10 @@ def _detect_contact(s, p):
     """After a free sub-step: arrival on the object (or the other finger) or the open stop."""
     x_c = s.x_c
     if s.x >= x_c:
-        if s.stiffness_n_per_m == 0.0:
+        if p.chain:                  # the pads touch: the chain carries the force from here
+            _chain_untouched(s)
+            s.contact = CONTACT_COMPLIANT
+        elif s.stiffness_n_per_m == 0.0:
             mass_equiv = p.inertia_kg_m2
             s.impact_energy_lost_j += 0.5 * mass_equiv * s.w ** p.two
             s.x = x_c
@@ -671,6 +698,68 @@ def _detect_contact(s, p):
         s.x = 0.0
         s.w = 0.0
         s.contact = CONTACT_OPEN_STOP
+
+
+@numba.njit(cache=True, inline='always')
+def _chain_untouched(s):
+    """Zero the chain: the pads just touch the object, nothing is compressed."""
+    s.chain_force_n = 0.0
+    s.chain_object_m = 0.0
+    s.chain_pad_m = 0.0
+
+
+@numba.njit(cache=True)
+def _chain_at_rest(s, p):
+    """Set the chain's force for the finger at rest where it is (after a reset, a new object)."""
+    rigid = s.stiffness_n_per_m == 0.0
+    compliance = p.finger_compliance_m_per_n + (0.0 if rigid else 1.0 / s.stiffness_n_per_m)
+    force, pad_m = chain_solve(s.x - s.x_c, compliance, p.pad_stiffness_n_per_m1_5, 0.0)
+    s.chain_force_n = force
+    s.chain_pad_m = pad_m
+    s.chain_object_m = 0.0 if rigid else force / s.stiffness_n_per_m
+
+
+@numba.njit(cache=True)
+def _advance_chain(s, p, keys, coef, e, dt_s):
+    """One sub-step of the finger pressing through the chain (core/contact_chain.py).
+
+    The motor is the exact ZOH model with the chain's force as a held load input, taken as the
+    mean of its values at the two ends (trapezoidal rule: second order, and on an undamped
+    spring it neither adds nor removes energy); the object's damper is backward Euler,
+    ``F = k_o d_o + c_o (d_o - d_prev) / dt``. The end force solves the chain for the end
+    travel, which depends on it linearly. Free once the finger is back behind the object's
+    face.
+    """
+    c = coef[_disc_entry(s, p, keys, coef, DISC_LOADED, dt_s)]
+    i = s.i
+    w = s.w
+    x = s.x
+    half_f0 = 0.5 * s.chain_force_n
+    i1 = c[0] * i + c[1] * w + c[2] * x + c[9] * e + c[10] * half_f0
+    w1 = c[3] * i + c[4] * w + c[5] * x + c[11] * e + c[12] * half_f0
+    x1 = c[6] * i + c[7] * w + c[8] * x + c[13] * e + c[14] * half_f0
+    if s.stiffness_n_per_m == 0.0:
+        object_compliance = 0.0
+        object_offset = 0.0
+        gamma = 0.0
+    else:
+        gamma = s.damping_n_s_per_m / dt_s
+        object_compliance = 1.0 / (s.stiffness_n_per_m + gamma)
+        object_offset = gamma * s.chain_object_m * object_compliance
+    # x_end = x1 + 0.5 c[14] F (c[14] < 0: the load slows the finger)
+    compliance = p.finger_compliance_m_per_n - 0.5 * c[14] + object_compliance
+    force, pad_m = chain_solve(x1 - s.x_c - object_offset, compliance,
+                               p.pad_stiffness_n_per_m1_5, s.chain_pad_m)
+    half_f1 = 0.5 * force
+    s.i = i1 + c[10] * half_f1
+    s.w = w1 + c[12] * half_f1
+    s.x = x1 + c[14] * half_f1
+    s.chain_force_n = force
+    s.chain_pad_m = pad_m
+    s.chain_object_m = (force + gamma * s.chain_object_m) * object_compliance
+    if s.x < s.x_c:
+        _chain_untouched(s)
+        s.contact = CONTACT_FREE
 
 
 @numba.njit(cache=True, inline='always')
@@ -767,6 +856,10 @@ def _integrate(s, p, h, keys, coef, e, duration_s, start_s):
                 _detect_contact(s, p)
         elif state == CONTACT_RIGID or state == CONTACT_OPEN_STOP:
             remaining = _advance_stalled(s, p, e, remaining)
+        elif p.chain:
+            dt = remaining if remaining < sub else sub
+            _advance_chain(s, p, keys, coef, e, dt)
+            remaining -= dt
         else:
             if one_step and remaining <= s.compliant_one_step_s and \
                     _advance_compliant_in_one_step(s, p, keys, coef, e, remaining):
