@@ -24,21 +24,16 @@ follow the load the pads feel, ``F_sp(t) = k F_load(t) / (2 mu_est)``, with a ma
   object slips for ``overload_slip_s`` with the grip at ``max_force_n``, the law says so
   (``overload_ns``) while the object is still between the pads.
 
-:func:`run_load_grip` is the hold compiled: pads' truth -> sensors -> law -> the force stage
-(the same contact-aware stage kernel as the graph's) -> the plant, each force sample; one grasp
-and hold of the study is :func:`gripper_ros.core.grip_runs.simulate_load_grip`. The supervisor
-runs :func:`law_step` itself for a grasp of unknown mass (``core/supervisor.py``).
+The supervisor runs :func:`law_step` each tick for a grasp of unknown mass
+(``core/supervisor.py``); one grasp and hold of the study is
+:func:`gripper_ros.core.grip_runs.simulate_load_grip`.
 """
 from __future__ import annotations
 
 import math
 
 from gripper_ros.core.config import LoadGripParams
-from gripper_ros.core.hold import (hold_load_n, hold_presliding_m, hold_shear_n, HoldState,
-                                   presliding_m)
-from gripper_ros.core.pad_sensor import channel_step
-from gripper_ros.core.plant import K_HOLD, plant_read_tick, plant_step
-from gripper_ros.core.stages import stage_answer
+from gripper_ros.core.hold import presliding_m
 import numba
 import numpy as np
 
@@ -275,66 +270,3 @@ def _distinct(sums, count, best, noise_var):
 
 ROW_FIELDS = ('t_ns', 'force_n', 'force_setpoint_n', 'load_n', 'capacity_n', 'slip_m',
               'shear_reading_n', 'displacement_reading_m', 'mu_est', 'state')
-
-
-@numba.njit(cache=True)
-def run_load_grip(plant_k, force_k, ref, cmd, tick, g, history, sums, grid, channels, buffers,
-                  end_ns, decimate, rows, fixed):
-    """Hold with the law from the present tick until ``end_ns`` or the object is gone.
-
-    ``channels``: the five sensor records (shear of pad 1, 2; displacement of pad 1, 2; the
-    normal force on pad 1's load cell, which the law reads with the shear it divides), ``buffers``
-    their delay lines (5 x n). ``fixed``: hold the law record's setpoint instead
-    (the fixed laws, for comparison). Keeps every ``decimate``-th sample in ``rows``
-    (ROW_FIELDS); returns the number of rows kept.
-    """
-    h = plant_k[K_HOLD][0]
-    kept = 0
-    i = 0
-    while tick[0].stamp_ns < end_ns:
-        t = tick[0]
-        force = t.force_n
-        state = h.state
-        held = state == HoldState.STUCK or state == HoldState.SLIDING
-        shear = hold_shear_n(h, force) if held else 0.0
-        disp = hold_presliding_m(h, force) + h.slip_m if held else 0.0
-        q = 0.5 * (channel_step(channels[0], buffers[0], shear) +
-                   channel_step(channels[1], buffers[1], shear))
-        d = 0.5 * (channel_step(channels[2], buffers[2], disp) +
-                   channel_step(channels[3], buffers[3], disp))
-        normal = channel_step(channels[4], buffers[4], force)   # the load cell's third axis
-        if fixed:
-            setpoint = g[0].force_setpoint_n
-        else:
-            setpoint = law_step(g[0], history, sums, grid, t.stamp_ns, q, d, normal)
-        if i % decimate == 0 and kept < rows.shape[0]:
-            load = hold_load_n(h)
-            cap = 2.0 * h.static_friction * (force if force > 0.0 else 0.0)
-            rows[kept, 0] = t.stamp_ns
-            rows[kept, 1] = force
-            rows[kept, 2] = setpoint
-            rows[kept, 3] = load
-            rows[kept, 4] = cap
-            rows[kept, 5] = h.slip_m
-            rows[kept, 6] = q
-            rows[kept, 7] = d
-            rows[kept, 8] = g[0].mu_est
-            rows[kept, 9] = state
-            kept += 1
-        i += 1
-        r = ref[0]
-        r.stamp_ns = t.stamp_ns
-        r.revision = t.revision
-        r.force_setpoint_n = setpoint
-        r.position_m = t.position_m
-        r.velocity_mps = t.velocity_mps
-        r.force_n = force
-        r.seed_voltage_v = t.motor_voltage_v
-        r.running = 1
-        stage_answer(force_k, ref, cmd)
-        c = cmd[0]
-        plant_step(plant_k, c.voltage_v, round(c.hold_s * 1e9))
-        plant_read_tick(plant_k, tick, t.revision, c.source)
-        if state == HoldState.LOST or state == HoldState.NONE:
-            break
-    return kept
