@@ -39,6 +39,8 @@ import numpy as np
 
 MU_GRID = np.round(np.arange(0.20, 1.2001, 0.01), 2)
 """The friction coefficients the estimator tells apart."""
+HISTORY_ROWS = 4
+"""The law's history: displacements, shears, forces as the shear channel reads them, forces."""
 NEIGHBOURS = 5
 """An estimate is believed once the candidates this many grid steps away fit clearly worse."""
 NEIGHBOUR_SIGNIFICANCE = 25.0
@@ -122,7 +124,7 @@ def make_law(params: LoadGripParams, max_force_n: float, tangential_stiffness_n_
     r['normal_delay'] = min(round(shear_latency_s / dt_s), int(r['window']))
     r['normal_alpha'] = 1.0 if shear_bandwidth_hz == 0.0 else \
         -math.expm1(-2.0 * math.pi * shear_bandwidth_hz * dt_s)
-    history = np.zeros((4, int(r['window']) + 1))
+    history = np.zeros((HISTORY_ROWS, int(r['window']) + 1))
     sums = np.zeros((2, MU_GRID.size))
     return rec, history, sums
 

@@ -203,12 +203,15 @@ DISC_TABLE_SIZE = 64          # entries of the plant's table (a grasp uses about
 MAX_FIRED_FAULTS = 16         # fired faults kept since set_object (the oldest are dropped)
 
 # The entries of the tuple ``GripperPlant.kernel``.
-K_STATE, K_PARAMS, K_HOLD, K_SENSOR, K_FIRED, K_DISC_KEYS, K_DISC_COEF, K_PADS, \
-    K_PAD_BUFFERS = range(9)
+# Few arrays: the compiled code copies the tuple on every call it does not inline.
+K_STATE, K_PARAMS, K_HOLD, K_SENSOR, K_FIRED, K_DISC_KEYS, K_DISC_COEF, K_PADS = range(8)
 
 # The pad channels (K_PADS rows, core/pad_sensor.py), in PlantTick's order of their readings.
 PAD_SHEAR_1, PAD_SHEAR_2, PAD_DISPLACEMENT_1, PAD_DISPLACEMENT_2 = range(4)
 PAD_CHANNELS = 4
+PAD_DTYPE = np.dtype([(name, CHANNEL_DTYPE.fields[name][0]) for name in CHANNEL_DTYPE.names]
+                     + [('line', np.float64, (MAX_LATENCY_SAMPLES,))], align=True)
+"""A pad channel's record (pad_sensor.CHANNEL_DTYPE) with its delay line."""
 
 PARAMS_DTYPE = np.dtype([
     ('rho', np.float64),                   # p / (2 pi), m per motor rad (eq. 10)
@@ -921,11 +924,11 @@ def _step_in_pieces(s, p, h, sensor, fired, keys, coef, e, t_ns, end_ns):
 def _pads_rest(k):
     """Nothing is held: every pad channel reads 0 with a history of 0 (no noise is drawn)."""
     chans = k[K_PADS]
-    bufs = k[K_PAD_BUFFERS]
     for i in range(PAD_CHANNELS):
         c = chans[i]
-        for j in range(bufs.shape[1]):
-            bufs[i, j] = 0.0
+        line = c.line
+        for j in range(line.shape[0]):
+            line[j] = 0.0
         c.filtered = 0.0
         c.primed = 1
         c.reading = 0.0
@@ -957,12 +960,13 @@ def _pads_sample(k, duration_ns):
         if n < 1:
             n = 1
     chans = k[K_PADS]
-    bufs = k[K_PAD_BUFFERS]
+    shear_1, shear_2 = chans[PAD_SHEAR_1], chans[PAD_SHEAR_2]
+    disp_1, disp_2 = chans[PAD_DISPLACEMENT_1], chans[PAD_DISPLACEMENT_2]
     for _ in range(n):
-        channel_step(chans[PAD_SHEAR_1], bufs[PAD_SHEAR_1], shear)
-        channel_step(chans[PAD_SHEAR_2], bufs[PAD_SHEAR_2], shear)
-        channel_step(chans[PAD_DISPLACEMENT_1], bufs[PAD_DISPLACEMENT_1], displacement)
-        channel_step(chans[PAD_DISPLACEMENT_2], bufs[PAD_DISPLACEMENT_2], displacement)
+        channel_step(shear_1, shear_1.line, shear)
+        channel_step(shear_2, shear_2.line, shear)
+        channel_step(disp_1, disp_1.line, displacement)
+        channel_step(disp_2, disp_2.line, displacement)
 
 
 # ----------------------------------------------------------------------------- entry points
@@ -1187,10 +1191,9 @@ class GripperPlant:
         self.kernel = (state, _plant_params_record(params, self.contact_defaults), hold,
                        sensor.record, np.zeros((MAX_FIRED_FAULTS, 2), np.int64),
                        np.zeros((DISC_TABLE_SIZE, 5)), np.zeros((DISC_TABLE_SIZE, 15)),
-                       np.zeros(PAD_CHANNELS, CHANNEL_DTYPE),
-                       np.zeros((PAD_CHANNELS, MAX_LATENCY_SAMPLES)))
+                       np.zeros(PAD_CHANNELS, PAD_DTYPE))
         """The kernel buffers: (state, params, hold, sensor, fired faults, table keys, table,
-        pad channels, their delay lines)."""
+        pad channels with their delay lines)."""
         if pads is not None:
             self.kernel[K_PARAMS][0]['pad_dt_ns'] = round(self._pad_dt_s * 1e9)
         self._seed_pads()
@@ -1264,8 +1267,10 @@ class GripperPlant:
         for i, spec in enumerate(self._pad_specs):
             record, buffer = make_channel(spec, self._pad_dt_s,
                                           (self._pad_seed * PAD_CHANNELS + i) % 2 ** 64)
-            self.kernel[K_PADS][i] = record[0]
-            self.kernel[K_PAD_BUFFERS][i] = buffer
+            pad = self.kernel[K_PADS][i]
+            for name in CHANNEL_DTYPE.names:
+                pad[name] = record[0][name]
+            pad['line'] = buffer
         self._s['pads_resting'] = 0
 
     def _hold_model_for(self, obj: GraspObject, lift: Lift | None) -> HoldModel | None:

@@ -42,7 +42,7 @@ from __future__ import annotations
 import math
 
 from gripper_ros.core.config import GripperConfig, LoadGripParams, PlantParams, SupervisorParams
-from gripper_ros.core.load_grip import law_step, make_law, MU_GRID
+from gripper_ros.core.load_grip import HISTORY_ROWS, law_step, make_law, MU_GRID
 from gripper_ros.core.requests import GraspTargets, MoveTargets, RequestError
 from gripper_ros.wire import Controller, Outcome, PendingRequest, Phase, SwitchCriterion
 import numba
@@ -496,16 +496,15 @@ def _tracking(s) -> bool:
 
 
 @_kernel
-def _law_reset(law, law_init, history, sums) -> None:
-    """Start a new grasp's law as :func:`gripper_ros.core.load_grip.make_law` made it."""
-    law[0] = law_init[0]
-    history[:, :] = 0.0
-    sums[:, :] = 0.0
+def _law_reset(law, law_buffers) -> None:
+    """Start a new grasp's law (``law[0]``) as make_law made it (``law[1]``), buffers at 0."""
+    law[0] = law[1]
+    law_buffers[:, :] = 0.0
 
 
 @_kernel
-def _track_load(s, msg_f, msg_i, law, history, sums, grid, t_ns, force_n, shear_n,
-                displacement_m, may_answer) -> int:
+def _track_load(s, msg_f, msg_i, law, law_buffers, t_ns, force_n, shear_n, displacement_m,
+                may_answer) -> int:
     """Run the law on this tick's pads: its setpoint becomes the grasp's; OVERLOADED once.
 
     The answer OVERLOADED comes the first tick the law has found the load beyond the most 24 V
@@ -513,7 +512,9 @@ def _track_load(s, msg_f, msg_i, law, history, sums, grid, t_ns, force_n, shear_
     the law's setpoint (at most that force), the loss watch too.
     """
     g = law[0]
-    s.tg_force_setpoint_n = law_step(g, history, sums, grid, t_ns, shear_n, displacement_m,
+    history = law_buffers[:HISTORY_ROWS, :g.window + 1]
+    sums = law_buffers[HISTORY_ROWS:, :MU_GRID.size]
+    s.tg_force_setpoint_n = law_step(g, history, sums, MU_GRID, t_ns, shear_n, displacement_m,
                                      force_n)
     if g.overload_ns == -1 or s.overload_ns != NO_NS or not may_answer:
         return NO_ANSWER
@@ -578,7 +579,7 @@ def supervisor_step(k, t_ns, position_m, force_n, sensor_voltage_v, speed_mps,
     position stage then holds the finger where it now is. ``shear_n`` and ``displacement_m``
     (a pad's mean) feed the load-tracking grip of a mass-0 grasp.
     """
-    state, params, msg_f, msg_i, law, law_init, history, sums, grid = k
+    state, params, msg_f, msg_i, law, law_buffers = k
     s = state[0]
     p = params[0]
     s.t_ns = t_ns
@@ -592,12 +593,12 @@ def supervisor_step(k, t_ns, position_m, force_n, sensor_voltage_v, speed_mps,
             math.isfinite(position_m):
         _start(s, p, t_ns, position_m, sensor_voltage_v)
         if s.kind == PendingRequest.GRASP:
-            _law_reset(law, law_init, history, sums)
+            _law_reset(law, law_buffers)
     if _running(s) or _holding(s):
         answer = _step_request(s, p, msg_f, msg_i, t_ns, position_m, force_n, sensor_voltage_v,
                                speed_mps)
     if _tracking(s) and math.isfinite(force_n):
-        overloaded = _track_load(s, msg_f, msg_i, law, history, sums, grid, t_ns, force_n,
+        overloaded = _track_load(s, msg_f, msg_i, law, law_buffers, t_ns, force_n,
                                  shear_n, displacement_m, answer == NO_ANSWER)
         if overloaded != NO_ANSWER:
             answer = overloaded
@@ -748,8 +749,8 @@ class GraspSupervisor:
     (re)assigned, so that it restarts from the measured state.
 
     ``kernel`` is the tuple of arrays the compiled functions take: the state record, the
-    parameters, the numbers of the current message, and the load-tracking grip's record (and
-    a copy as it starts), history, sums and friction grid (:func:`load_law`).
+    parameters, the numbers of the current message, the load-tracking grip's record and a copy
+    as it starts (:func:`load_law`), and its history and residual sums in one array.
 
     A grasp of mass 0 (unknown) needs ``law``; without it such a request is refused.
     """
@@ -771,8 +772,11 @@ class GraspSupervisor:
         self._s['d_answer'] = NO_ANSWER
         self._s['t_ns'] = 0
         self._params = np.zeros(1, SUPERVISOR_PARAMS)
+        # few arrays: the kernel's tuple is copied on every call the compiler does not inline
+        law_buffers = np.zeros((history.shape[0] + sums.shape[0],
+                                max(history.shape[1], sums.shape[1])))
         self.kernel = (state, self._params, np.zeros(MSG_FLOATS), np.zeros(MSG_INTS, np.int64),
-                       record.copy(), record.copy(), history, sums, MU_GRID.copy())
+                       np.concatenate([record, record]), law_buffers)
         self.params = params
         self._targets: GraspTargets | MoveTargets | None = None
         self._pending_targets: GraspTargets | MoveTargets | None = None
