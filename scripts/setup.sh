@@ -227,6 +227,9 @@ if [[ "$(cat "$CORE_STAMP" 2>/dev/null || true)" == "$core_hash" ]] && \
   log "compiled core unchanged (stamp matches), warm-up skipped"
 else
   rm -f "$CORE_STAMP"
+  # numba checks only a function's own file: a kernel that inlined one from a changed file
+  # would load stale from its cache. A change of the core recompiles all of it.
+  find gripper_ros -name '*.nbi' -delete -o -name '*.nbc' -delete
   log "compiling the simulation core (numba; first time: about a minute)"
   (cd /tmp && PYTHONPATH="$ROOT${PYTHONPATH:+:$PYTHONPATH}" "$PY" -c \
     'from gripper_ros.core.headless import warm_up; print(f"[setup] compiled core ready in {warm_up():.1f} s")' >&2) \

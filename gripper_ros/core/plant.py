@@ -921,9 +921,8 @@ def _step_in_pieces(s, p, h, sensor, fired, keys, coef, e, t_ns, end_ns):
 
 # ----------------------------------------------------------------------------- pad sensing
 @numba.njit(cache=True)
-def _pads_rest(k):
+def _pads_rest(chans):
     """Nothing is held: every pad channel reads 0 with a history of 0 (no noise is drawn)."""
-    chans = k[K_PADS]
     for i in range(PAD_CHANNELS):
         c = chans[i]
         line = c.line
@@ -935,21 +934,13 @@ def _pads_rest(k):
 
 
 @numba.njit(cache=True)
-def _pads_sample(k, duration_ns):
+def _pads_sample(s, p, h, chans, duration_ns):
     """Read each pad's shear and the object's displacement on it at the end of a step.
 
     While the object is held (stuck or sliding) each channel takes one sample per ``pad_dt_ns``
-    of the step (at least one) of the value now; otherwise the channels rest at 0, so the
-    readings, and the noise drawn, depend only on the held samples since ``set_object``.
+    of the step (at least one) of the value now; otherwise the channels rest at 0 (plant_step),
+    so the readings, and the noise drawn, depend only on the held samples since ``set_object``.
     """
-    s = k[K_STATE][0]
-    p = k[K_PARAMS][0]
-    h = k[K_HOLD][0]
-    if h.has_hold == 0 or (h.state != HoldState.STUCK and h.state != HoldState.SLIDING):
-        if not s.pads_resting:
-            _pads_rest(k)
-            s.pads_resting = 1
-        return
     s.pads_resting = 0
     force = _force(s, p)
     shear = hold_shear_n(h, force)
@@ -959,7 +950,6 @@ def _pads_sample(k, duration_ns):
         n = (duration_ns + p.pad_dt_ns // 2) // p.pad_dt_ns
         if n < 1:
             n = 1
-    chans = k[K_PADS]
     shear_1, shear_2 = chans[PAD_SHEAR_1], chans[PAD_SHEAR_2]
     disp_1, disp_2 = chans[PAD_DISPLACEMENT_1], chans[PAD_DISPLACEMENT_2]
     for _ in range(n):
@@ -991,7 +981,12 @@ def plant_step(k, voltage_v, duration_ns):
         _step_in_pieces(s, p, h, k[K_SENSOR][0], k[K_FIRED], keys, coef, e, start_ns, end_ns)
     s.t_ns = end_ns
     s.t_now_s = end_ns * 1e-9
-    _pads_sample(k, duration_ns)
+    # the pads, every tick: given only the arrays they need (a call copies the tuple)
+    if h.has_hold != 0 and (h.state == HoldState.STUCK or h.state == HoldState.SLIDING):
+        _pads_sample(s, p, h, k[K_PADS], duration_ns)
+    elif not s.pads_resting:
+        _pads_rest(k[K_PADS])
+        s.pads_resting = 1
 
 
 @numba.njit(cache=True)
