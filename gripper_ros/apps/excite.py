@@ -16,12 +16,10 @@ import copy
 from datetime import datetime
 import os
 from pathlib import Path
-import signal
 import sys
 import time
 
 EXCITATION_FORMAT = 1       # custom_data 'excitation' layout
-_STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -91,11 +89,14 @@ def main(argv: list[str] | None = None) -> int:
             parse_config(data, 'the noise options')      # the reader's checks, named
     except (ValueError, ConfigError) as exc:
         return _fail(str(exc))
+    from gripper_ros.nodes.process import raise_keyboard_interrupt, StopSignals
     from rclpy.signals import SignalHandlerOptions
     # Ctrl-C and SIGTERM end the experiment here (KeyboardInterrupt), not inside rclpy: the
-    # graph stops and the bag is closed first (as grasp_demo does).
+    # graph stops and the bag is closed first, and a second signal cannot cut that short (as
+    # grasp_demo does).
     rclpy.init(args=None if argv is None else [], signal_handler_options=SignalHandlerOptions.NO)
-    previous = {sig: signal.signal(sig, _raise_keyboard_interrupt) for sig in _STOP_SIGNALS}
+    signals = StopSignals(on_first=raise_keyboard_interrupt)
+    signals.__enter__()
     graph = None
     try:
         graph = GripperGraph(GraphOptions(config_file=args.config, namespace=namespace,
@@ -112,15 +113,11 @@ def main(argv: list[str] | None = None) -> int:
         print('excite: interrupted; bag closed', file=sys.stderr)
         return 130
     finally:
+        signals.on_first = None               # a signal from here on must not cut closing short
         if graph is not None:
             graph.close()
         rclpy.try_shutdown()
-        for sig, handler in previous.items():
-            signal.signal(sig, handler)
-
-
-def _raise_keyboard_interrupt(signum, frame):
-    raise KeyboardInterrupt
+        signals.__exit__()
 
 
 def run_excitation(graph, spec) -> str:

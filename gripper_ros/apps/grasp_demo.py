@@ -174,7 +174,8 @@ def main(argv: list[str] | None = None) -> int:
     from gripper_ros.core.config import ConfigError
     from gripper_ros.nodes.graph import GraphError, GraphOptions, GripperGraph
     from gripper_ros.nodes.names import namespace_as_given
-    from gripper_ros.nodes.process import ExecutorKind, exit_without_a_last_collection, StopSignals
+    from gripper_ros.nodes.process import (ExecutorKind, exit_without_a_last_collection,
+                                           raise_keyboard_interrupt, StopSignals)
     from gripper_ros.nodes.recording import ServeRecorder
     from gripper_ros.nodes.startup import StartupError
     from gripper_ros.text import one_line
@@ -211,7 +212,7 @@ def main(argv: list[str] | None = None) -> int:
     # stop (exit 0); during grasps it interrupts the one running (KeyboardInterrupt, exit 130).
     # A later signal is ignored: it must not cut the closing of a bag short.
     exit_without_a_last_collection()
-    signals = StopSignals(on_first=None if args.serve else _raise_keyboard_interrupt)
+    signals = StopSignals(on_first=None if args.serve else raise_keyboard_interrupt)
     signals.__enter__()
     graph = None
     try:
@@ -243,11 +244,6 @@ def main(argv: list[str] | None = None) -> int:
             graph.close()
         rclpy.try_shutdown()
         signals.__exit__()
-
-
-def _raise_keyboard_interrupt(signum):
-    """Interrupt the grasp in progress (the first Ctrl-C or SIGTERM of a one-shot demo)."""
-    raise KeyboardInterrupt
 
 
 SERVE_POLL_S = 0.1

@@ -96,6 +96,11 @@ class StopSignals:
             signal.signal(sig, handler)
 
 
+def raise_keyboard_interrupt(signum: int) -> None:
+    """Interrupt the main thread's work: a one-shot command's first Ctrl-C or SIGTERM."""
+    raise KeyboardInterrupt
+
+
 def exit_without_a_last_collection() -> None:
     """Skip the interpreter's last garbage collection when this process ends.
 
