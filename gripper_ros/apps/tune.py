@@ -383,11 +383,7 @@ def plot(study, multi: bool, max_peak_ratio: float, out: Path) -> list[Path]:
     trials = finished(study)
     ok = {t.number for t in feasible(trials)}
     history, pareto = out / 'history.png', out / 'pareto.png'
-    fig, ax = plt.subplots(figsize=(7, 4.5))
-    for good, style, label in ((True, 'o', 'feasible'), (False, 'x', 'broke a constraint')):
-        sel = [t for t in trials if (t.number in ok) == good]
-        ax.plot([t.number for t in sel], [t.user_attrs['median_time_s'] for t in sel], style,
-                label=label, ms=5)
+    fig, ax = _trials_against(plt, trials, ok, lambda t: t.number)
     best, xs, ys = math.inf, [], []
     for t in trials:
         if t.number in ok:
@@ -397,17 +393,8 @@ def plot(study, multi: bool, max_peak_ratio: float, out: Path) -> list[Path]:
             ys.append(best)
     ax.step(xs, ys, where='post', color='k', label='best feasible so far')
     ax.set_xlabel('trial')
-    ax.set_ylabel('median time to a steady hold (s)')
-    ax.set_title(f'{study.study_name}: optimisation history')
-    ax.legend(fontsize=8)
-    fig.tight_layout()
-    fig.savefig(history, dpi=100)
-    plt.close(fig)
-    fig, ax = plt.subplots(figsize=(7, 4.5))
-    for good, style, label in ((True, 'o', 'feasible'), (False, 'x', 'broke a constraint')):
-        sel = [t for t in trials if (t.number in ok) == good]
-        ax.plot([t.user_attrs['worst_peak_ratio'] for t in sel],
-                [t.user_attrs['median_time_s'] for t in sel], style, label=label, ms=5)
+    _save(plt, fig, ax, f'{study.study_name}: optimisation history', history)
+    fig, ax = _trials_against(plt, trials, ok, lambda t: t.user_attrs['worst_peak_ratio'])
     front = best_trials(study, True) if multi else _front_2d(feasible(trials))
     front = sorted(front, key=lambda t: t.user_attrs['worst_peak_ratio'])
     ax.plot([t.user_attrs['worst_peak_ratio'] for t in front],
@@ -415,13 +402,28 @@ def plot(study, multi: bool, max_peak_ratio: float, out: Path) -> list[Path]:
     ax.axvline(max_peak_ratio, color='r', ls='--', label=f'{max_peak_ratio:g} x F_sp')
     ax.set_xscale('log')                    # a spike is hundreds of times F_sp
     ax.set_xlabel('worst peak contact force / F_sp')
+    _save(plt, fig, ax, f'{study.study_name}: time against peak', pareto)
+    return [history, pareto]
+
+
+def _trials_against(plt, trials, ok, x_of):
+    """Return a figure of each trial's median time against ``x_of(trial)``, feasible or not."""
+    fig, ax = plt.subplots(figsize=(7, 4.5))
+    for good, style, label in ((True, 'o', 'feasible'), (False, 'x', 'broke a constraint')):
+        sel = [t for t in trials if (t.number in ok) == good]
+        ax.plot([x_of(t) for t in sel], [t.user_attrs['median_time_s'] for t in sel], style,
+                label=label, ms=5)
+    return fig, ax
+
+
+def _save(plt, fig, ax, title: str, path: Path) -> None:
+    """Title, label and legend a plot of median times, write it to ``path`` and close it."""
     ax.set_ylabel('median time to a steady hold (s)')
-    ax.set_title(f'{study.study_name}: time against peak')
+    ax.set_title(title)
     ax.legend(fontsize=8)
     fig.tight_layout()
-    fig.savefig(pareto, dpi=100)
+    fig.savefig(path, dpi=100)
     plt.close(fig)
-    return [history, pareto]
 
 
 def _front_2d(trials: list) -> list:
