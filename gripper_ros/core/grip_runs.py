@@ -84,8 +84,8 @@ def _graph_path_run(config: GripperConfig, width_m: float, mass_kg: float,
         0.5 * (h.pad1_shear_n + h.pad2_shear_n),
         0.5 * (h.pad1_displacement_m + h.pad2_displacement_m), h.mu_est,
         h.hold_state]).astype(float)[hold]
-    margin = _margins(rows, static_friction,
-                      lift_start_ns + round(config.contact.lift_off_s * 1e9))
+    lift_off_s = lift.lift_off_or(config.contact.lift_off_s) if lift is not None else 0.0
+    margin = _margins(rows, static_friction, lift_start_ns + round(lift_off_s * 1e9))
     rows = rows[::decimate]
     overload_s = math.nan if h.overload_ns is None else (h.overload_ns - lift_start_ns) * 1e-9
     lost_s = math.nan if h.lost_ns is None else (h.lost_ns - lift_start_ns) * 1e-9

@@ -142,6 +142,10 @@ class Lift:
             raise ValueError(f'lift frequency_hz of a shake must be in (0, '
                              f'{MAX_SHAKE_FREQUENCY_HZ:g}] Hz, got {self.frequency_hz!r}')
 
+    def lift_off_or(self, default_s: float) -> float:
+        """Return this lift's lift-off, or ``default_s`` (``contact.lift_off_s``) if it gives 0."""
+        return self.lift_off_s if self.lift_off_s > 0.0 else default_s
+
 
 PROFILE_NAMES = {'step': LiftProfile.STEP, 'pick-and-place': LiftProfile.PICK_AND_PLACE,
                  'shake': LiftProfile.SHAKE}

@@ -1283,8 +1283,7 @@ class GripperPlant:
         if not pad_m > 0.0:
             raise ValueError(f'object pad_length_m must be > 0 (0 = the contact default '
                              f'{d.pad_length_m!r}), got {pad_m!r}')
-        lift_off_s = lift.lift_off_s if lift is not None and lift.lift_off_s > 0.0 else \
-            d.lift_off_s
+        lift_off_s = lift.lift_off_or(d.lift_off_s) if lift is not None else d.lift_off_s
         return HoldModel(obj.mass_kg, mu_s, mu_k, pad_m, self.params.gravity_mps2, lift,
                          d.pad_tangential_stiffness_n_per_m, lift_off_s)
 
