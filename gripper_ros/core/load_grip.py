@@ -4,7 +4,8 @@ As a human does (Johansson and Westling 1984): close to a light touch, then let 
 follow the load the pads feel, ``F_sp(t) = k F_load(t) / (2 mu_est)``, with a margin ``k`` of
 1.2-1.4 over the slip limit, and raise it at once when the object slips.
 
-* ``F_load`` is the sum of the two pads' shear readings (``core/pad_sensor.py``).
+* ``F_load`` is the sum of the two pads' shear readings (``core/pad_sensor.py``); the grip
+  force it is divided by passes through the shear channel's latency and bandwidth first.
 * ``mu_est`` starts at a conservative ``mu_start`` and is measured from the incipient slip:
   while the object is stuck each pad's displacement follows Cattaneo-Mindlin, ``delta = b +
   3 mu F / (2 k_t) [1 - (1 - Q / (mu F))^(2/3)]`` (``core/hold.py``), with the pads' own
@@ -13,13 +14,15 @@ follow the load the pads feel, ``F_sp(t) = k F_load(t) / (2 mu_est)``, with a ma
   the samples since the last slip; the ``mu`` whose residual varies least is the estimate, once
   the grid tells the candidates apart (the grip's own rise and the arm's motion sweep ``Q /
   F``). It is used times ``mu_safety`` (< 1), so that a noisy estimate errs towards force.
-* A slip is the displacement growing faster than ``slip_speed_mps`` over ``slip_window_s``:
-  ``mu_est`` drops to what the pads then carry, ``Q / F`` (kinetic friction, a lower bound of
-  the static one), so ``F_sp`` jumps to ``k`` times the force at once, and again each sample
-  while the slip lasts.
+  Once measured, a later fit only raises it.
+* A slip is the displacement growing faster than ``slip_speed_mps`` over ``slip_window_s``
+  with the pads near the friction believed: ``mu_est`` becomes what the pads carry as it is
+  seen, ``Q / F`` (kinetic friction, a lower bound of the static one), when that is lower or
+  nothing was measured yet, so ``F_sp`` jumps to ``k`` times the force at once. That reading
+  floors every later fit, and the estimate that slipped caps it.
 * Until ``mu`` is measured the grip relaxes at ``release_rate_n_per_s`` towards the grip of
-  the most friction expected; the incipient slip this brings on is what the fit reads. The grip
-  never goes below the touch force.
+  the most friction expected (after a slip, of the friction it showed); the incipient slip
+  this brings on is what the fit reads. The grip never goes below the touch force.
 * Overload: when the load needs more than ``max_force_n`` at ``mu_est`` (margin 1), or the
   object slips for ``overload_slip_s`` with the grip at ``max_force_n``, the law says so
   (``overload_ns``) while the object is still between the pads.
