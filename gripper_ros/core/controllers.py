@@ -8,6 +8,7 @@ from __future__ import annotations
 import enum
 import functools
 
+from gripper_ros.core import linalg
 from gripper_ros.core.config import (DmcTuning, ForceSensorParams, GripperConfig, PidGains,
                                      PlantParams)
 from gripper_ros.core.contact_force import ContactForceController
@@ -62,10 +63,10 @@ def _position_step_response(plant_params: PlantParams, sensor_params: ForceSenso
     """:func:`position_step_response`, once per plant, sampling time, gains and length."""
     plant = GripperPlant(plant_params, FsrVoltageDivider(sensor_params))
     ad, bd = plant.discrete_free_model(sample_time_s)
-    state = [0.0, 0.0, 0.0]
+    state = np.zeros(3)
 
     def model_step(u: float) -> float:
-        state[:] = list(ad @ state + bd * u)
+        state[:] = linalg.matvec(ad, state) + bd * u
         return state[2]
 
     inner = PID(gains, sample_time_s, (-UNSATURATED_V, UNSATURATED_V), DerivativeOn.ERROR,

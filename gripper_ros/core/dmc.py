@@ -44,6 +44,7 @@ import functools
 import math
 from typing import Callable
 
+from gripper_ros.core import linalg
 from gripper_ros.core.pid import (as_record, law_error, LAW_NUMBERS, LAW_OK, PID, pid_reset,
                                   pid_setpoint_for_output, pid_setpoint_range, pid_step_checked,
                                   py_max, py_min)
@@ -70,7 +71,8 @@ def dmc_gain(step_response: np.ndarray, control_horizon: int,
     if not (math.isfinite(move_suppression) and move_suppression >= 0.0):
         raise ValueError(f'move suppression must be finite and >= 0, got {move_suppression!r}')
     a = dynamic_matrix(step_response, control_horizon)
-    return np.linalg.solve(a.T @ a + move_suppression * np.eye(control_horizon), a.T)
+    a_t = np.ascontiguousarray(a.T)
+    return linalg.solve(linalg.matmul(a_t, a) + move_suppression * np.eye(control_horizon), a_t)
 
 
 DMC_DTYPE = np.dtype([
@@ -119,7 +121,7 @@ def dmc_step(d, buf, setpoint, measurement, has_range, range_low, range_high):
     correction = measurement - pred[0]                       # eq. 22
     for j in range(n):
         error[j] = setpoint - (pred[j + 1] + correction)     # eq. 19
-    move = np.dot(k0, error)                                 # eq. 20, first move
+    move = linalg.dot(k0, error)                             # eq. 20, first move
     output = s.last_output + move
     if s.has_limits:
         output = py_min(s.limit_high, py_max(s.limit_low, output))
@@ -273,7 +275,7 @@ def governor_stop_position(g, buf, state, direction):
     """Where the finger comes to rest (speed through zero) braking at ``braking_v``."""
     s = as_record(g)
     _, _, _, _, free, forced, traj = governor_vectors(s, buf)
-    np.dot(free, state, traj)
+    linalg.matvec_into(free, state, traj)
     scale = direction * s.braking_v
     last = s.rows - 1
     for k in range(last + 1):
@@ -286,7 +288,7 @@ def governor_stop_position(g, buf, state, direction):
 def _governor_ahead(g, buf, voltage):
     """Fill and return ``ahead``: the model state one sample on at ``voltage``."""
     ad, bd, state, ahead, _, _, _ = governor_vectors(g, buf)
-    np.dot(ad, state, ahead)
+    linalg.matvec_into(ad, state, ahead)
     for j in range(3):
         ahead[j] = ahead[j] + bd[j] * voltage
     return ahead
@@ -332,8 +334,8 @@ def _governor_tables(ad_bytes: bytes, bd_bytes: bytes, samples: int):
     steps = np.zeros((samples + 1, 3))
     powers[0] = np.eye(3)
     for k in range(samples):
-        powers[k + 1] = ad @ powers[k]
-        steps[k + 1] = steps[k] + powers[k] @ bd
+        powers[k + 1] = linalg.matmul(ad, powers[k])
+        steps[k + 1] = steps[k] + linalg.matvec(powers[k], bd)
     powers.flags.writeable = False
     steps.flags.writeable = False
     return powers, steps

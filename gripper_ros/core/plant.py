@@ -79,12 +79,12 @@ from gripper_ros.core.hold import (check_finite_nonnegative, hold_advance, hold_
                                    hold_live, hold_load_n, hold_presliding_m, hold_remove,
                                    hold_scenario_in_progress, hold_shear_n, hold_stays_stuck,
                                    HoldModel, HoldState, Lift, ObjectState)
+from gripper_ros.core.linalg import expm
 from gripper_ros.core.pad_sensor import (CHANNEL_DTYPE, channel_step, ChannelSpec, make_channel,
                                          MAX_LATENCY_SAMPLES)
 from gripper_ros.wire import FaultKind, TICK_LAYOUT
 import numba
 import numpy as np
-from scipy.linalg import expm
 
 
 DEFAULT_SLIP_TIME_CONSTANT_S = 0.01   # e-folding time of the slipping object's force capacity
@@ -313,7 +313,7 @@ _DISCRETISATIONS: dict[tuple, np.ndarray] = {}
 
 def _discretise(raw: tuple, kind: int, dt_s: float, stiffness: float, damping: float,
                 x_c: float) -> np.ndarray:
-    """Exact ZOH over ``dt_s`` (scipy expm), flat: 15 coefficients.
+    """Exact ZOH over ``dt_s`` (:func:`linalg.expm`), flat: 15 coefficients.
 
     ``raw`` = (R, L, k_b, k_t, J, b, rho, lever). Free and compliant: ``Ad`` rows 0-2 of the
     augmented state ``[i, omega, x, 1]`` (4 each, so the contact's affine term discretises
@@ -393,7 +393,7 @@ def _disc_entry(s, p, keys, coef, kind, dt_s):
 
 @numba.njit(cache=True)
 def _disc_miss(s, p, keys, coef, kind, dt_s, stiffness, damping, x_c):
-    """Compute a discretisation in Python (scipy expm) and store it in the table."""
+    """Compute a discretisation in Python (:func:`linalg.expm`) and store it in the table."""
     r = p.resistance_ohm
     ind = p.inductance_h
     kb = p.kb
