@@ -352,14 +352,24 @@ def _request(record: GraspRecord, config: GripperConfig) -> None:
                           f'request: {one_line(exc)}') from None
 
 
+RECORDING_TOLERANCE = 1e-6
+"""How near a closed-loop re-run must come to a bag whose bits it cannot give: a bag recorded by
+an earlier core, whose linear algebra took the CPU's BLAS kernels. Each float field within this
+fraction of its series' full scale; stamps, phases, states and codes exact. A 1-ulp change in a
+model's coefficient grows in the force loop to about 3e-6 of a field's value near its zero
+crossings, and to at most 4e-8 of its full scale (docs/ARCHITECTURE.md, "Same results on every
+CPU")."""
+
+
 # --- the re-run --------------------------------------------------------------------------------
 
 @dataclass
 class Rerun:
     """One closed-loop re-run: its setup, the headless grasp, its series and figures.
 
-    ``difference`` is '' when the re-run equals the recording, else where it first differs;
-    None when changes were applied (nothing to hold it to).
+    ``difference`` is '' when the re-run equals the recording bit for bit, else where it first
+    differs; None when changes were applied (nothing to hold it to). ``agreement`` is the same
+    judgement within :data:`RECORDING_TOLERANCE` (only computed when the bits differ).
     """
 
     setup: RerunSetup
@@ -367,6 +377,7 @@ class Rerun:
     series: GraspSeries
     metrics: GraspMetrics
     difference: str | None = None
+    agreement: str | None = None
     value: Any = None                   # the swept value (a sweep's row)
 
 
@@ -406,9 +417,12 @@ class _Trace:
             self.objects.append((tick.stamp_ns * 1e-9, int(o.state), o.slip_m, o.slip_speed_mps,
                                  o.load_n, o.capacity_n))
 
-    def series(self, record: GraspRecord, first_ns: int, start_ns: int,
-               label: str) -> GraspSeries:
+    def series(self, record: GraspRecord, first_ns: int, start_ns: int, label: str,
+               config: GripperConfig) -> GraspSeries:
         """Build the series from tick ``first_ns`` on (the recording's first, or the start).
+
+        Its object and configuration (``custom_data``) are the recording's object and the
+        re-run's ``config``, so figures that read them (the lift-off's end) see this re-run.
 
         The object's ground truth from the grasp's start ``start_ns`` on (the plant published
         the idle tick's when the object was placed, before the recording began); the grasp id,
@@ -434,6 +448,7 @@ class _Trace:
         objects = [o for o in self.objects if o[0] >= start_ns * 1e-9]
         return lockstep_series(Path(label), record.series.namespace, ticks, refs, cmds,
                                statuses, objects,
+                               custom_data={'object': dict(record.obj), 'config': config.data},
                                start_ns=ticks[0].stamp_ns if ticks else first_ns,
                                end_ns=ticks[-1].stamp_ns if ticks else first_ns)
 
@@ -465,12 +480,14 @@ def run(record: GraspRecord, setup: RerunSetup, label: str = 're-run') -> Rerun:
     recorded_ticks = record.series.ticks['stamp_ns']
     first_ns = max(int(recorded_ticks[0]), int(h.t_ns[0])) if recorded_ticks.size else \
         h.start_ns
-    series = trace.series(record, first_ns, h.start_ns, label)
+    series = trace.series(record, first_ns, h.start_ns, label, setup.config)
     metrics = analyze_series(series, setup.config.plant.voltage_limit_v)
     metrics.bag = label
     out = Rerun(setup, h, series, metrics)
     if not setup.changes and not record.truncated:
         out.difference = series_difference(record.series, series, first_ns, h.start_ns)
+        out.agreement = out.difference and series_difference(
+            record.series, series, first_ns, h.start_ns, tolerance=RECORDING_TOLERANCE)
     return out
 
 
@@ -479,14 +496,31 @@ def _bits(values: np.ndarray) -> np.ndarray:
     return values.view(np.int64) if values.dtype == np.float64 else values
 
 
+def _first_apart(a: np.ndarray, b: np.ndarray, tolerance: float) -> np.ndarray:
+    """Return where ``a`` and ``b`` differ: in their bits, or beyond ``tolerance`` of full scale.
+
+    With ``tolerance`` 0, or for integers, any bit counts; otherwise a float may stand within
+    ``tolerance`` times the recorded series' largest magnitude (NaN only equals NaN).
+    """
+    if tolerance == 0.0 or a.dtype != np.float64:
+        return np.flatnonzero(_bits(a) != _bits(b))
+    nan_a, nan_b = np.isnan(a), np.isnan(b)
+    finite = np.abs(a[~nan_a])
+    scale = float(finite.max()) if finite.size else 0.0
+    with np.errstate(invalid='ignore'):
+        apart = ~(np.abs(a - b) <= tolerance * scale)
+    return np.flatnonzero(np.where(nan_a | nan_b, nan_a != nan_b, apart))
+
+
 def series_difference(recorded: GraspSeries, rerun: GraspSeries, first_ns: int,
-                      objects_from_ns: int | None = None) -> str:
+                      objects_from_ns: int | None = None, tolerance: float = 0.0) -> str:
     """Say where the re-run first differs from the recording ('' when nowhere).
 
     Every field of every tick, reference and command of the recording from tick ``first_ns``
-    on, and of every object state from ``objects_from_ns`` (default the same), is compared bit
-    for bit with the re-run's, but fields the bag's own message types lack; the answer is one
-    line.
+    on, and of every object state from ``objects_from_ns`` (default the same), is compared with
+    the re-run's, but fields the bag's own message types lack: bit for bit, or with
+    ``tolerance`` > 0 each float within that fraction of its series' full scale (stamps,
+    phases, states and codes stay exact). The answer is one line.
     """
     objects = {}
     for name, series in (('recorded', recorded), ('rerun', rerun)):
@@ -495,6 +529,7 @@ def series_difference(recorded: GraspSeries, rerun: GraspSeries, first_ns: int,
             'stamp_ns': np.rint(o.t_s * 1e9).astype(np.int64), 'state': o.state,
             'slip_m': o.slip_m, 'slip_speed_mps': o.slip_speed_mps, 'load_n': o.load_n,
             'capacity_n': o.capacity_n}
+    within = f' (beyond {tolerance:g} of full scale)' if tolerance else ''
     for kind, rec, new in (('tick', recorded.ticks, rerun.ticks),
                            ('reference', recorded.references, rerun.references),
                            ('command', recorded.commands, rerun.commands),
@@ -511,12 +546,12 @@ def series_difference(recorded: GraspSeries, rerun: GraspSeries, first_ns: int,
         for name, column in rec.items():
             if f'{kind}.{name}' in recorded.absent:
                 continue                    # the bag's (older) message type has no such field
-            a, b = _bits(column[keep]), _bits(new[name])
-            differ = np.flatnonzero(a != b)
+            a, b = np.ascontiguousarray(column[keep]), np.ascontiguousarray(new[name])
+            differ = _first_apart(a, b, tolerance)
             if differ.size:
                 i = differ[0]
                 return (f'{kind} {name} differs first at t = '
-                        f'{rec["stamp_ns"][keep][i] * 1e-9:.4f} s ({kind} {i}): '
+                        f'{rec["stamp_ns"][keep][i] * 1e-9:.4f} s ({kind} {i}){within}: '
                         f'{column[keep][i]!r} recorded, {new[name][i]!r} re-run')
     return ''
 

@@ -11,7 +11,7 @@ import math
 from typing import Any
 
 from gripper_ros.bags.analyze import format_cell, GraspMetrics
-from gripper_ros.bags.rerun import Rerun, series_nrmse, WhatIf
+from gripper_ros.bags.rerun import RECORDING_TOLERANCE, Rerun, series_nrmse, WhatIf
 from gripper_ros.core.stages import DEFAULT_APPROACH_FORCE_MARGIN
 
 SKIPPED = ('bag', 'grasp_id', 'truncated', 'grasp_start_s', 'grasp_end_s')
@@ -96,7 +96,10 @@ def _series_line(r: Rerun) -> str:
         n = r.series.ticks['stamp_ns'].size
         return (f'series:       identical to the recording ({n} ticks, '
                 f'{r.series.references["stamp_ns"].size} references and commands, bit for bit)')
-    return f'series:       NOT identical to the recording: {r.difference}'
+    if r.agreement == '':
+        return (f'series:       equal to the recording within {RECORDING_TOLERANCE:g} of each '
+                f"field's full scale, not bit for bit: {r.difference}")
+    return f'series:       NOT identical to the recording: {r.agreement or r.difference}'
 
 
 def _nrmse_line(w: WhatIf, r: Rerun) -> str:
@@ -139,6 +142,7 @@ def to_json(w: WhatIf) -> str:
            'changes': r.setup.changes,
            'series_identical': None if r.difference is None else r.difference == '',
            'series_difference': r.difference or None,
+           'series_within_tolerance': None if r.difference is None else r.agreement == '',
            'series_nrmse': series_nrmse(w.record.series, r.series) if r.difference != ''
            else {},
            'recorded': rec, 'rerun': new,
