@@ -1,10 +1,11 @@
-"""The core's results are the same bits whatever the CPU's BLAS kernels or numba's compilation.
+"""The core's results are the same bits whatever the CPU's BLAS kernels, C library or numba.
 
 OpenBLAS picks its kernels by the CPU (``OPENBLAS_CORETYPE`` forces another kind, as a machine of
 that kind would run): a core that summed through BLAS gave other last bits on another CPU. The
 core's linear algebra (:mod:`gripper_ros.core.linalg`) is held here to closed forms, to its own
 interpreted code (the IEEE operations in the order written, ``NUMBA_DISABLE_JIT``), and a whole
-grasp to the same bytes under other BLAS kernels.
+grasp to the same bytes under other BLAS kernels and under the C library's code for CPUs
+without FMA.
 """
 from __future__ import annotations
 
@@ -151,3 +152,12 @@ def test_a_grasp_gives_the_same_bytes_under_other_cpus_blas_kernels():
     assert _run(GRASP, OPENBLAS_CORETYPE='Prescott') == here
     if _cpu_has('avx2'):
         assert _run(GRASP, OPENBLAS_CORETYPE='Haswell') == here
+
+
+def test_a_grasp_gives_the_same_bytes_on_the_c_librarys_code_for_cpus_without_fma():
+    """The C library's exp, log, sin, cos, expm1 and pow have FMA and plain variants.
+
+    glibc chooses them by the CPU. Masking FMA and AVX2 (``GLIBC_TUNABLES``) makes it choose
+    what a CPU without them runs; the grasps give this process's bytes.
+    """
+    assert _run(GRASP, GLIBC_TUNABLES='glibc.cpu.hwcaps=-AVX2,-FMA') == _run(GRASP)
