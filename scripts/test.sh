@@ -28,27 +28,43 @@ if [[ -n "${ROS2_OVERLAY:-}" ]]; then
   fi
 fi
 
-# An isolated graph per run: LOCALHOST discovery and a ROS_DOMAIN_ID of our own (1..100, valid
-# for Fast DDS), starting from a PID-derived value and held with a lock file for the whole run so
-# that concurrent runs on this machine never share a domain. GRIPPER_ROS_TEST_DOMAIN_ID forces one.
+# An isolated graph per run: LOCALHOST discovery and ROS_DOMAIN_IDs of our own (1..100, valid
+# for Fast DDS), one per pytest worker, held with lock files for the whole run so that
+# concurrent runs on this machine never share a domain. Worker K takes the K-th id (see
+# test/conftest.py); a second id is 25 away from the first, so that the ids tests derive from
+# theirs (+1, +50, +100) stay apart. GRIPPER_ROS_TEST_DOMAIN_ID forces the first.
+# GRIPPER_ROS_TEST_WORKERS: pytest-xdist workers (default 2; 1 = no xdist, one process).
 export ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST
 unset ROS_STATIC_PEERS ROS_LOCALHOST_ONLY || true
+WORKERS="${GRIPPER_ROS_TEST_WORKERS:-2}"
+[[ "$WORKERS" =~ ^[12]$ ]] || { echo "[test] GRIPPER_ROS_TEST_WORKERS must be 1 or 2, not '$WORKERS'" >&2; exit 2; }
+second_of() { echo $(( ($1 + 24) % 100 + 1 )); }
+lock_domain() {   # lock_domain ID: hold ID's lock file open for the run (fd in locked_fd)
+  exec {locked_fd}>"$lockdir/$1.lock"
+  if flock -n "$locked_fd"; then return 0; fi
+  exec {locked_fd}>&-
+  return 1
+}
+lockdir="${TMPDIR:-/tmp}/gripper_ros_domains.$(id -u)"
 if [[ -n "${GRIPPER_ROS_TEST_DOMAIN_ID:-}" ]]; then
   ROS_DOMAIN_ID="$GRIPPER_ROS_TEST_DOMAIN_ID"
 else
   start=$(( $$ % 100 ))
   ROS_DOMAIN_ID=$(( start + 1 ))
   if command -v flock >/dev/null 2>&1; then
-    lockdir="${TMPDIR:-/tmp}/gripper_ros_domains.$(id -u)"
     mkdir -p "$lockdir"
     for i in $(seq 0 99); do
       cand=$(( (start + i) % 100 + 1 ))
-      exec {lockfd}>"$lockdir/$cand.lock"
-      if flock -n "$lockfd"; then ROS_DOMAIN_ID=$cand; break; fi
-      exec {lockfd}>&-
+      lock_domain "$cand" || continue
+      first_fd=$locked_fd
+      if [[ "$WORKERS" == 1 ]] || lock_domain "$(second_of "$cand")"; then ROS_DOMAIN_ID=$cand; break; fi
+      exec {first_fd}>&-
     done
   fi
 fi
+GRIPPER_ROS_WORKER_DOMAINS="$ROS_DOMAIN_ID"
+[[ "$WORKERS" == 2 ]] && GRIPPER_ROS_WORKER_DOMAINS="$ROS_DOMAIN_ID $(second_of "$ROS_DOMAIN_ID")"
+export GRIPPER_ROS_WORKER_DOMAINS
 export ROS_DOMAIN_ID
 export PYTHONDONTWRITEBYTECODE="${PYTHONDONTWRITEBYTECODE:-1}"
 
@@ -58,9 +74,13 @@ for a in "$@"; do
   if [[ "$a" != -* && -e "${a%%::*}" ]]; then targets=(); break; fi
 done
 
-echo "[test] ROS_DOMAIN_ID=$ROS_DOMAIN_ID ROS_AUTOMATIC_DISCOVERY_RANGE=$ROS_AUTOMATIC_DISCOVERY_RANGE" >&2
+# Two workers by test file: a module's shared graph stays in one process. Most tests wait on
+# DDS, subprocesses and timers, so two workers on two cores take about half the time.
+xdist=()
+[[ "$WORKERS" == 2 ]] && xdist=(-n 2 --dist loadfile)
+echo "[test] ROS_DOMAIN_ID(s)=$GRIPPER_ROS_WORKER_DOMAINS ROS_AUTOMATIC_DISCOVERY_RANGE=$ROS_AUTOMATIC_DISCOVERY_RANGE workers=$WORKERS" >&2
 set +e
-python -m pytest "${targets[@]}" -q "$@" </dev/null
+python -m pytest "${targets[@]}" -q "${xdist[@]}" "$@" </dev/null
 rc=$?
 set -e
 if [[ $rc -eq 5 ]]; then
