@@ -272,7 +272,7 @@ def test_dead_plant_mid_grasp_ends_in_fault_naming_it_and_nothing_commands_after
     print(f'\ndead plant detected after {detected_s:.3f} s wall: {r.message}')
     assert r.outcome == Outcome.FAULT and not r.success
     assert 'plant_simulator' in r.message
-    assert detected_s < sup_timeout + 1.0
+    assert detected_s < sup_timeout + 2.0     # the tick watchdog, with room for a loaded machine
     after = [c for c in commands if c[0] > killed_at]
     # at most the answer to the plant's last tick can still be in flight; nothing later
     assert all(c[1] <= last_tick_ns for c in after), after
@@ -342,7 +342,7 @@ def test_dead_supervisor_mid_grasp_active_controller_falls_to_zero_volts(live, p
           f'{detected_s:.3f} s wall: {controller.watchdog_message}')
     last = commands[-1]
     assert last[2] == source and last[3] == 0.0 and last[4] == controller.sample_time_s
-    assert detected_s < timeout_s + 1.0
+    assert detected_s < timeout_s + 2.0       # the status watchdog, with room for load
     assert len(zero) == 1 and controller.watchdog_trips == 1
     other = g.force if controller is g.position else g.position
     assert other.watchdog_trips == 0

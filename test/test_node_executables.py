@@ -46,7 +46,8 @@ BAD_PARAMETERS = [   # (node, parameter, value as typed after -p name:=, words i
     (NODE_GRASP_ACTION, 'executor', 'threads', 'must be one of'),          # run_node's own
 ]
 RUNNING_TIMEOUT_S = 60.0
-EXIT_WITHIN_S = 2.0
+EXIT_WITHIN_S = 5.0
+"""'At once', with room for a loaded machine: a hung node is waited for 10 s more, then killed."""
 ALARMING = ('Traceback', 'FATAL', 'ERROR', 'Fatal Python error')
 ASK_AGAIN_S = 2.0
 NODES_DIR = Path(__file__).resolve().parents[1] / 'gripper_ros' / 'nodes'

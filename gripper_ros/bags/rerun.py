@@ -356,9 +356,8 @@ RECORDING_TOLERANCE = 1e-6
 """How near a closed-loop re-run must come to a bag whose bits it cannot give: a bag recorded by
 an earlier core, whose linear algebra took the CPU's BLAS kernels. Each float field within this
 fraction of its series' full scale; stamps, phases, states and codes exact. A 1-ulp change in a
-model's coefficient grows in the force loop to about 3e-6 of a field's value near its zero
-crossings, and to at most 4e-8 of its full scale (docs/ARCHITECTURE.md, "Same results on every
-CPU")."""
+model's coefficient grows in the force loop to 4e-6 of a field's value near its zero crossings,
+and to at most 3.4e-8 of its full scale (docs/ARCHITECTURE.md, "Same results on every CPU")."""
 
 
 # --- the re-run --------------------------------------------------------------------------------
