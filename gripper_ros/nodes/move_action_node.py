@@ -30,7 +30,7 @@ from gripper_interfaces.msg import SupervisorStatus
 from gripper_interfaces.srv import Move
 from gripper_ros.core.gripper_command import (goal_end, GoalEnd, joint_state_fields,
                                               move_request_of, result_fields)
-from gripper_ros.core.requests import RequestError, validate_move
+from gripper_ros.core.requests import check_move_limits, RequestError
 from gripper_ros.nodes.actions import accept_goal, cancel_by_stop
 from gripper_ros.nodes.loop_io import read_status, StatusView
 from gripper_ros.nodes.names import default_namespace
@@ -60,8 +60,8 @@ _RESULT_FIELDS = ('success', 'outcome', 'message', 'position_m', 'width_m', 'eff
 class MoveActionServer(Node):
     def __init__(self, **kwargs):
         super().__init__(NODE_MOVE_ACTION, **default_namespace(kwargs))
-        self.config = declare_config(self)
-        self.travel_m = self.config.plant.max_travel_m
+        self.plant = declare_config(self).plant       # read-only: the supervisor's move
+        self.travel_m = self.plant.max_travel_m       # settings are judged by the supervisor
         self.feedback_period_s = self.declare_parameter(
             'feedback_period_s', 0.05, ParameterDescriptor(
                 description='minimum wall seconds between two feedback messages of one phase',
@@ -109,8 +109,8 @@ class MoveActionServer(Node):
     def _check_gripper_command(self, goal_request) -> GoalResponse:
         """Reject a command that is no move of this gripper (as ros2_controllers does)."""
         try:
-            validate_move(move_request_of(goal_request.command, self.travel_m),
-                          self.config.plant, self.config.supervisor)
+            check_move_limits(move_request_of(goal_request.command, self.travel_m),
+                              self.plant)
         except RequestError as exc:
             self.get_logger().warning(f'{ACTION_GRIPPER_CMD} goal rejected: {exc}')
             return GoalResponse.REJECT

@@ -86,7 +86,7 @@ class PlantSimulatorNode(Node):
         super().__init__(NODE_PLANT, **default_namespace(kwargs))
         self.parameters = ConfigParameters(
             self, (), ('plant', 'contact', 'force_sensor', 'sensor_noise', 'pad_sensor',
-                       'force_control'))
+                       'force_control.sample_time_s'))
         self.config = self.parameters.config
         self.side = PlantSide(make_plant(self.config))
         self.plant = self.side.plant

@@ -56,7 +56,8 @@ STAGE_NODES = {Controller.POSITION: NODE_POSITION_CONTROLLER,
                Controller.FORCE: NODE_FORCE_CONTROLLER}
 REFERENCE_TOPICS = {Controller.POSITION: TOPIC_POSITION_REFERENCE,
                     Controller.FORCE: TOPIC_FORCE_REFERENCE}
-SUPERVISOR_READS = ('plant', 'contact', 'force_control', 'pad_sensor', 'load_grip')
+SUPERVISOR_READS = ('plant', 'contact', 'force_control.sample_time_s', 'pad_sensor',
+                    'load_grip')
 """Config sections the supervisor reads and does not change: the plant, and what the
 load-tracking grip needs (the pads' stiffness and sensing, the force stage's period)."""
 
