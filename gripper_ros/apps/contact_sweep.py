@@ -49,6 +49,7 @@ import sys
 import time
 
 from gripper_ros.apps.common import load_config_or_report
+from gripper_ros.wire import FORCE_SAMPLE_S
 
 WIDTHS_M = (0.005, 0.02, 0.05, 0.08, 0.11, 0.14)
 MASSES_KG = (0.1, 0.5, 1.0, 2.0, None)          # None: the heaviest 24 V can hold
@@ -277,7 +278,7 @@ def held_position_m(config, case: SweepCase) -> float:
     return face
 
 
-def arrival_floors_s(config, setpoints_m, dt_s: float = 1.0e-4) -> list[float]:
+def arrival_floors_s(config, setpoints_m, dt_s: float = FORCE_SAMPLE_S) -> list[float]:
     """Return the minimum time for the finger to reach each of ``setpoints_m`` from rest.
 
     At any speed: full voltage all the way (one run, read at each crossing). A true lower bound

@@ -521,12 +521,6 @@ def _touch_object(k):
 
 
 @numba.njit(cache=True)
-def _clear_faults(k):
-    """No scheduled fault, a working sensor, no slip."""
-    _clear_fault_state(k[K_STATE][0], k[K_SENSOR][0])
-
-
-@numba.njit(cache=True)
 def _clear_fault_state(s, sensor):
     s.fault_kind = FaultKind.NONE
     s.fired_count = 0
@@ -1117,11 +1111,6 @@ def _step_and_sample(k, voltage_v, duration_ns):
     return plant_sample(k)
 
 
-@numba.njit(cache=True)
-def _slip_capacity_at(k, t_s):
-    return _slip_capacity_n(k[K_STATE][0], t_s)
-
-
 _warmed_up = []
 
 
@@ -1148,8 +1137,6 @@ def _warm_up(kernel: tuple) -> None:
     plant_schedule_fault(k, 1, 0, DEFAULT_SLIP_TIME_CONSTANT_S)
     plant_fault_scheduled(k)
     plant_cancel_fault(k)
-    _clear_faults(k)
-    _slip_capacity_at(k, 0.0)
     _warmed_up.append(True)
 
 
@@ -1350,13 +1337,6 @@ class GripperPlant:
             raise ValueError('no grasp holds an object: a load acceleration applies only after '
                              'HOLDING, while the object is between the pads')
 
-    def scenario_in_progress(self) -> bool:
-        """Whether a hold scenario (a lift) is still to be played out.
-
-        While it is, simulated time must go on in fast mode after the grasp was answered.
-        """
-        return plant_scenario_in_progress(self.kernel)
-
     # ----------------------------------------------------------------- fault injection
     def schedule_fault(self, kind, at_ns: int,
                        time_constant_s: float = DEFAULT_SLIP_TIME_CONSTANT_S) -> ScheduledFault:
@@ -1384,17 +1364,9 @@ class GripperPlant:
         """Drop a scheduled fault that has not fired (its effects, once fired, stay)."""
         plant_cancel_fault(self.kernel)
 
-    def clear_faults(self) -> None:
-        """No scheduled fault, a working sensor, no slip."""
-        _clear_faults(self.kernel)
-
     @property
     def sensor_dropped_out(self) -> bool:
         return self.sensor.dropped_out
-
-    def slip_capacity_n(self, t_s: float | None = None) -> float:
-        """Force the slipping object can still resist at ``t_s`` (inf when not slipping)."""
-        return _slip_capacity_at(self.kernel, float(self._s['t_now_s'] if t_s is None else t_s))
 
     # ----------------------------------------------------------------- state read-outs
     @property

@@ -362,10 +362,6 @@ def stage_answer(k, ref, cmd):
     return True
 
 
-position_stage_answer = stage_answer
-force_stage_answer = stage_answer
-
-
 # --- façades ---------------------------------------------------------------------------------
 def numbers_mask(names) -> int:
     """Return the ``numbers_mask`` of these reference fields (each one of NUMBER_FIELDS)."""
@@ -512,14 +508,6 @@ class PositionStageController(_KernelStage):
         pole = config.position.speed_limit_pole
         gain = 1.0 / ((1.0 - a) * plant.free_speed_per_volt_mps)
         s['speed_gain_limit'], s['speed_gain_speed'] = (1.0 - pole) * gain, (a - pole) * gain
-
-    def voltage_cap_v(self, ref, toward_speed_mps: float) -> float:
-        """Return the most voltage towards the setpoint this tick.
-
-        ``toward_speed_mps`` is the finger's speed towards the setpoint.
-        """
-        return position_voltage_cap_v(self.state, fill_reference(ref, self._ref),
-                                      float(toward_speed_mps))
 
     @staticmethod
     def measurement(ref) -> float:

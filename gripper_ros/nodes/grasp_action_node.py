@@ -27,7 +27,7 @@ from gripper_ros.nodes.parameters import declare_config
 from gripper_ros.nodes.process import run_node
 from gripper_ros.nodes.qos import GRAPH_QOS, SERVICE_QOS
 from gripper_ros.wire import (ACTION_GRASP, NODE_GRASP_ACTION, Outcome, Phase, SERVICE_GRASP,
-                              SERVICE_STOP, TOPIC_STATUS)
+                              SERVICE_STOP, stamp_ns, TOPIC_STATUS)
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
 from rclpy.action import ActionServer
 from rclpy.node import Node
@@ -114,12 +114,12 @@ class GraspActionServer(Node):
         if goal is None or not goal.is_active:
             return
         msg = read_status(data)
-        stamp_ns = msg.sec * 1_000_000_000 + msg.nanosec
+        now_ns = stamp_ns(msg)
         if self._goal_grasp_id is None:
             if msg.phase not in (Phase.POSITION, Phase.FORCE):
                 return                         # a status of an earlier grasp
             self._goal_grasp_id = msg.grasp_id
-            self._goal_start_ns = stamp_ns
+            self._goal_start_ns = now_ns
         if msg.grasp_id != self._goal_grasp_id:
             return
         now = time.monotonic()
@@ -129,7 +129,7 @@ class GraspActionServer(Node):
         self._last_phase, self._last_feedback_wall = msg.phase, now
         feedback = GraspAction.Feedback(
             grasp_id=msg.grasp_id, phase=msg.phase,
-            elapsed_s=(stamp_ns - self._goal_start_ns) * 1e-9,
+            elapsed_s=(now_ns - self._goal_start_ns) * 1e-9,
             position_m=msg.position_m, width_m=self.travel_m - msg.position_m,
             force_n=msg.force_n, contact=msg.contact)
         goal.publish_feedback(feedback)

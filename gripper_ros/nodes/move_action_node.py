@@ -38,7 +38,8 @@ from gripper_ros.nodes.parameters import declare_config
 from gripper_ros.nodes.process import run_node
 from gripper_ros.nodes.qos import GRAPH_QOS, SERVICE_QOS
 from gripper_ros.wire import (ACTION_GRIPPER_CMD, ACTION_MOVE, NODE_MOVE_ACTION, Outcome, Phase,
-                              SERVICE_MOVE, SERVICE_STOP, TOPIC_JOINT_STATES, TOPIC_STATUS)
+                              SERVICE_MOVE, SERVICE_STOP, stamp_ns, TOPIC_JOINT_STATES,
+                              TOPIC_STATUS)
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
 from rclpy.action import ActionServer, GoalResponse
 from rclpy.node import Node
@@ -175,7 +176,7 @@ class MoveActionServer(Node):
     def _move_feedback(self, msg: StatusView) -> MoveAction.Feedback:
         return MoveAction.Feedback(
             grasp_id=msg.grasp_id, phase=msg.phase,
-            elapsed_s=(_stamp_ns(msg) - self._goal_start_ns) * 1e-9,
+            elapsed_s=(stamp_ns(msg) - self._goal_start_ns) * 1e-9,
             position_m=msg.position_m, width_m=self.travel_m - msg.position_m,
             force_n=msg.force_n)
 
@@ -213,7 +214,7 @@ class MoveActionServer(Node):
             if msg.phase != Phase.MOVING:
                 return                         # a status of an earlier request
             self._goal_grasp_id = msg.grasp_id
-            self._goal_start_ns = _stamp_ns(msg)
+            self._goal_start_ns = stamp_ns(msg)
         if msg.grasp_id != self._goal_grasp_id:
             return
         now = time.monotonic()
@@ -228,10 +229,6 @@ class MoveActionServer(Node):
         for server in self._servers:
             server.destroy()
         return super().destroy_node()
-
-
-def _stamp_ns(status: StatusView) -> int:
-    return status.sec * 1_000_000_000 + status.nanosec
 
 
 def main(args=None):

@@ -34,14 +34,13 @@ from gripper_ros.core.supervisor import GraspSupervisor, load_law, RequestKind
 from gripper_ros.nodes.loop_io import decode, split_ns, status_message, status_template
 from gripper_ros.nodes.names import default_namespace, GraspIds
 from gripper_ros.nodes.parameters import ConfigParameters
-from gripper_ros.nodes.plant_simulator_node import REPUBLISH_AFTER_S
 from gripper_ros.nodes.process import run_node
 from gripper_ros.nodes.qos import GRAPH_QOS, LATCHED_QOS, SERVICE_QOS
 from gripper_ros.nodes.services import DeferredService
 from gripper_ros.nodes.watchdog import ExecutorSilence
 from gripper_ros.wire import (CDR_LITTLE_ENDIAN, Controller, NODE_FORCE_CONTROLLER, NODE_PLANT,
                               NODE_POSITION_CONTROLLER, NODE_SUPERVISOR, Outcome,
-                              SERVICE_GRASP, SERVICE_MOVE, SERVICE_RELEASE,
+                              REPUBLISH_AFTER_S, SERVICE_GRASP, SERVICE_MOVE, SERVICE_RELEASE,
                               SERVICE_STOP, TICK_LAYOUT, TOPIC_FORCE_REFERENCE,
                               TOPIC_MOTOR_COMMAND, TOPIC_OUTCOME, TOPIC_POSITION_REFERENCE,
                               TOPIC_SIM_STATUS, TOPIC_STATUS, TOPIC_TICK)
