@@ -69,7 +69,8 @@ import enum
 import math
 from typing import NamedTuple
 
-from gripper_ros.core.config import ContactParams, PadSensorParams, PlantParams
+from gripper_ros.core.config import (ContactParams, object_contact, PadSensorParams,
+                                     PlantParams)
 from gripper_ros.core.contact_chain import chain_solve, PADS_IN_CHAIN
 from gripper_ros.core.force_sensor import (fsr_voltage_v, FsrVoltageDivider,
                                            NOISE_CHANNEL_FORCE, NOISE_CHANNEL_POSITION,
@@ -1163,7 +1164,7 @@ class GripperPlant:
             pads.shear, pads.shear, pads.displacement, pads.displacement)
         self._pad_dt_s = float(pad_dt_s) if pads is not None else 1.0
         self._pad_seed = int(pad_seed)
-        self.contact_defaults = contact or ContactParams(0.0, 0.0)
+        self.contact_defaults = contact or object_contact(0.0, 0.0)
         default = self.contact_defaults
         self._raw = _raw_constants(params)
         self._lift: Lift | None = None

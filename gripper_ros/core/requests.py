@@ -14,7 +14,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 import math
 
-from gripper_ros.core.config import ForceLaw, LoadGripParams, PlantParams, SupervisorParams
+from gripper_ros.core.config import (ForceLaw, LoadGripParams, PlantParams, shipped_config,
+                                     SupervisorParams)
 
 MAX_TIMEOUT_S = 600.0  # simulated seconds; a longer grasp is a mistake, not a request
 
@@ -139,7 +140,7 @@ def validate_request(req: GraspRequest, plant: PlantParams, sup: SupervisorParam
                            f'finger travel), got {req.width_m:g} + {tolerance:g} m')
     mu = req.friction_coefficient or sup.friction_coefficient
     if req.mass_kg == 0.0:
-        touch_n = (load_grip or LoadGripParams()).touch_force_n
+        touch_n = (load_grip or shipped_config().load_grip).touch_force_n
         if not 0.0 < touch_n <= plant.max_force_n:
             raise RequestError(f'load_grip.touch_force_n must be in (0, {plant.max_force_n:.2f}] '
                                f'N (the most {plant.voltage_limit_v:g} V holds), got {touch_n!r}')
