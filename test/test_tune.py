@@ -137,6 +137,8 @@ def test_multi_objective_mode_reports_a_feasible_pareto_front(tmp_path, capsys):
     ('supervisor.force_law=0:1', 'not a numeric key'),
     ('position_control.mpc_pd.horizon=10.5:20', 'integer'),
     (f'{KEY}', 'expected SECTION.KEY=LO:HI'),
+    ('position_control.pd.kc=1:1e300', "within the key's bounds [0, 1e+06], got '1:1e300'"),
+    ('force_control.contact_aware.contact_force_n=0:1', 'bounds [1e-09, 10]'),
 ])
 def test_a_bad_param_is_refused_in_one_line_and_nothing_is_written(
         tmp_path, capsys, param, words):

@@ -604,10 +604,14 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument('--json', action='store_true')
     args = parser.parse_args(argv)
     band_k = args.band_design_stiffness
-    if not (math.isfinite(args.hold_s) and args.hold_s >= 0.0) or args.jobs < 1 or (
+    if not (math.isfinite(args.hold_s) and args.hold_s >= 0.0) or (
             band_k is not None and not (math.isfinite(band_k) and band_k > 0.0)):
-        print('contact_sweep: --hold-s must be finite and >= 0, --jobs >= 1 and '
+        print('contact_sweep: --hold-s must be finite and >= 0 and '
               '--band-design-stiffness finite and > 0', file=sys.stderr)
+        return 2
+    from gripper_ros.core.engine import jobs_problem
+    if args.scheduler is None and jobs_problem(args.jobs):
+        print(f'contact_sweep: --{jobs_problem(args.jobs)}', file=sys.stderr)
         return 2
     if args.scheduler is not None:
         from gripper_ros.core.engine import check_address
