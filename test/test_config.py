@@ -48,15 +48,15 @@ DELETE = object()
 
 # ------------------------------------------------------------------ the shipped file
 def test_shipped_table_one_gives_the_force_the_readme_quotes():
-    """Table I's one home is the shipped file: eq. 13 at stall and 24 V gives the README's force.
+    """Table I's one home is the shipped file: eq. 13 at stall and 24 V gives the force quoted.
 
-    F = k_t V / (eta p N R_a) (N2/N1 = 1 / gear ratio); the README refuses a grasp beyond it.
+    F = k_t V / (eta p N R_a) (N2/N1 = 1 / gear ratio); docs/USING.md refuses a grasp beyond it.
     """
     p = load_config(SHIPPED).plant
     stall_n = p.torque_constant_n_m_per_a * p.voltage_limit_v / (
         p.efficiency * p.pitch_m * p.gear_ratio * p.resistance_ohm)
     quoted = re.search(r'beyond what 24 V can hold \((\d+\.\d+) N\)',
-                       ' '.join((REPO / 'README.md').read_text(encoding='utf-8').split()))
+                       ' '.join((REPO / 'docs' / 'USING.md').read_text(encoding='utf-8').split()))
     assert f'{stall_n:.2f}' == quoted.group(1)
     assert p.max_force_n == pytest.approx(stall_n, rel=1e-12)
 

@@ -2,7 +2,8 @@
 
 Each grasp is the node graph's logic run headless (bit-identical to the graph, see
 test_graph.py), held on for 1 s after HOLDING. Known answers: the paper's PI hits a compliant
-object many times over its setpoint, ours must stay within the README's claim (1.0007x); no
+object many times over its setpoint, ours must stay within the published sweep's worst peak
+(1.0007x, docs/contact_sweep.txt); no
 grasp may hold sooner than full voltage throughout would even reach the held position; the
 held force is the friction law's k m (g + a) / (2 mu_s); within a tolerance the object is
 reached after its distance into the band divided by the band speed. The full envelope is

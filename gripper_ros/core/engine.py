@@ -189,8 +189,8 @@ def dask_cluster(workers: int = 2, host: str = '127.0.0.1',
                  env: dict | None = None) -> Iterator[str]:
     """Start ``dask scheduler`` and ``workers`` x ``dask worker`` here; yield the address.
 
-    The same commands a cluster of machines runs (README), one thread a worker, each worker
-    preloading the compiled core; all are stopped on exit. For the benchmark and the tests.
+    The same commands a cluster of machines runs (docs/STUDIES.md), one thread a worker, each
+    worker preloading the compiled core; all are stopped on exit. For the benchmark and the tests.
     """
     procs: list[subprocess.Popen] = []
     address = None
