@@ -64,7 +64,7 @@ mode, so every coefficient is the one the Python plant used.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 import enum
 import math
 from typing import NamedTuple
@@ -1088,22 +1088,38 @@ def plant_fault_scheduled(k):
     return k[K_STATE][0].fault_kind != FaultKind.NONE
 
 
-@numba.njit(cache=True)
-def _object_state(k):
-    """Return the held object's state, slip, speed, load, capacity, lost_ns/-1, lift a, ...
+OBJECT_STATE_DTYPE = np.dtype([(f.name, np.int64 if f.name in ('state', 'lost_ns') else np.float64)
+                               for f in fields(ObjectState)])
+""":class:`ObjectState` as a record, field for field (``lost_ns`` -1: not lost), for a kernel."""
+_HOLD_NONE = int(HoldState.NONE)
 
-    ... and each pad's shear and pre-sliding displacement.
+
+@numba.njit(cache=True)
+def _object_state(k, out):
+    """Write the held object's :class:`ObjectState` into the record ``out[0]`` (lost_ns -1: not).
+
+    Nothing held: all zeros; an object taken away (state NONE): only how far it had slid.
     """
+    o = out[0]
     h = k[K_HOLD][0]
+    o.state = _HOLD_NONE
+    o.slip_m = o.slip_speed_mps = o.load_n = o.capacity_n = 0.0
+    o.lift_acceleration_mps2 = o.shear_n = o.presliding_m = 0.0
+    o.lost_ns = -1
     if not h.has_hold:
-        return (HoldState.NONE, 0.0, 0.0, 0.0, 0.0, -1, 0.0, 0.0, 0.0)
+        return
+    o.slip_m = h.slip_m
     if h.state == HoldState.NONE:
-        return (HoldState.NONE, h.slip_m, 0.0, 0.0, 0.0, -1, 0.0, 0.0, 0.0)
-    s = k[K_STATE][0]
-    force = _force(s, k[K_PARAMS][0])
-    return (h.state, h.slip_m, h.slip_speed_mps, hold_load_n(h),
-            hold_capacity_n(h, force), h.lost_ns, h.acceleration_mps2,
-            hold_shear_n(h, force), hold_presliding_m(h, force))
+        return
+    force = _force(k[K_STATE][0], k[K_PARAMS][0])
+    o.state = h.state
+    o.slip_speed_mps = h.slip_speed_mps
+    o.load_n = hold_load_n(h)
+    o.capacity_n = hold_capacity_n(h, force)
+    o.lost_ns = h.lost_ns
+    o.lift_acceleration_mps2 = h.acceleration_mps2
+    o.shear_n = hold_shear_n(h, force)
+    o.presliding_m = hold_presliding_m(h, force)
 
 
 @numba.njit(cache=True)
@@ -1132,7 +1148,7 @@ def _warm_up(kernel: tuple) -> None:
     _touch_object(k)
     plant_sample(k)
     plant_read_tick(k, np.zeros(1, TICK_LAYOUT.dtype), 0, 0)
-    _object_state(k)
+    _object_state(k, np.zeros(1, OBJECT_STATE_DTYPE))
     plant_begin_hold(k, 0, 0.0)
     plant_scenario_in_progress(k)
     plant_schedule_fault(k, 1, 0, DEFAULT_SLIP_TIME_CONSTANT_S)
@@ -1167,6 +1183,7 @@ class GripperPlant:
         self.contact_defaults = contact or object_contact(0.0, 0.0)
         default = self.contact_defaults
         self._raw = _raw_constants(params)
+        self._object_record = np.zeros(1, OBJECT_STATE_DTYPE)   # _object_state writes it
         self._lift: Lift | None = None
         state = np.zeros(1, STATE_DTYPE)
         hold = np.zeros(1, HOLD_DTYPE)
@@ -1319,10 +1336,11 @@ class GripperPlant:
     @property
     def object_state(self) -> ObjectState:
         """The grasped object's hold: state, slip, load against the static capacity, loss time."""
-        (state, slip, speed, load, capacity, lost_ns, accel, shear,
-         presliding) = _object_state(self.kernel)
-        return ObjectState(HoldState(state), slip, speed, load, capacity,
-                           None if lost_ns == -1 else lost_ns, accel, shear, presliding)
+        _object_state(self.kernel, self._object_record)
+        values = {name: self._object_record[0][name].item() for name in OBJECT_STATE_DTYPE.names}
+        values['state'] = HoldState(values['state'])
+        values['lost_ns'] = None if values['lost_ns'] == -1 else values['lost_ns']
+        return ObjectState(**values)
 
     def drive_load(self, accel_mps2: float) -> None:
         """Set the arm's upward acceleration from now on (a live arm: ``sim/load_acceleration``).
