@@ -23,7 +23,7 @@ from gripper_interfaces.srv import Grasp
 from gripper_ros.nodes.actions import accept_goal, cancel_by_stop
 from gripper_ros.nodes.loop_io import read_status
 from gripper_ros.nodes.names import default_namespace
-from gripper_ros.nodes.parameters import declare_config
+from gripper_ros.nodes.parameters import declare_config, follow
 from gripper_ros.nodes.process import run_node
 from gripper_ros.nodes.qos import GRAPH_QOS, SERVICE_QOS
 from gripper_ros.wire import (ACTION_GRASP, NODE_GRASP_ACTION, Outcome, Phase, SERVICE_GRASP,
@@ -48,7 +48,7 @@ class GraspActionServer(Node):
             'feedback_period_s', 0.05, ParameterDescriptor(
                 description='minimum wall seconds between two feedback messages of one phase',
                 floating_point_range=[FloatingPointRange(from_value=0.0, to_value=10.0)])).value
-        self.add_post_set_parameters_callback(self._on_parameters_set)
+        follow(self, {'feedback_period_s': float})      # from the next status on
         self._grasp = self.create_client(Grasp, SERVICE_GRASP, qos_profile=SERVICE_QOS)
         self._stop = self.create_client(Trigger, SERVICE_STOP, qos_profile=SERVICE_QOS)
         self.create_subscription(SupervisorStatus, TOPIC_STATUS, self._on_status, GRAPH_QOS,
@@ -63,15 +63,6 @@ class GraspActionServer(Node):
                                     execute_callback=self._execute,
                                     goal_callback=accept_goal,
                                     cancel_callback=self._on_cancel)
-
-    def _on_parameters_set(self, parameters) -> None:
-        """Apply an accepted ``feedback_period_s`` from the next status on.
-
-        The descriptor's range refuses the rest.
-        """
-        for p in parameters:
-            if p.name == 'feedback_period_s':
-                self.feedback_period_s = float(p.value)
 
     # ------------------------------------------------------------------ goals
     def _on_cancel(self, goal_handle):

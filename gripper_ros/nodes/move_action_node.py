@@ -34,7 +34,7 @@ from gripper_ros.core.requests import check_move_limits, RequestError
 from gripper_ros.nodes.actions import accept_goal, cancel_by_stop
 from gripper_ros.nodes.loop_io import read_status, StatusView
 from gripper_ros.nodes.names import default_namespace
-from gripper_ros.nodes.parameters import declare_config
+from gripper_ros.nodes.parameters import declare_config, follow
 from gripper_ros.nodes.process import run_node
 from gripper_ros.nodes.qos import GRAPH_QOS, SERVICE_QOS
 from gripper_ros.wire import (ACTION_GRIPPER_CMD, ACTION_MOVE, NODE_MOVE_ACTION, Outcome, Phase,
@@ -71,7 +71,7 @@ class MoveActionServer(Node):
             'allow_stalling', False, ParameterDescriptor(
                 description=f'{ACTION_GRIPPER_CMD}: a stalled move (blocked by an object at '
                             'the effort limit) succeeds rather than aborts')).value
-        self.add_post_set_parameters_callback(self._on_parameters_set)
+        follow(self, {'feedback_period_s': float, 'allow_stalling': bool})   # next status
         self._move = self.create_client(Move, SERVICE_MOVE, qos_profile=SERVICE_QOS)
         self._stop = self.create_client(Trigger, SERVICE_STOP, qos_profile=SERVICE_QOS)
         self.create_subscription(SupervisorStatus, TOPIC_STATUS, self._on_status, GRAPH_QOS,
@@ -97,14 +97,6 @@ class MoveActionServer(Node):
                                               execute_callback=self._execute_gripper_command,
                                               goal_callback=self._check_gripper_command,
                                               cancel_callback=self._on_cancel))
-
-    def _on_parameters_set(self, parameters) -> None:
-        """Apply accepted values from the next status or result on."""
-        for p in parameters:
-            if p.name == 'feedback_period_s':
-                self.feedback_period_s = float(p.value)
-            elif p.name == 'allow_stalling':
-                self.allow_stalling = bool(p.value)
 
     # ------------------------------------------------------------------ goals
     def _check_gripper_command(self, goal_request) -> GoalResponse:

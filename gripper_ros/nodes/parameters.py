@@ -164,6 +164,19 @@ class ConfigParameters:
             self._on_change(self.config, keys, checked)
 
 
+def follow(node: Node, kinds: dict[str, type]) -> None:
+    """Keep ``node.NAME`` at each named parameter's accepted value, as ``kinds[NAME](value)``.
+
+    For a node's own parameters that take effect from the next check or message; their
+    descriptors refuse bad values.
+    """
+    def apply(parameters) -> None:
+        for p in parameters:
+            if p.name in kinds:
+                setattr(node, p.name, kinds[p.name](p.value))
+    node.add_post_set_parameters_callback(apply)
+
+
 def declare_config(node: Node) -> GripperConfig:
     """Declare ``config_file`` (empty = the installed config/gripper.yaml) and load it.
 
