@@ -27,6 +27,23 @@ GRAPH_QOS_DEPTH = 1000
 DEFAULT_STATE_RATE_HZ = 100.0
 """Rate (per simulated second) of joint_states, force_sensor, sim/object_state and /clock."""
 
+FORCE_SAMPLE_S = 1.0e-4
+"""The force loop's period, the paper's 0.1 ms (the shipped ``force_control.sample_time_s``):
+the hold's shake pieces, the benchmarks' force budget, the bound on sim/step's ticks."""
+
+REPUBLISH_AFTER_S = 0.5
+"""A tick nobody has answered for this long (wall) is published again (discovery, late peers);
+the supervisor's watchdog tells a silent plant by it."""
+
+
+def stamp_ns(stamp) -> int:
+    """Return a ``builtin_interfaces/Time`` (anything with ``sec`` and ``nanosec``) in ns.
+
+    Integer nanoseconds are the time of the core and of the bags.
+    """
+    return int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec)
+
+
 # --- lockstep topics: one message per tick each (see docs/ARCHITECTURE.md) ---------------------
 TOPIC_TICK = 'loop/tick'
 """PlantTick, plant -> supervisor: the measurement of tick t."""

@@ -14,16 +14,18 @@ from typing import Callable
 import numpy as np
 
 
-README = Path(__file__).resolve().parents[1] / 'README.md'
+SWEEP_OUTPUT = Path(__file__).resolve().parents[1] / 'docs' / 'contact_sweep.txt'
+"""``contact_sweep``'s output, as docs/RESULTS.md quotes it."""
 
 
 def claimed_peak_ratio() -> float:
-    """Return the worst contact peak / F_sp the README claims ("ours stay within 1.0007x").
+    """Return the worst contact peak / F_sp of the published sweep (its "worst peak" lines).
 
-    Tests hold every grasp to it, so that the claim and the code cannot drift apart.
+    Tests hold every grasp to it, so that the published figure and the code cannot drift apart.
     """
-    text = ' '.join(README.read_text(encoding='utf-8').split())
-    return float(re.search(r'ours stay within (\d+\.\d+)x', text).group(1))
+    text = SWEEP_OUTPUT.read_text(encoding='utf-8')
+    return max(float(x) for x in re.findall(r'^worst peak [^:]*: (\d+\.\d+) x F_sp', text,
+                                            re.MULTILINE))
 
 
 def within_claimed_peak(peak_ratio: float) -> bool:

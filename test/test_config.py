@@ -5,11 +5,13 @@ half-loaded.
 """
 import copy
 import dataclasses
+import enum
 import math
 from pathlib import Path
 import re
 
-from gripper_ros.core.config import ConfigError, ForceLaw, load_config, parse_config, PidGains
+from gripper_ros.core.config import (ADDED_LATER, ConfigError, ForceLaw, load_config,
+                                     parse_config, PidGains, SHIPPED as SHIPPED_VALUE)
 import pytest
 import yaml
 
@@ -46,15 +48,15 @@ DELETE = object()
 
 # ------------------------------------------------------------------ the shipped file
 def test_shipped_table_one_gives_the_force_the_readme_quotes():
-    """Table I's one home is the shipped file: eq. 13 at stall and 24 V gives the README's force.
+    """Table I's one home is the shipped file: eq. 13 at stall and 24 V gives the force quoted.
 
-    F = k_t V / (eta p N R_a) (N2/N1 = 1 / gear ratio); the README refuses a grasp beyond it.
+    F = k_t V / (eta p N R_a) (N2/N1 = 1 / gear ratio); docs/USING.md refuses a grasp beyond it.
     """
     p = load_config(SHIPPED).plant
     stall_n = p.torque_constant_n_m_per_a * p.voltage_limit_v / (
         p.efficiency * p.pitch_m * p.gear_ratio * p.resistance_ohm)
     quoted = re.search(r'beyond what 24 V can hold \((\d+\.\d+) N\)',
-                       ' '.join((REPO / 'README.md').read_text(encoding='utf-8').split()))
+                       ' '.join((REPO / 'docs' / 'USING.md').read_text(encoding='utf-8').split()))
     assert f'{stall_n:.2f}' == quoted.group(1)
     assert p.max_force_n == pytest.approx(stall_n, rel=1e-12)
 
@@ -239,17 +241,6 @@ def _leaves(data, prefix=''):
             yield path
 
 
-def _defaulted_fields():
-    """Field names that may be left out of the file (their dataclass gives a default)."""
-    import gripper_ros.core.config as config_module
-    names = set()
-    for obj in vars(config_module).values():
-        if dataclasses.is_dataclass(obj) and isinstance(obj, type):
-            names |= {f.name for f in dataclasses.fields(obj)
-                      if f.default is not dataclasses.MISSING}
-    return names
-
-
 SHIPPED_KEYS = list(_leaves(yaml.safe_load(SHIPPED.read_text(encoding='utf-8'))))
 
 
@@ -284,15 +275,87 @@ def test_every_key_of_the_shipped_file_refuses_a_bad_value_naming_it(shipped_dat
     assert not unchecked, f'accepted {value!r} in {unchecked}'
 
 
+SECTIONS = {'position_control': 'position', 'force_control': 'force'}
+"""File sections whose attribute of GripperConfig has another name (the rest: the same)."""
+
+
+def _carried(config, dotted):
+    """Return what ``config`` carries for the file's key ``dotted`` (an enum as its value)."""
+    section, *parts = dotted.split('.')
+    obj = getattr(config, SECTIONS.get(section, section))
+    for i, part in enumerate(parts):
+        if not hasattr(obj, part) or (i + 1 < len(parts)
+                                      and not hasattr(getattr(obj, part), parts[i + 1])):
+            part += '_dmc'                  # mpc_pd: {kc, kd} gains, {horizon, ...} the DMC's
+        obj = getattr(obj, part)
+    return obj.value if isinstance(obj, enum.Enum) else obj
+
+
+def _value_at(data, dotted):
+    for part in dotted.split('.'):
+        data = data[part]
+    return data
+
+
+def _every_leaf(data, prefix=''):
+    for key, value in data.items():
+        if isinstance(value, dict):
+            yield from _every_leaf(value, f'{prefix}{key}.')
+        else:
+            yield f'{prefix}{key}'
+
+
+def test_every_key_of_the_shipped_file_is_what_the_loaded_config_carries(shipped_data):
+    config = load_config(SHIPPED)
+    keys = list(_every_leaf(shipped_data))
+    assert 'supervisor.force_law' in keys and len(keys) == len(SHIPPED_KEYS) + 1
+    for key in keys:
+        value = _value_at(shipped_data, key)
+        assert _carried(config, key) == value, (key, _carried(config, key), value)
+
+
+def test_the_file_is_the_one_home_of_the_values():
+    """No dataclass repeats a value of the file; only a law's missing gain (ki, kd) is 0."""
+    import gripper_ros.core.config as config_module
+    defaults = {(cls.__name__, f.name) for cls in vars(config_module).values()
+                if dataclasses.is_dataclass(cls) and isinstance(cls, type)
+                for f in dataclasses.fields(cls) if f.default is not dataclasses.MISSING}
+    assert defaults == {('PidGains', 'ki'), ('PidGains', 'kd')}
+
+
 def test_every_required_key_of_the_shipped_file_is_named_when_missing(shipped_data):
-    optional = _defaulted_fields()
+    """A key left out is refused naming it, or means what ADDED_LATER says (an old file)."""
+    optional = set()
     for key in SHIPPED_KEYS:
         try:
-            parse_config(set_key(shipped_data, key, DELETE), 'shipped')
+            config = parse_config(set_key(shipped_data, key, DELETE), 'shipped')
         except ConfigError as exc:
             assert key in str(exc) and 'missing' in str(exc), (key, str(exc))
             continue
-        assert key.rsplit('.', 1)[1] in optional, f'{key} may be left out but has no default'
+        optional.add(key)
+        meaning = ADDED_LATER.get(key, ADDED_LATER.get(key.split('.')[0], 'required'))
+        if key.rsplit('.', 1)[1] in ('ki', 'kd'):
+            meaning = 0.0
+        assert meaning != 'required', f'{key} may be left out but ADDED_LATER has no meaning'
+        expected = _value_at(shipped_data, key) if meaning is SHIPPED_VALUE else meaning
+        assert _carried(config, key) == expected, key
+    sections = {k for k in ADDED_LATER if '.' not in k}
+    assert optional == {k for k in SHIPPED_KEYS if k in ADDED_LATER or k.split('.')[0] in
+                        sections or k.rsplit('.', 1)[1] in ('ki', 'kd')}
+
+
+def test_a_file_that_predates_the_pads_and_the_chain_has_them_off(shipped_data):
+    data = copy.deepcopy(shipped_data)
+    for key in ('pad_tangential_stiffness_n_per_m', 'finger_stiffness_n_per_m'):
+        del data['contact'][key]
+    del data['supervisor']['position_switch_speed_mps']
+    del data['sensor_noise']
+    config = parse_config(data, 'old')
+    assert config.contact.pad_tangential_stiffness_n_per_m == 0.0 == \
+        config.contact.finger_stiffness_n_per_m
+    assert config.supervisor.position_switch_speed_mps == 0.0
+    assert not config.sensor_noise.enabled
+    assert load_config(SHIPPED).contact.pad_tangential_stiffness_n_per_m == 6.0e4
 
 
 @pytest.mark.parametrize('key, value, words', [

@@ -2,7 +2,8 @@
 
 Each grasp is the node graph's logic run headless (bit-identical to the graph, see
 test_graph.py), held on for 1 s after HOLDING. Known answers: the paper's PI hits a compliant
-object many times over its setpoint, ours must stay within the README's claim (1.0007x); no
+object many times over its setpoint, ours must stay within the published sweep's worst peak
+(1.0007x, docs/contact_sweep.txt); no
 grasp may hold sooner than full voltage throughout would even reach the held position; the
 held force is the friction law's k m (g + a) / (2 mu_s); within a tolerance the object is
 reached after its distance into the band divided by the band speed. The full envelope is
@@ -10,11 +11,13 @@ reached after its distance into the band divided by the band speed. The full env
 """
 import dataclasses
 import math
+import os
 
 from gripper_ros.apps.contact_sweep import (band_speed_mps, format_rows, main, max_mass_kg,
                                             quick_cases, reflected_mass_kg, rigid_cases, sweep,
                                             SweepCase)
 from gripper_ros.core.config import ForceLaw, load_config
+from gripper_ros.core.engine import MAX_JOBS_PER_CPU
 from gripper_ros.core.headless import simulate_grasp
 from helpers import within_claimed_peak
 import pytest
@@ -122,6 +125,18 @@ def test_cli_rejects_a_bad_config_and_bad_options(tmp_path, capsys):
     assert main(['--config', str(bad)]) == 2
     assert 'contact_sweep:' in capsys.readouterr().err
     assert main(['--hold-s', 'nan']) == 2
+
+
+@pytest.mark.parametrize('jobs', ['100000', '0'])
+def test_a_worker_count_beyond_the_machine_is_refused_in_one_line_before_anything_starts(
+        capsys, jobs):
+    """--jobs 100000 once hung starting workers; now refused, nothing swept (no output)."""
+    limit = MAX_JOBS_PER_CPU * (os.cpu_count() or 1)
+    assert main(['--quick', '--jobs', jobs]) == 2
+    out, err = capsys.readouterr()
+    assert out == '' and err.strip().splitlines() == [
+        f'contact_sweep: --jobs must be a whole number in [1, {limit}] ({MAX_JOBS_PER_CPU} per '
+        f'CPU of the {os.cpu_count()} here; more only share the cores), got {jobs}']
 
 
 def _band_case(k, zeta, object_width_m, mass_kg, tolerance_m=0.005):

@@ -1,9 +1,9 @@
 """The batch engine on a real Dask cluster: ``dask scheduler`` and two ``dask worker`` processes.
 
-The cluster is started once for the module, with the commands the README gives for a cluster of
-machines (on localhost here). Known answers: ``contact_sweep --quick --scheduler ADDR`` prints
-the same table, byte for byte, as the sweep run in one process; a batch comes back in the
-cases' order with every case counted once by the progress callback; a malformed address is
+The cluster is started once for the module, with the commands docs/STUDIES.md gives for a
+cluster of machines (on localhost here). Known answers: ``contact_sweep --quick --scheduler
+ADDR`` prints the same table, byte for byte, as the sweep run in one process; a batch comes back
+in the cases' order with every case counted once by the progress callback; a malformed address is
 refused in one line with exit 2.
 """
 from __future__ import annotations

@@ -55,10 +55,10 @@ def test_under_the_friction_law_every_object_holds_without_slip_or_is_refused(co
         assert r['slip_m'] == 0.0 and math.isnan(r['lost_s'])
 
 
-def test_the_readme_lift_table_is_what_lift_table_prints(config):
-    """README quotes ``lift_table``: every row, the refusal line included, as it prints it."""
-    readme = (Path(__file__).resolve().parents[1] / 'README.md').read_text(encoding='utf-8')
-    quoted = [line for line in readme.splitlines() if line.startswith('| ')
+def test_the_quoted_lift_table_is_what_lift_table_prints(config):
+    """docs/GRIP.md quotes ``lift_table``: every row, the refusal line included, as it prints."""
+    page = (Path(__file__).resolve().parents[1] / 'docs' / 'GRIP.md').read_text(encoding='utf-8')
+    quoted = [line for line in page.splitlines() if line.startswith('| ')
               and ('friction |' in line or 'paper |' in line or 'object (width' in line)]
     printed = markdown(lift_rows(config, [0.0, 2.0, 5.0], LIFT_DELAY_S, LIFT_DURATION_S),
                        LIFT_DELAY_S, LIFT_DURATION_S)

@@ -62,19 +62,30 @@ READ_ONLY = {('position_controller', 'controller'), ('force_controller', 'contro
              ('plant_simulator', 'frame_id'), ('plant_simulator', 'time_mode'),
              ('plant_simulator', 'publish_clock')} | {(n, 'config_file') for n in NODE_CLASSES}
 # the config sections each node declares as parameters: (writable, read-only)
+# (a section, or one key of a section)
 CONFIG_SECTIONS = {'plant_simulator': ((), ('plant', 'contact', 'force_sensor',
-                                            'sensor_noise', 'pad_sensor', 'force_control')),
+                                            'sensor_noise', 'pad_sensor',
+                                            'force_control.sample_time_s')),
                    'position_controller': (('position_control',), ('plant',)),
                    'force_controller': (('force_control',), ('plant',)),
-                   'supervisor': (('supervisor',), ('plant', 'contact', 'force_control',
+                   'supervisor': (('supervisor',), ('plant', 'contact',
+                                                    'force_control.sample_time_s',
                                                     'pad_sensor', 'load_grip')),
                    'grasp_action_server': ((), ())}
+START_UP_ONLY = {'force_control.sample_time_s'}
+"""Keys used by more than one node: read-only even in their owner's writable section."""
+
+
+def _entry_keys(entry):
+    section, _, leaf = entry.partition('.')
+    return {entry} if leaf else set(flatten(SHIPPED_DATA[section], section + '.'))
 
 
 def config_keys(node_name, which):
     """Return the dotted config keys a node declares: ``which`` 0 = writable, 1 = read-only."""
-    return {k for section in CONFIG_SECTIONS[node_name][which]
-            for k in flatten(SHIPPED_DATA[section], section + '.')}
+    writable, read_only = ({k for entry in CONFIG_SECTIONS[node_name][i]
+                            for k in _entry_keys(entry)} for i in (0, 1))
+    return writable - START_UP_ONLY if which == 0 else read_only | (writable & START_UP_ONLY)
 
 
 def _bad_config(tmp_path, dotted, value):
@@ -601,3 +612,92 @@ def test_a_bad_params_file_value_stops_the_executable_in_one_line(tmp_path):
     last = r.stderr.strip().splitlines()[-1]
     assert last.startswith('position_controller: ') and 'position_control.mpc_pd.kc' in last
     assert 'Traceback' not in r.stderr
+
+
+# ---------------------------------------------------------------------- every run-time change
+GRAPH_NODES = (*NODE_CLASSES, 'move_action_server', 'excitation_server')
+RCLPY_OWN = {'use_sim_time'}
+"""rclpy's own writable parameter on every node (test_plant_answers_... sets it)."""
+
+
+def _new_value(before, descriptor):
+    """Return a valid value other than ``before``: the other choice, one less, 0.8x or 1e-4."""
+    if isinstance(before, bool):
+        return not before
+    if isinstance(before, str):
+        return {'friction': 'paper', 'paper': 'friction'}[before]
+    if isinstance(before, int):
+        return before - 1 if before > 1 else before + 1
+    new = 0.8 * before if before else 1e-4
+    if descriptor.floating_point_range:
+        r = descriptor.floating_point_range[0]
+        assert r.from_value <= new <= r.to_value, (descriptor.name, new)
+    return new
+
+
+def _in_use(node, name):
+    """Return what ``node`` runs with (or its next stage will) for parameter ``name``."""
+    if name == 'approach_force_margin':
+        return float((node._next_stage or node.stage).record[0]['approach_margin'])
+    if name.startswith('excitation.'):
+        return getattr(node.spec, name.split('.', 1)[1])
+    if '.' not in name:
+        return getattr(node, name)
+    stage = getattr(node, '_next_stage', None) or getattr(node, 'stage', None)
+    config = stage.config if stage is not None else node.config
+    if name.startswith('supervisor.'):
+        assert node.logic.params is config.supervisor
+    return flatten(config.data)[name]
+
+
+def _set_atomically(graph, node_name, values):
+    from rcl_interfaces.srv import SetParametersAtomically
+    service = _service(graph, node_name, SetParametersAtomically, 'set_parameters_atomically')
+    return graph.call(service, SetParametersAtomically.Request(parameters=[
+        ParameterMsg(name=k, value=_value(v)) for k, v in values.items()]), 30.0).result
+
+
+def test_every_writable_parameter_set_at_run_time_reaches_every_node_that_uses_it(graph):
+    """Each node's writable parameters, all set at once over SetParametersAtomically.
+
+    Every node that declares a changed name then reports the new value and runs with it (its
+    next stage's kernel, its supervisor thresholds, its timers' settings); no key is writable
+    on one node and a start-up copy on another. A key several nodes use is read-only on each,
+    with the reason in its description.
+    """
+    described = {n: _describe(graph, n) for n in GRAPH_NODES}
+    nodes = {graph.plant.get_name(): graph.plant, graph.position.get_name(): graph.position,
+             graph.force.get_name(): graph.force, graph.supervisor.get_name(): graph.supervisor,
+             graph.action_server.get_name(): graph.action_server,
+             graph.move_action_server.get_name(): graph.move_action_server,
+             graph.excitation_server.get_name(): graph.excitation_server}
+    for key in START_UP_ONLY:
+        holders = [n for n, ds in described.items() if key in ds]
+        assert sorted(holders) == ['force_controller', 'plant_simulator', 'supervisor']
+        for node_name in holders:
+            d = described[node_name][key]
+            assert d.read_only and 'plant_simulator' in d.description and \
+                'supervisor' in d.description, (node_name, d.description)
+            result = _set(graph, node_name, key, _double(2e-4))
+            assert not result.successful and 'read-only' in result.reason
+    checked = set()
+    for owner, ds in described.items():
+        writable = {k: d for k, d in ds.items() if not d.read_only and k not in RCLPY_OWN}
+        before = {k: _get(graph, owner, k) for k in writable}
+        new = {k: _new_value(before[k], d) for k, d in writable.items()}
+        try:
+            result = _set_atomically(graph, owner, new)
+            assert result.successful, (owner, result.reason)
+            for name, value in new.items():
+                if name.split('.')[0] in SHIPPED_DATA:      # a config key: one fact
+                    users = [n for n, other in described.items() if name in other]
+                    assert users == [owner], (name, users)     # no stale copy elsewhere
+                assert _get(graph, owner, name) == value
+                assert _in_use(nodes[owner], name) == value, (owner, name)
+                checked.add((owner, name))
+        finally:
+            assert _set_atomically(graph, owner, before).successful
+        for name, value in before.items():
+            assert _in_use(nodes[owner], name) == value, (owner, name)
+    assert {n for n, _ in checked} == set(GRAPH_NODES)
+    assert {(n, k) for n in NODE_CLASSES for k in config_keys(n, 0)} <= checked

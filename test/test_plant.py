@@ -8,7 +8,7 @@ import copy
 import math
 from pathlib import Path
 
-from gripper_ros.core.config import ContactParams, ForceSensorParams, load_config
+from gripper_ros.core.config import ForceSensorParams, load_config, object_contact
 from gripper_ros.core.force_sensor import FsrVoltageDivider
 from gripper_ros.core.plant import check_fault, ContactState, FaultKind, GraspObject, GripperPlant
 import numpy as np
@@ -279,7 +279,7 @@ def test_compliant_contact_steady_force_is_stall_force_and_penetration_f_over_k(
 
 
 def test_compliant_contact_from_free_motion_default_contact_params():
-    plant = make_plant(ContactParams(4e6, 9e4))       # the default object is compliant
+    plant = make_plant(object_contact(4e6, 9e4))       # the default object is compliant
     assert plant.object.stiffness_n_per_m == 4e6 and not plant.object.rigid
     plant.set_object(GraspObject(width_m=0.14, stiffness_n_per_m=4e6, damping_n_s_per_m=9e4))
     run_until_contact(plant, 24.0)

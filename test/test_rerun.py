@@ -130,7 +130,7 @@ def test_paper_pi_on_a_stiff_object_shows_the_spike_the_recording_did_not(bags, 
     r = w.reruns[0]
     assert r.setup.changes == ['force_controller contact_aware -> pi']
     assert w.recorded.outcome == 'HOLDING' and w.recorded.peak_force_ratio <= 1.01
-    # README: the PI on the stiff object meets it at 1.7-6.1x F_sp and bounces off
+    # the PI on the stiff object meets it at 1.7-6.1x F_sp and bounces off
     assert r.metrics.peak_force_ratio >= 1.7
     assert r.metrics.outcome == 'OBJECT_LOST'
     # ... exactly what a headless grasp with the PI from the start gives

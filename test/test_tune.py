@@ -7,12 +7,13 @@ median time breaks the spike constraint, and tune must report the best trial tha
 """
 from __future__ import annotations
 
-import os
 import signal
 
 from gripper_ros.apps import tune
 from gripper_ros.core.config import load_config
 from gripper_ros.wire import NODE_FORCE_CONTROLLER
+import matplotlib.image
+import numpy as np
 import optuna
 import pytest
 from rcl_interfaces.srv import GetParameters
@@ -24,6 +25,8 @@ import yaml
 
 KEY = 'force_control.contact_aware.impact_force_fraction'
 ENVELOPE = [{'width_m': 0.005, 'mass_kg': 0.1}, {'width_m': 0.14, 'mass_kg': 0.1}]
+FEASIBLE, BROKE, LIMIT = (0.122, 0.467, 0.706), (1.0, 0.498, 0.055), (1.0, 0.0, 0.0)
+"""The plots' colours: feasible trials (matplotlib's C0), broken ones (C1), the peak limit."""
 SHIPPED = load_config().data['force_control']['contact_aware']['impact_force_fraction']
 
 
@@ -72,7 +75,12 @@ def test_a_constraint_violation_is_never_reported_as_best(study_dir):
     assert config.force.contact_aware.impact_force_fraction == best[1][KEY]
     report = (out / 'trials.txt').read_text(encoding='utf-8')
     assert f'{len(broke)} broke a constraint' in report and 'held-out check' in report
-    assert (out / 'history.png').stat().st_size > 0 and (out / 'pareto.png').stat().st_size > 0
+    for name, colours in (('history.png', (FEASIBLE, BROKE)),
+                          ('pareto.png', (FEASIBLE, BROKE, LIMIT))):
+        image = matplotlib.image.imread(out / name)[:, :, :3]
+        assert image.shape[:2] == (450, 700), name          # 7 x 4.5 in at 100 dpi
+        for colour in colours:                              # the markers and the limit line
+            assert np.any(np.all(np.abs(image - colour) < 0.02, axis=-1)), (name, colour)
 
 
 def test_the_params_file_loads_into_a_real_node(study_dir):
@@ -129,6 +137,8 @@ def test_multi_objective_mode_reports_a_feasible_pareto_front(tmp_path, capsys):
     ('supervisor.force_law=0:1', 'not a numeric key'),
     ('position_control.mpc_pd.horizon=10.5:20', 'integer'),
     (f'{KEY}', 'expected SECTION.KEY=LO:HI'),
+    ('position_control.pd.kc=1:1e300', "within the key's bounds [0, 1e+06], got '1:1e300'"),
+    ('force_control.contact_aware.contact_force_n=0:1', 'bounds [1e-09, 10]'),
 ])
 def test_a_bad_param_is_refused_in_one_line_and_nothing_is_written(
         tmp_path, capsys, param, words):
@@ -153,8 +163,3 @@ def test_a_bad_envelope_file_is_refused_naming_the_field(tmp_path, capsys, objec
                       '--output', str(tmp_path / 'out')]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and words in err[0], err
-
-
-def test_the_environment_isolates_dds():
-    """The node test above talks over DDS: only on this machine and this run's domain."""
-    assert os.environ.get('ROS_AUTOMATIC_DISCOVERY_RANGE') == 'LOCALHOST'

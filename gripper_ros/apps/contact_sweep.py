@@ -49,6 +49,7 @@ import sys
 import time
 
 from gripper_ros.apps.common import load_config_or_report
+from gripper_ros.wire import FORCE_SAMPLE_S
 
 WIDTHS_M = (0.005, 0.02, 0.05, 0.08, 0.11, 0.14)
 MASSES_KG = (0.1, 0.5, 1.0, 2.0, None)          # None: the heaviest 24 V can hold
@@ -277,7 +278,7 @@ def held_position_m(config, case: SweepCase) -> float:
     return face
 
 
-def arrival_floors_s(config, setpoints_m, dt_s: float = 1.0e-4) -> list[float]:
+def arrival_floors_s(config, setpoints_m, dt_s: float = FORCE_SAMPLE_S) -> list[float]:
     """Return the minimum time for the finger to reach each of ``setpoints_m`` from rest.
 
     At any speed: full voltage all the way (one run, read at each crossing). A true lower bound
@@ -603,10 +604,14 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument('--json', action='store_true')
     args = parser.parse_args(argv)
     band_k = args.band_design_stiffness
-    if not (math.isfinite(args.hold_s) and args.hold_s >= 0.0) or args.jobs < 1 or (
+    if not (math.isfinite(args.hold_s) and args.hold_s >= 0.0) or (
             band_k is not None and not (math.isfinite(band_k) and band_k > 0.0)):
-        print('contact_sweep: --hold-s must be finite and >= 0, --jobs >= 1 and '
+        print('contact_sweep: --hold-s must be finite and >= 0 and '
               '--band-design-stiffness finite and > 0', file=sys.stderr)
+        return 2
+    from gripper_ros.core.engine import jobs_problem
+    if args.scheduler is None and jobs_problem(args.jobs):
+        print(f'contact_sweep: --{jobs_problem(args.jobs)}', file=sys.stderr)
         return 2
     if args.scheduler is not None:
         from gripper_ros.core.engine import check_address

@@ -1,6 +1,6 @@
 """lift_table: the Table V objects grasped, then lifted, under both force laws.
 
-    ros2 run gripper_ros lift_table                     # the README's table (markdown)
+    ros2 run gripper_ros lift_table                     # docs/GRIP.md's table (markdown)
     ros2 run gripper_ros lift_table --accelerations 0,2,5,10
 
 Each object is grasped with the request's a = A, held, and lifted ``--lift-delay`` s after

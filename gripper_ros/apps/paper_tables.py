@@ -3,7 +3,7 @@
     ros2 run gripper_ros paper_tables [--config FILE] [--json]
 
 Conditions are printed with the tables. Where ours differs from the paper the row says why;
-README "Reproducing the paper" explains it with numbers.
+docs/RESULTS.md explains it with numbers.
 """
 from __future__ import annotations
 

@@ -43,6 +43,7 @@ import sys
 import warnings
 
 from gripper_ros.apps.common import load_config_or_report, negative_option, with_values
+from gripper_ros.core.config import bounds_of
 
 PROG = 'tune'
 ENVELOPES = ('quick', 'tablev', 'holdout')
@@ -122,6 +123,7 @@ def parse_param(text: str, data: dict) -> Param:
         node = node[part]
     if isinstance(node, bool) or not isinstance(node, (int, float)):
         raise TuneError(f'--param {key}: not a numeric key (it holds {node!r})')
+    bounds = bounds_of(key)
     try:
         low, high = float(parts[0]), float(parts[1])
     except ValueError:
@@ -131,6 +133,9 @@ def parse_param(text: str, data: dict) -> Param:
         raise TuneError(f'--param {key}: LO and HI must be finite with LO < HI, got {span!r}')
     if log and low <= 0.0:
         raise TuneError(f'--param {key}: a log range needs LO > 0, got {low!r}')
+    if bounds is not None and not bounds[0] <= low < high <= bounds[1]:
+        raise TuneError(f"--param {key}: LO:HI must lie within the key's bounds "
+                        f'[{bounds[0]:g}, {bounds[1]:g}], got {span!r}')
     integer = isinstance(node, int)
     if integer and (low != int(low) or high != int(high)):
         raise TuneError(f'--param {key}: an integer key needs integer LO and HI, got {span!r}')
@@ -481,8 +486,9 @@ def build_parser() -> argparse.ArgumentParser:
 def _check_args(args) -> None:
     if args.trials < 1 or args.top < 1:
         raise TuneError('--trials and --top must be >= 1')
-    if args.jobs is not None and args.jobs < 1:
-        raise TuneError('--jobs must be >= 1')
+    from gripper_ros.core.engine import jobs_problem
+    if args.jobs is not None and jobs_problem(args.jobs):
+        raise TuneError('--' + jobs_problem(args.jobs))
     negative = negative_option(args, ('hold_s', 'peak_weight', 'max_peak_ratio'))
     if negative:
         raise TuneError(negative)

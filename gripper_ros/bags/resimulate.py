@@ -35,7 +35,8 @@ import struct
 from typing import Any
 
 from gripper_ros.bags.reader import Bag, BagError, open_bag
-from gripper_ros.bags.series import bag_namespace, LEGACY_NAMESPACE, LEGACY_TOPICS
+from gripper_ros.bags.series import (bag_namespace, LEGACY_MOTOR_COMMAND, LEGACY_MOTOR_STATE,
+                                     LEGACY_NAMESPACE, LEGACY_TOPICS)
 from gripper_ros.core.config import ConfigError, default_config_path, GripperConfig, parse_config
 from gripper_ros.core.controllers import ForceControllerKind, PositionControllerKind
 from gripper_ros.core.lockstep import StageSide
@@ -44,8 +45,9 @@ from gripper_ros.core.stages import (DEFAULT_APPROACH_FORCE_MARGIN, DEFAULT_FORC
                                      PositionStageController, Reference, SOURCE_FORCE,
                                      SOURCE_POSITION)
 from gripper_ros.text import one_line
-from gripper_ros.wire import (COMMAND_LAYOUT, qualified, REFERENCE_LAYOUT, TOPIC_FORCE_REFERENCE,
-                              TOPIC_MOTOR_COMMAND, TOPIC_POSITION_REFERENCE)
+from gripper_ros.wire import (COMMAND_LAYOUT, qualified, REFERENCE_LAYOUT, stamp_ns,
+                              TOPIC_FORCE_REFERENCE, TOPIC_FORCE_SENSOR, TOPIC_JOINT_STATES,
+                              TOPIC_MOTOR_COMMAND, TOPIC_POSITION_REFERENCE, TOPIC_STATUS)
 import yaml
 
 OPEN_LOOP_NOTE = ('open loop: the recorded measurements and supervisor decisions are replayed; '
@@ -59,10 +61,6 @@ class NothingToResimulateError(BagError):
 
 def _bits(value: float) -> int:
     return struct.unpack('<q', struct.pack('<d', float(value)))[0]
-
-
-def _stamp_ns(msg) -> int:
-    return int(msg.header.stamp.sec) * 1_000_000_000 + int(msg.header.stamp.nanosec)
 
 
 @dataclass
@@ -333,27 +331,28 @@ class _RecordedCommand:
 def _legacy_ticks(bag: Bag):
     """Return references rebuilt from a bag of the earlier protocol, and its recorded commands."""
     topic = {name: qualified(LEGACY_NAMESPACE, name) for name in LEGACY_TOPICS
-             if name != 'motor_state'}          # the re-simulation needs no motor_state
+             if name != LEGACY_MOTOR_STATE}          # the re-simulation needs no motor_state
     bag.require_topics(list(topic.values()))
     joint_at: dict[int, tuple[float, float]] = {}
     force_at: dict[int, float] = {}
     statuses, commands = [], []
     for raw in bag.messages:
-        if raw.topic == topic['joint_states']:
+        if raw.topic == topic[TOPIC_JOINT_STATES]:
             m = bag.decode(raw)
-            joint_at[_stamp_ns(m)] = (m.position[0] if len(m.position) else math.nan,
-                                      m.velocity[0] if len(m.velocity) else 0.0)
-        elif raw.topic == topic['force_sensor']:
+            joint_at[stamp_ns(m.header.stamp)] = (
+                m.position[0] if len(m.position) else math.nan,
+                m.velocity[0] if len(m.velocity) else 0.0)
+        elif raw.topic == topic[TOPIC_FORCE_SENSOR]:
             m = bag.decode(raw)
-            force_at[_stamp_ns(m)] = m.force_n
-        elif raw.topic == topic['supervisor/status']:
+            force_at[stamp_ns(m.header.stamp)] = m.force_n
+        elif raw.topic == topic[TOPIC_STATUS]:
             statuses.append(bag.decode(raw))
-        elif raw.topic == topic['motor_command']:
+        elif raw.topic == topic[LEGACY_MOTOR_COMMAND]:
             commands.append(bag.decode(raw))
     refs, stage_of, from_status = [], {}, 0
     stage, current = 0, None
     for s in statuses:
-        stamp, active = _stamp_ns(s), int(s.active_controller)
+        stamp, active = stamp_ns(s.header.stamp), int(s.active_controller)
         if (int(s.grasp_id), active) != current:
             current = (int(s.grasp_id), active)
             stage += 1
@@ -371,7 +370,7 @@ def _legacy_ticks(bag: Bag):
     recorded: dict[tuple[int, int, int], Any] = {}
     order: dict[int, list] = {SOURCE_POSITION: [], SOURCE_FORCE: []}
     for m in commands:
-        stamp = _stamp_ns(m)
+        stamp = stamp_ns(m.header.stamp)
         stage_id = stage_of.get((int(m.source), int(m.grasp_id), stamp), -1)
         cmd = _RecordedCommand(int(m.source), stage_id, stamp, float(m.voltage_v),
                                float(m.hold_s), float(m.inner_setpoint))

@@ -16,18 +16,22 @@ from typing import Any
 
 from gripper_ros.bags.reader import Bag, MissingTopicsError, open_bag
 from gripper_ros.wire import (COMMAND_LAYOUT, FINGER_JOINT, GRAPH_TOPICS, qualified,
-                              REFERENCE_LAYOUT, TICK_LAYOUT, TOPIC_FORCE_REFERENCE,
-                              TOPIC_MOTOR_COMMAND, TOPIC_OBJECT_STATE, TOPIC_POSITION_REFERENCE,
-                              TOPIC_STATUS, TOPIC_TICK)
+                              REFERENCE_LAYOUT, stamp_ns, TICK_LAYOUT, TOPIC_FORCE_REFERENCE,
+                              TOPIC_FORCE_SENSOR, TOPIC_JOINT_STATES, TOPIC_MOTOR_COMMAND,
+                              TOPIC_OBJECT_STATE, TOPIC_POSITION_REFERENCE, TOPIC_STATUS,
+                              TOPIC_TICK)
 import numpy as np
 
 LEGACY_NAMESPACE = 'gripper'
+LEGACY_MOTOR_STATE = 'motor_state'
+LEGACY_MOTOR_COMMAND = 'motor_command'
+"""Topics of a bag recorded before the lockstep protocol that the graph no longer has."""
 LEGACY_TOPICS = {
-    'joint_states': 'sensor_msgs/msg/JointState',
-    'force_sensor': 'gripper_interfaces/msg/ForceSensor',
-    'motor_state': 'gripper_interfaces/msg/MotorState',
-    'supervisor/status': 'gripper_interfaces/msg/SupervisorStatus',
-    'motor_command': 'gripper_interfaces/msg/MotorCommand',
+    TOPIC_JOINT_STATES: 'sensor_msgs/msg/JointState',
+    TOPIC_FORCE_SENSOR: 'gripper_interfaces/msg/ForceSensor',
+    LEGACY_MOTOR_STATE: 'gripper_interfaces/msg/MotorState',
+    TOPIC_STATUS: 'gripper_interfaces/msg/SupervisorStatus',
+    LEGACY_MOTOR_COMMAND: 'gripper_interfaces/msg/MotorCommand',
 }
 """The topics of a bag recorded before the lockstep protocol (all under /gripper)."""
 
@@ -35,8 +39,9 @@ GRASP_TOPICS = GRAPH_TOPICS
 """Relative topic -> type of everything one gripper's graph publishes (what a bag records)."""
 
 
-def _stamp_ns(msg) -> int:
-    return int(msg.header.stamp.sec) * 1_000_000_000 + int(msg.header.stamp.nanosec)
+def _t_s(msg) -> float:
+    """Return a stamped message's time in seconds."""
+    return stamp_ns(msg.header.stamp) * 1e-9
 
 
 @dataclass
@@ -171,8 +176,8 @@ def bag_namespace(bag: Bag, namespace: str | None = None) -> tuple[int, str]:
         namespace = str(info['namespace'])
     found = sorted({t[:-len('/' + TOPIC_TICK)].strip('/') for t in bag.topics
                     if t.endswith('/' + TOPIC_TICK) and bag.topics[t].count})
-    legacy = qualified(LEGACY_NAMESPACE, 'joint_states') in bag.topics and \
-        qualified(LEGACY_NAMESPACE, 'supervisor/status') in bag.topics and not found
+    legacy = qualified(LEGACY_NAMESPACE, TOPIC_JOINT_STATES) in bag.topics and \
+        qualified(LEGACY_NAMESPACE, TOPIC_STATUS) in bag.topics and not found
     if namespace is not None:
         ns = namespace.strip('/')
         if ns in found:
@@ -231,10 +236,10 @@ def _lockstep_series(bag: Bag, ns: str) -> GraspSeries:
                 bag.decode(raw), COMMAND_LAYOUT.fields, 'command', absent))
         elif topic == t_status:
             m = bag.decode(raw)
-            statuses.append((_stamp_ns(m), m))
+            statuses.append((stamp_ns(m.header.stamp), m))
         elif topic == t_object:
             m = bag.decode(raw)
-            objects.append((_stamp_ns(m) * 1e-9, m.state, m.slip_m, m.slip_speed_mps, m.load_n,
+            objects.append((_t_s(m), m.state, m.slip_m, m.slip_speed_mps, m.load_n,
                             m.capacity_n))
     return lockstep_series(bag.path, ns, ticks, refs, cmds, statuses, objects,
                            custom_data=bag.custom_data_parsed(), counts=bag.counts(),
@@ -356,32 +361,32 @@ def _with_final_state(status: StatusSeries, statuses: list) -> StatusSeries:
 def _legacy_series(bag: Bag) -> GraspSeries:
     """Read a bag recorded before the lockstep protocol: a message per topic per tick."""
     topic = {name: qualified(LEGACY_NAMESPACE, name) for name in LEGACY_TOPICS}
-    bag.require_topics([topic['joint_states'], topic['force_sensor'],
-                        topic['supervisor/status']])
+    bag.require_topics([topic[TOPIC_JOINT_STATES], topic[TOPIC_FORCE_SENSOR],
+                        topic[TOPIC_STATUS]])
     joint, sensor, motor, status, command = [], [], [], [], []
     for raw in bag.messages:
-        if raw.topic == topic['joint_states']:
+        if raw.topic == topic[TOPIC_JOINT_STATES]:
             m = bag.decode(raw)
             names = list(m.name)
             idx = names.index(FINGER_JOINT) if FINGER_JOINT in names else 0
-            joint.append((_stamp_ns(m) * 1e-9, _joint_value(m.position, idx),
+            joint.append((_t_s(m), _joint_value(m.position, idx),
                           _joint_value(m.velocity, idx), _joint_value(m.effort, idx)))
-        elif raw.topic == topic['force_sensor']:
+        elif raw.topic == topic[TOPIC_FORCE_SENSOR]:
             m = bag.decode(raw)
-            sensor.append((_stamp_ns(m) * 1e-9, m.force_n, m.voltage_v,
+            sensor.append((_t_s(m), m.force_n, m.voltage_v,
                            getattr(m, 'peak_force_n', float('nan'))))
-        elif raw.topic == topic['motor_state']:
+        elif raw.topic == topic[LEGACY_MOTOR_STATE]:
             m = bag.decode(raw)
-            motor.append((_stamp_ns(m) * 1e-9, m.voltage_v, m.current_a, m.speed_rad_s))
-        elif raw.topic == topic['supervisor/status']:
+            motor.append((_t_s(m), m.voltage_v, m.current_a, m.speed_rad_s))
+        elif raw.topic == topic[TOPIC_STATUS]:
             m = bag.decode(raw)
-            status.append((_stamp_ns(m) * 1e-9, m.phase, m.active_controller, m.switch_criterion,
+            status.append((_t_s(m), m.phase, m.active_controller, m.switch_criterion,
                            m.grasp_id, m.outcome, m.position_setpoint_m, m.force_setpoint_n,
                            m.position_m, m.force_n, bool(m.contact), m.seed_voltage_v,
                            getattr(m, 'approach_setpoint_m', m.position_setpoint_m)))
-        elif raw.topic == topic['motor_command']:
+        elif raw.topic == topic[LEGACY_MOTOR_COMMAND]:
             m = bag.decode(raw)
-            command.append((_stamp_ns(m) * 1e-9, m.voltage_v, m.source, m.grasp_id, m.hold_s,
+            command.append((_t_s(m), m.voltage_v, m.source, m.grasp_id, m.hold_s,
                             m.inner_setpoint))
     f, i = float, int
     st = _columns(status, (f, i, i, i, i, i, f, f, f, f, bool, f, f))

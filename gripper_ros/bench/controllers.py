@@ -36,9 +36,10 @@ import platform
 import sys
 import time
 
+from gripper_ros.wire import FORCE_SAMPLE_S
 import numpy as np
 
-FORCE_BUDGET_US = 100.0          # the paper's force sampling time, 0.1 ms
+FORCE_BUDGET_US = FORCE_SAMPLE_S * 1e6   # the paper's force sampling time, 0.1 ms
 
 
 def _baseline_call(a: float, b: float) -> float:

@@ -46,7 +46,7 @@ from gripper_ros.bench.pingpong import (BenchError, EXECUTOR_KINDS, measure_ping
 from gripper_ros.bench.report import format_report, median_of, ratios
 from gripper_ros.nodes import NODE_MODULES
 from gripper_ros.wire import (NODE_FORCE_CONTROLLER, NODE_PLANT, NODE_POSITION_CONTROLLER,
-                              NODE_SUPERVISOR, Phase)
+                              NODE_SUPERVISOR, Phase, stamp_ns)
 
 _MATCH_TIMEOUT_S = 20.0
 _NODE_MODULES = tuple(NODE_MODULES[n] for n in (NODE_PLANT, NODE_POSITION_CONTROLLER,
@@ -96,7 +96,7 @@ class PhaseObserver:
         marks = self.marks.setdefault(gid, [])
         if not marks or marks[-1][0] != msg.phase:
             ticks = self._tick_count() if self._tick_count else None
-            marks.append((msg.phase, now, ticks, msg.sec * 1_000_000_000 + msg.nanosec,
+            marks.append((msg.phase, now, ticks, stamp_ns(msg),
                           self._cpu_s()))
         if msg.phase not in (Phase.POSITION, Phase.FORCE):
             self.finished.add(gid)

@@ -8,6 +8,7 @@ from __future__ import annotations
 import copy
 from dataclasses import dataclass, field, fields, MISSING
 import enum
+import functools
 import math
 import os
 from pathlib import Path
@@ -89,22 +90,21 @@ class ContactParams:
 
     stiffness_n_per_m: float
     damping_n_s_per_m: float
-    # Defaults apply when a config file predates them.
-    static_friction: float = 0.5       # mu_s between pad and object (per pad)
-    kinetic_friction: float = 0.4      # mu_k while the object slides; <= mu_s
-    pad_length_m: float = 0.02         # the object is out once it has slid this far
-    after_lift_s: float = 0.5          # fast mode plays a lift out this long after it ends
+    static_friction: float             # mu_s between pad and object (per pad)
+    kinetic_friction: float            # mu_k while the object slides; <= mu_s
+    pad_length_m: float                # the object is out once it has slid this far
+    after_lift_s: float                # fast mode plays a lift out this long after it ends
     # Cattaneo-Mindlin pre-sliding of each pad (core/hold.py): its initial tangential
-    # stiffness; 0 (a file that predates it) = rigid pads, the Coulomb law alone.
-    pad_tangential_stiffness_n_per_m: float = 0.0
+    # stiffness; 0 = rigid pads, the Coulomb law alone.
+    pad_tangential_stiffness_n_per_m: float
     # The arm's lift-off (core/hold.py): the weight passes from the support to the pads over
-    # this long; 0 (a file that predates it) = all at once.
-    lift_off_s: float = 0.0
+    # this long; 0 = all at once.
+    lift_off_s: float
     # The normal chain (core/contact_chain.py): each finger's bending stiffness at its pad and
-    # each pad's Hertz stiffness (F = k_p delta^1.5); 0 (or a file that predates them) = a
-    # rigid finger, no pad: the object alone, as in the paper.
-    finger_stiffness_n_per_m: float = 0.0
-    pad_normal_stiffness_n_per_m1_5: float = 0.0
+    # each pad's Hertz stiffness (F = k_p delta^1.5); 0 = a rigid finger, no pad: the object
+    # alone, as in the paper.
+    finger_stiffness_n_per_m: float
+    pad_normal_stiffness_n_per_m1_5: float
 
 
 @dataclass(frozen=True)
@@ -125,11 +125,16 @@ class SensorNoiseParams:
     so a run is reproducible and a repeated reading of one instant reads the same.
     """
 
-    position_noise_m: float = 0.0
-    position_quantum_m: float = 0.0
-    force_noise_n: float = 0.0
-    force_quantum_n: float = 0.0
-    seed: int = 0
+    position_noise_m: float
+    position_quantum_m: float
+    force_noise_n: float
+    force_quantum_n: float
+    seed: int
+
+    @classmethod
+    def ideal(cls) -> SensorNoiseParams:
+        """Return no noise and no quantisation: the ideal sensors."""
+        return cls(0.0, 0.0, 0.0, 0.0, 0)
 
     @property
     def enabled(self) -> bool:
@@ -139,16 +144,16 @@ class SensorNoiseParams:
 
 @dataclass(frozen=True)
 class PadSensorParams:
-    """Each pad's shear and displacement sensing (core/pad_sensor.py); defaults when absent."""
+    """Each pad's shear and displacement sensing (core/pad_sensor.py)."""
 
-    shear_resolution_n: float = 1.0 / 320.0
-    shear_noise_n: float = 0.002
-    shear_bandwidth_hz: float = 1000.0
-    shear_latency_s: float = 0.0003
-    displacement_resolution_m: float = 1.0e-6
-    displacement_noise_m: float = 0.5e-6
-    displacement_bandwidth_hz: float = 1000.0
-    displacement_latency_s: float = 0.0003
+    shear_resolution_n: float
+    shear_noise_n: float
+    shear_bandwidth_hz: float
+    shear_latency_s: float
+    displacement_resolution_m: float
+    displacement_noise_m: float
+    displacement_bandwidth_hz: float
+    displacement_latency_s: float
 
     @property
     def shear(self):
@@ -167,18 +172,18 @@ class PadSensorParams:
 
 @dataclass(frozen=True)
 class LoadGripParams:
-    """The load-tracking grip's settings (core/load_grip.py); defaults when absent."""
+    """The load-tracking grip's settings (core/load_grip.py)."""
 
-    grip_margin: float = 1.25
-    mu_start: float = 0.3
-    mu_safety: float = 0.97
-    touch_force_n: float = 0.7
-    slip_speed_mps: float = 0.001
-    slip_window_s: float = 0.01
-    slip_rest_s: float = 0.005
-    min_samples: int = 200
-    release_rate_n_per_s: float = 300.0
-    overload_slip_s: float = 0.02
+    grip_margin: float
+    mu_start: float
+    mu_safety: float
+    touch_force_n: float
+    slip_speed_mps: float
+    slip_window_s: float
+    slip_rest_s: float
+    min_samples: int
+    release_rate_n_per_s: float
+    overload_slip_s: float
 
 
 @dataclass(frozen=True)
@@ -203,7 +208,7 @@ class PositionControlParams:
     mpc_pd: PidGains
     mpc_pd_dmc: DmcTuning
     mpc_pd_braking_voltage_v: float     # ours: braking-governor planning voltage
-    speed_limit_pole: float = 0.5       # ours: discrete pole of the speed under a move's limit
+    speed_limit_pole: float             # ours: discrete pole of the speed under a move's limit
 
 
 @dataclass(frozen=True)
@@ -225,7 +230,7 @@ class ContactForceTuning:
     integral_speed_band_mps: float       # "at rest": |finger speed| below this ...
     integral_rate_fraction: float        # ... and |de/dt| tau_k below this x |e|
     # a moving setpoint's rate, low-passed over this, leads the speed reference (0 = no filter)
-    setpoint_rate_time_constant_s: float = 0.01
+    setpoint_rate_time_constant_s: float
 
 
 @dataclass(frozen=True)
@@ -257,25 +262,24 @@ class SupervisorParams:
     force_settle_hold_s: float
     timeout_s: float
     no_object_margin_m: float
-    # Loss watch and release (defaults apply when a config file predates them).
-    hold_watch_s: float = 0.02           # force loop keeps holding and watching before HOLDING
-    lost_force_fraction: float = 0.5     # OBJECT_LOST: force below this x F_sp after a grip ...
-    lost_force_hold_s: float = 0.002     # ... for this long
-    release_tolerance_m: float = 0.001   # release done within this of the open position ...
-    release_settle_s: float = 0.05       # ... for this long
-    position_switch_speed_mps: float = 0.0  # switch 1 also needs |speed| <= this (0: paper's)
-    width_tolerance_m: float = 0.0       # default +- on a request's width (Franka's epsilon)
-    force_settle_horizon_s: float = 0.0  # settled: |e| + this x |dF/dt| within the band ...
-    force_settle_speed_mps: float = 0.0  # ... and the finger slower than this (0: no bound)
-    force_law: ForceLaw = ForceLaw.FRICTION
-    grip_safety_factor: float = 1.5      # k of the friction law (>= 1)
+    # Loss watch and release.
+    hold_watch_s: float                # force loop keeps holding and watching before HOLDING
+    lost_force_fraction: float         # OBJECT_LOST: force below this x F_sp after a grip ...
+    lost_force_hold_s: float           # ... for this long
+    release_tolerance_m: float         # release done within this of the open position ...
+    release_settle_s: float            # ... for this long
+    position_switch_speed_mps: float   # switch 1 also needs |speed| <= this (0: paper's)
+    width_tolerance_m: float           # default +- on a request's width (Franka's epsilon)
+    force_settle_horizon_s: float      # settled: |e| + this x |dF/dt| within the band ...
+    force_settle_speed_mps: float      # ... and the finger slower than this (0: no bound)
+    force_law: ForceLaw
+    grip_safety_factor: float          # k of the friction law (>= 1)
     # The move (srv/Move, control_msgs ParallelGripperCommand).
-    move_default_speed_mps: float = 0.05  # a move's speed when the request gives none
-    move_tolerance_m: float = 0.0005     # reached_goal: at rest within this of the width
-    move_rest_speed_mps: float = 0.0005  # "at rest": |finger speed| at most this
-    move_stall_force_fraction: float = 0.9  # stalled at once: at rest, pressing with this
-    # fraction of the effort limit
-    move_stall_timeout_s: float = 0.5    # stalled: at rest short of the width this long
+    move_default_speed_mps: float      # a move's speed when the request gives none
+    move_tolerance_m: float            # reached_goal: at rest within this of the width
+    move_rest_speed_mps: float         # "at rest": |finger speed| at most this
+    move_stall_force_fraction: float   # stalled at once: at rest, pressing with this share
+    move_stall_timeout_s: float        # stalled: at rest short of the width this long
 
 
 @dataclass(frozen=True)
@@ -286,20 +290,22 @@ class GripperConfig:
     position: PositionControlParams
     force: ForceControlParams
     supervisor: SupervisorParams
+    sensor_noise: SensorNoiseParams
+    pad_sensor: PadSensorParams
+    load_grip: LoadGripParams
     source: str
     data: dict = field(default_factory=dict, compare=False, hash=False, repr=False)
     """The mapping the values were read from (what a bag records, what re-runs start from)."""
-    sensor_noise: SensorNoiseParams = SensorNoiseParams()
-    """Off when the file has no ``sensor_noise`` section."""
-    pad_sensor: PadSensorParams = field(default_factory=PadSensorParams)
-    load_grip: LoadGripParams = field(default_factory=LoadGripParams)
 
 
 def default_config_path() -> Path:
-    """Return the installed ``share/gripper_ros/config/gripper.yaml``, else the tree's copy."""
+    """Return ``$GRIPPER_ROS_CONFIG`` if set, else :func:`shipped_config_path`."""
     env = os.environ.get('GRIPPER_ROS_CONFIG')
-    if env:
-        return Path(env)
+    return Path(env) if env else shipped_config_path()
+
+
+def shipped_config_path() -> Path:
+    """Return the installed ``share/gripper_ros/config/gripper.yaml``, else the tree's copy."""
     try:
         from ament_index_python.packages import get_package_share_directory
         installed = Path(get_package_share_directory(PACKAGE_NAME)) / 'config' / CONFIG_FILE_NAME
@@ -308,6 +314,76 @@ def default_config_path() -> Path:
     except (ImportError, LookupError, ValueError, OSError):
         pass
     return Path(__file__).resolve().parents[2] / 'config' / CONFIG_FILE_NAME
+
+
+SHIPPED = None
+"""In :data:`ADDED_LATER`: a file without the key means the shipped file's value."""
+
+ADDED_LATER: dict[str, float | None] = {
+    # key (dotted) or whole section a file may lack (it predates them) -> what its absence
+    # means: the shipped value (SHIPPED), or the number that turns the feature off; any other
+    # key is required. The shipped config/gripper.yaml is the one home of every value.
+    'contact.static_friction': SHIPPED, 'contact.kinetic_friction': SHIPPED,
+    'contact.pad_length_m': SHIPPED, 'contact.after_lift_s': SHIPPED,
+    'contact.pad_tangential_stiffness_n_per_m': 0.0,     # rigid pads: the Coulomb law alone
+    'contact.lift_off_s': 0.0,                            # the weight lands at once
+    'contact.finger_stiffness_n_per_m': 0.0,              # rigid fingers ...
+    'contact.pad_normal_stiffness_n_per_m1_5': 0.0,       # ... and no pad: the paper's contact
+    'position_control.speed_limit_pole': SHIPPED,
+    'force_control.contact_aware.setpoint_rate_time_constant_s': SHIPPED,
+    'supervisor.hold_watch_s': SHIPPED, 'supervisor.lost_force_fraction': SHIPPED,
+    'supervisor.lost_force_hold_s': SHIPPED, 'supervisor.release_tolerance_m': SHIPPED,
+    'supervisor.release_settle_s': SHIPPED,
+    'supervisor.position_switch_speed_mps': 0.0,          # the paper's switch: position alone
+    'supervisor.width_tolerance_m': 0.0,                  # trust the width
+    'supervisor.force_settle_horizon_s': 0.0,             # settled: the band alone
+    'supervisor.force_settle_speed_mps': 0.0,             # no speed bound
+    'supervisor.force_law': SHIPPED, 'supervisor.grip_safety_factor': SHIPPED,
+    'supervisor.move_default_speed_mps': SHIPPED, 'supervisor.move_tolerance_m': SHIPPED,
+    'supervisor.move_rest_speed_mps': SHIPPED, 'supervisor.move_stall_force_fraction': SHIPPED,
+    'supervisor.move_stall_timeout_s': SHIPPED,
+    'sensor_noise': 0.0,                                  # ideal sensors
+    'pad_sensor': SHIPPED,
+    'load_grip': SHIPPED,
+}
+
+
+@functools.cache
+def _shipped_data() -> dict:
+    return yaml.safe_load(shipped_config_path().read_text(encoding='utf-8'))
+
+
+def _absent_value(where: str, key: str):
+    """Return what a file without ``where.key`` means, or MISSING if it must have it."""
+    dotted = f'{where}.{key}'
+    meaning = ADDED_LATER.get(dotted, ADDED_LATER.get(where.split('.')[0], MISSING))
+    if meaning is not SHIPPED:
+        return meaning
+    data = _shipped_data()
+    for part in dotted.split('.'):
+        data = data[part]
+    return data
+
+
+def _with_absent(section: dict, where: str, keys) -> dict:
+    """Return ``section`` with each of ``keys`` it lacks filled in as :data:`ADDED_LATER` says."""
+    filled = dict(section)
+    for key in keys:
+        if key not in filled:
+            value = _absent_value(where, key)
+            if value is not MISSING:
+                filled[key] = value
+    return filled
+
+
+def shipped_config() -> GripperConfig:
+    """Return the shipped config/gripper.yaml, read once (what a component without one uses)."""
+    return _shipped_config()
+
+
+@functools.cache
+def _shipped_config() -> GripperConfig:
+    return load_config(shipped_config_path())
 
 
 MAX_HORIZON = 2000
@@ -528,9 +604,10 @@ def _choice(section: dict, key: str, where: str, choices: type[enum.Enum]) -> en
 
 def _build(cls, section: dict, where: str, **rules):
     kwargs = {}
+    section = _with_absent(section, where, [f.name for f in fields(cls)])
     for f in fields(cls):
         opts = rules.get(f.name, {'positive': True})
-        if f.name not in section and f.default is not MISSING:
+        if f.name not in section and f.default is not MISSING:   # a gain a law does not have
             kwargs[f.name] = f.default
             continue
         if 'choices' in opts:
@@ -552,6 +629,18 @@ def _dmc(section: dict, where: str) -> DmcTuning:
                   move_suppression={'positive': True})
 
 
+_CONTACT_RULES = {name: {'nonnegative': True} for name in (
+    'stiffness_n_per_m', 'damping_n_s_per_m', 'after_lift_s', 'pad_tangential_stiffness_n_per_m',
+    'lift_off_s', 'finger_stiffness_n_per_m', 'pad_normal_stiffness_n_per_m1_5')}
+
+
+def object_contact(stiffness_n_per_m: float, damping_n_s_per_m: float) -> ContactParams:
+    """Return the contact a file giving only the object's stiffness and damping means."""
+    return _build(ContactParams, {'stiffness_n_per_m': stiffness_n_per_m,
+                                  'damping_n_s_per_m': damping_n_s_per_m}, 'contact',
+                  **_CONTACT_RULES)
+
+
 def parse_config(data: dict, source: str = '<dict>') -> GripperConfig:
     """Validate a loaded YAML mapping into a :class:`GripperConfig`."""
     if not isinstance(data, dict):
@@ -559,18 +648,13 @@ def parse_config(data: dict, source: str = '<dict>') -> GripperConfig:
     _refuse_unknown(data, known_keys())
     plant = _build(PlantParams, _section(data, 'plant', source), 'plant')
     contact = _build(ContactParams, _section(data, 'contact', source), 'contact',
-                     stiffness_n_per_m={'nonnegative': True},
-                     damping_n_s_per_m={'nonnegative': True},
-                     after_lift_s={'nonnegative': True},
-                     pad_tangential_stiffness_n_per_m={'nonnegative': True},
-                     lift_off_s={'nonnegative': True},
-                     finger_stiffness_n_per_m={'nonnegative': True},
-                     pad_normal_stiffness_n_per_m1_5={'nonnegative': True})
+                     **_CONTACT_RULES)
     if contact.kinetic_friction > contact.static_friction:
         raise ConfigError('"contact.kinetic_friction" must be <= "contact.static_friction" '
                           f'({contact.static_friction!r}), got {contact.kinetic_friction!r}')
     sensor = _build(ForceSensorParams, _section(data, 'force_sensor', source), 'force_sensor')
-    pos = _section(data, 'position_control', source)
+    pos = _with_absent(_section(data, 'position_control', source), 'position_control',
+                       ('speed_limit_pole',))
     mpc_pd = _section(pos, 'mpc_pd', 'position_control')
     position = PositionControlParams(
         sample_time_s=_number(pos, 'sample_time_s', 'position_control', positive=True),
@@ -580,9 +664,7 @@ def parse_config(data: dict, source: str = '<dict>') -> GripperConfig:
         mpc_pd_dmc=_dmc(mpc_pd, 'position_control.mpc_pd'),
         mpc_pd_braking_voltage_v=_number(pos, 'mpc_pd_braking_voltage_v', 'position_control',
                                          nonnegative=True),
-        **({'speed_limit_pole': _number(pos, 'speed_limit_pole', 'position_control',
-                                        nonnegative=True)}
-           if 'speed_limit_pole' in pos else {}))    # older files: the dataclass default
+        speed_limit_pole=_number(pos, 'speed_limit_pole', 'position_control', nonnegative=True))
     frc = _section(data, 'force_control', source)
     force = ForceControlParams(
         paper_sample_time_s=_number(frc, 'paper_sample_time_s', 'force_control', positive=True),
@@ -642,14 +724,12 @@ def parse_config(data: dict, source: str = '<dict>') -> GripperConfig:
                           f'("supervisor.move_rest_speed_mps" = {sup.move_rest_speed_mps!r}, '
                           f'{plant.max_free_speed_mps:.6g}] m/s (the free speed at '
                           f'"plant.voltage_limit_v"), got {sup.move_default_speed_mps!r}')
-    noise = SensorNoiseParams()
-    if 'sensor_noise' in data:
-        noise_rules = {f.name: {'nonnegative': True} for f in fields(SensorNoiseParams)}
-        noise_rules['seed'] = {'nonnegative': True, 'integer': True}
-        noise = _build(SensorNoiseParams, _section(data, 'sensor_noise', source), 'sensor_noise',
-                       **noise_rules)
-        if noise.seed >= 2 ** 63:
-            raise ConfigError(f'"sensor_noise.seed" must be < 2**63, got {noise.seed!r}')
+    noise_rules = {f.name: {'nonnegative': True} for f in fields(SensorNoiseParams)}
+    noise_rules['seed'] = {'nonnegative': True, 'integer': True}
+    noise = _build(SensorNoiseParams, _section(data, 'sensor_noise', source)
+                   if 'sensor_noise' in data else {}, 'sensor_noise', **noise_rules)
+    if noise.seed >= 2 ** 63:
+        raise ConfigError(f'"sensor_noise.seed" must be < 2**63, got {noise.seed!r}')
     pads = _build(PadSensorParams, _section(data, 'pad_sensor', source)
                   if 'pad_sensor' in data else {}, 'pad_sensor',
                   **{f.name: {'nonnegative': True} for f in fields(PadSensorParams)})
@@ -661,9 +741,8 @@ def parse_config(data: dict, source: str = '<dict>') -> GripperConfig:
                           f'less than the load), got {grip.grip_margin!r}')
     if not grip.mu_safety <= 1.0:
         raise ConfigError(f'"load_grip.mu_safety" must be in (0, 1], got {grip.mu_safety!r}')
-    return GripperConfig(plant, contact, sensor, position, force, sup, source,
-                         copy.deepcopy(data), sensor_noise=noise, pad_sensor=pads,
-                         load_grip=grip)
+    return GripperConfig(plant, contact, sensor, position, force, sup, noise, pads, grip,
+                         source, copy.deepcopy(data))
 
 
 def load_config(path: str | os.PathLike | None = None) -> GripperConfig:

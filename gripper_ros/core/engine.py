@@ -124,6 +124,20 @@ def chunked(cases: list, workers: int, chunks_per_worker: int = CHUNKS_PER_WORKE
     return [cases[i:i + size] for i in range(0, len(cases), size)]
 
 
+MAX_JOBS_PER_CPU = 4
+"""Local workers beyond this many per CPU only share the cores, each a process of its own."""
+
+
+def jobs_problem(jobs) -> str:
+    """Return why ``jobs`` local workers cannot be started here ('' if they can)."""
+    cpus = os.cpu_count() or 1
+    limit = MAX_JOBS_PER_CPU * cpus
+    if isinstance(jobs, bool) or not isinstance(jobs, int) or not 1 <= jobs <= limit:
+        return (f'jobs must be a whole number in [1, {limit}] ({MAX_JOBS_PER_CPU} per CPU of '
+                f'the {cpus} here; more only share the cores), got {jobs!r}')
+    return ''
+
+
 def map_cases(fn: Callable, cases: Sequence, jobs: int | None = None,
               chunks_per_job: int = CHUNKS_PER_WORKER, *, scheduler=None,
               progress: Callable[[int], None] | None = None) -> list:
@@ -138,8 +152,8 @@ def map_cases(fn: Callable, cases: Sequence, jobs: int | None = None,
     cases = list(cases)
     if jobs is None:
         jobs = os.cpu_count() or 1
-    if isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1:
-        raise ValueError(f'jobs must be >= 1, got {jobs!r}')
+    if scheduler is None and jobs_problem(jobs):
+        raise ValueError(jobs_problem(jobs))
     if scheduler is None and (jobs == 1 or len(cases) <= 1 or not _workers_can_start()):
         out = []
         for case in cases:
@@ -175,8 +189,8 @@ def dask_cluster(workers: int = 2, host: str = '127.0.0.1',
                  env: dict | None = None) -> Iterator[str]:
     """Start ``dask scheduler`` and ``workers`` x ``dask worker`` here; yield the address.
 
-    The same commands a cluster of machines runs (README), one thread a worker, each worker
-    preloading the compiled core; all are stopped on exit. For the benchmark and the tests.
+    The same commands a cluster of machines runs (docs/STUDIES.md), one thread a worker, each
+    worker preloading the compiled core; all are stopped on exit. For the benchmark and the tests.
     """
     procs: list[subprocess.Popen] = []
     address = None

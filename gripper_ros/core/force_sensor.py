@@ -111,7 +111,7 @@ class FsrVoltageDivider:
 
     def __init__(self, params: ForceSensorParams, noise: SensorNoiseParams | None = None):
         self.params = params
-        self.noise = noise or SensorNoiseParams()
+        self.noise = noise or SensorNoiseParams.ideal()
         self.record = np.zeros(1, SENSOR_DTYPE)   # what the plant's kernels read and write
         r = self.record[0]
         r['noisy'] = self.noise.enabled

@@ -1,4 +1,4 @@
-"""One grasp without ROS: the node graph's lockstep loop, run in plain Python.
+"""Grasps without ROS: the node graph's lockstep loop, compiled, tick for tick the graph's.
 
 The same plant, supervisor and stage code the nodes call (:mod:`gripper_ros.core.lockstep`),
 wired exactly as the graph wires them in ``time_mode`` fast: the position stage holds the
@@ -29,7 +29,8 @@ from gripper_ros.core.stages import (DEFAULT_APPROACH_FORCE_MARGIN, DEFAULT_FORC
                                      DEFAULT_POSITION_CONTROLLER, ForceStageController,
                                      PositionStageController, Reference, stage_answer)
 from gripper_ros.core.supervisor import GraspSupervisor, load_law, NO_NS, supervisor_decide
-from gripper_ros.wire import Controller, FaultKind, Outcome, Phase, SwitchCriterion
+from gripper_ros.wire import (Controller, FaultKind, FORCE_SAMPLE_S, Outcome, Phase,
+                              SwitchCriterion)
 import numba
 import numpy as np
 
@@ -506,7 +507,7 @@ def _warm_up_faces(config: GripperConfig) -> None:
     tick = side.tick()
     side.step_unpowered(0.001)
     plant.sample()
-    plant.step(1.0, 1e-4)
+    plant.step(1.0, FORCE_SAMPLE_S)
     plant.object_state
     plant.begin_hold(plant.t_ns, 1.0)
     plant.schedule_fault(FaultKind.SENSOR_DROPOUT, plant.t_ns + 1000)

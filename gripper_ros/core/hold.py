@@ -52,13 +52,13 @@ from __future__ import annotations
 from dataclasses import dataclass
 import math
 
-from gripper_ros.wire import HoldState, LiftProfile
+from gripper_ros.wire import FORCE_SAMPLE_S, HoldState, LiftProfile
 import numba
 import numpy as np
 
 MAX_LIFT_TIME_S = 600.0        # a lift's delay or duration beyond this is a mistake
 MAX_LIFT_OFF_S = 10.0          # contact.lift_off_s's bound too
-SHAKE_SAMPLE_S = 1.0e-4        # a shake's acceleration is constant over pieces this long
+SHAKE_SAMPLE_S = FORCE_SAMPLE_S  # a shake's acceleration is constant over pieces this long
 SHAKE_SAMPLE_NS = round(SHAKE_SAMPLE_S * 1e9)
 MAX_SHAKE_FREQUENCY_HZ = 100.0  # 50 pieces a period at the fastest
 PICK_AND_PLACE_QUARTERS = 12   # D / 12: each ramp of the pick-and-place's trapezoids
@@ -413,28 +413,6 @@ def hold_drive(h, t_ns, accel_mps2, after_ns):
 
 
 @numba.njit(cache=True)
-def hold_schedule_lift(h, accel_mps2, delay_s, duration_s, profile, frequency_hz):
-    """Give a held object a lift after the hold began (checked by :class:`Lift` first).
-
-    Its delay counts from the start of the hold, as a lift given with the object does; 1
-    (nothing changed) unless the object is on its support with its hold begun.
-    """
-    if h.hold_ns == -1 or h.state != HoldState.RESTING:
-        return 1
-    h.has_lift = 1
-    h.lift_acceleration_mps2 = accel_mps2
-    h.lift_delay_s = delay_s
-    h.lift_duration_s = duration_s
-    h.lift_profile = profile
-    h.lift_frequency_hz = frequency_hz
-    h.lift_event = 0
-    h.lift_start_ns = h.hold_ns + round(delay_s * 1e9)
-    h.lift_end_ns = h.lift_start_ns + round(duration_s * 1e9)
-    _first_event(h)
-    return 0
-
-
-@numba.njit(cache=True)
 def hold_remove(h):
     """Take the object away (not slid out): nothing is held from now on."""
     h.state = HoldState.NONE
@@ -499,11 +477,6 @@ def _begin(hold, t_ns, mass_kg):
 
 
 @numba.njit(cache=True)
-def _scenario_in_progress(hold, t_ns, after_lift_ns):
-    return hold_scenario_in_progress(hold[0], t_ns, after_lift_ns)
-
-
-@numba.njit(cache=True)
 def _live(hold):
     return hold_live(hold[0])
 
@@ -526,11 +499,6 @@ def _shear_n(hold, force_n):
 @numba.njit(cache=True)
 def _presliding_m(hold, force_n):
     return hold_presliding_m(hold[0], force_n)
-
-
-@numba.njit(cache=True)
-def _stays_stuck(hold, force_n, until_ns):
-    return hold_stays_stuck(hold[0], force_n, until_ns)
 
 
 @numba.njit(cache=True)
@@ -623,10 +591,6 @@ class HoldModel:
             raise ValueError(f'the object is already off its support ({self.state.name}); '
                              'place an object again before a new hold')
 
-    def scenario_in_progress(self, t_ns: int, after_lift_ns: int) -> bool:
-        """Whether a lift is still to be played out at ``t_ns`` (see hold_scenario_in_progress)."""
-        return _scenario_in_progress(self.record, t_ns, after_lift_ns)
-
     @property
     def live(self) -> bool:
         """True while the model must be stepped: a lift pending, or the object lifted and held."""
@@ -648,10 +612,6 @@ class HoldModel:
     def presliding_m(self, force_n: float) -> float:
         """Each pad's Cattaneo-Mindlin displacement of the object at grip ``force_n``."""
         return _presliding_m(self.record, float(force_n))
-
-    def stays_stuck(self, force_n: float, until_ns: int) -> bool:
-        """Tell whether it stays stuck at grip ``force_n``, with no event before ``until_ns``."""
-        return _stays_stuck(self.record, float(force_n), until_ns)
 
     def fire_events(self, t_ns: int) -> None:
         """Apply the lift's start and end if they are due at ``t_ns``."""

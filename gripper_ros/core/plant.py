@@ -64,12 +64,13 @@ mode, so every coefficient is the one the Python plant used.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 import enum
 import math
 from typing import NamedTuple
 
-from gripper_ros.core.config import ContactParams, PadSensorParams, PlantParams
+from gripper_ros.core.config import (ContactParams, object_contact, PadSensorParams,
+                                     PlantParams)
 from gripper_ros.core.contact_chain import chain_solve, PADS_IN_CHAIN
 from gripper_ros.core.force_sensor import (fsr_voltage_v, FsrVoltageDivider,
                                            NOISE_CHANNEL_FORCE, NOISE_CHANNEL_POSITION,
@@ -518,12 +519,6 @@ def _touch_object(k):
     s.contact = CONTACT_RIGID if s.stiffness_n_per_m == 0.0 and not \
         k[K_PARAMS][0].chain else CONTACT_COMPLIANT
     _chain_untouched(s)
-
-
-@numba.njit(cache=True)
-def _clear_faults(k):
-    """No scheduled fault, a working sensor, no slip."""
-    _clear_fault_state(k[K_STATE][0], k[K_SENSOR][0])
 
 
 @numba.njit(cache=True)
@@ -1093,33 +1088,44 @@ def plant_fault_scheduled(k):
     return k[K_STATE][0].fault_kind != FaultKind.NONE
 
 
-@numba.njit(cache=True)
-def _object_state(k):
-    """Return the held object's state, slip, speed, load, capacity, lost_ns/-1, lift a, ...
+OBJECT_STATE_DTYPE = np.dtype([(f.name, np.int64 if f.name in ('state', 'lost_ns') else np.float64)
+                               for f in fields(ObjectState)])
+""":class:`ObjectState` as a record, field for field (``lost_ns`` -1: not lost), for a kernel."""
+_HOLD_NONE = int(HoldState.NONE)
 
-    ... and each pad's shear and pre-sliding displacement.
+
+@numba.njit(cache=True)
+def _object_state(k, out):
+    """Write the held object's :class:`ObjectState` into the record ``out[0]`` (lost_ns -1: not).
+
+    Nothing held: all zeros; an object taken away (state NONE): only how far it had slid.
     """
+    o = out[0]
     h = k[K_HOLD][0]
+    o.state = _HOLD_NONE
+    o.slip_m = o.slip_speed_mps = o.load_n = o.capacity_n = 0.0
+    o.lift_acceleration_mps2 = o.shear_n = o.presliding_m = 0.0
+    o.lost_ns = -1
     if not h.has_hold:
-        return (HoldState.NONE, 0.0, 0.0, 0.0, 0.0, -1, 0.0, 0.0, 0.0)
+        return
+    o.slip_m = h.slip_m
     if h.state == HoldState.NONE:
-        return (HoldState.NONE, h.slip_m, 0.0, 0.0, 0.0, -1, 0.0, 0.0, 0.0)
-    s = k[K_STATE][0]
-    force = _force(s, k[K_PARAMS][0])
-    return (h.state, h.slip_m, h.slip_speed_mps, hold_load_n(h),
-            hold_capacity_n(h, force), h.lost_ns, h.acceleration_mps2,
-            hold_shear_n(h, force), hold_presliding_m(h, force))
+        return
+    force = _force(k[K_STATE][0], k[K_PARAMS][0])
+    o.state = h.state
+    o.slip_speed_mps = h.slip_speed_mps
+    o.load_n = hold_load_n(h)
+    o.capacity_n = hold_capacity_n(h, force)
+    o.lost_ns = h.lost_ns
+    o.lift_acceleration_mps2 = h.acceleration_mps2
+    o.shear_n = hold_shear_n(h, force)
+    o.presliding_m = hold_presliding_m(h, force)
 
 
 @numba.njit(cache=True)
 def _step_and_sample(k, voltage_v, duration_ns):
     plant_step(k, voltage_v, duration_ns)
     return plant_sample(k)
-
-
-@numba.njit(cache=True)
-def _slip_capacity_at(k, t_s):
-    return _slip_capacity_n(k[K_STATE][0], t_s)
 
 
 _warmed_up = []
@@ -1142,14 +1148,12 @@ def _warm_up(kernel: tuple) -> None:
     _touch_object(k)
     plant_sample(k)
     plant_read_tick(k, np.zeros(1, TICK_LAYOUT.dtype), 0, 0)
-    _object_state(k)
+    _object_state(k, np.zeros(1, OBJECT_STATE_DTYPE))
     plant_begin_hold(k, 0, 0.0)
     plant_scenario_in_progress(k)
     plant_schedule_fault(k, 1, 0, DEFAULT_SLIP_TIME_CONSTANT_S)
     plant_fault_scheduled(k)
     plant_cancel_fault(k)
-    _clear_faults(k)
-    _slip_capacity_at(k, 0.0)
     _warmed_up.append(True)
 
 
@@ -1176,9 +1180,10 @@ class GripperPlant:
             pads.shear, pads.shear, pads.displacement, pads.displacement)
         self._pad_dt_s = float(pad_dt_s) if pads is not None else 1.0
         self._pad_seed = int(pad_seed)
-        self.contact_defaults = contact or ContactParams(0.0, 0.0)
+        self.contact_defaults = contact or object_contact(0.0, 0.0)
         default = self.contact_defaults
         self._raw = _raw_constants(params)
+        self._object_record = np.zeros(1, OBJECT_STATE_DTYPE)   # _object_state writes it
         self._lift: Lift | None = None
         state = np.zeros(1, STATE_DTYPE)
         hold = np.zeros(1, HOLD_DTYPE)
@@ -1331,10 +1336,11 @@ class GripperPlant:
     @property
     def object_state(self) -> ObjectState:
         """The grasped object's hold: state, slip, load against the static capacity, loss time."""
-        (state, slip, speed, load, capacity, lost_ns, accel, shear,
-         presliding) = _object_state(self.kernel)
-        return ObjectState(HoldState(state), slip, speed, load, capacity,
-                           None if lost_ns == -1 else lost_ns, accel, shear, presliding)
+        _object_state(self.kernel, self._object_record)
+        values = {name: self._object_record[0][name].item() for name in OBJECT_STATE_DTYPE.names}
+        values['state'] = HoldState(values['state'])
+        values['lost_ns'] = None if values['lost_ns'] == -1 else values['lost_ns']
+        return ObjectState(**values)
 
     def drive_load(self, accel_mps2: float) -> None:
         """Set the arm's upward acceleration from now on (a live arm: ``sim/load_acceleration``).
@@ -1349,13 +1355,6 @@ class GripperPlant:
         if plant_drive_load(self.kernel, float(accel_mps2)):
             raise ValueError('no grasp holds an object: a load acceleration applies only after '
                              'HOLDING, while the object is between the pads')
-
-    def scenario_in_progress(self) -> bool:
-        """Whether a hold scenario (a lift) is still to be played out.
-
-        While it is, simulated time must go on in fast mode after the grasp was answered.
-        """
-        return plant_scenario_in_progress(self.kernel)
 
     # ----------------------------------------------------------------- fault injection
     def schedule_fault(self, kind, at_ns: int,
@@ -1384,17 +1383,9 @@ class GripperPlant:
         """Drop a scheduled fault that has not fired (its effects, once fired, stay)."""
         plant_cancel_fault(self.kernel)
 
-    def clear_faults(self) -> None:
-        """No scheduled fault, a working sensor, no slip."""
-        _clear_faults(self.kernel)
-
     @property
     def sensor_dropped_out(self) -> bool:
         return self.sensor.dropped_out
-
-    def slip_capacity_n(self, t_s: float | None = None) -> float:
-        """Force the slipping object can still resist at ``t_s`` (inf when not slipping)."""
-        return _slip_capacity_at(self.kernel, float(self._s['t_now_s'] if t_s is None else t_s))
 
     # ----------------------------------------------------------------- state read-outs
     @property

@@ -14,7 +14,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 import math
 
-from gripper_ros.core.config import ForceLaw, LoadGripParams, PlantParams, SupervisorParams
+from gripper_ros.core.config import (ForceLaw, LoadGripParams, PlantParams, shipped_config,
+                                     SupervisorParams)
 
 MAX_TIMEOUT_S = 600.0  # simulated seconds; a longer grasp is a mistake, not a request
 
@@ -139,7 +140,7 @@ def validate_request(req: GraspRequest, plant: PlantParams, sup: SupervisorParam
                            f'finger travel), got {req.width_m:g} + {tolerance:g} m')
     mu = req.friction_coefficient or sup.friction_coefficient
     if req.mass_kg == 0.0:
-        touch_n = (load_grip or LoadGripParams()).touch_force_n
+        touch_n = (load_grip or shipped_config().load_grip).touch_force_n
         if not 0.0 < touch_n <= plant.max_force_n:
             raise RequestError(f'load_grip.touch_force_n must be in (0, {plant.max_force_n:.2f}] '
                                f'N (the most {plant.voltage_limit_v:g} V holds), got {touch_n!r}')
@@ -167,23 +168,36 @@ def _check_finite(req, names) -> None:
             raise RequestError(f'{name} must be a finite number, got {value!r}')
 
 
-def validate_move(req: MoveRequest, plant: PlantParams, sup: SupervisorParams) -> MoveTargets:
-    """Resolve a move's defaults and refuse anything non-finite or out of range."""
+def check_move_limits(req: MoveRequest, plant: PlantParams) -> None:
+    """Refuse a move that is non-finite or beyond the plant (travel, free speed, stall force).
+
+    What needs no supervisor setting: a move action server checks goals with it, and the
+    supervisor, the one holder of ``supervisor.*``, judges the rest.
+    """
     _check_finite(req, ('width_m', 'speed_mps', 'max_effort_n', 'timeout_s'))
     if not 0.0 <= req.width_m <= plant.max_travel_m:
         raise RequestError(f'width_m must be in [0, {plant.max_travel_m:g}] m (0 = closed, '
                            f'{plant.max_travel_m:g} = fully open), got {req.width_m!r}')
-    top_speed = plant.max_free_speed_mps
-    if req.speed_mps != 0.0 and not sup.move_rest_speed_mps < req.speed_mps <= top_speed:
-        raise RequestError(
-            f'speed_mps must be in ({sup.move_rest_speed_mps:g}, {top_speed:.6g}] m/s (at rest '
-            f'below; the free speed at {plant.voltage_limit_v:g} V above) or 0 (default '
-            f'{sup.move_default_speed_mps:g}), got {req.speed_mps!r}')
+    if req.speed_mps != 0.0 and not 0.0 < req.speed_mps <= plant.max_free_speed_mps:
+        raise RequestError(f'speed_mps must be in (0, {plant.max_free_speed_mps:.6g}] m/s (the '
+                           f'free speed at {plant.voltage_limit_v:g} V) or 0 (the default), '
+                           f'got {req.speed_mps!r}')
     if req.max_effort_n != 0.0 and not 0.0 < req.max_effort_n <= plant.max_force_n:
         raise RequestError(
             f'max_effort_n must be in (0, {plant.max_force_n:.6g}] N (the force of '
             f'{plant.voltage_limit_v:g} V at stall) or 0 (the limit of the motor), '
             f'got {req.max_effort_n!r}')
+
+
+def validate_move(req: MoveRequest, plant: PlantParams, sup: SupervisorParams) -> MoveTargets:
+    """Resolve a move's defaults and refuse anything non-finite or out of range."""
+    check_move_limits(req, plant)
+    top_speed = plant.max_free_speed_mps
+    if req.speed_mps != 0.0 and not sup.move_rest_speed_mps < req.speed_mps:
+        raise RequestError(
+            f'speed_mps must be in ({sup.move_rest_speed_mps:g}, {top_speed:.6g}] m/s (at rest '
+            f'below; the free speed at {plant.voltage_limit_v:g} V above) or 0 (default '
+            f'{sup.move_default_speed_mps:g}), got {req.speed_mps!r}')
     if not 0.0 <= req.timeout_s <= MAX_TIMEOUT_S:
         raise RequestError(f'timeout_s must be in [0, {MAX_TIMEOUT_S:g}] s (0 = the travel at '
                            f'speed + {sup.timeout_s:g} s), got {req.timeout_s!r}')

@@ -60,6 +60,15 @@ LIMIT_NUMBERS = ('speed_limit_mps', 'voltage_limit_v')
 """... and the position stage's limits (a stage's ``reference_numbers`` name all it uses)."""
 NUMBER_FIELDS = REFERENCE_NUMBERS + LIMIT_NUMBERS
 """Bit i of a book's ``numbers_mask`` / ``bad_mask`` is ``NUMBER_FIELDS[i]``."""
+N_NUMBERS = len(NUMBER_FIELDS)
+# each reference number's slot and bit, by name (the compiled code reads them as constants)
+AT_POSITION_SETPOINT = NUMBER_FIELDS.index('position_setpoint_m')
+AT_APPROACH_SETPOINT = NUMBER_FIELDS.index('approach_setpoint_m')
+AT_FORCE_SETPOINT = NUMBER_FIELDS.index('force_setpoint_n')
+AT_SEED_VOLTAGE = NUMBER_FIELDS.index('seed_voltage_v')
+AT_POSITION = NUMBER_FIELDS.index('position_m')
+AT_SPEED_LIMIT = NUMBER_FIELDS.index('speed_limit_mps')
+AT_VOLTAGE_LIMIT = NUMBER_FIELDS.index('voltage_limit_v')
 
 
 def parse_kind(kind_cls: type[enum.Enum], value, name: str = 'controller'):
@@ -282,15 +291,15 @@ def answer_open(book, reference_numbers, ref, measurement):
     if not math.isfinite(measurement):
         b.reason = REASON_MEASUREMENT
         return REASON_MEASUREMENT
-    reference_numbers[0] = r.position_setpoint_m
-    reference_numbers[1] = r.approach_setpoint_m
-    reference_numbers[2] = r.force_setpoint_n
-    reference_numbers[3] = r.seed_voltage_v
-    reference_numbers[4] = r.position_m
-    reference_numbers[5] = r.speed_limit_mps
-    reference_numbers[6] = r.voltage_limit_v
+    reference_numbers[AT_POSITION_SETPOINT] = r.position_setpoint_m
+    reference_numbers[AT_APPROACH_SETPOINT] = r.approach_setpoint_m
+    reference_numbers[AT_FORCE_SETPOINT] = r.force_setpoint_n
+    reference_numbers[AT_SEED_VOLTAGE] = r.seed_voltage_v
+    reference_numbers[AT_POSITION] = r.position_m
+    reference_numbers[AT_SPEED_LIMIT] = r.speed_limit_mps
+    reference_numbers[AT_VOLTAGE_LIMIT] = r.voltage_limit_v
     bad = 0
-    for i in range(7):
+    for i in range(N_NUMBERS):
         if (b.numbers_mask >> i) & 1 and not math.isfinite(reference_numbers[i]):
             bad |= 1 << i
     if bad:
@@ -360,10 +369,6 @@ def stage_answer(k, ref, cmd):
     c.hold_s = s.sample_time_s
     c.inner_setpoint = inner
     return True
-
-
-position_stage_answer = stage_answer
-force_stage_answer = stage_answer
 
 
 # --- façades ---------------------------------------------------------------------------------
@@ -512,14 +517,6 @@ class PositionStageController(_KernelStage):
         pole = config.position.speed_limit_pole
         gain = 1.0 / ((1.0 - a) * plant.free_speed_per_volt_mps)
         s['speed_gain_limit'], s['speed_gain_speed'] = (1.0 - pole) * gain, (a - pole) * gain
-
-    def voltage_cap_v(self, ref, toward_speed_mps: float) -> float:
-        """Return the most voltage towards the setpoint this tick.
-
-        ``toward_speed_mps`` is the finger's speed towards the setpoint.
-        """
-        return position_voltage_cap_v(self.state, fill_reference(ref, self._ref),
-                                      float(toward_speed_mps))
 
     @staticmethod
     def measurement(ref) -> float:

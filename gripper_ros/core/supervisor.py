@@ -41,7 +41,8 @@ from __future__ import annotations
 
 import math
 
-from gripper_ros.core.config import GripperConfig, LoadGripParams, PlantParams, SupervisorParams
+from gripper_ros.core.config import (GripperConfig, PlantParams, shipped_config,
+                                     SupervisorParams)
 from gripper_ros.core.load_grip import HISTORY_ROWS, law_step, make_law, MU_GRID
 from gripper_ros.core.requests import GraspTargets, MoveTargets, RequestError
 from gripper_ros.wire import Controller, Outcome, PendingRequest, Phase, SwitchCriterion
@@ -759,7 +760,7 @@ class GraspSupervisor:
         self.plant = plant
         self.tracks_load = law is not None
         if law is None:                          # inert arrays of the kernel's types
-            law = make_law(LoadGripParams(), plant.max_force_n, 0.0, 1.0, 0.0, 0.0)
+            law = make_law(shipped_config().load_grip, plant.max_force_n, 0.0, 1.0, 0.0, 0.0)
         record, history, sums = law
         state = np.zeros(1, SUPERVISOR_STATE)
         self._s = state[0]                      # a view: reads and writes go to the record

@@ -23,7 +23,7 @@ from gripper_ros.nodes.process import run_node
 from gripper_ros.nodes.qos import GRAPH_QOS, SERVICE_QOS
 from gripper_ros.nodes.services import DeferredService
 from gripper_ros.nodes.startup import StartupError
-from gripper_ros.wire import (NODE_EXCITATION, Outcome, SERVICE_EXCITE, SERVICE_MOVE,
+from gripper_ros.wire import (NODE_EXCITATION, Outcome, SERVICE_EXCITE, SERVICE_MOVE, stamp_ns,
                               TOPIC_STATUS)
 from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
 from rclpy.node import Node
@@ -81,7 +81,7 @@ class ExcitationServer(Node):
 
     def _on_status(self, data: bytes) -> None:
         status = read_status(data)
-        self._now_ns = status.sec * 1_000_000_000 + status.nanosec
+        self._now_ns = stamp_ns(status)
 
     def _excite(self, request, header) -> None:
         """Start the experiment; answered when it ends (refused while one runs or too early)."""

@@ -46,14 +46,22 @@ class ForceControllerNode(LockstepController):
     def build_stage(self, config) -> ForceStageController:
         return ForceStageController(config, self.kind, self.approach_margin)
 
-    def _on_parameters_set(self, parameters) -> None:
-        """Apply an accepted ``approach_force_margin`` when the force stage next takes over.
+    def _on_config_change(self, config, keys, stage) -> None:
+        """Gains and margin changed together: the stage the check built has the old margin."""
+        if stage.approach_margin != self.approach_margin:
+            stage = self.build_stage(config)
+        super()._on_config_change(config, keys, stage)
 
-        Never mid-stage; the descriptor's range refuses the rest.
+    def _on_parameters_set(self, parameters) -> None:
+        """Build the stage of an accepted ``approach_force_margin``: in use from the next stage.
+
+        Never mid-stage (the kernel's record keeps the margin it was built with); the
+        descriptor's range refuses the rest.
         """
         for p in parameters:
             if p.name == 'approach_force_margin':
-                self.approach_margin = self.stage.approach_margin = float(p.value)
+                self.approach_margin = float(p.value)
+                self._next_stage = self.build_stage(self.config)
 
 
 def main(args=None):

@@ -268,13 +268,13 @@ class GripperGraph:
     def controller_settings(self) -> dict:
         """Return what a re-simulation of this graph's bags needs to rebuild its controllers.
 
-        The approach margin is the force stage's current one: ``approach_force_margin`` is a
-        writable parameter, and a change at run time must be recorded as it is used.
+        The approach margin is the one the next force stage runs with: ``approach_force_margin``
+        is a writable parameter, and a change at run time must be recorded as it is used.
         """
         o = self.options
         return {'position_controller': o.position_controller,
                 'force_controller': o.force_controller,
-                'approach_force_margin': float(self.force.stage.approach_margin),
+                'approach_force_margin': float(self.force.approach_margin),
                 'config_file': o.config_file}
 
     def config_data(self) -> dict:

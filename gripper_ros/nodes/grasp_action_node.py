@@ -23,11 +23,11 @@ from gripper_interfaces.srv import Grasp
 from gripper_ros.nodes.actions import accept_goal, cancel_by_stop
 from gripper_ros.nodes.loop_io import read_status
 from gripper_ros.nodes.names import default_namespace
-from gripper_ros.nodes.parameters import declare_config
+from gripper_ros.nodes.parameters import declare_config, follow
 from gripper_ros.nodes.process import run_node
 from gripper_ros.nodes.qos import GRAPH_QOS, SERVICE_QOS
 from gripper_ros.wire import (ACTION_GRASP, NODE_GRASP_ACTION, Outcome, Phase, SERVICE_GRASP,
-                              SERVICE_STOP, TOPIC_STATUS)
+                              SERVICE_STOP, stamp_ns, TOPIC_STATUS)
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
 from rclpy.action import ActionServer
 from rclpy.node import Node
@@ -48,7 +48,7 @@ class GraspActionServer(Node):
             'feedback_period_s', 0.05, ParameterDescriptor(
                 description='minimum wall seconds between two feedback messages of one phase',
                 floating_point_range=[FloatingPointRange(from_value=0.0, to_value=10.0)])).value
-        self.add_post_set_parameters_callback(self._on_parameters_set)
+        follow(self, {'feedback_period_s': float})      # from the next status on
         self._grasp = self.create_client(Grasp, SERVICE_GRASP, qos_profile=SERVICE_QOS)
         self._stop = self.create_client(Trigger, SERVICE_STOP, qos_profile=SERVICE_QOS)
         self.create_subscription(SupervisorStatus, TOPIC_STATUS, self._on_status, GRAPH_QOS,
@@ -63,15 +63,6 @@ class GraspActionServer(Node):
                                     execute_callback=self._execute,
                                     goal_callback=accept_goal,
                                     cancel_callback=self._on_cancel)
-
-    def _on_parameters_set(self, parameters) -> None:
-        """Apply an accepted ``feedback_period_s`` from the next status on.
-
-        The descriptor's range refuses the rest.
-        """
-        for p in parameters:
-            if p.name == 'feedback_period_s':
-                self.feedback_period_s = float(p.value)
 
     # ------------------------------------------------------------------ goals
     def _on_cancel(self, goal_handle):
@@ -114,12 +105,12 @@ class GraspActionServer(Node):
         if goal is None or not goal.is_active:
             return
         msg = read_status(data)
-        stamp_ns = msg.sec * 1_000_000_000 + msg.nanosec
+        now_ns = stamp_ns(msg)
         if self._goal_grasp_id is None:
             if msg.phase not in (Phase.POSITION, Phase.FORCE):
                 return                         # a status of an earlier grasp
             self._goal_grasp_id = msg.grasp_id
-            self._goal_start_ns = stamp_ns
+            self._goal_start_ns = now_ns
         if msg.grasp_id != self._goal_grasp_id:
             return
         now = time.monotonic()
@@ -129,7 +120,7 @@ class GraspActionServer(Node):
         self._last_phase, self._last_feedback_wall = msg.phase, now
         feedback = GraspAction.Feedback(
             grasp_id=msg.grasp_id, phase=msg.phase,
-            elapsed_s=(stamp_ns - self._goal_start_ns) * 1e-9,
+            elapsed_s=(now_ns - self._goal_start_ns) * 1e-9,
             position_m=msg.position_m, width_m=self.travel_m - msg.position_m,
             force_n=msg.force_n, contact=msg.contact)
         goal.publish_feedback(feedback)

@@ -30,15 +30,16 @@ from gripper_interfaces.msg import SupervisorStatus
 from gripper_interfaces.srv import Move
 from gripper_ros.core.gripper_command import (goal_end, GoalEnd, joint_state_fields,
                                               move_request_of, result_fields)
-from gripper_ros.core.requests import RequestError, validate_move
+from gripper_ros.core.requests import check_move_limits, RequestError
 from gripper_ros.nodes.actions import accept_goal, cancel_by_stop
 from gripper_ros.nodes.loop_io import read_status, StatusView
 from gripper_ros.nodes.names import default_namespace
-from gripper_ros.nodes.parameters import declare_config
+from gripper_ros.nodes.parameters import declare_config, follow
 from gripper_ros.nodes.process import run_node
 from gripper_ros.nodes.qos import GRAPH_QOS, SERVICE_QOS
 from gripper_ros.wire import (ACTION_GRIPPER_CMD, ACTION_MOVE, NODE_MOVE_ACTION, Outcome, Phase,
-                              SERVICE_MOVE, SERVICE_STOP, TOPIC_JOINT_STATES, TOPIC_STATUS)
+                              SERVICE_MOVE, SERVICE_STOP, stamp_ns, TOPIC_JOINT_STATES,
+                              TOPIC_STATUS)
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
 from rclpy.action import ActionServer, GoalResponse
 from rclpy.node import Node
@@ -60,8 +61,8 @@ _RESULT_FIELDS = ('success', 'outcome', 'message', 'position_m', 'width_m', 'eff
 class MoveActionServer(Node):
     def __init__(self, **kwargs):
         super().__init__(NODE_MOVE_ACTION, **default_namespace(kwargs))
-        self.config = declare_config(self)
-        self.travel_m = self.config.plant.max_travel_m
+        self.plant = declare_config(self).plant       # read-only: the supervisor's move
+        self.travel_m = self.plant.max_travel_m       # settings are judged by the supervisor
         self.feedback_period_s = self.declare_parameter(
             'feedback_period_s', 0.05, ParameterDescriptor(
                 description='minimum wall seconds between two feedback messages of one phase',
@@ -70,7 +71,7 @@ class MoveActionServer(Node):
             'allow_stalling', False, ParameterDescriptor(
                 description=f'{ACTION_GRIPPER_CMD}: a stalled move (blocked by an object at '
                             'the effort limit) succeeds rather than aborts')).value
-        self.add_post_set_parameters_callback(self._on_parameters_set)
+        follow(self, {'feedback_period_s': float, 'allow_stalling': bool})   # next status
         self._move = self.create_client(Move, SERVICE_MOVE, qos_profile=SERVICE_QOS)
         self._stop = self.create_client(Trigger, SERVICE_STOP, qos_profile=SERVICE_QOS)
         self.create_subscription(SupervisorStatus, TOPIC_STATUS, self._on_status, GRAPH_QOS,
@@ -97,20 +98,12 @@ class MoveActionServer(Node):
                                               goal_callback=self._check_gripper_command,
                                               cancel_callback=self._on_cancel))
 
-    def _on_parameters_set(self, parameters) -> None:
-        """Apply accepted values from the next status or result on."""
-        for p in parameters:
-            if p.name == 'feedback_period_s':
-                self.feedback_period_s = float(p.value)
-            elif p.name == 'allow_stalling':
-                self.allow_stalling = bool(p.value)
-
     # ------------------------------------------------------------------ goals
     def _check_gripper_command(self, goal_request) -> GoalResponse:
         """Reject a command that is no move of this gripper (as ros2_controllers does)."""
         try:
-            validate_move(move_request_of(goal_request.command, self.travel_m),
-                          self.config.plant, self.config.supervisor)
+            check_move_limits(move_request_of(goal_request.command, self.travel_m),
+                              self.plant)
         except RequestError as exc:
             self.get_logger().warning(f'{ACTION_GRIPPER_CMD} goal rejected: {exc}')
             return GoalResponse.REJECT
@@ -175,7 +168,7 @@ class MoveActionServer(Node):
     def _move_feedback(self, msg: StatusView) -> MoveAction.Feedback:
         return MoveAction.Feedback(
             grasp_id=msg.grasp_id, phase=msg.phase,
-            elapsed_s=(_stamp_ns(msg) - self._goal_start_ns) * 1e-9,
+            elapsed_s=(stamp_ns(msg) - self._goal_start_ns) * 1e-9,
             position_m=msg.position_m, width_m=self.travel_m - msg.position_m,
             force_n=msg.force_n)
 
@@ -213,7 +206,7 @@ class MoveActionServer(Node):
             if msg.phase != Phase.MOVING:
                 return                         # a status of an earlier request
             self._goal_grasp_id = msg.grasp_id
-            self._goal_start_ns = _stamp_ns(msg)
+            self._goal_start_ns = stamp_ns(msg)
         if msg.grasp_id != self._goal_grasp_id:
             return
         now = time.monotonic()
@@ -228,10 +221,6 @@ class MoveActionServer(Node):
         for server in self._servers:
             server.destroy()
         return super().destroy_node()
-
-
-def _stamp_ns(status: StatusView) -> int:
-    return status.sec * 1_000_000_000 + status.nanosec
 
 
 def main(args=None):

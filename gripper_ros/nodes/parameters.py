@@ -5,11 +5,13 @@ path (``position_control.mpc_pd.kc``, ``supervisor.force_law``), with the value 
 file (``config_file``, default the installed ``config/gripper.yaml``) as its default, so that
 ``ros2 param get/set``, rqt_reconfigure and ``--params-file`` (a standard
 ``node: ros__parameters:`` YAML, nested or dotted) work as for any ROS node. A node's own
-sections are writable; the sections it only reads (the plant model a controller predicts
-with) are read-only there. Every value, at start-up and at run time, goes through the one
-config reader (:func:`gripper_ros.core.config.parse_config`), with its bounds and cross-field
-checks, and then through the node's own ``check`` (a controller builds the stage it would use):
-a bad one is refused with the message naming the key, and nothing changes.
+sections are writable; the sections or keys it only reads (the plant model a controller
+predicts with) are read-only there. A key another node also uses is writable nowhere
+(``START_UP_ONLY``): a change on one node would not reach the others. Every value, at start-up
+and at run time, goes through the one config reader
+(:func:`gripper_ros.core.config.parse_config`), with its bounds and cross-field checks, and
+then through the node's own ``check`` (a controller builds the stage it would use): a bad one is
+refused with the message naming the key, and nothing changes.
 """
 from __future__ import annotations
 
@@ -21,6 +23,14 @@ from gripper_ros.text import one_line
 from rcl_interfaces.msg import ParameterDescriptor, ParameterType, SetParametersResult
 from rclpy.node import Node
 from rclpy.parameter import Parameter
+
+START_UP_ONLY = {
+    'force_control.sample_time_s':
+        'fixed at start-up: plant_simulator samples the pads and the supervisor sizes the '
+        "load-tracking grip's windows at this period too; set it for all three nodes with "
+        '--params-file or config_file',
+}
+"""Keys of a node's writable section that are read-only all the same, and why."""
 
 INTEGER_KEYS = frozenset({'horizon', 'control_horizon'})
 """Leaf keys whose values are whole numbers (the DMC horizons); every other number is a double."""
@@ -88,6 +98,8 @@ def _set(data: dict, dotted: str, value) -> None:
 class ConfigParameters:
     """The config sections of one node as its ROS parameters.
 
+    ``writable`` names sections; ``read_only`` names sections or single keys
+    (``force_control.sample_time_s``) the node reads and never changes.
     ``check(config)`` is called with a candidate config before a change is accepted: it returns
     what ``on_change`` needs (a controller it built) or raises ValueError to refuse the change.
     ``on_change(config, keys, checked)`` is called (on the executor thread, between callbacks)
@@ -109,14 +121,18 @@ class ConfigParameters:
         self.keys: set[str] = set()
         self._on_change = on_change
         self._check = check
-        for section in (*writable, *read_only):
-            if section not in self.data:
+        for entry in (*writable, *read_only):
+            section, _, leaf = entry.partition('.')
+            if section not in self.data or (leaf and leaf not in self.data[section]):
                 continue
-            for dotted, value in flatten(self.data[section], section + '.').items():
+            values = {entry: self.data[section][leaf]} if leaf else \
+                flatten(self.data[section], section + '.')
+            for dotted, value in values.items():
+                fixed = entry in read_only or dotted in START_UP_ONLY
                 declared = node.declare_parameter(
                     dotted, _as_parameter_value(dotted, value), ParameterDescriptor(
-                        description=f'{section} (config/gripper.yaml)',
-                        read_only=section in read_only)).value
+                        description=START_UP_ONLY.get(dotted, f'{section} (config/gripper.yaml)'),
+                        read_only=fixed)).value
                 _set(self.data, dotted, declared)
                 self.keys.add(dotted)
         self.config = parse_config(self.data, self.source)   # start-up overrides, validated
@@ -146,6 +162,19 @@ class ConfigParameters:
         self.data, self.config, keys, checked = pending
         if self._on_change is not None:
             self._on_change(self.config, keys, checked)
+
+
+def follow(node: Node, kinds: dict[str, type]) -> None:
+    """Keep ``node.NAME`` at each named parameter's accepted value, as ``kinds[NAME](value)``.
+
+    For a node's own parameters that take effect from the next check or message; their
+    descriptors refuse bad values.
+    """
+    def apply(parameters) -> None:
+        for p in parameters:
+            if p.name in kinds:
+                setattr(node, p.name, kinds[p.name](p.value))
+    node.add_post_set_parameters_callback(apply)
 
 
 def declare_config(node: Node) -> GripperConfig:

@@ -43,7 +43,8 @@ from gripper_ros.nodes.services import DeferredService
 from gripper_ros.nodes.stamps import ns_to_time
 from gripper_ros.nodes.startup import StartupError
 from gripper_ros.wire import (CDR_LITTLE_ENDIAN, COMMAND_LAYOUT, Controller,
-                              DEFAULT_STATE_RATE_HZ, FINGER_JOINT, NODE_PLANT, Outcome, Phase,
+                              DEFAULT_STATE_RATE_HZ, FINGER_JOINT, FORCE_SAMPLE_S, NODE_PLANT,
+                              Outcome, Phase, REPUBLISH_AFTER_S,
                               SERVICE_PAUSE, SERVICE_RESUME, SERVICE_SET_OBJECT, SERVICE_STEP,
                               TICK_LAYOUT, TIME_MODE_CHOICES, TimeMode, TOPIC_CLOCK,
                               TOPIC_FORCE_SENSOR, TOPIC_JOINT_STATES, TOPIC_LOAD_ACCELERATION,
@@ -58,8 +59,6 @@ from std_srvs.srv import Trigger
 
 HOUSEKEEPING_PERIOD_S = 0.05
 """Steady timer: republish a tick nobody answered, free-run without commands, sim/status."""
-REPUBLISH_AFTER_S = 0.5
-"""A tick nobody has answered for this long (wall) is published again (discovery, late peers)."""
 SIM_STATUS_PERIOD_S = 1.0
 RTF_WARN_FRACTION = 0.95
 """Realtime: warn (throttled) when the achieved real-time factor falls below this x target."""
@@ -75,8 +74,8 @@ STEP_BATCH = 100
 """sim/step without commands: unpowered ticks taken in one callback before yielding."""
 MAX_STEP_S = 600.0
 """sim/step: the most simulated time one request may ask for (duration_s)."""
-MAX_STEP_TICKS = 6_000_000
-"""sim/step: the most ticks one request may ask for (600 s of 0.1 ms force samples)."""
+MAX_STEP_TICKS = round(MAX_STEP_S / FORCE_SAMPLE_S)
+"""sim/step: the most ticks one request may ask for (MAX_STEP_S of force samples)."""
 
 
 class PlantSimulatorNode(Node):
@@ -86,7 +85,7 @@ class PlantSimulatorNode(Node):
         super().__init__(NODE_PLANT, **default_namespace(kwargs))
         self.parameters = ConfigParameters(
             self, (), ('plant', 'contact', 'force_sensor', 'sensor_noise', 'pad_sensor',
-                       'force_control'))
+                       'force_control.sample_time_s'))
         self.config = self.parameters.config
         self.side = PlantSide(make_plant(self.config))
         self.plant = self.side.plant
@@ -380,10 +379,6 @@ class PlantSimulatorNode(Node):
             self.get_logger().warning(
                 f'the graph cannot keep pace: achieved real-time factor {rtf:.2f} against '
                 f'{self.real_time_factor:g} over the last {elapsed:.1f} s')
-
-    @property
-    def achieved_real_time_factor(self) -> float:
-        return self._rtf[2]
 
     def _housekeeping(self) -> None:
         now = time.monotonic()

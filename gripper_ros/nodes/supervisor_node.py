@@ -33,15 +33,14 @@ from gripper_ros.core.requests import (GraspRequest, MoveRequest, RequestError, 
 from gripper_ros.core.supervisor import GraspSupervisor, load_law, RequestKind
 from gripper_ros.nodes.loop_io import decode, split_ns, status_message, status_template
 from gripper_ros.nodes.names import default_namespace, GraspIds
-from gripper_ros.nodes.parameters import ConfigParameters
-from gripper_ros.nodes.plant_simulator_node import REPUBLISH_AFTER_S
+from gripper_ros.nodes.parameters import ConfigParameters, follow
 from gripper_ros.nodes.process import run_node
 from gripper_ros.nodes.qos import GRAPH_QOS, LATCHED_QOS, SERVICE_QOS
 from gripper_ros.nodes.services import DeferredService
 from gripper_ros.nodes.watchdog import ExecutorSilence
 from gripper_ros.wire import (CDR_LITTLE_ENDIAN, Controller, NODE_FORCE_CONTROLLER, NODE_PLANT,
                               NODE_POSITION_CONTROLLER, NODE_SUPERVISOR, Outcome,
-                              SERVICE_GRASP, SERVICE_MOVE, SERVICE_RELEASE,
+                              REPUBLISH_AFTER_S, SERVICE_GRASP, SERVICE_MOVE, SERVICE_RELEASE,
                               SERVICE_STOP, TICK_LAYOUT, TOPIC_FORCE_REFERENCE,
                               TOPIC_MOTOR_COMMAND, TOPIC_OUTCOME, TOPIC_POSITION_REFERENCE,
                               TOPIC_SIM_STATUS, TOPIC_STATUS, TOPIC_TICK)
@@ -56,7 +55,8 @@ STAGE_NODES = {Controller.POSITION: NODE_POSITION_CONTROLLER,
                Controller.FORCE: NODE_FORCE_CONTROLLER}
 REFERENCE_TOPICS = {Controller.POSITION: TOPIC_POSITION_REFERENCE,
                     Controller.FORCE: TOPIC_FORCE_REFERENCE}
-SUPERVISOR_READS = ('plant', 'contact', 'force_control', 'pad_sensor', 'load_grip')
+SUPERVISOR_READS = ('plant', 'contact', 'force_control.sample_time_s', 'pad_sensor',
+                    'load_grip')
 """Config sections the supervisor reads and does not change: the plant, and what the
 load-tracking grip needs (the pads' stiffness and sensing, the force stage's period)."""
 
@@ -84,7 +84,7 @@ class SupervisorNode(Node):
                 description='supervisor/status per simulated second (and on every change)',
                 floating_point_range=[FloatingPointRange(from_value=1.0,
                                                          to_value=10000.0)])).value
-        self.add_post_set_parameters_callback(self._on_parameters_set)
+        follow(self, {'tick_timeout_s': float, 'status_rate_hz': float})   # next check
         self._tick: Tick | None = None
         self._decided_key: tuple[int, int] | None = None    # (stamp, revision) last decided
         self._ref_bytes: bytes | None = None                # the reference sent for it
@@ -127,14 +127,6 @@ class SupervisorNode(Node):
         self.config = config
         self.logic.params = config.supervisor
         self.get_logger().info(f'{", ".join(keys)} changed: in effect from the next tick')
-
-    def _on_parameters_set(self, parameters) -> None:
-        """Apply accepted values from the next check or tick (the descriptors refuse the rest)."""
-        for p in parameters:
-            if p.name == 'tick_timeout_s':
-                self.tick_timeout_s = float(p.value)
-            elif p.name == 'status_rate_hz':
-                self.status_rate_hz = float(p.value)
 
     def _on_sim_status(self, msg: SimStatus) -> None:
         """Follow sim/pause: simulated time held is no silence, so the watchdog waits with it."""
