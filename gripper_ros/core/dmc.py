@@ -413,11 +413,6 @@ class BrakingGovernor:
         """At rest at ``measurement``; the next move starts with ACCELERATE."""
         governor_reset(self.record, self.buffer, float(measurement))
 
-    def stop_position(self, state: np.ndarray, direction: float) -> float:
-        """Where the finger comes to rest (speed through zero) braking at ``braking_v``."""
-        return governor_stop_position(self.record, self.buffer,
-                                      np.ascontiguousarray(state, dtype=float), float(direction))
-
     def command(self, setpoint: float, measurement: float) -> float | None:
         """Voltage to hold over the coming sample, or None once the DMC is in charge."""
         forced, voltage = governor_command(self.record, self.buffer, float(setpoint),
