@@ -182,6 +182,21 @@ class LoadGripParams:
 
 
 @dataclass(frozen=True)
+class GeometryParams:
+    """The base and fingers as the robot description draws them (core/description.py).
+
+    The closing axis is x: the fixed finger's pad face is at +max_travel_m/2, the moving
+    finger's at -max_travel_m/2 when fully open. Defaults when a file has no ``geometry``.
+    """
+
+    finger_thickness_m: float = 0.01   # along the closing axis, behind the pad face
+    finger_width_m: float = 0.02       # across the closing axis
+    finger_length_m: float = 0.06      # from the top of the base to the fingertip
+    base_height_m: float = 0.03        # from the mounting face to the top of the base
+    base_width_m: float = 0.04         # across the closing axis (its length spans the travel)
+
+
+@dataclass(frozen=True)
 class PidGains:
     kc: float
     ki: float = 0.0
@@ -293,6 +308,7 @@ class GripperConfig:
     """Off when the file has no ``sensor_noise`` section."""
     pad_sensor: PadSensorParams = field(default_factory=PadSensorParams)
     load_grip: LoadGripParams = field(default_factory=LoadGripParams)
+    geometry: GeometryParams = field(default_factory=GeometryParams)
 
 
 def default_config_path() -> Path:
@@ -414,6 +430,11 @@ BOUNDS: dict[str, tuple[float, float]] = {
     'load_grip.min_samples': (1, 100000),
     'load_grip.release_rate_n_per_s': (1e-3, 1e6),
     'load_grip.overload_slip_s': (1e-4, 10.0),
+    'geometry.finger_thickness_m': (1e-4, 1.0),
+    'geometry.finger_width_m': (1e-4, 1.0),
+    'geometry.finger_length_m': (1e-4, 1.0),
+    'geometry.base_height_m': (1e-4, 1.0),
+    'geometry.base_width_m': (1e-4, 1.0),
 }
 """Physically sensible bounds of every number in the config (``config/gripper.yaml`` lists
 them at its end; ``test_config`` ties that list to this table)."""
@@ -449,7 +470,7 @@ def known_keys() -> dict:
                           'contact_aware': leaves(ContactForceTuning)},
         'supervisor': leaves(SupervisorParams),
         'sensor_noise': leaves(SensorNoiseParams), 'pad_sensor': leaves(PadSensorParams),
-        'load_grip': leaves(LoadGripParams),
+        'load_grip': leaves(LoadGripParams), 'geometry': leaves(GeometryParams),
     }
 
 
@@ -661,9 +682,11 @@ def parse_config(data: dict, source: str = '<dict>') -> GripperConfig:
                           f'less than the load), got {grip.grip_margin!r}')
     if not grip.mu_safety <= 1.0:
         raise ConfigError(f'"load_grip.mu_safety" must be in (0, 1], got {grip.mu_safety!r}')
+    geometry = _build(GeometryParams, _section(data, 'geometry', source)
+                      if 'geometry' in data else {}, 'geometry')
     return GripperConfig(plant, contact, sensor, position, force, sup, source,
                          copy.deepcopy(data), sensor_noise=noise, pad_sensor=pads,
-                         load_grip=grip)
+                         load_grip=grip, geometry=geometry)
 
 
 def load_config(path: str | os.PathLike | None = None) -> GripperConfig:
