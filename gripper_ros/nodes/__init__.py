@@ -1,8 +1,8 @@
 """The rclpy nodes and what they share: names, QoS, executors, the in-process graph."""
 
-from gripper_ros.wire import (LAUNCHED_NODES, NODE_EXCITATION, NODE_FORCE_CONTROLLER,
-                              NODE_GRASP_ACTION, NODE_MOVE_ACTION, NODE_PLANT,
-                              NODE_POSITION_CONTROLLER, NODE_SUPERVISOR)
+from gripper_ros.wire import (LAUNCHED_NODES, NODE_DESCRIPTION, NODE_EXCITATION,
+                              NODE_FORCE_CONTROLLER, NODE_GRASP_ACTION, NODE_MOVE_ACTION,
+                              NODE_PLANT, NODE_POSITION_CONTROLLER, NODE_SUPERVISOR)
 
 NODE_MODULES = {NODE_PLANT: 'plant_simulator_node',
                 NODE_POSITION_CONTROLLER: 'position_controller_node',
@@ -10,7 +10,8 @@ NODE_MODULES = {NODE_PLANT: 'plant_simulator_node',
                 NODE_SUPERVISOR: 'supervisor_node',
                 NODE_GRASP_ACTION: 'grasp_action_node',
                 NODE_MOVE_ACTION: 'move_action_node',
-                NODE_EXCITATION: 'excitation_node'}
+                NODE_EXCITATION: 'excitation_node',
+                NODE_DESCRIPTION: 'description_node'}
 """The module of each node executable: ``python -m gripper_ros.nodes.MODULE`` runs it."""
 
 LAUNCHED_MODULES = {node: NODE_MODULES[node] for node in LAUNCHED_NODES}

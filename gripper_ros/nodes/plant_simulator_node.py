@@ -43,9 +43,9 @@ from gripper_ros.nodes.services import DeferredService
 from gripper_ros.nodes.stamps import ns_to_time
 from gripper_ros.nodes.startup import StartupError
 from gripper_ros.wire import (CDR_LITTLE_ENDIAN, COMMAND_LAYOUT, Controller,
-                              DEFAULT_STATE_RATE_HZ, FINGER_JOINT, NODE_PLANT, Outcome, Phase,
-                              SERVICE_PAUSE, SERVICE_RESUME, SERVICE_SET_OBJECT, SERVICE_STEP,
-                              TICK_LAYOUT, TIME_MODE_CHOICES, TimeMode, TOPIC_CLOCK,
+                              DEFAULT_STATE_RATE_HZ, FINGER_JOINT, FRAME_BASE, NODE_PLANT,
+                              Outcome, Phase, SERVICE_PAUSE, SERVICE_RESUME, SERVICE_SET_OBJECT,
+                              SERVICE_STEP, TICK_LAYOUT, TIME_MODE_CHOICES, TimeMode, TOPIC_CLOCK,
                               TOPIC_FORCE_SENSOR, TOPIC_JOINT_STATES, TOPIC_LOAD_ACCELERATION,
                               TOPIC_MOTOR_COMMAND, TOPIC_OBJECT_STATE, TOPIC_SIM_STATUS,
                               TOPIC_STATUS, TOPIC_TICK)
@@ -90,7 +90,7 @@ class PlantSimulatorNode(Node):
         self.config = self.parameters.config
         self.side = PlantSide(make_plant(self.config))
         self.plant = self.side.plant
-        self.frame_id = self._param('frame_id', 'gripper_base',
+        self.frame_id = self._param('frame_id', FRAME_BASE,
                                     'frame_id of every published header', read_only=True)
         mode = self._param('time_mode', TimeMode.REALTIME.parameter,
                            'realtime: paced to the wall clock, always advancing | fast: as '

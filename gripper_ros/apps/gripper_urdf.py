@@ -1,0 +1,43 @@
+"""Console script: the gripper's URDF, written from a config file.
+
+    ros2 run gripper_ros gripper_urdf [--config FILE] [-o FILE]
+
+Prints the URDF that ``description_publisher`` publishes on ``robot_description`` (the links,
+``finger_joint`` and its limits from the config); ``-o urdf/gripper.urdf`` rewrites the plain
+URDF the package ships for robot_state_publisher and ``urdf/gripper.urdf.xacro``.
+"""
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+import sys
+
+from gripper_ros.apps.common import load_config_or_report
+from gripper_ros.core.description import urdf_text
+
+PROG = 'gripper_urdf'
+
+
+def main(argv=None) -> int:
+    """Write the URDF of ``--config`` to stdout or ``-o``; 2 on a bad config or path."""
+    parser = argparse.ArgumentParser(prog=PROG, description=__doc__.split('\n\n')[0])
+    parser.add_argument('--config', help='config YAML (default: the installed gripper.yaml)')
+    parser.add_argument('-o', '--output', help='write here instead of stdout')
+    args = parser.parse_args(argv)
+    config = load_config_or_report(PROG, args.config)
+    if config is None:
+        return 2
+    text = urdf_text(config)
+    if not args.output:
+        sys.stdout.write(text)
+        return 0
+    try:
+        Path(args.output).write_text(text, encoding='utf-8')
+    except OSError as exc:
+        print(f'{PROG}: cannot write {args.output}: {exc.strerror}', file=sys.stderr)
+        return 2
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -1,0 +1,93 @@
+"""The gripper's robot description: its URDF and the transforms of its fingers, from the config.
+
+One base link and two finger links: the fixed finger and the moving one on the prismatic joint
+``finger_joint`` (the position joint_states carries: the finger's travel from fully open, m).
+The closing axis is the base's x; each finger frame sits on its pad face, so the distance of
+the two frames along x is the width between the pads (``max_travel_m - position``). The joint's
+limits are the plant's: the lead screw's travel, the force and the free speed at the voltage
+limit. No rclpy and no xacro: the description node and ``gripper_urdf`` both write it from here.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from xml.sax.saxutils import quoteattr
+
+from gripper_ros.core.config import GripperConfig
+from gripper_ros.wire import (FINGER_JOINT, FRAME_BASE, FRAME_FIXED_FINGER, FRAME_MOVING_FINGER,
+                              ROBOT_NAME)
+
+FIXED_FINGER_JOINT = 'fixed_finger_joint'
+"""The fixed joint that holds the fixed finger on the base."""
+
+
+@dataclass(frozen=True)
+class FingerFrames:
+    """Where the finger frames sit on the base (m, in the base frame)."""
+
+    fixed_finger_xyz: tuple[float, float, float]
+    moving_finger_open_xyz: tuple[float, float, float]
+    """The moving finger's frame at position 0 (fully open); it moves along +x."""
+    travel_m: float
+
+    def moving_finger_xyz(self, position_m: float) -> tuple[float, float, float]:
+        """The moving finger's frame at joint position ``position_m`` (travel from open)."""
+        x, y, z = self.moving_finger_open_xyz
+        return (x + position_m, y, z)
+
+
+def finger_frames(config: GripperConfig) -> FingerFrames:
+    """The finger frames of ``config``: pad faces max_travel_m apart when fully open."""
+    half = config.plant.max_travel_m / 2.0
+    top = config.geometry.base_height_m
+    return FingerFrames((half, 0.0, top), (-half, 0.0, top), config.plant.max_travel_m)
+
+
+def _num(value: float) -> str:
+    """A number as the URDF writes it: 12 significant digits, no float noise (0.17, not 0.169...)."""
+    text = format(float(value), '.12g')
+    return '0' if text == '-0' else text
+
+
+def _xyz(values) -> str:
+    return ' '.join(_num(v) for v in values)
+
+
+def _box_link(name: str, size, offset) -> list[str]:
+    """A link drawn and collided as one box of ``size`` whose centre is at ``offset``."""
+    shape = (f'      <origin xyz="{_xyz(offset)}" rpy="0 0 0"/>\n'
+             f'      <geometry><box size="{_xyz(size)}"/></geometry>\n')
+    return [f'  <link name={quoteattr(name)}>\n',
+            '    <visual>\n', shape, '      <material name="grey"/>\n', '    </visual>\n',
+            '    <collision>\n', shape, '    </collision>\n',
+            '  </link>\n']
+
+
+def urdf_text(config: GripperConfig) -> str:
+    """Return the gripper's URDF for ``config`` (the text of ``urdf/gripper.urdf``)."""
+    geo, plant = config.geometry, config.plant
+    frames = finger_frames(config)
+    t = geo.finger_thickness_m
+    finger = (t, geo.finger_width_m, geo.finger_length_m)
+    base = (plant.max_travel_m + 2.0 * t, geo.base_width_m, geo.base_height_m)
+    lines = ['<?xml version="1.0"?>\n',
+             '<!-- Written by gripper_urdf from config/gripper.yaml; do not edit by hand. -->\n',
+             f'<robot name={quoteattr(ROBOT_NAME)}>\n',
+             '  <material name="grey"><color rgba="0.6 0.6 0.6 1"/></material>\n']
+    lines += _box_link(FRAME_BASE, base, (0.0, 0.0, geo.base_height_m / 2.0))
+    lines += _box_link(FRAME_FIXED_FINGER, finger, (t / 2.0, 0.0, geo.finger_length_m / 2.0))
+    lines += _box_link(FRAME_MOVING_FINGER, finger, (-t / 2.0, 0.0, geo.finger_length_m / 2.0))
+    lines += [f'  <joint name={quoteattr(FIXED_FINGER_JOINT)} type="fixed">\n',
+              f'    <parent link={quoteattr(FRAME_BASE)}/>\n',
+              f'    <child link={quoteattr(FRAME_FIXED_FINGER)}/>\n',
+              f'    <origin xyz="{_xyz(frames.fixed_finger_xyz)}" rpy="0 0 0"/>\n',
+              '  </joint>\n',
+              f'  <joint name={quoteattr(FINGER_JOINT)} type="prismatic">\n',
+              f'    <parent link={quoteattr(FRAME_BASE)}/>\n',
+              f'    <child link={quoteattr(FRAME_MOVING_FINGER)}/>\n',
+              f'    <origin xyz="{_xyz(frames.moving_finger_open_xyz)}" rpy="0 0 0"/>\n',
+              '    <axis xyz="1 0 0"/>\n',
+              f'    <limit lower="0" upper="{_num(plant.max_travel_m)}" '
+              f'effort="{_num(plant.max_force_n)}" velocity="{_num(plant.max_free_speed_mps)}"/>\n',
+              '  </joint>\n',
+              '</robot>\n']
+    return ''.join(lines)
