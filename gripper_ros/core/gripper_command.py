@@ -12,7 +12,7 @@ from __future__ import annotations
 import enum
 import math
 
-from gripper_ros.core.requests import MoveRequest, RequestError
+from gripper_ros.core.requests import MoveRequest, RequestError, validate_move
 from gripper_ros.wire import FINGER_JOINT, Outcome
 
 
@@ -88,3 +88,28 @@ def goal_end(move_result, allow_stalling: bool, cancel_requested: bool) -> GoalE
     if move_result.reached_goal or (allow_stalling and move_result.stalled):
         return GoalEnd.SUCCEEDED
     return GoalEnd.ABORTED
+
+
+class JointCommandStream:
+    """Which commands of a ``joint_commands`` stream become moves.
+
+    ros2_control's topic-based hardware publishes the command on every controller update while
+    the joint is away from it; only a new target (position, speed or effort) is a new move, a
+    repeat of the last one is not. A bad command raises RequestError and leaves the last target.
+    """
+
+    def __init__(self, plant, supervisor, joint: str = FINGER_JOINT):
+        self.plant, self.supervisor, self.joint = plant, supervisor, joint
+        self.last: MoveRequest | None = None
+
+    def take(self, command) -> MoveRequest | None:
+        """Return the move of ``command`` (a JointState) if it is a new target, else None."""
+        move = move_request_of(command, self.plant.max_travel_m, self.joint)
+        validate_move(move, self.plant, self.supervisor)
+        last = self.last
+        if last is not None and last.speed_mps == move.speed_mps and \
+                last.max_effort_n == move.max_effort_n and \
+                abs(last.width_m - move.width_m) < self.supervisor.move_tolerance_m:
+            return None
+        self.last = move
+        return move
