@@ -19,6 +19,7 @@ from gripper_interfaces.srv import Grasp, Move, SetObject, SimStep
 from gripper_ros.core.config import load_config
 from gripper_ros.core.stages import (DEFAULT_APPROACH_FORCE_MARGIN, DEFAULT_FORCE_CONTROLLER,
                                      DEFAULT_POSITION_CONTROLLER)
+from gripper_ros.nodes.description_node import DescriptionPublisher
 from gripper_ros.nodes.excitation_node import ExcitationServer
 from gripper_ros.nodes.force_controller_node import ForceControllerNode
 from gripper_ros.nodes.grasp_action_node import GraspActionServer
@@ -61,6 +62,7 @@ class GraphOptions:
     approach_force_margin: float = DEFAULT_APPROACH_FORCE_MARGIN
     action_server: bool = True       # also serve the grasp and the move as actions
     check_names: bool = True         # refuse to start when the namespace is taken
+    description: bool = True         # robot_description, /tf_static and /tf (and in bags)
     supervisor_parameters: dict = field(default_factory=dict)
     plant_parameters: dict = field(default_factory=dict)
 
@@ -118,6 +120,10 @@ class GripperGraph:
             self.nodes.append(self.move_action_server)
             self.excitation_server = ExcitationServer(parameter_overrides=cfg, **kw)
             self.nodes.append(self.excitation_server)
+        self.description = None
+        if opts.description:
+            self.description = DescriptionPublisher(parameter_overrides=cfg, **kw)
+            self.nodes.append(self.description)
         self.executor = make_executor(opts.executor, self.context)
         for node in self.nodes:
             self.executor.add_node(node)

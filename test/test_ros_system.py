@@ -1,0 +1,117 @@
+"""The gripper in a ROS system, over the real graph and DDS: its description, /tf, joint_commands.
+
+One graph for the module: a late subscriber gets robot_description and /tf_static; a
+JointState on ``joint_commands`` (what ros2_control's JointStateTopicSystem publishes) closes
+the finger onto an object with the command's effort limit, /tf follows the finger, and bad
+commands are refused without moving anything.
+"""
+from __future__ import annotations
+
+import math
+import threading
+
+from gripper_ros.core.config import load_config
+from gripper_ros.core.description import urdf_text
+from gripper_ros.nodes.graph import GripperGraph
+from gripper_ros.nodes.qos import GRAPH_QOS, LATCHED_QOS
+from gripper_ros.nodes.services import wait_until
+from gripper_ros.wire import (FINGER_JOINT, FRAME_BASE, FRAME_FIXED_FINGER, FRAME_MOVING_FINGER,
+                              Outcome, qualified, TOPIC_JOINT_COMMANDS, TOPIC_ROBOT_DESCRIPTION,
+                              TOPIC_TF, TOPIC_TF_STATIC)
+import pytest
+from sensor_msgs.msg import JointState
+from std_msgs.msg import String
+from tf2_msgs.msg import TFMessage
+
+CONFIG = load_config()
+TRAVEL_M = CONFIG.plant.max_travel_m
+OBJECT_WIDTH_M = 0.05
+EFFORT_N = 10.0
+
+
+@pytest.fixture(scope='module')
+def graph():
+    with GripperGraph.in_own_context() as g:
+        placed = g.set_object(OBJECT_WIDTH_M)
+        assert placed.success, placed.message
+        g.wait_still()
+        yield g
+
+
+class Listener:
+    """The newest message of each topic a test node subscribes to."""
+
+    def __init__(self, graph, topics: dict):
+        self.newest, self.count = {}, dict.fromkeys(topics, 0)
+        self.lock = threading.Lock()
+        node = graph.client_node
+        for topic, (msgtype, qos) in topics.items():
+            node.create_subscription(msgtype, qualified(graph.namespace, topic),
+                                     lambda msg, t=topic: self._take(t, msg), qos)
+
+    def _take(self, topic, msg) -> None:
+        with self.lock:
+            self.newest[topic] = msg
+            self.count[topic] += 1
+
+
+def _command(position, effort=(), velocity=(), name=(FINGER_JOINT,)) -> JointState:
+    return JointState(name=list(name), position=list(position), velocity=list(velocity),
+                      effort=list(effort))
+
+
+def _publisher(graph):
+    node = graph.client_node
+    pub = node.create_publisher(JointState, qualified(graph.namespace, TOPIC_JOINT_COMMANDS),
+                                GRAPH_QOS)
+    assert wait_until(lambda: pub.get_subscription_count() > 0, 10.0)
+    return pub
+
+
+def test_a_late_subscriber_gets_the_description_and_the_fixed_finger(graph):
+    seen = Listener(graph, {TOPIC_ROBOT_DESCRIPTION: (String, LATCHED_QOS),
+                            TOPIC_TF_STATIC: (TFMessage, LATCHED_QOS)})
+    assert wait_until(lambda: all(seen.count.values()), 10.0), seen.count
+    assert seen.newest[TOPIC_ROBOT_DESCRIPTION].data == urdf_text(CONFIG)
+    (fixed,) = seen.newest[TOPIC_TF_STATIC].transforms
+    assert (fixed.header.frame_id, fixed.child_frame_id) == (FRAME_BASE, FRAME_FIXED_FINGER)
+    assert fixed.transform.translation.x == pytest.approx(TRAVEL_M / 2)
+
+
+def test_a_joint_command_closes_on_the_object_with_its_effort_limit(graph):
+    seen = Listener(graph, {TOPIC_TF: (TFMessage, GRAPH_QOS)})
+    answers = graph.move_action_server.joint_command_answers
+    before = len(answers)
+    pub = _publisher(graph)
+    command = _command([TRAVEL_M - 0.01], effort=[EFFORT_N])     # 1 cm past the object's face
+    for _ in range(5):                       # a stream, as JointStateTopicSystem sends it
+        pub.publish(command)
+    assert wait_until(lambda: len(answers) > before, 60.0)
+    graph.wait_still()
+    assert len(answers) == before + 1        # the repeats were no new moves
+    answer = answers[-1]
+    assert answer.outcome == Outcome.STALLED and answer.stalled, answer.message
+    assert answer.width_m == pytest.approx(OBJECT_WIDTH_M, abs=1e-4)
+    assert 0.9 * EFFORT_N <= answer.effort_n <= 1.05 * EFFORT_N, answer.effort_n
+    with seen.lock:
+        (moving,) = seen.newest[TOPIC_TF].transforms
+    assert (moving.header.frame_id, moving.child_frame_id) == (FRAME_BASE, FRAME_MOVING_FINGER)
+    # the pad faces are the object's width apart
+    assert TRAVEL_M / 2 - moving.transform.translation.x == pytest.approx(OBJECT_WIDTH_M,
+                                                                         abs=1e-4)
+
+
+@pytest.mark.parametrize('command', [
+    _command([math.nan]), _command([math.inf]), _command([-0.01]), _command([TRAVEL_M + 0.01]),
+    _command([0.05], effort=[-1.0]), _command([0.05], effort=[CONFIG.plant.max_force_n * 2]),
+    _command([0.05], velocity=[-0.01]), _command([0.05], name=['other_joint']),
+], ids=['nan', 'inf', 'negative', 'beyond_travel', 'negative_effort', 'effort_above_limit',
+        'negative_velocity', 'other_joint'])
+def test_a_bad_joint_command_is_refused_and_moves_nothing(graph, command):
+    server = graph.move_action_server
+    refused, answers = server.joint_commands_refused, len(server.joint_command_answers)
+    t_ns = graph.sim_time_ns
+    _publisher(graph).publish(command)
+    assert wait_until(lambda: server.joint_commands_refused == refused + 1, 10.0)
+    assert len(server.joint_command_answers) == answers
+    assert graph.sim_time_ns == t_ns         # fast mode: no request, no time
