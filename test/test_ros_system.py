@@ -97,8 +97,8 @@ def test_a_joint_command_closes_on_the_object_with_its_effort_limit(graph):
         (moving,) = seen.newest[TOPIC_TF].transforms
     assert (moving.header.frame_id, moving.child_frame_id) == (FRAME_BASE, FRAME_MOVING_FINGER)
     # the pad faces are the object's width apart
-    assert TRAVEL_M / 2 - moving.transform.translation.x == pytest.approx(OBJECT_WIDTH_M,
-                                                                         abs=1e-4)
+    gap_m = TRAVEL_M / 2 - moving.transform.translation.x
+    assert gap_m == pytest.approx(OBJECT_WIDTH_M, abs=1e-4)
 
 
 @pytest.mark.parametrize('command', [

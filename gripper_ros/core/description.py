@@ -30,20 +30,20 @@ class FingerFrames:
     travel_m: float
 
     def moving_finger_xyz(self, position_m: float) -> tuple[float, float, float]:
-        """The moving finger's frame at joint position ``position_m`` (travel from open)."""
+        """Return the moving finger's frame at joint position ``position_m`` (travel from open)."""
         x, y, z = self.moving_finger_open_xyz
         return (x + position_m, y, z)
 
 
 def finger_frames(config: GripperConfig) -> FingerFrames:
-    """The finger frames of ``config``: pad faces max_travel_m apart when fully open."""
+    """Return the finger frames of ``config``: pad faces max_travel_m apart when fully open."""
     half = config.plant.max_travel_m / 2.0
     top = config.geometry.base_height_m
     return FingerFrames((half, 0.0, top), (-half, 0.0, top), config.plant.max_travel_m)
 
 
 def _num(value: float) -> str:
-    """A number as the URDF writes it: 12 significant digits, no float noise (0.17, not 0.169...)."""
+    """Write a number as the URDF has it: 12 significant digits, no float noise (0.17)."""
     text = format(float(value), '.12g')
     return '0' if text == '-0' else text
 
@@ -53,7 +53,7 @@ def _xyz(values) -> str:
 
 
 def _box_link(name: str, size, offset) -> list[str]:
-    """A link drawn and collided as one box of ``size`` whose centre is at ``offset``."""
+    """Return a link drawn and collided as one box of ``size`` centred at ``offset``."""
     shape = (f'      <origin xyz="{_xyz(offset)}" rpy="0 0 0"/>\n'
              f'      <geometry><box size="{_xyz(size)}"/></geometry>\n')
     return [f'  <link name={quoteattr(name)}>\n',
@@ -87,7 +87,8 @@ def urdf_text(config: GripperConfig) -> str:
               f'    <origin xyz="{_xyz(frames.moving_finger_open_xyz)}" rpy="0 0 0"/>\n',
               '    <axis xyz="1 0 0"/>\n',
               f'    <limit lower="0" upper="{_num(plant.max_travel_m)}" '
-              f'effort="{_num(plant.max_force_n)}" velocity="{_num(plant.max_free_speed_mps)}"/>\n',
+              f'effort="{_num(plant.max_force_n)}" '
+              f'velocity="{_num(plant.max_free_speed_mps)}"/>\n',
               '  </joint>\n',
               '</robot>\n']
     return ''.join(lines)

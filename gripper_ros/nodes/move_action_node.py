@@ -210,7 +210,7 @@ class MoveActionServer(Node):
 
     # ------------------------------------------------------------------ joint_commands
     def _on_joint_command(self, msg: JointState) -> None:
-        """A new target becomes a move; a bad command is refused with one line, nothing moves."""
+        """Make a new target a move; refuse a bad command with one line, moving nothing."""
         try:
             move = self._commands.take(msg)
         except RequestError as exc:
