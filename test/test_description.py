@@ -53,7 +53,7 @@ def test_a_geometry_value_out_of_bounds_is_refused_by_name():
 
 
 def _canonical(element) -> tuple:
-    """An element as tag, attributes and children, whitespace and attribute order aside."""
+    """Return an element as tag, attributes and children (whitespace, attribute order aside)."""
     return (element.tag, sorted(element.attrib.items()), [_canonical(c) for c in element])
 
 

@@ -77,7 +77,7 @@ class DescriptionPublisher(Node):
         self.published[TOPIC_TF_STATIC] += 1
 
     def _on_joint_states(self, msg: JointState) -> None:
-        """Publish the moving finger's transform at the joint's position and the message's stamp."""
+        """Publish the moving finger's transform at the joint position, at the message's stamp."""
         try:
             position_m = msg.position[list(msg.name).index(FINGER_JOINT)]
         except (ValueError, IndexError):
