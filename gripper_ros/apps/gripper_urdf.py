@@ -1,10 +1,11 @@
 """Console script: the gripper's URDF, written from a config file.
 
-    ros2 run gripper_ros gripper_urdf [--config FILE] [-o FILE]
+    ros2 run gripper_ros gripper_urdf [--config FILE] [-o FILE] [--macro FILE]
 
 Prints the URDF that ``description_publisher`` publishes on ``robot_description`` (the links,
 ``finger_joint`` and its limits from the config); ``-o urdf/gripper.urdf`` rewrites the plain
-URDF the package ships for robot_state_publisher and ``urdf/gripper.urdf.xacro``.
+URDF the package ships for robot_state_publisher, ``--macro urdf/gripper.macro.xacro`` the
+xacro macro (the same links and joints with a ``prefix`` and a ``parent`` link).
 """
 from __future__ import annotations
 
@@ -13,7 +14,7 @@ from pathlib import Path
 import sys
 
 from gripper_ros.apps.common import load_config_or_report
-from gripper_ros.core.description import urdf_text
+from gripper_ros.core.description import urdf_text, xacro_macro_text
 
 PROG = 'gripper_urdf'
 
@@ -23,19 +24,22 @@ def main(argv=None) -> int:
     parser = argparse.ArgumentParser(prog=PROG, description=__doc__.split('\n\n')[0])
     parser.add_argument('--config', help='config YAML (default: the installed gripper.yaml)')
     parser.add_argument('-o', '--output', help='write here instead of stdout')
+    parser.add_argument('--macro', help='also write the xacro macro here')
     args = parser.parse_args(argv)
     config = load_config_or_report(PROG, args.config)
     if config is None:
         return 2
-    text = urdf_text(config)
     if not args.output:
-        sys.stdout.write(text)
-        return 0
-    try:
-        Path(args.output).write_text(text, encoding='utf-8')
-    except OSError as exc:
-        print(f'{PROG}: cannot write {args.output}: {exc.strerror}', file=sys.stderr)
-        return 2
+        sys.stdout.write(urdf_text(config))
+    writes = [(args.output, urdf_text), (args.macro, xacro_macro_text)]
+    for path, text in writes:
+        if not path:
+            continue
+        try:
+            Path(path).write_text(text(config), encoding='utf-8')
+        except OSError as exc:
+            print(f'{PROG}: cannot write {path}: {exc.strerror}', file=sys.stderr)
+            return 2
     return 0
 
 

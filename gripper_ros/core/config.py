@@ -194,6 +194,8 @@ class GeometryParams:
     finger_length_m: float = 0.06      # from the top of the base to the fingertip
     base_height_m: float = 0.03        # from the mounting face to the top of the base
     base_width_m: float = 0.04         # across the closing axis (its length spans the travel)
+    base_mass_kg: float = 0.4          # the base with motor and lead screw, a solid box
+    finger_mass_kg: float = 0.03       # each finger with its pad, a solid box
 
 
 @dataclass(frozen=True)
@@ -435,6 +437,8 @@ BOUNDS: dict[str, tuple[float, float]] = {
     'geometry.finger_length_m': (1e-4, 1.0),
     'geometry.base_height_m': (1e-4, 1.0),
     'geometry.base_width_m': (1e-4, 1.0),
+    'geometry.base_mass_kg': (1e-4, 100.0),
+    'geometry.finger_mass_kg': (1e-4, 100.0),
 }
 """Physically sensible bounds of every number in the config (``config/gripper.yaml`` lists
 them at its end; ``test_config`` ties that list to this table)."""
