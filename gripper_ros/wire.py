@@ -87,6 +87,9 @@ NODE_DESCRIPTION = 'description_publisher'
 LAUNCHED_NODES = (NODE_PLANT, NODE_POSITION_CONTROLLER, NODE_FORCE_CONTROLLER, NODE_SUPERVISOR,
                   NODE_GRASP_ACTION, NODE_MOVE_ACTION, NODE_DESCRIPTION)
 """What launch/gripper.launch.py starts, one process each; each the executable and the node."""
+ROBOT_STATE_PUBLISHER = 'robot_state_publisher'
+"""The package (and its node) the launch file runs instead of description_publisher where it is
+installed: one publisher of robot_description and /tf, never both."""
 
 FINGER_JOINT = 'finger_joint'
 """The one joint: the moving finger's travel from fully open (m), in joint_states and the URDF."""

@@ -10,17 +10,20 @@ Launch arguments: ``namespace`` (default ``gripper``: ``/gripper/grasp``, ``/gri
 loop goes, paused between requests),
 ``real_time_factor`` (realtime: simulated seconds per wall second) and ``publish_clock``
 (``/clock``, one simulator per ROS graph). The nodes: plant_simulator, position_controller,
-force_controller, supervisor, grasp_action_server and move_action_server (which also serves
-control_msgs ParallelGripperCommand on ``gripper_cmd`` where control_msgs is installed).
+force_controller, supervisor, grasp_action_server, move_action_server (which also serves
+control_msgs ParallelGripperCommand on ``gripper_cmd`` where control_msgs is installed) and
+the one publisher of ``robot_description`` and ``/tf``: robot_state_publisher with the URDF of
+the config (``gripper_urdf --config``) where the ament index has it, else description_publisher.
 """
-from gripper_ros.wire import (DEFAULT_NAMESPACE, LAUNCHED_NODES, NODE_PLANT, TIME_MODE_CHOICES,
-                              TimeMode)
+from gripper_ros.nodes import launched_executables, robot_state_publisher_installed
+from gripper_ros.wire import (DEFAULT_NAMESPACE, NODE_PLANT, ROBOT_STATE_PUBLISHER,
+                              TIME_MODE_CHOICES, TimeMode)
 from launch import LaunchDescription
 from launch.actions import DeclareLaunchArgument
-from launch.substitutions import LaunchConfiguration, PathJoinSubstitution
+from launch.substitutions import Command, LaunchConfiguration, PathJoinSubstitution
 from launch_ros.actions import Node
 from launch_ros.parameter_descriptions import ParameterValue
-from launch_ros.substitutions import FindPackageShare
+from launch_ros.substitutions import FindPackagePrefix, FindPackageShare
 
 PACKAGE = 'gripper_ros'
 ARGUMENTS = (
@@ -45,9 +48,15 @@ def generate_launch_description() -> LaunchDescription:
     }
     actions = [DeclareLaunchArgument(name, default_value=default, description=description)
                for name, default, description in ARGUMENTS]
-    for name in LAUNCHED_NODES:
-        parameters = [config, plant] if name == NODE_PLANT else [config]
-        actions.append(Node(package=PACKAGE, executable=name, name=name,
+    urdf = Command([PathJoinSubstitution([FindPackagePrefix(PACKAGE), 'lib', PACKAGE,
+                                          'gripper_urdf']),
+                    ' --config ', LaunchConfiguration('config_file')])
+    for package, name in launched_executables(robot_state_publisher_installed()):
+        if package == ROBOT_STATE_PUBLISHER:
+            parameters = [{'robot_description': ParameterValue(urdf, value_type=str)}]
+        else:
+            parameters = [config, plant] if name == NODE_PLANT else [config]
+        actions.append(Node(package=package, executable=name, name=name,
                             namespace=LaunchConfiguration('namespace'),
                             parameters=parameters, output='screen', emulate_tty=True))
     return LaunchDescription(actions)
