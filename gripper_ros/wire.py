@@ -55,6 +55,10 @@ TOPIC_JOINT_COMMANDS = 'joint_commands'
 position (travel from fully open, m), optionally a speed limit (velocity) and an effort limit;
 each new command becomes a move (move_action_server)."""
 
+TOPIC_GRIPPER_STATUS = 'gripper_status'
+"""diagnostic_msgs/DiagnosticStatus, latched: how the last request ended, for a ros2_control user
+(no gripper_interfaces): outcome, stalled, object_detected, position_m, width_m, effort_n."""
+
 # --- the robot description: what robot_state_publisher would publish for this gripper ----------
 TOPIC_ROBOT_DESCRIPTION = 'robot_description'
 """std_msgs/String, latched: the gripper's URDF (core/description.py)."""

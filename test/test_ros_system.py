@@ -2,22 +2,26 @@
 
 One graph for the module: a late subscriber gets robot_description and /tf_static; a
 JointState on ``joint_commands`` (what ros2_control's JointStateTopicSystem publishes) closes
-the finger onto an object with the command's effort limit, /tf follows the finger, and bad
-commands are refused without moving anything.
+the finger onto an object with the command's effort limit, joint_states' effort (the applied
+force) never passes it, /tf follows the finger, gripper_status says stalled on an object, and
+bad commands are refused without moving anything.
 """
 from __future__ import annotations
 
 import math
 import threading
 
+from diagnostic_msgs.msg import DiagnosticStatus
 from gripper_ros.core.config import load_config
 from gripper_ros.core.description import urdf_text
+from gripper_ros.core.gripper_command import grip_status_fields
 from gripper_ros.nodes.graph import GripperGraph
 from gripper_ros.nodes.qos import GRAPH_QOS, LATCHED_QOS
 from gripper_ros.nodes.services import wait_until
 from gripper_ros.wire import (FINGER_JOINT, FRAME_BASE, FRAME_FIXED_FINGER, FRAME_MOVING_FINGER,
-                              Outcome, qualified, TOPIC_JOINT_COMMANDS, TOPIC_ROBOT_DESCRIPTION,
-                              TOPIC_TF, TOPIC_TF_STATIC)
+                              Outcome, qualified, TOPIC_GRIPPER_STATUS, TOPIC_JOINT_COMMANDS,
+                              TOPIC_JOINT_STATES, TOPIC_ROBOT_DESCRIPTION, TOPIC_TF,
+                              TOPIC_TF_STATIC)
 import pytest
 from sensor_msgs.msg import JointState
 from std_msgs.msg import String
@@ -27,6 +31,8 @@ CONFIG = load_config()
 TRAVEL_M = CONFIG.plant.max_travel_m
 OBJECT_WIDTH_M = 0.05
 EFFORT_N = 10.0
+EFFORT_TOLERANCE = 0.05
+"""How far the measured force may pass a move's effort limit (the rigid contact: none)."""
 
 
 @pytest.fixture(scope='module')
@@ -43,6 +49,7 @@ class Listener:
 
     def __init__(self, graph, topics: dict):
         self.newest, self.count = {}, dict.fromkeys(topics, 0)
+        self.every = {topic: [] for topic in topics}
         self.lock = threading.Lock()
         node = graph.client_node
         for topic, (msgtype, qos) in topics.items():
@@ -52,6 +59,7 @@ class Listener:
     def _take(self, topic, msg) -> None:
         with self.lock:
             self.newest[topic] = msg
+            self.every[topic].append(msg)
             self.count[topic] += 1
 
 
@@ -79,7 +87,8 @@ def test_a_late_subscriber_gets_the_description_and_the_fixed_finger(graph):
 
 
 def test_a_joint_command_closes_on_the_object_with_its_effort_limit(graph):
-    seen = Listener(graph, {TOPIC_TF: (TFMessage, GRAPH_QOS)})
+    seen = Listener(graph, {TOPIC_TF: (TFMessage, GRAPH_QOS),
+                            TOPIC_JOINT_STATES: (JointState, GRAPH_QOS)})
     answers = graph.move_action_server.joint_command_answers
     before = len(answers)
     pub = _publisher(graph)
@@ -92,13 +101,59 @@ def test_a_joint_command_closes_on_the_object_with_its_effort_limit(graph):
     answer = answers[-1]
     assert answer.outcome == Outcome.STALLED and answer.stalled, answer.message
     assert answer.width_m == pytest.approx(OBJECT_WIDTH_M, abs=1e-4)
-    assert 0.9 * EFFORT_N <= answer.effort_n <= 1.05 * EFFORT_N, answer.effort_n
+    assert 0.9 * EFFORT_N <= answer.effort_n <= (1 + EFFORT_TOLERANCE) * EFFORT_N, \
+        answer.effort_n
     with seen.lock:
         (moving,) = seen.newest[TOPIC_TF].transforms
     assert (moving.header.frame_id, moving.child_frame_id) == (FRAME_BASE, FRAME_MOVING_FINGER)
     # the pad faces are the object's width apart
     gap_m = TRAVEL_M / 2 - moving.transform.translation.x
     assert gap_m == pytest.approx(OBJECT_WIDTH_M, abs=1e-4)
+    # joint_states as JointStateTopicSystem reads it: position, velocity and effort of the joint
+    with seen.lock:
+        states = list(seen.every[TOPIC_JOINT_STATES])
+    assert all(list(s.name) == [FINGER_JOINT] and len(s.position) == len(s.velocity) ==
+               len(s.effort) == 1 for s in states)
+    efforts = [s.effort[0] for s in states]
+    assert max(efforts) <= EFFORT_N * (1 + EFFORT_TOLERANCE), max(efforts)   # the limit holds
+    last = states[-1]
+    assert last.position[0] == pytest.approx(TRAVEL_M - OBJECT_WIDTH_M, abs=1e-4)
+    assert abs(last.velocity[0]) < CONFIG.supervisor.move_rest_speed_mps
+    assert last.effort[0] == answer.effort_n
+    # effort is the force the plant applies (the shipped sensor has no noise)
+    assert CONFIG.sensor_noise.force_noise_n == 0.0
+    assert last.effort[0] == pytest.approx(graph.plant.plant.sample().force_n, rel=1e-9)
+    assert last.effort[0] >= 0.9 * EFFORT_N
+    # how it ended, for a ros2_control user: latched gripper_status, in standard types
+    status = Listener(graph, {TOPIC_GRIPPER_STATUS: (DiagnosticStatus, LATCHED_QOS)})
+    assert wait_until(lambda: _values(status.newest.get(TOPIC_GRIPPER_STATUS)).get(
+        'grasp_id') == str(answer.grasp_id), 10.0)
+    with status.lock:
+        report = status.newest[TOPIC_GRIPPER_STATUS]
+    assert (report.level, report.name, report.message) == (DiagnosticStatus.OK, FINGER_JOINT,
+                                                           'stalled')
+    values = _values(report)
+    assert (values['outcome'], values['stalled'], values['object_detected']) == \
+        ('STALLED', 'true', 'true')
+    assert float(values['width_m']) == pytest.approx(OBJECT_WIDTH_M, abs=1e-4)
+
+
+def _values(report) -> dict:
+    return {kv.key: kv.value for kv in report.values} if report is not None else {}
+
+
+@pytest.mark.parametrize('outcome, contact, level, stalled, detected', [
+    (Outcome.STALLED, True, 0, 'true', 'true'), (Outcome.MOVED, False, 0, 'false', 'false'),
+    (Outcome.HOLDING, True, 0, 'false', 'true'), (Outcome.NO_OBJECT, False, 1, 'false', 'false'),
+    (Outcome.OBJECT_LOST, True, 1, 'false', 'false'), (Outcome.FAULT, True, 2, 'false', 'false'),
+])
+def test_gripper_status_says_stalled_and_object_detected(outcome, contact, level, stalled,
+                                                         detected):
+    fields = grip_status_fields(outcome, contact, 0.1, 9.5, TRAVEL_M, 7)
+    assert fields['level'] == level and fields['message'] == outcome.name.lower()
+    assert fields['values'] == {'outcome': outcome.name, 'stalled': stalled,
+                                'object_detected': detected, 'position_m': '0.1',
+                                'width_m': '0.05', 'effort_n': '9.5', 'grasp_id': '7'}
 
 
 @pytest.mark.parametrize('command', [

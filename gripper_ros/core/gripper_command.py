@@ -113,3 +113,31 @@ class JointCommandStream:
             return None
         self.last = move
         return move
+
+
+_OK_OUTCOMES = frozenset({Outcome.MOVED, Outcome.STALLED, Outcome.HOLDING, Outcome.RELEASED})
+_HELD_OUTCOMES = frozenset({Outcome.MOVED, Outcome.STALLED, Outcome.HOLDING})
+LEVEL_OK, LEVEL_WARN, LEVEL_ERROR = 0, 1, 2
+"""diagnostic_msgs/DiagnosticStatus levels."""
+
+
+def grip_status_fields(outcome: int, contact: bool, position_m: float, force_n: float,
+                       travel_m: float, grasp_id: int) -> dict:
+    """Return the DiagnosticStatus fields of how a request ended, for ``gripper_status``.
+
+    ``stalled``: the finger stopped short of its goal on the effort limit (a move STALLED, as
+    GripperCommand's result). ``object_detected``: the force sensor saw contact during the
+    request and it ended with the object between the fingers (MOVED, STALLED or HOLDING).
+    Level OK for an outcome that did what was asked, ERROR for FAULT, WARN otherwise.
+    """
+    outcome = Outcome(outcome)
+    level = LEVEL_OK if outcome in _OK_OUTCOMES else \
+        LEVEL_ERROR if outcome is Outcome.FAULT else LEVEL_WARN
+    values = {'outcome': outcome.name,
+              'stalled': outcome is Outcome.STALLED,
+              'object_detected': bool(contact) and outcome in _HELD_OUTCOMES,
+              'position_m': position_m, 'width_m': travel_m - position_m, 'effort_n': force_n,
+              'grasp_id': grasp_id}
+    text = {k: (str(v).lower() if isinstance(v, bool) else
+                format(v, '.6g') if isinstance(v, float) else str(v)) for k, v in values.items()}
+    return {'level': level, 'message': outcome.name.lower(), 'values': text}

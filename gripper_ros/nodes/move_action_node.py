@@ -20,6 +20,9 @@ as ``grasp_action_server`` is for the grasp:
   move's speed and effort limits) becomes a move; a repeat of the last target is not one, a
   target that comes during a move is sent when it ends (the newest wins). A bad command (not
   finite, out of range, another joint) is refused with one warning line and moves nothing.
+- ``gripper_status`` (diagnostic_msgs/DiagnosticStatus, latched): how the last request ended
+  (``supervisor/outcome`` in standard types), ``stalled`` and ``object_detected`` among its
+  values, for a ros2_control user who reads no gripper_interfaces message.
 
 One goal at a time (the gripper does one request at a time): a goal while another executes is
 aborted at once (REFUSED in our result). Feedback is throttled to ``feedback_period_s`` of wall
@@ -30,23 +33,25 @@ from __future__ import annotations
 import sys
 import time
 
+from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 from gripper_interfaces.action import Move as MoveAction
 from gripper_interfaces.msg import SupervisorStatus
 from gripper_interfaces.srv import Move
-from gripper_ros.core.gripper_command import (goal_end, GoalEnd, joint_state_fields,
-                                              JointCommandStream, move_request_of,
-                                              result_fields)
+from gripper_ros.core.gripper_command import (goal_end, GoalEnd, grip_status_fields,
+                                              joint_state_fields, JointCommandStream,
+                                              move_request_of, result_fields)
 from gripper_ros.core.requests import RequestError, validate_move
 from gripper_ros.nodes.actions import accept_goal, cancel_by_stop
 from gripper_ros.nodes.loop_io import read_status, StatusView
 from gripper_ros.nodes.names import default_namespace
 from gripper_ros.nodes.parameters import declare_config
 from gripper_ros.nodes.process import run_node
-from gripper_ros.nodes.qos import GRAPH_QOS, SERVICE_QOS
+from gripper_ros.nodes.qos import GRAPH_QOS, LATCHED_QOS, SERVICE_QOS
 from gripper_ros.text import one_line
-from gripper_ros.wire import (ACTION_GRIPPER_CMD, ACTION_MOVE, NODE_MOVE_ACTION, Outcome, Phase,
-                              SERVICE_MOVE, SERVICE_STOP, TOPIC_JOINT_COMMANDS,
-                              TOPIC_JOINT_STATES, TOPIC_STATUS)
+from gripper_ros.wire import (ACTION_GRIPPER_CMD, ACTION_MOVE, FINGER_JOINT, NODE_MOVE_ACTION,
+                              Outcome, Phase, ROBOT_NAME, SERVICE_MOVE, SERVICE_STOP,
+                              TOPIC_GRIPPER_STATUS, TOPIC_JOINT_COMMANDS, TOPIC_JOINT_STATES,
+                              TOPIC_OUTCOME, TOPIC_STATUS)
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
 from rclpy.action import ActionServer, GoalResponse
 from rclpy.node import Node
@@ -106,6 +111,11 @@ class MoveActionServer(Node):
         self.joint_command_answers: list[Move.Response] = []
         self.create_subscription(JointState, TOPIC_JOINT_COMMANDS, self._on_joint_command,
                                  GRAPH_QOS)
+        self._grip_status_pub = self.create_publisher(DiagnosticStatus, TOPIC_GRIPPER_STATUS,
+                                                      LATCHED_QOS)
+        self.grip_statuses_published = 0
+        self.create_subscription(SupervisorStatus, TOPIC_OUTCOME, self._on_outcome, LATCHED_QOS,
+                                 raw=True)
         if self.gripper_command_served:
             self._servers.append(ActionServer(self, ParallelGripperCommand, ACTION_GRIPPER_CMD,
                                               execute_callback=self._execute_gripper_command,
@@ -247,6 +257,17 @@ class MoveActionServer(Node):
         request, self._command_next = self._command_next, None
         if request is not None:
             self._send_joint_command(request)
+
+    def _on_outcome(self, data: bytes) -> None:
+        """Publish how the request ended as a DiagnosticStatus on gripper_status."""
+        msg = read_status(data)
+        fields = grip_status_fields(msg.outcome, msg.contact, msg.position_m, msg.force_n,
+                                    self.travel_m, msg.grasp_id)
+        self._grip_status_pub.publish(DiagnosticStatus(
+            level=bytes([fields['level']]), name=FINGER_JOINT, hardware_id=ROBOT_NAME,
+            message=fields['message'],
+            values=[KeyValue(key=k, value=v) for k, v in fields['values'].items()]))
+        self.grip_statuses_published += 1
 
     def _on_joint_state(self, data: bytes) -> None:
         self._joint_data = data
