@@ -7,6 +7,7 @@ the launch file runs robot_state_publisher only where it is installed.
 from __future__ import annotations
 
 from pathlib import Path
+import subprocess
 import xml.etree.ElementTree as ET
 
 from gripper_ros.core.config import ConfigError, load_config, parse_config
@@ -137,3 +138,16 @@ def test_the_launch_runs_robot_state_publisher_where_the_ament_index_has_it(
     assert publishers == [(ROBOT_STATE_PUBLISHER, ROBOT_STATE_PUBLISHER) if installed
                           else ('gripper_ros', NODE_DESCRIPTION)]     # one /tf publisher
     assert len(launched) == len(LAUNCHED_NODES)
+
+
+def test_gripper_urdf_prints_the_urdf_robot_state_publisher_gets_in_a_launch():
+    """As the launch file's Command runs it: ``gripper_urdf --config FILE --prefix P``."""
+    from ament_index_python.packages import get_package_prefix
+    exe = Path(get_package_prefix('gripper_ros')) / 'lib' / 'gripper_ros' / 'gripper_urdf'
+    for prefix in ('', 'left_'):
+        out = subprocess.run([str(exe), '--config', str(SHIPPED), '--prefix', prefix],
+                             capture_output=True, text=True, timeout=60, check=True).stdout
+        assert out == urdf_text(CONFIG, prefix)
+    bad = subprocess.run([str(exe), '--prefix', 'left-'], capture_output=True, text=True,
+                         timeout=60)
+    assert bad.returncode == 2 and bad.stderr.count('\n') == 1 and '--prefix' in bad.stderr

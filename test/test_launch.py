@@ -32,7 +32,7 @@ from gripper_ros.nodes import launched_executables, robot_state_publisher_instal
 LAUNCHED = launched_executables(robot_state_publisher_installed())
 EXECUTABLES = {name for package, name in LAUNCHED if package == 'gripper_ros'}
 DEFAULTS = {'namespace': 'gripper', 'time_mode': 'realtime', 'real_time_factor': '1.0',
-            'publish_clock': 'true'}
+            'publish_clock': 'true', 'prefix': ''}
 
 
 def _installed_launch_file() -> Path:

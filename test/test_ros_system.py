@@ -10,12 +10,13 @@ from __future__ import annotations
 
 import math
 import threading
+import xml.etree.ElementTree as ET
 
 from diagnostic_msgs.msg import DiagnosticStatus
 from gripper_ros.core.config import load_config
 from gripper_ros.core.description import urdf_text
 from gripper_ros.core.gripper_command import grip_status_fields
-from gripper_ros.nodes.graph import GripperGraph
+from gripper_ros.nodes.graph import GraphOptions, GripperGraph
 from gripper_ros.nodes.qos import GRAPH_QOS, LATCHED_QOS
 from gripper_ros.nodes.services import wait_until
 from gripper_ros.wire import (FINGER_JOINT, FRAME_BASE, FRAME_FIXED_FINGER, FRAME_MOVING_FINGER,
@@ -170,3 +171,27 @@ def test_a_bad_joint_command_is_refused_and_moves_nothing(graph, command):
     assert wait_until(lambda: server.joint_commands_refused == refused + 1, 10.0)
     assert len(server.joint_command_answers) == answers
     assert graph.sim_time_ns == t_ns         # fast mode: no request, no time
+
+
+def test_a_prefix_names_the_joint_of_joint_states_joint_commands_and_the_urdf():
+    """The xacro's prefix:=left_ on the graph: left_finger_joint on the wire, left_ links."""
+    options = GraphOptions(namespace='prefixed', prefix='left_')
+    with GripperGraph.in_own_context(options) as g:
+        assert g.set_object(OBJECT_WIDTH_M).success
+        g.wait_still()
+        seen = Listener(g, {TOPIC_JOINT_STATES: (JointState, GRAPH_QOS)})
+        server = g.move_action_server
+        pub = _publisher(g)
+        pub.publish(_command([0.05]))                        # the unprefixed joint: refused
+        assert wait_until(lambda: server.joint_commands_refused == 1, 10.0)
+        pub.publish(_command([TRAVEL_M - 0.01], effort=[EFFORT_N], name=['left_finger_joint']))
+        assert wait_until(lambda: server.joint_command_answers, 60.0)
+        assert server.joint_command_answers[-1].outcome == Outcome.STALLED
+        with seen.lock:
+            assert {tuple(s.name) for s in seen.every[TOPIC_JOINT_STATES]} == {
+                ('left_finger_joint',)}
+        root = ET.fromstring(g.description.urdf)
+        assert {j.get('name') for j in root.iter('joint')} == {'left_finger_joint',
+                                                               'left_fixed_finger_joint'}
+        assert {link.get('name') for link in root.iter('link')} == {
+            'left_gripper_base', 'left_fixed_finger', 'left_moving_finger'}

@@ -1,6 +1,6 @@
 """Console script: the gripper's URDF, written from a config file.
 
-    ros2 run gripper_ros gripper_urdf [--config FILE] [-o FILE] [--macro FILE]
+    ros2 run gripper_ros gripper_urdf [--config FILE] [--prefix P] [-o FILE] [--macro FILE]
 
 Prints the URDF that ``description_publisher`` publishes on ``robot_description`` (the links,
 ``finger_joint`` and its limits from the config); ``-o urdf/gripper.urdf`` rewrites the plain
@@ -15,6 +15,7 @@ import sys
 
 from gripper_ros.apps.common import load_config_or_report
 from gripper_ros.core.description import urdf_text, xacro_macro_text
+from gripper_ros.wire import NAME_CHARACTERS
 
 PROG = 'gripper_urdf'
 
@@ -25,13 +26,18 @@ def main(argv=None) -> int:
     parser.add_argument('--config', help='config YAML (default: the installed gripper.yaml)')
     parser.add_argument('-o', '--output', help='write here instead of stdout')
     parser.add_argument('--macro', help='also write the xacro macro here')
+    parser.add_argument('--prefix', default='', help='put before every link and joint name')
     args = parser.parse_args(argv)
     config = load_config_or_report(PROG, args.config)
     if config is None:
         return 2
+    if not set(args.prefix) <= NAME_CHARACTERS:
+        print(f'{PROG}: --prefix may hold only ASCII letters, digits and _, got '
+              f'{args.prefix!r}', file=sys.stderr)
+        return 2
     if not args.output:
-        sys.stdout.write(urdf_text(config))
-    writes = [(args.output, urdf_text), (args.macro, xacro_macro_text)]
+        sys.stdout.write(urdf_text(config, args.prefix))
+    writes = [(args.output, lambda c: urdf_text(c, args.prefix)), (args.macro, xacro_macro_text)]
     for path, text in writes:
         if not path:
             continue

@@ -114,10 +114,13 @@ def _body(config: GripperConfig, prefix: str) -> list[str]:
 _WRITTEN = '<!-- Written by gripper_urdf from config/gripper.yaml; do not edit by hand. -->\n'
 
 
-def urdf_text(config: GripperConfig) -> str:
-    """Return the gripper's URDF for ``config`` (the text of ``urdf/gripper.urdf``)."""
+def urdf_text(config: GripperConfig, prefix: str = '') -> str:
+    """Return the gripper's URDF for ``config``, each name led by ``prefix``.
+
+    With no prefix: the text of ``urdf/gripper.urdf``.
+    """
     return ''.join(['<?xml version="1.0"?>\n', _WRITTEN,
-                    f'<robot name={quoteattr(ROBOT_NAME)}>\n', *_body(config, ''),
+                    f'<robot name={quoteattr(ROBOT_NAME)}>\n', *_body(config, prefix),
                     '</robot>\n'])
 
 

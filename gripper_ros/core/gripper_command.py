@@ -69,10 +69,11 @@ def joint_state_fields(position_m: float, effort_n: float, velocity_mps: float |
             'effort': [float(effort_n)]}
 
 
-def result_fields(move_result, velocity_mps: float | None = None) -> dict:
+def result_fields(move_result, velocity_mps: float | None = None,
+                  joint: str = FINGER_JOINT) -> dict:
     """Return ParallelGripperCommand.Result's fields from a srv/Move answer and the velocity."""
     return {'state': joint_state_fields(move_result.position_m, move_result.effort_n,
-                                        velocity_mps),
+                                        velocity_mps, joint),
             'stalled': bool(move_result.stalled),
             'reached_goal': bool(move_result.reached_goal)}
 

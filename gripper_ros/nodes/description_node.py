@@ -5,8 +5,9 @@ it runs on the ros-jazzy wheels too: ``robot_description`` (std_msgs/String, lat
 written from the node's config (:mod:`gripper_ros.core.description`); ``/tf_static`` (latched)
 with the fixed finger on the base; and ``/tf`` with the moving finger at the position of each
 ``joint_states`` message, stamped with that message's (simulated) time. ``frame_prefix`` is
-put before every frame id, as robot_state_publisher's parameter of that name does. On a system
-ROS 2, robot_state_publisher with ``urdf/gripper.urdf`` publishes the same frames.
+put before every frame id, as robot_state_publisher's parameter of that name does; ``prefix``
+before every name of the URDF (the xacro's prefix) and the joint it reads. On a system ROS 2,
+robot_state_publisher with ``urdf/gripper.urdf`` publishes the same frames.
 """
 from __future__ import annotations
 
@@ -17,7 +18,7 @@ from builtin_interfaces.msg import Time
 from geometry_msgs.msg import TransformStamped
 from gripper_ros.core.description import finger_frames, urdf_text
 from gripper_ros.nodes.names import default_namespace
-from gripper_ros.nodes.parameters import declare_config
+from gripper_ros.nodes.parameters import declare_config, declare_joint_name
 from gripper_ros.nodes.process import run_node
 from gripper_ros.nodes.qos import GRAPH_QOS, LATCHED_QOS
 from gripper_ros.nodes.startup import StartupError
@@ -48,6 +49,8 @@ class DescriptionPublisher(Node):
     def __init__(self, **kwargs):
         super().__init__(NODE_DESCRIPTION, **default_namespace(kwargs))
         config = declare_config(self)
+        self.joint_name = declare_joint_name(self)
+        names = self.joint_name[:-len(FINGER_JOINT)]        # the URDF's prefix
         prefix = self.declare_parameter('frame_prefix', '', ParameterDescriptor(
             description='put before every frame id of /tf and /tf_static (e.g. left/)',
             read_only=True)).value
@@ -55,11 +58,13 @@ class DescriptionPublisher(Node):
             raise StartupError(f'parameter "frame_prefix" may hold only ASCII letters, digits, '
                                f'_ and /, got {prefix!r}')
         self.frames = finger_frames(config)
-        self.urdf = urdf_text(config)
+        self.urdf = urdf_text(config, names)
+        prefix += names
         self._base = prefix + FRAME_BASE
         self._moving = prefix + FRAME_MOVING_FINGER
         self.published = {TOPIC_TF: 0, TOPIC_TF_STATIC: 0, TOPIC_ROBOT_DESCRIPTION: 0}
         self.skipped = 0                       # joint_states without a finite finger position
+        self.last_state_ns: int | None = None  # the stamp of the last joint_states handled
         self._description_pub = self.create_publisher(String, TOPIC_ROBOT_DESCRIPTION,
                                                       LATCHED_QOS)
         self._static_pub = self.create_publisher(TFMessage, TOPIC_TF_STATIC, LATCHED_QOS)
@@ -79,7 +84,14 @@ class DescriptionPublisher(Node):
     def _on_joint_states(self, msg: JointState) -> None:
         """Publish the moving finger's transform at the joint position, at the message's stamp."""
         try:
-            position_m = msg.position[list(msg.name).index(FINGER_JOINT)]
+            self._publish_finger(msg)
+        finally:
+            stamp = msg.header.stamp
+            self.last_state_ns = stamp.sec * 1_000_000_000 + stamp.nanosec
+
+    def _publish_finger(self, msg: JointState) -> None:
+        try:
+            position_m = msg.position[list(msg.name).index(self.joint_name)]
         except (ValueError, IndexError):
             position_m = math.nan
         if not math.isfinite(position_m):

@@ -63,6 +63,7 @@ class GraphOptions:
     action_server: bool = True       # also serve the grasp and the move as actions
     check_names: bool = True         # refuse to start when the namespace is taken
     description: bool = True         # robot_description, /tf_static and /tf (and in bags)
+    prefix: str = ''                 # the xacro's prefix: the joint's and the URDF's names
     supervisor_parameters: dict = field(default_factory=dict)
     plant_parameters: dict = field(default_factory=dict)
 
@@ -91,7 +92,8 @@ class GripperGraph:
 
     def _build(self, opts: GraphOptions, kw: dict) -> None:
         cfg = [Parameter('config_file', value=opts.config_file)]
-        self.plant = PlantSimulatorNode(parameter_overrides=cfg + [
+        named = cfg + [Parameter('prefix', value=opts.prefix)]
+        self.plant = PlantSimulatorNode(parameter_overrides=named + [
             Parameter('time_mode', value=opts.time_mode),
             Parameter('real_time_factor', value=float(opts.real_time_factor)),
             Parameter('state_rate_hz', value=float(opts.state_rate_hz)),
@@ -116,13 +118,13 @@ class GripperGraph:
         if opts.action_server:
             self.action_server = GraspActionServer(parameter_overrides=cfg, **kw)
             self.nodes.append(self.action_server)
-            self.move_action_server = MoveActionServer(parameter_overrides=cfg, **kw)
+            self.move_action_server = MoveActionServer(parameter_overrides=named, **kw)
             self.nodes.append(self.move_action_server)
             self.excitation_server = ExcitationServer(parameter_overrides=cfg, **kw)
             self.nodes.append(self.excitation_server)
         self.description = None
         if opts.description:
-            self.description = DescriptionPublisher(parameter_overrides=cfg, **kw)
+            self.description = DescriptionPublisher(parameter_overrides=named, **kw)
             self.nodes.append(self.description)
         self.executor = make_executor(opts.executor, self.context)
         for node in self.nodes:

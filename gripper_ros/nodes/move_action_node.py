@@ -44,11 +44,11 @@ from gripper_ros.core.requests import RequestError, validate_move
 from gripper_ros.nodes.actions import accept_goal, cancel_by_stop
 from gripper_ros.nodes.loop_io import read_status, StatusView
 from gripper_ros.nodes.names import default_namespace
-from gripper_ros.nodes.parameters import declare_config
+from gripper_ros.nodes.parameters import declare_config, declare_joint_name
 from gripper_ros.nodes.process import run_node
 from gripper_ros.nodes.qos import GRAPH_QOS, LATCHED_QOS, SERVICE_QOS
 from gripper_ros.text import one_line
-from gripper_ros.wire import (ACTION_GRIPPER_CMD, ACTION_MOVE, FINGER_JOINT, NODE_MOVE_ACTION,
+from gripper_ros.wire import (ACTION_GRIPPER_CMD, ACTION_MOVE, NODE_MOVE_ACTION,
                               Outcome, Phase, ROBOT_NAME, SERVICE_MOVE, SERVICE_STOP,
                               TOPIC_GRIPPER_STATUS, TOPIC_JOINT_COMMANDS, TOPIC_JOINT_STATES,
                               TOPIC_OUTCOME, TOPIC_STATUS)
@@ -104,7 +104,9 @@ class MoveActionServer(Node):
         self._joint_data: bytes | None = None    # the newest joint_states, read when needed
         self.create_subscription(JointState, TOPIC_JOINT_STATES, self._on_joint_state,
                                  GRAPH_QOS, raw=True)
-        self._commands = JointCommandStream(self.config.plant, self.config.supervisor)
+        self.joint_name = declare_joint_name(self)
+        self._commands = JointCommandStream(self.config.plant, self.config.supervisor,
+                                            self.joint_name)
         self._command_call = None                # the move of a joint command being done
         self._command_next = None                # a newer target, sent when that one ends
         self.joint_commands_refused = 0
@@ -134,7 +136,7 @@ class MoveActionServer(Node):
     def _check_gripper_command(self, goal_request) -> GoalResponse:
         """Reject a command that is no move of this gripper (as ros2_controllers does)."""
         try:
-            validate_move(move_request_of(goal_request.command, self.travel_m),
+            validate_move(move_request_of(goal_request.command, self.travel_m, self.joint_name),
                           self.config.plant, self.config.supervisor)
         except RequestError as exc:
             self.get_logger().warning(f'{ACTION_GRIPPER_CMD} goal rejected: {exc}')
@@ -174,13 +176,14 @@ class MoveActionServer(Node):
         return result
 
     async def _execute_gripper_command(self, goal_handle):
-        move = move_request_of(goal_handle.request.command, self.travel_m)   # checked at goal
+        move = move_request_of(goal_handle.request.command, self.travel_m,
+                               self.joint_name)                     # checked at goal
         request = Move.Request(width_m=move.width_m, speed_mps=move.speed_mps,
                                max_effort_n=move.max_effort_n)
         response = await self._call_move(goal_handle, request, self._gripper_feedback)
         if response.outcome == Outcome.REFUSED:
             self.get_logger().warning(f'{ACTION_GRIPPER_CMD} goal aborted: {response.message}')
-        fields = result_fields(response, self._velocity_mps())
+        fields = result_fields(response, self._velocity_mps(), self.joint_name)
         result = ParallelGripperCommand.Result(
             state=JointState(header=self._status_header(), **fields.pop('state')), **fields)
         self._end(goal_handle, goal_end(response, self.allow_stalling,
@@ -207,7 +210,8 @@ class MoveActionServer(Node):
     def _gripper_feedback(self, msg: StatusView):
         return ParallelGripperCommand.Feedback(state=JointState(
             header=self._status_header(msg),
-            **joint_state_fields(msg.position_m, msg.force_n, self._velocity_mps())))
+            **joint_state_fields(msg.position_m, msg.force_n, self._velocity_mps(),
+                                 self.joint_name)))
 
     def _status_header(self, msg: StatusView | None = None) -> Header:
         """Return a header stamped with the simulated time of ``msg`` (the newest status)."""
@@ -264,7 +268,7 @@ class MoveActionServer(Node):
         fields = grip_status_fields(msg.outcome, msg.contact, msg.position_m, msg.force_n,
                                     self.travel_m, msg.grasp_id)
         self._grip_status_pub.publish(DiagnosticStatus(
-            level=bytes([fields['level']]), name=FINGER_JOINT, hardware_id=ROBOT_NAME,
+            level=bytes([fields['level']]), name=self.joint_name, hardware_id=ROBOT_NAME,
             message=fields['message'],
             values=[KeyValue(key=k, value=v) for k, v in fields['values'].items()]))
         self.grip_statuses_published += 1

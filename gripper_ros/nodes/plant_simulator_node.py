@@ -36,14 +36,14 @@ from gripper_ros.nodes.loop_io import (clock_template, decode, force_sensor_temp
                                        joint_state_template, object_state_template,
                                        read_status, split_ns, StatusView)
 from gripper_ros.nodes.names import default_namespace
-from gripper_ros.nodes.parameters import ConfigParameters
+from gripper_ros.nodes.parameters import ConfigParameters, declare_joint_name
 from gripper_ros.nodes.process import run_node
 from gripper_ros.nodes.qos import GRAPH_QOS, SERVICE_QOS
 from gripper_ros.nodes.services import DeferredService
 from gripper_ros.nodes.stamps import ns_to_time
 from gripper_ros.nodes.startup import StartupError
 from gripper_ros.wire import (CDR_LITTLE_ENDIAN, COMMAND_LAYOUT, Controller,
-                              DEFAULT_STATE_RATE_HZ, FINGER_JOINT, FRAME_BASE, NODE_PLANT,
+                              DEFAULT_STATE_RATE_HZ, FRAME_BASE, NODE_PLANT,
                               Outcome, Phase, SERVICE_PAUSE, SERVICE_RESUME, SERVICE_SET_OBJECT,
                               SERVICE_STEP, TICK_LAYOUT, TIME_MODE_CHOICES, TimeMode, TOPIC_CLOCK,
                               TOPIC_FORCE_SENSOR, TOPIC_JOINT_STATES, TOPIC_LOAD_ACCELERATION,
@@ -92,6 +92,7 @@ class PlantSimulatorNode(Node):
         self.plant = self.side.plant
         self.frame_id = self._param('frame_id', FRAME_BASE,
                                     'frame_id of every published header', read_only=True)
+        self.joint_name = declare_joint_name(self)
         mode = self._param('time_mode', TimeMode.REALTIME.parameter,
                            'realtime: paced to the wall clock, always advancing | fast: as '
                            'fast as the graph goes while a request runs',
@@ -165,7 +166,7 @@ class PlantSimulatorNode(Node):
         self._pace_timer.cancel()
         self.create_timer(HOUSEKEEPING_PERIOD_S, self._housekeeping, clock=self._steady)
 
-        self._joint_layout = joint_state_template(FINGER_JOINT, self.frame_id)
+        self._joint_layout = joint_state_template(self.joint_name, self.frame_id)
         self._force_layout = force_sensor_template(self.frame_id)
         self._object_layout = object_state_template(self.frame_id)
         self._clock_layout = clock_template()
