@@ -347,6 +347,7 @@ class PlantSimulatorNode(Node):
         self._joint_pub.publish(self._joint_layout.pack(
             sec, nanosec, tick.position_m, tick.velocity_mps, tick.force_n))
         self.published[TOPIC_JOINT_STATES] += 1
+        self.last_state_ns = tick.stamp_ns
         self._force_pub.publish(self._force_layout.pack(
             sec, nanosec, tick.force_n, tick.peak_force_n, tick.sensor_voltage_v))
         self.published[TOPIC_FORCE_SENSOR] += 1

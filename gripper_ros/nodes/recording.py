@@ -427,8 +427,13 @@ def drain_published(graph, tap: GraphTap, recorder: BagRecorder, before: dict,
                     received_before: dict, timeout_s: float = 10.0) -> None:
     """Wait until the tap has received every message published since ``before``.
 
-    Time stands still then; a tick the tap still holds for its decision is written.
+    Time stands still then; a tick the tap still holds for its decision is written. /tf
+    follows each joint_states through description_publisher: its last one is waited for first.
     """
+    description = getattr(graph, 'description', None)
+    if description is not None:
+        wait_until(lambda: recorder.closed or
+                   description.last_state_ns == graph.plant.last_state_ns, timeout_s)
     published = _published_since(graph, tap, before)
     wait_until(lambda: recorder.closed or all(
         tap.received[t] - received_before[t] >= n for t, n in published.items()), timeout_s)
