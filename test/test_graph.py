@@ -13,7 +13,7 @@ from gripper_ros.core.config import load_config
 from gripper_ros.nodes.graph import GripperGraph
 from gripper_ros.nodes.recording import recorded_grasp
 from gripper_ros.wire import (COMMAND_LAYOUT, Controller, DEFAULT_NAMESPACE, DESCRIPTION_TOPICS,
-                              GRAPH_TOPICS, LATCHED_DESCRIPTION_TOPICS,
+                              GRAPH_TOPICS,
                               LOOP_LAYOUTS, LOOP_TOPICS, Outcome, Phase, qualified,
                               REFERENCE_LAYOUT, SwitchCriterion, TICK_LAYOUT,
                               TOPIC_FORCE_REFERENCE, TOPIC_JOINT_STATES, TOPIC_MOTOR_COMMAND,
@@ -31,9 +31,7 @@ EXACT_REL = 1e-9
 """The force stage holds a rigid object at F_sp exactly when it answers HOLDING."""
 RECORDED = {qualified(DEFAULT_NAMESPACE, t) for t in GRAPH_TOPICS}
 DESCRIBED = {qualified(DEFAULT_NAMESPACE, t) for t in DESCRIPTION_TOPICS}
-"""robot_description, /tf_static and /tf: in a bag; /tf counted as published (per joint state)."""
-LATCHED = {qualified(DEFAULT_NAMESPACE, t) for t in LATCHED_DESCRIPTION_TOPICS}
-"""robot_description and /tf_static: written once at a bag's start, not published during it."""
+"""robot_description, /tf_static and /tf: in a bag, not counted by the loop's nodes."""
 IDLE_TICK_NS = round(CONFIG.position.sample_time_s * 1e9)
 """A request starts one tick after the one it arrived at: the idle hold's position tick."""
 
@@ -138,11 +136,9 @@ def test_bag_holds_every_published_message_and_decodes(paper_runs, index):
     bag = read_bag(run.bag_dir)
     assert not bag.truncated
     assert set(bag.counts()) == RECORDED | DESCRIBED
-    counts = bag.counts()
-    assert {t: n for t, n in counts.items() if t not in LATCHED} == run.published   # /tf too
-    assert {t: counts[t] for t in LATCHED} == dict.fromkeys(LATCHED, 1)    # once, at the start
-    assert run.published[TOPIC_TF] == run.published[qualified(DEFAULT_NAMESPACE,
-                                                              TOPIC_JOINT_STATES)]
+    assert {t: n for t, n in bag.counts().items() if t in RECORDED} == run.published
+    js = qualified(DEFAULT_NAMESPACE, TOPIC_JOINT_STATES)
+    assert bag.counts()[TOPIC_TF] == run.published[js]       # every joint state's transform
     assert all(n > 0 for n in run.published.values())
     layouts = {qualified(DEFAULT_NAMESPACE, t): LOOP_LAYOUTS[msgtype]
                for t, msgtype in LOOP_TOPICS.items()}

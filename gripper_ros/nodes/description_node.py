@@ -50,7 +50,7 @@ class DescriptionPublisher(Node):
         super().__init__(NODE_DESCRIPTION, **default_namespace(kwargs))
         config = declare_config(self)
         self.joint_name = declare_joint_name(self)
-        names = self.joint_name[:-len(FINGER_JOINT)]        # the URDF's prefix
+        name_prefix = self.joint_name[:-len(FINGER_JOINT)]  # the URDF's (the xacro's prefix)
         prefix = self.declare_parameter('frame_prefix', '', ParameterDescriptor(
             description='put before every frame id of /tf and /tf_static (e.g. left/)',
             read_only=True)).value
@@ -58,8 +58,8 @@ class DescriptionPublisher(Node):
             raise StartupError(f'parameter "frame_prefix" may hold only ASCII letters, digits, '
                                f'_ and /, got {prefix!r}')
         self.frames = finger_frames(config)
-        self.urdf = urdf_text(config, names)
-        prefix += names
+        self.urdf = urdf_text(config, name_prefix)
+        prefix += name_prefix
         self._base = prefix + FRAME_BASE
         self._moving = prefix + FRAME_MOVING_FINGER
         self.published = {TOPIC_TF: 0, TOPIC_TF_STATIC: 0, TOPIC_ROBOT_DESCRIPTION: 0}

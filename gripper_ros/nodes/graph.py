@@ -35,7 +35,7 @@ from gripper_ros.wire import (ACTION_GRASP, ACTION_GRIPPER_CMD, ACTION_MOVE, che
                               DEFAULT_NAMESPACE, DEFAULT_STATE_RATE_HZ, NODE_PLANT,
                               NODE_SUPERVISOR, SERVICE_EXCITE, SERVICE_GRASP, SERVICE_MOVE,
                               SERVICE_PAUSE, SERVICE_RELEASE, SERVICE_RESUME, SERVICE_SET_OBJECT,
-                              SERVICE_STEP, SERVICE_STOP, TimeMode, TOPIC_TF)
+                              SERVICE_STEP, SERVICE_STOP, TimeMode)
 import rclpy
 from rclpy.context import Context
 from rclpy.parameter import Parameter
@@ -299,14 +299,12 @@ class GripperGraph:
     def published_counts(self) -> Counter:
         """Count the messages published so far on every graph topic (relative names).
 
-        These are the nodes' own counters, repeats of an unanswered tick included, and /tf
-        (description_publisher's, one per joint_states); not the latched description.
+        These are the nodes' own counters, repeats of an unanswered tick included; not the
+        description's (/tf follows joint_states one for one).
         """
         total: Counter = Counter()
         for node in (self.plant, self.supervisor, self.position, self.force):
             total.update(node.published)
-        if self.description is not None:
-            total[TOPIC_TF] += self.description.published[TOPIC_TF]
         return total
 
     def served_names(self) -> list[str]:
