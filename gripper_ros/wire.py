@@ -67,6 +67,21 @@ TOPIC_LOAD_ACCELERATION = 'sim/load_acceleration'
 """geometry_msgs/AccelStamped, an arm (simulator) -> plant: the arm's acceleration while it holds;
 ``accel.linear.z`` (upward, m/s^2) loads the pads with gravity."""
 
+TOPIC_JOINT_COMMANDS = 'joint_commands'
+"""sensor_msgs/JointState, ros2_control's topic-based hardware -> the gripper: finger_joint's
+position (travel from fully open, m), optionally a speed limit (velocity) and an effort limit;
+each new command becomes a move (move_action_server)."""
+
+TOPIC_GRIPPER_STATUS = 'gripper_status'
+"""diagnostic_msgs/DiagnosticStatus, latched: how the last request ended, for a ros2_control user
+(no gripper_interfaces): outcome, stalled, object_detected, position_m, width_m, effort_n."""
+
+# --- the robot description: what robot_state_publisher would publish for this gripper ----------
+TOPIC_ROBOT_DESCRIPTION = 'robot_description'
+"""std_msgs/String, latched: the gripper's URDF (core/description.py)."""
+TOPIC_TF = '/tf'
+TOPIC_TF_STATIC = '/tf_static'
+
 SERVICE_GRASP = 'grasp'
 SERVICE_STOP = 'stop'
 SERVICE_RELEASE = 'release'
@@ -89,11 +104,23 @@ NODE_SUPERVISOR = 'supervisor'
 NODE_GRASP_ACTION = 'grasp_action_server'
 NODE_MOVE_ACTION = 'move_action_server'
 NODE_EXCITATION = 'excitation_server'
+NODE_DESCRIPTION = 'description_publisher'
 LAUNCHED_NODES = (NODE_PLANT, NODE_POSITION_CONTROLLER, NODE_FORCE_CONTROLLER, NODE_SUPERVISOR,
-                  NODE_GRASP_ACTION, NODE_MOVE_ACTION)
+                  NODE_GRASP_ACTION, NODE_MOVE_ACTION, NODE_DESCRIPTION)
 """What launch/gripper.launch.py starts, one process each; each the executable and the node."""
+ROBOT_STATE_PUBLISHER = 'robot_state_publisher'
+"""The package (and its node) the launch file runs instead of description_publisher where it is
+installed: one publisher of robot_description and /tf, never both."""
 
 FINGER_JOINT = 'finger_joint'
+"""The one joint: the moving finger's travel from fully open (m), in joint_states and the URDF."""
+ROBOT_NAME = 'gripper'
+"""The URDF's robot name."""
+FRAME_BASE = 'gripper_base'
+"""The base link, frame_id of every header the plant publishes and root of the URDF."""
+FRAME_FIXED_FINGER = 'fixed_finger'
+FRAME_MOVING_FINGER = 'moving_finger'
+"""The fingers' links; each frame sits on the finger's pad face."""
 
 LOOP_TOPICS: dict[str, str] = {
     TOPIC_TICK: 'gripper_interfaces/msg/PlantTick',
@@ -109,7 +136,16 @@ STATE_TOPICS: dict[str, str] = {
     TOPIC_SIM_STATUS: 'gripper_interfaces/msg/SimStatus',
 }
 GRAPH_TOPICS: dict[str, str] = {**LOOP_TOPICS, **STATE_TOPICS}
-"""Every topic of one gripper's graph but /clock, with its type: what a grasp bag records."""
+"""Every topic of one gripper's graph but /clock and the description, with its type."""
+DESCRIPTION_TOPICS: dict[str, str] = {
+    TOPIC_ROBOT_DESCRIPTION: 'std_msgs/msg/String',
+    TOPIC_TF: 'tf2_msgs/msg/TFMessage',
+    TOPIC_TF_STATIC: 'tf2_msgs/msg/TFMessage',
+}
+"""What description_publisher publishes (latched: robot_description and /tf_static)."""
+LATCHED_DESCRIPTION_TOPICS = (TOPIC_ROBOT_DESCRIPTION, TOPIC_TF_STATIC)
+BAG_TOPICS: dict[str, str] = {**GRAPH_TOPICS, **DESCRIPTION_TOPICS}
+"""What a grasp bag of a graph with its description records: a viewer draws the fingers."""
 
 
 def qualified(namespace: str, name: str) -> str:

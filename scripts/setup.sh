@@ -173,9 +173,17 @@ if command -v flock >/dev/null 2>&1; then
   flock "$setup_lock"
 fi
 BUILD_STAMP="$ROOT/install/.gripper_ros_build.sha256"
+# Interface packages a system ROS 2 has and the wheels do not (vendor/README.md): built here
+# only in wheels mode, and only while the environment has no package of that name.
+VENDORED=()
+if [[ "$MODE" == wheels ]]; then
+  for pkg in tf2_msgs; do
+    if [[ ! -f "$VENV/share/$pkg/package.xml" ]]; then VENDORED+=("$ROOT/vendor/$pkg"); fi
+  done
+fi
 build_hash="$( {
-  echo "mode=$MODE venv=$VENV"; cat "$PIP_STAMP"
-  find package.xml setup.py setup.cfg resource config launch gripper_interfaces scripts/setup.sh \
+  echo "mode=$MODE venv=$VENV vendored=${VENDORED[*]}"; cat "$PIP_STAMP"
+  find package.xml setup.py setup.cfg resource config launch urdf gripper_interfaces vendor scripts/setup.sh \
        -path gripper_interfaces/build -prune -o -type f -print 2>/dev/null | LC_ALL=C sort | xargs -r sha256sum
 } | sha256sum | cut -d' ' -f1)"
 
@@ -186,13 +194,13 @@ else
   # rosidl turns .msg/.srv into .idl at cmake *configure* time: a changed interface file is
   # not picked up by `cmake --build` alone, so force a re-configure when the interfaces changed.
   IFACE_STAMP="$ROOT/build/.gripper_interfaces.sha256"
-  iface_hash="$(find gripper_interfaces -type f -print | LC_ALL=C sort | xargs -r sha256sum | sha256sum | cut -d' ' -f1)"
+  iface_hash="$(find gripper_interfaces vendor -type f -print | LC_ALL=C sort | xargs -r sha256sum | sha256sum | cut -d' ' -f1)"
   FORCE_CONFIGURE=()
   if [[ "$(cat "$IFACE_STAMP" 2>/dev/null || true)" != "$iface_hash" ]]; then
     FORCE_CONFIGURE=(--cmake-force-configure)
     rm -f "$IFACE_STAMP"
   fi
-  log "colcon build --symlink-install (gripper_interfaces, gripper_ros)${FORCE_CONFIGURE:+ with cmake re-configure}"
+  log "colcon build --symlink-install (gripper_interfaces, ${VENDORED[*]:+${VENDORED[*]##*/} (vendored), }gripper_ros)${FORCE_CONFIGURE:+ with cmake re-configure}"
   # The repo root is itself a package, and colcon's crawler does not descend into a package's
   # subdirectories, so the nested gripper_interfaces/ must be named explicitly. colcon writes no
   # per-package logs without the colcon-output extension: the build's whole output (cmake,
@@ -200,7 +208,7 @@ else
   BUILD_LOG="$ROOT/log/setup_build.log"
   mkdir -p "$ROOT/log"
   colcon --log-base "$ROOT/log" build \
-    --paths "$ROOT" "$ROOT/gripper_interfaces" \
+    --paths "$ROOT" "$ROOT/gripper_interfaces" ${VENDORED[@]+"${VENDORED[@]}"} \
     --build-base "$ROOT/build" --install-base "$ROOT/install" \
     --symlink-install "${FORCE_CONFIGURE[@]}" \
     --event-handlers console_direct+ \

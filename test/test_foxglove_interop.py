@@ -22,7 +22,9 @@ from gripper_ros.bags.reader import read_bag
 from gripper_ros.bags.schema import find_interface_file, message_definition, SCHEMA_SEPARATOR
 from gripper_ros.bags.series import load_grasp_series
 from gripper_ros.nodes.recording import recorded_grasp
-from gripper_ros.wire import DEFAULT_NAMESPACE, GRAPH_TOPICS, qualified
+from gripper_ros.wire import (BAG_TOPICS, DEFAULT_NAMESPACE, DESCRIPTION_TOPICS, GRAPH_TOPICS,
+                              qualified, TOPIC_JOINT_STATES, TOPIC_ROBOT_DESCRIPTION, TOPIC_TF,
+                              TOPIC_TF_STATIC)
 from helpers import copy_mcap
 import numpy as np
 import pytest
@@ -31,7 +33,9 @@ import yaml
 INTEROP = Path(__file__).resolve().parent / 'interop'
 DECODER = INTEROP / 'decode_bag.mjs'
 RECORDED = {qualified(DEFAULT_NAMESPACE, t): msgtype for t, msgtype in GRAPH_TOPICS.items()}
-"""The topics of a fresh bag of the default gripper, with their types."""
+"""The graph's topics of the default gripper, with their types."""
+FRESH = {qualified(DEFAULT_NAMESPACE, t): msgtype for t, msgtype in BAG_TOPICS.items()}
+"""The topics of a fresh bag: the graph's and the description's (robot_description, /tf)."""
 HEADER_TYPES = sorted(t for t in set(GRAPH_TOPICS.values()) if not t.endswith(
     ('/PlantTick', '/StageReference', '/MotorCommand')))
 """The recorded types with a std_msgs/Header (the lockstep messages have none)."""
@@ -133,7 +137,7 @@ def _written_types(body: str, package: str) -> set[str]:
     return out
 
 
-@pytest.mark.parametrize('msgtype', sorted(set(GRAPH_TOPICS.values())))
+@pytest.mark.parametrize('msgtype', sorted(set(BAG_TOPICS.values())))
 def test_every_msg_line_names_a_type_as_a_field_writes_it(msgtype):
     sections = _sections(message_definition(msgtype))
     names = [name for name, _ in sections[1:]]
@@ -207,9 +211,14 @@ def fresh(tmp_path_factory):
     counts = {e['topic_metadata']['name']: e['message_count']
               for e in info['rosbag2_bagfile_information']['topics_with_message_count']}
     assert run.response.success, run.response.message
-    assert counts == run.recorded == run.published
-    assert set(counts) == set(RECORDED)
+    assert counts == run.recorded
+    assert {t: n for t, n in counts.items() if t in RECORDED} == run.published
+    assert set(counts) == set(FRESH)
     assert all(n > 0 for t, n in counts.items() if not t.endswith('/sim/status')), counts
+    # the latched description once, at the start; the moving finger with every joint state
+    description = qualified(DEFAULT_NAMESPACE, TOPIC_ROBOT_DESCRIPTION)
+    assert counts[description] == counts[TOPIC_TF_STATIC] == 1
+    assert counts[TOPIC_TF] == counts[qualified(DEFAULT_NAMESPACE, TOPIC_JOINT_STATES)]
     return run, Path(run.bag_dir), counts
 
 
@@ -239,8 +248,8 @@ def test_foxglove_decodes_every_message_of_a_fresh_bag(node, fresh):
     report = foxglove_decode(node, next(bag_dir.glob('*.mcap')))
     assert report['profile'] == 'ros2'
     topics = report['topics']
-    assert {t: e['schema'] for t, e in topics.items()} == RECORDED
-    assert {t: e['error'] for t, e in topics.items()} == dict.fromkeys(RECORDED, '')
+    assert {t: e['schema'] for t, e in topics.items()} == FRESH
+    assert {t: e['error'] for t, e in topics.items()} == dict.fromkeys(FRESH, '')
     assert {t: e['decoded'] for t, e in topics.items()} == counts
     assert {t: e['statistics_count'] for t, e in topics.items()} == counts
     assert all(e['failed'] == 0 and e['trailing_bytes'] == 0 for e in topics.values())
@@ -252,6 +261,11 @@ def test_foxglove_decodes_every_message_of_a_fresh_bag(node, fresh):
         assert entry['first'] == _plain(decoded[topic][0]), topic
         assert entry['last'] == _plain(decoded[topic][-1]), topic
     assert topics['/gripper/joint_states']['last']['name'] == ['finger_joint']
+    assert topics['/gripper/robot_description']['first']['data'].startswith('<?xml')
+    moving = topics[TOPIC_TF]['last']['transforms'][0]
+    assert (moving['header']['frame_id'], moving['child_frame_id']) == ('gripper_base',
+                                                                        'moving_finger')
+    assert set(DESCRIPTION_TOPICS) <= {t.removeprefix('/gripper/') for t in topics}
 
 
 def test_rosbags_decodes_every_message_of_a_fresh_bag(fresh):

@@ -20,7 +20,8 @@ from gripper_ros.nodes.graph import GraphOptions, GripperGraph
 from gripper_ros.nodes.plant_simulator_node import MAX_STEP_TICKS
 from gripper_ros.nodes.qos import SERVICE_QOS
 from gripper_ros.wire import (MAX_NAMESPACE_LENGTH, NODE_POSITION_CONTROLLER, Outcome, Phase,
-                              SERVICE_PAUSE, SERVICE_SET_OBJECT, SERVICE_STOP)
+                              SERVICE_PAUSE, SERVICE_SET_OBJECT, SERVICE_STOP, TOPIC_TF,
+                              TOPIC_TF_STATIC)
 import pytest
 from rcl_interfaces.msg import Parameter as ParameterMsg, ParameterType, ParameterValue
 from rcl_interfaces.srv import GetParameters, SetParameters
@@ -234,7 +235,8 @@ def test_grasp_demo_serves_records_and_claims_in_a_namespace_given_by_remap(tmp_
     bags = sorted(p for p in output.iterdir() if p.is_dir())
     assert bags, f'no bag under {output}'
     topics = {t.name for t in read_bag(bags[0]).topics.values() if t.count}
-    assert topics and all(t.startswith(f'/{namespace}/') for t in topics), sorted(topics)
+    assert topics and all(t.startswith(f'/{namespace}/') or t in (TOPIC_TF, TOPIC_TF_STATIC)
+                          for t in topics), sorted(topics)
 
 
 # ---------------------------------------------------------------- item 9: a plant alone

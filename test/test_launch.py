@@ -27,10 +27,12 @@ from launch.actions import DeclareLaunchArgument
 from launch.utilities import perform_substitutions
 from launch_ros.actions import Node
 
-EXECUTABLES = {'plant_simulator', 'position_controller', 'force_controller', 'supervisor',
-               'grasp_action_server', 'move_action_server'}
+from gripper_ros.nodes import launched_executables, robot_state_publisher_installed  # noqa: I100
+
+LAUNCHED = launched_executables(robot_state_publisher_installed())
+EXECUTABLES = {name for package, name in LAUNCHED if package == 'gripper_ros'}
 DEFAULTS = {'namespace': 'gripper', 'time_mode': 'realtime', 'real_time_factor': '1.0',
-            'publish_clock': 'true'}
+            'publish_clock': 'true', 'prefix': ''}
 
 
 def _installed_launch_file() -> Path:
@@ -55,8 +57,7 @@ def test_the_launch_arguments_and_their_defaults(description):
 
 def test_one_node_per_executable_of_this_package(description):
     nodes = [e for e in description.entities if isinstance(e, Node)]
-    assert sorted(n.node_executable for n in nodes) == sorted(EXECUTABLES)
-    assert {n.node_package for n in nodes} == {'gripper_ros'}
+    assert sorted((n.node_package, n.node_executable) for n in nodes) == sorted(LAUNCHED)
     prefix = Path(get_package_prefix('gripper_ros'))
     for name in EXECUTABLES:
         assert os.access(prefix / 'lib' / 'gripper_ros' / name, os.X_OK), name

@@ -15,17 +15,24 @@ from gripper_ros.bags.reader import read_bag
 from gripper_ros.nodes.graph import GraphOptions, GripperGraph
 from gripper_ros.nodes.recording import recorded_grasp
 from gripper_ros.nodes.startup import StartupError
-from gripper_ros.wire import (Outcome, qualified, TOPIC_FORCE_REFERENCE, TOPIC_MOTOR_COMMAND,
-                              TOPIC_POSITION_REFERENCE, TOPIC_TICK)
+from gripper_ros.wire import (DESCRIPTION_TOPICS, Outcome, qualified, TOPIC_FORCE_REFERENCE,
+                              TOPIC_JOINT_STATES, TOPIC_MOTOR_COMMAND, TOPIC_POSITION_REFERENCE,
+                              TOPIC_TF, TOPIC_TF_STATIC, TOPIC_TICK)
 import pytest
 
 OBJECTS = {'left': (0.05, 1.69), 'right': (0.10, 0.75)}
 
 
+GLOBAL = (TOPIC_TF, TOPIC_TF_STATIC)
+"""The description's global topics (as every robot's /tf), beside the namespace's."""
+
+
 def _check_bag(bag_dir, namespace):
     bag = read_bag(bag_dir)
     counts = {t.name: t.count for t in bag.topics.values() if t.count}
-    assert all(t.startswith(f'/{namespace}/') for t in counts), sorted(counts)
+    # its own topics, and its own fingers on the global /tf and /tf_static
+    assert all(t.startswith(f'/{namespace}/') or t in GLOBAL for t in counts), sorted(counts)
+    assert counts[TOPIC_TF] == counts[qualified(namespace, TOPIC_JOINT_STATES)]
     ticks = counts[qualified(namespace, TOPIC_TICK)]
     references = counts.get(qualified(namespace, TOPIC_POSITION_REFERENCE), 0) + \
         counts.get(qualified(namespace, TOPIC_FORCE_REFERENCE), 0)
@@ -65,7 +72,9 @@ def test_left_and_right_in_one_process_each_hold_their_object_with_a_clean_bag(
         assert run.response.final_width_m == pytest.approx(width, abs=1e-9)   # the rigid face
         assert not run.recording_error
         recorded = {t: n for t, n in run.recorded.items() if n}
-        assert recorded == {t: n for t, n in run.published.items() if n}   # its own, all
+        described = {qualified(name, t) for t in DESCRIPTION_TOPICS}
+        assert {t: n for t, n in recorded.items() if t not in described} == \
+            {t: n for t, n in run.published.items() if n}                  # its own, all
         assert _check_bag(run.bag_dir, name) == recorded
 
 

@@ -20,7 +20,8 @@ from gripper_ros.bags.reader import read_bag
 from gripper_ros.bags.recorder import unique_bag_dir
 from gripper_ros.nodes.graph import GraphOptions, GripperGraph
 from gripper_ros.nodes.recording import recorded_grasp, ServeRecorder
-from gripper_ros.wire import Outcome
+from gripper_ros.wire import (DESCRIPTION_TOPICS, LATCHED_DESCRIPTION_TOPICS, Outcome, qualified,
+                              TOPIC_JOINT_STATES, TOPIC_TF)
 import pytest
 
 FULL_AFTER_BYTES = 40_000          # a few chunks into the first grasp's bag
@@ -191,8 +192,15 @@ def test_the_tap_adds_no_subscription_and_counts_equal_published(graph, tmp_path
     """Recording taps the publishers: no DDS reader of its own, every message published seen."""
     run = recorded_grasp(graph, tmp_path / 'tapped', 0.1, 0.75)
     assert not run.recording_error
-    assert run.recorded == run.published and all(n > 0 for n in run.published.values())
-    assert read_bag(tmp_path / 'tapped').counts() == run.published
+    described = {qualified(graph.namespace, t) for t in DESCRIPTION_TOPICS}
+    assert {t: n for t, n in run.recorded.items() if t not in described} == run.published
+    assert all(n > 0 for n in run.published.values())
+    # the latched description once, at the start; a transform for every joint state
+    assert [run.recorded[qualified(graph.namespace, t)] for t in LATCHED_DESCRIPTION_TOPICS] \
+        == [1, 1]
+    assert run.recorded[TOPIC_TF] == run.published[qualified(graph.namespace,
+                                                             TOPIC_JOINT_STATES)]
+    assert read_bag(tmp_path / 'tapped').counts() == run.recorded
     tap = graph.recording_tap
     assert not [s for node in graph.nodes for s in node.subscriptions
                 if s.topic_name in tap.topics and node is graph.client_node]

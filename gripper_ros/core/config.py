@@ -187,6 +187,23 @@ class LoadGripParams:
 
 
 @dataclass(frozen=True)
+class GeometryParams:
+    """The base and fingers as the robot description draws them (core/description.py).
+
+    The closing axis is x: the fixed finger's pad face is at +max_travel_m/2, the moving
+    finger's at -max_travel_m/2 when fully open.
+    """
+
+    finger_thickness_m: float          # along the closing axis, behind the pad face
+    finger_width_m: float              # across the closing axis
+    finger_length_m: float             # from the top of the base to the fingertip
+    base_height_m: float               # from the mounting face to the top of the base
+    base_width_m: float                # across the closing axis (its length spans the travel)
+    base_mass_kg: float                # the base with motor and lead screw, a solid box
+    finger_mass_kg: float              # each finger with its pad, a solid box
+
+
+@dataclass(frozen=True)
 class PidGains:
     kc: float
     ki: float = 0.0
@@ -293,6 +310,7 @@ class GripperConfig:
     sensor_noise: SensorNoiseParams
     pad_sensor: PadSensorParams
     load_grip: LoadGripParams
+    geometry: GeometryParams
     source: str
     data: dict = field(default_factory=dict, compare=False, hash=False, repr=False)
     """The mapping the values were read from (what a bag records, what re-runs start from)."""
@@ -345,6 +363,7 @@ ADDED_LATER: dict[str, float | None] = {
     'sensor_noise': 0.0,                                  # ideal sensors
     'pad_sensor': SHIPPED,
     'load_grip': SHIPPED,
+    'geometry': SHIPPED,
 }
 
 
@@ -490,6 +509,13 @@ BOUNDS: dict[str, tuple[float, float]] = {
     'load_grip.min_samples': (1, 100000),
     'load_grip.release_rate_n_per_s': (1e-3, 1e6),
     'load_grip.overload_slip_s': (1e-4, 10.0),
+    'geometry.finger_thickness_m': (1e-4, 1.0),
+    'geometry.finger_width_m': (1e-4, 1.0),
+    'geometry.finger_length_m': (1e-4, 1.0),
+    'geometry.base_height_m': (1e-4, 1.0),
+    'geometry.base_width_m': (1e-4, 1.0),
+    'geometry.base_mass_kg': (1e-4, 100.0),
+    'geometry.finger_mass_kg': (1e-4, 100.0),
 }
 """Physically sensible bounds of every number in the config (``config/gripper.yaml`` lists
 them at its end; ``test_config`` ties that list to this table)."""
@@ -525,7 +551,7 @@ def known_keys() -> dict:
                           'contact_aware': leaves(ContactForceTuning)},
         'supervisor': leaves(SupervisorParams),
         'sensor_noise': leaves(SensorNoiseParams), 'pad_sensor': leaves(PadSensorParams),
-        'load_grip': leaves(LoadGripParams),
+        'load_grip': leaves(LoadGripParams), 'geometry': leaves(GeometryParams),
     }
 
 
@@ -741,8 +767,10 @@ def parse_config(data: dict, source: str = '<dict>') -> GripperConfig:
                           f'less than the load), got {grip.grip_margin!r}')
     if not grip.mu_safety <= 1.0:
         raise ConfigError(f'"load_grip.mu_safety" must be in (0, 1], got {grip.mu_safety!r}')
+    geometry = _build(GeometryParams, _section(data, 'geometry', source)
+                      if 'geometry' in data else {}, 'geometry')
     return GripperConfig(plant, contact, sensor, position, force, sup, noise, pads, grip,
-                         source, copy.deepcopy(data))
+                         geometry, source, copy.deepcopy(data))
 
 
 def load_config(path: str | os.PathLike | None = None) -> GripperConfig:

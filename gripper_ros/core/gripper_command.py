@@ -12,7 +12,7 @@ from __future__ import annotations
 import enum
 import math
 
-from gripper_ros.core.requests import MoveRequest, RequestError
+from gripper_ros.core.requests import check_move_limits, MoveRequest, RequestError
 from gripper_ros.wire import FINGER_JOINT, Outcome
 
 
@@ -69,10 +69,11 @@ def joint_state_fields(position_m: float, effort_n: float, velocity_mps: float |
             'effort': [float(effort_n)]}
 
 
-def result_fields(move_result, velocity_mps: float | None = None) -> dict:
+def result_fields(move_result, velocity_mps: float | None = None,
+                  joint: str = FINGER_JOINT) -> dict:
     """Return ParallelGripperCommand.Result's fields from a srv/Move answer and the velocity."""
     return {'state': joint_state_fields(move_result.position_m, move_result.effort_n,
-                                        velocity_mps),
+                                        velocity_mps, joint),
             'stalled': bool(move_result.stalled),
             'reached_goal': bool(move_result.reached_goal)}
 
@@ -88,3 +89,54 @@ def goal_end(move_result, allow_stalling: bool, cancel_requested: bool) -> GoalE
     if move_result.reached_goal or (allow_stalling and move_result.stalled):
         return GoalEnd.SUCCEEDED
     return GoalEnd.ABORTED
+
+
+class JointCommandStream:
+    """Which commands of a ``joint_commands`` stream become moves.
+
+    ros2_control's topic-based hardware publishes the command on every controller update while
+    the joint is away from it; only a new target (position, speed or effort) is a new move, a
+    repeat of the last one (the same numbers) is not. A command beyond the plant raises
+    RequestError and leaves the last target; the supervisor judges the rest of the move.
+    """
+
+    def __init__(self, plant, joint: str = FINGER_JOINT):
+        self.plant, self.joint = plant, joint
+        self.last: MoveRequest | None = None
+
+    def take(self, command) -> MoveRequest | None:
+        """Return the move of ``command`` (a JointState) if it is a new target, else None."""
+        move = move_request_of(command, self.plant.max_travel_m, self.joint)
+        check_move_limits(move, self.plant)
+        if move == self.last:
+            return None
+        self.last = move
+        return move
+
+
+_OK_OUTCOMES = frozenset({Outcome.MOVED, Outcome.STALLED, Outcome.HOLDING, Outcome.RELEASED})
+_HELD_OUTCOMES = frozenset({Outcome.MOVED, Outcome.STALLED, Outcome.HOLDING})
+LEVEL_OK, LEVEL_WARN, LEVEL_ERROR = 0, 1, 2
+"""diagnostic_msgs/DiagnosticStatus levels."""
+
+
+def grip_status_fields(outcome: int, contact: bool, position_m: float, force_n: float,
+                       travel_m: float, grasp_id: int) -> dict:
+    """Return the DiagnosticStatus fields of how a request ended, for ``gripper_status``.
+
+    ``stalled``: the finger stopped short of its goal on the effort limit (a move STALLED, as
+    GripperCommand's result). ``object_detected``: the force sensor saw contact during the
+    request and it ended with the object between the fingers (MOVED, STALLED or HOLDING).
+    Level OK for an outcome that did what was asked, ERROR for FAULT, WARN otherwise.
+    """
+    outcome = Outcome(outcome)
+    level = LEVEL_OK if outcome in _OK_OUTCOMES else \
+        LEVEL_ERROR if outcome is Outcome.FAULT else LEVEL_WARN
+    values = {'outcome': outcome.name,
+              'stalled': outcome is Outcome.STALLED,
+              'object_detected': bool(contact) and outcome in _HELD_OUTCOMES,
+              'position_m': position_m, 'width_m': travel_m - position_m, 'effort_n': force_n,
+              'grasp_id': grasp_id}
+    text = {k: (str(v).lower() if isinstance(v, bool) else
+                format(v, '.6g') if isinstance(v, float) else str(v)) for k, v in values.items()}
+    return {'level': level, 'message': outcome.name.lower(), 'values': text}

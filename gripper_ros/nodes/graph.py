@@ -19,6 +19,7 @@ from gripper_interfaces.srv import Grasp, Move, SetObject, SimStep
 from gripper_ros.core.config import load_config
 from gripper_ros.core.stages import (DEFAULT_APPROACH_FORCE_MARGIN, DEFAULT_FORCE_CONTROLLER,
                                      DEFAULT_POSITION_CONTROLLER)
+from gripper_ros.nodes.description_node import DescriptionPublisher
 from gripper_ros.nodes.excitation_node import ExcitationServer
 from gripper_ros.nodes.force_controller_node import ForceControllerNode
 from gripper_ros.nodes.grasp_action_node import GraspActionServer
@@ -61,6 +62,8 @@ class GraphOptions:
     approach_force_margin: float = DEFAULT_APPROACH_FORCE_MARGIN
     action_server: bool = True       # also serve the grasp and the move as actions
     check_names: bool = True         # refuse to start when the namespace is taken
+    description: bool = True         # robot_description, /tf_static and /tf (and in bags)
+    prefix: str = ''                 # the xacro's prefix: the joint's and the URDF's names
     supervisor_parameters: dict = field(default_factory=dict)
     plant_parameters: dict = field(default_factory=dict)
 
@@ -89,7 +92,8 @@ class GripperGraph:
 
     def _build(self, opts: GraphOptions, kw: dict) -> None:
         cfg = [Parameter('config_file', value=opts.config_file)]
-        self.plant = PlantSimulatorNode(parameter_overrides=cfg + [
+        named = cfg + [Parameter('prefix', value=opts.prefix)]
+        self.plant = PlantSimulatorNode(parameter_overrides=named + [
             Parameter('time_mode', value=opts.time_mode),
             Parameter('real_time_factor', value=float(opts.real_time_factor)),
             Parameter('state_rate_hz', value=float(opts.state_rate_hz)),
@@ -114,10 +118,14 @@ class GripperGraph:
         if opts.action_server:
             self.action_server = GraspActionServer(parameter_overrides=cfg, **kw)
             self.nodes.append(self.action_server)
-            self.move_action_server = MoveActionServer(parameter_overrides=cfg, **kw)
+            self.move_action_server = MoveActionServer(parameter_overrides=named, **kw)
             self.nodes.append(self.move_action_server)
             self.excitation_server = ExcitationServer(parameter_overrides=cfg, **kw)
             self.nodes.append(self.excitation_server)
+        self.description = None
+        if opts.description:
+            self.description = DescriptionPublisher(parameter_overrides=named, **kw)
+            self.nodes.append(self.description)
         self.executor = make_executor(opts.executor, self.context)
         for node in self.nodes:
             self.executor.add_node(node)
@@ -291,7 +299,8 @@ class GripperGraph:
     def published_counts(self) -> Counter:
         """Count the messages published so far on every graph topic (relative names).
 
-        These are the nodes' own counters, repeats of an unanswered tick included.
+        These are the nodes' own counters, repeats of an unanswered tick included; not the
+        description's (/tf follows joint_states one for one).
         """
         total: Counter = Counter()
         for node in (self.plant, self.supervisor, self.position, self.force):

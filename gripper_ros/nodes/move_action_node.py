@@ -15,6 +15,14 @@ as ``grasp_action_server`` is for the grasp:
   the goal, and on a stall only with ``allow_stalling`` (as ros2_controllers' parallel gripper
   controller). Feedback and result are the finger's JointState, stamped with the simulated
   time of the newest status; its velocity is the newest ``joint_states`` sample's.
+- ``joint_commands`` (sensor_msgs/JointState), what ros2_control's JointStateTopicSystem
+  publishes: each new target (``finger_joint`` position, optional velocity and effort as the
+  move's speed and effort limits) becomes a move; a repeat of the last target is not one, a
+  target that comes during a move is sent when it ends (the newest wins). A bad command (not
+  finite, out of range, another joint) is refused with one warning line and moves nothing.
+- ``gripper_status`` (diagnostic_msgs/DiagnosticStatus, latched): how the last request ended
+  (``supervisor/outcome`` in standard types), ``stalled`` and ``object_detected`` among its
+  values, for a ros2_control user who reads no gripper_interfaces message.
 
 One goal at a time (the gripper does one request at a time): a goal while another executes is
 aborted at once (REFUSED in our result). Feedback is throttled to ``feedback_period_s`` of wall
@@ -25,31 +33,35 @@ from __future__ import annotations
 import sys
 import time
 
+from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 from gripper_interfaces.action import Move as MoveAction
 from gripper_interfaces.msg import SupervisorStatus
 from gripper_interfaces.srv import Move
-from gripper_ros.core.gripper_command import (goal_end, GoalEnd, joint_state_fields,
+from gripper_ros.core.gripper_command import (goal_end, GoalEnd, grip_status_fields,
+                                              joint_state_fields, JointCommandStream,
                                               move_request_of, result_fields)
 from gripper_ros.core.requests import check_move_limits, RequestError
 from gripper_ros.nodes.actions import accept_goal, cancel_by_stop
 from gripper_ros.nodes.loop_io import read_status, StatusView
 from gripper_ros.nodes.names import default_namespace
-from gripper_ros.nodes.parameters import declare_config, follow
+from gripper_ros.nodes.parameters import declare_config, declare_joint_name, follow
 from gripper_ros.nodes.process import run_node
-from gripper_ros.nodes.qos import GRAPH_QOS, SERVICE_QOS
-from gripper_ros.wire import (ACTION_GRIPPER_CMD, ACTION_MOVE, NODE_MOVE_ACTION, Outcome, Phase,
-                              SERVICE_MOVE, SERVICE_STOP, stamp_ns, TOPIC_JOINT_STATES,
-                              TOPIC_STATUS)
+from gripper_ros.nodes.qos import GRAPH_QOS, LATCHED_QOS, SERVICE_QOS
+from gripper_ros.text import one_line
+from gripper_ros.wire import (ACTION_GRIPPER_CMD, ACTION_MOVE, NODE_MOVE_ACTION,
+                              Outcome, Phase, ROBOT_NAME, SERVICE_MOVE, SERVICE_STOP, stamp_ns,
+                              TOPIC_GRIPPER_STATUS, TOPIC_JOINT_COMMANDS, TOPIC_JOINT_STATES,
+                              TOPIC_OUTCOME, TOPIC_STATUS)
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
 from rclpy.action import ActionServer, GoalResponse
 from rclpy.node import Node
 from rclpy.serialization import deserialize_message
+from sensor_msgs.msg import JointState
 from std_msgs.msg import Header
 from std_srvs.srv import Trigger
 
 try:  # a system ROS 2 Jazzy has it; the ros-jazzy wheels do not
     from control_msgs.action import ParallelGripperCommand
-    from sensor_msgs.msg import JointState
 except ImportError:  # pragma: no cover - depends on the installation
     ParallelGripperCommand = None
 
@@ -90,9 +102,22 @@ class MoveActionServer(Node):
                                       cancel_callback=self._on_cancel)]
         self.gripper_command_served = ParallelGripperCommand is not None
         self._joint_data: bytes | None = None    # the newest joint_states, read when needed
+        self.create_subscription(JointState, TOPIC_JOINT_STATES, self._on_joint_state,
+                                 GRAPH_QOS, raw=True)
+        self.joint_name = declare_joint_name(self)
+        self._commands = JointCommandStream(self.plant, self.joint_name)
+        self._command_call = None                # the move of a joint command being done
+        self._command_next = None                # a newer target, sent when that one ends
+        self.joint_commands_refused = 0
+        self.joint_command_answers: list[Move.Response] = []
+        self.create_subscription(JointState, TOPIC_JOINT_COMMANDS, self._on_joint_command,
+                                 GRAPH_QOS)
+        self._grip_status_pub = self.create_publisher(DiagnosticStatus, TOPIC_GRIPPER_STATUS,
+                                                      LATCHED_QOS)
+        self.grip_statuses_published = 0
+        self.create_subscription(SupervisorStatus, TOPIC_OUTCOME, self._on_outcome, LATCHED_QOS,
+                                 raw=True)
         if self.gripper_command_served:
-            self.create_subscription(JointState, TOPIC_JOINT_STATES, self._on_joint_state,
-                                     GRAPH_QOS, raw=True)
             self._servers.append(ActionServer(self, ParallelGripperCommand, ACTION_GRIPPER_CMD,
                                               execute_callback=self._execute_gripper_command,
                                               goal_callback=self._check_gripper_command,
@@ -102,8 +127,8 @@ class MoveActionServer(Node):
     def _check_gripper_command(self, goal_request) -> GoalResponse:
         """Reject a command that is no move of this gripper (as ros2_controllers does)."""
         try:
-            check_move_limits(move_request_of(goal_request.command, self.travel_m),
-                              self.plant)
+            check_move_limits(move_request_of(goal_request.command, self.travel_m,
+                                              self.joint_name), self.plant)
         except RequestError as exc:
             self.get_logger().warning(f'{ACTION_GRIPPER_CMD} goal rejected: {exc}')
             return GoalResponse.REJECT
@@ -142,13 +167,14 @@ class MoveActionServer(Node):
         return result
 
     async def _execute_gripper_command(self, goal_handle):
-        move = move_request_of(goal_handle.request.command, self.travel_m)   # checked at goal
+        move = move_request_of(goal_handle.request.command, self.travel_m,
+                               self.joint_name)                     # checked at goal
         request = Move.Request(width_m=move.width_m, speed_mps=move.speed_mps,
                                max_effort_n=move.max_effort_n)
         response = await self._call_move(goal_handle, request, self._gripper_feedback)
         if response.outcome == Outcome.REFUSED:
             self.get_logger().warning(f'{ACTION_GRIPPER_CMD} goal aborted: {response.message}')
-        fields = result_fields(response, self._velocity_mps())
+        fields = result_fields(response, self._velocity_mps(), self.joint_name)
         result = ParallelGripperCommand.Result(
             state=JointState(header=self._status_header(), **fields.pop('state')), **fields)
         self._end(goal_handle, goal_end(response, self.allow_stalling,
@@ -175,7 +201,8 @@ class MoveActionServer(Node):
     def _gripper_feedback(self, msg: StatusView):
         return ParallelGripperCommand.Feedback(state=JointState(
             header=self._status_header(msg),
-            **joint_state_fields(msg.position_m, msg.force_n, self._velocity_mps())))
+            **joint_state_fields(msg.position_m, msg.force_n, self._velocity_mps(),
+                                 self.joint_name)))
 
     def _status_header(self, msg: StatusView | None = None) -> Header:
         """Return a header stamped with the simulated time of ``msg`` (the newest status)."""
@@ -185,6 +212,57 @@ class MoveActionServer(Node):
         if msg is not None:
             header.stamp.sec, header.stamp.nanosec = msg.sec, msg.nanosec
         return header
+
+    # ------------------------------------------------------------------ joint_commands
+    def _on_joint_command(self, msg: JointState) -> None:
+        """Make a new target a move; refuse a bad command with one line, moving nothing."""
+        try:
+            move = self._commands.take(msg)
+        except RequestError as exc:
+            self.joint_commands_refused += 1
+            self.get_logger().warning(f'{TOPIC_JOINT_COMMANDS} refused: {one_line(exc)}',
+                                      throttle_duration_sec=1.0)
+            return
+        if move is None:
+            return
+        request = Move.Request(width_m=move.width_m, speed_mps=move.speed_mps,
+                               max_effort_n=move.max_effort_n)
+        if self._command_call is not None:
+            self._command_next = request         # the newest target wins
+            return
+        self._send_joint_command(request)
+
+    def _send_joint_command(self, request: Move.Request) -> None:
+        if not self._move.service_is_ready():
+            self.get_logger().warning(f'{TOPIC_JOINT_COMMANDS}: {SERVICE_MOVE} is not '
+                                      'available; command ignored')
+            self._commands.last = None           # the next command tries again
+            return
+        self._command_call = self._move.call_async(request)
+        self._command_call.add_done_callback(self._on_joint_command_done)
+
+    def _on_joint_command_done(self, future) -> None:
+        self._command_call = None
+        response = future.result()
+        if response is not None:
+            self.joint_command_answers.append(response)
+            if response.outcome == Outcome.REFUSED:
+                self.get_logger().warning(f'{TOPIC_JOINT_COMMANDS}: move refused: '
+                                          f'{one_line(response.message)}')
+        request, self._command_next = self._command_next, None
+        if request is not None:
+            self._send_joint_command(request)
+
+    def _on_outcome(self, data: bytes) -> None:
+        """Publish how the request ended as a DiagnosticStatus on gripper_status."""
+        msg = read_status(data)
+        fields = grip_status_fields(msg.outcome, msg.contact, msg.position_m, msg.force_n,
+                                    self.travel_m, msg.grasp_id)
+        self._grip_status_pub.publish(DiagnosticStatus(
+            level=bytes([fields['level']]), name=self.joint_name, hardware_id=ROBOT_NAME,
+            message=fields['message'],
+            values=[KeyValue(key=k, value=v) for k, v in fields['values'].items()]))
+        self.grip_statuses_published += 1
 
     def _on_joint_state(self, data: bytes) -> None:
         self._joint_data = data

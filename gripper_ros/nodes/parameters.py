@@ -19,7 +19,9 @@ import copy
 from typing import Callable
 
 from gripper_ros.core.config import GripperConfig, load_config, parse_config
+from gripper_ros.nodes.startup import StartupError
 from gripper_ros.text import one_line
+from gripper_ros.wire import FINGER_JOINT, NAME_CHARACTERS
 from rcl_interfaces.msg import ParameterDescriptor, ParameterType, SetParametersResult
 from rclpy.node import Node
 from rclpy.parameter import Parameter
@@ -187,3 +189,18 @@ def declare_config(node: Node) -> GripperConfig:
     path = node.declare_parameter('config_file', '', ParameterDescriptor(
         description='YAML file, read once at start-up', read_only=True)).value
     return load_config(path or None)
+
+
+def declare_joint_name(node: Node) -> str:
+    """Declare ``prefix`` (read-only) and return the joint's name: ``prefix`` + finger_joint.
+
+    The xacro's ``prefix`` names the ros2_control joint so; the simulator's joint_states and
+    joint_commands must carry the same name for JointStateTopicSystem to find it.
+    """
+    prefix = node.declare_parameter('prefix', '', ParameterDescriptor(
+        description=f'put before {FINGER_JOINT} in joint_states and joint_commands (the '
+                    "xacro's prefix, e.g. left_)", read_only=True)).value
+    if not set(prefix) <= NAME_CHARACTERS:
+        raise StartupError(f'parameter "prefix" may hold only ASCII letters, digits and _, '
+                           f'got {prefix!r}')
+    return prefix + FINGER_JOINT

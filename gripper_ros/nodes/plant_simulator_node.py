@@ -36,15 +36,15 @@ from gripper_ros.nodes.loop_io import (clock_template, decode, force_sensor_temp
                                        joint_state_template, object_state_template,
                                        read_status, split_ns, StatusView)
 from gripper_ros.nodes.names import default_namespace
-from gripper_ros.nodes.parameters import ConfigParameters
+from gripper_ros.nodes.parameters import ConfigParameters, declare_joint_name
 from gripper_ros.nodes.process import run_node
 from gripper_ros.nodes.qos import GRAPH_QOS, SERVICE_QOS
 from gripper_ros.nodes.services import DeferredService
 from gripper_ros.nodes.stamps import ns_to_time
 from gripper_ros.nodes.startup import StartupError
 from gripper_ros.wire import (CDR_LITTLE_ENDIAN, COMMAND_LAYOUT, Controller,
-                              DEFAULT_STATE_RATE_HZ, FINGER_JOINT, FORCE_SAMPLE_S, NODE_PLANT,
-                              Outcome, Phase, REPUBLISH_AFTER_S,
+                              DEFAULT_STATE_RATE_HZ, FINGER_JOINT, FORCE_SAMPLE_S, FRAME_BASE,
+                              NODE_PLANT, Outcome, Phase, REPUBLISH_AFTER_S,
                               SERVICE_PAUSE, SERVICE_RESUME, SERVICE_SET_OBJECT, SERVICE_STEP,
                               TICK_LAYOUT, TIME_MODE_CHOICES, TimeMode, TOPIC_CLOCK,
                               TOPIC_FORCE_SENSOR, TOPIC_JOINT_STATES, TOPIC_LOAD_ACCELERATION,
@@ -89,8 +89,9 @@ class PlantSimulatorNode(Node):
         self.config = self.parameters.config
         self.side = PlantSide(make_plant(self.config))
         self.plant = self.side.plant
-        self.frame_id = self._param('frame_id', 'gripper_base',
+        self.frame_id = self._param('frame_id', FRAME_BASE,
                                     'frame_id of every published header', read_only=True)
+        self.joint_name = declare_joint_name(self)
         mode = self._param('time_mode', TimeMode.REALTIME.parameter,
                            'realtime: paced to the wall clock, always advancing | fast: as '
                            'fast as the graph goes while a request runs',
@@ -164,7 +165,7 @@ class PlantSimulatorNode(Node):
         self._pace_timer.cancel()
         self.create_timer(HOUSEKEEPING_PERIOD_S, self._housekeeping, clock=self._steady)
 
-        self._joint_layout = joint_state_template(FINGER_JOINT, self.frame_id)
+        self._joint_layout = joint_state_template(self.joint_name, self.frame_id)
         self._force_layout = force_sensor_template(self.frame_id)
         self._object_layout = object_state_template(self.frame_id)
         self._clock_layout = clock_template()
@@ -345,6 +346,7 @@ class PlantSimulatorNode(Node):
         self._joint_pub.publish(self._joint_layout.pack(
             sec, nanosec, tick.position_m, tick.velocity_mps, tick.force_n))
         self.published[TOPIC_JOINT_STATES] += 1
+        self.last_state_ns = tick.stamp_ns
         self._force_pub.publish(self._force_layout.pack(
             sec, nanosec, tick.force_n, tick.peak_force_n, tick.sensor_voltage_v))
         self.published[TOPIC_FORCE_SENSOR] += 1

@@ -25,7 +25,7 @@ from gripper_ros.bags.recorder import (BAG_FORMAT, BagRecorder, BagRecorderError
                                        RecordingError, unique_bag_dir)
 from gripper_ros.core.stages import Reference
 from gripper_ros.nodes.services import wait_until
-from gripper_ros.wire import (GRAPH_TOPICS, LOOP_TOPICS, Outcome, Phase, qualified,
+from gripper_ros.wire import (BAG_TOPICS, GRAPH_TOPICS, LOOP_TOPICS, Outcome, Phase, qualified,
                               REFERENCE_LAYOUT, TimeMode, TOPIC_FORCE_REFERENCE,
                               TOPIC_MOTOR_COMMAND, TOPIC_POSITION_REFERENCE, TOPIC_TICK)
 from rclpy.serialization import serialize_message
@@ -75,8 +75,9 @@ class GraphTap:
     def __init__(self, graph, topics: dict[str, str] | None = None):
         self.graph = graph
         self.node = graph.client_node
+        default = BAG_TOPICS if getattr(graph, 'description', None) is not None else GRAPH_TOPICS
         self.topics = {qualified(graph.namespace, t): msgtype
-                       for t, msgtype in (topics or GRAPH_TOPICS).items()}
+                       for t, msgtype in (topics or default).items()}
         self.sink: BagRecorder | None = None
         self.error = ''                          # why the last sink stopped early
         self.on_reference = None                 # called with each reference's values
@@ -151,12 +152,27 @@ class GraphTap:
             self._start_ns = self._last_tick[0]
             self.sink = sink
             self._held = None
+            self._write_latched(sink)
             for topic, data, stamp in self._this_tick:     # the tick, and what came of it
                 if stamp == self._start_ns:
                     self._write(sink, topic, data, stamp)
             return
         self.sink = None if self._start_at_next_tick else sink
         self._pending_sink = sink
+        if self.sink is not None:
+            self._write_latched(sink)
+
+    def _write_latched(self, sink: BagRecorder) -> None:
+        """Begin with each latched message a node holds (robot_description, /tf_static).
+
+        They were published once, before the window; a late subscriber gets them, so a bag
+        does too, as ``ros2 bag record`` gets them when it subscribes.
+        """
+        for node in self.graph.nodes:
+            for topic, msg in getattr(node, 'latched', {}).items():
+                name = qualified(self.graph.namespace, topic)
+                if name in self.topics:
+                    self._write(sink, name, serialize_message(msg))
 
     def flush(self) -> None:
         """Write a tick still held for its decision (time stands still: none is coming)."""
@@ -224,6 +240,7 @@ class GraphTap:
             if self._start_at_next_tick:
                 self._start_at_next_tick = False
                 self._start_ns, self.sink = stamp, self._pending_sink
+                self._write_latched(self.sink)
             if self._end_ns == -1 and self.sink is not None:
                 self._end_ns = stamp
             if self.on_tick is not None:
@@ -410,8 +427,13 @@ def drain_published(graph, tap: GraphTap, recorder: BagRecorder, before: dict,
                     received_before: dict, timeout_s: float = 10.0) -> None:
     """Wait until the tap has received every message published since ``before``.
 
-    Time stands still then; a tick the tap still holds for its decision is written.
+    Time stands still then; a tick the tap still holds for its decision is written. /tf
+    follows each joint_states through description_publisher: its last one is waited for first.
     """
+    description = getattr(graph, 'description', None)
+    if description is not None:
+        wait_until(lambda: recorder.closed or
+                   description.last_state_ns == graph.plant.last_state_ns, timeout_s)
     published = _published_since(graph, tap, before)
     wait_until(lambda: recorder.closed or all(
         tap.received[t] - received_before[t] >= n for t, n in published.items()), timeout_s)

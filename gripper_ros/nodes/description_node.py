@@ -1,0 +1,111 @@
+"""description_publisher: the gripper's robot description and the transforms of its fingers.
+
+What robot_state_publisher does for this one gripper, without xacro or a URDF parser, so that
+it runs on the ros-jazzy wheels too: ``robot_description`` (std_msgs/String, latched), the URDF
+written from the node's config (:mod:`gripper_ros.core.description`); ``/tf_static`` (latched)
+with the fixed finger on the base; and ``/tf`` with the moving finger at the position of each
+``joint_states`` message, stamped with that message's (simulated) time. ``frame_prefix`` is
+put before every frame id, as robot_state_publisher's parameter of that name does; ``prefix``
+before every name of the URDF (the xacro's prefix) and the joint it reads. On a system ROS 2,
+robot_state_publisher with ``urdf/gripper.urdf`` publishes the same frames.
+"""
+from __future__ import annotations
+
+import math
+import sys
+
+from builtin_interfaces.msg import Time
+from geometry_msgs.msg import TransformStamped
+from gripper_ros.core.description import finger_frames, urdf_text
+from gripper_ros.nodes.names import default_namespace
+from gripper_ros.nodes.parameters import declare_config, declare_joint_name
+from gripper_ros.nodes.process import run_node
+from gripper_ros.nodes.qos import GRAPH_QOS, LATCHED_QOS
+from gripper_ros.nodes.startup import StartupError
+from gripper_ros.wire import (FINGER_JOINT, FRAME_BASE, FRAME_FIXED_FINGER, FRAME_MOVING_FINGER,
+                              NAME_CHARACTERS, NODE_DESCRIPTION, TOPIC_JOINT_STATES,
+                              TOPIC_ROBOT_DESCRIPTION, TOPIC_TF, TOPIC_TF_STATIC)
+from rcl_interfaces.msg import ParameterDescriptor
+from rclpy.node import Node
+from sensor_msgs.msg import JointState
+from std_msgs.msg import String
+from tf2_msgs.msg import TFMessage
+
+
+def _transform(stamp, parent: str, child: str, xyz) -> TransformStamped:
+    msg = TransformStamped()
+    msg.header.stamp = stamp
+    msg.header.frame_id = parent
+    msg.child_frame_id = child
+    msg.transform.translation.x, msg.transform.translation.y, msg.transform.translation.z = (
+        float(v) for v in xyz)
+    msg.transform.rotation.w = 1.0
+    return msg
+
+
+class DescriptionPublisher(Node):
+    """robot_description, /tf_static and /tf of the gripper, from its config and joint_states."""
+
+    def __init__(self, **kwargs):
+        super().__init__(NODE_DESCRIPTION, **default_namespace(kwargs))
+        config = declare_config(self)
+        self.joint_name = declare_joint_name(self)
+        name_prefix = self.joint_name[:-len(FINGER_JOINT)]  # the URDF's (the xacro's prefix)
+        prefix = self.declare_parameter('frame_prefix', '', ParameterDescriptor(
+            description='put before every frame id of /tf and /tf_static (e.g. left/)',
+            read_only=True)).value
+        if not set(prefix) <= NAME_CHARACTERS | {'/'}:
+            raise StartupError(f'parameter "frame_prefix" may hold only ASCII letters, digits, '
+                               f'_ and /, got {prefix!r}')
+        self.frames = finger_frames(config)
+        self.urdf = urdf_text(config, name_prefix)
+        prefix += name_prefix
+        self._base = prefix + FRAME_BASE
+        self._moving = prefix + FRAME_MOVING_FINGER
+        self.published = {TOPIC_TF: 0, TOPIC_TF_STATIC: 0, TOPIC_ROBOT_DESCRIPTION: 0}
+        self.skipped = 0                       # joint_states without a finite finger position
+        self.last_state_ns: int | None = None  # the stamp of the last joint_states handled
+        self._description_pub = self.create_publisher(String, TOPIC_ROBOT_DESCRIPTION,
+                                                      LATCHED_QOS)
+        self._static_pub = self.create_publisher(TFMessage, TOPIC_TF_STATIC, LATCHED_QOS)
+        self._tf_pub = self.create_publisher(TFMessage, TOPIC_TF, GRAPH_QOS)
+        self.create_subscription(JointState, TOPIC_JOINT_STATES, self._on_joint_states,
+                                 GRAPH_QOS)
+        self.latched = {TOPIC_ROBOT_DESCRIPTION: String(data=self.urdf),
+                        TOPIC_TF_STATIC: TFMessage(transforms=[_transform(
+                            Time(), self._base,
+                            prefix + FRAME_FIXED_FINGER, self.frames.fixed_finger_xyz)])}
+        """The latched messages, as published once at start: what a recording starts with."""
+        self._description_pub.publish(self.latched[TOPIC_ROBOT_DESCRIPTION])
+        self._static_pub.publish(self.latched[TOPIC_TF_STATIC])
+        self.published[TOPIC_ROBOT_DESCRIPTION] += 1
+        self.published[TOPIC_TF_STATIC] += 1
+
+    def _on_joint_states(self, msg: JointState) -> None:
+        """Publish the moving finger's transform at the joint position, at the message's stamp."""
+        try:
+            self._publish_finger(msg)
+        finally:
+            stamp = msg.header.stamp
+            self.last_state_ns = stamp.sec * 1_000_000_000 + stamp.nanosec
+
+    def _publish_finger(self, msg: JointState) -> None:
+        try:
+            position_m = msg.position[list(msg.name).index(self.joint_name)]
+        except (ValueError, IndexError):
+            position_m = math.nan
+        if not math.isfinite(position_m):
+            self.skipped += 1
+            return
+        self._tf_pub.publish(TFMessage(transforms=[_transform(
+            msg.header.stamp, self._base, self._moving,
+            self.frames.moving_finger_xyz(position_m))]))
+        self.published[TOPIC_TF] += 1
+
+
+def main(args=None):
+    return run_node(DescriptionPublisher, NODE_DESCRIPTION, args)
+
+
+if __name__ == '__main__':
+    sys.exit(main())

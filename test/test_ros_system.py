@@ -1,0 +1,197 @@
+"""The gripper in a ROS system, over the real graph and DDS: its description, /tf, joint_commands.
+
+One graph for the module: a late subscriber gets robot_description and /tf_static; a
+JointState on ``joint_commands`` (what ros2_control's JointStateTopicSystem publishes) closes
+the finger onto an object with the command's effort limit, joint_states' effort (the applied
+force) never passes it, /tf follows the finger, gripper_status says stalled on an object, and
+bad commands are refused without moving anything.
+"""
+from __future__ import annotations
+
+import math
+import threading
+import xml.etree.ElementTree as ET
+
+from diagnostic_msgs.msg import DiagnosticStatus
+from gripper_ros.core.config import load_config
+from gripper_ros.core.description import urdf_text
+from gripper_ros.core.gripper_command import grip_status_fields
+from gripper_ros.nodes.graph import GraphOptions, GripperGraph
+from gripper_ros.nodes.qos import GRAPH_QOS, LATCHED_QOS
+from gripper_ros.nodes.services import wait_until
+from gripper_ros.wire import (FINGER_JOINT, FRAME_BASE, FRAME_FIXED_FINGER, FRAME_MOVING_FINGER,
+                              Outcome, qualified, TOPIC_GRIPPER_STATUS, TOPIC_JOINT_COMMANDS,
+                              TOPIC_JOINT_STATES, TOPIC_ROBOT_DESCRIPTION, TOPIC_TF,
+                              TOPIC_TF_STATIC)
+import pytest
+from sensor_msgs.msg import JointState
+from std_msgs.msg import String
+from tf2_msgs.msg import TFMessage
+
+CONFIG = load_config()
+TRAVEL_M = CONFIG.plant.max_travel_m
+OBJECT_WIDTH_M = 0.05
+EFFORT_N = 10.0
+EFFORT_TOLERANCE = 0.05
+"""How far the measured force may pass a move's effort limit (the rigid contact: none)."""
+
+
+@pytest.fixture(scope='module')
+def graph():
+    with GripperGraph.in_own_context() as g:
+        placed = g.set_object(OBJECT_WIDTH_M)
+        assert placed.success, placed.message
+        g.wait_still()
+        yield g
+
+
+class Listener:
+    """The newest message of each topic a test node subscribes to."""
+
+    def __init__(self, graph, topics: dict):
+        self.newest, self.count = {}, dict.fromkeys(topics, 0)
+        self.every = {topic: [] for topic in topics}
+        self.lock = threading.Lock()
+        node = graph.client_node
+        for topic, (msgtype, qos) in topics.items():
+            node.create_subscription(msgtype, qualified(graph.namespace, topic),
+                                     lambda msg, t=topic: self._take(t, msg), qos)
+
+    def _take(self, topic, msg) -> None:
+        with self.lock:
+            self.newest[topic] = msg
+            self.every[topic].append(msg)
+            self.count[topic] += 1
+
+
+def _command(position, effort=(), velocity=(), name=(FINGER_JOINT,)) -> JointState:
+    return JointState(name=list(name), position=list(position), velocity=list(velocity),
+                      effort=list(effort))
+
+
+def _publisher(graph):
+    node = graph.client_node
+    pub = node.create_publisher(JointState, qualified(graph.namespace, TOPIC_JOINT_COMMANDS),
+                                GRAPH_QOS)
+    assert wait_until(lambda: pub.get_subscription_count() > 0, 10.0)
+    return pub
+
+
+def test_a_late_subscriber_gets_the_description_and_the_fixed_finger(graph):
+    seen = Listener(graph, {TOPIC_ROBOT_DESCRIPTION: (String, LATCHED_QOS),
+                            TOPIC_TF_STATIC: (TFMessage, LATCHED_QOS)})
+    assert wait_until(lambda: all(seen.count.values()), 10.0), seen.count
+    assert seen.newest[TOPIC_ROBOT_DESCRIPTION].data == urdf_text(CONFIG)
+    (fixed,) = seen.newest[TOPIC_TF_STATIC].transforms
+    assert (fixed.header.frame_id, fixed.child_frame_id) == (FRAME_BASE, FRAME_FIXED_FINGER)
+    assert fixed.transform.translation.x == pytest.approx(TRAVEL_M / 2)
+
+
+def test_a_joint_command_closes_on_the_object_with_its_effort_limit(graph):
+    seen = Listener(graph, {TOPIC_TF: (TFMessage, GRAPH_QOS),
+                            TOPIC_JOINT_STATES: (JointState, GRAPH_QOS)})
+    answers = graph.move_action_server.joint_command_answers
+    before = len(answers)
+    pub = _publisher(graph)
+    command = _command([TRAVEL_M - 0.01], effort=[EFFORT_N])     # 1 cm past the object's face
+    for _ in range(5):                       # a stream, as JointStateTopicSystem sends it
+        pub.publish(command)
+    assert wait_until(lambda: len(answers) > before, 60.0)
+    graph.wait_still()
+    assert len(answers) == before + 1        # the repeats were no new moves
+    answer = answers[-1]
+    assert answer.outcome == Outcome.STALLED and answer.stalled, answer.message
+    assert answer.width_m == pytest.approx(OBJECT_WIDTH_M, abs=1e-4)
+    assert 0.9 * EFFORT_N <= answer.effort_n <= (1 + EFFORT_TOLERANCE) * EFFORT_N, \
+        answer.effort_n
+    with seen.lock:
+        (moving,) = seen.newest[TOPIC_TF].transforms
+    assert (moving.header.frame_id, moving.child_frame_id) == (FRAME_BASE, FRAME_MOVING_FINGER)
+    # the pad faces are the object's width apart
+    gap_m = TRAVEL_M / 2 - moving.transform.translation.x
+    assert gap_m == pytest.approx(OBJECT_WIDTH_M, abs=1e-4)
+    # joint_states as JointStateTopicSystem reads it: position, velocity and effort of the joint
+    with seen.lock:
+        states = list(seen.every[TOPIC_JOINT_STATES])
+    assert all(list(s.name) == [FINGER_JOINT] and len(s.position) == len(s.velocity) ==
+               len(s.effort) == 1 for s in states)
+    efforts = [s.effort[0] for s in states]
+    assert max(efforts) <= EFFORT_N * (1 + EFFORT_TOLERANCE), max(efforts)   # the limit holds
+    last = states[-1]
+    assert last.position[0] == pytest.approx(TRAVEL_M - OBJECT_WIDTH_M, abs=1e-4)
+    assert abs(last.velocity[0]) < CONFIG.supervisor.move_rest_speed_mps
+    assert last.effort[0] == answer.effort_n
+    # effort is the force the plant applies (the shipped sensor has no noise)
+    assert CONFIG.sensor_noise.force_noise_n == 0.0
+    assert last.effort[0] == pytest.approx(graph.plant.plant.sample().force_n, rel=1e-9)
+    assert last.effort[0] >= 0.9 * EFFORT_N
+    # how it ended, for a ros2_control user: latched gripper_status, in standard types
+    status = Listener(graph, {TOPIC_GRIPPER_STATUS: (DiagnosticStatus, LATCHED_QOS)})
+    assert wait_until(lambda: _values(status.newest.get(TOPIC_GRIPPER_STATUS)).get(
+        'grasp_id') == str(answer.grasp_id), 10.0)
+    with status.lock:
+        report = status.newest[TOPIC_GRIPPER_STATUS]
+    assert (report.level, report.name, report.message) == (DiagnosticStatus.OK, FINGER_JOINT,
+                                                           'stalled')
+    values = _values(report)
+    assert (values['outcome'], values['stalled'], values['object_detected']) == \
+        ('STALLED', 'true', 'true')
+    assert float(values['width_m']) == pytest.approx(OBJECT_WIDTH_M, abs=1e-4)
+
+
+def _values(report) -> dict:
+    return {kv.key: kv.value for kv in report.values} if report is not None else {}
+
+
+@pytest.mark.parametrize('outcome, contact, level, stalled, detected', [
+    (Outcome.STALLED, True, 0, 'true', 'true'), (Outcome.MOVED, False, 0, 'false', 'false'),
+    (Outcome.HOLDING, True, 0, 'false', 'true'), (Outcome.NO_OBJECT, False, 1, 'false', 'false'),
+    (Outcome.OBJECT_LOST, True, 1, 'false', 'false'), (Outcome.FAULT, True, 2, 'false', 'false'),
+])
+def test_gripper_status_says_stalled_and_object_detected(outcome, contact, level, stalled,
+                                                         detected):
+    fields = grip_status_fields(outcome, contact, 0.1, 9.5, TRAVEL_M, 7)
+    assert fields['level'] == level and fields['message'] == outcome.name.lower()
+    assert fields['values'] == {'outcome': outcome.name, 'stalled': stalled,
+                                'object_detected': detected, 'position_m': '0.1',
+                                'width_m': '0.05', 'effort_n': '9.5', 'grasp_id': '7'}
+
+
+@pytest.mark.parametrize('command', [
+    _command([math.nan]), _command([math.inf]), _command([-0.01]), _command([TRAVEL_M + 0.01]),
+    _command([0.05], effort=[-1.0]), _command([0.05], effort=[CONFIG.plant.max_force_n * 2]),
+    _command([0.05], velocity=[-0.01]), _command([0.05], name=['other_joint']),
+], ids=['nan', 'inf', 'negative', 'beyond_travel', 'negative_effort', 'effort_above_limit',
+        'negative_velocity', 'other_joint'])
+def test_a_bad_joint_command_is_refused_and_moves_nothing(graph, command):
+    server = graph.move_action_server
+    refused, answers = server.joint_commands_refused, len(server.joint_command_answers)
+    t_ns = graph.sim_time_ns
+    _publisher(graph).publish(command)
+    assert wait_until(lambda: server.joint_commands_refused == refused + 1, 10.0)
+    assert len(server.joint_command_answers) == answers
+    assert graph.sim_time_ns == t_ns         # fast mode: no request, no time
+
+
+def test_a_prefix_names_the_joint_of_joint_states_joint_commands_and_the_urdf():
+    """The xacro's prefix:=left_ on the graph: left_finger_joint on the wire, left_ links."""
+    options = GraphOptions(namespace='prefixed', prefix='left_')
+    with GripperGraph.in_own_context(options) as g:
+        assert g.set_object(OBJECT_WIDTH_M).success
+        g.wait_still()
+        seen = Listener(g, {TOPIC_JOINT_STATES: (JointState, GRAPH_QOS)})
+        server = g.move_action_server
+        pub = _publisher(g)
+        pub.publish(_command([0.05]))                        # the unprefixed joint: refused
+        assert wait_until(lambda: server.joint_commands_refused == 1, 10.0)
+        pub.publish(_command([TRAVEL_M - 0.01], effort=[EFFORT_N], name=['left_finger_joint']))
+        assert wait_until(lambda: server.joint_command_answers, 60.0)
+        assert server.joint_command_answers[-1].outcome == Outcome.STALLED
+        with seen.lock:
+            assert {tuple(s.name) for s in seen.every[TOPIC_JOINT_STATES]} == {
+                ('left_finger_joint',)}
+        root = ET.fromstring(g.description.urdf)
+        assert {j.get('name') for j in root.iter('joint')} == {'left_finger_joint',
+                                                               'left_fixed_finger_joint'}
+        assert {link.get('name') for link in root.iter('link')} == {
+            'left_gripper_base', 'left_fixed_finger', 'left_moving_finger'}
