@@ -138,7 +138,7 @@ def instrumented(profile: Profile):
 
 
 def _grasps(graph, objects: Sequence[tuple], record: bool, tmp: Path,
-            profile: Profile | None) -> Dict[str, float]:
+            profile: Profile | None, released: bool = False) -> Dict[str, float]:
     """Grasp each object (released between, recorded as grasp_demo records with ``record``).
 
     Only the grasps are timed (and profiled): the release before each is not.
@@ -147,7 +147,7 @@ def _grasps(graph, objects: Sequence[tuple], record: bool, tmp: Path,
     from gripper_ros.nodes.recording import recorded_grasp
     wall_s, ticks = 0.0, 0
     for i, (width_m, mass_kg) in enumerate(objects, 1):
-        if i > 1:
+        if i > 1 or released:
             graph.release()
             graph.wait_still()
         before = graph.plant.ticks_published
@@ -200,8 +200,8 @@ def measure_breakdown(executor_kind: str, objects: Sequence[tuple], record: bool
                                      time.process_time, lambda: None)
             observer.arm(0.0)
             tmp = Path(stack.enter_context(tempfile.TemporaryDirectory(prefix='breakdown_')))
-            _grasps(graph, objects[:1], record, tmp, None)       # warm-up: not timed
-            out[name] = _grasps(graph, objects, record, tmp, prof)
+            _grasps(graph, objects[:1], record, tmp / 'warm_up', None)   # not timed
+            out[name] = _grasps(graph, objects, record, tmp / 'timed', prof, released=True)
         if prof:
             out['parts'] = _shares(profile, groups, out[name])
     return out
