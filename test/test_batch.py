@@ -2,6 +2,8 @@
 
 - The compiled loop and the same kernels driven tick by tick from Python (``trace=``) give the
   same series, bit for bit, and the same answer.
+- The compiled loop's trace (``trace_state_period_ns``) keeps every tick, reference and command
+  a ``trace=`` callback is given, field for field.
 - ``simulate_grasps`` gives, for every case, what ``simulate_grasp`` gives in this process,
   whatever the number of worker processes; a refused request comes back as its RequestError;
   ``summarize`` runs in the worker and only its result comes back.
@@ -49,6 +51,25 @@ def test_compiled_loop_equals_the_kernels_driven_from_python():
         assert _same(compiled, traced)
         assert [t.stamp_ns for t in ticks] == compiled.t_ns.tolist()
         ticks.clear()
+
+
+def test_the_compiled_trace_keeps_what_a_trace_callback_is_given():
+    seen = {'ticks': [], 'references': [], 'commands': []}
+
+    def trace(plant, tick, decision, ref, cmd):
+        seen['ticks'].append(tuple(tick))
+        if ref is not None:
+            seen['references'].append(tuple(ref))
+            seen['commands'].append(tuple(cmd))
+    for case in (CASES[1], {**CASES[0], 'idle_unpowered_s': 0.01}):
+        simulate_grasp(CONFIG, **case, trace=trace)
+        kept = simulate_grasp(CONFIG, **case, trace_state_period_ns=10_000_000).trace
+        for name, rows in seen.items():
+            assert getattr(kept, name).tolist() == rows, name
+            rows.clear()
+        assert kept.statuses.size and kept.objects.size
+    with pytest.raises(ValueError, match='exclusive'):
+        simulate_grasp(CONFIG, **CASES[0], trace=trace, trace_state_period_ns=1)
 
 
 @pytest.mark.parametrize('jobs', [1, 2])

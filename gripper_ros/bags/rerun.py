@@ -32,7 +32,7 @@ from gripper_ros.bags.resimulate import build_stages, load_resim_config
 from gripper_ros.bags.series import bag_namespace, GraspSeries, load_grasp_series, \
     lockstep_series
 from gripper_ros.core.config import ConfigError, GripperConfig, parse_config
-from gripper_ros.core.headless import HeadlessGrasp, map_cases, simulate_grasp
+from gripper_ros.core.headless import GraspTrace, HeadlessGrasp, map_cases, simulate_grasp
 from gripper_ros.core.plant import check_fault, GraspObject, Lift
 from gripper_ros.core.requests import GraspRequest, RequestError, validate_request
 from gripper_ros.core.stages import (DEFAULT_APPROACH_FORCE_MARGIN, DEFAULT_FORCE_CONTROLLER,
@@ -384,37 +384,12 @@ class _Trace:
     """Every tick of a headless grasp, as a bag holds it.
 
     The tick, its reference and command, the supervisor's state when it changed, and the held
-    object's ground truth when the plant node publishes it (on the grid of
-    ``state_period_ns`` and when the hold state changes).
+    object's ground truth when the plant node publishes it (on the grid of the state period
+    and when the hold state changes): the compiled loop's :class:`GraspTrace`.
     """
 
-    def __init__(self, state_period_ns: int):
-        self.ticks, self.refs, self.cmds, self.statuses, self.objects = [], [], [], [], []
-        self._state = None
-        self._period_ns = state_period_ns
-        self._next_object_ns = None
-        self._hold_state = None
-
-    def __call__(self, plant, tick, d, ref, cmd) -> None:
-        self.ticks.append(tick)
-        if ref is not None:
-            self.refs.append(ref)
-            self.cmds.append(cmd)
-        state = (d.phase, d.active, d.switch_criterion, d.grasp_id, d.outcome, d.stage_id,
-                 d.contact)
-        if state != self._state:
-            self._state = state
-            self.statuses.append((tick.stamp_ns, _Status(
-                int(d.phase), int(d.active), int(d.switch_criterion), d.grasp_id,
-                int(d.outcome), d.position_setpoint_m, d.force_setpoint_n, tick.position_m,
-                tick.force_n, d.contact, d.stage_id, d.approach_setpoint_m)))
-        if self._next_object_ns is None or tick.stamp_ns >= self._next_object_ns or \
-                plant.hold_state is not self._hold_state:
-            o = plant.object_state
-            self._hold_state = o.state
-            self._next_object_ns = (tick.stamp_ns // self._period_ns + 1) * self._period_ns
-            self.objects.append((tick.stamp_ns * 1e-9, int(o.state), o.slip_m, o.slip_speed_mps,
-                                 o.load_n, o.capacity_n))
+    def __init__(self, trace: GraspTrace):
+        self.trace = trace
 
     def series(self, record: GraspRecord, first_ns: int, start_ns: int, label: str,
                config: GripperConfig) -> GraspSeries:
@@ -429,27 +404,37 @@ class _Trace:
         """
         rec = record.series.references
         first = np.flatnonzero(rec['stamp_ns'] == record.grasp_start_ns)[0]
-        ticks = [t for t in self.ticks if t.stamp_ns >= first_ns]
-        refs = [r for r in self.refs if r.stamp_ns >= first_ns]
-        cmds = [c for c in self.cmds if c.stamp_ns >= first_ns]
-        statuses = [(t, s) for t, s in self.statuses if t >= first_ns]
-        ours = [r for r in refs if r.stamp_ns == start_ns]
-        if ours:
-            shift = {'grasp_id': int(rec['grasp_id'][first]) - ours[0].grasp_id,
-                     'stage_id': int(rec['stage_id'][first]) - ours[0].stage_id,
-                     'revision': int(rec['revision'][first]) - ours[0].revision}
-            ticks = [t._replace(revision=t.revision + shift['revision']) for t in ticks]
-            refs = [r._replace(**{k: getattr(r, k) + v for k, v in shift.items()}) for r in refs]
-            cmds = [c._replace(**{k: getattr(c, k) + v for k, v in shift.items()}) for c in cmds]
-            statuses = [(t, s._replace(grasp_id=s.grasp_id + shift['grasp_id'],
-                                       stage_id=s.stage_id + shift['stage_id']))
-                        for t, s in statuses]
-        objects = [o for o in self.objects if o[0] >= start_ns * 1e-9]
-        return lockstep_series(Path(label), record.series.namespace, ticks, refs, cmds,
-                               statuses, objects,
+        tr = self.trace
+        ticks, refs, cmds, statuses = (rows[rows['stamp_ns'] >= first_ns] for rows in (
+            tr.ticks, tr.references, tr.commands, tr.statuses))
+        ours = refs[refs['stamp_ns'] == start_ns]
+        if ours.size:
+            shift = {name: int(rec[name][first]) - int(ours[0][name])
+                     for name in ('grasp_id', 'stage_id', 'revision')}
+            ticks = _shifted(ticks, {'revision': shift['revision']})
+            refs = _shifted(refs, shift)
+            cmds = _shifted(cmds, shift)
+            statuses = _shifted(statuses, {name: shift[name] for name in ('grasp_id',
+                                                                          'stage_id')})
+        objects = [(t_ns * 1e-9, *rest) for t_ns, *rest in tr.objects.tolist()]
+        objects = [o for o in objects if o[0] >= start_ns * 1e-9]
+        statuses = [(row[0], _Status(*row[1:])) for row in statuses.tolist()]
+        stamps = ticks['stamp_ns']
+        return lockstep_series(Path(label), record.series.namespace, ticks.tolist(),
+                               refs.tolist(), cmds.tolist(), statuses, objects,
                                custom_data={'object': dict(record.obj), 'config': config.data},
-                               start_ns=ticks[0].stamp_ns if ticks else first_ns,
-                               end_ns=ticks[-1].stamp_ns if ticks else first_ns)
+                               start_ns=int(stamps[0]) if stamps.size else first_ns,
+                               end_ns=int(stamps[-1]) if stamps.size else first_ns)
+
+
+def _shifted(rows: np.ndarray, shift: dict[str, int]) -> np.ndarray:
+    """``rows`` with the named integer fields moved by their shift (widened: no wrap-around)."""
+    wide = np.dtype([(name, np.int64 if name in shift else rows.dtype.fields[name][0])
+                     for name in rows.dtype.names])
+    out = rows.astype(wide)
+    for name, by in shift.items():
+        out[name] += by
+    return out
 
 
 def run(record: GraspRecord, setup: RerunSetup, label: str = 're-run') -> Rerun:
@@ -459,7 +444,6 @@ def run(record: GraspRecord, setup: RerunSetup, label: str = 're-run') -> Rerun:
     rest, as when the graph placed the object.
     """
     state_period_ns = round(1e9 / record.state_rate_hz)
-    trace = _Trace(state_period_ns)
     # the tick before the grasp: the position stage's hold, or 0 V for a state period (FAULT)
     idle_ns = state_period_ns if record.after_fault else \
         round(record.config.position.sample_time_s * 1e9)
@@ -468,7 +452,8 @@ def run(record: GraspRecord, setup: RerunSetup, label: str = 're-run') -> Rerun:
                            idle_unpowered_s=idle_ns * 1e-9 if record.after_fault else 0.0,
                            hold_s=record.hold_s, position_controller=setup.position_controller,
                            force_controller=setup.force_controller,
-                           approach_force_margin=setup.approach_force_margin, trace=trace,
+                           approach_force_margin=setup.approach_force_margin,
+                           trace_state_period_ns=state_period_ns,
                            **record.grasp)
     except RequestError as exc:
         raise ConfigError(f"{setup.config.source}: the re-run's supervisor refuses the "
@@ -479,7 +464,7 @@ def run(record: GraspRecord, setup: RerunSetup, label: str = 're-run') -> Rerun:
     recorded_ticks = record.series.ticks['stamp_ns']
     first_ns = max(int(recorded_ticks[0]), int(h.t_ns[0])) if recorded_ticks.size else \
         h.start_ns
-    series = trace.series(record, first_ns, h.start_ns, label, setup.config)
+    series = _Trace(h.trace).series(record, first_ns, h.start_ns, label, setup.config)
     metrics = analyze_series(series, setup.config.plant.voltage_limit_v)
     metrics.bag = label
     out = Rerun(setup, h, series, metrics)

@@ -2,6 +2,7 @@
 
     ros2 run gripper_ros bench_graph --executor events --demo none --record
     ros2 run gripper_ros bench_graph --repeat 3 --json-file bench.json
+    ros2 run gripper_ros bench_graph --executor events --breakdown --record   # a tick's parts
 
 Everything is measured in ONE run, in this order, so that the ratios compare figures taken
 under the same machine load:
@@ -533,6 +534,10 @@ def build_parser() -> argparse.ArgumentParser:
                     'of grasp_demo.')
     p.add_argument('--executor', choices=('events', 'single', 'both'), default='both',
                    help='executor(s) to measure (default both)')
+    p.add_argument('--breakdown', action='store_true',
+                   help='only split the one-process tick into its parts (callbacks, decode, '
+                        'kernels, publish, recording) against a ping-pong '
+                        '(gripper_ros.bench.breakdown)')
     p.add_argument('--record', action='store_true',
                    help='record each grasp of the one-process graph as grasp_demo does')
     p.add_argument('--no-processes', dest='processes', action='store_false',
@@ -604,6 +609,8 @@ def main(args: Optional[Sequence[str]] = None) -> int:
                 (30.0 if k == 'events' else 60.0)) for k in kinds}
     demo_kinds = {'auto': ['events'] if 'events' in kinds else ['single'],
                   'both': list(EXECUTOR_KINDS), 'none': []}.get(opts.demo, [opts.demo])
+    if opts.breakdown:
+        return _breakdown(opts, objects, kinds[0])
     try:
         report = run(opts, objects, kinds, caps, demo_kinds,
                      lambda text: print(text, file=sys.stderr, flush=True))
@@ -619,6 +626,26 @@ def main(args: Optional[Sequence[str]] = None) -> int:
         except OSError as exc:
             return _fail(f'cannot write --json-file: {exc}', 1)
     print(json.dumps(report, indent=2, default=str) if opts.json else format_report(report))
+    return 0
+
+
+def _breakdown(opts: argparse.Namespace, objects: Sequence[tuple], kind: str) -> int:
+    from rclpy.executors import ExternalShutdownException
+    from gripper_ros.bench.breakdown import format_breakdown, measure_breakdown
+    try:
+        report = measure_breakdown(kind, objects, opts.record, opts.pingpong_seconds)
+    except BenchError as exc:
+        return _fail(str(exc), 1)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        print('bench_graph: interrupted', file=sys.stderr)
+        return 130
+    if opts.json_file:
+        try:
+            with open(opts.json_file, 'w') as f:
+                json.dump(report, f, indent=2, default=str)
+        except OSError as exc:
+            return _fail(f'cannot write --json-file: {exc}', 1)
+    print(json.dumps(report, indent=2, default=str) if opts.json else format_breakdown(report))
     return 0
 
 

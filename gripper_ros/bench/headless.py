@@ -9,8 +9,10 @@ Times, in ONE process run (so that ratios compare figures taken under the same m
 - ``simulate_grasp`` of each Table V object with ``--hold-s`` of hold after HOLDING, run
   compiled (the default path) and, as the in-run baseline, tick by tick from Python over the
   same compiled functions (``trace=``: what a loop driven from Python, like the graph's nodes,
-  costs without DDS). Figure: simulated ticks per wall second (median of ``--repeat``), and
-  the ratio of the two.
+  costs without DDS), and compiled keeping every message as a closed-loop re-run needs them
+  (``trace_state_period_ns``: the trace mode of ``bag_replay --resimulate --closed-loop``).
+  Figure: simulated ticks per wall second (median of ``--repeat``), and the ratios of the
+  compiled and the traced loop to the Python-driven one.
 - ``simulate_grasps`` of ``--batch`` grasps (the Table V objects in turn), the batch entry point
   sweeps use, through the engine (:mod:`gripper_ros.core.engine`): in this process (the
   baseline), on a local Dask cluster of each ``--jobs`` worker processes, and through a
@@ -42,8 +44,16 @@ BATCH_RUNS = 3
 """Timed runs of the batch on each engine (median)."""
 
 
-def _ticks(config, width_m: float, mass_kg: float, hold_s: float, traced: bool) -> int:
+TRACE_STATE_PERIOD_NS = 10_000_000
+"""The state period a closed-loop re-run keeps the object state on (100 Hz, the default)."""
+
+
+def _ticks(config, width_m: float, mass_kg: float, hold_s: float, traced: bool,
+           captured: bool = False) -> int:
     from gripper_ros.core.headless import simulate_grasp
+    if captured:
+        return len(simulate_grasp(config, width_m, mass_kg, hold_s=hold_s,
+                                  trace_state_period_ns=TRACE_STATE_PERIOD_NS).trace.ticks)
     if traced:
         count = [0]
 
@@ -71,19 +81,24 @@ def measure(repeat: int = 5, hold_s: float = 1.0, batch: int = 32, jobs_list=(1,
     t0 = time.perf_counter()
     _ticks(config, *TABLE_V[0], hold_s, traced=False)
     _ticks(config, *TABLE_V[0], 0.0, traced=True)
+    _ticks(config, *TABLE_V[0], 0.0, traced=False, captured=True)
     out['first_call_s'] = time.perf_counter() - t0
     for width_m, mass_kg in TABLE_V:
         row = {'width_m': width_m, 'mass_kg': mass_kg}
-        for name, traced in (('compiled', False), ('python_driven', True)):
+        for name, traced, captured in (('compiled', False, False),
+                                       ('python_driven', True, False),
+                                       ('traced', False, True)):
             rates = []
             for _ in range(repeat if not traced else max(1, repeat // 5)):
                 start = time.perf_counter()
-                ticks = _ticks(config, width_m, mass_kg, hold_s, traced)
+                ticks = _ticks(config, width_m, mass_kg, hold_s, traced, captured)
                 rates.append(ticks / (time.perf_counter() - start))
             row['ticks'] = ticks
             row[f'{name}_ticks_per_s'] = statistics.median(rates)
         row['compiled_over_python_driven'] = \
             row['compiled_ticks_per_s'] / row['python_driven_ticks_per_s']
+        row['traced_over_python_driven'] = \
+            row['traced_ticks_per_s'] / row['python_driven_ticks_per_s']
         out['grasps'].append(row)
     cases = [{'width_m': TABLE_V[i % 3][0], 'mass_kg': TABLE_V[i % 3][1], 'hold_s': hold_s}
              for i in range(batch)]
@@ -134,11 +149,13 @@ def report(r: dict) -> str:
     lines = [f'bench_headless: {r["platform"]}, {r["cpus"]} cores; each grasp held on for '
              f'{r["hold_s"]:g} s; first calls (cache load, warm-up) {r["first_call_s"]:.2f} s',
              f'{"width m":>8s} {"mass kg":>8s} {"ticks":>7s} {"compiled ticks/s":>17s} '
-             f'{"python-driven ticks/s":>22s} {"ratio":>7s}']
+             f'{"python-driven ticks/s":>22s} {"ratio":>7s} {"traced ticks/s":>15s} '
+             f'{"/ python-driven":>16s}']
     for g in r['grasps']:
         lines.append(f'{g["width_m"]:8.3f} {g["mass_kg"]:8.2f} {g["ticks"]:7d} '
                      f'{g["compiled_ticks_per_s"]:17,.0f} {g["python_driven_ticks_per_s"]:22,.0f} '
-                     f'{g["compiled_over_python_driven"]:7.1f}')
+                     f'{g["compiled_over_python_driven"]:7.1f} {g["traced_ticks_per_s"]:15,.0f} '
+                     f'{g["traced_over_python_driven"]:16.2f}')
     starts = ', '.join(f'{k} worker(s) {v:.2f} s' for k, v in r['engine_start_s'].items())
     lines.append(f'batch engine (Dask): started and warmed up (the batch once) in {starts} (not '
                  f'in the figures below); {r["per_task_overhead_us"]:.0f} us a task')

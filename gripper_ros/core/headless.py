@@ -22,17 +22,53 @@ from gripper_ros.core.engine import map_cases
 from gripper_ros.core.hold import hold_load_n
 from gripper_ros.core.lockstep import (Command, PlantSide, side_accept, side_needs_time,
                                        side_step, StageSide, SupervisorSide, Tick)
-from gripper_ros.core.plant import check_fault, GraspObject, K_HOLD, Lift
+from gripper_ros.core.plant import (_object_state, check_fault, GraspObject, HoldState, K_HOLD,
+                                    Lift)
 from gripper_ros.core.requests import (GraspRequest, MoveRequest, RequestError, validate_move,
                                        validate_request)
 from gripper_ros.core.stages import (DEFAULT_APPROACH_FORCE_MARGIN, DEFAULT_FORCE_CONTROLLER,
                                      DEFAULT_POSITION_CONTROLLER, ForceStageController,
                                      PositionStageController, Reference, stage_answer)
 from gripper_ros.core.supervisor import GraspSupervisor, load_law, NO_NS, supervisor_decide
-from gripper_ros.wire import (Controller, FaultKind, FORCE_SAMPLE_S, Outcome, Phase,
-                              SwitchCriterion)
+from gripper_ros.wire import (COMMAND_LAYOUT, Controller, FaultKind, FORCE_SAMPLE_S, Outcome,
+                              Phase, REFERENCE_LAYOUT, SwitchCriterion, TICK_LAYOUT)
 import numba
 import numpy as np
+
+
+STATUS_ROW = np.dtype(
+    [('stamp_ns', 'i8'), ('phase', 'i4'), ('active_controller', 'i4'),
+     ('switch_criterion', 'i4'), ('grasp_id', 'i8'), ('outcome', 'i4'),
+     ('position_setpoint_m', 'f8'), ('force_setpoint_n', 'f8'), ('position_m', 'f8'),
+     ('force_n', 'f8'), ('contact', 'b1'), ('stage_id', 'i8'), ('approach_setpoint_m', 'f8')],
+    align=True)
+"""The supervisor's state on a tick it changed, as ``supervisor/status`` reports it."""
+OBJECT_ROW = np.dtype(
+    [('stamp_ns', 'i8'), ('state', 'i4'), ('slip_m', 'f8'), ('slip_speed_mps', 'f8'),
+     ('load_n', 'f8'), ('capacity_n', 'f8')], align=True)
+"""The held object's ground truth on a tick the plant node publishes ``sim/object_state``."""
+TRACE_STATE = np.dtype(
+    [('state_period_ns', 'i8'),        # 0: no trace is kept
+     ('references', 'i8'), ('statuses', 'i8'), ('objects', 'i8'),    # rows kept so far
+     ('next_object_ns', 'i8'), ('hold_state', 'i4')], align=True)
+"""The compiled loop's trace bookkeeping (beside its row buffers)."""
+
+
+@dataclass
+class GraspTrace:
+    """Every message of a headless grasp, as the graph's bag holds them (structured arrays).
+
+    ``ticks``, ``references`` and ``commands`` have the wire layouts' fields
+    (``TICK_LAYOUT.dtype`` ...); ``statuses`` (:data:`STATUS_ROW`) the supervisor's state on
+    each tick it changed; ``objects`` (:data:`OBJECT_ROW`) the object's ground truth on the
+    grid of the state period and whenever its hold state changed.
+    """
+
+    ticks: np.ndarray
+    references: np.ndarray
+    commands: np.ndarray
+    statuses: np.ndarray
+    objects: np.ndarray
 
 
 @dataclass
@@ -72,6 +108,7 @@ class HeadlessGrasp:
     slip_series_m: np.ndarray = field(repr=False, default=None)  # truth: the slide so far
     hold_state: np.ndarray = field(repr=False, default=None)     # truth: HoldState
     mu_est: np.ndarray = field(repr=False, default=None)         # the load-tracking law's
+    trace: GraspTrace | None = field(repr=False, default=None)   # with trace_state_period_ns
 
     @property
     def peak_contact_force_n(self) -> float:
@@ -116,6 +153,10 @@ ROWS = ('position_m', 'force_n', 'peak_force_n', 'motor_voltage_v', 'sensor_volt
 """The per-tick float series a headless grasp keeps, in the order of its row buffer: the tick's
 fields, then the reference's force setpoint, the held object's truth (load m (g + a) while
 held, slip, HoldState) and the load-tracking law's friction estimate."""
+_TRACE_BUFFERS = (('ticks', TICK_LAYOUT.dtype), ('references', REFERENCE_LAYOUT.dtype),
+                  ('commands', COMMAND_LAYOUT.dtype), ('statuses', STATUS_ROW),
+                  ('objects', OBJECT_ROW))
+"""The compiled loop's trace buffers, in its arguments' order."""
 FIRST_ROWS = 4096
 """Rows a grasp's series buffers start with (they double when full)."""
 
@@ -143,16 +184,77 @@ def _keep_row(rows_t, rows_f, rows_phase, n, tick, phase, ref, plant_k, law) -> 
 
 
 @numba.njit(cache=True)
+def _trace_tick(trace, n, tick, supervisor, plant_k, ticks, statuses, objects) -> None:
+    """Keep tick ``n``, the supervisor's state when it changed and the object's when due."""
+    ts = trace[0]
+    t = tick[0]
+    ticks[n] = t
+    m = ts.statuses
+    if m > 0:
+        last = statuses[m - 1]
+        changed = (supervisor.phase != last.phase or supervisor.active != last.active_controller
+                   or supervisor.switch_criterion != last.switch_criterion
+                   or supervisor.grasp_id != last.grasp_id or supervisor.outcome != last.outcome
+                   or supervisor.stage_id != last.stage_id
+                   or supervisor.d_contact != last.contact)
+    else:
+        changed = True
+    if changed:
+        r = statuses[m]
+        r.stamp_ns = t.stamp_ns
+        r.phase = supervisor.phase
+        r.active_controller = supervisor.active
+        r.switch_criterion = supervisor.switch_criterion
+        r.grasp_id = supervisor.grasp_id
+        r.outcome = supervisor.outcome
+        r.position_setpoint_m = supervisor.d_position_setpoint_m
+        r.force_setpoint_n = supervisor.d_force_setpoint_n
+        r.position_m = t.position_m
+        r.force_n = t.force_n
+        r.contact = supervisor.d_contact
+        r.stage_id = supervisor.stage_id
+        r.approach_setpoint_m = supervisor.d_approach_setpoint_m
+        ts.statuses = m + 1
+    h = plant_k[K_HOLD][0]
+    hold_state = h.state if h.has_hold else HoldState.NONE
+    j = ts.objects
+    if j == 0 or t.stamp_ns >= ts.next_object_ns or hold_state != ts.hold_state:
+        state, slip, speed, load, capacity, _, _, _, _ = _object_state(plant_k)
+        o = objects[j]
+        o.stamp_ns = t.stamp_ns
+        o.state = state
+        o.slip_m = slip
+        o.slip_speed_mps = speed
+        o.load_n = load
+        o.capacity_n = capacity
+        ts.hold_state = state
+        ts.next_object_ns = (t.stamp_ns // ts.state_period_ns + 1) * ts.state_period_ns
+        ts.objects = j + 1
+
+
+@numba.njit(cache=True)
+def _trace_answer(trace, ref, cmd, references, commands) -> None:
+    """Keep the tick's reference and the command that answered it."""
+    ts = trace[0]
+    references[ts.references] = ref[0]
+    commands[ts.references] = cmd[0]
+    ts.references += 1
+
+
+@numba.njit(cache=True)
 def run_lockstep(loop, side, plant_k, supervisor_k, position_k, force_k, tick, ref, cmd,
-                 rows_t, rows_f, rows_phase) -> bool:
+                 rows_t, rows_f, rows_phase, trace, trace_ticks, trace_references,
+                 trace_commands, trace_statuses, trace_objects) -> bool:
     """Run the graph's loop in fast mode from ``tick`` until simulated time would pause.
 
     Each tick: keep its row, let the named stage answer, the plant react and hold the command,
-    the supervisor decide the next tick. Returns False when the row buffers are full (call
-    again with larger ones: everything resumes from the records).
+    the supervisor decide the next tick. With a state period in ``trace`` it also keeps every
+    message (``trace_*``, at most one row a tick each). Returns False when the row buffers are
+    full (call again with larger ones: everything resumes from the records).
     """
     state = loop[0]
     supervisor = supervisor_k[0][0]
+    tracing = trace[0].state_period_ns > 0
     n = state.rows
     while True:
         if n == rows_t.shape[0]:
@@ -160,6 +262,9 @@ def run_lockstep(loop, side, plant_k, supervisor_k, position_k, force_k, tick, r
             return False
         _keep_row(rows_t, rows_f, rows_phase, n, tick, supervisor.phase, ref, plant_k,
                   supervisor_k[4])
+        if tracing:
+            _trace_tick(trace, n, tick, supervisor, plant_k, trace_ticks, trace_statuses,
+                        trace_objects)
         n += 1
         if state.hold_until_ns == NO_NS and supervisor.answer_ns != NO_NS:
             state.hold_until_ns = supervisor.answer_ns + state.hold_ns
@@ -169,6 +274,8 @@ def run_lockstep(loop, side, plant_k, supervisor_k, position_k, force_k, tick, r
             stage_answer(position_k, ref, cmd)
         else:
             stage_answer(force_k, ref, cmd)
+        if tracing:
+            _trace_answer(trace, ref, cmd, trace_references, trace_commands)
         side_accept(side, plant_k, cmd)
         needed = side_needs_time(plant_k, cmd) or state.woken or (
             state.hold_until_ns != NO_NS and tick[0].stamp_ns < state.hold_until_ns)
@@ -199,6 +306,16 @@ class _Loop:
         self.rows_t = np.zeros(0, np.int64)
         self.rows_f = np.zeros((0, len(ROWS)))
         self.rows_phase = np.zeros(0, np.int8)
+        self.trace = np.zeros(1, TRACE_STATE)
+        self.trace_buffers = {name: np.zeros(0, dtype) for name, dtype in _TRACE_BUFFERS}
+
+    def keep_trace(self, state_period_ns: int) -> None:
+        """Keep every message from now on, the object's on a grid of ``state_period_ns``."""
+        self.trace[0]['state_period_ns'] = state_period_ns
+
+    @property
+    def tracing(self) -> bool:
+        return bool(self.trace[0]['state_period_ns'] > 0)
 
     def decide(self) -> bool:
         named = self.sup_side.decide_record(self.tick)
@@ -213,6 +330,11 @@ class _Loop:
             new = np.zeros((size,) + old.shape[1:], old.dtype)
             new[:n] = old[:n]
             setattr(self, name, new)
+        if self.tracing:
+            for name, old in self.trace_buffers.items():
+                new = np.zeros(size, old.dtype)
+                new[:old.shape[0]] = old
+                self.trace_buffers[name] = new
 
     def keep_row(self) -> None:
         """Keep the present tick's row (the Python-driven loop)."""
@@ -222,6 +344,10 @@ class _Loop:
         _keep_row(self.rows_t, self.rows_f, self.rows_phase, n, self.tick,
                   int(self.supervisor.decision.phase), self.ref, self.plant_side.plant.kernel,
                   self.supervisor.kernel[4])
+        if self.tracing:
+            b = self.trace_buffers
+            _trace_tick(self.trace, n, self.tick, self.supervisor.kernel[0][0],
+                        self.plant_side.plant.kernel, b['ticks'], b['statuses'], b['objects'])
         self.state[0]['rows'] = n + 1
 
     def run(self) -> None:
@@ -230,8 +356,20 @@ class _Loop:
         while not run_lockstep(self.state, ps.state, ps.plant.kernel, self.supervisor.kernel,
                                self.stages[Controller.POSITION].stage.kernel,
                                self.stages[Controller.FORCE].stage.kernel, self.tick, self.ref,
-                               self.cmd, self.rows_t, self.rows_f, self.rows_phase):
+                               self.cmd, self.rows_t, self.rows_f, self.rows_phase,
+                               self.trace, *self.trace_buffers.values()):
             self._grow()
+
+    def grasp_trace(self) -> GraspTrace | None:
+        """Return the messages kept (None when no trace was kept)."""
+        if not self.tracing:
+            return None
+        ts = self.trace[0]
+        b = self.trace_buffers
+        count = {'ticks': int(self.state[0]['rows']), 'references': int(ts['references']),
+                 'commands': int(ts['references']), 'statuses': int(ts['statuses']),
+                 'objects': int(ts['objects'])}
+        return GraspTrace(**{name: b[name][:count[name]].copy() for name in b})
 
     def run_traced(self, trace: Callable) -> None:
         """Run tick by tick from Python, calling ``trace`` every tick: the same kernels."""
@@ -281,7 +419,8 @@ def simulate_grasp(config: GripperConfig, width_m: float, mass_kg: float, *,
                    start_ns: int = 0,
                    fault: tuple[FaultKind | int, float, float] | None = None,
                    idle_unpowered_s: float = 0.0,
-                   trace: Callable | None = None) -> HeadlessGrasp:
+                   trace: Callable | None = None,
+                   trace_state_period_ns: int = 0) -> HeadlessGrasp:
     """Grasp from fully open, as the graph grasps in fast mode.
 
     ``object_width_m`` (default ``width_m``; 0 = nothing) is the real
@@ -299,7 +438,12 @@ def simulate_grasp(config: GripperConfig, width_m: float, mass_kg: float, *,
     plant reacts to the command (reference and command None on the tick no stage is named);
     the decision is the supervisor's reused object, to be read at once. Without ``trace`` the
     loop runs compiled; with it, tick by tick from Python over the same compiled functions.
+    ``trace_state_period_ns`` > 0 keeps, in the compiled loop, what ``trace`` sees as a bag
+    holds it (the result's :class:`GraspTrace`; the object state on that period's grid); it
+    cannot be combined with ``trace``.
     """
+    if trace is not None and trace_state_period_ns > 0:
+        raise ValueError('trace and trace_state_period_ns are exclusive')
     targets = validate_request(GraspRequest(width_m, mass_kg, friction_coefficient,
                                             acceleration_mps2, timeout_s, width_tolerance_m),
                                config.plant, config.supervisor, config.load_grip)
@@ -320,6 +464,8 @@ def simulate_grasp(config: GripperConfig, width_m: float, mass_kg: float, *,
                  ForceStageController(config, force_controller, approach_force_margin))
     state = loop.state[0]
     state['hold_ns'] = round(hold_s * 1e9)
+    if trace_state_period_ns > 0:
+        loop.keep_trace(trace_state_period_ns)
     plant_side.tick()
     loop.decide()                                   # the position stage holds the open fingers
     supervisor.request_grasp(targets, mass_kg, after_ns=int(loop.tick[0]['stamp_ns']))
@@ -343,7 +489,7 @@ def simulate_grasp(config: GripperConfig, width_m: float, mass_kg: float, *,
         targets.force_setpoint_n, s.start_ns, s.switch_ns, s.contact_ns,
         int(loop.tick[0]['stamp_ns']), s.answer, s.answer_ns, t_ns, *rows[:5], phase,
         s.end_ns, plant.object_state.slip_m, plant.object_state.lost_ns, s.overload_ns,
-        s.overload_need_n, config.plant.max_force_n, **pads)
+        s.overload_need_n, config.plant.max_force_n, **pads, trace=loop.grasp_trace())
 
 
 def _grasp_case(config: GripperConfig, summarize: Callable | None, case: dict):
@@ -487,6 +633,8 @@ def warm_up(config: GripperConfig | None = None) -> float:
                            position_controller=position, force_controller=force,
                            timeout_s=0.05)
     simulate_grasp(config, 0.1, 0.5, timeout_s=0.05, trace=lambda *_: None)
+    simulate_grasp(config, 0.1, 0.5, timeout_s=0.05, idle_unpowered_s=0.01,
+                   trace_state_period_ns=10_000_000)
     simulate_moves(config, [MoveRequest(0.148, speed_mps=0.02, max_effort_n=5.0, timeout_s=0.02)])
     _warm_up_faces(config)
     return time.perf_counter() - start
@@ -527,5 +675,6 @@ def _warm_up_faces(config: GripperConfig) -> None:
         LockstepAnswerer(ForceStageController(config, kind)).answer(ref)
 
 
-__all__ = ['HeadlessGrasp', 'HeadlessMoves', 'map_cases', 'MoveAnswer', 'MoveRequest', 'Phase',
-           'simulate_grasp', 'simulate_grasps', 'simulate_moves', 'warm_up']
+__all__ = ['GraspTrace', 'HeadlessGrasp', 'HeadlessMoves', 'map_cases', 'MoveAnswer',
+           'MoveRequest', 'Phase', 'simulate_grasp', 'simulate_grasps', 'simulate_moves',
+           'warm_up']
