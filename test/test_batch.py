@@ -92,7 +92,7 @@ def test_summaries_come_back_in_the_order_of_the_cases():
                          if c['mass_kg'] != 50.0 else 'refused' for c in CASES]
 
 
-@pytest.mark.parametrize('jobs', [0, -1])
+@pytest.mark.parametrize('jobs', [0, -1, 1.5, 10 ** 6])
 def test_bad_jobs_are_refused(jobs):
-    with pytest.raises(ValueError, match='jobs must be >= 1'):
+    with pytest.raises(ValueError, match=r'jobs must be a whole number in \[1, '):
         map_cases(abs, [1, 2, 3], jobs=jobs)
