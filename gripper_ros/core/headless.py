@@ -23,7 +23,7 @@ from gripper_ros.core.hold import hold_load_n
 from gripper_ros.core.lockstep import (Command, PlantSide, side_accept, side_needs_time,
                                        side_step, StageSide, SupervisorSide, Tick)
 from gripper_ros.core.plant import (_object_state, check_fault, GraspObject, HoldState, K_HOLD,
-                                    Lift)
+                                    Lift, OBJECT_STATE_DTYPE)
 from gripper_ros.core.requests import (GraspRequest, MoveRequest, RequestError, validate_move,
                                        validate_request)
 from gripper_ros.core.stages import (DEFAULT_APPROACH_FORCE_MARGIN, DEFAULT_FORCE_CONTROLLER,
@@ -219,15 +219,17 @@ def _trace_tick(trace, n, tick, supervisor, plant_k, ticks, statuses, objects) -
     hold_state = h.state if h.has_hold else HoldState.NONE
     j = ts.objects
     if j == 0 or t.stamp_ns >= ts.next_object_ns or hold_state != ts.hold_state:
-        state, slip, speed, load, capacity, _, _, _, _ = _object_state(plant_k)
+        now = np.zeros(1, OBJECT_STATE_DTYPE)     # at the state rate, not every tick
+        _object_state(plant_k, now)
+        s = now[0]
         o = objects[j]
         o.stamp_ns = t.stamp_ns
-        o.state = state
-        o.slip_m = slip
-        o.slip_speed_mps = speed
-        o.load_n = load
-        o.capacity_n = capacity
-        ts.hold_state = state
+        o.state = s.state
+        o.slip_m = s.slip_m
+        o.slip_speed_mps = s.slip_speed_mps
+        o.load_n = s.load_n
+        o.capacity_n = s.capacity_n
+        ts.hold_state = s.state
         ts.next_object_ns = (t.stamp_ns // ts.state_period_ns + 1) * ts.state_period_ns
         ts.objects = j + 1
 

@@ -43,8 +43,8 @@ from gripper_ros.nodes.services import DeferredService
 from gripper_ros.nodes.stamps import ns_to_time
 from gripper_ros.nodes.startup import StartupError
 from gripper_ros.wire import (CDR_LITTLE_ENDIAN, COMMAND_LAYOUT, Controller,
-                              DEFAULT_STATE_RATE_HZ, FINGER_JOINT, FORCE_SAMPLE_S, FRAME_BASE,
-                              NODE_PLANT, Outcome, Phase, REPUBLISH_AFTER_S,
+                              DEFAULT_STATE_RATE_HZ, FORCE_SAMPLE_S, FRAME_BASE, NODE_PLANT,
+                              Outcome, Phase, REPUBLISH_AFTER_S,
                               SERVICE_PAUSE, SERVICE_RESUME, SERVICE_SET_OBJECT, SERVICE_STEP,
                               TICK_LAYOUT, TIME_MODE_CHOICES, TimeMode, TOPIC_CLOCK,
                               TOPIC_FORCE_SENSOR, TOPIC_JOINT_STATES, TOPIC_LOAD_ACCELERATION,
