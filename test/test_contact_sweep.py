@@ -14,8 +14,7 @@ import math
 import os
 
 from gripper_ros.apps.contact_sweep import (band_speed_mps, format_rows, main, max_mass_kg,
-                                            quick_cases, reflected_mass_kg, rigid_cases, sweep,
-                                            SweepCase)
+                                            quick_cases, rigid_cases, sweep, SweepCase)
 from gripper_ros.core.config import ForceLaw, load_config
 from gripper_ros.core.engine import MAX_JOBS_PER_CPU
 from gripper_ros.core.headless import simulate_grasp
@@ -28,7 +27,7 @@ SUP = CONFIG.supervisor
 # bounded by the 24 V stall force, so it shows against the paper's smaller setpoints.
 PAPER_LAW = dataclasses.replace(CONFIG, supervisor=dataclasses.replace(
     CONFIG.supervisor, force_law=ForceLaw.PAPER))
-M_R = reflected_mass_kg(CONFIG)      # 546 kg: the motor inertia seen from the finger
+M_R = CONFIG.plant.reflected_mass_kg      # 546 kg: the motor inertia seen from the finger
 
 
 @pytest.fixture(scope='module')

@@ -199,7 +199,7 @@ def test_request_while_grasping_is_refused_and_next_one_succeeds(graph):
     first = graph._grasp.call_async(Grasp.Request(width_m=0.05, mass_kg=1.69))
     busy = None
     for _ in range(200):
-        if graph.supervisor.logic.busy:
+        if graph.supervisor.logic.running:
             busy = graph.grasp(0.05, 1.69)
             break
         time.sleep(0.005)
@@ -234,7 +234,7 @@ def test_stop_ends_the_running_grasp_and_the_next_one_succeeds(graph):
     graph.set_object(0.01)
     pending = graph._grasp.call_async(Grasp.Request(width_m=0.01, mass_kg=1.27))
     deadline = time.monotonic() + 30
-    while not graph.supervisor.logic.busy and time.monotonic() < deadline:
+    while not graph.supervisor.logic.running and time.monotonic() < deadline:
         time.sleep(0.002)
     ticks = graph.plant.ticks_published
     while graph.plant.ticks_published < ticks + 20 and time.monotonic() < deadline:

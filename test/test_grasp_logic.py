@@ -300,7 +300,7 @@ def test_stop_and_a_second_request_while_busy():
     with pytest.raises(RequestError, match='grasp is running'):
         sup.request_grasp(targets(), 1.69)
     d = sup.stop()
-    assert d.outcome is Outcome.STOPPED and d.answer is Outcome.STOPPED and not sup.busy
+    assert d.outcome is Outcome.STOPPED and d.answer is Outcome.STOPPED and not sup.running
     assert d.active is Controller.POSITION
     assert sup.stop() is None                                # nothing left to stop
     sup.request_grasp(targets(), 1.69, after_ns=10 * MS)
@@ -325,7 +325,7 @@ def holding(params=S):
         t += US
         d = sup.step(t, 0.1, f_sp, 4.0)
     assert d.phase is Phase.HOLDING and d.active is Controller.FORCE
-    assert d.outcome is Outcome.UNKNOWN and sup.busy and sup.settled_ns == t
+    assert d.outcome is Outcome.UNKNOWN and sup.running and sup.settled_ns == t
     return sup, t
 
 
@@ -422,7 +422,7 @@ def test_release_runs_the_position_stage_to_open_and_ends_released():
     sup = _released_from(0.05)
     d = sup.step(0, 0.05, 0.0, 0.005)
     assert d.phase is Phase.RELEASING and d.active is Controller.POSITION
-    assert d.position_setpoint_m == 0.0 and sup.busy and sup.releasing
+    assert d.position_setpoint_m == 0.0 and sup.running and sup.releasing
     with pytest.raises(RequestError, match='release is running'):
         sup.request_grasp(targets(), 1.69)
     d = sup.step(10 * MS, S.release_tolerance_m * 1.5, 0.0, 0.005)
@@ -434,7 +434,7 @@ def test_release_runs_the_position_stage_to_open_and_ends_released():
     assert d.outcome is Outcome.UNKNOWN
     d = sup.step(t + settle_ns, 0.0, math.nan, math.nan)   # the force sensor is not needed
     assert d.outcome is Outcome.RELEASED and d.phase is Phase.DONE
-    assert d.active is Controller.POSITION and not sup.busy    # holds the open fingers
+    assert d.active is Controller.POSITION and not sup.running    # holds the open fingers
     assert d.position_setpoint_m == 0.0 and 'released' in d.message
 
 

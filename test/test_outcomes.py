@@ -212,7 +212,7 @@ def test_release_is_refused_while_a_grasp_runs(graph):
     assert graph.set_object(WIDTH).success
     pending = graph._grasp.call_async(Grasp.Request(width_m=WIDTH, mass_kg=MASS))
     deadline = time.monotonic() + 30
-    while not graph.supervisor.logic.busy and time.monotonic() < deadline:
+    while not graph.supervisor.logic.running and time.monotonic() < deadline:
         time.sleep(0.002)
     r = graph.release(10)
     assert not r.success and 'grasp is running' in r.message and '/gripper/stop' in r.message

@@ -147,51 +147,25 @@ def test_other_force_controller_kind_differs(recorded):
 
 # --- the lockstep bookkeeping the nodes use ------------------------------------------------------
 
-class _Status:
-    def __init__(self, active, grasp_id=1):
-        self.active_controller, self.grasp_id = active, grasp_id
-        self.position_setpoint_m = 0.1
-        self.force_setpoint_n = 5.0
-        self.seed_voltage_v = 0.0
-        self.contact = False
-        self.position_m = 0.1
-
-
-class _CountingStage:
-    source = 1
-
-    def __init__(self):
-        self.activations = 0
-
-    @staticmethod
-    def measurement(ref):
-        return ref.position_m
-
-    def activate(self, ref, measurement):
-        self.activations += 1
-
-    def compute(self, ref, measurement):
-        return measurement * 2.0, measurement
-
-
 def _ref(stamp, stage_id=1, grasp_id=1, position_m=1.5, position_setpoint_m=0.1):
     return Reference(stamp, grasp_id, stage_id, 0, 1, 0, 1, True, False, position_setpoint_m,
                      0.1, 1.0, position_m, 0.0, 0.0, 0.0)
 
 
 def test_lockstep_answerer_dedupes_restarts_on_a_new_stage_and_holds_on_nan():
-    stage = _CountingStage()
+    stage = PositionStageController(CONFIG)
     a = LockstepAnswerer(stage)
-    assert a.answer(_ref(10)).voltage_v == 3.0 and stage.activations == 1
+    first = a.answer(_ref(10))
+    assert first.finite and a.active_stage == 1
     assert a.answer(_ref(10)) is None                    # same (stage, stamp): answered once
-    assert a.answer(_ref(20, position_m=2.0)).voltage_v == 4.0 and stage.activations == 1
+    assert a.answer(_ref(20, position_m=2.0)).finite and a.active_stage == 1
     a.answer(_ref(30, stage_id=3))                       # a new stage: restarted
-    assert stage.activations == 2
+    assert a.active_stage == 3
     held = a.answer(_ref(40, stage_id=3, position_m=math.nan))
     assert held.voltage_v == 0.0 and not held.finite and 'measurement' in held.reason
     bad = a.answer(_ref(50, stage_id=3, position_setpoint_m=math.inf))
     assert not bad.finite and 'position_setpoint_m=inf' in bad.reason
-    assert stage.activations == 2                        # neither touched the law
+    assert a.active_stage == 3                           # neither touched the law
 
 
 # --- bad input -----------------------------------------------------------------------------------

@@ -129,12 +129,6 @@ class SweepRow:
         return self.outcome == 'HOLDING' and math.isfinite(self.hold_min_ratio)
 
 
-def reflected_mass_kg(config) -> float:
-    """Return the motor inertia seen from the finger, J / (lever rho): the contact mode's mass."""
-    p = config.plant
-    return p.inertia_kg_m2 / (p.force_lever_m * p.travel_per_rad_m)
-
-
 def max_mass_kg(config) -> float:
     """Return the heaviest object (to 10 g) whose force setpoint 24 V can hold."""
     return math.floor(100.0 * config.plant.max_force_n / _force_setpoint_n(config, 1.0)
@@ -150,7 +144,7 @@ def _force_setpoint_n(config, mass_kg: float) -> float:
 
 
 def _compliant(config, k: float, zeta: float) -> tuple[str, float, float, float]:
-    return (f'{k:.0e}', k, zeta, 2.0 * zeta * math.sqrt(k * reflected_mass_kg(config)))
+    return (f'{k:.0e}', k, zeta, 2.0 * zeta * math.sqrt(k * config.plant.reflected_mass_kg))
 
 
 def _kinds(config, stiffnesses, damping_ratios):
@@ -214,7 +208,7 @@ def holdout_cases(config) -> tuple[list[SweepCase], int]:
 
 def compliant_cases(config, widths=WIDTHS_M, masses=MASSES_KG) -> tuple[list[SweepCase], int]:
     """Return rigid plus the former sweep's stiff (1e5 N/m) and soft (1e3 N/m) objects."""
-    m_r = reflected_mass_kg(config)
+    m_r = config.plant.reflected_mass_kg
     kinds = [('rigid', 0.0, 0.0, 0.0)] + [(name, k, c / (2.0 * math.sqrt(k * m_r)), c)
                                           for name, k, c in COMPLIANT_OBJECTS]
     return build_cases(config, kinds=kinds, widths=widths, masses=masses)

@@ -89,7 +89,8 @@ def main(argv: list[str] | None = None) -> int:
             parse_config(data, 'the noise options')      # the reader's checks, named
     except (ValueError, ConfigError) as exc:
         return _fail(str(exc))
-    from gripper_ros.nodes.process import raise_keyboard_interrupt, StopSignals
+    from gripper_ros.nodes.process import (close_app_graph, raise_keyboard_interrupt,
+                                           StopSignals)
     from rclpy.signals import SignalHandlerOptions
     # Ctrl-C and SIGTERM end the experiment here (KeyboardInterrupt), not inside rclpy: the
     # graph stops and the bag is closed first, and a second signal cannot cut that short (as
@@ -113,11 +114,7 @@ def main(argv: list[str] | None = None) -> int:
         print('excite: interrupted; bag closed', file=sys.stderr)
         return 130
     finally:
-        signals.on_first = None               # a signal from here on must not cut closing short
-        if graph is not None:
-            graph.close()
-        rclpy.try_shutdown()
-        signals.__exit__()
+        close_app_graph(graph, signals)
 
 
 def run_excitation(graph, spec) -> str:

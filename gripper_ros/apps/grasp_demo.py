@@ -174,7 +174,8 @@ def main(argv: list[str] | None = None) -> int:
     from gripper_ros.core.config import ConfigError
     from gripper_ros.nodes.graph import GraphError, GraphOptions, GripperGraph
     from gripper_ros.nodes.names import namespace_as_given
-    from gripper_ros.nodes.process import (ExecutorKind, exit_without_a_last_collection,
+    from gripper_ros.nodes.process import (close_app_graph, ExecutorKind,
+                                           exit_without_a_last_collection,
                                            raise_keyboard_interrupt, StopSignals)
     from gripper_ros.nodes.recording import ServeRecorder
     from gripper_ros.nodes.startup import StartupError
@@ -239,11 +240,7 @@ def main(argv: list[str] | None = None) -> int:
         print('grasp_demo: interrupted; bags closed', file=sys.stderr)
         return 130
     finally:
-        signals.on_first = None               # a signal from here on must not cut closing short
-        if graph is not None:
-            graph.close()
-        rclpy.try_shutdown()
-        signals.__exit__()
+        close_app_graph(graph, signals)
 
 
 SERVE_POLL_S = 0.1

@@ -125,14 +125,12 @@ def fastest_grip_rise_s(config, stiffness_n_per_m: float, rise_n: float) -> floa
     force: accelerating then braking at ``F_24V / m_r`` covers it in ``2 sqrt(rise m_r / (k
     F_24V))`` (drag and the object's damping only add to it).
     """
-    from gripper_ros.apps.contact_sweep import reflected_mass_kg
-    return 2.0 * math.sqrt(rise_n * reflected_mass_kg(config) /
+    return 2.0 * math.sqrt(rise_n * config.plant.reflected_mass_kg /
                            (stiffness_n_per_m * config.plant.max_force_n))
 
 
 def soft_object_bound(config, masses, frictions, stiffness_n_per_m: float) -> str:
     """Return the line that says how fast 24 V can raise the grip on this object."""
-    from gripper_ros.apps.contact_sweep import reflected_mass_kg
     g = config.plant.gravity_mps2
     need_n = min(config.load_grip.grip_margin * max(masses) * g / (2.0 * min(frictions)),
                  config.plant.max_force_n)
@@ -141,7 +139,7 @@ def soft_object_bound(config, masses, frictions, stiffness_n_per_m: float) -> st
             f'to {need_n:.2f} N (k m g / (2 mu_s), the heaviest, least friction) takes at least '
             f'{fastest_grip_rise_s(config, stiffness_n_per_m, rise_n):.3f} s at '
             f'{config.plant.voltage_limit_v:g} V ({rise_n / stiffness_n_per_m * 1e3:.2f} mm of '
-            f'travel, finger mass {reflected_mass_kg(config):.0f} kg through the screw); the '
+            f'travel, finger mass {config.plant.reflected_mass_kg:.0f} kg through the screw); the '
             f'lift-off hands the weight over in {config.contact.lift_off_s:g} s')
 
 

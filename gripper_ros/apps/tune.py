@@ -157,7 +157,7 @@ def load_envelope(name: str, config) -> list:
 
 def _envelope_file(path: str, config) -> list:
     import yaml
-    from gripper_ros.apps.contact_sweep import reflected_mass_kg, SweepCase
+    from gripper_ros.apps.contact_sweep import SweepCase
     try:
         data = yaml.safe_load(Path(path).read_text(encoding='utf-8'))
     except OSError as exc:
@@ -200,7 +200,7 @@ def _envelope_file(path: str, config) -> list:
                 raise TuneError(f'{where}: {field_name} must be > 0')
         k = values.get('stiffness_n_per_m', 0.0)
         c = values.get('damping_n_s_per_m', 0.0)
-        zeta = c / (2.0 * math.sqrt(k * reflected_mass_kg(config))) if k > 0.0 else 0.0
+        zeta = c / (2.0 * math.sqrt(k * config.plant.reflected_mass_kg)) if k > 0.0 else 0.0
         cases.append(SweepCase('file' if k else 'rigid', k, zeta, c, values['width_m'],
                                values.get('object_width_m', values['width_m']),
                                values.get('width_tolerance_m', 0.0), values['mass_kg']))

@@ -57,6 +57,11 @@ class PlantParams:
         return self.torque_constant_n_m_per_a / (self.force_lever_m * self.resistance_ohm)
 
     @property
+    def reflected_mass_kg(self) -> float:
+        """Return J / (eta p N1/N2 p / 2 pi): the motor inertia seen from the finger."""
+        return self.inertia_kg_m2 / (self.force_lever_m * self.travel_per_rad_m)
+
+    @property
     def max_force_n(self) -> float:
         """Largest steady gripping force the voltage limit allows."""
         return self.stall_force_per_volt_n * self.voltage_limit_v

@@ -375,7 +375,7 @@ class ContactForceController:
         t = tuning
         lever_rho = plant.force_lever_m * plant.travel_per_rad_m
         self.stall_force_per_volt_n = plant.stall_force_per_volt_n
-        self.reflected_mass_kg = plant.inertia_kg_m2 / lever_rho
+        self.reflected_mass_kg = plant.reflected_mass_kg
         self.reflected_damping_n_s_per_m = (
             plant.damping_n_m_s_per_rad + plant.torque_constant_n_m_per_a
             * plant.back_emf_v_s_per_rad / plant.resistance_ohm) / lever_rho

@@ -43,7 +43,8 @@ closed form (constant relative acceleration), and finds the exact instants of sl
 of the loss inside it. The caller (:class:`gripper_ros.core.plant.GripperPlant`) splits its steps
 at the lift's start and end (:attr:`HoldModel.next_event_ns`) and at the loss.
 
-The model is a set of compiled kernels (``hold_*``) over one :data:`HOLD_DTYPE` record: the
+The model is a set of compiled kernels (``hold_*``) over one :data:`HOLD_DTYPE` record (or, from
+Python, its 1-element array): the
 plant's kernels step the plant's own hold record, and :class:`HoldModel` is the Python view of
 a 1-element record array (standalone, or the plant's).
 """
@@ -52,6 +53,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 import math
 
+from gripper_ros.core.pid import as_record
 from gripper_ros.wire import FORCE_SAMPLE_S, HoldState, LiftProfile
 import numba
 import numpy as np
@@ -191,8 +193,9 @@ class ObjectState:
 
 
 @numba.njit(cache=True)
-def hold_begin(h, t_ns, mass_kg):
+def hold_begin(hold, t_ns, mass_kg):
     """Start the lift's clock at ``t_ns``; 1 (nothing changed) if the object is off its support."""
+    h = as_record(hold)
     if h.state != HoldState.RESTING:
         return 1
     h.mass_kg = mass_kg
@@ -227,8 +230,9 @@ def hold_scenario_in_progress(h, t_ns, after_lift_ns):
 
 
 @numba.njit(cache=True, inline='always')
-def hold_live(h):
+def hold_live(hold):
     """Tell whether the model must be stepped: a lift pending, or the object lifted and held."""
+    h = as_record(hold)
     return h.next_event_ns != -1 or h.state == HoldState.STUCK or \
         h.state == HoldState.SLIDING
 
@@ -240,25 +244,28 @@ def _pads_load_n(h):
 
 
 @numba.njit(cache=True)
-def hold_load_n(h):
+def hold_load_n(hold):
     """Tangential load on the pads now (0 unless lifted and between the pads)."""
+    h = as_record(hold)
     if h.state == HoldState.STUCK or h.state == HoldState.SLIDING:
         return _pads_load_n(h)
     return 0.0
 
 
 @numba.njit(cache=True)
-def hold_capacity_n(h, force_n):
+def hold_capacity_n(hold, force_n):
     """Most the two pads hold by static friction at grip force ``force_n``."""
+    h = as_record(hold)
     return 2.0 * h.static_friction * (force_n if force_n > 0.0 else 0.0)
 
 
 @numba.njit(cache=True)
-def hold_shear_n(h, force_n):
+def hold_shear_n(hold, force_n):
     """Tangential force on each pad at grip ``force_n``: half the load while stuck, mu_k F sliding.
 
     Signed along the load (positive: the load pulls the object down the pads).
     """
+    h = as_record(hold)
     grip_n = force_n if force_n > 0.0 else 0.0
     if h.state == HoldState.STUCK:
         return 0.5 * _pads_load_n(h)
@@ -286,11 +293,12 @@ def presliding_m(shear_n, normal_n, static_friction, tangential_stiffness_n_per_
 
 
 @numba.njit(cache=True)
-def hold_presliding_m(h, force_n):
+def hold_presliding_m(hold, force_n):
     """Each pad's elastic displacement of the object now, at grip ``force_n`` (0 when rigid).
 
     While the object slides as a whole the pad carries mu_k F and stays sheared by it.
     """
+    h = as_record(hold)
     if h.state != HoldState.STUCK and h.state != HoldState.SLIDING:
         return 0.0
     grip_n = force_n if force_n > 0.0 else 0.0
@@ -310,8 +318,9 @@ def hold_stays_stuck(h, force_n, until_ns):
 
 
 @numba.njit(cache=True)
-def hold_fire_events(h, t_ns):
+def hold_fire_events(hold, t_ns):
     """Apply the lift's breakpoints (start, lift-off pieces, profile changes, end) now due."""
+    h = as_record(hold)
     while h.next_event_ns != -1 and h.next_event_ns <= t_ns:
         at_ns = h.next_event_ns
         if h.state == HoldState.RESTING:            # the lift starts: leaving its support
@@ -389,12 +398,13 @@ def _lift_segment(h):
 
 
 @numba.njit(cache=True)
-def hold_drive(h, t_ns, accel_mps2, after_ns):
+def hold_drive(hold, t_ns, accel_mps2, after_ns):
     """Let a live arm set ``a`` from ``t_ns`` on; 1 (nothing changed) unless the hold has begun.
 
     The object leaves its support if it was on it, a profile still running stops, and the
     scenario lasts ``after_ns`` past the last live value (fast mode plays it out).
     """
+    h = as_record(hold)
     if h.hold_ns == -1 or not (h.state == HoldState.RESTING or h.state == HoldState.STUCK or
                                h.state == HoldState.SLIDING):
         return 1
@@ -413,8 +423,9 @@ def hold_drive(h, t_ns, accel_mps2, after_ns):
 
 
 @numba.njit(cache=True)
-def hold_remove(h):
+def hold_remove(hold):
     """Take the object away (not slid out): nothing is held from now on."""
+    h = as_record(hold)
     h.state = HoldState.NONE
     h.slip_speed_mps = 0.0
     h.next_event_ns = -1
@@ -423,11 +434,12 @@ def hold_remove(h):
 
 
 @numba.njit(cache=True)
-def hold_advance(h, force_n, dt_s):
+def hold_advance(hold, force_n, dt_s):
     """Integrate ``dt_s`` at grip force ``force_n`` and the present ``a``, both constant.
 
     Returns the time into the interval at which the object is lost, or NaN.
     """
+    h = as_record(hold)
     state = h.state
     if state != HoldState.STUCK and state != HoldState.SLIDING:
         return math.nan
@@ -468,57 +480,6 @@ def _time_to_travel(distance_m, v0_mps, accel_mps2):
         return math.inf
     denom = v0_mps + math.sqrt(disc)
     return math.inf if denom <= 0.0 else 2.0 * distance_m / denom
-
-
-# Array-level entry points for Python (HoldModel): each runs the kernel above on ``hold[0]``.
-@numba.njit(cache=True)
-def _begin(hold, t_ns, mass_kg):
-    return hold_begin(hold[0], t_ns, mass_kg)
-
-
-@numba.njit(cache=True)
-def _live(hold):
-    return hold_live(hold[0])
-
-
-@numba.njit(cache=True)
-def _load_n(hold):
-    return hold_load_n(hold[0])
-
-
-@numba.njit(cache=True)
-def _capacity_n(hold, force_n):
-    return hold_capacity_n(hold[0], force_n)
-
-
-@numba.njit(cache=True)
-def _shear_n(hold, force_n):
-    return hold_shear_n(hold[0], force_n)
-
-
-@numba.njit(cache=True)
-def _presliding_m(hold, force_n):
-    return hold_presliding_m(hold[0], force_n)
-
-
-@numba.njit(cache=True)
-def _fire_events(hold, t_ns):
-    hold_fire_events(hold[0], t_ns)
-
-
-@numba.njit(cache=True)
-def _drive(hold, t_ns, accel_mps2, after_ns):
-    return hold_drive(hold[0], t_ns, accel_mps2, after_ns)
-
-
-@numba.njit(cache=True)
-def _remove(hold):
-    hold_remove(hold[0])
-
-
-@numba.njit(cache=True)
-def _advance(hold, force_n, dt_s):
-    return hold_advance(hold[0], force_n, dt_s)
 
 
 def _optional_ns(value) -> int | None:
@@ -587,48 +548,48 @@ class HoldModel:
 
     def begin(self, t_ns: int, mass_kg: float) -> None:
         """Start the lift's clock at ``t_ns`` (HOLDING declared); the object weighs ``mass_kg``."""
-        if _begin(self.record, t_ns, mass_kg):
+        if hold_begin(self.record, t_ns, mass_kg):
             raise ValueError(f'the object is already off its support ({self.state.name}); '
                              'place an object again before a new hold')
 
     @property
     def live(self) -> bool:
         """True while the model must be stepped: a lift pending, or the object lifted and held."""
-        return _live(self.record)
+        return hold_live(self.record)
 
     @property
     def load_n(self) -> float:
         """Tangential load on the pads now (0 unless lifted and between the pads)."""
-        return _load_n(self.record)
+        return hold_load_n(self.record)
 
     def capacity_n(self, force_n: float) -> float:
         """Most the two pads hold by static friction at grip force ``force_n``."""
-        return _capacity_n(self.record, float(force_n))
+        return hold_capacity_n(self.record, float(force_n))
 
     def shear_n(self, force_n: float) -> float:
         """Tangential force on each pad at grip ``force_n`` (see hold_shear_n)."""
-        return _shear_n(self.record, float(force_n))
+        return hold_shear_n(self.record, float(force_n))
 
     def presliding_m(self, force_n: float) -> float:
         """Each pad's Cattaneo-Mindlin displacement of the object at grip ``force_n``."""
-        return _presliding_m(self.record, float(force_n))
+        return hold_presliding_m(self.record, float(force_n))
 
     def fire_events(self, t_ns: int) -> None:
         """Apply the lift's start and end if they are due at ``t_ns``."""
-        _fire_events(self.record, t_ns)
+        hold_fire_events(self.record, t_ns)
 
     def drive(self, t_ns: int, accel_mps2: float, after_ns: int = 0) -> bool:
         """Set the arm's acceleration live from ``t_ns`` (see hold_drive); False if not held."""
-        return _drive(self.record, t_ns, float(accel_mps2), after_ns) == 0
+        return hold_drive(self.record, t_ns, float(accel_mps2), after_ns) == 0
 
     def remove(self) -> None:
         """Take the object away (not slid out): nothing is held from now on."""
-        _remove(self.record)
+        hold_remove(self.record)
 
     def advance(self, force_n: float, dt_s: float) -> float | None:
         """Integrate ``dt_s`` at grip force ``force_n`` and the present ``a``, both constant.
 
         Returns the time into the interval at which the object is lost, or None.
         """
-        loss_s = _advance(self.record, float(force_n), float(dt_s))
+        loss_s = hold_advance(self.record, float(force_n), float(dt_s))
         return None if math.isnan(loss_s) else loss_s

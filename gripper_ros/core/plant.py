@@ -201,6 +201,14 @@ DISC_FREE = 0
 DISC_COMPLIANT = 1
 DISC_LOADED = 2
 DISC_TABLE_SIZE = 64          # entries of the plant's table (a grasp uses about 8)
+DISC_COEFFICIENTS = 15        # one entry's coefficients, in one of the two layouts below
+# DISC_FREE and DISC_COMPLIANT: rows i, omega, x of the augmented Ad (over [i, omega, x, 1],
+# so the contact's affine term is exact), then Bd. AFF_WX is omega's row, x's column.
+(AFF_II, AFF_IW, AFF_IX, AFF_I1, AFF_WI, AFF_WW, AFF_WX, AFF_W1, AFF_XI, AFF_XW, AFF_XX,
+ AFF_X1, AFF_IE, AFF_WE, AFF_XE) = range(DISC_COEFFICIENTS)
+# DISC_LOADED: Ad (3 x 3) row by row, then Bd's rows over the inputs (voltage E, load force F).
+(LD_II, LD_IW, LD_IX, LD_WI, LD_WW, LD_WX, LD_XI, LD_XW, LD_XX, LD_IE, LD_IF, LD_WE, LD_WF,
+ LD_XE, LD_XF) = range(DISC_COEFFICIENTS)
 MAX_FIRED_FAULTS = 16         # fired faults kept since set_object (the oldest are dropped)
 
 # The entries of the tuple ``GripperPlant.kernel``.
@@ -308,18 +316,16 @@ def _plant_params_record(params: PlantParams, contact: ContactParams) -> np.ndar
 
 # ----------------------------------------------------------------------------- discretisation
 # Exact ZOH coefficients, shared by all plants (a sweep builds many):
-# (constants, kind, dt_s, k, c, x_c) -> 15 coefficients.
+# (constants, kind, dt_s, k, c, x_c) -> DISC_COEFFICIENTS coefficients.
 _DISCRETISATIONS: dict[tuple, np.ndarray] = {}
 
 
 def _discretise(raw: tuple, kind: int, dt_s: float, stiffness: float, damping: float,
                 x_c: float) -> np.ndarray:
-    """Exact ZOH over ``dt_s`` (:func:`linalg.expm`), flat: 15 coefficients.
+    """Exact ZOH over ``dt_s`` (:func:`linalg.expm`), flat.
 
-    ``raw`` = (R, L, k_b, k_t, J, b, rho, lever). Free and compliant: ``Ad`` rows 0-2 of the
-    augmented state ``[i, omega, x, 1]`` (4 each, so the contact's affine term discretises
-    exactly) and ``Bd`` (3). Loaded (free motion with two held inputs, voltage and a load force
-    in N): ``Ad`` (3 x 3) then ``Bd`` (3 x 2), row by row.
+    In the layout ``AFF_*`` (free, compliant) or ``LD_*`` (loaded: a held voltage and load force
+    in N). ``raw`` = (R, L, k_b, k_t, J, b, rho, lever).
     """
     key = (raw, kind, dt_s, stiffness, damping, x_c)
     cached = _DISCRETISATIONS.get(key)
@@ -413,7 +419,7 @@ def _disc_miss(s, p, keys, coef, kind, dt_s, stiffness, damping, x_c):
     keys[j, 2] = stiffness
     keys[j, 3] = damping
     keys[j, 4] = x_c
-    for n in range(15):
+    for n in range(DISC_COEFFICIENTS):
         coef[j, n] = out[n]
     s.disc_next = (j + 1) % DISC_TABLE_SIZE
     if s.disc_count < DISC_TABLE_SIZE:
@@ -609,9 +615,9 @@ def _advance_zoh(s, p, keys, coef, kind, e, dt_s):
     i = s.i
     w = s.w
     x = s.x
-    s.i = c[0] * i + c[1] * w + c[2] * x + c[3] + c[12] * e
-    s.w = c[4] * i + c[5] * w + c[6] * x + c[7] + c[13] * e
-    s.x = c[8] * i + c[9] * w + c[10] * x + c[11] + c[14] * e
+    s.i = c[AFF_II] * i + c[AFF_IW] * w + c[AFF_IX] * x + c[AFF_I1] + c[AFF_IE] * e
+    s.w = c[AFF_WI] * i + c[AFF_WW] * w + c[AFF_WX] * x + c[AFF_W1] + c[AFF_WE] * e
+    s.x = c[AFF_XI] * i + c[AFF_XW] * w + c[AFF_XX] * x + c[AFF_X1] + c[AFF_XE] * e
 
 
 @numba.njit(cache=True, inline='always')
@@ -733,9 +739,9 @@ def _advance_chain(s, p, keys, coef, e, dt_s):
     w = s.w
     x = s.x
     half_f0 = 0.5 * s.chain_force_n
-    i1 = c[0] * i + c[1] * w + c[2] * x + c[9] * e + c[10] * half_f0
-    w1 = c[3] * i + c[4] * w + c[5] * x + c[11] * e + c[12] * half_f0
-    x1 = c[6] * i + c[7] * w + c[8] * x + c[13] * e + c[14] * half_f0
+    i1 = c[LD_II] * i + c[LD_IW] * w + c[LD_IX] * x + c[LD_IE] * e + c[LD_IF] * half_f0
+    w1 = c[LD_WI] * i + c[LD_WW] * w + c[LD_WX] * x + c[LD_WE] * e + c[LD_WF] * half_f0
+    x1 = c[LD_XI] * i + c[LD_XW] * w + c[LD_XX] * x + c[LD_XE] * e + c[LD_XF] * half_f0
     if s.stiffness_n_per_m == 0.0:
         object_compliance = 0.0
         object_offset = 0.0
@@ -744,14 +750,14 @@ def _advance_chain(s, p, keys, coef, e, dt_s):
         gamma = s.damping_n_s_per_m / dt_s
         object_compliance = 1.0 / (s.stiffness_n_per_m + gamma)
         object_offset = gamma * s.chain_object_m * object_compliance
-    # x_end = x1 + 0.5 c[14] F (c[14] < 0: the load slows the finger)
-    compliance = p.finger_compliance_m_per_n - 0.5 * c[14] + object_compliance
+    # x_end = x1 + 0.5 c[LD_XF] F (c[LD_XF] < 0: the load slows the finger)
+    compliance = p.finger_compliance_m_per_n - 0.5 * c[LD_XF] + object_compliance
     force, pad_m = chain_solve(x1 - s.x_c - object_offset, compliance,
                                p.pad_stiffness_n_per_m1_5, s.chain_pad_m)
     half_f1 = 0.5 * force
-    s.i = i1 + c[10] * half_f1
-    s.w = w1 + c[12] * half_f1
-    s.x = x1 + c[14] * half_f1
+    s.i = i1 + c[LD_IF] * half_f1
+    s.w = w1 + c[LD_WF] * half_f1
+    s.x = x1 + c[LD_XF] * half_f1
     s.chain_force_n = force
     s.chain_pad_m = pad_m
     s.chain_object_m = (force + gamma * s.chain_object_m) * object_compliance
@@ -809,10 +815,10 @@ def _advance_slipping(s, p, h, keys, coef, e, dt_s, remaining_s):
     i = s.i
     w = s.w
     x = s.x
-    # Ad (3 x 3) then Bd (3 x 2) row by row; the sum starts at 0 as Python's sum() does.
-    s.i = 0.0 + c[0] * i + c[1] * w + c[2] * x + c[9] * e + c[10] * cap
-    s.w = 0.0 + c[3] * i + c[4] * w + c[5] * x + c[11] * e + c[12] * cap
-    s.x = 0.0 + c[6] * i + c[7] * w + c[8] * x + c[13] * e + c[14] * cap
+    # the sum starts at 0 as Python's sum() does
+    s.i = 0.0 + c[LD_II] * i + c[LD_IW] * w + c[LD_IX] * x + c[LD_IE] * e + c[LD_IF] * cap
+    s.w = 0.0 + c[LD_WI] * i + c[LD_WW] * w + c[LD_WX] * x + c[LD_WE] * e + c[LD_WF] * cap
+    s.x = 0.0 + c[LD_XI] * i + c[LD_XW] * w + c[LD_XX] * x + c[LD_XE] * e + c[LD_XF] * cap
     end = p.max_travel_m
     if s.x >= end:                                 # the object is gone, the fingers meet
         s.x = end
@@ -1190,7 +1196,8 @@ class GripperPlant:
         hold[0]['state'] = HoldState.NONE
         self.kernel = (state, _plant_params_record(params, self.contact_defaults), hold,
                        sensor.record, np.zeros((MAX_FIRED_FAULTS, 2), np.int64),
-                       np.zeros((DISC_TABLE_SIZE, 5)), np.zeros((DISC_TABLE_SIZE, 15)),
+                       np.zeros((DISC_TABLE_SIZE, 5)),
+                       np.zeros((DISC_TABLE_SIZE, DISC_COEFFICIENTS)),
                        np.zeros(PAD_CHANNELS, PAD_DTYPE))
         """The kernel buffers: (state, params, hold, sensor, fired faults, table keys, table,
         pad channels with their delay lines)."""
@@ -1451,7 +1458,8 @@ class GripperPlant:
     def discrete_free_model(self, dt_s: float) -> tuple[np.ndarray, np.ndarray]:
         """Exact ZOH model of free motion: ``s[k+1] = Ad s[k] + Bd e[k]``, s = [i, omega, x]."""
         c = _discretise(self._raw, DISC_FREE, dt_s, 0.0, 0.0, 0.0).tolist()
-        return np.array([c[0:3], c[4:7], c[8:11]]), np.array(c[12:15])
+        return (np.array([c[AFF_II:AFF_I1], c[AFF_WI:AFF_W1], c[AFF_XI:AFF_X1]]),
+                np.array(c[AFF_IE:AFF_XE + 1]))
 
     def discrete_force_model(self, dt_s: float) -> tuple[float, float]:
         """Exact ZOH of eq. 13: ``F[k+1] = a F[k] + b e[k]`` on a rigid object."""

@@ -594,26 +594,18 @@ _VOLTAGE_AT, _INNER_AT = (COMMAND_DTYPE.fields[name][1] // 8
 class LockstepAnswerer:
     """The lockstep bookkeeping of one controller around a stage.
 
-    A stage is anything with ``source``, ``measurement(ref)``, ``activate(ref, measurement)``
-    and ``compute(ref, measurement)``. Call :meth:`answer` with every reference addressed to
-    this controller. A stage with a ``kernel`` (the stage controllers above) is answered by
-    :func:`stage_answer` on its own book; any other stage by the same bookkeeping kernels
-    around its Python ``activate`` / ``compute``.
+    ``stage`` is one of the stage controllers above: :func:`stage_answer` answers it on its own
+    book. Call :meth:`answer` with every reference addressed to this controller.
     """
 
     def __init__(self, stage):
         self.stage = stage
-        self.numbers = getattr(stage, 'reference_numbers', REFERENCE_NUMBERS)
-        self._kernel = getattr(stage, 'kernel', None)
-        if self._kernel is not None:
-            state, vectors = self._kernel
-            self._book = state['book']
-            self._reference_numbers = vectors[REFERENCE_AT:DMC_AT]
-            self._law_numbers = vectors[LAW_AT:REFERENCE_AT]
-        else:
-            self._book = np.zeros(1, BOOK_DTYPE)
-            self._reference_numbers = np.zeros(len(NUMBER_FIELDS))
-            self._law_numbers = np.zeros(LAW_NUMBERS)
+        self.numbers = stage.reference_numbers
+        self._kernel = stage.kernel
+        state, vectors = self._kernel
+        self._book = state['book']
+        self._reference_numbers = vectors[REFERENCE_AT:DMC_AT]
+        self._law_numbers = vectors[LAW_AT:REFERENCE_AT]
         reset_book(self._book, self.numbers)
         self._ref = np.zeros(1, REFERENCE_DTYPE)
         self._cmd = np.zeros(1, COMMAND_DTYPE)
@@ -652,29 +644,9 @@ class LockstepAnswerer:
     def answer(self, ref) -> TickAnswer | None:
         """Return the command for this tick, or None when this (stage, stamp) was answered."""
         fill_reference(ref, self._ref)
-        if self._kernel is not None:
-            if not stage_answer(self._kernel, self._ref, self._cmd):
-                return None
-            if self._cmd_bytes[_FINITE_BYTE]:
-                numbers = self._cmd_floats.tolist()
-                return TickAnswer(numbers[_VOLTAGE_AT], numbers[_INNER_AT])
-            return TickAnswer(0.0, 0.0, finite=False, reason=self.reason)
-        measurement = self.stage.measurement(ref)
-        reason = answer_open(self._book, self._reference_numbers, self._ref, float(measurement))
-        if reason == ANSWER_REPEATED:
+        if not stage_answer(self._kernel, self._ref, self._cmd):
             return None
-        if reason != REASON_NONE:
-            return TickAnswer(0.0, 0.0, finite=False, reason=self.reason)
-        try:
-            if self.active_stage != ref.stage_id:
-                self.stage.activate(ref, measurement)
-                self.active_stage = ref.stage_id
-            voltage, inner = self.stage.compute(ref, measurement)
-        except (ValueError, ArithmeticError) as exc:    # a law that refuses its numbers
-            self.active_stage = None
-            return TickAnswer(0.0, 0.0, finite=False, reason=f'control law failed: {exc}')
-        finite, _, _ = answer_close(self._book, self._law_numbers, LAW_OK, float(voltage),
-                                    float(inner))
-        if not finite:
-            return TickAnswer(0.0, 0.0, finite=False, reason=self.reason)
-        return TickAnswer(voltage, inner)
+        if self._cmd_bytes[_FINITE_BYTE]:
+            numbers = self._cmd_floats.tolist()
+            return TickAnswer(numbers[_VOLTAGE_AT], numbers[_INNER_AT])
+        return TickAnswer(0.0, 0.0, finite=False, reason=self.reason)

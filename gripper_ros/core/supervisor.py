@@ -99,7 +99,8 @@ SUPERVISOR_STATE = np.dtype(
     + [('pend_' + name, 'f8') for name in _TARGET_FIELDS]
     + [('d_answer', 'i4'), ('d_running', 'b1'), ('d_contact', 'b1'),   # the tick's decision
        ('d_position_setpoint_m', 'f8'), ('d_approach_setpoint_m', 'f8'),
-       ('d_force_setpoint_n', 'f8'), ('d_speed_limit_mps', 'f8'), ('d_voltage_limit_v', 'f8')],
+       ('d_force_setpoint_n', 'f8'), ('d_speed_limit_mps', 'f8'), ('d_voltage_limit_v', 'f8'),
+       ('d_holding', 'b1'), ('d_pressing', 'b1')],
     align=True)
 """Everything the state machine remembers between ticks, and the decision of the last one."""
 
@@ -112,8 +113,9 @@ _PARAM_FIELDS = ('position_tolerance_fraction', 'position_switch_speed_mps',
 SUPERVISOR_PARAMS = np.dtype([(name, 'f8') for name in _PARAM_FIELDS], align=True)
 """The :class:`SupervisorParams` the tick reads."""
 
-# Messages: a code and the numbers the text needs (msg_f, msg_i), written by the kernel at the
-# instant the outcome happens and formatted by GraspSupervisor.message.
+# Messages: a code (``msg_code``) and the numbers the text needs (a SUPERVISOR_MESSAGE record),
+# written by the kernel at the instant the outcome happens and formatted by
+# GraspSupervisor.message.
 MSG_NONE = 0
 MSG_TEXT = 1                  # a text given from Python (stop, fault)
 MSG_SENSOR_FAULT = 2
@@ -129,8 +131,30 @@ MSG_STALLED_PRESSING = 11
 MSG_STALLED_AT_REST = 12
 MSG_MOVE_TIMEOUT = 13
 MSG_OVERLOADED = 14
-MSG_FLOATS = 8
-MSG_INTS = 6
+
+SUPERVISOR_MESSAGE = np.dtype(
+    [('t_ns', 'i8'), ('start_ns', 'i8'),
+     ('since_ns', 'i8'),                   # the force low (LOST_FORCE) or at rest (STALLED) since
+     ('into_ns', 'i8'),                    # how long after HOLDING (after_holding) or the start
+     ('after_holding', 'b1'), ('bad_position', 'b1'), ('bad_force', 'b1'),
+     ('request_kind', 'i4'),               # SENSOR_FAULT: the request's code, 0: the hold
+     ('phase', 'i4'),                      # GRASP_TIMEOUT: the phase it was in
+     ('position_m', 'f8'), ('force_n', 'f8'), ('sensor_voltage_v', 'f8'),
+     ('position_setpoint_m', 'f8'),        # the expected face, the open position, the goal
+     ('width_tolerance_m', 'f8'), ('farthest_face_m', 'f8'),
+     ('lost_force_fraction', 'f8'), ('force_setpoint_n', 'f8'), ('floor_n', 'f8'),
+     ('hold_position_m', 'f8'), ('margin_m', 'f8'), ('timeout_s', 'f8'),
+     ('short_of_goal_m', 'f8'), ('max_effort_n', 'f8'),
+     ('need_n', 'f8'), ('max_force_n', 'f8'), ('load_n', 'f8'), ('friction_coefficient', 'f8')],
+    align=True)
+"""The numbers of the current message, by name; each code writes the fields its text reads."""
+
+# The entries of the tuple ``GraspSupervisor.kernel`` (the headless loop reads 0 and 4).
+K_STATE = 0
+K_PARAMS = 1
+K_MESSAGE = 2
+K_LAW_BUFFERS = 3
+K_LAW = 4
 
 _kernel = numba.njit(cache=True)
 
@@ -281,14 +305,15 @@ def _switch(s, criterion, t_ns) -> None:
 
 
 @_kernel
-def _snapshot_into(s, msg_i) -> None:
-    """Where in the grasp the event happened: msg_i[1] 1 after HOLDING, msg_i[2] since when."""
+def _snapshot_into(s, m) -> None:
+    """Write when (``t_ns``) and where in the grasp the event happened: after HOLDING or not."""
+    m.t_ns = s.t_ns
     if _holding(s) and s.end_ns != NO_NS:
-        msg_i[1] = 1
-        msg_i[2] = s.t_ns - s.end_ns
+        m.after_holding = True
+        m.into_ns = s.t_ns - s.end_ns
     else:
-        msg_i[1] = 0
-        msg_i[2] = s.t_ns - s.start_ns
+        m.after_holding = False
+        m.into_ns = s.t_ns - s.start_ns
 
 
 @_kernel
@@ -323,7 +348,7 @@ def _force_settled(s, p, t_ns, force_n, speed_mps) -> bool:
 
 
 @_kernel
-def _object_lost(s, p, msg_f, msg_i, t_ns, position_m, force_n) -> int:
+def _object_lost(s, p, m, t_ns, position_m, force_n) -> int:
     """After contact: a force collapse, or the finger moving on past the held position."""
     floor = p.lost_force_fraction * s.tg_force_setpoint_n
     if force_n >= floor:
@@ -334,52 +359,50 @@ def _object_lost(s, p, msg_f, msg_i, t_ns, position_m, force_n) -> int:
             s.low_since_ns = t_ns
         low_s = (t_ns - s.low_since_ns) * 1e-9
         if low_s >= p.lost_force_hold_s:
-            msg_i[0] = t_ns
-            _snapshot_into(s, msg_i)
-            msg_i[3] = s.low_since_ns
-            msg_f[0] = force_n
-            msg_f[1] = p.lost_force_fraction
-            msg_f[2] = s.tg_force_setpoint_n
-            msg_f[3] = floor
-            msg_f[4] = position_m
+            _snapshot_into(s, m)
+            m.since_ns = s.low_since_ns
+            m.force_n = force_n
+            m.lost_force_fraction = p.lost_force_fraction
+            m.force_setpoint_n = s.tg_force_setpoint_n
+            m.floor_n = floor
+            m.position_m = position_m
             return _end(s, Phase.FAILED, Outcome.OBJECT_LOST, MSG_LOST_FORCE, True,
                         position_m, False)
     if not math.isnan(s.hold_position_m) and \
             position_m > s.hold_position_m + p.no_object_margin_m:
-        msg_i[0] = t_ns
-        _snapshot_into(s, msg_i)
-        msg_f[0] = position_m
-        msg_f[1] = s.hold_position_m
-        msg_f[2] = p.no_object_margin_m
-        msg_f[3] = force_n
+        _snapshot_into(s, m)
+        m.position_m = position_m
+        m.hold_position_m = s.hold_position_m
+        m.margin_m = p.no_object_margin_m
+        m.force_n = force_n
         return _end(s, Phase.FAILED, Outcome.OBJECT_LOST, MSG_LOST_MOVED_ON, True, position_m,
                     False)
     return NO_ANSWER
 
 
 @_kernel
-def _step_release(s, p, msg_f, msg_i, t_ns, position_m) -> int:
+def _step_release(s, p, m, t_ns, position_m) -> int:
     if abs(position_m - s.tg_position_setpoint_m) <= p.release_tolerance_m:
         if s.in_band_since_ns == NO_NS:
             s.in_band_since_ns = t_ns
         if (t_ns - s.in_band_since_ns) * 1e-9 >= p.release_settle_s:
-            msg_f[0] = position_m
-            msg_f[1] = s.tg_position_setpoint_m
-            msg_i[0] = t_ns
-            msg_i[1] = s.start_ns
+            m.position_m = position_m
+            m.position_setpoint_m = s.tg_position_setpoint_m
+            m.t_ns = t_ns
+            m.start_ns = s.start_ns
             return _end(s, Phase.DONE, Outcome.RELEASED, MSG_RELEASED, True, position_m, False)
     else:
         s.in_band_since_ns = NO_NS
     if (t_ns - s.start_ns) * 1e-9 > s.tg_timeout_s:
-        msg_f[0] = s.tg_timeout_s
-        msg_f[1] = position_m
+        m.timeout_s = s.tg_timeout_s
+        m.position_m = position_m
         return _end(s, Phase.FAILED, Outcome.TIMEOUT, MSG_RELEASE_TIMEOUT, True, position_m,
                     False)
     return NO_ANSWER
 
 
 @_kernel
-def _step_move(s, p, msg_f, msg_i, t_ns, position_m, force_n, sensor_voltage_v,
+def _step_move(s, p, m, t_ns, position_m, force_n, sensor_voltage_v,
                speed_mps) -> int:
     """End a move MOVED, STALLED or TIMEOUT; the position stage drives it meanwhile."""
     goal = s.tg_position_setpoint_m
@@ -389,11 +412,11 @@ def _step_move(s, p, msg_f, msg_i, t_ns, position_m, force_n, sensor_voltage_v,
         s.contact_ns = t_ns
     error_m = goal - position_m                   # > 0: still to close
     at_rest = abs(speed_mps) <= p.move_rest_speed_mps
-    msg_f[0] = position_m                         # where: position, goal, force, elapsed
-    msg_f[1] = goal
-    msg_f[2] = force_n
-    msg_i[0] = t_ns
-    msg_i[1] = s.start_ns
+    m.position_m = position_m                     # where: position, goal, force, elapsed
+    m.position_setpoint_m = goal
+    m.force_n = force_n
+    m.t_ns = t_ns
+    m.start_ns = s.start_ns
     if not at_rest:
         s.rest_since_ns = NO_NS
     elif abs(error_m) <= s.tg_tolerance_m:
@@ -407,20 +430,20 @@ def _step_move(s, p, msg_f, msg_i, t_ns, position_m, force_n, sensor_voltage_v,
         pressing = error_m > 0.0 and fraction * s.tg_max_effort_n <= force_n and \
             force_n <= s.tg_max_effort_n / fraction
         if pressing or rest_s >= p.move_stall_timeout_s:
-            msg_f[3] = error_m
-            msg_f[4] = s.tg_max_effort_n
-            msg_i[2] = s.rest_since_ns
+            m.short_of_goal_m = error_m
+            m.max_effort_n = s.tg_max_effort_n
+            m.since_ns = s.rest_since_ns
             return _end(s, Phase.DONE, Outcome.STALLED,
                         MSG_STALLED_PRESSING if pressing else MSG_STALLED_AT_REST, True, goal,
                         True)
     if elapsed_s > s.move_timeout_s:
-        msg_f[3] = s.move_timeout_s
+        m.timeout_s = s.move_timeout_s
         return _end(s, Phase.FAILED, Outcome.TIMEOUT, MSG_MOVE_TIMEOUT, True, position_m, False)
     return NO_ANSWER
 
 
 @_kernel
-def _step_request(s, p, msg_f, msg_i, t_ns, position_m, force_n, sensor_voltage_v,
+def _step_request(s, p, m, t_ns, position_m, force_n, sensor_voltage_v,
                   speed_mps) -> int:
     phase = s.phase
     position_only = phase == Phase.RELEASING or phase == Phase.MOVING   # no force needed
@@ -428,33 +451,33 @@ def _step_request(s, p, msg_f, msg_i, t_ns, position_m, force_n, sensor_voltage_
     bad_force = not position_only and not (math.isfinite(force_n)
                                            and math.isfinite(sensor_voltage_v))
     if bad_position or bad_force:
-        msg_i[0] = t_ns
-        msg_i[1] = s.start_ns
-        msg_i[2] = 1 if bad_position else 0
-        msg_i[3] = 1 if bad_force else 0
-        msg_i[4] = 0 if _holding(s) else s.kind          # 0: the hold
-        msg_f[0] = position_m
-        msg_f[1] = force_n
-        msg_f[2] = sensor_voltage_v
+        m.t_ns = t_ns
+        m.start_ns = s.start_ns
+        m.bad_position = bad_position
+        m.bad_force = bad_force
+        m.request_kind = 0 if _holding(s) else s.kind   # 0: the hold
+        m.position_m = position_m
+        m.force_n = force_n
+        m.sensor_voltage_v = sensor_voltage_v
         return _end(s, Phase.FAILED, Outcome.FAULT, MSG_SENSOR_FAULT, False, math.nan, False)
     s.position_m = position_m                          # finite: where a stop holds
     if position_only:
         if phase == Phase.RELEASING:
-            return _step_release(s, p, msg_f, msg_i, t_ns, position_m)
-        return _step_move(s, p, msg_f, msg_i, t_ns, position_m, force_n, sensor_voltage_v,
+            return _step_release(s, p, m, t_ns, position_m)
+        return _step_move(s, p, m, t_ns, position_m, force_n, sensor_voltage_v,
                           speed_mps)
     sensor_rise = sensor_voltage_v - s.baseline_voltage_v > p.sensor_voltage_threshold_v
     if sensor_rise and s.contact_ns == NO_NS:
         s.contact_ns = t_ns
     farthest_face_m = s.tg_position_setpoint_m + s.tg_width_tolerance_m   # narrowest object
     if s.contact_ns == NO_NS and position_m > farthest_face_m + p.no_object_margin_m:
-        msg_f[0] = s.tg_position_setpoint_m
-        msg_f[1] = s.tg_width_tolerance_m
-        msg_f[2] = position_m
-        msg_f[3] = farthest_face_m
+        m.position_setpoint_m = s.tg_position_setpoint_m
+        m.width_tolerance_m = s.tg_width_tolerance_m
+        m.position_m = position_m
+        m.farthest_face_m = farthest_face_m
         return _end(s, Phase.FAILED, Outcome.NO_OBJECT, MSG_NO_OBJECT, True, position_m, False)
     if s.contact_ns != NO_NS:
-        lost = _object_lost(s, p, msg_f, msg_i, t_ns, position_m, force_n)
+        lost = _object_lost(s, p, m, t_ns, position_m, force_n)
         if lost != NO_ANSWER:
             return lost
     if _holding(s):
@@ -474,17 +497,17 @@ def _step_request(s, p, msg_f, msg_i, t_ns, position_m, force_n, sensor_voltage_
     if s.phase == Phase.HOLDING and (t_ns - s.settled_ns) * 1e-9 >= p.hold_watch_s:
         s.outcome = Outcome.HOLDING
         s.end_ns = t_ns
-        msg_f[0] = force_n
-        msg_f[1] = s.tg_force_setpoint_n
-        msg_f[2] = position_m
+        m.force_n = force_n
+        m.force_setpoint_n = s.tg_force_setpoint_n
+        m.position_m = position_m
         s.msg_code = MSG_HOLDING
         s.msg_seq += 1
         return s.outcome
     if (t_ns - s.start_ns) * 1e-9 > s.tg_timeout_s:
-        msg_f[0] = s.tg_timeout_s
-        msg_f[1] = position_m
-        msg_f[2] = force_n
-        msg_i[0] = s.phase
+        m.timeout_s = s.tg_timeout_s
+        m.position_m = position_m
+        m.force_n = force_n
+        m.phase = s.phase
         return _end(s, Phase.FAILED, Outcome.TIMEOUT, MSG_GRASP_TIMEOUT, True, position_m, False)
     return NO_ANSWER
 
@@ -504,7 +527,7 @@ def _law_reset(law, law_buffers) -> None:
 
 
 @_kernel
-def _track_load(s, msg_f, msg_i, law, law_buffers, t_ns, force_n, shear_n, displacement_m,
+def _track_load(s, m, law, law_buffers, t_ns, force_n, shear_n, displacement_m,
                 may_answer) -> int:
     """Run the law on this tick's pads: its setpoint becomes the grasp's; OVERLOADED once.
 
@@ -520,13 +543,12 @@ def _track_load(s, msg_f, msg_i, law, law_buffers, t_ns, force_n, shear_n, displ
     if g.overload_ns == -1 or s.overload_ns != NO_NS or not may_answer:
         return NO_ANSWER
     s.overload_ns = t_ns
-    msg_i[0] = t_ns
-    _snapshot_into(s, msg_i)
-    msg_f[0] = g.overload_need_n
-    msg_f[1] = g.max_force_n
-    msg_f[2] = force_n
-    msg_f[3] = 2.0 * shear_n
-    msg_f[4] = g.mu_est
+    _snapshot_into(s, m)
+    m.need_n = g.overload_need_n
+    m.max_force_n = g.max_force_n
+    m.force_n = force_n
+    m.load_n = 2.0 * shear_n
+    m.friction_coefficient = g.mu_est
     s.phase = Phase.HOLDING
     s.outcome = Outcome.OVERLOADED
     if s.end_ns == NO_NS:                  # not answered before: answered now
@@ -542,6 +564,8 @@ def _fill(s, answer) -> None:
     s.d_answer = answer
     s.status_key = ((s.stage_id * 16 + s.outcome) * 16 + s.active) * 16 + s.phase
     s.d_running = _running(s)
+    s.d_holding = _holding(s)
+    s.d_pressing = _pressing(s)
     s.d_contact = s.contact_ns != NO_NS
     if answer != NO_ANSWER and s.answer_ns == NO_NS:
         s.answer = answer
@@ -580,9 +604,10 @@ def supervisor_step(k, t_ns, position_m, force_n, sensor_voltage_v, speed_mps,
     position stage then holds the finger where it now is. ``shear_n`` and ``displacement_m``
     (a pad's mean) feed the load-tracking grip of a mass-0 grasp.
     """
-    state, params, msg_f, msg_i, law, law_buffers = k
+    state, params, message, law_buffers, law = k
     s = state[0]
     p = params[0]
+    m = message[0]
     s.t_ns = t_ns
     answer = NO_ANSWER
     if s.revision != revision:
@@ -596,10 +621,10 @@ def supervisor_step(k, t_ns, position_m, force_n, sensor_voltage_v, speed_mps,
         if s.kind == PendingRequest.GRASP:
             _law_reset(law, law_buffers)
     if _running(s) or _holding(s):
-        answer = _step_request(s, p, msg_f, msg_i, t_ns, position_m, force_n, sensor_voltage_v,
+        answer = _step_request(s, p, m, t_ns, position_m, force_n, sensor_voltage_v,
                                speed_mps)
     if _tracking(s) and math.isfinite(force_n):
-        overloaded = _track_load(s, msg_f, msg_i, law, law_buffers, t_ns, force_n,
+        overloaded = _track_load(s, m, law, law_buffers, t_ns, force_n,
                                  shear_n, displacement_m, answer == NO_ANSWER)
         if overloaded != NO_ANSWER:
             answer = overloaded
@@ -618,7 +643,7 @@ def supervisor_decide(k, tick, ref) -> bool:
     supervisor_step(k, t.stamp_ns, t.position_m, t.force_n, t.sensor_voltage_v, t.velocity_mps,
                     t.revision, 0.5 * (t.pad1_shear_n + t.pad2_shear_n),
                     0.5 * (t.pad1_displacement_m + t.pad2_displacement_m))
-    s = k[0][0]
+    s = k[K_STATE][0]
     if math.isfinite(t.motor_voltage_v):
         s.seed_voltage_v = t.motor_voltage_v
     if s.active == Controller.NONE:
@@ -651,7 +676,7 @@ def supervisor_stop(k) -> bool:
 
     False with nothing to stop. The message is the text the caller gives (MSG_TEXT).
     """
-    s = k[0][0]
+    s = k[K_STATE][0]
     if s.pend_kind != 0 and not _running(s):
         _take_pending(s)                     # answered at once, it never starts
         _reset(s, s.t_ns)
@@ -669,7 +694,7 @@ def supervisor_stop(k) -> bool:
 @_kernel
 def supervisor_fault(k) -> bool:
     """End the running request or the hold as FAULT: no controller drives the motor."""
-    s = k[0][0]
+    s = k[K_STATE][0]
     if not (_running(s) or _holding(s)):
         _fill(s, NO_ANSWER)
         return False
@@ -749,9 +774,10 @@ class GraspSupervisor:
     request still needs simulated time; ``stage_id`` grows whenever a controller is
     (re)assigned, so that it restarts from the measured state.
 
-    ``kernel`` is the tuple of arrays the compiled functions take: the state record, the
-    parameters, the numbers of the current message, the load-tracking grip's record and a copy
-    as it starts (:func:`load_law`), and its history and residual sums in one array.
+    ``kernel`` is the tuple of arrays the compiled functions take (entries ``K_*``): the state
+    record, the parameters, the numbers of the current message, the load-tracking grip's
+    history and residual sums in one array, and its record and a copy as it starts
+    (:func:`load_law`).
 
     A grasp of mass 0 (unknown) needs ``law``; without it such a request is refused.
     """
@@ -776,8 +802,13 @@ class GraspSupervisor:
         # few arrays: the kernel's tuple is copied on every call the compiler does not inline
         law_buffers = np.zeros((history.shape[0] + sums.shape[0],
                                 max(history.shape[1], sums.shape[1])))
-        self.kernel = (state, self._params, np.zeros(MSG_FLOATS), np.zeros(MSG_INTS, np.int64),
-                       np.concatenate([record, record]), law_buffers)
+        kernel = [None] * 5
+        kernel[K_STATE] = state
+        kernel[K_PARAMS] = self._params
+        kernel[K_MESSAGE] = np.zeros(1, SUPERVISOR_MESSAGE)
+        kernel[K_LAW_BUFFERS] = law_buffers
+        kernel[K_LAW] = np.concatenate([record, record])
+        self.kernel = tuple(kernel)
         self.params = params
         self._targets: GraspTargets | MoveTargets | None = None
         self._pending_targets: GraspTargets | MoveTargets | None = None
@@ -826,9 +857,14 @@ class GraspSupervisor:
                                 doc="The grasp's force setpoint now (the law's, tracking).")
 
     @property
+    def law(self) -> np.ndarray:
+        """The load-tracking grip's record now (``[0]``) and as each grasp starts it (``[1]``)."""
+        return self.kernel[K_LAW]
+
+    @property
     def overload_need_n(self) -> float:
         """The grip the load needed when the law said overload (NaN: never)."""
-        g = self.kernel[4][0]
+        g = self.law[0]
         return float(g['overload_need_n']) if g['overload_ns'] != -1 else math.nan
 
     @property
@@ -843,29 +879,16 @@ class GraspSupervisor:
             self._targets, self._pending_targets = self._pending_targets, None
         return self._targets
 
-    @property
-    def running(self) -> bool:
-        """A grasp or release is in progress (it needs simulated time until it is answered)."""
-        return bool(self._s['kind'] != 0 and self._s['outcome'] == Outcome.UNKNOWN)
-
-    busy = running
+    running = property(lambda self: bool(self._s['d_running']),
+                       doc='A request is in progress (it needs simulated time until answered).')
+    holding = property(lambda self: bool(self._s['d_holding']),
+                       doc='A grasp was answered HOLDING (or OVERLOADED); the force stage holds.')
+    pressing = property(lambda self: bool(self._s['d_pressing']),
+                        doc="A stalled move's last command is in force: the finger presses.")
 
     @property
     def releasing(self) -> bool:
         return self.running and bool(self._s['phase'] == Phase.RELEASING)
-
-    @property
-    def holding(self) -> bool:
-        """A grasp was answered HOLDING (or OVERLOADED) and the force stage goes on holding."""
-        return bool(self._s['phase'] == Phase.HOLDING and
-                    self._s['outcome'] in (Outcome.HOLDING, Outcome.OVERLOADED))
-
-    @property
-    def pressing(self) -> bool:
-        """A stalled move's last command is in force: the finger presses at its limits."""
-        return bool(self._s['outcome'] == Outcome.STALLED and
-                    self._s['idle_speed_limit_mps'] > 0.0 and
-                    self._s['active'] == Controller.POSITION)
 
     @property
     def pending(self) -> bool:
@@ -1001,64 +1024,73 @@ class GraspSupervisor:
             return ''
         if code == MSG_TEXT:
             return self._text
-        f, i = self.kernel[2:4]
-        f = [float(v) for v in f]
-        i = [int(v) for v in i]
+        record = self.kernel[K_MESSAGE][0]
+        m = {name: record[name].item() for name in SUPERVISOR_MESSAGE.names}
         travel = self.plant.max_travel_m
         if code == MSG_SENSOR_FAULT:
             bad = []
-            if i[2]:
-                bad.append(f'finger position sensor (joint state) reads {f[0]!r} m')
-            if i[3]:
-                bad.append(f'force sensor reads force {f[1]!r} N, voltage {f[2]!r} V (sensor '
-                           'dropout)')
-            what = KIND_NAMES[i[4]] if i[4] else 'hold'
-            return (f'fault at t={i[0] * 1e-9:.4f} s ({(i[0] - i[1]) * 1e-9:.4f} s into the '
-                    f'{what}): ' + '; '.join(bad) +
-                    '; no controller drives the motor from here on')
+            if m['bad_position']:
+                bad.append(f"finger position sensor (joint state) reads {m['position_m']!r} m")
+            if m['bad_force']:
+                bad.append(f"force sensor reads force {m['force_n']!r} N, voltage "
+                           f"{m['sensor_voltage_v']!r} V (sensor dropout)")
+            what = KIND_NAMES[m['request_kind']] if m['request_kind'] else 'hold'
+            return (f"fault at t={m['t_ns'] * 1e-9:.4f} s "
+                    f"({(m['t_ns'] - m['start_ns']) * 1e-9:.4f} s into the {what}): "
+                    + '; '.join(bad) + '; no controller drives the motor from here on')
         if code == MSG_NO_OBJECT:
-            return (f'no object: the finger passed the expected face ({f[0]:.4f} m'
-                    + (f' + {f[1] * 1e3:g} mm tolerance' if f[1] else '') +
-                    f') by {(f[2] - f[3]) * 1e3:.2f} mm without contact')
-        if code in (MSG_LOST_FORCE, MSG_LOST_MOVED_ON):
-            into = (f', {i[2] * 1e-9:.4f} s after HOLDING' if i[1] else
-                    f', {i[2] * 1e-9:.4f} s into the grasp')
-            if code == MSG_LOST_FORCE:
-                return (f'object lost at t={i[0] * 1e-9:.4f} s{into}: force {f[0]:.3f} N has '
-                        f'been below {f[1]:g} x the setpoint {f[2]:.3f} N = {f[3]:.3f} N for '
-                        f'{(i[0] - i[3]) * 1e-9 * 1e3:.2f} ms (since t={i[3] * 1e-9:.4f} s); '
-                        f'finger at {f[4]:.5f} m')
-            return (f'object lost at t={i[0] * 1e-9:.4f} s{into}: the finger moved on '
-                    f'{(f[0] - f[1]) * 1e3:.2f} mm past the held position {f[1]:.5f} m '
-                    f'(margin {f[2] * 1e3:g} mm); force {f[3]:.3f} N')
+            tolerance_m = m['width_tolerance_m']
+            return ('no object: the finger passed the expected face '
+                    f"({m['position_setpoint_m']:.4f} m"
+                    + (f' + {tolerance_m * 1e3:g} mm tolerance' if tolerance_m else '') +
+                    f") by {(m['position_m'] - m['farthest_face_m']) * 1e3:.2f} mm "
+                    'without contact')
+        at = f"t={m['t_ns'] * 1e-9:.4f} s"
+        into = (f"{m['into_ns'] * 1e-9:.4f} s after HOLDING" if m['after_holding'] else
+                f"{m['into_ns'] * 1e-9:.4f} s into the grasp")
+        if code == MSG_LOST_FORCE:
+            return (f"object lost at {at}, {into}: force {m['force_n']:.3f} N has been below "
+                    f"{m['lost_force_fraction']:g} x the setpoint {m['force_setpoint_n']:.3f} N"
+                    f" = {m['floor_n']:.3f} N for "
+                    f"{(m['t_ns'] - m['since_ns']) * 1e-9 * 1e3:.2f} ms "
+                    f"(since t={m['since_ns'] * 1e-9:.4f} s); finger at {m['position_m']:.5f} m")
+        if code == MSG_LOST_MOVED_ON:
+            return (f'object lost at {at}, {into}: the finger moved on '
+                    f"{(m['position_m'] - m['hold_position_m']) * 1e3:.2f} mm past the held "
+                    f"position {m['hold_position_m']:.5f} m (margin {m['margin_m'] * 1e3:g} mm);"
+                    f" force {m['force_n']:.3f} N")
+        if code == MSG_OVERLOADED:
+            return (f"overloaded at {at} ({into}): the load {m['load_n']:.2f} N needs "
+                    f"{m['need_n']:.2f} N of grip at the measured friction "
+                    f"{m['friction_coefficient']:.3f}, the most "
+                    f"{self.plant.voltage_limit_v:g} V holds is {m['max_force_n']:.2f} N; "
+                    f"gripping with {m['force_n']:.2f} N, at most that, while the object stays")
         if code == MSG_HOLDING:
-            return f'holding {f[0]:.3f} N (setpoint {f[1]:.3f} N) at {f[2]:.5f} m'
+            return (f"holding {m['force_n']:.3f} N (setpoint {m['force_setpoint_n']:.3f} N) at "
+                    f"{m['position_m']:.5f} m")
         if code == MSG_GRASP_TIMEOUT:
-            return (f'not settled within {f[0]:g} s of simulated time (phase '
-                    f'{Phase(i[0]).name}, position {f[1]:.5f} m, force {f[2]:.3f} N)')
+            return (f"not settled within {m['timeout_s']:g} s of simulated time (phase "
+                    f"{Phase(m['phase']).name}, position {m['position_m']:.5f} m, force "
+                    f"{m['force_n']:.3f} N)")
+        after_s = (m['t_ns'] - m['start_ns']) * 1e-9
         if code == MSG_RELEASED:
-            return (f'released: finger at {f[0]:.5f} m (open position {f[1]:.5f} m, opening '
-                    f'{travel - f[0]:.5f} m) after {(i[0] - i[1]) * 1e-9:.3f} s')
+            return (f"released: finger at {m['position_m']:.5f} m (open position "
+                    f"{m['position_setpoint_m']:.5f} m, opening "
+                    f"{travel - m['position_m']:.5f} m) after {after_s:.3f} s")
         if code == MSG_RELEASE_TIMEOUT:
-            return (f'release not done within {f[0]:g} s of simulated time (finger at '
-                    f'{f[1]:.5f} m)')
-        where = (f'finger at {f[0]:.5f} m (opening {travel - f[0]:.5f} m, goal '
-                 f'{travel - f[1]:.5f} m), force {f[2]:.3f} N, after '
-                 f'{(i[0] - i[1]) * 1e-9:.3f} s')
+            return (f"release not done within {m['timeout_s']:g} s of simulated time (finger "
+                    f"at {m['position_m']:.5f} m)")
+        where = (f"finger at {m['position_m']:.5f} m (opening {travel - m['position_m']:.5f} m,"
+                 f" goal {travel - m['position_setpoint_m']:.5f} m), force {m['force_n']:.3f} N,"
+                 f' after {after_s:.3f} s')
         if code == MSG_MOVED:
             return f'moved: {where}'
         if code in (MSG_STALLED_PRESSING, MSG_STALLED_AT_REST):
-            why = (f'pressing with {f[2]:.3f} N at the effort limit {f[4]:.3f} N'
-                   if code == MSG_STALLED_PRESSING else
-                   f'at rest for {(i[0] - i[2]) * 1e-9:.3f} s')
-            return f'stalled {abs(f[3]) * 1e3:.2f} mm short of the goal, {why}: {where}'
+            why = (f"pressing with {m['force_n']:.3f} N at the effort limit "
+                   f"{m['max_effort_n']:.3f} N" if code == MSG_STALLED_PRESSING else
+                   f"at rest for {(m['t_ns'] - m['since_ns']) * 1e-9:.3f} s")
+            return (f"stalled {abs(m['short_of_goal_m']) * 1e3:.2f} mm short of the goal, "
+                    f'{why}: {where}')
         if code == MSG_MOVE_TIMEOUT:
-            return f'move not done within {f[3]:g} s of simulated time: {where}'
-        if code == MSG_OVERLOADED:
-            into = (f'{i[2] * 1e-9:.4f} s after HOLDING' if i[1] else
-                    f'{i[2] * 1e-9:.4f} s into the grasp')
-            return (f'overloaded at t={i[0] * 1e-9:.4f} s ({into}): the load {f[3]:.2f} N needs '
-                    f'{f[0]:.2f} N of grip at the measured friction {f[4]:.3f}, the most '
-                    f'{self.plant.voltage_limit_v:g} V holds is {f[1]:.2f} N; gripping with '
-                    f'{f[2]:.2f} N, at most that, while the object stays')
+            return f"move not done within {m['timeout_s']:g} s of simulated time: {where}"
         raise ValueError(f'unknown message code {code}')

@@ -65,10 +65,6 @@ NOT_SEPARABLE = ('torque_constant_n_m_per_a, inertia_kg_m2, damping_n_m_s_per_ra
                  'configured and the other three are given for it')
 
 
-def _lever(p: PlantParams) -> float:
-    return p.force_lever_m
-
-
 COMBINATIONS = {
     'resistance_ohm': ('ohm', lambda p: p.resistance_ohm),
     'back_emf_v_s_per_rad': ('V s/rad', lambda p: p.back_emf_v_s_per_rad),
@@ -77,9 +73,9 @@ COMBINATIONS = {
     'stall_force_per_volt_n': ('N/V', lambda p: p.stall_force_per_volt_n),
     'free_speed_per_volt_mps': ('m/(s V)', lambda p: p.free_speed_per_volt_mps),
     'mechanical_time_constant_s': ('s', lambda p: p.mechanical_time_constant_s),
-    'reflected_mass_kg': ('kg', lambda p: p.inertia_kg_m2 / (_lever(p) * p.travel_per_rad_m)),
+    'reflected_mass_kg': ('kg', lambda p: p.reflected_mass_kg),
     'reflected_damping_n_s_per_m': ('N s/m', lambda p: p.damping_n_m_s_per_rad / (
-        _lever(p) * p.travel_per_rad_m)),
+        p.force_lever_m * p.travel_per_rad_m)),
     'electrical_time_constant_s': ('s', lambda p: p.inductance_h / p.resistance_ohm),
 }
 """Identifiable combinations: name -> (unit, value from PlantParams). The stall force per volt

@@ -96,6 +96,16 @@ class StopSignals:
             signal.signal(sig, handler)
 
 
+def close_app_graph(graph, signals: StopSignals) -> None:
+    """End a console app's graph: no signal may cut the closing short, then rclpy shuts down."""
+    import rclpy
+    signals.on_first = None
+    if graph is not None:
+        graph.close()
+    rclpy.try_shutdown()
+    signals.__exit__()
+
+
 def raise_keyboard_interrupt(signum: int) -> None:
     """Interrupt the main thread's work: a one-shot command's first Ctrl-C or SIGTERM."""
     raise KeyboardInterrupt
