@@ -345,10 +345,10 @@ class _Loop:
         n = int(self.state[0]['rows'])
         _keep_row(self.rows_t, self.rows_f, self.rows_phase, n, self.tick,
                   int(self.supervisor.decision.phase), self.ref, self.plant_side.plant.kernel,
-                  self.supervisor.kernel[4])
+                  self.supervisor.law)
         if self.tracing:
             b = self.trace_buffers
-            _trace_tick(self.trace, n, self.tick, self.supervisor.kernel[0][0],
+            _trace_tick(self.trace, n, self.tick, self.supervisor.record,
                         self.plant_side.plant.kernel, b['ticks'], b['statuses'], b['objects'])
         self.state[0]['rows'] = n + 1
 

@@ -857,6 +857,11 @@ class GraspSupervisor:
                                 doc="The grasp's force setpoint now (the law's, tracking).")
 
     @property
+    def record(self):
+        """The supervisor's state record (a view: what the compiled loop reads and writes)."""
+        return self._s
+
+    @property
     def law(self) -> np.ndarray:
         """The load-tracking grip's record now (``[0]``) and as each grasp starts it (``[1]``)."""
         return self.kernel[K_LAW]
