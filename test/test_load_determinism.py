@@ -14,10 +14,12 @@ import time
 from gripper_ros.bags.series import load_grasp_series
 from gripper_ros.nodes.graph import GripperGraph
 from gripper_ros.nodes.recording import recorded_grasp
+from gripper_ros.wire import DEFAULT_NAMESPACE, qualified, TOPIC_JOINT_STATES, TOPIC_TF
 import numpy as np
 import pytest
 
 OBJECTS = ((0.05, 1.69), (0.10, 0.75))       # two Table V objects, ~1-2 s wall each here
+JOINT_STATES = qualified(DEFAULT_NAMESPACE, TOPIC_JOINT_STATES)
 SPIN = 'import time\nt = time.time()\nwhile time.time() - t < 120: pass\n'
 
 
@@ -85,7 +87,9 @@ def test_loaded_grasps_record_bit_identical_series(graph, tmp_path):
     for q, l in zip(quiet, loaded):
         assert _simulated(q.published) == _simulated(l.published)
         assert _simulated(q.recorded) == _simulated(l.recorded)
-        assert q.recorded == q.published
+        loop = {t: n for t, n in q.recorded.items() if t in q.published}
+        assert loop == q.published                     # nothing the loop's nodes sent is lost
+        assert q.recorded[TOPIC_TF] == q.published[JOINT_STATES]   # and a transform for each
         a, b = _series(q), _series(l)
         for key in a:
             assert len(a[key]) > 0, key

@@ -86,7 +86,7 @@ def _parts():
     from gripper_ros.core import lockstep, plant
     from gripper_ros.nodes import (controller_node, plant_simulator_node as plant_node,
                                    recording, supervisor_node)
-    from gripper_ros.bench.graph import PhaseObserver
+    from gripper_ros.bench.observer import PhaseObserver
     Plant, Sup = plant_node.PlantSimulatorNode, supervisor_node.SupervisorNode
     Stage = controller_node.LockstepController
     parts = [(Plant, '_on_command', 'plant _on_command', LOOP_CALLBACKS),
@@ -176,7 +176,7 @@ def measure_breakdown(executor_kind: str, objects: Sequence[tuple], record: bool
                       pingpong_s: float) -> Dict[str, Any]:
     """Every figure of the breakdown (see the module docstring), one run."""
     import rclpy
-    from gripper_ros.bench.graph import PhaseObserver, _quiet_loggers
+    from gripper_ros.bench.observer import PhaseObserver, quiet_loggers
     from gripper_ros.bench.pingpong import measure_pingpong, measure_ring
     from gripper_ros.nodes.graph import GraphOptions, GripperGraph
     from gripper_ros.nodes.process import ExecutorKind
@@ -191,7 +191,7 @@ def measure_breakdown(executor_kind: str, objects: Sequence[tuple], record: bool
             context = rclpy.Context()
             rclpy.init(args=[], context=context)
             stack.callback(context.try_shutdown)
-            _quiet_loggers()
+            quiet_loggers()
             graph = GripperGraph(GraphOptions(executor=ExecutorKind(executor_kind),
                                               namespace=f'bench_breakdown_{name}'),
                                  context=context)

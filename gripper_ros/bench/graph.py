@@ -42,68 +42,18 @@ import time
 from typing import Any, Callable, Dict, List, Optional, Sequence
 
 from gripper_ros.bench.common import call, process_cpu_s
+from gripper_ros.bench.observer import PhaseObserver, quiet_loggers
 from gripper_ros.bench.pingpong import (BenchError, EXECUTOR_KINDS, measure_pingpong,
                                         measure_ring)
 from gripper_ros.bench.report import format_report, median_of, ratios
 from gripper_ros.nodes import NODE_MODULES
 from gripper_ros.wire import (NODE_FORCE_CONTROLLER, NODE_PLANT, NODE_POSITION_CONTROLLER,
-                              NODE_SUPERVISOR, Phase, stamp_ns)
+                              NODE_SUPERVISOR, Phase)
 
 _MATCH_TIMEOUT_S = 20.0
 _NODE_MODULES = tuple(NODE_MODULES[n] for n in (NODE_PLANT, NODE_POSITION_CONTROLLER,
                                                 NODE_FORCE_CONTROLLER, NODE_SUPERVISOR))
-_GRAPH_LOGGERS = ('plant_simulator', 'position_controller', 'force_controller', 'supervisor',
-                  'grasp_demo_client', 'grasp_action_server', 'bench_graph_observer')
 _STAGES = {'position': Phase.POSITION, 'force': Phase.FORCE}
-
-
-# =================================================================================================
-# the observer: phase changes, with wall time, ticks, simulated time and CPU time
-# =================================================================================================
-
-class PhaseObserver:
-    """Marks each phase change of each grasp seen on ``supervisor/status``.
-
-    A mark is ``(phase, wall s, ticks, simulated ns, CPU s)``. ``ticks`` is read from
-    ``tick_count()`` (the plant's own counter, in one process) or left None (the ticks are then
-    counted from simulated time and the stage's sampling time). ``stop()`` is called once for a
-    grasp still running ``cap_s`` wall seconds after :meth:`arm`.
-    """
-
-    def __init__(self, node, namespace: str, tick_count: Optional[Callable[[], int]],
-                 cpu_s: Callable[[], float], stop: Callable[[], None]) -> None:
-        from gripper_interfaces.msg import SupervisorStatus
-        from gripper_ros.nodes.loop_io import read_status
-        from gripper_ros.nodes.qos import GRAPH_QOS
-        from gripper_ros.wire import TOPIC_STATUS, qualified
-        self._read_status = read_status
-        self._tick_count, self._cpu_s, self._stop = tick_count, cpu_s, stop
-        self.sub = node.create_subscription(SupervisorStatus, qualified(namespace, TOPIC_STATUS),
-                                            self._on_status, GRAPH_QOS, raw=True)
-        self.marks: Dict[int, list] = {}
-        self.finished: set = set()
-        self.capped: set = set()
-        self._deadline: Optional[float] = None
-
-    def arm(self, cap_s: float) -> None:
-        self._deadline = time.perf_counter() + cap_s if cap_s > 0 else None
-
-    def _on_status(self, data: bytes) -> None:
-        now = time.perf_counter()
-        msg = self._read_status(data)
-        gid = msg.grasp_id
-        if gid == 0 or gid in self.finished:
-            return
-        marks = self.marks.setdefault(gid, [])
-        if not marks or marks[-1][0] != msg.phase:
-            ticks = self._tick_count() if self._tick_count else None
-            marks.append((msg.phase, now, ticks, stamp_ns(msg),
-                          self._cpu_s()))
-        if msg.phase not in (Phase.POSITION, Phase.FORCE):
-            self.finished.add(gid)
-        elif self._deadline is not None and now > self._deadline and gid not in self.capped:
-            self.capped.add(gid)
-            self._stop()
 
 
 def _rates(ticks: float, wall_s: float, sim_s: float, cpu_s: float) -> Dict[str, float]:
@@ -162,12 +112,6 @@ def _stage_dt_s(config) -> Dict[str, float]:
     return {'position': config.position.sample_time_s, 'force': config.force.sample_time_s}
 
 
-def _quiet_loggers() -> None:
-    from rclpy.logging import LoggingSeverity, set_logger_level
-    for name in _GRAPH_LOGGERS:
-        set_logger_level(name, LoggingSeverity.WARN)
-
-
 # =================================================================================================
 # 2. one process: the graph of grasp_demo
 # =================================================================================================
@@ -187,7 +131,7 @@ def measure_graph(executor_kind: str, objects: Sequence[tuple], cap_s: float = 0
 
     context = rclpy.Context()
     rclpy.init(args=[], context=context)
-    _quiet_loggers()
+    quiet_loggers()
     graph = None
     t_up = time.perf_counter()
     try:

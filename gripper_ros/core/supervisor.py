@@ -858,7 +858,7 @@ class GraspSupervisor:
 
     @property
     def record(self):
-        """The supervisor's state record (a view: what the compiled loop reads and writes)."""
+        """Return the state record, a view: what the compiled loop reads and writes."""
         return self._s
 
     @property
