@@ -12,3 +12,20 @@ _domains = os.environ.get('GRIPPER_ROS_WORKER_DOMAINS', '').split()
 if _worker.startswith('gw') and _worker[2:].isdigit() and int(_worker[2:]) < len(_domains):
     os.environ['ROS_DOMAIN_ID'] = _domains[int(_worker[2:])]
 os.environ.setdefault('ROS_DOMAIN_ID', str(40 + os.getpid() % 50))
+
+SERIAL_MODULES = frozenset({
+    'test_node_executables.py', 'test_shutdown.py', 'test_namespaces.py', 'test_hostile_graph.py',
+    'test_grasp_client.py', 'test_launch_args.py', 'test_launch.py', 'test_bag_recorder.py',
+    'test_faults.py', 'test_recording_faults.py', 'test_parameters.py', 'test_load_determinism.py',
+    'test_isolation.py', 'test_soak.py', 'test_grasp_ids.py',
+})
+"""Modules that start many processes, wait on discovery or watch wall-clock timeouts: run
+alone, after the rest (scripts/test.sh), so the other worker's load cannot starve them."""
+
+
+def pytest_collection_modifyitems(config, items):
+    """Mark the tests of :data:`SERIAL_MODULES` ``serial``."""
+    import pytest
+    for item in items:
+        if item.path.name in SERIAL_MODULES:
+            item.add_marker(pytest.mark.serial)
