@@ -22,6 +22,9 @@ from sensor_msgs.msg import JointState
 CONFIG = load_config()
 STATE_PERIOD_NS = 10_000_000                # state_rate_hz 100
 WIDTH, MASS = 0.14, 1.0                     # 10 mm of travel: a short grasp
+DELIVERY_JITTER_PERIODS = 5
+"""State periods a sample may reach this test late on a loaded machine (a plant running at
+twice the wall clock gains 10 of them over the 20 samples looked at)."""
 
 
 class Streams:
@@ -105,9 +108,10 @@ def test_realtime_streams_idle_and_after_holding_never_ahead_of_the_wall_clock(r
     positions = {s[2] for s in idle}
     assert max(positions) - min(positions) < 1e-9          # idle fingers hold still
     assert len(streams.clock_since(start)) >= 10
-    # the plant is paced: simulated time never gains on the wall clock
+    # the plant is paced: simulated time never gains on the wall clock (beyond what a late
+    # delivery of the first sample to this subscriber can take from the wall interval)
     (w0, t0, *_), (w1, t1, *_) = idle[0], idle[-1]
-    assert (t1 - t0) * 1e-9 <= (w1 - w0) + 2 * STATE_PERIOD_NS * 1e-9
+    assert (t1 - t0) * 1e-9 <= (w1 - w0) + DELIVERY_JITTER_PERIODS * STATE_PERIOD_NS * 1e-9
 
     assert graph.set_object(WIDTH).success
     response = graph.grasp(WIDTH, MASS)
