@@ -531,7 +531,6 @@ def main(args: Optional[Sequence[str]] = None) -> int:
     os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
     try:
         import rclpy
-        from rclpy.executors import ExternalShutdownException
     except ImportError as exc:
         return _fail(f'rclpy not importable ({exc}); source scripts/env.sh first', 1)
     argv = list(sys.argv[1:] if args is None else args)
@@ -555,29 +554,25 @@ def main(args: Optional[Sequence[str]] = None) -> int:
                   'both': list(EXECUTOR_KINDS), 'none': []}.get(opts.demo, [opts.demo])
     if opts.breakdown:
         return _breakdown(opts, objects, kinds[0])
-    try:
-        report = run(opts, objects, kinds, caps, demo_kinds,
-                     lambda text: print(text, file=sys.stderr, flush=True))
-    except BenchError as exc:
-        return _fail(str(exc), 1)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        print('bench_graph: interrupted', file=sys.stderr)
-        return 130
-    if opts.json_file:
-        try:
-            with open(opts.json_file, 'w') as f:
-                json.dump(report, f, indent=2, default=str)
-        except OSError as exc:
-            return _fail(f'cannot write --json-file: {exc}', 1)
-    print(json.dumps(report, indent=2, default=str) if opts.json else format_report(report))
-    return 0
+    return _measure_and_report(
+        opts, lambda: run(opts, objects, kinds, caps, demo_kinds,
+                          lambda text: print(text, file=sys.stderr, flush=True)),
+        format_report)
 
 
 def _breakdown(opts: argparse.Namespace, objects: Sequence[tuple], kind: str) -> int:
-    from rclpy.executors import ExternalShutdownException
     from gripper_ros.bench.breakdown import format_breakdown, measure_breakdown
+    return _measure_and_report(
+        opts, lambda: measure_breakdown(kind, objects, opts.record, opts.pingpong_seconds),
+        format_breakdown)
+
+
+def _measure_and_report(opts: argparse.Namespace, measure: Callable[[], Dict[str, Any]],
+                        format_text: Callable[[Dict[str, Any]], str]) -> int:
+    """Run ``measure``, write ``--json-file``, print the report; one line and 1 or 130 if not."""
+    from rclpy.executors import ExternalShutdownException
     try:
-        report = measure_breakdown(kind, objects, opts.record, opts.pingpong_seconds)
+        report = measure()
     except BenchError as exc:
         return _fail(str(exc), 1)
     except (KeyboardInterrupt, ExternalShutdownException):
@@ -589,7 +584,7 @@ def _breakdown(opts: argparse.Namespace, objects: Sequence[tuple], kind: str) ->
                 json.dump(report, f, indent=2, default=str)
         except OSError as exc:
             return _fail(f'cannot write --json-file: {exc}', 1)
-    print(json.dumps(report, indent=2, default=str) if opts.json else format_breakdown(report))
+    print(json.dumps(report, indent=2, default=str) if opts.json else format_text(report))
     return 0
 
 
