@@ -31,6 +31,10 @@ FORCE_SAMPLE_S = 1.0e-4
 """The force loop's period, the paper's 0.1 ms (the shipped ``force_control.sample_time_s``):
 the hold's shake pieces, the benchmarks' force budget, the bound on sim/step's ticks."""
 
+GRAPH_NOT_READY = 'graph not ready'
+"""In the refusal of a request made before the supervisor has heard every loop node and the
+plant's first tick (a graph still starting): a client may ask again."""
+
 REPUBLISH_AFTER_S = 0.5
 """A tick nobody has answered for this long (wall) is published again (discovery, late peers);
 the supervisor's watchdog tells a silent plant by it."""

@@ -19,8 +19,8 @@ from gripper_ros.core.config import MAX_HORIZON
 from gripper_ros.nodes.graph import GraphOptions, GripperGraph
 from gripper_ros.nodes.plant_simulator_node import MAX_STEP_TICKS
 from gripper_ros.nodes.qos import SERVICE_QOS
-from gripper_ros.wire import (MAX_NAMESPACE_LENGTH, NODE_POSITION_CONTROLLER, Outcome, Phase,
-                              SERVICE_PAUSE, SERVICE_SET_OBJECT, SERVICE_STOP, TOPIC_TF,
+from gripper_ros.wire import (GRAPH_NOT_READY, MAX_NAMESPACE_LENGTH, NODE_POSITION_CONTROLLER,
+                              Outcome, Phase, SERVICE_PAUSE, SERVICE_SET_OBJECT, SERVICE_STOP, TOPIC_TF,
                               TOPIC_TF_STATIC)
 import pytest
 from rcl_interfaces.msg import Parameter as ParameterMsg, ParameterType, ParameterValue
@@ -337,7 +337,7 @@ def test_a_grasp_whose_plant_process_was_killed_says_the_plant_is_gone():
         def ask():
             for _ in range(120):                  # refused until every peer is discovered
                 answer = call_and_wait(grasp, Grasp.Request(width_m=WIDTH, mass_kg=MASS), 60.0)
-                if answer is None or 'not yet discovered' not in answer.message:
+                if answer is None or GRAPH_NOT_READY not in answer.message:
                     answers.append(answer)
                     return
                 time.sleep(0.5)

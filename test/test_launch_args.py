@@ -20,8 +20,8 @@ import time
 from gripper_interfaces.srv import Grasp, SetObject
 from gripper_ros.core.config import default_config_path
 from gripper_ros.nodes import LAUNCHED_MODULES
-from gripper_ros.wire import (NODE_PLANT, NODE_SUPERVISOR, Outcome, SERVICE_GRASP,
-                              SERVICE_SET_OBJECT)
+from gripper_ros.wire import (GRAPH_NOT_READY, NODE_PLANT, NODE_SUPERVISOR, Outcome,
+                              SERVICE_GRASP, SERVICE_SET_OBJECT)
 import pytest
 import rclpy
 from rclpy.context import Context
@@ -111,7 +111,7 @@ def test_the_six_nodes_started_as_launch_ros_starts_them_come_up_and_grasp(tmp_p
         while time.monotonic() < deadline:        # the supervisor refuses until it sees all
             answer = _call(client_node, executor, grasp, Grasp.Request(
                 width_m=WIDTH, mass_kg=MASS), 60.0)
-            if answer is None or 'not yet discovered' not in answer.message:
+            if answer is None or GRAPH_NOT_READY not in answer.message:
                 break
             time.sleep(0.5)
         assert answer is not None and answer.outcome == Outcome.HOLDING, answer

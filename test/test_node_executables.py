@@ -218,3 +218,30 @@ def test_a_bug_in_a_node_constructor_keeps_its_traceback():
     assert result.returncode == 1, (result.returncode, result.stderr[-2000:])
     assert 'Traceback' in result.stderr and 'ValueError: a bug in the constructor' in \
         result.stderr, result.stderr[-2000:]
+
+
+def test_a_node_refused_half_way_leaves_nothing_in_the_graph():
+    """A bad start-up parameter found after the node made its services: all of it is destroyed.
+
+    The supervisor declares ``tick_timeout_s`` after its deferred services made their private
+    server nodes; a refusal must take those down too (left to the interpreter's exit, they can
+    keep its process from exiting).
+    """
+    from gripper_ros.nodes.process import build_node
+    from gripper_ros.nodes.supervisor_node import SupervisorNode
+    from rclpy.exceptions import ParameterException
+    from rclpy.parameter import Parameter
+
+    namespace = '/exit_refused_half_way'
+    context = Context()
+    rclpy.init(context=context)
+    try:
+        with pytest.raises(ParameterException, match='tick_timeout_s'):
+            build_node(SupervisorNode, namespace=namespace, context=context,
+                       parameter_overrides=[Parameter('tick_timeout_s', value=0.0)])
+        probe = rclpy.create_node('refusal_probe', context=context)
+        left = {name for name, ns in probe.get_node_names_and_namespaces() if ns == namespace}
+        probe.destroy_node()
+        assert left == set(), left
+    finally:
+        rclpy.try_shutdown(context=context)

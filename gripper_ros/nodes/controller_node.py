@@ -22,8 +22,8 @@ from collections import Counter
 from gripper_interfaces.msg import MotorCommand, StageReference, SupervisorStatus
 from gripper_ros.core.lockstep import StageSide
 from gripper_ros.core.stages import Reference
+from gripper_ros.nodes.gripper_node import GripperNode
 from gripper_ros.nodes.loop_io import decode, read_status
-from gripper_ros.nodes.names import default_namespace
 from gripper_ros.nodes.parameters import ConfigParameters
 from gripper_ros.nodes.qos import GRAPH_QOS
 from gripper_ros.nodes.watchdog import ExecutorSilence
@@ -31,14 +31,13 @@ from gripper_ros.wire import (CDR_LITTLE_ENDIAN, COMMAND_LAYOUT, Controller, NOD
                               REFERENCE_LAYOUT, TOPIC_MOTOR_COMMAND, TOPIC_STATUS, TOPIC_TICK)
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
 from rclpy.clock import Clock, ClockType
-from rclpy.node import Node
 
 DEFAULT_STATUS_TIMEOUT_S = 3.0
 STATUS_TIMEOUT_RANGE_S = (0.1, 600.0)
 WATCHDOG_PERIOD_S = 0.05
 
 
-class LockstepController(Node):
+class LockstepController(GripperNode):
     """A stage controller node: ``reference_topic`` in, ``loop/motor_command`` out.
 
     Subclasses name their config ``section``, declare their own parameters in
@@ -52,7 +51,7 @@ class LockstepController(Node):
     section = ''
 
     def __init__(self, name: str, **kwargs):
-        super().__init__(name, **default_namespace(kwargs))
+        super().__init__(name, **kwargs)
         self.parameters = ConfigParameters(self, (self.section,), ('plant',),
                                            on_change=self._on_config_change,
                                            check=self.build_stage)

@@ -17,7 +17,7 @@ import sys
 from builtin_interfaces.msg import Time
 from geometry_msgs.msg import TransformStamped
 from gripper_ros.core.description import finger_frames, urdf_text
-from gripper_ros.nodes.names import default_namespace
+from gripper_ros.nodes.gripper_node import GripperNode
 from gripper_ros.nodes.parameters import declare_config, declare_joint_name
 from gripper_ros.nodes.process import run_node
 from gripper_ros.nodes.qos import GRAPH_QOS, LATCHED_QOS
@@ -26,7 +26,6 @@ from gripper_ros.wire import (FINGER_JOINT, FRAME_BASE, FRAME_FIXED_FINGER, FRAM
                               NAME_CHARACTERS, NODE_DESCRIPTION, TOPIC_JOINT_STATES,
                               TOPIC_ROBOT_DESCRIPTION, TOPIC_TF, TOPIC_TF_STATIC)
 from rcl_interfaces.msg import ParameterDescriptor
-from rclpy.node import Node
 from sensor_msgs.msg import JointState
 from std_msgs.msg import String
 from tf2_msgs.msg import TFMessage
@@ -43,11 +42,11 @@ def _transform(stamp, parent: str, child: str, xyz) -> TransformStamped:
     return msg
 
 
-class DescriptionPublisher(Node):
+class DescriptionPublisher(GripperNode):
     """robot_description, /tf_static and /tf of the gripper, from its config and joint_states."""
 
     def __init__(self, **kwargs):
-        super().__init__(NODE_DESCRIPTION, **default_namespace(kwargs))
+        super().__init__(NODE_DESCRIPTION, **kwargs)
         config = declare_config(self)
         self.joint_name = declare_joint_name(self)
         name_prefix = self.joint_name[:-len(FINGER_JOINT)]  # the URDF's (the xacro's prefix)

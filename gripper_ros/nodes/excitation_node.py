@@ -16,8 +16,8 @@ import sys
 from gripper_interfaces.msg import SupervisorStatus
 from gripper_interfaces.srv import Move
 from gripper_ros.core.excitation import check_spec, ExcitationRun, ExcitationSpec
+from gripper_ros.nodes.gripper_node import GripperNode
 from gripper_ros.nodes.loop_io import read_status
-from gripper_ros.nodes.names import default_namespace
 from gripper_ros.nodes.parameters import declare_config
 from gripper_ros.nodes.process import run_node
 from gripper_ros.nodes.qos import GRAPH_QOS, SERVICE_QOS
@@ -26,15 +26,14 @@ from gripper_ros.nodes.startup import StartupError
 from gripper_ros.wire import (NODE_EXCITATION, Outcome, SERVICE_EXCITE, SERVICE_MOVE, stamp_ns,
                               TOPIC_STATUS)
 from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
-from rclpy.node import Node
 from std_srvs.srv import Trigger
 
 PARAMETER_PREFIX = 'excitation.'
 
 
-class ExcitationServer(Node):
+class ExcitationServer(GripperNode):
     def __init__(self, **kwargs):
-        super().__init__(NODE_EXCITATION, **default_namespace(kwargs))
+        super().__init__(NODE_EXCITATION, **kwargs)
         self.config = declare_config(self)
         d = ExcitationSpec()
         for name, value, what in (('seconds', d.seconds, 'simulated duration (s)'),
@@ -114,10 +113,6 @@ class ExcitationServer(Node):
         answer = future.result()
         self._run.answered(Outcome(answer.outcome).name, answer.message)
         self._next()
-
-    def destroy_node(self):
-        self._service.destroy()
-        return super().destroy_node()
 
 
 def main(args=None):

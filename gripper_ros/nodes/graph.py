@@ -27,7 +27,8 @@ from gripper_ros.nodes.move_action_node import MoveActionServer
 from gripper_ros.nodes.names import NameClaim
 from gripper_ros.nodes.plant_simulator_node import PlantSimulatorNode
 from gripper_ros.nodes.position_controller_node import PositionControllerNode
-from gripper_ros.nodes.process import ExecutorKind, make_executor, spin_until_stopped
+from gripper_ros.nodes.process import (build_node, ExecutorKind, make_executor,
+                                       spin_until_stopped)
 from gripper_ros.nodes.qos import SERVICE_QOS
 from gripper_ros.nodes.services import call_and_wait
 from gripper_ros.nodes.supervisor_node import SupervisorNode
@@ -93,22 +94,21 @@ class GripperGraph:
     def _build(self, opts: GraphOptions, kw: dict) -> None:
         cfg = [Parameter('config_file', value=opts.config_file)]
         named = cfg + [Parameter('prefix', value=opts.prefix)]
-        self.plant = PlantSimulatorNode(parameter_overrides=named + [
+        self.plant = build_node(PlantSimulatorNode, parameter_overrides=named + [
             Parameter('time_mode', value=opts.time_mode),
             Parameter('real_time_factor', value=float(opts.real_time_factor)),
             Parameter('state_rate_hz', value=float(opts.state_rate_hz)),
             Parameter('publish_clock', value=bool(opts.publish_clock))] + [
             Parameter(k, value=v) for k, v in opts.plant_parameters.items()], **kw)
         self.nodes.append(self.plant)
-        self.position = PositionControllerNode(
-            parameter_overrides=cfg + [Parameter('controller', value=opts.position_controller)],
-            **kw)
+        self.position = build_node(PositionControllerNode, parameter_overrides=cfg + [
+            Parameter('controller', value=opts.position_controller)], **kw)
         self.nodes.append(self.position)
-        self.force = ForceControllerNode(parameter_overrides=cfg + [
+        self.force = build_node(ForceControllerNode, parameter_overrides=cfg + [
             Parameter('controller', value=opts.force_controller),
             Parameter('approach_force_margin', value=float(opts.approach_force_margin))], **kw)
         self.nodes.append(self.force)
-        self.supervisor = SupervisorNode(parameter_overrides=cfg + [
+        self.supervisor = build_node(SupervisorNode, parameter_overrides=cfg + [
             Parameter('status_rate_hz', value=float(opts.state_rate_hz))] + [
             Parameter(k, value=v) for k, v in opts.supervisor_parameters.items()], **kw)
         self.nodes.append(self.supervisor)
@@ -116,15 +116,15 @@ class GripperGraph:
         self.nodes.append(self.client_node)
         self.action_server = self.move_action_server = self.excitation_server = None
         if opts.action_server:
-            self.action_server = GraspActionServer(parameter_overrides=cfg, **kw)
+            self.action_server = build_node(GraspActionServer, parameter_overrides=cfg, **kw)
             self.nodes.append(self.action_server)
-            self.move_action_server = MoveActionServer(parameter_overrides=named, **kw)
+            self.move_action_server = build_node(MoveActionServer, parameter_overrides=named, **kw)
             self.nodes.append(self.move_action_server)
-            self.excitation_server = ExcitationServer(parameter_overrides=cfg, **kw)
+            self.excitation_server = build_node(ExcitationServer, parameter_overrides=cfg, **kw)
             self.nodes.append(self.excitation_server)
         self.description = None
         if opts.description:
-            self.description = DescriptionPublisher(parameter_overrides=named, **kw)
+            self.description = build_node(DescriptionPublisher, parameter_overrides=named, **kw)
             self.nodes.append(self.description)
         self.executor = make_executor(opts.executor, self.context)
         for node in self.nodes:

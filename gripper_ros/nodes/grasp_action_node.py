@@ -21,8 +21,8 @@ from gripper_interfaces.action import Grasp as GraspAction
 from gripper_interfaces.msg import SupervisorStatus
 from gripper_interfaces.srv import Grasp
 from gripper_ros.nodes.actions import accept_goal, cancel_by_stop
+from gripper_ros.nodes.gripper_node import GripperNode
 from gripper_ros.nodes.loop_io import read_status
-from gripper_ros.nodes.names import default_namespace
 from gripper_ros.nodes.parameters import declare_config, follow
 from gripper_ros.nodes.process import run_node
 from gripper_ros.nodes.qos import GRAPH_QOS, SERVICE_QOS
@@ -30,7 +30,6 @@ from gripper_ros.wire import (ACTION_GRASP, NODE_GRASP_ACTION, Outcome, Phase, S
                               SERVICE_STOP, stamp_ns, TOPIC_STATUS)
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
 from rclpy.action import ActionServer
-from rclpy.node import Node
 from std_srvs.srv import Trigger
 
 _REQUEST_FIELDS = ('width_m', 'mass_kg', 'friction_coefficient', 'acceleration_mps2',
@@ -40,9 +39,9 @@ _RESULT_FIELDS = ('success', 'outcome', 'message', 'position_setpoint_m', 'force
                   'grasp_id')
 
 
-class GraspActionServer(Node):
+class GraspActionServer(GripperNode):
     def __init__(self, **kwargs):
-        super().__init__(NODE_GRASP_ACTION, **default_namespace(kwargs))
+        super().__init__(NODE_GRASP_ACTION, **kwargs)
         self.travel_m = declare_config(self).plant.max_travel_m
         self.feedback_period_s = self.declare_parameter(
             'feedback_period_s', 0.05, ParameterDescriptor(
@@ -59,10 +58,8 @@ class GraspActionServer(Node):
         self._last_feedback_wall = 0.0
         self._last_phase: int | None = None
         self.feedback_published = 0
-        self._server = ActionServer(self, GraspAction, ACTION_GRASP,
-                                    execute_callback=self._execute,
-                                    goal_callback=accept_goal,
-                                    cancel_callback=self._on_cancel)
+        self.own(ActionServer(self, GraspAction, ACTION_GRASP, execute_callback=self._execute,
+                              goal_callback=accept_goal, cancel_callback=self._on_cancel))
 
     # ------------------------------------------------------------------ goals
     def _on_cancel(self, goal_handle):
@@ -125,10 +122,6 @@ class GraspActionServer(Node):
             force_n=msg.force_n, contact=msg.contact)
         goal.publish_feedback(feedback)
         self.feedback_published += 1
-
-    def destroy_node(self):
-        self._server.destroy()
-        return super().destroy_node()
 
 
 def main(args=None):

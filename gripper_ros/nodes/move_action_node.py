@@ -42,8 +42,8 @@ from gripper_ros.core.gripper_command import (goal_end, GoalEnd, grip_status_fie
                                               move_request_of, result_fields)
 from gripper_ros.core.requests import check_move_limits, RequestError
 from gripper_ros.nodes.actions import accept_goal, cancel_by_stop
+from gripper_ros.nodes.gripper_node import GripperNode
 from gripper_ros.nodes.loop_io import read_status, StatusView
-from gripper_ros.nodes.names import default_namespace
 from gripper_ros.nodes.parameters import declare_config, declare_joint_name, follow
 from gripper_ros.nodes.process import run_node
 from gripper_ros.nodes.qos import GRAPH_QOS, LATCHED_QOS, SERVICE_QOS
@@ -54,7 +54,6 @@ from gripper_ros.wire import (ACTION_GRIPPER_CMD, ACTION_MOVE, NODE_MOVE_ACTION,
                               TOPIC_OUTCOME, TOPIC_STATUS)
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
 from rclpy.action import ActionServer, GoalResponse
-from rclpy.node import Node
 from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Header
@@ -70,9 +69,9 @@ _RESULT_FIELDS = ('success', 'outcome', 'message', 'position_m', 'width_m', 'eff
                   'stalled', 'reached_goal', 'grasp_id')
 
 
-class MoveActionServer(Node):
+class MoveActionServer(GripperNode):
     def __init__(self, **kwargs):
-        super().__init__(NODE_MOVE_ACTION, **default_namespace(kwargs))
+        super().__init__(NODE_MOVE_ACTION, **kwargs)
         self.plant = declare_config(self).plant       # read-only: the supervisor's move
         self.travel_m = self.plant.max_travel_m       # settings are judged by the supervisor
         self.feedback_period_s = self.declare_parameter(
@@ -96,10 +95,8 @@ class MoveActionServer(Node):
         self._last_feedback_wall = 0.0
         self._last_phase: int | None = None
         self.feedback_published = 0
-        self._servers = [ActionServer(self, MoveAction, ACTION_MOVE,
-                                      execute_callback=self._execute_move,
-                                      goal_callback=accept_goal,
-                                      cancel_callback=self._on_cancel)]
+        self.own(ActionServer(self, MoveAction, ACTION_MOVE, execute_callback=self._execute_move,
+                              goal_callback=accept_goal, cancel_callback=self._on_cancel))
         self.gripper_command_served = ParallelGripperCommand is not None
         self._joint_data: bytes | None = None    # the newest joint_states, read when needed
         self.create_subscription(JointState, TOPIC_JOINT_STATES, self._on_joint_state,
@@ -118,10 +115,10 @@ class MoveActionServer(Node):
         self.create_subscription(SupervisorStatus, TOPIC_OUTCOME, self._on_outcome, LATCHED_QOS,
                                  raw=True)
         if self.gripper_command_served:
-            self._servers.append(ActionServer(self, ParallelGripperCommand, ACTION_GRIPPER_CMD,
-                                              execute_callback=self._execute_gripper_command,
-                                              goal_callback=self._check_gripper_command,
-                                              cancel_callback=self._on_cancel))
+            self.own(ActionServer(self, ParallelGripperCommand, ACTION_GRIPPER_CMD,
+                                  execute_callback=self._execute_gripper_command,
+                                  goal_callback=self._check_gripper_command,
+                                  cancel_callback=self._on_cancel))
 
     # ------------------------------------------------------------------ goals
     def _check_gripper_command(self, goal_request) -> GoalResponse:
@@ -294,11 +291,6 @@ class MoveActionServer(Node):
         self._last_phase, self._last_feedback_wall = msg.phase, now
         goal.publish_feedback(feedback(msg))
         self.feedback_published += 1
-
-    def destroy_node(self):
-        for server in self._servers:
-            server.destroy()
-        return super().destroy_node()
 
 
 def main(args=None):

@@ -32,10 +32,10 @@ from gripper_interfaces.srv import SetObject, SimStep
 from gripper_ros.core.controllers import make_plant
 from gripper_ros.core.lockstep import Command, command_problem, PlantSide
 from gripper_ros.core.plant import check_fault, GraspObject, Lift
+from gripper_ros.nodes.gripper_node import GripperNode
 from gripper_ros.nodes.loop_io import (clock_template, decode, force_sensor_template,
                                        joint_state_template, object_state_template,
                                        read_status, split_ns, StatusView)
-from gripper_ros.nodes.names import default_namespace
 from gripper_ros.nodes.parameters import ConfigParameters, declare_joint_name
 from gripper_ros.nodes.process import run_node
 from gripper_ros.nodes.qos import GRAPH_QOS, SERVICE_QOS
@@ -52,7 +52,6 @@ from gripper_ros.wire import (CDR_LITTLE_ENDIAN, COMMAND_LAYOUT, Controller,
                               TOPIC_STATUS, TOPIC_TICK)
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
 from rclpy.clock import Clock, ClockType
-from rclpy.node import Node
 from rosgraph_msgs.msg import Clock as ClockMsg
 from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
@@ -78,11 +77,11 @@ MAX_STEP_TICKS = round(MAX_STEP_S / FORCE_SAMPLE_S)
 """sim/step: the most ticks one request may ask for (MAX_STEP_S of force samples)."""
 
 
-class PlantSimulatorNode(Node):
+class PlantSimulatorNode(GripperNode):
     """Thin ROS wrapper around :class:`gripper_ros.core.plant.GripperPlant`."""
 
     def __init__(self, **kwargs):
-        super().__init__(NODE_PLANT, **default_namespace(kwargs))
+        super().__init__(NODE_PLANT, **kwargs)
         self.parameters = ConfigParameters(
             self, (), ('plant', 'contact', 'force_sensor', 'sensor_noise', 'pad_sensor',
                        'force_control.sample_time_s'))
@@ -536,10 +535,6 @@ class PlantSimulatorNode(Node):
             response.message += (f'; fault {kind.name} {request.fault_at_s:g} s after the start '
                                  f'of the next grasp')
         return response
-
-    def destroy_node(self):
-        self.step_service.destroy()
-        return super().destroy_node()
 
 
 def main(args=None):

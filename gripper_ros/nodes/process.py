@@ -122,6 +122,27 @@ def exit_without_a_last_collection() -> None:
     atexit.register(gc.freeze)
 
 
+def build_node(make_node: Callable[..., Node], *args, **kwargs) -> Node:
+    """Construct a node; when its constructor raises, destroy what it had made, then re-raise.
+
+    A node refused half-way (a bad start-up parameter) already holds publishers, timers and a
+    DDS participant; left to the interpreter's exit, they are torn down after the context,
+    beside Fast DDS's own threads, which can hang or crash the process instead of exiting 2.
+    """
+    if not isinstance(make_node, type):
+        return make_node(*args, **kwargs)
+    node = make_node.__new__(make_node)
+    try:
+        node.__init__(*args, **kwargs)
+    except BaseException:
+        try:
+            node.destroy_node()
+        except Exception:  # noqa: BLE001 - Node.__init__ itself failed: nothing to destroy
+            pass
+        raise
+    return node
+
+
 def run_node(make_node: Callable[[], Node], name: str, args=None,
              services: tuple[str, ...] = ()) -> int:
     """Run a node: the one ``main()`` of every node (init, spin, clean shutdown, exit codes).
@@ -159,7 +180,7 @@ def run_node(make_node: Callable[[], Node], name: str, args=None,
             return EXIT_BAD_START
         try:
             claim = NameClaim.take((name,), services)
-            node = make_node()
+            node = build_node(make_node)
             kind = node.declare_parameter('executor', ExecutorKind.EVENTS.value,
                                           ParameterDescriptor(
                                               description='events (rclpy EventsExecutor) | '

@@ -2,10 +2,14 @@
 from __future__ import annotations
 
 import time
+from typing import TYPE_CHECKING
 
 from gripper_ros.nodes.names import keep_name_args
 from gripper_ros.nodes.qos import SERVICE_QOS
 from rclpy.node import Node
+
+if TYPE_CHECKING:
+    from gripper_ros.nodes.gripper_node import GripperNode
 
 
 def call_and_wait(client, request, timeout_s: float):
@@ -50,10 +54,12 @@ class DeferredService:
     await an ``async`` callback. A grasp takes many lockstep ticks, so the request is taken from
     the service handle by a 10 ms steady-clock timer on ``node`` (the server itself lives on a
     private, never-spun node) and answered with :meth:`reply` when the grasp ends. Requests queue
-    in DDS meanwhile; each is handled in arrival order.
+    in DDS meanwhile; each is handled in arrival order. ``node`` owns it: its teardown
+    destroys the private node too.
     """
 
-    def __init__(self, node: Node, srv_type, name: str, on_request, poll_period_s: float = 0.01):
+    def __init__(self, node: GripperNode, srv_type, name: str, on_request,
+                 poll_period_s: float = 0.01):
         from rclpy.clock import Clock, ClockType
         # one private node per service, named after it (node 'supervisor', '/gripper/grasp' ->
         # 'supervisor_grasp_server'): a node with two deferred services must not register one
@@ -67,6 +73,7 @@ class DeferredService:
         self._on_request = on_request
         self._timer = node.create_timer(poll_period_s, self._poll,
                                         clock=Clock(clock_type=ClockType.STEADY_TIME))
+        node.own(self)
 
     @staticmethod
     def _not_spun(request, response):  # pragma: no cover - the server node is never spun

@@ -31,22 +31,23 @@ from gripper_ros.core.lockstep import SupervisorSide, Tick
 from gripper_ros.core.requests import (GraspRequest, MoveRequest, RequestError, validate_move,
                                        validate_request)
 from gripper_ros.core.supervisor import GraspSupervisor, load_law, RequestKind
+from gripper_ros.nodes.gripper_node import GripperNode
 from gripper_ros.nodes.loop_io import decode, split_ns, status_message, status_template
-from gripper_ros.nodes.names import default_namespace, GraspIds
+from gripper_ros.nodes.names import GraspIds
 from gripper_ros.nodes.parameters import ConfigParameters, follow
 from gripper_ros.nodes.process import run_node
 from gripper_ros.nodes.qos import GRAPH_QOS, LATCHED_QOS, SERVICE_QOS
 from gripper_ros.nodes.services import DeferredService
 from gripper_ros.nodes.watchdog import ExecutorSilence
-from gripper_ros.wire import (CDR_LITTLE_ENDIAN, Controller, NODE_FORCE_CONTROLLER, NODE_PLANT,
-                              NODE_POSITION_CONTROLLER, NODE_SUPERVISOR, Outcome,
+from gripper_ros.wire import (CDR_LITTLE_ENDIAN, Controller, GRAPH_NOT_READY,
+                              NODE_FORCE_CONTROLLER, NODE_PLANT, NODE_POSITION_CONTROLLER,
+                              NODE_SUPERVISOR, Outcome,
                               REPUBLISH_AFTER_S, SERVICE_GRASP, SERVICE_MOVE, SERVICE_RELEASE,
                               SERVICE_STOP, TICK_LAYOUT, TOPIC_FORCE_REFERENCE,
                               TOPIC_MOTOR_COMMAND, TOPIC_OUTCOME, TOPIC_POSITION_REFERENCE,
                               TOPIC_SIM_STATUS, TOPIC_STATUS, TOPIC_TICK)
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
 from rclpy.clock import Clock, ClockType
-from rclpy.node import Node
 from std_srvs.srv import Trigger
 
 HEARTBEAT_PERIOD_S = 1.0
@@ -61,9 +62,9 @@ SUPERVISOR_READS = ('plant', 'contact', 'force_control.sample_time_s', 'pad_sens
 load-tracking grip needs (the pads' stiffness and sensing, the force stage's period)."""
 
 
-class SupervisorNode(Node):
+class SupervisorNode(GripperNode):
     def __init__(self, **kwargs):
-        super().__init__(NODE_SUPERVISOR, **default_namespace(kwargs))
+        super().__init__(NODE_SUPERVISOR, **kwargs)
         self.parameters = ConfigParameters(self, ('supervisor',), SUPERVISOR_READS,
                                            on_change=self._on_config_change)
         self.config = self.parameters.config
@@ -212,10 +213,10 @@ class SupervisorNode(Node):
                     f'refused: a {what} is {"running" if self.logic.running else "waiting"}')
         missing = self._missing_peers()
         if missing:
-            return f'refused: graph not ready, not yet discovered: {missing}'
+            return f'refused: {GRAPH_NOT_READY}, not yet discovered: {missing}'
         tick = self._tick
         if tick is None:
-            return f'refused: no measurement from {NODE_PLANT} yet'
+            return f'refused: {GRAPH_NOT_READY}, no measurement from {NODE_PLANT} yet'
         if not math.isfinite(tick.position_m):
             what = {RequestKind.RELEASE: 'opening', RequestKind.MOVE: 'a move'}.get(
                 kind, 'a grasp')
@@ -420,12 +421,6 @@ class SupervisorNode(Node):
         self._expected_source = Controller.NONE
         self._publish_status(t_ns, force=True)
         self._complete(decision)
-
-    def destroy_node(self):
-        self.grasp_service.destroy()
-        self.release_service.destroy()
-        self.move_service.destroy()
-        return super().destroy_node()
 
 
 def main(args=None):
