@@ -13,12 +13,13 @@ from __future__ import annotations
 from collections import namedtuple
 import math
 
-from gripper_ros.core.plant import (GraspObject, GripperPlant, plant_begin_hold,
-                                    plant_cancel_fault, plant_fault_scheduled, plant_read_tick,
-                                    plant_scenario_in_progress, plant_schedule_fault,
-                                    plant_step)
+from gripper_ros.core.plant import (GraspObject, GripperPlant, HoldState, K_HOLD,
+                                    plant_begin_hold, plant_cancel_fault, plant_fault_scheduled,
+                                    plant_read_tick, plant_scenario_in_progress,
+                                    plant_schedule_fault, plant_step)
 from gripper_ros.core.stages import LockstepAnswerer, Reference, stage_answer, TickAnswer
-from gripper_ros.core.supervisor import Decision, GraspSupervisor, NO_NS, supervisor_decide
+from gripper_ros.core.supervisor import (Decision, GraspSupervisor, K_STATE, NO_ANSWER,
+                                         NO_NS, status_key, supervisor_decide)
 from gripper_ros.wire import (COMMAND_LAYOUT, Controller, FaultKind, Outcome, Phase,
                               REFERENCE_LAYOUT, TICK_LAYOUT)
 import numba
@@ -40,7 +41,10 @@ PLANT_SIDE_STATE = np.dtype(
      ('fault_at_s', 'f8'), ('fault_time_constant_s', 'f8'),
      ('fault_grasp', 'i8'),            # the grasp it was armed for (-1: none)
      ('echo_grasp', 'i8'),             # grasp id of the last accepted command
-     ('hold_begun_for', 'i8')],        # the grasp whose hold clock was started (-1: none)
+     ('hold_begun_for', 'i8'),         # the grasp whose hold clock was started (-1: none)
+     ('needs_time', 'b1'),             # fast mode: the accepted command needs simulated time
+     ('next_state_ns', 'i8'),          # the state topics are due at this tick or later
+     ('state_hold', 'i4')],            # the hold state they last carried
     align=True)
 """The plant side's bookkeeping between ticks (beside the plant's own state)."""
 
@@ -125,6 +129,180 @@ def side_read_tick(side, plant_k, tick) -> None:
     plant_read_tick(plant_k, tick, s.revision, s.applied_source)
 
 
+# ------------------------------------------------------------------ the nodes' faces, compiled
+# A node takes a loop message as bytes and answers with one call: the message is copied into its
+# record, checked, and acted on, and the reply is left in a record whose bytes are the reply's
+# CDR body. What the Python side then does is publish, count and, rarely, log.
+
+TAKEN = 0
+"""The message was acted on."""
+REPEATED = 1
+"""Seen before (a repeat of a tick or a reference), or not for the current tick."""
+FOREIGN = 2
+"""Not little-endian plain CDR of the layout's size: the caller deserialises it, then retries."""
+REFUSED = 3
+"""A command the plant must not apply (:func:`command_problem` says why)."""
+
+
+@_kernel
+def load_message(data, record_bytes) -> bool:
+    """Copy serialised ``data`` into a record (its bytes); False when not in the layout's form.
+
+    The form is little-endian plain CDR with this layout's size (``wire.LoopLayout``).
+    """
+    n = record_bytes.size
+    if len(data) != n + 4 or data[0] != 0 or data[1] != 1 or data[2] != 0 or data[3] != 0:
+        return False
+    for i in range(n):
+        record_bytes[i] = data[i + 4]
+    return True
+
+
+@_kernel
+def _command_usable(c) -> bool:
+    return math.isfinite(c.voltage_v) and math.isfinite(c.hold_s) and \
+        0.0 < c.hold_s <= MAX_HOLD_S and \
+        (c.source == Controller.POSITION or c.source == Controller.FORCE)
+
+
+@_kernel
+def side_take_command(side, plant_k, data, offered, offered_bytes, cmd, cmd_bytes, tick,
+                      pending) -> int:
+    """Take the command ``data`` for the current ``tick``: TAKEN, REPEATED, FOREIGN or REFUSED.
+
+    Only the command of this tick's stamp and world revision counts, and of a later stage than
+    an accepted one still ``pending``; it is accepted into ``cmd`` (:func:`side_accept`).
+    ``offered`` holds it as read, whatever became of it.
+    """
+    if not load_message(data, offered_bytes):
+        return FOREIGN
+    o = offered[0]
+    s = side[0]
+    if o.stamp_ns != tick[0].stamp_ns or o.revision != s.revision or \
+            (pending and o.stage_id <= cmd[0].stage_id):
+        return REPEATED
+    if not _command_usable(o):
+        return REFUSED
+    cmd_bytes[:] = offered_bytes
+    side_accept(side, plant_k, cmd)
+    s.needs_time = side_needs_time(plant_k, cmd)
+    return TAKEN
+
+
+@_kernel
+def _state_due(side, plant_k, tick) -> bool:
+    """The state topics are due: their period has come, or the held object's state changed."""
+    s = side[0]
+    h = plant_k[K_HOLD][0]
+    hold = h.state if h.has_hold else HoldState.NONE
+    return tick[0].stamp_ns >= s.next_state_ns or hold != s.state_hold
+
+
+@_kernel
+def side_state_published(side, plant_k, tick, period_ns) -> None:
+    """The state topics went out for ``tick``: next due one period on, or on a hold change."""
+    s = side[0]
+    h = plant_k[K_HOLD][0]
+    s.state_hold = h.state if h.has_hold else HoldState.NONE
+    s.next_state_ns = (tick[0].stamp_ns // period_ns + 1) * period_ns
+
+
+@_kernel
+def side_step_due(side, plant_k, cmd, tick):
+    """:func:`side_step`; the new tick's stamp, and whether the state topics are due for it."""
+    side_step(side, plant_k, cmd, tick)
+    return tick[0].stamp_ns, _state_due(side, plant_k, tick)
+
+
+@_kernel
+def side_step_unpowered_due(side, plant_k, duration_ns, tick):
+    """:func:`side_step_unpowered`; the new tick's stamp, and whether the state topics are due."""
+    side_step_unpowered(side, plant_k, duration_ns, tick)
+    return tick[0].stamp_ns, _state_due(side, plant_k, tick)
+
+
+SUPERVISOR_SIDE_STATE = np.dtype(
+    [('decided_stamp_ns', 'i8'), ('decided_revision', 'i8'),   # the tick last decided
+     ('expected_source', 'i4'),        # who should command the next tick
+     ('good_position_m', 'f8'), ('good_force_n', 'f8'),        # the last finite readings
+     ('status_key', 'i8'), ('next_status_ns', 'i8'), ('status_period_ns', 'i8')],
+    align=True)
+"""The supervisor node's bookkeeping between ticks (beside the supervisor's own state)."""
+
+NAMED = 1
+"""``supervisor_take_tick``: a reference was addressed to a stage (``flags >> ACTIVE_SHIFT``)."""
+STATUS_DUE = 2
+"""... the status is due (its period, or the phase, stage, outcome or request changed)."""
+ANSWERED = 4
+"""... the request was answered at this tick."""
+PROGRESS = 8
+"""... the named stage's command moved the plant (or nothing runs): no silence."""
+ACTIVE_SHIFT = 4
+"""... and above these flags, the stage named (a ``Controller``)."""
+
+
+@_kernel
+def supervisor_take_tick(k, side, data, tick, tick_bytes, ref) -> int:
+    """Decide the tick ``data``; FOREIGN, REPEATED, or the flags of what the node must do.
+
+    A tick already decided is REPEATED (its reference goes out again). Otherwise ``ref`` holds
+    the reference (flag NAMED), and the flags say whether the status is due, the request was
+    answered, and the plant moved by the named stage's command.
+    """
+    if not load_message(data, tick_bytes):
+        return -FOREIGN
+    t = tick[0]
+    n = side[0]
+    if t.stamp_ns == n.decided_stamp_ns and t.revision == n.decided_revision:
+        return -REPEATED
+    n.decided_stamp_ns = t.stamp_ns
+    n.decided_revision = t.revision
+    if math.isfinite(t.position_m):
+        n.good_position_m = t.position_m
+    if math.isfinite(t.force_n):
+        n.good_force_n = t.force_n
+    s = k[K_STATE][0]
+    flags = 0
+    if t.applied_source == n.expected_source or not s.d_running:
+        flags |= PROGRESS
+    if supervisor_decide(k, tick, ref):
+        flags |= NAMED
+    n.expected_source = s.active
+    flags |= s.active << ACTIVE_SHIFT
+    if status_key(s) != n.status_key or t.stamp_ns >= n.next_status_ns:
+        flags |= STATUS_DUE
+    if s.d_answer != NO_ANSWER:
+        flags |= ANSWERED
+    return flags
+
+
+@_kernel
+def supervisor_status_published(k, side, t_ns) -> None:
+    """The status went out at ``t_ns``: next due one period on, or on a change."""
+    s = k[K_STATE][0]
+    n = side[0]
+    n.status_key = status_key(s)
+    n.next_status_ns = (t_ns // n.status_period_ns + 1) * n.status_period_ns
+
+
+@_kernel
+def stage_take_reference(k, data, ref, ref_bytes, cmd) -> int:
+    """Answer the reference ``data`` into ``cmd``: TAKEN, REPEATED (answered before) or FOREIGN."""
+    if not load_message(data, ref_bytes):
+        return FOREIGN
+    return TAKEN if stage_answer(k, ref, cmd) else REPEATED
+
+
+def entry_point(kernel, *args):
+    """Return ``kernel`` compiled for arguments of the types of ``args``, to call directly.
+
+    numba types every argument on every call to pick the machine code (0.2-0.5 us an array or
+    record, more for a tuple of them); a node calls its kernels every tick with the same
+    records, so it types them once here. Call the result only with arguments of these types.
+    """
+    return kernel.compile(tuple(numba.typeof(a) for a in args))
+
+
 class PlantSide:
     """The plant's share of a tick: the measurement, the command's echo, the step.
 
@@ -141,6 +319,26 @@ class PlantSide:
             self._s[name] = NO_NS
         self.tick_record = new_record(TICK_LAYOUT)
         self.command_record = new_record(COMMAND_LAYOUT)
+        self.offered = new_record(COMMAND_LAYOUT)
+        """The last command offered to :meth:`take_command`, as read."""
+        self._bind_faces()
+
+    def _bind_faces(self) -> None:
+        """The node's calls of a tick, typed once (:func:`entry_point`)."""
+        state, k, tick, cmd, offered = (self.state, self.plant.kernel, self.tick_record,
+                                        self.command_record, self.offered)
+        cmd_bytes, offered_bytes = cmd.view(np.uint8), offered.view(np.uint8)
+        take = entry_point(side_take_command, state, k, b'', offered, offered_bytes, cmd,
+                           cmd_bytes, tick, False)
+        step = entry_point(side_step_due, state, k, cmd, tick)
+        unpowered = entry_point(side_step_unpowered_due, state, k, 0, tick)
+        self.take_command = lambda data, pending: take(state, k, data, offered, offered_bytes,
+                                                       cmd, cmd_bytes, tick, pending)
+        """Take a serialised command (:func:`side_take_command`); ``pending``: one is accepted."""
+        self.step_due = lambda: step(state, k, cmd, tick)
+        """Step with the accepted command: (the new tick's stamp, state topics due)."""
+        self.step_unpowered_due = lambda duration_ns: unpowered(state, k, duration_ns, tick)
+        """Step ``duration_ns`` at 0 V: (the new tick's stamp, state topics due)."""
 
     revision = property(lambda self: int(self._s['revision']),
                         doc='+1 on every change of the simulated world.')
@@ -220,6 +418,32 @@ class SupervisorSide:
         self.supervisor = supervisor
         self.tick_record = new_record(TICK_LAYOUT)
         self.reference_record = new_record(REFERENCE_LAYOUT)
+        self.state = np.zeros(1, SUPERVISOR_SIDE_STATE)
+        """The node's bookkeeping: the tick last decided, the last finite readings, the status."""
+        n = self.state[0]
+        n['decided_stamp_ns'] = n['decided_revision'] = n['status_key'] = NO_NS
+        n['expected_source'] = Controller.NONE
+        kernel, state, tick, ref = self.supervisor.kernel, self.state, self.tick_record, \
+            self.reference_record
+        tick_bytes = tick.view(np.uint8)
+        take = entry_point(supervisor_take_tick, kernel, state, b'', tick, tick_bytes, ref)
+        self.take_tick = lambda data: take(kernel, state, data, tick, tick_bytes, ref)
+        """Decide a serialised tick (:func:`supervisor_take_tick`): its flags."""
+
+    def status_published(self, t_ns: int, period_ns: int) -> None:
+        """The status went out at ``t_ns``; the next is due ``period_ns`` on, or on a change."""
+        self.state[0]['status_period_ns'] = period_ns
+        supervisor_status_published(self.supervisor.kernel, self.state, t_ns)
+
+    @property
+    def good_readings(self) -> tuple[float, float]:
+        """The last finite position (m) and force (N) read."""
+        n = self.state[0]
+        return float(n['good_position_m']), float(n['good_force_n'])
+
+    def expect_nobody(self) -> None:
+        """No stage drives the next tick (a FAULT): none is waited for."""
+        self.state[0]['expected_source'] = Controller.NONE
 
     def decide_record(self, tick: np.ndarray) -> bool:
         """Decide the tick record ``tick``; True when ``reference_record`` names a stage."""
@@ -248,6 +472,11 @@ class StageSide:
         self.answerer = LockstepAnswerer(stage)
         self.reference_record = new_record(REFERENCE_LAYOUT)
         self.command_record = new_record(COMMAND_LAYOUT)
+        kernel, ref, cmd = stage.kernel, self.reference_record, self.command_record
+        ref_bytes = ref.view(np.uint8)
+        take = entry_point(stage_take_reference, kernel, b'', ref, ref_bytes, cmd)
+        self.take_reference = lambda data: take(kernel, data, ref, ref_bytes, cmd)
+        """Answer a serialised reference (:func:`stage_take_reference`)."""
 
     @property
     def last_answer(self) -> TickAnswer:

@@ -167,6 +167,15 @@ def _running(s) -> bool:
 
 
 @_kernel
+def status_key(s) -> int:
+    """Return a number that changes with the phase, driver, outcome, stage or waiting request.
+
+    The status goes out at once when it does.
+    """
+    return s.status_key * 4 + s.pend_kind
+
+
+@_kernel
 def _holding(s) -> bool:
     """Tell whether a grasp was answered HOLDING (or OVERLOADED) and the force stage holds on."""
     return s.phase == Phase.HOLDING and (s.outcome == Outcome.HOLDING or
@@ -898,11 +907,6 @@ class GraspSupervisor:
     @property
     def pending(self) -> bool:
         return bool(self._s['pend_kind'] != 0)
-
-    @property
-    def status_key(self) -> int:
-        """A number that changes whenever the phase, the driver, the outcome or the stage does."""
-        return int(self._s['status_key']) * 4 + int(self._s['pend_kind'])
 
     @property
     def pending_request(self) -> PendingRequest:

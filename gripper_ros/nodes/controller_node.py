@@ -20,12 +20,11 @@ from __future__ import annotations
 from collections import Counter
 
 from gripper_interfaces.msg import MotorCommand, StageReference, SupervisorStatus
-from gripper_ros.core.lockstep import StageSide
+from gripper_ros.core.lockstep import FOREIGN, REPEATED, StageSide
 from gripper_ros.core.stages import Reference
 from gripper_ros.nodes.gripper_node import GripperNode
-from gripper_ros.nodes.loop_io import decode, read_status
+from gripper_ros.nodes.loop_io import in_layout, read_status
 from gripper_ros.nodes.parameters import ConfigParameters
-from gripper_ros.nodes.qos import GRAPH_QOS
 from gripper_ros.nodes.watchdog import ExecutorSilence
 from gripper_ros.wire import (CDR_LITTLE_ENDIAN, COMMAND_LAYOUT, Controller, NODE_PLANT,
                               REFERENCE_LAYOUT, TOPIC_MOTOR_COMMAND, TOPIC_STATUS, TOPIC_TICK)
@@ -74,16 +73,14 @@ class LockstepController(GripperNode):
         self.nonfinite_answers = 0                # ticks answered with 0 V for want of numbers
         self.watchdog_trips = 0                   # 0 V commands for a silent supervisor
         self.watchdog_message = ''                # the error logged by the last trip
-        self._last_ref: Reference | None = None
+        self._has_ref = False                     # a reference was taken
         self._last_command: bytes | None = None
         self._named = False                       # the supervisor's status names this stage
         self._silence = ExecutorSilence()         # executor-running time without a status
         self._watchdog_tripped = False
-        self._pub = self.create_publisher(MotorCommand, TOPIC_MOTOR_COMMAND, GRAPH_QOS)
-        self.create_subscription(StageReference, self.reference_topic, self._on_reference,
-                                 GRAPH_QOS, raw=True)
-        self.create_subscription(SupervisorStatus, TOPIC_STATUS, self._on_status, GRAPH_QOS,
-                                 raw=True)
+        self._pub = self.graph_publisher(MotorCommand, TOPIC_MOTOR_COMMAND)
+        self.graph_subscription(StageReference, self.reference_topic, self._on_reference)
+        self.graph_subscription(SupervisorStatus, TOPIC_STATUS, self._on_status)
         self.create_timer(WATCHDOG_PERIOD_S, self._watchdog,
                           clock=Clock(clock_type=ClockType.STEADY_TIME))
 
@@ -103,25 +100,33 @@ class LockstepController(GripperNode):
         return self.get_parameter('status_timeout_s').value
 
     # lockstep ------------------------------------------------------------------
+    @property
+    def _last_ref(self) -> Reference | None:
+        """The newest reference taken (None before the first)."""
+        return Reference._make(self.side.reference_record[0].item()) if self._has_ref else None
+
     def _on_reference(self, data: bytes) -> None:
-        values = decode(REFERENCE_LAYOUT, data, StageReference)
-        ref = Reference._make(values)
-        self._last_ref = ref
-        self._named = True
-        if self._next_stage is not None and ref.stage_id != self.side.answerer.active_stage:
-            self.stage, self._next_stage = self._next_stage, None      # a new stage begins
-            self.controller = self.stage.controller
-            self.side = StageSide(self.stage)
+        if self._next_stage is not None:          # new gains wait for the next stage
+            values = REFERENCE_LAYOUT.unpack(data) or \
+                REFERENCE_LAYOUT.unpack(in_layout(REFERENCE_LAYOUT, data, StageReference))
+            if Reference._make(values).stage_id != self.side.answerer.active_stage:
+                self.stage, self._next_stage = self._next_stage, None      # a new stage begins
+                self.controller = self.stage.controller
+                self.side = StageSide(self.stage)
         side = self.side
-        side.reference_record[0] = values
-        if not side.answer_record(side.reference_record):
+        taken = side.take_reference(data)
+        if taken == FOREIGN:                      # another encapsulation: the general way
+            taken = side.take_reference(in_layout(REFERENCE_LAYOUT, data, StageReference))
+        self._has_ref = self._named = True
+        if taken == REPEATED:
             if self._last_command is not None:    # asked again: the plant is still waiting
                 self._pub.publish(self._last_command)
                 self.published[TOPIC_MOTOR_COMMAND] += 1
             return
         if not side.command_record[0]['finite']:
             self.nonfinite_answers += 1
-            self.get_logger().error(f'{self.side.last_answer.reason} at t={ref.stamp_ns} '
+            ref = self._last_ref
+            self.get_logger().error(f'{side.last_answer.reason} at t={ref.stamp_ns} '
                                     f'(measurement {self.stage.measurement(ref)!r}): holding 0 V',
                                     throttle_duration_sec=1.0)
         self._last_command = CDR_LITTLE_ENDIAN + side.command_record.tobytes()

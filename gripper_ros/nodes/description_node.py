@@ -68,8 +68,8 @@ class DescriptionPublisher(GripperNode):
                                                       LATCHED_QOS)
         self._static_pub = self.create_publisher(TFMessage, TOPIC_TF_STATIC, LATCHED_QOS)
         self._tf_pub = self.create_publisher(TFMessage, TOPIC_TF, GRAPH_QOS)
-        self.create_subscription(JointState, TOPIC_JOINT_STATES, self._on_joint_states,
-                                 GRAPH_QOS)
+        self.graph_subscription(JointState, TOPIC_JOINT_STATES, self._on_joint_states,
+                                raw=False)
         self.latched = {TOPIC_ROBOT_DESCRIPTION: String(data=self.urdf),
                         TOPIC_TF_STATIC: TFMessage(transforms=[_transform(
                             Time(), self._base,

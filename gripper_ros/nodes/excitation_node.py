@@ -20,7 +20,7 @@ from gripper_ros.nodes.gripper_node import GripperNode
 from gripper_ros.nodes.loop_io import read_status
 from gripper_ros.nodes.parameters import declare_config
 from gripper_ros.nodes.process import run_node
-from gripper_ros.nodes.qos import GRAPH_QOS, SERVICE_QOS
+from gripper_ros.nodes.qos import SERVICE_QOS
 from gripper_ros.nodes.services import DeferredService
 from gripper_ros.nodes.startup import StartupError
 from gripper_ros.wire import (NODE_EXCITATION, Outcome, SERVICE_EXCITE, SERVICE_MOVE, stamp_ns,
@@ -49,8 +49,7 @@ class ExcitationServer(GripperNode):
         self.add_on_set_parameters_callback(self._check_parameters)
         self.add_post_set_parameters_callback(self._apply_parameters)
         self._move = self.create_client(Move, SERVICE_MOVE, qos_profile=SERVICE_QOS)
-        self.create_subscription(SupervisorStatus, TOPIC_STATUS, self._on_status, GRAPH_QOS,
-                                 raw=True)
+        self.graph_subscription(SupervisorStatus, TOPIC_STATUS, self._on_status)
         self._now_ns: int | None = None
         self._run: ExcitationRun | None = None      # the experiment running
         self._header = None                         # whom to answer when it ends

@@ -1,9 +1,11 @@
 """One gripper's whole node graph in one process under one executor, with real service clients.
 
 Used by ``grasp_demo``, the tests and the benchmarks: the nodes talk only over topics and
-services (DDS), the executor spins in a background thread, and requests go through
+services, the executor spins in a background thread, and requests go through
 ``sim/set_object``, ``grasp``, ``release``, ``move`` and ``stop`` exactly as from another
-process.
+process. The loop topics between the four loop nodes are handed over in the process
+(:mod:`gripper_ros.nodes.intra_process`); everything else, and the loop topics for any other
+subscriber, goes over DDS.
 Recording lives in :mod:`gripper_ros.nodes.recording`.
 """
 from __future__ import annotations
@@ -23,6 +25,7 @@ from gripper_ros.nodes.description_node import DescriptionPublisher
 from gripper_ros.nodes.excitation_node import ExcitationServer
 from gripper_ros.nodes.force_controller_node import ForceControllerNode
 from gripper_ros.nodes.grasp_action_node import GraspActionServer
+from gripper_ros.nodes.intra_process import IntraProcessBus
 from gripper_ros.nodes.move_action_node import MoveActionServer
 from gripper_ros.nodes.names import NameClaim
 from gripper_ros.nodes.plant_simulator_node import PlantSimulatorNode
@@ -81,6 +84,7 @@ class GripperGraph:
         if context is not None:
             kw['context'] = context
         self.nodes: list = []
+        self.bus = IntraProcessBus(rclpy.logging.get_logger('gripper_ros.intra_process'))
         self.close_hooks: list = []          # run first by close() (e.g. open recordings)
         load_config(opts.config_file or None)   # a bad file is refused before a name is taken
         self._claim = NameClaim.take((NODE_PLANT, NODE_SUPERVISOR), (SERVICE_GRASP,), context,
@@ -91,9 +95,10 @@ class GripperGraph:
             self.close()
             raise
 
-    def _build(self, opts: GraphOptions, kw: dict) -> None:
+    def _build(self, opts: GraphOptions, client_kw: dict) -> None:
         cfg = [Parameter('config_file', value=opts.config_file)]
         named = cfg + [Parameter('prefix', value=opts.prefix)]
+        kw = {**client_kw, 'intra_process': self.bus}   # the graph's topics between its nodes
         self.plant = build_node(PlantSimulatorNode, parameter_overrides=named + [
             Parameter('time_mode', value=opts.time_mode),
             Parameter('real_time_factor', value=float(opts.real_time_factor)),
@@ -106,13 +111,14 @@ class GripperGraph:
         self.nodes.append(self.position)
         self.force = build_node(ForceControllerNode, parameter_overrides=cfg + [
             Parameter('controller', value=opts.force_controller),
-            Parameter('approach_force_margin', value=float(opts.approach_force_margin))], **kw)
+            Parameter('approach_force_margin', value=float(opts.approach_force_margin))],
+            **kw)
         self.nodes.append(self.force)
         self.supervisor = build_node(SupervisorNode, parameter_overrides=cfg + [
             Parameter('status_rate_hz', value=float(opts.state_rate_hz))] + [
             Parameter(k, value=v) for k, v in opts.supervisor_parameters.items()], **kw)
         self.nodes.append(self.supervisor)
-        self.client_node = rclpy.create_node('grasp_demo_client', **kw)
+        self.client_node = rclpy.create_node('grasp_demo_client', **client_kw)
         self.nodes.append(self.client_node)
         self.action_server = self.move_action_server = self.excitation_server = None
         if opts.action_server:
@@ -129,6 +135,7 @@ class GripperGraph:
         self.executor = make_executor(opts.executor, self.context)
         for node in self.nodes:
             self.executor.add_node(node)
+        self.bus.bind(self.executor)
         self._stop = Future()
         self._thread = threading.Thread(target=spin_until_stopped,
                                         args=(self.executor, self._stop),
@@ -173,6 +180,7 @@ class GripperGraph:
 
         def remove():
             try:
+                self.bus.detach(node)
                 self.executor.remove_node(node)
             except BaseException as exc:
                 failure.append(exc)

@@ -25,7 +25,7 @@ from gripper_ros.nodes.gripper_node import GripperNode
 from gripper_ros.nodes.loop_io import read_status
 from gripper_ros.nodes.parameters import declare_config, follow
 from gripper_ros.nodes.process import run_node
-from gripper_ros.nodes.qos import GRAPH_QOS, SERVICE_QOS
+from gripper_ros.nodes.qos import SERVICE_QOS
 from gripper_ros.wire import (ACTION_GRASP, NODE_GRASP_ACTION, Outcome, Phase, SERVICE_GRASP,
                               SERVICE_STOP, stamp_ns, TOPIC_STATUS)
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
@@ -50,8 +50,7 @@ class GraspActionServer(GripperNode):
         follow(self, {'feedback_period_s': float})      # from the next status on
         self._grasp = self.create_client(Grasp, SERVICE_GRASP, qos_profile=SERVICE_QOS)
         self._stop = self.create_client(Trigger, SERVICE_STOP, qos_profile=SERVICE_QOS)
-        self.create_subscription(SupervisorStatus, TOPIC_STATUS, self._on_status, GRAPH_QOS,
-                                 raw=True)
+        self.graph_subscription(SupervisorStatus, TOPIC_STATUS, self._on_status)
         self._goal = None                 # the goal handle being executed
         self._goal_grasp_id: int | None = None
         self._goal_start_ns: int | None = None

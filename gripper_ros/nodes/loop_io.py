@@ -23,6 +23,12 @@ def decode(layout: LoopLayout, data: bytes, msg_cls) -> tuple:
     return values
 
 
+def in_layout(layout: LoopLayout, data: bytes, msg_cls) -> bytes:
+    """Return a loop message serialised in another form (big-endian...) in ``layout``'s form."""
+    msg = deserialize_message(data, msg_cls)
+    return layout.pack(*(getattr(msg, name) for name in layout.fields))
+
+
 _SLOT_FORMATS = {'double': 'd', 'float': 'f', 'int64': 'q', 'uint64': 'Q', 'int32': 'i',
                  'uint32': 'I', 'int16': 'h', 'uint16': 'H', 'int8': 'b', 'uint8': 'B',
                  'octet': 'B', 'char': 'B', 'byte': 'B', 'boolean': '?'}

@@ -85,8 +85,7 @@ class MoveActionServer(GripperNode):
         follow(self, {'feedback_period_s': float, 'allow_stalling': bool})   # next status
         self._move = self.create_client(Move, SERVICE_MOVE, qos_profile=SERVICE_QOS)
         self._stop = self.create_client(Trigger, SERVICE_STOP, qos_profile=SERVICE_QOS)
-        self.create_subscription(SupervisorStatus, TOPIC_STATUS, self._on_status, GRAPH_QOS,
-                                 raw=True)
+        self.graph_subscription(SupervisorStatus, TOPIC_STATUS, self._on_status)
         self._status_data: bytes | None = None   # the newest status, read when needed
         self._goal = None                 # the goal handle being executed
         self._feedback = None             # makes its feedback from a status
@@ -99,8 +98,7 @@ class MoveActionServer(GripperNode):
                               goal_callback=accept_goal, cancel_callback=self._on_cancel))
         self.gripper_command_served = ParallelGripperCommand is not None
         self._joint_data: bytes | None = None    # the newest joint_states, read when needed
-        self.create_subscription(JointState, TOPIC_JOINT_STATES, self._on_joint_state,
-                                 GRAPH_QOS, raw=True)
+        self.graph_subscription(JointState, TOPIC_JOINT_STATES, self._on_joint_state)
         self.joint_name = declare_joint_name(self)
         self._commands = JointCommandStream(self.plant, self.joint_name)
         self._command_call = None                # the move of a joint command being done

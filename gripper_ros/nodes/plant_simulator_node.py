@@ -30,10 +30,11 @@ from gripper_interfaces.msg import (ForceSensor, MotorCommand, ObjectState, Plan
                                     SupervisorStatus)
 from gripper_interfaces.srv import SetObject, SimStep
 from gripper_ros.core.controllers import make_plant
-from gripper_ros.core.lockstep import Command, command_problem, PlantSide
+from gripper_ros.core.lockstep import (Command, command_problem, FOREIGN, PlantSide, REFUSED,
+                                       REPEATED, side_state_published, Tick)
 from gripper_ros.core.plant import check_fault, GraspObject, Lift
 from gripper_ros.nodes.gripper_node import GripperNode
-from gripper_ros.nodes.loop_io import (clock_template, decode, force_sensor_template,
+from gripper_ros.nodes.loop_io import (clock_template, force_sensor_template, in_layout,
                                        joint_state_template, object_state_template,
                                        read_status, split_ns, StatusView)
 from gripper_ros.nodes.parameters import ConfigParameters, declare_joint_name
@@ -46,7 +47,7 @@ from gripper_ros.wire import (CDR_LITTLE_ENDIAN, COMMAND_LAYOUT, Controller,
                               DEFAULT_STATE_RATE_HZ, FORCE_SAMPLE_S, FRAME_BASE, NODE_PLANT,
                               Outcome, Phase, REPUBLISH_AFTER_S,
                               SERVICE_PAUSE, SERVICE_RESUME, SERVICE_SET_OBJECT, SERVICE_STEP,
-                              TICK_LAYOUT, TIME_MODE_CHOICES, TimeMode, TOPIC_CLOCK,
+                              TIME_MODE_CHOICES, TimeMode, TOPIC_CLOCK,
                               TOPIC_FORCE_SENSOR, TOPIC_JOINT_STATES, TOPIC_LOAD_ACCELERATION,
                               TOPIC_MOTOR_COMMAND, TOPIC_OBJECT_STATE, TOPIC_SIM_STATUS,
                               TOPIC_STATUS, TOPIC_TICK)
@@ -118,10 +119,11 @@ class PlantSimulatorNode(GripperNode):
         self.published: Counter = Counter()     # messages per (relative) topic
         self.commands_rejected = 0
         self.commands_ignored = 0               # stale, duplicate or superseded
-        self._pending: Command | None = None    # the accepted command for the current tick
-        self._last_echo: Command | None = None
-        self._tick = self.side.tick()
-        self._tick_bytes = TICK_LAYOUT.pack(*self._tick)
+        self._pending = False                   # a command accepted for the current tick
+        self._echoed = False                    # a command was ever accepted (its echo counts)
+        self.side.tick()
+        self._tick_bytes = CDR_LITTLE_ENDIAN + self.side.tick_record.tobytes()
+        self._stamp_ns = self.tick.stamp_ns     # the current tick's
         self._tick_wall = time.monotonic()      # when the current tick was (re)published
         self._tick_first_wall = self._tick_wall  # when it was first published
         self._woken = False                     # a request is waiting for simulated time
@@ -133,24 +135,20 @@ class PlantSimulatorNode(GripperNode):
         self._pacing = False                    # realtime: waiting for the wall clock
         self._anchor()
         self._state_period_ns = round(1e9 / self.state_rate_hz)
-        self._next_state_ns = self._tick.stamp_ns
-        self._last_hold_state = None
         self._rtf = (time.monotonic(), self.plant.t_ns, 0.0)   # window start; last achieved
         self._last_rtf_warning = time.monotonic() - RTF_WARN_PERIOD_S + RTF_WARN_GRACE_S
         self._last_sim_status = 0.0
         self._advancing = False
 
-        self._tick_pub = self.create_publisher(PlantTick, TOPIC_TICK, GRAPH_QOS)
-        self._joint_pub = self.create_publisher(JointState, TOPIC_JOINT_STATES, GRAPH_QOS)
+        self._tick_pub = self.graph_publisher(PlantTick, TOPIC_TICK)
+        self._joint_pub = self.graph_publisher(JointState, TOPIC_JOINT_STATES)
         self._force_pub = self.create_publisher(ForceSensor, TOPIC_FORCE_SENSOR, GRAPH_QOS)
         self._object_pub = self.create_publisher(ObjectState, TOPIC_OBJECT_STATE, GRAPH_QOS)
-        self._sim_pub = self.create_publisher(SimStatus, TOPIC_SIM_STATUS, GRAPH_QOS)
+        self._sim_pub = self.graph_publisher(SimStatus, TOPIC_SIM_STATUS)
         self._clock_pub = self.create_publisher(ClockMsg, TOPIC_CLOCK, GRAPH_QOS) \
             if self.publish_clock else None
-        self.create_subscription(MotorCommand, TOPIC_MOTOR_COMMAND, self._on_command, GRAPH_QOS,
-                                 raw=True)
-        self.create_subscription(SupervisorStatus, TOPIC_STATUS, self._on_status, GRAPH_QOS,
-                                 raw=True)
+        self.graph_subscription(MotorCommand, TOPIC_MOTOR_COMMAND, self._on_command)
+        self.graph_subscription(SupervisorStatus, TOPIC_STATUS, self._on_status)
         self.create_subscription(AccelStamped, TOPIC_LOAD_ACCELERATION,
                                  self._on_load_acceleration, GRAPH_QOS)
         self.loads_refused = 0
@@ -173,7 +171,7 @@ class PlantSimulatorNode(GripperNode):
             f'{self.config.plant.max_travel_m:g} m, max force {self.config.plant.max_force_n:.2f} '
             f'N at {self.config.plant.voltage_limit_v:g} V')
         self._publish_tick()
-        self._publish_state(force=True)
+        self._publish_state()
         self._publish_sim_status()
 
     def _param(self, name, default, description, value_range=None, read_only=False):
@@ -195,25 +193,28 @@ class PlantSimulatorNode(GripperNode):
             elif p.name == 'command_timeout_s':
                 self.command_timeout_s = float(p.value)
 
+    @property
+    def tick(self) -> Tick:
+        """The current tick: its measurement, as published."""
+        return Tick._make(self.side.tick_record[0].item())
+
     # ------------------------------------------------------------------ lockstep
     def _on_command(self, data: bytes) -> None:
-        values = decode(COMMAND_LAYOUT, data, MotorCommand)
-        cmd = Command._make(values)
-        pending = self._pending
-        if cmd.stamp_ns != self._tick.stamp_ns or cmd.revision != self.side.revision or \
-                (pending is not None and cmd.stage_id <= pending.stage_id):
+        taken = self.side.take_command(data, self._pending)
+        if taken == FOREIGN:                    # another encapsulation: the general way
+            taken = self.side.take_command(in_layout(COMMAND_LAYOUT, data, MotorCommand),
+                                           self._pending)
+        if taken == REPEATED:
             self.commands_ignored += 1          # stale, for the world before, or a repeat
             return
-        problem = command_problem(cmd)
-        if problem:
+        if taken == REFUSED:
+            cmd = Command._make(self.side.offered[0].item())
             self.commands_rejected += 1
             self.get_logger().error(f'refusing the command of t={cmd.stamp_ns * 1e-9:.4f} s from '
-                                    f'source {cmd.source}: {problem}; motor held at 0 V',
-                                    throttle_duration_sec=1.0)
+                                    f'source {cmd.source}: {command_problem(cmd)}; motor held '
+                                    'at 0 V', throttle_duration_sec=1.0)
             return
-        self.side.command_record[0] = values    # what the kernels read
-        self.side.accept(self.side.command_record)
-        self._pending = self._last_echo = cmd
+        self._pending = self._echoed = True
         self._unpowered = False
         self._try_step()
 
@@ -226,7 +227,7 @@ class PlantSimulatorNode(GripperNode):
             self.get_logger().warning(f'{TOPIC_LOAD_ACCELERATION} ignored: {exc}',
                                       throttle_duration_sec=1.0)
             return
-        self._publish_state(force=True)
+        self._publish_state()
         self._try_step()                        # fast mode: the load needs simulated time
 
     def _on_status(self, data: bytes) -> None:
@@ -235,7 +236,7 @@ class PlantSimulatorNode(GripperNode):
         if previous is None or msg.grasp_id != previous.grasp_id:
             if msg.mass_kg > 0.0:
                 self.side.grasp_mass_kg = msg.mass_kg
-        if msg.active_controller == Controller.NONE and self._pending is None:
+        if msg.active_controller == Controller.NONE and not self._pending:
             self._unpowered = True              # nobody will command: 0 V, when time runs
         if msg.pending_request:
             self._woken = True
@@ -258,40 +259,43 @@ class PlantSimulatorNode(GripperNode):
         executor serves other callbacks (a sim/pause ends the step).
         """
         batch = STEP_BATCH
+        fast = self.time_mode is TimeMode.FAST
         while True:
-            cmd = self._pending
-            if cmd is None and not self._unpowered:
+            powered = self._pending
+            if not powered and not self._unpowered:
                 return
-            hold_ns = round(cmd.hold_s * 1e9) if cmd is not None else self._state_period_ns
+            hold_ns = round(float(self.side.command_record[0]['hold_s']) * 1e9) if powered \
+                else self._state_period_ns
             if self._budget is not None:
                 pass                            # sim/step: advance now, in either mode
             elif self._paused:
                 return
-            elif self.time_mode is TimeMode.FAST:
-                if not (self._woken or (cmd is not None
-                                        and self.side.needs_time(self.side.command_record))):
+            elif fast:
+                if not (self._woken or (powered and self.side.state[0]['needs_time'])):
                     self._set_advancing(False)
                     return                      # nothing needs time: it pauses here
             else:
-                lead_s = self._lead_s(self._tick.stamp_ns + hold_ns)
+                lead_s = self._lead_s(self._stamp_ns + hold_ns)
                 if lead_s < -MAX_LAG_S:         # fell behind (a stall): no burst to catch up
                     self._anchor()
-                    lead_s = self._lead_s(self._tick.stamp_ns + hold_ns)
+                    lead_s = self._lead_s(self._stamp_ns + hold_ns)
                 if lead_s > 0.0:
                     if lead_s > SLEEP_LIMIT_S:
                         self._wait(lead_s)
                         return
                     time.sleep(lead_s)
             self._woken = False
-            self._pending = None
-            self._set_advancing(True)
-            self._tick = self.side.step(self.side.command_record) if cmd is not None else \
-                self.side.step_unpowered(hold_ns * 1e-9)
+            self._pending = False
+            if not self._advancing:
+                self._set_advancing(True)
+            self._stamp_ns, due = self.side.step_due() if powered else \
+                self.side.step_unpowered_due(hold_ns)
             self._publish_tick()
-            if self._tick.stamp_ns >= self._next_state_ns or self._hold_state_changed():
+            if due:
                 self._publish_state()
-            self._spend_budget()
-            if cmd is not None or self.time_mode is TimeMode.FAST:
+            if self._budget is not None:
+                self._spend_budget()
+            if powered or fast:
                 return                          # lockstep: the next step needs its command
             batch -= 1
             if self._budget is not None and batch <= 0:
@@ -330,15 +334,12 @@ class PlantSimulatorNode(GripperNode):
         self.published[TOPIC_TICK] += 1
 
     # ------------------------------------------------------------------ state topics
-    def _hold_state_changed(self) -> bool:
-        return self.plant.hold_state is not self._last_hold_state
-
-    def _publish_state(self, force: bool = False) -> None:
+    def _publish_state(self) -> None:
         """joint_states, force_sensor, sim/object_state and /clock for the current tick."""
-        tick = self._tick
+        tick = self.tick
         sec, nanosec = split_ns(tick.stamp_ns)
-        period = self._state_period_ns
-        self._next_state_ns = (tick.stamp_ns // period + 1) * period
+        side_state_published(self.side.state, self.plant.kernel, self.side.tick_record,
+                             self._state_period_ns)
         if self._clock_pub is not None:
             self._clock_pub.publish(self._clock_layout.pack(sec, nanosec))
             self.published[TOPIC_CLOCK] += 1
@@ -350,7 +351,6 @@ class PlantSimulatorNode(GripperNode):
             sec, nanosec, tick.force_n, tick.peak_force_n, tick.sensor_voltage_v))
         self.published[TOPIC_FORCE_SENSOR] += 1
         state = self.plant.object_state
-        self._last_hold_state = state.state
         self._object_pub.publish(self._object_layout.pack(
             sec, nanosec, int(state.state), state.slip_m, state.slip_speed_mps, state.load_n,
             state.capacity_n, state.lift_acceleration_mps2))
@@ -385,7 +385,7 @@ class PlantSimulatorNode(GripperNode):
         now = time.monotonic()
         if now - self._last_sim_status >= SIM_STATUS_PERIOD_S:
             self._publish_sim_status()
-        if self._pending is not None or self._paused:
+        if self._pending or self._paused:
             return
         if self._unpowered and self.time_mode is TimeMode.REALTIME and not self._pacing:
             self._try_step()                    # nobody commands: time goes on at 0 V
@@ -395,7 +395,7 @@ class PlantSimulatorNode(GripperNode):
                 silent_s >= self.command_timeout_s:
             self._unpowered = True
             self.get_logger().error(
-                f'no command for t={self._tick.stamp_ns * 1e-9:.4f} s in {silent_s:.2f} s: '
+                f'no command for t={self._stamp_ns * 1e-9:.4f} s in {silent_s:.2f} s: '
                 'motor held at 0 V, time goes on', throttle_duration_sec=5.0)
             self._try_step()
         elif now - self._tick_wall >= REPUBLISH_AFTER_S and not self._unpowered:
@@ -486,7 +486,8 @@ class PlantSimulatorNode(GripperNode):
         The supervisor's newest word on it counts: its status, or the echo of the last command,
         whichever is later.
         """
-        echo, status = self._last_echo, self._status
+        echo = Command._make(self.side.command_record[0].item()) if self._echoed else None
+        status = self._status
         state = echo
         if status is not None and (echo is None or (status.grasp_id, status.stage_id) >=
                                    (echo.grasp_id, echo.stage_id)):
@@ -524,10 +525,10 @@ class PlantSimulatorNode(GripperNode):
             response.success = False
             response.message = f'refused: {exc}'
             return response
-        self._pending = None                    # the command was for the world before
-        self._tick = self.side.tick()
+        self._pending = False                   # the command was for the world before
+        self._stamp_ns = self.side.tick().stamp_ns
         self._publish_tick()
-        self._publish_state(force=True)
+        self._publish_state()
         response.success = True
         response.message = (f'object width {request.width_m:g} m, contact at '
                             f'{self.plant.contact_position_m:.4f} m')

@@ -102,16 +102,35 @@ class GraphTap:
         self._closing_since: float | None = None
         self._lock = threading.Lock()
         self._tapped = []                        # publishers whose publish() is tapped
+        self._tapped_graph = []                   # graph publishers that call the tap
 
     def open(self) -> GraphTap:  # noqa: A003 - a tap is opened and closed like a file
-        """Tap every publisher of the graph's topics: what each publishes is seen here at once."""
+        """Tap every publisher of the graph's topics: what each publishes is seen here at once.
+
+        A graph publisher (:class:`~gripper_ros.nodes.intra_process.GraphPublisher`) calls the
+        tap itself, whether the message goes over the process's bus, DDS or both.
+        """
         for node in self.graph.nodes:
             if node is self.node:
                 continue
-            for publisher in node.publishers:
+            wrapped = getattr(node, 'graph_publishers', ())
+            for publisher in wrapped:
                 if publisher.topic_name in self.topics:
+                    publisher.tap = self._on_graph_message
+                    self._tapped_graph.append(publisher)
+            inner = {id(p.dds) for p in wrapped}
+            for publisher in node.publishers:
+                if publisher.topic_name in self.topics and id(publisher) not in inner:
                     self._tap_publisher(publisher)
         return self
+
+    def _on_graph_message(self, topic: str, msg) -> None:
+        try:
+            self._on_message(topic, msg if msg.__class__ is bytes else serialize_message(msg))
+        except Exception as exc:  # noqa: BLE001 - a recorder error never stops the graph
+            sink = self.sink
+            if sink is not None:
+                self._fail(sink, exc)
 
     def _tap_publisher(self, publisher) -> None:
         """Make ``publisher.publish`` also hand what it publishes to :meth:`_on_message`.
@@ -291,7 +310,9 @@ class GraphTap:
     def close(self) -> None:
         for publisher in self._tapped:
             del publisher.publish                # the class's own again
-        self._tapped = []
+        for publisher in self._tapped_graph:
+            publisher.tap = None
+        self._tapped, self._tapped_graph = [], []
 
     def __enter__(self) -> GraphTap:
         return self.open()

@@ -27,16 +27,17 @@ import time
 
 from gripper_interfaces.msg import PlantTick, SimStatus, StageReference, SupervisorStatus
 from gripper_interfaces.srv import Grasp, Move
-from gripper_ros.core.lockstep import SupervisorSide, Tick
+from gripper_ros.core.lockstep import (ACTIVE_SHIFT, ANSWERED, FOREIGN, NAMED, PROGRESS,
+                                       STATUS_DUE, SupervisorSide, Tick)
 from gripper_ros.core.requests import (GraspRequest, MoveRequest, RequestError, validate_move,
                                        validate_request)
 from gripper_ros.core.supervisor import GraspSupervisor, load_law, RequestKind
 from gripper_ros.nodes.gripper_node import GripperNode
-from gripper_ros.nodes.loop_io import decode, split_ns, status_message, status_template
+from gripper_ros.nodes.loop_io import in_layout, split_ns, status_message, status_template
 from gripper_ros.nodes.names import GraspIds
 from gripper_ros.nodes.parameters import ConfigParameters, follow
 from gripper_ros.nodes.process import run_node
-from gripper_ros.nodes.qos import GRAPH_QOS, LATCHED_QOS, SERVICE_QOS
+from gripper_ros.nodes.qos import LATCHED_QOS, SERVICE_QOS
 from gripper_ros.nodes.services import DeferredService
 from gripper_ros.nodes.watchdog import ExecutorSilence
 from gripper_ros.wire import (CDR_LITTLE_ENDIAN, Controller, GRAPH_NOT_READY,
@@ -86,31 +87,24 @@ class SupervisorNode(GripperNode):
                 floating_point_range=[FloatingPointRange(from_value=1.0,
                                                          to_value=10000.0)])).value
         follow(self, {'tick_timeout_s': float, 'status_rate_hz': float})   # next check
-        self._tick: Tick | None = None
-        self._decided_key: tuple[int, int] | None = None    # (stamp, revision) last decided
+        self._has_tick = False                              # a tick was decided
         self._ref_bytes: bytes | None = None                # the reference sent for it
         self._ref_topic = None
-        self._expected_source = Controller.NONE             # who should command the next tick
-        # the last finite readings: the status never carries a non-finite number
-        self._good_position_m = 0.0
-        self._good_force_n = 0.0
         self._waiting: tuple[object, object] | None = None  # (request header, response)
         self.response_notes: list[str] = []    # appended to the next answer (e.g. recording)
-        self._status_key = None
-        self._next_status_ns = 0
         self.statuses_published = 0
         self.references_published = 0
         self.published: Counter = Counter()     # messages per (relative) topic
         self._status_now = (0, None, '')          # the newest status: stamp, numbers, text
-        self._refs = {controller: self.create_publisher(StageReference, topic, GRAPH_QOS)
+        self._refs = {controller: self.graph_publisher(StageReference, topic)
                       for controller, topic in REFERENCE_TOPICS.items()}
         self._ref_name = TOPIC_POSITION_REFERENCE
-        self._status_pub = self.create_publisher(SupervisorStatus, TOPIC_STATUS, GRAPH_QOS)
+        self._status_pub = self.graph_publisher(SupervisorStatus, TOPIC_STATUS)
         self._outcome_pub = self.create_publisher(SupervisorStatus, TOPIC_OUTCOME, LATCHED_QOS)
-        self.create_subscription(PlantTick, TOPIC_TICK, self._on_tick, GRAPH_QOS, raw=True)
+        self.graph_subscription(PlantTick, TOPIC_TICK, self._on_tick)
         self.sim_paused = False                 # the plant's sim/status says time is held
         self._last_tick_wall = time.monotonic()  # any tick, a republished one included
-        self.create_subscription(SimStatus, TOPIC_SIM_STATUS, self._on_sim_status, GRAPH_QOS)
+        self.graph_subscription(SimStatus, TOPIC_SIM_STATUS, self._on_sim_status, raw=False)
         self.grasp_service = DeferredService(self, Grasp, SERVICE_GRASP, self._on_grasp)
         self.release_service = DeferredService(self, Trigger, SERVICE_RELEASE, self._on_release)
         self.move_service = DeferredService(self, Move, SERVICE_MOVE, self._on_move)
@@ -136,31 +130,27 @@ class SupervisorNode(GripperNode):
         self.sim_paused = msg.paused
 
     # ------------------------------------------------------------------ the tick
+    @property
+    def _tick(self) -> Tick | None:
+        """The newest tick decided (None before the first)."""
+        return Tick._make(self._side.tick_record[0].item()) if self._has_tick else None
+
     def _on_tick(self, data: bytes) -> None:
         self._last_tick_wall = time.monotonic()   # a repeat too: the plant is alive
-        values = decode(TICK_LAYOUT, data, PlantTick)
-        tick = Tick._make(values)
-        key = (tick.stamp_ns, tick.revision)
-        if key == self._decided_key:            # the plant is still waiting: send it again
+        side = self._side
+        flags = side.take_tick(data)
+        if flags == -FOREIGN:                   # another encapsulation: the general way
+            flags = side.take_tick(in_layout(TICK_LAYOUT, data, PlantTick))
+        if flags < 0:                           # decided: the plant is still waiting
             if self._ref_bytes is not None:
                 self._ref_topic.publish(self._ref_bytes)
                 self.published[self._ref_name] += 1
             return
-        self._decided_key = key
-        self._tick = tick
-        if math.isfinite(tick.position_m):
-            self._good_position_m = tick.position_m
-        if math.isfinite(tick.force_n):
-            self._good_force_n = tick.force_n
-        if tick.applied_source == self._expected_source or not self.logic.running:
+        self._has_tick = True
+        if flags & PROGRESS:
             self._silence.reset()               # the named stage's command moved the plant
-        side = self._side
-        side.tick_record[0] = values
-        named = side.decide_record(side.tick_record)
-        decision = self.logic.decision
-        active = self.logic.active
-        self._expected_source = active
-        if named:
+        if flags & NAMED:
+            active = flags >> ACTIVE_SHIFT
             self._ref_topic = self._refs[active]
             self._ref_name = REFERENCE_TOPICS[active]
             self._ref_bytes = CDR_LITTLE_ENDIAN + side.reference_record.tobytes()
@@ -169,25 +159,21 @@ class SupervisorNode(GripperNode):
             self.published[self._ref_name] += 1
         else:
             self._ref_bytes = None
-        self._publish_status(tick.stamp_ns)
-        if decision.answer is not None:
-            self._complete(decision)
+        if flags & STATUS_DUE:
+            self._publish_status(int(side.tick_record[0]['stamp_ns']))
+        if flags & ANSWERED:
+            self._complete(self.logic.decision)
 
-    def _publish_status(self, t_ns: int, force: bool = False) -> None:
-        """At the status rate, on every change, or when ``force``d (heartbeat, a request)."""
+    def _publish_status(self, t_ns: int) -> None:
+        """The status now: at the status rate, on every change, a heartbeat, a request."""
         d = self.logic
-        key = d.status_key
-        if not force and key == self._status_key and t_ns < self._next_status_ns:
-            return
-        self._status_key = key
-        period = round(1e9 / self.status_rate_hz)
-        self._next_status_ns = (t_ns // period + 1) * period
+        self._side.status_published(t_ns, round(1e9 / self.status_rate_hz))
         tg = d.targets
-        position_m = self._good_position_m
+        position_m, force_n = self._side.good_readings
         values = (int(d.phase), int(d.active), int(d.switch_criterion), d.grasp_id, d.stage_id,
                   int(d.outcome), d.running, int(d.pending_request),
                   tg.position_setpoint_m if tg else 0.0, tg.approach_setpoint_m if tg else 0.0,
-                  d.force_setpoint_n if tg else 0.0, d.mass_kg, position_m, self._good_force_n,
+                  d.force_setpoint_n if tg else 0.0, d.mass_kg, position_m, force_n,
                   self.config.plant.max_travel_m - position_m, d.contact_ns is not None)
         message = d.message if d.outcome is not Outcome.UNKNOWN else ''
         self._status_now = (t_ns, values, message)
@@ -199,7 +185,7 @@ class SupervisorNode(GripperNode):
         self.published[TOPIC_STATUS] += 1
 
     def _heartbeat(self) -> None:
-        self._publish_status(self._tick.stamp_ns if self._tick else 0, force=True)
+        self._publish_status(self._tick.stamp_ns if self._tick else 0)
 
     # ------------------------------------------------------------------ requests
     def _refusal(self, kind: str) -> str:
@@ -269,7 +255,7 @@ class SupervisorNode(GripperNode):
         """Hold the accepted request's reply until it ends; the status wakes a paused sim."""
         self._waiting = (header, response)
         self._silence.reset()
-        self._publish_status(self._tick.stamp_ns, force=True)
+        self._publish_status(self._tick.stamp_ns)
 
     def _on_grasp(self, request: Grasp.Request, header) -> None:
         """Accept a grasp, or refuse it at once."""
@@ -323,9 +309,9 @@ class SupervisorNode(GripperNode):
 
     def _fill_move_state(self, response: Move.Response) -> None:
         """Fill in a move's answer the finger's state: the last finite readings."""
-        response.position_m = self._good_position_m
-        response.width_m = self.config.plant.max_travel_m - self._good_position_m
-        response.effort_n = self._good_force_n
+        position_m, response.effort_n = self._side.good_readings
+        response.position_m = position_m
+        response.width_m = self.config.plant.max_travel_m - position_m
 
     def _on_stop(self, request: Trigger.Request, response: Trigger.Response):
         """End the running request or the hold now; the position stage then holds the finger."""
@@ -344,7 +330,7 @@ class SupervisorNode(GripperNode):
         """End the running request (STOPPED); the decision, or None with nothing to stop."""
         decision = self.logic.stop(message)
         if decision is not None:
-            self._publish_status(self._tick.stamp_ns if self._tick else 0, force=True)
+            self._publish_status(self._tick.stamp_ns if self._tick else 0)
             self._complete(decision)
         return decision
 
@@ -379,9 +365,9 @@ class SupervisorNode(GripperNode):
         response.outcome = int(decision.answer)
         response.message = message
         response.grasp_id = logic.grasp_id
-        response.final_position_m = self._good_position_m      # the last finite readings
-        response.final_width_m = self.config.plant.max_travel_m - self._good_position_m
-        response.final_force_n = self._good_force_n
+        position_m, response.final_force_n = self._side.good_readings   # the last finite
+        response.final_position_m = position_m
+        response.final_width_m = self.config.plant.max_travel_m - position_m
         if logic.switch_ns is not None:
             response.switch_time_s = (logic.switch_ns - logic.start_ns) * 1e-9
         self.grasp_service.reply(header, response)
@@ -418,8 +404,8 @@ class SupervisorNode(GripperNode):
                    f't={t_ns * 1e-9:.4f} s: {who}')
         self.get_logger().error(message)
         decision = self.logic.fault(message)
-        self._expected_source = Controller.NONE
-        self._publish_status(t_ns, force=True)
+        self._side.expect_nobody()
+        self._publish_status(t_ns)
         self._complete(decision)
 
 
