@@ -359,6 +359,22 @@ class LoopLayout:
             return None
         return self._reader.unpack_from(data)
 
+    def reader(self, *names: str) -> struct.Struct:
+        """Return a :class:`struct.Struct` whose ``unpack_from(data)`` gives ``names`` only.
+
+        For a reader of a few fields of every message (``names`` in field order); ``data``
+        must be in this layout's form (:meth:`unpack` says).
+        """
+        fmt, at = '<', 0
+        for name in names:
+            offset = 4 + self.dtype.fields[name][1]
+            if offset < at:
+                raise ValueError(f'{name}: fields must be given in message order')
+            code = {'i8': 'q', 'u4': 'I', 'u1': 'B', 'f8': 'd'}[self.dtype[name].str[1:]]
+            fmt += f'{offset - at}x{code}' if offset > at else code
+            at = offset + self.dtype[name].itemsize
+        return struct.Struct(fmt)
+
     def as_dict(self, values: tuple) -> dict:
         """``values`` (as :meth:`unpack` returns them) by field name."""
         return dict(zip(self.fields, values))

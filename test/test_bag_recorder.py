@@ -121,7 +121,8 @@ def record(node_factory, bag_dir: Path, n: int = 150, **kwargs) -> dict:
 
 @pytest.fixture
 def recorded(node_factory, tmp_path):
-    result = record(node_factory, tmp_path / 'run1')
+    """450 messages in chunks of 100: a bag of several chunks, as a long recording makes."""
+    result = record(node_factory, tmp_path / 'run1', flush_every_messages=100)
     result['recorder'].close()
     result['recorder'].close()               # idempotent
     return result
@@ -388,7 +389,10 @@ class _LoggedFile:
 
 def test_write_queues_and_the_file_is_written_a_chunk_at_a_time(node_factory, tmp_path,
                                                                 monkeypatch):
-    """A message costs the caller a queue append; the file sees one write per chunk and index."""
+    """A message costs the caller an append; the file sees one write per chunk and index.
+
+    A topic's first message also writes its channel, once.
+    """
     from gripper_ros.bags import recorder as recorder_module
     from rclpy.serialization import serialize_message
     log, real_open = [], open
@@ -399,9 +403,11 @@ def test_write_queues_and_the_file_is_written_a_chunk_at_a_time(node_factory, tm
                       subscribe=False, flush_every_messages=every)
     data = serialize_message(joint_state(1))
     before = len(log)
-    for k in range(every - 1):
+    rec.write(JS, data, 0)
+    assert len(log) == before + 1                              # the channel
+    for k in range(1, every - 1):
         rec.write(JS, data, k)
-    assert len(log) == before and rec.readable_count == 0      # queued, nothing written
+    assert len(log) == before + 1 and rec.readable_count == 0  # in the chunk, nothing written
     for k in range(every - 1, n):
         rec.write(JS, data, k)
     assert rec.readable_count == n and rec.message_count == n

@@ -24,7 +24,7 @@ from gripper_ros.wire import (DESCRIPTION_TOPICS, LATCHED_DESCRIPTION_TOPICS, Ou
                               TOPIC_JOINT_STATES, TOPIC_TF)
 import pytest
 
-FULL_AFTER_BYTES = 40_000          # a few chunks into the first grasp's bag
+FULL_AFTER_BYTES = 100_000         # a few chunks into the first grasp's bag (about 20 kB each)
 
 _FULL_DISK = """
 import builtins, errno, sys

@@ -14,7 +14,7 @@ from __future__ import annotations
 from collections import defaultdict
 from itertools import chain
 import struct
-from typing import BinaryIO, Iterable, Mapping
+from typing import BinaryIO, Mapping
 import zlib
 
 from mcap.data_stream import RecordBuilder
@@ -99,36 +99,38 @@ class McapFile:
         length = self._write_record(record)
         self._metadata_indexes.append(MetadataIndex(offset=offset, length=length, name=name))
 
-    def add_chunk(self, messages: Iterable[tuple[int, int, int, int, bytes]]) -> int:
+    @property
+    def message_times_ns(self) -> tuple[int | None, int]:
+        """The earliest and latest log time of the messages written (None, 0: none yet)."""
+        return self._start_ns, self._end_ns
+
+    def add_chunk(self, messages: list[tuple[int, int, int, int, bytes]]) -> int:
         """Write one chunk of ``(channel, sequence, log ns, publish ns, data)`` and its indexes.
 
         Returns the number of messages written (none: no chunk).
         """
+        if not messages:
+            return 0
         pack = _MESSAGE.pack
         op = Opcode.MESSAGE
         fields = _MESSAGE_FIELDS_SIZE
+        head = _MESSAGE.size
         parts: list[bytes] = []
         append = parts.append
         indexes: dict[int, list] = defaultdict(list)
-        counts = self._channel_counts
         offset = 0
-        start = end = None
         for channel, sequence, log_ns, publish_ns, data in messages:
-            header = pack(op, fields + len(data), channel, sequence & _SEQUENCE_MASK, log_ns,
-                          publish_ns)
-            append(header)
+            size = len(data)
+            append(pack(op, fields + size, channel, sequence & _SEQUENCE_MASK, log_ns,
+                        publish_ns))
             append(data)
             indexes[channel].append((log_ns, offset))
-            offset += len(header) + len(data)
-            counts[channel] += 1
-            if start is None:
-                start = end = log_ns
-            elif log_ns < start:
-                start = log_ns
-            elif log_ns > end:
-                end = log_ns
-        if start is None:
-            return 0
+            offset += head + size
+        counts = self._channel_counts
+        for channel, entries in indexes.items():
+            counts[channel] += len(entries)
+        start = min(m[2] for m in messages)
+        end = max(m[2] for m in messages)
         n = sum(len(v) for v in indexes.values())
         self._message_count += n
         self._start_ns = start if self._start_ns is None else min(self._start_ns, start)

@@ -8,18 +8,17 @@ channels with ``offered_qos_profiles``/``topic_type_hash``, a ``rosbag2`` metada
 ``metadata.yaml`` version 9; so ``ros2 bag info/play``, Foxglove, ``rosbags`` and ``mcap`` all
 read it.
 
-A message handed to the recorder is only appended to a queue (its bytes and times); once a
-chunk's worth is queued, the chunk is encoded in one pass, compressed and written. Per message,
-the executor thread that hands it over pays for an append and a share of that pass, not for the
-``mcap`` writer's per-message Python. The pass stays in the caller's thread on purpose: a
-writer thread measured slower, since it shares the GIL with the executor and takes it in the
-middle of ticks (docs/BENCHMARKS.md, "Recording"). A timer thread writes what waits longer
-than ``flush_every_s``.
+A message handed to the recorder is appended to the chunk being filled (its channel, sequence,
+times and bytes); once the chunk is full it is encoded in one pass, compressed and written. Per
+message, the executor thread that hands it over pays for an append and a share of that pass,
+not for the ``mcap`` writer's per-message Python. The pass stays in the caller's thread on
+purpose: a writer thread measured slower, since it shares the GIL with the executor and takes
+it in the middle of ticks (docs/BENCHMARKS.md, "Recording"). A timer thread writes what waits
+longer than ``flush_every_s``.
 """
 from __future__ import annotations
 
 import atexit
-from collections import deque
 import enum
 import functools
 import json
@@ -41,11 +40,25 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 import yaml
 
 ROS_DISTRO = 'jazzy'
+CHUNK_MESSAGES = 1000
+"""Messages a chunk holds before it is written: about 110 kB of lockstep messages, a tenth of a
+second of a held object. Fewer cost the executor more (each chunk is a compression, index
+records and a write); a killed process loses at most these and ``flush_every_s`` of them."""
 BAG_VERSION = 9
 _NS_PER_S = 1_000_000_000
 _INFINITE_NS = 0x7FFFFFFFFFFFFFFF  # RMW_DURATION_INFINITE
 WRITER_PERIOD_S = 0.02
 """How often the timer thread looks for messages waiting longer than ``flush_every_s``."""
+
+
+_YAML_DUMPER = getattr(yaml, 'CSafeDumper', yaml.SafeDumper)
+"""libyaml's emitter where PyYAML has it: a bag's metadata (the whole config) in a few ms, not
+the 50 ms of the pure-Python one that the closing of a bag would hold the executor for."""
+
+
+def _yaml_text(data) -> str:
+    """Return ``data`` as YAML, keys in their order (as ``yaml.safe_dump(sort_keys=False)``)."""
+    return yaml.dump(data, Dumper=_YAML_DUMPER, sort_keys=False)
 
 
 class PublishTime(enum.Enum):
@@ -114,9 +127,9 @@ class BagRecorder:
     that knows the tick better passes its own ``time_source``. ``publish_time`` is the same
     (``PublishTime.RECEIVE``) or the DDS source timestamp (``PublishTime.SOURCE``, wall time).
 
-    Batches: a received message is queued (bytes and times, nothing else); every
-    ``flush_every_messages`` messages the queue becomes one chunk, encoded, compressed and
-    written by the call that filled it. :attr:`counts` are the messages taken, queued or
+    Batches: a received message goes into the chunk being filled (bytes and times, nothing
+    else); every ``flush_every_messages`` messages the chunk is encoded, compressed and written
+    by the call that filled it. :attr:`counts` are the messages taken, in the chunk or
     written. A write that fails (a full disk) stops the recorder and is raised; one that fails
     in the timer thread is raised by the next :meth:`write`. Either way the caller learns of it
     and the messages taken but not readable are counted (:attr:`accepted_count` against what a
@@ -135,7 +148,7 @@ class BagRecorder:
     def __init__(self, node: Node, bag_dir: str | os.PathLike,
                  topics: Mapping[str, str] | None = None, *, qos_depth: int = GRAPH_QOS_DEPTH,
                  time_source: Callable[[], int] | None = None,
-                 flush_every_messages: int = 100, flush_every_s: float = 0.5,
+                 flush_every_messages: int = CHUNK_MESSAGES, flush_every_s: float = 0.5,
                  custom_data: Mapping[str, Any] | None = None, overwrite: bool = False,
                  publish_time: PublishTime = PublishTime.RECEIVE,
                  compression: CompressionType = CompressionType.ZSTD,
@@ -176,15 +189,12 @@ class BagRecorder:
                             for t, d in definitions.items()}
         self._channel_ids: dict[str, int] = {}
         self._topic_meta: dict[str, dict] = {}
-        self._counts = dict.fromkeys(self._topics, 0)    # messages taken, queued or written
-        self._sequence = dict.fromkeys(self._topics, 0)  # messages written: the next sequence
-        self._first_ns: int | None = None
-        self._last_ns: int | None = None
+        self._counts = dict.fromkeys(self._topics, 0)    # messages taken
+        self._sequence = dict.fromkeys(self._topics, 0)  # the next sequence number
         self._chunk: list[tuple] = []           # the chunk being filled, as McapFile takes it
         self._total = 0                         # messages handed to the writer
         self._readable = 0                      # of those, in chunks written to the file
         self._last_flush = time.monotonic()
-        self._queue: deque = deque()            # (topic, data, log ns, publish ns)
         self._lost = 0                          # received after the writer failed
         self._failure: BaseException | None = None
         self._stop = threading.Event()
@@ -213,17 +223,17 @@ class BagRecorder:
 
     @property
     def counts(self) -> dict[str, int]:
-        """Messages taken per topic so far (written, or queued to be)."""
+        """Messages taken per topic so far (written, or in the chunk being filled)."""
         return dict(self._counts)
 
     @property
     def message_count(self) -> int:
-        """Messages taken so far (written, or queued to be)."""
+        """Messages taken so far (written, or in the chunk being filled)."""
         return sum(self._counts.values())
 
     @property
     def accepted_count(self) -> int:
-        """Messages handed to the recorder, whether written yet or still queued."""
+        """Messages handed to the recorder, whether written yet or still buffered."""
         return sum(self._counts.values()) + self._lost
 
     @property
@@ -256,7 +266,6 @@ class BagRecorder:
                 raise BagRecorderError('recorder is closed')
             self._custom_data.update({str(k): _custom_value(v) for k, v in data.items()})
             self._raise_failure()
-            self._guarded(self._drain_locked)
             self._guarded(self._flush_locked)
             self._guarded(lambda: self._writer.add_metadata(CUSTOM_DATA_RECORD,
                                                             dict(self._custom_data)))
@@ -272,19 +281,28 @@ class BagRecorder:
             raise self._failure
         if t_ns is None:
             t_ns = int(self._time_source())
-        if self._closed:
-            return
-        self._counts[topic] += 1
-        queue = self._queue
-        queue.append((topic, data, t_ns, t_ns))
-        if len(queue) >= self._flush_every_messages:
-            self._write_chunks()
+        self._take(topic, data, t_ns, t_ns)
+
+    def _take(self, topic: str, data: bytes, log_ns: int, publish_ns: int) -> None:
+        """Add a message to the chunk being filled; write the chunk once it is full."""
+        with self._lock:
+            if self._closed:
+                return
+            channel = self._channel_ids.get(topic)
+            if channel is None:
+                channel = self._guarded(lambda: self._channel_locked(topic))
+            sequence = self._sequence[topic]
+            self._sequence[topic] = sequence + 1
+            self._counts[topic] += 1
+            chunk = self._chunk
+            chunk.append((channel, sequence, log_ns, publish_ns, data))
+            if len(chunk) >= self._flush_every_messages:
+                self._guarded(self._flush_locked)
 
     def flush(self) -> None:
         """Write everything received so far to the file (ends the current chunk)."""
         with self._lock:
             if not self._closed and self._failure is None:
-                self._guarded(self._drain_locked)
                 self._guarded(self._flush_locked)
 
     def close(self) -> None:
@@ -310,7 +328,6 @@ class BagRecorder:
             errors = [] if self._failure is None else [self._failure]
             if not errors:
                 try:
-                    self._drain_locked()
                     self._flush_locked()
                 except Exception as exc:  # noqa: BLE001
                     errors.append(exc)
@@ -322,7 +339,7 @@ class BagRecorder:
             info = self._metadata_locked()
             try:
                 self._writer.add_metadata('rosbag2', {
-                    'serialized_metadata': yaml.safe_dump(info, sort_keys=False).strip()})
+                    'serialized_metadata': _yaml_text(info).strip()})
                 self._writer.finish()
             except Exception as exc:  # noqa: BLE001
                 errors.append(exc)
@@ -330,8 +347,7 @@ class BagRecorder:
                 self._file.close()
             meta_path = self._bag_dir / 'metadata.yaml'
             tmp = meta_path.with_suffix('.yaml.tmp')
-            tmp.write_text(yaml.safe_dump({'rosbag2_bagfile_information': info},
-                                          sort_keys=False), encoding='utf-8')
+            tmp.write_text(_yaml_text({'rosbag2_bagfile_information': info}), encoding='utf-8')
             tmp.replace(meta_path)
             if errors:
                 raise BagRecorderError(f'bag closed with errors: {errors[0]}') from errors[0]
@@ -356,20 +372,10 @@ class BagRecorder:
             publish_ns = int(info.get('source_timestamp', t_ns))
         else:
             publish_ns = t_ns
-        self._counts[topic] += 1
-        queue = self._queue
-        queue.append((topic, data, t_ns, publish_ns))
-        if len(queue) >= self._flush_every_messages:
-            try:
-                self._write_chunks()
-            except Exception:  # noqa: BLE001 - kept in failure; a callback must not raise
-                pass
-
-    def _write_chunks(self) -> None:
-        """Encode, compress and write the queue as whole chunks, in the caller's thread."""
-        with self._lock:
-            if not self._closed and self._failure is None:
-                self._guarded(self._drain_locked)
+        try:
+            self._take(topic, data, t_ns, publish_ns)
+        except Exception:  # noqa: BLE001 - kept in failure; a callback must not raise
+            pass
 
     def _run(self) -> None:
         """Write what waits longer than ``flush_every_s`` (the timer thread).
@@ -383,10 +389,9 @@ class BagRecorder:
             with self._lock:
                 if self._closed or self._failure is not None:
                     return
-                if not (self._queue or self._chunk):
+                if not self._chunk:
                     continue
                 try:
-                    self._drain_locked()
                     self._flush_locked()
                 except Exception as exc:  # noqa: BLE001 - kept; the next write() raises it
                     self._failure = exc
@@ -396,40 +401,13 @@ class BagRecorder:
         if self._failure is not None:
             raise self._failure
 
-    def _guarded(self, action: Callable[[], Any]) -> None:
+    def _guarded(self, action: Callable[[], Any]) -> Any:
         """Run a writer action; an error stops the recorder as one in the timer thread does."""
         try:
-            action()
+            return action()
         except Exception as exc:
             self._failure = exc
             raise
-
-    def _drain_locked(self) -> None:
-        """Move every queued message into chunks, in the order received; write full chunks."""
-        queue, chunk = self._queue, self._chunk
-        counts, channel_ids = self._sequence, self._channel_ids
-        every = self._flush_every_messages
-        popleft, append = queue.popleft, chunk.append
-        first, last = self._first_ns, self._last_ns
-        try:
-            while queue:
-                topic, data, t_ns, publish_ns = popleft()
-                channel_id = channel_ids.get(topic)
-                if channel_id is None:
-                    channel_id = self._channel_locked(topic)
-                count = counts[topic]
-                counts[topic] = count + 1
-                append((channel_id, count, t_ns, publish_ns, data))
-                if first is None:
-                    first = last = t_ns
-                elif t_ns < first:
-                    first = t_ns
-                elif t_ns > last:
-                    last = t_ns
-                if len(chunk) >= every:
-                    self._flush_locked()
-        finally:
-            self._first_ns, self._last_ns = first, last
 
     def _flush_locked(self) -> None:
         """Write the chunk being filled (if any) and hand the file's buffer to the OS."""
@@ -465,15 +443,16 @@ class BagRecorder:
             self._topic_meta[topic] = {'qos': profiles, 'type_hash': type_hash}
             channel_id = self._writer.add_channel(
                 topic=topic, message_encoding='cdr', schema_id=self._schema_ids[msgtype],
-                metadata={'offered_qos_profiles': yaml.safe_dump(profiles, sort_keys=False)
+                metadata={'offered_qos_profiles': _yaml_text(profiles)
                           .strip() if profiles else '',
                           'topic_type_hash': type_hash})
             self._channel_ids[topic] = channel_id
         return channel_id
 
     def _metadata_locked(self) -> dict:
-        start = self._first_ns or 0
-        duration = (self._last_ns - self._first_ns) if self._first_ns is not None else 0
+        first, last = self._writer.message_times_ns
+        start = first or 0
+        duration = (last - first) if first is not None else 0
         count = sum(self._counts.values())
         return {
             'version': BAG_VERSION,

@@ -6,11 +6,12 @@ The graph of ``grasp_demo`` (one executor thread) grasps the Table V objects twi
 plain (the in-run baseline of the tick's cost, beside a bare ping-pong and the ring floor of
 :mod:`gripper_ros.bench.pingpong`), and with every part of a tick timed by wrappers put on the
 classes and modules before the graph is built: the three loop callbacks' own Python, the
-decoding of their messages, the compiled kernels called from Python (numba's dispatch
-included), the state topics' Python, rclpy's ``publish`` per topic, the recording tap, and the
-other subscriptions. A part's time is its own (exclusive: what it calls is counted where it
-belongs); what no wrapper sees is the executor's dispatch, rclpy's take and DDS delivery. The
-wrappers cost a little themselves: the instrumented tick is reported beside the plain one.
+compiled call each makes of a message (numba included), the in-process hand-off of the graph's
+topics (publish, queue, drain), the state topics' Python, rclpy's ``publish`` (DDS) per topic,
+the recording tap, and the other subscriptions. A part's time is its own (exclusive: what it
+calls is counted where it belongs); what no wrapper sees is the executor's dispatch of tasks
+and events, rclpy's take and DDS delivery. The wrappers cost a little themselves: the
+instrumented tick is reported beside the plain one.
 """
 from __future__ import annotations
 
@@ -24,16 +25,16 @@ import time
 from typing import Any, Callable, Dict, List, Sequence
 
 LOOP_CALLBACKS = 'loop callbacks (own Python)'
-DECODE = 'decode of loop messages'
-KERNELS = 'kernels called from Python (with dispatch)'
+KERNELS = 'compiled calls of the loop nodes'
+HAND_OFF = 'in-process hand-off (publish, queue, drain)'
 STATE_TOPICS = 'state topics (own Python)'
 PUBLISH_LOOP = 'rclpy publish: loop messages'
 PUBLISH_STATE = 'rclpy publish: state topics'
 RECORDING = 'recording tap'
 OTHER_CALLBACKS = 'other subscriptions (status, observer)'
 REST = 'executor dispatch, rclpy take, DDS (no wrapper)'
-GROUPS = (LOOP_CALLBACKS, DECODE, KERNELS, STATE_TOPICS, PUBLISH_LOOP, PUBLISH_STATE, RECORDING,
-          OTHER_CALLBACKS, REST)
+GROUPS = (LOOP_CALLBACKS, KERNELS, HAND_OFF, STATE_TOPICS, PUBLISH_LOOP, PUBLISH_STATE,
+          RECORDING, OTHER_CALLBACKS, REST)
 """The shares a tick is split into, in the report's order."""
 
 
@@ -83,35 +84,38 @@ class Profile:
 
 def _parts():
     """(owner, attribute, part name, group) of everything a tick does that is timed."""
-    from gripper_ros.core import lockstep, plant
-    from gripper_ros.nodes import (controller_node, plant_simulator_node as plant_node,
+    from gripper_ros.core import plant
+    from gripper_ros.nodes import (controller_node, intra_process, plant_simulator_node,
                                    recording, supervisor_node)
     from gripper_ros.bench.observer import PhaseObserver
-    Plant, Sup = plant_node.PlantSimulatorNode, supervisor_node.SupervisorNode
+    Plant, Sup = plant_simulator_node.PlantSimulatorNode, supervisor_node.SupervisorNode
     Stage = controller_node.LockstepController
-    parts = [(Plant, '_on_command', 'plant _on_command', LOOP_CALLBACKS),
-             (Plant, '_try_step', 'plant _try_step', LOOP_CALLBACKS),
-             (Plant, '_publish_tick', 'plant _publish_tick', LOOP_CALLBACKS),
-             (Sup, '_on_tick', 'supervisor _on_tick', LOOP_CALLBACKS),
-             (Stage, '_on_reference', 'stage _on_reference', LOOP_CALLBACKS),
-             (Plant, '_publish_state', 'plant _publish_state', STATE_TOPICS),
-             (Sup, '_publish_status', 'supervisor _publish_status', STATE_TOPICS),
-             (Plant, '_on_status', 'plant _on_status', OTHER_CALLBACKS),
-             (Stage, '_on_status', 'stage _on_status', OTHER_CALLBACKS),
-             (PhaseObserver, '_on_status', 'observer _on_status', OTHER_CALLBACKS),
-             (recording.GraphTap, '_on_message', 'GraphTap._on_message', RECORDING)]
-    for module in (plant_node, supervisor_node, controller_node):
-        parts.append((module, 'decode', f'{module.__name__.rsplit(".", 1)[1]}.decode', DECODE))
-    for name in ('side_accept', 'side_needs_time', 'side_step', 'side_step_unpowered',
-                 'side_read_tick', 'supervisor_decide', 'stage_answer'):
-        parts.append((lockstep, name, name, KERNELS))
-    parts.append((plant, '_object_state', '_object_state', KERNELS))
-    return parts
+    Bus = intra_process.IntraProcessBus
+    return [(Plant, '_on_command', 'plant _on_command', LOOP_CALLBACKS),
+            (Plant, '_try_step', 'plant _try_step', LOOP_CALLBACKS),
+            (Plant, '_publish_tick', 'plant _publish_tick', LOOP_CALLBACKS),
+            (Sup, '_on_tick', 'supervisor _on_tick', LOOP_CALLBACKS),
+            (Stage, '_on_reference', 'stage _on_reference', LOOP_CALLBACKS),
+            (intra_process.GraphPublisher, 'publish', 'GraphPublisher.publish', HAND_OFF),
+            (Bus, 'post', 'IntraProcessBus.post', HAND_OFF),
+            (Bus, '_drain', 'IntraProcessBus._drain', HAND_OFF),
+            (Plant, '_publish_state', 'plant _publish_state', STATE_TOPICS),
+            (Sup, '_publish_status', 'supervisor _publish_status', STATE_TOPICS),
+            (Plant, '_on_status', 'plant _on_status', OTHER_CALLBACKS),
+            (Stage, '_on_status', 'stage _on_status', OTHER_CALLBACKS),
+            (PhaseObserver, '_on_status', 'observer _on_status', OTHER_CALLBACKS),
+            (recording.GraphTap, '_on_message', 'GraphTap._on_message', RECORDING),
+            (plant, '_object_state', '_object_state', STATE_TOPICS)]
 
 
 @contextlib.contextmanager
 def instrumented(profile: Profile):
-    """Put the wrappers in place (before a graph is built) and take them away after."""
+    """Put the wrappers in place (before a graph is built) and take them away after.
+
+    The loop nodes' compiled calls are bound when their nodes are built
+    (``lockstep.entry_point``): each is timed under its kernel's name.
+    """
+    from gripper_ros.core import lockstep
     from rclpy.publisher import Publisher
     groups: Dict[str, str] = {}
     saved = []
@@ -120,6 +124,13 @@ def instrumented(profile: Profile):
         saved.append((owner, attribute, original))
         setattr(owner, attribute, profile.wrap(part, original))
         groups[part] = group
+    original_entry_point = lockstep.entry_point
+
+    def timed_entry_point(kernel, *args):
+        groups[kernel.__name__] = KERNELS
+        return profile.wrap(kernel.__name__, original_entry_point(kernel, *args))
+    saved.append((lockstep, 'entry_point', original_entry_point))
+    lockstep.entry_point = timed_entry_point
 
     def publish_part(publisher, *_):
         topic = publisher.topic_name

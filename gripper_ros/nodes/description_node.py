@@ -18,6 +18,7 @@ from builtin_interfaces.msg import Time
 from geometry_msgs.msg import TransformStamped
 from gripper_ros.core.description import finger_frames, urdf_text
 from gripper_ros.nodes.gripper_node import GripperNode
+from gripper_ros.nodes.loop_io import joint_state_template, transform_template
 from gripper_ros.nodes.parameters import declare_config, declare_joint_name
 from gripper_ros.nodes.process import run_node
 from gripper_ros.nodes.qos import GRAPH_QOS, LATCHED_QOS
@@ -26,6 +27,7 @@ from gripper_ros.wire import (FINGER_JOINT, FRAME_BASE, FRAME_FIXED_FINGER, FRAM
                               NAME_CHARACTERS, NODE_DESCRIPTION, TOPIC_JOINT_STATES,
                               TOPIC_ROBOT_DESCRIPTION, TOPIC_TF, TOPIC_TF_STATIC)
 from rcl_interfaces.msg import ParameterDescriptor
+from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import JointState
 from std_msgs.msg import String
 from tf2_msgs.msg import TFMessage
@@ -68,8 +70,9 @@ class DescriptionPublisher(GripperNode):
                                                       LATCHED_QOS)
         self._static_pub = self.create_publisher(TFMessage, TOPIC_TF_STATIC, LATCHED_QOS)
         self._tf_pub = self.create_publisher(TFMessage, TOPIC_TF, GRAPH_QOS)
-        self.graph_subscription(JointState, TOPIC_JOINT_STATES, self._on_joint_states,
-                                raw=False)
+        self.graph_subscription(JointState, TOPIC_JOINT_STATES, self._on_joint_states)
+        self._joint_layout = joint_state_template(self.joint_name, FRAME_BASE)
+        self._tf_layout = transform_template(self._base, self._moving)
         self.latched = {TOPIC_ROBOT_DESCRIPTION: String(data=self.urdf),
                         TOPIC_TF_STATIC: TFMessage(transforms=[_transform(
                             Time(), self._base,
@@ -80,25 +83,27 @@ class DescriptionPublisher(GripperNode):
         self.published[TOPIC_ROBOT_DESCRIPTION] += 1
         self.published[TOPIC_TF_STATIC] += 1
 
-    def _on_joint_states(self, msg: JointState) -> None:
-        """Publish the moving finger's transform at the joint position, at the message's stamp."""
-        try:
-            self._publish_finger(msg)
-        finally:
-            stamp = msg.header.stamp
-            self.last_state_ns = stamp.sec * 1_000_000_000 + stamp.nanosec
+    def _on_joint_states(self, data: bytes) -> None:
+        """Publish the moving finger's transform at the joint position, at the message's stamp.
 
-    def _publish_finger(self, msg: JointState) -> None:
-        try:
-            position_m = msg.position[list(msg.name).index(self.joint_name)]
-        except (ValueError, IndexError):
-            position_m = math.nan
+        joint_states as the plant packs it is read by layout; any other form the general way.
+        """
+        values = self._joint_layout.unpack(data)
+        if values is not None:
+            sec, nanosec, position_m = values[:3]
+        else:
+            msg = deserialize_message(data, JointState)
+            sec, nanosec = msg.header.stamp.sec, msg.header.stamp.nanosec
+            try:
+                position_m = msg.position[list(msg.name).index(self.joint_name)]
+            except (ValueError, IndexError):
+                position_m = math.nan
+        self.last_state_ns = sec * 1_000_000_000 + nanosec
         if not math.isfinite(position_m):
             self.skipped += 1
             return
-        self._tf_pub.publish(TFMessage(transforms=[_transform(
-            msg.header.stamp, self._base, self._moving,
-            self.frames.moving_finger_xyz(position_m))]))
+        self._tf_pub.publish(self._tf_layout.pack(
+            sec, nanosec, *self.frames.moving_finger_xyz(position_m)))
         self.published[TOPIC_TF] += 1
 
 

@@ -183,6 +183,22 @@ def joint_state_template(joint: str, frame_id: str) -> MessageTemplate:
     return MessageTemplate(msg, STAMP + ('position[0]', 'velocity[0]', 'effort[0]'))
 
 
+def transform_template(parent: str, child: str) -> MessageTemplate:
+    """tf2_msgs/TFMessage of one transform ``parent`` -> ``child``: stamp and translation.
+
+    The rotation is the identity (a prismatic joint's child frame only moves).
+    """
+    from geometry_msgs.msg import TransformStamped
+    from tf2_msgs.msg import TFMessage
+    transform = TransformStamped(child_frame_id=child)
+    transform.header.frame_id = parent
+    transform.transform.rotation.w = 1.0
+    at = 'transforms[0].'
+    return MessageTemplate(TFMessage(transforms=[transform]), (
+        at + 'header.stamp.sec', at + 'header.stamp.nanosec', at + 'transform.translation.x',
+        at + 'transform.translation.y', at + 'transform.translation.z'))
+
+
 def clock_template() -> MessageTemplate:
     from rosgraph_msgs.msg import Clock
     return MessageTemplate(Clock(), ('clock.sec', 'clock.nanosec'))

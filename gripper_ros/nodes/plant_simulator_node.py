@@ -406,7 +406,7 @@ class PlantSimulatorNode(GripperNode):
     # ------------------------------------------------------------------ sim services
     def _budget_done(self) -> bool:
         kind, value = self._budget
-        return value <= 0 if kind == 'ticks' else self.plant.t_ns >= value
+        return value <= 0 if kind == 'ticks' else self._stamp_ns >= value
 
     def _spend_budget(self) -> None:
         if self._budget is None:

@@ -23,7 +23,6 @@ import time
 
 from gripper_ros.bags.recorder import (BAG_FORMAT, BagRecorder, BagRecorderError, failure_message,
                                        RecordingError, unique_bag_dir)
-from gripper_ros.core.stages import Reference
 from gripper_ros.nodes.services import wait_until
 from gripper_ros.wire import (BAG_TOPICS, GRAPH_TOPICS, LOOP_TOPICS, Outcome, Phase, qualified,
                               REFERENCE_LAYOUT, TimeMode, TOPIC_FORCE_REFERENCE,
@@ -52,10 +51,8 @@ class RecordedGrasp:
 
 _STAMP = struct.Struct('<q')
 """Every lockstep message begins, after its 4-byte CDR header, with its tick's stamp_ns."""
-
-
-def _stamp_of(data: bytes) -> int:
-    return _STAMP.unpack_from(data, 4)[0]
+_REFERENCE_KEY = REFERENCE_LAYOUT.reader('stamp_ns', 'grasp_id', 'phase', 'outcome')
+"""What serve-mode recording reads of each reference: which request, and how it stands."""
 
 
 class GraphTap:
@@ -80,7 +77,7 @@ class GraphTap:
                        for t, msgtype in (topics or default).items()}
         self.sink: BagRecorder | None = None
         self.error = ''                          # why the last sink stopped early
-        self.on_reference = None                 # called with each reference's values
+        self.on_reference = None                 # called with each reference (its bytes)
         self.on_tick = None                      # called with each tick's stamp
         self.on_closed = None                    # called with a sink the tap finished
         self.on_error = None                     # called with the message of a failed sink
@@ -116,21 +113,13 @@ class GraphTap:
             wrapped = getattr(node, 'graph_publishers', ())
             for publisher in wrapped:
                 if publisher.topic_name in self.topics:
-                    publisher.tap = self._on_graph_message
+                    publisher.tap = self._on_message
                     self._tapped_graph.append(publisher)
             inner = {id(p.dds) for p in wrapped}
             for publisher in node.publishers:
                 if publisher.topic_name in self.topics and id(publisher) not in inner:
                     self._tap_publisher(publisher)
         return self
-
-    def _on_graph_message(self, topic: str, msg) -> None:
-        try:
-            self._on_message(topic, msg if msg.__class__ is bytes else serialize_message(msg))
-        except Exception as exc:  # noqa: BLE001 - a recorder error never stops the graph
-            sink = self.sink
-            if sink is not None:
-                self._fail(sink, exc)
 
     def _tap_publisher(self, publisher) -> None:
         """Make ``publisher.publish`` also hand what it publishes to :meth:`_on_message`.
@@ -143,12 +132,7 @@ class GraphTap:
 
         def tapped(msg) -> None:
             publish(msg)
-            try:
-                on_message(topic, msg if isinstance(msg, bytes) else serialize_message(msg))
-            except Exception as exc:  # noqa: BLE001 - a recorder error never stops the graph
-                sink = self.sink
-                if sink is not None:
-                    self._fail(sink, exc)
+            on_message(topic, msg)
 
         publisher.publish = tapped
         self._tapped.append(publisher)
@@ -239,14 +223,23 @@ class GraphTap:
         if self._closing_since is not None and time.monotonic() - self._closing_since > grace_s:
             self._finish()
 
-    def _on_message(self, topic: str, data: bytes) -> None:
+    def _on_message(self, topic: str, msg) -> None:
+        """See one published message (bytes, or a message object); never raises."""
+        try:
+            self._see(topic, msg if msg.__class__ is bytes else serialize_message(msg))
+        except Exception as exc:  # noqa: BLE001 - a recorder error never stops the graph
+            sink = self.sink
+            if sink is not None:
+                self._fail(sink, exc)
+
+    def _see(self, topic: str, data: bytes) -> None:
         self.received[topic] += 1
         if topic not in self._loop_topics:
             sink = self.sink
             if sink is not None and self._end_ns is None:
                 self._write(sink, topic, data)
             return
-        stamp = _stamp_of(data)
+        stamp = _STAMP.unpack_from(data, 4)[0]
         if topic == self._tick_topic:
             held, self._held = self._held, (stamp, data)
             if held is not None:
@@ -265,10 +258,8 @@ class GraphTap:
             if self.on_tick is not None:
                 self.on_tick(stamp)
         else:
-            if topic in self._reference_topics and self.on_reference is not None:
-                values = REFERENCE_LAYOUT.unpack(data)
-                if values is not None:
-                    self.on_reference(values)
+            if self.on_reference is not None and topic in self._reference_topics:
+                self.on_reference(data)
             held = self._held
             if held is not None and held[0] == stamp:
                 self._held = None
@@ -493,17 +484,16 @@ class ServeRecorder:
     def recording(self) -> bool:
         return self.tap.sink is not None
 
-    def _on_reference(self, values: tuple) -> None:
-        ref = Reference._make(values)
-        grasp_id, phase, outcome = ref.grasp_id, ref.phase, ref.outcome
+    def _on_reference(self, data: bytes) -> None:
+        stamp_ns, grasp_id, phase, outcome = _REFERENCE_KEY.unpack_from(data)
         if grasp_id != self._grasp_id:
-            self._close_bag(ref.stamp_ns)
+            self._close_bag(stamp_ns)
             self._grasp_id = grasp_id
             if phase in (Phase.POSITION, Phase.MOVING) and outcome == Outcome.UNKNOWN:
                 self._open(grasp_id, 'grasp' if phase == Phase.POSITION else 'move')
         elif self.tap.sink is not None and outcome != Outcome.UNKNOWN and \
                 self._close_at_ns is None:
-            self._close_at_ns = ref.stamp_ns + round(self.linger_s * 1e9)
+            self._close_at_ns = stamp_ns + round(self.linger_s * 1e9)
             self._answered_wall = time.monotonic()
 
     def _on_tick(self, stamp_ns: int) -> None:
