@@ -1,0 +1,201 @@
+"""The graph's topics handed over inside one process, and the same topics for everybody else.
+
+Known answers: the bus delivers in publish order, a callback's own publications after what was
+queued before them, and goes on past a callback that raises; an executor timer runs between two
+drain slices; a subscriber in another process sees every loop message of a grasp, byte for byte
+what the bag recorded, while the graph's own nodes never see one twice. (The loop itself, tick
+for tick against the headless loop and run against run, is test_graph's.)
+"""
+from __future__ import annotations
+
+import threading
+import time
+
+from gripper_ros.bags.reader import read_bag
+from gripper_ros.bags.schema import import_message_class
+from gripper_ros.nodes import intra_process
+from gripper_ros.nodes.graph import GraphOptions, GripperGraph
+from gripper_ros.nodes.intra_process import IntraProcessBus
+from gripper_ros.nodes.process import ExecutorKind, make_executor
+from gripper_ros.nodes.qos import GRAPH_QOS
+from gripper_ros.nodes.recording import recorded_grasp
+from gripper_ros.wire import LOOP_TOPICS, Outcome, qualified
+import pytest
+import rclpy
+from rclpy.context import Context
+
+WIDTH, MASS = 0.05, 1.69
+
+
+class _Log:
+    def __init__(self):
+        self.errors: list[str] = []
+
+    def error(self, text: str) -> None:
+        self.errors.append(text)
+
+
+@pytest.fixture
+def spun():
+    """A node and the EventsExecutor that spins it (the graph's executor)."""
+    context = Context()
+    rclpy.init(context=context)
+    executor = make_executor(ExecutorKind.EVENTS, context)
+    node = rclpy.create_node('bus_test', context=context)
+    executor.add_node(node)
+    try:
+        yield node, executor
+    finally:
+        executor.shutdown()
+        node.destroy_node()
+        rclpy.try_shutdown(context=context)
+
+
+def _spin_until(ex, predicate, timeout_s: float = 5.0) -> bool:
+    deadline = time.monotonic() + timeout_s
+    while not predicate() and time.monotonic() < deadline:
+        ex.spin_once(timeout_sec=0.01)
+    return predicate()
+
+
+def test_the_bus_delivers_in_publish_order_and_a_reply_after_what_was_queued(spun):
+    node, executor = spun
+    bus, seen = IntraProcessBus(_Log()), []
+
+    def on_a(msg):
+        seen.append(('a', msg))
+        if msg == b'1':
+            bus.post('/b', b'reply to 1')        # queued behind '/b' 'x' posted before
+
+    bus.subscribe('owner', '/a', on_a, None, True)
+    bus.subscribe('owner', '/b', lambda msg: seen.append(('b', msg)), None, True)
+    bus.post('/a', b'1')
+    bus.post('/b', b'x')
+    bus.post('/a', b'2')
+    bus.post('/nobody', b'dropped')              # no subscriber: nothing queued
+    bus.bind(executor)
+    assert _spin_until(executor, lambda: len(seen) == 4)
+    assert seen == [('a', b'1'), ('b', b'x'), ('a', b'2'), ('b', b'reply to 1')]
+
+
+def test_a_callback_that_raises_is_reported_and_the_rest_is_delivered(spun):
+    node, executor = spun
+    log = _Log()
+    bus, seen = IntraProcessBus(log), []
+
+    def broken(_msg):
+        raise ValueError('a bug in a callback')
+
+    bus.subscribe('owner', '/a', broken, None, True)
+    bus.subscribe('owner', '/a', seen.append, None, True)
+    bus.bind(executor)
+    bus.post('/a', b'1')
+    bus.post('/a', b'2')
+    assert _spin_until(executor, lambda: len(seen) == 2)
+    assert seen == [b'1', b'2']
+    assert len(log.errors) == 2 and 'ValueError: a bug in a callback' in log.errors[0]
+
+
+def test_a_detached_node_gets_nothing_more(spun):
+    node, executor = spun
+    bus, seen = IntraProcessBus(_Log()), []
+    bus.subscribe('killed', '/a', seen.append, None, True)
+    bus.subscribe('alive', '/a', lambda msg: seen.append(b'alive ' + msg), None, True)
+    bus.bind(executor)
+    bus.detach('killed')
+    bus.post('/a', b'1')
+    assert _spin_until(executor, lambda: len(seen) == 1)
+    assert seen == [b'alive 1'] and bus.subscriber_count('/a') == 1
+
+
+def test_a_timer_runs_between_two_slices_of_an_endless_exchange(spun, monkeypatch):
+    """A ping-pong that never ends by itself still leaves the executor its timers."""
+    node, executor = spun
+    monkeypatch.setattr(intra_process, 'DRAIN_SLICE_S', 0.001)
+    monkeypatch.setattr(intra_process, 'CHECK_EVERY', 1)
+    bus, exchanged, fired = IntraProcessBus(_Log()), [0], threading.Event()
+    stop = [False]
+
+    def ping(msg):
+        exchanged[0] += 1
+        if not stop[0]:
+            reply = b'pong' if msg == b'ping' else b'ping'
+            bus.post('/' + reply.decode(), reply)
+
+    bus.subscribe('owner', '/ping', ping, None, True)
+    bus.subscribe('owner', '/pong', ping, None, True)
+    node.create_timer(0.01, fired.set)
+    bus.bind(executor)
+    bus.post('/ping', b'ping')
+    assert _spin_until(executor, fired.is_set, timeout_s=5.0), 'the timer never ran'
+    stop[0] = True
+    assert exchanged[0] > 10
+
+
+def test_the_bus_converts_between_bytes_and_messages(spun):
+    node, executor = spun
+    from rclpy.serialization import serialize_message
+    from std_msgs.msg import Float64
+    bus, raw, typed = IntraProcessBus(_Log()), [], []
+    bus.subscribe('owner', '/x', raw.append, Float64, True)
+    bus.subscribe('owner', '/x', typed.append, Float64, False)
+    bus.bind(executor)
+    bus.post('/x', Float64(data=2.5))
+    bus.post('/x', serialize_message(Float64(data=-1.0)))
+    assert _spin_until(executor, lambda: len(raw) == len(typed) == 2)
+    assert raw == [serialize_message(Float64(data=2.5)), serialize_message(Float64(data=-1.0))]
+    assert [m.data for m in typed] == [2.5, -1.0]
+
+
+def test_another_participant_sees_every_loop_message_as_recorded(tmp_path):
+    """Outside the process the loop topics are as before: every message, over DDS, once.
+
+    The listener is a DDS participant of its own (a context of its own), as another process is.
+    """
+    with GripperGraph.in_own_context(GraphOptions(namespace='ipc_outside')) as graph:
+        listener_context = Context()
+        rclpy.init(context=listener_context)
+        try:
+            node = rclpy.create_node('outside_listener', context=listener_context)
+            ex = make_executor(ExecutorKind.EVENTS, listener_context)
+            ex.add_node(node)
+            topics = {qualified(graph.namespace, t): m for t, m in LOOP_TOPICS.items()}
+            got: dict[str, list[bytes]] = {topic: [] for topic in topics}
+            for topic, msgtype in topics.items():
+                node.create_subscription(import_message_class(msgtype), topic,
+                                         got[topic].append, GRAPH_QOS, raw=True)
+            publishers = [p for n in (graph.plant, graph.supervisor, graph.position, graph.force)
+                          for p in n.graph_publishers if p.topic_name in topics]
+            assert _spin_until(ex, lambda: all(p.get_subscription_count() >= 2
+                                               for p in publishers), 10.0)
+            done = threading.Event()
+            listening = threading.Thread(target=lambda: _spin_until(ex, done.is_set, 120.0))
+            listening.start()                            # the listener keeps up as it would
+            try:
+                graph.wait_still()
+                time.sleep(0.3)                          # what was in flight arrives
+                start = {topic: len(messages) for topic, messages in got.items()}
+                before = graph.published_counts()
+                run = recorded_grasp(graph, tmp_path / 'bag', WIDTH, MASS)
+                published = graph.published_counts()
+                sent = {qualified(graph.namespace, t): published[t] - before.get(t, 0)
+                        for t in LOOP_TOPICS}
+                deadline = time.monotonic() + 10.0
+                while time.monotonic() < deadline and any(
+                        len(got[t]) - start[t] < n for t, n in sent.items()):
+                    time.sleep(0.01)
+                time.sleep(0.3)                          # nothing more comes
+            finally:
+                done.set()
+                listening.join()
+            assert {t: len(got[t]) - start[t] for t in topics} == sent
+            bag = read_bag(tmp_path / 'bag')
+            for topic in topics:
+                recorded = [m.data for m in bag.messages if m.topic == topic]
+                assert recorded and got[topic][-len(recorded):] == recorded, topic
+            assert run.response.outcome == Outcome.HOLDING
+            assert graph.plant.commands_ignored == 0, 'a command reached the plant twice'
+            ex.shutdown()
+            node.destroy_node()
+        finally:
+            rclpy.try_shutdown(context=listener_context)
