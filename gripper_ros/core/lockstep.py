@@ -42,7 +42,6 @@ PLANT_SIDE_STATE = np.dtype(
      ('fault_grasp', 'i8'),            # the grasp it was armed for (-1: none)
      ('echo_grasp', 'i8'),             # grasp id of the last accepted command
      ('hold_begun_for', 'i8'),         # the grasp whose hold clock was started (-1: none)
-     ('needs_time', 'b1'),             # fast mode: the accepted command needs simulated time
      ('next_state_ns', 'i8'),          # the state topics are due at this tick or later
      ('state_hold', 'i4')],            # the hold state they last carried
     align=True)
@@ -185,7 +184,6 @@ def side_take_command(side, plant_k, data, offered, offered_bytes, cmd, cmd_byte
         return REFUSED
     cmd_bytes[:] = offered_bytes
     side_accept(side, plant_k, cmd)
-    s.needs_time = side_needs_time(plant_k, cmd)
     return TAKEN
 
 
@@ -339,6 +337,9 @@ class PlantSide:
         """Step with the accepted command: (the new tick's stamp, state topics due)."""
         self.step_unpowered_due = lambda duration_ns: unpowered(state, k, duration_ns, tick)
         """Step ``duration_ns`` at 0 V: (the new tick's stamp, state topics due)."""
+        needs_time = entry_point(side_needs_time, k, cmd)
+        self.command_needs_time = lambda: needs_time(k, cmd)
+        """Whether simulated time must go on after the accepted command (fast mode)."""
 
     revision = property(lambda self: int(self._s['revision']),
                         doc='+1 on every change of the simulated world.')

@@ -271,7 +271,7 @@ class PlantSimulatorNode(GripperNode):
             elif self._paused:
                 return
             elif fast:
-                if not (self._woken or (powered and self.side.state[0]['needs_time'])):
+                if not (self._woken or (powered and self.side.command_needs_time())):
                     self._set_advancing(False)
                     return                      # nothing needs time: it pauses here
             else:
