@@ -479,8 +479,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('--executor', choices=('events', 'single', 'both'), default='both',
                    help='executor(s) to measure (default both)')
     p.add_argument('--breakdown', action='store_true',
-                   help='only split the one-process tick into its parts (callbacks, decode, '
-                        'kernels, publish, recording) against a ping-pong '
+                   help='only split the one-process tick into its parts (callbacks, compiled '
+                        'calls, hand-off, publish, recording) against a ping-pong '
                         '(gripper_ros.bench.breakdown)')
     p.add_argument('--record', action='store_true',
                    help='record each grasp of the one-process graph as grasp_demo does')

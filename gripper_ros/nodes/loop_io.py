@@ -1,8 +1,9 @@
-"""The lockstep messages as bytes on rclpy publishers and subscriptions.
+"""The graph's messages as bytes on rclpy publishers and subscriptions.
 
 The loop messages are taken raw and published pre-serialised with the byte layouts of
-:mod:`gripper_ros.wire`; a message in another encapsulation falls back to rclpy's own
-deserialisation, so any DDS peer is understood.
+:mod:`gripper_ros.wire`; a message in another encapsulation is deserialised by rclpy and
+repacked (:func:`in_layout`), so any DDS peer is understood. The state topics are packed by
+template (:class:`MessageTemplate`).
 """
 from __future__ import annotations
 
@@ -12,15 +13,6 @@ import struct
 
 from gripper_ros.wire import CDR_LITTLE_ENDIAN as CDR_HEADER, LoopLayout
 from rclpy.serialization import deserialize_message
-
-
-def decode(layout: LoopLayout, data: bytes, msg_cls) -> tuple:
-    """Return the field values of one serialised loop message, in layout order."""
-    values = layout.unpack(data)
-    if values is None:                       # not little-endian plain CDR: the general way
-        msg = deserialize_message(data, msg_cls)
-        values = tuple(getattr(msg, name) for name in layout.fields)
-    return values
 
 
 def in_layout(layout: LoopLayout, data: bytes, msg_cls) -> bytes:
