@@ -8,7 +8,7 @@ import math
 from pathlib import Path
 
 from gripper_ros.core.config import load_config
-from gripper_ros.core.pad_sensor import ChannelSpec, PadChannel
+from gripper_ros.core.physics.pad_sensor import ChannelSpec, PadChannel
 import numpy as np
 import pytest
 

@@ -7,9 +7,10 @@ from pathlib import Path
 
 from gripper_ros.apps import paper_tables
 from gripper_ros.core.config import load_config
-from gripper_ros.core.controllers import force_pi_gains, ForceControllerKind, make_force_controller
-from gripper_ros.core.metrics import step_metrics, StepMetrics
-from gripper_ros.core.step_runs import force_step
+from gripper_ros.core.control.factories import (force_pi_gains, ForceControllerKind,
+                                                make_force_controller)
+from gripper_ros.studies.metrics import step_metrics, StepMetrics
+from gripper_ros.studies.step_runs import force_step
 import numpy as np
 import pytest
 from scipy.signal import step as lti_step

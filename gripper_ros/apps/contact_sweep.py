@@ -7,9 +7,9 @@
                                       [--force-controller contact_aware|pi|mpc_pi]
                                       [--plot FILE.png] [--json] [--config FILE]
 
-Each grasp runs the node graph's logic without ROS (:mod:`gripper_ros.core.headless`,
-bit-identical to the graph), through the batch engine (:mod:`gripper_ros.core.engine`: local
-worker processes, or a Dask cluster with ``--scheduler``; the table is the same either way),
+Each grasp runs the node graph's logic without ROS (:mod:`gripper_ros.core.runtime.headless`,
+bit-identical to the graph), through the batch engine (:mod:`gripper_ros.core.runtime.engine`:
+local worker processes, or a Dask cluster with ``--scheduler``; the table is the same either way),
 then holds on for ``--hold-s`` (default 1 s) with the plant and the
 force stage running, to check that HOLDING was only declared once the force had settled.
 
@@ -24,8 +24,8 @@ tolerance past the widest. An object that would be squashed flat before it pushe
 (``F_sp / k >= width``) cannot be held by any gripper and is left out (counted).
 
 ``--fingers``: the same contact stage on flexible fingers and nonlinear pads
-(:mod:`gripper_ros.core.contact_chain`): a printed finger, a rubber-dome pad, and both, each on
-rigid and Kelvin-Voigt objects from 1e2 to 1e8 N/m, at damping ratios 0.01 and 1, narrow to
+(:mod:`gripper_ros.core.physics.contact_chain`): a printed finger, a rubber-dome pad, and both,
+each on rigid and Kelvin-Voigt objects from 1e2 to 1e8 N/m, at damping ratios 0.01 and 1, narrow to
 wide, light to the heaviest, at the exact width; then the uncertain-width grid above.
 
 For each grasp: the outcome, the peak contact force (including between samples) over the grasp
@@ -74,7 +74,7 @@ HOLDOUT_STIFFNESSES_N_PER_M = (1e3, 1e5, 1e7)
 HOLDOUT_DAMPING_RATIOS = (0.1,)
 HOLDOUT_WIDTHS_M = (0.02, 0.08)
 HOLDOUT_MASSES_KG = (0.5, 2.0)
-# --fingers: the chain kinds (name, finger k_f N/m, pad k_p N/m^1.5; core/contact_chain.py)
+# --fingers: the chain kinds (name, finger k_f N/m, pad k_p N/m^1.5; core/physics/contact_chain.py)
 # over objects of the quick grid's kinds, at these widths and masses
 FINGER_WIDTHS_M = (0.005, 0.05, 0.14)
 FINGER_MASSES_KG = (0.1, 1.0, None)
@@ -137,7 +137,7 @@ def max_mass_kg(config) -> float:
 
 def _force_setpoint_n(config, mass_kg: float) -> float:
     """Return the configured force law's setpoint for ``mass_kg`` (what the supervisor asks)."""
-    from gripper_ros.core.requests import force_setpoint_n
+    from gripper_ros.core.supervision.requests import force_setpoint_n
     sup, p = config.supervisor, config.plant
     return force_setpoint_n(mass_kg, sup.friction_coefficient, p.gravity_mps2,
                             sup.acceleration_mps2, sup.force_law, sup.grip_safety_factor)
@@ -216,9 +216,9 @@ def compliant_cases(config, widths=WIDTHS_M, masses=MASSES_KG) -> tuple[list[Swe
 
 def finger_kinds() -> tuple[tuple[str, float, float], ...]:
     """Return the chain kinds: (name, finger stiffness N/m, pad stiffness N/m^1.5)."""
-    from gripper_ros.core.contact_chain import (cantilever_stiffness_n_per_m,
-                                                hertz_pad_stiffness_n_per_m1_5, PRINTED_FINGER,
-                                                RUBBER_DOME_PAD)
+    from gripper_ros.core.physics.contact_chain import (cantilever_stiffness_n_per_m,
+                                                        hertz_pad_stiffness_n_per_m1_5,
+                                                        PRINTED_FINGER, RUBBER_DOME_PAD)
     finger = cantilever_stiffness_n_per_m(**PRINTED_FINGER)
     pad = hertz_pad_stiffness_n_per_m1_5(**RUBBER_DOME_PAD)
     return (('finger', finger, 0.0), ('pad', 0.0, pad), ('finger+pad', finger, pad))
@@ -263,7 +263,7 @@ def held_position_m(config, case: SweepCase) -> float:
     """Return where the finger rests when the object pushes back with F_sp."""
     face = config.plant.max_travel_m - case.object_width_m
     if case.finger:
-        from gripper_ros.core.contact_chain import chain_compression_m
+        from gripper_ros.core.physics.contact_chain import chain_compression_m
         return face + chain_compression_m(_force_setpoint_n(config, case.mass_kg),
                                           case.finger_stiffness_n_per_m,
                                           case.pad_stiffness_n_per_m1_5, case.stiffness_n_per_m)
@@ -280,7 +280,7 @@ def arrival_floors_s(config, setpoints_m, dt_s: float = FORCE_SAMPLE_S) -> list[
     contact) lets a grasp beat the at-rest floor, never this. A setpoint at or past the full
     travel (a chain compressed past it, which the free finger never reaches) has none (nan).
     """
-    from gripper_ros.core.controllers import make_plant
+    from gripper_ros.core.control.factories import make_plant
     plant = make_plant(config)
     limit = config.plant.voltage_limit_v
     sample = plant.sample()
@@ -316,7 +316,7 @@ def _case_keywords(case: SweepCase, force_controller, hold_s: float, config=None
 
 def grasp_summary(case: dict, g):
     """One grasp's figures (runs in the worker: only these come back); None when refused."""
-    from gripper_ros.core.requests import RequestError
+    from gripper_ros.core.supervision.requests import RequestError
     if isinstance(g, RequestError):
         return None                 # beyond what 24 V can hold: refused, not swept
     f_sp = g.force_setpoint_n
@@ -340,7 +340,7 @@ def sweep(config, cases: list[SweepCase], force_controller: str | None = None,
     ``rest_floors`` False leaves the rest floor out (nan): it costs a linear programme per
     held position, and the chain kinds' compressions give nearly every case its own.
     """
-    from gripper_ros.core.headless import map_cases, simulate_grasps
+    from gripper_ros.core.runtime.headless import map_cases, simulate_grasps
     if scheduler is not None and not isinstance(scheduler, str):
         jobs = max(1, sum(scheduler.nthreads().values()))
     positions = [round(held_position_m(config, c) / FLOOR_POSITION_ROUND_M)
@@ -371,7 +371,7 @@ def sweep(config, cases: list[SweepCase], force_controller: str | None = None,
 
 def band_speed_mps(config, force_setpoint_n: float) -> float:
     """Return the contact-aware stage's speed across a tolerance band."""
-    from gripper_ros.core.contact_force import ContactForceController
+    from gripper_ros.core.control.contact_force import ContactForceController
     ctrl = ContactForceController(config.plant, config.force.contact_aware,
                                   config.force.sample_time_s)
     return ctrl.contact_speed_mps(force_setpoint_n, width_tolerance_m=1.0)
@@ -558,7 +558,7 @@ def plot(config, rows: list[SweepRow], path: str) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
-    from gripper_ros.core.controllers import ForceControllerKind
+    from gripper_ros.core.control.factories import ForceControllerKind
     parser = argparse.ArgumentParser(prog='contact_sweep', description=__doc__.splitlines()[0])
     parser.add_argument('--config', help='YAML parameter file (default: installed)')
     grid = parser.add_mutually_exclusive_group()
@@ -566,8 +566,8 @@ def main(argv: list[str] | None = None) -> int:
                       help='the reduced exact-width grid the tests run (corners of the envelope)')
     grid.add_argument('--fingers', action='store_true',
                       help='flexible fingers and nonlinear pads: a printed finger, a rubber-dome '
-                           'pad and both (core/contact_chain.py) on rigid and compliant objects, '
-                           'at the exact width and within a tolerance')
+                           'pad and both (core/physics/contact_chain.py) on rigid and '
+                           'compliant objects, at the exact width and within a tolerance')
     grid.add_argument('--compliant', action='store_true',
                       help='only rigid, stiff (1e5 N/m) and soft (1e3 N/m) objects at the exact '
                            'width (the former sweep)')
@@ -603,12 +603,12 @@ def main(argv: list[str] | None = None) -> int:
         print('contact_sweep: --hold-s must be finite and >= 0 and '
               '--band-design-stiffness finite and > 0', file=sys.stderr)
         return 2
-    from gripper_ros.core.engine import jobs_problem
+    from gripper_ros.core.runtime.engine import jobs_problem
     if args.scheduler is None and jobs_problem(args.jobs):
         print(f'contact_sweep: --{jobs_problem(args.jobs)}', file=sys.stderr)
         return 2
     if args.scheduler is not None:
-        from gripper_ros.core.engine import check_address
+        from gripper_ros.core.runtime.engine import check_address
         try:
             check_address(args.scheduler)
         except ValueError as exc:
@@ -632,7 +632,7 @@ def main(argv: list[str] | None = None) -> int:
     else:
         cases, excluded = envelope_cases(config, exact=not args.band_only,
                                          band=not args.exact_only)
-    from gripper_ros.core.engine import EngineError
+    from gripper_ros.core.runtime.engine import EngineError
     from gripper_ros.progress import progress_bar
     start = time.monotonic()
     try:

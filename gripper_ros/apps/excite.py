@@ -5,7 +5,7 @@
 
 The gripper goes through a seeded sequence of moves inside its travel at pseudo-random speeds,
 the driving voltage capped at ``--amplitude-v``, and (unless ``--no-hold``) every few moves it
-presses on a rigid stop for the force model (:mod:`gripper_ros.core.excitation`). It all goes
+presses on a rigid stop for the force model (:mod:`gripper_ros.identify.excitation`). It all goes
 through the ``move`` service, so ``stop`` ends it at once. The bag is written under
 ``--output`` and its path printed as ``bag: PATH``; ``bag_identify PATH`` fits the plant to it.
 """
@@ -23,7 +23,7 @@ EXCITATION_FORMAT = 1       # custom_data 'excitation' layout
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from gripper_ros.core.excitation import ExcitationSpec, MAX_SECONDS, MIN_SECONDS
+    from gripper_ros.identify.excitation import ExcitationSpec, MAX_SECONDS, MIN_SECONDS
     from gripper_ros.wire import DEFAULT_NAMESPACE
     d = ExcitationSpec()
     p = argparse.ArgumentParser(prog='excite', description=__doc__.splitlines()[0])
@@ -67,7 +67,7 @@ def main(argv: list[str] | None = None) -> int:
     from gripper_ros.bags.recorder import BagRecorderError
     from gripper_ros.bags.recorder import RecordingError
     from gripper_ros.core.config import ConfigError, load_config, parse_config
-    from gripper_ros.core.excitation import check_spec, ExcitationSpec
+    from gripper_ros.identify.excitation import check_spec, ExcitationSpec
     from gripper_ros.nodes.graph import GraphError, GraphOptions, GripperGraph
     from gripper_ros.nodes.startup import StartupError
     from gripper_ros.wire import check_namespace, TimeMode
@@ -123,7 +123,7 @@ def run_excitation(graph, spec) -> str:
     Returns how it ended; a move that ends otherwise than MOVED, STALLED or TIMEOUT (a
     ``stop``, a refusal, a fault) ends the experiment at once.
     """
-    from gripper_ros.core.excitation import ExcitationRun
+    from gripper_ros.identify.excitation import ExcitationRun
     from gripper_ros.wire import Outcome
     run = ExcitationRun(spec, graph.plant.config.plant, graph.sim_time_ns)
     while (move := run.next_move(graph.sim_time_ns)) is not None:
@@ -137,7 +137,7 @@ def run_excitation(graph, spec) -> str:
 def recorded_excitation(graph, output: Path, spec) -> tuple[Path, str]:
     """Place the rigid stop, record every topic of the graph and run the experiment."""
     from gripper_ros.bags.recorder import BagRecorder, RecordingError, unique_bag_dir
-    from gripper_ros.core.excitation import STOP_WIDTH_M
+    from gripper_ros.identify.excitation import STOP_WIDTH_M
     from gripper_ros.nodes.recording import bag_metadata, drain_published, graph_tap
     width = STOP_WIDTH_M if spec.hold else 0.0
     placed = graph.set_object(width)

@@ -38,9 +38,10 @@ class GraspRecord:
 
 def build_parser() -> argparse.ArgumentParser:
     from gripper_ros.core.config import ForceLaw
-    from gripper_ros.core.controllers import ForceControllerKind, PositionControllerKind
-    from gripper_ros.core.stages import (DEFAULT_APPROACH_FORCE_MARGIN, DEFAULT_FORCE_CONTROLLER,
-                                         DEFAULT_POSITION_CONTROLLER)
+    from gripper_ros.core.control.factories import ForceControllerKind, PositionControllerKind
+    from gripper_ros.core.control.stages import (DEFAULT_APPROACH_FORCE_MARGIN,
+                                                 DEFAULT_FORCE_CONTROLLER,
+                                                 DEFAULT_POSITION_CONTROLLER)
     from gripper_ros.nodes.process import ExecutorKind
     from gripper_ros.wire import DEFAULT_NAMESPACE, TIME_MODE_CHOICES
     p = argparse.ArgumentParser(prog='grasp_demo', description=__doc__.splitlines()[0])
@@ -155,13 +156,13 @@ def main(argv: list[str] | None = None) -> int:
                                       'static_friction', 'kinetic_friction', 'lift_off'))
     if negative:
         return _fail(negative)
-    from gripper_ros.core.hold import MAX_LIFT_OFF_S
+    from gripper_ros.core.physics.hold import MAX_LIFT_OFF_S
     if args.lift_off > MAX_LIFT_OFF_S:
         return _fail(f'--lift-off must be <= {MAX_LIFT_OFF_S:g} s, got {args.lift_off!r}')
     if args.lift_off and not (args.lift or args.profile):
         return _fail('--lift-off needs a lift (--lift or --profile)')
     if args.profile is not None:
-        from gripper_ros.core.hold import parse_profile
+        from gripper_ros.core.physics.hold import parse_profile
         if args.lift:
             return _fail('--lift and --profile do not go together (--lift A is step:A)')
         try:

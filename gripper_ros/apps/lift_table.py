@@ -6,7 +6,7 @@
 Each object is grasped with the request's a = A, held, and lifted ``--lift-delay`` s after
 HOLDING at A m/s^2 upward for ``--lift-duration`` s (A = 0: lifted off its support at constant
 speed, so only its weight loads the grip). The grasps run in the headless lockstep loop
-(:mod:`gripper_ros.core.headless`), the graph's own code tick for tick, in fast time.
+(:mod:`gripper_ros.core.runtime.headless`), the graph's own code tick for tick, in fast time.
 Slip and loss are the simulator's ground truth; "detected" is when the supervisor, from its
 own sensors, turned the outcome to OBJECT_LOST.
 """
@@ -20,9 +20,9 @@ import sys
 from gripper_ros.apps.common import negative_option
 from gripper_ros.apps.grasp_demo import LIFT_DELAY_S, LIFT_DURATION_S, PAPER_OBJECTS
 from gripper_ros.core.config import ConfigError, ForceLaw, load_config
-from gripper_ros.core.headless import simulate_grasp
-from gripper_ros.core.plant import Lift
-from gripper_ros.core.requests import RequestError
+from gripper_ros.core.physics.plant import Lift
+from gripper_ros.core.runtime.headless import simulate_grasp
+from gripper_ros.core.supervision.requests import RequestError
 
 HOLD_AFTER_LIFT_S = 0.5
 """Simulated time kept after the lift ends, so that a late loss is seen."""

@@ -15,11 +15,11 @@ import sys
 
 from gripper_ros.apps.common import load_config_or_report
 from gripper_ros.core.config import GripperConfig
-from gripper_ros.core.controllers import (force_pi_gains, ForceControllerKind,
-                                          make_force_controller, make_position_controller,
-                                          PositionControllerKind)
-from gripper_ros.core.metrics import StepMetrics
-from gripper_ros.core.step_runs import force_step, position_step
+from gripper_ros.core.control.factories import (force_pi_gains, ForceControllerKind,
+                                                make_force_controller, make_position_controller,
+                                                PositionControllerKind)
+from gripper_ros.studies.metrics import StepMetrics
+from gripper_ros.studies.step_runs import force_step, position_step
 
 # The paper's published figures (Tables III and IV): the known answers we compare against.
 PAPER_TABLE_III = {

@@ -36,8 +36,8 @@ import sys
 from gripper_ros.apps.common import load_config_or_report
 from gripper_ros.apps.paper_tables import PAPER_TABLE_III
 from gripper_ros.core.config import GripperConfig
-from gripper_ros.core.controllers import make_plant
-from gripper_ros.core.metrics import SETTLING_BAND
+from gripper_ros.core.control.factories import make_plant
+from gripper_ros.studies.metrics import SETTLING_BAND
 import numpy as np
 from scipy.optimize import linprog, lsq_linear
 
@@ -288,8 +288,8 @@ def main(argv: list[str] | None = None) -> int:
 
     import numpy as np
 
-    from gripper_ros.core.controllers import PositionControllerKind, make_position_controller
-    from gripper_ros.core.step_runs import position_step
+    from gripper_ros.core.control.factories import make_position_controller, PositionControllerKind
+    from gripper_ros.studies.step_runs import position_step
     braking_v = config.position.mpc_pd_braking_voltage_v or 20.0
     governed = dataclasses.replace(config, position=dataclasses.replace(
         config.position, mpc_pd_braking_voltage_v=braking_v))

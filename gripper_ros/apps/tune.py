@@ -213,7 +213,7 @@ def evaluate(config, cases: list, hold_s: float, *, jobs: int | None = None,
              scheduler=None, progress=None) -> Evaluation:
     """Grasp every case with ``config`` through the engine and score the envelope."""
     from gripper_ros.apps.contact_sweep import _case_keywords, grasp_summary
-    from gripper_ros.core.headless import simulate_grasps
+    from gripper_ros.core.runtime.headless import simulate_grasps
     results = simulate_grasps(config, [_case_keywords(c, None, hold_s) for c in cases], jobs,
                               summarize=grasp_summary, scheduler=scheduler, progress=progress)
     band = config.supervisor.force_settle_band_fraction
@@ -486,14 +486,14 @@ def build_parser() -> argparse.ArgumentParser:
 def _check_args(args) -> None:
     if args.trials < 1 or args.top < 1:
         raise TuneError('--trials and --top must be >= 1')
-    from gripper_ros.core.engine import jobs_problem
+    from gripper_ros.core.runtime.engine import jobs_problem
     if args.jobs is not None and jobs_problem(args.jobs):
         raise TuneError('--' + jobs_problem(args.jobs))
     negative = negative_option(args, ('hold_s', 'peak_weight', 'max_peak_ratio'))
     if negative:
         raise TuneError(negative)
     if args.scheduler is not None:
-        from gripper_ros.core.engine import check_address
+        from gripper_ros.core.runtime.engine import check_address
         try:
             check_address(args.scheduler)
         except ValueError as exc:
@@ -523,7 +523,7 @@ def main(argv: list[str] | None = None) -> int:
 def _run(args, base, params, cases, holdout, out: Path) -> int:
     from optuna.study import MaxTrialsCallback
     from optuna.trial import TrialState
-    from gripper_ros.core.engine import EngineError
+    from gripper_ros.core.runtime.engine import EngineError
     from gripper_ros.progress import progress_bar
     storage = args.storage or f'sqlite:///{(out / "study.db").resolve()}'
     engine = {'jobs': args.jobs, 'scheduler': args.scheduler}

@@ -83,7 +83,8 @@ class Profile:
 
 def _parts():
     """(owner, attribute, part name, group) of everything a tick does that is timed."""
-    from gripper_ros.core import lockstep, plant
+    from gripper_ros.core.physics import plant
+    from gripper_ros.core.runtime import lockstep
     from gripper_ros.nodes import (controller_node, plant_simulator_node as plant_node,
                                    recording, supervisor_node)
     from gripper_ros.bench.observer import PhaseObserver

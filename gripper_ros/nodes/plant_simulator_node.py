@@ -29,9 +29,9 @@ from geometry_msgs.msg import AccelStamped
 from gripper_interfaces.msg import (ForceSensor, MotorCommand, ObjectState, PlantTick, SimStatus,
                                     SupervisorStatus)
 from gripper_interfaces.srv import SetObject, SimStep
-from gripper_ros.core.controllers import make_plant
-from gripper_ros.core.lockstep import Command, command_problem, PlantSide
-from gripper_ros.core.plant import check_fault, GraspObject, Lift
+from gripper_ros.core.control.factories import make_plant
+from gripper_ros.core.physics.plant import check_fault, GraspObject, Lift
+from gripper_ros.core.runtime.lockstep import Command, command_problem, PlantSide
 from gripper_ros.nodes.loop_io import (clock_template, decode, force_sensor_template,
                                        joint_state_template, object_state_template,
                                        read_status, split_ns, StatusView)
@@ -79,7 +79,7 @@ MAX_STEP_TICKS = round(MAX_STEP_S / FORCE_SAMPLE_S)
 
 
 class PlantSimulatorNode(Node):
-    """Thin ROS wrapper around :class:`gripper_ros.core.plant.GripperPlant`."""
+    """Thin ROS wrapper around :class:`gripper_ros.core.physics.plant.GripperPlant`."""
 
     def __init__(self, **kwargs):
         super().__init__(NODE_PLANT, **default_namespace(kwargs))

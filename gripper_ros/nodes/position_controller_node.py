@@ -8,9 +8,9 @@ from __future__ import annotations
 
 import sys
 
-from gripper_ros.core.controllers import PositionControllerKind
-from gripper_ros.core.stages import (DEFAULT_POSITION_CONTROLLER, parse_kind,
-                                     PositionStageController)
+from gripper_ros.core.control.factories import PositionControllerKind
+from gripper_ros.core.control.stages import (DEFAULT_POSITION_CONTROLLER, parse_kind,
+                                             PositionStageController)
 from gripper_ros.nodes.controller_node import LockstepController
 from gripper_ros.nodes.process import run_node
 from gripper_ros.wire import Controller, NODE_POSITION_CONTROLLER, TOPIC_POSITION_REFERENCE

@@ -23,7 +23,7 @@ import time
 
 from gripper_ros.bags.recorder import (BAG_FORMAT, BagRecorder, BagRecorderError, failure_message,
                                        RecordingError, unique_bag_dir)
-from gripper_ros.core.stages import Reference
+from gripper_ros.core.control.stages import Reference
 from gripper_ros.nodes.services import wait_until
 from gripper_ros.wire import (BAG_TOPICS, GRAPH_TOPICS, LOOP_TOPICS, Outcome, Phase, qualified,
                               REFERENCE_LAYOUT, TimeMode, TOPIC_FORCE_REFERENCE,

@@ -2,8 +2,8 @@
 
 Tick by tick, it names the one stage that drives the motor.
 
-For every ``loop/tick`` it steps :class:`gripper_ros.core.supervisor.GraspSupervisor` and sends
-the tick's reference (setpoints and the measurement) to the one stage it names, on
+For every ``loop/tick`` it steps :class:`gripper_ros.core.supervision.supervisor.GraspSupervisor`
+and sends the tick's reference (setpoints and the measurement) to the one stage it names, on
 ``loop/position_reference`` or ``loop/force_reference``. A request is accepted at once and
 starts at the next tick; the grasp service answers when the grasp is HOLDING (the hold goes on
 until ``release``, ``stop`` or the next grasp) or has ended otherwise, with one explicit
@@ -27,10 +27,10 @@ import time
 
 from gripper_interfaces.msg import PlantTick, SimStatus, StageReference, SupervisorStatus
 from gripper_interfaces.srv import Grasp, Move
-from gripper_ros.core.lockstep import SupervisorSide, Tick
-from gripper_ros.core.requests import (GraspRequest, MoveRequest, RequestError, validate_move,
-                                       validate_request)
-from gripper_ros.core.supervisor import GraspSupervisor, load_law, RequestKind
+from gripper_ros.core.runtime.lockstep import SupervisorSide, Tick
+from gripper_ros.core.supervision.requests import (GraspRequest, MoveRequest, RequestError,
+                                                   validate_move, validate_request)
+from gripper_ros.core.supervision.supervisor import GraspSupervisor, load_law, RequestKind
 from gripper_ros.nodes.loop_io import decode, split_ns, status_message, status_template
 from gripper_ros.nodes.names import default_namespace, GraspIds
 from gripper_ros.nodes.parameters import ConfigParameters, follow

@@ -3,7 +3,7 @@
 Each tick ``t_k``: the plant measures (:class:`Tick`), the supervisor decides and sends a
 :class:`Reference` to the stage it names, that stage answers with a :class:`Command`, and the
 plant holds the command's voltage for its ``hold_s``. The nodes move these messages over DDS as
-bytes (:mod:`gripper_ros.wire` layouts); :mod:`gripper_ros.core.headless` hands them over
+bytes (:mod:`gripper_ros.wire` layouts); :mod:`gripper_ros.core.runtime.headless` hands them over
 inside one compiled loop. Both call exactly the compiled functions below (numba), on the
 messages as records (``TICK_LAYOUT.dtype`` and so on), so a headless grasp equals the graph's
 tick for tick.
@@ -13,12 +13,13 @@ from __future__ import annotations
 from collections import namedtuple
 import math
 
-from gripper_ros.core.plant import (GraspObject, GripperPlant, plant_begin_hold,
-                                    plant_cancel_fault, plant_fault_scheduled, plant_read_tick,
-                                    plant_scenario_in_progress, plant_schedule_fault,
-                                    plant_step)
-from gripper_ros.core.stages import LockstepAnswerer, Reference, stage_answer, TickAnswer
-from gripper_ros.core.supervisor import Decision, GraspSupervisor, NO_NS, supervisor_decide
+from gripper_ros.core.control.stages import LockstepAnswerer, Reference, stage_answer, TickAnswer
+from gripper_ros.core.physics.plant import (GraspObject, GripperPlant, plant_begin_hold,
+                                            plant_cancel_fault, plant_fault_scheduled,
+                                            plant_read_tick, plant_scenario_in_progress,
+                                            plant_schedule_fault, plant_step)
+from gripper_ros.core.supervision.supervisor import (Decision, GraspSupervisor, NO_NS,
+                                                     supervisor_decide)
 from gripper_ros.wire import (COMMAND_LAYOUT, Controller, FaultKind, Outcome, Phase,
                               REFERENCE_LAYOUT, TICK_LAYOUT)
 import numba

@@ -34,8 +34,8 @@ than the clamp alone in trials).
 
 The per-sample work (DMC step, governor command and bookkeeping, cascade step) is compiled:
 ``dmc_*``, ``governor_*`` and ``cascade_*`` kernels over records and arrays shared with the
-stage kernels of :mod:`gripper_ros.core.stages`; the classes below are the Python façades that
-build the models (step responses, gains, powers of ``Ad``) and call the kernels.
+stage kernels of :mod:`gripper_ros.core.control.stages`; the classes below are the Python façades
+that build the models (step responses, gains, powers of ``Ad``) and call the kernels.
 """
 from __future__ import annotations
 
@@ -45,9 +45,9 @@ import math
 from typing import Callable
 
 from gripper_ros.core import linalg
-from gripper_ros.core.pid import (as_record, law_error, LAW_NUMBERS, LAW_OK, PID, pid_reset,
-                                  pid_setpoint_for_output, pid_setpoint_range, pid_step_checked,
-                                  py_max, py_min)
+from gripper_ros.core.control.pid import (as_record, law_error, LAW_NUMBERS, LAW_OK, PID,
+                                          pid_reset, pid_setpoint_for_output, pid_setpoint_range,
+                                          pid_step_checked, py_max, py_min)
 from gripper_ros.core.records import RecordField
 import numba
 import numpy as np

@@ -23,7 +23,7 @@ import tempfile
 import time
 from typing import Callable, Iterator, Sequence
 
-WORKER_PRELOAD = 'gripper_ros.core.batch_worker'
+WORKER_PRELOAD = 'gripper_ros.core.runtime.batch_worker'
 """Imported by each worker as it starts (``dask worker --preload``): loads the compiled core."""
 CHUNKS_PER_WORKER = 4
 """A batch is cut into this many chunks per worker: few tasks, balanced load."""

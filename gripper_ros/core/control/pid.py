@@ -13,7 +13,7 @@ further into saturation. :meth:`reset` with an output value gives bumpless trans
 integrator is seeded so the first output equals the command already on the motor.
 
 The per-sample work is compiled (``pid_*`` kernels over one :data:`PID_DTYPE` record, the
-state shared with the stage kernels of :mod:`gripper_ros.core.stages`); :class:`PID` is the
+state shared with the stage kernels of :mod:`gripper_ros.core.control.stages`); :class:`PID` is the
 Python façade that validates and calls them. This module also holds what every compiled law
 shares: Python's ``min``/``max`` semantics (:func:`py_min`, :func:`py_max`) and the codes of a
 law that refuses its numbers (``LAW_*``, formatted by :func:`law_error`).

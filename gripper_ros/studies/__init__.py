@@ -1,0 +1,1 @@
+"""Studies over the core: step and grip runs, their metrics (no rclpy)."""
