@@ -148,6 +148,24 @@ class SensorNoiseParams:
 
 
 @dataclass(frozen=True)
+class ChannelSpec:
+    """A channel's resolution, noise (1 sigma), bandwidth (Hz, 0 = none) and latency (s)."""
+
+    resolution: float
+    noise: float
+    bandwidth_hz: float
+    latency_s: float
+
+    def __post_init__(self):
+        for name in ('resolution', 'noise', 'bandwidth_hz', 'latency_s'):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or \
+                    not math.isfinite(value) or value < 0.0:
+                raise ValueError(f'pad sensor {name} must be a finite number >= 0, '
+                                 f'got {value!r}')
+
+
+@dataclass(frozen=True)
 class PadSensorParams:
     """Each pad's shear and displacement sensing (core/physics/pad_sensor.py)."""
 
@@ -162,15 +180,13 @@ class PadSensorParams:
 
     @property
     def shear(self):
-        """The shear channel's :class:`gripper_ros.core.physics.pad_sensor.ChannelSpec`."""
-        from gripper_ros.core.physics.pad_sensor import ChannelSpec
+        """The shear channel's :class:`ChannelSpec`."""
         return ChannelSpec(self.shear_resolution_n, self.shear_noise_n,
                            self.shear_bandwidth_hz, self.shear_latency_s)
 
     @property
     def displacement(self):
-        """The displacement channel's :class:`gripper_ros.core.physics.pad_sensor.ChannelSpec`."""
-        from gripper_ros.core.physics.pad_sensor import ChannelSpec
+        """The displacement channel's :class:`ChannelSpec`."""
         return ChannelSpec(self.displacement_resolution_m, self.displacement_noise_m,
                            self.displacement_bandwidth_hz, self.displacement_latency_s)
 

@@ -67,8 +67,9 @@ from dataclasses import dataclass
 import math
 
 from gripper_ros.core.config import ContactForceTuning, PlantParams
-from gripper_ros.core.control.pid import (as_record, LAW_CONTACT_INPUT, law_error, LAW_MATH_DOMAIN,
+from gripper_ros.core.control.pid import (LAW_CONTACT_INPUT, law_error, LAW_MATH_DOMAIN,
                                           LAW_NUMBERS, LAW_OK, LAW_ZERO_DIVISION, py_max, py_min)
+from gripper_ros.core.records import as_record
 from gripper_ros.core.records import RecordLimits
 import numba
 import numpy as np

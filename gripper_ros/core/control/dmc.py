@@ -45,9 +45,10 @@ import math
 from typing import Callable
 
 from gripper_ros.core import linalg
-from gripper_ros.core.control.pid import (as_record, law_error, LAW_NUMBERS, LAW_OK, PID,
-                                          pid_reset, pid_setpoint_for_output, pid_setpoint_range,
+from gripper_ros.core.control.pid import (law_error, LAW_NUMBERS, LAW_OK, PID, pid_reset,
+                                          pid_setpoint_for_output, pid_setpoint_range,
                                           pid_step_checked, py_max, py_min)
+from gripper_ros.core.records import as_record
 from gripper_ros.core.records import RecordField
 import numba
 import numpy as np

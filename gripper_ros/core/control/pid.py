@@ -25,10 +25,8 @@ import enum
 import math
 
 from gripper_ros.core.config import PidGains
-from gripper_ros.core.records import RecordField, RecordLimits
+from gripper_ros.core.records import as_record, RecordField, RecordLimits
 import numba
-from numba import types
-from numba.extending import overload
 import numpy as np
 
 
@@ -68,22 +66,6 @@ def law_error(code: int, numbers) -> Exception:
     if code == LAW_MATH_DOMAIN:
         return ValueError('math domain error')
     return RuntimeError(f'unknown control-law code {code}')
-
-
-def as_record(x):
-    """Return the record of a 1-element record array, or the record itself.
-
-    Kernels take either: a Python façade passes its 1-element array (a record passed from
-    Python would be a copy), compiled callers pass records (no reference counting).
-    """
-    return x[0] if isinstance(x, np.ndarray) else x
-
-
-@overload(as_record)
-def _as_record(x):
-    if isinstance(x, types.Array):
-        return lambda x: x[0]
-    return lambda x: x
 
 
 @numba.njit(cache=True)

@@ -38,8 +38,9 @@ from gripper_ros.core.control.dmc import (CASCADE_DTYPE, cascade_reset, cascade_
                                           GOVERNOR_DTYPE)
 from gripper_ros.core.control.factories import (ForceControllerKind, make_force_controller,
                                                 make_position_controller, PositionControllerKind)
-from gripper_ros.core.control.pid import (as_record, law_error, LAW_NUMBERS, LAW_OK, PID_DTYPE,
-                                          pid_reset, pid_step_checked, py_max, py_min)
+from gripper_ros.core.control.pid import (law_error, LAW_NUMBERS, LAW_OK, PID_DTYPE, pid_reset,
+                                          pid_step_checked, py_max, py_min)
+from gripper_ros.core.records import as_record
 from gripper_ros.wire import COMMAND_LAYOUT, Controller, REFERENCE_LAYOUT
 import numba
 import numpy as np

@@ -53,7 +53,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 import math
 
-from gripper_ros.core.control.pid import as_record
+from gripper_ros.core.records import as_record
 from gripper_ros.wire import FORCE_SAMPLE_S, HoldState, LiftProfile
 import numba
 import numpy as np

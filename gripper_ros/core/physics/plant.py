@@ -70,7 +70,7 @@ import enum
 import math
 from typing import NamedTuple
 
-from gripper_ros.core.config import (ContactParams, object_contact, PadSensorParams,
+from gripper_ros.core.config import (ChannelSpec, ContactParams, object_contact, PadSensorParams,
                                      PlantParams)
 from gripper_ros.core.linalg import expm
 from gripper_ros.core.physics.contact_chain import chain_solve, PADS_IN_CHAIN
@@ -84,8 +84,8 @@ from gripper_ros.core.physics.hold import (check_finite_nonnegative, hold_advanc
                                            hold_scenario_in_progress, hold_shear_n,
                                            hold_stays_stuck, HoldModel, HoldState, Lift,
                                            ObjectState)
-from gripper_ros.core.physics.pad_sensor import (CHANNEL_DTYPE, channel_step, ChannelSpec,
-                                                 make_channel, MAX_LATENCY_SAMPLES)
+from gripper_ros.core.physics.pad_sensor import (CHANNEL_DTYPE, channel_step, make_channel,
+                                                 MAX_LATENCY_SAMPLES)
 from gripper_ros.wire import FaultKind, TICK_LAYOUT
 import numba
 import numpy as np
