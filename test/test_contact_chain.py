@@ -9,7 +9,6 @@ today's Kelvin-Voigt contact. The contact stage keeps its no-spike claim on the 
 import dataclasses
 import math
 
-from gripper_ros.apps.contact_sweep import finger_cases, finger_kinds, sweep
 from gripper_ros.core.config import ConfigError, default_config_path, load_config, parse_config
 from gripper_ros.core.control.factories import make_plant
 from gripper_ros.core.physics.contact_chain import (cantilever_stiffness_n_per_m,
@@ -18,6 +17,7 @@ from gripper_ros.core.physics.contact_chain import (cantilever_stiffness_n_per_m
                                                     RUBBER_DOME_PAD)
 from gripper_ros.core.physics.plant import GraspObject
 from gripper_ros.core.runtime.headless import simulate_grasp
+from gripper_ros.studies.sweep_runs import finger_cases, finger_kinds, sweep
 import numpy as np
 import pytest
 import yaml

@@ -6,12 +6,12 @@ import math
 import time
 
 from gripper_interfaces.srv import Grasp
-from gripper_ros.apps.grasp_demo import PAPER_OBJECTS
 from gripper_ros.bags.reader import read_bag
 from gripper_ros.bags.series import load_grasp_series
 from gripper_ros.core.config import load_config
 from gripper_ros.nodes.graph import GripperGraph
 from gripper_ros.nodes.recording import recorded_grasp
+from gripper_ros.studies.paper import PAPER_OBJECTS
 from gripper_ros.wire import (COMMAND_LAYOUT, Controller, DEFAULT_NAMESPACE, DESCRIPTION_TOPICS,
                               GRAPH_TOPICS,
                               LOOP_LAYOUTS, LOOP_TOPICS, Outcome, Phase, qualified,

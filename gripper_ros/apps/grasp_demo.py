@@ -19,11 +19,6 @@ from pathlib import Path
 import sys
 import time
 
-# Table V of the paper: (width m, mass kg).
-PAPER_OBJECTS = ((0.01, 1.27), (0.05, 1.69), (0.10, 0.75))
-LIFT_DELAY_S = 0.2       # --lift: from HOLDING to the start of the lift
-LIFT_DURATION_S = 1.0    # --lift: how long the arm accelerates upward
-
 
 @dataclass
 class GraspRecord:
@@ -43,6 +38,7 @@ def build_parser() -> argparse.ArgumentParser:
                                                  DEFAULT_FORCE_CONTROLLER,
                                                  DEFAULT_POSITION_CONTROLLER)
     from gripper_ros.nodes.process import ExecutorKind
+    from gripper_ros.studies.lift_runs import LIFT_DELAY_S, LIFT_DURATION_S
     from gripper_ros.wire import DEFAULT_NAMESPACE, TIME_MODE_CHOICES
     p = argparse.ArgumentParser(prog='grasp_demo', description=__doc__.splitlines()[0])
     p.add_argument('--width', type=float, help='object width (m); with --mass grasps one object')
@@ -147,6 +143,7 @@ def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(user_args)
     if (args.width is None) != (args.mass is None):
         return _fail('--width and --mass go together')
+    from gripper_ros.studies.paper import PAPER_OBJECTS
     objects = PAPER_OBJECTS if args.width is None else ((args.width, args.mass),)
     for w, m in objects:
         if not (math.isfinite(w) and math.isfinite(m)):

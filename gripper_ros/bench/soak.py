@@ -44,7 +44,7 @@ import sys
 import tempfile
 import time
 
-from gripper_ros.apps.grasp_demo import PAPER_OBJECTS
+from gripper_ros.studies.paper import PAPER_OBJECTS
 
 # cheap: wide objects, short strokes (~1200-1400 plant ticks per grasp instead of 1500-2000)
 CHEAP_OBJECTS = ((0.10, 0.75), (0.12, 0.5), (0.14, 1.0))
