@@ -70,7 +70,7 @@ from gripper_ros.core.config import ContactForceTuning, PlantParams
 from gripper_ros.core.control.pid import (LAW_CONTACT_INPUT, law_error, LAW_MATH_DOMAIN,
                                           LAW_NUMBERS, LAW_OK, LAW_ZERO_DIVISION, py_max, py_min)
 from gripper_ros.core.records import as_record
-from gripper_ros.core.records import RecordLimits
+from gripper_ros.core.records import RecordPair
 import numba
 import numpy as np
 
@@ -422,7 +422,7 @@ class ContactForceController:
         s['band_kv'] = self.damping_gain_for(k_band, tau_band)
         self.reset()
 
-    output_limits = RecordLimits()
+    output_limits = RecordPair('low', 'high')
 
     @property
     def terms(self) -> ContactForceTerms:

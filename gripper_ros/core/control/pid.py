@@ -25,7 +25,7 @@ import enum
 import math
 
 from gripper_ros.core.config import PidGains
-from gripper_ros.core.records import as_record, RecordField, RecordLimits
+from gripper_ros.core.records import as_record, RecordField, RecordPair, RecordParams
 import numba
 import numpy as np
 
@@ -254,19 +254,11 @@ class PID:
         self.setpoint_weight = setpoint_weight
         self.reset()
 
-    @property
-    def gains(self) -> PidGains:
-        return self._gains
-
-    @gains.setter
-    def gains(self, gains: PidGains) -> None:
-        self._gains = gains
-        s = self.record[0]
-        s['kc'], s['ki'], s['kd'] = gains.kc, gains.ki, gains.kd
+    gains = RecordParams(('kc', 'ki', 'kd'))
 
     dt_s = RecordField()
 
-    output_limits = RecordLimits()
+    output_limits = RecordPair('low', 'high')
 
     @property
     def derivative_on(self) -> DerivativeOn:

@@ -40,7 +40,7 @@ from gripper_ros.core.control.factories import (ForceControllerKind, make_force_
                                                 make_position_controller, PositionControllerKind)
 from gripper_ros.core.control.pid import (law_error, LAW_NUMBERS, LAW_OK, PID_DTYPE, pid_reset,
                                           pid_step_checked, py_max, py_min)
-from gripper_ros.core.records import as_record
+from gripper_ros.core.records import as_record, RecordPair
 from gripper_ros.wire import COMMAND_LAYOUT, Controller, REFERENCE_LAYOUT
 import numba
 import numpy as np
@@ -615,19 +615,9 @@ class LockstepAnswerer:
         self._cmd_bytes = self._cmd.view(np.uint8)
         self._cmd_floats = self._cmd.view(np.float64)
 
-    @property
-    def answered(self) -> tuple[int, int] | None:
-        """(stage_id, stamp) last answered."""
-        b = self._book[0]
-        return ((int(b['answered_stage_id']), int(b['answered_stamp_ns']))
-                if b['has_answered'] else None)
-
-    @answered.setter
-    def answered(self, key: tuple[int, int] | None) -> None:
-        b = self._book[0]
-        b['has_answered'] = key is not None
-        if key is not None:
-            b['answered_stage_id'], b['answered_stamp_ns'] = key
+    answered = RecordPair('answered_stage_id', 'answered_stamp_ns', int, flag='has_answered',
+                          at='_book')
+    """(stage_id, stamp) last answered, None before the first answer."""
 
     @property
     def active_stage(self) -> int | None:

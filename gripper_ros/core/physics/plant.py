@@ -86,6 +86,7 @@ from gripper_ros.core.physics.hold import (check_finite_nonnegative, hold_advanc
                                            ObjectState)
 from gripper_ros.core.physics.pad_sensor import (CHANNEL_DTYPE, channel_step, make_channel,
                                                  MAX_LATENCY_SAMPLES)
+from gripper_ros.core.records import RecordField
 from gripper_ros.wire import FaultKind, TICK_LAYOUT
 import numba
 import numpy as np
@@ -1399,32 +1400,17 @@ class GripperPlant:
         return self.sensor.dropped_out
 
     # ----------------------------------------------------------------- state read-outs
-    @property
-    def t_ns(self) -> int:
-        """Simulated time in integer nanoseconds: exact, the lockstep's tick key."""
-        return int(self._s['t_ns'])
-
-    @t_ns.setter
-    def t_ns(self, value: int) -> None:
-        self._s['t_ns'] = value
+    t_ns = RecordField(int, at='_s', doc='Simulated time in integer nanoseconds: exact, the '
+                       "lockstep's tick key.")
 
     @property
     def t_s(self) -> float:
         return self.t_ns * 1e-9
 
-    @property
-    def impact_energy_lost_j(self) -> float:
-        """Kinetic energy lost in arrivals on a rigid face or the open stop since the reset."""
-        return float(self._s['impact_energy_lost_j'])
-
-    @impact_energy_lost_j.setter
-    def impact_energy_lost_j(self, value: float) -> None:
-        self._s['impact_energy_lost_j'] = value
-
-    @property
-    def contact_position_m(self) -> float:
-        """Finger travel at which it touches the object."""
-        return float(self._s['x_c'])
+    impact_energy_lost_j = RecordField(at='_s', doc='Kinetic energy lost in arrivals on a rigid '
+                                       'face or the open stop since the reset.')
+    contact_position_m = RecordField(writable=False, field='x_c', at='_s',
+                                     doc='Finger travel at which it touches the object.')
 
     @property
     def contact_state(self) -> ContactState:

@@ -18,6 +18,7 @@ from gripper_ros.core.physics.plant import (GraspObject, GripperPlant, plant_beg
                                             plant_cancel_fault, plant_fault_scheduled,
                                             plant_read_tick, plant_scenario_in_progress,
                                             plant_schedule_fault, plant_step)
+from gripper_ros.core.records import RecordField
 from gripper_ros.core.supervision.supervisor import (Decision, GraspSupervisor, NO_NS,
                                                      supervisor_decide)
 from gripper_ros.wire import (COMMAND_LAYOUT, Controller, FaultKind, Outcome, Phase,
@@ -143,18 +144,11 @@ class PlantSide:
         self.tick_record = new_record(TICK_LAYOUT)
         self.command_record = new_record(COMMAND_LAYOUT)
 
-    revision = property(lambda self: int(self._s['revision']),
-                        doc='+1 on every change of the simulated world.')
-    applied_source = property(lambda self: Controller(self._s['applied_source']))
-
-    @property
-    def grasp_mass_kg(self) -> float:
-        """The requested mass of the grasp (the plant's mass of an object that gives none)."""
-        return float(self._s['grasp_mass_kg'])
-
-    @grasp_mass_kg.setter
-    def grasp_mass_kg(self, value: float) -> None:
-        self._s['grasp_mass_kg'] = value
+    revision = RecordField(int, writable=False, at='_s',
+                           doc='+1 on every change of the simulated world.')
+    applied_source = RecordField(Controller, writable=False, at='_s')
+    grasp_mass_kg = RecordField(at='_s', doc="The requested mass of the grasp (the plant's mass "
+                                'of an object that gives none).')
 
     def _tick(self) -> Tick:
         return Tick._make(self.tick_record[0].item())

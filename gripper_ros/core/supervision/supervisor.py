@@ -44,6 +44,7 @@ import math
 from gripper_ros.core.config import (GripperConfig, PlantParams, shipped_config,
                                      SupervisorParams)
 from gripper_ros.core.control.load_grip import HISTORY_ROWS, law_step, make_law, MU_GRID
+from gripper_ros.core.records import RecordParams
 from gripper_ros.core.supervision.requests import GraspTargets, MoveTargets, RequestError
 from gripper_ros.wire import Controller, Outcome, PendingRequest, Phase, SwitchCriterion
 import numba
@@ -817,17 +818,8 @@ class GraspSupervisor:
         self._decision = Decision(self)
 
     # ------------------------------------------------------------------ parameters
-    @property
-    def params(self) -> SupervisorParams:
-        return self._params_obj
-
-    @params.setter
-    def params(self, params: SupervisorParams) -> None:
-        """Set new thresholds; they take effect from the next tick."""
-        self._params_obj = params
-        record = self._params[0]
-        for name in _PARAM_FIELDS:
-            record[name] = getattr(params, name)
+    params = RecordParams(_PARAM_FIELDS, at='_params',
+                          doc='The thresholds; new ones take effect from the next tick.')
 
     # ------------------------------------------------------------------ state
     kind = property(lambda self: KIND_NAMES.get(int(self._s['kind'])),
