@@ -158,29 +158,34 @@ def build_cases(config, *, kinds, widths, masses, tolerances=(0.0,),
     return cases, excluded
 
 
+def _grid(config, stiffnesses, damping_ratios, **grid) -> tuple[list[SweepCase], int]:
+    """:func:`build_cases` over rigid and the Kelvin-Voigt objects of these k and zeta."""
+    return build_cases(config, kinds=_kinds(config, stiffnesses, damping_ratios), **grid)
+
+
+def _joined(*grids) -> tuple[list[SweepCase], int]:
+    """Return the cases of ``grids`` one after another, and all they left out."""
+    return [c for cases, _ in grids for c in cases], sum(excluded for _, excluded in grids)
+
+
+def band_cases(config) -> tuple[list[SweepCase], int]:
+    """Return the uncertain widths: the object placed 0, 0.02, 1 and 2 tolerances into the band."""
+    return _grid(config, BAND_STIFFNESSES_N_PER_M, BAND_DAMPING_RATIOS, widths=BAND_WIDTHS_M,
+                 masses=BAND_MASSES_KG, tolerances=BAND_TOLERANCES_M, placements=BAND_PLACEMENTS)
+
+
 def envelope_cases(config, exact: bool = True, band: bool = True
                    ) -> tuple[list[SweepCase], int]:
     """Return the default grid: the envelope at exact widths, then the uncertain widths."""
-    cases, excluded = [], 0
-    if exact:
-        cases, excluded = build_cases(config, kinds=_kinds(config, STIFFNESSES_N_PER_M,
-                                                           DAMPING_RATIOS),
-                                      widths=WIDTHS_M, masses=MASSES_KG)
-    if band:
-        band, band_excluded = build_cases(
-            config, kinds=_kinds(config, BAND_STIFFNESSES_N_PER_M, BAND_DAMPING_RATIOS),
-            widths=BAND_WIDTHS_M, masses=BAND_MASSES_KG, tolerances=BAND_TOLERANCES_M,
-            placements=BAND_PLACEMENTS)
-        cases += band
-        excluded += band_excluded
-    return cases, excluded
+    return _joined(*([_grid(config, STIFFNESSES_N_PER_M, DAMPING_RATIOS, widths=WIDTHS_M,
+                            masses=MASSES_KG)] if exact else []),
+                   *([band_cases(config)] if band else []))
 
 
 def quick_cases(config) -> tuple[list[SweepCase], int]:
     """Return the reduced exact-width grid (corners of the envelope) the tests run."""
-    return build_cases(config, kinds=_kinds(config, QUICK_STIFFNESSES_N_PER_M,
-                                            QUICK_DAMPING_RATIOS),
-                       widths=QUICK_WIDTHS_M, masses=QUICK_MASSES_KG)
+    return _grid(config, QUICK_STIFFNESSES_N_PER_M, QUICK_DAMPING_RATIOS, widths=QUICK_WIDTHS_M,
+                 masses=QUICK_MASSES_KG)
 
 
 def holdout_cases(config) -> tuple[list[SweepCase], int]:
@@ -188,9 +193,8 @@ def holdout_cases(config) -> tuple[list[SweepCase], int]:
 
     Rigid and 1e3, 1e5, 1e7 N/m at a damping ratio of 0.1, 20 and 80 mm, 0.5 and 2 kg.
     """
-    return build_cases(config, kinds=_kinds(config, HOLDOUT_STIFFNESSES_N_PER_M,
-                                            HOLDOUT_DAMPING_RATIOS),
-                       widths=HOLDOUT_WIDTHS_M, masses=HOLDOUT_MASSES_KG)
+    return _grid(config, HOLDOUT_STIFFNESSES_N_PER_M, HOLDOUT_DAMPING_RATIOS,
+                 widths=HOLDOUT_WIDTHS_M, masses=HOLDOUT_MASSES_KG)
 
 
 def compliant_cases(config, widths=WIDTHS_M, masses=MASSES_KG) -> tuple[list[SweepCase], int]:
@@ -217,15 +221,10 @@ def finger_cases(config, widths=FINGER_WIDTHS_M, masses=FINGER_MASSES_KG, exact:
 
     ``band``: and over the default envelope's uncertain-width grid.
     """
-    grid, excluded = [], 0
-    if exact:
-        grid, excluded = build_cases(config, kinds=_kinds(config, QUICK_STIFFNESSES_N_PER_M,
-                                                          QUICK_DAMPING_RATIOS),
-                                     widths=widths, masses=masses)
-    if band:
-        banded, band_excluded = envelope_cases(config, exact=False, band=True)
-        grid += banded
-        excluded += band_excluded
+    grid, excluded = _joined(
+        *([_grid(config, QUICK_STIFFNESSES_N_PER_M, QUICK_DAMPING_RATIOS, widths=widths,
+                 masses=masses)] if exact else []),
+        *([band_cases(config)] if band else []))
     cases = [dataclasses.replace(c, finger=name, finger_stiffness_n_per_m=finger,
                                  pad_stiffness_n_per_m1_5=pad)
              for name, finger, pad in finger_kinds() for c in grid]
