@@ -19,6 +19,7 @@ import copy
 from typing import Callable
 
 from gripper_ros.core.config import GripperConfig, load_config, parse_config
+from gripper_ros.core.control.stages import parse_kind
 from gripper_ros.nodes.startup import StartupError
 from gripper_ros.text import one_line
 from gripper_ros.wire import FINGER_JOINT, NAME_CHARACTERS
@@ -36,6 +37,17 @@ START_UP_ONLY = {
 
 INTEGER_KEYS = frozenset({'horizon', 'control_horizon'})
 """Leaf keys whose values are whole numbers (the DMC horizons); every other number is a double."""
+
+
+def declare_controller(node: Node, kind_cls, default, description: str = ''):
+    """Declare a stage's read-only ``controller`` parameter; return its value as a ``kind_cls``.
+
+    ``description`` defaults to the kinds' values; a value that is none of them is refused at
+    start-up with the parameter named (ConfigError).
+    """
+    value = node.declare_parameter('controller', default.value, ParameterDescriptor(
+        description=description or ' | '.join(k.value for k in kind_cls), read_only=True)).value
+    return parse_kind(kind_cls, value)
 
 
 def flatten(data: dict, prefix: str = '') -> dict[str, object]:
