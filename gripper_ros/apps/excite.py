@@ -64,12 +64,10 @@ def main(argv: list[str] | None = None) -> int:
 
     args = build_parser().parse_args(remove_ros_args(sys.argv if argv is None else
                                                      ['excite', *argv])[1:])
-    from gripper_ros.bags.recorder import BagRecorderError
-    from gripper_ros.bags.recorder import RecordingError
+    from gripper_ros.apps.common import run_graph
     from gripper_ros.core.config import ConfigError, load_config, parse_config
     from gripper_ros.identify.excitation import check_spec, ExcitationSpec
-    from gripper_ros.nodes.graph import GraphError, GraphOptions, GripperGraph
-    from gripper_ros.nodes.startup import StartupError
+    from gripper_ros.nodes.graph import GraphOptions, GripperGraph
     from gripper_ros.wire import check_namespace, TimeMode
 
     spec = ExcitationSpec(args.seconds, args.amplitude_v, args.seed, not args.no_hold)
@@ -89,8 +87,7 @@ def main(argv: list[str] | None = None) -> int:
             parse_config(data, 'the noise options')      # the reader's checks, named
     except (ValueError, ConfigError) as exc:
         return _fail(str(exc))
-    from gripper_ros.nodes.process import (close_app_graph, raise_keyboard_interrupt,
-                                           StopSignals)
+    from gripper_ros.nodes.process import raise_keyboard_interrupt, StopSignals
     from rclpy.signals import SignalHandlerOptions
     # Ctrl-C and SIGTERM end the experiment here (KeyboardInterrupt), not inside rclpy: the
     # graph stops and the bag is closed first, and a second signal cannot cut that short (as
@@ -98,23 +95,15 @@ def main(argv: list[str] | None = None) -> int:
     rclpy.init(args=None if argv is None else [], signal_handler_options=SignalHandlerOptions.NO)
     signals = StopSignals(on_first=raise_keyboard_interrupt)
     signals.__enter__()
-    graph = None
-    try:
-        graph = GripperGraph(GraphOptions(config_file=args.config, namespace=namespace,
-                                          time_mode=TimeMode.FAST.parameter,
-                                          plant_parameters=noise))
+
+    def excite(graph) -> int:
         bag_dir, outcome = recorded_excitation(graph, Path(args.output), spec)
         print(f'excite: {outcome}', flush=True)
         print(f'bag: {bag_dir}', flush=True)
         return 0
-    except (ConfigError, StartupError, ValueError, GraphError, BagRecorderError, RecordingError,
-            RuntimeError) as exc:
-        return _fail(str(exc))
-    except KeyboardInterrupt:
-        print('excite: interrupted; bag closed', file=sys.stderr)
-        return 130
-    finally:
-        close_app_graph(graph, signals)
+    return run_graph('excite', lambda: GripperGraph(GraphOptions(
+        config_file=args.config, namespace=namespace, time_mode=TimeMode.FAST.parameter,
+        plant_parameters=noise)), excite, signals, 'bag', errors=(ValueError,))
 
 
 def run_excitation(graph, spec) -> str:

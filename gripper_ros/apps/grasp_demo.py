@@ -168,15 +168,12 @@ def main(argv: list[str] | None = None) -> int:
             return _fail(f'--profile: {exc}')
         args.lift = args.profile[1]
 
-    from gripper_ros.bags.recorder import BagRecorderError, RecordingError
-    from gripper_ros.core.config import ConfigError
-    from gripper_ros.nodes.graph import GraphError, GraphOptions, GripperGraph
+    from gripper_ros.apps.common import run_graph
+    from gripper_ros.nodes.graph import GraphOptions, GripperGraph
     from gripper_ros.nodes.names import namespace_as_given
-    from gripper_ros.nodes.process import (close_app_graph, ExecutorKind,
-                                           exit_without_a_last_collection,
+    from gripper_ros.nodes.process import (ExecutorKind, exit_without_a_last_collection,
                                            raise_keyboard_interrupt, StopSignals)
     from gripper_ros.nodes.recording import ServeRecorder
-    from gripper_ros.nodes.startup import StartupError
     from gripper_ros.text import one_line
     from gripper_ros.wire import check_namespace, TimeMode
 
@@ -213,16 +210,8 @@ def main(argv: list[str] | None = None) -> int:
     exit_without_a_last_collection()
     signals = StopSignals(on_first=None if args.serve else raise_keyboard_interrupt)
     signals.__enter__()
-    graph = None
-    try:
-        graph = GripperGraph(GraphOptions(
-            executor=ExecutorKind(args.executor), config_file=args.config, namespace=namespace,
-            time_mode=time_mode, real_time_factor=args.real_time_factor,
-            publish_clock=not args.no_clock, position_controller=args.position_controller,
-            force_controller=args.force_controller,
-            approach_force_margin=args.approach_force_margin,
-            supervisor_parameters={} if args.force_law is None else
-            {'supervisor.force_law': args.force_law}))
+
+    def demo(graph) -> int:
         if args.serve:
             if not args.no_record:
                 ServeRecorder(graph, args.output)
@@ -231,14 +220,13 @@ def main(argv: list[str] | None = None) -> int:
                    for i, (w, m) in enumerate(objects, 1)]
         _summarise(graph, records, args)
         return 0 if all(r.final_outcome == 'HOLDING' for r in records) else 1
-    except (ConfigError, StartupError, GraphError, BagRecorderError, RecordingError,
-            RuntimeError) as exc:
-        return _fail(str(exc))
-    except KeyboardInterrupt:
-        print('grasp_demo: interrupted; bags closed', file=sys.stderr)
-        return 130
-    finally:
-        close_app_graph(graph, signals)
+    return run_graph('grasp_demo', lambda: GripperGraph(GraphOptions(
+        executor=ExecutorKind(args.executor), config_file=args.config, namespace=namespace,
+        time_mode=time_mode, real_time_factor=args.real_time_factor,
+        publish_clock=not args.no_clock, position_controller=args.position_controller,
+        force_controller=args.force_controller, approach_force_margin=args.approach_force_margin,
+        supervisor_parameters={} if args.force_law is None else
+        {'supervisor.force_law': args.force_law})), demo, signals, 'bags')
 
 
 SERVE_POLL_S = 0.1
