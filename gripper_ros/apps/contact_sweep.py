@@ -253,17 +253,10 @@ def main(argv: list[str] | None = None) -> int:
         print('contact_sweep: --hold-s must be finite and >= 0 and '
               '--band-design-stiffness finite and > 0', file=sys.stderr)
         return 2
-    from gripper_ros.core.runtime.engine import jobs_problem
-    if args.scheduler is None and jobs_problem(args.jobs):
-        print(f'contact_sweep: --{jobs_problem(args.jobs)}', file=sys.stderr)
+    from gripper_ros.core.runtime.engine import options_problem
+    if options_problem(args.jobs, args.scheduler):
+        print(f'contact_sweep: {options_problem(args.jobs, args.scheduler)}', file=sys.stderr)
         return 2
-    if args.scheduler is not None:
-        from gripper_ros.core.runtime.engine import check_address
-        try:
-            check_address(args.scheduler)
-        except ValueError as exc:
-            print(f'contact_sweep: {exc}', file=sys.stderr)
-            return 2
     config = load_config_or_report('contact_sweep', args.config)
     if config is None:
         return 2

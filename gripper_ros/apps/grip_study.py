@@ -207,9 +207,9 @@ def main(argv: list[str] | None = None) -> int:
     if negative:
         print(f'grip_study: {negative}', file=sys.stderr)
         return 2
-    from gripper_ros.core.runtime.engine import jobs_problem
-    if jobs_problem(args.jobs):
-        print(f'grip_study: --{jobs_problem(args.jobs)}', file=sys.stderr)
+    from gripper_ros.core.runtime.engine import options_problem
+    if options_problem(args.jobs):
+        print(f'grip_study: {options_problem(args.jobs)}', file=sys.stderr)
         return 2
     config = load_config_or_report('grip_study', args.config)
     if config is None:

@@ -487,18 +487,11 @@ def build_parser() -> argparse.ArgumentParser:
 def _check_args(args) -> None:
     if args.trials < 1 or args.top < 1:
         raise TuneError('--trials and --top must be >= 1')
-    from gripper_ros.core.runtime.engine import jobs_problem
-    if args.jobs is not None and jobs_problem(args.jobs):
-        raise TuneError('--' + jobs_problem(args.jobs))
-    negative = negative_option(args, ('hold_s', 'peak_weight', 'max_peak_ratio'))
-    if negative:
-        raise TuneError(negative)
-    if args.scheduler is not None:
-        from gripper_ros.core.runtime.engine import check_address
-        try:
-            check_address(args.scheduler)
-        except ValueError as exc:
-            raise TuneError(str(exc)) from None
+    from gripper_ros.core.runtime.engine import options_problem
+    problem = options_problem(args.jobs, args.scheduler) or \
+        negative_option(args, ('hold_s', 'peak_weight', 'max_peak_ratio'))
+    if problem:
+        raise TuneError(problem)
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -190,12 +190,9 @@ def main(argv=None) -> int:
         parser.error('--hold-s must be in [0, 60]')
     if any(j < 1 for j in args.jobs) or args.scheduler_workers < 0:
         parser.error('--jobs must be >= 1 and --scheduler-workers >= 0')
-    if args.scheduler is not None:
-        from gripper_ros.core.runtime.engine import check_address
-        try:
-            check_address(args.scheduler)
-        except ValueError as exc:
-            parser.error(str(exc))
+    from gripper_ros.core.runtime.engine import options_problem
+    if options_problem(scheduler=args.scheduler):
+        parser.error(options_problem(scheduler=args.scheduler))
     result = measure(args.repeat, args.hold_s, args.batch, args.jobs, args.scheduler_workers,
                      args.scheduler)
     print(json.dumps(result, indent=2) if args.json else report(result))

@@ -138,6 +138,20 @@ def jobs_problem(jobs) -> str:
     return ''
 
 
+def options_problem(jobs: int | None = None, scheduler: str | None = None) -> str:
+    """Return why a program's ``--jobs`` or ``--scheduler`` cannot be used ('' if they can).
+
+    ``jobs`` None: the engine's default; with a ``scheduler`` the local count is not used.
+    """
+    if scheduler is not None:
+        try:
+            check_address(scheduler)
+        except ValueError as exc:
+            return str(exc)
+        return ''
+    return '--' + jobs_problem(jobs) if jobs is not None and jobs_problem(jobs) else ''
+
+
 def map_cases(fn: Callable, cases: Sequence, jobs: int | None = None,
               chunks_per_job: int = CHUNKS_PER_WORKER, *, scheduler=None,
               progress: Callable[[int], None] | None = None) -> list:
