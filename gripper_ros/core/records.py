@@ -94,9 +94,13 @@ class RecordParams:
 
     def __set__(self, face, value) -> None:
         face.__dict__[self.name] = value
-        record = as_record(getattr(face, self.at))
-        for field in self.fields:
-            record[field] = getattr(value, field)
+        copy_fields(as_record(getattr(face, self.at)), value, self.fields)
+
+
+def copy_fields(record, source, names) -> None:
+    """Set each of ``names`` in ``record`` to the attribute of that name of ``source``."""
+    for name in names:
+        record[name] = getattr(source, name)
 
 
 def as_record(x):

@@ -86,7 +86,7 @@ from gripper_ros.core.physics.hold import (check_finite_nonnegative, hold_advanc
                                            ObjectState)
 from gripper_ros.core.physics.pad_sensor import (CHANNEL_DTYPE, channel_step, make_channel,
                                                  MAX_LATENCY_SAMPLES)
-from gripper_ros.core.records import RecordField
+from gripper_ros.core.records import copy_fields, RecordField
 from gripper_ros.wire import FaultKind, TICK_LAYOUT
 import numba
 import numpy as np
@@ -299,11 +299,8 @@ def _plant_params_record(params: PlantParams, contact: ContactParams) -> np.ndar
     r['tau_e'] = p.inductance_h / p.resistance_ohm
     r['kt'] = p.torque_constant_n_m_per_a
     r['kb'] = p.back_emf_v_s_per_rad
-    r['resistance_ohm'] = p.resistance_ohm
-    r['inductance_h'] = p.inductance_h
-    r['inertia_kg_m2'] = p.inertia_kg_m2
-    r['damping_n_m_s_per_rad'] = p.damping_n_m_s_per_rad
-    r['max_travel_m'] = p.max_travel_m
+    copy_fields(r, p, ('resistance_ohm', 'inductance_h', 'inertia_kg_m2', 'damping_n_m_s_per_rad',
+                       'max_travel_m'))
     r['h'] = p.contact_substep_s
     r['h_ns'] = max(1, round(p.contact_substep_s * 1e9))
     r['limit_v'] = p.voltage_limit_v
