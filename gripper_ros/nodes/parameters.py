@@ -19,7 +19,6 @@ import copy
 from typing import Callable
 
 from gripper_ros.core.config import GripperConfig, load_config, parse_config
-from gripper_ros.core.control.stages import parse_kind
 from gripper_ros.nodes.startup import StartupError
 from gripper_ros.text import one_line
 from gripper_ros.wire import FINGER_JOINT, NAME_CHARACTERS
@@ -45,6 +44,7 @@ def declare_controller(node: Node, kind_cls, default, description: str = ''):
     ``description`` defaults to the kinds' values; a value that is none of them is refused at
     start-up with the parameter named (ConfigError).
     """
+    from gripper_ros.core.control.stages import parse_kind    # the compiled core: stages only
     value = node.declare_parameter('controller', default.value, ParameterDescriptor(
         description=description or ' | '.join(k.value for k in kind_cls), read_only=True)).value
     return parse_kind(kind_cls, value)
