@@ -240,7 +240,7 @@ class FaultKind(enum.IntEnum):
 
 
 class LiftProfile(enum.IntEnum):
-    """``SetObject.Request.LIFT_*``: how the arm moves the held object (core/hold.py)."""
+    """``SetObject.Request.LIFT_*``: how the arm moves the held object (core/physics/hold.py)."""
 
     STEP = 0
     PICK_AND_PLACE = 1

@@ -224,14 +224,15 @@ else
 fi
 
 # ---------------------------------------------------------------- compiled core (skipped when unchanged)
-# The simulation core is compiled by numba on first use and cached beside the sources
-# (gripper_ros/core/__pycache__, shared by the source tree and the symlinked install). Compile it
-# here, once per change of the core, so that the first grasp_demo loads it in about a second.
+# The simulation core is compiled by numba on first use and cached beside the sources (the
+# __pycache__ folders under gripper_ros/core/, shared by the source tree and the symlinked
+# install). Compile it here, once per change of the core, so that the first grasp_demo loads it
+# in about a second.
 CORE_STAMP="$ROOT/install/.gripper_ros_core.sha256"
 core_hash="$( { "$PY" -c 'import numba, numpy; print(numba.__version__, numpy.__version__)'; \
   find gripper_ros -name '*.py' -print | LC_ALL=C sort | xargs -r sha256sum; } | sha256sum | cut -d' ' -f1)"
 if [[ "$(cat "$CORE_STAMP" 2>/dev/null || true)" == "$core_hash" ]] && \
-    compgen -G "gripper_ros/core/__pycache__/*.nbi" >/dev/null; then
+    compgen -G "gripper_ros/core/runtime/__pycache__/headless*.nbi" >/dev/null; then
   log "compiled core unchanged (stamp matches), warm-up skipped"
 else
   rm -f "$CORE_STAMP"
@@ -240,7 +241,7 @@ else
   find gripper_ros -name '*.nbi' -delete -o -name '*.nbc' -delete
   log "compiling the simulation core (numba; first time: about a minute)"
   (cd /tmp && PYTHONPATH="$ROOT${PYTHONPATH:+:$PYTHONPATH}" "$PY" -c \
-    'from gripper_ros.core.headless import warm_up; print(f"[setup] compiled core ready in {warm_up():.1f} s")' >&2) \
+    'from gripper_ros.core.runtime.headless import warm_up; print(f"[setup] compiled core ready in {warm_up():.1f} s")' >&2) \
     || die "compiling the simulation core failed (see above)"
   echo "$core_hash" > "$CORE_STAMP"
 fi

@@ -12,8 +12,8 @@
 from __future__ import annotations
 
 from gripper_ros.core.config import load_config
-from gripper_ros.core.headless import map_cases, simulate_grasp, simulate_grasps
-from gripper_ros.core.requests import RequestError
+from gripper_ros.core.runtime.headless import map_cases, simulate_grasp, simulate_grasps
+from gripper_ros.core.supervision.requests import RequestError
 from gripper_ros.wire import Outcome
 import numpy as np
 import pytest

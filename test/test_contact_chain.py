@@ -9,14 +9,15 @@ today's Kelvin-Voigt contact. The contact stage keeps its no-spike claim on the 
 import dataclasses
 import math
 
-from gripper_ros.apps.contact_sweep import finger_cases, finger_kinds, sweep
 from gripper_ros.core.config import ConfigError, default_config_path, load_config, parse_config
-from gripper_ros.core.contact_chain import (cantilever_stiffness_n_per_m, chain_compression_m,
-                                            chain_solve, hertz_pad_stiffness_n_per_m1_5,
-                                            PRINTED_FINGER, RUBBER_DOME_PAD)
-from gripper_ros.core.controllers import make_plant
-from gripper_ros.core.headless import simulate_grasp
-from gripper_ros.core.plant import GraspObject
+from gripper_ros.core.control.factories import make_plant
+from gripper_ros.core.physics.contact_chain import (cantilever_stiffness_n_per_m,
+                                                    chain_compression_m, chain_solve,
+                                                    hertz_pad_stiffness_n_per_m1_5, PRINTED_FINGER,
+                                                    RUBBER_DOME_PAD)
+from gripper_ros.core.physics.plant import GraspObject
+from gripper_ros.core.runtime.headless import simulate_grasp
+from gripper_ros.studies.sweep_runs import finger_cases, finger_kinds, sweep
 import numpy as np
 import pytest
 import yaml

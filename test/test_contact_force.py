@@ -10,9 +10,9 @@ import dataclasses
 import math
 
 from gripper_ros.core.config import load_config
-from gripper_ros.core.contact_force import ContactForceController, impact_factor
-from gripper_ros.core.controllers import make_plant
-from gripper_ros.core.plant import GraspObject
+from gripper_ros.core.control.contact_force import ContactForceController, impact_factor
+from gripper_ros.core.control.factories import make_plant
+from gripper_ros.core.physics.plant import GraspObject
 import numpy as np
 import pytest
 
@@ -237,7 +237,7 @@ def test_the_rigid_loops_pi_would_spike_on_the_stiff_object():
     With our rigid gains it overshoots many times over, which is what this stage exists to
     prevent.
     """
-    from gripper_ros.core.controllers import ForceControllerKind, make_force_controller
+    from gripper_ros.core.control.factories import ForceControllerKind, make_force_controller
     plant = make_plant(CONFIG)
     plant.set_object(GraspObject(PLANT.max_travel_m - 0.1, 1e5, 50.0))
     plant.touch_object()
@@ -357,7 +357,7 @@ def test_past_the_narrowest_face_untouched_it_drives_at_the_feedforward_not_a_cr
 
 
 def test_no_object_is_found_quickly():
-    from gripper_ros.core.headless import simulate_grasp
+    from gripper_ros.core.runtime.headless import simulate_grasp
     g = simulate_grasp(CONFIG, 0.05, 0.42, object_width_m=0.0)     # F_sp 6.18 N
     assert g.outcome.name == 'NO_OBJECT'
     # a crawl at the contact speed over the no-object margin would take margin / v_c

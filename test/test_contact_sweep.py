@@ -13,11 +13,12 @@ import dataclasses
 import math
 import os
 
-from gripper_ros.apps.contact_sweep import (band_speed_mps, format_rows, main, max_mass_kg,
-                                            quick_cases, rigid_cases, sweep, SweepCase)
+from gripper_ros.apps.contact_sweep import format_rows, main
 from gripper_ros.core.config import ForceLaw, load_config
-from gripper_ros.core.engine import MAX_JOBS_PER_CPU
-from gripper_ros.core.headless import simulate_grasp
+from gripper_ros.core.runtime.engine import MAX_JOBS_PER_CPU
+from gripper_ros.core.runtime.headless import simulate_grasp
+from gripper_ros.studies.sweep_runs import (band_speed_mps, max_mass_kg, quick_cases, rigid_cases,
+                                            sweep, SweepCase)
 from helpers import within_claimed_peak
 import pytest
 

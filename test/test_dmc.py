@@ -4,9 +4,9 @@ The examples are small; the discrete first-order plant's step response and free 
 known in closed form.
 """
 from gripper_ros.core.config import PidGains
-from gripper_ros.core.dmc import (closed_loop_step_response, dmc_gain, dynamic_matrix,
-                                  DynamicMatrixControl)
-from gripper_ros.core.pid import PID
+from gripper_ros.core.control.dmc import (closed_loop_step_response, dmc_gain, dynamic_matrix,
+                                          DynamicMatrixControl)
+from gripper_ros.core.control.pid import PID
 import numpy as np
 import pytest
 
@@ -214,8 +214,8 @@ def test_braking_governor_phases_in_order_on_the_gripper_model():
     The forced voltages are exactly those, and a short move still starts by accelerating.
     """
     from gripper_ros.core.config import load_config
-    from gripper_ros.core.controllers import make_plant
-    from gripper_ros.core.dmc import BrakingGovernor, GovernorPhase
+    from gripper_ros.core.control.factories import make_plant
+    from gripper_ros.core.control.dmc import BrakingGovernor, GovernorPhase
 
     config = load_config()
     dt = config.position.sample_time_s

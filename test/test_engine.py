@@ -11,7 +11,7 @@ from __future__ import annotations
 import functools
 
 from gripper_ros.apps import contact_sweep
-from gripper_ros.core.engine import check_address, chunked, dask_cluster, map_cases
+from gripper_ros.core.runtime.engine import check_address, chunked, dask_cluster, map_cases
 import pytest
 
 

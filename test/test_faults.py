@@ -15,9 +15,9 @@ import time
 from types import SimpleNamespace
 
 from gripper_ros.core.config import load_config
-from gripper_ros.core.stages import (ForceStageController, LockstepAnswerer,
-                                     PositionStageController, Reference, SOURCE_FORCE,
-                                     SOURCE_POSITION)
+from gripper_ros.core.control.stages import (ForceStageController, LockstepAnswerer,
+                                             PositionStageController, Reference, SOURCE_FORCE,
+                                             SOURCE_POSITION)
 import pytest
 
 CONFIG = load_config()

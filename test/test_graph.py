@@ -6,12 +6,12 @@ import math
 import time
 
 from gripper_interfaces.srv import Grasp
-from gripper_ros.apps.grasp_demo import PAPER_OBJECTS
 from gripper_ros.bags.reader import read_bag
 from gripper_ros.bags.series import load_grasp_series
 from gripper_ros.core.config import load_config
 from gripper_ros.nodes.graph import GripperGraph
 from gripper_ros.nodes.recording import recorded_grasp
+from gripper_ros.studies.paper import PAPER_OBJECTS
 from gripper_ros.wire import (COMMAND_LAYOUT, Controller, DEFAULT_NAMESPACE, DESCRIPTION_TOPICS,
                               GRAPH_TOPICS,
                               LOOP_LAYOUTS, LOOP_TOPICS, Outcome, Phase, qualified,
@@ -254,8 +254,8 @@ def test_stop_ends_the_running_grasp_and_the_next_one_succeeds(graph):
 
 @pytest.mark.parametrize('index', range(len(PAPER_OBJECTS)))
 def test_headless_simulation_reproduces_the_graph_bit_for_bit(paper_runs, index):
-    """gripper_ros.core.headless runs the same logic without ROS: identical series to the bag's."""
-    from gripper_ros.core.headless import simulate_grasp
+    """The headless loop runs the same logic without ROS: identical series to the bag's."""
+    from gripper_ros.core.runtime.headless import simulate_grasp
     width, mass = PAPER_OBJECTS[index]
     series = load_grasp_series(paper_runs[index].bag_dir)
     start_ns = int(round(series.status.t_s[0] * 1e9))
@@ -276,8 +276,8 @@ def test_position_stage_in_the_graph_is_the_controller_step_run(paper_runs, inde
     test_position_limit holds the step run's figures to the targets; here the graph follows it
     up to the switch, and the voltage never leaves +-24 V.
     """
-    from gripper_ros.core.controllers import PositionControllerKind, make_position_controller
-    from gripper_ros.core.step_runs import position_step
+    from gripper_ros.core.control.factories import make_position_controller, PositionControllerKind
+    from gripper_ros.studies.step_runs import position_step
     width, _ = PAPER_OBJECTS[index]
     setpoint = L_LS - width
     series = load_grasp_series(paper_runs[index].bag_dir)
@@ -299,7 +299,7 @@ def test_stiff_object_in_the_graph_no_spike_and_bit_identical_to_headless(graph,
 
     The recorded series equal the headless run that contact_sweep uses.
     """
-    from gripper_ros.core.headless import simulate_grasp
+    from gripper_ros.core.runtime.headless import simulate_grasp
     run = recorded_grasp(graph, tmp_path / 'stiff', 0.05, 1.0, stiffness_n_per_m=1e5,
                          damping_n_s_per_m=50.0)
     assert run.response.success and run.response.outcome == Outcome.HOLDING, \

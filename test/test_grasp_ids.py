@@ -8,11 +8,11 @@ from __future__ import annotations
 
 import os
 
-from gripper_ros.apps.grasp_demo import PAPER_OBJECTS
 from gripper_ros.bags.series import load_grasp_series
 from gripper_ros.nodes.graph import GraphOptions, GripperGraph
 from gripper_ros.nodes.names import claim_folder, GRASP_ID_FILE
 from gripper_ros.nodes.recording import recorded_grasp
+from gripper_ros.studies.paper import PAPER_OBJECTS
 from gripper_ros.wire import DEFAULT_NAMESPACE
 import numpy as np
 import pytest

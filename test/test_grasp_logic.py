@@ -3,9 +3,9 @@ import dataclasses
 import math
 
 from gripper_ros.core.config import ForceLaw, load_config
-from gripper_ros.core.requests import (force_setpoint_n, GraspRequest, RequestError,
-                                       validate_request)
-from gripper_ros.core.supervisor import GraspSupervisor
+from gripper_ros.core.supervision.requests import (force_setpoint_n, GraspRequest, RequestError,
+                                                   validate_request)
+from gripper_ros.core.supervision.supervisor import GraspSupervisor
 from gripper_ros.wire import Controller, Outcome, Phase, SwitchCriterion
 import pytest
 

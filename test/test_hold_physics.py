@@ -10,9 +10,9 @@ import math
 from pathlib import Path
 
 from gripper_ros.core.config import load_config
-from gripper_ros.core.controllers import make_plant
-from gripper_ros.core.hold import HoldModel, HoldState, Lift
-from gripper_ros.core.plant import ContactState, GraspObject
+from gripper_ros.core.control.factories import make_plant
+from gripper_ros.core.physics.hold import HoldModel, HoldState, Lift
+from gripper_ros.core.physics.plant import ContactState, GraspObject
 import numpy as np
 import pytest
 from scipy.linalg import expm
@@ -390,7 +390,7 @@ def test_a_bad_lift_off_is_refused_naming_it(bad):
 def test_a_lifts_own_lift_off_wins_and_0_means_the_configs(lift_off_s, config_s, expected_s):
     """SetObject.lift_off_s (the Lift's) sets the hand-over; 0 leaves contact.lift_off_s."""
     import dataclasses
-    from gripper_ros.core.plant import K_HOLD
+    from gripper_ros.core.physics.plant import K_HOLD
     config = dataclasses.replace(CONFIG, contact=dataclasses.replace(C, lift_off_s=config_s))
     plant = make_plant(config)
     plant.set_object(GraspObject(WIDTH_M, mass_kg=1.0),

@@ -20,8 +20,8 @@ from gripper_ros.nodes.graph import GraphOptions, GripperGraph
 from gripper_ros.nodes.plant_simulator_node import MAX_STEP_TICKS
 from gripper_ros.nodes.qos import SERVICE_QOS
 from gripper_ros.wire import (GRAPH_NOT_READY, MAX_NAMESPACE_LENGTH, NODE_POSITION_CONTROLLER,
-                              Outcome, Phase, SERVICE_PAUSE, SERVICE_SET_OBJECT, SERVICE_STOP, TOPIC_TF,
-                              TOPIC_TF_STATIC)
+                              Outcome, Phase, SERVICE_PAUSE, SERVICE_SET_OBJECT, SERVICE_STOP,
+                              TOPIC_TF, TOPIC_TF_STATIC)
 import pytest
 from rcl_interfaces.msg import Parameter as ParameterMsg, ParameterType, ParameterValue
 from rcl_interfaces.srv import GetParameters, SetParameters

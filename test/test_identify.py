@@ -14,11 +14,11 @@ from pathlib import Path
 
 from gripper_ros.bags import identify as bag_identify
 from gripper_ros.core.config import ConfigError, load_config, parse_config
-from gripper_ros.core.controllers import make_plant
-from gripper_ros.core.excitation import (check_spec, excitation_moves, ExcitationSpec,
-                                         free_band_m, MAX_SECONDS, STOP_WIDTH_M,
-                                         TRAVEL_MARGIN_M)
-from gripper_ros.core.headless import simulate_grasp, simulate_moves
+from gripper_ros.core.control.factories import make_plant
+from gripper_ros.core.runtime.headless import simulate_grasp, simulate_moves
+from gripper_ros.identify.excitation import (check_spec, excitation_moves, ExcitationSpec,
+                                             free_band_m, MAX_SECONDS, STOP_WIDTH_M,
+                                             TRAVEL_MARGIN_M)
 from gripper_ros.identify.fit import (check_run, COMBINATION_NEEDS, combinations, identify,
                                       IdentifyError, linear_seed, nrmse, Run)
 from helpers import run_main

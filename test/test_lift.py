@@ -11,9 +11,9 @@ from pathlib import Path
 import subprocess
 import sys
 
-from gripper_ros.apps.grasp_demo import LIFT_DELAY_S, LIFT_DURATION_S
-from gripper_ros.apps.lift_table import lift_rows, markdown
+from gripper_ros.apps.lift_table import markdown
 from gripper_ros.core.config import load_config
+from gripper_ros.studies.lift_runs import LIFT_DELAY_S, LIFT_DURATION_S, lift_rows
 import pytest
 
 

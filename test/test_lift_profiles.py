@@ -8,7 +8,7 @@ import math
 from pathlib import Path
 
 from gripper_ros.core.config import load_config
-from gripper_ros.core.hold import HoldModel, HoldState, Lift, parse_profile, SHAKE_SAMPLE_S
+from gripper_ros.core.physics.hold import HoldModel, HoldState, Lift, parse_profile, SHAKE_SAMPLE_S
 from gripper_ros.wire import LiftProfile
 import pytest
 

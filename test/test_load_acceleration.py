@@ -11,7 +11,7 @@ import time
 
 from geometry_msgs.msg import AccelStamped
 from gripper_ros.core.config import load_config
-from gripper_ros.core.hold import HoldState
+from gripper_ros.core.physics.hold import HoldState
 from gripper_ros.nodes.graph import GraphOptions, GripperGraph
 from gripper_ros.nodes.qos import GRAPH_QOS
 from gripper_ros.wire import Outcome, TOPIC_LOAD_ACCELERATION

@@ -12,9 +12,9 @@ import math
 from gripper_ros.apps.common import with_values
 from gripper_ros.apps.grip_study import DEFAULT_LIFT_OFF_S
 from gripper_ros.core.config import load_config
-from gripper_ros.core.grip_runs import simulate_load_grip
-from gripper_ros.core.hold import Lift, presliding_m
-from gripper_ros.core.load_grip import law_step, make_law, MU_GRID
+from gripper_ros.core.control.load_grip import law_step, make_law, MU_GRID
+from gripper_ros.core.physics.hold import Lift, presliding_m
+from gripper_ros.studies.grip_runs import simulate_load_grip
 from gripper_ros.wire import LiftProfile
 import numpy as np
 import pytest

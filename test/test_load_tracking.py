@@ -1,8 +1,8 @@
 """A grasp of unknown mass (``mass_kg`` 0): the supervisor's load-tracking grip, headless and live.
 
-The supervisor runs the law (core/load_grip.py) each tick on the pads' readings the tick carries.
-Known answers: the same request twice gives the same bits; the graph gives the headless run's
-ticks, pad readings included; a 0.6 kg object (mu_s 0.5) is held through a +-3 m/s^2
+The supervisor runs the law (core/control/load_grip.py) each tick on the pads' readings the tick
+carries. Known answers: the same request twice gives the same bits; the graph gives the headless
+run's ticks, pad readings included; a 0.6 kg object (mu_s 0.5) is held through a +-3 m/s^2
 pick-and-place with at most 0.5 mm of slip (the issue's bound); a 2.2 kg object on mu_s 0.3
 needs 2.2 x 9.81 / (2 x 0.3) = 36.0 N at rest, more than the 33.39 N of 24 V, and the overload
 is answered, with both numbers, before the plant loses the object.
@@ -15,12 +15,12 @@ from gripper_interfaces.msg import SupervisorStatus
 from gripper_ros.bags.analyze import analyze_series
 from gripper_ros.bags.series import load_grasp_series
 from gripper_ros.core.config import load_config
-from gripper_ros.core.grip_runs import simulate_load_grip
-from gripper_ros.core.headless import simulate_grasp
-from gripper_ros.core.hold import Lift
+from gripper_ros.core.physics.hold import Lift
+from gripper_ros.core.runtime.headless import simulate_grasp
 from gripper_ros.nodes.graph import GripperGraph
 from gripper_ros.nodes.qos import GRAPH_QOS, LATCHED_QOS
 from gripper_ros.nodes.recording import recorded_grasp
+from gripper_ros.studies.grip_runs import simulate_load_grip
 from gripper_ros.wire import LiftProfile, Outcome, Phase, TOPIC_OUTCOME, TOPIC_STATUS
 import numpy as np
 import pytest

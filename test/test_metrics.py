@@ -1,8 +1,8 @@
 """RMS error, % overshoot and 2 % settling time against closed-form step responses."""
 import math
 
-from gripper_ros.core.metrics import (percent_overshoot, rms_error, SETTLING_BAND, settling_time,
-                                      step_metrics)
+from gripper_ros.studies.metrics import (percent_overshoot, rms_error, SETTLING_BAND,
+                                         settling_time, step_metrics)
 from hypothesis import given, settings
 from hypothesis import strategies as st
 import numpy as np

@@ -14,12 +14,12 @@ import time
 from types import SimpleNamespace
 
 from gripper_ros.core.config import load_config
-from gripper_ros.core.gripper_command import (goal_end, GoalEnd, joint_state_fields,
-                                              move_request_of, result_fields)
-from gripper_ros.core.headless import MoveRequest, simulate_moves
-from gripper_ros.core.requests import (GraspRequest, MoveTargets, RequestError, validate_move,
-                                       validate_request)
-from gripper_ros.core.supervisor import GraspSupervisor
+from gripper_ros.core.runtime.headless import MoveRequest, simulate_moves
+from gripper_ros.core.supervision.gripper_command import (goal_end, GoalEnd, joint_state_fields,
+                                                          move_request_of, result_fields)
+from gripper_ros.core.supervision.requests import (GraspRequest, MoveTargets, RequestError,
+                                                   validate_move, validate_request)
+from gripper_ros.core.supervision.supervisor import GraspSupervisor
 from gripper_ros.wire import Controller, FINGER_JOINT, Outcome, Phase
 import numpy as np
 import pytest
@@ -207,7 +207,8 @@ def test_every_position_controller_keeps_the_speed_limit():
 @pytest.mark.parametrize('field', ['speed_limit_mps', 'voltage_limit_v'])
 @pytest.mark.parametrize('bad', [math.nan, math.inf])
 def test_the_position_stage_never_acts_on_a_non_finite_limit(field, bad):
-    from gripper_ros.core.stages import LockstepAnswerer, PositionStageController, Reference
+    from gripper_ros.core.control.stages import (LockstepAnswerer, PositionStageController,
+                                                 Reference)
 
     answerer = LockstepAnswerer(PositionStageController(CONFIG))
     ref = Reference(10 * MS, 1, 1, 0, int(Phase.MOVING), 0, int(Controller.POSITION), True,
@@ -219,7 +220,7 @@ def test_the_position_stage_never_acts_on_a_non_finite_limit(field, bad):
 
 
 def test_the_voltage_limit_caps_only_the_push_towards_the_setpoint():
-    from gripper_ros.core.stages import PositionStageController, Reference
+    from gripper_ros.core.control.stages import PositionStageController, Reference
 
     stage = PositionStageController(CONFIG, 'pd')
     cap_v = 5.0 / P.stall_force_per_volt_n

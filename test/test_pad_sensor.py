@@ -7,8 +7,8 @@ late and then rises as the first-order low-pass ``1 - exp(-2 pi f t)``.
 import math
 from pathlib import Path
 
-from gripper_ros.core.config import load_config
-from gripper_ros.core.pad_sensor import ChannelSpec, PadChannel
+from gripper_ros.core.config import ChannelSpec, load_config
+from gripper_ros.core.physics.pad_sensor import PadChannel
 import numpy as np
 import pytest
 

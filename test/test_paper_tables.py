@@ -7,9 +7,11 @@ from pathlib import Path
 
 from gripper_ros.apps import paper_tables
 from gripper_ros.core.config import load_config
-from gripper_ros.core.controllers import force_pi_gains, ForceControllerKind, make_force_controller
-from gripper_ros.core.metrics import step_metrics, StepMetrics
-from gripper_ros.core.step_runs import force_step
+from gripper_ros.core.control.factories import (force_pi_gains, ForceControllerKind,
+                                                make_force_controller)
+from gripper_ros.studies.metrics import step_metrics, StepMetrics
+from gripper_ros.studies.paper import PAPER_TABLE_III, PAPER_TABLE_IV
+from gripper_ros.studies.step_runs import force_step
 import numpy as np
 import pytest
 from scipy.signal import step as lti_step
@@ -57,7 +59,7 @@ def paper_table(title):
 
 
 @pytest.mark.parametrize('title, published', [
-    ('TABLE III', paper_tables.PAPER_TABLE_III), ('TABLE IV', paper_tables.PAPER_TABLE_IV)])
+    ('TABLE III', PAPER_TABLE_III), ('TABLE IV', PAPER_TABLE_IV)])
 def test_the_paper_column_is_the_papers_table(title, published):
     """Every cell of the paper column, controller by controller, as the paper prints it."""
     assert published == paper_table(title)

@@ -524,7 +524,7 @@ def test_a_gain_set_over_the_parameter_services_takes_effect_at_the_next_stage(
     import dataclasses
     from gripper_ros.bags.series import load_grasp_series
     from gripper_ros.core.config import load_config
-    from gripper_ros.core.headless import simulate_grasp
+    from gripper_ros.core.runtime.headless import simulate_grasp
     from gripper_ros.nodes.recording import recorded_grasp
     key = 'position_control.mpc_pd.kc'
     shipped = SHIPPED_DATA['position_control']['mpc_pd']['kc']

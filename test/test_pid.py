@@ -7,7 +7,8 @@ import copy
 import math
 
 from gripper_ros.core.config import PidGains
-from gripper_ros.core.pid import AntiWindup, DerivativeOn, first_order_pi_by_pole_placement, PID
+from gripper_ros.core.control.pid import (AntiWindup, DerivativeOn,
+                                          first_order_pi_by_pole_placement, PID)
 from hypothesis import given, settings
 from hypothesis import strategies as st
 import numpy as np

@@ -9,8 +9,9 @@ import math
 from pathlib import Path
 
 from gripper_ros.core.config import ForceSensorParams, load_config, object_contact
-from gripper_ros.core.force_sensor import FsrVoltageDivider
-from gripper_ros.core.plant import check_fault, ContactState, FaultKind, GraspObject, GripperPlant
+from gripper_ros.core.physics.force_sensor import FsrVoltageDivider
+from gripper_ros.core.physics.plant import (check_fault, ContactState, FaultKind, GraspObject,
+                                            GripperPlant)
 import numpy as np
 import pytest
 from scipy.linalg import expm

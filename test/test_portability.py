@@ -23,10 +23,11 @@ ROOT = Path(__file__).resolve().parents[1]
 
 MODELS = r"""
 import hashlib
-from gripper_ros.core import dmc, linalg
+from gripper_ros.core import linalg
+from gripper_ros.core.control import dmc
 from gripper_ros.core.config import load_config
 
-from gripper_ros.core.plant import _discretise, _raw_constants, DISC_COMPLIANT, DISC_LOADED
+from gripper_ros.core.physics.plant import _discretise, _raw_constants, DISC_COMPLIANT, DISC_LOADED
 import numpy as np
 config = load_config()
 raw = _raw_constants(config.plant)
@@ -45,8 +46,8 @@ print(h.hexdigest())
 GRASP = r"""
 import hashlib
 from gripper_ros.core.config import load_config
-from gripper_ros.core.headless import simulate_grasp
-from gripper_ros.core.hold import Lift
+from gripper_ros.core.runtime.headless import simulate_grasp
+from gripper_ros.core.physics.hold import Lift
 config = load_config()
 h = hashlib.sha256()
 for kw in (dict(width_m=0.05, mass_kg=1.69),

@@ -1,12 +1,13 @@
 """Physical floor of the 0.1 m position step and the limit-aware MPC-PD against it (no ROS)."""
 import dataclasses
 
-from gripper_ros.apps.position_limit import main, minimum_time_floor, rms_floor
+from gripper_ros.apps.position_limit import main
 from gripper_ros.core.config import load_config
-from gripper_ros.core.controllers import (make_plant, make_position_controller,
-                                          PositionControllerKind)
-from gripper_ros.core.metrics import step_metrics
-from gripper_ros.core.step_runs import position_step
+from gripper_ros.core.control.factories import (make_plant, make_position_controller,
+                                                PositionControllerKind)
+from gripper_ros.studies.metrics import step_metrics
+from gripper_ros.studies.position_floor import minimum_time_floor, rms_floor
+from gripper_ros.studies.step_runs import position_step
 import numpy as np
 import pytest
 

@@ -10,9 +10,9 @@ import math
 from pathlib import Path
 
 from gripper_ros.core.config import load_config
-from gripper_ros.core.controllers import make_plant
-from gripper_ros.core.hold import HoldModel, HoldState, Lift, presliding_m
-from gripper_ros.core.plant import GraspObject
+from gripper_ros.core.control.factories import make_plant
+from gripper_ros.core.physics.hold import HoldModel, HoldState, Lift, presliding_m
+from gripper_ros.core.physics.plant import GraspObject
 import pytest
 
 REPO = Path(__file__).resolve().parents[1]

@@ -7,7 +7,7 @@ import threading
 
 from gripper_interfaces.srv import Grasp
 from gripper_ros.core.config import load_config
-from gripper_ros.core.requests import GraspRequest, RequestError, validate_request
+from gripper_ros.core.supervision.requests import GraspRequest, RequestError, validate_request
 from gripper_ros.nodes.graph import GripperGraph
 from gripper_ros.wire import Outcome
 from hypothesis import given, HealthCheck, settings

@@ -24,8 +24,8 @@ from pathlib import Path
 from gripper_ros.bags import replay as bag_replay
 from gripper_ros.bags import rerun
 from gripper_ros.core.config import ConfigError, load_config, parse_config
-from gripper_ros.core.controllers import position_step_response
-from gripper_ros.core.headless import simulate_grasp
+from gripper_ros.core.control.factories import position_step_response
+from gripper_ros.core.runtime.headless import simulate_grasp
 from gripper_ros.nodes.graph import GraphOptions, GripperGraph
 from gripper_ros.nodes.recording import recorded_grasp, ServeRecorder
 from gripper_ros.nodes.services import wait_until
@@ -156,7 +156,7 @@ def test_paper_pi_on_a_stiff_object_shows_the_spike_the_recording_did_not(bags, 
 # --- a position gain and the linear model --------------------------------------------------------
 
 def _model_band_entry_s(kc: float) -> float:
-    """First time the unsaturated PD + plant step response (core.controllers) reaches 98 %."""
+    """First time the unsaturated PD + plant step response (control/factories.py) reaches 98 %."""
     data = copy.deepcopy(CONFIG.data)
     data['position_control']['pd']['kc'] = kc
     config = parse_config(data)

@@ -18,8 +18,8 @@ from gripper_ros.bags import replay as bag_replay
 from gripper_ros.bags.reader import EXIT_ERROR, EXIT_TRUNCATED, MissingTopicsError, read_bag
 from gripper_ros.bags.resimulate import OPEN_LOOP_NOTE, resimulate_bag
 from gripper_ros.core.config import ConfigError, default_config_path, load_config, parse_config
-from gripper_ros.core.stages import (ForceStageController, LockstepAnswerer,
-                                     PositionStageController, Reference)
+from gripper_ros.core.control.stages import (ForceStageController, LockstepAnswerer,
+                                             PositionStageController, Reference)
 from gripper_ros.nodes.graph import GripperGraph
 from gripper_ros.nodes.recording import recorded_grasp
 from helpers import run_main

@@ -15,7 +15,7 @@ import xml.etree.ElementTree as ET
 from diagnostic_msgs.msg import DiagnosticStatus
 from gripper_ros.core.config import load_config
 from gripper_ros.core.description import urdf_text
-from gripper_ros.core.gripper_command import grip_status_fields
+from gripper_ros.core.supervision.gripper_command import grip_status_fields
 from gripper_ros.nodes.graph import GraphOptions, GripperGraph
 from gripper_ros.nodes.qos import GRAPH_QOS, LATCHED_QOS
 from gripper_ros.nodes.services import wait_until

@@ -9,10 +9,10 @@ from __future__ import annotations
 import math
 
 from gripper_ros.core.config import load_config
-from gripper_ros.core.headless import simulate_grasp
-from gripper_ros.core.stages import (COMMAND_DTYPE, ForceStageController, LockstepAnswerer,
-                                     PositionStageController, Reference, REFERENCE_DTYPE,
-                                     stage_answer)
+from gripper_ros.core.control.stages import (COMMAND_DTYPE, ForceStageController, LockstepAnswerer,
+                                             PositionStageController, Reference, REFERENCE_DTYPE,
+                                             stage_answer)
+from gripper_ros.core.runtime.headless import simulate_grasp
 from gripper_ros.wire import Controller, Outcome
 import numpy as np
 import pytest

@@ -1,4 +1,4 @@
-"""What the console apps share: the configuration loaded as a command line expects."""
+"""What the console apps share: the config loaded, options checked, a graph run and closed."""
 from __future__ import annotations
 
 import copy
@@ -40,3 +40,29 @@ def with_values(config, values: dict):
     data = apply_settings(config.data, sorted(values.items()), config.source)
     source = config.source + ' with ' + ', '.join(f'{k}={v!r}' for k, v in sorted(values.items()))
     return parse_config(copy.deepcopy(data), source)
+
+
+def run_graph(prog: str, make_graph, work, signals, closed: str, errors=()) -> int:
+    """Return the exit code of ``work(graph)`` on the graph that ``make_graph()`` starts.
+
+    A start-up, graph or recording error (or one of ``errors``) is one line, ``prog: why``, and
+    exit 2; Ctrl-C or SIGTERM, raised as KeyboardInterrupt by ``signals``, says that the
+    ``closed`` bags were closed, exit 130. The graph and ``signals`` are closed in every case.
+    """
+    from gripper_ros.bags.recorder import BagRecorderError, RecordingError
+    from gripper_ros.nodes.graph import GraphError
+    from gripper_ros.nodes.process import close_app_graph
+    from gripper_ros.nodes.startup import StartupError
+    graph = None
+    try:
+        graph = make_graph()
+        return work(graph)
+    except (ConfigError, StartupError, GraphError, BagRecorderError, RecordingError,
+            RuntimeError, *errors) as exc:
+        print(f'{prog}: {exc}', file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(f'{prog}: interrupted; {closed} closed', file=sys.stderr)
+        return 130
+    finally:
+        close_app_graph(graph, signals)

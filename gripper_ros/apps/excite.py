@@ -5,7 +5,7 @@
 
 The gripper goes through a seeded sequence of moves inside its travel at pseudo-random speeds,
 the driving voltage capped at ``--amplitude-v``, and (unless ``--no-hold``) every few moves it
-presses on a rigid stop for the force model (:mod:`gripper_ros.core.excitation`). It all goes
+presses on a rigid stop for the force model (:mod:`gripper_ros.identify.excitation`). It all goes
 through the ``move`` service, so ``stop`` ends it at once. The bag is written under
 ``--output`` and its path printed as ``bag: PATH``; ``bag_identify PATH`` fits the plant to it.
 """
@@ -23,7 +23,7 @@ EXCITATION_FORMAT = 1       # custom_data 'excitation' layout
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from gripper_ros.core.excitation import ExcitationSpec, MAX_SECONDS, MIN_SECONDS
+    from gripper_ros.identify.excitation import ExcitationSpec, MAX_SECONDS, MIN_SECONDS
     from gripper_ros.wire import DEFAULT_NAMESPACE
     d = ExcitationSpec()
     p = argparse.ArgumentParser(prog='excite', description=__doc__.splitlines()[0])
@@ -64,12 +64,10 @@ def main(argv: list[str] | None = None) -> int:
 
     args = build_parser().parse_args(remove_ros_args(sys.argv if argv is None else
                                                      ['excite', *argv])[1:])
-    from gripper_ros.bags.recorder import BagRecorderError
-    from gripper_ros.bags.recorder import RecordingError
+    from gripper_ros.apps.common import run_graph
     from gripper_ros.core.config import ConfigError, load_config, parse_config
-    from gripper_ros.core.excitation import check_spec, ExcitationSpec
-    from gripper_ros.nodes.graph import GraphError, GraphOptions, GripperGraph
-    from gripper_ros.nodes.startup import StartupError
+    from gripper_ros.identify.excitation import check_spec, ExcitationSpec
+    from gripper_ros.nodes.graph import GraphOptions, GripperGraph
     from gripper_ros.wire import check_namespace, TimeMode
 
     spec = ExcitationSpec(args.seconds, args.amplitude_v, args.seed, not args.no_hold)
@@ -89,8 +87,7 @@ def main(argv: list[str] | None = None) -> int:
             parse_config(data, 'the noise options')      # the reader's checks, named
     except (ValueError, ConfigError) as exc:
         return _fail(str(exc))
-    from gripper_ros.nodes.process import (close_app_graph, raise_keyboard_interrupt,
-                                           StopSignals)
+    from gripper_ros.nodes.process import raise_keyboard_interrupt, StopSignals
     from rclpy.signals import SignalHandlerOptions
     # Ctrl-C and SIGTERM end the experiment here (KeyboardInterrupt), not inside rclpy: the
     # graph stops and the bag is closed first, and a second signal cannot cut that short (as
@@ -98,23 +95,15 @@ def main(argv: list[str] | None = None) -> int:
     rclpy.init(args=None if argv is None else [], signal_handler_options=SignalHandlerOptions.NO)
     signals = StopSignals(on_first=raise_keyboard_interrupt)
     signals.__enter__()
-    graph = None
-    try:
-        graph = GripperGraph(GraphOptions(config_file=args.config, namespace=namespace,
-                                          time_mode=TimeMode.FAST.parameter,
-                                          plant_parameters=noise))
+
+    def excite(graph) -> int:
         bag_dir, outcome = recorded_excitation(graph, Path(args.output), spec)
         print(f'excite: {outcome}', flush=True)
         print(f'bag: {bag_dir}', flush=True)
         return 0
-    except (ConfigError, StartupError, ValueError, GraphError, BagRecorderError, RecordingError,
-            RuntimeError) as exc:
-        return _fail(str(exc))
-    except KeyboardInterrupt:
-        print('excite: interrupted; bag closed', file=sys.stderr)
-        return 130
-    finally:
-        close_app_graph(graph, signals)
+    return run_graph('excite', lambda: GripperGraph(GraphOptions(
+        config_file=args.config, namespace=namespace, time_mode=TimeMode.FAST.parameter,
+        plant_parameters=noise)), excite, signals, 'bag', errors=(ValueError,))
 
 
 def run_excitation(graph, spec) -> str:
@@ -123,7 +112,7 @@ def run_excitation(graph, spec) -> str:
     Returns how it ended; a move that ends otherwise than MOVED, STALLED or TIMEOUT (a
     ``stop``, a refusal, a fault) ends the experiment at once.
     """
-    from gripper_ros.core.excitation import ExcitationRun
+    from gripper_ros.identify.excitation import ExcitationRun
     from gripper_ros.wire import Outcome
     run = ExcitationRun(spec, graph.plant.config.plant, graph.sim_time_ns)
     while (move := run.next_move(graph.sim_time_ns)) is not None:
@@ -137,7 +126,7 @@ def run_excitation(graph, spec) -> str:
 def recorded_excitation(graph, output: Path, spec) -> tuple[Path, str]:
     """Place the rigid stop, record every topic of the graph and run the experiment."""
     from gripper_ros.bags.recorder import BagRecorder, RecordingError, unique_bag_dir
-    from gripper_ros.core.excitation import STOP_WIDTH_M
+    from gripper_ros.identify.excitation import STOP_WIDTH_M
     from gripper_ros.nodes.recording import bag_metadata, drain_published, graph_tap
     width = STOP_WIDTH_M if spec.hold else 0.0
     placed = graph.set_object(width)

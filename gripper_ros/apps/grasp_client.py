@@ -29,14 +29,12 @@ from __future__ import annotations
 import argparse
 import os
 import sys
-import time
 
 from gripper_ros.nodes.process import StopSignals
+from gripper_ros.nodes.services import call_spinning, spin_until_done
 from gripper_ros.wire import (ACTION_GRASP, check_namespace, DEFAULT_NAMESPACE, Outcome, Phase,
                               SERVICE_GRASP, SERVICE_RELEASE, SERVICE_SET_OBJECT)
 
-SPIN_SLICE_S = 0.1
-"""Wall seconds of one spin: how soon a stop signal is seen while waiting for an answer."""
 EXIT_INTERRUPTED = 130
 
 
@@ -66,28 +64,6 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
-def _spin_until(node, future, timeout_s: float, signals=None) -> bool:
-    """Spin until ``future`` is done, ``timeout_s`` has passed or a stop signal came."""
-    import rclpy
-    deadline = time.monotonic() + timeout_s
-    while not future.done() and (signals is None or signals.received is None):
-        left = deadline - time.monotonic()
-        if left <= 0:
-            break
-        rclpy.spin_once(node, timeout_sec=min(SPIN_SLICE_S, left))
-    return future.done()
-
-
-def _call(node, client, request, timeout_s: float, signals=None):
-    future = client.call_async(request)
-    if not _spin_until(node, future, timeout_s, signals):
-        client.remove_pending_request(future)
-        if signals is not None and signals.received is not None:
-            raise KeyboardInterrupt
-        return None
-    return future.result()
-
-
 def _request_fields(args) -> dict:
     """Return the grasp request of the command line (the service request and the goal alike)."""
     return {'width_m': args.width, 'mass_kg': args.mass, 'friction_coefficient': args.friction,
@@ -114,16 +90,16 @@ def _grasp_by_action(node, args, signals):
 
     sent = client.send_goal_async(GraspAction.Goal(**_request_fields(args)),
                                   feedback_callback=on_feedback)
-    _spin_until(node, sent, args.call_timeout)     # a goal sent is cancelled, not abandoned
+    spin_until_done(node, sent, args.call_timeout)     # a goal sent is cancelled, not abandoned
     if not sent.done() or not sent.result().accepted:
         return None
     handle = sent.result()
     result = handle.get_result_async()
-    if not _spin_until(node, result, args.call_timeout, signals) and \
+    if not spin_until_done(node, result, args.call_timeout, signals) and \
             signals.received is not None:
         print('grasp_client: cancelling the goal', file=sys.stderr, flush=True)
-        _spin_until(node, handle.cancel_goal_async(), args.wait)
-        _spin_until(node, result, args.wait)
+        spin_until_done(node, handle.cancel_goal_async(), args.wait)
+        spin_until_done(node, result, args.wait)
     return result.result().result if result.done() else None
 
 
@@ -135,7 +111,7 @@ def _release(node, args, signals: StopSignals) -> int:
         print(f'grasp_client: service {SERVICE_RELEASE} not available after {args.wait:g} s',
               file=sys.stderr)
         return 2
-    response = _call(node, client, Trigger.Request(), args.call_timeout, signals)
+    response = call_spinning(node, client, Trigger.Request(), args.call_timeout, signals)
     if response is None:
         print(f'grasp_client: the release did not answer within {args.call_timeout:g} s',
               file=sys.stderr)
@@ -187,11 +163,11 @@ def _run(rclpy, args, namespace: str, signals: StopSignals) -> int:
             width = args.width if args.object_width is None else args.object_width
             request = SetObject.Request(width_m=width, stiffness_n_per_m=args.stiffness,
                                         open_fingers=True)
-            placed = _call(node, place, request, args.call_timeout, signals)
+            placed = call_spinning(node, place, request, args.call_timeout, signals)
             if placed is not None and not placed.success and 'is held' in placed.message:
                 print('grasp_client: an object is held: releasing it first', flush=True)
                 if _release(node, args, signals) == 0:
-                    placed = _call(node, place, request, args.call_timeout, signals)
+                    placed = call_spinning(node, place, request, args.call_timeout, signals)
             if placed is None:
                 print('grasp_client: set_object did not answer', file=sys.stderr)
                 return 2
@@ -200,8 +176,8 @@ def _run(rclpy, args, namespace: str, signals: StopSignals) -> int:
         if args.action:
             response = _grasp_by_action(node, args, signals)
         else:
-            response = _call(node, grasp, Grasp.Request(**_request_fields(args)),
-                             args.call_timeout, signals)
+            response = call_spinning(node, grasp, Grasp.Request(**_request_fields(args)),
+                                     args.call_timeout, signals)
         if response is None and signals.received is not None:
             print('grasp_client: interrupted before the answer', file=sys.stderr)
             return EXIT_INTERRUPTED

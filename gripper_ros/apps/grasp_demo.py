@@ -19,11 +19,6 @@ from pathlib import Path
 import sys
 import time
 
-# Table V of the paper: (width m, mass kg).
-PAPER_OBJECTS = ((0.01, 1.27), (0.05, 1.69), (0.10, 0.75))
-LIFT_DELAY_S = 0.2       # --lift: from HOLDING to the start of the lift
-LIFT_DURATION_S = 1.0    # --lift: how long the arm accelerates upward
-
 
 @dataclass
 class GraspRecord:
@@ -38,10 +33,12 @@ class GraspRecord:
 
 def build_parser() -> argparse.ArgumentParser:
     from gripper_ros.core.config import ForceLaw
-    from gripper_ros.core.controllers import ForceControllerKind, PositionControllerKind
-    from gripper_ros.core.stages import (DEFAULT_APPROACH_FORCE_MARGIN, DEFAULT_FORCE_CONTROLLER,
-                                         DEFAULT_POSITION_CONTROLLER)
+    from gripper_ros.core.control.factories import ForceControllerKind, PositionControllerKind
+    from gripper_ros.core.control.stages import (DEFAULT_APPROACH_FORCE_MARGIN,
+                                                 DEFAULT_FORCE_CONTROLLER,
+                                                 DEFAULT_POSITION_CONTROLLER)
     from gripper_ros.nodes.process import ExecutorKind
+    from gripper_ros.studies.lift_runs import LIFT_DELAY_S, LIFT_DURATION_S
     from gripper_ros.wire import DEFAULT_NAMESPACE, TIME_MODE_CHOICES
     p = argparse.ArgumentParser(prog='grasp_demo', description=__doc__.splitlines()[0])
     p.add_argument('--width', type=float, help='object width (m); with --mass grasps one object')
@@ -146,6 +143,7 @@ def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(user_args)
     if (args.width is None) != (args.mass is None):
         return _fail('--width and --mass go together')
+    from gripper_ros.studies.paper import PAPER_OBJECTS
     objects = PAPER_OBJECTS if args.width is None else ((args.width, args.mass),)
     for w, m in objects:
         if not (math.isfinite(w) and math.isfinite(m)):
@@ -155,13 +153,13 @@ def main(argv: list[str] | None = None) -> int:
                                       'static_friction', 'kinetic_friction', 'lift_off'))
     if negative:
         return _fail(negative)
-    from gripper_ros.core.hold import MAX_LIFT_OFF_S
+    from gripper_ros.core.physics.hold import MAX_LIFT_OFF_S
     if args.lift_off > MAX_LIFT_OFF_S:
         return _fail(f'--lift-off must be <= {MAX_LIFT_OFF_S:g} s, got {args.lift_off!r}')
     if args.lift_off and not (args.lift or args.profile):
         return _fail('--lift-off needs a lift (--lift or --profile)')
     if args.profile is not None:
-        from gripper_ros.core.hold import parse_profile
+        from gripper_ros.core.physics.hold import parse_profile
         if args.lift:
             return _fail('--lift and --profile do not go together (--lift A is step:A)')
         try:
@@ -170,15 +168,12 @@ def main(argv: list[str] | None = None) -> int:
             return _fail(f'--profile: {exc}')
         args.lift = args.profile[1]
 
-    from gripper_ros.bags.recorder import BagRecorderError, RecordingError
-    from gripper_ros.core.config import ConfigError
-    from gripper_ros.nodes.graph import GraphError, GraphOptions, GripperGraph
+    from gripper_ros.apps.common import run_graph
+    from gripper_ros.nodes.graph import GraphOptions, GripperGraph
     from gripper_ros.nodes.names import namespace_as_given
-    from gripper_ros.nodes.process import (close_app_graph, ExecutorKind,
-                                           exit_without_a_last_collection,
+    from gripper_ros.nodes.process import (ExecutorKind, exit_without_a_last_collection,
                                            raise_keyboard_interrupt, StopSignals)
     from gripper_ros.nodes.recording import ServeRecorder
-    from gripper_ros.nodes.startup import StartupError
     from gripper_ros.text import one_line
     from gripper_ros.wire import check_namespace, TimeMode
 
@@ -215,16 +210,8 @@ def main(argv: list[str] | None = None) -> int:
     exit_without_a_last_collection()
     signals = StopSignals(on_first=None if args.serve else raise_keyboard_interrupt)
     signals.__enter__()
-    graph = None
-    try:
-        graph = GripperGraph(GraphOptions(
-            executor=ExecutorKind(args.executor), config_file=args.config, namespace=namespace,
-            time_mode=time_mode, real_time_factor=args.real_time_factor,
-            publish_clock=not args.no_clock, position_controller=args.position_controller,
-            force_controller=args.force_controller,
-            approach_force_margin=args.approach_force_margin,
-            supervisor_parameters={} if args.force_law is None else
-            {'supervisor.force_law': args.force_law}))
+
+    def demo(graph) -> int:
         if args.serve:
             if not args.no_record:
                 ServeRecorder(graph, args.output)
@@ -233,14 +220,13 @@ def main(argv: list[str] | None = None) -> int:
                    for i, (w, m) in enumerate(objects, 1)]
         _summarise(graph, records, args)
         return 0 if all(r.final_outcome == 'HOLDING' for r in records) else 1
-    except (ConfigError, StartupError, GraphError, BagRecorderError, RecordingError,
-            RuntimeError) as exc:
-        return _fail(str(exc))
-    except KeyboardInterrupt:
-        print('grasp_demo: interrupted; bags closed', file=sys.stderr)
-        return 130
-    finally:
-        close_app_graph(graph, signals)
+    return run_graph('grasp_demo', lambda: GripperGraph(GraphOptions(
+        executor=ExecutorKind(args.executor), config_file=args.config, namespace=namespace,
+        time_mode=time_mode, real_time_factor=args.real_time_factor,
+        publish_clock=not args.no_clock, position_controller=args.position_controller,
+        force_controller=args.force_controller, approach_force_margin=args.approach_force_margin,
+        supervisor_parameters={} if args.force_law is None else
+        {'supervisor.force_law': args.force_law})), demo, signals, 'bags')
 
 
 SERVE_POLL_S = 0.1

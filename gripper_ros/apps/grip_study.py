@@ -46,8 +46,8 @@ def _floats(text: str, name: str) -> list[float]:
 
 
 def _case(config, case: dict) -> dict:
-    from gripper_ros.core.hold import Lift, parse_profile
-    from gripper_ros.core.grip_runs import simulate_load_grip
+    from gripper_ros.core.physics.hold import Lift, parse_profile
+    from gripper_ros.studies.grip_runs import simulate_load_grip
     profile, accel, hz = parse_profile(case['profile'])
     lift = Lift(accel, LIFT_DELAY_S, LIFT_DURATION_S, profile, hz)
     run = simulate_load_grip(config, WIDTH_M, case['mass_kg'], case['mu_s'],
@@ -148,8 +148,8 @@ def plot_pick_and_place(config, path: str, mass_kg: float = 0.6, mu_s: float = 0
     import matplotlib
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt
-    from gripper_ros.core.hold import Lift
-    from gripper_ros.core.grip_runs import simulate_load_grip
+    from gripper_ros.core.physics.hold import Lift
+    from gripper_ros.studies.grip_runs import simulate_load_grip
     from gripper_ros.wire import LiftProfile
     lift = Lift(3.0, LIFT_DELAY_S, LIFT_DURATION_S, LiftProfile.PICK_AND_PLACE)
     fig, axes = plt.subplots(3, 1, figsize=(8, 8), sharex=True)
@@ -207,9 +207,9 @@ def main(argv: list[str] | None = None) -> int:
     if negative:
         print(f'grip_study: {negative}', file=sys.stderr)
         return 2
-    from gripper_ros.core.engine import jobs_problem
-    if jobs_problem(args.jobs):
-        print(f'grip_study: --{jobs_problem(args.jobs)}', file=sys.stderr)
+    from gripper_ros.core.runtime.engine import options_problem
+    if options_problem(args.jobs):
+        print(f'grip_study: {options_problem(args.jobs)}', file=sys.stderr)
         return 2
     config = load_config_or_report('grip_study', args.config)
     if config is None:
@@ -220,7 +220,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f'grip_study: --lift-off-s: {exc}', file=sys.stderr)
         return 2
     import functools
-    from gripper_ros.core.headless import map_cases
+    from gripper_ros.core.runtime.headless import map_cases
     rows = map_cases(functools.partial(_case, config),
                      study_cases(masses, frictions, args.stiffness, args.damping),
                      jobs=args.jobs)

@@ -3,56 +3,17 @@
     ros2 run gripper_ros lift_table                     # docs/GRIP.md's table (markdown)
     ros2 run gripper_ros lift_table --accelerations 0,2,5,10
 
-Each object is grasped with the request's a = A, held, and lifted ``--lift-delay`` s after
-HOLDING at A m/s^2 upward for ``--lift-duration`` s (A = 0: lifted off its support at constant
-speed, so only its weight loads the grip). The grasps run in the headless lockstep loop
-(:mod:`gripper_ros.core.headless`), the graph's own code tick for tick, in fast time.
-Slip and loss are the simulator's ground truth; "detected" is when the supervisor, from its
-own sensors, turned the outcome to OBJECT_LOST.
+The grasps, the lift and what each column means: :mod:`gripper_ros.studies.lift_runs`.
 """
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import math
 import sys
 
 from gripper_ros.apps.common import negative_option
-from gripper_ros.apps.grasp_demo import LIFT_DELAY_S, LIFT_DURATION_S, PAPER_OBJECTS
-from gripper_ros.core.config import ConfigError, ForceLaw, load_config
-from gripper_ros.core.headless import simulate_grasp
-from gripper_ros.core.plant import Lift
-from gripper_ros.core.requests import RequestError
-
-HOLD_AFTER_LIFT_S = 0.5
-"""Simulated time kept after the lift ends, so that a late loss is seen."""
-
-
-def lift_rows(config, accelerations, delay_s: float, duration_s: float) -> list[dict]:
-    """One row per (object, acceleration, law)."""
-    rows = []
-    for width_m, mass_kg in PAPER_OBJECTS:
-        for accel in accelerations:
-            for law in ForceLaw:
-                cfg = dataclasses.replace(config, supervisor=dataclasses.replace(
-                    config.supervisor, force_law=law))
-                row = {'width_m': width_m, 'mass_kg': mass_kg, 'a': accel, 'law': law.value}
-                try:
-                    g = simulate_grasp(cfg, width_m, mass_kg, acceleration_mps2=accel,
-                                       lift=Lift(accel, delay_s, duration_s),
-                                       hold_s=delay_s + duration_s + HOLD_AFTER_LIFT_S)
-                except RequestError as exc:
-                    rows.append({**row, 'outcome': 'REFUSED', 'note': str(exc)})
-                    continue
-                held = g.answer_ns
-                rows.append({**row, 'force_setpoint_n': g.force_setpoint_n,
-                             'outcome': g.outcome.name, 'slip_m': g.slip_m,
-                             'lost_s': (g.lost_ns - held) * 1e-9
-                             if g.lost_ns is not None and held is not None else math.nan,
-                             'detected_s': (g.final_ns - held) * 1e-9
-                             if g.outcome.name == 'OBJECT_LOST' and held is not None
-                             else math.nan, 'note': ''})
-    return rows
+from gripper_ros.core.config import ConfigError, load_config
+from gripper_ros.studies.lift_runs import LIFT_DELAY_S, LIFT_DURATION_S, lift_rows
 
 
 def _cell(value: float, fmt: str) -> str:

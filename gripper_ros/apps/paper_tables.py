@@ -15,22 +15,13 @@ import sys
 
 from gripper_ros.apps.common import load_config_or_report
 from gripper_ros.core.config import GripperConfig
-from gripper_ros.core.controllers import (force_pi_gains, ForceControllerKind,
-                                          make_force_controller, make_position_controller,
-                                          PositionControllerKind)
-from gripper_ros.core.metrics import StepMetrics
-from gripper_ros.core.step_runs import force_step, position_step
+from gripper_ros.core.control.factories import (force_pi_gains, ForceControllerKind,
+                                                make_force_controller, make_position_controller,
+                                                PositionControllerKind)
+from gripper_ros.studies.metrics import StepMetrics
+from gripper_ros.studies.paper import PAPER_TABLE_III, PAPER_TABLE_IV
+from gripper_ros.studies.step_runs import force_step, position_step
 
-# The paper's published figures (Tables III and IV): the known answers we compare against.
-PAPER_TABLE_III = {
-    'PD': StepMetrics(0.0242, 7.2985, 4.6404),
-    'PID': StepMetrics(0.0390, 0.0469, 10.8165),
-    'MPC-PD': StepMetrics(0.0238, 4.7207, 3.1805),
-}
-PAPER_TABLE_IV = {
-    'PI': StepMetrics(0.0888, 2.4345, 3.557e-4),
-    'MPC-PI': StepMetrics(0.0360, 8.8266, 0.0011),
-}
 POSITION_SETPOINT_M = 0.1
 POSITION_HORIZON_S = 20.0
 FORCE_SETPOINT_N = 1.0

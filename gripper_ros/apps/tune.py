@@ -144,20 +144,21 @@ def parse_param(text: str, data: dict) -> Param:
 
 def load_envelope(name: str, config) -> list:
     """Return the envelope's cases (:class:`SweepCase`); TuneError for a bad name or file."""
-    from gripper_ros.apps import contact_sweep as cs
+    from gripper_ros.studies import sweep_runs
     if name == 'quick':
-        return cs.quick_cases(config)[0]
+        return sweep_runs.quick_cases(config)[0]
     if name == 'holdout':
-        return cs.holdout_cases(config)[0]
+        return sweep_runs.holdout_cases(config)[0]
     if name == 'tablev':
-        from gripper_ros.apps.grasp_demo import PAPER_OBJECTS
-        return [cs.SweepCase('rigid', 0.0, 0.0, 0.0, w, w, 0.0, m) for w, m in PAPER_OBJECTS]
+        from gripper_ros.studies.paper import PAPER_OBJECTS
+        return [sweep_runs.SweepCase('rigid', 0.0, 0.0, 0.0, w, w, 0.0, m)
+                for w, m in PAPER_OBJECTS]
     return _envelope_file(name, config)
 
 
 def _envelope_file(path: str, config) -> list:
     import yaml
-    from gripper_ros.apps.contact_sweep import SweepCase
+    from gripper_ros.studies.sweep_runs import SweepCase
     try:
         data = yaml.safe_load(Path(path).read_text(encoding='utf-8'))
     except OSError as exc:
@@ -212,9 +213,9 @@ def _envelope_file(path: str, config) -> list:
 def evaluate(config, cases: list, hold_s: float, *, jobs: int | None = None,
              scheduler=None, progress=None) -> Evaluation:
     """Grasp every case with ``config`` through the engine and score the envelope."""
-    from gripper_ros.apps.contact_sweep import _case_keywords, grasp_summary
-    from gripper_ros.core.headless import simulate_grasps
-    results = simulate_grasps(config, [_case_keywords(c, None, hold_s) for c in cases], jobs,
+    from gripper_ros.studies.sweep_runs import case_keywords, grasp_summary
+    from gripper_ros.core.runtime.headless import simulate_grasps
+    results = simulate_grasps(config, [case_keywords(c, None, hold_s) for c in cases], jobs,
                               summarize=grasp_summary, scheduler=scheduler, progress=progress)
     band = config.supervisor.force_settle_band_fraction
     timeout_s = config.supervisor.timeout_s
@@ -486,18 +487,11 @@ def build_parser() -> argparse.ArgumentParser:
 def _check_args(args) -> None:
     if args.trials < 1 or args.top < 1:
         raise TuneError('--trials and --top must be >= 1')
-    from gripper_ros.core.engine import jobs_problem
-    if args.jobs is not None and jobs_problem(args.jobs):
-        raise TuneError('--' + jobs_problem(args.jobs))
-    negative = negative_option(args, ('hold_s', 'peak_weight', 'max_peak_ratio'))
-    if negative:
-        raise TuneError(negative)
-    if args.scheduler is not None:
-        from gripper_ros.core.engine import check_address
-        try:
-            check_address(args.scheduler)
-        except ValueError as exc:
-            raise TuneError(str(exc)) from None
+    from gripper_ros.core.runtime.engine import options_problem
+    problem = options_problem(args.jobs, args.scheduler) or \
+        negative_option(args, ('hold_s', 'peak_weight', 'max_peak_ratio'))
+    if problem:
+        raise TuneError(problem)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -523,7 +517,7 @@ def main(argv: list[str] | None = None) -> int:
 def _run(args, base, params, cases, holdout, out: Path) -> int:
     from optuna.study import MaxTrialsCallback
     from optuna.trial import TrialState
-    from gripper_ros.core.engine import EngineError
+    from gripper_ros.core.runtime.engine import EngineError
     from gripper_ros.progress import progress_bar
     storage = args.storage or f'sqlite:///{(out / "study.db").resolve()}'
     engine = {'jobs': args.jobs, 'scheduler': args.scheduler}

@@ -1,9 +1,10 @@
 """``bag_analyze BAG [BAG ...]``: the paper's step-response figures from recorded grasps.
 
 Per bag: time to contact, switch time and the criterion that fired, position-stage and
-force-stage RMS / overshoot / 2 % settling (all from :mod:`gripper_ros.core.metrics`), peak contact
-force and its ratio to the setpoint, voltage saturation, final errors. Terminal table, JSON, CSV
-and a Fig.-8-like plot (position, force, motor voltage, sensor voltage; one column per bag).
+force-stage RMS / overshoot / 2 % settling (all from :mod:`gripper_ros.studies.metrics`), peak
+contact force and its ratio to the setpoint, voltage saturation, final errors. Terminal table,
+JSON, CSV and a Fig.-8-like plot (position, force, motor voltage, sensor voltage; one column per
+bag).
 
 The grasp analysed is the first one in the bag: from the first status in the POSITION phase to
 the last status with the same grasp id. Times are simulated seconds from that grasp start.
@@ -21,7 +22,7 @@ from typing import Sequence
 
 from gripper_ros.bags.reader import BagError, EXIT_ERROR, EXIT_TRUNCATED, quiet_on_closed_pipe
 from gripper_ros.bags.series import GraspSeries, load_grasp_series
-from gripper_ros.core.metrics import step_metrics
+from gripper_ros.studies.metrics import step_metrics
 from gripper_ros.wire import enum_name, HoldState, Outcome, Phase, SwitchCriterion
 import numpy as np
 
@@ -158,7 +159,7 @@ def _lift_off_end_s(series: GraspSeries) -> float:
 
 
 def analyze_series(series: GraspSeries, voltage_limit_v: float | None = None) -> GraspMetrics:
-    """All figures of one grasp (pure numpy; metrics from gripper_ros.core.metrics).
+    """All figures of one grasp (pure numpy; metrics from gripper_ros.studies.metrics).
 
     ``voltage_limit_v`` (time at the limit) defaults to the limit the bag was recorded with.
     """

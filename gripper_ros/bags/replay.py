@@ -25,8 +25,9 @@ from gripper_ros.bags.reader import (
     read_bag,
 )
 from gripper_ros.bags.schema import import_message_class
-from gripper_ros.core.controllers import ForceControllerKind, PositionControllerKind
-from gripper_ros.core.stages import DEFAULT_APPROACH_FORCE_MARGIN, DEFAULT_POSITION_CONTROLLER
+from gripper_ros.core.control.factories import ForceControllerKind, PositionControllerKind
+from gripper_ros.core.control.stages import (DEFAULT_APPROACH_FORCE_MARGIN,
+                                             DEFAULT_POSITION_CONTROLLER)
 from gripper_ros.wire import GRAPH_QOS_DEPTH, TOPIC_CLOCK
 
 PROG = 'bag_replay'
@@ -377,7 +378,7 @@ def _run_closed_loop(args: argparse.Namespace) -> int:
     """
     from gripper_ros.bags import rerun, rerun_report
     from gripper_ros.core.config import ConfigError
-    from gripper_ros.core.engine import check_address, EngineError
+    from gripper_ros.core.runtime.engine import EngineError, options_problem
     from gripper_ros.progress import progress_bar
     if args.resimulate and args.config and args.resimulate != args.config:
         _fail('give the configuration once: --resimulate CONFIG.yaml or --config FILE', code=2)
@@ -391,10 +392,8 @@ def _run_closed_loop(args: argparse.Namespace) -> int:
         sweep = rerun.parse_sweep(args.sweep) if args.sweep else None
         changes = rerun.Changes(args.config or args.resimulate or None, settings,
                                 args.position_controller, args.force_controller, margin)
-        if args.jobs is not None and args.jobs < 1:
-            _fail(f'--jobs must be >= 1, got {args.jobs}', code=2)
-        if args.scheduler is not None:
-            check_address(args.scheduler)
+        if options_problem(args.jobs, args.scheduler):
+            _fail(options_problem(args.jobs, args.scheduler), code=2)
         with progress_bar(len(sweep[1]) if sweep else 1, PROG, 're-run',
                           quiet=args.quiet or sweep is None) as bar:
             result = rerun.whatif(args.bag, changes, sweep, args.jobs or 1,

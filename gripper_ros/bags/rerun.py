@@ -5,8 +5,8 @@
 :func:`whatif`) takes from a grasp bag (format 2, its custom_data) the request, the object
 placed (compliance, hold and lift, a scheduled fault), the controller kinds and the
 configuration in effect, applies the changes asked for, and grasps again in closed loop with
-:func:`gripper_ros.core.headless.simulate_grasp`: the plant, supervisor and stage code the node
-graph runs, wired as the graph wires them in fast mode, tick for tick. Unlike the open-loop
+:func:`gripper_ros.core.runtime.headless.simulate_grasp`: the plant, supervisor and stage code the
+node graph runs, wired as the graph wires them in fast mode, tick for tick. Unlike the open-loop
 ``--resimulate`` the plant answers the new commands, so a new gain's effect on position, force,
 contact peak and settling is seen. Both the recording and the re-run are analysed by
 :func:`gripper_ros.bags.analyze.analyze_series`, from series built by the same code
@@ -32,11 +32,11 @@ from gripper_ros.bags.resimulate import build_stages, load_resim_config
 from gripper_ros.bags.series import bag_namespace, GraspSeries, load_grasp_series, \
     lockstep_series
 from gripper_ros.core.config import ConfigError, GripperConfig, parse_config
-from gripper_ros.core.headless import GraspTrace, HeadlessGrasp, map_cases, simulate_grasp
-from gripper_ros.core.plant import check_fault, GraspObject, Lift
-from gripper_ros.core.requests import GraspRequest, RequestError, validate_request
-from gripper_ros.core.stages import (DEFAULT_APPROACH_FORCE_MARGIN, DEFAULT_FORCE_CONTROLLER,
-                                     DEFAULT_POSITION_CONTROLLER)
+from gripper_ros.core.control.stages import (DEFAULT_APPROACH_FORCE_MARGIN,
+                                             DEFAULT_FORCE_CONTROLLER, DEFAULT_POSITION_CONTROLLER)
+from gripper_ros.core.physics.plant import check_fault, GraspObject, Lift
+from gripper_ros.core.runtime.headless import GraspTrace, HeadlessGrasp, map_cases, simulate_grasp
+from gripper_ros.core.supervision.requests import GraspRequest, RequestError, validate_request
 from gripper_ros.text import one_line
 from gripper_ros.wire import (Controller, DEFAULT_STATE_RATE_HZ, FaultKind, Outcome, Phase,
                               TimeMode)
@@ -572,7 +572,7 @@ def whatif(bag: Bag | str | os.PathLike, changes: Changes | None = None,
 
     ``sweep`` = (dotted key, values) is applied on top of the changes; its re-runs go to
     ``jobs`` local processes (None: one per core) or the Dask cluster at ``scheduler`` by the
-    batch engine (:func:`gripper_ros.core.engine.map_cases`, with its ``progress``). Every
+    batch engine (:func:`gripper_ros.core.runtime.engine.map_cases`, with its ``progress``). Every
     setup is checked before the first re-run: RerunError (the bag) or ConfigError (an option,
     key or value), one line.
     """

@@ -7,7 +7,8 @@ as the controller nodes answer them.
 
 1. every stage reference of the bag (``<ns>/loop/position_reference`` and
    ``<ns>/loop/force_reference``, each with its tick's measurement), in recorded order, goes to
-   the stage it names (:class:`gripper_ros.core.lockstep.StageSide`, the code the nodes run);
+   the stage it names (:class:`gripper_ros.core.runtime.lockstep.StageSide`, the code the nodes
+   run);
 2. each answer is compared with the recorded ``<ns>/loop/motor_command`` of the same
    (source, stage, stamp).
 
@@ -38,12 +39,12 @@ from gripper_ros.bags.reader import Bag, BagError, open_bag
 from gripper_ros.bags.series import (bag_namespace, LEGACY_MOTOR_COMMAND, LEGACY_MOTOR_STATE,
                                      LEGACY_NAMESPACE, LEGACY_TOPICS)
 from gripper_ros.core.config import ConfigError, default_config_path, GripperConfig, parse_config
-from gripper_ros.core.controllers import ForceControllerKind, PositionControllerKind
-from gripper_ros.core.lockstep import StageSide
-from gripper_ros.core.stages import (DEFAULT_APPROACH_FORCE_MARGIN, DEFAULT_FORCE_CONTROLLER,
-                                     DEFAULT_POSITION_CONTROLLER, ForceStageController,
-                                     PositionStageController, Reference, SOURCE_FORCE,
-                                     SOURCE_POSITION)
+from gripper_ros.core.control.factories import ForceControllerKind, PositionControllerKind
+from gripper_ros.core.control.stages import (DEFAULT_APPROACH_FORCE_MARGIN,
+                                             DEFAULT_FORCE_CONTROLLER, DEFAULT_POSITION_CONTROLLER,
+                                             ForceStageController, PositionStageController,
+                                             Reference, SOURCE_FORCE, SOURCE_POSITION)
+from gripper_ros.core.runtime.lockstep import StageSide
 from gripper_ros.text import one_line
 from gripper_ros.wire import (COMMAND_LAYOUT, qualified, REFERENCE_LAYOUT, stamp_ns,
                               TOPIC_FORCE_REFERENCE, TOPIC_FORCE_SENSOR, TOPIC_JOINT_STATES,

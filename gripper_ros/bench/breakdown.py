@@ -84,7 +84,7 @@ class Profile:
 
 def _parts():
     """(owner, attribute, part name, group) of everything a tick does that is timed."""
-    from gripper_ros.core import plant
+    from gripper_ros.core.physics import plant
     from gripper_ros.nodes import (controller_node, intra_process, plant_simulator_node,
                                    recording, supervisor_node)
     from gripper_ros.bench.observer import PhaseObserver
@@ -115,7 +115,7 @@ def instrumented(profile: Profile):
     The loop nodes' compiled calls are bound when their nodes are built
     (``lockstep.entry_point``): each is timed under its kernel's name.
     """
-    from gripper_ros.core import lockstep
+    from gripper_ros.core.runtime import lockstep
     from rclpy.publisher import Publisher
     groups: Dict[str, str] = {}
     saved = []

@@ -5,15 +5,15 @@
 
 Times, in ONE process run (so that the ratios compare figures taken under the same machine
 load), ``step(setpoint, measurement)`` of the controllers the nodes run, built exactly as the
-nodes build them (:func:`gripper_ros.core.controllers.make_force_controller` /
-:func:`~gripper_ros.core.controllers.make_position_controller` from :func:`gripper_ros.core.config.
-load_config`): PI and MPC-PI (force, at the force sampling time), PD and MPC-PD (position, at
-10 ms); and a bare baseline, a Python call returning ``a * k + b``, timed the same way.
-Beside them, ``GripperPlant.step(voltage, dt)`` of the simulated plant the nodes run
-(:func:`gripper_ros.core.controllers.make_plant`): a 0.1 ms force-loop step holding a rigid and a
-compliant (1e5 N/m, 50 N s/m) object under the contact-aware force stage (and the rigid one
-lifted, 20 g held by pad friction: the hold physics included), and a 10 ms position-loop step
-of free motion under PD; there the controller runs outside the timed region.
+nodes build them (:func:`gripper_ros.core.control.factories.make_force_controller` /
+:func:`~gripper_ros.core.control.factories.make_position_controller` from
+:func:`gripper_ros.core.config.load_config`): PI and MPC-PI (force, at the force sampling time),
+PD and MPC-PD (position, at 10 ms); and a bare baseline, a Python call returning ``a * k + b``,
+timed the same way. Beside them, ``GripperPlant.step(voltage, dt)`` of the simulated plant the
+nodes run (:func:`gripper_ros.core.control.factories.make_plant`): a 0.1 ms force-loop step holding
+a rigid and a compliant (1e5 N/m, 50 N s/m) object under the contact-aware force stage (and the
+rigid one lifted, 20 g held by pad friction: the hold physics included), and a 10 ms position-loop
+step of free motion under PD; there the controller runs outside the timed region.
 
 Each step is timed on its own with ``time.perf_counter_ns()`` around the call (the baseline
 carries the same timer overhead, so ``x base`` is the controller's cost in units of a trivial
@@ -85,7 +85,7 @@ class _ContactAware:
 
 
 def _force_plant(config, dt_s: float):
-    from gripper_ros.core.controllers import make_plant
+    from gripper_ros.core.control.factories import make_plant
     a, b = make_plant(config).discrete_force_model(dt_s)
     state = [0.0]
 
@@ -96,7 +96,7 @@ def _force_plant(config, dt_s: float):
 
 
 def _position_plant(config):
-    from gripper_ros.core.controllers import make_plant
+    from gripper_ros.core.control.factories import make_plant
     ad, bd = make_plant(config).discrete_free_model(config.position.sample_time_s)
     x = np.zeros(3)
     lim = config.plant.max_travel_m
@@ -135,8 +135,9 @@ def _holding_plant(config, stiffness_n_per_m: float, damping_n_s_per_m: float,
     ``lifted_mass_kg`` > 0: the object is lifted off its support at once and held by friction
     (the hold physics runs every step).
     """
-    from gripper_ros.core.controllers import ForceControllerKind, make_force_controller, make_plant
-    from gripper_ros.core.plant import GraspObject, Lift
+    from gripper_ros.core.control.factories import (ForceControllerKind, make_force_controller,
+                                                    make_plant)
+    from gripper_ros.core.physics.plant import GraspObject, Lift
     plant = make_plant(config)
     lift = Lift(0.0) if lifted_mass_kg > 0.0 else None
     plant.set_object(GraspObject(width_m, stiffness_n_per_m, damping_n_s_per_m,
@@ -154,8 +155,8 @@ def _holding_plant(config, stiffness_n_per_m: float, damping_n_s_per_m: float,
 
 def _free_plant(config):
     """Build a plant with nothing between the fingers, driven by the PD position controller."""
-    from gripper_ros.core.controllers import (PositionControllerKind, make_plant,
-                                              make_position_controller)
+    from gripper_ros.core.control.factories import (make_plant, make_position_controller,
+                                                    PositionControllerKind)
     plant = make_plant(config)
     ctrl = make_position_controller(config, PositionControllerKind.PD)
 
@@ -167,8 +168,9 @@ def _free_plant(config):
 def measure(steps: int = 20000, warmup: int = 2000, period: int = 2000,
             config_file: str | None = None, disable_gc: bool = False) -> dict:
     from gripper_ros.core.config import load_config
-    from gripper_ros.core.controllers import (ForceControllerKind, PositionControllerKind,
-                                              make_force_controller, make_position_controller)
+    from gripper_ros.core.control.factories import (ForceControllerKind, make_force_controller,
+                                                    make_position_controller,
+                                                    PositionControllerKind)
     config = load_config(config_file or None)
     f_dt = config.force.sample_time_s
     p_dt = config.position.sample_time_s

@@ -507,7 +507,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _parse_objects(spec: str) -> List[tuple]:
-    from gripper_ros.apps.grasp_demo import PAPER_OBJECTS
+    from gripper_ros.studies.paper import PAPER_OBJECTS
     if spec.strip() == 'all':
         return list(PAPER_OBJECTS)
     out = []

@@ -14,7 +14,7 @@ Times, in ONE process run (so that ratios compare figures taken under the same m
   Figure: simulated ticks per wall second (median of ``--repeat``), and the ratios of the
   compiled and the traced loop to the Python-driven one.
 - ``simulate_grasps`` of ``--batch`` grasps (the Table V objects in turn), the batch entry point
-  sweeps use, through the engine (:mod:`gripper_ros.core.engine`): in this process (the
+  sweeps use, through the engine (:mod:`gripper_ros.core.runtime.engine`): in this process (the
   baseline), on a local Dask cluster of each ``--jobs`` worker processes, and through a
   scheduler with ``--scheduler-workers`` workers (``dask scheduler`` and ``dask worker``
   started here on localhost, or the cluster at ``--scheduler``). Figure: ticks a second over
@@ -50,7 +50,7 @@ TRACE_STATE_PERIOD_NS = 10_000_000
 
 def _ticks(config, width_m: float, mass_kg: float, hold_s: float, traced: bool,
            captured: bool = False) -> int:
-    from gripper_ros.core.headless import simulate_grasp
+    from gripper_ros.core.runtime.headless import simulate_grasp
     if captured:
         return len(simulate_grasp(config, width_m, mass_kg, hold_s=hold_s,
                                   trace_state_period_ns=TRACE_STATE_PERIOD_NS).trace.ticks)
@@ -73,8 +73,9 @@ def measure(repeat: int = 5, hold_s: float = 1.0, batch: int = 32, jobs_list=(1,
             scheduler_workers: int = 2, scheduler: str | None = None) -> dict:
     """Return every figure of the benchmark (see the module docstring)."""
     from gripper_ros.core.config import load_config
-    from gripper_ros.core.engine import dask_cluster, local_client, map_cases, remote_client
-    from gripper_ros.core.headless import simulate_grasps
+    from gripper_ros.core.runtime.engine import (dask_cluster, local_client, map_cases,
+                                                 remote_client)
+    from gripper_ros.core.runtime.headless import simulate_grasps
     config = load_config()
     out = {'platform': platform.platform(), 'cpus': os.cpu_count(), 'hold_s': hold_s,
            'grasps': []}
@@ -132,7 +133,7 @@ def measure(repeat: int = 5, hold_s: float = 1.0, batch: int = 32, jobs_list=(1,
 
 def _time_batch(out: dict, config, cases: list, engine: str, workers: int, client) -> None:
     """Time the batch on one engine: the median of BATCH_RUNS runs."""
-    from gripper_ros.core.headless import simulate_grasps
+    from gripper_ros.core.runtime.headless import simulate_grasps
     walls = []
     for _ in range(BATCH_RUNS):
         start = time.perf_counter()
@@ -189,12 +190,9 @@ def main(argv=None) -> int:
         parser.error('--hold-s must be in [0, 60]')
     if any(j < 1 for j in args.jobs) or args.scheduler_workers < 0:
         parser.error('--jobs must be >= 1 and --scheduler-workers >= 0')
-    if args.scheduler is not None:
-        from gripper_ros.core.engine import check_address
-        try:
-            check_address(args.scheduler)
-        except ValueError as exc:
-            parser.error(str(exc))
+    from gripper_ros.core.runtime.engine import options_problem
+    if options_problem(scheduler=args.scheduler):
+        parser.error(options_problem(scheduler=args.scheduler))
     result = measure(args.repeat, args.hold_s, args.batch, args.jobs, args.scheduler_workers,
                      args.scheduler)
     print(json.dumps(result, indent=2) if args.json else report(result))

@@ -44,7 +44,7 @@ import sys
 import tempfile
 import time
 
-from gripper_ros.apps.grasp_demo import PAPER_OBJECTS
+from gripper_ros.studies.paper import PAPER_OBJECTS
 
 # cheap: wide objects, short strokes (~1200-1400 plant ticks per grasp instead of 1500-2000)
 CHEAP_OBJECTS = ((0.10, 0.75), (0.12, 0.5), (0.14, 1.0))
@@ -140,7 +140,7 @@ def client_worker() -> int:
     import rclpy
     from gripper_interfaces.srv import Grasp, SetObject
 
-    from gripper_ros.apps.grasp_client import _call
+    from gripper_ros.nodes.services import call_spinning
     from gripper_ros.wire import Outcome
 
     out = sys.stdout
@@ -172,16 +172,16 @@ def client_worker() -> int:
                 break
             if op == 'place':
                 request = SetObject.Request(width_m=float(cmd['width']), open_fingers=True)
-                r = _call(node, place, request, 60.0)
+                r = call_spinning(node, place, request, 60.0)
                 if r is not None and not r.success and 'is held' in r.message:
-                    _call(node, release, Trigger.Request(), 120.0)   # as grasp_client does
-                    r = _call(node, place, request, 60.0)
+                    call_spinning(node, release, Trigger.Request(), 120.0)   # as grasp_client does
+                    r = call_spinning(node, place, request, 60.0)
                 say({'ok': r is not None and r.success,
                      'message': 'no answer' if r is None else r.message})
             elif op == 'grasp':
-                r = _call(node, grasp, Grasp.Request(width_m=float(cmd['width']),
-                                                     mass_kg=float(cmd['mass'])),
-                          float(cmd.get('timeout', 600.0)))
+                r = call_spinning(node, grasp, Grasp.Request(width_m=float(cmd['width']),
+                                                             mass_kg=float(cmd['mass'])),
+                                  float(cmd.get('timeout', 600.0)))
                 if r is None:
                     say({'success': False, 'outcome': 'NO_ANSWER', 'message': 'no answer'})
                 else:

@@ -1,1 +1,1 @@
-"""The numeric core: plant, sensor, controllers, supervisor logic, headless loop (no rclpy)."""
+"""The numeric core, no rclpy: physics, control, supervision and runtime, each a subpackage."""

@@ -99,14 +99,14 @@ class ContactParams:
     kinetic_friction: float            # mu_k while the object slides; <= mu_s
     pad_length_m: float                # the object is out once it has slid this far
     after_lift_s: float                # fast mode plays a lift out this long after it ends
-    # Cattaneo-Mindlin pre-sliding of each pad (core/hold.py): its initial tangential
+    # Cattaneo-Mindlin pre-sliding of each pad (core/physics/hold.py): its initial tangential
     # stiffness; 0 = rigid pads, the Coulomb law alone.
     pad_tangential_stiffness_n_per_m: float
-    # The arm's lift-off (core/hold.py): the weight passes from the support to the pads over
-    # this long; 0 = all at once.
+    # The arm's lift-off (core/physics/hold.py): the weight passes from the support to the pads
+    # over this long; 0 = all at once.
     lift_off_s: float
-    # The normal chain (core/contact_chain.py): each finger's bending stiffness at its pad and
-    # each pad's Hertz stiffness (F = k_p delta^1.5); 0 = a rigid finger, no pad: the object
+    # The normal chain (core/physics/contact_chain.py): each finger's bending stiffness at its pad
+    # and each pad's Hertz stiffness (F = k_p delta^1.5); 0 = a rigid finger, no pad: the object
     # alone, as in the paper.
     finger_stiffness_n_per_m: float
     pad_normal_stiffness_n_per_m1_5: float
@@ -148,8 +148,26 @@ class SensorNoiseParams:
 
 
 @dataclass(frozen=True)
+class ChannelSpec:
+    """A channel's resolution, noise (1 sigma), bandwidth (Hz, 0 = none) and latency (s)."""
+
+    resolution: float
+    noise: float
+    bandwidth_hz: float
+    latency_s: float
+
+    def __post_init__(self):
+        for name in ('resolution', 'noise', 'bandwidth_hz', 'latency_s'):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or \
+                    not math.isfinite(value) or value < 0.0:
+                raise ValueError(f'pad sensor {name} must be a finite number >= 0, '
+                                 f'got {value!r}')
+
+
+@dataclass(frozen=True)
 class PadSensorParams:
-    """Each pad's shear and displacement sensing (core/pad_sensor.py)."""
+    """Each pad's shear and displacement sensing (core/physics/pad_sensor.py)."""
 
     shear_resolution_n: float
     shear_noise_n: float
@@ -162,22 +180,20 @@ class PadSensorParams:
 
     @property
     def shear(self):
-        """The shear channel's :class:`gripper_ros.core.pad_sensor.ChannelSpec`."""
-        from gripper_ros.core.pad_sensor import ChannelSpec
+        """The shear channel's :class:`ChannelSpec`."""
         return ChannelSpec(self.shear_resolution_n, self.shear_noise_n,
                            self.shear_bandwidth_hz, self.shear_latency_s)
 
     @property
     def displacement(self):
-        """The displacement channel's :class:`gripper_ros.core.pad_sensor.ChannelSpec`."""
-        from gripper_ros.core.pad_sensor import ChannelSpec
+        """The displacement channel's :class:`ChannelSpec`."""
         return ChannelSpec(self.displacement_resolution_m, self.displacement_noise_m,
                            self.displacement_bandwidth_hz, self.displacement_latency_s)
 
 
 @dataclass(frozen=True)
 class LoadGripParams:
-    """The load-tracking grip's settings (core/load_grip.py)."""
+    """The load-tracking grip's settings (core/control/load_grip.py)."""
 
     grip_margin: float
     mu_start: float
@@ -235,7 +251,7 @@ class PositionControlParams:
 
 @dataclass(frozen=True)
 class ContactForceTuning:
-    """The contact-aware force stage (gripper_ros/core/contact_force.py), ours."""
+    """The contact-aware force stage (gripper_ros/core/control/contact_force.py), ours."""
 
     design_stiffness_n_per_m: float      # stiffest object the contact speed is designed for
     design_damping_ratio: float          # ... and its damping ratio (against the reflected mass)

@@ -1,1 +1,1 @@
-"""System identification of the gripper plant from recorded runs (no rclpy)."""
+"""System identification of the gripper plant: the excitation experiment and the fit (no rclpy)."""

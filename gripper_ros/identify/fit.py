@@ -18,9 +18,9 @@ Method.
    ``c = K (1 - a)``), ``i[n] = (e[n] - k_b w[n]) / R`` and, in rigid contact, ``F[n] = (k_t /
    lever) i[n]``.
 2. Output error (:func:`identify`): ``scipy.optimize.least_squares`` on the package's own
-   compiled plant (:func:`gripper_ros.core.plant.plant_step`, so the voltage limit and contact
-   are in the model) driven by the recorded voltages over the first ``1 - HELD_OUT_SHARE`` of
-   each run; residuals per channel divided by the channel's spread, then (``REWEIGHTINGS``)
+   compiled plant (:func:`gripper_ros.core.physics.plant.plant_step`, so the voltage limit and
+   contact are in the model) driven by the recorded voltages over the first ``1 - HELD_OUT_SHARE``
+   of each run; residuals per channel divided by the channel's spread, then (``REWEIGHTINGS``)
    by the channel's own residual RMS, so that a precise sensor counts for what it is worth.
    Standard errors from the
    Jacobian, ``cov = s^2 (J^T J)^-1``, carried to the combinations by their gradients.
@@ -35,9 +35,9 @@ from dataclasses import dataclass, field, replace
 import math
 
 from gripper_ros.core.config import GripperConfig, parse_config, PlantParams
-from gripper_ros.core.force_sensor import FsrVoltageDivider
-from gripper_ros.core.plant import (_refresh_contact_state, GraspObject, GripperPlant, K_PARAMS,
-                                    K_STATE, plant_sample, plant_step)
+from gripper_ros.core.physics.force_sensor import FsrVoltageDivider
+from gripper_ros.core.physics.plant import (_refresh_contact_state, GraspObject, GripperPlant,
+                                            K_PARAMS, K_STATE, plant_sample, plant_step)
 import numba
 import numpy as np
 from scipy.optimize import least_squares

@@ -6,7 +6,7 @@ stamp) once on ``loop/motor_command``; a repeated reference (the plant still wai
 late peer) gets the same command again. It restarts from the measured state whenever the
 supervisor assigns it a new stage. A non-finite measurement or output is never acted on: the
 controller holds 0 V and reports it. The bookkeeping and the laws live in
-:mod:`gripper_ros.core.stages` and :mod:`gripper_ros.core.lockstep` (no rclpy).
+:mod:`gripper_ros.core.control.stages` and :mod:`gripper_ros.core.runtime.lockstep` (no rclpy).
 
 A watchdog (steady clock, parameter ``status_timeout_s``) covers a dead or hung supervisor:
 while this controller is the named stage and the supervisor's status heartbeat has been silent
@@ -20,8 +20,8 @@ from __future__ import annotations
 from collections import Counter
 
 from gripper_interfaces.msg import MotorCommand, StageReference, SupervisorStatus
-from gripper_ros.core.lockstep import FOREIGN, REPEATED, StageSide
-from gripper_ros.core.stages import Reference
+from gripper_ros.core.control.stages import Reference
+from gripper_ros.core.runtime.lockstep import FOREIGN, REPEATED, StageSide
 from gripper_ros.nodes.gripper_node import GripperNode
 from gripper_ros.nodes.loop_io import in_layout, read_status
 from gripper_ros.nodes.parameters import ConfigParameters
@@ -40,8 +40,8 @@ class LockstepController(GripperNode):
     """A stage controller node: ``reference_topic`` in, ``loop/motor_command`` out.
 
     Subclasses name their config ``section``, declare their own parameters in
-    ``declare_stage_parameters()`` and build their stage (:mod:`gripper_ros.core.stages`) in
-    ``build_stage(config)``. A gain set at run time is checked at once and takes effect when
+    ``declare_stage_parameters()`` and build their stage (:mod:`gripper_ros.core.control.stages`)
+    in ``build_stage(config)``. A gain set at run time is checked at once and takes effect when
     the supervisor next assigns this stage (the law restarts then anyway).
     """
 

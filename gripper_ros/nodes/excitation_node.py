@@ -1,6 +1,6 @@
 """excitation_server: the identification experiment as a service beside ``move``.
 
-``excite`` (std_srvs/Trigger) runs :class:`gripper_ros.core.excitation.ExcitationRun` over the
+``excite`` (std_srvs/Trigger) runs :class:`gripper_ros.identify.excitation.ExcitationRun` over the
 graph's ``move`` service: the node's parameters ``excitation.seconds``, ``.amplitude_v``,
 ``.seed`` and ``.hold`` say how long, how hard and which sequence (a bad value is refused with
 the reason and nothing changes). ``stop`` ends the running move STOPPED and with it the
@@ -15,7 +15,7 @@ import sys
 
 from gripper_interfaces.msg import SupervisorStatus
 from gripper_interfaces.srv import Move
-from gripper_ros.core.excitation import check_spec, ExcitationRun, ExcitationSpec
+from gripper_ros.identify.excitation import check_spec, ExcitationRun, ExcitationSpec
 from gripper_ros.nodes.gripper_node import GripperNode
 from gripper_ros.nodes.loop_io import read_status
 from gripper_ros.nodes.parameters import declare_config

@@ -1,8 +1,8 @@
 """force_controller: the force stage, every force sample (0.1 ms), from contact to the hold.
 
-The default law is the contact-aware stage (:mod:`gripper_ros.core.contact_force`: feed-forward,
-a speed-shaped approach, force feedback with stiffness-scheduled damping), for rigid and
-compliant objects alike; ``controller`` selects the paper's ``pi`` or ``mpc_pi`` instead, whose
+The default law is the contact-aware stage (:mod:`gripper_ros.core.control.contact_force`:
+feed-forward, a speed-shaped approach, force feedback with stiffness-scheduled damping), for rigid
+and compliant objects alike; ``controller`` selects the paper's ``pi`` or ``mpc_pi`` instead, whose
 output is capped before contact at ``approach_force_margin`` x the stall voltage of the setpoint
 (eq. 13). It answers each ``loop/force_reference`` and keeps holding after the grasp is answered
 HOLDING, until the supervisor names another stage.
@@ -11,10 +11,11 @@ from __future__ import annotations
 
 import sys
 
-from gripper_ros.core.controllers import ForceControllerKind
-from gripper_ros.core.stages import (DEFAULT_APPROACH_FORCE_MARGIN, DEFAULT_FORCE_CONTROLLER,
-                                     ForceStageController, parse_kind)
+from gripper_ros.core.control.factories import ForceControllerKind
+from gripper_ros.core.control.stages import (DEFAULT_APPROACH_FORCE_MARGIN,
+                                             DEFAULT_FORCE_CONTROLLER, ForceStageController)
 from gripper_ros.nodes.controller_node import LockstepController
+from gripper_ros.nodes.parameters import declare_controller
 from gripper_ros.nodes.process import run_node
 from gripper_ros.wire import Controller, NODE_FORCE_CONTROLLER, TOPIC_FORCE_REFERENCE
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
@@ -30,12 +31,10 @@ class ForceControllerNode(LockstepController):
         self.add_post_set_parameters_callback(self._on_parameters_set)
 
     def declare_stage_parameters(self) -> None:
-        kind = self.declare_parameter(
-            'controller', DEFAULT_FORCE_CONTROLLER.value,
-            ParameterDescriptor(description='contact_aware (default: rigid and compliant '
-                                            "objects) | pi | mpc_pi (the paper's structure)",
-                                read_only=True)).value
-        self.kind = parse_kind(ForceControllerKind, kind)
+        self.kind = declare_controller(
+            self, ForceControllerKind, DEFAULT_FORCE_CONTROLLER,
+            "contact_aware (default: rigid and compliant objects) | pi | mpc_pi (the paper's "
+            'structure)')
         self.approach_margin = self.declare_parameter(
             'approach_force_margin', DEFAULT_APPROACH_FORCE_MARGIN, ParameterDescriptor(
                 description='pi / mpc_pi: cap before contact, margin x stall voltage of the '

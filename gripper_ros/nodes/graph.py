@@ -19,8 +19,8 @@ import time
 
 from gripper_interfaces.srv import Grasp, Move, SetObject, SimStep
 from gripper_ros.core.config import load_config
-from gripper_ros.core.stages import (DEFAULT_APPROACH_FORCE_MARGIN, DEFAULT_FORCE_CONTROLLER,
-                                     DEFAULT_POSITION_CONTROLLER)
+from gripper_ros.core.control.stages import (DEFAULT_APPROACH_FORCE_MARGIN,
+                                             DEFAULT_FORCE_CONTROLLER, DEFAULT_POSITION_CONTROLLER)
 from gripper_ros.nodes.description_node import DescriptionPublisher
 from gripper_ros.nodes.excitation_node import ExcitationServer
 from gripper_ros.nodes.force_controller_node import ForceControllerNode

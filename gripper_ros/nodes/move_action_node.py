@@ -10,10 +10,10 @@ as ``grasp_action_server`` is for the grasp:
   importable (a system ROS 2 Jazzy), so that MoveIt's parallel-gripper controller handle
   (``action_ns: gripper_cmd``) drives this gripper: the command's ``finger_joint`` position
   (travel from fully open, m) and optional velocity and effort become the move
-  (:mod:`gripper_ros.core.gripper_command`); a malformed command is rejected. The result is
-  the finger's JointState, ``stalled`` and ``reached_goal``; the goal succeeds on reaching
-  the goal, and on a stall only with ``allow_stalling`` (as ros2_controllers' parallel gripper
-  controller). Feedback and result are the finger's JointState, stamped with the simulated
+  (:mod:`gripper_ros.core.supervision.gripper_command`); a malformed command is rejected. The
+  result is the finger's JointState, ``stalled`` and ``reached_goal``; the goal succeeds on
+  reaching the goal, and on a stall only with ``allow_stalling`` (as ros2_controllers' parallel
+  gripper controller). Feedback and result are the finger's JointState, stamped with the simulated
   time of the newest status; its velocity is the newest ``joint_states`` sample's.
 - ``joint_commands`` (sensor_msgs/JointState), what ros2_control's JointStateTopicSystem
   publishes: each new target (``finger_joint`` position, optional velocity and effort as the
@@ -37,10 +37,10 @@ from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 from gripper_interfaces.action import Move as MoveAction
 from gripper_interfaces.msg import SupervisorStatus
 from gripper_interfaces.srv import Move
-from gripper_ros.core.gripper_command import (goal_end, GoalEnd, grip_status_fields,
-                                              joint_state_fields, JointCommandStream,
-                                              move_request_of, result_fields)
-from gripper_ros.core.requests import check_move_limits, RequestError
+from gripper_ros.core.supervision.gripper_command import (goal_end, GoalEnd, grip_status_fields,
+                                                          joint_state_fields, JointCommandStream,
+                                                          move_request_of, result_fields)
+from gripper_ros.core.supervision.requests import check_move_limits, RequestError
 from gripper_ros.nodes.actions import accept_goal, cancel_by_stop
 from gripper_ros.nodes.gripper_node import GripperNode
 from gripper_ros.nodes.loop_io import read_status, StatusView

@@ -38,6 +38,18 @@ INTEGER_KEYS = frozenset({'horizon', 'control_horizon'})
 """Leaf keys whose values are whole numbers (the DMC horizons); every other number is a double."""
 
 
+def declare_controller(node: Node, kind_cls, default, description: str = ''):
+    """Declare a stage's read-only ``controller`` parameter; return its value as a ``kind_cls``.
+
+    ``description`` defaults to the kinds' values; a value that is none of them is refused at
+    start-up with the parameter named (ConfigError).
+    """
+    from gripper_ros.core.control.stages import parse_kind    # the compiled core: stages only
+    value = node.declare_parameter('controller', default.value, ParameterDescriptor(
+        description=description or ' | '.join(k.value for k in kind_cls), read_only=True)).value
+    return parse_kind(kind_cls, value)
+
+
 def flatten(data: dict, prefix: str = '') -> dict[str, object]:
     """Flatten nested sections to dotted keys: ``{'a': {'b': 1}}`` -> ``{'a.b': 1}``."""
     out = {}

@@ -29,10 +29,10 @@ from geometry_msgs.msg import AccelStamped
 from gripper_interfaces.msg import (ForceSensor, MotorCommand, ObjectState, PlantTick, SimStatus,
                                     SupervisorStatus)
 from gripper_interfaces.srv import SetObject, SimStep
-from gripper_ros.core.controllers import make_plant
-from gripper_ros.core.lockstep import (Command, command_problem, FOREIGN, PlantSide, REFUSED,
-                                       REPEATED, side_state_published, Tick)
-from gripper_ros.core.plant import check_fault, GraspObject, Lift
+from gripper_ros.core.control.factories import make_plant
+from gripper_ros.core.physics.plant import check_fault, GraspObject, Lift
+from gripper_ros.core.runtime.lockstep import (Command, command_problem, FOREIGN, PlantSide,
+                                               REFUSED, REPEATED, side_state_published, Tick)
 from gripper_ros.nodes.gripper_node import GripperNode
 from gripper_ros.nodes.loop_io import (clock_template, force_sensor_template, in_layout,
                                        joint_state_template, object_state_template,
@@ -79,7 +79,7 @@ MAX_STEP_TICKS = round(MAX_STEP_S / FORCE_SAMPLE_S)
 
 
 class PlantSimulatorNode(GripperNode):
-    """Thin ROS wrapper around :class:`gripper_ros.core.plant.GripperPlant`."""
+    """Thin ROS wrapper around :class:`gripper_ros.core.physics.plant.GripperPlant`."""
 
     def __init__(self, **kwargs):
         super().__init__(NODE_PLANT, **kwargs)

@@ -8,13 +8,12 @@ from __future__ import annotations
 
 import sys
 
-from gripper_ros.core.controllers import PositionControllerKind
-from gripper_ros.core.stages import (DEFAULT_POSITION_CONTROLLER, parse_kind,
-                                     PositionStageController)
+from gripper_ros.core.control.factories import PositionControllerKind
+from gripper_ros.core.control.stages import DEFAULT_POSITION_CONTROLLER, PositionStageController
 from gripper_ros.nodes.controller_node import LockstepController
+from gripper_ros.nodes.parameters import declare_controller
 from gripper_ros.nodes.process import run_node
 from gripper_ros.wire import Controller, NODE_POSITION_CONTROLLER, TOPIC_POSITION_REFERENCE
-from rcl_interfaces.msg import ParameterDescriptor
 
 
 class PositionControllerNode(LockstepController):
@@ -26,11 +25,7 @@ class PositionControllerNode(LockstepController):
         super().__init__(NODE_POSITION_CONTROLLER, **kwargs)
 
     def declare_stage_parameters(self) -> None:
-        kind = self.declare_parameter(
-            'controller', DEFAULT_POSITION_CONTROLLER.value,
-            ParameterDescriptor(description=' | '.join(k.value for k in PositionControllerKind),
-                                read_only=True)).value
-        self.kind = parse_kind(PositionControllerKind, kind)
+        self.kind = declare_controller(self, PositionControllerKind, DEFAULT_POSITION_CONTROLLER)
 
     def build_stage(self, config) -> PositionStageController:
         return PositionStageController(config, self.kind)

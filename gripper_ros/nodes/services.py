@@ -1,4 +1,4 @@
-"""Service tools: a server that answers later, a blocking call, and waiting on another thread."""
+"""Service tools: a server that answers later, blocking calls, and waiting on another thread."""
 from __future__ import annotations
 
 import time
@@ -23,6 +23,37 @@ def call_and_wait(client, request, timeout_s: float):
     future.add_done_callback(lambda _f: done.set())
     if not done.wait(timeout_s):
         client.remove_pending_request(future)
+        return None
+    return future.result()
+
+
+SPIN_SLICE_S = 0.1
+"""Wall seconds of one spin: how soon a stop signal is seen while waiting for an answer."""
+
+
+def spin_until_done(node, future, timeout_s: float, signals=None) -> bool:
+    """Spin ``node`` until ``future`` is done, ``timeout_s`` has passed or a stop signal came."""
+    import rclpy
+    deadline = time.monotonic() + timeout_s
+    while not future.done() and (signals is None or signals.received is None):
+        left = deadline - time.monotonic()
+        if left <= 0:
+            break
+        rclpy.spin_once(node, timeout_sec=min(SPIN_SLICE_S, left))
+    return future.done()
+
+
+def call_spinning(node, client, request, timeout_s: float, signals=None):
+    """Call a service, spinning ``node`` in this thread; the response, or None after the timeout.
+
+    A stop signal (``signals``, a :class:`~gripper_ros.nodes.process.StopSignals`) while
+    waiting drops the request and raises KeyboardInterrupt.
+    """
+    future = client.call_async(request)
+    if not spin_until_done(node, future, timeout_s, signals):
+        client.remove_pending_request(future)
+        if signals is not None and signals.received is not None:
+            raise KeyboardInterrupt
         return None
     return future.result()
 

@@ -2,8 +2,8 @@
 
 Tick by tick, it names the one stage that drives the motor.
 
-For every ``loop/tick`` it steps :class:`gripper_ros.core.supervisor.GraspSupervisor` and sends
-the tick's reference (setpoints and the measurement) to the one stage it names, on
+For every ``loop/tick`` it steps :class:`gripper_ros.core.supervision.supervisor.GraspSupervisor`
+and sends the tick's reference (setpoints and the measurement) to the one stage it names, on
 ``loop/position_reference`` or ``loop/force_reference``. A request is accepted at once and
 starts at the next tick; the grasp service answers when the grasp is HOLDING (the hold goes on
 until ``release``, ``stop`` or the next grasp) or has ended otherwise, with one explicit
@@ -27,11 +27,11 @@ import time
 
 from gripper_interfaces.msg import PlantTick, SimStatus, StageReference, SupervisorStatus
 from gripper_interfaces.srv import Grasp, Move
-from gripper_ros.core.lockstep import (ACTIVE_SHIFT, ANSWERED, FOREIGN, NAMED, PROGRESS,
-                                       STATUS_DUE, SupervisorSide, Tick)
-from gripper_ros.core.requests import (GraspRequest, MoveRequest, RequestError, validate_move,
-                                       validate_request)
-from gripper_ros.core.supervisor import GraspSupervisor, load_law, RequestKind
+from gripper_ros.core.runtime.lockstep import (ACTIVE_SHIFT, ANSWERED, FOREIGN, NAMED, PROGRESS,
+                                               STATUS_DUE, SupervisorSide, Tick)
+from gripper_ros.core.supervision.requests import (GraspRequest, MoveRequest, RequestError,
+                                                   validate_move, validate_request)
+from gripper_ros.core.supervision.supervisor import GraspSupervisor, load_law, RequestKind
 from gripper_ros.nodes.gripper_node import GripperNode
 from gripper_ros.nodes.loop_io import in_layout, split_ns, status_message, status_template
 from gripper_ros.nodes.names import GraspIds

@@ -34,8 +34,8 @@ than the clamp alone in trials).
 
 The per-sample work (DMC step, governor command and bookkeeping, cascade step) is compiled:
 ``dmc_*``, ``governor_*`` and ``cascade_*`` kernels over records and arrays shared with the
-stage kernels of :mod:`gripper_ros.core.stages`; the classes below are the Python façades that
-build the models (step responses, gains, powers of ``Ad``) and call the kernels.
+stage kernels of :mod:`gripper_ros.core.control.stages`; the classes below are the Python façades
+that build the models (step responses, gains, powers of ``Ad``) and call the kernels.
 """
 from __future__ import annotations
 
@@ -45,10 +45,10 @@ import math
 from typing import Callable
 
 from gripper_ros.core import linalg
-from gripper_ros.core.pid import (as_record, law_error, LAW_NUMBERS, LAW_OK, PID, pid_reset,
-                                  pid_setpoint_for_output, pid_setpoint_range, pid_step_checked,
-                                  py_max, py_min)
-from gripper_ros.core.records import RecordField
+from gripper_ros.core.control.pid import (law_error, LAW_NUMBERS, LAW_OK, PID, pid_reset,
+                                          pid_setpoint_for_output, pid_setpoint_range,
+                                          pid_step_checked, py_max, py_min)
+from gripper_ros.core.records import as_record, RecordField, RecordPair
 import numba
 import numpy as np
 
@@ -164,17 +164,7 @@ class DynamicMatrixControl:
         """(record, buffer): what the ``dmc_*`` kernels take."""
         return (self.record, self.buffer)
 
-    @property
-    def output_limits(self) -> tuple[float, float] | None:
-        s = self.record[0]
-        return (float(s['limit_low']), float(s['limit_high'])) if s['has_limits'] else None
-
-    @output_limits.setter
-    def output_limits(self, limits: tuple[float, float] | None) -> None:
-        s = self.record[0]
-        s['has_limits'] = limits is not None
-        if limits is not None:
-            s['limit_low'], s['limit_high'] = limits
+    output_limits = RecordPair('limit_low', 'limit_high', flag='has_limits')
 
     last_output = RecordField(writable=False)
 

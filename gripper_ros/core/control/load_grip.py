@@ -4,11 +4,11 @@ As a human does (Johansson and Westling 1984): close to a light touch, then let 
 follow the load the pads feel, ``F_sp(t) = k F_load(t) / (2 mu_est)``, with a margin ``k`` of
 1.2-1.4 over the slip limit, and raise it at once when the object slips.
 
-* ``F_load`` is the sum of the two pads' shear readings (``core/pad_sensor.py``); the grip
+* ``F_load`` is the sum of the two pads' shear readings (``core/physics/pad_sensor.py``); the grip
   force it is divided by passes through the shear channel's latency and bandwidth first.
 * ``mu_est`` starts at a conservative ``mu_start`` and is measured from the incipient slip:
   while the object is stuck each pad's displacement follows Cattaneo-Mindlin, ``delta = b +
-  3 mu F / (2 k_t) [1 - (1 - Q / (mu F))^(2/3)]`` (``core/hold.py``), with the pads' own
+  3 mu F / (2 k_t) [1 - (1 - Q / (mu F))^(2/3)]`` (``core/physics/hold.py``), with the pads' own
   tangential stiffness ``k_t`` and an offset ``b`` left by any earlier slip. For each ``mu`` of
   a grid the law keeps the running mean and variance of ``delta - delta_CM(Q, F, mu)`` over
   the samples since the last slip; the ``mu`` whose residual varies least is the estimate, once
@@ -28,15 +28,15 @@ follow the load the pads feel, ``F_sp(t) = k F_load(t) / (2 mu_est)``, with a ma
   (``overload_ns``) while the object is still between the pads.
 
 The supervisor runs :func:`law_step` each tick for a grasp of unknown mass
-(``core/supervisor.py``); one grasp and hold of the study is
-:func:`gripper_ros.core.grip_runs.simulate_load_grip`.
+(``core/supervision/supervisor.py``); one grasp and hold of the study is
+:func:`gripper_ros.studies.grip_runs.simulate_load_grip`.
 """
 from __future__ import annotations
 
 import math
 
 from gripper_ros.core.config import LoadGripParams
-from gripper_ros.core.hold import presliding_m
+from gripper_ros.core.physics.hold import presliding_m
 import numba
 import numpy as np
 

@@ -1,12 +1,12 @@
 """Grasps without ROS: the node graph's lockstep loop, compiled, tick for tick the graph's.
 
-The same plant, supervisor and stage code the nodes call (:mod:`gripper_ros.core.lockstep`),
-wired exactly as the graph wires them in ``time_mode`` fast: the position stage holds the
-open fingers, the grasp request starts at the next tick, each tick the supervisor decides, the
-stage it names answers and the plant holds that answer; simulated time stops when the request
-no longer needs it (answered, and no lift left to play out), or ``hold_s`` after the answer.
-A grasp here gives the same series as the graph, tick for tick, in a fraction of the time, so
-sweeps over many objects are practical.
+The same plant, supervisor and stage code the nodes call
+(:mod:`gripper_ros.core.runtime.lockstep`), wired exactly as the graph wires them in ``time_mode``
+fast: the position stage holds the open fingers, the grasp request starts at the next tick, each
+tick the supervisor decides, the stage it names answers and the plant holds that answer; simulated
+time stops when the request no longer needs it (answered, and no lift left to play out), or
+``hold_s`` after the answer. A grasp here gives the same series as the graph, tick for tick, in a
+fraction of the time, so sweeps over many objects are practical.
 """
 from __future__ import annotations
 
@@ -17,19 +17,21 @@ import time
 from typing import Callable, Sequence
 
 from gripper_ros.core.config import GripperConfig
-from gripper_ros.core.controllers import make_plant
-from gripper_ros.core.engine import map_cases
-from gripper_ros.core.hold import hold_load_n
-from gripper_ros.core.lockstep import (Command, PlantSide, side_accept, side_needs_time,
-                                       side_step, StageSide, SupervisorSide, Tick)
-from gripper_ros.core.plant import (_object_state, check_fault, GraspObject, HoldState, K_HOLD,
-                                    Lift, OBJECT_STATE_DTYPE)
-from gripper_ros.core.requests import (GraspRequest, MoveRequest, RequestError, validate_move,
-                                       validate_request)
-from gripper_ros.core.stages import (DEFAULT_APPROACH_FORCE_MARGIN, DEFAULT_FORCE_CONTROLLER,
-                                     DEFAULT_POSITION_CONTROLLER, ForceStageController,
-                                     PositionStageController, Reference, stage_answer)
-from gripper_ros.core.supervisor import GraspSupervisor, load_law, NO_NS, supervisor_decide
+from gripper_ros.core.control.factories import make_plant
+from gripper_ros.core.control.stages import (DEFAULT_APPROACH_FORCE_MARGIN,
+                                             DEFAULT_FORCE_CONTROLLER, DEFAULT_POSITION_CONTROLLER,
+                                             ForceStageController, PositionStageController,
+                                             Reference, stage_answer)
+from gripper_ros.core.physics.hold import hold_load_n
+from gripper_ros.core.physics.plant import (_object_state, check_fault, GraspObject, HoldState,
+                                            K_HOLD, Lift, OBJECT_STATE_DTYPE)
+from gripper_ros.core.runtime.engine import map_cases
+from gripper_ros.core.runtime.lockstep import (Command, PlantSide, side_accept, side_needs_time,
+                                               side_step, StageSide, SupervisorSide, Tick)
+from gripper_ros.core.supervision.requests import (GraspRequest, MoveRequest, RequestError,
+                                                   validate_move, validate_request)
+from gripper_ros.core.supervision.supervisor import (GraspSupervisor, load_law, NO_NS,
+                                                     supervisor_decide)
 from gripper_ros.wire import (COMMAND_LAYOUT, Controller, FaultKind, FORCE_SAMPLE_S, Outcome,
                               Phase, REFERENCE_LAYOUT, SwitchCriterion, TICK_LAYOUT)
 import numba
@@ -514,8 +516,8 @@ def simulate_grasps(config: GripperConfig, cases: Sequence[dict], jobs: int | No
     request; a case may carry its own ``config``. ``summarize(case, result)``, when given, runs
     in the worker and its (small, picklable) return value comes back instead: a sweep of
     long grasps then sends no series between processes. ``jobs``, ``scheduler`` and
-    ``progress`` are :func:`gripper_ros.core.engine.map_cases`'s. The results are in the cases'
-    order and the same bytes whatever the engine and the worker count.
+    ``progress`` are :func:`gripper_ros.core.runtime.engine.map_cases`'s. The results are in the
+    cases' order and the same bytes whatever the engine and the worker count.
     """
     return map_cases(functools.partial(_grasp_case, config, summarize), cases, jobs,
                      scheduler=scheduler, progress=progress)
@@ -626,7 +628,7 @@ def warm_up(config: GripperConfig | None = None) -> float:
     seconds it took.
     """
     from gripper_ros.core.config import load_config
-    from gripper_ros.core.controllers import ForceControllerKind, PositionControllerKind
+    from gripper_ros.core.control.factories import ForceControllerKind, PositionControllerKind
     start = time.perf_counter()
     config = config or load_config()
     for position in PositionControllerKind:
@@ -648,8 +650,8 @@ def _warm_up_faces(config: GripperConfig) -> None:
     A kernel called from Python is compiled for Python's argument types, apart from the same
     kernel inside the compiled loop.
     """
-    from gripper_ros.core.controllers import ForceControllerKind, PositionControllerKind
-    from gripper_ros.core.stages import LockstepAnswerer
+    from gripper_ros.core.control.factories import ForceControllerKind, PositionControllerKind
+    from gripper_ros.core.control.stages import LockstepAnswerer
     plant = make_plant(config)
     side = PlantSide(plant)
     side.set_object(GraspObject(0.05, 0.0, 0.0, 1.0), lift=Lift(1.0, 0.0, 0.01),

@@ -11,12 +11,13 @@ import functools
 from gripper_ros.core import linalg
 from gripper_ros.core.config import (DmcTuning, ForceSensorParams, GripperConfig, PidGains,
                                      PlantParams)
-from gripper_ros.core.contact_force import ContactForceController
-from gripper_ros.core.dmc import (BrakingGovernor, CascadedMpc, closed_loop_step_response,
-                                  DynamicMatrixControl)
-from gripper_ros.core.force_sensor import FsrVoltageDivider
-from gripper_ros.core.pid import AntiWindup, DerivativeOn, first_order_pi_by_pole_placement, PID
-from gripper_ros.core.plant import GripperPlant
+from gripper_ros.core.control.contact_force import ContactForceController
+from gripper_ros.core.control.dmc import (BrakingGovernor, CascadedMpc, closed_loop_step_response,
+                                          DynamicMatrixControl)
+from gripper_ros.core.control.pid import (AntiWindup, DerivativeOn,
+                                          first_order_pi_by_pole_placement, PID)
+from gripper_ros.core.physics.force_sensor import FsrVoltageDivider
+from gripper_ros.core.physics.plant import GripperPlant
 import numpy as np
 
 UNSATURATED_V = 1e12  # limits used when building a DMC's linear model

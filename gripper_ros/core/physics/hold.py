@@ -40,8 +40,8 @@ instant lift-off, in which the whole weight lands on the pads at once:
 
 :meth:`HoldModel.advance` integrates one interval over which ``F`` and ``a`` are constant, in
 closed form (constant relative acceleration), and finds the exact instants of slide -> stick and
-of the loss inside it. The caller (:class:`gripper_ros.core.plant.GripperPlant`) splits its steps
-at the lift's start and end (:attr:`HoldModel.next_event_ns`) and at the loss.
+of the loss inside it. The caller (:class:`gripper_ros.core.physics.plant.GripperPlant`) splits its
+steps at the lift's start and end (:attr:`HoldModel.next_event_ns`) and at the loss.
 
 The model is a set of compiled kernels (``hold_*``) over one :data:`HOLD_DTYPE` record (or, from
 Python, its 1-element array): the
@@ -53,7 +53,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 import math
 
-from gripper_ros.core.pid import as_record
+from gripper_ros.core.records import as_record
 from gripper_ros.wire import FORCE_SAMPLE_S, HoldState, LiftProfile
 import numba
 import numpy as np

@@ -17,9 +17,9 @@ shear axes on the 12 N range, a 7 kHz output).
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
 import math
 
+from gripper_ros.core.config import ChannelSpec
 import numba
 import numpy as np
 
@@ -39,24 +39,6 @@ CHANNEL_DTYPE = np.dtype([
     ('reading', np.float64),
 ], align=True)
 """One sensor channel's settings and state."""
-
-
-@dataclass(frozen=True)
-class ChannelSpec:
-    """A channel's resolution, noise (1 sigma), bandwidth (Hz, 0 = none) and latency (s)."""
-
-    resolution: float
-    noise: float
-    bandwidth_hz: float
-    latency_s: float
-
-    def __post_init__(self):
-        for name in ('resolution', 'noise', 'bandwidth_hz', 'latency_s'):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, (int, float)) or \
-                    not math.isfinite(value) or value < 0.0:
-                raise ValueError(f'pad sensor {name} must be a finite number >= 0, '
-                                 f'got {value!r}')
 
 
 def make_channel(spec: ChannelSpec, dt_s: float, seed: int) -> tuple[np.ndarray, np.ndarray]:

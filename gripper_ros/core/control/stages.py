@@ -2,8 +2,9 @@
 
 The position and force controller nodes are thin: each takes the supervisor's
 ``StageReference`` for tick ``t_k`` (it carries that tick's measurement) and publishes the
-answer. Everything else lives here, so that the headless loop (:mod:`gripper_ros.core.headless`)
-and ``bag_replay --resimulate`` run the very same code and get bit-identical commands:
+answer. Everything else lives here, so that the headless loop
+(:mod:`gripper_ros.core.runtime.headless`) and ``bag_replay --resimulate`` run the very same code
+and get bit-identical commands:
 
 - :class:`PositionStageController`: MPC-PD (or PD / PID), restarted from rest at the measured
   position whenever it takes over a stage; its voltage capped at the reference's
@@ -31,13 +32,15 @@ import enum
 import math
 
 from gripper_ros.core.config import ConfigError, GripperConfig
-from gripper_ros.core.contact_force import CONTACT_DTYPE, contact_reset, contact_step
-from gripper_ros.core.controllers import (ForceControllerKind, make_force_controller,
-                                          make_position_controller, PositionControllerKind)
-from gripper_ros.core.dmc import (CASCADE_DTYPE, cascade_reset, cascade_step, dmc_buffer_size,
-                                  DMC_DTYPE, governor_buffer_size, GOVERNOR_DTYPE)
-from gripper_ros.core.pid import (as_record, law_error, LAW_NUMBERS, LAW_OK, PID_DTYPE,
-                                  pid_reset, pid_step_checked, py_max, py_min)
+from gripper_ros.core.control.contact_force import CONTACT_DTYPE, contact_reset, contact_step
+from gripper_ros.core.control.dmc import (CASCADE_DTYPE, cascade_reset, cascade_step,
+                                          dmc_buffer_size, DMC_DTYPE, governor_buffer_size,
+                                          GOVERNOR_DTYPE)
+from gripper_ros.core.control.factories import (ForceControllerKind, make_force_controller,
+                                                make_position_controller, PositionControllerKind)
+from gripper_ros.core.control.pid import (law_error, LAW_NUMBERS, LAW_OK, PID_DTYPE, pid_reset,
+                                          pid_step_checked, py_max, py_min)
+from gripper_ros.core.records import as_record, RecordPair
 from gripper_ros.wire import COMMAND_LAYOUT, Controller, REFERENCE_LAYOUT
 import numba
 import numpy as np
@@ -152,8 +155,8 @@ KERNEL_LAYOUT = ('state', 'vectors')
 """``k = (state, vectors)``: ``state`` a 1-element :data:`STATE_DTYPE` array, ``vectors`` one
 float array: a refusing law's numbers (5, ``LAW_AT``), the reference numbers as read
 (``NUMBER_FIELDS`` order, 7, ``REFERENCE_AT``), the DMC's buffer (``DMC_AT``,
-:func:`~gripper_ros.core.dmc.dmc_buffer_size`) and the governor's buffer after it
-(:func:`~gripper_ros.core.dmc.governor_buffer_size`). Two arrays, so a call costs few
+:func:`~gripper_ros.core.control.dmc.dmc_buffer_size`) and the governor's buffer after it
+(:func:`~gripper_ros.core.control.dmc.governor_buffer_size`). Two arrays, so a call costs few
 reference counts: the kernels below pass records."""
 
 
@@ -612,19 +615,9 @@ class LockstepAnswerer:
         self._cmd_bytes = self._cmd.view(np.uint8)
         self._cmd_floats = self._cmd.view(np.float64)
 
-    @property
-    def answered(self) -> tuple[int, int] | None:
-        """(stage_id, stamp) last answered."""
-        b = self._book[0]
-        return ((int(b['answered_stage_id']), int(b['answered_stamp_ns']))
-                if b['has_answered'] else None)
-
-    @answered.setter
-    def answered(self, key: tuple[int, int] | None) -> None:
-        b = self._book[0]
-        b['has_answered'] = key is not None
-        if key is not None:
-            b['answered_stage_id'], b['answered_stamp_ns'] = key
+    answered = RecordPair('answered_stage_id', 'answered_stamp_ns', int, flag='has_answered',
+                          at='_book')
+    """(stage_id, stamp) last answered, None before the first answer."""
 
     @property
     def active_stage(self) -> int | None:

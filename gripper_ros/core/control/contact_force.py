@@ -67,9 +67,10 @@ from dataclasses import dataclass
 import math
 
 from gripper_ros.core.config import ContactForceTuning, PlantParams
-from gripper_ros.core.pid import (as_record, LAW_CONTACT_INPUT, law_error, LAW_MATH_DOMAIN,
-                                  LAW_NUMBERS, LAW_OK, LAW_ZERO_DIVISION, py_max, py_min)
-from gripper_ros.core.records import RecordLimits
+from gripper_ros.core.control.pid import (LAW_CONTACT_INPUT, law_error, LAW_MATH_DOMAIN,
+                                          LAW_NUMBERS, LAW_OK, LAW_ZERO_DIVISION, py_max, py_min)
+from gripper_ros.core.records import as_record
+from gripper_ros.core.records import copy_fields, RecordPair
 import numba
 import numpy as np
 
@@ -388,12 +389,9 @@ class ContactForceController:
         s['dt_s'] = dt_s
         s['rate_share'] = 1.0 if t.setpoint_rate_time_constant_s == 0.0 else \
             -math.expm1(-dt_s / t.setpoint_rate_time_constant_s)
-        s['stall_force_per_volt_n'] = self.stall_force_per_volt_n
-        s['reflected_mass_kg'] = self.reflected_mass_kg
-        s['reflected_damping_n_s_per_m'] = self.reflected_damping_n_s_per_m
-        s['contact_speed_mps_per_n'] = self.contact_speed_mps_per_n
-        s['time_constant_s'] = self.time_constant_s
-        s['band_speed_mps_per_n'] = self.band_speed_mps_per_n
+        copy_fields(s, self, ('stall_force_per_volt_n', 'reflected_mass_kg',
+                              'reflected_damping_n_s_per_m', 'contact_speed_mps_per_n',
+                              'time_constant_s', 'band_speed_mps_per_n'))
         s['two_a'] = 2.0 * t.braking_deceleration_mps2
         # damping-gain quadratic, X = D + c_r:  X^2 - 2 q X - 4 z^2 m (k (1 + K Kp) - c_r / tau),
         # q = 2 z^2 m / tau
@@ -405,10 +403,10 @@ class ContactForceController:
         s['kappa_over_dt'] = t.servo_sample_gain / dt_s
         self.output_limits = (-plant.voltage_limit_v, plant.voltage_limit_v)
         s['max_travel_m'] = plant.max_travel_m
-        for name in ('contact_force_n', 'untouched_overtravel_m', 'integral_speed_band_mps',
-                     'integral_rate_fraction', 'integral_gain_v_per_n_s', 'force_gain_v_per_n',
-                     'design_stiffness_n_per_m', 'max_damping_v_s_per_m'):
-            s[name] = getattr(t, name)
+        copy_fields(s, t, ('contact_force_n', 'untouched_overtravel_m', 'integral_speed_band_mps',
+                           'integral_rate_fraction', 'integral_gain_v_per_n_s',
+                           'force_gain_v_per_n', 'design_stiffness_n_per_m',
+                           'max_damping_v_s_per_m'))
         approach = self.damping_gain_for(t.design_stiffness_n_per_m)
         s['approach_gain_v_s_per_m'] = approach
         # the loop on a spring at the stiffness cap (rigid contact too), computed once: at an
@@ -421,7 +419,7 @@ class ContactForceController:
         s['band_kv'] = self.damping_gain_for(k_band, tau_band)
         self.reset()
 
-    output_limits = RecordLimits()
+    output_limits = RecordPair('low', 'high')
 
     @property
     def terms(self) -> ContactForceTerms:

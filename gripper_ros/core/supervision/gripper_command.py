@@ -12,7 +12,7 @@ from __future__ import annotations
 import enum
 import math
 
-from gripper_ros.core.requests import check_move_limits, MoveRequest, RequestError
+from gripper_ros.core.supervision.requests import check_move_limits, MoveRequest, RequestError
 from gripper_ros.wire import FINGER_JOINT, Outcome
 
 

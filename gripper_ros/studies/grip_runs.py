@@ -1,8 +1,8 @@
 """One grasp and hold of the grip study: a grip law through an arm's motion (no rclpy).
 
-Every law runs the graph's own path, :func:`gripper_ros.core.headless.simulate_grasp` (the
+Every law runs the graph's own path, :func:`gripper_ros.core.runtime.headless.simulate_grasp` (the
 supervisor, its stages and the plant, as ``time_mode`` fast runs them). Apart from
-:mod:`gripper_ros.core.load_grip` (the law) because it drives the whole loop, which the
+:mod:`gripper_ros.core.control.load_grip` (the law) because it drives the whole loop, which the
 supervisor's own use of the law must not import back.
 """
 from __future__ import annotations
@@ -12,10 +12,10 @@ import enum
 import math
 
 from gripper_ros.core.config import ForceLaw, GripperConfig, LoadGripParams
-from gripper_ros.core.headless import simulate_grasp
-from gripper_ros.core.hold import HoldState, Lift
-from gripper_ros.core.load_grip import ROW_FIELDS
-from gripper_ros.core.requests import RequestError
+from gripper_ros.core.control.load_grip import ROW_FIELDS
+from gripper_ros.core.physics.hold import HoldState, Lift
+from gripper_ros.core.runtime.headless import simulate_grasp
+from gripper_ros.core.supervision.requests import RequestError
 from gripper_ros.wire import Outcome
 import numpy as np
 
@@ -123,8 +123,8 @@ def simulate_load_grip(config: GripperConfig, width_m: float, mass_kg: float,
     """Grasp an object of ``mass_kg`` and pad friction ``mu_s, mu_k`` and hold it through ``lift``.
 
     ``load_tracking``: the request carries no mass (``mass_kg`` 0): the graph's own path,
-    :func:`gripper_ros.core.headless.simulate_grasp`, whose supervisor closes to the touch force
-    and then runs the law each tick on the pads' readings (``seed`` seeds the pads' noise).
+    :func:`gripper_ros.core.runtime.headless.simulate_grasp`, whose supervisor closes to the touch
+    force and then runs the law each tick on the pads' readings (``seed`` seeds the pads' noise).
     ``friction`` / ``paper``: the request declares ``declared_mass_kg`` (default: the true mass)
     and the lift's ``A`` and the configured mu_s, as a user of the fixed laws must; the grip
     stays at that setpoint. Both through the same path.

@@ -15,8 +15,8 @@ hold, matrix exponential) at whatever hold time a controller asks for. Contact w
 * flexible fingers and nonlinear pads (``contact.finger_stiffness_n_per_m``,
   ``contact.pad_normal_stiffness_n_per_m1_5`` > 0): every contact, rigid or compliant object,
   is the series chain finger - pad - object - pad - finger of
-  :mod:`gripper_ros.core.contact_chain`, one force through all, solved each sub-step. With both
-  keys 0 the two models above run unchanged.
+  :mod:`gripper_ros.core.physics.contact_chain`, one force through all, solved each sub-step. With
+  both keys 0 the two models above run unchanged.
 
 The fully-open end stop (``x = 0``) is rigid and senses no force; with no object the fingers meet
 at ``x = L_ls`` (a rigid object of width 0).
@@ -28,12 +28,12 @@ when the step is short against the object's spring mode and the finger is still 
 its end. Otherwise the interval is sub-stepped at ``contact_substep_s`` and contact or
 separation is located on that grid.
 
-Holding (:mod:`gripper_ros.core.hold`): a lifted object is held by Coulomb friction on both pads
-at the plant's contact force, and may slide and be lost; :meth:`GripperPlant.begin_hold` starts
-the lift's clock, :attr:`GripperPlant.object_state` reports it. A step is split at the lift's
-start and end and at the loss, and the grip force is taken at the start of each piece (at most
-one ``contact_substep_s`` long while the object slides). At the loss the object is gone, as for
-``OBJECT_REMOVED``.
+Holding (:mod:`gripper_ros.core.physics.hold`): a lifted object is held by Coulomb friction on both
+pads at the plant's contact force, and may slide and be lost; :meth:`GripperPlant.begin_hold`
+starts the lift's clock, :attr:`GripperPlant.object_state` reports it. A step is split at the
+lift's start and end and at the loss, and the grip force is taken at the start of each piece (at
+most one ``contact_substep_s`` long while the object slides). At the loss the object is gone, as
+for ``OBJECT_REMOVED``.
 
 Fault injection (tests and demos; :meth:`GripperPlant.schedule_fault`, one fault fires at an exact
 simulated instant, the step is split there):
@@ -46,14 +46,15 @@ simulated instant, the step is split there):
   ``C < 1 %`` of ``F_0`` the object is out and gone. Fired while nothing is gripped
   (``F_0 = 0``), or with flexible fingers or pads (the chain below), it acts as a removal.
 * ``SENSOR_DROPOUT``: the force sensor reports NaN force and voltage from then on
-  (:class:`gripper_ros.core.force_sensor.FsrVoltageDivider`); the mechanics are unaffected.
+  (:class:`gripper_ros.core.physics.force_sensor.FsrVoltageDivider`); the mechanics are unaffected.
 
 Effects last until the next :meth:`GripperPlant.set_object` (a new object, a repaired sensor).
 
 Compiled core (numba): the state lives in numpy records, and ``GripperPlant.kernel`` is the
 tuple ``k`` of the plant's buffers, indexed by ``K_*``: the state (:data:`STATE_DTYPE`), the
-constants (:data:`PARAMS_DTYPE`), the object's hold (:data:`gripper_ros.core.hold.HOLD_DTYPE`),
-the sensor (:data:`gripper_ros.core.force_sensor.SENSOR_DTYPE`, the record the plant's
+constants (:data:`PARAMS_DTYPE`), the object's hold
+(:data:`gripper_ros.core.physics.hold.HOLD_DTYPE`), the sensor
+(:data:`gripper_ros.core.physics.force_sensor.SENSOR_DTYPE`, the record the plant's
 :class:`FsrVoltageDivider` wraps), the faults fired since ``set_object`` (int64 rows ``(kind,
 t_ns)``) and the table of discretisations (keys ``(kind, dt_s, k, c, x_c)``, 15 coefficients
 each). The entry points :func:`plant_step`, :func:`plant_read_tick`, :func:`plant_begin_hold`,
@@ -69,20 +70,23 @@ import enum
 import math
 from typing import NamedTuple
 
-from gripper_ros.core.config import (ContactParams, object_contact, PadSensorParams,
+from gripper_ros.core.config import (ChannelSpec, ContactParams, object_contact, PadSensorParams,
                                      PlantParams)
-from gripper_ros.core.contact_chain import chain_solve, PADS_IN_CHAIN
-from gripper_ros.core.force_sensor import (fsr_voltage_v, FsrVoltageDivider,
-                                           NOISE_CHANNEL_FORCE, NOISE_CHANNEL_POSITION,
-                                           noisy_reading)
-from gripper_ros.core.hold import (check_finite_nonnegative, hold_advance, hold_begin,
-                                   hold_capacity_n, hold_drive, HOLD_DTYPE, hold_fire_events,
-                                   hold_live, hold_load_n, hold_presliding_m, hold_remove,
-                                   hold_scenario_in_progress, hold_shear_n, hold_stays_stuck,
-                                   HoldModel, HoldState, Lift, ObjectState)
 from gripper_ros.core.linalg import expm
-from gripper_ros.core.pad_sensor import (CHANNEL_DTYPE, channel_step, ChannelSpec, make_channel,
-                                         MAX_LATENCY_SAMPLES)
+from gripper_ros.core.physics.contact_chain import chain_solve, PADS_IN_CHAIN
+from gripper_ros.core.physics.force_sensor import (fsr_voltage_v, FsrVoltageDivider,
+                                                   NOISE_CHANNEL_FORCE, NOISE_CHANNEL_POSITION,
+                                                   noisy_reading)
+from gripper_ros.core.physics.hold import (check_finite_nonnegative, hold_advance, hold_begin,
+                                           hold_capacity_n, hold_drive, HOLD_DTYPE,
+                                           hold_fire_events, hold_live, hold_load_n,
+                                           hold_presliding_m, hold_remove,
+                                           hold_scenario_in_progress, hold_shear_n,
+                                           hold_stays_stuck, HoldModel, HoldState, Lift,
+                                           ObjectState)
+from gripper_ros.core.physics.pad_sensor import (CHANNEL_DTYPE, channel_step, make_channel,
+                                                 MAX_LATENCY_SAMPLES)
+from gripper_ros.core.records import copy_fields, RecordField
 from gripper_ros.wire import FaultKind, TICK_LAYOUT
 import numba
 import numpy as np
@@ -215,7 +219,8 @@ MAX_FIRED_FAULTS = 16         # fired faults kept since set_object (the oldest a
 # Few arrays: the compiled code copies the tuple on every call it does not inline.
 K_STATE, K_PARAMS, K_HOLD, K_SENSOR, K_FIRED, K_DISC_KEYS, K_DISC_COEF, K_PADS = range(8)
 
-# The pad channels (K_PADS rows, core/pad_sensor.py), in PlantTick's order of their readings.
+# The pad channels (K_PADS rows, core/physics/pad_sensor.py), in PlantTick's order of their
+# readings.
 PAD_SHEAR_1, PAD_SHEAR_2, PAD_DISPLACEMENT_1, PAD_DISPLACEMENT_2 = range(4)
 PAD_CHANNELS = 4
 PAD_DTYPE = np.dtype([(name, CHANNEL_DTYPE.fields[name][0]) for name in CHANNEL_DTYPE.names]
@@ -240,7 +245,7 @@ PARAMS_DTYPE = np.dtype([
     ('after_lift_ns', np.int64),           # contact.after_lift_s in ns
     ('two', np.float64),                   # 2.0 read at run time: w ** two is Python's w ** 2
     ('pad_dt_ns', np.int64),               # the pad channels' sample period
-    # flexible fingers and Hertz pads in series with the object (core/contact_chain.py)
+    # flexible fingers and Hertz pads in series with the object (core/physics/contact_chain.py)
     ('chain', np.uint8),                   # 1: either is on; every contact is a chain
     ('finger_compliance_m_per_n', np.float64),   # 2 / k_f, both fingers (0: rigid)
     ('pad_stiffness_n_per_m1_5', np.float64),    # k_p of each pad (0: no pad)
@@ -294,11 +299,8 @@ def _plant_params_record(params: PlantParams, contact: ContactParams) -> np.ndar
     r['tau_e'] = p.inductance_h / p.resistance_ohm
     r['kt'] = p.torque_constant_n_m_per_a
     r['kb'] = p.back_emf_v_s_per_rad
-    r['resistance_ohm'] = p.resistance_ohm
-    r['inductance_h'] = p.inductance_h
-    r['inertia_kg_m2'] = p.inertia_kg_m2
-    r['damping_n_m_s_per_rad'] = p.damping_n_m_s_per_rad
-    r['max_travel_m'] = p.max_travel_m
+    copy_fields(r, p, ('resistance_ohm', 'inductance_h', 'inertia_kg_m2', 'damping_n_m_s_per_rad',
+                       'max_travel_m'))
     r['h'] = p.contact_substep_s
     r['h_ns'] = max(1, round(p.contact_substep_s * 1e9))
     r['limit_v'] = p.voltage_limit_v
@@ -725,7 +727,7 @@ def _chain_at_rest(s, p):
 
 @numba.njit(cache=True)
 def _advance_chain(s, p, keys, coef, e, dt_s):
-    """One sub-step of the finger pressing through the chain (core/contact_chain.py).
+    """One sub-step of the finger pressing through the chain (core/physics/contact_chain.py).
 
     The motor is the exact ZOH model with the chain's force as a held load input, taken as the
     mean of its values at the two ends (trapezoidal rule: second order, and on an undamped
@@ -1395,32 +1397,17 @@ class GripperPlant:
         return self.sensor.dropped_out
 
     # ----------------------------------------------------------------- state read-outs
-    @property
-    def t_ns(self) -> int:
-        """Simulated time in integer nanoseconds: exact, the lockstep's tick key."""
-        return int(self._s['t_ns'])
-
-    @t_ns.setter
-    def t_ns(self, value: int) -> None:
-        self._s['t_ns'] = value
+    t_ns = RecordField(int, at='_s', doc='Simulated time in integer nanoseconds: exact, the '
+                       "lockstep's tick key.")
 
     @property
     def t_s(self) -> float:
         return self.t_ns * 1e-9
 
-    @property
-    def impact_energy_lost_j(self) -> float:
-        """Kinetic energy lost in arrivals on a rigid face or the open stop since the reset."""
-        return float(self._s['impact_energy_lost_j'])
-
-    @impact_energy_lost_j.setter
-    def impact_energy_lost_j(self, value: float) -> None:
-        self._s['impact_energy_lost_j'] = value
-
-    @property
-    def contact_position_m(self) -> float:
-        """Finger travel at which it touches the object."""
-        return float(self._s['x_c'])
+    impact_energy_lost_j = RecordField(at='_s', doc='Kinetic energy lost in arrivals on a rigid '
+                                       'face or the open stop since the reset.')
+    contact_position_m = RecordField(writable=False, field='x_c', at='_s',
+                                     doc='Finger travel at which it touches the object.')
 
     @property
     def contact_state(self) -> ContactState:

@@ -16,7 +16,7 @@ import math
 from typing import Iterator
 
 from gripper_ros.core.config import PlantParams
-from gripper_ros.core.requests import MoveRequest
+from gripper_ros.core.supervision.requests import MoveRequest
 import numpy as np
 
 MAX_SECONDS = 300.0            # longest experiment accepted (simulated s)

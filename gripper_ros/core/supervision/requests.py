@@ -6,8 +6,8 @@ defaults from the configuration into :class:`GraspTargets` or :class:`MoveTarget
 supervisor runs. The grip force is :func:`force_setpoint_n`: ``k m (g + a) / (2 mu_s)`` (two
 pads of friction, safety factor ``k``) by default, eq. 23's ``mu_s m (g + a)`` with
 ``supervisor.force_law: paper``. A request of mass 0 leaves the mass unknown: the grip then
-tracks the load the pads measure (:mod:`gripper_ros.core.load_grip`, run by the supervisor),
-from a touch at ``load_grip.touch_force_n``.
+tracks the load the pads measure (:mod:`gripper_ros.core.control.load_grip`, run by the
+supervisor), from a touch at ``load_grip.touch_force_n``.
 """
 from __future__ import annotations
 

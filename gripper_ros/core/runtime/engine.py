@@ -23,7 +23,7 @@ import tempfile
 import time
 from typing import Callable, Iterator, Sequence
 
-WORKER_PRELOAD = 'gripper_ros.core.batch_worker'
+WORKER_PRELOAD = 'gripper_ros.core.runtime.batch_worker'
 """Imported by each worker as it starts (``dask worker --preload``): loads the compiled core."""
 CHUNKS_PER_WORKER = 4
 """A batch is cut into this many chunks per worker: few tasks, balanced load."""
@@ -136,6 +136,20 @@ def jobs_problem(jobs) -> str:
         return (f'jobs must be a whole number in [1, {limit}] ({MAX_JOBS_PER_CPU} per CPU of '
                 f'the {cpus} here; more only share the cores), got {jobs!r}')
     return ''
+
+
+def options_problem(jobs: int | None = None, scheduler: str | None = None) -> str:
+    """Return why a program's ``--jobs`` or ``--scheduler`` cannot be used ('' if they can).
+
+    ``jobs`` None: the engine's default; with a ``scheduler`` the local count is not used.
+    """
+    if scheduler is not None:
+        try:
+            check_address(scheduler)
+        except ValueError as exc:
+            return str(exc)
+        return ''
+    return '--' + jobs_problem(jobs) if jobs is not None and jobs_problem(jobs) else ''
 
 
 def map_cases(fn: Callable, cases: Sequence, jobs: int | None = None,

@@ -13,7 +13,7 @@ further into saturation. :meth:`reset` with an output value gives bumpless trans
 integrator is seeded so the first output equals the command already on the motor.
 
 The per-sample work is compiled (``pid_*`` kernels over one :data:`PID_DTYPE` record, the
-state shared with the stage kernels of :mod:`gripper_ros.core.stages`); :class:`PID` is the
+state shared with the stage kernels of :mod:`gripper_ros.core.control.stages`); :class:`PID` is the
 Python façade that validates and calls them. This module also holds what every compiled law
 shares: Python's ``min``/``max`` semantics (:func:`py_min`, :func:`py_max`) and the codes of a
 law that refuses its numbers (``LAW_*``, formatted by :func:`law_error`).
@@ -25,10 +25,8 @@ import enum
 import math
 
 from gripper_ros.core.config import PidGains
-from gripper_ros.core.records import RecordField, RecordLimits
+from gripper_ros.core.records import as_record, RecordField, RecordPair, RecordParams
 import numba
-from numba import types
-from numba.extending import overload
 import numpy as np
 
 
@@ -68,22 +66,6 @@ def law_error(code: int, numbers) -> Exception:
     if code == LAW_MATH_DOMAIN:
         return ValueError('math domain error')
     return RuntimeError(f'unknown control-law code {code}')
-
-
-def as_record(x):
-    """Return the record of a 1-element record array, or the record itself.
-
-    Kernels take either: a Python façade passes its 1-element array (a record passed from
-    Python would be a copy), compiled callers pass records (no reference counting).
-    """
-    return x[0] if isinstance(x, np.ndarray) else x
-
-
-@overload(as_record)
-def _as_record(x):
-    if isinstance(x, types.Array):
-        return lambda x: x[0]
-    return lambda x: x
 
 
 @numba.njit(cache=True)
@@ -272,19 +254,11 @@ class PID:
         self.setpoint_weight = setpoint_weight
         self.reset()
 
-    @property
-    def gains(self) -> PidGains:
-        return self._gains
-
-    @gains.setter
-    def gains(self, gains: PidGains) -> None:
-        self._gains = gains
-        s = self.record[0]
-        s['kc'], s['ki'], s['kd'] = gains.kc, gains.ki, gains.kd
+    gains = RecordParams(('kc', 'ki', 'kd'))
 
     dt_s = RecordField()
 
-    output_limits = RecordLimits()
+    output_limits = RecordPair('low', 'high')
 
     @property
     def derivative_on(self) -> DerivativeOn:

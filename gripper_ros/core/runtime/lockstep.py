@@ -3,7 +3,7 @@
 Each tick ``t_k``: the plant measures (:class:`Tick`), the supervisor decides and sends a
 :class:`Reference` to the stage it names, that stage answers with a :class:`Command`, and the
 plant holds the command's voltage for its ``hold_s``. The nodes move these messages over DDS as
-bytes (:mod:`gripper_ros.wire` layouts); :mod:`gripper_ros.core.headless` hands them over
+bytes (:mod:`gripper_ros.wire` layouts); :mod:`gripper_ros.core.runtime.headless` hands them over
 inside one compiled loop. Both call exactly the compiled functions below (numba), on the
 messages as records (``TICK_LAYOUT.dtype`` and so on), so a headless grasp equals the graph's
 tick for tick.
@@ -13,13 +13,15 @@ from __future__ import annotations
 from collections import namedtuple
 import math
 
-from gripper_ros.core.plant import (GraspObject, GripperPlant, HoldState, K_HOLD,
-                                    plant_begin_hold, plant_cancel_fault, plant_fault_scheduled,
-                                    plant_read_tick, plant_scenario_in_progress,
-                                    plant_schedule_fault, plant_step)
-from gripper_ros.core.stages import LockstepAnswerer, Reference, stage_answer, TickAnswer
-from gripper_ros.core.supervisor import (Decision, GraspSupervisor, K_STATE, NO_ANSWER,
-                                         NO_NS, status_key, supervisor_decide)
+from gripper_ros.core.control.stages import LockstepAnswerer, Reference, stage_answer, TickAnswer
+from gripper_ros.core.physics.plant import (GraspObject, GripperPlant, HoldState, K_HOLD,
+                                            plant_begin_hold, plant_cancel_fault,
+                                            plant_fault_scheduled, plant_read_tick,
+                                            plant_scenario_in_progress, plant_schedule_fault,
+                                            plant_step)
+from gripper_ros.core.records import RecordField
+from gripper_ros.core.supervision.supervisor import (Decision, GraspSupervisor, K_STATE, NO_ANSWER,
+                                                     NO_NS, status_key, supervisor_decide)
 from gripper_ros.wire import (COMMAND_LAYOUT, Controller, FaultKind, Outcome, Phase,
                               REFERENCE_LAYOUT, TICK_LAYOUT)
 import numba
@@ -341,18 +343,11 @@ class PlantSide:
         self.command_needs_time = lambda: needs_time(k, cmd)
         """Whether simulated time must go on after the accepted command (fast mode)."""
 
-    revision = property(lambda self: int(self._s['revision']),
-                        doc='+1 on every change of the simulated world.')
-    applied_source = property(lambda self: Controller(self._s['applied_source']))
-
-    @property
-    def grasp_mass_kg(self) -> float:
-        """The requested mass of the grasp (the plant's mass of an object that gives none)."""
-        return float(self._s['grasp_mass_kg'])
-
-    @grasp_mass_kg.setter
-    def grasp_mass_kg(self, value: float) -> None:
-        self._s['grasp_mass_kg'] = value
+    revision = RecordField(int, writable=False, at='_s',
+                           doc='+1 on every change of the simulated world.')
+    applied_source = RecordField(Controller, writable=False, at='_s')
+    grasp_mass_kg = RecordField(at='_s', doc="The requested mass of the grasp (the plant's mass "
+                                'of an object that gives none).')
 
     def _tick(self) -> Tick:
         return Tick._make(self.tick_record[0].item())

@@ -8,9 +8,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from gripper_ros.core.config import GripperConfig
-from gripper_ros.core.controllers import make_plant
-from gripper_ros.core.metrics import step_metrics, StepMetrics
-from gripper_ros.core.plant import GraspObject
+from gripper_ros.core.control.factories import make_plant
+from gripper_ros.core.physics.plant import GraspObject
+from gripper_ros.studies.metrics import step_metrics, StepMetrics
 import numpy as np
 
 

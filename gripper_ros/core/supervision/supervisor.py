@@ -3,8 +3,8 @@
 Stages (paper sec. IV): POSITION (MPC-PD drives the finger to ``L_ls - width``) until either
 switching criterion holds - the position is within +-2 % of its setpoint, or the force-sensor
 voltage has risen by more than its threshold - then FORCE (to the request's setpoint,
-:func:`gripper_ros.core.requests.force_setpoint_n`) until the force has settled: HOLDING.
-Settled means ``|F - F_sp| + T |dF/dt|`` within the band and the finger slower than
+:func:`gripper_ros.core.supervision.requests.force_setpoint_n`) until the force has settled:
+HOLDING. Settled means ``|F - F_sp| + T |dF/dt|`` within the band and the finger slower than
 ``force_settle_speed_mps`` on every tick for ``force_settle_hold_s``, ``T`` being the slowest
 contact mode's time scale (``force_settle_horizon_s``), so that no swing through the band is
 taken for settled. Exactly one
@@ -22,14 +22,14 @@ Release: :meth:`GraspSupervisor.request_release` runs the position stage to the 
 
 Move (:meth:`GraspSupervisor.request_move`, Franka's move, control_msgs GripperCommand's
 result): the position stage drives the finger to ``L_ls - width`` with the request's speed and
-effort as its limits (phase MOVING; :class:`gripper_ros.core.stages.PositionStageController`
-keeps the speed below the limit and the push below the stall voltage of the effort). MOVED
-(``reached_goal``) once the finger is at rest within ``move_tolerance_m`` of the goal; STALLED
-once it is at rest short of the goal and, closing, presses with ``move_stall_force_fraction`` x
-the effort limit (the force sensor tells contact), or has been at rest short of it for
-``move_stall_timeout_s``. Either way the position stage then keeps the move's last command (the
-goal, the limits): a stalled move goes on pressing with at most its effort, as a
-position-controlled gripper keeps its command.
+effort as its limits (phase MOVING;
+:class:`gripper_ros.core.control.stages.PositionStageController` keeps the speed below the limit
+and the push below the stall voltage of the effort). MOVED (``reached_goal``) once the finger is at
+rest within ``move_tolerance_m`` of the goal; STALLED once it is at rest short of the goal and,
+closing, presses with ``move_stall_force_fraction`` x the effort limit (the force sensor tells
+contact), or has been at rest short of it for ``move_stall_timeout_s``. Either way the position
+stage then keeps the move's last command (the goal, the limits): a stalled move goes on pressing
+with at most its effort, as a position-controlled gripper keeps its command.
 
 The state machine is compiled (numba): :func:`supervisor_step` and :func:`supervisor_decide`
 run on the state record :data:`SUPERVISOR_STATE`, called tick by tick by the supervisor node
@@ -43,8 +43,9 @@ import math
 
 from gripper_ros.core.config import (GripperConfig, PlantParams, shipped_config,
                                      SupervisorParams)
-from gripper_ros.core.load_grip import HISTORY_ROWS, law_step, make_law, MU_GRID
-from gripper_ros.core.requests import GraspTargets, MoveTargets, RequestError
+from gripper_ros.core.control.load_grip import HISTORY_ROWS, law_step, make_law, MU_GRID
+from gripper_ros.core.records import RecordParams
+from gripper_ros.core.supervision.requests import GraspTargets, MoveTargets, RequestError
 from gripper_ros.wire import Controller, Outcome, PendingRequest, Phase, SwitchCriterion
 import numba
 import numpy as np
@@ -826,17 +827,8 @@ class GraspSupervisor:
         self._decision = Decision(self)
 
     # ------------------------------------------------------------------ parameters
-    @property
-    def params(self) -> SupervisorParams:
-        return self._params_obj
-
-    @params.setter
-    def params(self, params: SupervisorParams) -> None:
-        """Set new thresholds; they take effect from the next tick."""
-        self._params_obj = params
-        record = self._params[0]
-        for name in _PARAM_FIELDS:
-            record[name] = getattr(params, name)
+    params = RecordParams(_PARAM_FIELDS, at='_params',
+                          doc='The thresholds; new ones take effect from the next tick.')
 
     # ------------------------------------------------------------------ state
     kind = property(lambda self: KIND_NAMES.get(int(self._s['kind'])),

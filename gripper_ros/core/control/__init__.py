@@ -1,0 +1,1 @@
+"""The control laws, the stage controllers and their factories."""

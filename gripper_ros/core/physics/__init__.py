@@ -1,0 +1,1 @@
+"""The physics: plant (motor, screw, contact), held object, sensors."""

@@ -1,0 +1,1 @@
+"""One lockstep tick, the compiled loop and the batch engine."""

@@ -1,0 +1,1 @@
+"""Grasp and move requests and the supervisor state machine."""
