@@ -205,6 +205,14 @@ class Controller(enum.IntEnum):
     FORCE = 2
 
 
+STAGE_NODES = {Controller.POSITION: NODE_POSITION_CONTROLLER,
+               Controller.FORCE: NODE_FORCE_CONTROLLER}
+"""The node that runs each stage."""
+STAGE_REFERENCE_TOPICS = {Controller.POSITION: TOPIC_POSITION_REFERENCE,
+                          Controller.FORCE: TOPIC_FORCE_REFERENCE}
+"""Each stage's references: the supervisor to the node it names, on the ticks it names it."""
+
+
 class SwitchCriterion(enum.IntEnum):
     """``SupervisorStatus.SWITCH_*``: what ended the position stage."""
 

@@ -1,7 +1,8 @@
-"""What the benchmarks share: service calls from a measuring thread, CPU time of a process."""
+"""What the benchmarks share: a node of their own, service calls, CPU time of a process."""
 from __future__ import annotations
 
 import os
+import threading
 
 from gripper_ros.bench.pingpong import BenchError
 
@@ -23,3 +24,37 @@ def process_cpu_s(pid: int) -> float:
         return (int(fields[11]) + int(fields[12])) / os.sysconf('SC_CLK_TCK')
     except (OSError, IndexError, ValueError):
         return float('nan')
+
+
+class SpunNode:
+    """A node in a context of its own, spun by an EventsExecutor on a thread of its own.
+
+    What a benchmark watches the graph and calls its services from, as another process would.
+    Make its subscriptions and clients on :attr:`node`, then :meth:`start` it.
+    """
+
+    def __init__(self, name: str, namespace: str | None = None) -> None:
+        import rclpy
+        from rclpy.experimental import EventsExecutor
+        self.context = rclpy.Context()
+        rclpy.init(args=[], context=self.context)
+        self.node = rclpy.create_node(name, context=self.context,
+                                      **({'namespace': namespace} if namespace else {}))
+        self.executor = EventsExecutor(context=self.context)
+        self._stop = rclpy.task.Future()
+        self._thread: threading.Thread | None = None
+
+    def start(self) -> None:
+        from gripper_ros.nodes.process import spin_until_stopped
+        self.executor.add_node(self.node)
+        self._thread = threading.Thread(target=spin_until_stopped,
+                                        args=(self.executor, self._stop), daemon=True)
+        self._thread.start()
+
+    def close(self) -> None:
+        self._stop.set_result(True)
+        if self._thread is not None:
+            self._thread.join(5.0)
+        self.executor.shutdown(timeout_sec=1.0)
+        self.node.destroy_node()
+        self.context.try_shutdown()

@@ -37,11 +37,10 @@ import re
 import subprocess
 import sys
 import tempfile
-import threading
 import time
 from typing import Any, Callable, Dict, List, Optional, Sequence
 
-from gripper_ros.bench.common import call, process_cpu_s
+from gripper_ros.bench.common import call, process_cpu_s, SpunNode
 from gripper_ros.bench.observer import PhaseObserver, quiet_loggers
 from gripper_ros.bench.pingpong import (BenchError, EXECUTOR_KINDS, measure_pingpong,
                                         measure_ring)
@@ -225,8 +224,6 @@ class _NodeProcesses:
     """The four node executables in a namespace of their own, fast time, and a client here."""
 
     def __init__(self, executor_kind: str, namespace: str) -> None:
-        import rclpy
-        from rclpy.experimental import EventsExecutor
         from gripper_interfaces.srv import Grasp, SetObject
         from std_srvs.srv import Trigger
         from gripper_ros.nodes.qos import SERVICE_QOS
@@ -243,25 +240,15 @@ class _NodeProcesses:
             self.procs.append(subprocess.Popen(cmd, stdin=subprocess.DEVNULL,
                                                stdout=subprocess.DEVNULL,
                                                stderr=subprocess.PIPE, text=True))
-        self.context = rclpy.Context()
-        rclpy.init(args=[], context=self.context)
-        self.node = rclpy.create_node('bench_graph_client', namespace=namespace,
-                                      context=self.context)
+        self.client = SpunNode('bench_graph_client', namespace)
+        self.node = self.client.node
         ns = namespace
         self._set_object = self.node.create_client(SetObject, qualified(ns, SERVICE_SET_OBJECT))
         self._grasp = self.node.create_client(Grasp, qualified(ns, SERVICE_GRASP),
                                               qos_profile=SERVICE_QOS)
         self._release = self.node.create_client(Trigger, qualified(ns, SERVICE_RELEASE))
         self._stop = self.node.create_client(Trigger, qualified(ns, SERVICE_STOP))
-        self.executor = EventsExecutor(context=self.context)
-        self.executor.add_node(self.node)
-        self._done = rclpy.task.Future()
-        self._thread = threading.Thread(target=self._spin, daemon=True)
-        self._thread.start()
-
-    def _spin(self) -> None:
-        from gripper_ros.nodes.process import spin_until_stopped
-        spin_until_stopped(self.executor, self._done)
+        self.client.start()
 
     def wait_up(self) -> None:
         deadline = time.monotonic() + _MATCH_TIMEOUT_S
@@ -301,11 +288,7 @@ class _NodeProcesses:
         return sum(process_cpu_s(p.pid) for p in self.procs)
 
     def close(self) -> None:
-        self._done.set_result(True)
-        self._thread.join(5.0)
-        self.executor.shutdown(timeout_sec=1.0)
-        self.node.destroy_node()
-        self.context.try_shutdown()
+        self.client.close()
         for p in self.procs:
             if p.poll() is None:
                 p.terminate()

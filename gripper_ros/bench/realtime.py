@@ -34,7 +34,7 @@ import threading
 import time
 from typing import Any, Dict, Optional, Sequence
 
-from gripper_ros.bench.common import call, process_cpu_s
+from gripper_ros.bench.common import call, process_cpu_s, SpunNode
 from gripper_ros.bench.pingpong import BenchError
 from gripper_ros.nodes import LAUNCHED_MODULES
 from gripper_ros.wire import DEFAULT_STATE_RATE_HZ
@@ -47,22 +47,18 @@ class _Watcher:
     """Counts and stamps of the streams a ROS system would use, seen from another process."""
 
     def __init__(self, namespace: str) -> None:
-        import rclpy
         from gripper_interfaces.msg import SimStatus
         from gripper_interfaces.srv import Grasp, SetObject
-        from rclpy.experimental import EventsExecutor
         from rosgraph_msgs.msg import Clock
         from sensor_msgs.msg import JointState
         from std_srvs.srv import Trigger
         from gripper_ros.nodes.loop_io import joint_state_template
-        from gripper_ros.nodes.process import spin_until_stopped
         from gripper_ros.nodes.qos import GRAPH_QOS, SERVICE_QOS
         from gripper_ros.wire import (FINGER_JOINT, SERVICE_GRASP, SERVICE_RELEASE,
                                       SERVICE_SET_OBJECT, TOPIC_CLOCK, TOPIC_JOINT_STATES,
                                       TOPIC_SIM_STATUS, qualified)
-        self.context = rclpy.Context()
-        rclpy.init(args=[], context=self.context)
-        self.node = rclpy.create_node('bench_realtime_watcher', context=self.context)
+        self.spun = SpunNode('bench_realtime_watcher')
+        self.node = self.spun.node
         self._lock = threading.Lock()
         self.clock_count = 0
         self.joint_count = 0
@@ -80,12 +76,7 @@ class _Watcher:
         self.release = self.node.create_client(Trigger, qualified(namespace, SERVICE_RELEASE))
         self.set_object = self.node.create_client(SetObject,
                                                   qualified(namespace, SERVICE_SET_OBJECT))
-        self.executor = EventsExecutor(context=self.context)
-        self.executor.add_node(self.node)
-        self._stop = rclpy.task.Future()
-        self._thread = threading.Thread(target=spin_until_stopped,
-                                        args=(self.executor, self._stop), daemon=True)
-        self._thread.start()
+        self.spun.start()
 
     def _on_clock(self, _data: bytes) -> None:
         with self._lock:
@@ -118,11 +109,7 @@ class _Watcher:
         return call(client, request, timeout_s)
 
     def close(self) -> None:
-        self._stop.set_result(True)
-        self._thread.join(5.0)
-        self.executor.shutdown(timeout_sec=1.0)
-        self.node.destroy_node()
-        self.context.try_shutdown()
+        self.spun.close()
 
 
 PER_NODE_MODULES = tuple(LAUNCHED_MODULES.values())

@@ -1,5 +1,13 @@
-"""What the action servers share: every goal accepted, a running goal cancelled by a stop."""
+"""What the action servers share: every goal accepted, the running goal and its feedback.
+
+A running goal is cancelled by a stop.
+"""
 from __future__ import annotations
+
+import time
+
+from gripper_ros.nodes.loop_io import StatusView
+from gripper_ros.wire import stamp_ns
 
 
 def accept_goal(_goal_request):
@@ -16,3 +24,58 @@ def cancel_by_stop(goal_handle, running_goal, stop_client):
         stop_client.call_async(Trigger.Request())
         return CancelResponse.ACCEPT
     return CancelResponse.REJECT
+
+
+FEEDBACK_PERIOD_S = 0.05
+"""Default of ``feedback_period_s``: feedback within a phase at most this often (wall)."""
+
+
+def declare_feedback_period(node) -> float:
+    """Declare ``feedback_period_s`` on an action server ``node`` and return it."""
+    from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
+    return node.declare_parameter('feedback_period_s', FEEDBACK_PERIOD_S, ParameterDescriptor(
+        description='minimum wall seconds between two feedback messages of one phase',
+        floating_point_range=[FloatingPointRange(from_value=0.0, to_value=10.0)])).value
+
+
+class RunningGoal:
+    """The goal an action server executes, and when its request's statuses become feedback.
+
+    The request is the first one whose status shows one of the phases it starts in; feedback
+    comes at each phase change and at most every ``period_s`` of wall time within a phase.
+    """
+
+    def __init__(self):
+        self.handle = None                     # the goal handle being executed
+        self.grasp_id: int | None = None       # its request, once a status showed it
+        self.start_ns: int | None = None       # the simulated time that status had
+        self.feedback_published = 0
+        self._last_phase: int | None = None
+        self._last_feedback_wall = 0.0
+
+    def start(self, handle) -> None:
+        """Execute ``handle``: its request is the next one that starts."""
+        self.handle = handle
+        self.grasp_id = self.start_ns = self._last_phase = None
+
+    def end(self) -> None:
+        self.handle = None
+
+    def feedback_due(self, status: StatusView, start_phases: tuple, period_s: float) -> bool:
+        """Tell whether ``status`` is feedback for the running goal now (counted when it is)."""
+        goal = self.handle
+        if goal is None or not goal.is_active:
+            return False
+        if self.grasp_id is None:
+            if status.phase not in start_phases:
+                return False                    # a status of an earlier request
+            self.grasp_id = status.grasp_id
+            self.start_ns = stamp_ns(status)
+        if status.grasp_id != self.grasp_id:
+            return False
+        now = time.monotonic()
+        if status.phase == self._last_phase and now - self._last_feedback_wall < period_s:
+            return False
+        self._last_phase, self._last_feedback_wall = status.phase, now
+        self.feedback_published += 1
+        return True

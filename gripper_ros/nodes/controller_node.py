@@ -27,7 +27,8 @@ from gripper_ros.nodes.loop_io import in_layout, read_status
 from gripper_ros.nodes.parameters import ConfigParameters
 from gripper_ros.nodes.watchdog import ExecutorSilence
 from gripper_ros.wire import (CDR_LITTLE_ENDIAN, COMMAND_LAYOUT, Controller, NODE_PLANT,
-                              REFERENCE_LAYOUT, TOPIC_MOTOR_COMMAND, TOPIC_STATUS, TOPIC_TICK)
+                              REFERENCE_LAYOUT, STAGE_NODES, STAGE_REFERENCE_TOPICS,
+                              TOPIC_MOTOR_COMMAND, TOPIC_STATUS, TOPIC_TICK)
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
 from rclpy.clock import Clock, ClockType
 
@@ -37,9 +38,10 @@ WATCHDOG_PERIOD_S = 0.05
 
 
 class LockstepController(GripperNode):
-    """A stage controller node: ``reference_topic`` in, ``loop/motor_command`` out.
+    """A stage controller node: its stage's references in, ``loop/motor_command`` out.
 
-    Subclasses name their config ``section``, declare their own parameters in
+    Subclasses name their stage and config section (``class X(LockstepController,
+    stage=Controller.FORCE, section='force_control')``), declare their own parameters in
     ``declare_stage_parameters()`` and build their stage (:mod:`gripper_ros.core.control.stages`)
     in ``build_stage(config)``. A gain set at run time is checked at once and takes effect when
     the supervisor next assigns this stage (the law restarts then anyway).
@@ -49,8 +51,13 @@ class LockstepController(GripperNode):
     reference_topic = ''
     section = ''
 
-    def __init__(self, name: str, **kwargs):
-        super().__init__(name, **kwargs)
+    def __init_subclass__(cls, stage: Controller, section: str, **kwargs):
+        super().__init_subclass__(**kwargs)
+        cls.source, cls.section = stage, section
+        cls.node_name, cls.reference_topic = STAGE_NODES[stage], STAGE_REFERENCE_TOPICS[stage]
+
+    def __init__(self, **kwargs):
+        super().__init__(self.node_name, **kwargs)
         self.parameters = ConfigParameters(self, (self.section,), ('plant',),
                                            on_change=self._on_config_change,
                                            check=self.build_stage)

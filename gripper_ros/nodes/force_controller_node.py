@@ -17,19 +17,11 @@ from gripper_ros.core.control.stages import (DEFAULT_APPROACH_FORCE_MARGIN,
 from gripper_ros.nodes.controller_node import LockstepController
 from gripper_ros.nodes.parameters import declare_controller
 from gripper_ros.nodes.process import run_node
-from gripper_ros.wire import Controller, NODE_FORCE_CONTROLLER, TOPIC_FORCE_REFERENCE
+from gripper_ros.wire import Controller, NODE_FORCE_CONTROLLER
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
 
 
-class ForceControllerNode(LockstepController):
-    source = Controller.FORCE
-    reference_topic = TOPIC_FORCE_REFERENCE
-    section = 'force_control'
-
-    def __init__(self, **kwargs):
-        super().__init__(NODE_FORCE_CONTROLLER, **kwargs)
-        self.add_post_set_parameters_callback(self._on_parameters_set)
-
+class ForceControllerNode(LockstepController, stage=Controller.FORCE, section='force_control'):
     def declare_stage_parameters(self) -> None:
         self.kind = declare_controller(
             self, ForceControllerKind, DEFAULT_FORCE_CONTROLLER,
@@ -41,6 +33,7 @@ class ForceControllerNode(LockstepController):
                             'force setpoint; 0 disables the cap (the paper behaviour). '
                             'contact_aware caps its approach itself',
                 floating_point_range=[FloatingPointRange(from_value=0.0, to_value=10.0)])).value
+        self.add_post_set_parameters_callback(self._on_parameters_set)
 
     def build_stage(self, config) -> ForceStageController:
         return ForceStageController(config, self.kind, self.approach_margin)

@@ -15,12 +15,12 @@ sent on every phase change.
 from __future__ import annotations
 
 import sys
-import time
 
 from gripper_interfaces.action import Grasp as GraspAction
 from gripper_interfaces.msg import SupervisorStatus
 from gripper_interfaces.srv import Grasp
-from gripper_ros.nodes.actions import accept_goal, cancel_by_stop
+from gripper_ros.nodes.actions import (accept_goal, cancel_by_stop, declare_feedback_period,
+                                       RunningGoal)
 from gripper_ros.nodes.gripper_node import GripperNode
 from gripper_ros.nodes.loop_io import read_status
 from gripper_ros.nodes.parameters import declare_config, follow
@@ -28,7 +28,6 @@ from gripper_ros.nodes.process import run_node
 from gripper_ros.nodes.qos import SERVICE_QOS
 from gripper_ros.wire import (ACTION_GRASP, NODE_GRASP_ACTION, Outcome, Phase, SERVICE_GRASP,
                               SERVICE_STOP, stamp_ns, TOPIC_STATUS)
-from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
 from rclpy.action import ActionServer
 from std_srvs.srv import Trigger
 
@@ -43,27 +42,19 @@ class GraspActionServer(GripperNode):
     def __init__(self, **kwargs):
         super().__init__(NODE_GRASP_ACTION, **kwargs)
         self.travel_m = declare_config(self).plant.max_travel_m
-        self.feedback_period_s = self.declare_parameter(
-            'feedback_period_s', 0.05, ParameterDescriptor(
-                description='minimum wall seconds between two feedback messages of one phase',
-                floating_point_range=[FloatingPointRange(from_value=0.0, to_value=10.0)])).value
+        self.feedback_period_s = declare_feedback_period(self)
         follow(self, {'feedback_period_s': float})      # from the next status on
         self._grasp = self.create_client(Grasp, SERVICE_GRASP, qos_profile=SERVICE_QOS)
         self._stop = self.create_client(Trigger, SERVICE_STOP, qos_profile=SERVICE_QOS)
         self.graph_subscription(SupervisorStatus, TOPIC_STATUS, self._on_status)
-        self._goal = None                 # the goal handle being executed
-        self._goal_grasp_id: int | None = None
-        self._goal_start_ns: int | None = None
-        self._last_feedback_wall = 0.0
-        self._last_phase: int | None = None
-        self.feedback_published = 0
+        self.running = RunningGoal()
         self.own(ActionServer(self, GraspAction, ACTION_GRASP, execute_callback=self._execute,
                               goal_callback=accept_goal, cancel_callback=self._on_cancel))
 
     # ------------------------------------------------------------------ goals
     def _on_cancel(self, goal_handle):
         """Cancel = stop the running grasp; the service then answers STOPPED."""
-        return cancel_by_stop(goal_handle, self._goal, self._stop)
+        return cancel_by_stop(goal_handle, self.running.handle, self._stop)
 
     async def _execute(self, goal_handle) -> GraspAction.Result:
         goal = goal_handle.request
@@ -74,17 +65,16 @@ class GraspActionServer(GripperNode):
             result.message = f'{SERVICE_GRASP} is not available'
             goal_handle.abort()
             return result
-        if self._goal is not None:
+        if self.running.handle is not None:
             result.outcome = int(Outcome.REFUSED)
             result.message = 'refused: a grasp goal is already executing'
             goal_handle.abort()
             return result
-        self._goal, self._goal_grasp_id, self._goal_start_ns = goal_handle, None, None
-        self._last_phase = None
+        self.running.start(goal_handle)
         try:
             response = await self._grasp.call_async(request)
         finally:
-            self._goal = None
+            self.running.end()
         for f in _RESULT_FIELDS:
             setattr(result, f, getattr(response, f))
         if goal_handle.is_cancel_requested and response.outcome == Outcome.STOPPED:
@@ -97,30 +87,17 @@ class GraspActionServer(GripperNode):
 
     # ------------------------------------------------------------------ feedback
     def _on_status(self, data: bytes) -> None:
-        goal = self._goal
-        if goal is None or not goal.is_active:
+        running = self.running
+        if running.handle is None:
             return
         msg = read_status(data)
-        now_ns = stamp_ns(msg)
-        if self._goal_grasp_id is None:
-            if msg.phase not in (Phase.POSITION, Phase.FORCE):
-                return                         # a status of an earlier grasp
-            self._goal_grasp_id = msg.grasp_id
-            self._goal_start_ns = now_ns
-        if msg.grasp_id != self._goal_grasp_id:
+        if not running.feedback_due(msg, (Phase.POSITION, Phase.FORCE), self.feedback_period_s):
             return
-        now = time.monotonic()
-        if (msg.phase == self._last_phase
-                and now - self._last_feedback_wall < self.feedback_period_s):
-            return
-        self._last_phase, self._last_feedback_wall = msg.phase, now
-        feedback = GraspAction.Feedback(
+        running.handle.publish_feedback(GraspAction.Feedback(
             grasp_id=msg.grasp_id, phase=msg.phase,
-            elapsed_s=(now_ns - self._goal_start_ns) * 1e-9,
+            elapsed_s=(stamp_ns(msg) - running.start_ns) * 1e-9,
             position_m=msg.position_m, width_m=self.travel_m - msg.position_m,
-            force_n=msg.force_n, contact=msg.contact)
-        goal.publish_feedback(feedback)
-        self.feedback_published += 1
+            force_n=msg.force_n, contact=msg.contact))
 
 
 def main(args=None):

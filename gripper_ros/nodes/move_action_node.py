@@ -31,7 +31,6 @@ time and sent on every phase change.
 from __future__ import annotations
 
 import sys
-import time
 
 from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 from gripper_interfaces.action import Move as MoveAction
@@ -41,7 +40,8 @@ from gripper_ros.core.supervision.gripper_command import (goal_end, GoalEnd, gri
                                                           joint_state_fields, JointCommandStream,
                                                           move_request_of, result_fields)
 from gripper_ros.core.supervision.requests import check_move_limits, RequestError
-from gripper_ros.nodes.actions import accept_goal, cancel_by_stop
+from gripper_ros.nodes.actions import (accept_goal, cancel_by_stop, declare_feedback_period,
+                                       RunningGoal)
 from gripper_ros.nodes.gripper_node import GripperNode
 from gripper_ros.nodes.loop_io import read_status, StatusView
 from gripper_ros.nodes.parameters import declare_config, declare_joint_name, follow
@@ -52,7 +52,7 @@ from gripper_ros.wire import (ACTION_GRIPPER_CMD, ACTION_MOVE, NODE_MOVE_ACTION,
                               Outcome, Phase, ROBOT_NAME, SERVICE_MOVE, SERVICE_STOP, stamp_ns,
                               TOPIC_GRIPPER_STATUS, TOPIC_JOINT_COMMANDS, TOPIC_JOINT_STATES,
                               TOPIC_OUTCOME, TOPIC_STATUS)
-from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
+from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.action import ActionServer, GoalResponse
 from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import JointState
@@ -74,10 +74,7 @@ class MoveActionServer(GripperNode):
         super().__init__(NODE_MOVE_ACTION, **kwargs)
         self.plant = declare_config(self).plant       # read-only: the supervisor's move
         self.travel_m = self.plant.max_travel_m       # settings are judged by the supervisor
-        self.feedback_period_s = self.declare_parameter(
-            'feedback_period_s', 0.05, ParameterDescriptor(
-                description='minimum wall seconds between two feedback messages of one phase',
-                floating_point_range=[FloatingPointRange(from_value=0.0, to_value=10.0)])).value
+        self.feedback_period_s = declare_feedback_period(self)
         self.allow_stalling = self.declare_parameter(
             'allow_stalling', False, ParameterDescriptor(
                 description=f'{ACTION_GRIPPER_CMD}: a stalled move (blocked by an object at '
@@ -87,13 +84,8 @@ class MoveActionServer(GripperNode):
         self._stop = self.create_client(Trigger, SERVICE_STOP, qos_profile=SERVICE_QOS)
         self.graph_subscription(SupervisorStatus, TOPIC_STATUS, self._on_status)
         self._status_data: bytes | None = None   # the newest status, read when needed
-        self._goal = None                 # the goal handle being executed
-        self._feedback = None             # makes its feedback from a status
-        self._goal_grasp_id: int | None = None
-        self._goal_start_ns: int | None = None
-        self._last_feedback_wall = 0.0
-        self._last_phase: int | None = None
-        self.feedback_published = 0
+        self.running = RunningGoal()
+        self._feedback = None             # makes the running goal's feedback from a status
         self.own(ActionServer(self, MoveAction, ACTION_MOVE, execute_callback=self._execute_move,
                               goal_callback=accept_goal, cancel_callback=self._on_cancel))
         self.gripper_command_served = ParallelGripperCommand is not None
@@ -131,14 +123,14 @@ class MoveActionServer(GripperNode):
 
     def _on_cancel(self, goal_handle):
         """Cancel = stop the running move; the service then answers STOPPED."""
-        return cancel_by_stop(goal_handle, self._goal, self._stop)
+        return cancel_by_stop(goal_handle, self.running.handle, self._stop)
 
     async def _call_move(self, goal_handle, request: Move.Request, feedback) -> Move.Response:
         """Return the move service's answer for this goal (REFUSED, uncalled, when busy)."""
         refusal = ''
         if not self._move.service_is_ready():
             refusal = f'{SERVICE_MOVE} is not available'
-        elif self._goal is not None:
+        elif self.running.handle is not None:
             refusal = 'refused: a move goal is already executing'
         if refusal:
             status = read_status(self._status_data) if self._status_data else None
@@ -146,12 +138,13 @@ class MoveActionServer(GripperNode):
             return Move.Response(outcome=int(Outcome.REFUSED), message=refusal,
                                  position_m=position_m, width_m=self.travel_m - position_m,
                                  effort_n=status.force_n if status is not None else 0.0)
-        self._goal, self._feedback = goal_handle, feedback
-        self._goal_grasp_id = self._goal_start_ns = self._last_phase = None
+        self.running.start(goal_handle)
+        self._feedback = feedback
         try:
             return await self._move.call_async(request)
         finally:
-            self._goal = self._feedback = None
+            self.running.end()
+            self._feedback = None
 
     async def _execute_move(self, goal_handle) -> MoveAction.Result:
         goal = goal_handle.request
@@ -189,7 +182,7 @@ class MoveActionServer(GripperNode):
     def _move_feedback(self, msg: StatusView) -> MoveAction.Feedback:
         return MoveAction.Feedback(
             grasp_id=msg.grasp_id, phase=msg.phase,
-            elapsed_s=(stamp_ns(msg) - self._goal_start_ns) * 1e-9,
+            elapsed_s=(stamp_ns(msg) - self.running.start_ns) * 1e-9,
             position_m=msg.position_m, width_m=self.travel_m - msg.position_m,
             force_n=msg.force_n)
 
@@ -271,24 +264,12 @@ class MoveActionServer(GripperNode):
 
     def _on_status(self, data: bytes) -> None:
         self._status_data = data
-        goal, feedback = self._goal, self._feedback
-        if goal is None or not goal.is_active:
+        running, feedback = self.running, self._feedback
+        if running.handle is None:
             return
         msg = read_status(data)
-        if self._goal_grasp_id is None:
-            if msg.phase != Phase.MOVING:
-                return                         # a status of an earlier request
-            self._goal_grasp_id = msg.grasp_id
-            self._goal_start_ns = stamp_ns(msg)
-        if msg.grasp_id != self._goal_grasp_id:
-            return
-        now = time.monotonic()
-        if msg.phase == self._last_phase and \
-                now - self._last_feedback_wall < self.feedback_period_s:
-            return
-        self._last_phase, self._last_feedback_wall = msg.phase, now
-        goal.publish_feedback(feedback(msg))
-        self.feedback_published += 1
+        if running.feedback_due(msg, (Phase.MOVING,), self.feedback_period_s):
+            running.handle.publish_feedback(feedback(msg))
 
 
 def main(args=None):

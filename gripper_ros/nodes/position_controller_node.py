@@ -13,17 +13,11 @@ from gripper_ros.core.control.stages import DEFAULT_POSITION_CONTROLLER, Positio
 from gripper_ros.nodes.controller_node import LockstepController
 from gripper_ros.nodes.parameters import declare_controller
 from gripper_ros.nodes.process import run_node
-from gripper_ros.wire import Controller, NODE_POSITION_CONTROLLER, TOPIC_POSITION_REFERENCE
+from gripper_ros.wire import Controller, NODE_POSITION_CONTROLLER
 
 
-class PositionControllerNode(LockstepController):
-    source = Controller.POSITION
-    reference_topic = TOPIC_POSITION_REFERENCE
-    section = 'position_control'
-
-    def __init__(self, **kwargs):
-        super().__init__(NODE_POSITION_CONTROLLER, **kwargs)
-
+class PositionControllerNode(LockstepController, stage=Controller.POSITION,
+                             section='position_control'):
     def declare_stage_parameters(self) -> None:
         self.kind = declare_controller(self, PositionControllerKind, DEFAULT_POSITION_CONTROLLER)
 

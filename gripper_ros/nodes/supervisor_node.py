@@ -40,23 +40,18 @@ from gripper_ros.nodes.process import run_node
 from gripper_ros.nodes.qos import LATCHED_QOS, SERVICE_QOS
 from gripper_ros.nodes.services import DeferredService
 from gripper_ros.nodes.watchdog import ExecutorSilence
-from gripper_ros.wire import (CDR_LITTLE_ENDIAN, Controller, GRAPH_NOT_READY,
-                              NODE_FORCE_CONTROLLER, NODE_PLANT, NODE_POSITION_CONTROLLER,
-                              NODE_SUPERVISOR, Outcome,
-                              REPUBLISH_AFTER_S, SERVICE_GRASP, SERVICE_MOVE, SERVICE_RELEASE,
-                              SERVICE_STOP, TICK_LAYOUT, TOPIC_FORCE_REFERENCE,
-                              TOPIC_MOTOR_COMMAND, TOPIC_OUTCOME, TOPIC_POSITION_REFERENCE,
-                              TOPIC_SIM_STATUS, TOPIC_STATUS, TOPIC_TICK)
+from gripper_ros.wire import (CDR_LITTLE_ENDIAN, GRAPH_NOT_READY, NODE_PLANT, NODE_SUPERVISOR,
+                              Outcome, REPUBLISH_AFTER_S, SERVICE_GRASP, SERVICE_MOVE,
+                              SERVICE_RELEASE, SERVICE_STOP, STAGE_NODES, STAGE_REFERENCE_TOPICS,
+                              TICK_LAYOUT, TOPIC_MOTOR_COMMAND, TOPIC_OUTCOME,
+                              TOPIC_POSITION_REFERENCE, TOPIC_SIM_STATUS, TOPIC_STATUS,
+                              TOPIC_TICK)
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
 from rclpy.clock import Clock, ClockType
 from std_srvs.srv import Trigger
 
 HEARTBEAT_PERIOD_S = 1.0
 WATCHDOG_PERIOD_S = 0.1
-STAGE_NODES = {Controller.POSITION: NODE_POSITION_CONTROLLER,
-               Controller.FORCE: NODE_FORCE_CONTROLLER}
-REFERENCE_TOPICS = {Controller.POSITION: TOPIC_POSITION_REFERENCE,
-                    Controller.FORCE: TOPIC_FORCE_REFERENCE}
 SUPERVISOR_READS = ('plant', 'contact', 'force_control.sample_time_s', 'pad_sensor',
                     'load_grip')
 """Config sections the supervisor reads and does not change: the plant, and what the
@@ -97,7 +92,7 @@ class SupervisorNode(GripperNode):
         self.published: Counter = Counter()     # messages per (relative) topic
         self._status_now = (0, None, '')          # the newest status: stamp, numbers, text
         self._refs = {controller: self.graph_publisher(StageReference, topic)
-                      for controller, topic in REFERENCE_TOPICS.items()}
+                      for controller, topic in STAGE_REFERENCE_TOPICS.items()}
         self._ref_name = TOPIC_POSITION_REFERENCE
         self._status_pub = self.graph_publisher(SupervisorStatus, TOPIC_STATUS)
         self._outcome_pub = self.create_publisher(SupervisorStatus, TOPIC_OUTCOME, LATCHED_QOS)
@@ -152,7 +147,7 @@ class SupervisorNode(GripperNode):
         if flags & NAMED:
             active = flags >> ACTIVE_SHIFT
             self._ref_topic = self._refs[active]
-            self._ref_name = REFERENCE_TOPICS[active]
+            self._ref_name = STAGE_REFERENCE_TOPICS[active]
             self._ref_bytes = CDR_LITTLE_ENDIAN + side.reference_record.tobytes()
             self._ref_topic.publish(self._ref_bytes)
             self.references_published += 1
