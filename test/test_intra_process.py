@@ -37,7 +37,7 @@ class _Log:
 
 @pytest.fixture
 def spun():
-    """A node and the EventsExecutor that spins it (the graph's executor)."""
+    """Give a node and the EventsExecutor that spins it (the graph's executor)."""
     context = Context()
     rclpy.init(context=context)
     executor = make_executor(ExecutorKind.EVENTS, context)

@@ -160,7 +160,7 @@ class SupervisorNode(GripperNode):
             self._complete(self.logic.decision)
 
     def _publish_status(self, t_ns: int) -> None:
-        """The status now: at the status rate, on every change, a heartbeat, a request."""
+        """Publish the status now: at its rate, on every change, a heartbeat, a request."""
         d = self.logic
         self._side.status_published(t_ns, round(1e9 / self.status_rate_hz))
         tg = d.targets

@@ -191,7 +191,7 @@ def side_take_command(side, plant_k, data, offered, offered_bytes, cmd, cmd_byte
 
 @_kernel
 def _state_due(side, plant_k, tick) -> bool:
-    """The state topics are due: their period has come, or the held object's state changed."""
+    """Tell whether the state topics are due: their period came, or the hold state changed."""
     s = side[0]
     h = plant_k[K_HOLD][0]
     hold = h.state if h.has_hold else HoldState.NONE
@@ -200,7 +200,7 @@ def _state_due(side, plant_k, tick) -> bool:
 
 @_kernel
 def side_state_published(side, plant_k, tick, period_ns) -> None:
-    """The state topics went out for ``tick``: next due one period on, or on a hold change."""
+    """Note the state topics of ``tick``: next due one period on, or on a hold change."""
     s = side[0]
     h = plant_k[K_HOLD][0]
     s.state_hold = h.state if h.has_hold else HoldState.NONE
@@ -278,7 +278,7 @@ def supervisor_take_tick(k, side, data, tick, tick_bytes, ref) -> int:
 
 @_kernel
 def supervisor_status_published(k, side, t_ns) -> None:
-    """The status went out at ``t_ns``: next due one period on, or on a change."""
+    """Note the status of ``t_ns``: the next is due one period on, or on a change."""
     s = k[K_STATE][0]
     n = side[0]
     n.status_key = status_key(s)
@@ -314,7 +314,7 @@ def entry_point(kernel, *args):
 
 
 def _type_key(value):
-    """What decides numba's type of ``value``, cheaply: arrays by dtype and shape kind."""
+    """Return what decides numba's type of ``value``, cheaply: arrays by dtype and shape."""
     if isinstance(value, np.ndarray):
         return (value.dtype, value.ndim, value.flags.c_contiguous, value.flags.writeable)
     if isinstance(value, tuple):
@@ -343,7 +343,7 @@ class PlantSide:
         self._bind_faces()
 
     def _bind_faces(self) -> None:
-        """The node's calls of a tick, typed once (:func:`entry_point`)."""
+        """Bind the node's calls of a tick, typed once (:func:`entry_point`)."""
         state, k, tick, cmd, offered = (self.state, self.plant.kernel, self.tick_record,
                                         self.command_record, self.offered)
         cmd_bytes, offered_bytes = cmd.view(np.uint8), offered.view(np.uint8)
@@ -446,7 +446,7 @@ class SupervisorSide:
         """Decide a serialised tick (:func:`supervisor_take_tick`): its flags."""
 
     def status_published(self, t_ns: int, period_ns: int) -> None:
-        """The status went out at ``t_ns``; the next is due ``period_ns`` on, or on a change."""
+        """Note the status of ``t_ns``; the next is due ``period_ns`` on, or on a change."""
         self.state[0]['status_period_ns'] = period_ns
         supervisor_status_published(self.supervisor.kernel, self.state, t_ns)
 
