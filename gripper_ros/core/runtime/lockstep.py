@@ -2,11 +2,12 @@
 
 Each tick ``t_k``: the plant measures (:class:`Tick`), the supervisor decides and sends a
 :class:`Reference` to the stage it names, that stage answers with a :class:`Command`, and the
-plant holds the command's voltage for its ``hold_s``. The nodes move these messages over DDS as
-bytes (:mod:`gripper_ros.wire` layouts); :mod:`gripper_ros.core.runtime.headless` hands them over
-inside one compiled loop. Both call exactly the compiled functions below (numba), on the
-messages as records (``TICK_LAYOUT.dtype`` and so on), so a headless grasp equals the graph's
-tick for tick.
+plant holds the command's voltage for its ``hold_s``. The nodes move these messages as bytes
+(:mod:`gripper_ros.wire` layouts) and take each with one call of a face below
+(``side_take_command``, ``supervisor_take_tick``, ``stage_take_reference``);
+:mod:`gripper_ros.core.runtime.headless` hands them over inside one compiled loop. Both call
+exactly the compiled functions below (numba), on the messages as records (``TICK_LAYOUT.dtype``
+and so on), so a headless grasp equals the graph's tick for tick.
 """
 from __future__ import annotations
 
