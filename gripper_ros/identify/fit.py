@@ -36,8 +36,9 @@ import math
 
 from gripper_ros.core.config import GripperConfig, parse_config, PlantParams
 from gripper_ros.core.physics.force_sensor import FsrVoltageDivider
-from gripper_ros.core.physics.plant import (_refresh_contact_state, GraspObject, GripperPlant,
-                                            K_PARAMS, K_STATE, plant_sample, plant_step)
+from gripper_ros.core.physics.plant import (GraspObject, GripperPlant, plant_place,
+                                            plant_read_tick, plant_step)
+from gripper_ros.wire import TICK_LAYOUT
 import numba
 import numpy as np
 from scipy.optimize import least_squares
@@ -158,25 +159,17 @@ def combinations(p: PlantParams) -> dict[str, float]:
 
 # ------------------------------------------------------------------ simulation
 @numba.njit(cache=True)
-def _run_plant(k, t_ns, voltage_v, out):
+def _run_plant(k, t_ns, voltage_v, out, tick):
     """Drive the plant ``k`` with the recorded voltages; fill out[n] = (x, w, i, F)."""
     for n in range(t_ns.shape[0]):
         if n > 0:
             plant_step(k, voltage_v[n], t_ns[n] - t_ns[n - 1])
-        sample = plant_sample(k)
-        out[n, 0] = sample[1]
-        out[n, 1] = sample[6]
-        out[n, 2] = sample[5]
-        out[n, 3] = sample[3]
-
-
-@numba.njit(cache=True)
-def _place(k, x, w, i):
-    s = k[K_STATE][0]
-    s.x = x
-    s.w = w
-    s.i = i
-    _refresh_contact_state(s, k[K_PARAMS][0])
+        plant_read_tick(k, tick, 0, 0)
+        t = tick[0]
+        out[n, 0] = t.position_m
+        out[n, 1] = t.speed_rad_s
+        out[n, 2] = t.current_a
+        out[n, 3] = t.force_n
 
 
 def simulate(run: Run, plant_params: PlantParams, config: GripperConfig,
@@ -193,9 +186,9 @@ def simulate(run: Run, plant_params: PlantParams, config: GripperConfig,
     m = run.measured
     x_c = plant_params.max_travel_m - run.object_width_m
     x0 = min(max(float(m['position_m'][0] if x0_m is None else x0_m), 0.0), x_c)
-    _place(plant.kernel, x0, float(m['speed_rad_s'][0]), float(m['current_a'][0]))
+    plant_place(plant.kernel, x0, float(m['speed_rad_s'][0]), float(m['current_a'][0]))
     out = np.zeros((len(run.t_ns), len(CHANNELS)))
-    _run_plant(plant.kernel, run.t_ns, run.voltage_v, out)
+    _run_plant(plant.kernel, run.t_ns, run.voltage_v, out, np.zeros(1, TICK_LAYOUT.dtype))
     return out
 
 

@@ -107,7 +107,8 @@ PEAK_RESOLUTION_N = 1e-9
 __all__ = ['ContactState', 'DEFAULT_SLIP_TIME_CONSTANT_S', 'FaultKind', 'GraspObject',
            'GripperPlant', 'HoldState', 'Lift', 'ObjectState', 'PARAMS_DTYPE', 'PlantSample',
            'STATE_DTYPE', 'ScheduledFault', 'check_fault', 'plant_begin_hold',
-           'plant_cancel_fault', 'plant_fault_scheduled', 'plant_read_tick', 'plant_sample',
+           'plant_cancel_fault', 'plant_fault_scheduled', 'plant_hold_record', 'plant_place',
+           'plant_read_tick', 'plant_sample',
            'plant_scenario_in_progress', 'plant_schedule_fault', 'plant_step']
 
 
@@ -1018,6 +1019,22 @@ def plant_sample(k):
     # Only the contact states give a force, so "in contact" is "force > 0".
     return (s.t_ns, x, w * p.rho, measured, peak, s.i, w, s.voltage, sensor_v,
             force > 0.0)
+
+
+@numba.njit(cache=True)
+def plant_hold_record(k):
+    """Return the held object's record (``HOLD_DTYPE``) of the plant ``k`` (compiled readers)."""
+    return k[K_HOLD][0]
+
+
+@numba.njit(cache=True)
+def plant_place(k, x, w, i):
+    """Put the finger at travel ``x`` with motor speed ``w`` and current ``i`` (a run's start)."""
+    s = k[K_STATE][0]
+    s.x = x
+    s.w = w
+    s.i = i
+    _refresh_contact_state(s, k[K_PARAMS][0])
 
 
 @numba.njit(cache=True)

@@ -24,14 +24,15 @@ from gripper_ros.core.control.stages import (DEFAULT_APPROACH_FORCE_MARGIN,
                                              Reference, stage_answer)
 from gripper_ros.core.physics.hold import hold_load_n
 from gripper_ros.core.physics.plant import (_object_state, check_fault, GraspObject, HoldState,
-                                            K_HOLD, Lift, OBJECT_STATE_DTYPE)
+                                            Lift, OBJECT_STATE_DTYPE, plant_hold_record)
 from gripper_ros.core.runtime.engine import map_cases
 from gripper_ros.core.runtime.lockstep import (Command, PlantSide, side_accept, side_needs_time,
                                                side_step, StageSide, SupervisorSide, Tick)
 from gripper_ros.core.supervision.requests import (GraspRequest, MoveRequest, RequestError,
                                                    validate_move, validate_request)
 from gripper_ros.core.supervision.supervisor import (GraspSupervisor, load_law, NO_NS,
-                                                     supervisor_decide)
+                                                     supervisor_decide, supervisor_law_arrays,
+                                                     supervisor_record)
 from gripper_ros.wire import (COMMAND_LAYOUT, Controller, FaultKind, FORCE_SAMPLE_S, Outcome,
                               Phase, REFERENCE_LAYOUT, SwitchCriterion, TICK_LAYOUT)
 import numba
@@ -166,7 +167,7 @@ FIRST_ROWS = 4096
 @numba.njit(cache=True)
 def _keep_row(rows_t, rows_f, rows_phase, n, tick, phase, ref, plant_k, law) -> None:
     t = tick[0]
-    h = plant_k[K_HOLD][0]
+    h = plant_hold_record(plant_k)
     rows_t[n] = t.stamp_ns
     rows_f[n, 0] = t.position_m
     rows_f[n, 1] = t.force_n
@@ -217,7 +218,7 @@ def _trace_tick(trace, n, tick, supervisor, plant_k, ticks, statuses, objects) -
         r.stage_id = supervisor.stage_id
         r.approach_setpoint_m = supervisor.d_approach_setpoint_m
         ts.statuses = m + 1
-    h = plant_k[K_HOLD][0]
+    h = plant_hold_record(plant_k)
     hold_state = h.state if h.has_hold else HoldState.NONE
     j = ts.objects
     if j == 0 or t.stamp_ns >= ts.next_object_ns or hold_state != ts.hold_state:
@@ -257,7 +258,7 @@ def run_lockstep(loop, side, plant_k, supervisor_k, position_k, force_k, tick, r
     full (call again with larger ones: everything resumes from the records).
     """
     state = loop[0]
-    supervisor = supervisor_k[0][0]
+    supervisor = supervisor_record(supervisor_k)
     tracing = trace[0].state_period_ns > 0
     n = state.rows
     while True:
@@ -265,7 +266,7 @@ def run_lockstep(loop, side, plant_k, supervisor_k, position_k, force_k, tick, r
             state.rows = n
             return False
         _keep_row(rows_t, rows_f, rows_phase, n, tick, supervisor.phase, ref, plant_k,
-                  supervisor_k[4])
+                  supervisor_law_arrays(supervisor_k))
         if tracing:
             _trace_tick(trace, n, tick, supervisor, plant_k, trace_ticks, trace_statuses,
                         trace_objects)

@@ -15,14 +15,16 @@ from collections import namedtuple
 import math
 
 from gripper_ros.core.control.stages import LockstepAnswerer, Reference, stage_answer, TickAnswer
-from gripper_ros.core.physics.plant import (GraspObject, GripperPlant, HoldState, K_HOLD,
+from gripper_ros.core.physics.plant import (GraspObject, GripperPlant, HoldState,
                                             plant_begin_hold, plant_cancel_fault,
-                                            plant_fault_scheduled, plant_read_tick,
+                                            plant_fault_scheduled, plant_hold_record,
+                                            plant_read_tick,
                                             plant_scenario_in_progress, plant_schedule_fault,
                                             plant_step)
 from gripper_ros.core.records import RecordField
-from gripper_ros.core.supervision.supervisor import (Decision, GraspSupervisor, K_STATE, NO_ANSWER,
-                                                     NO_NS, status_key, supervisor_decide)
+from gripper_ros.core.supervision.supervisor import (Decision, GraspSupervisor, NO_ANSWER, NO_NS,
+                                                     status_key, supervisor_decide,
+                                                     supervisor_record)
 from gripper_ros.wire import (COMMAND_LAYOUT, Controller, FaultKind, Outcome, Phase,
                               REFERENCE_LAYOUT, TICK_LAYOUT)
 import numba
@@ -194,7 +196,7 @@ def side_take_command(side, plant_k, data, offered, offered_bytes, cmd, cmd_byte
 def _state_due(side, plant_k, tick) -> bool:
     """Tell whether the state topics are due: their period came, or the hold state changed."""
     s = side[0]
-    h = plant_k[K_HOLD][0]
+    h = plant_hold_record(plant_k)
     hold = h.state if h.has_hold else HoldState.NONE
     return tick[0].stamp_ns >= s.next_state_ns or hold != s.state_hold
 
@@ -203,7 +205,7 @@ def _state_due(side, plant_k, tick) -> bool:
 def side_state_published(side, plant_k, tick, period_ns) -> None:
     """Note the state topics of ``tick``: next due one period on, or on a hold change."""
     s = side[0]
-    h = plant_k[K_HOLD][0]
+    h = plant_hold_record(plant_k)
     s.state_hold = h.state if h.has_hold else HoldState.NONE
     s.next_state_ns = (tick[0].stamp_ns // period_ns + 1) * period_ns
 
@@ -262,7 +264,7 @@ def supervisor_take_tick(k, side, data, tick, tick_bytes, ref) -> int:
         n.good_position_m = t.position_m
     if math.isfinite(t.force_n):
         n.good_force_n = t.force_n
-    s = k[K_STATE][0]
+    s = supervisor_record(k)
     flags = 0
     if t.applied_source == n.expected_source or not s.d_running:
         flags |= PROGRESS
@@ -280,7 +282,7 @@ def supervisor_take_tick(k, side, data, tick, tick_bytes, ref) -> int:
 @_kernel
 def supervisor_status_published(k, side, t_ns) -> None:
     """Note the status of ``t_ns``: the next is due one period on, or on a change."""
-    s = k[K_STATE][0]
+    s = supervisor_record(k)
     n = side[0]
     n.status_key = status_key(s)
     n.next_status_ns = (t_ns // n.status_period_ns + 1) * n.status_period_ns

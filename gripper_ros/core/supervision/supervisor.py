@@ -162,6 +162,18 @@ _kernel = numba.njit(cache=True)
 
 # ------------------------------------------------------------------ the compiled state machine
 @_kernel
+def supervisor_record(k):
+    """Return the state record of the supervisor kernel ``k``, for compiled readers."""
+    return k[K_STATE][0]
+
+
+@_kernel
+def supervisor_law_arrays(k):
+    """Return the load-tracking grip's record and its copy as a grasp starts (``K_LAW``)."""
+    return k[K_LAW]
+
+
+@_kernel
 def _running(s) -> bool:
     """Tell whether a request is in progress (it needs simulated time until answered)."""
     return s.kind != 0 and s.outcome == Outcome.UNKNOWN
