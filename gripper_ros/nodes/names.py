@@ -192,17 +192,17 @@ def namespace_as_given(default: str = DEFAULT_NAMESPACE, context=None) -> str:
 
 
 def taken_names(node: Node, node_names: tuple[str, ...] = (), services: tuple[str, ...] = (),
-                wait_s: float = DISCOVERY_WAIT_S) -> list[str]:
+                wait_s: float | None = None) -> list[str]:
     """Return which of ``node_names`` and relative ``services`` exist in ``node``'s namespace.
 
     A service counts when it has a server (a client waiting for one is welcome). They are looked
-    up on the domain after ``wait_s`` of discovery, checked twice so that a node that was just
-    shut down is not mistaken for a running one.
+    up on the domain after ``wait_s`` (default :data:`DISCOVERY_WAIT_S`) of discovery, checked
+    twice so that a node that was just shut down is not mistaken for a running one.
     """
     namespace = node.get_namespace()
     found: list[str] = []
     for _attempt in range(2):
-        time.sleep(wait_s)
+        time.sleep(DISCOVERY_WAIT_S if wait_s is None else wait_s)
         nodes = {(ns.rstrip('/') or '/', n) for n, ns in node.get_node_names_and_namespaces()}
         ours = namespace.rstrip('/') or '/'
         found = [qualified(namespace.strip('/'), n) for n in node_names if (ours, n) in nodes]
