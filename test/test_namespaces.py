@@ -152,7 +152,7 @@ def test_a_gripper_claimed_elsewhere_is_still_found_by_discovery(tmp_path, monke
     accepts (docs/USING.md) and not what this test is about.
     """
     from gripper_ros.nodes import names
-    monkeypatch.setattr(names, 'DISCOVERY_WAIT_S', 5.0)
+    monkeypatch.setattr(names, 'DISCOVERY_WAIT_S', 3.0)
     monkeypatch.setenv('GRIPPER_ROS_CLAIMS_DIR', str(tmp_path / 'there'))
     first = GripperGraph.in_own_context(GraphOptions(namespace='elsewhere'))
     try:
