@@ -199,3 +199,21 @@ def test_another_participant_sees_every_loop_message_as_recorded(tmp_path):
             node.destroy_node()
         finally:
             rclpy.try_shutdown(context=listener_context)
+
+
+def test_a_service_callback_sees_what_was_published_before_it(spun):
+    """deliver_queued hands over what waits now; what that publishes in turn waits its turn."""
+    node, executor = spun
+    bus, seen = IntraProcessBus(_Log()), []
+
+    def on_status(msg):
+        seen.append(msg)
+        bus.post('/status', msg + b' again')    # published while being delivered: later
+
+    bus.subscribe('owner', '/status', on_status, None, True)
+    bus.bind(executor)
+    bus.post('/status', b'done')
+    bus.post('/status', b'idle')
+    bus.deliver_queued()                        # as a service callback would, before judging
+    assert seen == [b'done', b'idle']
+    assert bus.subscriber_count('/status') == 1

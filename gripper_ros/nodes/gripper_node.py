@@ -61,6 +61,11 @@ class GripperNode(Node):
             return None
         return self.create_subscription(msg_type, topic, callback, GRAPH_QOS, raw=raw)
 
+    def deliver_queued(self) -> None:
+        """Let this process's graph messages published so far arrive (before judging a request)."""
+        if self.intra_process is not None:
+            self.intra_process.deliver_queued()
+
     def destroy_node(self):
         if self.intra_process is not None:
             self.intra_process.detach(self)

@@ -87,18 +87,30 @@ class IntraProcessBus:
         if not self._draining:
             self._schedule()
 
+    def deliver_queued(self) -> None:
+        """Hand over now what is queued (not what that publishes in turn): for a service callback.
+
+        A request judged on the graph's state must see every message published before it came:
+        a client that got an answer and asks again has a right to the state that answer left.
+        """
+        if self._draining or self._executor is None:
+            return
+        if self._queue:
+            self._drain(limit=len(self._queue))
+
     def _schedule(self) -> None:
         if self._executor is not None and not self._scheduled and self._queue:
             self._scheduled = True
             self._executor.create_task(self._drain)
 
-    def _drain(self) -> None:
+    def _drain(self, limit: int | None = None) -> None:
         """Hand over what is queued, for at most ``DRAIN_SLICE_S``; then yield to the executor.
 
-        A callback that raises is reported in one line and the rest goes on, as the executor
-        does with a failing callback.
+        ``limit``: at most this many messages, whatever the time. A callback that raises is
+        reported in one line and the rest goes on, as the executor does with a failing callback.
         """
-        self._scheduled = False
+        if limit is None:
+            self._scheduled = False
         queue = self._queue
         self._draining = True
         deadline = time.perf_counter() + DRAIN_SLICE_S
@@ -112,7 +124,10 @@ class IntraProcessBus:
                     self._logger.error(f'a callback failed and was skipped: '
                                        f'{type(exc).__name__}: {one_line(exc)}')
                 handed += 1
-                if handed % CHECK_EVERY == 0 and time.perf_counter() > deadline:
+                if limit is not None:
+                    if handed >= limit:
+                        break
+                elif handed % CHECK_EVERY == 0 and time.perf_counter() > deadline:
                     break
         finally:
             self._draining = False
