@@ -10,6 +10,7 @@ is answered, with both numbers, before the plant loses the object.
 import math
 from pathlib import Path
 import threading
+import time
 
 from gripper_interfaces.msg import SupervisorStatus
 from gripper_ros.bags.analyze import analyze_series
@@ -30,6 +31,7 @@ WIDTH_M = 0.05
 IDLE_TICK_NS = round(CONFIG.position.sample_time_s * 1e9)
 """A request starts one tick after the one it arrived at: the idle hold's position tick."""
 SLIP_BOUND_M = 0.5e-3
+MATCH_WAIT_S = 10.0                              # discovery on a loaded machine
 PADS = ('pad1_shear_n', 'pad2_shear_n', 'pad1_displacement_m', 'pad2_displacement_m')
 OLD_BAG = Path(__file__).resolve().parent / 'data' / 'python_core_bags' / 'lift_paper_law_lost'
 
@@ -150,6 +152,10 @@ class _Outcomes:
                       node.create_subscription(SupervisorStatus, TOPIC_OUTCOME,
                                                self._keep(self.outcomes), LATCHED_QOS)]
         self._node = node
+        deadline_s = time.monotonic() + MATCH_WAIT_S         # as a robot program waits
+        while any(sub.get_publisher_count() < 1 for sub in self._subs):
+            assert time.monotonic() < deadline_s, 'the graph never matched a subscriber'
+            time.sleep(0.005)
 
     def _keep(self, into):
         def keep(msg):

@@ -29,6 +29,10 @@ DRAIN_SLICE_S = 0.002
 parameter requests and outside subscriptions are served between two slices)."""
 CHECK_EVERY = 32
 """Messages handed over between two looks at the clock."""
+OUTSIDE_POLL_S = 0.001
+"""Longest a publisher with no matched outside subscriber goes without asking DDS for one: a
+subscriber matched in between is served from the next publish, not from when the executor
+handles its matched event."""
 
 
 class IntraProcessBus:
@@ -152,6 +156,7 @@ class GraphPublisher:
         from rclpy.event_handler import PublisherEventCallbacks
         self._bus = bus
         self._outside = 0 if bus is not None else 1      # matched DDS subscriptions
+        self._next_poll_s = 0.0
         events = PublisherEventCallbacks(matched=self._on_matched) if bus is not None else None
         self.dds = node.create_publisher(msg_type, topic, qos, event_callbacks=events)
         self.topic_name = self.dds.topic_name
@@ -160,12 +165,20 @@ class GraphPublisher:
     def _on_matched(self, info) -> None:
         self._outside = info.current_count
 
+    def _outside_now(self) -> int:
+        """Matched DDS subscriptions, asked of DDS at most every ``OUTSIDE_POLL_S``."""
+        now_s = time.monotonic()
+        if now_s >= self._next_poll_s:
+            self._next_poll_s = now_s + OUTSIDE_POLL_S
+            self._outside = self.dds.get_subscription_count()
+        return self._outside
+
     def publish(self, msg) -> None:
         """Publish ``msg``: serialised bytes or a message object."""
         tap = self.tap
         if tap is not None:
             tap(self.topic_name, msg)
-        if self._outside:
+        if self._outside or self._outside_now():
             self.dds.publish(msg)
         if self._bus is not None:
             self._bus.post(self.topic_name, msg)
