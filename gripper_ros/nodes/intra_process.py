@@ -166,7 +166,7 @@ class GraphPublisher:
         self._outside = info.current_count
 
     def _outside_now(self) -> int:
-        """Matched DDS subscriptions, asked of DDS at most every ``OUTSIDE_POLL_S``."""
+        """Count the matched DDS subscriptions, asking DDS at most every ``OUTSIDE_POLL_S``."""
         now_s = time.monotonic()
         if now_s >= self._next_poll_s:
             self._next_poll_s = now_s + OUTSIDE_POLL_S
