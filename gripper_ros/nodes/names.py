@@ -27,6 +27,13 @@ from gripper_ros.wire import DEFAULT_NAMESPACE, qualified
 from rclpy.node import Node
 
 DISCOVERY_WAIT_S = 0.5
+"""How long a start-up looks on the domain for a gripper claimed elsewhere (it stops at the
+first sign of one). A participant that has just joined often learns of the others only at their
+next announcement, up to Fast DDS's 3 s period later: a shorter look is best effort."""
+DISCOVERY_CONFIRM_S = 1.0
+"""A node found on the domain must still be there this long after the look began: a node that
+was just shut down has left the graph by then and is not mistaken for a running one."""
+DISCOVERY_POLL_S = 0.05
 PROBE_NODE = 'gripper_startup_probe'
 
 
@@ -195,23 +202,37 @@ def taken_names(node: Node, node_names: tuple[str, ...] = (), services: tuple[st
                 wait_s: float | None = None) -> list[str]:
     """Return which of ``node_names`` and relative ``services`` exist in ``node``'s namespace.
 
-    A service counts when it has a server (a client waiting for one is welcome). They are looked
-    up on the domain after ``wait_s`` (default :data:`DISCOVERY_WAIT_S`) of discovery, checked
-    twice so that a node that was just shut down is not mistaken for a running one.
+    A service counts when it has a server (a client waiting for one is welcome). Discovery is
+    watched for up to ``wait_s`` (default :data:`DISCOVERY_WAIT_S`) until one shows; what shows
+    must still be there :data:`DISCOVERY_CONFIRM_S` after the start.
     """
+    start_s = time.monotonic()
+    found = _watch(node, node_names, services, start_s + (
+        DISCOVERY_WAIT_S if wait_s is None else wait_s), until_found=True)
+    if not found:
+        return []
+    return _watch(node, node_names, services, start_s + DISCOVERY_CONFIRM_S, until_found=False)
+
+
+def _watch(node: Node, node_names, services, deadline_s: float, until_found: bool) -> list[str]:
+    """Look until something is found (or, ``until_found`` False, until nothing is) or the end."""
+    while True:
+        found = _present(node, node_names, services)
+        if bool(found) == until_found or time.monotonic() >= deadline_s:
+            return found
+        time.sleep(DISCOVERY_POLL_S)
+
+
+def _present(node: Node, node_names, services) -> list[str]:
+    """Return which of ``node_names`` and ``services`` discovery shows now in the namespace."""
     namespace = node.get_namespace()
-    found: list[str] = []
-    for _attempt in range(2):
-        time.sleep(DISCOVERY_WAIT_S if wait_s is None else wait_s)
-        nodes = {(ns.rstrip('/') or '/', n) for n, ns in node.get_node_names_and_namespaces()}
-        ours = namespace.rstrip('/') or '/'
-        found = [qualified(namespace.strip('/'), n) for n in node_names if (ours, n) in nodes]
-        names = {s for s, _ in node.get_service_names_and_types()}   # clients' names too
-        found += [f'service {name}' for name in
-                  (qualified(namespace.strip('/'), s) for s in services)
-                  if name in names and node.count_services(name) > 0]
-        if not found:
-            return []
+    nodes = {(ns.rstrip('/') or '/', n) for n, ns in node.get_node_names_and_namespaces()}
+    ours = namespace.rstrip('/') or '/'
+    found = [qualified(namespace.strip('/'), n) for n in node_names if (ours, n) in nodes]
+    names = {s for s, _ in node.get_service_names_and_types()}   # clients' names too
+    found += [f'service {name}' for name in
+              (qualified(namespace.strip('/'), s) for s in services)
+              if name in names and node.count_services(name) > 0]
     return found
 
 
