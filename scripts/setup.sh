@@ -112,6 +112,20 @@ PYEOF
   log "writing the byte code of the modules the gripper imports"
   (cd /tmp && env -u PYTHONDONTWRITEBYTECODE "$PY" -c 'import numpy, scipy.linalg, scipy.signal, numba, yaml, mcap.reader, rosbags.typesys, matplotlib.pyplot, rclpy, rclpy.executors, rclpy.action' \
     2>/dev/null) || log "(some of them do not import yet; they are compiled on first use)"
+  # ...and of the packages a node imports only as it loads its compiled kernels or its message
+  # types (numba's cache loader, llvmlite, rosidl's parser): about a second of every node's start.
+  (cd /tmp && env -u PYTHONDONTWRITEBYTECODE "$PY" - <<'PYEOF'
+import compileall, importlib.util, os
+for name in ('numba', 'llvmlite', 'lark', 'em', 'rosidl_pycommon', 'rosidl_parser'):
+    spec = importlib.util.find_spec(name)
+    if spec is None or spec.origin is None:
+        continue
+    if spec.submodule_search_locations:
+        compileall.compile_dir(os.path.dirname(spec.origin), quiet=2, workers=0)
+    else:
+        compileall.compile_file(spec.origin, quiet=2)
+PYEOF
+  ) || true
   echo "$pip_hash" > "$PIP_STAMP"
   rm -f "$VENV/.gripper_ros_cmake_fixed"
 else
@@ -243,6 +257,9 @@ else
   (cd /tmp && PYTHONPATH="$ROOT${PYTHONPATH:+:$PYTHONPATH}" "$PY" -c \
     'from gripper_ros.core.runtime.headless import warm_up; print(f"[setup] compiled core ready in {warm_up():.1f} s")' >&2) \
     || die "compiling the simulation core failed (see above)"
+  # the package's own byte code, kept with the core: every node and test process loads it
+  env -u PYTHONDONTWRITEBYTECODE "$PY" -m compileall -q -j 0 gripper_ros >/dev/null \
+    || log "(byte-compiling gripper_ros failed: its modules are compiled on each import)"
   echo "$core_hash" > "$CORE_STAMP"
 fi
 
