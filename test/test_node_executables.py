@@ -11,6 +11,7 @@ reads its own case's result.
 from __future__ import annotations
 
 from dataclasses import dataclass
+import os
 from pathlib import Path
 import signal
 import subprocess
@@ -51,6 +52,7 @@ EXIT_WITHIN_S = 5.0
 """'At once', with room for a loaded machine: a hung node is waited for 10 s more, then killed."""
 ALARMING = ('Traceback', 'FATAL', 'ERROR', 'Fatal Python error')
 ASK_AGAIN_S = 2.0
+HUNG_AFTER_S = 60.0
 NODES_DIR = Path(__file__).resolve().parents[1] / 'gripper_ros' / 'nodes'
 
 
@@ -72,7 +74,8 @@ def _start(case: Case) -> None:
     case.proc = subprocess.Popen(
         [sys.executable, '-m', f'gripper_ros.nodes.{MODULES[case.node]}', '--ros-args', '-r',
          f'__ns:=/{case.namespace}', *case.args], stdin=subprocess.DEVNULL,
-        stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+        stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
+        env={**os.environ, 'PYTHONFAULTHANDLER': '1'})
 
 
 def _wait_until_running(cases: list[Case]) -> None:
@@ -159,7 +162,17 @@ def results():
 
 
 def _finish(case: Case) -> None:
-    case.stderr = case.proc.communicate(timeout=60)[1]
+    """Wait for the case's process; one that hangs is aborted and its test shows every stack."""
+    try:
+        case.stderr = case.proc.communicate(timeout=HUNG_AFTER_S)[1]
+    except subprocess.TimeoutExpired:
+        case.proc.send_signal(signal.SIGABRT)          # faulthandler prints each thread's stack
+        try:
+            stacks = case.proc.communicate(timeout=HUNG_AFTER_S)[1]
+        except subprocess.TimeoutExpired:
+            case.proc.kill()
+            stacks = case.proc.communicate()[1]
+        case.stderr = f'hung for {HUNG_AFTER_S:.0f} s, aborted:\n{stacks}'
     case.returncode = case.proc.returncode
 
 
@@ -190,7 +203,7 @@ def test_a_second_node_beside_a_running_one_exits_2_in_one_line(results, node):
     first = results[f'{node}-sigint']
     assert first.twin is not None, f'{node} never ran: {first.stderr[-2000:]}'
     twin = first.twin
-    assert twin.returncode == 2, (twin.returncode, twin.stderr[-2000:])
+    assert twin.returncode == 2, (twin.returncode, twin.stderr[-6000:])
     assert 'Traceback' not in twin.stderr
     lines = twin.stderr.strip().splitlines()
     assert len(lines) == 1, twin.stderr

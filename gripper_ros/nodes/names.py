@@ -31,8 +31,9 @@ DISCOVERY_WAIT_S = 0.5
 first sign of one). A participant that has just joined often learns of the others only at their
 next announcement, up to Fast DDS's 3 s period later: a shorter look is best effort."""
 DISCOVERY_CONFIRM_S = 1.0
-"""A node found on the domain must still be there this long after the look began: a node that
-was just shut down has left the graph by then and is not mistaken for a running one."""
+"""What discovery shows must still be there this long after it first showed: a node that was just
+shut down has left the graph by then and is not mistaken for a running one, and the rest of a
+running graph (its services) has been discovered too."""
 DISCOVERY_POLL_S = 0.05
 PROBE_NODE = 'gripper_startup_probe'
 
@@ -204,14 +205,14 @@ def taken_names(node: Node, node_names: tuple[str, ...] = (), services: tuple[st
 
     A service counts when it has a server (a client waiting for one is welcome). Discovery is
     watched for up to ``wait_s`` (default :data:`DISCOVERY_WAIT_S`) until one shows; what shows
-    must still be there :data:`DISCOVERY_CONFIRM_S` after the start.
+    must still be there :data:`DISCOVERY_CONFIRM_S` later.
     """
-    start_s = time.monotonic()
-    found = _watch(node, node_names, services, start_s + (
+    found = _watch(node, node_names, services, time.monotonic() + (
         DISCOVERY_WAIT_S if wait_s is None else wait_s), until_found=True)
     if not found:
         return []
-    return _watch(node, node_names, services, start_s + DISCOVERY_CONFIRM_S, until_found=False)
+    return _watch(node, node_names, services, time.monotonic() + DISCOVERY_CONFIRM_S,
+                  until_found=False)
 
 
 def _watch(node: Node, node_names, services, deadline_s: float, until_found: bool) -> list[str]:
