@@ -182,7 +182,7 @@ def test_a_running_node_stopped_by_a_signal_exits_0_at_once_and_quietly(results,
     """Exit 0 within EXIT_WITHIN_S of the signal; no traceback, nothing at FATAL or ERROR."""
     case = results[f'{node}-{label}']
     assert case.answered, f'{node} never answered a parameter request: {case.stderr[-2000:]}'
-    assert case.returncode == 0, (case.returncode, case.stderr[-2000:])
+    assert case.returncode == 0, f'exit {case.returncode}: {case.stderr[-6000:]}'
     assert case.exit_s <= EXIT_WITHIN_S, (case.exit_s, case.stderr[-2000:])
     assert not [w for w in ALARMING if w in case.stderr], case.stderr[-2000:]
 
@@ -190,7 +190,7 @@ def test_a_running_node_stopped_by_a_signal_exits_0_at_once_and_quietly(results,
 @pytest.mark.parametrize('node, parameter, value, words', BAD_PARAMETERS)
 def test_a_bad_start_up_parameter_exits_2_in_one_line(results, node, parameter, value, words):
     case = results[f'{node}-{parameter}:={value}']
-    assert case.returncode == 2, (case.returncode, case.stderr[-2000:])
+    assert case.returncode == 2, f'exit {case.returncode}: {case.stderr[-6000:]}'
     assert 'Traceback' not in case.stderr
     lines = case.stderr.strip().splitlines()
     assert len(lines) == 1, case.stderr
@@ -203,7 +203,7 @@ def test_a_second_node_beside_a_running_one_exits_2_in_one_line(results, node):
     first = results[f'{node}-sigint']
     assert first.twin is not None, f'{node} never ran: {first.stderr[-2000:]}'
     twin = first.twin
-    assert twin.returncode == 2, (twin.returncode, twin.stderr[-6000:])
+    assert twin.returncode == 2, f'exit {twin.returncode}: {twin.stderr[-6000:]}'
     assert 'Traceback' not in twin.stderr
     lines = twin.stderr.strip().splitlines()
     assert len(lines) == 1, twin.stderr
@@ -258,3 +258,26 @@ def test_a_node_refused_half_way_leaves_nothing_in_the_graph():
         assert left == set(), left
     finally:
         rclpy.try_shutdown(context=context)
+
+
+def test_a_clean_up_that_never_ends_still_exits_with_the_nodes_code():
+    """A node whose destruction blocks (as a DDS entity's deletion can) still ends, saying so."""
+    from gripper_ros.nodes.process import CLEAN_UP_LIMIT_S
+    code = ('import time\n'
+            'from rclpy.node import Node\n'
+            'from gripper_ros.nodes.process import run_node\n'
+            'class Stuck(Node):\n'
+            '    def __init__(self):\n'
+            '        super().__init__("stuck_node", namespace="/exit_stuck_clean_up")\n'
+            '    def destroy_node(self):\n'
+            '        time.sleep(600)\n'
+            'raise SystemExit(run_node(Stuck, "stuck_node", ["x", "--ros-args", "-p", '
+            '"executor:=threads"]))\n')
+    result = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True,
+                            timeout=120, stdin=subprocess.DEVNULL)      # it sleeps 600 s
+    assert result.returncode == 2, (result.returncode, result.stderr[-2000:])
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 2 and 'Traceback' not in result.stderr, result.stderr
+    assert lines[0].startswith('stuck_node: parameter "executor" must be one of'), lines[0]
+    assert lines[1] == (f'stuck_node: clean-up did not finish within {CLEAN_UP_LIMIT_S:.0f} s '
+                        '(a DDS entity that never finished deleting); exiting with 2'), lines[1]

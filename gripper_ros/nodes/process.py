@@ -122,6 +122,46 @@ def exit_without_a_last_collection() -> None:
     atexit.register(gc.freeze)
 
 
+CLEAN_UP_LIMIT_S = 3.0
+"""Longest a node executable's clean-up may take once it has its exit code (executor, node,
+context): past it the process ends with that code, saying so in one line. Deleting a DDS entity
+can block for good in the middle of discovery traffic (seen once in some hundreds of stops, in
+the action server's ``rcl_action_server_fini``); a stopped node must still stop."""
+
+
+class BoundedCleanUp:
+    """Within ``with``: if the block outlasts ``limit_s``, say so and end the process (``code``).
+
+    Only for a process that is ending anyway and holds nothing that needs a clean close (a node
+    executable: its name claims are file locks the system releases, DDS peers drop its
+    participant at its lease's end). Not for an app that records bags.
+    """
+
+    def __init__(self, name: str, limit_s: float = CLEAN_UP_LIMIT_S):
+        self.name = name
+        self.limit_s = limit_s
+        self.code = 0
+        self._timer = None
+
+    def __enter__(self) -> BoundedCleanUp:
+        import threading
+        self._timer = threading.Timer(self.limit_s, self._give_up)
+        self._timer.daemon = True
+        self._timer.start()
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self._timer.cancel()
+
+    def _give_up(self) -> None:
+        import os
+        sys.stderr.write(f'{self.name}: clean-up did not finish within {self.limit_s:.0f} s '
+                         f'(a DDS entity that never finished deleting); exiting with '
+                         f'{self.code}\n')
+        sys.stderr.flush()
+        os._exit(self.code)
+
+
 def build_node(make_node: Callable[..., Node], *args, **kwargs) -> Node:
     """Construct a node; when its constructor raises, destroy what it had made, then re-raise.
 
@@ -172,6 +212,8 @@ def run_node(make_node: Callable[[], Node], name: str, args=None,
         print(node_usage(name, make_node))
         return 0
     node = executor = claim = None
+    exit_code = 0
+    clean_up = BoundedCleanUp(name)
     with StopSignals() as signals:
         try:
             rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
@@ -196,18 +238,20 @@ def run_node(make_node: Callable[[], Node], name: str, args=None,
                 spin_until_stopped(executor, Future(), signals)
         except (ConfigError, ParameterException, StartupError, RCLError) as exc:
             print(f'{name}: {one_line(exc)}', file=sys.stderr)
-            return EXIT_BAD_START
+            exit_code = EXIT_BAD_START
         except (KeyboardInterrupt, ExternalShutdownException):
             pass
         finally:
-            if executor is not None:
-                executor.shutdown(timeout_sec=1.0)
-            if node is not None:
-                node.destroy_node()
-            if claim is not None:
-                claim.release()
-            rclpy.try_shutdown()
-    return 0
+            clean_up.code = exit_code
+            with clean_up:
+                if executor is not None:
+                    executor.shutdown(timeout_sec=1.0)
+                if node is not None:
+                    node.destroy_node()
+                if claim is not None:
+                    claim.release()
+                rclpy.try_shutdown()
+    return exit_code
 
 
 def node_usage(name: str, make_node) -> str:
