@@ -4,8 +4,10 @@ from __future__ import annotations
 import atexit
 import enum
 import gc
+import os
 import signal
 import sys
+import threading
 from typing import Callable
 
 from gripper_ros.core.config import ConfigError
@@ -130,36 +132,30 @@ the action server's ``rcl_action_server_fini``); a stopped node must still stop.
 
 
 class BoundedCleanUp:
-    """Within ``with``: if the block outlasts ``limit_s``, say so and end the process (``code``).
+    """Within ``with``: if the block outlasts ``limit_s``, say so and exit with ``code``.
 
     Only for a process that is ending anyway and holds nothing that needs a clean close (a node
     executable: its name claims are file locks the system releases, DDS peers drop its
     participant at its lease's end). Not for an app that records bags.
     """
 
-    def __init__(self, name: str, limit_s: float = CLEAN_UP_LIMIT_S):
-        self.name = name
-        self.limit_s = limit_s
-        self.code = 0
-        self._timer = None
+    def __init__(self, name: str, code: int, limit_s: float = CLEAN_UP_LIMIT_S):
+        self._timer = threading.Timer(limit_s, self._give_up, (name, code, limit_s))
+        self._timer.daemon = True
 
     def __enter__(self) -> BoundedCleanUp:
-        import threading
-        self._timer = threading.Timer(self.limit_s, self._give_up)
-        self._timer.daemon = True
         self._timer.start()
         return self
 
     def __exit__(self, *exc) -> None:
         self._timer.cancel()
 
-    def _give_up(self) -> None:
-        import os
-        sys.stderr.write(f'{self.name}: clean-up did not finish within {self.limit_s:.0f} s '
-                         f'(a DDS entity that never finished deleting); exiting with '
-                         f'{self.code}\n')
+    @staticmethod
+    def _give_up(name: str, code: int, limit_s: float) -> None:
+        sys.stderr.write(f'{name}: clean-up did not finish within {limit_s:.0f} s (a DDS entity '
+                         f'that never finished deleting); exiting with {code}\n')
         sys.stderr.flush()
-        os._exit(self.code)
+        os._exit(code)
 
 
 def build_node(make_node: Callable[..., Node], *args, **kwargs) -> Node:
@@ -213,7 +209,6 @@ def run_node(make_node: Callable[[], Node], name: str, args=None,
         return 0
     node = executor = claim = None
     exit_code = 0
-    clean_up = BoundedCleanUp(name)
     with StopSignals() as signals:
         try:
             rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
@@ -242,8 +237,7 @@ def run_node(make_node: Callable[[], Node], name: str, args=None,
         except (KeyboardInterrupt, ExternalShutdownException):
             pass
         finally:
-            clean_up.code = exit_code
-            with clean_up:
+            with BoundedCleanUp(name, exit_code):
                 if executor is not None:
                     executor.shutdown(timeout_sec=1.0)
                 if node is not None:
