@@ -44,11 +44,11 @@ from gripper_ros.nodes.actions import (accept_goal, cancel_by_stop, declare_feed
                                        RunningGoal)
 from gripper_ros.nodes.gripper_node import GripperNode
 from gripper_ros.nodes.loop_io import read_status, StatusView
-from gripper_ros.nodes.parameters import declare_config, declare_joint_name, follow
+from gripper_ros.nodes.parameters import declare_config, declare_prefix, follow
 from gripper_ros.nodes.process import run_node
 from gripper_ros.nodes.qos import GRAPH_QOS, LATCHED_QOS, SERVICE_QOS
 from gripper_ros.text import one_line
-from gripper_ros.wire import (ACTION_GRIPPER_CMD, ACTION_MOVE, NODE_MOVE_ACTION,
+from gripper_ros.wire import (ACTION_GRIPPER_CMD, ACTION_MOVE, FINGER_JOINT, NODE_MOVE_ACTION,
                               Outcome, Phase, ROBOT_NAME, SERVICE_MOVE, SERVICE_STOP, stamp_ns,
                               TOPIC_GRIPPER_STATUS, TOPIC_JOINT_COMMANDS, TOPIC_JOINT_STATES,
                               TOPIC_OUTCOME, TOPIC_STATUS)
@@ -91,7 +91,7 @@ class MoveActionServer(GripperNode):
         self.gripper_command_served = ParallelGripperCommand is not None
         self._joint_data: bytes | None = None    # the newest joint_states, read when needed
         self.graph_subscription(JointState, TOPIC_JOINT_STATES, self._on_joint_state)
-        self.joint_name = declare_joint_name(self)
+        self.joint_name = declare_prefix(self) + FINGER_JOINT
         self._commands = JointCommandStream(self.plant, self.joint_name)
         self._command_call = None                # the move of a joint command being done
         self._command_next = None                # a newer target, sent when that one ends
