@@ -533,7 +533,7 @@ def test_parallel_gripper_command_on_gripper_cmd_drives_the_move(graph):
         status, result, _ = send(close, allow_stalling=True)         # still pressing there
         assert status == GoalStatus.STATUS_SUCCEEDED and result.stalled
         opened = JointState(name=[graph.move_action_server.joint_name], position=[0.02],
-                           velocity=[0.04])
+                            velocity=[0.04])
         status, result, _ = send(opened)
         assert status == GoalStatus.STATUS_SUCCEEDED and result.reached_goal
         assert abs(result.state.position[0] - 0.02) <= S.move_tolerance_m
