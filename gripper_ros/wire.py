@@ -184,6 +184,17 @@ def check_namespace(namespace: str) -> str:
     return ns
 
 
+def namespace_prefix(namespace: str) -> str:
+    """Return the prefix of the joint's and the URDF's names that ``namespace`` gives by default.
+
+    None in the default namespace (one gripper keeps the plain names) or the root one; else the
+    namespace's parts joined by ``_``, and a ``_``: ``left`` -> ``left_``, ``arm2/left`` ->
+    ``arm2_left_``. Grippers in different namespaces so publish no frame and no joint in common.
+    """
+    ns = namespace.strip('/')
+    return '' if ns in ('', DEFAULT_NAMESPACE) else ns.replace('/', '_') + '_'
+
+
 class Phase(enum.IntEnum):
     """``SupervisorStatus.PHASE_*``: where the supervisor's state machine stands."""
 

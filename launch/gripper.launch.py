@@ -10,7 +10,9 @@ Launch arguments: ``namespace`` (default ``gripper``: ``/gripper/grasp``, ``/gri
 loop goes, paused between requests),
 ``real_time_factor`` (realtime: simulated seconds per wall second), ``publish_clock``
 (``/clock``, one simulator per ROS graph) and ``prefix`` (the xacro's: ``left_`` names the
-joint ``left_finger_joint`` in joint_states and joint_commands, and the URDF's links).
+joint ``left_finger_joint`` in joint_states and joint_commands, and the URDF's links, so every
+TF frame; by default from the namespace: none in ``gripper``, ``left_`` in ``left``, so grippers
+launched side by side share no frame and no joint).
 The nodes: plant_simulator, position_controller, force_controller, supervisor,
 grasp_action_server, move_action_server (which also serves control_msgs
 ParallelGripperCommand on ``gripper_cmd`` where control_msgs is installed) and the one
@@ -18,16 +20,33 @@ publisher of ``robot_description`` and ``/tf``: robot_state_publisher with the U
 config (``gripper_urdf --config``) where the ament index has it, else description_publisher.
 """
 from gripper_ros.nodes import launched_executables, robot_state_publisher_installed
-from gripper_ros.wire import (DEFAULT_NAMESPACE, NODE_DESCRIPTION, NODE_MOVE_ACTION, NODE_PLANT,
-                              ROBOT_STATE_PUBLISHER, TIME_MODE_CHOICES, TimeMode)
+from gripper_ros.wire import (DEFAULT_NAMESPACE, namespace_prefix, NODE_DESCRIPTION,
+                              NODE_MOVE_ACTION, NODE_PLANT, ROBOT_STATE_PUBLISHER,
+                              TIME_MODE_CHOICES, TimeMode)
 from launch import LaunchDescription
 from launch.actions import DeclareLaunchArgument
+from launch.substitution import Substitution
 from launch.substitutions import Command, LaunchConfiguration, PathJoinSubstitution
 from launch_ros.actions import Node
 from launch_ros.parameter_descriptions import ParameterValue
 from launch_ros.substitutions import FindPackagePrefix, FindPackageShare
 
 PACKAGE = 'gripper_ros'
+
+
+class NamespacePrefix(Substitution):
+    """The ``prefix`` the ``namespace`` launch argument gives (``wire.namespace_prefix``)."""
+
+    def describe(self) -> str:
+        """Return what ``--show-args`` prints as the default."""
+        return "from the namespace: '' in gripper, left_ in left"
+
+    def perform(self, context) -> str:
+        """Return the prefix of the namespace launched in."""
+        return namespace_prefix(context.launch_configurations.get('namespace',
+                                                                  DEFAULT_NAMESPACE))
+
+
 JOINT_NAMED = (NODE_PLANT, NODE_MOVE_ACTION, NODE_DESCRIPTION)
 """The nodes that take the ``prefix`` parameter: the joint's name and the URDF's."""
 ARGUMENTS = (
@@ -38,7 +57,8 @@ ARGUMENTS = (
      f'{" or ".join(TIME_MODE_CHOICES)}: paced to the wall clock, or as fast as the loop goes'),
     ('real_time_factor', '1.0', 'realtime: simulated seconds per wall second'),
     ('publish_clock', 'true', 'publish /clock'),
-    ('prefix', '', "before finger_joint and the URDF's names (the xacro's prefix, e.g. left_)"),
+    ('prefix', NamespacePrefix(),
+     "before finger_joint and the URDF's names, so every TF frame (the xacro's prefix)"),
 )
 
 

@@ -17,6 +17,7 @@ SERIAL_MODULES = frozenset({
     'test_node_executables.py', 'test_shutdown.py', 'test_namespaces.py', 'test_hostile_graph.py',
     'test_grasp_client.py', 'test_launch_args.py', 'test_launch.py', 'test_faults.py',
     'test_recording_faults.py', 'test_parameters.py', 'test_time_modes.py', 'test_soak.py',
+    'test_tf_tree.py',
 })
 """Modules that start many processes, wait on discovery or watch wall-clock timeouts: run
 alone, after the rest (scripts/test.sh), so the other worker's load cannot starve them."""

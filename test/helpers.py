@@ -101,3 +101,31 @@ def copy_mcap(src: Path, dst: Path, *, schema_text: Callable[[str], str] | None 
             writer.add_metadata(record.name, record.metadata)
         writer.finish()
     return dst
+
+
+def urdf_tree(urdf: str) -> tuple[set, dict]:
+    """Return a URDF's link names and its joints: name -> (type, parent, child, xyz, axis)."""
+    import xml.etree.ElementTree as ET
+    root = ET.fromstring(urdf)
+    links = {link.get('name') for link in root.iter('link')}
+    joints = {}
+    for joint in root.iter('joint'):
+        origin, axis = joint.find('origin'), joint.find('axis')
+        xyz = [float(v) for v in (origin.get('xyz', '0 0 0') if origin is not None
+                                  else '0 0 0').split()]
+        axis_xyz = [float(v) for v in (axis.get('xyz') if axis is not None
+                                       else '1 0 0').split()]
+        joints[joint.get('name')] = (joint.get('type'), joint.find('parent').get('link'),
+                                     joint.find('child').get('link'), xyz, axis_xyz)
+    return links, joints
+
+
+def frames_of_bag(bag) -> dict:
+    """Return each child frame a bag's /tf and /tf_static hold -> the set of its parents."""
+    from gripper_ros.wire import TOPIC_TF, TOPIC_TF_STATIC
+    parents: dict = {}
+    for raw in bag.messages:
+        if raw.topic in (TOPIC_TF, TOPIC_TF_STATIC):
+            for t in bag.decode(raw).transforms:
+                parents.setdefault(t.child_frame_id, set()).add(t.header.frame_id)
+    return parents

@@ -519,10 +519,11 @@ def test_parallel_gripper_command_on_gripper_cmd_drives_the_move(graph):
         status, result, feedback = send(close)
         assert status == GoalStatus.STATUS_ABORTED                  # stalled, not allowed
         assert result.stalled and not result.reached_goal
-        assert list(result.state.name) == [FINGER_JOINT]
+        assert list(result.state.name) == [graph.move_action_server.joint_name]   # its prefix
         assert result.state.position[0] == pytest.approx(TRAVEL_M - 0.06, abs=1e-9)
         assert S.move_stall_force_fraction * 5.0 <= result.state.effort[0] <= 5.0 * (1 + 1e-9)
-        assert feedback and list(feedback[-1].feedback.state.name) == [FINGER_JOINT]
+        assert feedback and list(feedback[-1].feedback.state.name) == [
+            graph.move_action_server.joint_name]
         # stamped in simulated time, at or after the last feedback, with the measured velocity
         stamp = result.state.header.stamp
         last = feedback[-1].feedback.state.header.stamp
@@ -531,7 +532,8 @@ def test_parallel_gripper_command_on_gripper_cmd_drives_the_move(graph):
         assert len(feedback[-1].feedback.state.velocity) == 1
         status, result, _ = send(close, allow_stalling=True)         # still pressing there
         assert status == GoalStatus.STATUS_SUCCEEDED and result.stalled
-        opened = JointState(name=[FINGER_JOINT], position=[0.02], velocity=[0.04])
+        opened = JointState(name=[graph.move_action_server.joint_name], position=[0.02],
+                            velocity=[0.04])
         status, result, _ = send(opened)
         assert status == GoalStatus.STATUS_SUCCEEDED and result.reached_goal
         assert abs(result.state.position[0] - 0.02) <= S.move_tolerance_m

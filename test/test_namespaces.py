@@ -3,8 +3,10 @@
 A bimanual robot: ``left`` and ``right`` grasp at the same time, in one process and in two.
 Known answers: each holds its own object at its own width; each bag holds only its own topics
 (``/clock`` is in none: a bag's time is its own messages' stamps) and, per topic, exactly what
-its own graph published: one reference and one command for each of its own ticks. A second graph
-in a namespace already taken exits 2 with one line naming what it found, and publishes nothing.
+its own graph published: one reference and one command for each of its own ticks; on /tf
+and /tf_static only its own frames, the links of its robot_description (``left_`` before each).
+A second graph in a namespace already taken exits 2 with one line naming what it found, and
+publishes nothing.
 """
 import subprocess
 import sys
@@ -15,9 +17,11 @@ from gripper_ros.bags.reader import read_bag
 from gripper_ros.nodes.graph import GraphOptions, GripperGraph
 from gripper_ros.nodes.recording import recorded_grasp
 from gripper_ros.nodes.startup import StartupError
-from gripper_ros.wire import (DESCRIPTION_TOPICS, Outcome, qualified, TOPIC_FORCE_REFERENCE,
+from gripper_ros.wire import (DESCRIPTION_TOPICS, FRAME_BASE, FRAME_FIXED_FINGER,
+                              FRAME_MOVING_FINGER, Outcome, qualified, TOPIC_FORCE_REFERENCE,
                               TOPIC_JOINT_STATES, TOPIC_MOTOR_COMMAND, TOPIC_POSITION_REFERENCE,
-                              TOPIC_TF, TOPIC_TF_STATIC, TOPIC_TICK)
+                              TOPIC_ROBOT_DESCRIPTION, TOPIC_TF, TOPIC_TF_STATIC, TOPIC_TICK)
+from helpers import frames_of_bag, urdf_tree
 import pytest
 
 OBJECTS = {'left': (0.05, 1.69), 'right': (0.10, 0.75)}
@@ -25,6 +29,8 @@ OBJECTS = {'left': (0.05, 1.69), 'right': (0.10, 0.75)}
 
 GLOBAL = (TOPIC_TF, TOPIC_TF_STATIC)
 """The description's global topics (as every robot's /tf), beside the namespace's."""
+LINKS = (FRAME_BASE, FRAME_FIXED_FINGER, FRAME_MOVING_FINGER)
+"""The URDF's links, each a TF frame: ``left_`` before each in /left (the default prefix)."""
 
 
 def _check_bag(bag_dir, namespace):
@@ -33,6 +39,12 @@ def _check_bag(bag_dir, namespace):
     # its own topics, and its own fingers on the global /tf and /tf_static
     assert all(t.startswith(f'/{namespace}/') or t in GLOBAL for t in counts), sorted(counts)
     assert counts[TOPIC_TF] == counts[qualified(namespace, TOPIC_JOINT_STATES)]
+    # the frames: its own URDF's (the other gripper's differ in name), each under its parent
+    (description,) = [bag.decode(m).data for m in bag.messages
+                      if m.topic == qualified(namespace, TOPIC_ROBOT_DESCRIPTION)]
+    links, joints = urdf_tree(description)
+    assert links == {f'{namespace}_{link}' for link in LINKS}
+    assert frames_of_bag(bag) == {child: {parent} for _, parent, child, _, _ in joints.values()}
     ticks = counts[qualified(namespace, TOPIC_TICK)]
     references = counts.get(qualified(namespace, TOPIC_POSITION_REFERENCE), 0) + \
         counts.get(qualified(namespace, TOPIC_FORCE_REFERENCE), 0)

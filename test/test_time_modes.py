@@ -14,7 +14,7 @@ from gripper_ros.core.config import load_config
 from gripper_ros.nodes.graph import GraphOptions, GripperGraph
 from gripper_ros.nodes.loop_io import clock_template, joint_state_template
 from gripper_ros.nodes.qos import GRAPH_QOS
-from gripper_ros.wire import FINGER_JOINT, Outcome, qualified, TOPIC_CLOCK, TOPIC_JOINT_STATES
+from gripper_ros.wire import Outcome, qualified, TOPIC_CLOCK, TOPIC_JOINT_STATES
 import pytest
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
@@ -34,7 +34,7 @@ class Streams:
         self.joint: list = []
         self.clock: list = []
         self._lock = threading.Lock()
-        self._joint_layout = joint_state_template(FINGER_JOINT, 'gripper_base')
+        self._joint_layout = joint_state_template(graph.plant.joint_name, graph.plant.frame_id)
         self._clock_layout = clock_template()
         node = graph.client_node
         self._subs = [

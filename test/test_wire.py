@@ -137,3 +137,13 @@ def test_qualified_names_and_namespaces():
     for bad in ('left gripper', '1left', 'a//b', 'le-ft'):
         with pytest.raises(ValueError, match='not a ROS name'):
             wire.check_namespace(bad)
+
+
+def test_the_name_prefix_of_a_namespace():
+    """None in the default namespace and the root; else the namespace's parts and ``_``."""
+    assert wire.namespace_prefix(wire.DEFAULT_NAMESPACE) == ''
+    assert wire.namespace_prefix('/gripper/') == wire.namespace_prefix('') == ''
+    assert wire.namespace_prefix('/left') == 'left_'
+    assert wire.namespace_prefix('robot/left/') == 'robot_left_'
+    assert wire.namespace_prefix('right') != wire.namespace_prefix('left')
+    assert set(wire.namespace_prefix('robot_2/left')) <= wire.NAME_CHARACTERS

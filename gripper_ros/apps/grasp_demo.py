@@ -83,6 +83,9 @@ def build_parser() -> argparse.ArgumentParser:
                         'stop and sim/* from other processes')
     p.add_argument('--namespace', default=DEFAULT_NAMESPACE,
                    help='ROS namespace of this gripper (default %(default)s: /gripper/...)')
+    p.add_argument('--prefix', default=None,
+                   help="put before the joint's and the URDF's names, so before every TF frame "
+                        '(default: from the namespace: none in /gripper, left_ in /left)')
     p.add_argument('--time-mode', choices=TIME_MODE_CHOICES, default=None,
                    help='realtime: paced to the wall clock, always running (default with '
                         '--serve); fast: as fast as the graph goes while a grasp runs (default)')
@@ -175,12 +178,14 @@ def main(argv: list[str] | None = None) -> int:
                                            raise_keyboard_interrupt, StopSignals)
     from gripper_ros.nodes.recording import ServeRecorder
     from gripper_ros.text import one_line
-    from gripper_ros.wire import check_namespace, TimeMode
+    from gripper_ros.wire import check_namespace, NAME_CHARACTERS, TimeMode
 
     try:
         check_namespace(args.namespace)
     except ValueError as exc:
         return _fail(str(exc))
+    if args.prefix is not None and not set(args.prefix) <= NAME_CHARACTERS:
+        return _fail(f'--prefix may hold only ASCII letters, digits and _, got {args.prefix!r}')
     if not (args.no_record and (args.serve or args.no_plot)):
         problem = _output_problem(Path(args.output))
         if problem:
@@ -222,6 +227,7 @@ def main(argv: list[str] | None = None) -> int:
         return 0 if all(r.final_outcome == 'HOLDING' for r in records) else 1
     return run_graph('grasp_demo', lambda: GripperGraph(GraphOptions(
         executor=ExecutorKind(args.executor), config_file=args.config, namespace=namespace,
+        prefix=args.prefix,
         time_mode=time_mode, real_time_factor=args.real_time_factor,
         publish_clock=not args.no_clock, position_controller=args.position_controller,
         force_controller=args.force_controller, approach_force_margin=args.approach_force_margin,
@@ -240,7 +246,8 @@ def _serve(graph, args, signals) -> int:
     names = ', '.join(qualified(graph.namespace, n) for n in graph.served_names())
     print(f'grasp_demo: serving {names}, publishing the latched '
           f'{qualified(graph.namespace, TOPIC_OUTCOME)} ({graph.options.time_mode} time, '
-          f'{where}); Ctrl-C to stop', flush=True)
+          f'{where}); joint {graph.plant.joint_name}, TF frames under {graph.plant.frame_id}; '
+          'Ctrl-C to stop', flush=True)
     while not signals.received and graph.spinning:
         time.sleep(SERVE_POLL_S)
     return 0

@@ -54,9 +54,10 @@ class _Watcher:
         from std_srvs.srv import Trigger
         from gripper_ros.nodes.loop_io import joint_state_template
         from gripper_ros.nodes.qos import GRAPH_QOS, SERVICE_QOS
-        from gripper_ros.wire import (FINGER_JOINT, SERVICE_GRASP, SERVICE_RELEASE,
-                                      SERVICE_SET_OBJECT, TOPIC_CLOCK, TOPIC_JOINT_STATES,
-                                      TOPIC_SIM_STATUS, qualified)
+        from gripper_ros.wire import (FINGER_JOINT, FRAME_BASE, namespace_prefix,
+                                      SERVICE_GRASP, SERVICE_RELEASE, SERVICE_SET_OBJECT,
+                                      TOPIC_CLOCK, TOPIC_JOINT_STATES, TOPIC_SIM_STATUS,
+                                      qualified)
         self.spun = SpunNode('bench_realtime_watcher')
         self.node = self.spun.node
         self._lock = threading.Lock()
@@ -64,7 +65,8 @@ class _Watcher:
         self.joint_count = 0
         self.joint_first_last_ns: list = [None, None]
         self.sim_rtf: list = []
-        self._joint_layout = joint_state_template(FINGER_JOINT, 'gripper_base')
+        prefix = namespace_prefix(namespace)        # the graph's default names
+        self._joint_layout = joint_state_template(prefix + FINGER_JOINT, prefix + FRAME_BASE)
         self.node.create_subscription(Clock, TOPIC_CLOCK, self._on_clock, GRAPH_QOS, raw=True)
         self.joint_sub = self.node.create_subscription(
             JointState, qualified(namespace, TOPIC_JOINT_STATES), self._on_joint, GRAPH_QOS,

@@ -4,10 +4,12 @@ What robot_state_publisher does for this one gripper, without xacro or a URDF pa
 it runs on the ros-jazzy wheels too: ``robot_description`` (std_msgs/String, latched), the URDF
 written from the node's config (:mod:`gripper_ros.core.description`); ``/tf_static`` (latched)
 with the fixed finger on the base; and ``/tf`` with the moving finger at the position of each
-``joint_states`` message, stamped with that message's (simulated) time. ``frame_prefix`` is
-put before every frame id, as robot_state_publisher's parameter of that name does; ``prefix``
-before every name of the URDF (the xacro's prefix) and the joint it reads. On a system ROS 2,
-robot_state_publisher with ``urdf/gripper.urdf`` publishes the same frames.
+``joint_states`` message, stamped with that message's (simulated) time. ``prefix`` (by default
+from the namespace: ``left_`` in ``/left``) goes before every name of the URDF (the xacro's
+prefix) and the joint it reads, so the frames are the URDF's links; ``frame_prefix`` (default
+empty) is put before every frame id on top, as robot_state_publisher's parameter of that name
+does, without changing the URDF. On a system ROS 2, robot_state_publisher with
+``gripper_urdf --prefix P`` publishes the same frames.
 """
 from __future__ import annotations
 
@@ -19,7 +21,7 @@ from geometry_msgs.msg import TransformStamped
 from gripper_ros.core.description import finger_frames, urdf_text
 from gripper_ros.nodes.gripper_node import GripperNode
 from gripper_ros.nodes.loop_io import joint_state_template, transform_template
-from gripper_ros.nodes.parameters import declare_config, declare_joint_name
+from gripper_ros.nodes.parameters import declare_config, declare_prefix
 from gripper_ros.nodes.process import run_node
 from gripper_ros.nodes.qos import GRAPH_QOS, LATCHED_QOS
 from gripper_ros.nodes.startup import StartupError
@@ -50,10 +52,11 @@ class DescriptionPublisher(GripperNode):
     def __init__(self, **kwargs):
         super().__init__(NODE_DESCRIPTION, **kwargs)
         config = declare_config(self)
-        self.joint_name = declare_joint_name(self)
-        name_prefix = self.joint_name[:-len(FINGER_JOINT)]  # the URDF's (the xacro's prefix)
+        name_prefix = declare_prefix(self)       # the URDF's names (the xacro's prefix)
+        self.joint_name = name_prefix + FINGER_JOINT
         prefix = self.declare_parameter('frame_prefix', '', ParameterDescriptor(
-            description='put before every frame id of /tf and /tf_static (e.g. left/)',
+            description='put before every frame id of /tf and /tf_static, not in the URDF '
+                        '(as robot_state_publisher does; e.g. left/)',
             read_only=True)).value
         if not set(prefix) <= NAME_CHARACTERS | {'/'}:
             raise StartupError(f'parameter "frame_prefix" may hold only ASCII letters, digits, '
@@ -71,7 +74,7 @@ class DescriptionPublisher(GripperNode):
         self._static_pub = self.create_publisher(TFMessage, TOPIC_TF_STATIC, LATCHED_QOS)
         self._tf_pub = self.create_publisher(TFMessage, TOPIC_TF, GRAPH_QOS)
         self.graph_subscription(JointState, TOPIC_JOINT_STATES, self._on_joint_states)
-        self._joint_layout = joint_state_template(self.joint_name, FRAME_BASE)
+        self._joint_layout = joint_state_template(self.joint_name, name_prefix + FRAME_BASE)
         self._tf_layout = transform_template(self._base, self._moving)
         self.latched = {TOPIC_ROBOT_DESCRIPTION: String(data=self.urdf),
                         TOPIC_TF_STATIC: TFMessage(transforms=[_transform(

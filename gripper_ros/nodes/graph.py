@@ -67,7 +67,8 @@ class GraphOptions:
     action_server: bool = True       # also serve the grasp and the move as actions
     check_names: bool = True         # refuse to start when the namespace is taken
     description: bool = True         # robot_description, /tf_static and /tf (and in bags)
-    prefix: str = ''                 # the xacro's prefix: the joint's and the URDF's names
+    prefix: str | None = None        # the xacro's prefix: the joint's and the URDF's names
+    #                                  (None: from the namespace, wire.namespace_prefix)
     supervisor_parameters: dict = field(default_factory=dict)
     plant_parameters: dict = field(default_factory=dict)
 
@@ -97,7 +98,7 @@ class GripperGraph:
 
     def _build(self, opts: GraphOptions, client_kw: dict) -> None:
         cfg = [Parameter('config_file', value=opts.config_file)]
-        named = cfg + [Parameter('prefix', value=opts.prefix)]
+        named = cfg + ([] if opts.prefix is None else [Parameter('prefix', value=opts.prefix)])
         kw = {**client_kw, 'intra_process': self.bus}   # the graph's topics between its nodes
         self.plant = build_node(PlantSimulatorNode, parameter_overrides=named + [
             Parameter('time_mode', value=opts.time_mode),

@@ -6,9 +6,10 @@ as ``grasp_action_server`` is for the grasp:
 - ``move_action`` (gripper_interfaces/action/Move): a goal becomes a ``move`` call, feedback
   comes from the status (phase, position, opening, force), a cancel calls ``stop`` (the move
   ends STOPPED, the goal canceled). Succeeded only when the width was reached.
-- ``gripper_cmd`` (control_msgs/action/ParallelGripperCommand), served when control_msgs is
-  importable (a system ROS 2 Jazzy), so that MoveIt's parallel-gripper controller handle
-  (``action_ns: gripper_cmd``) drives this gripper: the command's ``finger_joint`` position
+- ``gripper_cmd`` (control_msgs/action/ParallelGripperCommand), served when control_msgs
+  loads (a system ROS 2 Jazzy; one warning line where it is installed but cannot), so that
+  MoveIt's parallel-gripper controller handle (``action_ns: gripper_cmd``) drives this
+  gripper: the command's ``<prefix>finger_joint`` position
   (travel from fully open, m) and optional velocity and effort become the move
   (:mod:`gripper_ros.core.supervision.gripper_command`); a malformed command is rejected. The
   result is the finger's JointState, ``stalled`` and ``reached_goal``; the goal succeeds on
@@ -44,25 +45,48 @@ from gripper_ros.nodes.actions import (accept_goal, cancel_by_stop, declare_feed
                                        RunningGoal)
 from gripper_ros.nodes.gripper_node import GripperNode
 from gripper_ros.nodes.loop_io import read_status, StatusView
-from gripper_ros.nodes.parameters import declare_config, declare_joint_name, follow
+from gripper_ros.nodes.parameters import declare_config, declare_prefix, follow
 from gripper_ros.nodes.process import run_node
 from gripper_ros.nodes.qos import GRAPH_QOS, LATCHED_QOS, SERVICE_QOS
 from gripper_ros.text import one_line
-from gripper_ros.wire import (ACTION_GRIPPER_CMD, ACTION_MOVE, NODE_MOVE_ACTION,
+from gripper_ros.wire import (ACTION_GRIPPER_CMD, ACTION_MOVE, FINGER_JOINT, NODE_MOVE_ACTION,
                               Outcome, Phase, ROBOT_NAME, SERVICE_MOVE, SERVICE_STOP, stamp_ns,
                               TOPIC_GRIPPER_STATUS, TOPIC_JOINT_COMMANDS, TOPIC_JOINT_STATES,
                               TOPIC_OUTCOME, TOPIC_STATUS)
 from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.action import ActionServer, GoalResponse
 from rclpy.serialization import deserialize_message
+from rclpy.type_support import check_for_type_support
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Header
 from std_srvs.srv import Trigger
 
-try:  # a system ROS 2 Jazzy has it; the ros-jazzy wheels do not
-    from control_msgs.action import ParallelGripperCommand
-except ImportError:  # pragma: no cover - depends on the installation
-    ParallelGripperCommand = None
+
+def _load_gripper_command():
+    """Return control_msgs' ParallelGripperCommand, or None and why it cannot be served.
+
+    A system ROS 2 Jazzy has control_msgs; the ros-jazzy wheels do not (None, nothing to say).
+    Installed but not loadable (its C type support, e.g. with its ``lib`` folder missing from
+    ``LD_LIBRARY_PATH``): None and one line, and the rest of the node serves as before.
+    """
+    try:
+        from control_msgs.action import ParallelGripperCommand as action
+    except ModuleNotFoundError as exc:
+        if (exc.name or '').split('.')[0] == 'control_msgs':
+            return None, ''
+        return None, one_line(exc)
+    except ImportError as exc:  # pragma: no cover - depends on the installation
+        return None, one_line(exc)
+    try:
+        check_for_type_support(action)
+    except Exception as exc:  # noqa: BLE001 - UnsupportedTypeSupport and kin: said in one line
+        cause = exc.__cause__ or exc.__context__
+        return None, one_line(f'{exc} ({cause})' if cause else exc)
+    return action, ''
+
+
+ParallelGripperCommand, GRIPPER_COMMAND_PROBLEM = _load_gripper_command()
+"""The action type, None where it is not served; why not, when control_msgs is there."""
 
 _REQUEST_FIELDS = ('width_m', 'speed_mps', 'max_effort_n', 'timeout_s')
 _RESULT_FIELDS = ('success', 'outcome', 'message', 'position_m', 'width_m', 'effort_n',
@@ -89,9 +113,13 @@ class MoveActionServer(GripperNode):
         self.own(ActionServer(self, MoveAction, ACTION_MOVE, execute_callback=self._execute_move,
                               goal_callback=accept_goal, cancel_callback=self._on_cancel))
         self.gripper_command_served = ParallelGripperCommand is not None
+        if GRIPPER_COMMAND_PROBLEM:
+            self.get_logger().warning(
+                f'{ACTION_GRIPPER_CMD} (control_msgs/action/ParallelGripperCommand) not served: '
+                f'{GRIPPER_COMMAND_PROBLEM}; the rest of the graph runs')
         self._joint_data: bytes | None = None    # the newest joint_states, read when needed
         self.graph_subscription(JointState, TOPIC_JOINT_STATES, self._on_joint_state)
-        self.joint_name = declare_joint_name(self)
+        self.joint_name = declare_prefix(self) + FINGER_JOINT
         self._commands = JointCommandStream(self.plant, self.joint_name)
         self._command_call = None                # the move of a joint command being done
         self._command_next = None                # a newer target, sent when that one ends

@@ -21,7 +21,7 @@ from typing import Callable
 from gripper_ros.core.config import GripperConfig, load_config, parse_config
 from gripper_ros.nodes.startup import StartupError
 from gripper_ros.text import one_line
-from gripper_ros.wire import FINGER_JOINT, NAME_CHARACTERS
+from gripper_ros.wire import FINGER_JOINT, NAME_CHARACTERS, namespace_prefix
 from rcl_interfaces.msg import ParameterDescriptor, ParameterType, SetParametersResult
 from rclpy.node import Node
 from rclpy.parameter import Parameter
@@ -203,16 +203,20 @@ def declare_config(node: Node) -> GripperConfig:
     return load_config(path or None)
 
 
-def declare_joint_name(node: Node) -> str:
-    """Declare ``prefix`` (read-only) and return the joint's name: ``prefix`` + finger_joint.
+def declare_prefix(node: Node) -> str:
+    """Declare ``prefix`` (read-only) and return it: what goes before the joint's and links' names.
 
-    The xacro's ``prefix`` names the ros2_control joint so; the simulator's joint_states and
-    joint_commands must carry the same name for JointStateTopicSystem to find it.
+    The xacro's ``prefix``: the ros2_control joint is ``prefix`` + finger_joint, and the
+    simulator's joint_states and joint_commands must carry that name for JointStateTopicSystem
+    to find it. By default it comes from the node's namespace (:func:`wire.namespace_prefix`), so
+    grippers side by side share no name; a value given (``''`` too) wins.
     """
-    prefix = node.declare_parameter('prefix', '', ParameterDescriptor(
-        description=f'put before {FINGER_JOINT} in joint_states and joint_commands (the '
-                    "xacro's prefix, e.g. left_)", read_only=True)).value
+    default = namespace_prefix(node.get_namespace())
+    prefix = node.declare_parameter('prefix', default, ParameterDescriptor(
+        description=f'put before {FINGER_JOINT} in joint_states and joint_commands and before '
+                    "every name of the URDF (the xacro's prefix); default: from the namespace, "
+                    f'{default!r} here', read_only=True)).value
     if not set(prefix) <= NAME_CHARACTERS:
         raise StartupError(f'parameter "prefix" may hold only ASCII letters, digits and _, '
                            f'got {prefix!r}')
-    return prefix + FINGER_JOINT
+    return prefix

@@ -37,15 +37,15 @@ from gripper_ros.nodes.gripper_node import GripperNode
 from gripper_ros.nodes.loop_io import (clock_template, force_sensor_template, in_layout,
                                        joint_state_template, object_state_template,
                                        read_status, split_ns, StatusView)
-from gripper_ros.nodes.parameters import ConfigParameters, declare_joint_name
+from gripper_ros.nodes.parameters import ConfigParameters, declare_prefix
 from gripper_ros.nodes.process import run_node
 from gripper_ros.nodes.qos import GRAPH_QOS, SERVICE_QOS
 from gripper_ros.nodes.services import DeferredService
 from gripper_ros.nodes.stamps import ns_to_time
 from gripper_ros.nodes.startup import StartupError
 from gripper_ros.wire import (CDR_LITTLE_ENDIAN, COMMAND_LAYOUT, Controller,
-                              DEFAULT_STATE_RATE_HZ, FORCE_SAMPLE_S, FRAME_BASE, NODE_PLANT,
-                              Outcome, Phase, REPUBLISH_AFTER_S,
+                              DEFAULT_STATE_RATE_HZ, FINGER_JOINT, FORCE_SAMPLE_S, FRAME_BASE,
+                              NODE_PLANT, Outcome, Phase, REPUBLISH_AFTER_S,
                               SERVICE_PAUSE, SERVICE_RESUME, SERVICE_SET_OBJECT, SERVICE_STEP,
                               TIME_MODE_CHOICES, TimeMode, TOPIC_CLOCK,
                               TOPIC_FORCE_SENSOR, TOPIC_JOINT_STATES, TOPIC_LOAD_ACCELERATION,
@@ -91,9 +91,11 @@ class PlantSimulatorNode(GripperNode):
         self.config = self.parameters.config
         self.side = PlantSide(make_plant(self.config))
         self.plant = self.side.plant
-        self.frame_id = self._param('frame_id', FRAME_BASE,
-                                    'frame_id of every published header', read_only=True)
-        self.joint_name = declare_joint_name(self)
+        prefix = declare_prefix(self)
+        self.joint_name = prefix + FINGER_JOINT
+        self.frame_id = self._param('frame_id', prefix + FRAME_BASE,
+                                    "frame_id of every published header (the URDF's base link)",
+                                    read_only=True)
         mode = self._param('time_mode', TimeMode.REALTIME.parameter,
                            'realtime: paced to the wall clock, always advancing | fast: as '
                            'fast as the graph goes while a request runs',
