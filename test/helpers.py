@@ -101,3 +101,31 @@ def copy_mcap(src: Path, dst: Path, *, schema_text: Callable[[str], str] | None 
             writer.add_metadata(record.name, record.metadata)
         writer.finish()
     return dst
+
+
+def step_into_phase(graph, phase, ticks_into: int = 0, lead_s: float = 0.0,
+                    max_ticks: int = 5000) -> None:
+    """Step a paused graph until its supervisor has decided ``ticks_into`` ticks of ``phase``.
+
+    ``lead_s`` of simulated time are stepped at once first (a span known to end before the
+    phase), then one tick at a time. Each step waits until its last tick has been answered
+    (``wait_still``), so the phase read is the one that tick decided: the graph stands at a known
+    simulated moment, however fast or slow the machine.
+    """
+    if lead_s > 0.0:
+        stepped = graph.step(duration_s=lead_s, wall_timeout_s=60.0)
+        assert stepped.success, stepped.message
+        assert graph.wait_still(quiet_s=0.0), 'the lead step was not answered'
+        assert graph.supervisor.logic.phase is not phase, \
+            f'{lead_s} s of lead already reached {phase.name}'
+    into = 0
+    for _ in range(max_ticks):
+        if graph.supervisor.logic.phase is phase:
+            if into >= ticks_into:
+                return
+            into += 1
+        stepped = graph.step(ticks=1, wall_timeout_s=60.0)
+        assert stepped.success, stepped.message
+        assert graph.wait_still(quiet_s=0.0), f'the tick at {stepped.time_s} s was not answered'
+    raise AssertionError(f'{phase.name} not reached in {max_ticks} ticks '
+                         f'(at {graph.supervisor.logic.phase.name})')
