@@ -129,3 +129,48 @@ def step_into_phase(graph, phase, ticks_into: int = 0, lead_s: float = 0.0,
         assert graph.wait_still(quiet_s=0.0), f'the tick at {stepped.time_s} s was not answered'
     raise AssertionError(f'{phase.name} not reached in {max_ticks} ticks '
                          f'(at {graph.supervisor.logic.phase.name})')
+
+
+def in_phase(graph, phase, after: int = 20) -> Callable[[], bool]:
+    """Return a predicate for the plant's publish: true from the tick ``after`` ticks into ``phase``.
+
+    Read in the plant's publish, the supervisor's phase is the one it decided for the tick
+    before: the predicate holds at a known simulated moment, whatever the machine's speed.
+    """
+    state = {'n': 0}
+
+    def when() -> bool:
+        if graph.supervisor.logic.phase is not phase:
+            return False
+        state['n'] += 1
+        return state['n'] > after
+    return when
+
+
+class TickHook:
+    """Stands in for the plant's tick publisher; acts at the first tick for which ``when()`` holds.
+
+    There it calls ``then()`` (on the executor thread, in the plant's publish) and, with
+    ``silence``, publishes neither that tick nor any later one (a republished tick included), as
+    if the plant had hung there. ``fired`` is set when it acted.
+    """
+
+    def __init__(self, graph, when: Callable[[], bool], then: Callable[[], None] | None = None,
+                 silence: bool = False):
+        import threading
+        self.plant, self.when, self.then, self.silence = graph.plant, when, then, silence
+        self.fired = threading.Event()
+        self._real = self.plant._tick_pub
+        self.plant._tick_pub = self
+
+    def publish(self, data) -> None:
+        if not self.fired.is_set() and self.when():
+            self.fired.set()
+            if self.then is not None:
+                self.then()
+        if self.silence and self.fired.is_set():
+            return
+        self._real.publish(data)
+
+    def remove(self) -> None:
+        self.plant._tick_pub = self._real

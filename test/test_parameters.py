@@ -18,7 +18,6 @@ import os
 from pathlib import Path
 import re
 import subprocess
-import threading
 import time
 
 from gripper_ros.core.config import ConfigError
@@ -444,27 +443,14 @@ def test_a_new_tick_timeout_is_the_one_the_supervisor_watchdog_fires_at():
 
     from gripper_ros.nodes.services import wait_until
     from gripper_ros.nodes.watchdog import MAX_COUNTED_GAP_S
+    from helpers import in_phase, TickHook
     with _param_graph(GripperGraph.in_own_context(GraphOptions(namespace='new_timeouts'))) as g:
         assert _set(g, 'supervisor', 'tick_timeout_s', _double(NEW_TICK_TIMEOUT_S)).successful
         assert g.set_object(0.10).success
         assert g.wait_still()
-        silenced = threading.Event()
-        real, position_ticks = g.plant._tick_pub, [0]
-
-        class Silencing:
-            def publish(self, data):
-                if silenced.is_set():
-                    return
-                if g.supervisor.logic.phase is Phase.POSITION:
-                    position_ticks[0] += 1
-                    if position_ticks[0] > TICKS_INTO_STAGE:
-                        silenced.set()
-                        return
-                real.publish(data)
-
-        g.plant._tick_pub = Silencing()
+        hook = TickHook(g, in_phase(g, Phase.POSITION, TICKS_INTO_STAGE), silence=True)
         pending = g._grasp.call_async(Grasp.Request(width_m=0.10, mass_kg=0.75))
-        assert silenced.wait(30.0)
+        assert hook.fired.wait(30.0)
         g.kill_node(g.plant)
         assert wait_until(pending.done, NEW_TICK_TIMEOUT_S + 30.0)
         answer = pending.result()
