@@ -132,7 +132,7 @@ def step_into_phase(graph, phase, ticks_into: int = 0, lead_s: float = 0.0,
 
 
 def in_phase(graph, phase, after: int = 20) -> Callable[[], bool]:
-    """Return a predicate for the plant's publish: true from the tick ``after`` ticks into ``phase``.
+    """Return a predicate for the plant's publish: true from ``after`` ticks into ``phase`` on.
 
     Read in the plant's publish, the supervisor's phase is the one it decided for the tick
     before: the predicate holds at a known simulated moment, whatever the machine's speed.
