@@ -129,3 +129,76 @@ def frames_of_bag(bag) -> dict:
             for t in bag.decode(raw).transforms:
                 parents.setdefault(t.child_frame_id, set()).add(t.header.frame_id)
     return parents
+
+
+def step_into_phase(graph, phase, ticks_into: int = 0, lead_s: float = 0.0,
+                    max_ticks: int = 5000) -> None:
+    """Step a paused graph until its supervisor has decided ``ticks_into`` ticks of ``phase``.
+
+    ``lead_s`` of simulated time are stepped at once first (a span known to end before the
+    phase), then one tick at a time. Each step waits until its last tick has been answered
+    (``wait_still``), so the phase read is the one that tick decided: the graph stands at a known
+    simulated moment, however fast or slow the machine.
+    """
+    if lead_s > 0.0:
+        stepped = graph.step(duration_s=lead_s, wall_timeout_s=60.0)
+        assert stepped.success, stepped.message
+        assert graph.wait_still(quiet_s=0.0), 'the lead step was not answered'
+        assert graph.supervisor.logic.phase is not phase, \
+            f'{lead_s} s of lead already reached {phase.name}'
+    into = 0
+    for _ in range(max_ticks):
+        if graph.supervisor.logic.phase is phase:
+            if into >= ticks_into:
+                return
+            into += 1
+        stepped = graph.step(ticks=1, wall_timeout_s=60.0)
+        assert stepped.success, stepped.message
+        assert graph.wait_still(quiet_s=0.0), f'the tick at {stepped.time_s} s was not answered'
+    raise AssertionError(f'{phase.name} not reached in {max_ticks} ticks '
+                         f'(at {graph.supervisor.logic.phase.name})')
+
+
+def in_phase(graph, phase, after: int = 20) -> Callable[[], bool]:
+    """Return a predicate for the plant's publish: true from ``after`` ticks into ``phase`` on.
+
+    Read in the plant's publish, the supervisor's phase is the one it decided for the tick
+    before: the predicate holds at a known simulated moment, whatever the machine's speed.
+    """
+    state = {'n': 0}
+
+    def when() -> bool:
+        if graph.supervisor.logic.phase is not phase:
+            return False
+        state['n'] += 1
+        return state['n'] > after
+    return when
+
+
+class TickHook:
+    """Stands in for the plant's tick publisher; acts at the first tick for which ``when()`` holds.
+
+    There it calls ``then()`` (on the executor thread, in the plant's publish) and, with
+    ``silence``, publishes neither that tick nor any later one (a republished tick included), as
+    if the plant had hung there. ``fired`` is set when it acted.
+    """
+
+    def __init__(self, graph, when: Callable[[], bool], then: Callable[[], None] | None = None,
+                 silence: bool = False):
+        import threading
+        self.plant, self.when, self.then, self.silence = graph.plant, when, then, silence
+        self.fired = threading.Event()
+        self._real = self.plant._tick_pub
+        self.plant._tick_pub = self
+
+    def publish(self, data) -> None:
+        if not self.fired.is_set() and self.when():
+            self.fired.set()
+            if self.then is not None:
+                self.then()
+        if self.silence and self.fired.is_set():
+            return
+        self._real.publish(data)
+
+    def remove(self) -> None:
+        self.plant._tick_pub = self._real

@@ -134,6 +134,8 @@ from gripper_ros.wire import (Controller, DEFAULT_NAMESPACE, GRAPH_TOPICS,  # no
 from rclpy.context import Context  # noqa: E402
 from rclpy.node import Node  # noqa: E402
 
+from helpers import in_phase, step_into_phase, TickHook  # noqa: E402, I100
+
 TOPICS = {qualified(DEFAULT_NAMESPACE, t): ty for t, ty in GRAPH_TOPICS.items()}
 TICKS, COMMANDS, STATUS = (qualified(DEFAULT_NAMESPACE, t) for t in
                            (TOPIC_TICK, TOPIC_MOTOR_COMMAND, TOPIC_STATUS))
@@ -172,9 +174,13 @@ class Watcher(Node):
         self.commands = []         # (wall, stamp_ns, source, voltage_v, hold_s)
         self.motor_voltages = []   # applied voltage, every tick
         self.counts = dict.fromkeys(TOPICS, 0)
-        for topic, msgtype in TOPICS.items():
-            self.create_subscription(import_message_class(msgtype), topic,
-                                     lambda msg, t=topic: self._on(t, msg), GRAPH_QOS)
+        self.readers = [self.create_subscription(import_message_class(msgtype), topic,
+                                                 lambda msg, t=topic: self._on(t, msg), GRAPH_QOS)
+                        for topic, msgtype in TOPICS.items()]
+
+    def matched(self) -> bool:
+        """Tell whether every reader has matched its topic's writer."""
+        return all(r.get_publisher_count() >= 1 for r in self.readers)
 
     def _on(self, topic, msg):
         stamp = _stamp(msg)
@@ -203,12 +209,15 @@ class LiveGraph:
         self.graph = GripperGraph(GraphOptions(), context=self.context)
         self.watcher = Watcher(self.context)
         self.graph.add_node(self.watcher)
-        time.sleep(0.3)     # the watcher matches the graph's writers (same process: fast)
+        assert wait_until(self.watcher.matched, 10.0), 'the watcher matched no graph writer'
 
-    def start_grasp(self, width_m=0.10, mass_kg=0.75, timeout_s=0.0):
+    def start_grasp(self, width_m=0.10, mass_kg=0.75, timeout_s=0.0, paused=False):
+        """Place the object and ask for the grasp (``paused``: simulated time held first)."""
         from gripper_interfaces.srv import Grasp
         assert self.graph.set_object(width_m).success
-        time.sleep(0.1)
+        assert self.graph.wait_still()
+        if paused:
+            assert self.graph.pause().success
         return self.graph._grasp.call_async(Grasp.Request(width_m=width_m, mass_kg=mass_kg,
                                                           timeout_s=timeout_s))
 
@@ -230,10 +239,10 @@ def live():
 def test_dead_plant_mid_grasp_ends_in_fault_naming_it_and_nothing_commands_after(live):
     g = live.graph
     sup_timeout = g.supervisor.tick_timeout_s
+    hook = TickHook(g, in_phase(g, Phase.POSITION), silence=True)   # hung mid-approach
     pending = live.start_grasp()
     try:
-        start_ticks = g.plant.ticks_published
-        assert wait_until(lambda: g.plant.ticks_published >= start_ticks + 30, 30.0)
+        assert hook.fired.wait(30.0)
         plant = g.plant
         g.kill_node(plant)
         killed_at = time.monotonic()
@@ -263,18 +272,18 @@ def test_dead_plant_mid_grasp_ends_in_fault_naming_it_and_nothing_commands_after
 def stall_run():
     """Stall the whole process mid-grasp for longer than every watchdog's timeout.
 
-    The stall is a 3.5 s callback on the executor thread; references and ticks are queued
-    behind it.
+    The stall is a 3.5 s callback on the executor thread, queued at the 21st tick of the
+    position stage; references and ticks are queued behind it.
     """
     lg = LiveGraph()
     g = lg.graph
     pending = None
     try:
         assert g.position.status_timeout_s < 3.5 and g.supervisor.tick_timeout_s < 3.5
+        hook = TickHook(g, in_phase(g, Phase.POSITION),
+                        then=lambda: g.executor.create_task(lambda: time.sleep(3.5)))
         pending = lg.start_grasp()
-        start_ticks = g.plant.ticks_published
-        assert wait_until(lambda: g.plant.ticks_published >= start_ticks + 30, 30.0)
-        g.executor.create_task(lambda: time.sleep(3.5))
+        assert hook.fired.wait(30.0)                   # mid-approach, at a known tick
         assert wait_until(pending.done, 60.0)
         return SimpleNamespace(response=pending.result(),
                                trips=g.position.watchdog_trips + g.force.watchdog_trips)
@@ -294,18 +303,21 @@ def test_executor_stall_trips_no_watchdog_and_the_grasp_holds(stall_run):
     assert stall_run.response.outcome == Outcome.HOLDING, stall_run.response.message
 
 
+STAGE_LEAD_S = {Phase.POSITION: 0.0, Phase.FORCE: 1.5}
+"""Simulated seconds stepped at once before the stage is looked for tick by tick: a 0.1 m grasp
+from open fingers runs its position stage from 0.01 s to 1.92 s of simulated time."""
+
+
 @pytest.mark.parametrize('phase', [Phase.POSITION, Phase.FORCE], ids=['position', 'force'])
 def test_dead_supervisor_mid_grasp_active_controller_falls_to_zero_volts(live, phase):
     g = live.graph
     controller = g.position if phase is Phase.POSITION else g.force
     source, name = controller.source, controller.get_name()
     timeout_s = controller.status_timeout_s
-    pending = live.start_grasp()
+    pending = live.start_grasp(paused=True)     # stepped into the stage: a known moment
     try:
-        assert wait_until(lambda: g.supervisor.logic.phase is phase, 30.0)
-        if phase is Phase.FORCE:   # the force loop is running, not just switched
-            switched = g.force.commands_published
-            assert wait_until(lambda: g.force.commands_published >= switched + 20, 10.0)
+        assert wait_until(lambda: g.supervisor.logic.pending, 10.0)
+        step_into_phase(g, phase, 20, STAGE_LEAD_S[phase])   # the stage's loop is running
         g.kill_node(g.supervisor)
         killed_at = time.monotonic()
         assert wait_until(lambda: controller.watchdog_trips >= 1, timeout_s + 5.0)
@@ -357,17 +369,6 @@ class Injection:
         self.plant._tick_pub = self._real
 
 
-def _in_phase(graph, phase, after=20):
-    state = {'n': 0}
-
-    def when():
-        if graph.supervisor.logic.phase is not phase:
-            return False
-        state['n'] += 1
-        return state['n'] > after          # 20 ticks into the phase
-    return when
-
-
 CASES = [(field, phase, value) for field, phase in [('position', Phase.POSITION),
                                                     ('force', Phase.POSITION),
                                                     ('force', Phase.FORCE)]
@@ -383,7 +384,7 @@ def injected_runs():
     g = lg.graph
     try:
         for field, phase, value in CASES:
-            inj = Injection(g, field, value, _in_phase(g, phase))
+            inj = Injection(g, field, value, in_phase(g, phase))
             before = lg.watcher.snapshot()
             r = g.grasp(0.10, 0.75, wall_timeout_s=60.0) if g.set_object(0.10).success \
                 else None
@@ -531,7 +532,7 @@ def motor_runs():
     runs = []
     try:
         for value in BAD_VALUES:
-            inj = Injection(g, 'voltage', value, _in_phase(g, Phase.POSITION))
+            inj = Injection(g, 'voltage', value, in_phase(g, Phase.POSITION))
             before = lg.watcher.snapshot()
             held = g.position.nonfinite_answers
             assert g.set_object(0.10).success

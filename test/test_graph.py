@@ -11,6 +11,7 @@ from gripper_ros.bags.series import load_grasp_series
 from gripper_ros.core.config import load_config
 from gripper_ros.nodes.graph import GripperGraph
 from gripper_ros.nodes.recording import recorded_grasp
+from gripper_ros.nodes.services import wait_until
 from gripper_ros.studies.paper import PAPER_OBJECTS
 from gripper_ros.wire import (COMMAND_LAYOUT, Controller, DEFAULT_NAMESPACE, DESCRIPTION_TOPICS,
                               GRAPH_TOPICS,
@@ -18,7 +19,7 @@ from gripper_ros.wire import (COMMAND_LAYOUT, Controller, DEFAULT_NAMESPACE, DES
                               REFERENCE_LAYOUT, SwitchCriterion, TICK_LAYOUT,
                               TOPIC_FORCE_REFERENCE, TOPIC_JOINT_STATES, TOPIC_MOTOR_COMMAND,
                               TOPIC_POSITION_REFERENCE, TOPIC_TF, TOPIC_TICK)
-from helpers import within_claimed_peak
+from helpers import step_into_phase, within_claimed_peak
 import numpy as np
 import pytest
 
@@ -195,19 +196,19 @@ def test_force_beyond_the_motor_names_the_numbers(graph):
 
 
 def test_request_while_grasping_is_refused_and_next_one_succeeds(graph):
+    """The first grasp is held in its position stage (paused, stepped) while the second comes."""
     graph.set_object(0.05)
+    assert graph.wait_still()
+    assert graph.pause().success
     first = graph._grasp.call_async(Grasp.Request(width_m=0.05, mass_kg=1.69))
-    busy = None
-    for _ in range(200):
-        if graph.supervisor.logic.running:
-            busy = graph.grasp(0.05, 1.69)
-            break
-        time.sleep(0.005)
-    assert busy is not None, 'the first grasp never started'
+    try:
+        assert wait_until(lambda: graph.supervisor.logic.pending, 10.0)
+        step_into_phase(graph, Phase.POSITION, ticks_into=5)
+        busy = graph.grasp(0.05, 1.69)
+    finally:
+        assert graph.resume().success
     assert busy.outcome == Outcome.REFUSED and 'grasp is running' in busy.message
-    deadline = time.monotonic() + 120
-    while not first.done() and time.monotonic() < deadline:
-        time.sleep(0.01)
+    assert wait_until(first.done, 120.0)
     assert first.result().success
     graph.set_object(0.10)
     assert graph.grasp(0.10, 0.75).success
@@ -232,18 +233,19 @@ def test_stop_ends_the_running_grasp_and_the_next_one_succeeds(graph):
     refused = graph.call(stop, Trigger.Request(), 5)
     assert not refused.success and 'nothing to stop' in refused.message
     graph.set_object(0.01)
+    assert graph.wait_still()
+    assert graph.pause().success                 # stopped at a known tick of the approach
     pending = graph._grasp.call_async(Grasp.Request(width_m=0.01, mass_kg=1.27))
-    deadline = time.monotonic() + 30
-    while not graph.supervisor.logic.running and time.monotonic() < deadline:
-        time.sleep(0.002)
-    ticks = graph.plant.ticks_published
-    while graph.plant.ticks_published < ticks + 20 and time.monotonic() < deadline:
-        time.sleep(0.002)
-    assert graph.call(stop, Trigger.Request(), 5).success
-    while not pending.done() and time.monotonic() < deadline:
-        time.sleep(0.005)
+    try:
+        assert wait_until(lambda: graph.supervisor.logic.pending, 10.0)
+        step_into_phase(graph, Phase.POSITION, ticks_into=20)
+        assert graph.call(stop, Trigger.Request(), 5).success
+    finally:
+        assert graph.resume().success
+    assert wait_until(pending.done, 30.0)
     r = pending.result()
     assert r.outcome == Outcome.STOPPED and not r.success
+    assert graph.wait_still()
     frozen = graph.plant.ticks_published
     time.sleep(0.2)
     assert graph.plant.ticks_published == frozen          # fast time: nothing needs time now

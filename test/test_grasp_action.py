@@ -5,14 +5,15 @@ one EventsExecutor (as in grasp_demo): real DDS, real goal/result/feedback/cance
 """
 import math
 import threading
-import time
 
 from action_msgs.msg import GoalStatus
 from gripper_interfaces.action import Grasp as GraspAction
 from gripper_interfaces.msg import SupervisorStatus
 from gripper_ros.core.config import load_config
 from gripper_ros.nodes.graph import GripperGraph
-from gripper_ros.wire import ACTION_GRASP, Outcome
+from gripper_ros.nodes.services import wait_until
+from gripper_ros.wire import ACTION_GRASP, Outcome, Phase
+from helpers import step_into_phase
 import pytest
 from rclpy.action import ActionClient
 
@@ -81,13 +82,17 @@ def test_goal_holds_the_object_with_feedback_through_both_stages(graph):
 
 
 def test_cancel_stops_the_grasp_and_the_next_goal_succeeds(graph):
-    graph.set_object(0.01)                       # longest approach: time to cancel mid-way
-    goal = Goal(graph, 0.01, 1.27)
-    deadline = time.monotonic() + 30
-    while not goal.feedback and time.monotonic() < deadline:
-        time.sleep(0.005)
-    assert goal.feedback, 'no feedback before cancel'
-    cancel = _wait(goal.handle.cancel_goal_async())
+    """The goal is cancelled at a known tick of the approach (paused, stepped into it)."""
+    graph.set_object(0.01)                       # longest approach
+    assert graph.wait_still()
+    assert graph.pause().success
+    try:
+        goal = Goal(graph, 0.01, 1.27)
+        assert wait_until(lambda: graph.supervisor.logic.pending, 10.0)
+        step_into_phase(graph, Phase.POSITION, ticks_into=20)
+        cancel = _wait(goal.handle.cancel_goal_async())
+    finally:
+        assert graph.resume().success
     assert len(cancel.goals_canceling) == 1
     status, result = goal.result()
     assert status == GoalStatus.STATUS_CANCELED

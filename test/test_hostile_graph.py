@@ -22,6 +22,7 @@ from gripper_ros.nodes.qos import SERVICE_QOS
 from gripper_ros.wire import (GRAPH_NOT_READY, MAX_NAMESPACE_LENGTH, NODE_POSITION_CONTROLLER,
                               Outcome, Phase, SERVICE_PAUSE, SERVICE_SET_OBJECT, SERVICE_STOP,
                               TOPIC_TF, TOPIC_TF_STATIC)
+from helpers import step_into_phase
 import pytest
 from rcl_interfaces.msg import Parameter as ParameterMsg, ParameterType, ParameterValue
 from rcl_interfaces.srv import GetParameters, SetParameters
@@ -68,7 +69,7 @@ def test_a_pause_stops_time_even_during_the_longest_step(realtime):
     assert paused.success, paused.message
     thread.join(10.0)
     assert answers and not answers[0].success and 'ended by sim/pause' in answers[0].message
-    time.sleep(0.1)
+    assert realtime.wait_still()                                         # paused, answered
     t_paused = realtime.sim_time_ns
     time.sleep(1.0)
     assert realtime.sim_time_ns == t_paused                             # a pause stops time
@@ -161,12 +162,14 @@ def test_a_pause_during_a_grasp_is_no_fault():
     with GripperGraph.in_own_context(GraphOptions(
             namespace='paused_grasp', supervisor_parameters={'tick_timeout_s': 0.5})) as g:
         assert g.set_object(WIDTH).success
+        assert g.wait_still()
+        assert g.pause().success                         # paused in the approach, stepped in
         answers = []
         thread = threading.Thread(target=lambda: answers.append(g.grasp(WIDTH, MASS)),
                                   daemon=True)
         thread.start()
-        assert _wait_for(lambda: g.supervisor.logic.phase == Phase.POSITION)
-        assert g.pause().success
+        assert _wait_for(lambda: g.supervisor.logic.pending)
+        step_into_phase(g, Phase.POSITION, ticks_into=5)
         time.sleep(1.5)                                  # three times the tick timeout
         assert not answers and g.supervisor.logic.running
         assert g.resume().success
@@ -285,10 +288,10 @@ def test_a_plant_whose_supervisor_died_keeps_its_clock():
         assert g.set_object(WIDTH).success
         assert g.grasp(WIDTH, MASS).outcome == Outcome.HOLDING
         g.kill_node(g.supervisor)
-        time.sleep(g.plant.command_timeout_s + 0.3)       # past the command timeout (1 s)
         t0 = g.sim_time_ns
-        time.sleep(1.0)
-        assert (g.sim_time_ns - t0) * 1e-9 >= 0.5         # paced at 1: about 1 s on
+        # no command for command_timeout_s (1 s): 0 V, and simulated time goes on past it
+        assert _wait_for(lambda: (g.sim_time_ns - t0) * 1e-9 >= g.plant.command_timeout_s + 1.0,
+                         60.0), (g.sim_time_ns - t0) * 1e-9
 
 
 # ---------------------------------------------------------------- small: a plant killed

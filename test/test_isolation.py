@@ -19,7 +19,6 @@ from sensor_msgs.msg import JointState
 JOINT_STATES = qualified(DEFAULT_NAMESPACE, TOPIC_JOINT_STATES)
 
 DOMAIN_A = int(os.environ.get('ROS_DOMAIN_ID', '0'))
-DOMAIN_B = (DOMAIN_A + 50) % 100 + 1          # far from the id scripts/test.sh picked for A
 
 
 def _graph(domain_id):
@@ -27,10 +26,10 @@ def _graph(domain_id):
 
 
 @pytest.fixture(scope='module')
-def graphs():
-    assert DOMAIN_A != DOMAIN_B
+def graphs(spare_domain_id):
+    assert DOMAIN_A != spare_domain_id           # B: a second id, locked for this run
     a = _graph(DOMAIN_A)
-    b = _graph(DOMAIN_B)
+    b = _graph(spare_domain_id)
     yield a, b
     for g in (a, b):
         g.close()

@@ -329,11 +329,22 @@ def graph():
         g.action_client.destroy()
 
 
+def _stamp_ns(msg) -> int:
+    return msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
+
+
+def _joint_states_delivered(graph) -> None:
+    """Wait until time stands still and the plant's last joint state has reached the test."""
+    from gripper_ros.nodes.services import wait_until
+    assert graph.wait_still()
+    last_ns = graph.plant.last_state_ns
+    assert wait_until(lambda: graph.joint_states and
+                      _stamp_ns(graph.joint_states[-1]) >= last_ns, 30.0)
+
+
 def _speeds_since(graph, t0_ns):
-    graph.wait_still()
-    time.sleep(0.2)                                  # the last joint states delivered
-    stamp = [m.header.stamp.sec * 1_000_000_000 + m.header.stamp.nanosec
-             for m in graph.joint_states]
+    _joint_states_delivered(graph)
+    stamp = [_stamp_ns(m) for m in graph.joint_states]
     return np.array([m.velocity[0] for m, t in zip(graph.joint_states, stamp) if t >= t0_ns])
 
 
@@ -375,16 +386,14 @@ def test_the_graphs_move_is_the_headless_move_tick_for_tick(graph):
     t0 = graph.sim_time_ns
     graph.joint_states.clear()
     answer = graph.move(0.03, 0.04, 8.0)
-    graph.wait_still()
-    time.sleep(0.2)
+    _joint_states_delivered(graph)
     run = simulate_moves(CONFIG, [MoveRequest(0.03, 0.04, 8.0)], object_width_m=0.07,
                          start_ns=t0)
     (headless,) = run.answers
     assert (answer.outcome, answer.position_m, answer.effort_n) == \
         (int(headless.outcome), headless.position_m, headless.effort_n)
     position_at = dict(zip(run.t_ns.tolist(), run.position_m.tolist()))
-    graph_series = {m.header.stamp.sec * 1_000_000_000 + m.header.stamp.nanosec: m.position[0]
-                    for m in graph.joint_states}
+    graph_series = {_stamp_ns(m): m.position[0] for m in graph.joint_states}
     common = sorted(set(graph_series) & set(position_at))
     assert len(common) > 0.9 * len(position_at)
     assert all(graph_series[t] == position_at[t] for t in common)

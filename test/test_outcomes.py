@@ -20,6 +20,7 @@ from gripper_interfaces.srv import Grasp, SetObject
 from gripper_ros.core.config import load_config
 from gripper_ros.nodes.graph import GraphOptions, GripperGraph
 from gripper_ros.nodes.qos import GRAPH_QOS, LATCHED_QOS
+from gripper_ros.nodes.services import wait_until
 from gripper_ros.wire import (Controller, Outcome, Phase, TOPIC_MOTOR_COMMAND, TOPIC_OUTCOME,
                               TOPIC_STATUS)
 import pytest
@@ -40,8 +41,15 @@ class Tap:
         self._lock = threading.Lock()
         self.last_status: SupervisorStatus | None = None
         self.commands: list[tuple[int, float]] = []
-        node.create_subscription(SupervisorStatus, TOPIC_STATUS, self._on_status, GRAPH_QOS)
-        node.create_subscription(MotorCommand, TOPIC_MOTOR_COMMAND, self._on_command, GRAPH_QOS)
+        self.subscriptions = [
+            node.create_subscription(SupervisorStatus, TOPIC_STATUS, self._on_status, GRAPH_QOS),
+            node.create_subscription(MotorCommand, TOPIC_MOTOR_COMMAND, self._on_command,
+                                     GRAPH_QOS)]
+
+    def matched(self) -> bool:
+        """Tell whether every reader has matched the graph's writers (both controllers')."""
+        status, commands = self.subscriptions
+        return status.get_publisher_count() >= 1 and commands.get_publisher_count() >= 2
 
     def _on_status(self, msg):
         with self._lock:
@@ -71,7 +79,7 @@ class Tap:
 def graph():
     with GripperGraph.in_own_context(GraphOptions(action_server=False)) as g:
         g.tap = Tap(g.client_node)
-        time.sleep(0.3)                  # let the tap's readers match the writers
+        assert wait_until(g.tap.matched, 10.0)
         yield g
 
 
@@ -209,15 +217,21 @@ def test_release_opens_the_fingers_and_the_next_grasp_succeeds(graph, settle_s):
 
 
 def test_release_is_refused_while_a_grasp_runs(graph):
+    """The grasp is held in its position stage (paused, stepped) while the release is asked."""
+    from helpers import step_into_phase
     assert graph.set_object(WIDTH).success
+    assert graph.wait_still()
+    assert graph.pause().success
     pending = graph._grasp.call_async(Grasp.Request(width_m=WIDTH, mass_kg=MASS))
-    deadline = time.monotonic() + 30
-    while not graph.supervisor.logic.running and time.monotonic() < deadline:
-        time.sleep(0.002)
-    r = graph.release(10)
+    try:
+        assert wait_until(lambda: graph.supervisor.logic.pending, 10.0)
+        step_into_phase(graph, Phase.POSITION, ticks_into=5)
+        assert graph.supervisor.logic.running
+        r = graph.release(10)
+    finally:
+        assert graph.resume().success
     assert not r.success and 'grasp is running' in r.message and '/gripper/stop' in r.message
-    while not pending.done() and time.monotonic() < deadline:
-        time.sleep(0.005)
+    assert wait_until(pending.done, 60.0)
     assert pending.result().outcome == Outcome.HOLDING
 
 

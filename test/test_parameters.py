@@ -16,18 +16,21 @@
 import math
 import os
 from pathlib import Path
+import re
 import subprocess
 import time
 
 from gripper_ros.core.config import ConfigError
+from gripper_ros.nodes.controller_node import DEFAULT_STATUS_TIMEOUT_S
 from gripper_ros.nodes.force_controller_node import ForceControllerNode
 from gripper_ros.nodes.graph import GraphOptions, GripperGraph
 from gripper_ros.nodes.grasp_action_node import GraspActionServer
 from gripper_ros.nodes.parameters import flatten
 from gripper_ros.nodes.plant_simulator_node import PlantSimulatorNode
 from gripper_ros.nodes.position_controller_node import PositionControllerNode
-from gripper_ros.nodes.supervisor_node import SupervisorNode
-from gripper_ros.wire import DEFAULT_NAMESPACE, Outcome
+from gripper_ros.nodes.supervisor_node import (DEFAULT_TICK_TIMEOUT_S, HEARTBEAT_PERIOD_S,
+                                               SupervisorNode)
+from gripper_ros.wire import DEFAULT_NAMESPACE, Outcome, Phase
 import numpy as np
 import pytest
 from rcl_interfaces.msg import Parameter as ParameterMsg
@@ -355,56 +358,108 @@ def test_read_only_parameters_refuse_any_change(graph, descriptors):
     assert checked >= len(READ_ONLY) + sum(len(config_keys(n, 1)) for n in NODE_CLASSES)
 
 
-NEW_TIMEOUT_S = 0.6
-"""A watchdog timeout set at run time, well below each default (3 s and 2 s)."""
-WATCH_PERIOD_S = 0.1
-"""The last message before a kill came up to a check period early (watchdogs check at 20 Hz)."""
+NEW_TIMEOUT_S = 2.0
+"""A controller's watchdog timeout set at run time: below the 3 s default, above the 1 s of the
+supervisor's heartbeat (a paused simulation's only status)."""
+NEW_TICK_TIMEOUT_S = 0.6
+"""The supervisor's tick timeout set at run time, well below its 2 s default."""
+TICKS_INTO_STAGE = 20
+"""The stage runs this many ticks before the kill: its controller is named and answering."""
+STAGE_LEAD_S = {Phase.POSITION: 0.0, Phase.FORCE: 1.5}
+"""Simulated seconds stepped at once before the stage is looked for tick by tick: a 0.1 m grasp
+from open fingers runs its position stage from 0.01 s to 1.92 s of simulated time."""
 
 
-def _grasp_then_kill(node_name: str, timeout_parameter: str):
-    """Kill ``node_name`` mid-approach after its watcher's timeout was set at run time.
+def _counted_silence_s(message: str, words: str) -> float:
+    """Return the silence a watchdog's message says it counted (``<words> 1.23 s``)."""
+    found = re.search(re.escape(words) + r' (\d+\.\d+) s', message)
+    assert found, message
+    return float(found.group(1))
 
-    ``timeout_parameter`` of the watching node is set to NEW_TIMEOUT_S over its service, in a
-    graph of its own; returns the seconds from the kill until the watchdog acted, and the
-    grasp's answer (None when the supervisor was killed).
+
+def _param_graph(g):
+    client = rclpy.create_node('parameter_client', context=g.context)
+    g.add_node(client)
+    g.param_client, g.param_clients = client, {}
+    return g
+
+
+@pytest.mark.parametrize('phase', [Phase.POSITION, Phase.FORCE], ids=['position', 'force'])
+def test_a_new_status_timeout_is_the_one_the_controller_watchdog_fires_at(phase):
+    """A stage controller's status_timeout_s set to 2 s: the supervisor killed in that stage.
+
+    The controller commands 0 V once after 2 s without a status (its log says so), not after
+    the 3 s default; the other controller, not named, never does. The simulation is paused and
+    stepped into the stage, so the kill comes at a known simulated moment on any machine; the
+    paused graph's supervisor still sends its heartbeat, which keeps the watchdog quiet.
     """
     from gripper_interfaces.srv import Grasp
 
     from gripper_ros.nodes.services import wait_until
-    watcher = 'supervisor' if node_name == 'plant_simulator' else 'position_controller'
-    with GripperGraph.in_own_context(GraphOptions(namespace='new_timeouts')) as g:
-        client = rclpy.create_node('parameter_client', context=g.context)
-        g.add_node(client)
-        g.param_client, g.param_clients = client, {}
-        assert _set(g, watcher, timeout_parameter, _double(NEW_TIMEOUT_S)).successful
+    from gripper_ros.nodes.watchdog import MAX_COUNTED_GAP_S
+    from gripper_ros.wire import COMMAND_LAYOUT
+    from helpers import step_into_phase
+    with _param_graph(GripperGraph.in_own_context(GraphOptions(namespace='new_timeouts'))) as g:
+        controller, other = (g.position, g.force) if phase is Phase.POSITION else \
+            (g.force, g.position)
+        name = controller.get_name()
+        assert HEARTBEAT_PERIOD_S < NEW_TIMEOUT_S < DEFAULT_STATUS_TIMEOUT_S
+        assert _set(g, name, 'status_timeout_s',
+                    _double(NEW_TIMEOUT_S)).successful
+        assert other.status_timeout_s == DEFAULT_STATUS_TIMEOUT_S
         assert g.set_object(0.10).success
+        assert g.wait_still()
+        assert g.pause().success
         pending = g._grasp.call_async(Grasp.Request(width_m=0.10, mass_kg=0.75))
-        ticks = g.plant.ticks_published
-        assert wait_until(lambda: g.plant.ticks_published >= ticks + 30, 30.0)
-        victim = g.plant if node_name == 'plant_simulator' else g.supervisor
-        g.kill_node(victim)
-        killed_at = time.monotonic()
-        if node_name == 'plant_simulator':
-            assert wait_until(pending.done, 10.0)
-            acted_s, answer = time.monotonic() - killed_at, pending.result()
-        else:
-            assert wait_until(lambda: g.position.watchdog_trips >= 1, 10.0)
-            acted_s, answer = time.monotonic() - killed_at, None
+        try:
+            assert wait_until(lambda: g.supervisor.logic.pending, 10.0)
+            step_into_phase(g, phase, TICKS_INTO_STAGE, STAGE_LEAD_S[phase])
+            assert controller.watchdog_trips == 0 and controller.commands_published > 0
+            g.kill_node(g.supervisor)
+            killed_at = time.monotonic()
+            assert wait_until(lambda: controller.watchdog_trips >= 1, NEW_TIMEOUT_S + 30.0)
+            acted_s = time.monotonic() - killed_at
+            message = controller.watchdog_message
+            last = dict(zip(COMMAND_LAYOUT.fields, COMMAND_LAYOUT.unpack(
+                controller._last_command)))
+        finally:
             g._grasp.remove_pending_request(pending)
-    return acted_s, answer
-
-
-def test_a_new_status_timeout_is_the_one_the_controller_watchdog_fires_at():
-    """status_timeout_s set to 0.6 s: the supervisor killed, 0 V after 0.6 s, not the 3 s."""
-    acted_s, _ = _grasp_then_kill('supervisor', 'status_timeout_s')
-    assert NEW_TIMEOUT_S - WATCH_PERIOD_S <= acted_s < 3.0, acted_s   # before the old 3 s
+    print(f'\n{phase.name}: 0 V {acted_s:.2f} s of wall time after the kill: {message}')
+    silent_s = _counted_silence_s(message, 'no status from the supervisor for')
+    assert NEW_TIMEOUT_S <= silent_s <= NEW_TIMEOUT_S + MAX_COUNTED_GAP_S, message
+    assert silent_s < DEFAULT_STATUS_TIMEOUT_S
+    assert name in message and 'supervisor' in message
+    assert last['voltage_v'] == 0.0 and last['source'] == controller.source
+    assert controller.watchdog_trips == 1 and other.watchdog_trips == 0
 
 
 def test_a_new_tick_timeout_is_the_one_the_supervisor_watchdog_fires_at():
-    """tick_timeout_s set to 0.6 s: the plant killed, FAULT after 0.6 s, not the 2 s."""
-    acted_s, answer = _grasp_then_kill('plant_simulator', 'tick_timeout_s')
+    """tick_timeout_s set to 0.6 s: the plant falls silent mid-approach, FAULT after 0.6 s.
+
+    Not after the 2 s default. The plant is silenced at a known tick of the position stage (its
+    tick publisher swallows every tick from there on, as a hung process would) and then killed.
+    """
+    from gripper_interfaces.srv import Grasp
+
+    from gripper_ros.nodes.services import wait_until
+    from gripper_ros.nodes.watchdog import MAX_COUNTED_GAP_S
+    from helpers import in_phase, TickHook
+    with _param_graph(GripperGraph.in_own_context(GraphOptions(namespace='new_timeouts'))) as g:
+        assert _set(g, 'supervisor', 'tick_timeout_s', _double(NEW_TICK_TIMEOUT_S)).successful
+        assert g.set_object(0.10).success
+        assert g.wait_still()
+        hook = TickHook(g, in_phase(g, Phase.POSITION, TICKS_INTO_STAGE), silence=True)
+        pending = g._grasp.call_async(Grasp.Request(width_m=0.10, mass_kg=0.75))
+        assert hook.fired.wait(30.0)
+        g.kill_node(g.plant)
+        assert wait_until(pending.done, NEW_TICK_TIMEOUT_S + 30.0)
+        answer = pending.result()
+    print(f'\n{Outcome(answer.outcome).name}: {answer.message}')
     assert answer.outcome == Outcome.FAULT, answer.message
-    assert NEW_TIMEOUT_S - WATCH_PERIOD_S <= acted_s < 2.0, acted_s   # before the old 2 s
+    assert 'plant_simulator' in answer.message
+    silent_s = _counted_silence_s(answer.message, 'no progress for')
+    assert NEW_TICK_TIMEOUT_S <= silent_s <= NEW_TICK_TIMEOUT_S + MAX_COUNTED_GAP_S
+    assert silent_s < DEFAULT_TICK_TIMEOUT_S
 
 
 def test_a_new_approach_margin_is_the_one_a_bag_records(graph):

@@ -20,6 +20,7 @@ from gripper_ros.bags.reader import read_bag
 from gripper_ros.bags.recorder import unique_bag_dir
 from gripper_ros.nodes.graph import GraphOptions, GripperGraph
 from gripper_ros.nodes.recording import recorded_grasp, ServeRecorder
+from gripper_ros.nodes.services import wait_until
 from gripper_ros.wire import (DESCRIPTION_TOPICS, LATCHED_DESCRIPTION_TOPICS, Outcome, qualified,
                               TOPIC_JOINT_STATES, TOPIC_TF)
 import pytest
@@ -123,8 +124,8 @@ def test_serve_reports_a_full_disk_in_the_answer_and_serves_and_records_the_next
     assert graph.set_object(0.05).success
     second = graph.grasp(0.05, 1.69)
     assert second.outcome == Outcome.HOLDING and 'recording' not in second.message
-    graph.wait_still()
-    time.sleep(0.3)                                  # the bag closes once time stands still
+    assert graph.wait_still()
+    assert wait_until(lambda: len(recorder.bags) >= 2 and not recorder.recording, 30.0)
     assert len(recorder.bags) == 2                   # one per grasp (a release is not one)
     assert not read_bag(recorder.bags[-1]).truncated
 

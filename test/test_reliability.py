@@ -90,19 +90,28 @@ def test_twenty_clients_at_once_exactly_one_grasp_runs(graph):
 
 
 def test_dead_force_controller_mid_grasp_ends_in_fault_naming_it(graph):
-    """Its own graph: a controller is destroyed at the switch; the lockstep must not hang."""
+    """Its own graph: a controller is destroyed at the switch; the lockstep must not hang.
+
+    The graph is paused and stepped to the first tick of the force stage, so the kill comes
+    there on any machine; time then runs again.
+    """
     import time
+
+    from gripper_ros.nodes.services import wait_until
+    from gripper_ros.wire import Phase
+    from helpers import step_into_phase
     graph.close()   # one graph at a time on this domain
     with GripperGraph.in_own_context() as g:
         g.set_object(0.10)
+        assert g.wait_still()
+        assert g.pause().success
         pending = g._grasp.call_async(Grasp.Request(width_m=0.10, mass_kg=0.75))
-        deadline = time.monotonic() + 60
-        while g.supervisor.logic.phase.name != 'FORCE' and time.monotonic() < deadline:
-            time.sleep(0.001)
+        assert wait_until(lambda: g.supervisor.logic.pending, 10.0)
+        step_into_phase(g, Phase.FORCE, 0, lead_s=1.5)
         g.kill_node(g.force)
         killed_at = time.monotonic()
-        while not pending.done() and time.monotonic() < deadline:
-            time.sleep(0.01)
+        assert g.resume().success
+        assert wait_until(pending.done, 60.0)
         detected_s = time.monotonic() - killed_at
         r = pending.result()
         print(f'\ndead force controller detected after {detected_s:.3f} s wall: {r.message}')

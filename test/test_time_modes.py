@@ -167,7 +167,7 @@ def test_pause_stops_simulated_time_and_a_step_advances_it_by_exactly_n_ticks(re
     graph, streams = realtime
     _wait_for(lambda: len(streams.joint) >= 5)
     assert graph.pause().success
-    time.sleep(0.1)                                        # a tick in flight lands
+    assert graph.wait_still()                              # a tick in flight is answered
     t_paused = graph.sim_time_ns
     time.sleep(0.3)
     assert graph.sim_time_ns == t_paused

@@ -340,19 +340,32 @@ class GripperGraph:
         return self.plant.plant.t_ns
 
     def wait_still(self, quiet_s: float = 0.05, timeout_s: float = 30.0) -> bool:
-        """Wait until simulated time has stood still for ``quiet_s`` of wall time.
+        """Wait until simulated time stands still: the plant waits and nothing is in flight.
 
-        In fast mode that means the request and its hold scenario are over. False on timeout.
+        Asked on the executor thread, between two callbacks: every loop message has been handed
+        over, and the plant is paused or (fast mode) has found that nothing needs time. In fast
+        mode that means the request and its hold scenario are over; paused, that a step's last
+        tick has been answered. The answer must hold twice, ``quiet_s`` apart, with no tick in
+        between (an input from outside the process may still wake the plant). False on timeout
+        (realtime: time never stands still unless paused).
         """
+        plant, bus = self.plant, self.bus
+
+        def still() -> bool:
+            return bus.idle and (plant.paused or not plant.advancing)
+
         deadline = time.monotonic() + timeout_s
-        last, since = self.plant.ticks_published, time.monotonic()
+        seen = None                     # ticks_published when the graph was last found still
         while time.monotonic() < deadline:
-            time.sleep(0.005)
-            now = self.plant.ticks_published
-            if now != last:
-                last, since = now, time.monotonic()
-            elif time.monotonic() - since >= quiet_s:
+            try:
+                now_still = self.run_in_executor(still, max(0.1, deadline - time.monotonic()))
+            except GraphError:
+                return False
+            ticks = plant.ticks_published
+            if now_still and seen == ticks:
                 return True
+            seen = ticks if now_still else None
+            time.sleep(quiet_s if now_still else 0.005)
         return False
 
     def simulated_width_m(self, width_m: float, object_width_m: float | None = None) -> float:

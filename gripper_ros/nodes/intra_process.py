@@ -79,6 +79,11 @@ class IntraProcessBus:
     def subscriber_count(self, topic: str) -> int:
         return len(self._subscribers.get(topic, ()))
 
+    @property
+    def idle(self) -> bool:
+        """True when nothing waits to be handed over (asked between two executor callbacks)."""
+        return not self._queue and not self._draining
+
     def post(self, topic: str, msg) -> None:
         """Queue ``msg`` (bytes or a message) for each subscriber of ``topic``."""
         subscribers = self._subscribers.get(topic)

@@ -483,6 +483,11 @@ class PlantSimulatorNode(GripperNode):
     def paused(self) -> bool:
         return self._paused
 
+    @property
+    def advancing(self) -> bool:
+        """Fast mode: False once nothing needs simulated time (the plant waits for a request)."""
+        return self._advancing
+
     # ------------------------------------------------------------------ simulation set-up
     def _busy_reason(self) -> str:
         """Say why the world may not be changed now ('' when it may).

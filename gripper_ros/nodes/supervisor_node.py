@@ -51,6 +51,7 @@ from rclpy.clock import Clock, ClockType
 from std_srvs.srv import Trigger
 
 HEARTBEAT_PERIOD_S = 1.0
+DEFAULT_TICK_TIMEOUT_S = 2.0
 WATCHDOG_PERIOD_S = 0.1
 SUPERVISOR_READS = ('plant', 'contact', 'force_control.sample_time_s', 'pad_sensor',
                     'load_grip')
@@ -72,7 +73,7 @@ class SupervisorNode(GripperNode):
         self.logic.continue_ids_after(self._ids.last())
         self._side = SupervisorSide(self.logic)
         self.tick_timeout_s = self.declare_parameter(
-            'tick_timeout_s', 2.0, ParameterDescriptor(
+            'tick_timeout_s', DEFAULT_TICK_TIMEOUT_S, ParameterDescriptor(
                 description='wall seconds without progress (a tick commanded by the named '
                             'stage) during a grasp or release before FAULT',
                 floating_point_range=[FloatingPointRange(from_value=0.05, to_value=600.0)])).value
