@@ -35,6 +35,7 @@ setup(
             'move_action_server = gripper_ros.nodes.move_action_node:main',
             'excitation_server = gripper_ros.nodes.excitation_node:main',
             'description_publisher = gripper_ros.nodes.description_node:main',
+            'gripper_graph = gripper_ros.nodes.graph_process:main',
             'gripper_urdf = gripper_ros.apps.gripper_urdf:main',
             'paper_tables = gripper_ros.apps.paper_tables:main',
             'position_limit = gripper_ros.apps.position_limit:main',
