@@ -52,6 +52,7 @@ setup(
             'grip_study = gripper_ros.apps.grip_study:main',
             'bench_realtime = gripper_ros.bench.realtime:main',
             'bench_headless = gripper_ros.bench.headless:main',
+            'bench_launch_stop = gripper_ros.bench.launch_stop:main',
             'tune = gripper_ros.apps.tune:main',
         ],
     },
