@@ -23,16 +23,17 @@ What each layout costs:
 - ``per_node:=false`` (the default): one process, ``gripper_graph``, the nodes under one
   executor with the loop topics handed over inside the process (no serialisation, no DDS
   between them), as ``grasp_demo --serve`` runs them: real time while holding an object
-  (0.1 ms ticks) at about a third of a core. It also serves ``excitation_server``, and shows
+  (0.1 ms ticks), joint_states at 100 Hz, for about 0.4 of a core (``bench_realtime
+  --launch``). It also serves ``excitation_server``, and shows
   ``gripper_graph_client`` (its service client) in ``ros2 node list``; the description
   publisher is description_publisher. One Node action without a ``name``: launch_ros names a
-  node with a global ``-r __node:=`` remap, which would give all of them one name. A node
-  that fails ends the whole graph.
+  node with a global ``-r __node:=`` remap, which would give all of them one name. A crash
+  of the process takes every node down at once.
 - ``per_node:=true``: one process per node, each its own Python interpreter and DDS
   participant, the loop topics over DDS; robot_state_publisher with the URDF of the config
   (``gripper_urdf --config``) where the ament index has it, else description_publisher.
-  Each can be restarted, profiled or replaced alone, but on 2 cores it holds an object at
-  about half of real time or less (joint_states well below 100 Hz).
+  Each can be restarted, profiled or replaced alone, but on 2 cores it holds an object at a
+  third of real time or less (joint_states at 30 Hz; ``bench_realtime --launch --per-node``).
 
 On Ctrl-C the terminal sends SIGINT to every process of the group; launch then waits
 ``sigterm_timeout`` (5 s) before SIGTERM and 5 s more before SIGKILL. Every executable here ends

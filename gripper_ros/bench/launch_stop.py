@@ -1,4 +1,4 @@
-"""bench_launch_stop: does Ctrl-C always stop ``ros2 launch gripper_ros gripper.launch.py``?
+"""bench_launch_stop: whether Ctrl-C always stops ``ros2 launch gripper_ros gripper.launch.py``.
 
     ros2 run gripper_ros bench_launch_stop                  # 30 launches, one process each
     ros2 run gripper_ros bench_launch_stop --runs 10 --per-node
@@ -31,7 +31,7 @@ from gripper_ros.bench.common import call, group_pids, ros2_launch_command, Spun
 from gripper_ros.bench.pingpong import BenchError
 
 GRASP = (0.10, 0.75)                   # Table V's third object
-UP_TIMEOUT_S = 60.0
+UP_TIMEOUT_S = 120.0
 KILL_AFTER_S = 20.0                    # a group still there this long after SIGINT is killed
 DIED = re.compile(r'process has died \[pid \d+, exit code (-?\d+)')
 
@@ -68,12 +68,16 @@ def one_run(index: int, per_node: bool, limit_s: float, folder: str) -> Dict[str
     with open(log_path, 'w') as log:
         proc = subprocess.Popen(ros2_launch_command(namespace, per_node), stdin=subprocess.DEVNULL,
                                 stdout=log, stderr=subprocess.STDOUT, start_new_session=True)
-    outcome, killed = '', False
+    outcome, killed, error = '', False, ''
     try:
-        outcome = _grasp(namespace)
+        try:
+            outcome = _grasp(namespace)
+        except BenchError as exc:         # still stopped and timed; the log says why
+            error = str(exc)
         processes = len(group_pids(proc.pid))
         t0 = time.perf_counter()
-        os.killpg(proc.pid, signal.SIGINT)
+        if processes:
+            os.killpg(proc.pid, signal.SIGINT)
         while group_pids(proc.pid):
             if time.perf_counter() - t0 > KILL_AFTER_S:
                 os.killpg(proc.pid, signal.SIGKILL)
@@ -87,7 +91,10 @@ def one_run(index: int, per_node: bool, limit_s: float, folder: str) -> Dict[str
         proc.wait()
     with open(log_path) as log:
         text = log.read()
-    return {'run': index, 'outcome': outcome, 'processes': processes, 'stop_s': stop_s,
+    if error:
+        error += ': ' + ' | '.join(text.strip().splitlines()[-5:])
+    return {'run': index, 'outcome': outcome, 'error': error, 'processes': processes,
+            'stop_s': stop_s,
             'within_limit': stop_s <= limit_s and not killed, 'killed': killed,
             'launch_exit': proc.returncode,
             'died_codes': [int(c) for c in DIED.findall(text)],
@@ -101,7 +108,8 @@ def measure(runs: int, per_node: bool, limit_s: float) -> Dict[str, Any]:
         for i in range(runs):
             r = one_run(i, per_node, limit_s, folder)
             results.append(r)
-            print(f'run {i + 1:2d}/{runs}: {r["outcome"]}, {r["processes"]} processes, gone '
+            print(f'run {i + 1:2d}/{runs}: {r["outcome"] or "no grasp: " + r["error"]}, '
+                  f'{r["processes"]} processes, gone '
                   f'{r["stop_s"]:.2f} s after SIGINT'
                   + (f', died {r["died_codes"]}' if r['died_codes'] else '')
                   + (', ESCALATED' if r['escalated'] else '')

@@ -113,20 +113,23 @@ def close_app_graph(graph, signals: StopSignals) -> None:
     """End a console app's graph: no signal may cut the closing short, then rclpy shuts down.
 
     Bounded in two steps, neither needing the GIL: the bags get :data:`APP_BAGS_LIMIT_S` to
-    close (from the stop signal when ``signals`` armed it, else from here), then the nodes and the context :data:`CLEAN_UP_LIMIT_S` (+ :data:`GIL_HELD_MARGIN_S`);
-    past either, every thread's stack goes to stderr and the process exits 1.
+    close (from the stop signal when ``signals`` armed it, else from here), then the nodes and
+    the context :data:`CLEAN_UP_LIMIT_S` + :data:`GIL_HELD_MARGIN_S`; past either, every
+    thread's stack goes to stderr and the process exits 1.
     """
     import rclpy
     signals.on_first = None
     if signals.received is None or signals.hard_bound_s is None:   # not armed by the signal
         arm_hard_bound(APP_BAGS_LIMIT_S)
-    if graph is not None:
-        graph.close_recordings()
-    arm_hard_bound(CLEAN_UP_LIMIT_S + GIL_HELD_MARGIN_S)
-    if graph is not None:
-        graph.close()
-    rclpy.try_shutdown()
-    disarm_hard_bound()
+    try:
+        if graph is not None:
+            graph.close_recordings()
+        arm_hard_bound(CLEAN_UP_LIMIT_S + GIL_HELD_MARGIN_S)
+        if graph is not None:
+            graph.close()
+        rclpy.try_shutdown()
+    finally:                   # the bound is for a stop that hangs, not for one that raises
+        disarm_hard_bound()
     signals.__exit__()
 
 
