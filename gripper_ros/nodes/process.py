@@ -100,8 +100,17 @@ class StopSignals:
         return self
 
     def __exit__(self, *exc) -> None:
+        """Restore the handlers; once a stop signal came, ignore these signals from now on.
+
+        The process is ending: a second Ctrl-C, or launch's own SIGINT after the terminal's
+        (launch sends one when it runs non-interactive), must not raise KeyboardInterrupt in
+        its last lines and end it killed by SIGINT instead of with its exit code. What is left
+        (the interpreter's exit) is bounded instead, by :func:`arm_hard_bound`.
+        """
         for sig, handler in self._previous.items():
-            signal.signal(sig, handler)
+            signal.signal(sig, handler if self.received is None else signal.SIG_IGN)
+        if self.received is not None:
+            arm_hard_bound(CLEAN_UP_LIMIT_S + GIL_HELD_MARGIN_S)
 
 
 APP_BAGS_LIMIT_S = 30.0
