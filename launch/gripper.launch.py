@@ -1,7 +1,8 @@
-"""The gripper's node graph for a system ROS 2: one process per node.
+"""The gripper's node graph for a system ROS 2: in one process, or one process per node.
 
     ros2 launch gripper_ros gripper.launch.py
     ros2 launch gripper_ros gripper.launch.py namespace:=left time_mode:=fast
+    ros2 launch gripper_ros gripper.launch.py per_node:=true
 
 Launch arguments: ``namespace`` (default ``gripper``: ``/gripper/grasp``, ``/gripper/move``,
 ``/gripper/gripper_cmd``, ...), ``config_file`` (default: the installed
@@ -9,15 +10,35 @@ Launch arguments: ``namespace`` (default ``gripper``: ``/gripper/grasp``, ``/gri
 ``time_mode`` (``realtime``, the default, paced to the wall clock; ``fast``: as fast as the
 loop goes, paused between requests),
 ``real_time_factor`` (realtime: simulated seconds per wall second), ``publish_clock``
-(``/clock``, one simulator per ROS graph) and ``prefix`` (the xacro's: ``left_`` names the
+(``/clock``, one simulator per ROS graph), ``prefix`` (the xacro's: ``left_`` names the
 joint ``left_finger_joint`` in joint_states and joint_commands, and the URDF's links, so every
 TF frame; by default from the namespace: none in ``gripper``, ``left_`` in ``left``, so grippers
-launched side by side share no frame and no joint).
+launched side by side share no frame and no joint) and ``per_node`` (default ``false``).
 The nodes: plant_simulator, position_controller, force_controller, supervisor,
 grasp_action_server, move_action_server (which also serves control_msgs
 ParallelGripperCommand on ``gripper_cmd`` where control_msgs is installed) and the one
-publisher of ``robot_description`` and ``/tf``: robot_state_publisher with the URDF of the
-config (``gripper_urdf --config``) where the ament index has it, else description_publisher.
+publisher of ``robot_description`` and ``/tf``.
+
+What each layout costs:
+
+- ``per_node:=false`` (the default): one process, ``gripper_graph``, the nodes under one
+  executor with the loop topics handed over inside the process (no serialisation, no DDS
+  between them), as ``grasp_demo --serve`` runs them: real time while holding an object
+  (0.1 ms ticks), joint_states at 100 Hz, for about 0.4 of a core (``bench_realtime
+  --launch``). It also serves ``excitation_server``, and shows
+  ``gripper_graph_client`` (its service client) in ``ros2 node list``; the description
+  publisher is description_publisher. One Node action without a ``name``: launch_ros names a
+  node with a global ``-r __node:=`` remap, which would give all of them one name. A crash
+  of the process takes every node down at once.
+- ``per_node:=true``: one process per node, each its own Python interpreter and DDS
+  participant, the loop topics over DDS; robot_state_publisher with the URDF of the config
+  (``gripper_urdf --config``) where the ament index has it, else description_publisher.
+  Each can be restarted, profiled or replaced alone, but on 2 cores it holds an object at a
+  third of real time or less (joint_states at 30 Hz; ``bench_realtime --launch --per-node``).
+
+On Ctrl-C the terminal sends SIGINT to every process of the group; launch then waits
+``sigterm_timeout`` (5 s) before SIGTERM and 5 s more before SIGKILL. Every executable here ends
+within its own stop bound first (docs/USING.md, "Stopping").
 """
 from gripper_ros.nodes import launched_executables, robot_state_publisher_installed
 from gripper_ros.wire import (DEFAULT_NAMESPACE, namespace_prefix, NODE_DESCRIPTION,
@@ -25,6 +46,7 @@ from gripper_ros.wire import (DEFAULT_NAMESPACE, namespace_prefix, NODE_DESCRIPT
                               TIME_MODE_CHOICES, TimeMode)
 from launch import LaunchDescription
 from launch.actions import DeclareLaunchArgument
+from launch.conditions import IfCondition, UnlessCondition
 from launch.substitution import Substitution
 from launch.substitutions import Command, LaunchConfiguration, PathJoinSubstitution
 from launch_ros.actions import Node
@@ -59,11 +81,19 @@ ARGUMENTS = (
     ('publish_clock', 'true', 'publish /clock'),
     ('prefix', NamespacePrefix(),
      "before finger_joint and the URDF's names, so every TF frame (the xacro's prefix)"),
+    ('per_node', 'false', 'true: one process per node; false: the whole graph in one process '
+     '(real time while holding)'),
 )
+GRAPH_EXECUTABLE = 'gripper_graph'
+"""The one process of the default layout: every node of the graph under one executor."""
 
 
 def generate_launch_description() -> LaunchDescription:
-    """Return the launch arguments and one Node action per node of the graph."""
+    """Return the launch arguments, the one-process graph and one Node action per node.
+
+    ``per_node`` chooses which of the two runs. The one process takes every parameter
+    dictionary (each a ``/**`` parameters file, reaching every node in it) and no ``name``.
+    """
     config = {'config_file': ParameterValue(LaunchConfiguration('config_file'), value_type=str)}
     named = {'prefix': ParameterValue(LaunchConfiguration('prefix'), value_type=str)}
     plant = {
@@ -72,8 +102,13 @@ def generate_launch_description() -> LaunchDescription:
                                            value_type=float),
         'publish_clock': ParameterValue(LaunchConfiguration('publish_clock'), value_type=bool),
     }
+    per_node = LaunchConfiguration('per_node')
     actions = [DeclareLaunchArgument(name, default_value=default, description=description)
                for name, default, description in ARGUMENTS]
+    actions.append(Node(package=PACKAGE, executable=GRAPH_EXECUTABLE,
+                        namespace=LaunchConfiguration('namespace'),
+                        parameters=[config, plant, named], output='screen', emulate_tty=True,
+                        condition=UnlessCondition(per_node)))
     urdf = Command([PathJoinSubstitution([FindPackagePrefix(PACKAGE), 'lib', PACKAGE,
                                           'gripper_urdf']),
                     ' --config ', LaunchConfiguration('config_file'),
@@ -87,5 +122,6 @@ def generate_launch_description() -> LaunchDescription:
                 parameters.append(named)
         actions.append(Node(package=package, executable=name, name=name,
                             namespace=LaunchConfiguration('namespace'),
-                            parameters=parameters, output='screen', emulate_tty=True))
+                            parameters=parameters, output='screen', emulate_tty=True,
+                            condition=IfCondition(per_node)))
     return LaunchDescription(actions)

@@ -19,7 +19,8 @@ EXPECTED_EXECUTABLES = {
     'grasp_demo', 'grasp_client', 'grasp_action_server', 'move_action_server', 'paper_tables',
     'position_limit',
     'bag_info', 'bag_replay', 'bag_analyze', 'bench_graph', 'bench_soak', 'bench_controllers',
-    'contact_sweep', 'lift_table', 'grip_study', 'bench_realtime',
+    'contact_sweep', 'lift_table', 'grip_study', 'bench_realtime', 'gripper_graph',
+    'bench_launch_stop',
 }
 
 INTERFACES = {

@@ -1,8 +1,11 @@
 """launch/gripper.launch.py on a system ROS 2 Jazzy: its description, and the graph it starts.
 
-One process per node, the namespace, config file and time mode as launch arguments. The
-ros-jazzy wheels have no launch_ros (nor the ros2 launch command), so there these tests skip;
-test_install_layout checks that the file is installed either way.
+The graph in one process (``gripper_graph``, the default) or one process per node
+(``per_node:=true``), the namespace, config file and time mode as launch arguments; Ctrl-C
+(SIGINT to the process group, as a terminal sends it) stops every process, each exiting 0
+before launch escalates. The ros-jazzy wheels have no launch_ros (nor the ros2 launch
+command), so there these tests skip (run them with ``ROS2_OVERLAY`` set); test_install_layout
+checks that the file is installed either way.
 """
 import importlib.util
 import os
@@ -28,11 +31,16 @@ from launch.utilities import perform_substitutions
 from launch_ros.actions import Node
 
 from gripper_ros.nodes import launched_executables, robot_state_publisher_installed  # noqa: I100
+from gripper_ros.wire import LAUNCHED_NODES  # noqa: I100
 
 LAUNCHED = launched_executables(robot_state_publisher_installed())
 EXECUTABLES = {name for package, name in LAUNCHED if package == 'gripper_ros'}
 DEFAULTS = {'namespace': 'gripper', 'time_mode': 'realtime', 'real_time_factor': '1.0',
-            'publish_clock': 'true', 'prefix': ''}
+            'publish_clock': 'true', 'prefix': '', 'per_node': 'false'}
+LAYOUTS = {'one_process': 'false', 'per_node': 'true'}
+STOP_WITHIN_S = 30.0
+"""Ctrl-C to every process gone: each ends within a few seconds by its own bound; launch would
+escalate to SIGTERM after 5 s (and say so, which the test also rules out), SIGKILL after 10."""
 
 
 def _installed_launch_file() -> Path:
@@ -55,33 +63,50 @@ def test_the_launch_arguments_and_their_defaults(description):
     assert declared == {**DEFAULTS, 'config_file': str(installed)}
 
 
-def test_one_node_per_executable_of_this_package(description):
-    nodes = [e for e in description.entities if isinstance(e, Node)]
-    assert sorted((n.node_package, n.node_executable) for n in nodes) == sorted(LAUNCHED)
+def _started(description, per_node: str) -> list[tuple[str, str]]:
+    """Return (package, executable) of each Node action that runs with ``per_node:=VALUE``."""
+    context = LaunchContext()
+    context.launch_configurations['per_node'] = per_node
+    return sorted((n.node_package, n.node_executable) for n in description.entities
+                  if isinstance(n, Node) and n.condition.evaluate(context))
+
+
+def test_one_process_by_default_one_per_node_as_an_argument(description):
+    assert _started(description, 'false') == [('gripper_ros', 'gripper_graph')]
+    assert _started(description, 'true') == sorted(LAUNCHED)
     prefix = Path(get_package_prefix('gripper_ros'))
     for name in EXECUTABLES:
         assert os.access(prefix / 'lib' / 'gripper_ros' / name, os.X_OK), name
 
 
-@pytest.fixture
-def launched():
-    """``ros2 launch`` in its own process group, in fast time, in a namespace of its own."""
+def _group_alive(pgid: int) -> bool:
+    """Whether a process of group ``pgid`` still runs (a zombie waiting for its parent: not)."""
+    from gripper_ros.bench.common import group_pids
+    return bool(group_pids(pgid))
+
+
+@pytest.fixture(params=list(LAYOUTS), ids=list(LAYOUTS))
+def launched(request, tmp_path):
+    """``ros2 launch`` in its own process group, in fast time, in a namespace of its own.
+
+    Its output goes to a file (``proc.log``): a pipe nobody reads would stop it when full.
+    """
     ros2 = shutil.which('ros2')
     if ros2 is None:
         pytest.skip('the ros2 command is not on PATH')
-    namespace = 'launch_test'
-    proc = subprocess.Popen([ros2, 'launch', 'gripper_ros', 'gripper.launch.py',
-                             f'namespace:={namespace}', 'time_mode:=fast'],
-                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
-                            start_new_session=True)
+    namespace = f'launch_test_{request.param}'
+    log = tmp_path / 'launch.log'
+    with open(log, 'w') as out:
+        proc = subprocess.Popen([ros2, 'launch', 'gripper_ros', 'gripper.launch.py',
+                                 f'namespace:={namespace}', 'time_mode:=fast',
+                                 f'per_node:={LAYOUTS[request.param]}'],
+                                stdin=subprocess.DEVNULL, stdout=out, stderr=subprocess.STDOUT,
+                                start_new_session=True)
+    proc.log = log
     yield namespace, proc
-    if proc.poll() is None:
-        proc.send_signal(signal.SIGINT)
-        try:
-            proc.wait(timeout=30)
-        except subprocess.TimeoutExpired:
-            os.killpg(proc.pid, signal.SIGKILL)
-            proc.wait()
+    if _group_alive(proc.pid):
+        os.killpg(proc.pid, signal.SIGKILL)
+    proc.wait()
 
 
 def test_the_launched_graph_moves_the_finger(launched):
@@ -119,7 +144,7 @@ def test_the_launched_graph_moves_the_finger(launched):
         assert answer.reached_goal and answer.outcome == Outcome.MOVED, answer.message
         ours = {name for name, ns in node.get_node_names_and_namespaces()
                 if ns == f'/{namespace}'}
-        assert ours >= EXECUTABLES
+        assert ours >= (EXECUTABLES if namespace.endswith('per_node') else set(LAUNCHED_NODES))
         try:
             import control_msgs  # noqa: F401
         except ImportError:
@@ -128,3 +153,17 @@ def test_the_launched_graph_moves_the_finger(launched):
         assert f'/{namespace}/gripper_cmd' in actions
     finally:
         rclpy.try_shutdown(context=context)
+    _ctrl_c_stops_every_process(proc)
+
+
+def _ctrl_c_stops_every_process(proc) -> None:
+    """SIGINT to the group, as Ctrl-C: all gone, each process reported finished cleanly."""
+    os.killpg(proc.pid, signal.SIGINT)
+    deadline = time.monotonic() + STOP_WITHIN_S
+    while _group_alive(proc.pid) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    output = proc.log.read_text()
+    assert not _group_alive(proc.pid), f'a launched process outlived Ctrl-C\n{output}'
+    started = output.count('process started with pid')
+    assert started >= 1 and output.count('process has finished cleanly') == started, output
+    assert 'escalating' not in output and proc.wait() == 0, output

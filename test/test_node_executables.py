@@ -212,11 +212,32 @@ def test_a_second_node_beside_a_running_one_exits_2_in_one_line(results, node):
 
 
 def test_every_node_executable_is_here_with_a_bad_start_up_parameter():
-    """A node module with a ``main()`` is an executable: each one is in MODULES."""
+    """A node module with a ``main()`` is an executable: each one is in MODULES.
+
+    ``graph_process`` (gripper_graph, every node in one process) has its own cases below.
+    """
     executables = {p.stem for p in NODES_DIR.glob('*.py')
                    if '\ndef main(' in p.read_text(encoding='utf-8')}
-    assert executables == set(MODULES.values())
+    assert executables == set(MODULES.values()) | {'graph_process'}
     assert {node for node, *_ in BAD_PARAMETERS} == set(MODULES)
+
+
+GRAPH_BAD_SETTINGS = [('time_mode', 'sideways', 'must be realtime or fast'),
+                      ('real_time_factor', '0.0', 'out of range'),
+                      ('real_time_factor', 'fast', WRONG_TYPE),
+                      ('config_file', '/nonexistent/gripper.yaml', 'cannot read config file')]
+
+
+@pytest.mark.parametrize('name,value,words', GRAPH_BAD_SETTINGS)
+def test_gripper_graph_refuses_a_bad_setting_in_one_line(name, value, words):
+    """The launch file's settings reach gripper_graph as parameters; a bad one: exit 2, a line."""
+    run = subprocess.run([sys.executable, '-m', 'gripper_ros.nodes.graph_process', '--ros-args',
+                          '-r', f'__ns:=/graph_bad_{os.getpid()}', '-p', f'{name}:={value}'],
+                         stdin=subprocess.DEVNULL, capture_output=True, text=True, timeout=120)
+    lines = run.stderr.strip().splitlines()
+    assert run.returncode == 2, run.stderr[-2000:]
+    assert len(lines) == 1 and lines[0].startswith('gripper_graph: ') and words in lines[0], \
+        run.stderr[-2000:]
 
 
 def test_a_bug_in_a_node_constructor_keeps_its_traceback():

@@ -1,12 +1,15 @@
 """Stopping the gripper as a user does: Ctrl-C (SIGINT) or SIGTERM, idle and holding.
 
-Two ways to run it: ``grasp_demo --serve`` (the graph in one process, recording bags) and one
+Three ways to run it: ``grasp_demo --serve`` (the graph in one process, recording bags),
+``gripper_graph`` (the graph in one process, as the launch file starts it by default) and one
 process per node, started with the arguments ``launch_ros`` gives them (``--ros-args -r
 __ns:=/NS --params-file FILE``). Each process must be gone within ``EXIT_WITHIN_S`` of the
 signal, exit 0, print no traceback and nothing at FATAL or ERROR, and leave every bag it
 wrote closed (metadata.yaml written, nothing truncated). A second signal while closing, and
 a SIGINT that arrives at a process started with SIGINT ignored (a script's background job),
 are covered too. Each scenario runs ``REPEATS`` times; run the module in a loop for more.
+And a stop that cannot finish: a node whose destruction blocks in C with the GIL held (as
+rclpy's ``destroy_when_not_in_use`` was seen to spin) still ends each of them within its bound.
 """
 from __future__ import annotations
 
@@ -189,3 +192,98 @@ def test_a_second_signal_while_closing_changes_nothing(tmp_path):
     stopped = _stop({'grasp_demo': proc}, signal.SIGTERM, second_signal_after_s=0.01)
     _assert_clean(stopped)
     _assert_bags_closed(output, 1)
+
+
+def _graph_process(namespace: str) -> subprocess.Popen:
+    """Start ``gripper_graph`` as the launch file does; return it once it serves."""
+    proc = _python('gripper_ros.nodes.graph_process', '--ros-args', '-r', f'__ns:=/{namespace}')
+    _wait_for_line(proc, 'serving')
+    return proc
+
+
+def _wait_for_line(proc: subprocess.Popen, word: str) -> None:
+    deadline = time.monotonic() + START_TIMEOUT_S
+    for line in proc.stdout:
+        if word in line or time.monotonic() > deadline:
+            break
+    assert proc.poll() is None, proc.stdout.read()
+
+
+@pytest.mark.parametrize('sig', SIGNALS.values(), ids=SIGNALS.keys())
+def test_gripper_graph_stops_at_once_while_holding(sig):
+    namespace = f'shut_graph_{sig.name.lower()}'
+    proc = _graph_process(namespace)
+    try:
+        _hold(namespace)
+        stopped = _stop({'gripper_graph': proc}, sig)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    _assert_clean(stopped)
+
+
+GIL_HELD_FOR_S = 600
+"""How long the stuck destruction would hold the GIL: far beyond any bound checked here."""
+STUCK = (
+    'import ctypes, importlib, sys\n'
+    'from gripper_ros.nodes.grasp_action_node import GraspActionServer\n'
+    'def stuck(self):\n'
+    # a PyDLL call keeps the GIL for its whole duration (a CDLL call would release it)
+    f'    ctypes.PyDLL(None).sleep({GIL_HELD_FOR_S})\n'
+    'GraspActionServer.destroy_node = stuck\n'
+    'sys.argv = sys.argv[1:]\n'
+    'sys.exit(importlib.import_module(sys.argv[0]).main())\n')
+
+
+@pytest.mark.parametrize('how', ['node_executable', 'gripper_graph', 'grasp_demo_serve'])
+@pytest.mark.parametrize('sig', SIGNALS.values(), ids=SIGNALS.keys())
+def test_a_destroy_that_holds_the_gil_still_ends_the_process(tmp_path, sig, how):
+    """grasp_action_server's destroy blocks in C holding the GIL: no Python timer can run.
+
+    The C watchdog (``process.arm_hard_bound``) ends the process anyway: exit 1, after
+    ``Timeout`` and every thread's stack (the stuck ``destroy_node`` among them) on stderr.
+    The bound is a few seconds; the check allows far more, well short of the 600 s block.
+    """
+    from gripper_ros.nodes.process import CLEAN_UP_LIMIT_S, GIL_HELD_MARGIN_S
+    namespace = f'shut_gil_{how}_{sig.name.lower()}'
+    if how == 'node_executable':
+        args = ['gripper_ros.nodes.grasp_action_node', '--ros-args', '-r', f'__ns:=/{namespace}']
+    elif how == 'gripper_graph':
+        args = ['gripper_ros.nodes.graph_process', '--ros-args', '-r', f'__ns:=/{namespace}']
+    else:
+        args = ['gripper_ros.apps.grasp_demo', '--serve', '--namespace', namespace,
+                '--output', str(tmp_path)]
+    proc = subprocess.Popen([sys.executable, '-c', STUCK, *args], stdin=subprocess.DEVNULL,
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                            env=os.environ.copy())
+    try:
+        if how == 'node_executable':
+            _wait_for_node(namespace, 'grasp_action_server', proc)
+        else:
+            _wait_for_line(proc, 'serving')
+        stopped = _stop({how: proc}, sig)[0]
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    bound_s = CLEAN_UP_LIMIT_S + GIL_HELD_MARGIN_S
+    assert stopped.returncode == 1, f'exit {stopped.returncode}\n{stopped.output}'
+    assert f'Timeout (0:00:{bound_s:02.0f})!' in stopped.output, stopped.output
+    assert 'in stuck' in stopped.output, stopped.output
+    assert stopped.exit_s < GIL_HELD_FOR_S / 10, stopped.exit_s
+
+
+def _wait_for_node(namespace: str, name: str, proc: subprocess.Popen) -> None:
+    """Wait until discovery shows ``name`` in ``namespace`` (the node spins)."""
+    import rclpy
+    from rclpy.context import Context
+    context = Context()
+    rclpy.init(context=context)
+    try:
+        probe = rclpy.create_node('shut_gil_probe', context=context)
+        deadline = time.monotonic() + START_TIMEOUT_S
+        while (name, f'/{namespace}') not in probe.get_node_names_and_namespaces():
+            assert proc.poll() is None and time.monotonic() < deadline, proc.stdout.read()
+            time.sleep(0.1)
+        probe.destroy_node()
+    finally:
+        rclpy.try_shutdown(context=context)

@@ -174,7 +174,8 @@ def main(argv: list[str] | None = None) -> int:
     from gripper_ros.apps.common import run_graph
     from gripper_ros.nodes.graph import GraphOptions, GripperGraph
     from gripper_ros.nodes.names import namespace_as_given
-    from gripper_ros.nodes.process import (ExecutorKind, exit_without_a_last_collection,
+    from gripper_ros.nodes.process import (APP_BAGS_LIMIT_S, ExecutorKind,
+                                           exit_without_a_last_collection,
                                            raise_keyboard_interrupt, StopSignals)
     from gripper_ros.nodes.recording import ServeRecorder
     from gripper_ros.text import one_line
@@ -211,9 +212,11 @@ def main(argv: list[str] | None = None) -> int:
     # Ctrl-C and SIGTERM end the demo here, not inside rclpy: the graph stops its executor,
     # closes its bags and only then shuts the context down. Serving, a signal is the way to
     # stop (exit 0); during grasps it interrupts the one running (KeyboardInterrupt, exit 130).
-    # A later signal is ignored: it must not cut the closing of a bag short.
+    # A later signal is ignored: it must not cut the closing of a bag short. The first one
+    # starts the stop's bound (bags, then nodes: close_app_graph), which needs no GIL.
     exit_without_a_last_collection()
-    signals = StopSignals(on_first=None if args.serve else raise_keyboard_interrupt)
+    signals = StopSignals(on_first=None if args.serve else raise_keyboard_interrupt,
+                          hard_bound_s=APP_BAGS_LIMIT_S)
     signals.__enter__()
 
     def demo(graph) -> int:

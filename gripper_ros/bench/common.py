@@ -58,3 +58,29 @@ class SpunNode:
         self.executor.shutdown(timeout_sec=1.0)
         self.node.destroy_node()
         self.context.try_shutdown()
+
+
+def group_pids(pgid: int) -> list[int]:
+    """Return the processes of process group ``pgid`` still alive (Linux /proc; zombies not)."""
+    pids = []
+    for entry in os.listdir('/proc'):
+        if not entry.isdigit():
+            continue
+        try:
+            with open(f'/proc/{entry}/stat') as f:
+                fields = f.read().rsplit(')', 1)[1].split()
+        except OSError:
+            continue
+        if int(fields[2]) == pgid and fields[0] != 'Z':
+            pids.append(int(entry))
+    return pids
+
+
+def ros2_launch_command(namespace: str, per_node: bool = False) -> list[str]:
+    """Return ``ros2 launch gripper_ros gripper.launch.py`` in ``namespace`` (BenchError: none)."""
+    import shutil
+    ros2 = shutil.which('ros2')
+    if ros2 is None:
+        raise BenchError('the ros2 command is not on PATH (source a ROS 2 with ros2launch)')
+    return [ros2, 'launch', 'gripper_ros', 'gripper.launch.py', f'namespace:={namespace}',
+            f'per_node:={"true" if per_node else "false"}']

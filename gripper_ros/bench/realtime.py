@@ -2,12 +2,16 @@
 
     ros2 run gripper_ros bench_realtime                  # idle 5 s, grasp, hold 5 s
     ros2 run gripper_ros bench_realtime --seconds 10 --no-record --json
-    ros2 run gripper_ros bench_realtime --per-node       # one process per node, as the launch file
+    ros2 run gripper_ros bench_realtime --per-node       # one process per node
+    ros2 run gripper_ros bench_realtime --launch         # via ros2 launch (one process)
 
 ``grasp_demo --serve`` runs in a child process, exactly as a user starts it (realtime time,
 real-time factor 1, bags per grasp unless ``--no-record``); with ``--per-node`` the six node
 executables run as six processes, started with the arguments ``launch_ros`` gives them (no
-bags; the graph of ``ros2 launch gripper_ros gripper.launch.py``). From this process, over
+bags; the graph of ``ros2 launch gripper_ros gripper.launch.py per_node:=true``); with
+``--launch`` the child is ``ros2 launch gripper_ros gripper.launch.py`` itself (with
+``--per-node``: ``per_node:=true``) in a process group of its own, every process of the group
+counted, stopped as Ctrl-C stops it (SIGINT to the group). From this process, over
 DDS, the benchmark watches ``/clock``, ``joint_states`` and ``sim/status`` and reads the
 child's CPU time from /proc, in two windows of ``--seconds`` wall seconds each:
 
@@ -19,7 +23,7 @@ For each window: the achieved real-time factor (simulated seconds per wall secon
 stamps of ``joint_states``; 1.0 is the aim, and the plant never runs ahead of the wall
 clock), the rates of ``/clock`` and ``joint_states`` against ``state_rate_hz``, the plant's own
 figure from ``sim/status``, and the child's CPU time as a share of one core (summed over the
-six with ``--per-node``).
+six with ``--per-node``, over the launch group with ``--launch``).
 """
 from __future__ import annotations
 
@@ -34,7 +38,8 @@ import threading
 import time
 from typing import Any, Dict, Optional, Sequence
 
-from gripper_ros.bench.common import call, process_cpu_s, SpunNode
+from gripper_ros.bench.common import (call, group_pids, process_cpu_s, ros2_launch_command,
+                                      SpunNode)
 from gripper_ros.bench.pingpong import BenchError
 from gripper_ros.nodes import LAUNCHED_MODULES
 from gripper_ros.wire import DEFAULT_STATE_RATE_HZ
@@ -138,8 +143,11 @@ def _window(watcher: _Watcher, pids: Sequence[int], seconds: float) -> Dict[str,
             'cpu_share': (cpu1 - cpu0) / wall}
 
 
-def _commands(namespace: str, output: str, record: bool, per_node: bool) -> list[list[str]]:
-    """Return the command line of each child: grasp_demo --serve, or one per node."""
+def _commands(namespace: str, output: str, record: bool, per_node: bool,
+              launch: bool = False) -> list[list[str]]:
+    """Return the command line of each child: grasp_demo --serve, one per node, or ros2 launch."""
+    if launch:
+        return [ros2_launch_command(namespace, per_node)]
     if per_node:
         return [[sys.executable, '-m', f'gripper_ros.nodes.{module}', '--ros-args', '-r',
                  f'__ns:=/{namespace}', '--log-level', 'warn'] for module in PER_NODE_MODULES]
@@ -150,17 +158,19 @@ def _commands(namespace: str, output: str, record: bool, per_node: bool) -> list
     return [cmd]
 
 
-def measure(seconds: float, record: bool, per_node: bool = False) -> Dict[str, Any]:
-    """Idle and holding windows of a ``grasp_demo --serve`` child, or of the six node children."""
+def measure(seconds: float, record: bool, per_node: bool = False,
+            launch: bool = False) -> Dict[str, Any]:
+    """Idle and holding windows of a ``grasp_demo --serve`` child, the node children, or launch."""
     from gripper_interfaces.srv import Grasp, SetObject
     from std_srvs.srv import Trigger
     from gripper_ros.wire import Outcome
     namespace = f'bench_realtime_{os.getpid()}'
-    record = record and not per_node
+    record = record and not (per_node or launch)
     with tempfile.TemporaryDirectory(prefix='bench_realtime_') as tmp:
+        log = open(os.path.join(tmp, 'stderr.log'), 'w+')    # never a full pipe that blocks
         children = [subprocess.Popen(cmd, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
-                                     stderr=subprocess.PIPE, text=True)
-                    for cmd in _commands(namespace, tmp, record, per_node)]
+                                     stderr=log, text=True, start_new_session=launch)
+                    for cmd in _commands(namespace, tmp, record, per_node, launch)]
         pids = [child.pid for child in children]
         watcher = None
         try:
@@ -170,12 +180,15 @@ def measure(seconds: float, record: bool, per_node: bool = False) -> Dict[str, A
                        and watcher.snapshot()['joint'] > 10):
                 for child in children:
                     if child.poll() is not None:
+                        log.seek(0)
                         raise BenchError(f'{child.args[2]} exited ({child.returncode}): '
-                                         f'{child.stderr.read().strip()[-300:]}')
+                                         f'{log.read().strip()[-300:]}')
                 if time.monotonic() > deadline:
                     raise BenchError('grasp_demo --serve did not come up')
                 time.sleep(0.05)
             time.sleep(0.5)
+            if launch:                        # launch and every process it started
+                pids = group_pids(children[0].pid)
             idle = _window(watcher, pids, seconds)
             placed = watcher.call(watcher.set_object, SetObject.Request(width_m=GRASP[0]), 30.0)
             if not placed.success:
@@ -195,7 +208,8 @@ def measure(seconds: float, record: bool, per_node: bool = False) -> Dict[str, A
             time.sleep(1.0)                  # the serve bag closes 0.5 s after the answer
             holding = _window(watcher, pids, seconds)
             watcher.call(watcher.release, Trigger.Request(), 60.0)
-            return {'record': record, 'per_node': per_node, 'seconds': seconds,
+            return {'record': record, 'per_node': per_node, 'launch': launch,
+                    'processes': len(pids), 'seconds': seconds,
                     'state_rate_hz': DEFAULT_STATE_RATE_HZ,
                     'grasp': {'width_m': GRASP[0], 'mass_kg': GRASP[1],
                               'wall_s': grasp_wall_s},
@@ -205,19 +219,30 @@ def measure(seconds: float, record: bool, per_node: bool = False) -> Dict[str, A
                 watcher.close()
             for child in children:
                 if child.poll() is None:
-                    child.send_signal(signal.SIGINT)
+                    if launch:
+                        os.killpg(child.pid, signal.SIGINT)
+                    else:
+                        child.send_signal(signal.SIGINT)
             for child in children:
                 try:
                     child.wait(15.0)
                 except subprocess.TimeoutExpired:
+                    if launch:
+                        os.killpg(child.pid, signal.SIGKILL)
                     child.kill()
                     child.wait()
-                child.stderr.close()
+            log.close()
 
 
 def format_report(r: Dict[str, Any]) -> str:
-    graph = 'the six nodes, one process each (as the launch file starts them)' \
-        if r.get('per_node') else f"grasp_demo --serve{'' if r['record'] else ' --no-record'}"
+    if r.get('launch'):
+        graph = (f'ros2 launch gripper_ros gripper.launch.py '
+                 f'per_node:={"true" if r["per_node"] else "false"} '
+                 f'({r["processes"]} processes with launch)')
+    elif r.get('per_node'):
+        graph = 'the six nodes, one process each (as the launch file starts them)'
+    else:
+        graph = f"grasp_demo --serve{'' if r['record'] else ' --no-record'}"
     lines = [f'bench_realtime: {graph} '
              f"(realtime, real-time factor 1, state_rate_hz {r['state_rate_hz']:g}) watched "
              f"from another process, {r['seconds']:g} s per window; CPU: the serving "
@@ -247,13 +272,16 @@ def main(args: Optional[Sequence[str]] = None) -> int:
                    help='serve without recording bags')
     p.add_argument('--per-node', action='store_true',
                    help='run the six nodes as six processes, as the launch file does (no bags)')
+    p.add_argument('--launch', action='store_true',
+                   help='run ros2 launch gripper_ros gripper.launch.py (with --per-node: '
+                        'per_node:=true); needs the ros2 command')
     p.add_argument('--json', action='store_true', help='print JSON instead of the table')
     opts = p.parse_args(list(sys.argv[1:] if args is None else args))
     if not (0.5 <= opts.seconds <= 600.0):
         print('bench_realtime: error: --seconds must be in [0.5, 600]', file=sys.stderr)
         return 2
     try:
-        report = measure(opts.seconds, opts.record, opts.per_node)
+        report = measure(opts.seconds, opts.record, opts.per_node, opts.launch)
     except BenchError as exc:
         print(f'bench_realtime: error: {exc}', file=sys.stderr)
         return 1

@@ -31,7 +31,7 @@ from gripper_ros.nodes.names import NameClaim
 from gripper_ros.nodes.plant_simulator_node import PlantSimulatorNode
 from gripper_ros.nodes.position_controller_node import PositionControllerNode
 from gripper_ros.nodes.process import (build_node, ExecutorKind, make_executor,
-                                       spin_until_stopped)
+                                       release_nodes, spin_until_stopped)
 from gripper_ros.nodes.qos import SERVICE_QOS
 from gripper_ros.nodes.services import call_and_wait
 from gripper_ros.nodes.supervisor_node import SupervisorNode
@@ -69,6 +69,7 @@ class GraphOptions:
     description: bool = True         # robot_description, /tf_static and /tf (and in bags)
     prefix: str | None = None        # the xacro's prefix: the joint's and the URDF's names
     #                                  (None: from the namespace, wire.namespace_prefix)
+    client_name: str = 'grasp_demo_client'   # the node of the graph's own service clients
     supervisor_parameters: dict = field(default_factory=dict)
     plant_parameters: dict = field(default_factory=dict)
 
@@ -119,7 +120,7 @@ class GripperGraph:
             Parameter('status_rate_hz', value=float(opts.state_rate_hz))] + [
             Parameter(k, value=v) for k, v in opts.supervisor_parameters.items()], **kw)
         self.nodes.append(self.supervisor)
-        self.client_node = rclpy.create_node('grasp_demo_client', **client_kw)
+        self.client_node = rclpy.create_node(opts.client_name, **client_kw)
         self.nodes.append(self.client_node)
         self.action_server = self.move_action_server = self.excitation_server = None
         if opts.action_server:
@@ -399,16 +400,24 @@ class GripperGraph:
         graph._owns_context = True
         return graph
 
-    def close(self) -> None:
-        """Stop spinning and destroy every node (and the context it owns); safe to call twice."""
-        for hook in reversed(self.close_hooks):      # the last opened closes first
+    def close_recordings(self) -> None:
+        """Run the close hooks (open recordings end with whole ticks), the last opened first."""
+        for hook in reversed(self.close_hooks):
             hook()
         self.close_hooks = []
+
+    def close(self) -> None:
+        """Stop spinning and destroy every node (and the context it owns); safe to call twice.
+
+        Recordings close first, while the executor still runs; every node leaves the stopped
+        executor before it is destroyed.
+        """
+        self.close_recordings()
         if hasattr(self, '_stop'):
             if not self._stop.done():
                 self._stop.set_result(True)
             self._thread.join(timeout=10.0)
-            self.executor.shutdown(timeout_sec=2.0)
+            release_nodes(self.executor, self.nodes)
         for node in self.nodes:
             node.destroy_node()
         self.nodes = []

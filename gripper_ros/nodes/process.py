@@ -71,21 +71,27 @@ class StopSignals:
     SIGINT is ignored (a script's background job) is left alive with a dead context. Here a
     signal only sets :attr:`received`; the owner stops spinning, destroys its nodes, closes its
     bags and only then shuts the context down. A second signal during that adds nothing: it can
-    neither cut the closing short nor abort the interpreter. Install it in the main thread
+    neither cut the closing short nor abort the interpreter. With ``hard_bound_s`` the first
+    signal also starts the process's stop bound (:func:`arm_hard_bound`), which the closing code
+    may re-arm step by step. Install it in the main thread
     (``with StopSignals():``) and initialise rclpy with ``SignalHandlerOptions.NO``.
     """
 
     SIGNALS = (signal.SIGINT, signal.SIGTERM)
 
-    def __init__(self, on_first: Callable[[int], None] | None = None):
+    def __init__(self, on_first: Callable[[int], None] | None = None,
+                 hard_bound_s: float | None = None):
         self.received: int | None = None      # the first signal's number
         self.on_first = on_first              # set None once closing has begun
+        self.hard_bound_s = hard_bound_s      # the first signal arms arm_hard_bound with it
         self._previous: dict = {}
 
     def _handle(self, signum, _frame) -> None:
         if self.received is not None:
             return
         self.received = signum
+        if self.hard_bound_s is not None:
+            arm_hard_bound(self.hard_bound_s)
         if self.on_first is not None:
             self.on_first(signum)
 
@@ -94,17 +100,45 @@ class StopSignals:
         return self
 
     def __exit__(self, *exc) -> None:
+        """Restore the handlers; once a stop signal came, ignore these signals from now on.
+
+        The process is ending: a second Ctrl-C, or launch's own SIGINT after the terminal's
+        (launch sends one when it runs non-interactive), must not raise KeyboardInterrupt in
+        its last lines and end it killed by SIGINT instead of with its exit code. What is left
+        (the interpreter's exit) is bounded instead, by :func:`arm_hard_bound`.
+        """
         for sig, handler in self._previous.items():
-            signal.signal(sig, handler)
+            signal.signal(sig, handler if self.received is None else signal.SIG_IGN)
+        if self.received is not None:
+            arm_hard_bound(CLEAN_UP_LIMIT_S + GIL_HELD_MARGIN_S)
+
+
+APP_BAGS_LIMIT_S = 30.0
+"""Longest a console app's open bags may take to close once it stops (the last ticks written,
+the MCAP summary and index): past it the process ends (:func:`arm_hard_bound`)."""
 
 
 def close_app_graph(graph, signals: StopSignals) -> None:
-    """End a console app's graph: no signal may cut the closing short, then rclpy shuts down."""
+    """End a console app's graph: no signal may cut the closing short, then rclpy shuts down.
+
+    Bounded in two steps, neither needing the GIL: the bags get :data:`APP_BAGS_LIMIT_S` to
+    close (from the stop signal when ``signals`` armed it, else from here), then the nodes and
+    the context :data:`CLEAN_UP_LIMIT_S` + :data:`GIL_HELD_MARGIN_S`; past either, every
+    thread's stack goes to stderr and the process exits 1.
+    """
     import rclpy
     signals.on_first = None
-    if graph is not None:
-        graph.close()
-    rclpy.try_shutdown()
+    if signals.received is None or signals.hard_bound_s is None:   # not armed by the signal
+        arm_hard_bound(APP_BAGS_LIMIT_S)
+    try:
+        if graph is not None:
+            graph.close_recordings()
+        arm_hard_bound(CLEAN_UP_LIMIT_S + GIL_HELD_MARGIN_S)
+        if graph is not None:
+            graph.close()
+        rclpy.try_shutdown()
+    finally:                   # the bound is for a stop that hangs, not for one that raises
+        disarm_hard_bound()
     signals.__exit__()
 
 
@@ -130,25 +164,56 @@ context): past it the process ends with that code, saying so in one line. Deleti
 can block for good in the middle of discovery traffic (seen once in some hundreds of stops, in
 the action server's ``rcl_action_server_fini``); a stopped node must still stop."""
 
+GIL_HELD_MARGIN_S = 1.0
+"""How much later than its limit a bound ends the process when no Python thread can run.
+
+A destruction can spin in C holding the GIL (rclpy's ``destroy_when_not_in_use`` waiting for a
+handle still in use): a Python timer then never runs. :func:`arm_hard_bound`'s watchdog is
+C (``faulthandler``): at its limit it writes every thread's stack to stderr and calls
+``_exit(1)`` without taking the GIL."""
+
+
+def arm_hard_bound(limit_s: float) -> None:
+    """End this process ``limit_s`` from now, whatever its threads do; re-arming replaces it.
+
+    ``faulthandler.dump_traceback_later(exit=True)``: a C thread that needs no GIL writes
+    ``Timeout (0:00:0N)!`` and every thread's stack to stderr, then ``_exit(1)`` (CPython's
+    Modules/faulthandler.c: the code is fixed, so the process's own is lost).
+    """
+    import faulthandler
+    faulthandler.dump_traceback_later(limit_s, exit=True, file=sys.__stderr__)
+
+
+def disarm_hard_bound() -> None:
+    """Cancel :func:`arm_hard_bound`."""
+    import faulthandler
+    faulthandler.cancel_dump_traceback_later()
+
 
 class BoundedCleanUp:
     """Within ``with``: if the block outlasts ``limit_s``, say so and exit with ``code``.
 
+    A Python timer ends the process with ``code`` and one line; when the GIL is held for good,
+    :func:`arm_hard_bound` ends it :data:`GIL_HELD_MARGIN_S` later with 1 and the stacks.
     Only for a process that is ending anyway and holds nothing that needs a clean close (a node
     executable: its name claims are file locks the system releases, DDS peers drop its
-    participant at its lease's end). Not for an app that records bags.
+    participant at its lease's end). An app that records bags closes them first
+    (:func:`close_app_graph`).
     """
 
     def __init__(self, name: str, code: int, limit_s: float = CLEAN_UP_LIMIT_S):
+        self._limit_s = limit_s
         self._timer = threading.Timer(limit_s, self._give_up, (name, code, limit_s))
         self._timer.daemon = True
 
     def __enter__(self) -> BoundedCleanUp:
+        arm_hard_bound(self._limit_s + GIL_HELD_MARGIN_S)
         self._timer.start()
         return self
 
     def __exit__(self, *exc) -> None:
         self._timer.cancel()
+        disarm_hard_bound()
 
     @staticmethod
     def _give_up(name: str, code: int, limit_s: float) -> None:
@@ -156,6 +221,20 @@ class BoundedCleanUp:
                          f'that never finished deleting); exiting with {code}\n')
         sys.stderr.flush()
         os._exit(code)
+
+
+def release_nodes(executor, nodes) -> None:
+    """Take ``nodes`` out of a stopped ``executor``, then shut it down: nothing uses them after.
+
+    A node destroyed while an executor still holds its handles waits in C, GIL held, for them to
+    be let go (rclpy ``destroy_when_not_in_use``); call this once spinning has ended.
+    """
+    for node in nodes:
+        try:
+            executor.remove_node(node)
+        except Exception:  # noqa: BLE001 - a node the executor no longer has
+            pass
+    executor.shutdown(timeout_sec=1.0)
 
 
 def build_node(make_node: Callable[..., Node], *args, **kwargs) -> Node:
@@ -209,7 +288,7 @@ def run_node(make_node: Callable[[], Node], name: str, args=None,
         return 0
     node = executor = claim = None
     exit_code = 0
-    with StopSignals() as signals:
+    with StopSignals(hard_bound_s=CLEAN_UP_LIMIT_S + GIL_HELD_MARGIN_S) as signals:
         try:
             rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
         except RCLError as exc:
@@ -239,7 +318,7 @@ def run_node(make_node: Callable[[], Node], name: str, args=None,
         finally:
             with BoundedCleanUp(name, exit_code):
                 if executor is not None:
-                    executor.shutdown(timeout_sec=1.0)
+                    release_nodes(executor, [] if node is None else [node])
                 if node is not None:
                     node.destroy_node()
                 if claim is not None:

@@ -1,0 +1,129 @@
+"""gripper_graph: the gripper's whole node graph in one process, as ``ros2 launch`` starts it.
+
+    ros2 run gripper_ros gripper_graph --ros-args -r __ns:=/left -p time_mode:=fast
+
+The nodes of the launch file (plant_simulator, position_controller, force_controller,
+supervisor, grasp_action_server, move_action_server, description_publisher) plus
+excitation_server and the graph's own service client, under one executor, the loop topics
+handed over in the process. Its settings are the launch file's parameters, given the ROS way
+(``-p NAME:=VALUE`` or a ``--params-file`` for ``/**``, which also reaches every node of the
+process): ``config_file``, ``time_mode``, ``real_time_factor``, ``publish_clock``, ``prefix``;
+the namespace is ``-r __ns:=/NAME`` (default ``/gripper``). Ctrl-C or SIGTERM stops it, exit 0;
+a bad setting or a taken namespace is one line, exit 2.
+"""
+from __future__ import annotations
+
+import sys
+import time
+
+from gripper_ros.wire import DEFAULT_NAMESPACE, TimeMode
+
+NAME = 'gripper_graph'
+CLIENT_NODE = 'gripper_graph_client'
+SETTINGS = (('config_file', '', 'config YAML (default: the installed one)'),
+            ('time_mode', TimeMode.REALTIME.parameter, 'realtime | fast'),
+            ('real_time_factor', 1.0, 'realtime: simulated seconds per wall second'),
+            ('publish_clock', True, 'publish /clock'),
+            ('prefix', '', "the xacro's prefix: the joint's and the URDF's names; "
+             "default: from the namespace (wire.namespace_prefix)"))
+"""The launch arguments this process takes as parameters: name, default, description."""
+POLL_S = 0.1
+"""How often the main thread looks for a stop signal or a graph that stopped spinning."""
+
+
+def read_settings(context=None) -> dict:
+    """Return :data:`SETTINGS` as the command line gives them (``-p``, ``--params-file``).
+
+    A short-lived probe node reads them (``ros2 node list`` does not show it afterwards). The
+    ``prefix`` not given comes from the namespace, as each node's own (``declare_prefix``).
+    """
+    import rclpy
+    from gripper_ros.nodes.names import keep_name_args, PROBE_NODE
+    from gripper_ros.wire import namespace_prefix
+    kw = {'context': context} if context is not None else {}
+    probe = rclpy.create_node(PROBE_NODE, enable_rosout=False, start_parameter_services=False,
+                              cli_args=keep_name_args(PROBE_NODE), **kw)
+    try:
+        defaults = {'prefix': namespace_prefix(probe.get_namespace())}
+        return {name: probe.declare_parameter(name, defaults.get(name, default)).value
+                for name, default, _ in SETTINGS}
+    finally:
+        probe.destroy_node()
+
+
+def usage() -> str:
+    """Return what ``gripper_graph --help`` prints."""
+    lines = [f'usage: {NAME} [--ros-args -r __ns:=/NAMESPACE -p NAME:=VALUE '
+             '--params-file FILE ...]', '', __doc__.strip(), '', 'Parameters:']
+    lines += [f'  {name} (default {default!r}): {text}' for name, default, text in SETTINGS]
+    return '\n'.join(lines)
+
+
+def main(args: list[str] | None = None) -> int:
+    """Serve the graph until Ctrl-C or SIGTERM; exit codes as every node executable's."""
+    import rclpy
+    from rclpy._rclpy_pybind11 import RCLError
+    from rclpy.exceptions import InvalidNamespaceException, ParameterException
+    from rclpy.signals import SignalHandlerOptions
+    from rclpy.utilities import remove_ros_args
+    from gripper_ros.core.config import ConfigError
+    from gripper_ros.nodes.graph import GraphError, GraphOptions, GripperGraph
+    from gripper_ros.nodes.names import namespace_as_given
+    from gripper_ros.nodes.process import (BoundedCleanUp, CLEAN_UP_LIMIT_S,
+                                           exit_without_a_last_collection, GIL_HELD_MARGIN_S,
+                                           StopSignals)
+    from gripper_ros.nodes.startup import EXIT_BAD_START, StartupError
+    from gripper_ros.text import one_line
+    from gripper_ros.wire import qualified
+
+    argv = sys.argv if args is None else args
+    exit_without_a_last_collection()
+    try:
+        user_args = remove_ros_args(argv)[1:]
+    except RCLError as exc:
+        print(f'{NAME}: bad --ros-args: {one_line(exc)}', file=sys.stderr)
+        return EXIT_BAD_START
+    if {'-h', '--help'} & set(user_args):
+        print(usage())
+        return 0
+    if user_args:
+        print(f'{NAME}: unknown arguments {user_args}: settings are ROS parameters '
+              '(--ros-args -p NAME:=VALUE)', file=sys.stderr)
+        return EXIT_BAD_START
+    graph = None
+    exit_code = 0
+    with StopSignals(hard_bound_s=CLEAN_UP_LIMIT_S + GIL_HELD_MARGIN_S) as signals:
+        try:
+            rclpy.init(args=argv, signal_handler_options=SignalHandlerOptions.NO)
+        except RCLError as exc:
+            print(f'{NAME}: bad --ros-args: {one_line(exc)}', file=sys.stderr)
+            return EXIT_BAD_START
+        try:
+            settings = read_settings()
+            graph = GripperGraph(GraphOptions(
+                config_file=settings['config_file'], namespace=namespace_as_given(
+                    DEFAULT_NAMESPACE), time_mode=settings['time_mode'],
+                real_time_factor=float(settings['real_time_factor']),
+                publish_clock=bool(settings['publish_clock']), prefix=settings['prefix'],
+                client_name=CLIENT_NODE))
+            names = ', '.join(qualified(graph.namespace, n) for n in graph.served_names())
+            print(f'{NAME}: serving {names} ({graph.options.time_mode} time); '
+                  'Ctrl-C to stop', flush=True)
+            while not signals.received and graph.spinning:
+                time.sleep(POLL_S)
+        except (ConfigError, ParameterException, StartupError, RCLError, GraphError,
+                InvalidNamespaceException, ValueError) as exc:
+            print(f'{NAME}: {one_line(exc)}', file=sys.stderr)
+            exit_code = EXIT_BAD_START
+        except KeyboardInterrupt:
+            pass
+        finally:
+            with BoundedCleanUp(NAME, exit_code):
+                if graph is not None:
+                    graph.close()
+                rclpy.try_shutdown()
+    return exit_code
+
+
+if __name__ == '__main__':
+    sys.exit(main())
