@@ -19,6 +19,7 @@ config (``gripper_urdf --config``) where the ament index has it, else descriptio
 """
 from gripper_ros.nodes import launched_executables, robot_state_publisher_installed
 from gripper_ros.wire import (DEFAULT_NAMESPACE, NODE_DESCRIPTION, NODE_MOVE_ACTION, NODE_PLANT,
+                              NODE_SUPERVISOR,
                               ROBOT_STATE_PUBLISHER, TIME_MODE_CHOICES, TimeMode)
 from launch import LaunchDescription
 from launch.actions import DeclareLaunchArgument
@@ -28,7 +29,7 @@ from launch_ros.parameter_descriptions import ParameterValue
 from launch_ros.substitutions import FindPackagePrefix, FindPackageShare
 
 PACKAGE = 'gripper_ros'
-JOINT_NAMED = (NODE_PLANT, NODE_MOVE_ACTION, NODE_DESCRIPTION)
+JOINT_NAMED = (NODE_PLANT, NODE_SUPERVISOR, NODE_MOVE_ACTION, NODE_DESCRIPTION)
 """The nodes that take the ``prefix`` parameter: the joint's name and the URDF's."""
 ARGUMENTS = (
     ('namespace', DEFAULT_NAMESPACE, 'namespace of every node, topic, service and action'),

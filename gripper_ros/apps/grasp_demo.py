@@ -337,7 +337,9 @@ def _summarise(graph, records: list[GraspRecord], args) -> None:
     from gripper_ros.wire import Outcome
     for i, r in enumerate(records):
         resp = r.response
-        outcome = r.final_outcome or Outcome(resp.outcome).name
+        outcome = Outcome(resp.outcome).name
+        if r.final_outcome and resp.outcome != Outcome.REFUSED:   # refused: nothing ran after
+            outcome = r.final_outcome
         pos_err_mm = (resp.final_position_m - resp.position_setpoint_m) * 1e3
         if rows:
             m = rows[i]
