@@ -179,8 +179,11 @@ def test_grasp_demo_refuses_a_bad_params_file_in_one_line(tmp_path, content, cap
 
 @pytest.mark.parametrize('record', [True, False], ids=['recorded', 'no_record'])
 def test_grasp_demo_says_refused_for_a_width_in_mm(tmp_path, record):
-    """--width 50 (mm for m) is refused: the table's outcome says REFUSED, the reason below it,
-    and the demo ends 1 without a traceback, its bag of no grasp left out of the analysis."""
+    """Say REFUSED in grasp_demo's table for --width 50 (mm for m).
+
+    The reason is below it, and the demo ends 1 without a traceback, its bag of no grasp left
+    out of the analysis.
+    """
     argv = ['--width', '50', '--mass', '1', '--no-plot']
     argv += ['--output', str(tmp_path)] if record else ['--no-record']
     result = subprocess.run([sys.executable, '-m', 'gripper_ros.apps.grasp_demo', *argv],

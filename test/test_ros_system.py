@@ -159,8 +159,10 @@ ACTIVATION_N = CONFIG.force_sensor.activation_force_n
 ])
 def test_gripper_status_says_stalled_and_object_detected(outcome, force_n, level, stalled,
                                                          detected):
-    """object_detected: the force sensor feels a press (its activation force), whatever the
-    request, unless the outcome says there is no object."""
+    """Say object_detected when the force sensor feels a press, whatever the request.
+
+    The press is the sensor's activation force; an outcome that says there is no object wins.
+    """
     fields = grip_status_fields(outcome, 0.1, force_n, TRAVEL_M, 7, ACTIVATION_N)
     assert fields['level'] == level and fields['message'] == outcome.name.lower()
     assert fields['values'] == {'outcome': outcome.name, 'stalled': stalled,
@@ -170,8 +172,11 @@ def test_gripper_status_says_stalled_and_object_detected(outcome, force_n, level
 
 
 def test_a_move_that_stalls_on_a_held_object_says_object_detected(graph):
-    """The grasp holds 11.04 N; a move closing at 10 N stalls at once on the object: the
-    status says stalled and object_detected, the force sensor pressed all along."""
+    """Say object_detected for a move that stalls at once on a held object.
+
+    The grasp holds more than 10 N; a move closing at 10 N stalls on the object at once: the
+    status says stalled and object_detected, the force sensor pressed all along.
+    """
     status = Listener(graph, {TOPIC_GRIPPER_STATUS: (DiagnosticStatus, LATCHED_QOS)})
     held = graph.grasp(OBJECT_WIDTH_M, 1.5)
     assert held.outcome == Outcome.HOLDING and held.final_force_n > EFFORT_N, held.message
@@ -203,9 +208,11 @@ def test_a_bad_joint_command_is_refused_and_moves_nothing(graph, command):
 
 
 def test_limits_beyond_the_motor_are_the_motors_own():
-    """A velocity or effort entry is a limit: above the free speed or the stall force at
-    24 V it is the motor's (parallel_gripper_action_controller's default max_velocity is
-    0.1 m/s)."""
+    """Take a velocity or effort entry beyond the motor as the motor's own limit.
+
+    Above the free speed or the stall force at 24 V it is the motor's
+    (parallel_gripper_action_controller's default max_velocity is 0.1 m/s).
+    """
     stream = JointCommandStream(CONFIG.plant)
     move = stream.take(_command([0.05], velocity=[0.1], effort=[100.0]))
     assert move.speed_mps == CONFIG.plant.max_free_speed_mps

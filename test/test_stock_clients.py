@@ -1,14 +1,14 @@
 """ros2_control's stock clients on ``joint_commands``, emulated from their source, over DDS.
 
 The hardware is JointStateTopicSystem (ros-controls/topic_based_hardware_interfaces,
-``joint_state_topic_hardware_interface/src/joint_state_topic_hardware_interface.cpp``): at
-every controller-manager update (100 Hz) ``read()`` takes the newest ``joint_states`` (SensorDataQoS)
-into the state interfaces, the controller updates the command interfaces, and ``write()``
-publishes the command interfaces (position, velocity, effort, in that order of fields) on
-``joint_commands`` with QoS depth 1 unless they differ from the states by at most
-``trigger_joint_command_threshold`` (1e-5) in sum; a NaN command (a command interface before
-any controller set it) differs, so it is published. The updates are clocked on the
-``joint_states`` stamps (simulated time), so that nothing depends on the machine's speed.
+``joint_state_topic_hardware_interface/src/joint_state_topic_hardware_interface.cpp``): at every
+controller-manager update (100 Hz) ``read()`` takes the newest ``joint_states`` (SensorDataQoS)
+into the state interfaces, the controller updates the command interfaces, and ``write()`` publishes
+the command interfaces (position, velocity, effort, in that order of fields) on ``joint_commands``
+with QoS depth 1 unless they differ from the states by at most ``trigger_joint_command_threshold``
+(1e-5) in sum; a NaN command (a command interface before any controller set it) differs, so it is
+published. The updates are clocked on the ``joint_states`` stamps (simulated time), so that nothing
+depends on the machine's speed.
 
 The graph is ``grasp_demo --serve``'s (realtime). The controllers are emulated from
 ros-controls/ros2_controllers: forward_command_controller, joint_trajectory_controller's linear
@@ -23,15 +23,15 @@ import math
 import threading
 
 from diagnostic_msgs.msg import DiagnosticStatus
+from gripper_interfaces.msg import SupervisorStatus
 from gripper_ros.core.config import load_config
 from gripper_ros.nodes.graph import GraphOptions, GripperGraph
-from gripper_interfaces.msg import SupervisorStatus
 from gripper_ros.nodes.qos import GRAPH_QOS, LATCHED_QOS
 from gripper_ros.nodes.services import wait_until
 from gripper_ros.wire import (FINGER_JOINT, qualified, TimeMode, TOPIC_GRIPPER_STATUS,
                               TOPIC_JOINT_COMMANDS, TOPIC_JOINT_STATES, TOPIC_STATUS)
 import pytest
-from rclpy.qos import QoSProfile, qos_profile_sensor_data
+from rclpy.qos import qos_profile_sensor_data, QoSProfile
 from sensor_msgs.msg import JointState
 
 CONFIG = load_config()
@@ -65,9 +65,8 @@ class TopicSystem:
         self.published: list[tuple] = []  # (t_ns, JointState) written
         self.lock = threading.Lock()
         self._next_ns: int | None = None
-        self.pub = node.create_publisher(JointState, qualified(graph.namespace,
-                                                              TOPIC_JOINT_COMMANDS),
-                                         QoSProfile(depth=1))
+        commands = qualified(graph.namespace, TOPIC_JOINT_COMMANDS)
+        self.pub = node.create_publisher(JointState, commands, QoSProfile(depth=1))
         self.sub = node.create_subscription(JointState, qualified(graph.namespace,
                                                                   TOPIC_JOINT_STATES),
                                             self._read, qos_profile_sensor_data)
@@ -163,7 +162,7 @@ class TrajectoryController:
         return {'position': before_m}
 
     def reference(self, t_ns: int) -> float:
-        """The position the trajectory asks for at ``t_ns`` (after it started)."""
+        """Return the position the trajectory asks for at ``t_ns`` (after it started)."""
         return self.update(t_ns, {'position': NAN})['position']
 
 
@@ -275,12 +274,13 @@ def _stopping_m(speed_mps: float) -> float:
 
 def test_forward_command_controller_holds_one_position_and_an_out_of_range_one_moves_nothing(
         graph):
-    """forward_controllers_base.cpp's update() under JointStateTopicSystem, as the interface's
-    own gripper test drives it (joint_state_topic_hardware_interface/test/gripper/
-    test_gripper.cpp sends 0.38 m, beyond this gripper's travel).
+    """Hold one position, forward_command_controller's way; 0.38 m moves nothing.
 
-    Before the first command the hardware publishes NaN: refused, nothing moves. One target
-    0.10 m from open is reached and held; 0.38 m is refused and the finger stays where it is.
+    Follows forward_controllers_base.cpp's update() under JointStateTopicSystem, driven as the
+    interface's own gripper test drives it (joint_state_topic_hardware_interface/test/gripper/
+    test_gripper.cpp, which sends 0.38 m, beyond this gripper's travel). Before the first command
+    the hardware publishes NaN: refused, nothing moves. One target 0.10 m from open is reached and
+    held; 0.38 m is refused and the finger stays where it is.
     """
     _reset(graph)
     supervisor = graph.supervisor
@@ -319,15 +319,15 @@ def test_forward_command_controller_holds_one_position_and_an_out_of_range_one_m
 
 
 def test_joint_trajectory_controller_ramp_is_one_move_that_follows_each_update(graph):
-    """joint_trajectory_controller.cpp / trajectory.cpp: a position-only trajectory is
-    interpolated linearly and written at every update: a 0.04 m/s ramp for 2 s.
+    """Follow joint_trajectory_controller's 0.04 m/s ramp as one move.
 
-    The stream is one request (not a move per setpoint): the supervisor's position setpoint
-    takes each update's position, never one the trajectory has not reached. The finger never
-    runs ahead of the ramp and lags it by at most 3 mm more than a finger at 24 V from rest,
-    within the speed limit (the default 0.05 m/s), could. Stopped at 0.04 m/s by the end of
-    the ramp, it runs on at most the stopping distance at 24 V, and comes back to rest at the
-    end, in the same request.
+    Follows joint_trajectory_controller.cpp and trajectory.cpp: a position-only trajectory is
+    interpolated linearly and written at every update, here a ramp for 2 s. The stream is one
+    request (not a move per setpoint): the supervisor's position setpoint takes each update's
+    position, never one the trajectory has not reached. The finger never runs ahead of the ramp and
+    lags it by at most 3 mm more than a finger at 24 V from rest, within the speed limit (the
+    default 0.05 m/s), could. Stopped at 0.04 m/s by the end of the ramp, it runs on at most the
+    stopping distance at 24 V, and comes back to rest at the end, in the same request.
     """
     _reset(graph)
     supervisor = graph.supervisor
@@ -385,13 +385,15 @@ def test_joint_trajectory_controller_ramp_is_one_move_that_follows_each_update(g
 
 def test_parallel_gripper_action_controller_presses_with_its_effort_and_a_new_goal_preempts(
         graph):
-    """parallel_gripper_action_controller_impl.hpp: goal position with max_effort and
-    max_velocity on the joint's effort and velocity command interfaces, written at every update.
+    """Press with parallel_gripper_action_controller's effort; a new goal turns the finger.
 
-    On an object the finger presses with at most the goal's effort (joint_states' effort), the
-    controller sees the stall, gripper_status says stalled and object_detected. Then a goal
-    closing at 0.05 m/s is preempted 0.3 s in by one opening: the finger's drive turns at the
-    next update and it reverses within 0.1 s of the least time 24 V takes to reverse it.
+    Follows parallel_gripper_action_controller_impl.hpp: goal position with max_effort and
+    max_velocity on the joint's effort and velocity command interfaces, written at every
+    update. On an object the finger presses with at most the goal's effort (joint_states'
+    effort), the controller sees the stall, gripper_status says stalled and object_detected.
+    Then a goal closing at 0.05 m/s is preempted 0.3 s in by one opening: the finger slows
+    within 0.1 s and reverses within 0.1 s of the least time the effort's voltage (10 N:
+    7.2 V) takes to reverse it.
     """
     object_width_m, effort_n = 0.06, 10.0
     _reset(graph, object_width_m)
