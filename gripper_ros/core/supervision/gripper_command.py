@@ -97,9 +97,10 @@ class JointCommandStream:
 
     ros2_control's topic-based hardware publishes the command on every controller update while
     the joint is away from it; only a new setpoint (position, speed or effort) is a new request,
-    a repeat of the one in force (the same numbers) is not. A command beyond the plant raises
-    RequestError; a setpoint becomes the one in force only once accepted (:meth:`accept`), so
-    that a refused one changes nothing.
+    a repeat of the one in force (the same numbers) is not. A command that is not finite, out of
+    the travel, with a negative limit or for another joint raises RequestError; a setpoint
+    becomes the one in force only once accepted (:meth:`accept`), so that a refused one changes
+    nothing.
     """
 
     def __init__(self, plant, joint: str = FINGER_JOINT):

@@ -31,6 +31,13 @@ contact), or has been at rest short of it for ``move_stall_timeout_s``. Either w
 stage then keeps the move's last command (the goal, the limits): a stalled move goes on pressing
 with at most its effort, as a position-controlled gripper keeps its command.
 
+Setpoint (:meth:`GraspSupervisor.request_servo`, ``joint_commands``): a position servo. The
+newest setpoint is a move in force at once: while the previous setpoint's move runs, its goal
+and limits change in place (same request, the position stage not restarted); otherwise what
+runs ends STOPPED and the setpoint's move starts at the next tick. A stream that keeps changing
+is led by its rate x ``servo_lead_s``. A grasp, release or move request ends a running
+setpoint's move (STOPPED) and runs; requests among themselves go one at a time.
+
 The state machine is compiled (numba): :func:`supervisor_step` and :func:`supervisor_decide`
 run on the state record :data:`SUPERVISOR_STATE`, called tick by tick by the supervisor node
 and by the compiled headless loop alike. :class:`GraspSupervisor` is the Python face of that
@@ -806,7 +813,8 @@ class GraspSupervisor:
     (phase HOLDING, outcome HOLDING, force stage active) until a release, a stop, the next
     grasp or the loss of the object; a move runs MOVING and then keeps its last command. A
     request is accepted at once and starts at the next tick (:meth:`request_grasp`,
-    :meth:`request_release`, :meth:`request_move`). ``running`` says whether the
+    :meth:`request_release`, :meth:`request_move`); a setpoint (:meth:`request_servo`) is in
+    force at once. ``running`` says whether the
     request still needs simulated time; ``stage_id`` grows whenever a controller is
     (re)assigned, so that it restarts from the measured state.
 
