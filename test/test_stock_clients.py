@@ -352,8 +352,10 @@ def test_joint_trajectory_controller_ramp_is_one_move_that_follows_each_update(g
         assert supervisor.logic.grasp_id == first_id          # one move for the whole ramp
         assert supervisor.logic.kind == 'move' and supervisor.logic.servo
         assert supervisor.joint_commands_taken - taken >= 150  # a setpoint at each update
-        ramp = [(t, sp) for t, sp, i in list(setpoints)
-                if t0_ns < t <= t0_ns + ramp_s * 1e9 and i == first_id]
+        during = [(t, sp, i) for t, sp, i in list(setpoints)
+                  if t0_ns + UPDATE_NS < t <= t0_ns + ramp_s * 1e9]
+        assert {i for _, _, i in during} == {first_id}         # from its first setpoint on
+        ramp = [(t, sp) for t, sp, _ in during]
         assert len({sp for _, sp in ramp}) >= 150             # the reference follows them
         assert all(sp <= controller.reference(t) + 1e-12 for t, sp in ramp)
         limit_mps = CONFIG.supervisor.move_default_speed_mps

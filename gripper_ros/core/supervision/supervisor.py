@@ -453,7 +453,9 @@ def _step_move(s, p, m, t_ns, position_m, force_n, sensor_voltage_v,
     if not at_rest:
         s.rest_since_ns = NO_NS
     elif abs(error_m) <= s.tg_tolerance_m:
-        return _end(s, Phase.DONE, Outcome.MOVED, MSG_MOVED, True, goal, True)
+        if s.servo_change_ns == NO_NS or \
+                t_ns - s.servo_change_ns > p.servo_rate_window_s * 1e9:   # no stream moves it
+            return _end(s, Phase.DONE, Outcome.MOVED, MSG_MOVED, True, goal, True)
     else:
         if s.rest_since_ns == NO_NS:
             s.rest_since_ns = t_ns
@@ -961,12 +963,13 @@ class GraspSupervisor:
         """Refuse a request while another runs or waits; a setpoint's move ends (preempted)."""
         if self.servo and (self.pending or self.running):
             self._preempted = self.stop(f'preempted by a {kind} request')
-            return
-        if self.pending:
+        elif self.pending:
             raise RequestError(f'a {KIND_NAMES[int(self._s["pend_kind"])]} request is already '
                                'waiting to start')
-        if self.running:
+        elif self.running:
             raise RequestError(f'a {self.kind} is running (phase {self.phase.name})')
+        self._s['servo_change_ns'] = NO_NS      # no setpoint stream moves this request's goal
+        self._s['servo_rate_mps'] = 0.0
 
     def _wait(self, kind: str, targets, mass_kg: float, after_ns: int | None):
         """Write a request that starts at the first tick after ``after_ns`` (None: the next)."""
@@ -1074,6 +1077,7 @@ class GraspSupervisor:
         self._servo_id = self.grasp_id + 1
         self._servo_anchor = (int(s['t_ns']), targets.position_setpoint_m)
         s['servo_rate_mps'] = 0.0
+        s['servo_change_ns'] = int(s['t_ns'])   # a stream's first setpoint: not done at once
         return ended
 
     def _measure_rate(self, targets: MoveTargets) -> None:
