@@ -42,8 +42,8 @@ within its own stop bound first (docs/USING.md, "Stopping").
 """
 from gripper_ros.nodes import launched_executables, robot_state_publisher_installed
 from gripper_ros.wire import (DEFAULT_NAMESPACE, namespace_prefix, NODE_DESCRIPTION,
-                              NODE_MOVE_ACTION, NODE_PLANT, ROBOT_STATE_PUBLISHER,
-                              TIME_MODE_CHOICES, TimeMode)
+                              NODE_MOVE_ACTION, NODE_PLANT, NODE_SUPERVISOR,
+                              ROBOT_STATE_PUBLISHER, TIME_MODE_CHOICES, TimeMode)
 from launch import LaunchDescription
 from launch.actions import DeclareLaunchArgument
 from launch.conditions import IfCondition, UnlessCondition
@@ -69,7 +69,7 @@ class NamespacePrefix(Substitution):
                                                                   DEFAULT_NAMESPACE))
 
 
-JOINT_NAMED = (NODE_PLANT, NODE_MOVE_ACTION, NODE_DESCRIPTION)
+JOINT_NAMED = (NODE_PLANT, NODE_SUPERVISOR, NODE_MOVE_ACTION, NODE_DESCRIPTION)
 """The nodes that take the ``prefix`` parameter: the joint's name and the URDF's."""
 ARGUMENTS = (
     ('namespace', DEFAULT_NAMESPACE, 'namespace of every node, topic, service and action'),

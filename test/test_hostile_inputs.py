@@ -7,6 +7,8 @@ from __future__ import annotations
 
 from pathlib import Path
 import shutil
+import subprocess
+import sys
 
 from gripper_ros.bags import replay as bag_replay
 from gripper_ros.bags.reader import EXIT_ERROR, NotABagError, read_bag
@@ -173,3 +175,22 @@ def test_grasp_demo_refuses_a_bad_params_file_in_one_line(tmp_path, content, cap
     assert code == 2
     lines = captured.err.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith('grasp_demo: bad --ros-args'), captured.err
+
+
+@pytest.mark.parametrize('record', [True, False], ids=['recorded', 'no_record'])
+def test_grasp_demo_says_refused_for_a_width_in_mm(tmp_path, record):
+    """Say REFUSED in grasp_demo's table for --width 50 (mm for m).
+
+    The reason is below it, and the demo ends 1 without a traceback, its bag of no grasp left
+    out of the analysis.
+    """
+    argv = ['--width', '50', '--mass', '1', '--no-plot']
+    argv += ['--output', str(tmp_path)] if record else ['--no-record']
+    result = subprocess.run([sys.executable, '-m', 'gripper_ros.apps.grasp_demo', *argv],
+                            capture_output=True, text=True, timeout=120,
+                            stdin=subprocess.DEVNULL)
+    assert result.returncode == 1, result.stdout + result.stderr
+    assert 'Traceback' not in result.stderr, result.stderr
+    row = next(line for line in result.stdout.splitlines() if line.startswith('  50.000'))
+    assert row.split()[2] == 'REFUSED', row
+    assert 'refused: width_m must be in (0, 0.15) m' in result.stdout

@@ -115,6 +115,61 @@ def test_stop_ends_the_press_of_a_stalled_move_where_it_stalled():
     assert sup.stop() is None
 
 
+# ====================================================================== setpoints (joint_commands)
+def _setpoint(position_m, speed_mps=0.0, max_effort_n=0.0) -> MoveTargets:
+    return _targets(TRAVEL_M - position_m, speed_mps, max_effort_n)
+
+
+def test_a_setpoint_stream_is_one_move_whose_reference_leads_by_its_rate():
+    """Retarget the running setpoint move in place; lead a changing stream by rate x lead.
+
+    The stage is not restarted (one stage_id), the request keeps its id; while the setpoints
+    change the reference is the newest plus the rate (over the window) x servo_lead_s; once
+    they stop for longer than the window, the reference is the setpoint itself.
+    """
+    sup = GraspSupervisor(P, S)
+    sup.step(0, 0.0, 0.0, 0.005)
+    assert sup.request_servo(_setpoint(0.0), after_ns=0) is None
+    d = sup.step(10 * MS, 0.0, 0.0, 0.005, speed_mps=0.001)
+    assert d.running and sup.servo and sup.kind == 'move'
+    grasp_id, stage_id = d.grasp_id, d.stage_id
+    rate_mps = 0.04
+    for k in range(1, 31):                      # a ramp, a setpoint at each 10 ms tick
+        setpoint_m = rate_mps * k * 0.01
+        assert sup.request_servo(_setpoint(setpoint_m)) is None
+        d = sup.step((10 + 10 * k) * MS, 0.5 * setpoint_m, 0.0, 0.005, speed_mps=0.02)
+        assert (d.grasp_id, d.stage_id, d.phase) == (grasp_id, stage_id, Phase.MOVING)
+        assert d.position_setpoint_m == pytest.approx(setpoint_m)
+    assert d.approach_setpoint_m == pytest.approx(setpoint_m + rate_mps * S.servo_lead_s)
+    window_ticks = math.ceil(S.servo_rate_window_s / 0.01)
+    for k in range(31, 32 + window_ticks):      # the stream holds its end
+        d = sup.step((10 + 10 * k) * MS, 0.5 * setpoint_m, 0.0, 0.005, speed_mps=0.02)
+    assert d.approach_setpoint_m == pytest.approx(setpoint_m)
+    assert (d.grasp_id, d.stage_id) == (grasp_id, stage_id)
+
+
+def test_a_setpoint_preempts_a_running_grasp_and_a_request_preempts_a_setpoint_move():
+    sup = GraspSupervisor(P, S)
+    sup.step(0, 0.0, 0.0, 0.005)
+    sup.request_grasp(validate_request(GraspRequest(0.05, 1.0), P, S), 1.0, after_ns=0)
+    d = sup.step(10 * MS, 0.01, 0.0, 0.005, speed_mps=0.01)
+    assert d.running and sup.kind == 'grasp'
+    ended = sup.request_servo(_setpoint(0.02), after_ns=10 * MS, message='preempted: setpoint')
+    assert ended.answer is Outcome.STOPPED and ended.message == 'preempted: setpoint'
+    d = sup.step(20 * MS, 0.011, 0.0, 0.005, speed_mps=0.01)
+    assert d.running and sup.kind == 'move' and sup.servo and d.phase is Phase.MOVING
+    assert d.grasp_id == 2 and d.position_setpoint_m == pytest.approx(0.02)
+    # a service request ends the setpoint's move, which nobody waits for, and runs
+    sup.request_move(_targets(0.1), after_ns=20 * MS)
+    ended = sup.take_preempted()
+    assert ended.answer is Outcome.STOPPED and 'preempted by a move request' in ended.message
+    assert sup.take_preempted() is None
+    d = sup.step(30 * MS, 0.012, 0.0, 0.005)
+    assert d.running and not sup.servo and d.grasp_id == 3
+    with pytest.raises(RequestError, match='move is running'):   # services: one at a time
+        sup.request_move(_targets(0.1))
+
+
 # ====================================================================== headless moves
 @pytest.mark.parametrize('speed_mps', [0.005, 0.02, 0.05])
 def test_a_move_reaches_its_width_never_faster_than_the_limit(speed_mps):

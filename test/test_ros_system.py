@@ -3,8 +3,8 @@
 One graph for the module: a late subscriber gets robot_description and /tf_static; a
 JointState on ``joint_commands`` (what ros2_control's JointStateTopicSystem publishes) closes
 the finger onto an object with the command's effort limit, joint_states' effort (the applied
-force) never passes it, /tf follows the finger, gripper_status says stalled on an object, and
-bad commands are refused without moving anything.
+force) never passes it, /tf follows the finger, gripper_status says moving at once and then
+stalled on an object, and bad commands are refused without moving anything.
 """
 from __future__ import annotations
 
@@ -15,7 +15,7 @@ import xml.etree.ElementTree as ET
 from diagnostic_msgs.msg import DiagnosticStatus
 from gripper_ros.core.config import load_config
 from gripper_ros.core.description import urdf_text
-from gripper_ros.core.supervision.gripper_command import grip_status_fields
+from gripper_ros.core.supervision.gripper_command import grip_status_fields, JointCommandStream
 from gripper_ros.nodes.graph import GraphOptions, GripperGraph
 from gripper_ros.nodes.qos import GRAPH_QOS, LATCHED_QOS
 from gripper_ros.nodes.services import wait_until
@@ -90,20 +90,29 @@ def test_a_late_subscriber_gets_the_description_and_the_fixed_finger(graph):
 def test_a_joint_command_closes_on_the_object_with_its_effort_limit(graph):
     seen = Listener(graph, {TOPIC_TF: (TFMessage, GRAPH_QOS),
                             TOPIC_JOINT_STATES: (JointState, GRAPH_QOS)})
-    answers = graph.move_action_server.joint_command_answers
-    before = len(answers)
+    status = Listener(graph, {TOPIC_GRIPPER_STATUS: (DiagnosticStatus, LATCHED_QOS)})
+    supervisor = graph.supervisor
+    taken, first_id = supervisor.joint_commands_taken, supervisor.logic.grasp_id + 1
     pub = _publisher(graph)
     command = _command([TRAVEL_M - 0.01], effort=[EFFORT_N])     # 1 cm past the object's face
     for _ in range(5):                       # a stream, as JointStateTopicSystem sends it
         pub.publish(command)
-    assert wait_until(lambda: len(answers) > before, 60.0)
+    assert wait_until(lambda: _values(status.newest.get(TOPIC_GRIPPER_STATUS)).get(
+        'outcome') == 'STALLED', 60.0)
     graph.wait_still()
-    assert len(answers) == before + 1        # the repeats were no new moves
-    answer = answers[-1]
-    assert answer.outcome == Outcome.STALLED and answer.stalled, answer.message
-    assert answer.width_m == pytest.approx(OBJECT_WIDTH_M, abs=1e-4)
-    assert 0.9 * EFFORT_N <= answer.effort_n <= (1 + EFFORT_TOLERANCE) * EFFORT_N, \
-        answer.effort_n
+    assert supervisor.joint_commands_taken == taken + 1     # the repeats were no new moves
+    with status.lock:
+        reports = [r for r in status.every[TOPIC_GRIPPER_STATUS]
+                   if _values(r)['grasp_id'] == str(first_id)]
+    # the command's own status at once, then how it ended
+    assert [(r.message, _values(r)['grasp_id']) for r in reports] == [
+        ('moving', str(first_id)), ('stalled', str(first_id))]
+    logic = supervisor.logic
+    assert logic.outcome == Outcome.STALLED and logic.grasp_id == first_id, logic.message
+    answer = _values(reports[-1])
+    assert float(answer['width_m']) == pytest.approx(OBJECT_WIDTH_M, abs=1e-4)
+    assert 0.9 * EFFORT_N <= float(answer['effort_n']) <= (1 + EFFORT_TOLERANCE) * EFFORT_N, \
+        answer['effort_n']
     with seen.lock:
         (moving,) = seen.newest[TOPIC_TF].transforms
     assert (moving.header.frame_id, moving.child_frame_id) == (FRAME_BASE, FRAME_MOVING_FINGER)
@@ -120,57 +129,96 @@ def test_a_joint_command_closes_on_the_object_with_its_effort_limit(graph):
     last = states[-1]
     assert last.position[0] == pytest.approx(TRAVEL_M - OBJECT_WIDTH_M, abs=1e-4)
     assert abs(last.velocity[0]) < CONFIG.supervisor.move_rest_speed_mps
-    assert last.effort[0] == answer.effort_n
+    assert last.effort[0] == pytest.approx(float(answer['effort_n']), rel=1e-5)
     # effort is the force the plant applies (the shipped sensor has no noise)
     assert CONFIG.sensor_noise.force_noise_n == 0.0
     assert last.effort[0] == pytest.approx(graph.plant.plant.sample().force_n, rel=1e-9)
     assert last.effort[0] >= 0.9 * EFFORT_N
     # how it ended, for a ros2_control user: latched gripper_status, in standard types
-    status = Listener(graph, {TOPIC_GRIPPER_STATUS: (DiagnosticStatus, LATCHED_QOS)})
-    assert wait_until(lambda: _values(status.newest.get(TOPIC_GRIPPER_STATUS)).get(
-        'grasp_id') == str(answer.grasp_id), 10.0)
-    with status.lock:
-        report = status.newest[TOPIC_GRIPPER_STATUS]
+    report = reports[-1]
     assert (report.level, report.name, report.message) == (DiagnosticStatus.OK, FINGER_JOINT,
                                                            'stalled')
-    values = _values(report)
-    assert (values['outcome'], values['stalled'], values['object_detected']) == \
+    assert (answer['outcome'], answer['stalled'], answer['object_detected']) == \
         ('STALLED', 'true', 'true')
-    assert float(values['width_m']) == pytest.approx(OBJECT_WIDTH_M, abs=1e-4)
 
 
 def _values(report) -> dict:
     return {kv.key: kv.value for kv in report.values} if report is not None else {}
 
 
-@pytest.mark.parametrize('outcome, contact, level, stalled, detected', [
-    (Outcome.STALLED, True, 0, 'true', 'true'), (Outcome.MOVED, False, 0, 'false', 'false'),
-    (Outcome.HOLDING, True, 0, 'false', 'true'), (Outcome.NO_OBJECT, False, 1, 'false', 'false'),
-    (Outcome.OBJECT_LOST, True, 1, 'false', 'false'), (Outcome.FAULT, True, 2, 'false', 'false'),
+ACTIVATION_N = CONFIG.force_sensor.activation_force_n
+
+
+@pytest.mark.parametrize('outcome, force_n, level, stalled, detected', [
+    (Outcome.STALLED, 9.5, 0, 'true', 'true'), (Outcome.MOVED, 0.0, 0, 'false', 'false'),
+    (Outcome.MOVED, 9.5, 0, 'false', 'true'), (Outcome.HOLDING, 9.5, 0, 'false', 'true'),
+    (Outcome.STOPPED, 9.5, 1, 'false', 'true'), (Outcome.NO_OBJECT, 0.0, 1, 'false', 'false'),
+    (Outcome.OBJECT_LOST, 9.5, 1, 'false', 'false'), (Outcome.FAULT, 9.5, 2, 'false', 'false'),
+    (Outcome.MOVED, ACTIVATION_N, 0, 'false', 'true'),
+    (Outcome.MOVED, ACTIVATION_N * 0.99, 0, 'false', 'false'),
 ])
-def test_gripper_status_says_stalled_and_object_detected(outcome, contact, level, stalled,
+def test_gripper_status_says_stalled_and_object_detected(outcome, force_n, level, stalled,
                                                          detected):
-    fields = grip_status_fields(outcome, contact, 0.1, 9.5, TRAVEL_M, 7)
+    """Say object_detected when the force sensor feels a press, whatever the request.
+
+    The press is the sensor's activation force; an outcome that says there is no object wins.
+    """
+    fields = grip_status_fields(outcome, 0.1, force_n, TRAVEL_M, 7, ACTIVATION_N)
     assert fields['level'] == level and fields['message'] == outcome.name.lower()
     assert fields['values'] == {'outcome': outcome.name, 'stalled': stalled,
                                 'object_detected': detected, 'position_m': '0.1',
-                                'width_m': '0.05', 'effort_n': '9.5', 'grasp_id': '7'}
+                                'width_m': '0.05', 'effort_n': format(force_n, '.6g'),
+                                'grasp_id': '7'}
+
+
+def test_a_move_that_stalls_on_a_held_object_says_object_detected(graph):
+    """Say object_detected for a move that stalls at once on a held object.
+
+    The grasp holds more than 10 N; a move closing at 10 N stalls on the object at once: the
+    status says stalled and object_detected, the force sensor pressed all along.
+    """
+    status = Listener(graph, {TOPIC_GRIPPER_STATUS: (DiagnosticStatus, LATCHED_QOS)})
+    held = graph.grasp(OBJECT_WIDTH_M, 1.5)
+    assert held.outcome == Outcome.HOLDING and held.final_force_n > EFFORT_N, held.message
+    answer = graph.move(OBJECT_WIDTH_M - 0.01, max_effort_n=EFFORT_N)
+    assert answer.outcome == Outcome.STALLED, answer.message
+    assert wait_until(lambda: _values(status.newest.get(TOPIC_GRIPPER_STATUS)).get(
+        'grasp_id') == str(answer.grasp_id) and status.newest[TOPIC_GRIPPER_STATUS].message ==
+        'stalled', 10.0)
+    values = _values(status.newest[TOPIC_GRIPPER_STATUS])
+    assert (values['stalled'], values['object_detected']) == ('true', 'true')
 
 
 @pytest.mark.parametrize('command', [
     _command([math.nan]), _command([math.inf]), _command([-0.01]), _command([TRAVEL_M + 0.01]),
-    _command([0.05], effort=[-1.0]), _command([0.05], effort=[CONFIG.plant.max_force_n * 2]),
+    _command([0.05], effort=[-1.0]), _command([0.05], effort=[math.nan]),
     _command([0.05], velocity=[-0.01]), _command([0.05], name=['other_joint']),
-], ids=['nan', 'inf', 'negative', 'beyond_travel', 'negative_effort', 'effort_above_limit',
+], ids=['nan', 'inf', 'negative', 'beyond_travel', 'negative_effort', 'nan_effort',
         'negative_velocity', 'other_joint'])
 def test_a_bad_joint_command_is_refused_and_moves_nothing(graph, command):
-    server = graph.move_action_server
-    refused, answers = server.joint_commands_refused, len(server.joint_command_answers)
+    supervisor = graph.supervisor
+    refused, taken = supervisor.joint_commands_refused, supervisor.joint_commands_taken
+    grasp_id = supervisor.logic.grasp_id
     t_ns = graph.sim_time_ns
     _publisher(graph).publish(command)
-    assert wait_until(lambda: server.joint_commands_refused == refused + 1, 10.0)
-    assert len(server.joint_command_answers) == answers
+    assert wait_until(lambda: supervisor.joint_commands_refused == refused + 1, 10.0)
+    assert supervisor.joint_commands_taken == taken
+    assert supervisor.logic.grasp_id == grasp_id and not supervisor.logic.pending
     assert graph.sim_time_ns == t_ns         # fast mode: no request, no time
+
+
+def test_limits_beyond_the_motor_are_the_motors_own():
+    """Take a velocity or effort entry beyond the motor as the motor's own limit.
+
+    Above the free speed or the stall force at 24 V it is the motor's
+    (parallel_gripper_action_controller's default max_velocity is 0.1 m/s).
+    """
+    stream = JointCommandStream(CONFIG.plant)
+    move = stream.take(_command([0.05], velocity=[0.1], effort=[100.0]))
+    assert move.speed_mps == CONFIG.plant.max_free_speed_mps
+    assert move.max_effort_n == CONFIG.plant.max_force_n
+    stream.accept(move)
+    assert stream.take(_command([0.05], velocity=[0.2], effort=[50.0])) is None   # the same
 
 
 def test_a_prefix_names_the_joint_of_joint_states_joint_commands_and_the_urdf():
@@ -180,13 +228,13 @@ def test_a_prefix_names_the_joint_of_joint_states_joint_commands_and_the_urdf():
         assert g.set_object(OBJECT_WIDTH_M).success
         g.wait_still()
         seen = Listener(g, {TOPIC_JOINT_STATES: (JointState, GRAPH_QOS)})
-        server = g.move_action_server
+        supervisor = g.supervisor
         pub = _publisher(g)
         pub.publish(_command([0.05]))                        # the unprefixed joint: refused
-        assert wait_until(lambda: server.joint_commands_refused == 1, 10.0)
+        assert wait_until(lambda: supervisor.joint_commands_refused == 1, 10.0)
         pub.publish(_command([TRAVEL_M - 0.01], effort=[EFFORT_N], name=['left_finger_joint']))
-        assert wait_until(lambda: server.joint_command_answers, 60.0)
-        assert server.joint_command_answers[-1].outcome == Outcome.STALLED
+        assert wait_until(lambda: supervisor.logic.outcome == Outcome.STALLED, 60.0), \
+            supervisor.logic.message
         with seen.lock:
             assert {tuple(s.name) for s in seen.every[TOPIC_JOINT_STATES]} == {
                 ('left_finger_joint',)}

@@ -336,20 +336,24 @@ def _summarise(graph, records: list[GraspRecord], args) -> None:
           f'{"F_sp N":>8s} {"peak N":>8s} {"peak/F_sp":>9s} {"max|V|":>7s} '
           + (f'{"slip mm":>8s} {"lost s":>7s} {"margin":>6s} {"max":>6s} ' if lifted else '')
           + f'{"wall s":>7s}')
-    series, rows = [], []
+    from gripper_ros.wire import Outcome
+    series, rows = [], {}
     if not args.no_record:
         from gripper_ros.bags.analyze import analyze_series
         from gripper_ros.bags.series import load_grasp_series
-        for r in records:
+        for i, r in enumerate(records):
+            if r.response.outcome == Outcome.REFUSED:     # nothing ran: a bag without a grasp
+                continue
             s = load_grasp_series(r.bag_dir)
             series.append(s)
-            rows.append(analyze_series(s, graph.plant.config.plant.voltage_limit_v))
-    from gripper_ros.wire import Outcome
+            rows[i] = analyze_series(s, graph.plant.config.plant.voltage_limit_v)
     for i, r in enumerate(records):
         resp = r.response
-        outcome = r.final_outcome or Outcome(resp.outcome).name
+        outcome = Outcome(resp.outcome).name
+        if r.final_outcome and resp.outcome != Outcome.REFUSED:   # refused: nothing ran after
+            outcome = r.final_outcome
         pos_err_mm = (resp.final_position_m - resp.position_setpoint_m) * 1e3
-        if rows:
+        if i in rows:
             m = rows[i]
             extra = (f'{m.time_to_contact_s:10.3f} {m.switch_time_s:9.3f} '
                      f'{m.switch_criterion:>18s} {pos_err_mm:11.4f} {resp.final_force_n:8.3f} '
@@ -374,7 +378,7 @@ def _summarise(graph, records: list[GraspRecord], args) -> None:
     if series and not args.no_plot:
         from gripper_ros.bags.analyze import plot
         png = Path(args.output) / 'grasp_demo.png'
-        plot(series, rows, str(png))
+        plot(series, list(rows.values()), str(png))
         print(f'figure: {png}')
 
 

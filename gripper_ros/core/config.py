@@ -318,6 +318,9 @@ class SupervisorParams:
     move_rest_speed_mps: float         # "at rest": |finger speed| at most this
     move_stall_force_fraction: float   # stalled at once: at rest, pressing with this share
     move_stall_timeout_s: float        # stalled: at rest short of the width this long
+    # joint_commands, a position servo
+    servo_lead_s: float                # the reference leads a changing stream by rate x this
+    servo_rate_window_s: float         # ... its rate over at least this; changing: within it
 
 
 @dataclass(frozen=True)
@@ -381,6 +384,7 @@ ADDED_LATER: dict[str, float | None] = {
     'supervisor.move_default_speed_mps': SHIPPED, 'supervisor.move_tolerance_m': SHIPPED,
     'supervisor.move_rest_speed_mps': SHIPPED, 'supervisor.move_stall_force_fraction': SHIPPED,
     'supervisor.move_stall_timeout_s': SHIPPED,
+    'supervisor.servo_lead_s': SHIPPED, 'supervisor.servo_rate_window_s': SHIPPED,
     'sensor_noise': 0.0,                                  # ideal sensors
     'pad_sensor': SHIPPED,
     'load_grip': SHIPPED,
@@ -507,6 +511,8 @@ BOUNDS: dict[str, tuple[float, float]] = {
     'supervisor.move_tolerance_m': (1e-6, 0.1),
     'supervisor.move_rest_speed_mps': (1e-6, 1.0),
     'supervisor.move_stall_timeout_s': (1e-3, 60.0),
+    'supervisor.servo_lead_s': (0.0, 10.0),
+    'supervisor.servo_rate_window_s': (1e-3, 1.0),
     'sensor_noise.position_noise_m': (0.0, 0.01),
     'sensor_noise.position_quantum_m': (0.0, 0.01),
     'sensor_noise.force_noise_n': (0.0, 100.0),

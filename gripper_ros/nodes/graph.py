@@ -116,7 +116,7 @@ class GripperGraph:
             Parameter('approach_force_margin', value=float(opts.approach_force_margin))],
             **kw)
         self.nodes.append(self.force)
-        self.supervisor = build_node(SupervisorNode, parameter_overrides=cfg + [
+        self.supervisor = build_node(SupervisorNode, parameter_overrides=named + [
             Parameter('status_rate_hz', value=float(opts.state_rate_hz))] + [
             Parameter(k, value=v) for k, v in opts.supervisor_parameters.items()], **kw)
         self.nodes.append(self.supervisor)

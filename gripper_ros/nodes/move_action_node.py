@@ -16,14 +16,11 @@ as ``grasp_action_server`` is for the grasp:
   reaching the goal, and on a stall only with ``allow_stalling`` (as ros2_controllers' parallel
   gripper controller). Feedback and result are the finger's JointState, stamped with the simulated
   time of the newest status; its velocity is the newest ``joint_states`` sample's.
-- ``joint_commands`` (sensor_msgs/JointState), what ros2_control's JointStateTopicSystem
-  publishes: each new target (``finger_joint`` position, optional velocity and effort as the
-  move's speed and effort limits) becomes a move; a repeat of the last target is not one, a
-  target that comes during a move is sent when it ends (the newest wins). A bad command (not
-  finite, out of range, another joint) is refused with one warning line and moves nothing.
-- ``gripper_status`` (diagnostic_msgs/DiagnosticStatus, latched): how the last request ended
-  (``supervisor/outcome`` in standard types), ``stalled`` and ``object_detected`` among its
-  values, for a ros2_control user who reads no gripper_interfaces message.
+- ``gripper_status`` (diagnostic_msgs/DiagnosticStatus, latched), for a ros2_control user who
+  reads no gripper_interfaces message: a request's ``moving`` (``grasping``, ``releasing``) with
+  its id as soon as it starts, then how it ended (``supervisor/outcome`` in standard types),
+  ``stalled`` and ``object_detected`` (the fingers press on an object) among its values. The
+  supervisor serves ``joint_commands`` itself.
 
 One goal at a time (the gripper does one request at a time): a goal while another executes is
 aborted at once (REFUSED in our result). Feedback is throttled to ``feedback_period_s`` of wall
@@ -37,8 +34,9 @@ from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 from gripper_interfaces.action import Move as MoveAction
 from gripper_interfaces.msg import SupervisorStatus
 from gripper_interfaces.srv import Move
-from gripper_ros.core.supervision.gripper_command import (goal_end, GoalEnd, grip_status_fields,
-                                                          joint_state_fields, JointCommandStream,
+from gripper_ros.core.supervision.gripper_command import (goal_end, GoalEnd,
+                                                          grip_progress_fields,
+                                                          grip_status_fields, joint_state_fields,
                                                           move_request_of, result_fields)
 from gripper_ros.core.supervision.requests import check_move_limits, RequestError
 from gripper_ros.nodes.actions import (accept_goal, cancel_by_stop, declare_feedback_period,
@@ -47,11 +45,11 @@ from gripper_ros.nodes.gripper_node import GripperNode
 from gripper_ros.nodes.loop_io import read_status, StatusView
 from gripper_ros.nodes.parameters import declare_config, declare_prefix, follow
 from gripper_ros.nodes.process import run_node
-from gripper_ros.nodes.qos import GRAPH_QOS, LATCHED_QOS, SERVICE_QOS
+from gripper_ros.nodes.qos import LATCHED_QOS, SERVICE_QOS
 from gripper_ros.text import one_line
 from gripper_ros.wire import (ACTION_GRIPPER_CMD, ACTION_MOVE, FINGER_JOINT, NODE_MOVE_ACTION,
                               Outcome, Phase, ROBOT_NAME, SERVICE_MOVE, SERVICE_STOP, stamp_ns,
-                              TOPIC_GRIPPER_STATUS, TOPIC_JOINT_COMMANDS, TOPIC_JOINT_STATES,
+                              TOPIC_GRIPPER_STATUS, TOPIC_JOINT_STATES,
                               TOPIC_OUTCOME, TOPIC_STATUS)
 from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.action import ActionServer, GoalResponse
@@ -96,7 +94,8 @@ _RESULT_FIELDS = ('success', 'outcome', 'message', 'position_m', 'width_m', 'eff
 class MoveActionServer(GripperNode):
     def __init__(self, **kwargs):
         super().__init__(NODE_MOVE_ACTION, **kwargs)
-        self.plant = declare_config(self).plant       # read-only: the supervisor's move
+        config = declare_config(self)
+        self.plant = config.plant                     # read-only: the supervisor's move
         self.travel_m = self.plant.max_travel_m       # settings are judged by the supervisor
         self.feedback_period_s = declare_feedback_period(self)
         self.allow_stalling = self.declare_parameter(
@@ -120,13 +119,8 @@ class MoveActionServer(GripperNode):
         self._joint_data: bytes | None = None    # the newest joint_states, read when needed
         self.graph_subscription(JointState, TOPIC_JOINT_STATES, self._on_joint_state)
         self.joint_name = declare_prefix(self) + FINGER_JOINT
-        self._commands = JointCommandStream(self.plant, self.joint_name)
-        self._command_call = None                # the move of a joint command being done
-        self._command_next = None                # a newer target, sent when that one ends
-        self.joint_commands_refused = 0
-        self.joint_command_answers: list[Move.Response] = []
-        self.create_subscription(JointState, TOPIC_JOINT_COMMANDS, self._on_joint_command,
-                                 GRAPH_QOS)
+        self.detect_n = config.force_sensor.activation_force_n    # the sensor feels a press
+        self._announced_id = -1                  # the request whose start gripper_status said
         self._grip_status_pub = self.create_publisher(DiagnosticStatus, TOPIC_GRIPPER_STATUS,
                                                       LATCHED_QOS)
         self.grip_statuses_published = 0
@@ -229,51 +223,15 @@ class MoveActionServer(GripperNode):
             header.stamp.sec, header.stamp.nanosec = msg.sec, msg.nanosec
         return header
 
-    # ------------------------------------------------------------------ joint_commands
-    def _on_joint_command(self, msg: JointState) -> None:
-        """Make a new target a move; refuse a bad command with one line, moving nothing."""
-        try:
-            move = self._commands.take(msg)
-        except RequestError as exc:
-            self.joint_commands_refused += 1
-            self.get_logger().warning(f'{TOPIC_JOINT_COMMANDS} refused: {one_line(exc)}',
-                                      throttle_duration_sec=1.0)
-            return
-        if move is None:
-            return
-        request = Move.Request(width_m=move.width_m, speed_mps=move.speed_mps,
-                               max_effort_n=move.max_effort_n)
-        if self._command_call is not None:
-            self._command_next = request         # the newest target wins
-            return
-        self._send_joint_command(request)
-
-    def _send_joint_command(self, request: Move.Request) -> None:
-        if not self._move.service_is_ready():
-            self.get_logger().warning(f'{TOPIC_JOINT_COMMANDS}: {SERVICE_MOVE} is not '
-                                      'available; command ignored')
-            self._commands.last = None           # the next command tries again
-            return
-        self._command_call = self._move.call_async(request)
-        self._command_call.add_done_callback(self._on_joint_command_done)
-
-    def _on_joint_command_done(self, future) -> None:
-        self._command_call = None
-        response = future.result()
-        if response is not None:
-            self.joint_command_answers.append(response)
-            if response.outcome == Outcome.REFUSED:
-                self.get_logger().warning(f'{TOPIC_JOINT_COMMANDS}: move refused: '
-                                          f'{one_line(response.message)}')
-        request, self._command_next = self._command_next, None
-        if request is not None:
-            self._send_joint_command(request)
-
+    # ------------------------------------------------------------------ gripper_status
     def _on_outcome(self, data: bytes) -> None:
         """Publish how the request ended as a DiagnosticStatus on gripper_status."""
         msg = read_status(data)
-        fields = grip_status_fields(msg.outcome, msg.contact, msg.position_m, msg.force_n,
-                                    self.travel_m, msg.grasp_id)
+        self._announced_id = msg.grasp_id
+        self._publish_grip_status(grip_status_fields(msg.outcome, msg.position_m, msg.force_n,
+                                                     self.travel_m, msg.grasp_id, self.detect_n))
+
+    def _publish_grip_status(self, fields: dict) -> None:
         self._grip_status_pub.publish(DiagnosticStatus(
             level=bytes([fields['level']]), name=self.joint_name, hardware_id=ROBOT_NAME,
             message=fields['message'],
@@ -292,10 +250,15 @@ class MoveActionServer(GripperNode):
 
     def _on_status(self, data: bytes) -> None:
         self._status_data = data
+        msg = read_status(data)
+        if msg.running and msg.grasp_id > self._announced_id:     # a request has started
+            self._announced_id = msg.grasp_id
+            self._publish_grip_status(grip_progress_fields(
+                msg.phase, msg.position_m, msg.force_n, self.travel_m, msg.grasp_id,
+                self.detect_n))
         running, feedback = self.running, self._feedback
         if running.handle is None:
             return
-        msg = read_status(data)
         if running.feedback_due(msg, (Phase.MOVING,), self.feedback_period_s):
             running.handle.publish_feedback(feedback(msg))
 

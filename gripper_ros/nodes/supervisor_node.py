@@ -12,6 +12,14 @@ and a message, and nothing moves. ``release`` (std_srvs/Trigger) opens the finge
 position control and answers when they are open. ``move`` (srv/Move) drives the finger to a
 width at most at a speed and an effort and answers MOVED (reached_goal) or STALLED.
 
+``joint_commands`` (sensor_msgs/JointState, what ros2_control's JointStateTopicSystem publishes)
+is a position servo: the newest setpoint is in force at once. While its move runs, a new one
+changes the move's goal and limits in place (the position stage follows without restarting); a
+running grasp, release or move of a service ends STOPPED (preempted) and the setpoint's move
+starts at the next tick. A repeat of the setpoint in force is no new request; a bad one is
+refused with one warning line and changes nothing. A service request preempts a running
+setpoint's move in turn; between service requests, one at a time (the next is refused).
+
 ``supervisor/status`` carries the state for other programs: at ``status_rate_hz`` of simulated
 time, on every change, and once a second of wall time as a heartbeat. Each answer and each
 later loss is also latched on ``supervisor/outcome``. A request that makes no progress for
@@ -29,25 +37,30 @@ from gripper_interfaces.msg import PlantTick, SimStatus, StageReference, Supervi
 from gripper_interfaces.srv import Grasp, Move
 from gripper_ros.core.runtime.lockstep import (ACTIVE_SHIFT, ANSWERED, FOREIGN, NAMED, PROGRESS,
                                                STATUS_DUE, SupervisorSide, Tick)
+from gripper_ros.core.supervision.gripper_command import JointCommandStream
 from gripper_ros.core.supervision.requests import (GraspRequest, MoveRequest, RequestError,
                                                    validate_move, validate_request)
 from gripper_ros.core.supervision.supervisor import GraspSupervisor, load_law, RequestKind
 from gripper_ros.nodes.gripper_node import GripperNode
 from gripper_ros.nodes.loop_io import in_layout, split_ns, status_message, status_template
 from gripper_ros.nodes.names import GraspIds
-from gripper_ros.nodes.parameters import ConfigParameters, follow
+from gripper_ros.nodes.parameters import ConfigParameters, declare_prefix, follow
 from gripper_ros.nodes.process import run_node
-from gripper_ros.nodes.qos import LATCHED_QOS, SERVICE_QOS
+from gripper_ros.nodes.qos import GRAPH_QOS, LATCHED_QOS, SERVICE_QOS
 from gripper_ros.nodes.services import DeferredService
 from gripper_ros.nodes.watchdog import ExecutorSilence
-from gripper_ros.wire import (CDR_LITTLE_ENDIAN, GRAPH_NOT_READY, NODE_PLANT, NODE_SUPERVISOR,
+from gripper_ros.text import one_line
+from gripper_ros.wire import (CDR_LITTLE_ENDIAN, FINGER_JOINT, GRAPH_NOT_READY, NODE_PLANT,
+                              NODE_SUPERVISOR,
                               Outcome, REPUBLISH_AFTER_S, SERVICE_GRASP, SERVICE_MOVE,
                               SERVICE_RELEASE, SERVICE_STOP, STAGE_NODES, STAGE_REFERENCE_TOPICS,
-                              TICK_LAYOUT, TOPIC_MOTOR_COMMAND, TOPIC_OUTCOME,
+                              TICK_LAYOUT, TOPIC_JOINT_COMMANDS, TOPIC_MOTOR_COMMAND,
+                              TOPIC_OUTCOME,
                               TOPIC_POSITION_REFERENCE, TOPIC_SIM_STATUS, TOPIC_STATUS,
                               TOPIC_TICK)
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
 from rclpy.clock import Clock, ClockType
+from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
 
 HEARTBEAT_PERIOD_S = 1.0
@@ -105,6 +118,12 @@ class SupervisorNode(GripperNode):
         self.release_service = DeferredService(self, Trigger, SERVICE_RELEASE, self._on_release)
         self.move_service = DeferredService(self, Move, SERVICE_MOVE, self._on_move)
         self.create_service(Trigger, SERVICE_STOP, self._on_stop, qos_profile=SERVICE_QOS)
+        self.joint_name = declare_prefix(self) + FINGER_JOINT
+        self._commands = JointCommandStream(self.config.plant, self.joint_name)
+        self.joint_commands_taken = 0           # setpoints put in force
+        self.joint_commands_refused = 0
+        self.create_subscription(JointState, TOPIC_JOINT_COMMANDS, self._on_joint_command,
+                                 GRAPH_QOS)
         steady = Clock(clock_type=ClockType.STEADY_TIME)
         self._silence = ExecutorSilence()       # executor-running wall time without progress
         self.create_timer(WATCHDOG_PERIOD_S, self._watchdog, clock=steady)
@@ -184,9 +203,14 @@ class SupervisorNode(GripperNode):
         self._publish_status(self._tick.stamp_ns if self._tick else 0)
 
     # ------------------------------------------------------------------ requests
-    def _refusal(self, kind: str) -> str:
-        """Why a request of ``kind`` cannot start now ('' when it can)."""
-        if self.logic.running or self.logic.pending:
+    def _refusal(self, kind: str, preempts: bool = False) -> str:
+        """Why a request of ``kind`` cannot start now ('' when it can).
+
+        ``preempts``: it ends what runs (a setpoint); a service request ends only a setpoint's
+        move, and waits for nothing else.
+        """
+        busy = self.logic.running or self.logic.pending
+        if busy and not (preempts or self.logic.servo):
             what = self.logic.kind if self.logic.running else 'request'
             return (f'refused: a {what} is running (grasp {self.logic.grasp_id}, phase '
                     f'{self.logic.phase.name}); call {self.resolve_service_name(SERVICE_STOP)} '
@@ -235,6 +259,10 @@ class SupervisorNode(GripperNode):
             except RequestError as exc:
                 message = f'refused: {exc}'
             else:
+                ended = self.logic.take_preempted()
+                if ended is not None:              # a setpoint's move, answered first
+                    self._publish_status(self._tick.stamp_ns)
+                    self._complete(ended)
                 self._ids.save(self.logic.grasp_id + 1)
                 return targets
         response.success = False
@@ -302,6 +330,38 @@ class SupervisorNode(GripperNode):
             f'{targets.position_setpoint_m:.4f} m at most at {targets.speed_mps:g} m/s, '
             f'{targets.max_effort_n:.3f} N')
         self._await_answer(header, response)
+
+    def _on_joint_command(self, msg: JointState) -> None:
+        """Put a new setpoint in force; refuse a bad one with one line, changing nothing."""
+        try:
+            move = self._commands.take(msg)
+            if move is None:
+                return                          # the setpoint in force, again
+            targets = validate_move(move, self.config.plant, self.config.supervisor)
+            refusal = self._refusal(RequestKind.MOVE, preempts=True)
+            if refusal:
+                raise RequestError(refusal.removeprefix('refused: '))
+        except RequestError as exc:
+            self.joint_commands_refused += 1
+            self.get_logger().warning(f'{TOPIC_JOINT_COMMANDS} refused: {one_line(exc)}',
+                                      throttle_duration_sec=1.0)
+            return
+        ended = self.logic.request_servo(
+            targets, after_ns=self._tick.stamp_ns,
+            message=f'preempted by a setpoint on {self.resolve_topic_name(TOPIC_JOINT_COMMANDS)}')
+        self._commands.accept(move)
+        self.joint_commands_taken += 1
+        if ended is not None:
+            self._publish_status(self._tick.stamp_ns)
+            self._complete(ended)
+        if self.logic.pending:                  # a new move (not the running one retargeted)
+            self._ids.save(self.logic.grasp_id + 1)
+            self.get_logger().info(
+                f'move {self.logic.grasp_id + 1}: {TOPIC_JOINT_COMMANDS} width '
+                f'{move.width_m:g} m -> position {targets.position_setpoint_m:.4f} m at most '
+                f'at {targets.speed_mps:g} m/s, {targets.max_effort_n:.3f} N')
+            self._silence.reset()
+            self._publish_status(self._tick.stamp_ns)   # wakes a paused simulation
 
     def _fill_move_state(self, response: Move.Response) -> None:
         """Fill in a move's answer the finger's state: the last finite readings."""

@@ -9,11 +9,12 @@ attributes, so the mapping is tested without control_msgs; the action node fills
 """
 from __future__ import annotations
 
+import dataclasses
 import enum
 import math
 
 from gripper_ros.core.supervision.requests import check_move_limits, MoveRequest, RequestError
-from gripper_ros.wire import FINGER_JOINT, Outcome
+from gripper_ros.wire import FINGER_JOINT, Outcome, Phase
 
 
 class GoalEnd(enum.Enum):
@@ -92,12 +93,14 @@ def goal_end(move_result, allow_stalling: bool, cancel_requested: bool) -> GoalE
 
 
 class JointCommandStream:
-    """Which commands of a ``joint_commands`` stream become moves.
+    """Which commands of a ``joint_commands`` stream are new setpoints.
 
     ros2_control's topic-based hardware publishes the command on every controller update while
-    the joint is away from it; only a new target (position, speed or effort) is a new move, a
-    repeat of the last one (the same numbers) is not. A command beyond the plant raises
-    RequestError and leaves the last target; the supervisor judges the rest of the move.
+    the joint is away from it; only a new setpoint (position, speed or effort) is a new request,
+    a repeat of the one in force (the same numbers) is not. A command that is not finite, out of
+    the travel, with a negative limit or for another joint raises RequestError; a setpoint
+    becomes the one in force only once accepted (:meth:`accept`), so that a refused one changes
+    nothing.
     """
 
     def __init__(self, plant, joint: str = FINGER_JOINT):
@@ -105,38 +108,72 @@ class JointCommandStream:
         self.last: MoveRequest | None = None
 
     def take(self, command) -> MoveRequest | None:
-        """Return the move of ``command`` (a JointState) if it is a new target, else None."""
+        """Return the move of ``command`` (a JointState) if it is a new setpoint, else None.
+
+        Its velocity and effort are limits: one beyond the motor (faster than the free speed,
+        more than the stall force at the voltage limit) is the motor's own.
+        """
         move = move_request_of(command, self.plant.max_travel_m, self.joint)
+        if math.isfinite(move.speed_mps) and math.isfinite(move.max_effort_n):
+            move = dataclasses.replace(
+                move, speed_mps=min(move.speed_mps, self.plant.max_free_speed_mps),
+                max_effort_n=min(move.max_effort_n, self.plant.max_force_n))
         check_move_limits(move, self.plant)
-        if move == self.last:
-            return None
+        return None if move == self.last else move
+
+    def accept(self, move: MoveRequest) -> None:
+        """Make ``move`` the setpoint in force: its repeats are no new request."""
         self.last = move
-        return move
 
 
 _OK_OUTCOMES = frozenset({Outcome.MOVED, Outcome.STALLED, Outcome.HOLDING, Outcome.RELEASED})
-_HELD_OUTCOMES = frozenset({Outcome.MOVED, Outcome.STALLED, Outcome.HOLDING})
+_NO_OBJECT_OUTCOMES = frozenset({Outcome.NO_OBJECT, Outcome.OBJECT_LOST, Outcome.FAULT})
 LEVEL_OK, LEVEL_WARN, LEVEL_ERROR = 0, 1, 2
 """diagnostic_msgs/DiagnosticStatus levels."""
+PROGRESS_WORDS = {Phase.MOVING: 'moving', Phase.RELEASING: 'releasing',
+                  Phase.POSITION: 'grasping', Phase.FORCE: 'grasping', Phase.HOLDING: 'grasping'}
+"""What ``gripper_status`` says while a request runs, by its phase."""
 
 
-def grip_status_fields(outcome: int, contact: bool, position_m: float, force_n: float,
-                       travel_m: float, grasp_id: int) -> dict:
+def _status_values(outcome_word: str, force_n: float, detect_n: float, position_m: float,
+                   travel_m: float, grasp_id: int, stalled: bool = False,
+                   verdict_no_object: bool = False) -> dict:
+    values = {'outcome': outcome_word, 'stalled': stalled,
+              'object_detected': not verdict_no_object and force_n >= detect_n,
+              'position_m': position_m, 'width_m': travel_m - position_m, 'effort_n': force_n,
+              'grasp_id': grasp_id}
+    return {k: (str(v).lower() if isinstance(v, bool) else
+                format(v, '.6g') if isinstance(v, float) else str(v)) for k, v in values.items()}
+
+
+def grip_status_fields(outcome: int, position_m: float, force_n: float, travel_m: float,
+                       grasp_id: int, detect_n: float) -> dict:
     """Return the DiagnosticStatus fields of how a request ended, for ``gripper_status``.
 
     ``stalled``: the finger stopped short of its goal on the effort limit (a move STALLED, as
-    GripperCommand's result). ``object_detected``: the force sensor saw contact during the
-    request and it ended with the object between the fingers (MOVED, STALLED or HOLDING).
-    Level OK for an outcome that did what was asked, ERROR for FAULT, WARN otherwise.
+    GripperCommand's result). ``object_detected``: the fingers press on an object, whatever
+    the request: the force sensor reads at least ``detect_n`` (its activation force), unless
+    the outcome itself says there is none (NO_OBJECT, OBJECT_LOST, FAULT). Level OK for an
+    outcome that did what was asked, ERROR for FAULT, WARN otherwise.
     """
     outcome = Outcome(outcome)
     level = LEVEL_OK if outcome in _OK_OUTCOMES else \
         LEVEL_ERROR if outcome is Outcome.FAULT else LEVEL_WARN
-    values = {'outcome': outcome.name,
-              'stalled': outcome is Outcome.STALLED,
-              'object_detected': bool(contact) and outcome in _HELD_OUTCOMES,
-              'position_m': position_m, 'width_m': travel_m - position_m, 'effort_n': force_n,
-              'grasp_id': grasp_id}
-    text = {k: (str(v).lower() if isinstance(v, bool) else
-                format(v, '.6g') if isinstance(v, float) else str(v)) for k, v in values.items()}
-    return {'level': level, 'message': outcome.name.lower(), 'values': text}
+    return {'level': level, 'message': outcome.name.lower(),
+            'values': _status_values(outcome.name, force_n, detect_n, position_m, travel_m,
+                                     grasp_id, outcome is Outcome.STALLED,
+                                     outcome in _NO_OBJECT_OUTCOMES)}
+
+
+def grip_progress_fields(phase: int, position_m: float, force_n: float, travel_m: float,
+                         grasp_id: int, detect_n: float) -> dict:
+    """Return the DiagnosticStatus fields of a request that has started and runs.
+
+    Published at once, so that a client waits for its own request's id, then its outcome.
+    The word (``moving``, ``grasping``, ``releasing``) is the message and, upper case, the
+    ``outcome`` value; level OK.
+    """
+    word = PROGRESS_WORDS.get(Phase(phase), 'running')
+    return {'level': LEVEL_OK, 'message': word,
+            'values': _status_values(word.upper(), force_n, detect_n, position_m, travel_m,
+                                     grasp_id)}

@@ -31,6 +31,13 @@ contact), or has been at rest short of it for ``move_stall_timeout_s``. Either w
 stage then keeps the move's last command (the goal, the limits): a stalled move goes on pressing
 with at most its effort, as a position-controlled gripper keeps its command.
 
+Setpoint (:meth:`GraspSupervisor.request_servo`, ``joint_commands``): a position servo. The
+newest setpoint is a move in force at once: while the previous setpoint's move runs, its goal
+and limits change in place (same request, the position stage not restarted); otherwise what
+runs ends STOPPED and the setpoint's move starts at the next tick. A stream that keeps changing
+is led by its rate x ``servo_lead_s``. A grasp, release or move request ends a running
+setpoint's move (STOPPED) and runs; requests among themselves go one at a time.
+
 The state machine is compiled (numba): :func:`supervisor_step` and :func:`supervisor_decide`
 run on the state record :data:`SUPERVISOR_STATE`, called tick by tick by the supervisor node
 and by the compiled headless loop alike. :class:`GraspSupervisor` is the Python face of that
@@ -94,7 +101,10 @@ SUPERVISOR_STATE = np.dtype(
      ('msg_code', 'i4'), ('msg_seq', 'i8'),  # the current message: a code, numbers in msg_*
      ('status_key', 'i8'),                 # phase, active, outcome and stage in one number
      ('overload_ns', 'i8'),                # when the load-tracking grip said overload
-     ('tg_kind', 'i4')]                    # the current request's targets (0: none yet)
+     ('tg_kind', 'i4'),                    # the current request's targets (0: none yet)
+     ('servo_rate_mps', 'f8'),             # a setpoint stream's rate (0: none)
+     ('servo_change_ns', 'i8'),            # ... when its setpoint last changed
+     ('travel_m', 'f8')]                   # the finger's travel: where a reference may lie
     + [('tg_' + name, 'f8') for name in _TARGET_FIELDS]
     + [('pend_kind', 'i4'), ('pend_mass_kg', 'f8'), ('pend_after_ns', 'i8')]   # 0: none
     + [('pend_' + name, 'f8') for name in _TARGET_FIELDS]
@@ -110,7 +120,8 @@ _PARAM_FIELDS = ('position_tolerance_fraction', 'position_switch_speed_mps',
                  'force_settle_hold_s', 'force_settle_horizon_s', 'force_settle_speed_mps',
                  'timeout_s', 'no_object_margin_m', 'hold_watch_s', 'lost_force_fraction',
                  'lost_force_hold_s', 'release_tolerance_m', 'release_settle_s',
-                 'move_rest_speed_mps', 'move_stall_force_fraction', 'move_stall_timeout_s')
+                 'move_rest_speed_mps', 'move_stall_force_fraction', 'move_stall_timeout_s',
+                 'servo_lead_s', 'servo_rate_window_s')
 SUPERVISOR_PARAMS = np.dtype([(name, 'f8') for name in _PARAM_FIELDS], align=True)
 """The :class:`SupervisorParams` the tick reads."""
 
@@ -442,7 +453,9 @@ def _step_move(s, p, m, t_ns, position_m, force_n, sensor_voltage_v,
     if not at_rest:
         s.rest_since_ns = NO_NS
     elif abs(error_m) <= s.tg_tolerance_m:
-        return _end(s, Phase.DONE, Outcome.MOVED, MSG_MOVED, True, goal, True)
+        if s.servo_change_ns == NO_NS or \
+                t_ns - s.servo_change_ns > p.servo_rate_window_s * 1e9:   # no stream moves it
+            return _end(s, Phase.DONE, Outcome.MOVED, MSG_MOVED, True, goal, True)
     else:
         if s.rest_since_ns == NO_NS:
             s.rest_since_ns = t_ns
@@ -651,6 +664,16 @@ def supervisor_step(k, t_ns, position_m, force_n, sensor_voltage_v, speed_mps,
         if overloaded != NO_ANSWER:
             answer = overloaded
     _fill(s, answer)
+    _lead(s, p)
+
+
+@_kernel
+def _lead(s, p) -> None:
+    """Lead the reference of a setpoint stream that keeps changing by its rate x the lead."""
+    if s.d_running and s.phase == Phase.MOVING and s.servo_rate_mps != 0.0 and \
+            s.t_ns - s.servo_change_ns <= p.servo_rate_window_s * 1e9:
+        ahead = s.d_approach_setpoint_m + s.servo_rate_mps * p.servo_lead_s
+        s.d_approach_setpoint_m = min(max(ahead, 0.0), s.travel_m)
 
 
 @_kernel
@@ -792,7 +815,8 @@ class GraspSupervisor:
     (phase HOLDING, outcome HOLDING, force stage active) until a release, a stop, the next
     grasp or the loss of the object; a move runs MOVING and then keeps its last command. A
     request is accepted at once and starts at the next tick (:meth:`request_grasp`,
-    :meth:`request_release`, :meth:`request_move`). ``running`` says whether the
+    :meth:`request_release`, :meth:`request_move`); a setpoint (:meth:`request_servo`) is in
+    force at once. ``running`` says whether the
     request still needs simulated time; ``stage_id`` grows whenever a controller is
     (re)assigned, so that it restarts from the measured state.
 
@@ -818,6 +842,7 @@ class GraspSupervisor:
         for name in ('hold_position_m', 'position_m'):
             self._s[name] = math.nan
         self._s['revision'] = NO_NS
+        self._s['travel_m'] = plant.max_travel_m
         self._s['d_answer'] = NO_ANSWER
         self._s['t_ns'] = 0
         self._params = np.zeros(1, SUPERVISOR_PARAMS)
@@ -834,6 +859,9 @@ class GraspSupervisor:
         self.params = params
         self._targets: GraspTargets | MoveTargets | None = None
         self._pending_targets: GraspTargets | MoveTargets | None = None
+        self._servo_id = NO_NS                   # the id of the last setpoint's move
+        self._servo_anchor = (NO_NS, 0.0)        # (t_ns, setpoint) its rate is measured from
+        self._preempted: Decision | None = None  # the end of one, by the last request
         self._text = ''                          # a message given by stop() or fault()
         self._message = (-1, '')                 # (msg_seq, text) formatted last
         self._decision = Decision(self)
@@ -931,12 +959,17 @@ class GraspSupervisor:
         return self._message[1]
 
     # ------------------------------------------------------------------ requests
-    def _refuse_if_busy(self) -> None:
-        if self.pending:
+    def _refuse_if_busy(self, kind: str) -> None:
+        """Refuse a request while another runs or waits; a setpoint's move ends (preempted)."""
+        if self.servo and (self.pending or self.running):
+            self._preempted = self.stop(f'preempted by a {kind} request')
+        elif self.pending:
             raise RequestError(f'a {KIND_NAMES[int(self._s["pend_kind"])]} request is already '
                                'waiting to start')
-        if self.running:
+        elif self.running:
             raise RequestError(f'a {self.kind} is running (phase {self.phase.name})')
+        self._s['servo_change_ns'] = NO_NS      # no setpoint stream moves this request's goal
+        self._s['servo_rate_mps'] = 0.0
 
     def _wait(self, kind: str, targets, mass_kg: float, after_ns: int | None):
         """Write a request that starts at the first tick after ``after_ns`` (None: the next)."""
@@ -949,6 +982,11 @@ class GraspSupervisor:
         s['pend_kind'] = KIND_CODES[kind]
         self._pending_targets = targets
         return targets
+
+    def take_preempted(self) -> Decision | None:
+        """Return the decision that ended a setpoint's move for the last request, once."""
+        ended, self._preempted = self._preempted, None
+        return ended
 
     def continue_ids_after(self, last_id: int) -> None:
         """Make the next request ``last_id + 1`` (ids go on across restarts); before any."""
@@ -966,10 +1004,10 @@ class GraspSupervisor:
         whether or not that tick had been decided yet (deterministic under any timing). A grasp
         may follow a hold; the hold ends when it starts.
         """
-        self._refuse_if_busy()
         if getattr(targets, 'load_tracking', False) and not self.tracks_load:
             raise RequestError('mass_kg 0 (load-tracking grip) needs the load_grip settings, '
                                'which this supervisor was not given')
+        self._refuse_if_busy(RequestKind.GRASP)
         return self._wait(RequestKind.GRASP, targets, float(mass_kg), after_ns)
 
     def request_release(self, open_position_m: float = 0.0, timeout_s: float | None = None,
@@ -978,11 +1016,11 @@ class GraspSupervisor:
 
         It starts at the first tick later than ``after_ns`` (see :meth:`request_grasp`).
         """
-        self._refuse_if_busy()
         if not (math.isfinite(open_position_m)
                 and 0.0 <= open_position_m < self.plant.max_travel_m):
             raise RequestError(f'open position must be in [0, {self.plant.max_travel_m:g}) m, '
                                f'got {open_position_m!r}')
+        self._refuse_if_busy(RequestKind.RELEASE)
         timeout = self.params.timeout_s if timeout_s is None else timeout_s
         targets = GraspTargets(open_position_m, 0.0, 0.0, timeout)
         return self._wait(RequestKind.RELEASE, targets, 0.0, after_ns)
@@ -993,8 +1031,69 @@ class GraspSupervisor:
         It starts at the first tick later than ``after_ns`` (see :meth:`request_grasp`). A move
         may follow a hold; the hold ends when it starts.
         """
-        self._refuse_if_busy()
+        self._refuse_if_busy(RequestKind.MOVE)
         return self._wait(RequestKind.MOVE, targets, 0.0, after_ns)
+
+    @property
+    def servo(self) -> bool:
+        """Tell whether the current or waiting request is a position setpoint's move."""
+        return self._servo_id == self.grasp_id + (1 if self.pending else 0)
+
+    def request_servo(self, targets: MoveTargets, after_ns: int | None = None,
+                      message: str = 'preempted by a new setpoint') -> Decision | None:
+        """Put a position setpoint in force (a move, :func:`validate_move`) at once.
+
+        The setpoint is the one command in force, as a position command interface is to the
+        hardware: while the previous setpoint's move runs, its goal and limits change in place
+        (the position stage follows the new reference without restarting, the request keeps
+        its id); otherwise a running or waiting request ends STOPPED with ``message`` and the
+        setpoint's move starts at the first tick after ``after_ns`` (a hold or a stalled press
+        ends as it starts, as before any move).
+        Returns the decision that ended a preempted request (to be answered), else None.
+        """
+        s = self._s
+        if self.servo and self.pending:          # not started yet: it starts with these
+            self._wait(RequestKind.MOVE, targets, 0.0, after_ns)
+            return None
+        if self.servo and self.running and self.phase is Phase.MOVING:
+            self._measure_rate(targets)
+            for name in _TARGET_FIELDS:
+                s['tg_' + name] = getattr(targets, name, 0.0)
+            position_m = float(s['position_m'])
+            if targets.timeout_s == 0.0 and math.isfinite(position_m):
+                s['move_timeout_s'] = (int(s['t_ns']) - int(s['start_ns'])) * 1e-9 + \
+                    self.params.timeout_s + abs(targets.position_setpoint_m - position_m) / \
+                    targets.speed_mps
+            elif targets.timeout_s != 0.0:
+                s['move_timeout_s'] = (int(s['t_ns']) - int(s['start_ns'])) * 1e-9 + \
+                    targets.timeout_s
+            s['rest_since_ns'] = NO_NS
+            self._targets = targets
+            return None
+        ended = None
+        if self.pending or self.running:        # a hold or a press ends as the move starts
+            ended = self.stop(message)
+        self._wait(RequestKind.MOVE, targets, 0.0, after_ns)
+        self._servo_id = self.grasp_id + 1
+        self._servo_anchor = (int(s['t_ns']), targets.position_setpoint_m)
+        s['servo_rate_mps'] = 0.0
+        s['servo_change_ns'] = int(s['t_ns'])   # a stream's first setpoint: not done at once
+        return ended
+
+    def _measure_rate(self, targets: MoveTargets) -> None:
+        """Measure the stream's rate over at least ``servo_rate_window_s``, at most the speed.
+
+        The supervisor's time is the newest tick's: setpoints 10 ms apart may share one.
+        """
+        s = self._s
+        t_ns = int(s['t_ns'])
+        anchor_ns, anchor_m = self._servo_anchor
+        window_ns = self.params.servo_rate_window_s * 1e9
+        if t_ns - anchor_ns >= window_ns:
+            rate = (targets.position_setpoint_m - anchor_m) / ((t_ns - anchor_ns) * 1e-9)
+            s['servo_rate_mps'] = max(-targets.speed_mps, min(rate, targets.speed_mps))
+            self._servo_anchor = (t_ns, targets.position_setpoint_m)
+        s['servo_change_ns'] = t_ns
 
     def stop(self, message: str = 'stopped on request') -> Decision | None:
         """End the running request, the hold, a stalled move's press or a waiting request now.
