@@ -25,7 +25,7 @@ SETTINGS = (('config_file', '', 'config YAML (default: the installed one)'),
             ('real_time_factor', 1.0, 'realtime: simulated seconds per wall second'),
             ('publish_clock', True, 'publish /clock'),
             ('prefix', '', "the xacro's prefix: the joint's and the URDF's names; "
-             "default: from the namespace (wire.namespace_prefix)"))
+             'default: from the namespace (wire.namespace_prefix)'))
 """The launch arguments this process takes as parameters: name, default, description."""
 POLL_S = 0.1
 """How often the main thread looks for a stop signal or a graph that stopped spinning."""
