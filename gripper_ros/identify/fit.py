@@ -36,10 +36,9 @@ import math
 
 from gripper_ros.core.config import GripperConfig, parse_config, PlantParams
 from gripper_ros.core.physics.force_sensor import FsrVoltageDivider
-from gripper_ros.core.physics.plant import (GraspObject, GripperPlant, plant_place,
-                                            plant_read_tick, plant_step)
+from gripper_ros.core.physics.plant import GraspObject, GripperPlant, plant_place
+from gripper_ros.identify.replay import run_plant
 from gripper_ros.wire import TICK_LAYOUT
-import numba
 import numpy as np
 from scipy.optimize import least_squares
 
@@ -52,6 +51,7 @@ REWEIGHTINGS = 1                # fits again with each channel weighed by its re
 RESIDUAL_FLOOR = 1e-9           # a channel's residual RMS as a share of its spread, at least
 SEGMENT_FORCE_SHARE = 0.05      # a segment starts where the force rises past this x its peak
 MIN_SEGMENT_TICKS = 5           # a shorter segment joins the one before
+RIGID_STIFFNESS_N_PER_M = 1e7   # an object recorded rigid that yields more than F / this is not
 CHANNELS = ('position_m', 'speed_rad_s', 'current_a', 'force_n')
 """The measured signals fitted, as the loop's PlantTick names them."""
 
@@ -108,6 +108,7 @@ class Run:
     object_width_m: float = 0.0
     stiffness_n_per_m: float = 0.0
     damping_n_s_per_m: float = 0.0
+    left_out: np.ndarray | None = field(default=None, repr=False)   # ticks not fitted
 
     @property
     def fit_end(self) -> int:
@@ -162,18 +163,48 @@ def combinations(p: PlantParams) -> dict[str, float]:
 
 
 # ------------------------------------------------------------------ simulation
-@numba.njit(cache=True)
-def _run_plant(k, t_ns, voltage_v, out, tick):
-    """Drive the plant ``k`` with the recorded voltages; fill out[n] = (x, w, i, F)."""
-    for n in range(t_ns.shape[0]):
-        if n > 0:
-            plant_step(k, voltage_v[n], t_ns[n] - t_ns[n - 1])
-        plant_read_tick(k, tick, 0, 0)
-        t = tick[0]
-        out[n, 0] = t.position_m
-        out[n, 1] = t.speed_rad_s
-        out[n, 2] = t.current_a
-        out[n, 3] = t.force_n
+def touching(run: Run) -> np.ndarray:
+    """Tell, per tick, whether the measured force says the finger touches the object."""
+    force = run.measured.get('force_n')
+    if force is None or not np.isfinite(force).any():
+        return np.zeros(len(run.t_ns), bool)
+    peak = float(np.nanmax(np.abs(force)))
+    return np.nan_to_num(force, nan=0.0) > SEGMENT_FORCE_SHARE * peak if peak > 0.0 else \
+        np.zeros(len(run.t_ns), bool)
+
+
+def yield_while_touching_m(run: Run, plant: PlantParams) -> float:
+    """Return how far the measured speed carried the finger while it touched the object."""
+    on = touching(run)
+    both = np.flatnonzero(on[1:] & on[:-1]) + 1
+    w = run.measured['speed_rad_s']
+    dt_s = np.diff(run.t_ns)[both - 1] * 1e-9
+    return plant.travel_per_rad_m * float(np.nansum(0.5 * np.abs(w[both] + w[both - 1]) * dt_s))
+
+
+def leave_out_compliant_contact(run: Run, plant: PlantParams) -> tuple[Run, str]:
+    """Return the run with the contact of an object recorded rigid that yielded left out.
+
+    A rigid object stops the finger; one that lets it travel more than ``F /``
+    :data:`RIGID_STIFFNESS_N_PER_M` while it is touched is compliant, of a stiffness the bag does
+    not give, and no model of its contact is right: those ticks are left out (the model starts
+    again from the measurement after each), and the second value says so (else '').
+    """
+    if run.stiffness_n_per_m != 0.0 or run.object_width_m <= 0.0:
+        return run, ''
+    travel_m = yield_while_touching_m(run, plant)
+    peak_n = float(np.nanmax(np.abs(run.measured['force_n']))) if np.isfinite(
+        run.measured.get('force_n', np.array([math.nan]))).any() else 0.0
+    if not travel_m > peak_n / RIGID_STIFFNESS_N_PER_M:
+        return run, ''
+    on = touching(run)
+    measured = {c: np.where(on, math.nan, v) for c, v in run.measured.items()}
+    return replace(run, measured=measured, object_width_m=0.0, left_out=on), (
+        f'{run.name}: the finger moved {travel_m * 1e3:.3g} mm while it touched an object the '
+        f'bag records as rigid (a rigid one lets it move at most {peak_n:.3g} N / '
+        f'{RIGID_STIFFNESS_N_PER_M:g} N/m = {peak_n / RIGID_STIFFNESS_N_PER_M * 1e3:.2g} mm): '
+        f'the contact was compliant, of a stiffness the bag does not give, so its '
+        f'{int(on.sum())} ticks in contact are left out of the fit')
 
 
 def run_segments(run: Run, plant: PlantParams) -> list[tuple[int, int, bool]]:
@@ -186,20 +217,17 @@ def run_segments(run: Run, plant: PlantParams) -> list[tuple[int, int, bool]]:
     than ``MIN_SEGMENT_TICKS`` joins the one before.
     """
     n = len(run.t_ns)
-    force = run.measured.get('force_n')
-    touching = np.zeros(n, bool)
-    if force is not None and np.isfinite(force).any():
-        peak = float(np.nanmax(np.abs(force)))
-        if peak > 0.0:
-            touching = np.nan_to_num(force, nan=0.0) > SEGMENT_FORCE_SHARE * peak
-    cuts = set(np.flatnonzero(touching[1:] & ~touching[:-1]) + 1)
+    on = touching(run)
+    cuts = set(np.flatnonzero(on[1:] & ~on[:-1]) + 1)
+    if run.left_out is not None:        # the model starts again after a part left out
+        cuts |= set(np.flatnonzero(run.left_out[:-1] & ~run.left_out[1:]) + 1)
     starts = [0]
     for c in sorted(int(c) for c in cuts if c > 0):
         if c - starts[-1] >= MIN_SEGMENT_TICKS and n - c >= MIN_SEGMENT_TICKS:
             starts.append(c)
     rigid = run.stiffness_n_per_m == 0.0 and run.object_width_m > 0.0
     x_c = plant.max_travel_m - run.object_width_m
-    return [(a, b, bool(rigid and touching[a] and run.measured['position_m'][a] > x_c - 1e-3))
+    return [(a, b, bool(rigid and on[a] and run.measured['position_m'][a] > x_c - 1e-3))
             for a, b in zip(starts, starts[1:] + [n])]
 
 
@@ -212,18 +240,21 @@ def simulate(run: Run, plant_params: PlantParams, config: GripperConfig,
              x0s=None) -> np.ndarray:
     """Simulate the package's plant (ideal sensors) under the run's voltages, segment by segment.
 
-    Each segment (:func:`run_segments`) starts from its first tick's measured speed and current
-    and, unless placed at the face, the position in ``x0s`` (one per such segment in order;
-    default: the recorded one, within the travel). Columns in :data:`CHANNELS` order.
+    Each segment (:func:`run_segments`) starts from its first tick's measured speed and current,
+    at the face, before it as far as the speed carried the finger, or at the first position
+    ``x0s[0]`` (the run's first segment; default and later ones: the recorded position, within
+    the travel). Columns in :data:`CHANNELS` order.
     """
     plant = GripperPlant(plant_params, FsrVoltageDivider(config.force_sensor), config.contact)
     m = run.measured
     x_c = plant_params.max_travel_m - run.object_width_m
     out = np.zeros((len(run.t_ns), len(CHANNELS)))
     tick = np.zeros(1, TICK_LAYOUT.dtype)
-    placed = 0
     parts = run_segments(run, config.plant)
     for (a, b, at_face), approach in zip(parts, _approaches(parts)):
+        if run.left_out is not None and run.left_out[a]:
+            out[a:b] = math.nan                             # left out: nothing to compare
+            continue
         # a segment that ends on the face, the model meets it where the next one starts: in
         # between it moves free (no open-loop drift decides when a slow approach touches)
         plant_place(plant.kernel, 0.0, 0.0, 0.0)           # open: any object may be placed
@@ -233,16 +264,15 @@ def simulate(run: Run, plant_params: PlantParams, config: GripperConfig,
             x0 = x_c
         elif approach:
             x0 = _approach_start_m(run, a, b, plant_params)
-        elif x0s is None or not len(x0s):
+        elif a > 0 or x0s is None or not len(x0s):
             x0 = min(max(float(m['position_m'][a]), 0.0), x_c if run.stiffness_n_per_m == 0.0
                      else plant_params.max_travel_m)
         else:
-            x0 = float(x0s[placed])
-            placed += 1
+            x0 = float(x0s[0])
         plant.t_ns = int(run.t_ns[a])
         plant_place(plant.kernel, x0, 0.0 if at_face else float(m['speed_rad_s'][a]),
                     float(m['current_a'][a]))
-        _run_plant(plant.kernel, run.t_ns[a:b], run.voltage_v[a:b], out[a:b], tick)
+        run_plant(plant.kernel, run.t_ns[a:b], run.voltage_v[a:b], out[a:b], tick)
     return out
 
 
@@ -265,16 +295,21 @@ def _placements(runs: list[Run], plant: PlantParams) -> tuple[list, list, list]:
     for run in runs:
         end = plant.max_travel_m - (run.object_width_m if run.stiffness_n_per_m == 0.0 else 0.0)
         for a in _fitted_starts(run, plant):
-            start.append(min(max(float(run.measured['position_m'][a]), 0.0), end))
+            x0 = float(run.measured['position_m'][a])
+            start.append(min(max(x0, 0.0), end) if math.isfinite(x0) else 0.0)
             lower.append(0.0)
             upper.append(end)
     return start, lower, upper
 
 
 def _fitted_starts(run: Run, plant: PlantParams) -> list[int]:
-    """Return the first ticks of the segments whose first position is fitted."""
+    """Return the first ticks of the segments whose first position is fitted: the run's first.
+
+    (Later segments start at the face, before it as the speed says, or after a part left out
+    at the measured position.)
+    """
     parts = run_segments(run, plant)
-    return [a for (a, _, at_face), approach in zip(parts, _approaches(parts))
+    return [a for (a, _, at_face), approach in zip(parts[:1], _approaches(parts))
             if not at_face and not approach]
 
 
@@ -350,6 +385,8 @@ def linear_seed(runs: list[Run], base: PlantParams) -> Seed:
             rows_f.append(np.column_stack((i[rigid], f[rigid])))
     a_w = np.concatenate(rows_w)
     a_i = np.concatenate(rows_i)
+    a_w = a_w[np.isfinite(a_w).all(axis=1)]             # ticks left out are NaN
+    a_i = a_i[np.isfinite(a_i).all(axis=1)]
     if len(a_w) < MIN_FREE_SAMPLES:
         raise IdentifyError(f'too short to identify anything: {len(a_w)} free-motion samples '
                             f'at the sampling period (at least {MIN_FREE_SAMPLES} needed)')
@@ -468,6 +505,8 @@ def nrmse(simulated: np.ndarray, recorded: np.ndarray, span: float | None = None
 def identify(runs: list[Run], config: GripperConfig) -> Identified:
     """Identify the plant of ``runs``; ``config`` gives the fixed keys and the starting point."""
     runs = [check_run(r) for r in runs]
+    left_out = [leave_out_compliant_contact(r, config.plant) for r in runs]
+    runs = [r for r, _ in left_out]
     seed = linear_seed(runs, config.plant)
     theta0 = seed.theta(config.plant)
     try:
@@ -477,7 +516,8 @@ def identify(runs: list[Run], config: GripperConfig) -> Identified:
     scales = _scales(runs)
     everything = np.arange(len(PARAMETERS))
     base_r = _residuals(runs, scales, config, theta0, everything, np.log(theta0), 'fit')
-    warnings, not_excited = [], []
+    warnings = [why for _, why in left_out if why]
+    not_excited = []
     for j, name in enumerate(PARAMETERS):
         log_values = np.log(theta0)
         log_values[j] += math.log(1.1)
