@@ -359,18 +359,6 @@ def test_a_file_that_predates_the_pads_and_the_chain_has_them_off(shipped_data):
     assert load_config(SHIPPED).contact.pad_tangential_stiffness_n_per_m == 6.0e4
 
 
-@pytest.mark.parametrize('key, value, words', [
-    ('plant.resistance_ohm', -2.32, '> 0'),            # negative resistance
-    ('plant.voltage_limit_v', -24.0, '> 0'),
-    ('force_control.closed_loop_pole', -0.1, '>= 0'),
-    ('force_control.closed_loop_pole', 1.5, '[0, 1)'),   # out of range: an unstable loop
-    ('position_control.mpc_pd_braking_voltage_v', 30.0, 'plant.voltage_limit_v'),
-    ('position_control.mpc_pd.horizon', '700', 'number'),
-    ('force_control.mpc_pi.control_horizon', 2.5, 'whole'),
-    ('supervisor.move_stall_force_fraction', 1.2, '(0, 1]'),   # a force never reached
-    ('supervisor.move_default_speed_mps', 0.0004, 'move_rest_speed_mps'),   # "at rest"
-    ('position_control.speed_limit_pole', 0.995, 'open-loop pole'),  # never reaches the limit
-])
 def test_a_default_move_speed_above_the_free_speed_is_read_as_the_free_speed(tmp_path,
                                                                             shipped_data):
     """A plant slower than the default move speed loads; the note says what the file means."""
@@ -388,6 +376,18 @@ def test_a_default_move_speed_above_the_free_speed_is_read_as_the_free_speed(tmp
     assert load_config(SHIPPED).supervisor.move_default_speed_mps == 0.05
 
 
+@pytest.mark.parametrize('key, value, words', [
+    ('plant.resistance_ohm', -2.32, '> 0'),            # negative resistance
+    ('plant.voltage_limit_v', -24.0, '> 0'),
+    ('force_control.closed_loop_pole', -0.1, '>= 0'),
+    ('force_control.closed_loop_pole', 1.5, '[0, 1)'),   # out of range: an unstable loop
+    ('position_control.mpc_pd_braking_voltage_v', 30.0, 'plant.voltage_limit_v'),
+    ('position_control.mpc_pd.horizon', '700', 'number'),
+    ('force_control.mpc_pi.control_horizon', 2.5, 'whole'),
+    ('supervisor.move_stall_force_fraction', 1.2, '(0, 1]'),   # a force never reached
+    ('supervisor.move_default_speed_mps', 0.0004, 'move_rest_speed_mps'),   # "at rest"
+    ('position_control.speed_limit_pole', 0.995, 'open-loop pole'),  # never reaches the limit
+])
 def test_more_bad_values_are_refused_naming_the_key(tmp_path, shipped_data, key, value, words):
     with pytest.raises(ConfigError) as info:
         load_config(write(tmp_path, set_key(shipped_data, key, value)))
