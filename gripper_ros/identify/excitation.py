@@ -25,7 +25,7 @@ import numpy as np
 MAX_SECONDS = 300.0            # longest experiment accepted (simulated s)
 MIN_SECONDS = 2.0              # shorter identifies nothing (about two mechanical time constants)
 TRAVEL_MARGIN_M = 0.01         # targets stay this far inside the travel and off the stop's face
-STOP_WIDTH_M = 0.03            # the rigid stop pressed on for the force model
+STOP_WIDTH_M = 0.03            # the rigid stop grasped for the force model and L/R
 HOLD_EVERY = 4                 # every 4th request grasps the stop (with --hold), the 2nd first
 SPEED_SHARE = (0.2, 1.0)       # a move's speed limit: this share of the amplitude's free speed
 HOLD_FORCE_SHARE = (0.3, 0.9)  # a grasp's force: this share of the amplitude's stall force

@@ -380,8 +380,8 @@ def linear_seed(runs: list[Run], base: PlantParams) -> Seed:
         rows_w.append(np.column_stack((w[free - 1], e[free], w[free])))
         if np.isfinite(f).any():
             peak = np.nanmax(np.abs(f))
-            rigid = held[(w[held] == 0.0) & (f[held] > RIGID_FORCE_SHARE * peak) &
-                         (i[held] > 0.0)]
+            # in rigid contact the force follows the current at once: any period will do
+            rigid = np.flatnonzero((w == 0.0) & (f > RIGID_FORCE_SHARE * peak) & (i > 0.0))
             rows_f.append(np.column_stack((i[rigid], f[rigid])))
     a_w = np.concatenate(rows_w)
     a_i = np.concatenate(rows_i)
