@@ -147,7 +147,8 @@ class ExcitationRun:
     def summary(self, now_ns: int) -> str:
         """Say how the experiment ended, in one line."""
         elapsed = (now_ns - self.start_ns) * 1e-9
+        done = (f'{self.moves} move{"s" * (self.moves != 1)} and {self.grasps} '
+                f'grasp{"s" * (self.grasps != 1)}')
         if self.ended_by:
-            return (f'ended by {self.ended_by} after {self.moves} moves and {self.grasps} '
-                    f'grasps, {elapsed:.2f} s: {self.message}')
-        return f'{self.moves} moves and {self.grasps} grasps in {elapsed:.2f} s'
+            return f'ended by {self.ended_by} after {done}, {elapsed:.2f} s: {self.message}'
+        return f'{done} in {elapsed:.2f} s'
