@@ -359,8 +359,8 @@ def test_a_file_that_predates_the_pads_and_the_chain_has_them_off(shipped_data):
     assert load_config(SHIPPED).contact.pad_tangential_stiffness_n_per_m == 6.0e4
 
 
-def test_a_default_move_speed_above_the_free_speed_is_read_as_the_free_speed(tmp_path,
-                                                                            shipped_data):
+def test_a_default_move_speed_above_the_free_speed_is_read_as_the_free_speed(
+        tmp_path, shipped_data):
     """A plant slower than the default move speed loads; the note says what the file means."""
     data = set_key(shipped_data, 'plant.damping_n_m_s_per_rad', 0.0038 * 3.0)
     config = load_config(write(tmp_path, data))

@@ -16,15 +16,15 @@ import math
 from pathlib import Path
 
 from gripper_ros.bags import identify as bag_identify
-from gripper_ros.core.config import ConfigError, load_config, parse_config
+from gripper_ros.core.config import (ConfigError, load_config, parse_config,
+                                     read_as_notes)
 from gripper_ros.core.control.factories import make_plant
 from gripper_ros.core.runtime.headless import simulate_grasp, simulate_moves
-from gripper_ros.core.config import read_as_notes
 from gripper_ros.identify.excitation import (check_spec, excitation_requests, ExcitationSpec,
                                              free_band_m, MAX_SECONDS, STOP_WIDTH_M,
                                              TRAVEL_MARGIN_M)
-from gripper_ros.identify.fit import (check_run, COMBINATION_NEEDS, combinations, identify,
-                                      IdentifyError, linear_seed, nrmse, Run)
+from gripper_ros.identify.fit import (check_run, combinations, identify, IdentifyError,
+                                      linear_seed, nrmse, Run)
 from helpers import run_main
 import numpy as np
 import pytest
@@ -252,13 +252,13 @@ def test_table_i_combinations_are_recovered_on_the_paper_config():
 
 def _grasp_run(config, stiffness_n_per_m: float, damping_n_s_per_m: float,
                recorded_stiffness_n_per_m: float) -> Run:
-    """A grasp's ticks as its bag holds them, its object recorded with the stiffness given."""
+    """Return a grasp's ticks as its bag holds them, its object recorded with that stiffness."""
     h = simulate_grasp(config, 0.05, 1.0, stiffness_n_per_m=stiffness_n_per_m,
                        damping_n_s_per_m=damping_n_s_per_m, hold_s=0.2,
                        trace_state_period_ns=10_000_000)
     t = h.trace.ticks
-    measured = {c: t[c].astype(float) for c in ('position_m', 'speed_rad_s', 'current_a',
-                                                 'force_n')}
+    channels = ('position_m', 'speed_rad_s', 'current_a', 'force_n')
+    measured = {c: t[c].astype(float) for c in channels}
     recorded = recorded_stiffness_n_per_m > 0.0
     return Run('grasp', t['stamp_ns'].astype(np.int64), t['motor_voltage_v'].astype(float),
                measured, 0.05, recorded_stiffness_n_per_m,
@@ -291,7 +291,6 @@ def test_a_compliant_grasp_is_fitted_with_its_contact_or_its_contact_is_left_out
         value, error = left_out.combinations[name], left_out.stderr[name]
         assert value == pytest.approx(expected[name], rel=0.01), name
         assert abs(value - expected[name]) <= max(4.0 * error, 1e-6 * abs(value)), name
-
 
 
 # ------------------------------------------------------------------ refusals

@@ -1,4 +1,4 @@
-"""The plant driven by recorded voltages, compiled (apart, so that the fit's code compiles alone)."""
+"""The plant driven by recorded voltages, compiled (apart: the fit's module compiles nothing)."""
 from gripper_ros.core.physics.plant import plant_read_tick, plant_step
 import numba
 

@@ -1,13 +1,13 @@
 """excitation_server: the identification experiment as a service beside ``move``.
 
-``excite`` (std_srvs/Trigger) runs :class:`gripper_ros.identify.excitation.ExcitationRun` over the
-graph's ``move`` and ``grasp`` services: the node's parameters ``excitation.seconds``, ``.amplitude_v``,
-``.seed`` and ``.hold`` say how long, how hard and which sequence (a bad value is refused with
-the reason and nothing changes). ``stop`` ends the running request STOPPED and with it the
-experiment; the answer says how it ended. The simulated time comes from ``supervisor/status``.
-Against hardware that serves the same ``move``, ``grasp`` and status, it runs the same. Recording is the
-recorder's (``grasp_demo --serve`` records each move); ``excite`` the console app records the
-whole experiment in one bag.
+``excite`` (std_srvs/Trigger) runs :class:`gripper_ros.identify.excitation.ExcitationRun` over
+the graph's ``move`` and ``grasp`` services: the node's parameters ``excitation.seconds``,
+``.amplitude_v``, ``.seed`` and ``.hold`` say how long, how hard and which sequence (a bad value
+is refused with the reason and nothing changes). ``stop`` ends the running request STOPPED and
+with it the experiment; the answer says how it ended. The simulated time comes from
+``supervisor/status``. Against hardware that serves the same ``move``, ``grasp`` and status, it
+runs the same. Recording is the recorder's (``grasp_demo --serve`` records each move);
+``excite`` the console app records the whole experiment in one bag.
 """
 from __future__ import annotations
 
