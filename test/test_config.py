@@ -11,7 +11,8 @@ from pathlib import Path
 import re
 
 from gripper_ros.core.config import (ADDED_LATER, ConfigError, ForceLaw, load_config,
-                                     parse_config, PidGains, SHIPPED as SHIPPED_VALUE)
+                                     parse_config, PidGains, read_as_notes,
+                                     SHIPPED as SHIPPED_VALUE)
 import pytest
 import yaml
 
@@ -358,6 +359,23 @@ def test_a_file_that_predates_the_pads_and_the_chain_has_them_off(shipped_data):
     assert load_config(SHIPPED).contact.pad_tangential_stiffness_n_per_m == 6.0e4
 
 
+def test_a_default_move_speed_above_the_free_speed_is_read_as_the_free_speed(
+        tmp_path, shipped_data):
+    """A plant slower than the default move speed loads; the note says what the file means."""
+    data = set_key(shipped_data, 'plant.damping_n_m_s_per_rad', 0.0038 * 3.0)
+    config = load_config(write(tmp_path, data))
+    p = config.plant
+    free = p.torque_constant_n_m_per_a * p.pitch_m / (2.0 * math.pi) / (
+        p.damping_n_m_s_per_rad * p.resistance_ohm
+        + p.torque_constant_n_m_per_a * p.back_emf_v_s_per_rad) * p.voltage_limit_v
+    assert free < 0.05 == config.data['supervisor']['move_default_speed_mps']
+    assert config.supervisor.move_default_speed_mps == pytest.approx(free, rel=1e-12)
+    [note] = read_as_notes(config)
+    assert 'move_default_speed_mps 0.05' in note and f'{free:.6g}' in note
+    assert read_as_notes(load_config(SHIPPED)) == []
+    assert load_config(SHIPPED).supervisor.move_default_speed_mps == 0.05
+
+
 @pytest.mark.parametrize('key, value, words', [
     ('plant.resistance_ohm', -2.32, '> 0'),            # negative resistance
     ('plant.voltage_limit_v', -24.0, '> 0'),
@@ -367,7 +385,6 @@ def test_a_file_that_predates_the_pads_and_the_chain_has_them_off(shipped_data):
     ('position_control.mpc_pd.horizon', '700', 'number'),
     ('force_control.mpc_pi.control_horizon', 2.5, 'whole'),
     ('supervisor.move_stall_force_fraction', 1.2, '(0, 1]'),   # a force never reached
-    ('supervisor.move_default_speed_mps', 0.1, 'free speed'),  # faster than 24 V drives it
     ('supervisor.move_default_speed_mps', 0.0004, 'move_rest_speed_mps'),   # "at rest"
     ('position_control.speed_limit_pole', 0.995, 'open-loop pole'),  # never reaches the limit
 ])

@@ -4,9 +4,10 @@
     ros2 run gripper_ros excite --config hidden.yaml --output bags
 
 The gripper goes through a seeded sequence of moves inside its travel at pseudo-random speeds,
-the driving voltage capped at ``--amplitude-v``, and (unless ``--no-hold``) every few moves it
-presses on a rigid stop for the force model (:mod:`gripper_ros.identify.excitation`). It all goes
-through the ``move`` service, so ``stop`` ends it at once. The bag is written under
+the driving voltage capped at ``--amplitude-v``, and (unless ``--no-hold``) every few requests
+it grasps a rigid stop, for the force model and the electrical time constant
+(:mod:`gripper_ros.identify.excitation`). It all goes through the ``move`` and ``grasp``
+services, so ``stop`` ends it at once. The bag is written under
 ``--output`` and its path printed as ``bag: PATH``; ``bag_identify PATH`` fits the plant to it.
 """
 from __future__ import annotations
@@ -19,7 +20,7 @@ from pathlib import Path
 import sys
 import time
 
-EXCITATION_FORMAT = 1       # custom_data 'excitation' layout
+EXCITATION_FORMAT = 2       # custom_data 'excitation' layout (2: the holds are grasps)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -46,7 +47,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('--noise-seed', type=int, default=None,
                    help="sensor_noise.seed of the simulated plant (default: the config's)")
     p.add_argument('--no-hold', action='store_true',
-                   help='free motion only: no press on the rigid stop (no force model)')
+                   help='free motion only: no grasp of the rigid stop (no force model, no '
+                        'electrical time constant)')
     p.add_argument('--namespace', default=DEFAULT_NAMESPACE,
                    help='ROS namespace of this gripper (default %(default)s)')
     return p
@@ -107,17 +109,21 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def run_excitation(graph, spec) -> str:
-    """Send the experiment's moves until ``spec.seconds`` of simulated time have passed.
+    """Send the experiment's requests until ``spec.seconds`` of simulated time have passed.
 
-    Returns how it ended; a move that ends otherwise than MOVED, STALLED or TIMEOUT (a
-    ``stop``, a refusal, a fault) ends the experiment at once.
+    Returns how it ended; a request that ends STOPPED, REFUSED or FAULT (a ``stop``, a
+    refusal, a fault) ends the experiment at once.
     """
+    from gripper_ros.core.supervision.requests import GraspRequest
     from gripper_ros.identify.excitation import ExcitationRun
     from gripper_ros.wire import Outcome
-    run = ExcitationRun(spec, graph.plant.config.plant, graph.sim_time_ns)
-    while (move := run.next_move(graph.sim_time_ns)) is not None:
-        answer = graph.move(move.width_m, move.speed_mps, move.max_effort_n,
-                            timeout_s=move.timeout_s)
+    run = ExcitationRun(spec, graph.plant.config, graph.sim_time_ns)
+    while (request := run.next_request(graph.sim_time_ns)) is not None:
+        if isinstance(request, GraspRequest):
+            answer = graph.grasp(request.width_m, request.mass_kg, timeout_s=request.timeout_s)
+        else:
+            answer = graph.move(request.width_m, request.speed_mps, request.max_effort_n,
+                                timeout_s=request.timeout_s)
         if not run.answered(Outcome(answer.outcome).name, answer.message):
             break
     return run.summary(graph.sim_time_ns)

@@ -165,12 +165,15 @@ def plot_fit(result, runs, path: Path) -> None:
 
 
 def write_config(result, path: Path, bags: list[str]) -> None:
+    """Write the configuration with the identified plant; a note for what reads otherwise."""
     import yaml
+    from gripper_ros.core.config import read_as_notes
     header = ('# Identified by bag_identify from ' + ', '.join(bags) + '\n'
               f'# on the base configuration {result.base.source}; the plant keys '
               'resistance_ohm, back_emf_v_s_per_rad, inductance_h, inertia_kg_m2,\n'
               "# damping_n_m_s_per_rad and efficiency are the fit's (k_t as configured: only "
               'k_t/J, b/J and k_t/lever are identifiable).\n')
+    header += ''.join(f'# note: {note}\n' for note in read_as_notes(result.config()))
     path.write_text(header + yaml.safe_dump(result.config_data(), sort_keys=False),
                     encoding='utf-8')
 

@@ -6,7 +6,7 @@ into ROS parameter defaults. A bad file stops with a :class:`ConfigError` naming
 from __future__ import annotations
 
 import copy
-from dataclasses import dataclass, field, fields, MISSING
+from dataclasses import dataclass, field, fields, MISSING, replace
 import enum
 import functools
 import math
@@ -772,11 +772,13 @@ def parse_config(data: dict, source: str = '<dict>') -> GripperConfig:
         raise ConfigError('"supervisor.move_stall_force_fraction" must be in (0, 1] (a force '
                           'above the effort limit is never reached), '
                           f'got {sup.move_stall_force_fraction!r}')
-    if not sup.move_rest_speed_mps < sup.move_default_speed_mps <= plant.max_free_speed_mps:
-        raise ConfigError('"supervisor.move_default_speed_mps" must be in '
-                          f'("supervisor.move_rest_speed_mps" = {sup.move_rest_speed_mps!r}, '
-                          f'{plant.max_free_speed_mps:.6g}] m/s (the free speed at '
-                          f'"plant.voltage_limit_v"), got {sup.move_default_speed_mps!r}')
+    sup = replace(sup, move_default_speed_mps=move_default_speed_mps(sup, plant))
+    if not sup.move_rest_speed_mps < sup.move_default_speed_mps:
+        raise ConfigError('"supervisor.move_default_speed_mps" must be above '
+                          f'"supervisor.move_rest_speed_mps" = {sup.move_rest_speed_mps!r} '
+                          f'(and so must the free speed at "plant.voltage_limit_v", '
+                          f'{plant.max_free_speed_mps:.6g} m/s), got '
+                          f'{sup.move_default_speed_mps!r}')
     noise_rules = {f.name: {'nonnegative': True} for f in fields(SensorNoiseParams)}
     noise_rules['seed'] = {'nonnegative': True, 'integer': True}
     noise = _build(SensorNoiseParams, _section(data, 'sensor_noise', source)
@@ -798,6 +800,26 @@ def parse_config(data: dict, source: str = '<dict>') -> GripperConfig:
                       if 'geometry' in data else {}, 'geometry')
     return GripperConfig(plant, contact, sensor, position, force, sup, noise, pads, grip,
                          geometry, source, copy.deepcopy(data))
+
+
+def move_default_speed_mps(sup: SupervisorParams, plant: PlantParams) -> float:
+    """Return the speed of a move without one: the configured one, at most the plant's free speed.
+
+    The free speed at ``plant.voltage_limit_v`` is the fastest a move goes, so a plant slower
+    than the configured default (an identified one, say) moves at its free speed.
+    """
+    return min(sup.move_default_speed_mps, plant.max_free_speed_mps)
+
+
+def read_as_notes(config: GripperConfig) -> list[str]:
+    """Say, a line each, which values of the file are read otherwise than written (and why)."""
+    written = config.data.get('supervisor', {}).get('move_default_speed_mps')
+    read = config.supervisor.move_default_speed_mps
+    if isinstance(written, (int, float)) and written != read:
+        return [f'supervisor.move_default_speed_mps {written:g} m/s is above the free speed at '
+                f'plant.voltage_limit_v ({config.plant.voltage_limit_v:g} V), {read:.6g} m/s: '
+                'a move without a speed goes at that free speed']
+    return []
 
 
 def load_config(path: str | os.PathLike | None = None) -> GripperConfig:

@@ -1,37 +1,38 @@
-"""The identification experiment: a seeded sequence of moves that excites the plant, safely.
+"""The identification experiment: a seeded sequence of moves and grasps that excites the plant.
 
 The gripper is driven through the ``move`` service it already has, so the supervisor's checks,
 ``stop`` and the travel limits all apply as to any move: the finger goes to pseudo-random
 positions (a multi-level PRBS on the position: the next level is drawn from the half of the band
 the finger is not in) at pseudo-random speed limits, with the voltage capped by the move's
-effort at ``amplitude_v``; optionally every ``HOLD_EVERY``-th move presses on a rigid stop (an
-object of ``STOP_WIDTH_M``) with a pseudo-random share of that effort, which excites the force
-model. Every target lies ``TRAVEL_MARGIN_M`` inside the travel (and short of the stop's face),
-and each move's timeout is the time left, so the experiment ends within ``seconds``.
+effort at ``amplitude_v``; optionally every ``HOLD_EVERY``-th request, the second one first,
+grasps a rigid stop (an object of ``STOP_WIDTH_M``) at a pseudo-random share of the force
+``amplitude_v`` holds: the force stage's samples (0.1 ms) see the armature current settle after
+each of its voltage steps (the electrical time constant L/R) and the rigid contact gives the
+force model. Every target lies ``TRAVEL_MARGIN_M`` inside the travel (and short of the stop's
+face), and each request's timeout is the time left, so the experiment ends within ``seconds``.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 import math
 from typing import Iterator
 
-from gripper_ros.core.config import PlantParams
-from gripper_ros.core.supervision.requests import MoveRequest
+from gripper_ros.core.config import GripperConfig, PlantParams
+from gripper_ros.core.supervision.requests import (force_setpoint_n, GraspRequest,
+                                                   MAX_TIMEOUT_S, MoveRequest)
 import numpy as np
 
 MAX_SECONDS = 300.0            # longest experiment accepted (simulated s)
 MIN_SECONDS = 2.0              # shorter identifies nothing (about two mechanical time constants)
 TRAVEL_MARGIN_M = 0.01         # targets stay this far inside the travel and off the stop's face
-STOP_WIDTH_M = 0.03            # the rigid stop pressed on for the force model
-HOLD_PAST_FACE_M = 0.005       # a hold asks for this much past the stop's face (it stalls there)
-HOLD_EVERY = 4                 # every 4th move is a hold (with --hold)
+STOP_WIDTH_M = 0.03            # the rigid stop grasped for the force model and L/R
+HOLD_EVERY = 4                 # every 4th request grasps the stop (with --hold), the 2nd first
 SPEED_SHARE = (0.2, 1.0)       # a move's speed limit: this share of the amplitude's free speed
-HOLD_EFFORT_SHARE = (0.3, 1.0)  # a hold's effort: this share of the amplitude's stall force
-HOLD_SPEED_SHARE = 0.5         # a hold approaches the stop at this share of the free speed
+HOLD_FORCE_SHARE = (0.3, 0.9)  # a grasp's force: this share of the amplitude's stall force
 MIN_STEP_SHARE = 0.15          # successive levels differ by at least this share of the band
 
 __all__ = ['ExcitationSpec', 'HOLD_EVERY', 'MAX_SECONDS', 'MIN_SECONDS', 'STOP_WIDTH_M',
-           'TRAVEL_MARGIN_M', 'check_spec', 'excitation_moves', 'free_band_m']
+           'TRAVEL_MARGIN_M', 'check_spec', 'excitation_requests', 'free_band_m']
 
 
 @dataclass(frozen=True)
@@ -41,7 +42,7 @@ class ExcitationSpec:
     seconds: float = 20.0
     amplitude_v: float = 12.0
     seed: int = 1
-    hold: bool = True              # also press on a rigid stop (the force model)
+    hold: bool = True              # also grasp a rigid stop (force model, electrical pole)
 
 
 def check_spec(spec: ExcitationSpec, plant: PlantParams) -> ExcitationSpec:
@@ -68,25 +69,29 @@ def free_band_m(plant: PlantParams, hold: bool) -> tuple[float, float]:
     return TRAVEL_MARGIN_M, end - TRAVEL_MARGIN_M
 
 
-def excitation_moves(spec: ExcitationSpec, plant: PlantParams) -> Iterator[MoveRequest]:
-    """Yield the experiment's moves for ever (the runner stops at ``spec.seconds``).
+def excitation_requests(spec: ExcitationSpec,
+                        config: GripperConfig) -> Iterator[MoveRequest | GraspRequest]:
+    """Yield the experiment's requests for ever (the runner stops at ``spec.seconds``).
 
-    A move's ``timeout_s`` is left 0 here; the runner sets it to the time left.
+    A request's ``timeout_s`` is left 0 here; the runner sets it to the time left.
     """
+    plant = config.plant
     check_spec(spec, plant)
     rng = np.random.default_rng(spec.seed)
     lo, hi = free_band_m(plant, spec.hold)
     mid = 0.5 * (lo + hi)
     free_speed = plant.free_speed_per_volt_mps * spec.amplitude_v
     effort = plant.stall_force_per_volt_n * spec.amplitude_v
+    sup = config.supervisor
+    newton_per_kg = force_setpoint_n(1.0, sup.friction_coefficient, plant.gravity_mps2, 0.0,
+                                     sup.force_law, sup.grip_safety_factor)
     x = 0.0
     n = 0
     while True:
         n += 1
-        if spec.hold and n % HOLD_EVERY == 0:
-            share = float(rng.uniform(*HOLD_EFFORT_SHARE))
-            yield MoveRequest(STOP_WIDTH_M - HOLD_PAST_FACE_M, HOLD_SPEED_SHARE * free_speed,
-                              share * effort)
+        if spec.hold and n % HOLD_EVERY == 2:
+            share = float(rng.uniform(*HOLD_FORCE_SHARE))
+            yield GraspRequest(STOP_WIDTH_M, share * effort / newton_per_kg)
             x = plant.max_travel_m - STOP_WIDTH_M
             continue
         # the next level in the other half of the band, at least MIN_STEP_SHARE away
@@ -99,37 +104,41 @@ def excitation_moves(spec: ExcitationSpec, plant: PlantParams) -> Iterator[MoveR
         x = target
 
 
-CONTINUING_OUTCOMES = ('MOVED', 'STALLED', 'TIMEOUT')
-"""Move outcomes after which the experiment goes on; any other (STOPPED, REFUSED, FAULT) ends
-it at once."""
+CONTINUING_OUTCOMES = ('MOVED', 'STALLED', 'TIMEOUT', 'HOLDING', 'OBJECT_LOST', 'NO_OBJECT')
+"""Outcomes after which the experiment goes on (what the supervisor judged of a grasp of the
+stop changes nothing the bag records); any other (STOPPED, REFUSED, FAULT) ends it at once."""
 
 
 class ExcitationRun:
     """The experiment's progress, the same for the console app and the service.
 
-    Ask :meth:`next_move` with the simulated time now for the next request (None: done), send
-    it, and hand its outcome's name to :meth:`answered`, which says whether to go on.
+    Ask :meth:`next_request` with the simulated time now for the next request (None: done),
+    send it (a :class:`MoveRequest` to ``move``, a :class:`GraspRequest` to ``grasp``), and hand
+    its outcome's name to :meth:`answered`, which says whether to go on.
     """
 
-    def __init__(self, spec: ExcitationSpec, plant: PlantParams, start_ns: int):
-        self.spec = check_spec(spec, plant)
-        self._moves = excitation_moves(spec, plant)
+    def __init__(self, spec: ExcitationSpec, config: GripperConfig, start_ns: int):
+        self.spec = check_spec(spec, config.plant)
+        self._requests = excitation_requests(spec, config)
         self.start_ns = start_ns
         self.moves = 0
+        self.grasps = 0
+        self._kind = ''
         self.ended_by = ''            # the outcome that ended it early ('' = ran its time)
         self.message = ''
 
-    def next_move(self, now_ns: int) -> MoveRequest | None:
-        """Return the next move, its timeout the time left; None once time is up or ended."""
+    def next_request(self, now_ns: int) -> MoveRequest | GraspRequest | None:
+        """Return the next request, its timeout the time left; None once time is up or ended."""
         left_s = self.spec.seconds - (now_ns - self.start_ns) * 1e-9
         if self.ended_by or left_s <= 0.0:
             return None
-        move = next(self._moves)
-        return MoveRequest(move.width_m, move.speed_mps, move.max_effort_n, left_s)
+        request = next(self._requests)
+        self._kind = 'grasps' if isinstance(request, GraspRequest) else 'moves'
+        return replace(request, timeout_s=min(left_s, MAX_TIMEOUT_S))
 
     def answered(self, outcome_name: str, message: str = '') -> bool:
-        """Count an answered move; False (ended) unless it is a continuing outcome."""
-        self.moves += 1
+        """Count an answered request; False (ended) unless it is a continuing outcome."""
+        setattr(self, self._kind, getattr(self, self._kind) + 1)
         if outcome_name in CONTINUING_OUTCOMES:
             return True
         self.ended_by, self.message = outcome_name, message
@@ -138,7 +147,8 @@ class ExcitationRun:
     def summary(self, now_ns: int) -> str:
         """Say how the experiment ended, in one line."""
         elapsed = (now_ns - self.start_ns) * 1e-9
+        done = (f'{self.moves} move{"s" * (self.moves != 1)} and {self.grasps} '
+                f'grasp{"s" * (self.grasps != 1)}')
         if self.ended_by:
-            return (f'ended by {self.ended_by} after {self.moves} moves, {elapsed:.2f} s: '
-                    f'{self.message}')
-        return f'{self.moves} moves in {elapsed:.2f} s'
+            return f'ended by {self.ended_by} after {done}, {elapsed:.2f} s: {self.message}'
+        return f'{done} in {elapsed:.2f} s'

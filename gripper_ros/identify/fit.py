@@ -36,20 +36,22 @@ import math
 
 from gripper_ros.core.config import GripperConfig, parse_config, PlantParams
 from gripper_ros.core.physics.force_sensor import FsrVoltageDivider
-from gripper_ros.core.physics.plant import (GraspObject, GripperPlant, plant_place,
-                                            plant_read_tick, plant_step)
+from gripper_ros.core.physics.plant import GraspObject, GripperPlant, plant_place
+from gripper_ros.identify.replay import run_plant
 from gripper_ros.wire import TICK_LAYOUT
-import numba
 import numpy as np
 from scipy.optimize import least_squares
 
-HELD_OUT_SHARE = 0.3            # the last 30 % of each run is kept out of the fit (NRMSE)
+HELD_OUT_SHARE = 0.3            # the last 30 % of each run's time is kept out of the fit (NRMSE)
 MIN_FREE_SAMPLES = 50           # fewer free-motion samples identify nothing
 SEED_MIN_HOLD_TAU_E = 20.0      # seed samples: held at least this many electrical time constants
 RIGID_FORCE_SHARE = 0.05        # rigid-contact samples for the seed: force above this x the peak
 EXCITED_SENSITIVITY = 1e-4      # RMS change of normalised outputs for a 10 % parameter change
 REWEIGHTINGS = 1                # fits again with each channel weighed by its residual's RMS
 RESIDUAL_FLOOR = 1e-9           # a channel's residual RMS as a share of its spread, at least
+SEGMENT_FORCE_SHARE = 0.05      # a segment starts where the force rises past this x its peak
+MIN_SEGMENT_TICKS = 5           # a shorter segment joins the one before
+RIGID_STIFFNESS_N_PER_M = 1e7   # an object recorded rigid that yields more than F / this is not
 CHANNELS = ('position_m', 'speed_rad_s', 'current_a', 'force_n')
 """The measured signals fitted, as the loop's PlantTick names them."""
 
@@ -106,11 +108,14 @@ class Run:
     object_width_m: float = 0.0
     stiffness_n_per_m: float = 0.0
     damping_n_s_per_m: float = 0.0
+    left_out: np.ndarray | None = field(default=None, repr=False)   # ticks not fitted
 
     @property
     def fit_end(self) -> int:
-        """First index of the held-out part."""
-        return max(2, int(round(len(self.t_ns) * (1.0 - HELD_OUT_SHARE))))
+        """First index of the held-out part: the last ``HELD_OUT_SHARE`` of the run's time."""
+        t0, t1 = int(self.t_ns[0]), int(self.t_ns[-1])
+        cut = t0 + round((t1 - t0) * (1.0 - HELD_OUT_SHARE))
+        return max(2, int(np.searchsorted(self.t_ns, cut, side='right')))
 
 
 def check_run(run: Run) -> Run:
@@ -158,38 +163,154 @@ def combinations(p: PlantParams) -> dict[str, float]:
 
 
 # ------------------------------------------------------------------ simulation
-@numba.njit(cache=True)
-def _run_plant(k, t_ns, voltage_v, out, tick):
-    """Drive the plant ``k`` with the recorded voltages; fill out[n] = (x, w, i, F)."""
-    for n in range(t_ns.shape[0]):
-        if n > 0:
-            plant_step(k, voltage_v[n], t_ns[n] - t_ns[n - 1])
-        plant_read_tick(k, tick, 0, 0)
-        t = tick[0]
-        out[n, 0] = t.position_m
-        out[n, 1] = t.speed_rad_s
-        out[n, 2] = t.current_a
-        out[n, 3] = t.force_n
+def touching(run: Run) -> np.ndarray:
+    """Tell, per tick, whether the measured force says the finger touches the object."""
+    force = run.measured.get('force_n')
+    if force is None or not np.isfinite(force).any():
+        return np.zeros(len(run.t_ns), bool)
+    peak = float(np.nanmax(np.abs(force)))
+    return np.nan_to_num(force, nan=0.0) > SEGMENT_FORCE_SHARE * peak if peak > 0.0 else \
+        np.zeros(len(run.t_ns), bool)
+
+
+def yield_while_touching_m(run: Run, plant: PlantParams) -> float:
+    """Return how far the measured speed carried the finger while it touched the object."""
+    on = touching(run)
+    both = np.flatnonzero(on[1:] & on[:-1]) + 1
+    w = run.measured['speed_rad_s']
+    dt_s = np.diff(run.t_ns)[both - 1] * 1e-9
+    return plant.travel_per_rad_m * float(np.nansum(0.5 * np.abs(w[both] + w[both - 1]) * dt_s))
+
+
+def leave_out_compliant_contact(run: Run, plant: PlantParams) -> tuple[Run, str]:
+    """Return the run with the contact of an object recorded rigid that yielded left out.
+
+    A rigid object stops the finger; one that lets it travel more than ``F /``
+    :data:`RIGID_STIFFNESS_N_PER_M` while it is touched is compliant, of a stiffness the bag does
+    not give, and no model of its contact is right: those ticks are left out (the model starts
+    again from the measurement after each), and the second value says so (else '').
+    """
+    if run.stiffness_n_per_m != 0.0 or run.object_width_m <= 0.0:
+        return run, ''
+    travel_m = yield_while_touching_m(run, plant)
+    peak_n = float(np.nanmax(np.abs(run.measured['force_n']))) if np.isfinite(
+        run.measured.get('force_n', np.array([math.nan]))).any() else 0.0
+    if not travel_m > peak_n / RIGID_STIFFNESS_N_PER_M:
+        return run, ''
+    on = touching(run)
+    measured = {c: np.where(on, math.nan, v) for c, v in run.measured.items()}
+    return replace(run, measured=measured, object_width_m=0.0, left_out=on), (
+        f'{run.name}: the finger moved {travel_m * 1e3:.3g} mm while it touched an object the '
+        f'bag records as rigid (a rigid one lets it move at most {peak_n:.3g} N / '
+        f'{RIGID_STIFFNESS_N_PER_M:g} N/m = {peak_n / RIGID_STIFFNESS_N_PER_M * 1e3:.2g} mm): '
+        f'the contact was compliant, of a stiffness the bag does not give, so its '
+        f'{int(on.sum())} ticks in contact are left out of the fit')
+
+
+def run_segments(run: Run, plant: PlantParams) -> list[tuple[int, int, bool]]:
+    """Split a run where the model's state is read again from the measurement.
+
+    A segment starts at the run's start and where the measured force rises into contact; the
+    model starts each one from the measured speed and current, the finger at the object's face
+    when a rigid object is touched. So no drift of a long open-loop run decides when a slow
+    approach meets the object. Returns (start, end, placed at the face) per segment; one shorter
+    than ``MIN_SEGMENT_TICKS`` joins the one before.
+    """
+    n = len(run.t_ns)
+    on = touching(run)
+    cuts = set(np.flatnonzero(on[1:] & ~on[:-1]) + 1)
+    if run.left_out is not None:        # the model starts again after a part left out
+        cuts |= set(np.flatnonzero(run.left_out[:-1] & ~run.left_out[1:]) + 1)
+    starts = [0]
+    for c in sorted(int(c) for c in cuts if c > 0):
+        if c - starts[-1] >= MIN_SEGMENT_TICKS and n - c >= MIN_SEGMENT_TICKS:
+            starts.append(c)
+    rigid = run.stiffness_n_per_m == 0.0 and run.object_width_m > 0.0
+    x_c = plant.max_travel_m - run.object_width_m
+    return [(a, b, bool(rigid and on[a] and run.measured['position_m'][a] > x_c - 1e-3))
+            for a, b in zip(starts, starts[1:] + [n])]
+
+
+def _approaches(parts: list) -> list[bool]:
+    """Tell, per segment, whether it ends where the next one starts at a rigid object's face."""
+    return [not part[2] and after[2] for part, after in zip(parts, parts[1:] + [(0, 0, False)])]
 
 
 def simulate(run: Run, plant_params: PlantParams, config: GripperConfig,
-             x0_m: float | None = None) -> np.ndarray:
-    """Simulate the package's plant (ideal sensors) from the run's first tick under its voltages.
+             x0s=None) -> np.ndarray:
+    """Simulate the package's plant (ideal sensors) under the run's voltages, segment by segment.
 
-    ``x0_m``: the finger's first position (default: the recorded one, within the travel).
-    Columns in :data:`CHANNELS` order.
+    Each segment (:func:`run_segments`) starts from its first tick's measured speed and current,
+    at the face, before it as far as the speed carried the finger, or at the first position
+    ``x0s[0]`` (the run's first segment; default and later ones: the recorded position, within
+    the travel). Columns in :data:`CHANNELS` order.
     """
     plant = GripperPlant(plant_params, FsrVoltageDivider(config.force_sensor), config.contact)
-    plant.set_object(GraspObject(run.object_width_m, run.stiffness_n_per_m,
-                                 run.damping_n_s_per_m))
-    plant.t_ns = int(run.t_ns[0])
     m = run.measured
     x_c = plant_params.max_travel_m - run.object_width_m
-    x0 = min(max(float(m['position_m'][0] if x0_m is None else x0_m), 0.0), x_c)
-    plant_place(plant.kernel, x0, float(m['speed_rad_s'][0]), float(m['current_a'][0]))
     out = np.zeros((len(run.t_ns), len(CHANNELS)))
-    _run_plant(plant.kernel, run.t_ns, run.voltage_v, out, np.zeros(1, TICK_LAYOUT.dtype))
+    tick = np.zeros(1, TICK_LAYOUT.dtype)
+    parts = run_segments(run, config.plant)
+    for (a, b, at_face), approach in zip(parts, _approaches(parts)):
+        if run.left_out is not None and run.left_out[a]:
+            out[a:b] = math.nan                             # left out: nothing to compare
+            continue
+        # a segment that ends on the face, the model meets it where the next one starts: in
+        # between it moves free (no open-loop drift decides when a slow approach touches)
+        plant_place(plant.kernel, 0.0, 0.0, 0.0)           # open: any object may be placed
+        plant.set_object(GraspObject(0.0 if approach else run.object_width_m,
+                                     run.stiffness_n_per_m, run.damping_n_s_per_m))
+        if at_face:
+            x0 = x_c
+        elif approach:
+            x0 = _approach_start_m(run, a, b, plant_params)
+        elif a > 0 or x0s is None or not len(x0s):
+            x0 = min(max(float(m['position_m'][a]), 0.0), x_c if run.stiffness_n_per_m == 0.0
+                     else plant_params.max_travel_m)
+        else:
+            x0 = float(x0s[0])
+        plant.t_ns = int(run.t_ns[a])
+        plant_place(plant.kernel, x0, 0.0 if at_face else float(m['speed_rad_s'][a]),
+                    float(m['current_a'][a]))
+        run_plant(plant.kernel, run.t_ns[a:b], run.voltage_v[a:b], out[a:b], tick)
     return out
+
+
+def _approach_start_m(run: Run, a: int, b: int, plant: PlantParams) -> float:
+    """Return where a segment that ends on a rigid object's face starts.
+
+    As far from the face as the measured speed carried the finger: a slow approach meets the
+    face when the speed says, not when a noisy first position reading would have it.
+    """
+    w = run.measured['speed_rad_s'][a:b]
+    dt_s = np.diff(run.t_ns[a:b + 1]) * 1e-9
+    travel_rad = float(np.sum(0.5 * (w[:-1] + w[1:]) * dt_s[:-1]) + 0.5 * w[-1] * dt_s[-1])
+    return max(0.0, plant.max_travel_m - run.object_width_m - plant.travel_per_rad_m *
+               travel_rad)
+
+
+def _placements(runs: list[Run], plant: PlantParams) -> tuple[list, list, list]:
+    """Each fitted segment start's first guess and bounds (the measured position, the travel)."""
+    start, lower, upper = [], [], []
+    for run in runs:
+        end = plant.max_travel_m - (run.object_width_m if run.stiffness_n_per_m == 0.0 else 0.0)
+        for a in _fitted_starts(run, plant):
+            x0 = float(run.measured['position_m'][a])
+            start.append(min(max(x0, 0.0), end) if math.isfinite(x0) else 0.0)
+            lower.append(0.0)
+            upper.append(end)
+    return start, lower, upper
+
+
+def _fitted_starts(run: Run, plant: PlantParams) -> list[int]:
+    """Return the first ticks of the segments whose first position is fitted: the run's first.
+
+    (Later segments start at the face, before it as the speed says, or after a part left out
+    at the measured position.)
+    """
+    parts = run_segments(run, plant)
+    return [a for (a, _, at_face), approach in zip(parts[:1], _approaches(parts))
+            if not at_face and not approach]
 
 
 # ------------------------------------------------------------------ the linear seed
@@ -204,6 +325,7 @@ class Seed:
     back_emf_v_s_per_rad: float
     torque_per_lever: float        # k_t / lever, N per A (rigid contact)
     samples: int
+    electrical_time_constant_s: float = math.nan   # L/R, from samples shorter than it x 20
 
     @property
     def mechanical_time_constant_s(self) -> float:
@@ -228,6 +350,9 @@ class Seed:
                 out[2], out[3] = alpha, beta
         if math.isfinite(self.torque_per_lever) and self.torque_per_lever > 0.0:
             out[4] = self.torque_per_lever
+        if math.isfinite(self.electrical_time_constant_s) and \
+                self.electrical_time_constant_s > 0.0:
+            out[5] = self.electrical_time_constant_s * r
         return out
 
 
@@ -255,11 +380,13 @@ def linear_seed(runs: list[Run], base: PlantParams) -> Seed:
         rows_w.append(np.column_stack((w[free - 1], e[free], w[free])))
         if np.isfinite(f).any():
             peak = np.nanmax(np.abs(f))
-            rigid = held[(w[held] == 0.0) & (f[held] > RIGID_FORCE_SHARE * peak) &
-                         (i[held] > 0.0)]
+            # in rigid contact the force follows the current at once: any period will do
+            rigid = np.flatnonzero((w == 0.0) & (f > RIGID_FORCE_SHARE * peak) & (i > 0.0))
             rows_f.append(np.column_stack((i[rigid], f[rigid])))
     a_w = np.concatenate(rows_w)
     a_i = np.concatenate(rows_i)
+    a_w = a_w[np.isfinite(a_w).all(axis=1)]             # ticks left out are NaN
+    a_i = a_i[np.isfinite(a_i).all(axis=1)]
     if len(a_w) < MIN_FREE_SAMPLES:
         raise IdentifyError(f'too short to identify anything: {len(a_w)} free-motion samples '
                             f'at the sampling period (at least {MIN_FREE_SAMPLES} needed)')
@@ -270,8 +397,34 @@ def linear_seed(runs: list[Run], base: PlantParams) -> Seed:
         a_f = np.concatenate(rows_f)
         if len(a_f):
             g = float(a_f[:, 0] @ a_f[:, 1] / (a_f[:, 0] @ a_f[:, 0]))
-    return Seed(period_ns * 1e-9, float(pole), float(gain), 1.0 / inv_r, kb_over_r / inv_r, g,
-                len(a_w))
+    r, kb = 1.0 / inv_r, kb_over_r / inv_r
+    return Seed(period_ns * 1e-9, float(pole), float(gain), r, kb, g, len(a_w),
+                _electrical_seed(runs, r, kb, period_ns))
+
+
+def _electrical_seed(runs: list[Run], r: float, kb: float, period_ns: int) -> float:
+    """Return L/R from the samples at the shortest period (NaN: none, or the fit has no sense).
+
+    Over a sample ``T`` the current tends to ``u = (e - k_b w) / R`` (``w`` the mean of its
+    ends): ``i[n] - u[n] = a (i[n-1] - u[n])``, ``a = exp(-T R / L)``, by least squares.
+    """
+    dts = np.concatenate([np.diff(run.t_ns) for run in runs])
+    if not dts.size or dts.min() >= period_ns:
+        return math.nan
+    short = int(dts.min())
+    xs, ys = [], []
+    for run in runs:
+        m = run.measured
+        n = np.flatnonzero(np.diff(run.t_ns) == short) + 1
+        u = (run.voltage_v[n] - kb * 0.5 * (m['speed_rad_s'][n] + m['speed_rad_s'][n - 1])) / r
+        xs.append(m['current_a'][n - 1] - u)
+        ys.append(m['current_a'][n] - u)
+    x, y = np.concatenate(xs), np.concatenate(ys)
+    ok = np.isfinite(x) & np.isfinite(y)
+    if ok.sum() < MIN_FREE_SAMPLES or not x[ok] @ x[ok] > 0.0:
+        return math.nan
+    a = float(x[ok] @ y[ok] / (x[ok] @ x[ok]))
+    return -short * 1e-9 / math.log(a) if 0.0 < a < 1.0 else math.nan
 
 
 # ------------------------------------------------------------------ output error
@@ -315,14 +468,17 @@ def _scales(runs: list[Run]) -> dict[str, float]:
 
 
 def _residuals(runs, scales, config, base_theta, free, values, part):
-    """Weighted residuals; ``values`` = log theta[free], then each run's first position."""
+    """Weighted residuals; ``values`` = log theta[free], then the segments' first positions."""
     theta = base_theta.copy()
     theta[free] = np.exp(values[:free.size])
     plant = plant_of(theta, config.plant)
-    x0s = values[free.size:] if values.size > free.size else [None] * len(runs)
     out = []
-    for run, x0 in zip(runs, x0s):
-        sim = simulate(run, plant, config, x0)
+    placed = free.size
+    for run in runs:
+        count = len(_fitted_starts(run, config.plant))
+        x0s = values[placed:placed + count] if values.size > free.size else None
+        placed += count
+        sim = simulate(run, plant, config, x0s)
         rows = slice(0, run.fit_end) if part == 'fit' else slice(run.fit_end, None)
         for j, c in enumerate(CHANNELS):
             if scales[c] > 0.0:
@@ -349,6 +505,8 @@ def nrmse(simulated: np.ndarray, recorded: np.ndarray, span: float | None = None
 def identify(runs: list[Run], config: GripperConfig) -> Identified:
     """Identify the plant of ``runs``; ``config`` gives the fixed keys and the starting point."""
     runs = [check_run(r) for r in runs]
+    left_out = [leave_out_compliant_contact(r, config.plant) for r in runs]
+    runs = [r for r, _ in left_out]
     seed = linear_seed(runs, config.plant)
     theta0 = seed.theta(config.plant)
     try:
@@ -358,7 +516,8 @@ def identify(runs: list[Run], config: GripperConfig) -> Identified:
     scales = _scales(runs)
     everything = np.arange(len(PARAMETERS))
     base_r = _residuals(runs, scales, config, theta0, everything, np.log(theta0), 'fit')
-    warnings, not_excited = [], []
+    warnings = [why for _, why in left_out if why]
+    not_excited = []
     for j, name in enumerate(PARAMETERS):
         log_values = np.log(theta0)
         log_values[j] += math.log(1.1)
@@ -371,12 +530,11 @@ def identify(runs: list[Run], config: GripperConfig) -> Identified:
     free = np.array([j for j, n in enumerate(PARAMETERS) if n not in not_excited])
     labels = np.concatenate([np.full(r.fit_end, j) for r in runs
                              for j, c in enumerate(CHANNELS) if scales[c] > 0.0])
-    # The first position is fitted too: a noisy first reading would offset the whole run.
-    ends = [config.plant.max_travel_m - r.object_width_m for r in runs]
-    start = np.concatenate((np.log(theta0[free]), [
-        min(max(float(r.measured['position_m'][0]), 0.0), end) for r, end in zip(runs, ends)]))
-    lower = np.concatenate((np.full(free.size, -np.inf), np.zeros(len(runs))))
-    upper = np.concatenate((np.full(free.size, np.inf), ends))
+    # Each segment's first position is fitted too: a noisy first reading would offset it.
+    x_start, x_lower, x_upper = _placements(runs, config.plant)
+    start = np.concatenate((np.log(theta0[free]), x_start))
+    lower = np.concatenate((np.full(free.size, -np.inf), x_lower))
+    upper = np.concatenate((np.full(free.size, np.inf), x_upper))
     nfev = 0
     for _ in range(REWEIGHTINGS + 1):
         result = least_squares(
@@ -393,7 +551,6 @@ def identify(runs: list[Run], config: GripperConfig) -> Identified:
                 scales[c] *= max(rms, RESIDUAL_FLOOR)
     theta = theta0.copy()
     theta[free] = np.exp(result.x[:free.size])
-    x0s = result.x[free.size:]
     plant = plant_of(theta, config.plant)
     # Each channel's own residual variance weighs its rows (noise differs per sensor).
     weights = np.ones(labels.size)
@@ -404,9 +561,12 @@ def identify(runs: list[Run], config: GripperConfig) -> Identified:
         weights[rows] = 1.0 / math.sqrt(var)
     # (J^T J)^-1 from J's singular values, none dropped: a weakly determined direction keeps
     # its large variance (a truncating pseudo-inverse would call it exact).
-    _, sing, vt = np.linalg.svd(result.jac * weights[:, None], full_matrices=False)
-    with np.errstate(divide='ignore'):
-        cov_log = (vt.T / sing ** 2) @ vt
+    # (a segment start wholly in the held-out part moves nothing: its column is left out)
+    used = np.flatnonzero(np.any(result.jac != 0.0, axis=0))
+    _, sing, vt = np.linalg.svd(result.jac[:, used] * weights[:, None], full_matrices=False)
+    cov_log = np.zeros((result.x.size, result.x.size))
+    with np.errstate(divide='ignore', invalid='ignore'):
+        cov_log[np.ix_(used, used)] = (vt.T / sing ** 2) @ vt
     combos = combinations(plant)
     stderr = {}
     for name in COMBINATIONS:
@@ -422,8 +582,11 @@ def identify(runs: list[Run], config: GripperConfig) -> Identified:
                 / 1e-6
         stderr[name] = float(math.sqrt(max(0.0, grad @ cov_log @ grad)))
     simulated, table = {}, {}
-    for run, x0 in zip(runs, x0s):
-        sim = simulate(run, plant, config, float(x0))
+    placed = free.size
+    for run in runs:
+        count = len(_fitted_starts(run, config.plant))
+        sim = simulate(run, plant, config, result.x[placed:placed + count])
+        placed += count
         simulated[run.name] = sim
         held = slice(run.fit_end, None)
         table[run.name] = {c: nrmse(sim[held, j], run.measured[c][held],

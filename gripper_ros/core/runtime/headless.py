@@ -565,24 +565,32 @@ def simulate_moves(config: GripperConfig, moves, *, object_width_m: float = 0.0,
                    stiffness_n_per_m: float = 0.0, damping_n_s_per_m: float = 0.0,
                    position_controller=DEFAULT_POSITION_CONTROLLER, hold_s: float = 0.0,
                    start_ns: int = 0) -> HeadlessMoves:
-    """Run moves (:class:`MoveRequest`) one after the other from fully open.
+    """Run moves (:class:`MoveRequest`) and grasps (:class:`GraspRequest`) one after another.
 
-    Each is requested when the one before has been answered and simulated time has paused (as
-    a client of the graph in fast mode does); ``object_width_m`` 0 = nothing between the
-    fingers. Time runs on ``hold_s`` after the last answer (the position stage keeps the last
-    command). Raises RequestError for a request the graph refuses (before anything runs).
+    From fully open. Each is requested when the one before has been answered and simulated time
+    has paused (as a client of the graph in fast mode does); ``object_width_m`` 0 = nothing
+    between the fingers. Time runs on ``hold_s`` after the last answer (the stage named last
+    keeps its command). Raises RequestError for a request the graph refuses (before anything
+    runs).
     """
-    targets = [validate_move(m, config.plant, config.supervisor) for m in moves]
+    targets = [validate_request(m, config.plant, config.supervisor, config.load_grip)
+               if isinstance(m, GraspRequest) else
+               validate_move(m, config.plant, config.supervisor) for m in moves]
+    masses = [m.mass_kg if isinstance(m, GraspRequest) else None for m in moves]
     plant = make_plant(config)
     plant.t_ns = start_ns
     plant_side = PlantSide(plant)
     plant_side.set_object(GraspObject(object_width_m, stiffness_n_per_m, damping_n_s_per_m))
-    supervisor = GraspSupervisor(config.plant, config.supervisor)
+    supervisor = GraspSupervisor(config.plant, config.supervisor, load_law(config))
     decide = SupervisorSide(supervisor).decide
-    stage = StageSide(PositionStageController(config, position_controller))
+    stages = {Controller.POSITION: StageSide(PositionStageController(config,
+                                                                     position_controller))}
+    if any(m is not None for m in masses):
+        stages[Controller.FORCE] = StageSide(ForceStageController(
+            config, DEFAULT_FORCE_CONTROLLER, DEFAULT_APPROACH_FORCE_MARGIN))
     tick = plant_side.tick()
     decision, ref = decide(tick)                    # the position stage holds the open fingers
-    pending = list(targets)
+    pending = list(zip(targets, masses))
     answers, rows = [], []
     while True:
         rows.append((tick.stamp_ns, tick.position_m, tick.velocity_mps, tick.force_n,
@@ -593,7 +601,7 @@ def simulate_moves(config: GripperConfig, moves, *, object_width_m: float = 0.0,
                                       tick.stamp_ns, tick.position_m, tick.force_n))
         if ref is None:
             break                                   # a FAULT: nothing drives the motor
-        cmd = stage.answer(ref)
+        cmd = stages[Controller(ref.controller)].answer(ref)
         plant_side.accept(cmd)
         if not plant_side.needs_time(cmd):
             if not pending:
@@ -603,7 +611,12 @@ def simulate_moves(config: GripperConfig, moves, *, object_width_m: float = 0.0,
                     continue
                 break                               # fast mode: simulated time pauses
             # the next request wakes the paused simulation; it starts at the next tick
-            supervisor.request_move(pending.pop(0), after_ns=tick.stamp_ns)
+            target, mass = pending.pop(0)
+            if mass is None:
+                supervisor.request_move(target, after_ns=tick.stamp_ns)
+            else:
+                plant_side.grasp_mass_kg = mass
+                supervisor.request_grasp(target, mass, after_ns=tick.stamp_ns)
         tick = plant_side.step(cmd)
         decision, ref = decide(tick)
     cols = list(zip(*rows))
