@@ -77,7 +77,7 @@ def test_overloaded_is_said_before_the_fall_where_24_v_cannot_hold(announce):
 
 
 ENVELOPE = [(2.0, 0.6, 'pick-and-place', 6.0, 0.0), (2.0, 0.9, 'step', 5.0, 0.0),
-            (1.0, 0.4, 'shake', 3.0, 2.0), (0.5, 0.9, 'pick-and-place', 6.0, 0.0),
+            (1.0, 0.4, 'shake', 3.0, 2.0), (1.0, 0.9, 'pick-and-place', 6.0, 0.0),
             (0.2, 0.4, 'pick-and-place', 3.0, 0.0)]
 
 

@@ -305,6 +305,8 @@ def law_step(g, history, sums, grid, t_ns, shear_n, displacement_m, force_n, pla
         ahead = load_n * plan_load_ratio(g, plan, t_ns)
     margin = ANNOUNCED_MARGIN if planned and ANNOUNCED_MARGIN < g.k_margin else g.k_margin
     setpoint = margin * ahead / (2.0 * mu)
+    near_top = not planned and (g.estimated or g.slips > 0) and \
+        setpoint * TOP_RESERVE > g.max_force_n      # what it needs, not where it relaxes from
     if setpoint < g.touch_force_n:
         setpoint = g.touch_force_n                     # never below the touch
     rate = g.release_rate_n_per_s
@@ -315,8 +317,7 @@ def law_step(g, history, sums, grid, t_ns, shear_n, displacement_m, force_n, pla
         lowest = g.force_setpoint_n                    # a slip never lowers the grip
     if setpoint < lowest:
         setpoint = lowest                              # let go slowly, as a hand does
-    if not planned and (g.estimated or g.slips > 0) and \
-            setpoint * TOP_RESERVE > g.max_force_n:
+    if near_top:
         setpoint = g.max_force_n
     if setpoint > g.max_force_n:
         setpoint = g.max_force_n
