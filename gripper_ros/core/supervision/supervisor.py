@@ -1095,11 +1095,16 @@ class GraspSupervisor:
                     f"position {m['hold_position_m']:.5f} m (margin {m['margin_m'] * 1e3:g} mm);"
                     f" force {m['force_n']:.3f} N")
         if code == MSG_OVERLOADED:
+            most = (f'the most {self.plant.voltage_limit_v:g} V holds is '
+                    f"{m['max_force_n']:.2f} N; gripping with {m['force_n']:.2f} N, at most "
+                    'that, while the object stays')
+            if not m['need_n'] > m['max_force_n']:      # said of a slide that did not slow
+                return (f'overloaded at {at} ({into}): the object slides on, no slower, with '
+                        f"the grip at its most: kinetic friction ({m['friction_coefficient']:.3f}"
+                        f' measured) is short of the load; {most}')
             return (f"overloaded at {at} ({into}): the load {m['load_n']:.2f} N needs "
                     f"{m['need_n']:.2f} N of grip at the measured friction "
-                    f"{m['friction_coefficient']:.3f}, the most "
-                    f"{self.plant.voltage_limit_v:g} V holds is {m['max_force_n']:.2f} N; "
-                    f"gripping with {m['force_n']:.2f} N, at most that, while the object stays")
+                    f"{m['friction_coefficient']:.3f}, {most}")
         if code == MSG_HOLDING:
             return (f"holding {m['force_n']:.3f} N (setpoint {m['force_setpoint_n']:.3f} N) at "
                     f"{m['position_m']:.5f} m")
