@@ -159,7 +159,7 @@ def soft_object_bound(config, masses, frictions, stiffness_n_per_m: float) -> st
 
 
 def plot_pick_and_place(config, path: str, mass_kg: float = 0.6, mu_s: float = 0.3) -> None:
-    """Grip force, load and slip over a pick-and-place: load-tracking vs the wrong-mass law."""
+    """Draw grip, load and slip over a pick-and-place: load-tracking and the wrong-mass law."""
     import matplotlib
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt
@@ -169,10 +169,12 @@ def plot_pick_and_place(config, path: str, mass_kg: float = 0.6, mu_s: float = 0
     lift = Lift(3.0, LIFT_DELAY_S, LIFT_DURATION_S, LiftProfile.PICK_AND_PLACE)
     fig, axes = plt.subplots(3, 1, figsize=(8, 8), sharex=True)
     reference = None
-    for law, declared, name in (('load_tracking', 1.0, 'load-tracking (mass, mu unknown)'),
-                                ('friction', 0.75, 'friction law, mass 25 % low')):
+    for law, declared, announce, name in (
+            ('load_tracking', 1.0, True, 'load-tracking, announced'),
+            ('load_tracking', 1.0, False, 'load-tracking, unannounced'),
+            ('friction', 0.75, False, 'friction law, mass 25 % low')):
         run = simulate_load_grip(config, WIDTH_M, mass_kg, mu_s, KINETIC_SHARE * mu_s, lift,
-                                 law, mass_kg * declared, decimate=10)
+                                 law, mass_kg * declared, decimate=10, announce=announce)
         rows = run.rows
         t = (rows[:, 0] - rows[0, 0]) * 1e-9
         limit = rows[:, 3] / (2.0 * mu_s)
