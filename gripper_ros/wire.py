@@ -71,6 +71,13 @@ TOPIC_LOAD_ACCELERATION = 'sim/load_acceleration'
 """geometry_msgs/AccelStamped, an arm (simulator) -> plant: the arm's acceleration while it holds;
 ``accel.linear.z`` (upward, m/s^2) loads the pads with gravity."""
 
+TOPIC_PLANNED_ACCELERATION = 'arm/planned_acceleration'
+"""geometry_msgs/AccelStamped, an arm -> supervisor: the arm's plan, ahead of its motion. Each
+message is a breakpoint: from ``header.stamp`` (simulated time) on, the upward acceleration along
+the pads is ``accel.linear.z`` (m/s^2), until the next breakpoint; one at or before an earlier
+one's stamp replaces the plan from there. It must arrive ``load_grip.ANTICIPATION_S`` before its
+stamp; the grip of a grasp of unknown mass rises with the load the motion will bring."""
+
 TOPIC_JOINT_COMMANDS = 'joint_commands'
 """sensor_msgs/JointState, ros2_control's topic-based hardware -> the gripper: finger_joint's
 position (travel from fully open, m), optionally a speed limit (velocity) and an effort limit;

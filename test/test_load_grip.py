@@ -12,7 +12,7 @@ import math
 from gripper_ros.apps.common import with_values
 from gripper_ros.apps.grip_study import DEFAULT_LIFT_OFF_S
 from gripper_ros.core.config import load_config
-from gripper_ros.core.control.load_grip import law_step, make_law, MU_GRID
+from gripper_ros.core.control.load_grip import law_step, make_law, MU_GRID, PLAN_DTYPE
 from gripper_ros.core.physics.hold import Lift, presliding_m
 from gripper_ros.studies.grip_runs import simulate_load_grip
 from gripper_ros.wire import LiftProfile
@@ -28,6 +28,9 @@ MAX_N = CONFIG.plant.max_force_n
 DT_S = CONFIG.force.sample_time_s
 
 
+NO_PLAN = np.zeros(1, PLAN_DTYPE)                     # the arm announces nothing
+
+
 def law():
     return make_law(P, MAX_N, K_T, DT_S, 0.0, 0.0)
 
@@ -38,14 +41,15 @@ def test_mu_is_read_from_the_incipient_slip_and_sets_the_grip(mu):
     q = 5.0                                            # each pad's shear: a 10 N load
     for i in range(600):                               # the grip sweeps 30 N -> 14 N
         f = 30.0 - 16.0 * i / 600
-        law_step(g[0], history, sums, MU_GRID, i, q, presliding_m(q, f, mu, K_T), f)
+        law_step(g[0], history, sums, MU_GRID, i, q, presliding_m(q, f, mu, K_T), f, NO_PLAN)
     assert g[0]['estimated'] == 1
     assert g[0]['mu_est'] == pytest.approx(P.mu_safety * mu, abs=0.011)
     # held still from then on, the setpoint comes down to k F_load / (2 mu_est), no faster
     # than the release rate, and stays there
     f = 14.0
     for i in range(600, 3000):
-        sp = law_step(g[0], history, sums, MU_GRID, i, q, presliding_m(q, f, mu, K_T), f)
+        sp = law_step(g[0], history, sums, MU_GRID, i, q, presliding_m(q, f, mu, K_T), f,
+                      NO_PLAN)
     assert sp == pytest.approx(max(P.touch_force_n,
                                    P.grip_margin * 2 * q / (2 * g[0]['mu_est'])), rel=1e-12)
 
@@ -55,12 +59,12 @@ def test_a_slip_raises_the_grip_at_once():
     f, q = 10.0, 4.0                                   # carrying 0.4 F per pad
     d = presliding_m(q, f, 0.5, K_T)
     for i in range(100):
-        before = law_step(g[0], history, sums, MU_GRID, i, q, d, f)
+        before = law_step(g[0], history, sums, MU_GRID, i, q, d, f, NO_PLAN)
     window = int(g[0]['window'])
     speed = 4 * P.slip_speed_mps
     for i in range(100, 100 + window + 1):             # the object runs down the pads
         d += speed * DT_S
-        sp = law_step(g[0], history, sums, MU_GRID, i, q, d, f)
+        sp = law_step(g[0], history, sums, MU_GRID, i, q, d, f, NO_PLAN)
     assert g[0]['slipping'] == 1 and g[0]['slips'] == 1
     # mu_est is what the pads carry as it slides (kinetic: a lower bound of mu_s, which
     # betters the conservative start when nothing was measured before)
@@ -116,10 +120,11 @@ def test_grip_study_prints_a_row_per_law_and_refuses_bad_input():
     with contextlib.redirect_stdout(out):
         assert main(['--masses', '1.2', '--frictions', '0.5']) == 0
     lines = out.getvalue().splitlines()
-    row = next(line for line in lines if line.startswith('load-tracking (mass'))
-    cases, lost = row.split()[4:6]
-    assert (cases, lost) == ('5', '0')                  # five motions, none lost
-    assert sum(line.startswith(('friction,', 'paper')) for line in lines) == 3
+    for label in ('load-tracking, announced', 'load-tracking, unannounced'):
+        row = next(line for line in lines if line.startswith(label))
+        cases, lost = row[len(label):].split()[:2]
+        assert (cases, lost) == ('6', '0')              # six motions, none lost
+    assert sum(line.startswith('friction,') for line in lines) == 2
     err = io.StringIO()
     with contextlib.redirect_stderr(err):
         assert main(['--masses', '1,nan']) == 2

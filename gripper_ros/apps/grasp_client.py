@@ -19,6 +19,10 @@ leaves the simulation as it is. ``--namespace left`` talks to the gripper ``/lef
 (phase, opening, force) as it comes, and cancels the goal on Ctrl-C or SIGTERM: it prints the
 server's answer (outcome STOPPED) and exits 130. Without ``--action`` a signal exits 130 at once
 (a service call cannot be cancelled: ``/gripper/stop`` ends the grasp).
+``--profile step:5`` (``pick-and-place:A``, ``shake:A,HZ``) places the object with the arm's motion
+after HOLDING, which the simulated arm announces on ``/gripper/arm/planned_acceleration`` ahead of
+time (``--unannounced``: without notice); ``--object-mass`` and the frictions are the real
+object's, not told to the controller (``--mass 0``: the load-tracking grip).
 
 ``--release`` opens the fingers instead (``/gripper/release``, std_srvs/Trigger; with a full
 ROS 2: ``ros2 service call /gripper/release std_srvs/srv/Trigger``): exit code 0 once open, 1 if
@@ -55,6 +59,20 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('--object-width', type=float, help='simulated object width (default --width)')
     p.add_argument('--stiffness', type=float, default=0.0, help='object stiffness N/m (0 rigid)')
     p.add_argument('--no-place', action='store_true', help='do not call /gripper/sim/set_object')
+    p.add_argument('--profile', default=None, metavar='NAME:A[,HZ]',
+                   help="the arm's motion after HOLDING (as grasp_demo's): step:A, "
+                        'pick-and-place:A or shake:A,HZ; announced ahead on '
+                        'arm/planned_acceleration unless --unannounced')
+    p.add_argument('--unannounced', action='store_true',
+                   help='the arm plays --profile without notice')
+    p.add_argument('--lift-off', type=float, default=0.0, metavar='S',
+                   help='the arm hands the weight to the pads over S seconds (0 = configured)')
+    p.add_argument('--object-mass', type=float, default=0.0, metavar='KG',
+                   help="the simulated object's real mass (0 = the requested --mass)")
+    p.add_argument('--static-friction', type=float, default=0.0, metavar='MU',
+                   help='its real mu_s on the pads (0 = configured)')
+    p.add_argument('--kinetic-friction', type=float, default=0.0, metavar='MU',
+                   help='its real mu_k (0 = configured)')
     p.add_argument('--wait', type=float, default=10.0, help='seconds to wait for the services')
     p.add_argument('--call-timeout', type=float, default=600.0, help='wall seconds per call')
     p.add_argument('--action', action='store_true',
@@ -62,6 +80,21 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('--namespace', default=DEFAULT_NAMESPACE,
                    help='the gripper to talk to (default %(default)s: /gripper/...)')
     return p
+
+
+def _object_fields(args) -> dict:
+    """Return SetObject's hold and lift fields of the command line (none without --profile)."""
+    from gripper_ros.studies.lift_runs import LIFT_DELAY_S, LIFT_DURATION_S
+    out = {'mass_kg': args.object_mass, 'static_friction': args.static_friction,
+           'kinetic_friction': args.kinetic_friction}
+    if args.profile is None:
+        return out
+    profile, accel, hz = args.profile
+    out.update({'lift_acceleration_mps2': accel, 'lift_delay_s': LIFT_DELAY_S,
+                'lift_duration_s': LIFT_DURATION_S, 'lift_profile': int(profile),
+                'lift_frequency_hz': hz, 'lift_off_s': args.lift_off,
+                'announce_lift': not args.unannounced})
+    return out
 
 
 def _request_fields(args) -> dict:
@@ -135,6 +168,14 @@ def main(argv: list[str] | None = None) -> int:
         namespace = check_namespace(args.namespace)
     except ValueError as exc:
         parser.error(str(exc))
+    if (args.unannounced or args.lift_off) and args.profile is None:
+        parser.error('--unannounced and --lift-off need --profile')
+    if args.profile is not None:
+        from gripper_ros.core.physics.hold import parse_profile
+        try:
+            args.profile = parse_profile(args.profile)
+        except ValueError as exc:
+            parser.error(f'--profile: {exc}')
     with StopSignals() as signals:
         # the signal is seen here, not in rclpy: a cancelled goal's answer is still received
         rclpy.init(args=None if argv is None else [],
@@ -162,7 +203,7 @@ def _run(rclpy, args, namespace: str, signals: StopSignals) -> int:
         if not args.no_place:
             width = args.width if args.object_width is None else args.object_width
             request = SetObject.Request(width_m=width, stiffness_n_per_m=args.stiffness,
-                                        open_fingers=True)
+                                        open_fingers=True, **_object_fields(args))
             placed = call_spinning(node, place, request, args.call_timeout, signals)
             if placed is not None and not placed.success and 'is held' in placed.message:
                 print('grasp_client: an object is held: releasing it first', flush=True)

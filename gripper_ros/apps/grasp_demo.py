@@ -60,6 +60,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help="the arm's motion after HOLDING, along the pads: step:A (= --lift A), "
                         'pick-and-place:A (up, across, down; +-A m/s^2 trapezoids over the '
                         'duration) or shake:A,HZ (A sin(2 pi HZ t)); the request carries a = A')
+    p.add_argument('--unannounced', action='store_true',
+                   help='the arm moves without notice; by default it announces its motion '
+                        'ahead on arm/planned_acceleration (the load-tracking grip of --mass 0 '
+                        'then rises with the load it brings)')
     p.add_argument('--lift-off', type=float, default=0.0, metavar='S',
                    help='the arm hands the weight from the support to the pads over S seconds '
                         '(a hand takes 0.1-0.2 s; 0 = contact.lift_off_s, 0 as shipped)')
@@ -161,6 +165,8 @@ def main(argv: list[str] | None = None) -> int:
         return _fail(f'--lift-off must be <= {MAX_LIFT_OFF_S:g} s, got {args.lift_off!r}')
     if args.lift_off and not (args.lift or args.profile):
         return _fail('--lift-off needs a lift (--lift or --profile)')
+    if args.unannounced and not (args.lift or args.profile):
+        return _fail('--unannounced needs a lift (--lift or --profile)')
     if args.profile is not None:
         from gripper_ros.core.physics.hold import parse_profile
         if args.lift:
@@ -280,6 +286,7 @@ def _lift(args) -> dict:
         out['lift_off_s'] = args.lift_off
     if args.profile is not None:
         out.update({'lift_profile': int(args.profile[0]), 'lift_frequency_hz': args.profile[2]})
+    out['announce_lift'] = not args.unannounced
     return out
 
 

@@ -1,14 +1,16 @@
-"""grip_study: the load-tracking grip against the fixed laws, over masses, frictions, arm motions.
+"""grip_study: the load-tracking grip, announced and not, against the fixed laws, over arm motions.
 
-    ros2 run gripper_ros grip_study [--masses 0.1,0.6,1.2,2.2] [--frictions 0.3,0.5,1.0]
-                                    [--plot docs/grip_study.png] [--jobs N]
+    ros2 run gripper_ros grip_study [--masses 0.2,0.5,1,2] [--frictions 0.4,0.6,0.9]
+                                    [--unannounced-only] [--plot docs/grip_study.png] [--jobs N]
 
 Every object is grasped headless (the graph's supervisor and contact stage, compiled) and held
 through each arm motion; its mass and pad friction (mu_k = 0.8 mu_s) are unknown to the
-load-tracking grip, and the fixed laws are told the mass (true, or 25 % low) with the configured
-mu_s. Per law: losses, slip, the grip's mean and largest margin over the slip limit m (g + a) /
-(2 mu_s) while lifted, and the peak at contact over the setpoint. Cases beyond what 24 V holds
-are counted apart, with whether the load-tracking grip said so before the object fell.
+load-tracking grip, which the arm either tells its planned acceleration ahead of the motion
+(announced, ``arm/planned_acceleration``) or not; the fixed laws are told the mass (true, or 25 %
+low) with the configured mu_s. Per law, over the cases 24 V can hold at static friction
+(m (g + A) <= 2 mu_s F_24V): losses, slip, the grip's mean margin over the slip limit m (g + a) /
+(2 mu_s) while lifted (the mean of the cases' and the largest case's), and overload calls. The
+cases beyond are counted apart, with how many were said to be overloaded and before the fall.
 """
 from __future__ import annotations
 
@@ -20,13 +22,14 @@ from gripper_ros.apps.common import load_config_or_report, negative_option, with
 from gripper_ros.core.config import ConfigError
 
 PROFILES = (('static', 'step:0'), ('step 2', 'step:2'), ('step 5', 'step:5'),
-            ('pick-and-place 3', 'pick-and-place:3'), ('shake 3 @ 2 Hz', 'shake:3,2'))
+            ('pick-and-place 3', 'pick-and-place:3'), ('pick-and-place 6', 'pick-and-place:6'),
+            ('shake 3 @ 2 Hz', 'shake:3,2'))
 """The arm's motions of the study: (label, --profile text)."""
-LAWS = (('load-tracking (mass, mu unknown)', 'load_tracking', 1.0),
-        ('friction, true mass', 'friction', 1.0),
-        ('friction, mass 25 % low', 'friction', 0.75),
-        ('paper eq. 23, true mass', 'paper', 1.0))
-"""(label, law, declared mass / true mass)."""
+LAWS = (('load-tracking, announced', 'load_tracking', 1.0, True),
+        ('load-tracking, unannounced', 'load_tracking', 1.0, False),
+        ('friction, true mass', 'friction', 1.0, False),
+        ('friction, mass 25 % low', 'friction', 0.75, False))
+"""(label, law, declared mass / true mass, the arm announces its motion)."""
 WIDTH_M = 0.05
 KINETIC_SHARE = 0.8
 LIFT_DELAY_S = 0.2
@@ -54,30 +57,41 @@ def _case(config, case: dict) -> dict:
                              KINETIC_SHARE * case['mu_s'], lift, case['law'],
                              case['mass_kg'] * case['declared'],
                              stiffness_n_per_m=case.get('stiffness_n_per_m', 0.0),
-                             damping_n_s_per_m=case.get('damping_n_s_per_m', 0.0))
-    g = config.plant.gravity_mps2
-    need_n = config.load_grip.grip_margin * case['mass_kg'] * (g + accel) / (2.0 * case['mu_s'])
+                             damping_n_s_per_m=case.get('damping_n_s_per_m', 0.0),
+                             announce=case['announce'])
     return {**case, 'outcome': run.outcome, 'slip_m': run.slip_m, 'lost_s': run.lost_s,
             'overload_s': run.overload_s, 'mean_margin': run.mean_margin,
             'max_margin': run.max_margin, 'peak_ratio': run.contact_peak_ratio,
-            'within': need_n <= config.plant.max_force_n, 'note': run.note}
+            'within': holdable(config, case['mass_kg'], case['mu_s'], accel), 'note': run.note}
 
 
-def study_cases(masses, frictions, stiffness_n_per_m=0.0, damping_n_s_per_m=0.0) -> list[dict]:
+def holdable(config, mass_kg: float, mu_s: float, accel_mps2: float) -> bool:
+    """Tell whether 24 V holds ``mass_kg`` at static friction through ``accel_mps2`` upward.
+
+    The load at its most, m (g + A), within the two pads' static capacity 2 mu_s F_24V.
+    """
+    return mass_kg * (config.plant.gravity_mps2 + accel_mps2) <= \
+        2.0 * mu_s * config.plant.max_force_n
+
+
+def study_cases(masses, frictions, stiffness_n_per_m=0.0, damping_n_s_per_m=0.0,
+                laws=LAWS) -> list[dict]:
     """Every (law, mass, friction, profile) of the study, as keyword dicts."""
-    return [{'label': label, 'law': law, 'declared': declared, 'mass_kg': m, 'mu_s': mu,
-             'profile': text, 'profile_label': name, 'stiffness_n_per_m': stiffness_n_per_m,
-             'damping_n_s_per_m': damping_n_s_per_m}
-            for label, law, declared in LAWS for m in masses for mu in frictions
+    return [{'label': label, 'law': law, 'declared': declared, 'announce': announce,
+             'mass_kg': m, 'mu_s': mu, 'profile': text, 'profile_label': name,
+             'stiffness_n_per_m': stiffness_n_per_m, 'damping_n_s_per_m': damping_n_s_per_m}
+            for label, law, declared, announce in laws for m in masses for mu in frictions
             for name, text in PROFILES]
 
 
-def summarise(rows: list[dict]) -> list[str]:
-    """Return the study's table: a line per law (within 24 V), then the cases beyond it."""
-    out = [f'{"law":34s} {"cases":>5s} {"lost":>5s} {"refused":>7s} {"slip mm max":>11s} '
-           f'{"slip mm sum":>11s} {"margin mean":>11s} {"margin max":>10s} '
-           f'{"peak/F_sp":>9s}']
-    for label, *_ in LAWS:
+def summarise(rows: list[dict], laws=LAWS) -> list[str]:
+    """Return the study's table: a line per law, within what 24 V holds, then the cases beyond.
+
+    ``margin mean``: the mean of the cases' mean margins; ``margin worst``: the largest case's.
+    """
+    out = [f'{"law":28s} {"cases":>5s} {"lost":>4s} {"refused":>7s} {"slip mm max":>11s} '
+           f'{"margin mean":>11s} {"margin worst":>12s} {"overload said":>13s}']
+    for label, *_ in laws:
         mine = [r for r in rows if r['label'] == label and r['within']]
         held = [r for r in mine if r['outcome'] in ('HOLDING', 'OBJECT_LOST')]
         lost = sum(r['outcome'] == 'OBJECT_LOST' for r in mine)
@@ -85,35 +99,36 @@ def summarise(rows: list[dict]) -> list[str]:
         kept = [r for r in held if r['outcome'] == 'HOLDING']
         slips = [r['slip_m'] * 1e3 for r in held]
         means = [r['mean_margin'] for r in kept if math.isfinite(r['mean_margin'])]
-        maxes = [r['max_margin'] for r in kept if math.isfinite(r['max_margin'])]
-        peaks = [r['peak_ratio'] for r in held if math.isfinite(r['peak_ratio'])]
-        out.append(f'{label:34s} {len(mine):5d} {lost:5d} {refused:7d} '
-                   f'{max(slips, default=math.nan):11.3f} {sum(slips):11.3f} '
+        said = sum(math.isfinite(r['overload_s']) for r in mine)
+        out.append(f'{label:28s} {len(mine):5d} {lost:4d} {refused:7d} '
+                   f'{max(slips, default=math.nan):11.3f} '
                    f'{sum(means) / len(means) if means else math.nan:11.3f} '
-                   f'{max(maxes, default=math.nan):10.3f} '
-                   f'{max(peaks, default=math.nan):9.4f}')
-    tracking = [r for r in rows if r['law'] == 'load_tracking' and r['within'] and
+                   f'{max(means, default=math.nan):12.3f} {said:13d}')
+    for label, law, _, _ in laws:
+        if law != 'load_tracking':
+            continue
+        mine = [r for r in rows if r['label'] == label and r['within'] and
                 r['outcome'] in ('HOLDING', 'OBJECT_LOST')]
-    held = [r for r in tracking if r['outcome'] == 'HOLDING']
-    for what, key, among in (('slip', 'slip_m', tracking), ('mean margin', 'mean_margin', held)):
-        worst = max(among, key=lambda r: r[key], default=None)
-        if worst is not None:
-            out.append(f'load-tracking, largest {what}: {worst["mass_kg"]:g} kg, mu_s '
-                       f'{worst["mu_s"]:g}, {worst["profile_label"]}: slip '
-                       f'{worst["slip_m"] * 1e3:.3f} mm, margin mean {worst["mean_margin"]:.3f}')
-    beyond = [r for r in rows if r['law'] == 'load_tracking' and not r['within']]
-    lost = [r for r in beyond if r['outcome'] == 'OBJECT_LOST']
-    warned = [r for r in lost if math.isfinite(r['overload_s']) and r['overload_s'] < r['lost_s']]
-    lead = [r['lost_s'] - r['overload_s'] for r in warned]
-    said = sum(math.isfinite(r['overload_s']) for r in beyond)
-    out.append(f'beyond 24 V (load-tracking): {len(beyond)} cases, {len(lost)} lost, '
-               f'{len(warned)} of them said overload before the object fell'
-               + (f' ({min(lead):.3f}-{max(lead):.3f} s before)' if lead else '')
-               + f'; overload said in {said} of {len(beyond)}')
-    worst = max(beyond, key=lambda r: r['mass_kg'] * r['mu_s'] ** -1, default=None)
-    if worst is not None:
-        out.append(f'  e.g. {worst["mass_kg"]:g} kg, mu_s {worst["mu_s"]:g}, '
-                   f'{worst["profile_label"]}: {worst["outcome"]}; {worst["note"]}')
+        held = [r for r in mine if r['outcome'] == 'HOLDING']
+        for what, key, among in (('slip', 'slip_m', mine),
+                                 ('mean margin', 'mean_margin', held)):
+            worst = max(among, key=lambda r: r[key], default=None)
+            if worst is not None:
+                out.append(f'{label}, largest {what}: {worst["mass_kg"]:g} kg, mu_s '
+                           f'{worst["mu_s"]:g}, {worst["profile_label"]}: slip '
+                           f'{worst["slip_m"] * 1e3:.3f} mm, margin mean '
+                           f'{worst["mean_margin"]:.3f}')
+    for label, law, _, _ in laws:
+        if law != 'load_tracking':
+            continue
+        beyond = [r for r in rows if r['label'] == label and not r['within']]
+        lost = [r for r in beyond if r['outcome'] == 'OBJECT_LOST']
+        warned = [r for r in lost if math.isfinite(r['overload_s']) and
+                  r['overload_s'] < r['lost_s']]
+        said = sum(math.isfinite(r['overload_s']) for r in beyond)
+        out.append(f'beyond 24 V at static friction ({label}): {len(beyond)} cases, '
+                   f'{len(lost)} lost, {len(warned)} of them said overloaded before they fell; '
+                   f'overload said in {said} of {len(beyond)}')
     return out
 
 
@@ -144,7 +159,7 @@ def soft_object_bound(config, masses, frictions, stiffness_n_per_m: float) -> st
 
 
 def plot_pick_and_place(config, path: str, mass_kg: float = 0.6, mu_s: float = 0.3) -> None:
-    """Grip force, load and slip over a pick-and-place: load-tracking vs the wrong-mass law."""
+    """Draw grip, load and slip over a pick-and-place: load-tracking and the wrong-mass law."""
     import matplotlib
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt
@@ -154,10 +169,12 @@ def plot_pick_and_place(config, path: str, mass_kg: float = 0.6, mu_s: float = 0
     lift = Lift(3.0, LIFT_DELAY_S, LIFT_DURATION_S, LiftProfile.PICK_AND_PLACE)
     fig, axes = plt.subplots(3, 1, figsize=(8, 8), sharex=True)
     reference = None
-    for law, declared, name in (('load_tracking', 1.0, 'load-tracking (mass, mu unknown)'),
-                                ('friction', 0.75, 'friction law, mass 25 % low')):
+    for law, declared, announce, name in (
+            ('load_tracking', 1.0, True, 'load-tracking, announced'),
+            ('load_tracking', 1.0, False, 'load-tracking, unannounced'),
+            ('friction', 0.75, False, 'friction law, mass 25 % low')):
         run = simulate_load_grip(config, WIDTH_M, mass_kg, mu_s, KINETIC_SHARE * mu_s, lift,
-                                 law, mass_kg * declared, decimate=10)
+                                 law, mass_kg * declared, decimate=10, announce=announce)
         rows = run.rows
         t = (rows[:, 0] - rows[0, 0]) * 1e-9
         limit = rows[:, 3] / (2.0 * mu_s)
@@ -185,8 +202,10 @@ def plot_pick_and_place(config, path: str, mass_kg: float = 0.6, mu_s: float = 0
 
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(prog='grip_study', description=__doc__.splitlines()[0])
-    p.add_argument('--masses', default='0.1,0.6,1.2,2.2', help='kg, comma-separated')
-    p.add_argument('--frictions', default='0.3,0.5,1.0', help='mu_s, comma-separated')
+    p.add_argument('--masses', default='0.2,0.5,1,2', help='kg, comma-separated')
+    p.add_argument('--frictions', default='0.4,0.6,0.9', help='mu_s, comma-separated')
+    p.add_argument('--unannounced-only', action='store_true',
+                   help='run the load-tracking grip only as the arm moves without notice')
     p.add_argument('--stiffness', type=float, default=0.0,
                    help='object contact stiffness N/m (0 = rigid)')
     p.add_argument('--damping', type=float, default=0.0, help='object contact damping N s/m')
@@ -221,15 +240,16 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     import functools
     from gripper_ros.core.runtime.headless import map_cases
+    laws = tuple(law for law in LAWS if not (args.unannounced_only and law[3]))
     rows = map_cases(functools.partial(_case, config),
-                     study_cases(masses, frictions, args.stiffness, args.damping),
+                     study_cases(masses, frictions, args.stiffness, args.damping, laws),
                      jobs=args.jobs)
     print(f'{len(rows)} grasps: {WIDTH_M * 1e3:g} mm objects of {args.masses} kg, mu_s '
           f'{args.frictions} (mu_k = {KINETIC_SHARE:g} mu_s); arm: '
           + ', '.join(name for name, _ in PROFILES) + '; ' +
           (f'{args.stiffness:g} N/m, {args.damping:g} N s/m' if args.stiffness else 'rigid') +
           f'; lift-off {config.contact.lift_off_s:g} s')
-    for line in summarise(rows):
+    for line in summarise(rows, laws):
         print(line)
     if args.stiffness > 0.0:
         print(soft_object_bound(config, masses, frictions, args.stiffness))

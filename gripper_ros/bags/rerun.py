@@ -131,7 +131,8 @@ def load_record(bag: Bag | str | os.PathLike) -> GraspRecord:
     for name in ('width_m', 'mass_kg'):
         if name not in request:
             raise RerunError(f'{bag.path}: the recorded request has no "{name}"')
-    known = set(OBJECT_FIELDS) | set(LIFT_FIELDS) | set(FAULT_FIELDS) | {'open_fingers'}
+    known = set(OBJECT_FIELDS) | set(LIFT_FIELDS) | set(FAULT_FIELDS) | \
+        {'open_fingers', 'announce_lift'}
     for name, value in obj.items():
         if name not in known:
             raise RerunError(f'{bag.path}: recorded object field "{name}" is not re-run')
@@ -183,6 +184,7 @@ def _grasp_keywords(path, request: dict, obj: dict) -> dict:
                 raise ValueError(f'lift_profile must be a LiftProfile code, got {values[3]!r}')
             values[3] = int(values[3])
             out['lift'] = Lift(*values)
+            out['announce'] = bool(obj.get('announce_lift', False))
         kind = int(obj.get('fault', 0))
         if kind != obj.get('fault', 0):
             raise ValueError(f'fault must be a FaultKind code, got {obj["fault"]!r}')

@@ -49,8 +49,9 @@ from gripper_ros.wire import (CDR_LITTLE_ENDIAN, COMMAND_LAYOUT, Controller,
                               SERVICE_PAUSE, SERVICE_RESUME, SERVICE_SET_OBJECT, SERVICE_STEP,
                               TIME_MODE_CHOICES, TimeMode, TOPIC_CLOCK,
                               TOPIC_FORCE_SENSOR, TOPIC_JOINT_STATES, TOPIC_LOAD_ACCELERATION,
-                              TOPIC_MOTOR_COMMAND, TOPIC_OBJECT_STATE, TOPIC_SIM_STATUS,
-                              TOPIC_STATUS, TOPIC_TICK)
+                              TOPIC_MOTOR_COMMAND, TOPIC_OBJECT_STATE,
+                              TOPIC_PLANNED_ACCELERATION, TOPIC_SIM_STATUS, TOPIC_STATUS,
+                              TOPIC_TICK)
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
 from rclpy.clock import Clock, ClockType
 from rosgraph_msgs.msg import Clock as ClockMsg
@@ -156,6 +157,12 @@ class PlantSimulatorNode(GripperNode):
         self.create_subscription(AccelStamped, TOPIC_LOAD_ACCELERATION,
                                  self._on_load_acceleration, GRAPH_QOS)
         self.loads_refused = 0
+        # the simulated arm: it announces a lift asked to be announced as the hold begins
+        self._plan_pub = self.create_publisher(AccelStamped, TOPIC_PLANNED_ACCELERATION,
+                                               GRAPH_QOS)
+        self._announce_lift = False
+        self._announced_for = -1                # the grasp whose lift was announced
+        self.plans_announced = 0
         self.create_service(SetObject, SERVICE_SET_OBJECT, self._on_set_object,
                             qos_profile=SERVICE_QOS)
         self.create_service(Trigger, SERVICE_PAUSE, self._on_pause, qos_profile=SERVICE_QOS)
@@ -220,7 +227,22 @@ class PlantSimulatorNode(GripperNode):
             return
         self._pending = self._echoed = True
         self._unpowered = False
+        self._announce_if_begun()
         self._try_step()
+
+    def _announce_if_begun(self) -> None:
+        """Publish the lift's plan on arm/planned_acceleration once its hold has begun."""
+        begun = int(self.side.state[0]['hold_begun_for'])
+        if not self._announce_lift or begun == self._announced_for or begun < 0:
+            return
+        self._announced_for = begun
+        for t_ns, accel in self.plant.lift_plan():
+            msg = AccelStamped()
+            msg.header.stamp = ns_to_time(t_ns)
+            msg.header.frame_id = self.frame_id
+            msg.accel.linear.z = accel
+            self._plan_pub.publish(msg)
+        self.plans_announced += 1
 
     def _on_load_acceleration(self, msg: AccelStamped) -> None:
         """Take a live arm's upward acceleration: it loads the held object's pads from now."""
@@ -531,6 +553,8 @@ class PlantSimulatorNode(GripperNode):
                                     request.fault_time_constant_s, obj.rigid)
             self.side.set_object(obj, request.open_fingers, (kind, request.fault_at_s, tau),
                                  lift=lift)
+            self._announce_lift = bool(request.announce_lift) and lift is not None
+            self._announced_for = int(self.side.state[0]['hold_begun_for'])
         except (ValueError, TypeError) as exc:
             response.success = False
             response.message = f'refused: {exc}'

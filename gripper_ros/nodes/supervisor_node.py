@@ -33,6 +33,7 @@ import math
 import sys
 import time
 
+from geometry_msgs.msg import AccelStamped
 from gripper_interfaces.msg import PlantTick, SimStatus, StageReference, SupervisorStatus
 from gripper_interfaces.srv import Grasp, Move
 from gripper_ros.core.runtime.lockstep import (ACTIVE_SHIFT, ANSWERED, FOREIGN, NAMED, PROGRESS,
@@ -54,8 +55,8 @@ from gripper_ros.wire import (CDR_LITTLE_ENDIAN, FINGER_JOINT, GRAPH_NOT_READY, 
                               NODE_SUPERVISOR,
                               Outcome, REPUBLISH_AFTER_S, SERVICE_GRASP, SERVICE_MOVE,
                               SERVICE_RELEASE, SERVICE_STOP, STAGE_NODES, STAGE_REFERENCE_TOPICS,
-                              TICK_LAYOUT, TOPIC_JOINT_COMMANDS, TOPIC_MOTOR_COMMAND,
-                              TOPIC_OUTCOME,
+                              stamp_ns, TICK_LAYOUT, TOPIC_JOINT_COMMANDS, TOPIC_MOTOR_COMMAND,
+                              TOPIC_OUTCOME, TOPIC_PLANNED_ACCELERATION,
                               TOPIC_POSITION_REFERENCE, TOPIC_SIM_STATUS, TOPIC_STATUS,
                               TOPIC_TICK)
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
@@ -114,6 +115,9 @@ class SupervisorNode(GripperNode):
         self.sim_paused = False                 # the plant's sim/status says time is held
         self._last_tick_wall = time.monotonic()  # any tick, a republished one included
         self.graph_subscription(SimStatus, TOPIC_SIM_STATUS, self._on_sim_status, raw=False)
+        self.create_subscription(AccelStamped, TOPIC_PLANNED_ACCELERATION, self._on_plan,
+                                 GRAPH_QOS)
+        self.plan_breakpoints = 0               # announced breakpoints taken
         self.grasp_service = DeferredService(self, Grasp, SERVICE_GRASP, self._on_grasp)
         self.release_service = DeferredService(self, Trigger, SERVICE_RELEASE, self._on_release)
         self.move_service = DeferredService(self, Move, SERVICE_MOVE, self._on_move)
@@ -143,6 +147,16 @@ class SupervisorNode(GripperNode):
         if self.sim_paused and not msg.paused:
             self._silence.reset()
         self.sim_paused = msg.paused
+
+    def _on_plan(self, msg: AccelStamped) -> None:
+        """Take a breakpoint of the arm's plan: the grip anticipates the load it brings."""
+        try:
+            self.logic.announce(stamp_ns(msg.header.stamp), msg.accel.linear.z)
+        except ValueError as exc:
+            self.get_logger().warning(f'{TOPIC_PLANNED_ACCELERATION} ignored: {exc}',
+                                      throttle_duration_sec=1.0)
+            return
+        self.plan_breakpoints += 1
 
     # ------------------------------------------------------------------ the tick
     @property

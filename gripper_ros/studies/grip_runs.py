@@ -48,11 +48,11 @@ def _graph_path_run(config: GripperConfig, width_m: float, mass_kg: float,
                     static_friction: float, kinetic_friction: float, lift: Lift | None,
                     stiffness_n_per_m: float, damping_n_s_per_m: float,
                     params: LoadGripParams | None, after_s: float, decimate: int,
-                    seed: int, declared_mass_kg: float = 0.0) -> GripRun:
+                    seed: int, declared_mass_kg: float = 0.0, announce: bool = False) -> GripRun:
     """Run a grasp and its hold as the graph does; the study's figures of it.
 
     ``declared_mass_kg`` is the request's (0: unknown, the load-tracking grip), which carries
-    the lift's acceleration for a fixed law.
+    the lift's acceleration for a fixed law; ``announce``: the arm announces the lift.
     """
     config = replace(config, load_grip=params or config.load_grip,
                      sensor_noise=replace(config.sensor_noise, seed=seed))
@@ -63,7 +63,7 @@ def _graph_path_run(config: GripperConfig, width_m: float, mass_kg: float,
                            stiffness_n_per_m=stiffness_n_per_m,
                            damping_n_s_per_m=damping_n_s_per_m, object_mass_kg=mass_kg,
                            static_friction=static_friction, kinetic_friction=kinetic_friction,
-                           lift=lift, hold_s=hold_s)
+                           lift=lift, hold_s=hold_s, announce=announce)
     except RequestError as exc:
         return GripRun('REFUSED', str(exc), math.nan, math.nan, math.nan, math.nan,
                        math.nan, math.nan, math.nan)
@@ -119,7 +119,7 @@ def simulate_load_grip(config: GripperConfig, width_m: float, mass_kg: float,
                        declared_mass_kg: float | None = None,
                        stiffness_n_per_m: float = 0.0, damping_n_s_per_m: float = 0.0,
                        params: LoadGripParams | None = None, after_s: float = 0.5,
-                       decimate: int = 10, seed: int = 1) -> GripRun:
+                       decimate: int = 10, seed: int = 1, announce: bool = False) -> GripRun:
     """Grasp an object of ``mass_kg`` and pad friction ``mu_s, mu_k`` and hold it through ``lift``.
 
     ``load_tracking``: the request carries no mass (``mass_kg`` 0): the graph's own path,
@@ -127,7 +127,8 @@ def simulate_load_grip(config: GripperConfig, width_m: float, mass_kg: float,
     force and then runs the law each tick on the pads' readings (``seed`` seeds the pads' noise).
     ``friction`` / ``paper``: the request declares ``declared_mass_kg`` (default: the true mass)
     and the lift's ``A`` and the configured mu_s, as a user of the fixed laws must; the grip
-    stays at that setpoint. Both through the same path.
+    stays at that setpoint. Both through the same path. ``announce``: the arm announces its
+    motion ahead (the supervisor's grip anticipates it); otherwise it moves without notice.
     """
     law = GripLaw(law)
     if law is not GripLaw.LOAD_TRACKING:
@@ -137,4 +138,4 @@ def simulate_load_grip(config: GripperConfig, width_m: float, mass_kg: float,
         mass_kg if declared_mass_kg is None else declared_mass_kg)
     return _graph_path_run(config, width_m, mass_kg, static_friction, kinetic_friction, lift,
                            stiffness_n_per_m, damping_n_s_per_m, params, after_s, decimate,
-                           seed, declared)
+                           seed, declared, announce)

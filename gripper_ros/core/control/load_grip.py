@@ -23,9 +23,22 @@ follow the load the pads feel, ``F_sp(t) = k F_load(t) / (2 mu_est)``, with a ma
 * Until ``mu`` is measured the grip relaxes at ``release_rate_n_per_s`` towards the grip of
   the most friction expected (after a slip, of the friction it showed); the incipient slip
   this brings on is what the fit reads. The grip never goes below the touch force.
-* Overload: when the load needs more than ``max_force_n`` at ``mu_est`` (margin 1), or the
-  object slips for ``overload_slip_s`` with the grip at ``max_force_n``, the law says so
-  (``overload_ns``) while the object is still between the pads.
+* Overload: when the load needs more than ``max_force_n`` at the friction the fit measured
+  (static, margin 1, without ``mu_safety``), or the object slides no slower after
+  ``overload_slip_s`` with the grip at ``max_force_n`` than when it got there (a slide that
+  slows stops, and then static friction holds it), the law says so (``overload_ns``) while
+  the object is still between the pads.
+* An announced motion (the arm's plan, :func:`plan_announce`: from each breakpoint's instant
+  on, its upward acceleration ``a``): the grip rises in parallel with the load it will bring,
+  as a hand's does with its own arm's motion (Flanagan and Wing 1993, 1997): ``F_load`` is
+  scaled by ``(g + a_max) / (g + a_read)``, ``a_max`` the most announced within
+  :data:`ANTICIPATION_S` ahead, ``a_read`` the announced one as the pads' shear channel reads
+  it now (its latency and bandwidth: :func:`plan_load_ratio`), and the margin is
+  :data:`ANNOUNCED_MARGIN`. The slip reflex stays for what was not announced.
+* Unannounced, a grip within :data:`TOP_RESERVE` of the most 24 V gives is the most.
+* The grip falls at ``release_rate_n_per_s``, a light one in proportion to itself
+  (:data:`RELEASE_TIME_S`), so that the force stage, which follows a falling setpoint late,
+  keeps it above the slip limit. No plan: the law above, exactly.
 
 The supervisor runs :func:`law_step` each tick for a grasp of unknown mass
 (``core/supervision/supervisor.py``); one grasp and hold of the study is
@@ -37,6 +50,7 @@ import math
 
 from gripper_ros.core.config import LoadGripParams
 from gripper_ros.core.physics.hold import presliding_m
+from gripper_ros.core.records import as_record
 import numba
 import numpy as np
 
@@ -55,7 +69,29 @@ STUCK_HEADROOM = 1.1
 SLIP_SHARE = 0.7
 """A fast displacement is a slip only while the pads carry this share of mu_est F or more."""
 SATURATED = 0.98
-"""A slip with the grip at this share of the most 24 V holds is an overload."""
+"""A slip with the grip at this share of the most 24 V holds is watched for an overload."""
+RELEASE_TIME_S = 0.05
+"""A light grip lets go no faster than its own size in this long: the force stage follows a
+falling setpoint about 1.3 ms late, so a faster fall would leave a grip of a newton or two below
+the slip limit before the setpoint is there."""
+ANNOUNCED_MARGIN = 1.15
+"""The grip's margin over the slip limit while the arm announces its motion: it covers the
+pads' noise and the fit's error, no longer a rise of the load nobody told (a hand's margin is
+smaller for its own arm's motion than for a load it must react to)."""
+ANTICIPATION_S = 0.01
+"""An announced rise of the load is met this long before it comes: the grip's rise on a
+rigid object at 24 V takes about 5 ms (the force stage's step)."""
+TOP_RESERVE = 1.5
+"""Unannounced, a grip above the most 24 V gives over this goes to the most at once: what is
+left above it is less than a load step of (TOP_RESERVE - 1) g needs, and a slide begun near the
+top may find kinetic friction at the most short of the load."""
+PLAN_ROWS = 1024
+"""The most breakpoints of an announced plan kept at once (the oldest go first); a lift's
+whole plan (``hold.ANNOUNCE_ROWS``) fits."""
+PLAN_DTYPE = np.dtype([('t_ns', np.int64), ('accel_mps2', np.float64)], align=True)
+"""One breakpoint of the arm's announced plan: from ``t_ns`` on its upward acceleration."""
+LEAST_SUPPORT = 0.1
+"""A downward acceleration is taken as leaving at least this share of g on the pads."""
 
 GRIP_DTYPE = np.dtype([
     ('k_margin', np.float64),
@@ -91,13 +127,22 @@ GRIP_DTYPE = np.dtype([
     ('normal_alpha', np.float64),      # ... and its low-pass step share (1: none)
     ('normal_filtered', np.float64),   # the grip force as that channel would read it
     ('normal_primed', np.uint8),
+    ('overload_mu', np.float64),       # the friction the overload was judged at
+    ('saturated_speed_mps', np.float64),  # the slide's speed as the grip reached its most
+    ('slide_not_slowing', np.uint8),   # at its most the grip did not slow the slide
+    ('gravity_mps2', np.float64),
+    ('plan_count', np.int64),          # breakpoints of the arm's announced plan (0: none)
+    ('plan_lead_ns', np.int64),        # an announced load is met this long before it comes
+    ('plan_filtered', np.float64),     # g + a announced, as the shear channel would read it
+    ('plan_primed', np.uint8),
 ], align=True)
 """The law's settings and state."""
 
 
 def make_law(params: LoadGripParams, max_force_n: float, tangential_stiffness_n_per_m: float,
              dt_s: float, displacement_noise_m: float, displacement_resolution_m: float,
-             shear_latency_s: float = 0.0, shear_bandwidth_hz: float = 0.0):
+             shear_latency_s: float = 0.0, shear_bandwidth_hz: float = 0.0,
+             gravity_mps2: float = 9.81):
     """Return the law's (record, displacement history, residual sums) for samples ``dt_s``.
 
     The grip force it divides the shear by passes through the shear channel's latency and
@@ -127,17 +172,20 @@ def make_law(params: LoadGripParams, max_force_n: float, tangential_stiffness_n_
     r['normal_delay'] = min(round(shear_latency_s / dt_s), int(r['window']))
     r['normal_alpha'] = 1.0 if shear_bandwidth_hz == 0.0 else \
         -math.expm1(-2.0 * math.pi * shear_bandwidth_hz * dt_s)
+    r['gravity_mps2'] = gravity_mps2
+    r['plan_lead_ns'] = round(ANTICIPATION_S * 1e9)
     history = np.zeros((HISTORY_ROWS, int(r['window']) + 1))
     sums = np.zeros((2, MU_GRID.size))
     return rec, history, sums
 
 
 @numba.njit(cache=True)
-def law_step(g, history, sums, grid, t_ns, shear_n, displacement_m, force_n):
+def law_step(g, history, sums, grid, t_ns, shear_n, displacement_m, force_n, plan):
     """Take one sample of the pads (mean shear per pad, mean displacement) and the grip force.
 
     ``history`` (4 x window + 1) keeps the last displacements, shears, forces as the shear
-    channel reads them and forces as given. Returns the force setpoint.
+    channel reads them and forces as given; ``plan`` the arm's announced breakpoints
+    (:func:`plan_announce`). Returns the force setpoint.
     """
     n = history.shape[1]
     head = g.head
@@ -195,9 +243,18 @@ def law_step(g, history, sums, grid, t_ns, shear_n, displacement_m, force_n):
                 g.mu_est = felt if felt > grid[0] else grid[0]
         g.slipping = 1
         g.quiet = 0
-        if g.slipping_saturated < g.overload_samples and \
-                grip_n >= SATURATED * g.max_force_n:
+        if grip_n >= SATURATED * g.max_force_n:
+            # at its most, the grip either slows the slide (kinetic friction beyond the load:
+            # it stops, and static friction holds it) or it does not: an overload
+            # (its speed measured over a window wholly at the most, then overload_samples on)
             g.slipping_saturated += 1
+            if g.slipping_saturated == g.window:
+                g.saturated_speed_mps = speed
+            elif g.slipping_saturated >= g.window + g.overload_samples:
+                if speed >= g.saturated_speed_mps:
+                    g.slide_not_slowing = 1
+                else:
+                    g.slipping_saturated = 0           # slowing: watch again from here
         g.count = 0
         for j in range(sums.shape[1]):
             sums[0, j] = 0.0
@@ -237,23 +294,107 @@ def law_step(g, history, sums, grid, t_ns, shear_n, displacement_m, force_n):
     # grip; the incipient slip it brings on is what measures mu. After a slip it relaxes no
     # further than the friction that slip showed.
     mu = g.mu_est if g.estimated or g.slipping or g.slips > 0 or load_n == 0.0 else grid[-1]
-    need_n = load_n / (2.0 * g.mu_est)
-    setpoint = g.k_margin * load_n / (2.0 * mu)
+    # judged at the friction the pads showed: the fit itself while stuck (static), what a
+    # slip carried while it slides (kinetic)
+    mu_seen = g.mu_est / g.mu_safety if g.estimated else g.mu_est
+    need_n = load_n / (2.0 * mu_seen)
+    # an announced motion: the load it will bring, from the mass the pads' load shows
+    planned = g.plan_count > 0
+    ahead = load_n
+    if planned:
+        ahead = load_n * plan_load_ratio(g, plan, t_ns)
+    margin = ANNOUNCED_MARGIN if planned and ANNOUNCED_MARGIN < g.k_margin else g.k_margin
+    setpoint = margin * ahead / (2.0 * mu)
+    near_top = not planned and (g.estimated or g.slips > 0) and \
+        setpoint * TOP_RESERVE > g.max_force_n      # what it needs, not where it relaxes from
     if setpoint < g.touch_force_n:
         setpoint = g.touch_force_n                     # never below the touch
-    lowest = g.force_setpoint_n - g.release_rate_n_per_s * g.dt_s
+    rate = g.release_rate_n_per_s
+    if g.force_setpoint_n < rate * RELEASE_TIME_S:
+        rate = g.force_setpoint_n / RELEASE_TIME_S     # a light grip in proportion
+    lowest = g.force_setpoint_n - rate * g.dt_s
     if g.slipping:
         lowest = g.force_setpoint_n                    # a slip never lowers the grip
     if setpoint < lowest:
         setpoint = lowest                              # let go slowly, as a hand does
+    if near_top:
+        setpoint = g.max_force_n
     if setpoint > g.max_force_n:
         setpoint = g.max_force_n
     if g.overload_ns == -1 and ((g.estimated and need_n > g.max_force_n) or
-                                g.slipping_saturated >= g.overload_samples):
+                                g.slide_not_slowing):
         g.overload_ns = t_ns
         g.overload_need_n = need_n
+        g.overload_mu = mu_seen
     g.force_setpoint_n = setpoint
     return setpoint
+
+
+@numba.njit(cache=True)
+def _planned_accel(g, plan, t_ns):
+    """Return the announced acceleration at ``t_ns`` and the index of the next breakpoint."""
+    a = 0.0
+    i = 0
+    while i < g.plan_count and plan[i].t_ns <= t_ns:
+        a = plan[i].accel_mps2
+        i += 1
+    return a, i
+
+
+@numba.njit(cache=True)
+def plan_range(g, plan, from_ns, to_ns):
+    """Return the least and the most announced acceleration over ``[from_ns, to_ns]``."""
+    a, i = _planned_accel(g, plan, from_ns)
+    lo = a
+    hi = a
+    while i < g.plan_count and plan[i].t_ns <= to_ns:
+        v = plan[i].accel_mps2
+        if v < lo:
+            lo = v
+        if v > hi:
+            hi = v
+        i += 1
+    return lo, hi
+
+
+@numba.njit(cache=True)
+def plan_load_ratio(g, plan, t_ns):
+    """Return the most load the plan brings within the lead over the load the pads show now.
+
+    The pads' shear reads ``m (g + a)`` through the channel's latency and bandwidth: the
+    announced ``g + a`` passed through the same (``plan_filtered``) gives the mass; the most
+    announced until ``plan_lead_ns`` ahead, the load to meet. Once a tick.
+    """
+    a_read, _ = _planned_accel(g, plan, t_ns - round(g.normal_delay * g.dt_s * 1e9))
+    floor = LEAST_SUPPORT * g.gravity_mps2
+    read = g.gravity_mps2 + a_read
+    if read < floor:
+        read = floor
+    if g.plan_primed:
+        g.plan_filtered += g.normal_alpha * (read - g.plan_filtered)
+    else:
+        g.plan_filtered = read
+        g.plan_primed = 1
+    _, hi = plan_range(g, plan, t_ns, t_ns + g.plan_lead_ns)
+    coming = g.gravity_mps2 + hi
+    return (coming if coming > floor else floor) / g.plan_filtered
+
+
+@numba.njit(cache=True)
+def plan_announce(g, plan, t_ns, accel_mps2):
+    """Take the breakpoint (from ``t_ns`` on, ``accel_mps2``): it replaces the plan from there."""
+    g = as_record(g)
+    n = g.plan_count
+    while n > 0 and plan[n - 1].t_ns >= t_ns:
+        n -= 1
+    if n == plan.shape[0]:                             # full: the oldest breakpoint goes
+        for j in range(n - 1):
+            plan[j].t_ns = plan[j + 1].t_ns
+            plan[j].accel_mps2 = plan[j + 1].accel_mps2
+        n -= 1
+    plan[n].t_ns = t_ns
+    plan[n].accel_mps2 = accel_mps2
+    g.plan_count = n + 1
 
 
 @numba.njit(cache=True)

@@ -397,6 +397,56 @@ def _lift_segment(h):
     h.profile_next_ns = nxt if nxt > at_ns else end_ns
 
 
+ANNOUNCE_PIECE_S = 0.005
+"""A shake is announced as pieces this long, each at the acceleration in its middle."""
+ANNOUNCE_MAX_PIECES = 1000
+"""... at most this many: a longer shake's pieces are longer."""
+ANNOUNCE_ROWS = ANNOUNCE_MAX_PIECES + 8
+"""The most breakpoints :func:`hold_plan` writes."""
+
+
+@numba.njit(cache=True)
+def hold_plan(hold, plan_t_ns, plan_accel_mps2):
+    """Write the begun lift's plan, as its arm would announce it; return how many breakpoints.
+
+    Each breakpoint: from ``plan_t_ns[i]`` on, the upward acceleration ``plan_accel_mps2[i]``;
+    the last is the lift's end (0). 0 breakpoints without a lift whose clock has started.
+    """
+    h = as_record(hold)
+    if not h.has_lift or h.lift_start_ns == -1 or h.lift_end_ns <= h.lift_start_ns:
+        return 0
+    start_ns = h.lift_start_ns
+    end_ns = h.lift_end_ns
+    a_max = h.lift_acceleration_mps2
+    n = 0
+    if h.lift_profile == LiftProfile.PICK_AND_PLACE:
+        for quarters, scale in _PICK_AND_PLACE:
+            plan_t_ns[n] = start_ns + round((end_ns - start_ns) * quarters /
+                                            PICK_AND_PLACE_QUARTERS)
+            plan_accel_mps2[n] = scale * a_max
+            n += 1
+    elif h.lift_profile == LiftProfile.SHAKE:
+        piece_ns = round(ANNOUNCE_PIECE_S * 1e9)
+        least_ns = (end_ns - start_ns + ANNOUNCE_MAX_PIECES - 1) // ANNOUNCE_MAX_PIECES
+        if piece_ns < least_ns:
+            piece_ns = least_ns
+        at_ns = start_ns
+        while at_ns < end_ns:
+            nxt = at_ns + piece_ns if at_ns + piece_ns < end_ns else end_ns
+            mid_s = 0.5 * ((at_ns - start_ns) + (nxt - start_ns)) * 1e-9
+            plan_t_ns[n] = at_ns
+            plan_accel_mps2[n] = a_max * math.sin(2.0 * math.pi * h.lift_frequency_hz * mid_s)
+            n += 1
+            at_ns = nxt
+    else:                                           # STEP
+        plan_t_ns[n] = start_ns
+        plan_accel_mps2[n] = a_max
+        n += 1
+    plan_t_ns[n] = end_ns
+    plan_accel_mps2[n] = 0.0
+    return n + 1
+
+
 @numba.njit(cache=True)
 def hold_drive(hold, t_ns, accel_mps2, after_ns):
     """Let a live arm set ``a`` from ``t_ns`` on; 1 (nothing changed) unless the hold has begun.

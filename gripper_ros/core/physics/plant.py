@@ -77,9 +77,10 @@ from gripper_ros.core.physics.contact_chain import chain_solve, PADS_IN_CHAIN
 from gripper_ros.core.physics.force_sensor import (fsr_voltage_v, FsrVoltageDivider,
                                                    NOISE_CHANNEL_FORCE, NOISE_CHANNEL_POSITION,
                                                    noisy_reading)
-from gripper_ros.core.physics.hold import (check_finite_nonnegative, hold_advance, hold_begin,
-                                           hold_capacity_n, hold_drive, HOLD_DTYPE,
-                                           hold_fire_events, hold_live, hold_load_n,
+from gripper_ros.core.physics.hold import (ANNOUNCE_ROWS, check_finite_nonnegative,
+                                           hold_advance, hold_begin, hold_capacity_n,
+                                           hold_drive, HOLD_DTYPE, hold_fire_events,
+                                           hold_live, hold_load_n, hold_plan,
                                            hold_presliding_m, hold_remove,
                                            hold_scenario_in_progress, hold_shear_n,
                                            hold_stays_stuck, HoldModel, HoldState, Lift,
@@ -1358,6 +1359,16 @@ class GripperPlant:
     def hold_state(self) -> HoldState:
         """What the held object does now (cheap: for a per-step check)."""
         return HoldState(int(self._h['state'])) if self._h['has_hold'] else HoldState.NONE
+
+    def lift_plan(self) -> list[tuple[int, float]]:
+        """Return the begun lift's breakpoints (t_ns, upward m/s^2), as its arm announces them.
+
+        Empty without a lift whose clock has started (:func:`hold_plan`).
+        """
+        times = np.zeros(ANNOUNCE_ROWS, np.int64)
+        accels = np.zeros(ANNOUNCE_ROWS)
+        n = hold_plan(self.kernel[K_HOLD], times, accels)
+        return [(int(times[i]), float(accels[i])) for i in range(n)]
 
     @property
     def object_state(self) -> ObjectState:

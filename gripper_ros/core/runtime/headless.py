@@ -18,21 +18,23 @@ from typing import Callable, Sequence
 
 from gripper_ros.core.config import GripperConfig
 from gripper_ros.core.control.factories import make_plant
+from gripper_ros.core.control.load_grip import plan_announce
 from gripper_ros.core.control.stages import (DEFAULT_APPROACH_FORCE_MARGIN,
                                              DEFAULT_FORCE_CONTROLLER, DEFAULT_POSITION_CONTROLLER,
                                              ForceStageController, PositionStageController,
                                              Reference, stage_answer)
-from gripper_ros.core.physics.hold import hold_load_n
+from gripper_ros.core.physics.hold import ANNOUNCE_ROWS, hold_load_n, hold_plan
 from gripper_ros.core.physics.plant import (_object_state, check_fault, GraspObject, HoldState,
                                             Lift, OBJECT_STATE_DTYPE, plant_hold_record)
+from gripper_ros.core.records import as_record
 from gripper_ros.core.runtime.engine import map_cases
 from gripper_ros.core.runtime.lockstep import (Command, PlantSide, side_accept, side_needs_time,
                                                side_step, StageSide, SupervisorSide, Tick)
 from gripper_ros.core.supervision.requests import (GraspRequest, MoveRequest, RequestError,
                                                    validate_move, validate_request)
-from gripper_ros.core.supervision.supervisor import (GraspSupervisor, load_law, NO_NS,
-                                                     supervisor_decide, supervisor_law_arrays,
-                                                     supervisor_record)
+from gripper_ros.core.supervision.supervisor import (GraspSupervisor, K_LAW, K_PLAN, load_law,
+                                                     NO_NS, supervisor_decide,
+                                                     supervisor_law_arrays, supervisor_record)
 from gripper_ros.wire import (COMMAND_LAYOUT, Controller, FaultKind, FORCE_SAMPLE_S, Outcome,
                               Phase, REFERENCE_LAYOUT, SwitchCriterion, TICK_LAYOUT)
 import numba
@@ -148,7 +150,9 @@ class HeadlessGrasp:
 
 
 LOOP_STATE = np.dtype([('woken', 'b1'), ('named', 'b1'), ('done', 'b1'),
-                       ('hold_ns', 'i8'), ('hold_until_ns', 'i8'), ('rows', 'i8')], align=True)
+                       ('hold_ns', 'i8'), ('hold_until_ns', 'i8'), ('rows', 'i8'),
+                       ('announce', 'b1'),      # the arm announces its lift to the supervisor
+                       ('announced', 'b1')], align=True)
 """The compiled loop's own state: resumable when its row buffers fill up."""
 ROWS = ('position_m', 'force_n', 'peak_force_n', 'motor_voltage_v', 'sensor_voltage_v',
         'pad1_shear_n', 'pad2_shear_n', 'pad1_displacement_m', 'pad2_displacement_m',
@@ -247,6 +251,29 @@ def _trace_answer(trace, ref, cmd, references, commands) -> None:
 
 
 @numba.njit(cache=True)
+def announce_lift(state, plant_k, supervisor_k) -> None:
+    """Once the lift's clock has started, hand its plan to the supervisor, as the arm would.
+
+    The graph's plant node publishes the same breakpoints on ``arm/planned_acceleration`` then;
+    the supervisor uses each by its stamp, so the plan acts the same whenever it arrives before
+    its first breakpoint's lead.
+    """
+    state = as_record(state)
+    if not state.announce or state.announced:
+        return
+    h = plant_hold_record(plant_k)
+    if h.hold_ns == -1:
+        return
+    state.announced = True
+    times = np.zeros(ANNOUNCE_ROWS, np.int64)
+    accels = np.zeros(ANNOUNCE_ROWS)
+    n = hold_plan(h, times, accels)
+    law = supervisor_k[K_LAW]
+    for i in range(n):
+        plan_announce(law[0], supervisor_k[K_PLAN], times[i], accels[i])
+
+
+@numba.njit(cache=True)
 def run_lockstep(loop, side, plant_k, supervisor_k, position_k, force_k, tick, ref, cmd,
                  rows_t, rows_f, rows_phase, trace, trace_ticks, trace_references,
                  trace_commands, trace_statuses, trace_objects) -> bool:
@@ -282,6 +309,7 @@ def run_lockstep(loop, side, plant_k, supervisor_k, position_k, force_k, tick, r
         if tracing:
             _trace_answer(trace, ref, cmd, trace_references, trace_commands)
         side_accept(side, plant_k, cmd)
+        announce_lift(state, plant_k, supervisor_k)
         needed = side_needs_time(plant_k, cmd) or state.woken or (
             state.hold_until_ns != NO_NS and tick[0].stamp_ns < state.hold_until_ns)
         if not needed:
@@ -395,6 +423,7 @@ class _Loop:
             trace(self.plant_side.plant, tick, sup.decision, ref,
                   Command._make(self.cmd[0].item()))
             self.plant_side.accept(self.cmd)
+            announce_lift(self.state, self.plant_side.plant.kernel, sup.kernel)
             needed = self.plant_side.needs_time(self.cmd) or state['woken'] or (
                 state['hold_until_ns'] != NO_NS and tick.stamp_ns < state['hold_until_ns'])
             if not needed:
@@ -425,7 +454,7 @@ def simulate_grasp(config: GripperConfig, width_m: float, mass_kg: float, *,
                    fault: tuple[FaultKind | int, float, float] | None = None,
                    idle_unpowered_s: float = 0.0,
                    trace: Callable | None = None,
-                   trace_state_period_ns: int = 0) -> HeadlessGrasp:
+                   trace_state_period_ns: int = 0, announce: bool = False) -> HeadlessGrasp:
     """Grasp from fully open, as the graph grasps in fast mode.
 
     ``object_width_m`` (default ``width_m``; 0 = nothing) is the real
@@ -445,7 +474,9 @@ def simulate_grasp(config: GripperConfig, width_m: float, mass_kg: float, *,
     loop runs compiled; with it, tick by tick from Python over the same compiled functions.
     ``trace_state_period_ns`` > 0 keeps, in the compiled loop, what ``trace`` sees as a bag
     holds it (the result's :class:`GraspTrace`; the object state on that period's grid); it
-    cannot be combined with ``trace``.
+    cannot be combined with ``trace``. ``announce``: the arm announces ``lift`` to the
+    supervisor as the hold begins (its plan's breakpoints, ``arm/planned_acceleration`` in the
+    graph), so that the load-tracking grip rises with the load the motion brings.
     """
     if trace is not None and trace_state_period_ns > 0:
         raise ValueError('trace and trace_state_period_ns are exclusive')
@@ -469,6 +500,7 @@ def simulate_grasp(config: GripperConfig, width_m: float, mass_kg: float, *,
                  ForceStageController(config, force_controller, approach_force_margin))
     state = loop.state[0]
     state['hold_ns'] = round(hold_s * 1e9)
+    state['announce'] = announce
     if trace_state_period_ns > 0:
         loop.keep_trace(trace_state_period_ns)
     plant_side.tick()

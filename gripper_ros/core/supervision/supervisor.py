@@ -50,7 +50,8 @@ import math
 
 from gripper_ros.core.config import (GripperConfig, PlantParams, shipped_config,
                                      SupervisorParams)
-from gripper_ros.core.control.load_grip import HISTORY_ROWS, law_step, make_law, MU_GRID
+from gripper_ros.core.control.load_grip import (HISTORY_ROWS, law_step, make_law, MU_GRID,
+                                                plan_announce, PLAN_DTYPE, PLAN_ROWS)
 from gripper_ros.core.records import RecordParams
 from gripper_ros.core.supervision.requests import GraspTargets, MoveTargets, RequestError
 from gripper_ros.wire import Controller, Outcome, PendingRequest, Phase, SwitchCriterion
@@ -167,6 +168,7 @@ K_PARAMS = 1
 K_MESSAGE = 2
 K_LAW_BUFFERS = 3
 K_LAW = 4
+K_PLAN = 5
 
 _kernel = numba.njit(cache=True)
 
@@ -562,7 +564,7 @@ def _law_reset(law, law_buffers) -> None:
 
 
 @_kernel
-def _track_load(s, m, law, law_buffers, t_ns, force_n, shear_n, displacement_m,
+def _track_load(s, m, law, law_buffers, plan, t_ns, force_n, shear_n, displacement_m,
                 may_answer) -> int:
     """Run the law on this tick's pads: its setpoint becomes the grasp's; OVERLOADED once.
 
@@ -574,7 +576,7 @@ def _track_load(s, m, law, law_buffers, t_ns, force_n, shear_n, displacement_m,
     history = law_buffers[:HISTORY_ROWS, :g.window + 1]
     sums = law_buffers[HISTORY_ROWS:, :MU_GRID.size]
     s.tg_force_setpoint_n = law_step(g, history, sums, MU_GRID, t_ns, shear_n, displacement_m,
-                                     force_n)
+                                     force_n, plan)
     if g.overload_ns == -1 or s.overload_ns != NO_NS or not may_answer:
         return NO_ANSWER
     s.overload_ns = t_ns
@@ -583,7 +585,7 @@ def _track_load(s, m, law, law_buffers, t_ns, force_n, shear_n, displacement_m,
     m.max_force_n = g.max_force_n
     m.force_n = force_n
     m.load_n = 2.0 * shear_n
-    m.friction_coefficient = g.mu_est
+    m.friction_coefficient = g.overload_mu
     s.phase = Phase.HOLDING
     s.outcome = Outcome.OVERLOADED
     if s.end_ns == NO_NS:                  # not answered before: answered now
@@ -639,7 +641,7 @@ def supervisor_step(k, t_ns, position_m, force_n, sensor_voltage_v, speed_mps,
     position stage then holds the finger where it now is. ``shear_n`` and ``displacement_m``
     (a pad's mean) feed the load-tracking grip of a mass-0 grasp.
     """
-    state, params, message, law_buffers, law = k
+    state, params, message, law_buffers, law, plan = k
     s = state[0]
     p = params[0]
     m = message[0]
@@ -659,7 +661,7 @@ def supervisor_step(k, t_ns, position_m, force_n, sensor_voltage_v, speed_mps,
         answer = _step_request(s, p, m, t_ns, position_m, force_n, sensor_voltage_v,
                                speed_mps)
     if _tracking(s) and math.isfinite(force_n):
-        overloaded = _track_load(s, m, law, law_buffers, t_ns, force_n,
+        overloaded = _track_load(s, m, law, law_buffers, plan, t_ns, force_n,
                                  shear_n, displacement_m, answer == NO_ANSWER)
         if overloaded != NO_ANSWER:
             answer = overloaded
@@ -760,7 +762,7 @@ def load_law(config: GripperConfig) -> tuple:
                     config.contact.pad_tangential_stiffness_n_per_m,
                     config.force.sample_time_s, pads.displacement_noise_m,
                     pads.displacement_resolution_m, pads.shear.latency_s,
-                    pads.shear.bandwidth_hz)
+                    pads.shear.bandwidth_hz, config.plant.gravity_mps2)
 
 
 def _ns_or_none(value) -> int | None:
@@ -849,12 +851,13 @@ class GraspSupervisor:
         # few arrays: the kernel's tuple is copied on every call the compiler does not inline
         law_buffers = np.zeros((history.shape[0] + sums.shape[0],
                                 max(history.shape[1], sums.shape[1])))
-        kernel = [None] * 5
+        kernel = [None] * 6
         kernel[K_STATE] = state
         kernel[K_PARAMS] = self._params
         kernel[K_MESSAGE] = np.zeros(1, SUPERVISOR_MESSAGE)
         kernel[K_LAW_BUFFERS] = law_buffers
         kernel[K_LAW] = np.concatenate([record, record])
+        kernel[K_PLAN] = np.zeros(PLAN_ROWS, PLAN_DTYPE)
         self.kernel = tuple(kernel)
         self.params = params
         self._targets: GraspTargets | MoveTargets | None = None
@@ -1113,6 +1116,25 @@ class GraspSupervisor:
             self._text = message
         return self._decision
 
+    def announce(self, t_ns: int, accel_mps2: float) -> None:
+        """Take the arm's plan: from simulated time ``t_ns`` on, upward ``accel_mps2``.
+
+        A breakpoint replaces what was announced from its instant on; the plan is the grasp's
+        (a new grasp starts without one). The load-tracking grip raises the grip with the load
+        the motion will bring. ValueError (nothing changes) for a non-finite value.
+        """
+        if isinstance(accel_mps2, bool) or not isinstance(accel_mps2, (int, float)) or \
+                not math.isfinite(accel_mps2) or int(t_ns) < 0:
+            raise ValueError(f'a planned acceleration must be finite and stamped at a time >= 0,'
+                             f' got {accel_mps2!r} m/s^2 at {t_ns!r} ns')
+        plan_announce(self.kernel[K_LAW][0:1], self.kernel[K_PLAN], int(t_ns),
+                      float(accel_mps2))
+
+    @property
+    def plan(self) -> np.ndarray:
+        """The arm's announced breakpoints now (``t_ns``, ``accel_mps2``), a copy."""
+        return self.kernel[K_PLAN][:int(self.kernel[K_LAW][0]['plan_count'])].copy()
+
     # ------------------------------------------------------------------ the tick
     def step(self, t_ns: int, position_m: float, force_n: float, sensor_voltage_v: float,
              speed_mps: float = 0.0, revision: int = 0, shear_n: float = 0.0,
@@ -1172,11 +1194,16 @@ class GraspSupervisor:
                     f"position {m['hold_position_m']:.5f} m (margin {m['margin_m'] * 1e3:g} mm);"
                     f" force {m['force_n']:.3f} N")
         if code == MSG_OVERLOADED:
+            most = (f'the most {self.plant.voltage_limit_v:g} V holds is '
+                    f"{m['max_force_n']:.2f} N; gripping with {m['force_n']:.2f} N, at most "
+                    'that, while the object stays')
+            if not m['need_n'] > m['max_force_n']:      # said of a slide that did not slow
+                return (f'overloaded at {at} ({into}): the object slides on, no slower, with '
+                        f"the grip at its most: kinetic friction ({m['friction_coefficient']:.3f}"
+                        f' measured) is short of the load; {most}')
             return (f"overloaded at {at} ({into}): the load {m['load_n']:.2f} N needs "
                     f"{m['need_n']:.2f} N of grip at the measured friction "
-                    f"{m['friction_coefficient']:.3f}, the most "
-                    f"{self.plant.voltage_limit_v:g} V holds is {m['max_force_n']:.2f} N; "
-                    f"gripping with {m['force_n']:.2f} N, at most that, while the object stays")
+                    f"{m['friction_coefficient']:.3f}, {most}")
         if code == MSG_HOLDING:
             return (f"holding {m['force_n']:.3f} N (setpoint {m['force_setpoint_n']:.3f} N) at "
                     f"{m['position_m']:.5f} m")
