@@ -1,7 +1,7 @@
 """Hostile input without a running graph: config files, namespaces, claims and bag_replay.
 
-Each case is one a user met (issue 24): before, it was accepted and broke something later, or it
-ended in a traceback. Known answer: a refusal in one line that names the field, and no change.
+Each case is one a user met, where a lax check would accept it and break something later, or
+end in a traceback. Known answer: a refusal in one line that names the field, and no change.
 """
 from __future__ import annotations
 

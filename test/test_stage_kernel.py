@@ -1,7 +1,7 @@
 """The compiled stage entry point ``stage_answer(k, ref, cmd)``, called from compiled code.
 
 It must write exactly the command ``lockstep.StageSide`` builds from the Python answerer (the
-headless loop and the nodes), tick for tick, for every kind of stage, and keep today's reasons
+headless loop and the nodes), tick for tick, for every kind of stage, and keep the reasons
 for a 0 V answer as codes that ``LockstepAnswerer.reason`` turns back into text.
 """
 from __future__ import annotations

@@ -220,7 +220,7 @@ def main(argv: list[str] | None = None) -> int:
                            'compliant objects, at the exact width and within a tolerance')
     grid.add_argument('--compliant', action='store_true',
                       help='only rigid, stiff (1e5 N/m) and soft (1e3 N/m) objects at the exact '
-                           'width (the former sweep)')
+                           'width')
     part = parser.add_mutually_exclusive_group()
     part.add_argument('--exact-only', action='store_true',
                       help='leave out the uncertain-width grid')

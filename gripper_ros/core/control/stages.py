@@ -23,7 +23,7 @@ A *reference* is anything with the fields of ``gripper_interfaces/msg/StageRefer
 The per-tick work is one compiled entry point, :func:`stage_answer` (``k, ref, cmd``), over a
 stage's ``kernel`` tuple ``k`` (layout in :data:`KERNEL_LAYOUT`); the compiled headless loop
 calls it, and the classes below are Python façades over the same records. A 0 V answer's
-reason is a code plus numbers in ``k`` (``REASON_*``); :func:`reason_text` formats today's text.
+reason is a code plus numbers in ``k`` (``REASON_*``); :func:`reason_text` formats it as text.
 """
 from __future__ import annotations
 
@@ -395,7 +395,7 @@ def reset_book(book: np.ndarray, names=REFERENCE_NUMBERS) -> np.ndarray:
 
 
 def reason_text(book, reference_numbers, law_numbers, names=NUMBER_FIELDS) -> str:
-    """Return today's text for the last answer's 0 V reason ('' when it was answered).
+    """Return the text of the last answer's 0 V reason ('' when it was answered).
 
     ``names``: the stage's reference numbers, in the order they are listed.
     """
