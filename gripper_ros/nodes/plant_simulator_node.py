@@ -144,8 +144,8 @@ class PlantSimulatorNode(GripperNode):
 
         self._tick_pub = self.graph_publisher(PlantTick, TOPIC_TICK)
         self._joint_pub = self.graph_publisher(JointState, TOPIC_JOINT_STATES)
-        self._force_pub = self.create_publisher(ForceSensor, TOPIC_FORCE_SENSOR, GRAPH_QOS)
-        self._object_pub = self.create_publisher(ObjectState, TOPIC_OBJECT_STATE, GRAPH_QOS)
+        self._force_pub = self.tapped_publisher(ForceSensor, TOPIC_FORCE_SENSOR, GRAPH_QOS)
+        self._object_pub = self.tapped_publisher(ObjectState, TOPIC_OBJECT_STATE, GRAPH_QOS)
         self._sim_pub = self.graph_publisher(SimStatus, TOPIC_SIM_STATUS)
         self._clock_pub = self.create_publisher(ClockMsg, TOPIC_CLOCK, GRAPH_QOS) \
             if self.publish_clock else None

@@ -98,14 +98,14 @@ class GraphTap:
         self._start_at_next_tick = False
         self._closing_since: float | None = None
         self._lock = threading.Lock()
-        self._tapped = []                        # publishers whose publish() is tapped
-        self._tapped_graph = []                   # graph publishers that call the tap
+        self._tapped = []                        # graph publishers that call the tap
 
     def open(self) -> GraphTap:  # noqa: A003 - a tap is opened and closed like a file
         """Tap every publisher of the graph's topics: what each publishes is seen here at once.
 
-        A graph publisher (:class:`~gripper_ros.nodes.intra_process.GraphPublisher`) calls the
-        tap itself, whether the message goes over the process's bus, DDS or both.
+        Each is a :class:`~gripper_ros.nodes.intra_process.GraphPublisher`, which calls the tap
+        itself, whether the message goes over the process's bus, DDS or both. A node that
+        publishes a recorded topic past one is refused here, before any bag misses its messages.
         """
         for node in self.graph.nodes:
             if node is self.node:
@@ -114,28 +114,16 @@ class GraphTap:
             for publisher in wrapped:
                 if publisher.topic_name in self.topics:
                     publisher.tap = self._on_message
-                    self._tapped_graph.append(publisher)
+                    self._tapped.append(publisher)
             inner = {id(p.dds) for p in wrapped}
-            for publisher in node.publishers:
-                if publisher.topic_name in self.topics and id(publisher) not in inner:
-                    self._tap_publisher(publisher)
+            untapped = sorted(p.topic_name for p in node.publishers
+                              if p.topic_name in self.topics and id(p) not in inner)
+            if untapped:
+                self.close()
+                raise RuntimeError(f'{node.get_name()} publishes {", ".join(untapped)} with a '
+                                   'plain rclpy publisher: a recorder cannot see it '
+                                   '(use GripperNode.graph_publisher or tapped_publisher)')
         return self
-
-    def _tap_publisher(self, publisher) -> None:
-        """Make ``publisher.publish`` also hand what it publishes to :meth:`_on_message`.
-
-        The message goes to DDS first, exactly as before; a message object (the few state
-        topics not packed by template) is serialised here, bytes are taken as they are. An
-        error of the tap ends the recording (one line), never the node that published.
-        """
-        publish, on_message, topic = publisher.publish, self._on_message, publisher.topic_name
-
-        def tapped(msg) -> None:
-            publish(msg)
-            on_message(topic, msg)
-
-        publisher.publish = tapped
-        self._tapped.append(publisher)
 
     # ------------------------------------------------------------------ the window
     def start(self, sink: BagRecorder, at: str = 'now') -> None:
@@ -300,10 +288,8 @@ class GraphTap:
 
     def close(self) -> None:
         for publisher in self._tapped:
-            del publisher.publish                # the class's own again
-        for publisher in self._tapped_graph:
             publisher.tap = None
-        self._tapped, self._tapped_graph = [], []
+        self._tapped = []
 
     def __enter__(self) -> GraphTap:
         return self.open()
