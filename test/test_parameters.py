@@ -19,11 +19,10 @@ from pathlib import Path
 import subprocess
 import time
 
-from gripper_ros.core.config import ConfigError
+from gripper_ros.core.config import ConfigError, flatten
 from gripper_ros.nodes.force_controller_node import ForceControllerNode
 from gripper_ros.nodes.graph import GraphOptions, GripperGraph
 from gripper_ros.nodes.grasp_action_node import GraspActionServer
-from gripper_ros.nodes.parameters import flatten
 from gripper_ros.nodes.plant_simulator_node import PlantSimulatorNode
 from gripper_ros.nodes.position_controller_node import PositionControllerNode
 from gripper_ros.nodes.supervisor_node import SupervisorNode

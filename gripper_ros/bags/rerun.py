@@ -31,7 +31,7 @@ from gripper_ros.bags.reader import Bag, BagError, open_bag
 from gripper_ros.bags.resimulate import build_stages, load_resim_config
 from gripper_ros.bags.series import bag_namespace, GraspSeries, load_grasp_series, \
     lockstep_series
-from gripper_ros.core.config import ConfigError, GripperConfig, parse_config
+from gripper_ros.core.config import ConfigError, flatten, GripperConfig, parse_config
 from gripper_ros.core.control.stages import (DEFAULT_APPROACH_FORCE_MARGIN,
                                              DEFAULT_FORCE_CONTROLLER, DEFAULT_POSITION_CONTROLLER)
 from gripper_ros.core.physics.plant import check_fault, GraspObject, Lift
@@ -263,16 +263,6 @@ def apply_settings(data: dict, settings: Sequence[tuple[str, Any]], source: str)
     return out
 
 
-def _flat(data: dict, prefix: str = '') -> dict[str, Any]:
-    out = {}
-    for key, value in data.items():
-        if isinstance(value, dict):
-            out.update(_flat(value, f'{prefix}{key}.'))
-        else:
-            out[f'{prefix}{key}'] = value
-    return out
-
-
 @dataclass
 class Changes:
     """What to change for a re-run (None or empty: as recorded)."""
@@ -324,7 +314,7 @@ def resolve(record: GraspRecord, changes: Changes | None = None) -> RerunSetup:
     _request(record, config)            # the re-run's supervisor must accept the request
     out = RerunSetup(config, position_stage.kind.value, force_stage.kind.value,
                      float(force_stage.approach_margin), [])
-    before, after = _flat(record.config.data), _flat(config.data)
+    before, after = flatten(record.config.data), flatten(config.data)
     for key in sorted(set(before) | set(after)):
         if before.get(key, '(none)') != after.get(key, '(none)'):
             out.changes.append(f'{key} {before.get(key, "(none)")} -> {after.get(key, "(none)")}')
@@ -554,7 +544,7 @@ class WhatIf:
         """The swept key's value in the recorded configuration."""
         if self.sweep_key is None:
             return None
-        return _flat(self.record.config.data).get(self.sweep_key)
+        return flatten(self.record.config.data).get(self.sweep_key)
 
 
 def _run_value(record: GraspRecord, item: tuple) -> Rerun:
