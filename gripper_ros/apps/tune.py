@@ -44,6 +44,7 @@ import warnings
 
 from gripper_ros.apps.common import load_config_or_report, negative_option, with_values
 from gripper_ros.core.config import bounds_of
+from gripper_ros.core.runtime.engine import add_engine_arguments
 
 PROG = 'tune'
 ENVELOPES = ('quick', 'tablev', 'holdout')
@@ -465,11 +466,7 @@ def build_parser() -> argparse.ArgumentParser:
                                           '(default: sqlite:///DIR/study.db)')
     parser.add_argument('--study', default=DEFAULT_STUDY, help='study name (default %(default)s)')
     parser.add_argument('--seed', type=int, default=0, help="the sampler's seed (default 0)")
-    engine = parser.add_mutually_exclusive_group()
-    engine.add_argument('--jobs', type=int, default=None,
-                        help='local worker processes (default: one per CPU; 1 = this process)')
-    engine.add_argument('--scheduler', metavar='tcp://HOST:8786',
-                        help='grasp on the Dask cluster of this scheduler')
+    add_engine_arguments(parser)
     parser.add_argument('--holdout', default='holdout',
                         metavar='quick|tablev|holdout|none|FILE.yaml',
                         help='envelope of the held-out check (default holdout: the envelope '
