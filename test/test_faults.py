@@ -206,15 +206,13 @@ class LiveGraph:
         time.sleep(0.3)     # the watcher matches the graph's writers (same process: fast)
 
     def start_grasp(self, width_m=0.10, mass_kg=0.75, timeout_s=0.0):
-        from gripper_interfaces.srv import Grasp
         assert self.graph.set_object(width_m).success
         time.sleep(0.1)
-        return self.graph._grasp.call_async(Grasp.Request(width_m=width_m, mass_kg=mass_kg,
-                                                          timeout_s=timeout_s))
+        return self.graph.grasp_async(width_m, mass_kg, timeout_s)
 
     def close(self, pending=None):
-        if pending is not None and not pending.done():
-            self.graph._grasp.remove_pending_request(pending)
+        if pending is not None:
+            self.graph.forget(pending)
         self.graph.close()
         rclpy.try_shutdown(context=self.context)
 

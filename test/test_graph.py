@@ -5,7 +5,6 @@ Four rclpy nodes under one EventsExecutor, real service calls, real MCAP bags.
 import math
 import time
 
-from gripper_interfaces.srv import Grasp
 from gripper_ros.bags.reader import read_bag
 from gripper_ros.bags.series import load_grasp_series
 from gripper_ros.core.config import load_config
@@ -196,7 +195,7 @@ def test_force_beyond_the_motor_names_the_numbers(graph):
 
 def test_request_while_grasping_is_refused_and_next_one_succeeds(graph):
     graph.set_object(0.05)
-    first = graph._grasp.call_async(Grasp.Request(width_m=0.05, mass_kg=1.69))
+    first = graph.grasp_async(0.05, 1.69)
     busy = None
     for _ in range(200):
         if graph.supervisor.logic.running:
@@ -232,7 +231,7 @@ def test_stop_ends_the_running_grasp_and_the_next_one_succeeds(graph):
     refused = graph.call(stop, Trigger.Request(), 5)
     assert not refused.success and 'nothing to stop' in refused.message
     graph.set_object(0.01)
-    pending = graph._grasp.call_async(Grasp.Request(width_m=0.01, mass_kg=1.27))
+    pending = graph.grasp_async(0.01, 1.27)
     deadline = time.monotonic() + 30
     while not graph.supervisor.logic.running and time.monotonic() < deadline:
         time.sleep(0.002)

@@ -367,8 +367,6 @@ def _grasp_then_kill(node_name: str, timeout_parameter: str):
     graph of its own; returns the seconds from the kill until the watchdog acted, and the
     grasp's answer (None when the supervisor was killed).
     """
-    from gripper_interfaces.srv import Grasp
-
     from gripper_ros.nodes.services import wait_until
     watcher = 'supervisor' if node_name == 'plant_simulator' else 'position_controller'
     with GripperGraph.in_own_context(GraphOptions(namespace='new_timeouts')) as g:
@@ -377,7 +375,7 @@ def _grasp_then_kill(node_name: str, timeout_parameter: str):
         g.param_client, g.param_clients = client, {}
         assert _set(g, watcher, timeout_parameter, _double(NEW_TIMEOUT_S)).successful
         assert g.set_object(0.10).success
-        pending = g._grasp.call_async(Grasp.Request(width_m=0.10, mass_kg=0.75))
+        pending = g.grasp_async(0.10, 0.75)
         ticks = g.plant.ticks_published
         assert wait_until(lambda: g.plant.ticks_published >= ticks + 30, 30.0)
         victim = g.plant if node_name == 'plant_simulator' else g.supervisor
@@ -389,7 +387,7 @@ def _grasp_then_kill(node_name: str, timeout_parameter: str):
         else:
             assert wait_until(lambda: g.position.watchdog_trips >= 1, 10.0)
             acted_s, answer = time.monotonic() - killed_at, None
-            g._grasp.remove_pending_request(pending)
+            g.forget(pending)
     return acted_s, answer
 
 

@@ -5,7 +5,6 @@ Real DDS, real service calls, one EventsExecutor (as in grasp_demo).
 import math
 import threading
 
-from gripper_interfaces.srv import Grasp
 from gripper_ros.core.config import load_config
 from gripper_ros.core.supervision.requests import GraspRequest, RequestError, validate_request
 from gripper_ros.nodes.graph import GripperGraph
@@ -95,7 +94,7 @@ def test_dead_force_controller_mid_grasp_ends_in_fault_naming_it(graph):
     graph.close()   # one graph at a time on this domain
     with GripperGraph.in_own_context() as g:
         g.set_object(0.10)
-        pending = g._grasp.call_async(Grasp.Request(width_m=0.10, mass_kg=0.75))
+        pending = g.grasp_async(0.10, 0.75)
         deadline = time.monotonic() + 60
         while g.supervisor.logic.phase.name != 'FORCE' and time.monotonic() < deadline:
             time.sleep(0.001)
