@@ -66,7 +66,7 @@ def test_stage_answer_answers_each_stamp_once_and_leaves_cmd_untouched():
     assert first[0]['finite'] and first[0]['hold_s'] == stage.sample_time_s
 
 
-def test_a_compiled_refusal_keeps_todays_reason_text():
+def test_a_compiled_refusal_keeps_its_reason_text():
     answerer = LockstepAnswerer(ForceStageController(CONFIG, 'contact_aware'))
     ref = Reference(0, 1, 2, 0, 2, 0, 2, True, True, 1e308, -1e308, 5.0, 0.05, 0.0, 4.0, 0.0)
     a = answerer.answer(ref)
