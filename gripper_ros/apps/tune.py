@@ -563,6 +563,8 @@ def _run(args, base, params, cases, holdout, out: Path) -> int:
     figures = plot(study, args.multi, args.max_peak_ratio, out) if trials else []
     report = [table]
     if not best:
+        for figure in figures:
+            print(f'figure: {figure}')
         print(f'{PROG}: no trial met the constraints: nothing written but the table and plots',
               file=sys.stderr)
         (out / 'trials.txt').write_text(table + '\n', encoding='utf-8')
@@ -589,8 +591,9 @@ def _run(args, base, params, cases, holdout, out: Path) -> int:
         print(check)
         report += ['', check]
     (out / 'trials.txt').write_text('\n'.join(report) + '\n', encoding='utf-8')
-    print(f'wrote {out / "params.yaml"}, {out / "config.yaml"}, {out / "trials.txt"}'
-          + ''.join(f', {f}' for f in figures))
+    for figure in figures:
+        print(f'figure: {figure}')
+    print(f'wrote {out / "params.yaml"}, {out / "config.yaml"}, {out / "trials.txt"}')
     return 0
 
 
