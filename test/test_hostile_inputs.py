@@ -7,6 +7,8 @@ from __future__ import annotations
 
 from pathlib import Path
 import shutil
+import subprocess
+import sys
 
 from gripper_ros.bags import replay as bag_replay
 from gripper_ros.bags.reader import EXIT_ERROR, NotABagError, read_bag
@@ -173,3 +175,18 @@ def test_grasp_demo_refuses_a_bad_params_file_in_one_line(tmp_path, content, cap
     assert code == 2
     lines = captured.err.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith('grasp_demo: bad --ros-args'), captured.err
+
+
+def test_grasp_demo_without_bags_says_which_columns_need_them():
+    """--no-record leaves the bag's columns blank and says so, naming them, instead of a figure."""
+    result = subprocess.run([sys.executable, '-m', 'gripper_ros.apps.grasp_demo', '--no-record',
+                             '--width', '0.05', '--mass', '1.69', '--namespace', 'no_record'],
+                            capture_output=True, text=True, timeout=120, stdin=subprocess.DEVNULL)
+    assert result.returncode == 0, result.stderr
+    lines = result.stdout.splitlines()
+    header = next(line for line in lines if line.split()[:2] == ['width', 'm'])
+    row = next(line for line in lines if line.split()[:3] == ['0.050', '1.690', 'HOLDING'])
+    assert row[header.index('contact s'):header.index('switch s')].strip() == ''
+    assert lines[-1] == ('--no-record: contact s, criterion, peak N, peak/F_sp and max|V| come '
+                         'from the bags, as does the figure: left out')
+    assert not any(line.startswith(('bag:', 'figure:')) for line in lines)
