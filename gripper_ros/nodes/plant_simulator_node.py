@@ -91,6 +91,7 @@ class PlantSimulatorNode(GripperNode):
         self.config = self.parameters.config
         self.side = PlantSide(make_plant(self.config))
         self.plant = self.side.plant
+        self.placed: tuple[int, dict | None] = (0, None)   # SetObjects accepted, the last one
         self.frame_id = self._param('frame_id', FRAME_BASE,
                                     'frame_id of every published header', read_only=True)
         self.joint_name = declare_joint_name(self)
@@ -528,6 +529,10 @@ class PlantSimulatorNode(GripperNode):
             response.success = False
             response.message = f'refused: {exc}'
             return response
+        self.placed = (self.placed[0] + 1, {
+            name: float(value) if name not in ('fault', 'lift_profile') else int(value)
+            for name, value in ((n, getattr(request, n))
+                                for n in request.get_fields_and_field_types())})
         self._pending = False                   # the command was for the world before
         self._stamp_ns = self.side.tick().stamp_ns
         self._publish_tick()
