@@ -105,7 +105,8 @@ def entries(body: list[str]) -> list[tuple[str, list[str]]]:
 
 
 def render(command: str, output: list[str]) -> list[str]:
-    return [f'$ {command}', *output]
+    """Return a transcript entry's lines, without trailing white space (markdown keeps none)."""
+    return [f'$ {command}', *(line.rstrip() for line in output)]
 
 
 # --- docs/BAG_TOOLS.md ----------------------------------------------------------------------
