@@ -41,7 +41,9 @@ BAG_TOOLS_OUT = Path('/tmp/bt24')
 
 BAG_TOOLS = 'BAG_TOOLS.md'
 TRANSCRIPTS = ('GRIP.md', 'IDENTIFICATION.md', 'STUDIES.md', 'results_whatif.md')
-SETUP = {'IDENTIFICATION.md': f'cp {CONFIG} my_gripper.yaml'}
+SETUP = {'IDENTIFICATION.md': f'cp {ROOT}/test/data/hidden_gripper.yaml my_gripper.yaml && '
+                               f'ln -s {ROOT}/config config',
+         'GRIP.md': f'ln -s {DOCS} docs'}
 """Shell set-up of a doc's scratch folder: the inputs its text says the reader has."""
 FILES = {'contact_sweep.txt': 'contact_sweep --plot docs/contact_sweep.png',
          'contact_sweep_fingers.txt': 'contact_sweep --fingers',
@@ -49,6 +51,8 @@ FILES = {'contact_sweep.txt': 'contact_sweep --plot docs/contact_sweep.png',
 
 BAG_NAME = re.compile(r'\b(?:grasp|move|excite)_\d{8}_\d{6}_[\w.]+?_\d+\b')
 EXIT = re.compile(r'^\[exit (\d+)\]$')
+ROS_LOG = re.compile(r'^\[(DEBUG|INFO)\] \[[\d.]+\] \[')
+"""A node's log line: the transcripts leave them out (as ``grep -v '^\\[INFO\\]'`` does)."""
 
 
 def bag_key(name: str) -> str:
@@ -159,7 +163,8 @@ def regenerate_transcripts(doc: str, scratch: Path, missed: list[str]) -> None:
                 break
             for name in BAG_NAME.findall(printed):
                 names[bag_key(name)] = name
-            new += render(live, printed.splitlines() + ([f'[exit {status}]'] if shown else []))
+            kept = [line for line in printed.splitlines() if not ROS_LOG.match(line)]
+            new += render(live, kept + ([f'[exit {status}]'] if shown else []))
         if whole:
             replaced.append((first, end, new))
     for first, end, new in reversed(replaced):
