@@ -41,9 +41,11 @@ BAG_TOOLS_OUT = Path('/tmp/bt24')
 
 BAG_TOOLS = 'BAG_TOOLS.md'
 TRANSCRIPTS = ('GRIP.md', 'IDENTIFICATION.md', 'STUDIES.md', 'results_whatif.md')
-SETUP = {'IDENTIFICATION.md': f'cp {ROOT}/test/data/hidden_gripper.yaml my_gripper.yaml && '
-                               f'ln -s {ROOT}/config config',
-         'GRIP.md': f'ln -s {DOCS} docs'}
+SETUP = {
+    'IDENTIFICATION.md': (f'cp {ROOT}/test/data/hidden_gripper.yaml my_gripper.yaml && '
+                          f'ln -s {ROOT}/config config'),
+    'GRIP.md': f'ln -s {DOCS} docs',
+}
 """Shell set-up of a doc's scratch folder: the inputs its text says the reader has."""
 FILES = {'contact_sweep.txt': 'contact_sweep --plot docs/contact_sweep.png',
          'contact_sweep_fingers.txt': 'contact_sweep --fingers',
