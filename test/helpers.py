@@ -1,10 +1,11 @@
 """What several test modules share.
 
-Running a console main, writing an MCAP file again, and holding a closed-loop re-run to its
-recording.
+Running a console main, writing an MCAP file again, holding a closed-loop re-run to its
+recording, and the package's console scripts as setup.py declares them.
 """
 from __future__ import annotations
 
+import ast
 from dataclasses import asdict
 import json
 from pathlib import Path
@@ -14,8 +15,21 @@ from typing import Callable
 import numpy as np
 
 
-SWEEP_OUTPUT = Path(__file__).resolve().parents[1] / 'docs' / 'contact_sweep.txt'
+REPO = Path(__file__).resolve().parents[1]
+SWEEP_OUTPUT = REPO / 'docs' / 'contact_sweep.txt'
 """``contact_sweep``'s output, as docs/RESULTS.md quotes it."""
+
+
+def console_scripts() -> dict[str, str]:
+    """Return setup.py's console scripts: executable name -> ``module:function``."""
+    tree = ast.parse((REPO / 'setup.py').read_text())
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Dict):
+            for key, value in zip(node.keys, node.values):
+                if isinstance(key, ast.Constant) and key.value == 'console_scripts':
+                    entries = [ast.literal_eval(e) for e in value.elts]
+                    return dict((part.strip() for part in e.split('=', 1)) for e in entries)
+    raise AssertionError('setup.py declares no console_scripts')
 
 
 def claimed_peak_ratio() -> float:

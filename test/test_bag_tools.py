@@ -35,10 +35,10 @@ from gripper_ros.bags.reader import (  # noqa: E402
     read_bag,
 )
 from gripper_ros.bags.series import LEGACY_TOPICS, load_grasp_series  # noqa: E402
-from gripper_ros.wire import (COMMAND_LAYOUT, LOOP_TOPICS, qualified,  # noqa: E402
-                              REFERENCE_LAYOUT, TICK_LAYOUT, TOPIC_CLOCK, TOPIC_FORCE_REFERENCE,
-                              TOPIC_JOINT_STATES, TOPIC_MOTOR_COMMAND, TOPIC_POSITION_REFERENCE,
-                              TOPIC_STATUS, TOPIC_TICK)
+from gripper_ros.wire import (COMMAND_LAYOUT, LOOP_TOPICS, Outcome, Phase,  # noqa: E402
+                              qualified, REFERENCE_LAYOUT, TICK_LAYOUT, TOPIC_CLOCK,
+                              TOPIC_FORCE_REFERENCE, TOPIC_JOINT_STATES, TOPIC_MOTOR_COMMAND,
+                              TOPIC_POSITION_REFERENCE, TOPIC_STATUS, TOPIC_TICK)
 from helpers import copy_mcap  # noqa: E402
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
@@ -119,8 +119,12 @@ def _tick(k: int, n_ticks: int) -> dict:
             'outcome': 1 if last else 0, 'switch': 0 if k < K_SWITCH else 2}
 
 
-def write_grasp_bag(path: Path, topics=None, n_ticks: int = N_TICKS, custom_data=True) -> Path:
-    """Write a lockstep-format grasp bag with analytically known figures (module docstring)."""
+def write_grasp_bag(path: Path, topics=None, n_ticks: int = N_TICKS, custom_data=True,
+                    move: bool = False) -> Path:
+    """Write a lockstep-format grasp bag with analytically known figures (module docstring).
+
+    ``move``: the same ticks as one move (phase MOVING, answered MOVED), no grasp.
+    """
     store = _typestore()
     T = store.types
     topics = dict(LOCKSTEP_TOPICS) if topics is None else {t: LOCKSTEP_TOPICS.get(
@@ -133,6 +137,9 @@ def write_grasp_bag(path: Path, topics=None, n_ticks: int = N_TICKS, custom_data
                 {'width_m': 0.05, 'mass_kg': 0.2, 'friction_coefficient': 0.4}))
         for k in range(n_ticks):
             g = _tick(k, n_ticks)
+            if move:
+                g.update(phase=int(Phase.MOVING), source=1, stage=1, switch=0,
+                         outcome=int(Outcome.MOVED) if g['outcome'] else 0)
             t_ns = g['t_ns']
             stamp = T['builtin_interfaces/msg/Time'](sec=t_ns // 10**9, nanosec=t_ns % 10**9)
             hdr = T['std_msgs/msg/Header'](stamp=stamp, frame_id='')
@@ -141,7 +148,7 @@ def write_grasp_bag(path: Path, topics=None, n_ticks: int = N_TICKS, custom_data
                 TICK: TICK_LAYOUT.pack(t_ns, g['pos'], 0.0, g['force'], g['force'],
                                        0.2 + 0.4 * g['force'], _voltage(k), 0.1 * _voltage(k),
                                        0.0, g['source'] if k else 0, 0, 0.0, 0.0, 0.0, 0.0),
-                POS_REF if g['phase'] == 1 else FORCE_REF: REFERENCE_LAYOUT.pack(
+                POS_REF if g['source'] == 1 else FORCE_REF: REFERENCE_LAYOUT.pack(
                     t_ns, GRASP_ID, g['stage'], 0, g['phase'], g['outcome'], g['source'],
                     running, k >= K_CONTACT, POS_SP_M, POS_SP_M, FORCE_SP_N, g['pos'], 0.0,
                     g['force'], 0.0, 0.0, 0.0),
@@ -374,6 +381,24 @@ def test_analyze_cli_table_json_csv_plot(grasp_bag, tmp_path, capsys):
     assert len(lines) == 2 and lines[0].startswith('bag,grasp_id')
     png = tmp_path / 'fig.png'
     assert bag_analyze.main([str(grasp_bag), str(grasp_bag), '--plot', str(png), '--json']) == 0
+    assert png.stat().st_size > 10_000
+
+
+def test_analyze_says_what_a_bag_without_a_grasp_holds(grasp_bag, tmp_path, capsys):
+    """A move's bag: exit 0, one line naming the move, its outcome, time and ranges; no figure."""
+    move = write_grasp_bag(tmp_path / 'move', move=True)
+    png = tmp_path / 'move.png'
+    assert bag_analyze.main([str(move), '--plot', str(png)]) == 0
+    out = capsys.readouterr().out.splitlines()
+    duration_s = (N_TICKS - 1) * DT_NS * 1e-9
+    assert out[0] == (f'move: no grasp: 1 move (ids {GRASP_ID}-{GRASP_ID}: MOVED 1), '
+                      f'{duration_s:.3f} s, finger 0.0000-{_tick(N_TICKS - 1, N_TICKS)["pos"]:.4f}'
+                      f' m, motor {min(_voltage(k) for k in range(1, N_TICKS + 1)):.2f} to '
+                      '24.00 V')
+    assert out[1:] == ['no figure: no grasp in this bag'] and not png.exists()
+    assert bag_analyze.main([str(grasp_bag), str(move), '--plot', str(png)]) == 0
+    out = capsys.readouterr().out.splitlines()
+    assert out[-2].startswith('move: no grasp') and out[-1] == f'figure: {png}'
     assert png.stat().st_size > 10_000
 
 

@@ -3,8 +3,9 @@
 Closed forms: at rest the chain carries the motor's stall force ``K_stall e`` (eq. 13) and the
 finger has travelled ``2 F / k_f + 2 (F / k_p)^(2/3) + F / k_o`` past the object's face; a pad
 alone gives force rising as the 3/2 power of its compression (Hertz). Limits: with both keys 0
-the plant is today's to the bit; with a finger far stiffer than the object it converges to
-today's Kelvin-Voigt contact. The contact stage keeps its no-spike claim on the chain kinds.
+the plant is the paper's (a rigid grip's force is the armature's RL transient, eqs. 12-13, and a
+Kelvin-Voigt object compresses by F / k_o); with a finger far stiffer than the object it converges
+to the Kelvin-Voigt contact. The contact stage keeps its no-spike claim on the chain kinds.
 """
 import dataclasses
 import math
@@ -97,32 +98,56 @@ def test_a_pad_alone_stiffens_as_hertz_says():
     assert ratio == pytest.approx(4.0 ** (2 / 3), rel=1e-6)
 
 
-def test_with_both_keys_zero_the_plant_is_todays_to_the_bit():
-    """Keys written as 0 take today's paths: the same grasp, sample for sample."""
-    off = chain_config(0.0, 0.0)
-    for k, c in ((0.0, 0.0), (1e5, 50.0)):
-        a = simulate_grasp(CONFIG, WIDTH_M, 1.0, stiffness_n_per_m=k, damping_n_s_per_m=c,
-                           hold_s=0.05)
-        b = simulate_grasp(off, WIDTH_M, 1.0, stiffness_n_per_m=k, damping_n_s_per_m=c,
-                           hold_s=0.05)
-        assert np.array_equal(a.force_n, b.force_n) and np.array_equal(a.position_m,
-                                                                       b.position_m)
-        assert np.array_equal(a.motor_voltage_v, b.motor_voltage_v)
+def test_with_both_keys_zero_a_rigid_grip_is_the_armature_rl_transient():
+    """Keys 0, a rigid object touched at rest, V held: the finger stays at the face (x = x_c).
+
+    With omega = 0 the armature is an RL circuit, i = V/R (1 - exp(-R t / L)), and the force is
+    eq. 12 on that current: F(t) = K_stall V (1 - exp(-R t / L)), to the stall force (eq. 13).
+    """
+    assert CONFIG.contact.finger_stiffness_n_per_m == 0.0
+    assert CONFIG.contact.pad_normal_stiffness_n_per_m1_5 == 0.0
+    p = CONFIG.plant
+    voltage_v, dt_s = 6.0, 1e-4
+    plant = make_plant(CONFIG)
+    plant.set_object(GraspObject(WIDTH_M, 0.0, 0.0))
+    plant.touch_object()
+    x_c = plant.contact_position_m
+    t0_ns = plant.step(0.0, dt_s).t_ns
+    for _ in range(round(5 * p.inductance_h / p.resistance_ohm / dt_s) + 1):
+        sample = plant.step(voltage_v, dt_s)
+        t_s = (sample.t_ns - t0_ns) * 1e-9
+        rl = 1.0 - math.exp(-p.resistance_ohm * t_s / p.inductance_h)
+        assert sample.position_m == pytest.approx(x_c, abs=1e-12)
+        assert sample.current_a == pytest.approx(voltage_v / p.resistance_ohm * rl, rel=1e-9)
+        assert sample.force_n == pytest.approx(p.stall_force_per_volt_n * voltage_v * rl,
+                                               rel=1e-9)
+    assert rl > 0.99
 
 
-def test_a_finger_far_stiffer_than_the_object_converges_to_todays_contact():
-    """k_f = 1e11 N/m on a 1e5 N/m object: today's Kelvin-Voigt grasp within 1e-5 of F_sp.
+def test_with_both_keys_zero_a_compliant_object_compresses_by_f_over_k():
+    """Keys 0, a 1e5 N/m object held at 12 V: F = K_stall V (eq. 13), x - x_c = F / k_o."""
+    k_o = 1e5
+    plant, sample = settle(CONFIG, 12.0, k_o, 2e4)
+    force_n = CONFIG.plant.stall_force_per_volt_n * 12.0
+    assert sample.force_n == pytest.approx(force_n, rel=1e-6)
+    assert sample.position_m - plant.contact_position_m == pytest.approx(force_n / k_o,
+                                                                         rel=1e-6)
+
+
+def test_a_finger_far_stiffer_than_the_object_converges_to_the_kelvin_voigt_contact():
+    """k_f = 1e11 N/m on a 1e5 N/m object: the Kelvin-Voigt grasp (keys 0) within 1e-5 of F_sp.
 
     The chain's integrator (trapezoidal load, backward-Euler damper) against the exact ZOH.
     """
-    today = simulate_grasp(CONFIG, WIDTH_M, 1.0, stiffness_n_per_m=1e5,
-                           damping_n_s_per_m=50.0, hold_s=0.05)
+    reference = simulate_grasp(CONFIG, WIDTH_M, 1.0, stiffness_n_per_m=1e5,
+                               damping_n_s_per_m=50.0, hold_s=0.05)
     chain = simulate_grasp(chain_config(1e11, 0.0), WIDTH_M, 1.0, stiffness_n_per_m=1e5,
                            damping_n_s_per_m=50.0, hold_s=0.05)
-    assert chain.outcome == today.outcome
-    n = min(len(today.force_n), len(chain.force_n))
-    assert np.max(np.abs(chain.force_n[:n] - today.force_n[:n])) < 1e-5 * today.force_setpoint_n
-    assert chain.peak_contact_force_n == pytest.approx(today.peak_contact_force_n, rel=1e-5)
+    assert chain.outcome == reference.outcome
+    n = min(len(reference.force_n), len(chain.force_n))
+    assert np.max(np.abs(chain.force_n[:n] - reference.force_n[:n])) < (
+        1e-5 * reference.force_setpoint_n)
+    assert chain.peak_contact_force_n == pytest.approx(reference.peak_contact_force_n, rel=1e-5)
 
 
 def test_the_contact_stage_keeps_its_claim_on_flexible_fingers_and_pads():

@@ -213,17 +213,15 @@ class LiveGraph:
 
     def start_grasp(self, width_m=0.10, mass_kg=0.75, timeout_s=0.0, paused=False):
         """Place the object and ask for the grasp (``paused``: simulated time held first)."""
-        from gripper_interfaces.srv import Grasp
         assert self.graph.set_object(width_m).success
         assert self.graph.wait_still()
         if paused:
             assert self.graph.pause().success
-        return self.graph._grasp.call_async(Grasp.Request(width_m=width_m, mass_kg=mass_kg,
-                                                          timeout_s=timeout_s))
+        return self.graph.grasp_async(width_m, mass_kg, timeout_s)
 
     def close(self, pending=None):
-        if pending is not None and not pending.done():
-            self.graph._grasp.remove_pending_request(pending)
+        if pending is not None:
+            self.graph.forget(pending)
         self.graph.close()
         rclpy.try_shutdown(context=self.context)
 

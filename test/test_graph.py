@@ -5,7 +5,6 @@ Four rclpy nodes under one EventsExecutor, real service calls, real MCAP bags.
 import math
 import time
 
-from gripper_interfaces.srv import Grasp
 from gripper_ros.bags.reader import read_bag
 from gripper_ros.bags.series import load_grasp_series
 from gripper_ros.core.config import load_config
@@ -200,7 +199,7 @@ def test_request_while_grasping_is_refused_and_next_one_succeeds(graph):
     graph.set_object(0.05)
     assert graph.wait_still()
     assert graph.pause().success
-    first = graph._grasp.call_async(Grasp.Request(width_m=0.05, mass_kg=1.69))
+    first = graph.grasp_async(0.05, 1.69)
     try:
         assert wait_until(lambda: graph.supervisor.logic.pending, 10.0)
         step_into_phase(graph, Phase.POSITION, ticks_into=5)
@@ -235,7 +234,7 @@ def test_stop_ends_the_running_grasp_and_the_next_one_succeeds(graph):
     graph.set_object(0.01)
     assert graph.wait_still()
     assert graph.pause().success                 # stopped at a known tick of the approach
-    pending = graph._grasp.call_async(Grasp.Request(width_m=0.01, mass_kg=1.27))
+    pending = graph.grasp_async(0.01, 1.27)
     try:
         assert wait_until(lambda: graph.supervisor.logic.pending, 10.0)
         step_into_phase(graph, Phase.POSITION, ticks_into=20)

@@ -1,4 +1,4 @@
-"""Hostile use of a running graph, each case one a user met (issue 24).
+"""Hostile use of a running graph, each case one a user met.
 
 Requests that were dropped, a step that broke the clock, parameters that hung a node, a pause
 taken for a fault, names that collided.

@@ -1,7 +1,7 @@
 """Hostile input without a running graph: config files, namespaces, claims and bag_replay.
 
-Each case is one a user met (issue 24): before, it was accepted and broke something later, or it
-ended in a traceback. Known answer: a refusal in one line that names the field, and no change.
+Each case is one a user met, where a lax check would accept it and break something later, or
+end in a traceback. Known answer: a refusal in one line that names the field, and no change.
 """
 from __future__ import annotations
 
@@ -194,3 +194,18 @@ def test_grasp_demo_says_refused_for_a_width_in_mm(tmp_path, record):
     row = next(line for line in result.stdout.splitlines() if line.startswith('  50.000'))
     assert row.split()[2] == 'REFUSED', row
     assert 'refused: width_m must be in (0, 0.15) m' in result.stdout
+
+
+def test_grasp_demo_without_bags_says_which_columns_need_them():
+    """--no-record leaves the bag's columns blank and says so, naming them, instead of a figure."""
+    result = subprocess.run([sys.executable, '-m', 'gripper_ros.apps.grasp_demo', '--no-record',
+                             '--width', '0.05', '--mass', '1.69', '--namespace', 'no_record'],
+                            capture_output=True, text=True, timeout=120, stdin=subprocess.DEVNULL)
+    assert result.returncode == 0, result.stderr
+    lines = result.stdout.splitlines()
+    header = next(line for line in lines if line.split()[:2] == ['width', 'm'])
+    row = next(line for line in lines if line.split()[:3] == ['0.050', '1.690', 'HOLDING'])
+    assert row[header.index('contact s'):header.index('switch s')].strip() == ''
+    assert lines[-1] == ('--no-record: contact s, criterion, peak N, peak/F_sp and max|V| come '
+                         'from the bags, as does the figure: left out')
+    assert not any(line.startswith(('bag:', 'figure:')) for line in lines)

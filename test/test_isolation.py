@@ -1,4 +1,4 @@
-"""Issue 6 item 8: two gripper graphs on one machine with different domain ids never meet.
+"""Two gripper graphs on one machine with different domain ids never meet.
 
 Both graphs run in this process, each in its own rclpy Context bound to its own ROS_DOMAIN_ID
 (the same DDS isolation two `grasp_demo` processes get), localhost discovery. Known answers: a

@@ -1,4 +1,4 @@
-"""Lockstep determinism under CPU load (issue 6 item 9).
+"""Lockstep determinism under CPU load.
 
 The same grasps are recorded twice through the node graph (real DDS, real bags): once on a
 machine as quiet as it gets, once while CPU-bound spinner processes keep the other core(s) busy.

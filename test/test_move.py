@@ -471,11 +471,9 @@ def test_a_bad_move_is_refused_and_nothing_moves(graph, width_m, speed_mps, effo
 
 
 def test_a_move_while_a_grasp_waits_to_start_is_refused(graph):
-    from gripper_interfaces.srv import Grasp
-
     assert graph.set_object(0.06, open_fingers=True).success
     assert graph.pause().success                     # the grasp cannot start while paused
-    future = graph._grasp.call_async(Grasp.Request(width_m=0.06, mass_kg=0.5))
+    future = graph.grasp_async(0.06, 0.5)
     deadline = time.monotonic() + 10.0
     while not graph.supervisor.logic.pending and time.monotonic() < deadline:
         time.sleep(0.005)

@@ -16,7 +16,7 @@ import threading
 import time
 
 from gripper_interfaces.msg import MotorCommand, SupervisorStatus
-from gripper_interfaces.srv import Grasp, SetObject
+from gripper_interfaces.srv import SetObject
 from gripper_ros.core.config import load_config
 from gripper_ros.nodes.graph import GraphOptions, GripperGraph
 from gripper_ros.nodes.qos import GRAPH_QOS, LATCHED_QOS
@@ -222,7 +222,7 @@ def test_release_is_refused_while_a_grasp_runs(graph):
     assert graph.set_object(WIDTH).success
     assert graph.wait_still()
     assert graph.pause().success
-    pending = graph._grasp.call_async(Grasp.Request(width_m=WIDTH, mass_kg=MASS))
+    pending = graph.grasp_async(WIDTH, MASS)
     try:
         assert wait_until(lambda: graph.supervisor.logic.pending, 10.0)
         step_into_phase(graph, Phase.POSITION, ticks_into=5)

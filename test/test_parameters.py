@@ -20,12 +20,11 @@ import re
 import subprocess
 import time
 
-from gripper_ros.core.config import ConfigError
+from gripper_ros.core.config import ConfigError, flatten
 from gripper_ros.nodes.controller_node import DEFAULT_STATUS_TIMEOUT_S
 from gripper_ros.nodes.force_controller_node import ForceControllerNode
 from gripper_ros.nodes.graph import GraphOptions, GripperGraph
 from gripper_ros.nodes.grasp_action_node import GraspActionServer
-from gripper_ros.nodes.parameters import flatten
 from gripper_ros.nodes.plant_simulator_node import PlantSimulatorNode
 from gripper_ros.nodes.position_controller_node import PositionControllerNode
 from gripper_ros.nodes.supervisor_node import (DEFAULT_TICK_TIMEOUT_S, HEARTBEAT_PERIOD_S,
@@ -393,8 +392,6 @@ def test_a_new_status_timeout_is_the_one_the_controller_watchdog_fires_at(phase)
     stepped into the stage, so the kill comes at a known simulated moment on any machine; the
     paused graph's supervisor still sends its heartbeat, which keeps the watchdog quiet.
     """
-    from gripper_interfaces.srv import Grasp
-
     from gripper_ros.nodes.services import wait_until
     from gripper_ros.nodes.watchdog import MAX_COUNTED_GAP_S
     from gripper_ros.wire import COMMAND_LAYOUT
@@ -410,7 +407,7 @@ def test_a_new_status_timeout_is_the_one_the_controller_watchdog_fires_at(phase)
         assert g.set_object(0.10).success
         assert g.wait_still()
         assert g.pause().success
-        pending = g._grasp.call_async(Grasp.Request(width_m=0.10, mass_kg=0.75))
+        pending = g.grasp_async(0.10, 0.75)
         try:
             assert wait_until(lambda: g.supervisor.logic.pending, 10.0)
             step_into_phase(g, phase, TICKS_INTO_STAGE, STAGE_LEAD_S[phase])
@@ -423,7 +420,7 @@ def test_a_new_status_timeout_is_the_one_the_controller_watchdog_fires_at(phase)
             last = dict(zip(COMMAND_LAYOUT.fields, COMMAND_LAYOUT.unpack(
                 controller._last_command)))
         finally:
-            g._grasp.remove_pending_request(pending)
+            g.forget(pending)
     print(f'\n{phase.name}: 0 V {acted_s:.2f} s of wall time after the kill: {message}')
     silent_s = _counted_silence_s(message, 'no status from the supervisor for')
     assert NEW_TIMEOUT_S <= silent_s <= NEW_TIMEOUT_S + MAX_COUNTED_GAP_S, message
@@ -439,8 +436,6 @@ def test_a_new_tick_timeout_is_the_one_the_supervisor_watchdog_fires_at():
     Not after the 2 s default. The plant is silenced at a known tick of the position stage (its
     tick publisher swallows every tick from there on, as a hung process would) and then killed.
     """
-    from gripper_interfaces.srv import Grasp
-
     from gripper_ros.nodes.services import wait_until
     from gripper_ros.nodes.watchdog import MAX_COUNTED_GAP_S
     from helpers import in_phase, TickHook
@@ -449,7 +444,7 @@ def test_a_new_tick_timeout_is_the_one_the_supervisor_watchdog_fires_at():
         assert g.set_object(0.10).success
         assert g.wait_still()
         hook = TickHook(g, in_phase(g, Phase.POSITION, TICKS_INTO_STAGE), silence=True)
-        pending = g._grasp.call_async(Grasp.Request(width_m=0.10, mass_kg=0.75))
+        pending = g.grasp_async(0.10, 0.75)
         assert hook.fired.wait(30.0)
         g.kill_node(g.plant)
         assert wait_until(pending.done, NEW_TICK_TIMEOUT_S + 30.0)

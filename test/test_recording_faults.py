@@ -190,7 +190,7 @@ def test_a_writer_failing_after_the_last_tick_ends_the_recording_with_one_line(
 
 
 def test_the_tap_adds_no_subscription_and_counts_equal_published(graph, tmp_path):
-    """Recording taps the publishers: no DDS reader of its own, every message published seen."""
+    """Recording taps the graph's publishers: no DDS reader of its own, every message seen."""
     run = recorded_grasp(graph, tmp_path / 'tapped', 0.1, 0.75)
     assert not run.recording_error
     described = {qualified(graph.namespace, t) for t in DESCRIPTION_TOPICS}
@@ -205,10 +205,12 @@ def test_the_tap_adds_no_subscription_and_counts_equal_published(graph, tmp_path
     tap = graph.recording_tap
     assert not [s for node in graph.nodes for s in node.subscriptions
                 if s.topic_name in tap.topics and node is graph.client_node]
-    publishers = list(tap._tapped)
-    assert publishers
+    publishers = [p for node in graph.nodes for p in getattr(node, 'graph_publishers', ())
+                  if p.topic_name in tap.topics]
+    assert {p.topic_name for p in publishers} == set(tap.topics)   # every recorded topic
+    assert all(p.tap is not None for p in publishers)
     tap.close()
-    assert all('publish' not in vars(p) for p in publishers)   # the class's own publish again
+    assert all(p.tap is None for p in publishers)
 
 
 def test_a_second_signal_while_closing_leaves_a_complete_bag_and_no_traceback(tmp_path):

@@ -5,7 +5,6 @@ Real DDS, real service calls, one EventsExecutor (as in grasp_demo).
 import math
 import threading
 
-from gripper_interfaces.srv import Grasp
 from gripper_ros.core.config import load_config
 from gripper_ros.core.supervision.requests import GraspRequest, RequestError, validate_request
 from gripper_ros.nodes.graph import GripperGraph
@@ -105,7 +104,7 @@ def test_dead_force_controller_mid_grasp_ends_in_fault_naming_it(graph):
         g.set_object(0.10)
         assert g.wait_still()
         assert g.pause().success
-        pending = g._grasp.call_async(Grasp.Request(width_m=0.10, mass_kg=0.75))
+        pending = g.grasp_async(0.10, 0.75)
         assert wait_until(lambda: g.supervisor.logic.pending, 10.0)
         step_into_phase(g, Phase.FORCE, 0, lead_s=1.5)
         g.kill_node(g.force)

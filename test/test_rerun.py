@@ -11,8 +11,9 @@ The grasps are recorded through the node graph over DDS.
   predicts: the position stage ends when the finger enters the 2 % band, the first time the
   model's unsaturated step response reaches 98 %; on a 10 mm step the PD barely saturates and
   the two agree to a tick.
-- Bad input (no recorded request, an unknown key, an out-of-range value, a bag of another
-  package, a bag of format 1): one line on stderr, exit 2.
+- Bad input (a serve bag without its placement, a key the controller does not read, an unknown
+  key, an out-of-range value, a bag of another package, a bag of format 1): one line on stderr,
+  exit 2.
 """
 from __future__ import annotations
 
@@ -55,13 +56,18 @@ def bags(tmp_path_factory):
         runs['dropout'] = recorded_grasp(graph, out / 'dropout', 0.05, 1.0,
                                          fault=int(FaultKind.SENSOR_DROPOUT), fault_at_s=2.92)
         runs['after_fault'] = recorded_grasp(graph, out / 'after_fault', 0.11, 0.5)
-        # serve mode: a bag per request made by others, without the request recorded
+        # serve mode: a bag per request made by others; the first grasp follows its placement,
+        # the second (after a release) grasps the object placed before the first
         serve = ServeRecorder(graph, out / 'serve')
         graph.set_object(0.11)
         graph.wait_still()
         assert graph.grasp(0.11, 0.5).success
-        assert wait_until(lambda: serve.bags and not serve.recording, 10.0)
-        runs['serve'] = serve.bags[0]
+        assert wait_until(lambda: len(serve.bags) == 1 and not serve.recording, 10.0)
+        assert graph.release().success
+        graph.wait_still()
+        assert graph.grasp(0.11, 0.5).success
+        assert wait_until(lambda: len(serve.bags) == 2 and not serve.recording, 10.0)
+        runs['serve'], runs['serve_unplaced'] = serve.bags
     with GripperGraph.in_own_context(GraphOptions(position_controller='pd')) as graph:
         runs['pd'] = recorded_grasp(graph, out / 'pd', 0.14, 1.0)
     assert runs['dropout'].response.outcome == Outcome.FAULT, runs['dropout'].response.message
@@ -235,9 +241,18 @@ def _format_1_bag(path: Path) -> Path:
     return path
 
 
-def test_a_bag_without_a_recorded_request_is_refused(bags, capsys):
-    line = _one_line_exit_2([str(bags['serve']), '--resimulate', '--closed-loop'], capsys)
-    assert 'no recorded request' in line
+def test_a_serve_bag_carries_its_request_and_object_and_reruns_as_recorded(bags):
+    """grasp_demo --serve's bag of a grasp made just after its placement re-runs as recorded."""
+    w = rerun.whatif(bags['serve'])
+    assert w.record.request['width_m'] == 0.11 and w.record.request['mass_kg'] == 0.5
+    assert w.record.obj['width_m'] == 0.11
+    assert_rerun_equals_recording(w)
+
+
+def test_a_serve_bag_of_a_grasp_without_its_placement_says_why_it_is_not_rerun(bags, capsys):
+    line = _one_line_exit_2([str(bags['serve_unplaced']), '--resimulate', '--closed-loop'],
+                            capsys)
+    assert 'not re-run in closed loop' in line and 'placed before an earlier request' in line
 
 
 def test_a_bag_of_another_package_is_refused(tmp_path, capsys):
@@ -259,6 +274,22 @@ def test_an_unknown_key_is_refused(bags, capsys):
     line = _one_line_exit_2([str(bags['rigid']), '--resimulate', '--closed-loop', '--sweep',
                              'position_contrl.pd.kc=1,2'], capsys)
     assert 'unknown config key "position_contrl.pd.kc"' in line
+
+
+def test_a_key_the_recorded_controller_does_not_read_is_refused_naming_readers(bags, capsys):
+    """The rigid bag ran mpc_pd: pd's gain changes nothing there, so the re-run says so."""
+    line = _one_line_exit_2([str(bags['rigid']), '--resimulate', '--closed-loop', '--set',
+                             'position_control.pd.kc=1500'], capsys)
+    assert line == ('bag_replay: error: position_control.pd.kc is not read by the position '
+                    'controller of this re-run (mpc_pd); pd reads it: add '
+                    '--position-controller pd')
+    line = _one_line_exit_2([str(bags['stiff']), '--resimulate', '--closed-loop', '--sweep',
+                             'force_control.mpc_pi.move_suppression=1.01,1.02'], capsys)
+    assert '(contact_aware); mpc_pi reads it: add --force-controller mpc_pi' in line
+    w = rerun.whatif(bags['rigid'], rerun.Changes(settings=[('position_control.pd.kc', 1500.0)],
+                                                  position_controller='pd'))
+    assert w.reruns[0].setup.changes == ['position_control.pd.kc 968.0 -> 1500.0',
+                                         'position_controller mpc_pd -> pd']
 
 
 @pytest.mark.parametrize('assignment', ['position_control.mpc_pd.kc=-5',

@@ -1,4 +1,4 @@
-"""Soak, short version (issue 6 item 7): bench_soak with 12 grasps, run as its console script.
+"""Soak, short version: bench_soak with 12 grasps, run as its console script.
 
 One serving graph (as ``grasp_demo --serve``: one bag per grasp, whoever asks) in the bench
 process; a separate client process sends the grasps over DDS. Asserted: every grasp is held,

@@ -1,7 +1,7 @@
 """The compiled stage entry point ``stage_answer(k, ref, cmd)``, called from compiled code.
 
 It must write exactly the command ``lockstep.StageSide`` builds from the Python answerer (the
-headless loop and the nodes), tick for tick, for every kind of stage, and keep today's reasons
+headless loop and the nodes), tick for tick, for every kind of stage, and keep the reasons
 for a 0 V answer as codes that ``LockstepAnswerer.reason`` turns back into text.
 """
 from __future__ import annotations
@@ -66,7 +66,7 @@ def test_stage_answer_answers_each_stamp_once_and_leaves_cmd_untouched():
     assert first[0]['finite'] and first[0]['hold_s'] == stage.sample_time_s
 
 
-def test_a_compiled_refusal_keeps_todays_reason_text():
+def test_a_compiled_refusal_keeps_its_reason_text():
     answerer = LockstepAnswerer(ForceStageController(CONFIG, 'contact_aware'))
     ref = Reference(0, 1, 2, 0, 2, 0, 2, True, True, 1e308, -1e308, 5.0, 0.05, 0.0, 4.0, 0.0)
     a = answerer.answer(ref)

@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
-# Print every example of docs/BAG_TOOLS.md from real runs of today's commands.
+# Print every example of docs/BAG_TOOLS.md from real runs of its commands.
 #   source scripts/env.sh; bash docs/bag_tools/examples.sh /tmp/bt24
+# (python3 scripts/doc_examples.py BAG_TOOLS.md runs it and writes the output into the doc.)
 # Records the three paper objects (grasp_demo), an excitation (excite) and a bag killed with
 # kill -9, writes the edited configs the examples use, then runs bag_info, bag_analyze,
 # bag_replay (publish, --resimulate, --closed-loop, --sweep) and bag_identify on them.

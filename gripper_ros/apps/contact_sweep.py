@@ -17,11 +17,11 @@ import dataclasses
 from dataclasses import asdict
 import json
 import math
-import multiprocessing
 import sys
 import time
 
 from gripper_ros.apps.common import load_config_or_report
+from gripper_ros.core.runtime.engine import add_engine_arguments, options_problem, worker_count
 from gripper_ros.studies.sweep_runs import (band_speed_mps, compliant_cases, DEFAULT_HOLD_S,
                                             envelope_cases, finger_cases, finger_kinds,
                                             quick_cases, sweep, SweepRow)
@@ -220,7 +220,7 @@ def main(argv: list[str] | None = None) -> int:
                            'compliant objects, at the exact width and within a tolerance')
     grid.add_argument('--compliant', action='store_true',
                       help='only rigid, stiff (1e5 N/m) and soft (1e3 N/m) objects at the exact '
-                           'width (the former sweep)')
+                           'width')
     part = parser.add_mutually_exclusive_group()
     part.add_argument('--exact-only', action='store_true',
                       help='leave out the uncertain-width grid')
@@ -233,12 +233,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument('--hold-s', type=float, default=DEFAULT_HOLD_S,
                         help='continued hold after HOLDING, checked against the settle band '
                              '(default %(default)s s)')
-    engine = parser.add_mutually_exclusive_group()
-    engine.add_argument('--jobs', type=int, default=multiprocessing.cpu_count(),
-                        help='local worker processes (default: one per CPU; 1 = this process)')
-    engine.add_argument('--scheduler', metavar='tcp://HOST:8786',
-                        help='run the grasps on the Dask cluster of this scheduler (started with '
-                             '`dask scheduler` and `dask worker` on each machine)')
+    add_engine_arguments(parser)
     parser.add_argument('--quiet', action='store_true',
                         help='no progress bar (it is shown only on a terminal anyway)')
     parser.add_argument('--force-controller', choices=[k.value for k in ForceControllerKind],
@@ -253,10 +248,10 @@ def main(argv: list[str] | None = None) -> int:
         print('contact_sweep: --hold-s must be finite and >= 0 and '
               '--band-design-stiffness finite and > 0', file=sys.stderr)
         return 2
-    from gripper_ros.core.runtime.engine import options_problem
     if options_problem(args.jobs, args.scheduler):
         print(f'contact_sweep: {options_problem(args.jobs, args.scheduler)}', file=sys.stderr)
         return 2
+    args.jobs = worker_count(args.jobs)
     config = load_config_or_report('contact_sweep', args.config)
     if config is None:
         return 2

@@ -382,6 +382,10 @@ def _summarise(graph, records: list[GraspRecord], args) -> None:
     for r in records:
         if r.bag_dir is not None:
             print(f'bag: {r.bag_dir}')
+    if args.no_record:
+        lift = ", the lift's slip mm, lost s, margin and max" if args.lift else ''
+        print(f'--no-record: contact s, criterion, peak N, peak/F_sp and max|V|{lift} come from '
+              f'the bags, as does the figure: left out')
     if series and not args.no_plot:
         from gripper_ros.bags.analyze import plot
         png = Path(args.output) / 'grasp_demo.png'

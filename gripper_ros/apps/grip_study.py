@@ -20,6 +20,7 @@ import sys
 
 from gripper_ros.apps.common import load_config_or_report, negative_option, with_values
 from gripper_ros.core.config import ConfigError
+from gripper_ros.core.runtime.engine import add_engine_arguments, options_problem
 
 PROFILES = (('static', 'step:0'), ('step 2', 'step:2'), ('step 5', 'step:5'),
             ('pick-and-place 3', 'pick-and-place:3'), ('pick-and-place 6', 'pick-and-place:6'),
@@ -213,7 +214,7 @@ def main(argv: list[str] | None = None) -> int:
                    help='the arm takes the weight off the support over this long '
                         f'(default {DEFAULT_LIFT_OFF_S:g} s; 0 = at once)')
     p.add_argument('--plot', default=None, help='write the pick-and-place figure here (PNG)')
-    p.add_argument('--jobs', type=int, default=1, help='processes (default 1)')
+    add_engine_arguments(p)
     p.add_argument('--config', default=None, help='YAML parameter file (default: installed)')
     args = p.parse_args(argv)
     try:
@@ -226,9 +227,8 @@ def main(argv: list[str] | None = None) -> int:
     if negative:
         print(f'grip_study: {negative}', file=sys.stderr)
         return 2
-    from gripper_ros.core.runtime.engine import options_problem
-    if options_problem(args.jobs):
-        print(f'grip_study: {options_problem(args.jobs)}', file=sys.stderr)
+    if options_problem(args.jobs, args.scheduler):
+        print(f'grip_study: {options_problem(args.jobs, args.scheduler)}', file=sys.stderr)
         return 2
     config = load_config_or_report('grip_study', args.config)
     if config is None:
@@ -243,7 +243,7 @@ def main(argv: list[str] | None = None) -> int:
     laws = tuple(law for law in LAWS if not (args.unannounced_only and law[3]))
     rows = map_cases(functools.partial(_case, config),
                      study_cases(masses, frictions, args.stiffness, args.damping, laws),
-                     jobs=args.jobs)
+                     jobs=args.jobs, scheduler=args.scheduler)
     print(f'{len(rows)} grasps: {WIDTH_M * 1e3:g} mm objects of {args.masses} kg, mu_s '
           f'{args.frictions} (mu_k = {KINETIC_SHARE:g} mu_s); arm: '
           + ', '.join(name for name, _ in PROFILES) + '; ' +

@@ -44,6 +44,7 @@ import warnings
 
 from gripper_ros.apps.common import load_config_or_report, negative_option, with_values
 from gripper_ros.core.config import bounds_of
+from gripper_ros.core.runtime.engine import add_engine_arguments
 
 PROG = 'tune'
 ENVELOPES = ('quick', 'tablev', 'holdout')
@@ -465,11 +466,7 @@ def build_parser() -> argparse.ArgumentParser:
                                           '(default: sqlite:///DIR/study.db)')
     parser.add_argument('--study', default=DEFAULT_STUDY, help='study name (default %(default)s)')
     parser.add_argument('--seed', type=int, default=0, help="the sampler's seed (default 0)")
-    engine = parser.add_mutually_exclusive_group()
-    engine.add_argument('--jobs', type=int, default=None,
-                        help='local worker processes (default: one per CPU; 1 = this process)')
-    engine.add_argument('--scheduler', metavar='tcp://HOST:8786',
-                        help='grasp on the Dask cluster of this scheduler')
+    add_engine_arguments(parser)
     parser.add_argument('--holdout', default='holdout',
                         metavar='quick|tablev|holdout|none|FILE.yaml',
                         help='envelope of the held-out check (default holdout: the envelope '
@@ -566,6 +563,8 @@ def _run(args, base, params, cases, holdout, out: Path) -> int:
     figures = plot(study, args.multi, args.max_peak_ratio, out) if trials else []
     report = [table]
     if not best:
+        for figure in figures:
+            print(f'figure: {figure}')
         print(f'{PROG}: no trial met the constraints: nothing written but the table and plots',
               file=sys.stderr)
         (out / 'trials.txt').write_text(table + '\n', encoding='utf-8')
@@ -592,8 +591,9 @@ def _run(args, base, params, cases, holdout, out: Path) -> int:
         print(check)
         report += ['', check]
     (out / 'trials.txt').write_text('\n'.join(report) + '\n', encoding='utf-8')
-    print(f'wrote {out / "params.yaml"}, {out / "config.yaml"}, {out / "trials.txt"}'
-          + ''.join(f', {f}' for f in figures))
+    for figure in figures:
+        print(f'figure: {figure}')
+    print(f'wrote {out / "params.yaml"}, {out / "config.yaml"}, {out / "trials.txt"}')
     return 0
 
 

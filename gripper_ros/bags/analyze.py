@@ -7,7 +7,8 @@ JSON, CSV and a Fig.-8-like plot (position, force, motor voltage, sensor voltage
 bag).
 
 The grasp analysed is the first one in the bag: from the first status in the POSITION phase to
-the last status with the same grasp id. Times are simulated seconds from that grasp start.
+the last status with the same grasp id. Times are simulated seconds from that grasp start. A bag
+without a grasp (a move's, an excitation's) gets one line saying what it holds instead.
 """
 from __future__ import annotations
 
@@ -72,6 +73,10 @@ class AnalysisError(BagError):
     """A bag whose content does not describe a grasp."""
 
 
+class NoGraspError(AnalysisError):
+    """A readable bag of the package that holds no grasp (a move's, an excitation's)."""
+
+
 @dataclass(frozen=True)
 class Stages:
     """Grasp time line in absolute simulated seconds."""
@@ -92,8 +97,8 @@ def find_stages(series: GraspSeries) -> Stages:
     st = series.status
     in_position = np.flatnonzero(st.phase == Phase.POSITION)
     if in_position.size == 0:
-        raise AnalysisError(f'{series.path}: no supervisor decision in the POSITION phase '
-                            f'(no grasp was started)')
+        raise NoGraspError(f'{series.path}: no supervisor decision in the POSITION phase '
+                           f'(no grasp was started)')
     first = in_position[0]
     grasp_id = int(st.grasp_id[first])
     same = np.flatnonzero(st.grasp_id == grasp_id)
@@ -104,6 +109,36 @@ def find_stages(series: GraspSeries) -> Stages:
     force_idx = same[(st.phase[same] == Phase.FORCE) | (st.phase[same] == Phase.HOLDING)]
     switch_s = float(st.t_s[force_idx[0]]) if force_idx.size else math.nan
     return Stages(grasp_id, start_s, switch_s, end_s, float(st.t_s[same[-1]]))
+
+
+def bag_contents(series: GraspSeries) -> str:
+    """Say what a bag without a grasp holds: its requests, their outcomes, time and ranges."""
+    st = series.status
+    kinds = {Phase.MOVING: 'move', Phase.RELEASING: 'release'}
+    requests: dict[int, list] = {}
+    for grasp_id, phase, outcome in zip(st.grasp_id, st.phase, st.outcome):
+        entry = requests.setdefault(int(grasp_id), [None, 0])
+        entry[0] = entry[0] or kinds.get(int(phase))
+        entry[1] = int(outcome) or entry[1]
+    parts = []
+    for kind in ('move', 'release'):
+        ids = [i for i, (k, _) in requests.items() if k == kind]
+        if ids:
+            outcomes = [enum_name(Outcome, requests[i][1]) for i in ids if requests[i][1]]
+            tally = ', '.join(f'{name} {outcomes.count(name)}' for name in sorted(set(outcomes)))
+            parts.append(f'{len(ids)} {kind}{"s" if len(ids) > 1 else ""} (ids {min(ids)}-'
+                         f'{max(ids)}{": " + tally if tally else ""})')
+    what = ', '.join(parts) or 'no request'
+    if 'excitation' in series.custom_data:
+        what = f'an excitation ({what}; bag_identify fits the plant to it)'
+    out = f'{series.path.name}: no grasp: {what}, {(series.end_ns - series.start_ns) * 1e-9:.3f} s'
+    if series.joint.position_m.size:
+        out += (f', finger {np.nanmin(series.joint.position_m):.4f}-'
+                f'{np.nanmax(series.joint.position_m):.4f} m')
+    if series.command.voltage_v.size:
+        out += (f', motor {np.nanmin(series.command.voltage_v):.2f} to '
+                f'{np.nanmax(series.command.voltage_v):.2f} V')
+    return out
 
 
 def _window(t_s: np.ndarray, lo: float, hi: float, include_hi: bool = False) -> np.ndarray:
@@ -414,25 +449,36 @@ def main(argv: Sequence[str] | None = None) -> int:
         _fail('--voltage-limit must be a positive number')
     if args.plot and not args.plot.lower().endswith('.png'):
         _fail(f'--plot needs a .png file name, got {args.plot!r}')
-    series_list, rows = [], []
+    series_list, rows, others = [], [], []
     for path in args.bags:
         try:
             series = load_grasp_series(path, args.namespace)
-            rows.append(analyze_series(series, args.voltage_limit))
+            try:
+                rows.append(analyze_series(series, args.voltage_limit))
+            except NoGraspError:
+                others.append(bag_contents(series))
+                continue
             series_list.append(series)
         except BagError as exc:
             _fail(str(exc))
+    notes = sys.stderr if args.json or args.csv else sys.stdout
     if args.json:
         print(to_json(rows))
     elif args.csv:
         print(to_csv(rows), end='')
-    else:
+    elif rows:
         print(to_table(rows))
-    if args.plot:
+    for line in others:
+        print(line, file=notes)
+    if args.plot and rows:
         try:
             plot(series_list, rows, args.plot, args.voltage_limit)
         except OSError as exc:
             _fail(f'cannot write {args.plot}: {exc.strerror or exc}')
+        print(f'figure: {args.plot}', file=notes)
+    elif args.plot:
+        print(f'no figure: no grasp in {"these bags" if len(others) > 1 else "this bag"}',
+              file=notes)
     damaged = [s for s in series_list if s.truncated]
     for s in damaged:
         print(f'{PROG}: warning: {s.path}: truncated: {sum(s.counts.values())} complete messages '

@@ -206,6 +206,6 @@ def main(argv: Sequence[str] | None = None) -> int:
         print_report(result, compare=compare)
         if args.output:
             print(f'wrote {args.output}')
-        if args.plot:
-            print(f'wrote {args.plot}')
+    if args.plot:
+        print(f'figure: {args.plot}', file=sys.stderr if args.json else sys.stdout)
     return 0

@@ -409,7 +409,7 @@ def _run_closed_loop(args: argparse.Namespace) -> int:
             rerun_report.plot(result, args.plot)
         except OSError as exc:
             _fail(f'cannot write {args.plot}: {exc.strerror or exc}', code=2)
-        print(f'{PROG}: figure: {args.plot}', file=sys.stderr)
+        print(f'figure: {args.plot}', file=sys.stderr if args.json else sys.stdout)
     if result.record.truncated:
         series = result.record.series
         print(f'{PROG}: warning: {series.path}: truncated ({series.damage}); the recorded '

@@ -31,7 +31,8 @@ from gripper_ros.bags.reader import Bag, BagError, open_bag
 from gripper_ros.bags.resimulate import build_stages, load_resim_config
 from gripper_ros.bags.series import bag_namespace, GraspSeries, load_grasp_series, \
     lockstep_series
-from gripper_ros.core.config import ConfigError, GripperConfig, parse_config
+from gripper_ros.core.config import ConfigError, flatten, GripperConfig, parse_config
+from gripper_ros.core.control.factories import ForceControllerKind, PositionControllerKind
 from gripper_ros.core.control.stages import (DEFAULT_APPROACH_FORCE_MARGIN,
                                              DEFAULT_FORCE_CONTROLLER, DEFAULT_POSITION_CONTROLLER)
 from gripper_ros.core.physics.plant import check_fault, GraspObject, Lift
@@ -93,8 +94,7 @@ class GraspRecord:
 def _mapping(custom: dict, key: str, path, why: str) -> dict:
     value = custom.get(key)
     if not isinstance(value, dict):
-        serve = ', as in bags recorded by grasp_demo --serve' if key == 'request' else ''
-        raise RerunError(f'{path}: no recorded {why} (custom_data "{key}"{serve}); a '
+        raise RerunError(f'{path}: no recorded {why} (custom_data "{key}"); a '
                          f'closed-loop re-run needs the request, the object and the '
                          f'configuration')
     return value
@@ -116,6 +116,8 @@ def load_record(bag: Bag | str | os.PathLike) -> GraspRecord:
         raise RerunError(f'{bag.path}: a bag of format 1 (recorded before the lockstep protocol) '
                          f'holds neither the request nor the object placed; only the open-loop '
                          f'--resimulate can use it')
+    if isinstance(custom.get('not_rerun'), str):
+        raise RerunError(f'{bag.path}: not re-run in closed loop: {custom["not_rerun"]}')
     request = _mapping(custom, 'request', bag.path, 'request')
     obj = _mapping(custom, 'object', bag.path, 'object')
     data = _mapping(custom, 'config', bag.path, 'configuration')
@@ -265,16 +267,6 @@ def apply_settings(data: dict, settings: Sequence[tuple[str, Any]], source: str)
     return out
 
 
-def _flat(data: dict, prefix: str = '') -> dict[str, Any]:
-    out = {}
-    for key, value in data.items():
-        if isinstance(value, dict):
-            out.update(_flat(value, f'{prefix}{key}.'))
-        else:
-            out[f'{prefix}{key}'] = value
-    return out
-
-
 @dataclass
 class Changes:
     """What to change for a re-run (None or empty: as recorded)."""
@@ -323,10 +315,13 @@ def resolve(record: GraspRecord, changes: Changes | None = None) -> RerunSetup:
             not (math.isfinite(margin) and margin >= 0.0):
         raise ConfigError(f'approach_force_margin must be finite and >= 0, got {margin!r}')
     position_stage, force_stage = build_stages(config, position, force, float(margin))
+    for key, value in changes.settings:
+        _check_read(base, key, value, position_stage.kind.value, force_stage.kind.value,
+                    float(margin))
     _request(record, config)            # the re-run's supervisor must accept the request
     out = RerunSetup(config, position_stage.kind.value, force_stage.kind.value,
                      float(force_stage.approach_margin), [])
-    before, after = _flat(record.config.data), _flat(config.data)
+    before, after = flatten(record.config.data), flatten(config.data)
     for key in sorted(set(before) | set(after)):
         if before.get(key, '(none)') != after.get(key, '(none)'):
             out.changes.append(f'{key} {before.get(key, "(none)")} -> {after.get(key, "(none)")}')
@@ -341,6 +336,48 @@ def resolve(record: GraspRecord, changes: Changes | None = None) -> RerunSetup:
             out.changes.append(f'{name} {was:g} -> {now:g}' if isinstance(now, float)
                                else f'{name} {was} -> {now}')
     return out
+
+
+_STAGE_SECTIONS = {'position_control': ('position', PositionControllerKind),
+                   'force_control': ('force', ForceControllerKind)}
+"""The config sections the stage controllers read: which stage, and its kinds."""
+
+
+def _stage_bytes(config: GripperConfig, stage: str, kind: str, margin: float):
+    """Return what a stage built from ``config`` holds (its records' bytes), or why it fails."""
+    try:
+        built = build_stages(config, **{f'{stage}_controller': kind,
+                                        'approach_force_margin': margin})
+    except ConfigError as exc:
+        return str(exc)
+    return tuple(np.asarray(a).tobytes() for a in built[stage == 'force'].kernel)
+
+
+def _check_read(base: GripperConfig, key: str, value, position: str, force: str,
+                margin: float) -> None:
+    """Refuse (ConfigError) a ``--set`` of a stage key the re-run's controller does not read.
+
+    A controller reads a key when setting it changes the controller built from the config;
+    the refusal names the controllers that do read it. A key no stage reads (the paper's
+    gains, a key of another section) passes: the plant or the supervisor may read it.
+    """
+    section = key.split('.', 1)[0]
+    if section not in _STAGE_SECTIONS:
+        return
+    stage, kinds = _STAGE_SECTIONS[section]
+    try:
+        changed = parse_config(apply_settings(base.data, [(key, value)], base.source))
+    except ConfigError:
+        return                              # the whole change is checked (and refused) above
+    chosen = position if stage == 'position' else force
+    readers = [k.value for k in kinds
+               if _stage_bytes(base, stage, k.value, margin)
+               != _stage_bytes(changed, stage, k.value, margin)]
+    if readers and chosen not in readers:
+        raise ConfigError(f'{key} is not read by the {stage} controller of this re-run '
+                          f'({chosen}); {" and ".join(readers)} '
+                          f'{"reads" if len(readers) == 1 else "read"} it: add '
+                          f'--{stage}-controller {readers[0]}')
 
 
 def _request(record: GraspRecord, config: GripperConfig) -> None:
@@ -556,7 +593,7 @@ class WhatIf:
         """The swept key's value in the recorded configuration."""
         if self.sweep_key is None:
             return None
-        return _flat(self.record.config.data).get(self.sweep_key)
+        return flatten(self.record.config.data).get(self.sweep_key)
 
 
 def _run_value(record: GraspRecord, item: tuple) -> Rerun:

@@ -582,6 +582,18 @@ def known_keys() -> dict:
     }
 
 
+def flatten(data: dict, prefix: str = '') -> dict[str, object]:
+    """Flatten nested sections to dotted keys: ``{'a': {'b': 1}}`` -> ``{'a.b': 1}``."""
+    out = {}
+    for key, value in data.items():
+        name = f'{prefix}{key}'
+        if isinstance(value, dict):
+            out.update(flatten(value, name + '.'))
+        else:
+            out[name] = value
+    return out
+
+
 def _refuse_unknown(data: dict, known: dict, where: str = '') -> None:
     """Refuse a key the package does not read (a typo), naming it and the closest known one."""
     import difflib

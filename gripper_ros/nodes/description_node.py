@@ -69,10 +69,10 @@ class DescriptionPublisher(GripperNode):
         self.published = {TOPIC_TF: 0, TOPIC_TF_STATIC: 0, TOPIC_ROBOT_DESCRIPTION: 0}
         self.skipped = 0                       # joint_states without a finite finger position
         self.last_state_ns: int | None = None  # the stamp of the last joint_states handled
-        self._description_pub = self.create_publisher(String, TOPIC_ROBOT_DESCRIPTION,
+        self._description_pub = self.tapped_publisher(String, TOPIC_ROBOT_DESCRIPTION,
                                                       LATCHED_QOS)
-        self._static_pub = self.create_publisher(TFMessage, TOPIC_TF_STATIC, LATCHED_QOS)
-        self._tf_pub = self.create_publisher(TFMessage, TOPIC_TF, GRAPH_QOS)
+        self._static_pub = self.tapped_publisher(TFMessage, TOPIC_TF_STATIC, LATCHED_QOS)
+        self._tf_pub = self.tapped_publisher(TFMessage, TOPIC_TF, GRAPH_QOS)
         self.graph_subscription(JointState, TOPIC_JOINT_STATES, self._on_joint_states)
         self._joint_layout = joint_state_template(self.joint_name, name_prefix + FRAME_BASE)
         self._tf_layout = transform_template(self._base, self._moving)

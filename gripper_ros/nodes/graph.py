@@ -258,6 +258,20 @@ class GripperGraph:
             width_tolerance_m=float(width_tolerance_m)),
             wall_timeout_s)
 
+    def grasp_async(self, width_m: float, mass_kg: float, timeout_s: float = 0.0):
+        """Send a grasp request and return its future at once (it is done when the grasp ends).
+
+        For a caller that acts while the grasp runs; :meth:`forget` stops waiting for it.
+        """
+        return self._grasp.call_async(Grasp.Request(width_m=float(width_m),
+                                                    mass_kg=float(mass_kg),
+                                                    timeout_s=float(timeout_s)))
+
+    def forget(self, future) -> None:
+        """Stop waiting for the answer of a :meth:`grasp_async` request (its grasp goes on)."""
+        if not future.done():
+            self._grasp.remove_pending_request(future)
+
     def move(self, width_m: float, speed_mps: float = 0.0, max_effort_n: float = 0.0,
              timeout_s: float = 0.0, wall_timeout_s: float = 600.0) -> Move.Response:
         return self.call(self._move, Move.Request(

@@ -50,6 +50,12 @@ class GripperNode(Node):
         self.graph_publishers.append(publisher)
         return publisher
 
+    def tapped_publisher(self, msg_type, topic: str, qos) -> GraphPublisher:
+        """Publish ``msg_type`` on ``topic`` over DDS only, where a recorder can tap it."""
+        publisher = GraphPublisher(self, msg_type, topic, qos, None)
+        self.graph_publishers.append(publisher)
+        return publisher
+
     def graph_subscription(self, msg_type, topic: str, callback: Callable, raw: bool = True):
         """Take the messages of ``topic``, which only the graph publishes: the bus's, or DDS's.
 

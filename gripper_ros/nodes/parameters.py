@@ -18,7 +18,7 @@ from __future__ import annotations
 import copy
 from typing import Callable
 
-from gripper_ros.core.config import GripperConfig, load_config, parse_config
+from gripper_ros.core.config import flatten, GripperConfig, load_config, parse_config
 from gripper_ros.nodes.startup import StartupError
 from gripper_ros.text import one_line
 from gripper_ros.wire import FINGER_JOINT, NAME_CHARACTERS, namespace_prefix
@@ -48,18 +48,6 @@ def declare_controller(node: Node, kind_cls, default, description: str = ''):
     value = node.declare_parameter('controller', default.value, ParameterDescriptor(
         description=description or ' | '.join(k.value for k in kind_cls), read_only=True)).value
     return parse_kind(kind_cls, value)
-
-
-def flatten(data: dict, prefix: str = '') -> dict[str, object]:
-    """Flatten nested sections to dotted keys: ``{'a': {'b': 1}}`` -> ``{'a.b': 1}``."""
-    out = {}
-    for key, value in data.items():
-        name = f'{prefix}{key}'
-        if isinstance(value, dict):
-            out.update(flatten(value, name + '.'))
-        else:
-            out[name] = value
-    return out
 
 
 def _as_parameter_value(dotted: str, value):

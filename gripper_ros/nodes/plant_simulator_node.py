@@ -92,6 +92,7 @@ class PlantSimulatorNode(GripperNode):
         self.config = self.parameters.config
         self.side = PlantSide(make_plant(self.config))
         self.plant = self.side.plant
+        self.placed: tuple[int, dict | None] = (0, None)   # SetObjects accepted, the last one
         prefix = declare_prefix(self)
         self.joint_name = prefix + FINGER_JOINT
         self.frame_id = self._param('frame_id', prefix + FRAME_BASE,
@@ -147,8 +148,8 @@ class PlantSimulatorNode(GripperNode):
 
         self._tick_pub = self.graph_publisher(PlantTick, TOPIC_TICK)
         self._joint_pub = self.graph_publisher(JointState, TOPIC_JOINT_STATES)
-        self._force_pub = self.create_publisher(ForceSensor, TOPIC_FORCE_SENSOR, GRAPH_QOS)
-        self._object_pub = self.create_publisher(ObjectState, TOPIC_OBJECT_STATE, GRAPH_QOS)
+        self._force_pub = self.tapped_publisher(ForceSensor, TOPIC_FORCE_SENSOR, GRAPH_QOS)
+        self._object_pub = self.tapped_publisher(ObjectState, TOPIC_OBJECT_STATE, GRAPH_QOS)
         self._sim_pub = self.graph_publisher(SimStatus, TOPIC_SIM_STATUS)
         self._clock_pub = self.create_publisher(ClockMsg, TOPIC_CLOCK, GRAPH_QOS) \
             if self.publish_clock else None
@@ -559,6 +560,10 @@ class PlantSimulatorNode(GripperNode):
             response.success = False
             response.message = f'refused: {exc}'
             return response
+        self.placed = (self.placed[0] + 1, {
+            name: float(value) if name not in ('fault', 'lift_profile') else int(value)
+            for name, value in ((n, getattr(request, n))
+                                for n in request.get_fields_and_field_types())})
         self._pending = False                   # the command was for the world before
         self._stamp_ns = self.side.tick().stamp_ns
         self._publish_tick()

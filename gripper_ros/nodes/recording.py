@@ -89,6 +89,7 @@ class GraphTap:
                                   (TOPIC_POSITION_REFERENCE, TOPIC_FORCE_REFERENCE)}
         self._last_tick: tuple[int, bytes] | None = None
         self._this_tick: list[tuple[str, bytes, int]] = []   # loop messages of the newest tick
+        self._state_of_tick: list[tuple[str, bytes]] = []    # its state topics, unrecorded
         self._held: tuple[int, bytes] | None = None   # the newest tick, written with its decision
         self._decided_ns: int | None = None     # newest stamp of a reference or command seen
         self._last_command_ns: int | None = None
@@ -98,14 +99,14 @@ class GraphTap:
         self._start_at_next_tick = False
         self._closing_since: float | None = None
         self._lock = threading.Lock()
-        self._tapped = []                        # publishers whose publish() is tapped
-        self._tapped_graph = []                   # graph publishers that call the tap
+        self._tapped = []                        # graph publishers that call the tap
 
     def open(self) -> GraphTap:  # noqa: A003 - a tap is opened and closed like a file
         """Tap every publisher of the graph's topics: what each publishes is seen here at once.
 
-        A graph publisher (:class:`~gripper_ros.nodes.intra_process.GraphPublisher`) calls the
-        tap itself, whether the message goes over the process's bus, DDS or both.
+        Each is a :class:`~gripper_ros.nodes.intra_process.GraphPublisher`, which calls the tap
+        itself, whether the message goes over the process's bus, DDS or both. A node that
+        publishes a recorded topic past one is refused here, before any bag misses its messages.
         """
         for node in self.graph.nodes:
             if node is self.node:
@@ -114,28 +115,16 @@ class GraphTap:
             for publisher in wrapped:
                 if publisher.topic_name in self.topics:
                     publisher.tap = self._on_message
-                    self._tapped_graph.append(publisher)
+                    self._tapped.append(publisher)
             inner = {id(p.dds) for p in wrapped}
-            for publisher in node.publishers:
-                if publisher.topic_name in self.topics and id(publisher) not in inner:
-                    self._tap_publisher(publisher)
+            untapped = sorted(p.topic_name for p in node.publishers
+                              if p.topic_name in self.topics and id(p) not in inner)
+            if untapped:
+                self.close()
+                raise RuntimeError(f'{node.get_name()} publishes {", ".join(untapped)} with a '
+                                   'plain rclpy publisher: a recorder cannot see it '
+                                   '(use GripperNode.graph_publisher or tapped_publisher)')
         return self
-
-    def _tap_publisher(self, publisher) -> None:
-        """Make ``publisher.publish`` also hand what it publishes to :meth:`_on_message`.
-
-        The message goes to DDS first, exactly as before; a message object (the few state
-        topics not packed by template) is serialised here, bytes are taken as they are. An
-        error of the tap ends the recording (one line), never the node that published.
-        """
-        publish, on_message, topic = publisher.publish, self._on_message, publisher.topic_name
-
-        def tapped(msg) -> None:
-            publish(msg)
-            on_message(topic, msg)
-
-        publisher.publish = tapped
-        self._tapped.append(publisher)
 
     # ------------------------------------------------------------------ the window
     def start(self, sink: BagRecorder, at: str = 'now') -> None:
@@ -159,6 +148,8 @@ class GraphTap:
             for topic, data, stamp in self._this_tick:     # the tick, and what came of it
                 if stamp == self._start_ns:
                     self._write(sink, topic, data, stamp)
+            for topic, data in self._state_of_tick:         # and the state it published
+                self._write(sink, topic, data)
             return
         self.sink = None if self._start_at_next_tick else sink
         self._pending_sink = sink
@@ -238,6 +229,8 @@ class GraphTap:
             sink = self.sink
             if sink is not None and self._end_ns is None:
                 self._write(sink, topic, data)
+            else:
+                self._state_of_tick.append((topic, data))
             return
         stamp = _STAMP.unpack_from(data, 4)[0]
         if topic == self._tick_topic:
@@ -249,6 +242,7 @@ class GraphTap:
                 self._keep(topic, data, stamp)
             self._last_tick = (stamp, data)
             self._this_tick = []
+            self._state_of_tick = []
             if self._start_at_next_tick:
                 self._start_at_next_tick = False
                 self._start_ns, self.sink = stamp, self._pending_sink
@@ -300,10 +294,8 @@ class GraphTap:
 
     def close(self) -> None:
         for publisher in self._tapped:
-            del publisher.publish                # the class's own again
-        for publisher in self._tapped_graph:
             publisher.tap = None
-        self._tapped, self._tapped_graph = [], []
+        self._tapped = []
 
     def __enter__(self) -> GraphTap:
         return self.open()
@@ -326,12 +318,16 @@ def graph_tap(graph) -> GraphTap:
     return tap
 
 
-def bag_metadata(graph, request: dict, placed: dict) -> dict:
-    """custom_data of a grasp bag: all a closed-loop re-run needs, and the format."""
+def bag_metadata(graph, request: dict | None, placed: dict | None) -> dict:
+    """custom_data of a grasp bag: all a closed-loop re-run needs, and the format.
+
+    ``request`` and ``placed`` None: left out (a move's bag).
+    """
+    rerun = {'request': request, 'object': placed} if request is not None else {}
     return {'gripper_ros': {'format': BAG_FORMAT, 'namespace': graph.namespace,
                             'time_mode': graph.options.time_mode,
                             'state_rate_hz': float(graph.plant.state_rate_hz)},
-            'request': request, 'object': placed,
+            **rerun,
             'controllers': graph.controller_settings(),
             'config': graph.config_data()}
 
@@ -472,6 +468,7 @@ class ServeRecorder:
         self._close_at_ns: int | None = None
         self._answered_wall: float | None = None
         self._last_received = 0
+        self._placements_used = 0               # the plant's SetObjects a request began after
         self.tap = graph_tap(graph)
         self.tap.on_reference = self._on_reference
         self.tap.on_tick = self._on_tick
@@ -489,12 +486,28 @@ class ServeRecorder:
         if grasp_id != self._grasp_id:
             self._close_bag(stamp_ns)
             self._grasp_id = grasp_id
+            placements, placed = self.graph.plant.placed
+            fresh = placements != self._placements_used
+            self._placements_used = placements
             if phase in (Phase.POSITION, Phase.MOVING) and outcome == Outcome.UNKNOWN:
-                self._open(grasp_id, 'grasp' if phase == Phase.POSITION else 'move')
+                self._open(grasp_id, 'grasp' if phase == Phase.POSITION else 'move',
+                           placed if fresh else None)
         elif self.tap.sink is not None and outcome != Outcome.UNKNOWN and \
                 self._close_at_ns is None:
             self._close_at_ns = stamp_ns + round(self.linger_s * 1e9)
             self._answered_wall = time.monotonic()
+
+    def _rerun_data(self, grasp_id: int, placed: dict | None) -> dict:
+        """custom_data a closed-loop re-run reads: the request and the object, or why not."""
+        accepted = self.graph.supervisor.accepted_grasp
+        if accepted is None or accepted[0] != grasp_id:
+            return {'not_rerun': f'the request of grasp {grasp_id} was not seen when its bag '
+                                 'opened'}
+        if placed is None:
+            what = 'no object was placed (SetObject)' if not self._placements_used else \
+                'it began on an object placed before an earlier request (no SetObject between)'
+            return {'not_rerun': f'grasp {grasp_id}: {what}; a re-run starts from a placement'}
+        return {'request': accepted[1], 'object': placed}
 
     def _on_tick(self, stamp_ns: int) -> None:
         if self._close_at_ns is not None and self.tap.sink is not None and \
@@ -502,18 +515,17 @@ class ServeRecorder:
             self._close_at_ns = None
             self.tap.stop_at(stamp_ns)          # before this tick: whole ticks only
 
-    def _open(self, grasp_id: int, kind: str) -> None:
+    def _open(self, grasp_id: int, kind: str, placed: dict | None) -> None:
         stamp = datetime.now().strftime('%Y%m%d_%H%M%S')
         try:
             bag_dir = unique_bag_dir(self.output_dir, f'{kind}_{stamp}_id{grasp_id}')
+            custom = bag_metadata(self.graph, None, None)
+            if kind == 'grasp':
+                custom.update(self._rerun_data(grasp_id, placed))
             sink = BagRecorder(
                 self.graph.client_node, bag_dir, self.tap.topics, subscribe=False,
                 time_source=lambda: self.graph.sim_time_ns, overwrite=True,
-                custom_data={'gripper_ros': {'format': BAG_FORMAT,
-                                             'namespace': self.graph.namespace,
-                                             'time_mode': self.graph.options.time_mode},
-                             'controllers': self.graph.controller_settings(),
-                             'config': self.graph.config_data()})
+                custom_data=custom)
         except (OSError, BagRecorderError, RecordingError) as exc:
             self._report(f'recording not started under {self.output_dir}: '
                          f'{getattr(exc, "strerror", None) or exc}')

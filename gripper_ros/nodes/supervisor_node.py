@@ -29,6 +29,7 @@ plant says on ``sim/status`` that simulated time is paused (``sim/pause``), no w
 from __future__ import annotations
 
 from collections import Counter
+from dataclasses import fields
 import math
 import sys
 import time
@@ -85,6 +86,7 @@ class SupervisorNode(GripperNode):
         self._ids = GraspIds(self.context.get_domain_id(), self.get_namespace(),
                              self.get_logger().warning)
         self.logic.continue_ids_after(self._ids.last())
+        self.accepted_grasp: tuple[int, dict] | None = None    # id and fields, the last one
         self._side = SupervisorSide(self.logic)
         self.tick_timeout_s = self.declare_parameter(
             'tick_timeout_s', DEFAULT_TICK_TIMEOUT_S, ParameterDescriptor(
@@ -309,6 +311,8 @@ class SupervisorNode(GripperNode):
         if targets is None:
             return
         response.grasp_id = self.logic.grasp_id + 1
+        self.accepted_grasp = (response.grasp_id, {
+            f.name: float(getattr(request, f.name)) for f in fields(GraspRequest)})
         response.position_setpoint_m = targets.position_setpoint_m
         response.force_setpoint_n = targets.force_setpoint_n
         self.get_logger().info(

@@ -49,7 +49,7 @@ BAND_STIFFNESSES_N_PER_M = (1e2, 1e4, 1e6, 1e8)
 BAND_DAMPING_RATIOS = (0.01, 1.0)
 BAND_WIDTHS_M = (0.05,)
 BAND_MASSES_KG = (0.1, 1.0, None)
-# the former sweep's compliant kinds (--compliant): name, k N/m, c N s/m
+# the compliant kinds of --compliant: name, stiffness N/m, damping N s/m
 COMPLIANT_OBJECTS = (('stiff', 1.0e5, 50.0), ('soft', 1.0e3, 5.0))
 # --quick: the reduced grid of test/test_contact_sweep.py
 QUICK_STIFFNESSES_N_PER_M = (1e2, 1e4, 1e6, 1e8)
@@ -198,7 +198,7 @@ def holdout_cases(config) -> tuple[list[SweepCase], int]:
 
 
 def compliant_cases(config, widths=WIDTHS_M, masses=MASSES_KG) -> tuple[list[SweepCase], int]:
-    """Return rigid plus the former sweep's stiff (1e5 N/m) and soft (1e3 N/m) objects."""
+    """Return rigid plus the stiff (1e5 N/m) and soft (1e3 N/m) objects of ``--compliant``."""
     m_r = config.plant.reflected_mass_kg
     kinds = [('rigid', 0.0, 0.0, 0.0)] + [(name, k, c / (2.0 * math.sqrt(k * m_r)), c)
                                           for name, k, c in COMPLIANT_OBJECTS]

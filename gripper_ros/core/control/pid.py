@@ -40,7 +40,7 @@ class AntiWindup(enum.Enum):
     CONDITIONAL = 'conditional'    # stop integrating while saturated in the same direction
 
 
-# --- what a compiled law returns when it refuses its numbers (today's exceptions) ----------
+# --- what a compiled law returns when it refuses its numbers (as exceptions) ---------------
 LAW_OK = 0
 LAW_PID_INPUT = 1        # ValueError: non-finite PID input (law numbers: setpoint, measurement)
 LAW_NO_SLOPE = 2         # ValueError: the output does not depend on the setpoint
@@ -52,7 +52,7 @@ LAW_NUMBERS = 5
 
 
 def law_error(code: int, numbers) -> Exception:
-    """Return today's exception for a compiled law's refusal ``code`` and its ``numbers``."""
+    """Return the exception for a compiled law's refusal ``code`` and its ``numbers``."""
     v = [float(x) for x in numbers]
     if code == LAW_PID_INPUT:
         return ValueError(f'non-finite input: setpoint={v[0]!r}, measurement={v[1]!r}')

@@ -23,7 +23,7 @@ A *reference* is anything with the fields of ``gripper_interfaces/msg/StageRefer
 The per-tick work is one compiled entry point, :func:`stage_answer` (``k, ref, cmd``), over a
 stage's ``kernel`` tuple ``k`` (layout in :data:`KERNEL_LAYOUT`); the compiled headless loop
 calls it, and the classes below are Python façades over the same records. A 0 V answer's
-reason is a code plus numbers in ``k`` (``REASON_*``); :func:`reason_text` formats today's text.
+reason is a code plus numbers in ``k`` (``REASON_*``); :func:`reason_text` formats it as text.
 """
 from __future__ import annotations
 
@@ -62,7 +62,7 @@ REFERENCE_NUMBERS = ('position_setpoint_m', 'approach_setpoint_m', 'force_setpoi
 LIMIT_NUMBERS = ('speed_limit_mps', 'voltage_limit_v')
 """... and the position stage's limits (a stage's ``reference_numbers`` name all it uses)."""
 NUMBER_FIELDS = REFERENCE_NUMBERS + LIMIT_NUMBERS
-"""Bit i of a book's ``numbers_mask`` / ``bad_mask`` is ``NUMBER_FIELDS[i]``."""
+"""Bit i of a last-answer record's ``numbers_mask`` / ``bad_mask`` is ``NUMBER_FIELDS[i]``."""
 N_NUMBERS = len(NUMBER_FIELDS)
 # each reference number's slot and bit, by name (the compiled code reads them as constants)
 AT_POSITION_SETPOINT = NUMBER_FIELDS.index('position_setpoint_m')
@@ -118,11 +118,11 @@ STAGE_DTYPE = np.dtype([
 ANSWER_REPEATED = -1
 REASON_NONE = 0
 REASON_MEASUREMENT = 1     # 'non-finite measurement'
-REASON_REFERENCE = 2       # 'non-finite reference (...)': book bad_mask, the numbers as read
-REASON_LAW = 3             # 'control law failed: ...': book law_code, the law's numbers
+REASON_REFERENCE = 2       # 'non-finite reference (...)': bad_mask, the numbers as read
+REASON_LAW = 3             # 'control law failed: ...': law_code, the law's numbers
 REASON_OUTPUT = 4          # 'non-finite output (...)': law numbers [0] voltage, [1] inner
 
-BOOK_DTYPE = np.dtype([
+LAST_ANSWER_DTYPE = np.dtype([
     ('has_answered', 'u1'),                # 0: nothing answered yet (None)
     ('answered_stage_id', 'i8'), ('answered_stamp_ns', 'i8'),
     ('active_stage', 'i8'),                # the stage the law was started for; -1: none
@@ -137,24 +137,24 @@ REFERENCE_DTYPE = REFERENCE_LAYOUT.dtype
 COMMAND_DTYPE = COMMAND_LAYOUT.dtype
 
 STATE_DTYPE = np.dtype([
-    ('book', BOOK_DTYPE), ('stage', STAGE_DTYPE), ('pid', PID_DTYPE),
+    ('last_answer', LAST_ANSWER_DTYPE), ('stage', STAGE_DTYPE), ('pid', PID_DTYPE),
     ('cascade', CASCADE_DTYPE), ('dmc', DMC_DTYPE), ('governor', GOVERNOR_DTYPE),
     ('contact', CONTACT_DTYPE),
 ], align=True)
-"""Every record of one stage controller, nested: the book, the stage, the PID (the PD/PID/PI
-or a cascade's inner loop), the cascade, the DMC, the governor and the contact-aware stage.
-Parts a kind does not use are placeholders, so every stage compiles to one
+"""Every record of one stage controller, nested: the last answer, the stage, the PID (the
+PD/PID/PI or a cascade's inner loop), the cascade, the DMC, the governor and the contact-aware
+stage. Parts a kind does not use are placeholders, so every stage compiles to one
 :func:`stage_answer`. The law façades view their part (``controller.record`` is
 ``state['pid']`` ...)."""
 
-LAW_AT = 0                                 # vectors[0:5]: a refusing law's numbers
-REFERENCE_AT = LAW_AT + LAW_NUMBERS        # vectors[5:12]: the reference numbers as read
-DMC_AT = REFERENCE_AT + len(NUMBER_FIELDS)  # vectors[12:]: the DMC's buffer, the governor's
+LAW_NUMBERS_AT = 0                                       # buffers[0:5]: a refusing law's numbers
+REFERENCE_NUMBERS_AT = LAW_NUMBERS_AT + LAW_NUMBERS      # buffers[5:12]: the reference's, as read
+DMC_BUFFER_AT = REFERENCE_NUMBERS_AT + len(NUMBER_FIELDS)  # buffers[12:]: DMC's, governor's
 
-KERNEL_LAYOUT = ('state', 'vectors')
-"""``k = (state, vectors)``: ``state`` a 1-element :data:`STATE_DTYPE` array, ``vectors`` one
-float array: a refusing law's numbers (5, ``LAW_AT``), the reference numbers as read
-(``NUMBER_FIELDS`` order, 7, ``REFERENCE_AT``), the DMC's buffer (``DMC_AT``,
+KERNEL_LAYOUT = ('state', 'buffers')
+"""``k = (state, buffers)``: ``state`` a 1-element :data:`STATE_DTYPE` array, ``buffers`` one
+float array: a refusing law's numbers (5, ``LAW_NUMBERS_AT``), the reference numbers as read
+(``NUMBER_FIELDS`` order, 7, ``REFERENCE_NUMBERS_AT``), the DMC's buffer (``DMC_BUFFER_AT``,
 :func:`~gripper_ros.core.control.dmc.dmc_buffer_size`) and the governor's buffer after it
 (:func:`~gripper_ros.core.control.dmc.governor_buffer_size`). Two arrays, so a call costs few
 reference counts: the kernels below pass records."""
@@ -162,11 +162,12 @@ reference counts: the kernels below pass records."""
 
 # --- kernels ---------------------------------------------------------------------------------
 @numba.njit(cache=True)
-def stage_buffers(st, vectors):
+def stage_buffers(st, buffers):
     """Return (law numbers, reference numbers, DMC buffer, governor buffer) of a stage."""
-    dmc_end = DMC_AT + 4 * st.dmc.horizon + 1
-    return (vectors[LAW_AT:REFERENCE_AT], vectors[REFERENCE_AT:DMC_AT],
-            vectors[DMC_AT:dmc_end], vectors[dmc_end:])
+    dmc_end = DMC_BUFFER_AT + 4 * st.dmc.horizon + 1
+    return (buffers[LAW_NUMBERS_AT:REFERENCE_NUMBERS_AT],
+            buffers[REFERENCE_NUMBERS_AT:DMC_BUFFER_AT], buffers[DMC_BUFFER_AT:dmc_end],
+            buffers[dmc_end:])
 
 
 @numba.njit(cache=True)
@@ -218,12 +219,12 @@ def _force_apply_limits(st, r):
 
 
 @numba.njit(cache=True)
-def stage_activate(state, vectors, ref, measurement):
+def stage_activate(state, buffers, ref, measurement):
     """Restart the law for a new stage (position: from rest; force: approach or seeded PI)."""
     st = as_record(state)
     r = as_record(ref)
     s = st.stage
-    _, _, dbuf, gbuf = stage_buffers(st, vectors)
+    _, _, dbuf, gbuf = stage_buffers(st, buffers)
     if s.source == Controller.POSITION:
         _position_apply_limits(st, r, measurement)
         if s.kind == KIND_MPC_PD:
@@ -244,15 +245,15 @@ def stage_activate(state, vectors, ref, measurement):
 
 
 @numba.njit(cache=True)
-def stage_compute(state, vectors, ref, measurement):
+def stage_compute(state, buffers, ref, measurement):
     """Return (code, voltage_v, inner_setpoint) for this tick (``code`` LAW_OK unless refused).
 
-    A refusing law's numbers are in ``vectors[LAW_AT:]``.
+    A refusing law's numbers are in ``buffers[LAW_NUMBERS_AT:]``.
     """
     st = as_record(state)
     r = as_record(ref)
     s = st.stage
-    numbers = vectors[LAW_AT:REFERENCE_AT]
+    numbers = buffers[LAW_NUMBERS_AT:REFERENCE_NUMBERS_AT]
     if s.source == Controller.POSITION:
         _position_apply_limits(st, r, measurement)
         setpoint = r.approach_setpoint_m
@@ -267,7 +268,7 @@ def stage_compute(state, vectors, ref, measurement):
             s.contact = 1
             _force_apply_limits(st, r)
     if s.kind == KIND_MPC_PD or s.kind == KIND_MPC_PI:
-        _, _, dbuf, gbuf = stage_buffers(st, vectors)
+        _, _, dbuf, gbuf = stage_buffers(st, buffers)
         code, voltage = cascade_step(st.cascade, st.pid, st.dmc, dbuf, st.governor, gbuf,
                                      setpoint, measurement, numbers)
         return code, voltage, st.cascade.last_inner_setpoint
@@ -276,13 +277,13 @@ def stage_compute(state, vectors, ref, measurement):
 
 
 @numba.njit(cache=True)
-def answer_open(book, reference_numbers, ref, measurement):
+def answer_open(last, reference_numbers, ref, measurement):
     """Start answering ``ref``: ANSWER_REPEATED, REASON_NONE (go on) or the reason for 0 V.
 
     Each (stage_id, stamp_ns) is answered once; a non-finite measurement or reference number
     is never acted on.
     """
-    b = as_record(book)
+    b = as_record(last)
     r = as_record(ref)
     if b.has_answered and b.answered_stage_id == r.stage_id and \
             b.answered_stamp_ns == r.stamp_ns:
@@ -313,12 +314,12 @@ def answer_open(book, reference_numbers, ref, measurement):
 
 
 @numba.njit(cache=True)
-def answer_close(book, law_numbers, code, voltage, inner):
+def answer_close(last, law_numbers, code, voltage, inner):
     """Return (finite, voltage, inner): the law's answer, or 0 V when it refused or went bad.
 
     Either way the law's state is no longer trustworthy: it restarts at the next good tick.
     """
-    b = as_record(book)
+    b = as_record(last)
     if code != LAW_OK:                     # a law that refuses its numbers
         b.active_stage = -1
         b.reason = REASON_LAW
@@ -337,27 +338,27 @@ def answer_close(book, law_numbers, code, voltage, inner):
 def stage_answer(k, ref, cmd):
     """Answer the reference record ``ref`` into the command record ``cmd``; False if repeated.
 
-    Today's ``LockstepAnswerer.answer`` and the command ``lockstep.StageSide.answer`` builds:
-    restart the law on a new stage, hold 0 V (reason in the book) on a non-finite measurement
-    or reference number, a refused or non-finite output.
+    What ``LockstepAnswerer.answer`` and the command ``lockstep.StageSide.answer`` builds do:
+    restart the law on a new stage, hold 0 V (reason in the last answer) on a non-finite
+    measurement or reference number, a refused or non-finite output.
     """
     st = k[0][0]
-    vectors = k[1]
+    buffers = k[1]
     r = ref[0]
     s = st.stage
-    book = st.book
+    last = st.last_answer
     measurement = r.position_m if s.source == Controller.POSITION else r.force_n
-    reason = answer_open(book, vectors[REFERENCE_AT:DMC_AT], r, measurement)
+    reason = answer_open(last, buffers[REFERENCE_NUMBERS_AT:DMC_BUFFER_AT], r, measurement)
     if reason == ANSWER_REPEATED:
         return False
     finite, voltage, inner = 0, 0.0, 0.0
     if reason == REASON_NONE:
-        if book.active_stage != r.stage_id:
-            stage_activate(st, vectors, r, measurement)
-            book.active_stage = r.stage_id
-        code, voltage, inner = stage_compute(st, vectors, r, measurement)
-        finite, voltage, inner = answer_close(book, vectors[LAW_AT:REFERENCE_AT], code,
-                                              voltage, inner)
+        if last.active_stage != r.stage_id:
+            stage_activate(st, buffers, r, measurement)
+            last.active_stage = r.stage_id
+        code, voltage, inner = stage_compute(st, buffers, r, measurement)
+        finite, voltage, inner = answer_close(
+            last, buffers[LAW_NUMBERS_AT:REFERENCE_NUMBERS_AT], code, voltage, inner)
     c = cmd[0]
     c.stamp_ns = r.stamp_ns
     c.grasp_id = r.grasp_id
@@ -386,20 +387,20 @@ def numbers_mask(names) -> int:
     return mask
 
 
-def reset_book(book: np.ndarray, names=REFERENCE_NUMBERS) -> np.ndarray:
-    """Reset ``book`` (1-element array): nothing answered, no stage active, checking ``names``."""
-    book[0] = np.zeros(1, BOOK_DTYPE)[0]
-    book[0]['active_stage'] = -1
-    book[0]['numbers_mask'] = numbers_mask(names)
-    return book
+def reset_last_answer(last: np.ndarray, names=REFERENCE_NUMBERS) -> np.ndarray:
+    """Reset ``last`` (1-element array): nothing answered, no stage active, checking ``names``."""
+    last[0] = np.zeros(1, LAST_ANSWER_DTYPE)[0]
+    last[0]['active_stage'] = -1
+    last[0]['numbers_mask'] = numbers_mask(names)
+    return last
 
 
-def reason_text(book, reference_numbers, law_numbers, names=NUMBER_FIELDS) -> str:
-    """Return today's text for the last answer's 0 V reason ('' when it was answered).
+def reason_text(last, reference_numbers, law_numbers, names=NUMBER_FIELDS) -> str:
+    """Return the text of the last answer's 0 V reason ('' when it was answered).
 
     ``names``: the stage's reference numbers, in the order they are listed.
     """
-    b = book[0]
+    b = last[0]
     reason = int(b['reason'])
     if reason == REASON_MEASUREMENT:
         return 'non-finite measurement'
@@ -440,25 +441,25 @@ class _KernelStage:
     reference_numbers = REFERENCE_NUMBERS
 
     def _build_kernel(self, kind, pid=None, cascade=None, contact=None) -> None:
-        """Gather the laws' records and buffers into ``k = (state, vectors)``."""
+        """Gather the laws' records and buffers into ``k = (state, buffers)``."""
         self.state = state = np.zeros(1, STATE_DTYPE)
         dmc = cascade.dmc if cascade is not None else None
         governor = cascade.governor if cascade is not None else None
         dmc_size = dmc_buffer_size(dmc.horizon if dmc is not None else 1)
         rows = int(governor.record[0]['rows']) if governor is not None else 1
-        self.vectors = vectors = np.zeros(DMC_AT + dmc_size + governor_buffer_size(rows))
+        self.buffers = buffers = np.zeros(DMC_BUFFER_AT + dmc_size + governor_buffer_size(rows))
         st = state[0]
         st['dmc']['horizon'] = 1
         st['governor']['rows'] = 1
         if cascade is not None:
             pid = cascade.inner
             _rehome(cascade, state, 'cascade')
-            vectors[DMC_AT:DMC_AT + dmc_size] = dmc.buffer
-            dmc.buffer = vectors[DMC_AT:DMC_AT + dmc_size]
+            buffers[DMC_BUFFER_AT:DMC_BUFFER_AT + dmc_size] = dmc.buffer
+            dmc.buffer = buffers[DMC_BUFFER_AT:DMC_BUFFER_AT + dmc_size]
             _rehome(dmc, state, 'dmc')
             if governor is not None:
-                vectors[DMC_AT + dmc_size:] = governor.buffer
-                governor.buffer = vectors[DMC_AT + dmc_size:]
+                buffers[DMC_BUFFER_AT + dmc_size:] = governor.buffer
+                governor.buffer = buffers[DMC_BUFFER_AT + dmc_size:]
                 _rehome(governor, state, 'governor')
         if pid is not None:
             _rehome(pid, state, 'pid')
@@ -468,22 +469,22 @@ class _KernelStage:
         s['source'] = int(self.source)
         s['kind'] = KIND_CODES[kind]
         s['sample_time_s'] = self.sample_time_s
-        reset_book(state['book'], self.reference_numbers)
+        reset_last_answer(state['last_answer'], self.reference_numbers)
         self.record = state['stage']
-        self.kernel = (state, vectors)
+        self.kernel = (state, buffers)
         self._ref = np.zeros(1, REFERENCE_DTYPE)
 
     def activate(self, ref, measurement: float) -> None:
         """Restart the law for a new stage."""
-        stage_activate(self.state, self.vectors, fill_reference(ref, self._ref),
+        stage_activate(self.state, self.buffers, fill_reference(ref, self._ref),
                        float(measurement))
 
     def compute(self, ref, measurement: float) -> tuple[float, float]:
         """Return (voltage_v, inner_setpoint) for this tick (the law's exception if refused)."""
-        code, voltage, inner = stage_compute(self.state, self.vectors,
+        code, voltage, inner = stage_compute(self.state, self.buffers,
                                              fill_reference(ref, self._ref), float(measurement))
         if code != LAW_OK:
-            raise law_error(code, self.vectors[LAW_AT:REFERENCE_AT])
+            raise law_error(code, self.buffers[LAW_NUMBERS_AT:REFERENCE_NUMBERS_AT])
         return voltage, inner
 
 
@@ -598,41 +599,42 @@ class LockstepAnswerer:
     """The lockstep bookkeeping of one controller around a stage.
 
     ``stage`` is one of the stage controllers above: :func:`stage_answer` answers it on its own
-    book. Call :meth:`answer` with every reference addressed to this controller.
+    last-answer record. Call :meth:`answer` with every reference addressed to this controller.
     """
 
     def __init__(self, stage):
         self.stage = stage
         self.numbers = stage.reference_numbers
         self._kernel = stage.kernel
-        state, vectors = self._kernel
-        self._book = state['book']
-        self._reference_numbers = vectors[REFERENCE_AT:DMC_AT]
-        self._law_numbers = vectors[LAW_AT:REFERENCE_AT]
-        reset_book(self._book, self.numbers)
+        state, buffers = self._kernel
+        self._last_answer = state['last_answer']
+        self._reference_numbers = buffers[REFERENCE_NUMBERS_AT:DMC_BUFFER_AT]
+        self._law_numbers = buffers[LAW_NUMBERS_AT:REFERENCE_NUMBERS_AT]
+        reset_last_answer(self._last_answer, self.numbers)
         self._ref = np.zeros(1, REFERENCE_DTYPE)
         self._cmd = np.zeros(1, COMMAND_DTYPE)
         self._cmd_bytes = self._cmd.view(np.uint8)
         self._cmd_floats = self._cmd.view(np.float64)
 
     answered = RecordPair('answered_stage_id', 'answered_stamp_ns', int, flag='has_answered',
-                          at='_book')
+                          at='_last_answer')
     """(stage_id, stamp) last answered, None before the first answer."""
 
     @property
     def active_stage(self) -> int | None:
         """The stage the law was started for."""
-        active = int(self._book[0]['active_stage'])
+        active = int(self._last_answer[0]['active_stage'])
         return None if active < 0 else active
 
     @active_stage.setter
     def active_stage(self, stage_id: int | None) -> None:
-        self._book[0]['active_stage'] = -1 if stage_id is None else stage_id
+        self._last_answer[0]['active_stage'] = -1 if stage_id is None else stage_id
 
     @property
     def reason(self) -> str:
         """Why the last answer held 0 V ('' when it did not)."""
-        return reason_text(self._book, self._reference_numbers, self._law_numbers, self.numbers)
+        return reason_text(self._last_answer, self._reference_numbers, self._law_numbers,
+                           self.numbers)
 
     def answer(self, ref) -> TickAnswer | None:
         """Return the command for this tick, or None when this (stage, stamp) was answered."""

@@ -60,8 +60,9 @@ t_ns)``) and the table of discretisations (keys ``(kind, dt_s, k, c, x_c)``, 15 
 each). The entry points :func:`plant_step`, :func:`plant_read_tick`, :func:`plant_begin_hold`,
 :func:`plant_scenario_in_progress`, :func:`plant_schedule_fault`, :func:`plant_cancel_fault` and
 :func:`plant_fault_scheduled` take ``k`` and are called by the facade and by compiled loops. The
-matrix exponential stays in Python (:func:`_discretise`, scipy): a table miss calls it in object
-mode, so every coefficient is the one the Python plant used.
+matrix exponential is computed in Python (:func:`_discretise`, with
+:func:`gripper_ros.core.linalg.expm`): a table miss calls it in object mode, so every coefficient
+is the one the Python plant used.
 """
 from __future__ import annotations
 
@@ -1170,7 +1171,7 @@ def _warm_up(kernel: tuple) -> None:
     _set_object(k, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
     k[K_STATE][0]['x'] = 0.5 * k[K_PARAMS][0]['max_travel_m']
     _reset(k, False)
-    _step_and_sample(k, 0.0, 1)             # free motion: a table miss, scipy's expm loaded
+    _step_and_sample(k, 0.0, 1)             # free motion: a table miss, linalg's expm loaded
     _touch_object(k)
     plant_sample(k)
     plant_read_tick(k, np.zeros(1, TICK_LAYOUT.dtype), 0, 0)
@@ -1320,7 +1321,7 @@ class GripperPlant:
                          d.pad_tangential_stiffness_n_per_m, lift_off_s)
 
     @property
-    def object(self) -> GraspObject:  # noqa: A003 - today's attribute name
+    def object(self) -> GraspObject:  # noqa: A003 - the public attribute name
         """What lies between the fingers now (a slipping object's width shrinks)."""
         s = self._s
         return GraspObject(float(s['width_m']), float(s['stiffness_n_per_m']),

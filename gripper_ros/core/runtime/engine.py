@@ -138,6 +138,26 @@ def jobs_problem(jobs) -> str:
     return ''
 
 
+def add_engine_arguments(parser, work: str = 'the grasps'):
+    """Add the batch programs' ``--jobs N`` or ``--scheduler ADDRESS`` (one or the other).
+
+    ``--jobs`` left out is None: one worker per CPU (:func:`worker_count`). Check the values
+    with :func:`options_problem`. ``work``: what runs on the cluster, for the help.
+    """
+    engine = parser.add_mutually_exclusive_group()
+    engine.add_argument('--jobs', type=int, default=None, metavar='N',
+                        help='local worker processes (default: one per CPU; 1 = this process)')
+    engine.add_argument('--scheduler', default=None, metavar='tcp://HOST:8786',
+                        help=f'run {work} on the Dask cluster of this scheduler (started with '
+                             '`dask scheduler` and `dask worker` on each machine)')
+    return engine
+
+
+def worker_count(jobs: int | None) -> int:
+    """Return the local workers ``jobs`` asks for (None: one per CPU)."""
+    return jobs if jobs is not None else (os.cpu_count() or 1)
+
+
 def options_problem(jobs: int | None = None, scheduler: str | None = None) -> str:
     """Return why a program's ``--jobs`` or ``--scheduler`` cannot be used ('' if they can).
 
@@ -164,8 +184,7 @@ def map_cases(fn: Callable, cases: Sequence, jobs: int | None = None,
     ``functools.partial``). Raises EngineError when the cluster cannot run the batch.
     """
     cases = list(cases)
-    if jobs is None:
-        jobs = os.cpu_count() or 1
+    jobs = worker_count(jobs)
     if scheduler is None and jobs_problem(jobs):
         raise ValueError(jobs_problem(jobs))
     if scheduler is None and (jobs == 1 or len(cases) <= 1 or not _workers_can_start()):

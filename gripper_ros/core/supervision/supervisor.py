@@ -1153,7 +1153,7 @@ class GraspSupervisor:
 
     # ------------------------------------------------------------------ messages
     def _format_message(self, code: int) -> str:
-        """Today's outcome message in words, from the numbers the kernel kept at that instant."""
+        """Return the outcome message in words, from the numbers the kernel kept then."""
         if code == MSG_NONE:
             return ''
         if code == MSG_TEXT:
