@@ -35,6 +35,10 @@ GRAPH_NOT_READY = 'graph not ready'
 """In the refusal of a request made before the supervisor has heard every loop node and the
 plant's first tick (a graph still starting): a client may ask again."""
 
+STATUS_HEARTBEAT_S = 1.0
+"""Wall seconds between the supervisor's status messages when nothing changes (a paused or idle
+graph): the controllers' watchdogs count their silence against it."""
+
 REPUBLISH_AFTER_S = 0.5
 """A tick nobody has answered for this long (wall) is published again (discovery, late peers);
 the supervisor's watchdog tells a silent plant by it."""

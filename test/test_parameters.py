@@ -27,9 +27,8 @@ from gripper_ros.nodes.graph import GraphOptions, GripperGraph
 from gripper_ros.nodes.grasp_action_node import GraspActionServer
 from gripper_ros.nodes.plant_simulator_node import PlantSimulatorNode
 from gripper_ros.nodes.position_controller_node import PositionControllerNode
-from gripper_ros.nodes.supervisor_node import (DEFAULT_TICK_TIMEOUT_S, HEARTBEAT_PERIOD_S,
-                                               SupervisorNode)
-from gripper_ros.wire import DEFAULT_NAMESPACE, Outcome, Phase
+from gripper_ros.nodes.supervisor_node import DEFAULT_TICK_TIMEOUT_S, SupervisorNode
+from gripper_ros.wire import DEFAULT_NAMESPACE, Outcome, Phase, STATUS_HEARTBEAT_S
 import numpy as np
 import pytest
 from rcl_interfaces.msg import Parameter as ParameterMsg
@@ -161,6 +160,7 @@ def test_missing_config_file_stops_a_node_naming_the_file(own_context, tmp_path)
     ('grasp_action_server', 'feedback_period_s', -1.0),
     ('position_controller', 'status_timeout_s', 0.0),
     ('force_controller', 'status_timeout_s', math.inf),
+    ('force_controller', 'status_timeout_s', STATUS_HEARTBEAT_S),   # a live, idle supervisor
 ])
 def test_out_of_range_override_stops_start_up_naming_the_parameter(own_context, node_name,
                                                                    parameter, value):
@@ -400,7 +400,7 @@ def test_a_new_status_timeout_is_the_one_the_controller_watchdog_fires_at(phase)
         controller, other = (g.position, g.force) if phase is Phase.POSITION else \
             (g.force, g.position)
         name = controller.get_name()
-        assert HEARTBEAT_PERIOD_S < NEW_TIMEOUT_S < DEFAULT_STATUS_TIMEOUT_S
+        assert STATUS_HEARTBEAT_S < NEW_TIMEOUT_S < DEFAULT_STATUS_TIMEOUT_S
         assert _set(g, name, 'status_timeout_s',
                     _double(NEW_TIMEOUT_S)).successful
         assert other.status_timeout_s == DEFAULT_STATUS_TIMEOUT_S

@@ -28,12 +28,14 @@ from gripper_ros.nodes.parameters import ConfigParameters
 from gripper_ros.nodes.watchdog import ExecutorSilence
 from gripper_ros.wire import (CDR_LITTLE_ENDIAN, COMMAND_LAYOUT, Controller, NODE_PLANT,
                               REFERENCE_LAYOUT, STAGE_NODES, STAGE_REFERENCE_TOPICS,
-                              TOPIC_MOTOR_COMMAND, TOPIC_STATUS, TOPIC_TICK)
+                              STATUS_HEARTBEAT_S, TOPIC_MOTOR_COMMAND, TOPIC_STATUS, TOPIC_TICK)
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
 from rclpy.clock import Clock, ClockType
 
 DEFAULT_STATUS_TIMEOUT_S = 3.0
-STATUS_TIMEOUT_RANGE_S = (0.1, 600.0)
+STATUS_TIMEOUT_RANGE_S = (1.5 * STATUS_HEARTBEAT_S, 600.0)
+"""A timeout shorter than the heartbeat would find a live supervisor of a paused or idle graph
+silent; half a period more covers a late heartbeat."""
 WATCHDOG_PERIOD_S = 0.05
 
 

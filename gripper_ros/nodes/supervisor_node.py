@@ -56,8 +56,8 @@ from gripper_ros.wire import (CDR_LITTLE_ENDIAN, FINGER_JOINT, GRAPH_NOT_READY, 
                               NODE_SUPERVISOR,
                               Outcome, REPUBLISH_AFTER_S, SERVICE_GRASP, SERVICE_MOVE,
                               SERVICE_RELEASE, SERVICE_STOP, STAGE_NODES, STAGE_REFERENCE_TOPICS,
-                              stamp_ns, TICK_LAYOUT, TOPIC_JOINT_COMMANDS, TOPIC_MOTOR_COMMAND,
-                              TOPIC_OUTCOME, TOPIC_PLANNED_ACCELERATION,
+                              STATUS_HEARTBEAT_S, stamp_ns, TICK_LAYOUT, TOPIC_JOINT_COMMANDS,
+                              TOPIC_MOTOR_COMMAND, TOPIC_OUTCOME, TOPIC_PLANNED_ACCELERATION,
                               TOPIC_POSITION_REFERENCE, TOPIC_SIM_STATUS, TOPIC_STATUS,
                               TOPIC_TICK)
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
@@ -65,7 +65,6 @@ from rclpy.clock import Clock, ClockType
 from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
 
-HEARTBEAT_PERIOD_S = 1.0
 DEFAULT_TICK_TIMEOUT_S = 2.0
 WATCHDOG_PERIOD_S = 0.1
 SUPERVISOR_READS = ('plant', 'contact', 'force_control.sample_time_s', 'pad_sensor',
@@ -133,7 +132,7 @@ class SupervisorNode(GripperNode):
         steady = Clock(clock_type=ClockType.STEADY_TIME)
         self._silence = ExecutorSilence()       # executor-running wall time without progress
         self.create_timer(WATCHDOG_PERIOD_S, self._watchdog, clock=steady)
-        self.create_timer(HEARTBEAT_PERIOD_S, self._heartbeat, clock=steady)
+        self.create_timer(STATUS_HEARTBEAT_S, self._heartbeat, clock=steady)
 
     def _on_config_change(self, config, keys, _checked) -> None:
         """Apply new thresholds from the next tick; a running request keeps its setpoints.
