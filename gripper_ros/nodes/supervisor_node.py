@@ -56,7 +56,7 @@ from gripper_ros.wire import (CDR_LITTLE_ENDIAN, FINGER_JOINT, GRAPH_NOT_READY, 
                               NODE_SUPERVISOR,
                               Outcome, REPUBLISH_AFTER_S, SERVICE_GRASP, SERVICE_MOVE,
                               SERVICE_RELEASE, SERVICE_STOP, STAGE_NODES, STAGE_REFERENCE_TOPICS,
-                              STATUS_HEARTBEAT_S, stamp_ns, TICK_LAYOUT, TOPIC_JOINT_COMMANDS,
+                              stamp_ns, STATUS_HEARTBEAT_S, TICK_LAYOUT, TOPIC_JOINT_COMMANDS,
                               TOPIC_MOTOR_COMMAND, TOPIC_OUTCOME, TOPIC_PLANNED_ACCELERATION,
                               TOPIC_POSITION_REFERENCE, TOPIC_SIM_STATUS, TOPIC_STATUS,
                               TOPIC_TICK)
