@@ -65,7 +65,7 @@ def _load_gripper_command():
 
     A system ROS 2 Jazzy has control_msgs; the ros-jazzy wheels do not (None, nothing to say).
     Installed but not loadable (its C type support, e.g. with its ``lib`` folder missing from
-    ``LD_LIBRARY_PATH``): None and one line, and the rest of the node serves as before.
+    ``LD_LIBRARY_PATH``): None and one line, and the rest of the node serves.
     """
     try:
         from control_msgs.action import ParallelGripperCommand as action
@@ -225,8 +225,15 @@ class MoveActionServer(GripperNode):
 
     # ------------------------------------------------------------------ gripper_status
     def _on_outcome(self, data: bytes) -> None:
-        """Publish how the request ended as a DiagnosticStatus on gripper_status."""
+        """Publish how the request ended as a DiagnosticStatus on gripper_status.
+
+        The outcome of a request older than the one gripper_status already announced (a late
+        delivery: outcomes come over DDS, statuses through the graph) is not the newest request's
+        and is left out.
+        """
         msg = read_status(data)
+        if msg.grasp_id < self._announced_id:
+            return
         self._announced_id = msg.grasp_id
         self._publish_grip_status(grip_status_fields(msg.outcome, msg.position_m, msg.force_n,
                                                      self.travel_m, msg.grasp_id, self.detect_n))
