@@ -76,7 +76,7 @@ falling setpoint about 1.3 ms late, so a faster fall would leave a grip of a new
 the slip limit before the setpoint is there."""
 ANNOUNCED_MARGIN = 1.15
 """The grip's margin over the slip limit while the arm announces its motion: it covers the
-pads' noise and the fit's error, no longer a rise of the load nobody told (a hand's margin is
+pads' noise and the fit's error, not a rise of the load nobody told (a hand's margin is
 smaller for its own arm's motion than for a load it must react to)."""
 ANTICIPATION_S = 0.01
 """An announced rise of the load is met this long before it comes: the grip's rise on a
