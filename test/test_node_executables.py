@@ -48,6 +48,8 @@ BAD_PARAMETERS = [   # (node, parameter, value as typed after -p name:=, words i
     (NODE_DESCRIPTION, 'frame_prefix', 'left-', 'may hold only ASCII letters'),
 ]
 RUNNING_TIMEOUT_S = 60.0
+"""How long the start-up may go without any further node answering: some thirty nodes start at
+once, so on a slow machine the last answers come minutes after the first, but keep coming."""
 EXIT_WITHIN_S = 5.0
 """'At once', with room for a loaded machine: a hung node is waited for 10 s more, then killed."""
 ALARMING = ('Traceback', 'FATAL', 'ERROR', 'Fatal Python error')
@@ -79,7 +81,11 @@ def _start(case: Case) -> None:
 
 
 def _wait_until_running(cases: list[Case]) -> None:
-    """Mark each case whose node answers ``get_parameters`` (its executor spins)."""
+    """Mark each case whose node answers ``get_parameters`` (its executor spins).
+
+    It waits while answers keep coming: until every node answered or exited, or none answered for
+    ``RUNNING_TIMEOUT_S``, however long the whole start takes on this machine.
+    """
     context = Context()
     rclpy.init(context=context)
     try:
@@ -90,14 +96,16 @@ def _wait_until_running(cases: list[Case]) -> None:
         clients = {id(c): probe.create_client(
             GetParameters, f'/{c.namespace}/{c.node}/get_parameters') for c in cases}
         futures = {}
-        deadline = time.monotonic() + RUNNING_TIMEOUT_S
-        while time.monotonic() < deadline and not all(c.answered for c in cases):
+        progress = time.monotonic()
+        while time.monotonic() - progress < RUNNING_TIMEOUT_S and \
+                not all(c.answered for c in cases):
             for c in cases:
                 if c.answered or c.proc.poll() is not None:
                     continue
                 future, asked = futures.get(id(c), (None, 0.0))
                 if future is not None and future.done():
                     c.answered = future.result() is not None
+                    progress = time.monotonic()
                 elif clients[id(c)].service_is_ready() and (
                         future is None or time.monotonic() - asked > ASK_AGAIN_S):
                     # asked again: a node still starting may drop an answer to a client it has
@@ -149,9 +157,11 @@ def results():
                     case.exit_s = time.monotonic() - sent
             time.sleep(0.01)
         for case in cases.values():
-            if case.stop is not None and not case.answered:
-                case.proc.kill()                # never ran: its test fails saying so
-            _finish(case)
+            if case.stop is not None and not case.answered and case.proc.poll() is None:
+                _abort(case, f'never answered, {RUNNING_TIMEOUT_S:.0f} s after the last node '
+                             'that did')        # never ran: its test fails showing where it was
+            else:
+                _finish(case)
     finally:
         for case in cases.values():
             for proc in (case.proc, case.twin.proc if case.twin else None):
@@ -166,13 +176,19 @@ def _finish(case: Case) -> None:
     try:
         case.stderr = case.proc.communicate(timeout=HUNG_AFTER_S)[1]
     except subprocess.TimeoutExpired:
-        case.proc.send_signal(signal.SIGABRT)          # faulthandler prints each thread's stack
-        try:
-            stacks = case.proc.communicate(timeout=HUNG_AFTER_S)[1]
-        except subprocess.TimeoutExpired:
-            case.proc.kill()
-            stacks = case.proc.communicate()[1]
-        case.stderr = f'hung for {HUNG_AFTER_S:.0f} s, aborted:\n{stacks}'
+        _abort(case, f'hung for {HUNG_AFTER_S:.0f} s')
+    case.returncode = case.proc.returncode
+
+
+def _abort(case: Case, why: str) -> None:
+    """Abort the case's process: faulthandler prints each thread's stack into its test's text."""
+    case.proc.send_signal(signal.SIGABRT)
+    try:
+        stacks = case.proc.communicate(timeout=HUNG_AFTER_S)[1]
+    except subprocess.TimeoutExpired:
+        case.proc.kill()
+        stacks = case.proc.communicate()[1]
+    case.stderr = f'{why}, aborted:\n{stacks}'
     case.returncode = case.proc.returncode
 
 
