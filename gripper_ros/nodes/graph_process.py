@@ -64,24 +64,21 @@ def main(args: list[str] | None = None) -> int:
     import rclpy
     from rclpy._rclpy_pybind11 import RCLError
     from rclpy.exceptions import InvalidNamespaceException, ParameterException
-    from rclpy.signals import SignalHandlerOptions
-    from rclpy.utilities import remove_ros_args
     from gripper_ros.core.config import ConfigError
     from gripper_ros.nodes.graph import GraphError, GraphOptions, GripperGraph
     from gripper_ros.nodes.names import namespace_as_given
     from gripper_ros.nodes.process import (BoundedCleanUp, CLEAN_UP_LIMIT_S,
                                            exit_without_a_last_collection, GIL_HELD_MARGIN_S,
-                                           StopSignals)
+                                           init_without_signal_handlers, StopSignals,
+                                           user_arguments)
     from gripper_ros.nodes.startup import EXIT_BAD_START, StartupError
     from gripper_ros.text import one_line
     from gripper_ros.wire import qualified
 
     argv = sys.argv if args is None else args
     exit_without_a_last_collection()
-    try:
-        user_args = remove_ros_args(argv)[1:]
-    except RCLError as exc:
-        print(f'{NAME}: bad --ros-args: {one_line(exc)}', file=sys.stderr)
+    user_args = user_arguments(NAME, argv)
+    if user_args is None:
         return EXIT_BAD_START
     if {'-h', '--help'} & set(user_args):
         print(usage())
@@ -93,10 +90,7 @@ def main(args: list[str] | None = None) -> int:
     graph = None
     exit_code = 0
     with StopSignals(hard_bound_s=CLEAN_UP_LIMIT_S + GIL_HELD_MARGIN_S) as signals:
-        try:
-            rclpy.init(args=argv, signal_handler_options=SignalHandlerOptions.NO)
-        except RCLError as exc:
-            print(f'{NAME}: bad --ros-args: {one_line(exc)}', file=sys.stderr)
+        if not init_without_signal_handlers(NAME, argv):
             return EXIT_BAD_START
         try:
             settings = read_settings()

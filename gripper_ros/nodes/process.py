@@ -258,6 +258,37 @@ def build_node(make_node: Callable[..., Node], *args, **kwargs) -> Node:
     return node
 
 
+def user_arguments(name: str, argv: list[str] | None) -> list[str] | None:
+    """Return the arguments of ``argv`` (``sys.argv`` if None) outside ``--ros-args``.
+
+    None after one line on stderr when the ROS arguments are bad (e.g. a ``--params-file`` that
+    is missing or not YAML).
+    """
+    from rclpy._rclpy_pybind11 import RCLError
+    from rclpy.utilities import remove_ros_args
+    try:
+        return remove_ros_args(sys.argv if argv is None else argv)[1:]
+    except RCLError as exc:
+        print(f'{name}: bad --ros-args: {one_line(exc)}', file=sys.stderr)
+        return None
+
+
+def init_without_signal_handlers(name: str, argv: list[str] | None) -> bool:
+    """Initialise rclpy without its own signal handlers (:class:`StopSignals` takes the signals).
+
+    False after one line on stderr when rcl refuses the ROS arguments.
+    """
+    import rclpy
+    from rclpy._rclpy_pybind11 import RCLError
+    from rclpy.signals import SignalHandlerOptions
+    try:
+        rclpy.init(args=argv, signal_handler_options=SignalHandlerOptions.NO)
+    except RCLError as exc:
+        print(f'{name}: bad --ros-args: {one_line(exc)}', file=sys.stderr)
+        return False
+    return True
+
+
 def run_node(make_node: Callable[[], Node], name: str, args=None,
              services: tuple[str, ...] = ()) -> int:
     """Run a node: the one ``main()`` of every node (init, spin, clean shutdown, exit codes).
@@ -273,15 +304,11 @@ def run_node(make_node: Callable[[], Node], name: str, args=None,
     from rclpy._rclpy_pybind11 import RCLError
     from rclpy.exceptions import ParameterException
     from rclpy.executors import ExternalShutdownException
-    from rclpy.signals import SignalHandlerOptions
     from rclpy.task import Future
-    from rclpy.utilities import remove_ros_args
 
     exit_without_a_last_collection()
-    try:
-        user_args = remove_ros_args(sys.argv if args is None else args)[1:]
-    except RCLError as exc:              # e.g. a --params-file that is missing or not YAML
-        print(f'{name}: bad --ros-args: {one_line(exc)}', file=sys.stderr)
+    user_args = user_arguments(name, args)
+    if user_args is None:
         return EXIT_BAD_START
     if {'-h', '--help'} & set(user_args):
         print(node_usage(name, make_node))
@@ -289,10 +316,7 @@ def run_node(make_node: Callable[[], Node], name: str, args=None,
     node = executor = claim = None
     exit_code = 0
     with StopSignals(hard_bound_s=CLEAN_UP_LIMIT_S + GIL_HELD_MARGIN_S) as signals:
-        try:
-            rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
-        except RCLError as exc:
-            print(f'{name}: bad --ros-args: {one_line(exc)}', file=sys.stderr)
+        if not init_without_signal_handlers(name, args):
             return EXIT_BAD_START
         try:
             claim = NameClaim.take((name,), services)
