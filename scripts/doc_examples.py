@@ -111,8 +111,13 @@ def entries(body: list[str]) -> list[tuple[str, list[str]]]:
 
 
 def render(command: str, output: list[str]) -> list[str]:
-    """Return a transcript entry's lines, without trailing white space (markdown keeps none)."""
-    return [f'$ {command}', *(line.rstrip() for line in output)]
+    """Return a transcript entry's lines, without trailing white space (markdown keeps none).
+
+    Paths inside this checkout read relative to it, as a reader's own checkout prints them.
+    """
+    def relative(line: str) -> str:
+        return line.replace(f'{ROOT}/', '').rstrip()
+    return [f'$ {relative(command)}', *(relative(line) for line in output)]
 
 
 # --- docs/BAG_TOOLS.md ----------------------------------------------------------------------

@@ -134,24 +134,29 @@ fi
 
 # ---------------------------------------------------------------- npm (skipped when unchanged)
 # Foxglove's own ROS 2 readers, pinned by test/interop/package-lock.json, for
-# test/test_foxglove_interop.py; installed into test/interop/node_modules (git-ignored).
+# test/test_foxglove_interop.py; installed into build/interop/node_modules (git-ignored, out of
+# the source tree: a test runs test/interop/decode_bag.mjs from a copy beside them).
 INTEROP="$ROOT/test/interop"
-NPM_STAMP="$INTEROP/node_modules/.gripper_ros_npm.sha256"
+NPM_DIR="$ROOT/build/interop"
+NPM_STAMP="$NPM_DIR/node_modules/.gripper_ros_npm.sha256"
 if [[ -f "$INTEROP/package-lock.json" ]]; then
   if ! command -v npm >/dev/null 2>&1; then
     log "npm not found: test/interop packages not installed (test_foxglove_interop will skip)"
   else
     npm_hash="$(cat "$INTEROP/package.json" "$INTEROP/package-lock.json" | sha256sum | cut -d' ' -f1)"
     if [[ "$(cat "$NPM_STAMP" 2>/dev/null || true)" != "$npm_hash" ]]; then
-      log "installing test/interop npm packages (npm ci)"
-      (cd "$INTEROP" && npm ci --ignore-scripts --no-audit --no-fund --loglevel=error </dev/null) \
-        || die "npm ci in test/interop failed"
+      log "installing test/interop npm packages into build/interop (npm ci)"
+      mkdir -p "$NPM_DIR"
+      cp "$INTEROP/package.json" "$INTEROP/package-lock.json" "$NPM_DIR/"
+      (cd "$NPM_DIR" && npm ci --ignore-scripts --no-audit --no-fund --loglevel=error </dev/null) \
+        || die "npm ci in build/interop failed"
       echo "$npm_hash" > "$NPM_STAMP"
     else
       log "npm packages unchanged (stamp matches), npm ci skipped"
     fi
   fi
 fi
+rm -rf "$INTEROP/node_modules"   # packages belong in build/, not in the source tree
 
 # ---------------------------------------------------------------- wheels: cmake paths + prefix paths
 if [[ "$MODE" == wheels ]]; then

@@ -13,6 +13,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
+import os
 from pathlib import Path
 import re
 import shutil
@@ -32,6 +33,8 @@ import yaml
 
 INTEROP = Path(__file__).resolve().parent / 'interop'
 DECODER = INTEROP / 'decode_bag.mjs'
+NPM_DIR = Path(__file__).resolve().parents[1] / 'build' / 'interop'
+"""Where scripts/setup.sh installs the pinned npm packages (node resolves them beside the script)."""
 RECORDED = {qualified(DEFAULT_NAMESPACE, t): msgtype for t, msgtype in GRAPH_TOPICS.items()}
 """The graph's topics of the default gripper, with their types."""
 FRESH = {qualified(DEFAULT_NAMESPACE, t): msgtype for t, msgtype in BAG_TOPICS.items()}
@@ -176,10 +179,10 @@ def _node_skip_reason() -> str:
         return 'node is not installed (Foxglove interop needs Node.js)'
     wanted = json.loads((INTEROP / 'package.json').read_text(encoding='utf-8'))['dependencies']
     for name, version in wanted.items():
-        meta = INTEROP / 'node_modules' / name / 'package.json'
+        meta = NPM_DIR / 'node_modules' / name / 'package.json'
         have = json.loads(meta.read_text(encoding='utf-8'))['version'] if meta.is_file() else None
         if have != version:
-            return (f'npm package {name}@{version} is not installed in test/interop/node_modules '
+            return (f'npm package {name}@{version} is not installed in build/interop/node_modules '
                     f'(have {have}): run bash scripts/setup.sh')
     return ''
 
@@ -194,7 +197,11 @@ def node() -> str:
 
 def foxglove_decode(node: str, mcap_path: Path) -> dict:
     """Run decode_bag.mjs on one .mcap and return its JSON report."""
-    done = subprocess.run([node, str(DECODER), str(mcap_path)], capture_output=True, text=True,
+    decoder = NPM_DIR / DECODER.name
+    staged = decoder.with_name(f'.{DECODER.name}.{os.getpid()}')
+    shutil.copyfile(DECODER, staged)
+    os.replace(staged, decoder)                 # the copy node runs beside node_modules
+    done = subprocess.run([node, str(decoder), str(mcap_path)], capture_output=True, text=True,
                           timeout=120, check=False)
     assert done.returncode == 0, done.stderr
     return json.loads(done.stdout)
