@@ -6,9 +6,9 @@
     ros2 run gripper_ros bench_realtime --launch         # via ros2 launch (one process)
 
 ``grasp_demo --serve`` runs in a child process, exactly as a user starts it (realtime time,
-real-time factor 1, bags per grasp unless ``--no-record``); with ``--per-node`` the six node
-executables run as six processes, started with the arguments ``launch_ros`` gives them (no
-bags; the graph of ``ros2 launch gripper_ros gripper.launch.py per_node:=true``); with
+real-time factor 1, bags per grasp unless ``--no-record``); with ``--per-node`` the launch
+file's node executables (``wire.LAUNCHED_NODES``) run one process each, started with the
+arguments ``launch_ros`` gives them (no bags; the graph of ``ros2 launch gripper_ros gripper.launch.py per_node:=true``); with
 ``--launch`` the child is ``ros2 launch gripper_ros gripper.launch.py`` itself (with
 ``--per-node``: ``per_node:=true``) in a process group of its own, every process of the group
 counted, stopped as Ctrl-C stops it (SIGINT to the group). From this process, over
@@ -23,7 +23,7 @@ For each window: the achieved real-time factor (simulated seconds per wall secon
 stamps of ``joint_states``; 1.0 is the aim, and the plant never runs ahead of the wall
 clock), the rates of ``/clock`` and ``joint_states`` against ``state_rate_hz``, the plant's own
 figure from ``sim/status``, and the child's CPU time as a share of one core (summed over the
-six with ``--per-node``, over the launch group with ``--launch``).
+node processes with ``--per-node``, over the launch group with ``--launch``).
 """
 from __future__ import annotations
 
@@ -240,7 +240,8 @@ def format_report(r: Dict[str, Any]) -> str:
                  f'per_node:={"true" if r["per_node"] else "false"} '
                  f'({r["processes"]} processes with launch)')
     elif r.get('per_node'):
-        graph = 'the six nodes, one process each (as the launch file starts them)'
+        graph = (f'the {len(PER_NODE_MODULES)} nodes, one process each '
+                 '(as the launch file starts them)')
     else:
         graph = f"grasp_demo --serve{'' if r['record'] else ' --no-record'}"
     lines = [f'bench_realtime: {graph} '
@@ -271,7 +272,8 @@ def main(args: Optional[Sequence[str]] = None) -> int:
     p.add_argument('--no-record', dest='record', action='store_false',
                    help='serve without recording bags')
     p.add_argument('--per-node', action='store_true',
-                   help='run the six nodes as six processes, as the launch file does (no bags)')
+                   help=f'run the launch file\'s {len(PER_NODE_MODULES)} nodes as a process each, '
+                        'as it does (no bags)')
     p.add_argument('--launch', action='store_true',
                    help='run ros2 launch gripper_ros gripper.launch.py (with --per-node: '
                         'per_node:=true); needs the ros2 command')
