@@ -34,7 +34,7 @@ import yaml
 INTEROP = Path(__file__).resolve().parent / 'interop'
 DECODER = INTEROP / 'decode_bag.mjs'
 NPM_DIR = Path(__file__).resolve().parents[1] / 'build' / 'interop'
-"""Where scripts/setup.sh installs the pinned npm packages (node resolves them beside the script)."""
+"""Where scripts/setup.sh installs the pinned npm packages: node finds them beside the script."""
 RECORDED = {qualified(DEFAULT_NAMESPACE, t): msgtype for t, msgtype in GRAPH_TOPICS.items()}
 """The graph's topics of the default gripper, with their types."""
 FRESH = {qualified(DEFAULT_NAMESPACE, t): msgtype for t, msgtype in BAG_TOPICS.items()}

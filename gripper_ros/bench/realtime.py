@@ -8,7 +8,8 @@
 ``grasp_demo --serve`` runs in a child process, exactly as a user starts it (realtime time,
 real-time factor 1, bags per grasp unless ``--no-record``); with ``--per-node`` the launch
 file's node executables (``wire.LAUNCHED_NODES``) run one process each, started with the
-arguments ``launch_ros`` gives them (no bags; the graph of ``ros2 launch gripper_ros gripper.launch.py per_node:=true``); with
+arguments ``launch_ros`` gives them (no bags; the graph of
+``ros2 launch gripper_ros gripper.launch.py per_node:=true``); with
 ``--launch`` the child is ``ros2 launch gripper_ros gripper.launch.py`` itself (with
 ``--per-node``: ``per_node:=true``) in a process group of its own, every process of the group
 counted, stopped as Ctrl-C stops it (SIGINT to the group). From this process, over
@@ -272,7 +273,7 @@ def main(args: Optional[Sequence[str]] = None) -> int:
     p.add_argument('--no-record', dest='record', action='store_false',
                    help='serve without recording bags')
     p.add_argument('--per-node', action='store_true',
-                   help=f'run the launch file\'s {len(PER_NODE_MODULES)} nodes as a process each, '
+                   help=f"run the launch file's {len(PER_NODE_MODULES)} nodes as a process each, "
                         'as it does (no bags)')
     p.add_argument('--launch', action='store_true',
                    help='run ros2 launch gripper_ros gripper.launch.py (with --per-node: '
