@@ -609,6 +609,51 @@ def test_parallel_gripper_command_on_gripper_cmd_drives_the_move(graph):
         graph.run_in_executor(client.destroy)
 
 
+def test_a_gripper_cmd_goal_preempts_the_running_one_which_ends_canceled(graph):
+    """A new ``gripper_cmd`` goal ends the running one canceled, and its own move runs.
+
+    As ros2_controllers' parallel gripper controller does
+    (parallel_gripper_controller/include/parallel_gripper_controller/
+    parallel_gripper_action_controller_impl.hpp): ``accepted_callback`` calls
+    ``preempt_active_goal``, which sets the active goal canceled, and the new command is in force.
+    """
+    try:
+        from control_msgs.action import ParallelGripperCommand
+    except ImportError:
+        pytest.skip('control_msgs is not installable from the ros-jazzy wheels; run on a '
+                    'system ROS 2 Jazzy')
+    from action_msgs.msg import GoalStatus
+    from rclpy.action import ActionClient
+    from sensor_msgs.msg import JointState
+
+    from gripper_ros.wire import ACTION_GRIPPER_CMD
+
+    client = graph.run_in_executor(lambda: ActionClient(
+        graph.client_node, ParallelGripperCommand, ACTION_GRIPPER_CMD))
+    assert client.wait_for_server(timeout_sec=10.0)
+    try:
+        assert graph.set_object(0.0, open_fingers=True).success
+        moving = threading.Event()
+        slow_close = JointState(position=[TRAVEL_M - 0.005], velocity=[0.01])   # some 9 s
+        first = _wait(client.send_goal_async(ParallelGripperCommand.Goal(command=slow_close),
+                                             feedback_callback=lambda _f: moving.set()))
+        assert first.accepted
+        assert moving.wait(60.0), 'the first goal gave no feedback'
+        second = _wait(client.send_goal_async(ParallelGripperCommand.Goal(
+            command=JointState(position=[0.005]))))
+        assert second.accepted                                 # accepted, not refused
+        first_end = _wait(first.get_result_async())
+        second_end = _wait(second.get_result_async())
+        assert first_end.status == GoalStatus.STATUS_CANCELED
+        assert not first_end.result.reached_goal
+        assert first_end.result.state.position[0] < TRAVEL_M - 0.05     # stopped on its way
+        assert second_end.status == GoalStatus.STATUS_SUCCEEDED
+        assert second_end.result.reached_goal
+        assert abs(second_end.result.state.position[0] - 0.005) <= S.move_tolerance_m
+    finally:
+        graph.run_in_executor(client.destroy)
+
+
 def test_serve_mode_records_a_move_in_a_bag_of_its_own(tmp_path):
     from gripper_ros.bags.series import load_grasp_series
     from gripper_ros.nodes.graph import GraphOptions, GripperGraph

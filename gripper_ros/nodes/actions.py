@@ -26,6 +26,19 @@ def cancel_by_stop(goal_handle, running_goal, stop_client):
     return CancelResponse.REJECT
 
 
+def end_preempted(goal_handle) -> None:
+    """End an executing goal CANCELED because a newer goal took its place.
+
+    rclcpp_action's ``canceled()`` (what ros2_controllers' ``preempt_active_goal`` calls) passes
+    an executing goal through CANCELING to CANCELED; rclpy's handle has no public step into
+    CANCELING, so this makes the one rclpy's own cancel service makes.
+    """
+    from rclpy.action.server import GoalEvent
+    if goal_handle.is_active and not goal_handle.is_cancel_requested:
+        goal_handle._update_state(GoalEvent.CANCEL_GOAL)
+    goal_handle.canceled()
+
+
 FEEDBACK_PERIOD_S = 0.05
 """Default of ``feedback_period_s``: feedback within a phase at most this often (wall)."""
 

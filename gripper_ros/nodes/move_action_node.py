@@ -22,9 +22,12 @@ as ``grasp_action_server`` is for the grasp:
   ``stalled`` and ``object_detected`` (the fingers press on an object) among its values. The
   supervisor serves ``joint_commands`` itself.
 
-One goal at a time (the gripper does one request at a time): a goal while another executes is
-aborted at once (REFUSED in our result). Feedback is throttled to ``feedback_period_s`` of wall
-time and sent on every phase change.
+One goal at a time (the gripper does one request at a time). A ``gripper_cmd`` goal while
+another executes preempts it, as ros2_controllers' parallel gripper controller does
+(``preempt_active_goal``): the running goal's move is stopped and that goal ends canceled, then
+the new goal's move runs. A ``move_action`` goal while another executes is aborted at once
+(REFUSED in our result). Feedback is throttled to ``feedback_period_s`` of wall time and sent
+on every phase change.
 """
 from __future__ import annotations
 
@@ -40,7 +43,7 @@ from gripper_ros.core.supervision.gripper_command import (goal_end, GoalEnd,
                                                           move_request_of, result_fields)
 from gripper_ros.core.supervision.requests import check_move_limits, RequestError
 from gripper_ros.nodes.actions import (accept_goal, cancel_by_stop, declare_feedback_period,
-                                       RunningGoal)
+                                       end_preempted, RunningGoal)
 from gripper_ros.nodes.gripper_node import GripperNode
 from gripper_ros.nodes.loop_io import read_status, StatusView
 from gripper_ros.nodes.parameters import declare_config, declare_prefix, follow
@@ -54,6 +57,7 @@ from gripper_ros.wire import (ACTION_GRIPPER_CMD, ACTION_MOVE, FINGER_JOINT, NOD
 from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.action import ActionServer, GoalResponse
 from rclpy.serialization import deserialize_message
+from rclpy.task import Future
 from rclpy.type_support import check_for_type_support
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Header
@@ -109,6 +113,10 @@ class MoveActionServer(GripperNode):
         self._status_data: bytes | None = None   # the newest status, read when needed
         self.running = RunningGoal()
         self._feedback = None             # makes the running goal's feedback from a status
+        self._running_ended = Future()    # done once the running goal's move has answered
+        self._running_ended.set_result(None)
+        self._newest_goal = None          # the goal accepted last (it preempts the others)
+        self._preempted: set[int] = set()   # ids of the goal handles a newer goal preempted
         self.own(ActionServer(self, MoveAction, ACTION_MOVE, execute_callback=self._execute_move,
                               goal_callback=accept_goal, cancel_callback=self._on_cancel))
         self.gripper_command_served = ParallelGripperCommand is not None
@@ -147,26 +155,53 @@ class MoveActionServer(GripperNode):
         """Cancel = stop the running move; the service then answers STOPPED."""
         return cancel_by_stop(goal_handle, self.running.handle, self._stop)
 
-    async def _call_move(self, goal_handle, request: Move.Request, feedback) -> Move.Response:
-        """Return the move service's answer for this goal (REFUSED, uncalled, when busy)."""
+    async def _call_move(self, goal_handle, request: Move.Request, feedback,
+                         preempts: bool = False) -> Move.Response:
+        """Return the move service's answer for this goal.
+
+        When busy: REFUSED, uncalled; with ``preempts``, the running goal's move is stopped
+        first and this goal's move runs once that goal has ended (a newer goal preempting
+        this one meanwhile ends it STOPPED, uncalled).
+        """
+        if preempts:
+            self._newest_goal = goal_handle
+            if self.running.handle is not None:
+                await self._preempt_running()
+            if self._newest_goal is not goal_handle:
+                self._preempted.add(id(goal_handle))
+                return self._answer_uncalled(Outcome.STOPPED, 'preempted by a newer goal')
         refusal = ''
         if not self._move.service_is_ready():
             refusal = f'{SERVICE_MOVE} is not available'
         elif self.running.handle is not None:
             refusal = 'refused: a move goal is already executing'
         if refusal:
-            status = read_status(self._status_data) if self._status_data else None
-            position_m = status.position_m if status is not None else 0.0
-            return Move.Response(outcome=int(Outcome.REFUSED), message=refusal,
-                                 position_m=position_m, width_m=self.travel_m - position_m,
-                                 effort_n=status.force_n if status is not None else 0.0)
+            return self._answer_uncalled(Outcome.REFUSED, refusal)
         self.running.start(goal_handle)
         self._feedback = feedback
+        self._running_ended = Future(executor=self.executor)
         try:
             return await self._move.call_async(request)
         finally:
             self.running.end()
             self._feedback = None
+            self._running_ended.set_result(None)
+
+    async def _preempt_running(self) -> None:
+        """Stop the running goal's move, mark that goal preempted and wait until it ends."""
+        self._preempted.add(id(self.running.handle))
+        ended = self._running_ended
+        if self._stop.service_is_ready():
+            await self._stop.call_async(Trigger.Request())
+        await ended
+
+    def _answer_uncalled(self, outcome: Outcome, message: str) -> Move.Response:
+        """Return an answer of the move service not called: the finger where it is now."""
+        status = read_status(self._status_data) if self._status_data else None
+        position_m = status.position_m if status is not None else 0.0
+        return Move.Response(outcome=int(outcome), message=message, position_m=position_m,
+                             width_m=self.travel_m - position_m,
+                             effort_n=status.force_n if status is not None else 0.0)
 
     async def _execute_move(self, goal_handle) -> MoveAction.Result:
         goal = goal_handle.request
@@ -181,14 +216,19 @@ class MoveActionServer(GripperNode):
                                self.joint_name)                     # checked at goal
         request = Move.Request(width_m=move.width_m, speed_mps=move.speed_mps,
                                max_effort_n=move.max_effort_n)
-        response = await self._call_move(goal_handle, request, self._gripper_feedback)
+        response = await self._call_move(goal_handle, request, self._gripper_feedback,
+                                         preempts=True)
         if response.outcome == Outcome.REFUSED:
             self.get_logger().warning(f'{ACTION_GRIPPER_CMD} goal aborted: {response.message}')
         fields = result_fields(response, self._velocity_mps(), self.joint_name)
         result = ParallelGripperCommand.Result(
             state=JointState(header=self._status_header(), **fields.pop('state')), **fields)
-        self._end(goal_handle, goal_end(response, self.allow_stalling,
-                                        goal_handle.is_cancel_requested))
+        if id(goal_handle) in self._preempted:
+            self._preempted.discard(id(goal_handle))
+            end_preempted(goal_handle)
+        else:
+            self._end(goal_handle, goal_end(response, self.allow_stalling,
+                                            goal_handle.is_cancel_requested))
         return result
 
     @staticmethod
