@@ -135,7 +135,7 @@ def test_environment_variable_selects_the_file(monkeypatch, tmp_path, shipped_da
     ('supervisor.force_law', 'magic', "one of 'friction', 'paper'"),
     ('supervisor.force_law', 1.0, "one of 'friction', 'paper'"),
     ('supervisor.force_law', None, 'one of'),
-    ('supervisor.grip_safety_factor', 0.9, '>= 1'),
+    ('supervisor.grip_safety_factor', 0.9, '[1, 10] (a grip that knowingly'),
     ('supervisor.grip_safety_factor', float('nan'), 'finite'),
     ('contact.static_friction', -0.5, '> 0'),
     ('contact.kinetic_friction', 0.6, '<= "contact.static_friction"'),
