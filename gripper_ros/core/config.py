@@ -91,6 +91,8 @@ class Key(typing.NamedTuple):
         """Return the one-line description: the doc, then the bounds and unit, or the choices."""
         if self.choices is not None:
             return f'{self.doc} ({" | ".join(c.value for c in self.choices)})'
+        if self.bounds is None:
+            return self.doc
         return f'{self.doc} ({self.interval()}{" " + self.unit if self.unit else ""})'
 
 
@@ -627,6 +629,12 @@ BOUNDS: dict[str, tuple[float, float]] = {
     dotted: spec.bounds for dotted, spec in SCHEMA.items() if spec.bounds is not None}
 """Every number's [low, high] (``Key.open_high`` and a > 0 rule refuse an end); the shipped
 file lists them at its end (:func:`bounds_text`)."""
+
+
+def numbers_of(cls) -> tuple[str, ...]:
+    """Return the names of the number keys of dataclass ``cls`` (not its choices or parts)."""
+    return tuple(f.name for f in fields(cls)
+                 if 'key' in f.metadata and f.metadata['key'].choices is None)
 
 
 def bounds_of(name: str) -> tuple[float, float] | None:
