@@ -307,7 +307,6 @@ def test_every_config_parameter_is_described_and_ranged_as_its_key_is_declared(d
             assert not (d.floating_point_range if spec.integer else d.integer_range), dotted
             checked.add(dotted)
     assert 'supervisor.hold_watch_s' in checked and 'position_control.mpc_pd.horizon' in checked
-    assert len({SCHEMA[k].description for k in checked}) > 0.9 * len(checked)
 
 
 @pytest.mark.parametrize('node_name', list(NODE_CLASSES))
