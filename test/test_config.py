@@ -135,7 +135,7 @@ def test_environment_variable_selects_the_file(monkeypatch, tmp_path, shipped_da
     ('supervisor.force_law', 'magic', "one of 'friction', 'paper'"),
     ('supervisor.force_law', 1.0, "one of 'friction', 'paper'"),
     ('supervisor.force_law', None, 'one of'),
-    ('supervisor.grip_safety_factor', 0.9, '>= 1'),
+    ('supervisor.grip_safety_factor', 0.9, '[1, 10] (a grip that knowingly'),
     ('supervisor.grip_safety_factor', float('nan'), 'finite'),
     ('contact.static_friction', -0.5, '> 0'),
     ('contact.kinetic_friction', 0.6, '<= "contact.static_friction"'),
@@ -392,3 +392,74 @@ def test_more_bad_values_are_refused_naming_the_key(tmp_path, shipped_data, key,
     with pytest.raises(ConfigError) as info:
         load_config(write(tmp_path, set_key(shipped_data, key, value)))
     assert key in str(info.value) and words in str(info.value)
+
+
+# ------------------------------------------------------------------ the schema
+def _fields_under(cls):
+    """Yield ``(class, field)`` of every field of ``cls`` and of the dataclasses it holds."""
+    import typing
+    hints = typing.get_type_hints(cls)
+    for f in dataclasses.fields(cls):
+        yield cls, f
+        if dataclasses.is_dataclass(hints[f.name]):
+            yield from _fields_under(hints[f.name])
+
+
+def _incomplete(schema, shipped):
+    """Return what the declarations of ``schema`` lack: '' when each key is whole."""
+    from gripper_ros.core.config import NONNEGATIVE, POSITIVE, unit_of, UNITS
+    lacks = []
+    for dotted, spec in schema.items():
+        if not spec.doc or '\n' in spec.description:
+            lacks.append(f'{dotted}: no one-line meaning')
+        if spec.choices is not None:
+            if spec.bounds is not None or not spec.choices(_value_at(shipped, dotted)):
+                lacks.append(f'{dotted}: a choice with bounds, or the shipped value not one')
+            continue
+        if spec.bounds is None or not spec.bounds[0] < spec.bounds[1]:
+            lacks.append(f'{dotted}: no bounds')
+        elif dotted in set(_every_leaf(shipped)) and not spec.holds(_value_at(shipped, dotted)):
+            lacks.append(f'{dotted}: the shipped value lies outside its bounds')
+        if spec.rule not in (POSITIVE, NONNEGATIVE):
+            lacks.append(f'{dotted}: no rule')
+        if spec.unit != unit_of(dotted.rsplit('.', 1)[1]) or \
+                spec.unit not in ('', *UNITS.values()):
+            lacks.append(f'{dotted}: a unit other than its name says')
+    return '; '.join(lacks)
+
+
+def test_every_key_is_declared_with_a_meaning_bounds_a_rule_and_a_unit(shipped_data):
+    """Each field of the config's dataclasses is declared as a key (or a part) once, completely.
+
+    A field added without its meaning or bounds fails here: it would be read unchecked and
+    offered to ROS without a range or a description.
+    """
+    from gripper_ros.core.config import BOUNDS, GripperConfig, SCHEMA
+    declared = [(cls, f) for cls, f in _fields_under(GripperConfig)
+                if f.name not in ('source', 'data')]
+    assert all('key' in f.metadata or 'part' in f.metadata for _, f in declared), \
+        [f'{cls.__name__}.{f.name}' for cls, f in declared if not f.metadata]
+    assert set(SCHEMA) >= set(_every_leaf(shipped_data))
+    assert _incomplete(SCHEMA, shipped_data) == ''
+    assert BOUNDS == {k: spec.bounds for k, spec in SCHEMA.items() if spec.choices is None}
+    assert SCHEMA['supervisor.hold_watch_s'].unit == 's' and \
+        SCHEMA['plant.torque_constant_n_m_per_a'].unit == 'N m/A'
+
+
+def test_a_key_declared_without_bounds_or_a_meaning_is_caught(shipped_data):
+    """The completeness check has teeth: each missing part of a declaration is named."""
+    from gripper_ros.core.config import key, SCHEMA
+    hold = 'supervisor.hold_watch_s'
+    for bad, words in ((key('a watch'), 'no bounds'), (key('', bounds=(0.0, 1.0)), 'meaning'),
+                       (key('a watch', bounds=(0.0, 1e-3)), 'outside its bounds'),
+                       (key('a watch', bounds=(0.0, 1.0), unit='ms'), 'unit')):
+        spec = bad.metadata['key']
+        spec = spec if spec.unit is not None else spec._replace(unit='s')
+        assert words in _incomplete({**SCHEMA, hold: spec}, shipped_data)
+
+
+def test_the_supervisor_kernel_reads_the_numbers_its_dataclass_declares():
+    from gripper_ros.core.config import numbers_of, SupervisorParams
+    from gripper_ros.core.supervision.supervisor import SUPERVISOR_PARAMS
+    assert set(SUPERVISOR_PARAMS.names) == set(numbers_of(SupervisorParams))
+    assert 'force_law' not in SUPERVISOR_PARAMS.names and 'hold_watch_s' in SUPERVISOR_PARAMS.names

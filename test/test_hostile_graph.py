@@ -141,9 +141,10 @@ def _get(graph, name):
 @pytest.mark.parametrize('name, value, words', [
     ('position_control.mpc_pd.control_horizon', 1000, 'must be <= "position_control.mpc_pd.'
                                                       'horizon" (700), got 1000'),
-    ('position_control.mpc_pd.horizon', 10_000_000, f'must be in [1, {MAX_HORIZON}]'),
-    ('position_control.mpc_pd.kc', 1e308, 'must be in [0, 1e+06]'),
-    ('position_control.sample_time_s', 1e-8, 'must be in [0.001, 0.1]'),
+    ('position_control.mpc_pd.horizon', 10_000_000, f'horizon out of range. Min: 1, '
+                                                    f'Max: {MAX_HORIZON}'),
+    ('position_control.mpc_pd.kc', 1e308, 'kc out of range Min: 0.0, Max: 1000000.0'),
+    ('position_control.sample_time_s', 1e-8, 'out of range Min: 0.001, Max: 0.1'),
 ])
 def test_a_value_the_controller_cannot_take_is_refused_at_once_and_nothing_changes(
         realtime, name, value, words):

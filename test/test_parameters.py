@@ -5,11 +5,12 @@
    stops every node with a ConfigError naming the key; the installed executables exit with
    status 2 and that one-line message. An out-of-range parameter override stops start-up too.
    A standard ROS params file sets config keys at start-up.
-2. The running graph: every numeric parameter declared with a range, found through the nodes'
-   own ``describe_parameters`` services, refuses out-of-range, non-finite and wrongly typed values
-   over a real ``rcl_interfaces/srv/SetParameters`` call, with a reason, and keeps its value;
-   every read-only parameter refuses any change. Every config key is a parameter of the nodes
-   that use it; a writable one is checked by the config reader (refused with its message) and
+2. The running graph: every numeric parameter of a node's own, declared with a range, found
+   through the nodes' own ``describe_parameters`` services, refuses out-of-range, non-finite and
+   wrongly typed values over a real ``rcl_interfaces/srv/SetParameters`` call, with a reason, and
+   keeps its value; every read-only parameter refuses any change. Every config key is a
+   parameter of the nodes that use it, described and ranged as the config schema declares it;
+   a writable one is checked by the config reader (refused with its message) and
    takes effect: a gain from the position controller's next stage on, a threshold from the
    supervisor's next tick.
 """
@@ -20,7 +21,7 @@ import re
 import subprocess
 import time
 
-from gripper_ros.core.config import ConfigError, flatten
+from gripper_ros.core.config import ConfigError, flatten, SCHEMA
 from gripper_ros.nodes.controller_node import DEFAULT_STATUS_TIMEOUT_S
 from gripper_ros.nodes.force_controller_node import ForceControllerNode
 from gripper_ros.nodes.graph import GraphOptions, GripperGraph
@@ -51,8 +52,8 @@ NODE_CLASSES = {'plant_simulator': PlantSimulatorNode,
                 'supervisor': SupervisorNode,
                 'grasp_action_server': GraspActionServer}
 
-# every numeric parameter the nodes declare with a range (the graph test checks that the nodes
-# declare no other, and that these are ranged)
+# every numeric parameter of the nodes' own (not a config key) they declare with a range (the
+# graph test checks that the nodes declare no other, and that these are ranged)
 RANGED = {('supervisor', 'tick_timeout_s'), ('supervisor', 'status_rate_hz'),
           ('force_controller', 'approach_force_margin'),
           ('grasp_action_server', 'feedback_period_s'),
@@ -282,9 +283,30 @@ def test_the_ranged_and_read_only_parameters_are_the_known_ones(descriptors):
     config = {(n, p) for n in descriptors for which in (0, 1) for p in config_keys(n, which)}
     numeric = {(n, p) for n, ds in descriptors.items() for p, d in ds.items()
                if d.type in (ParameterType.PARAMETER_DOUBLE, ParameterType.PARAMETER_INTEGER)}
-    assert ranged == RANGED
+    assert ranged - config == RANGED
     assert numeric - config == RANGED  # numbers: ranged, or config keys the reader checks
     assert READ_ONLY <= read_only
+
+
+def test_every_config_parameter_is_described_and_ranged_as_its_key_is_declared(descriptors):
+    """``ros2 param describe`` gives each config key's meaning and its bounds from the schema.
+
+    A number's range is the key's [low, high] exactly (integer for a whole number, such as a
+    DMC horizon), a choice has none; every key has a description of its own.
+    """
+    checked = set()
+    for node_name in NODE_CLASSES:
+        for dotted in config_keys(node_name, 0) | config_keys(node_name, 1):
+            d, spec = descriptors[node_name][dotted], SCHEMA[dotted]
+            assert d.description == spec.description and spec.doc, (node_name, dotted)
+            if spec.choices is not None:
+                assert not (d.floating_point_range or d.integer_range), dotted
+                continue
+            [r] = d.integer_range if spec.integer else d.floating_point_range
+            assert (r.from_value, r.to_value, r.step) == (*spec.bounds, 0), (dotted, r)
+            assert not (d.floating_point_range if spec.integer else d.integer_range), dotted
+            checked.add(dotted)
+    assert 'supervisor.hold_watch_s' in checked and 'position_control.mpc_pd.horizon' in checked
 
 
 @pytest.mark.parametrize('node_name', list(NODE_CLASSES))
@@ -302,7 +324,7 @@ def test_every_ranged_parameter_refuses_bad_values_and_keeps_its_value(graph, de
     checked = 0
     for node_name, ds in descriptors.items():
         for name, d in ds.items():
-            if not (d.floating_point_range or d.integer_range):
+            if (node_name, name) not in RANGED:      # config keys: the hostile graph's cases
                 continue
             assert d.floating_point_range, (node_name, name, 'integer ranges: add cases')
             before = _get(graph, node_name, name)

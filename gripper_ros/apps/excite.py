@@ -73,7 +73,7 @@ def main(argv: list[str] | None = None) -> int:
     from gripper_ros.wire import check_namespace, TimeMode
 
     spec = ExcitationSpec(args.seconds, args.amplitude_v, args.seed, not args.no_hold)
-    noise = {f'sensor_noise.{key}': float(value) for key, value in (   # doubles, as declared
+    noise = {f'sensor_noise.{key}': value for key, value in (   # as declared: doubles, int seed
         ('position_noise_m', args.position_noise_m), ('force_noise_n', args.force_noise_n),
         ('seed', args.noise_seed)) if value is not None}
     try:

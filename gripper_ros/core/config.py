@@ -1,7 +1,13 @@
 """The one reader of ``config/gripper.yaml`` (Table I plant, Table II gains, sensor, supervisor).
 
 Everything numeric the package uses comes through :func:`load_config`; nodes turn these values
-into ROS parameter defaults. A bad file stops with a :class:`ConfigError` naming the key.
+into ROS parameters. A bad file stops with a :class:`ConfigError` naming the key.
+
+The dataclasses below are the schema: each key is declared once, with :func:`key`, giving its
+meaning, bounds, rule, unit, what a file without it means and whether it may change at run
+time. The bounds table, the reader's checks, the known keys, the ROS parameter descriptors and
+the bounds listed at the end of the shipped file all come from these declarations
+(:data:`SCHEMA`). Checks that tie keys together follow the dataclass of their keys.
 """
 from __future__ import annotations
 
@@ -12,6 +18,8 @@ import functools
 import math
 import os
 from pathlib import Path
+import sys
+import typing
 
 import yaml
 
@@ -23,23 +31,112 @@ class ConfigError(ValueError):
     """A configuration file is missing, unreadable or holds a bad value (message names the key)."""
 
 
+# ------------------------------------------------------------------ the schema of one key
+POSITIVE = '> 0'
+"""A key's rule: the value must be > 0 (the rule of a key that names none)."""
+NONNEGATIVE = '>= 0'
+"""A key's rule: the value must be >= 0."""
+
+SHIPPED = None
+"""A key's ``absent``: a file without the key means the shipped file's value."""
+
+REQUIRED = type('Required', (), {'__repr__': lambda self: 'REQUIRED'})()
+"""A key's ``absent``: a file must give the key."""
+
+UNITS = {'_n_m_s_per_rad': 'N m s/rad', '_n_m_per_a': 'N m/A', '_v_s_per_rad': 'V s/rad',
+         '_n_per_m1_5': 'N/m^1.5', '_n_s_per_m': 'N s/m', '_v_per_n_s': 'V/(N s)',
+         '_v_s_per_m': 'V s/m', '_n_per_m': 'N/m', '_n_per_s': 'N/s', '_v_per_n': 'V/N',
+         '_kg_m2': 'kg m^2', '_mps2': 'm/s^2', '_mps': 'm/s', '_ohm': 'ohm', '_hz': 'Hz',
+         '_kg': 'kg', '_s': 's', '_m': 'm', '_n': 'N', '_v': 'V', '_h': 'H'}
+"""A key name's suffix -> its unit (the longest suffix that fits wins; none: no unit)."""
+
+
+def unit_of(name: str) -> str:
+    """Return the unit a key's name ends in (``timeout_s`` -> ``s``), '' if none."""
+    return max(((suffix, unit) for suffix, unit in UNITS.items() if name.endswith(suffix)),
+               key=lambda item: len(item[0]), default=('', ''))[1]
+
+
+class Key(typing.NamedTuple):
+    """One config key: its meaning, bounds, rule, unit, absence and run-time-ness."""
+
+    doc: str                                  # one line: what the value is
+    bounds: tuple[float, float] | None        # [low, high]; None only for a choice
+    rule: str = POSITIVE                      # POSITIVE or NONNEGATIVE, checked before bounds
+    integer: bool = False                     # a whole number
+    choices: type[enum.Enum] | None = None    # the value is one of these enum values
+    absent: object = REQUIRED                 # what a file without it means (SHIPPED, a value)
+    runtime: bool = True                      # False: fixed at start-up (doc says why)
+    unit: str | None = None                   # None: from the name's suffix (SCHEMA)
+    open_high: bool = False                   # the high bound itself is refused
+    why: str = ''                             # said after the bounds a value lies outside
+
+    @property
+    def low_open(self) -> bool:
+        return self.rule == POSITIVE and self.bounds is not None and self.bounds[0] == 0
+
+    def interval(self) -> str:
+        """Return the bounds as text: ``[0, 1)``, ``(0, 10]``."""
+        low, high = self.bounds
+        return (f'{"(" if self.low_open else "["}{low:g}, {high:g}'
+                f'{")" if self.open_high else "]"}')
+
+    def holds(self, value: float) -> bool:
+        """Return whether ``value`` lies within the bounds."""
+        low, high = self.bounds
+        return low <= value <= high and not (self.open_high and value == high)
+
+    @property
+    def description(self) -> str:
+        """Return the one-line description: the doc, then the bounds and unit, or the choices."""
+        if self.choices is not None:
+            return f'{self.doc} ({" | ".join(c.value for c in self.choices)})'
+        if self.bounds is None:
+            return self.doc
+        return f'{self.doc} ({self.interval()}{" " + self.unit if self.unit else ""})'
+
+
+def key(doc: str, *, bounds: tuple[float, float] | None = None, rule: str = POSITIVE,
+        integer: bool = False, choices: type[enum.Enum] | None = None, absent=REQUIRED,
+        runtime: bool = True, unit: str | None = None, open_high: bool = False, why: str = '',
+        default=MISSING):
+    """Declare a config key as a dataclass field (``default``: what a law without it has)."""
+    if default is not MISSING and absent is REQUIRED:
+        absent = default
+    return field(default=default, metadata={'key': Key(
+        doc, bounds, rule, integer, choices, absent, runtime, unit, open_high, why)})
+
+
+def part(at: str | None = None):
+    """Declare a field holding a dataclass of keys, read from the file's section ``at``.
+
+    ``at`` defaults to the field's name; two parts may share one section (its gains and its
+    DMC tuning both under ``mpc_pd``).
+    """
+    return field(metadata={'part': at})
+
+
+# ------------------------------------------------------------------ the keys
 @dataclass(frozen=True)
 class PlantParams:
     """Table I, SI units."""
 
-    inertia_kg_m2: float
-    damping_n_m_s_per_rad: float
-    gear_ratio: float
-    resistance_ohm: float
-    inductance_h: float
-    pitch_m: float
-    torque_constant_n_m_per_a: float
-    back_emf_v_s_per_rad: float
-    efficiency: float
-    max_travel_m: float
-    gravity_mps2: float
-    voltage_limit_v: float
-    contact_substep_s: float
+    inertia_kg_m2: float = key('J_m, equivalent inertia at the motor', bounds=(1e-7, 1.0))
+    damping_n_m_s_per_rad: float = key('b_m, equivalent viscous damping at the motor',
+                                       bounds=(1e-7, 10.0))
+    gear_ratio: float = key('N1/N2, the gear ratio', bounds=(0.01, 1000.0))
+    resistance_ohm: float = key('R_a, armature resistance', bounds=(1e-3, 1000.0))
+    inductance_h: float = key('L_a, armature inductance', bounds=(1e-7, 1.0))
+    pitch_m: float = key('p, lead screw pitch', bounds=(1e-4, 0.1))
+    torque_constant_n_m_per_a: float = key('k_t, motor torque constant', bounds=(1e-4, 10.0))
+    back_emf_v_s_per_rad: float = key('k_b, back-EMF constant', bounds=(1e-4, 10.0))
+    efficiency: float = key('eta, lead screw efficiency', bounds=(0.0, 1.0))
+    max_travel_m: float = key('L_ls, travel of the moving finger', bounds=(1e-3, 1.0))
+    gravity_mps2: float = key('g, gravity', bounds=(0.1, 100.0))
+    voltage_limit_v: float = key('motor nominal voltage, the command limit',
+                                 bounds=(0.1, 1000.0))
+    contact_substep_s: float = key('sub-step that locates a contact event inside a step',
+                                   bounds=(1e-7, 1e-3))
 
     @property
     def force_lever_m(self) -> float:
@@ -93,32 +190,45 @@ class PlantParams:
 class ContactParams:
     """Default object contact: normal (stiffness, damping) and tangential (pad friction)."""
 
-    stiffness_n_per_m: float
-    damping_n_s_per_m: float
-    static_friction: float             # mu_s between pad and object (per pad)
-    kinetic_friction: float            # mu_k while the object slides; <= mu_s
-    pad_length_m: float                # the object is out once it has slid this far
-    after_lift_s: float                # fast mode plays a lift out this long after it ends
-    # Cattaneo-Mindlin pre-sliding of each pad (core/physics/hold.py): its initial tangential
-    # stiffness; 0 = rigid pads, the Coulomb law alone.
-    pad_tangential_stiffness_n_per_m: float
-    # The arm's lift-off (core/physics/hold.py): the weight passes from the support to the pads
-    # over this long; 0 = all at once.
-    lift_off_s: float
-    # The normal chain (core/physics/contact_chain.py): each finger's bending stiffness at its pad
-    # and each pad's Hertz stiffness (F = k_p delta^1.5); 0 = a rigid finger, no pad: the object
-    # alone, as in the paper.
-    finger_stiffness_n_per_m: float
-    pad_normal_stiffness_n_per_m1_5: float
+    stiffness_n_per_m: float = key("object stiffness; 0 = the paper's inelastic contact",
+                                   bounds=(0.0, 1e10), rule=NONNEGATIVE)
+    damping_n_s_per_m: float = key('object damping (Kelvin-Voigt)', bounds=(0.0, 1e7),
+                                   rule=NONNEGATIVE)
+    static_friction: float = key('mu_s between pad and object (per pad)', bounds=(0.0, 2.0),
+                                 absent=SHIPPED)
+    kinetic_friction: float = key('mu_k while the object slides; <= mu_s', bounds=(0.0, 2.0),
+                                  absent=SHIPPED)
+    pad_length_m: float = key('the object is out once it has slid this far',
+                              bounds=(1e-4, 1.0), absent=SHIPPED)
+    after_lift_s: float = key('fast mode plays a lift out this long after it ends',
+                              bounds=(0.0, 60.0), rule=NONNEGATIVE, absent=SHIPPED)
+    pad_tangential_stiffness_n_per_m: float = key(
+        "each pad's initial tangential (Cattaneo-Mindlin) stiffness; 0 = rigid pads",
+        bounds=(0.0, 1e10), rule=NONNEGATIVE, absent=0.0)
+    lift_off_s: float = key('the weight passes from the support to the pads over this long',
+                            bounds=(0.0, 10.0), rule=NONNEGATIVE, absent=0.0)
+    finger_stiffness_n_per_m: float = key(
+        "each finger's bending stiffness at its pad; 0 = a rigid finger",
+        bounds=(0.0, 1e10), rule=NONNEGATIVE, absent=0.0)
+    pad_normal_stiffness_n_per_m1_5: float = key(
+        "each pad's Hertz stiffness, F = k_p delta^1.5; 0 = no pad",
+        bounds=(0.0, 1e12), rule=NONNEGATIVE, absent=0.0)
+
+
+def _kinetic_friction_at_most_static(config: GripperConfig) -> None:
+    contact = config.contact
+    if contact.kinetic_friction > contact.static_friction:
+        raise ConfigError('"contact.kinetic_friction" must be <= "contact.static_friction" '
+                          f'({contact.static_friction!r}), got {contact.kinetic_friction!r}')
 
 
 @dataclass(frozen=True)
 class ForceSensorParams:
-    supply_v: float
-    measuring_resistor_ohm: float
-    fsr_resistance_at_1n_ohm: float
-    open_resistance_ohm: float
-    activation_force_n: float
+    supply_v: float = key('FSR divider supply voltage', bounds=(0.1, 100.0))
+    measuring_resistor_ohm: float = key('R_m of the divider', bounds=(1.0, 1e12))
+    fsr_resistance_at_1n_ohm: float = key('R_fsr = this / F once activated', bounds=(1.0, 1e12))
+    open_resistance_ohm: float = key('R_fsr below the activation force', bounds=(1.0, 1e12))
+    activation_force_n: float = key('the FSR conducts above this force', bounds=(1e-6, 100.0))
 
 
 @dataclass(frozen=True)
@@ -130,11 +240,16 @@ class SensorNoiseParams:
     so a run is reproducible and a repeated reading of one instant reads the same.
     """
 
-    position_noise_m: float
-    position_quantum_m: float
-    force_noise_n: float
-    force_quantum_n: float
-    seed: int
+    position_noise_m: float = key('1 sigma of the position noise', bounds=(0.0, 0.01),
+                                  rule=NONNEGATIVE, absent=0.0)
+    position_quantum_m: float = key('position rounded to this step', bounds=(0.0, 0.01),
+                                    rule=NONNEGATIVE, absent=0.0)
+    force_noise_n: float = key('1 sigma of the force noise', bounds=(0.0, 100.0),
+                               rule=NONNEGATIVE, absent=0.0)
+    force_quantum_n: float = key('force rounded to this step', bounds=(0.0, 100.0),
+                                 rule=NONNEGATIVE, absent=0.0)
+    seed: int = key('seed of the noise', bounds=(0, 2 ** 63 - 1), rule=NONNEGATIVE,
+                    integer=True, absent=0)
 
     @classmethod
     def ideal(cls) -> SensorNoiseParams:
@@ -169,14 +284,24 @@ class ChannelSpec:
 class PadSensorParams:
     """Each pad's shear and displacement sensing (core/physics/pad_sensor.py)."""
 
-    shear_resolution_n: float
-    shear_noise_n: float
-    shear_bandwidth_hz: float
-    shear_latency_s: float
-    displacement_resolution_m: float
-    displacement_noise_m: float
-    displacement_bandwidth_hz: float
-    displacement_latency_s: float
+    shear_resolution_n: float = key('shear read-out step', bounds=(0.0, 10.0),
+                                    rule=NONNEGATIVE, absent=SHIPPED)
+    shear_noise_n: float = key('1 sigma of the shear noise', bounds=(0.0, 10.0),
+                               rule=NONNEGATIVE, absent=SHIPPED)
+    shear_bandwidth_hz: float = key('first-order bandwidth of the shear; 0 = none',
+                                    bounds=(0.0, 1e6), rule=NONNEGATIVE, absent=SHIPPED)
+    shear_latency_s: float = key('delay of the shear', bounds=(0.0, 1.0), rule=NONNEGATIVE,
+                                 absent=SHIPPED)
+    displacement_resolution_m: float = key('pad displacement read-out step',
+                                           bounds=(0.0, 0.01), rule=NONNEGATIVE,
+                                           absent=SHIPPED)
+    displacement_noise_m: float = key('1 sigma of the displacement noise', bounds=(0.0, 0.01),
+                                      rule=NONNEGATIVE, absent=SHIPPED)
+    displacement_bandwidth_hz: float = key(
+        'first-order bandwidth of the displacement; 0 = none', bounds=(0.0, 1e6),
+        rule=NONNEGATIVE, absent=SHIPPED)
+    displacement_latency_s: float = key('delay of the displacement', bounds=(0.0, 1.0),
+                                        rule=NONNEGATIVE, absent=SHIPPED)
 
     @property
     def shear(self):
@@ -191,20 +316,33 @@ class PadSensorParams:
                            self.displacement_bandwidth_hz, self.displacement_latency_s)
 
 
+_BELOW_THE_LOAD = '(a grip that knowingly holds less than the load)'
+
+
 @dataclass(frozen=True)
 class LoadGripParams:
     """The load-tracking grip's settings (core/control/load_grip.py)."""
 
-    grip_margin: float
-    mu_start: float
-    mu_safety: float
-    touch_force_n: float
-    slip_speed_mps: float
-    slip_window_s: float
-    slip_rest_s: float
-    min_samples: int
-    release_rate_n_per_s: float
-    overload_slip_s: float
+    grip_margin: float = key('F_sp = this x F_load / (2 mu_est)', bounds=(1.0, 10.0),
+                             absent=SHIPPED, why=_BELOW_THE_LOAD)
+    mu_start: float = key('mu_est before a fit: the least friction expected',
+                          bounds=(0.01, 2.0), absent=SHIPPED)
+    mu_safety: float = key('the fitted friction is believed times this', bounds=(1e-3, 1.0),
+                           absent=SHIPPED)
+    touch_force_n: float = key('the grip closes to this force first', bounds=(1e-3, 100.0),
+                               absent=SHIPPED)
+    slip_speed_mps: float = key('a pad displacement faster than this is a slip',
+                                bounds=(1e-6, 1.0), absent=SHIPPED)
+    slip_window_s: float = key('a slip: the slip speed over this long', bounds=(1e-4, 1.0),
+                               absent=SHIPPED)
+    slip_rest_s: float = key('a slip ends after this long below the slip speed',
+                             bounds=(0.0, 1.0), absent=SHIPPED)
+    min_samples: int = key('stuck samples before a friction fit is believed',
+                           bounds=(1, 100000), integer=True, absent=SHIPPED)
+    release_rate_n_per_s: float = key('the grip falls no faster (it rises at once)',
+                                      bounds=(1e-3, 1e6), absent=SHIPPED)
+    overload_slip_s: float = key("slipping this long at the voltage limit's grip: overload",
+                                 bounds=(1e-4, 10.0), absent=SHIPPED)
 
 
 @dataclass(frozen=True)
@@ -215,72 +353,140 @@ class GeometryParams:
     finger's at -max_travel_m/2 when fully open.
     """
 
-    finger_thickness_m: float          # along the closing axis, behind the pad face
-    finger_width_m: float              # across the closing axis
-    finger_length_m: float             # from the top of the base to the fingertip
-    base_height_m: float               # from the mounting face to the top of the base
-    base_width_m: float                # across the closing axis (its length spans the travel)
-    base_mass_kg: float                # the base with motor and lead screw, a solid box
-    finger_mass_kg: float              # each finger with its pad, a solid box
+    finger_thickness_m: float = key('finger along the closing axis, behind the pad face',
+                                    bounds=(1e-4, 1.0), absent=SHIPPED)
+    finger_width_m: float = key('finger across the closing axis', bounds=(1e-4, 1.0),
+                                absent=SHIPPED)
+    finger_length_m: float = key('finger from the top of the base to the fingertip',
+                                 bounds=(1e-4, 1.0), absent=SHIPPED)
+    base_height_m: float = key('base from the mounting face to its top', bounds=(1e-4, 1.0),
+                               absent=SHIPPED)
+    base_width_m: float = key('base across the closing axis', bounds=(1e-4, 1.0),
+                              absent=SHIPPED)
+    base_mass_kg: float = key('the base with motor and lead screw, a solid box',
+                              bounds=(1e-4, 100.0), absent=SHIPPED)
+    finger_mass_kg: float = key('each finger with its pad, a solid box', bounds=(1e-4, 100.0),
+                                absent=SHIPPED)
+
+
+_GAIN_BOUNDS = (0.0, 1e6)
 
 
 @dataclass(frozen=True)
 class PidGains:
-    kc: float
-    ki: float = 0.0
-    kd: float = 0.0
+    kc: float = key('proportional gain', bounds=_GAIN_BOUNDS, rule=NONNEGATIVE)
+    ki: float = key('integral gain; absent: none', bounds=_GAIN_BOUNDS, rule=NONNEGATIVE,
+                    default=0.0)
+    kd: float = key('derivative gain; absent: none', bounds=_GAIN_BOUNDS, rule=NONNEGATIVE,
+                    default=0.0)
+
+
+MAX_HORIZON = 2000
+"""Most samples of a DMC step-response model: its matrices, their build when a parameter
+changes and its work every tick grow with it (the shipped horizons are 700 and 100)."""
 
 
 @dataclass(frozen=True)
 class DmcTuning:
-    horizon: int
-    control_horizon: int
-    move_suppression: float
+    horizon: int = key('samples of the step-response model', bounds=(1, MAX_HORIZON),
+                       integer=True)
+    control_horizon: int = key('future moves planned; <= horizon', bounds=(1, MAX_HORIZON),
+                               integer=True)
+    move_suppression: float = key('weight on the planned moves', bounds=(1e-6, 1e6))
 
 
 @dataclass(frozen=True)
 class PositionControlParams:
-    sample_time_s: float
-    pd: PidGains
-    pid: PidGains
-    mpc_pd: PidGains
-    mpc_pd_dmc: DmcTuning
-    mpc_pd_braking_voltage_v: float     # ours: braking-governor planning voltage
-    speed_limit_pole: float             # ours: discrete pole of the speed under a move's limit
+    sample_time_s: float = key('position loop period', bounds=(1e-3, 0.1))
+    pd: PidGains = part()
+    pid: PidGains = part()
+    mpc_pd: PidGains = part()
+    mpc_pd_dmc: DmcTuning = part('mpc_pd')
+    mpc_pd_braking_voltage_v: float = key(
+        "braking governor's planning voltage (ours); <= plant.voltage_limit_v",
+        bounds=(0.0, 1000.0), rule=NONNEGATIVE)
+    speed_limit_pole: float = key(
+        "discrete pole of the finger speed under a move's limit (ours)", bounds=(0.0, 1.0),
+        rule=NONNEGATIVE, open_high=True, absent=SHIPPED)
+
+
+def _speed_limit_pole_below_the_open_loop_one(config: GripperConfig) -> None:
+    position = config.position
+    speed_pole = math.exp(-position.sample_time_s / config.plant.mechanical_time_constant_s)
+    if not position.speed_limit_pole < speed_pole:
+        raise ConfigError('"position_control.speed_limit_pole" must be in [0, '
+                          f'{speed_pole:.6g}) (the open-loop pole of the finger speed over one '
+                          f'sample; slower than that never reaches the limit), '
+                          f'got {position.speed_limit_pole!r}')
+
+
+def _braking_voltage_within_the_limit(config: GripperConfig) -> None:
+    if config.position.mpc_pd_braking_voltage_v > config.plant.voltage_limit_v:
+        raise ConfigError('"position_control.mpc_pd_braking_voltage_v" must be <= '
+                          '"plant.voltage_limit_v", '
+                          f'got {config.position.mpc_pd_braking_voltage_v!r}')
 
 
 @dataclass(frozen=True)
 class ContactForceTuning:
     """The contact-aware force stage (gripper_ros/core/control/contact_force.py), ours."""
 
-    design_stiffness_n_per_m: float      # stiffest object the contact speed is designed for
-    design_damping_ratio: float          # ... and its damping ratio (against the reflected mass)
-    band_design_stiffness_n_per_m: float  # ... within a width tolerance band
-    impact_force_fraction: float         # impact at the contact speed <= this x F_sp (in (0, 1))
-    braking_deceleration_mps2: float     # the speed profiles' deceleration
-    contact_force_n: float               # contact once the measured force exceeds this
-    untouched_overtravel_m: float        # past the narrowest face by this, untouched: V_ff
-    force_gain_v_per_n: float            # extra Kp on the force error after contact
-    damping_ratio: float                 # of the closed loop on the estimated spring
-    servo_sample_gain: float             # most of a speed error the servo corrects per sample
-    max_damping_v_s_per_m: float         # speed-servo gain cap
-    integral_gain_v_per_n_s: float       # model-error trim, only while at rest in contact
-    integral_speed_band_mps: float       # "at rest": |finger speed| below this ...
-    integral_rate_fraction: float        # ... and |de/dt| tau_k below this x |e|
-    # a moving setpoint's rate, low-passed over this, leads the speed reference (0 = no filter)
-    setpoint_rate_time_constant_s: float
+    design_stiffness_n_per_m: float = key('stiffest object the contact speed is designed for',
+                                          bounds=(1.0, 1e10))
+    design_damping_ratio: float = key('damping ratio of that object (against the reflected mass)',
+                                      bounds=(1e-3, 10.0))
+    band_design_stiffness_n_per_m: float = key('design stiffness within a width tolerance band',
+                                               bounds=(1.0, 1e10))
+    impact_force_fraction: float = key('impact at the contact speed <= this x F_sp',
+                                       bounds=(0.0, 1.0), open_high=True)
+    braking_deceleration_mps2: float = key("the speed profiles' deceleration",
+                                           bounds=(1e-4, 10.0))
+    contact_force_n: float = key('contact once the measured force exceeds this',
+                                 bounds=(1e-9, 10.0))
+    untouched_overtravel_m: float = key('past the narrowest face by this, untouched: V_ff',
+                                        bounds=(1e-9, 0.01))
+    force_gain_v_per_n: float = key('extra Kp on the force error after contact',
+                                    bounds=(0.0, 1000.0), rule=NONNEGATIVE)
+    damping_ratio: float = key('of the closed loop on the estimated spring',
+                               bounds=(1e-3, 10.0))
+    servo_sample_gain: float = key('most of a speed error the servo corrects per sample',
+                                   bounds=(1e-3, 1.0))
+    max_damping_v_s_per_m: float = key('speed-servo gain cap', bounds=(1.0, 1e9))
+    integral_gain_v_per_n_s: float = key('model-error trim, only while at rest in contact',
+                                         bounds=(0.0, 1000.0), rule=NONNEGATIVE)
+    integral_speed_band_mps: float = key('the trim runs only below this finger speed',
+                                         bounds=(1e-7, 1.0))
+    integral_rate_fraction: float = key('the trim runs only while |de/dt| tau_k < this x |e|',
+                                        bounds=(1e-3, 1.0))
+    setpoint_rate_time_constant_s: float = key(
+        "a moving setpoint's rate, low-passed over this, leads the speed reference; 0 = raw",
+        bounds=(0.0, 1.0), rule=NONNEGATIVE, absent=SHIPPED)
 
 
 @dataclass(frozen=True)
 class ForceControlParams:
-    paper_sample_time_s: float
-    pi_paper: PidGains
-    mpc_pi_paper: PidGains
-    mpc_pi_paper_dmc: DmcTuning
-    sample_time_s: float
-    closed_loop_pole: float
-    mpc_pi_dmc: DmcTuning
-    contact_aware: ContactForceTuning
+    paper_sample_time_s: float = key("the paper's force loop period", bounds=(5e-5, 0.01))
+    pi_paper: PidGains = part()
+    mpc_pi_paper: PidGains = part()
+    mpc_pi_paper_dmc: DmcTuning = part('mpc_pi_paper')
+    sample_time_s: float = key(
+        'force loop period; plant_simulator samples the pads and the supervisor sizes the '
+        "load-tracking grip's windows at it too, so it is fixed at start-up (set it for all "
+        'three nodes with --params-file or config_file)', bounds=(5e-5, 0.01), runtime=False)
+    closed_loop_pole: float = key('both closed-loop poles of the discrete PI (ours)',
+                                  bounds=(0.0, 1.0), rule=NONNEGATIVE, open_high=True,
+                                  why='for a stable loop')
+    mpc_pi_dmc: DmcTuning = part('mpc_pi')
+    contact_aware: ContactForceTuning = part()
+
+
+def _control_horizon_within_the_horizon(config: GripperConfig) -> None:
+    for where, dmc in (('position_control.mpc_pd', config.position.mpc_pd_dmc),
+                       ('force_control.mpc_pi_paper', config.force.mpc_pi_paper_dmc),
+                       ('force_control.mpc_pi', config.force.mpc_pi_dmc)):
+        if dmc.control_horizon > dmc.horizon:
+            raise ConfigError(f'"{where}.control_horizon" must be <= "{where}.horizon" '
+                              f'({dmc.horizon}), got {dmc.control_horizon}')
 
 
 class ForceLaw(enum.Enum):
@@ -292,52 +498,92 @@ class ForceLaw(enum.Enum):
 
 @dataclass(frozen=True)
 class SupervisorParams:
-    friction_coefficient: float
-    acceleration_mps2: float
-    position_tolerance_fraction: float
-    sensor_voltage_threshold_v: float
-    force_settle_band_fraction: float
-    force_settle_hold_s: float
-    timeout_s: float
-    no_object_margin_m: float
-    # Loss watch and release.
-    hold_watch_s: float                # force loop keeps holding and watching before HOLDING
-    lost_force_fraction: float         # OBJECT_LOST: force below this x F_sp after a grip ...
-    lost_force_hold_s: float           # ... for this long
-    release_tolerance_m: float         # release done within this of the open position ...
-    release_settle_s: float            # ... for this long
-    position_switch_speed_mps: float   # switch 1 also needs |speed| <= this (0: paper's)
-    width_tolerance_m: float           # default +- on a request's width (Franka's epsilon)
-    force_settle_horizon_s: float      # settled: |e| + this x |dF/dt| within the band ...
-    force_settle_speed_mps: float      # ... and the finger slower than this (0: no bound)
-    force_law: ForceLaw
-    grip_safety_factor: float          # k of the friction law (>= 1)
-    # The move (srv/Move, control_msgs ParallelGripperCommand).
-    move_default_speed_mps: float      # a move's speed when the request gives none
-    move_tolerance_m: float            # reached_goal: at rest within this of the width
-    move_rest_speed_mps: float         # "at rest": |finger speed| at most this
-    move_stall_force_fraction: float   # stalled at once: at rest, pressing with this share
-    move_stall_timeout_s: float        # stalled: at rest short of the width this long
-    # joint_commands, a position servo
-    servo_lead_s: float                # the reference leads a changing stream by rate x this
-    servo_rate_window_s: float         # ... its rate over at least this; changing: within it
+    friction_coefficient: float = key('mu_s assumed by the setpoint', bounds=(0.01, 2.0))
+    acceleration_mps2: float = key("a, the arm's acceleration in the setpoint",
+                                   bounds=(0.0, 100.0), rule=NONNEGATIVE)
+    position_tolerance_fraction: float = key('switch 1: |x - x_sp| within this x x_sp',
+                                             bounds=(1e-6, 0.5))
+    sensor_voltage_threshold_v: float = key('switch 2: rise of the FSR voltage',
+                                            bounds=(1e-6, 100.0))
+    force_settle_band_fraction: float = key('settled: |F - F_sp| within this x F_sp',
+                                            bounds=(1e-6, 0.5))
+    force_settle_hold_s: float = key('settled: within the band every tick this long',
+                                     bounds=(1e-6, 10.0))
+    timeout_s: float = key('simulated-time budget of a grasp', bounds=(0.01, 3600.0))
+    no_object_margin_m: float = key('NO_OBJECT once the finger passes the face by this',
+                                    bounds=(1e-6, 0.1))
+    hold_watch_s: float = key('the force loop holds and watches this long before HOLDING',
+                              bounds=(0.0, 10.0), rule=NONNEGATIVE, absent=SHIPPED)
+    lost_force_fraction: float = key('OBJECT_LOST: force below this x F_sp after a grip',
+                                     bounds=(0.0, 1.0), open_high=True, absent=SHIPPED)
+    lost_force_hold_s: float = key('OBJECT_LOST: the force that low this long',
+                                   bounds=(1e-6, 10.0), absent=SHIPPED)
+    release_tolerance_m: float = key('release done within this of the open position',
+                                     bounds=(1e-6, 0.1), absent=SHIPPED)
+    release_settle_s: float = key('release done: within its tolerance this long',
+                                  bounds=(0.0, 10.0), rule=NONNEGATIVE,
+                                  absent=SHIPPED)
+    position_switch_speed_mps: float = key("switch 1 also needs |speed| <= this; 0: paper's",
+                                           bounds=(0.0, 1.0), rule=NONNEGATIVE, absent=0.0)
+    width_tolerance_m: float = key("default +- on a request's width; 0: trust the width",
+                                   bounds=(0.0, 0.1), rule=NONNEGATIVE, absent=0.0)
+    force_settle_horizon_s: float = key('settled: |e| + this x |dF/dt| in the band; 0: the band',
+                                        bounds=(0.0, 100.0), rule=NONNEGATIVE, absent=0.0)
+    force_settle_speed_mps: float = key('settled: also the finger slower than this; 0: no bound',
+                                        bounds=(0.0, 1.0), rule=NONNEGATIVE, absent=0.0)
+    force_law: ForceLaw = key('how the force setpoint follows from the load',
+                              choices=ForceLaw, absent=SHIPPED)
+    grip_safety_factor: float = key('k of the friction law', bounds=(1.0, 10.0),
+                                    absent=SHIPPED, why=_BELOW_THE_LOAD)
+    move_default_speed_mps: float = key("a move's speed when the request gives none",
+                                        bounds=(1e-6, 10.0), absent=SHIPPED)
+    move_tolerance_m: float = key('reached_goal: at rest within this of the width',
+                                  bounds=(1e-6, 0.1), absent=SHIPPED)
+    move_rest_speed_mps: float = key('"at rest": |finger speed| at most this',
+                                     bounds=(1e-6, 1.0), absent=SHIPPED)
+    move_stall_force_fraction: float = key(
+        'stalled at once: at rest, pressing with this share of the effort',
+        bounds=(0.0, 1.0), absent=SHIPPED, why='(a force above the effort limit is never '
+                                               'reached)')
+    move_stall_timeout_s: float = key('stalled: at rest short of the width this long',
+                                      bounds=(1e-3, 60.0), absent=SHIPPED)
+    servo_lead_s: float = key('a streamed reference leads the newest setpoint by rate x this',
+                              bounds=(0.0, 10.0), absent=SHIPPED)
+    servo_rate_window_s: float = key("a stream's rate over at least this; changing: within it",
+                                     bounds=(1e-3, 1.0), absent=SHIPPED)
+
+
+def _move_default_speed_above_rest(config: GripperConfig) -> None:
+    sup, plant = config.supervisor, config.plant
+    if not sup.move_rest_speed_mps < sup.move_default_speed_mps:
+        raise ConfigError('"supervisor.move_default_speed_mps" must be above '
+                          f'"supervisor.move_rest_speed_mps" = {sup.move_rest_speed_mps!r} '
+                          f'(and so must the free speed at "plant.voltage_limit_v", '
+                          f'{plant.max_free_speed_mps:.6g} m/s), got '
+                          f'{sup.move_default_speed_mps!r}')
 
 
 @dataclass(frozen=True)
 class GripperConfig:
-    plant: PlantParams
-    contact: ContactParams
-    force_sensor: ForceSensorParams
-    position: PositionControlParams
-    force: ForceControlParams
-    supervisor: SupervisorParams
-    sensor_noise: SensorNoiseParams
-    pad_sensor: PadSensorParams
-    load_grip: LoadGripParams
-    geometry: GeometryParams
+    plant: PlantParams = part()
+    contact: ContactParams = part()
+    force_sensor: ForceSensorParams = part()
+    position: PositionControlParams = part('position_control')
+    force: ForceControlParams = part('force_control')
+    supervisor: SupervisorParams = part()
+    sensor_noise: SensorNoiseParams = part()
+    pad_sensor: PadSensorParams = part()
+    load_grip: LoadGripParams = part()
+    geometry: GeometryParams = part()
     source: str
     data: dict = field(default_factory=dict, compare=False, hash=False, repr=False)
     """The mapping the values were read from (what a bag records, what re-runs start from)."""
+
+
+CROSS_CHECKS = (_kinetic_friction_at_most_static, _speed_limit_pole_below_the_open_loop_one,
+                _control_horizon_within_the_horizon, _braking_voltage_within_the_limit,
+                _move_default_speed_above_rest)
+"""The checks that tie keys together, in this order, after every key met its own bounds."""
 
 
 def default_config_path() -> Path:
@@ -358,38 +604,81 @@ def shipped_config_path() -> Path:
     return Path(__file__).resolve().parents[2] / 'config' / CONFIG_FILE_NAME
 
 
-SHIPPED = None
-"""In :data:`ADDED_LATER`: a file without the key means the shipped file's value."""
+# ------------------------------------------------------------------ what the keys give
+def _walk(cls, prefix: str = ''):
+    """Yield ``(dotted, name, Key)`` of every key under dataclass ``cls``, in file order."""
+    hints = typing.get_type_hints(cls)
+    for f in fields(cls):
+        if 'key' in f.metadata:
+            yield prefix + f.name, f.name, f.metadata['key']
+        elif 'part' in f.metadata:
+            yield from _walk(hints[f.name], f'{prefix}{f.metadata["part"] or f.name}.')
+
+
+SCHEMA: dict[str, Key] = {
+    dotted: spec if spec.unit is not None else spec._replace(unit=unit_of(name))
+    for dotted, name, spec in _walk(GripperConfig)}
+"""Every key a config file may hold (dotted) -> its :class:`Key`, in the order of the file."""
 
 ADDED_LATER: dict[str, float | None] = {
-    # key (dotted) or whole section a file may lack (it predates them) -> what its absence
-    # means: the shipped value (SHIPPED), or the number that turns the feature off; any other
-    # key is required. The shipped config/gripper.yaml is the one home of every value.
-    'contact.static_friction': SHIPPED, 'contact.kinetic_friction': SHIPPED,
-    'contact.pad_length_m': SHIPPED, 'contact.after_lift_s': SHIPPED,
-    'contact.pad_tangential_stiffness_n_per_m': 0.0,     # rigid pads: the Coulomb law alone
-    'contact.lift_off_s': 0.0,                            # the weight lands at once
-    'contact.finger_stiffness_n_per_m': 0.0,              # rigid fingers ...
-    'contact.pad_normal_stiffness_n_per_m1_5': 0.0,       # ... and no pad: the paper's contact
-    'position_control.speed_limit_pole': SHIPPED,
-    'force_control.contact_aware.setpoint_rate_time_constant_s': SHIPPED,
-    'supervisor.hold_watch_s': SHIPPED, 'supervisor.lost_force_fraction': SHIPPED,
-    'supervisor.lost_force_hold_s': SHIPPED, 'supervisor.release_tolerance_m': SHIPPED,
-    'supervisor.release_settle_s': SHIPPED,
-    'supervisor.position_switch_speed_mps': 0.0,          # the paper's switch: position alone
-    'supervisor.width_tolerance_m': 0.0,                  # trust the width
-    'supervisor.force_settle_horizon_s': 0.0,             # settled: the band alone
-    'supervisor.force_settle_speed_mps': 0.0,             # no speed bound
-    'supervisor.force_law': SHIPPED, 'supervisor.grip_safety_factor': SHIPPED,
-    'supervisor.move_default_speed_mps': SHIPPED, 'supervisor.move_tolerance_m': SHIPPED,
-    'supervisor.move_rest_speed_mps': SHIPPED, 'supervisor.move_stall_force_fraction': SHIPPED,
-    'supervisor.move_stall_timeout_s': SHIPPED,
-    'supervisor.servo_lead_s': SHIPPED, 'supervisor.servo_rate_window_s': SHIPPED,
-    'sensor_noise': 0.0,                                  # ideal sensors
-    'pad_sensor': SHIPPED,
-    'load_grip': SHIPPED,
-    'geometry': SHIPPED,
-}
+    dotted: spec.absent for dotted, spec in SCHEMA.items() if spec.absent is not REQUIRED}
+"""Keys a file may lack (it predates them) -> what their absence means: :data:`SHIPPED` (the
+shipped file's value, the one home of every value) or the value that turns the feature off."""
+
+BOUNDS: dict[str, tuple[float, float]] = {
+    dotted: spec.bounds for dotted, spec in SCHEMA.items() if spec.bounds is not None}
+"""Every number's [low, high] (``Key.open_high`` and a > 0 rule refuse an end); the shipped
+file lists them at its end (:func:`bounds_text`)."""
+
+
+def numbers_of(cls) -> tuple[str, ...]:
+    """Return the names of the number keys of dataclass ``cls`` (not its choices or parts)."""
+    return tuple(f.name for f in fields(cls)
+                 if 'key' in f.metadata and f.metadata['key'].choices is None)
+
+
+def bounds_of(name: str) -> tuple[float, float] | None:
+    """Return the [low, high] of dotted key ``name``, None if it is no number of the file."""
+    return BOUNDS.get(name)
+
+
+BOUNDS_HEADER = '# Bounds (gripper_ros/core/config.py):'
+
+
+def bounds_text() -> str:
+    """Return the bounds as the comment block at the end of ``config/gripper.yaml``."""
+    lines = [f'{BOUNDS_HEADER} every value must lie within them, a round',
+             "# bracket's end excluded; the checks that tie keys together apply too. Written by",
+             '# python3 -m gripper_ros.core.config --write-bounds FILE.']
+    lines += [f'#   {dotted}: {spec.interval()}' for dotted, spec in SCHEMA.items()
+              if spec.bounds is not None]
+    return '\n'.join(lines) + '\n'
+
+
+def with_bounds_text(text: str) -> str:
+    """Return a config file's ``text`` with its bounds block (at its end) as the schema says."""
+    start = text.find(BOUNDS_HEADER)
+    if start < 0:
+        start = text.find('# Bounds (')
+    return (text[:start] if start >= 0 else text.rstrip('\n') + '\n\n') + bounds_text()
+
+
+def known_keys() -> dict:
+    """Every key a config file may hold, as nested sections (a leaf is None)."""
+    known: dict = {}
+    for dotted in SCHEMA:
+        *sections, leaf = dotted.split('.')
+        node = known
+        for section in sections:
+            node = node.setdefault(section, {})
+        node[leaf] = None
+    return known
+
+
+def _optional(section: str) -> bool:
+    """Return whether a file may lack ``section`` (every key of it may be absent)."""
+    return all(spec.absent is not REQUIRED for dotted, spec in SCHEMA.items()
+               if dotted.startswith(section + '.'))
 
 
 @functools.cache
@@ -397,27 +686,17 @@ def _shipped_data() -> dict:
     return yaml.safe_load(shipped_config_path().read_text(encoding='utf-8'))
 
 
-def _absent_value(where: str, key: str):
-    """Return what a file without ``where.key`` means, or MISSING if it must have it."""
-    dotted = f'{where}.{key}'
-    meaning = ADDED_LATER.get(dotted, ADDED_LATER.get(where.split('.')[0], MISSING))
+def _absent_value(dotted: str):
+    """Return what a file without key ``dotted`` means, or MISSING if it must have it."""
+    meaning = SCHEMA[dotted].absent
+    if meaning is REQUIRED:
+        return MISSING
     if meaning is not SHIPPED:
         return meaning
     data = _shipped_data()
-    for part in dotted.split('.'):
-        data = data[part]
+    for part_name in dotted.split('.'):
+        data = data[part_name]
     return data
-
-
-def _with_absent(section: dict, where: str, keys) -> dict:
-    """Return ``section`` with each of ``keys`` it lacks filled in as :data:`ADDED_LATER` says."""
-    filled = dict(section)
-    for key in keys:
-        if key not in filled:
-            value = _absent_value(where, key)
-            if value is not MISSING:
-                filled[key] = value
-    return filled
 
 
 def shipped_config() -> GripperConfig:
@@ -428,158 +707,6 @@ def shipped_config() -> GripperConfig:
 @functools.cache
 def _shipped_config() -> GripperConfig:
     return load_config(shipped_config_path())
-
-
-MAX_HORIZON = 2000
-"""Most samples of a DMC step-response model: its matrices, their build when a parameter
-changes and its work every tick grow with it (the shipped horizons are 700 and 100)."""
-
-BOUNDS: dict[str, tuple[float, float]] = {
-    # key (dotted, or the leaf name of every key so named): [low, high], both allowed; the
-    # key's own rule (> 0, >= 0, a whole number) and the cross-field checks apply as well (the
-    # keys with a range of their own, such as closed_loop_pole in [0, 1), are checked there)
-    'plant.inertia_kg_m2': (1e-7, 1.0),
-    'plant.damping_n_m_s_per_rad': (1e-7, 10.0),
-    'plant.gear_ratio': (0.01, 1000.0),
-    'plant.resistance_ohm': (1e-3, 1000.0),
-    'plant.inductance_h': (1e-7, 1.0),
-    'plant.pitch_m': (1e-4, 0.1),
-    'plant.torque_constant_n_m_per_a': (1e-4, 10.0),
-    'plant.back_emf_v_s_per_rad': (1e-4, 10.0),
-    'plant.efficiency': (0.0, 1.0),
-    'plant.max_travel_m': (1e-3, 1.0),
-    'plant.gravity_mps2': (0.1, 100.0),
-    'plant.voltage_limit_v': (0.1, 1000.0),
-    'plant.contact_substep_s': (1e-7, 1e-3),
-    'contact.stiffness_n_per_m': (0.0, 1e10),
-    'contact.damping_n_s_per_m': (0.0, 1e7),
-    'contact.static_friction': (0.0, 2.0),
-    'contact.kinetic_friction': (0.0, 2.0),
-    'contact.pad_length_m': (1e-4, 1.0),
-    'contact.after_lift_s': (0.0, 60.0),
-    'contact.pad_tangential_stiffness_n_per_m': (0.0, 1e10),
-    'contact.lift_off_s': (0.0, 10.0),
-    'contact.finger_stiffness_n_per_m': (0.0, 1e10),
-    'contact.pad_normal_stiffness_n_per_m1_5': (0.0, 1e12),
-    'force_sensor.supply_v': (0.1, 100.0),
-    'force_sensor.measuring_resistor_ohm': (1.0, 1e12),
-    'force_sensor.fsr_resistance_at_1n_ohm': (1.0, 1e12),
-    'force_sensor.open_resistance_ohm': (1.0, 1e12),
-    'force_sensor.activation_force_n': (1e-6, 100.0),
-    'position_control.sample_time_s': (1e-3, 0.1),
-    'position_control.mpc_pd_braking_voltage_v': (0.0, 1000.0),
-    'force_control.paper_sample_time_s': (5e-5, 0.01),
-    'force_control.sample_time_s': (5e-5, 0.01),
-    'kc': (0.0, 1e6),
-    'ki': (0.0, 1e6),
-    'kd': (0.0, 1e6),
-    'horizon': (1, MAX_HORIZON),
-    'control_horizon': (1, MAX_HORIZON),
-    'move_suppression': (1e-6, 1e6),
-    'force_control.contact_aware.design_stiffness_n_per_m': (1.0, 1e10),
-    'force_control.contact_aware.design_damping_ratio': (1e-3, 10.0),
-    'force_control.contact_aware.band_design_stiffness_n_per_m': (1.0, 1e10),
-    'force_control.contact_aware.braking_deceleration_mps2': (1e-4, 10.0),
-    'force_control.contact_aware.contact_force_n': (1e-9, 10.0),
-    'force_control.contact_aware.untouched_overtravel_m': (1e-9, 0.01),
-    'force_control.contact_aware.force_gain_v_per_n': (0.0, 1000.0),
-    'force_control.contact_aware.damping_ratio': (1e-3, 10.0),
-    'force_control.contact_aware.servo_sample_gain': (1e-3, 1.0),
-    'force_control.contact_aware.setpoint_rate_time_constant_s': (0.0, 1.0),
-    'force_control.contact_aware.max_damping_v_s_per_m': (1.0, 1e9),
-    'force_control.contact_aware.integral_gain_v_per_n_s': (0.0, 1000.0),
-    'force_control.contact_aware.integral_speed_band_mps': (1e-7, 1.0),
-    'force_control.contact_aware.integral_rate_fraction': (1e-3, 1.0),
-    'supervisor.friction_coefficient': (0.01, 2.0),
-    'supervisor.acceleration_mps2': (0.0, 100.0),
-    'supervisor.position_tolerance_fraction': (1e-6, 0.5),
-    'supervisor.sensor_voltage_threshold_v': (1e-6, 100.0),
-    'supervisor.force_settle_band_fraction': (1e-6, 0.5),
-    'supervisor.force_settle_hold_s': (1e-6, 10.0),
-    'supervisor.timeout_s': (0.01, 3600.0),
-    'supervisor.no_object_margin_m': (1e-6, 0.1),
-    'supervisor.hold_watch_s': (0.0, 10.0),
-    'supervisor.lost_force_hold_s': (1e-6, 10.0),
-    'supervisor.release_tolerance_m': (1e-6, 0.1),
-    'supervisor.release_settle_s': (0.0, 10.0),
-    'supervisor.position_switch_speed_mps': (0.0, 1.0),
-    'supervisor.width_tolerance_m': (0.0, 0.1),
-    'supervisor.force_settle_horizon_s': (0.0, 100.0),
-    'supervisor.force_settle_speed_mps': (0.0, 1.0),
-    'supervisor.grip_safety_factor': (0.0, 10.0),
-    'supervisor.move_default_speed_mps': (1e-6, 10.0),
-    'supervisor.move_tolerance_m': (1e-6, 0.1),
-    'supervisor.move_rest_speed_mps': (1e-6, 1.0),
-    'supervisor.move_stall_timeout_s': (1e-3, 60.0),
-    'supervisor.servo_lead_s': (0.0, 10.0),
-    'supervisor.servo_rate_window_s': (1e-3, 1.0),
-    'sensor_noise.position_noise_m': (0.0, 0.01),
-    'sensor_noise.position_quantum_m': (0.0, 0.01),
-    'sensor_noise.force_noise_n': (0.0, 100.0),
-    'sensor_noise.force_quantum_n': (0.0, 100.0),
-    'sensor_noise.seed': (0, 2 ** 63 - 1),
-    'pad_sensor.shear_resolution_n': (0.0, 10.0),
-    'pad_sensor.shear_noise_n': (0.0, 10.0),
-    'pad_sensor.shear_bandwidth_hz': (0.0, 1e6),
-    'pad_sensor.shear_latency_s': (0.0, 1.0),
-    'pad_sensor.displacement_resolution_m': (0.0, 0.01),
-    'pad_sensor.displacement_noise_m': (0.0, 0.01),
-    'pad_sensor.displacement_bandwidth_hz': (0.0, 1e6),
-    'pad_sensor.displacement_latency_s': (0.0, 1.0),
-    'load_grip.grip_margin': (1.0, 10.0),
-    'load_grip.mu_start': (0.01, 2.0),
-    'load_grip.mu_safety': (1e-3, 1.0),
-    'load_grip.touch_force_n': (1e-3, 100.0),
-    'load_grip.slip_speed_mps': (1e-6, 1.0),
-    'load_grip.slip_window_s': (1e-4, 1.0),
-    'load_grip.slip_rest_s': (0.0, 1.0),
-    'load_grip.min_samples': (1, 100000),
-    'load_grip.release_rate_n_per_s': (1e-3, 1e6),
-    'load_grip.overload_slip_s': (1e-4, 10.0),
-    'geometry.finger_thickness_m': (1e-4, 1.0),
-    'geometry.finger_width_m': (1e-4, 1.0),
-    'geometry.finger_length_m': (1e-4, 1.0),
-    'geometry.base_height_m': (1e-4, 1.0),
-    'geometry.base_width_m': (1e-4, 1.0),
-    'geometry.base_mass_kg': (1e-4, 100.0),
-    'geometry.finger_mass_kg': (1e-4, 100.0),
-}
-"""Physically sensible bounds of every number in the config (``config/gripper.yaml`` lists
-them at its end; ``test_config`` ties that list to this table)."""
-
-
-def bounds_of(name: str) -> tuple[float, float] | None:
-    """Return the [low, high] of dotted key ``name`` (by its full name, else its leaf)."""
-    return BOUNDS.get(name) or BOUNDS.get(name.rsplit('.', 1)[-1])
-
-
-def bounds_text() -> str:
-    """Return the bounds as the comment block at the end of ``config/gripper.yaml``."""
-    lines = ['# Bounds (gripper_ros/core/config.py BOUNDS): every value must lie in [low, high];',
-             "# a key's own rule (> 0, a whole number) and the cross-field checks apply too."]
-    lines += [f'#   {key}: [{low:g}, {high:g}]' for key, (low, high) in BOUNDS.items()]
-    return '\n'.join(lines) + '\n'
-
-
-def known_keys() -> dict:
-    """Every key a config file may hold, as nested sections (a leaf is None)."""
-    def leaves(cls, extra=frozenset()):
-        return dict.fromkeys([f.name for f in fields(cls)] + sorted(extra))
-    gains, dmc = leaves(PidGains), leaves(DmcTuning)
-    return {
-        'plant': leaves(PlantParams), 'contact': leaves(ContactParams),
-        'force_sensor': leaves(ForceSensorParams),
-        'position_control': {'sample_time_s': None, 'pd': gains, 'pid': gains,
-                             'mpc_pd': {**gains, **dmc}, 'mpc_pd_braking_voltage_v': None,
-                             'speed_limit_pole': None},
-        'force_control': {'paper_sample_time_s': None, 'pi_paper': gains,
-                          'mpc_pi_paper': {**gains, **dmc}, 'sample_time_s': None,
-                          'closed_loop_pole': None, 'mpc_pi': dmc,
-                          'contact_aware': leaves(ContactForceTuning)},
-        'supervisor': leaves(SupervisorParams),
-        'sensor_noise': leaves(SensorNoiseParams), 'pad_sensor': leaves(PadSensorParams),
-        'load_grip': leaves(LoadGripParams), 'geometry': leaves(GeometryParams),
-    }
 
 
 def flatten(data: dict, prefix: str = '') -> dict[str, object]:
@@ -615,12 +742,10 @@ def _section(data: dict, key: str, where: str) -> dict:
     return value
 
 
-def _number(section: dict, key: str, where: str, *, positive: bool = False,
-            nonnegative: bool = False, integer: bool = False) -> float:
-    name = f'{where}.{key}'
-    if key not in section:
+def _number(section: dict, name: str, spec: Key) -> float:
+    if name.rsplit('.', 1)[-1] not in section:
         raise ConfigError(f'missing key "{name}"')
-    value = section[key]
+    value = section[name.rsplit('.', 1)[-1]]
     if isinstance(value, str) and _reads_as_number(value):
         raise ConfigError(f'"{name}" must be a number, got the text {value!r}: YAML reads a '
                           'float only with a dot and a signed exponent (write 1.0e-3, not '
@@ -630,15 +755,14 @@ def _number(section: dict, key: str, where: str, *, positive: bool = False,
     value = float(value)
     if not math.isfinite(value):
         raise ConfigError(f'"{name}" must be finite, got {value!r}')
-    if positive and value <= 0.0:
+    if spec.rule == POSITIVE and value <= 0.0:
         raise ConfigError(f'"{name}" must be > 0, got {value!r}')
-    if nonnegative and value < 0.0:
+    if spec.rule == NONNEGATIVE and value < 0.0:
         raise ConfigError(f'"{name}" must be >= 0, got {value!r}')
-    bounds = bounds_of(name)
-    if bounds is not None and not bounds[0] <= value <= bounds[1]:
-        raise ConfigError(f'"{name}" must be in [{bounds[0]:g}, {bounds[1]:g}], '
-                          f'got {value!r}')
-    if integer:
+    if not spec.holds(value):
+        why = f' {spec.why}' if spec.why else ''
+        raise ConfigError(f'"{name}" must be in {spec.interval()}{why}, got {value!r}')
+    if spec.integer:
         if value != int(value):
             raise ConfigError(f'"{name}" must be a whole number, got {value!r}')
         return int(value)
@@ -653,11 +777,10 @@ def _reads_as_number(text: str) -> bool:
     return True
 
 
-def _choice(section: dict, key: str, where: str, choices: type[enum.Enum]) -> enum.Enum:
-    name = f'{where}.{key}'
-    if key not in section:
+def _choice(section: dict, name: str, choices: type[enum.Enum]) -> enum.Enum:
+    if name.rsplit('.', 1)[-1] not in section:
         raise ConfigError(f'missing key "{name}"')
-    value = section[key]
+    value = section[name.rsplit('.', 1)[-1]]
     known = ', '.join(repr(c.value) for c in choices)
     if not isinstance(value, str):
         raise ConfigError(f'"{name}" must be one of {known}, got {value!r}')
@@ -667,43 +790,32 @@ def _choice(section: dict, key: str, where: str, choices: type[enum.Enum]) -> en
         raise ConfigError(f'"{name}" must be one of {known}, got {value!r}') from None
 
 
-def _build(cls, section: dict, where: str, **rules):
+def _build(cls, section: dict, where: str):
+    """Return dataclass ``cls`` read from the file's ``section`` (at dotted ``where``)."""
+    hints = typing.get_type_hints(cls)
     kwargs = {}
-    section = _with_absent(section, where, [f.name for f in fields(cls)])
     for f in fields(cls):
-        opts = rules.get(f.name, {'positive': True})
-        if f.name not in section and f.default is not MISSING:   # a gain a law does not have
-            kwargs[f.name] = f.default
+        name = f'{where}.{f.name}'
+        if 'part' in f.metadata:
+            at = f.metadata['part'] or f.name
+            kwargs[f.name] = _build(hints[f.name], _section(section, at, where), f'{where}.{at}')
             continue
-        if 'choices' in opts:
-            kwargs[f.name] = _choice(section, f.name, where, opts['choices'])
+        spec = SCHEMA[name]
+        if f.name not in section:
+            absent = _absent_value(name)
+            if absent is not MISSING:
+                section = {**section, f.name: absent}
+        if spec.choices is not None:
+            kwargs[f.name] = _choice(section, name, spec.choices)
         else:
-            kwargs[f.name] = _number(section, f.name, where, **opts)
+            kwargs[f.name] = _number(section, name, spec)
     return cls(**kwargs)
-
-
-def _gains(section: dict, key: str, where: str) -> PidGains:
-    return _build(PidGains, _section(section, key, where), f'{where}.{key}',
-                  kc={'nonnegative': True}, ki={'nonnegative': True}, kd={'nonnegative': True})
-
-
-def _dmc(section: dict, where: str) -> DmcTuning:
-    return _build(DmcTuning, section, where,
-                  horizon={'positive': True, 'integer': True},
-                  control_horizon={'positive': True, 'integer': True},
-                  move_suppression={'positive': True})
-
-
-_CONTACT_RULES = {name: {'nonnegative': True} for name in (
-    'stiffness_n_per_m', 'damping_n_s_per_m', 'after_lift_s', 'pad_tangential_stiffness_n_per_m',
-    'lift_off_s', 'finger_stiffness_n_per_m', 'pad_normal_stiffness_n_per_m1_5')}
 
 
 def object_contact(stiffness_n_per_m: float, damping_n_s_per_m: float) -> ContactParams:
     """Return the contact a file giving only the object's stiffness and damping means."""
     return _build(ContactParams, {'stiffness_n_per_m': stiffness_n_per_m,
-                                  'damping_n_s_per_m': damping_n_s_per_m}, 'contact',
-                  **_CONTACT_RULES)
+                                  'damping_n_s_per_m': damping_n_s_per_m}, 'contact')
 
 
 def parse_config(data: dict, source: str = '<dict>') -> GripperConfig:
@@ -711,107 +823,20 @@ def parse_config(data: dict, source: str = '<dict>') -> GripperConfig:
     if not isinstance(data, dict):
         raise ConfigError(f'{source}: top level must be a mapping')
     _refuse_unknown(data, known_keys())
-    plant = _build(PlantParams, _section(data, 'plant', source), 'plant')
-    contact = _build(ContactParams, _section(data, 'contact', source), 'contact',
-                     **_CONTACT_RULES)
-    if contact.kinetic_friction > contact.static_friction:
-        raise ConfigError('"contact.kinetic_friction" must be <= "contact.static_friction" '
-                          f'({contact.static_friction!r}), got {contact.kinetic_friction!r}')
-    sensor = _build(ForceSensorParams, _section(data, 'force_sensor', source), 'force_sensor')
-    pos = _with_absent(_section(data, 'position_control', source), 'position_control',
-                       ('speed_limit_pole',))
-    mpc_pd = _section(pos, 'mpc_pd', 'position_control')
-    position = PositionControlParams(
-        sample_time_s=_number(pos, 'sample_time_s', 'position_control', positive=True),
-        pd=_gains(pos, 'pd', 'position_control'),
-        pid=_gains(pos, 'pid', 'position_control'),
-        mpc_pd=_gains(pos, 'mpc_pd', 'position_control'),
-        mpc_pd_dmc=_dmc(mpc_pd, 'position_control.mpc_pd'),
-        mpc_pd_braking_voltage_v=_number(pos, 'mpc_pd_braking_voltage_v', 'position_control',
-                                         nonnegative=True),
-        speed_limit_pole=_number(pos, 'speed_limit_pole', 'position_control', nonnegative=True))
-    frc = _section(data, 'force_control', source)
-    force = ForceControlParams(
-        paper_sample_time_s=_number(frc, 'paper_sample_time_s', 'force_control', positive=True),
-        pi_paper=_gains(frc, 'pi_paper', 'force_control'),
-        mpc_pi_paper=_gains(frc, 'mpc_pi_paper', 'force_control'),
-        mpc_pi_paper_dmc=_dmc(_section(frc, 'mpc_pi_paper', 'force_control'),
-                              'force_control.mpc_pi_paper'),
-        sample_time_s=_number(frc, 'sample_time_s', 'force_control', positive=True),
-        closed_loop_pole=_number(frc, 'closed_loop_pole', 'force_control', nonnegative=True),
-        mpc_pi_dmc=_dmc(_section(frc, 'mpc_pi', 'force_control'), 'force_control.mpc_pi'),
-        contact_aware=_build(ContactForceTuning, _section(frc, 'contact_aware', 'force_control'),
-                             'force_control.contact_aware',
-                             force_gain_v_per_n={'nonnegative': True},
-                             integral_gain_v_per_n_s={'nonnegative': True},
-                             setpoint_rate_time_constant_s={'nonnegative': True}))
-    if not force.contact_aware.impact_force_fraction < 1.0:
-        raise ConfigError('"force_control.contact_aware.impact_force_fraction" must be in (0, 1), '
-                          f'got {force.contact_aware.impact_force_fraction!r}')
-    if not force.closed_loop_pole < 1.0:
-        raise ConfigError('"force_control.closed_loop_pole" must be in [0, 1) for a stable loop, '
-                          f'got {force.closed_loop_pole!r}')
-    speed_pole = math.exp(-position.sample_time_s / plant.mechanical_time_constant_s)
-    if not position.speed_limit_pole < speed_pole:
-        raise ConfigError('"position_control.speed_limit_pole" must be in [0, '
-                          f'{speed_pole:.6g}) (the open-loop pole of the finger speed over one '
-                          f'sample; slower than that never reaches the limit), '
-                          f'got {position.speed_limit_pole!r}')
-    for where, dmc in (('position_control.mpc_pd', position.mpc_pd_dmc),
-                       ('force_control.mpc_pi_paper', force.mpc_pi_paper_dmc),
-                       ('force_control.mpc_pi', force.mpc_pi_dmc)):
-        if dmc.control_horizon > dmc.horizon:
-            raise ConfigError(f'"{where}.control_horizon" must be <= "{where}.horizon" '
-                              f'({dmc.horizon}), got {dmc.control_horizon}')
-    if position.mpc_pd_braking_voltage_v > plant.voltage_limit_v:
-        raise ConfigError('"position_control.mpc_pd_braking_voltage_v" must be <= '
-                          f'"plant.voltage_limit_v", got {position.mpc_pd_braking_voltage_v!r}')
-    sup = _build(SupervisorParams, _section(data, 'supervisor', source), 'supervisor',
-                 acceleration_mps2={'nonnegative': True}, hold_watch_s={'nonnegative': True},
-                 release_settle_s={'nonnegative': True},
-                 position_switch_speed_mps={'nonnegative': True},
-                 width_tolerance_m={'nonnegative': True},
-                 force_settle_horizon_s={'nonnegative': True},
-                 force_settle_speed_mps={'nonnegative': True},
-                 force_law={'choices': ForceLaw})
-    if not sup.grip_safety_factor >= 1.0:
-        raise ConfigError('"supervisor.grip_safety_factor" must be >= 1 (a grip that knowingly '
-                          f'holds less than the load), got {sup.grip_safety_factor!r}')
-    if not sup.lost_force_fraction < 1.0:
-        raise ConfigError('"supervisor.lost_force_fraction" must be in (0, 1), '
-                          f'got {sup.lost_force_fraction!r}')
-    if not sup.move_stall_force_fraction <= 1.0:
-        raise ConfigError('"supervisor.move_stall_force_fraction" must be in (0, 1] (a force '
-                          'above the effort limit is never reached), '
-                          f'got {sup.move_stall_force_fraction!r}')
-    sup = replace(sup, move_default_speed_mps=move_default_speed_mps(sup, plant))
-    if not sup.move_rest_speed_mps < sup.move_default_speed_mps:
-        raise ConfigError('"supervisor.move_default_speed_mps" must be above '
-                          f'"supervisor.move_rest_speed_mps" = {sup.move_rest_speed_mps!r} '
-                          f'(and so must the free speed at "plant.voltage_limit_v", '
-                          f'{plant.max_free_speed_mps:.6g} m/s), got '
-                          f'{sup.move_default_speed_mps!r}')
-    noise_rules = {f.name: {'nonnegative': True} for f in fields(SensorNoiseParams)}
-    noise_rules['seed'] = {'nonnegative': True, 'integer': True}
-    noise = _build(SensorNoiseParams, _section(data, 'sensor_noise', source)
-                   if 'sensor_noise' in data else {}, 'sensor_noise', **noise_rules)
-    if noise.seed >= 2 ** 63:
-        raise ConfigError(f'"sensor_noise.seed" must be < 2**63, got {noise.seed!r}')
-    pads = _build(PadSensorParams, _section(data, 'pad_sensor', source)
-                  if 'pad_sensor' in data else {}, 'pad_sensor',
-                  **{f.name: {'nonnegative': True} for f in fields(PadSensorParams)})
-    grip = _build(LoadGripParams, _section(data, 'load_grip', source)
-                  if 'load_grip' in data else {}, 'load_grip',
-                  min_samples={'positive': True, 'integer': True})
-    if not 1.0 <= grip.grip_margin:
-        raise ConfigError('"load_grip.grip_margin" must be >= 1 (a grip that knowingly holds '
-                          f'less than the load), got {grip.grip_margin!r}')
-    if not grip.mu_safety <= 1.0:
-        raise ConfigError(f'"load_grip.mu_safety" must be in (0, 1], got {grip.mu_safety!r}')
-    geometry = _build(GeometryParams, _section(data, 'geometry', source)
-                      if 'geometry' in data else {}, 'geometry')
-    return GripperConfig(plant, contact, sensor, position, force, sup, noise, pads, grip,
-                         geometry, source, copy.deepcopy(data))
+    hints = typing.get_type_hints(GripperConfig)
+    parts = {}
+    for f in fields(GripperConfig):
+        if 'part' in f.metadata:
+            at = f.metadata['part'] or f.name
+            section = {} if at not in data and _optional(at) else _section(data, at, source)
+            parts[f.name] = _build(hints[f.name], section, at)
+    config = GripperConfig(**parts, source=source, data=copy.deepcopy(data))
+    config = replace(config, supervisor=replace(
+        config.supervisor,
+        move_default_speed_mps=move_default_speed_mps(config.supervisor, config.plant)))
+    for check in CROSS_CHECKS:
+        check(config)
+    return config
 
 
 def move_default_speed_mps(sup: SupervisorParams, plant: PlantParams) -> float:
@@ -852,3 +877,20 @@ def load_config(path: str | os.PathLike | None = None) -> GripperConfig:
         raise ConfigError(f'config file {file_path} is nested too deeply to be a gripper '
                           'config') from None
     return parse_config(data, str(file_path))
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Write the bounds block at the end of each config file: ``--write-bounds FILE...``."""
+    args = sys.argv[1:] if argv is None else argv
+    if len(args) < 2 or args[0] != '--write-bounds':
+        print('usage: python3 -m gripper_ros.core.config --write-bounds FILE...', file=sys.stderr)
+        return 2
+    for name in args[1:]:
+        path = Path(name)
+        path.write_text(with_bounds_text(path.read_text(encoding='utf-8')), encoding='utf-8')
+        print(f'bounds: {path}')
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -7,7 +7,9 @@ file (``config_file``, default the installed ``config/gripper.yaml``) as its def
 ``node: ros__parameters:`` YAML, nested or dotted) work as for any ROS node. A node's own
 sections are writable; the sections or keys it only reads (the plant model a controller
 predicts with) are read-only there. A key another node also uses is writable nowhere
-(``START_UP_ONLY``): a change on one node would not reach the others. Every value, at start-up
+(``START_UP_ONLY``): a change on one node would not reach the others. Each key's description,
+range, type and run-time-ness come from its declaration in the config schema
+(:data:`gripper_ros.core.config.SCHEMA`). Every value, at start-up
 and at run time, goes through the one config reader
 (:func:`gripper_ros.core.config.parse_config`), with its bounds and cross-field checks, and
 then through the node's own ``check`` (a controller builds the stage it would use): a bad one is
@@ -18,24 +20,37 @@ from __future__ import annotations
 import copy
 from typing import Callable
 
-from gripper_ros.core.config import flatten, GripperConfig, load_config, parse_config
+from gripper_ros.core.config import flatten, GripperConfig, load_config, parse_config, SCHEMA
 from gripper_ros.nodes.startup import StartupError
 from gripper_ros.text import one_line
 from gripper_ros.wire import FINGER_JOINT, NAME_CHARACTERS, namespace_prefix
-from rcl_interfaces.msg import ParameterDescriptor, ParameterType, SetParametersResult
+from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescriptor,
+                                ParameterType, SetParametersResult)
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
-START_UP_ONLY = {
-    'force_control.sample_time_s':
-        'fixed at start-up: plant_simulator samples the pads and the supervisor sizes the '
-        "load-tracking grip's windows at this period too; set it for all three nodes with "
-        '--params-file or config_file',
-}
-"""Keys of a node's writable section that are read-only all the same, and why."""
+START_UP_ONLY = frozenset(dotted for dotted, spec in SCHEMA.items() if not spec.runtime)
+"""Keys read-only even in their owner's writable section (their description says why)."""
 
-INTEGER_KEYS = frozenset({'horizon', 'control_horizon'})
-"""Leaf keys whose values are whole numbers (the DMC horizons); every other number is a double."""
+INTEGER_KEYS = frozenset(dotted for dotted, spec in SCHEMA.items() if spec.integer)
+"""Keys whose values are whole numbers (INTEGER parameters); every other number is a double."""
+
+
+def config_descriptor(dotted: str, read_only: bool) -> ParameterDescriptor:
+    """Return the descriptor of config key ``dotted``: its description and range, as declared.
+
+    A range is closed in ROS; an end the key refuses (> 0, ``open_high``) the config reader
+    refuses after it.
+    """
+    spec = SCHEMA[dotted]
+    descriptor = ParameterDescriptor(description=spec.description, read_only=read_only)
+    if spec.bounds is not None and spec.integer:
+        descriptor.integer_range = [IntegerRange(from_value=int(spec.bounds[0]),
+                                                 to_value=int(spec.bounds[1]), step=0)]
+    elif spec.bounds is not None:
+        descriptor.floating_point_range = [FloatingPointRange(
+            from_value=float(spec.bounds[0]), to_value=float(spec.bounds[1]), step=0.0)]
+    return descriptor
 
 
 def declare_controller(node: Node, kind_cls, default, description: str = ''):
@@ -55,7 +70,7 @@ def _as_parameter_value(dotted: str, value):
     if isinstance(value, (bool, str)):
         return value
     if isinstance(value, (int, float)):
-        return int(value) if dotted.rsplit('.', 1)[-1] in INTEGER_KEYS else float(value)
+        return int(value) if dotted in INTEGER_KEYS else float(value)
     return value
 
 
@@ -67,7 +82,7 @@ def accept_whole_numbers(node: Node) -> None:
     """Take a whole number for a double parameter, as users type it: ``kc 900`` is ``900.0``.
 
     ``ros2 param set`` and ``-p name:=900`` send an INTEGER, which rclpy refuses for a DOUBLE.
-    A start-up override is converted before the node declares it (only the horizons of
+    A start-up override is converted before the node declares it (only the keys of
     ``INTEGER_KEYS`` are integers); a set at run time is converted when the parameter is a
     declared double. Ranges and the config reader then check the value as for ``900.0``.
     Call it first thing in a node's constructor; a second call does nothing.
@@ -77,8 +92,7 @@ def accept_whole_numbers(node: Node) -> None:
     node._accepts_whole_numbers = True
     overrides = node._parameter_overrides          # rclpy reads these at declare_parameter
     for name, parameter in list(overrides.items()):
-        if parameter.type_ is Parameter.Type.INTEGER and \
-                name.rsplit('.', 1)[-1] not in INTEGER_KEYS:
+        if parameter.type_ is Parameter.Type.INTEGER and name not in INTEGER_KEYS:
             overrides[name] = _whole_number_as_double(parameter)
 
     def as_declared(parameters: list[Parameter]) -> list[Parameter]:
@@ -131,10 +145,8 @@ class ConfigParameters:
                 flatten(self.data[section], section + '.')
             for dotted, value in values.items():
                 fixed = entry in read_only or dotted in START_UP_ONLY
-                declared = node.declare_parameter(
-                    dotted, _as_parameter_value(dotted, value), ParameterDescriptor(
-                        description=START_UP_ONLY.get(dotted, f'{section} (config/gripper.yaml)'),
-                        read_only=fixed)).value
+                declared = node.declare_parameter(dotted, _as_parameter_value(dotted, value),
+                                                  config_descriptor(dotted, fixed)).value
                 _set(self.data, dotted, declared)
                 self.keys.add(dotted)
         self.config = parse_config(self.data, self.source)   # start-up overrides, validated

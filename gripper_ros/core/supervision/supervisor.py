@@ -48,7 +48,7 @@ from __future__ import annotations
 
 import math
 
-from gripper_ros.core.config import (GripperConfig, PlantParams, shipped_config,
+from gripper_ros.core.config import (GripperConfig, numbers_of, PlantParams, shipped_config,
                                      SupervisorParams)
 from gripper_ros.core.control.load_grip import (HISTORY_ROWS, law_step, make_law, MU_GRID,
                                                 plan_announce, PLAN_DTYPE, PLAN_ROWS)
@@ -116,15 +116,9 @@ SUPERVISOR_STATE = np.dtype(
     align=True)
 """Everything the state machine remembers between ticks, and the decision of the last one."""
 
-_PARAM_FIELDS = ('position_tolerance_fraction', 'position_switch_speed_mps',
-                 'sensor_voltage_threshold_v', 'force_settle_band_fraction',
-                 'force_settle_hold_s', 'force_settle_horizon_s', 'force_settle_speed_mps',
-                 'timeout_s', 'no_object_margin_m', 'hold_watch_s', 'lost_force_fraction',
-                 'lost_force_hold_s', 'release_tolerance_m', 'release_settle_s',
-                 'move_rest_speed_mps', 'move_stall_force_fraction', 'move_stall_timeout_s',
-                 'servo_lead_s', 'servo_rate_window_s')
+_PARAM_FIELDS = numbers_of(SupervisorParams)
 SUPERVISOR_PARAMS = np.dtype([(name, 'f8') for name in _PARAM_FIELDS], align=True)
-"""The :class:`SupervisorParams` the tick reads."""
+"""The numbers of :class:`SupervisorParams`, which the tick reads."""
 
 # Messages: a code (``msg_code``) and the numbers the text needs (a SUPERVISOR_MESSAGE record),
 # written by the kernel at the instant the outcome happens and formatted by
