@@ -231,6 +231,14 @@ def test_optional_gains_default_to_zero(tmp_path, shipped_data):
     assert load_config(write(tmp_path, data)).position.pd == PidGains(kc=968.0, ki=0.0, kd=0.0)
 
 
+def test_a_servo_lead_of_zero_is_read_as_no_lead(tmp_path, shipped_data):
+    """The file says ``0 = none`` for supervisor.servo_lead_s: the reader takes 0."""
+    data = set_key(shipped_data, 'supervisor.servo_lead_s', 0.0)
+    assert load_config(write(tmp_path, data)).supervisor.servo_lead_s == 0.0
+    with pytest.raises(ConfigError, match='servo_lead_s'):
+        load_config(write(tmp_path, set_key(shipped_data, 'supervisor.servo_lead_s', -0.1)))
+
+
 # ------------------------------------------------------------------ every key of the shipped file
 def _leaves(data, prefix=''):
     """Dotted paths of every numeric leaf of the YAML mapping."""

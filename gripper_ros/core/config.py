@@ -547,8 +547,9 @@ class SupervisorParams:
                                                'reached)')
     move_stall_timeout_s: float = key('stalled: at rest short of the width this long',
                                       bounds=(1e-3, 60.0), absent=SHIPPED)
-    servo_lead_s: float = key('a streamed reference leads the newest setpoint by rate x this',
-                              bounds=(0.0, 10.0), absent=SHIPPED)
+    servo_lead_s: float = key('a streamed reference leads the newest setpoint by rate x this '
+                              '(0: no lead)', bounds=(0.0, 10.0), rule=NONNEGATIVE,
+                              absent=SHIPPED)
     servo_rate_window_s: float = key("a stream's rate over at least this; changing: within it",
                                      bounds=(1e-3, 1.0), absent=SHIPPED)
 

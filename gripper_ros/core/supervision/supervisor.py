@@ -13,8 +13,8 @@ controller is active at any tick; the decision for each tick is a :class:`Decisi
 Loss watch: once the force has reached ``lost_force_fraction`` of its setpoint after contact, a
 force below that fraction for ``lost_force_hold_s``, or (after settling) the finger moving on
 past the held position by more than ``no_object_margin_m``, ends the grasp as OBJECT_LOST.
-After settling, the force loop keeps holding and watching for ``hold_watch_s`` (phase HOLDING,
-force controller still active) before the grasp ends with outcome HOLDING.
+After settling, the force loop keeps holding and watching for the configured hold watch (phase
+HOLDING, force controller still active) before the grasp ends with outcome HOLDING.
 
 Release: :meth:`GraspSupervisor.request_release` runs the position stage to the open position
 (phase RELEASING) until the finger has stayed within ``release_tolerance_m`` of it for
