@@ -40,7 +40,7 @@ instant lift-off, in which the whole weight lands on the pads at once:
 
 :meth:`HoldModel.advance` integrates one interval over which ``F`` and ``a`` are constant, in
 closed form (constant relative acceleration), and finds the exact instants of slide -> stick and
-of the loss inside it. The caller (:class:`gripper_ros.core.physics.plant.GripperPlant`) splits its
+of the loss inside it. The plant (:mod:`gripper_ros.core.physics.integration`) splits its
 steps at the lift's start and end (:attr:`HoldModel.next_event_ns`) and at the loss.
 
 The model is a set of compiled kernels (``hold_*``) over one :data:`HOLD_DTYPE` record (or, from
