@@ -24,6 +24,7 @@ other modules use (``__all__``) are importable from here.
 """
 from __future__ import annotations
 
+from dataclasses import fields
 import math
 
 from gripper_ros.core.config import (ChannelSpec, ContactParams, object_contact, PadSensorParams,
@@ -52,7 +53,7 @@ from gripper_ros.core.physics.plant_records import (K_FIRED, K_HOLD, K_PADS, K_P
 from gripper_ros.core.physics.readout import (_object_state, OBJECT_STATE_DTYPE,
                                               plant_hold_record, plant_read_tick, plant_sample,
                                               PlantSample)
-from gripper_ros.core.records import RecordField
+from gripper_ros.core.records import copy_fields, RecordField
 from gripper_ros.wire import FaultKind, TICK_LAYOUT
 import numba
 import numpy as np
@@ -68,18 +69,24 @@ _new_tuple = tuple.__new__
 
 
 # ----------------------------------------------------------------------------- placing
+@numba.njit(cache=True, inline='always')
+def _motor_off(s):
+    """Zero the motor's current, speed and voltage, and the step's peak force."""
+    s.i = 0.0
+    s.w = 0.0
+    s.voltage = 0.0
+    s.peak = 0.0
+
+
 @numba.njit(cache=True)
 def _reset(k, open_fingers):
     """Motor at rest; optionally the finger back at the fully-open stop."""
     s = k[K_STATE][0]
     p = k[K_PARAMS][0]
-    s.i = 0.0
-    s.w = 0.0
+    _motor_off(s)
     if open_fingers:
         s.x = 0.0
-    s.voltage = 0.0
     s.contact = CONTACT_OPEN_STOP if s.x <= 0.0 else CONTACT_FREE
-    s.peak = 0.0
     s.impact_energy_lost_j = 0.0
     refresh_contact_state(s, p)
 
@@ -88,11 +95,8 @@ def _reset(k, open_fingers):
 def _touch_object(k):
     """Put the finger at rest just touching the object, motor off."""
     s = k[K_STATE][0]
-    s.i = 0.0
-    s.w = 0.0
+    _motor_off(s)
     s.x = s.x_c
-    s.voltage = 0.0
-    s.peak = 0.0
     s.contact = CONTACT_RIGID if s.stiffness_n_per_m == 0.0 and not \
         k[K_PARAMS][0].chain else CONTACT_COMPLIANT
     chain_untouched(s)
@@ -275,8 +279,7 @@ class GripperPlant:
             record, buffer = make_channel(spec, self._pad_dt_s,
                                           (self._pad_seed * PAD_CHANNELS + i) % 2 ** 64)
             pad = self.kernel[K_PADS][i]
-            for name in CHANNEL_DTYPE.names:
-                pad[name] = record[0][name]
+            copy_fields(pad, record[0], CHANNEL_DTYPE.names)
             pad['line'] = buffer
         self._s['pads_resting'] = 0
 
@@ -303,10 +306,7 @@ class GripperPlant:
     def object(self) -> GraspObject:  # noqa: A003 - the public attribute name
         """What lies between the fingers now (a slipping object's width shrinks)."""
         s = self._s
-        return GraspObject(float(s['width_m']), float(s['stiffness_n_per_m']),
-                           float(s['damping_n_s_per_m']), float(s['mass_kg']),
-                           float(s['static_friction']), float(s['kinetic_friction']),
-                           float(s['pad_length_m']))
+        return GraspObject(**{f.name: float(s[f.name]) for f in fields(GraspObject)})
 
     # ----------------------------------------------------------------- holding a lifted object
     def begin_hold(self, t_ns: int, grasp_mass_kg: float = 0.0) -> None:

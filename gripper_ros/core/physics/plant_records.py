@@ -90,16 +90,13 @@ def plant_params_record(params: PlantParams, contact: ContactParams) -> np.ndarr
     p = params
     rec = np.zeros(1, PARAMS_DTYPE)
     r = rec[0]
-    r['rho'] = p.travel_per_rad_m
-    r['lever'] = p.force_lever_m
-    r['tau_e'] = p.inductance_h / p.resistance_ohm
-    r['kt'] = p.torque_constant_n_m_per_a
-    r['kb'] = p.back_emf_v_s_per_rad
+    copy_fields(r, p, {'rho': 'travel_per_rad_m', 'lever': 'force_lever_m',
+                       'kt': 'torque_constant_n_m_per_a', 'kb': 'back_emf_v_s_per_rad',
+                       'h': 'contact_substep_s', 'limit_v': 'voltage_limit_v'})
     copy_fields(r, p, ('resistance_ohm', 'inductance_h', 'inertia_kg_m2', 'damping_n_m_s_per_rad',
                        'max_travel_m'))
-    r['h'] = p.contact_substep_s
+    r['tau_e'] = p.inductance_h / p.resistance_ohm
     r['h_ns'] = max(1, round(p.contact_substep_s * 1e9))
-    r['limit_v'] = p.voltage_limit_v
     # Free-reach bound (integration._free_step_is_safe): |omega'| <= (k_t I + b W) / J.
     r['reach_feedback'] = (p.torque_constant_n_m_per_a * p.back_emf_v_s_per_rad
                            / p.resistance_ohm + p.damping_n_m_s_per_rad)
@@ -107,6 +104,6 @@ def plant_params_record(params: PlantParams, contact: ContactParams) -> np.ndarr
     r['two'] = 2.0
     finger_k = contact.finger_stiffness_n_per_m
     r['finger_compliance_m_per_n'] = PADS_IN_CHAIN / finger_k if finger_k > 0.0 else 0.0
-    r['pad_stiffness_n_per_m1_5'] = contact.pad_normal_stiffness_n_per_m1_5
+    copy_fields(r, contact, {'pad_stiffness_n_per_m1_5': 'pad_normal_stiffness_n_per_m1_5'})
     r['chain'] = 1 if finger_k > 0.0 or contact.pad_normal_stiffness_n_per_m1_5 > 0.0 else 0
     return rec

@@ -18,6 +18,7 @@ from gripper_ros.core.physics.hold import (hold_capacity_n, hold_load_n, hold_pr
 from gripper_ros.core.physics.pad_sensing import (PAD_DISPLACEMENT_1, PAD_DISPLACEMENT_2,
                                                   PAD_SHEAR_1, PAD_SHEAR_2)
 from gripper_ros.core.physics.plant_records import K_HOLD, K_PADS, K_PARAMS, K_SENSOR, K_STATE
+from gripper_ros.core.records import copy_fields
 import numba
 import numpy as np
 
@@ -122,11 +123,9 @@ def _object_state(k, out):
     if h.state == HoldState.NONE:
         return
     force = contact_force_n(k[K_STATE][0], k[K_PARAMS][0])
-    o.state = h.state
-    o.slip_speed_mps = h.slip_speed_mps
+    copy_fields(o, h, ('state', 'slip_speed_mps', 'lost_ns'))
     o.load_n = hold_load_n(h)
     o.capacity_n = hold_capacity_n(h, force)
-    o.lost_ns = h.lost_ns
     o.lift_acceleration_mps2 = h.acceleration_mps2
     o.shear_n = hold_shear_n(h, force)
     o.presliding_m = hold_presliding_m(h, force)
