@@ -27,14 +27,15 @@ from gripper_ros.core import linalg
 from gripper_ros.core.control import dmc
 from gripper_ros.core.config import load_config
 
-from gripper_ros.core.physics.plant import _discretise, _raw_constants, DISC_COMPLIANT, DISC_LOADED
+from gripper_ros.core.physics.motor_zoh import (DISC_COMPLIANT, DISC_LOADED, discretise,
+                                                raw_constants)
 import numpy as np
 config = load_config()
-raw = _raw_constants(config.plant)
+raw = raw_constants(config.plant)
 h = hashlib.sha256()
 for dt_s in (1e-5, 1e-4, 1e-2):
-    h.update(_discretise(raw, DISC_LOADED, dt_s, 0.0, 0.0, 0.0).tobytes())
-    h.update(_discretise(raw, DISC_COMPLIANT, dt_s, 1e5, 50.0, 0.02).tobytes())
+    h.update(discretise(raw, DISC_LOADED, dt_s, 0.0, 0.0, 0.0).tobytes())
+    h.update(discretise(raw, DISC_COMPLIANT, dt_s, 1e5, 50.0, 0.02).tobytes())
 step = np.linspace(0.0, 1.0, 40) ** 1.5
 h.update(dmc.dmc_gain(step, 10, 0.3).tobytes())
 rng = np.random.default_rng(7)

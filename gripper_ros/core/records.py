@@ -6,7 +6,7 @@ reads and writes its fields through these descriptors rather than one hand-writt
 
 from __future__ import annotations
 
-from numba import types
+from numba import literal_unroll, types
 from numba.extending import overload
 import numpy as np
 
@@ -98,9 +98,21 @@ class RecordParams:
 
 
 def copy_fields(record, source, names) -> None:
-    """Set each of ``names`` in ``record`` to the attribute of that name of ``source``."""
-    for name in names:
-        record[name] = getattr(source, name)
+    """Set fields of ``record`` from ``source``, an object (its attributes) or a record.
+
+    ``names``: the fields, named alike in both, or a dict {record's field: source's name}.
+    Compiled, ``source`` is a record and ``names`` a constant tuple.
+    """
+    for field, name in names.items() if isinstance(names, dict) else zip(names, names):
+        record[field] = source[name] if isinstance(source, np.void) else getattr(source, name)
+
+
+@overload(copy_fields)
+def _copy_fields(record, source, names):
+    def copy(record, source, names):
+        for name in literal_unroll(names):
+            record[name] = source[name]
+    return copy
 
 
 def as_record(x):

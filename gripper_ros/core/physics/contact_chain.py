@@ -15,8 +15,8 @@ add up to the finger's travel past the object's face, ``u = x - x_c``:
 * the object is rigid (``d_o = 0``) or Kelvin-Voigt, ``F = k_o d_o + c_o d_o'``.
 
 The fingers and pads are massless next to the motor's 546 kg reflected to the finger, so the
-chain is quasi-static: one scalar equation per instant. The plant's kernels
-(:mod:`gripper_ros.core.physics.plant`) solve it each sub-step implicitly (:func:`chain_solve`):
+chain is quasi-static: one scalar equation per instant. The plant's contact kernels
+(:mod:`gripper_ros.core.physics.contact`) solve it each sub-step implicitly (:func:`chain_solve`):
 the object's damper by backward Euler, the motor's response to the force by the trapezoidal rule
 over the exact zero-order-hold model, which leaves one equation in the pad's compression,
 increasing and convex, solved by Newton's method kept inside a shrinking bracket.

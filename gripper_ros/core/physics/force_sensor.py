@@ -19,6 +19,7 @@ from __future__ import annotations
 import math
 
 from gripper_ros.core.config import ForceSensorParams, SensorNoiseParams
+from gripper_ros.core.records import copy_fields
 import numba
 import numpy as np
 
@@ -114,17 +115,11 @@ class FsrVoltageDivider:
         self.noise = noise or SensorNoiseParams.ideal()
         self.record = np.zeros(1, SENSOR_DTYPE)   # what the plant's kernels read and write
         r = self.record[0]
-        r['noisy'] = self.noise.enabled
-        r['position_noise_m'] = self.noise.position_noise_m
-        r['position_quantum_m'] = self.noise.position_quantum_m
-        r['force_noise_n'] = self.noise.force_noise_n
-        r['force_quantum_n'] = self.noise.force_quantum_n
-        r['noise_seed'] = self.noise.seed
-        r['supply_v'] = params.supply_v
-        r['measuring_resistor_ohm'] = params.measuring_resistor_ohm
-        r['fsr_resistance_at_1n_ohm'] = params.fsr_resistance_at_1n_ohm
-        r['open_resistance_ohm'] = params.open_resistance_ohm
-        r['activation_force_n'] = params.activation_force_n
+        copy_fields(r, self.noise, {'noisy': 'enabled', 'noise_seed': 'seed'})
+        copy_fields(r, self.noise, ('position_noise_m', 'position_quantum_m', 'force_noise_n',
+                                    'force_quantum_n'))
+        copy_fields(r, params, ('supply_v', 'measuring_resistor_ohm', 'fsr_resistance_at_1n_ohm',
+                                'open_resistance_ohm', 'activation_force_n'))
 
     @property
     def dropped_out(self) -> bool:

@@ -40,7 +40,7 @@ instant lift-off, in which the whole weight lands on the pads at once:
 
 :meth:`HoldModel.advance` integrates one interval over which ``F`` and ``a`` are constant, in
 closed form (constant relative acceleration), and finds the exact instants of slide -> stick and
-of the loss inside it. The caller (:class:`gripper_ros.core.physics.plant.GripperPlant`) splits its
+of the loss inside it. The plant (:mod:`gripper_ros.core.physics.integration`) splits its
 steps at the lift's start and end (:attr:`HoldModel.next_event_ns`) and at the loss.
 
 The model is a set of compiled kernels (``hold_*``) over one :data:`HOLD_DTYPE` record (or, from
@@ -53,7 +53,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 import math
 
-from gripper_ros.core.records import as_record
+from gripper_ros.core.records import as_record, copy_fields
 from gripper_ros.wire import FORCE_SAMPLE_S, HoldState, LiftProfile
 import numba
 import numpy as np
@@ -556,11 +556,8 @@ class HoldModel:
         r['gravity_mps2'] = gravity_mps2
         if lift is not None:
             r['has_lift'] = 1
-            r['lift_acceleration_mps2'] = lift.acceleration_mps2
-            r['lift_delay_s'] = lift.delay_s
-            r['lift_duration_s'] = lift.duration_s
-            r['lift_profile'] = int(lift.profile)
-            r['lift_frequency_hz'] = lift.frequency_hz
+            copy_fields(r, lift, {f'lift_{name}': name for name in (
+                'acceleration_mps2', 'delay_s', 'duration_s', 'profile', 'frequency_hz')})
         r['state'] = HoldState.RESTING
         for name in ('hold_ns', 'lift_start_ns', 'lift_end_ns', 'lost_ns', 'next_event_ns',
                      'profile_next_ns', 'ramp_next_ns'):

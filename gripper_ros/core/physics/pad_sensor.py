@@ -20,6 +20,7 @@ from __future__ import annotations
 import math
 
 from gripper_ros.core.config import ChannelSpec
+from gripper_ros.core.records import copy_fields
 import numba
 import numpy as np
 
@@ -51,8 +52,7 @@ def make_channel(spec: ChannelSpec, dt_s: float, seed: int) -> tuple[np.ndarray,
                          f'at {dt_s:g} s a sample, got {spec.latency_s!r}')
     rec = np.zeros(1, CHANNEL_DTYPE)
     r = rec[0]
-    r['resolution'] = spec.resolution
-    r['noise'] = spec.noise
+    copy_fields(r, spec, ('resolution', 'noise'))
     r['alpha'] = 1.0 if spec.bandwidth_hz == 0.0 else \
         -math.expm1(-2.0 * math.pi * spec.bandwidth_hz * dt_s)
     r['delay'] = delay

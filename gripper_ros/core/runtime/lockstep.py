@@ -336,9 +336,7 @@ class PlantSide:
         self.plant = plant
         self.state = np.zeros(1, PLANT_SIDE_STATE)
         self._s = self.state[0]
-        self._s['applied_source'] = Controller.NONE
-        for name in ('fault_grasp', 'hold_begun_for'):
-            self._s[name] = NO_NS
+        self._forget_grasps()
         self.tick_record = new_record(TICK_LAYOUT)
         self.command_record = new_record(COMMAND_LAYOUT)
         self.offered = new_record(COMMAND_LAYOUT)
@@ -398,10 +396,14 @@ class PlantSide:
             s['fault_kind'] = FaultKind.NONE
         else:
             s['fault_kind'], s['fault_at_s'], s['fault_time_constant_s'] = fault
-        s['fault_grasp'] = NO_NS
-        s['hold_begun_for'] = NO_NS
-        s['applied_source'] = Controller.NONE
+        self._forget_grasps()
         s['revision'] += 1
+
+    def _forget_grasps(self) -> None:
+        """No command applied yet, no fault armed for a grasp, no hold clock started."""
+        s = self._s
+        s['applied_source'] = Controller.NONE
+        s['fault_grasp'] = s['hold_begun_for'] = NO_NS
 
     def _command(self, cmd) -> np.ndarray:
         record = self.command_record
