@@ -521,7 +521,8 @@ class HeadlessMoves:
 
     answers: list
     series: GraspSeries | None = field(repr=False, default=None)
-    """Every tick and the supervisor's phase and setpoints on it (``tick_states``)."""
+    """Every tick and the supervisor's phase and setpoints on it (``tick_states``; the held
+    object's truth and the law's estimate are not kept: NaN)."""
 
 
 def simulate_moves(config: GripperConfig, moves, *, object_width_m: float = 0.0,
