@@ -71,12 +71,12 @@ def assert_rerun_equals_recording(w) -> None:
     rec, new = w.record.series, r.series
     for a, b in ((rec.ticks['force_n'], new.ticks['force_n']),
                  (rec.ticks['position_m'], new.ticks['position_m']),
-                 (rec.joint.position_m, new.joint.position_m),
-                 (rec.sensor.force_n, new.sensor.force_n),
-                 (rec.motor.voltage_v, new.motor.voltage_v),
-                 (rec.sensor.voltage_v, new.sensor.voltage_v),
+                 (rec.ticks['position_m'], new.ticks['position_m']),
+                 (rec.ticks['force_n'], new.ticks['force_n']),
+                 (rec.ticks['motor_voltage_v'], new.ticks['motor_voltage_v']),
+                 (rec.ticks['sensor_voltage_v'], new.ticks['sensor_voltage_v']),
                  (rec.commands['voltage_v'], new.commands['voltage_v']),
-                 (rec.objects.slip_m, new.objects.slip_m)):
+                 (rec.objects['slip_m'], new.objects['slip_m'])):
         assert a.size > 0 and np.array_equal(a, b, equal_nan=True)
     skip = {'bag'} | ({'pad_shear_max_n'} if 'tick.pad1_shear_n' in rec.absent else set())
     figures = {k: v for k, v in asdict(w.recorded).items() if k not in skip}

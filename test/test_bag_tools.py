@@ -284,11 +284,11 @@ def test_bag_is_self_describing(grasp_bag):
 def test_grasp_series(grasp_bag, legacy_bag, which):
     s = load_grasp_series(grasp_bag if which == 'lockstep' else legacy_bag)
     assert s.bag_format == (2 if which == 'lockstep' else 1) and s.namespace == NS
-    assert s.joint.t_s[0] == pytest.approx(1.0) and len(s.joint.t_s) == N_TICKS
-    assert s.joint.position_m[-1] == pytest.approx(POS_SP_M * (1 - math.exp(-0.599 / TAU_S)))
-    assert s.sensor.voltage_v[0] == pytest.approx(0.2)
-    assert s.status.phase[K_SWITCH] == 2 and s.command.source[0] == 1
-    assert s.motor.voltage_v[1] == 24.0
+    assert s.t_s[0] == pytest.approx(1.0) and len(s.t_s) == N_TICKS
+    assert s.ticks['position_m'][-1] == pytest.approx(POS_SP_M * (1 - math.exp(-0.599 / TAU_S)))
+    assert s.ticks['sensor_voltage_v'][0] == pytest.approx(0.2)
+    assert s.decisions['phase'][K_SWITCH] == 2 and s.commands['source'][0] == 1
+    assert s.ticks['motor_voltage_v'][1] == 24.0
     assert s.duration_s == pytest.approx(2.0)
 
 

@@ -144,8 +144,9 @@ def test_a_finger_far_stiffer_than_the_object_converges_to_the_kelvin_voigt_cont
     chain = simulate_grasp(chain_config(1e11, 0.0), WIDTH_M, 1.0, stiffness_n_per_m=1e5,
                            damping_n_s_per_m=50.0, hold_s=0.05)
     assert chain.outcome == reference.outcome
-    n = min(len(reference.force_n), len(chain.force_n))
-    assert np.max(np.abs(chain.force_n[:n] - reference.force_n[:n])) < (
+    reference_n, chain_n = reference.series.ticks['force_n'], chain.series.ticks['force_n']
+    n = min(len(reference_n), len(chain_n))
+    assert np.max(np.abs(chain_n[:n] - reference_n[:n])) < (
         1e-5 * reference.force_setpoint_n)
     assert chain.peak_contact_force_n == pytest.approx(reference.peak_contact_force_n, rel=1e-5)
 

@@ -8,6 +8,7 @@ import time
 from gripper_ros.bags.reader import read_bag
 from gripper_ros.bags.series import load_grasp_series
 from gripper_ros.core.config import load_config
+from gripper_ros.core.series import seconds
 from gripper_ros.nodes.graph import GripperGraph
 from gripper_ros.nodes.recording import recorded_grasp
 from gripper_ros.nodes.services import wait_until
@@ -68,9 +69,9 @@ def test_paper_object_is_held_at_its_width_and_force(paper_runs, index):
 @pytest.mark.parametrize('index', range(len(PAPER_OBJECTS)))
 def test_paper_object_bag_voltage_limit_and_single_switch(paper_runs, index):
     series = load_grasp_series(paper_runs[index].bag_dir)
-    assert np.all(np.abs(series.motor.voltage_v) <= V_LIMIT + 1e-12)
-    assert np.all(np.abs(series.command.voltage_v) <= V_LIMIT + 1e-12)
-    criteria = series.status.switch_criterion
+    assert np.all(np.abs(series.ticks['motor_voltage_v']) <= V_LIMIT + 1e-12)
+    assert np.all(np.abs(series.commands['voltage_v']) <= V_LIMIT + 1e-12)
+    criteria = series.decisions['switch_criterion']
     switches = np.flatnonzero(np.diff(criteria) != 0)
     assert len(switches) == 1 and criteria[-1] != SwitchCriterion.NONE
 
@@ -156,12 +157,12 @@ def test_same_request_twice_gives_identical_series(graph, tmp_path):
     runs = [recorded_grasp(graph, tmp_path / f'run_{k}', 0.05, 1.69) for k in range(2)]
     a, b = (load_grasp_series(r.bag_dir) for r in runs)
     # simulated time runs on across grasps: compare tick times relative to each grasp's start
-    t_a = np.round((a.joint.t_s - a.joint.t_s[0]) * 1e9).astype(np.int64)
-    t_b = np.round((b.joint.t_s - b.joint.t_s[0]) * 1e9).astype(np.int64)
+    t_a = np.round((a.t_s - a.t_s[0]) * 1e9).astype(np.int64)
+    t_b = np.round((b.t_s - b.t_s[0]) * 1e9).astype(np.int64)
     assert np.array_equal(t_a, t_b)
-    assert np.array_equal(a.joint.position_m, b.joint.position_m)
-    assert np.array_equal(a.sensor.force_n, b.sensor.force_n)
-    assert np.array_equal(a.command.voltage_v, b.command.voltage_v)
+    assert np.array_equal(a.ticks['position_m'], b.ticks['position_m'])
+    assert np.array_equal(a.ticks['force_n'], b.ticks['force_n'])
+    assert np.array_equal(a.commands['voltage_v'], b.commands['voltage_v'])
 
 
 BAD_REQUESTS = [
@@ -259,15 +260,15 @@ def test_headless_simulation_reproduces_the_graph_bit_for_bit(paper_runs, index)
     from gripper_ros.core.runtime.headless import simulate_grasp
     width, mass = PAPER_OBJECTS[index]
     series = load_grasp_series(paper_runs[index].bag_dir)
-    start_ns = int(round(series.status.t_s[0] * 1e9))
+    start_ns = int(series.decisions['stamp_ns'][0])
     h = simulate_grasp(CONFIG, width, mass, start_ns=start_ns - IDLE_TICK_NS)
     assert h.outcome == Outcome(paper_runs[index].response.outcome)
     assert h.start_ns == start_ns
     # the bag starts with the grasp's first tick; the idle tick before it was not recorded
-    assert np.array_equal(h.t_ns[1:], series.ticks['stamp_ns'])
-    assert np.array_equal(h.position_m[1:], series.joint.position_m)
-    assert np.array_equal(h.force_n[1:], series.sensor.force_n)
-    assert np.array_equal(h.motor_voltage_v[1:], series.motor.voltage_v)
+    assert np.array_equal(h.series.ticks['stamp_ns'][1:], series.ticks['stamp_ns'])
+    assert np.array_equal(h.series.ticks['position_m'][1:], series.ticks['position_m'])
+    assert np.array_equal(h.series.ticks['force_n'][1:], series.ticks['force_n'])
+    assert np.array_equal(h.series.ticks['motor_voltage_v'][1:], series.ticks['motor_voltage_v'])
 
 
 @pytest.mark.parametrize('index', range(len(PAPER_OBJECTS)))
@@ -282,17 +283,17 @@ def test_position_stage_in_the_graph_is_the_controller_step_run(paper_runs, inde
     width, _ = PAPER_OBJECTS[index]
     setpoint = L_LS - width
     series = load_grasp_series(paper_runs[index].bag_dir)
-    start_s = series.status.t_s[0]
+    start_s = seconds(series.decisions)[0]
     switch_s = start_s + paper_runs[index].response.switch_time_s
-    ticks = series.joint.t_s <= switch_s + 1e-12                 # the 10 ms position stage
-    t_graph = series.joint.t_s[ticks] - start_s
-    x_graph = series.joint.position_m[ticks]
+    ticks = series.t_s <= switch_s + 1e-12                 # the 10 ms position stage
+    t_graph = series.t_s[ticks] - start_s
+    x_graph = series.ticks['position_m'][ticks]
     assert t_graph.size > 50
     step = position_step(CONFIG, make_position_controller(CONFIG, PositionControllerKind.MPC_PD),
                          setpoint, horizon_s=t_graph[-1] + 0.01)
     k = np.rint(t_graph / CONFIG.position.sample_time_s).astype(int)
     np.testing.assert_allclose(x_graph, step.output[k], rtol=0, atol=1e-12)
-    assert np.all(np.abs(series.motor.voltage_v[ticks]) <= V_LIMIT)
+    assert np.all(np.abs(series.ticks['motor_voltage_v'][ticks]) <= V_LIMIT)
 
 
 def test_stiff_object_in_the_graph_no_spike_and_bit_identical_to_headless(graph, tmp_path):
@@ -307,13 +308,13 @@ def test_stiff_object_in_the_graph_no_spike_and_bit_identical_to_headless(graph,
         run.response.message
     series = load_grasp_series(run.bag_dir)
     f_sp = run.response.force_setpoint_n
-    assert within_claimed_peak(np.max(series.sensor.peak_force_n) / f_sp)
-    assert np.all(np.abs(series.motor.voltage_v) <= V_LIMIT)
-    start_ns = int(round(series.status.t_s[0] * 1e9))
+    assert within_claimed_peak(np.max(series.ticks['peak_force_n']) / f_sp)
+    assert np.all(np.abs(series.ticks['motor_voltage_v']) <= V_LIMIT)
+    start_ns = int(series.decisions['stamp_ns'][0])
     h = simulate_grasp(CONFIG, 0.05, 1.0, stiffness_n_per_m=1e5, damping_n_s_per_m=50.0,
                        start_ns=start_ns - IDLE_TICK_NS)
-    assert np.array_equal(h.position_m[1:], series.joint.position_m)
-    assert np.array_equal(h.force_n[1:], series.sensor.force_n)
+    assert np.array_equal(h.series.ticks['position_m'][1:], series.ticks['position_m'])
+    assert np.array_equal(h.series.ticks['force_n'][1:], series.ticks['force_n'])
 
 
 def test_width_tolerance_through_the_service_meets_a_wider_object_at_the_setpoint(graph, tmp_path):
@@ -328,8 +329,8 @@ def test_width_tolerance_through_the_service_meets_a_wider_object_at_the_setpoin
     assert r.success and r.outcome == Outcome.HOLDING, r.message
     assert r.final_width_m == pytest.approx(0.062, abs=1e-6)
     series = load_grasp_series(run.bag_dir)
-    assert within_claimed_peak(np.max(series.sensor.peak_force_n) / r.force_setpoint_n)
-    grasp = np.isin(series.status.phase, (Phase.POSITION, Phase.FORCE))
-    assert set(np.round(series.status.approach_setpoint_m[grasp], 9)) == \
+    assert within_claimed_peak(np.max(series.ticks['peak_force_n']) / r.force_setpoint_n)
+    grasp = np.isin(series.decisions['phase'], (Phase.POSITION, Phase.FORCE))
+    assert set(np.round(series.decisions['approach_setpoint_m'][grasp], 9)) == \
         {round(L_LS - 0.05 - 0.012, 9)}
     assert graph.grasp(0.05, 1.69, width_tolerance_m=math.nan).outcome == Outcome.REFUSED

@@ -128,8 +128,9 @@ def test_serve_mode_records_one_complete_bag_per_grasp(tmp_path):
         bag = read_bag(bag_dir)
         assert not bag.truncated and (bag_dir / 'metadata.yaml').is_file()
         series = load_grasp_series(bag)
-        assert series.status.outcome[-1] == 1, (bag_dir.name, series.status.outcome[-9:],
-                                                series.status.phase[-9:])      # HOLDING
+        decisions = series.decisions
+        assert decisions['outcome'][-1] == 1, (bag_dir.name, decisions['outcome'][-9:],
+                                               decisions['phase'][-9:])      # HOLDING
         counts = bag.counts()
         loop = [(m.topic.rsplit('/', 1)[1], int.from_bytes(m.data[4:12], 'little'))
                 for m in bag.messages if '/loop/' in m.topic]

@@ -36,8 +36,8 @@ def _grasp_in_a_new_graph(bag_dir, namespace: str = DEFAULT_NAMESPACE):
 
 def _ids_in(bag_dir) -> set[int]:
     series = load_grasp_series(bag_dir)
-    return set(np.unique(series.status.grasp_id[series.status.grasp_id > 0]).tolist()) | \
-        set(np.unique(series.command.grasp_id[series.command.grasp_id > 0]).tolist())
+    ids = np.concatenate((series.decisions['grasp_id'], series.commands['grasp_id']))
+    return set(np.unique(ids[ids > 0]).tolist())
 
 
 def test_a_restarted_supervisor_numbers_its_grasps_on(claims, tmp_path):

@@ -70,10 +70,11 @@ def _excitation_run(config, spec: ExcitationSpec = SPEC, name: str = 'excitation
     """Run the experiment headless (the graph's loop, tick for tick), cut at ``spec.seconds``."""
     requests = list(itertools.islice(excitation_requests(spec, config), 16))
     h = simulate_moves(config, requests, object_width_m=STOP_WIDTH_M if spec.hold else 0.0)
-    keep = h.t_ns <= h.t_ns[0] + round(spec.seconds * 1e9)
-    measured = {'position_m': h.position_m[keep], 'speed_rad_s': h.speed_rad_s[keep],
-                'current_a': h.current_a[keep], 'force_n': h.force_n[keep]}
-    return Run(name, h.t_ns[keep], h.motor_voltage_v[keep], measured,
+    ticks = h.series.ticks
+    ticks = ticks[ticks['stamp_ns'] <= ticks['stamp_ns'][0] + round(spec.seconds * 1e9)]
+    measured = {name: ticks[name] for name in ('position_m', 'speed_rad_s', 'current_a',
+                                               'force_n')}
+    return Run(name, ticks['stamp_ns'], ticks['motor_voltage_v'], measured,
                STOP_WIDTH_M if spec.hold else 0.0)
 
 
@@ -236,13 +237,15 @@ def test_a_grasp_on_the_identified_model_follows_the_hidden_plant(hidden, stiffn
         return simulate_grasp(config, 0.05, 1.0, stiffness_n_per_m=stiffness,
                               damping_n_s_per_m=damping, hold_s=0.2)
     recorded, rerun, nominal = grasp(clean), grasp(result.config()), grasp(PAPER)
+    recorded, rerun, nominal = (g.series.ticks for g in (recorded, rerun, nominal))
     for name in ('position_m', 'force_n'):
-        rec = getattr(recorded, name)
+        rec = recorded[name]
         span = float(np.ptp(rec))
-        _, ia, ib = np.intersect1d(recorded.t_ns, rerun.t_ns, return_indices=True)
-        assert nrmse(getattr(rerun, name)[ib], rec[ia], span) < 0.01, name
-        _, ia, ib = np.intersect1d(recorded.t_ns, nominal.t_ns, return_indices=True)
-        assert nrmse(getattr(nominal, name)[ib], rec[ia], span) > 0.02, name  # Table I is not
+        _, ia, ib = np.intersect1d(recorded['stamp_ns'], rerun['stamp_ns'], return_indices=True)
+        assert nrmse(rerun[name][ib], rec[ia], span) < 0.01, name
+        _, ia, ib = np.intersect1d(recorded['stamp_ns'], nominal['stamp_ns'],
+                                   return_indices=True)
+        assert nrmse(nominal[name][ib], rec[ia], span) > 0.02, name  # Table I is not
 
 
 def test_table_i_combinations_are_recovered_on_the_paper_config():
@@ -254,9 +257,8 @@ def _grasp_run(config, stiffness_n_per_m: float, damping_n_s_per_m: float,
                recorded_stiffness_n_per_m: float) -> Run:
     """Return a grasp's ticks as its bag holds them, its object recorded with that stiffness."""
     h = simulate_grasp(config, 0.05, 1.0, stiffness_n_per_m=stiffness_n_per_m,
-                       damping_n_s_per_m=damping_n_s_per_m, hold_s=0.2,
-                       trace_state_period_ns=10_000_000)
-    t = h.trace.ticks
+                       damping_n_s_per_m=damping_n_s_per_m, hold_s=0.2)
+    t = h.series.ticks
     channels = ('position_m', 'speed_rad_s', 'current_a', 'force_n')
     measured = {c: t[c].astype(float) for c in channels}
     recorded = recorded_stiffness_n_per_m > 0.0

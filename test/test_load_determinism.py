@@ -12,6 +12,7 @@ import sys
 import time
 
 from gripper_ros.bags.series import load_grasp_series
+from gripper_ros.core.series import seconds
 from gripper_ros.nodes.graph import GripperGraph
 from gripper_ros.nodes.recording import recorded_grasp
 from gripper_ros.wire import DEFAULT_NAMESPACE, qualified, TOPIC_JOINT_STATES, TOPIC_TF
@@ -58,10 +59,10 @@ def _series(run):
     s = load_grasp_series(run.bag_dir)
     rel = lambda t: np.round((t - t[0]) * 1e9).astype(np.int64)  # noqa: E731
     return {
-        'joint_t': rel(s.joint.t_s), 'position_m': s.joint.position_m,
-        'force_n': s.sensor.force_n, 'sensor_voltage_v': s.sensor.voltage_v,
-        'motor_voltage_v': s.motor.voltage_v, 'command_t': rel(s.command.t_s),
-        'command_voltage_v': s.command.voltage_v, 'phase': s.status.phase,
+        'joint_t': rel(s.t_s), 'position_m': s.ticks['position_m'],
+        'force_n': s.ticks['force_n'], 'sensor_voltage_v': s.ticks['sensor_voltage_v'],
+        'motor_voltage_v': s.ticks['motor_voltage_v'], 'command_t': rel(seconds(s.commands)),
+        'command_voltage_v': s.commands['voltage_v'], 'phase': s.decisions['phase'],
     }
 
 

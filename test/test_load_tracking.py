@@ -70,21 +70,21 @@ def test_unknown_mass_is_held_through_a_pick_and_place_and_bit_identical(headles
     assert h.force_setpoint_n == CONFIG.load_grip.touch_force_n        # the request's
     assert h.lost_ns is None and h.overload_ns is None
     assert h.slip_m <= SLIP_BOUND_M
-    lifted = h.t_ns > h.answer_ns
+    lifted = h.series.ticks['stamp_ns'] > h.answer_ns
     # the grip followed the load: above the touch once lifted, and at most what 24 V holds
-    assert np.max(h.force_n[lifted]) > 2 * CONFIG.load_grip.touch_force_n
-    assert np.max(h.force_n) <= CONFIG.plant.max_force_n * (1 + 1e-9)
+    assert np.max(h.series.ticks['force_n'][lifted]) > 2 * CONFIG.load_grip.touch_force_n
+    assert np.max(h.series.ticks['force_n']) <= CONFIG.plant.max_force_n * (1 + 1e-9)
     # the pads read the load (about half the weight each) while held, exactly 0 before
-    before = h.t_ns <= h.answer_ns
+    before = h.series.ticks['stamp_ns'] <= h.answer_ns
     for name in PADS:
-        series = getattr(h, name)
+        series = h.series.ticks[name]
         assert np.all(np.isfinite(series)) and np.all(series[before] == 0.0), name
     weight_share_n = 0.5 * HELD['object_mass_kg'] * CONFIG.plant.gravity_mps2
-    assert np.max(h.pad1_shear_n[lifted]) > 0.5 * weight_share_n
+    assert np.max(h.series.ticks['pad1_shear_n'][lifted]) > 0.5 * weight_share_n
     again = simulate_grasp(CONFIG, WIDTH_M, 0.0, lift=PICK, **HELD)
-    for name in ('t_ns', 'position_m', 'force_n', 'peak_force_n', 'motor_voltage_v', 'phase',
-                 *PADS):
-        assert np.array_equal(getattr(h, name), getattr(again, name)), name
+    for name in h.series.ticks.dtype.names:
+        assert np.array_equal(h.series.ticks[name], again.series.ticks[name]), name
+    assert np.array_equal(h.series.tick_states['phase'], again.series.tick_states['phase'])
     assert (again.outcome, again.slip_m, again.end_ns) == (h.outcome, h.slip_m, h.end_ns)
 
 
@@ -96,10 +96,10 @@ def test_the_study_holds_with_the_load_tracking_grip_the_graph_runs(headless_pic
                              seed=CONFIG.sensor_noise.seed)
     h = headless_pick
     assert run.outcome == 'HOLDING' and run.slip_m == h.slip_m
-    held = h.t_ns >= h.answer_ns
-    assert np.array_equal(run.rows[:, 0], h.t_ns[held])
-    assert np.array_equal(run.rows[:, 1], h.force_n[held])
-    assert np.array_equal(run.rows[:, 2], h.setpoint_n[held])
+    held = h.series.ticks['stamp_ns'] >= h.answer_ns
+    assert np.array_equal(run.rows[:, 0], h.series.ticks['stamp_ns'][held])
+    assert np.array_equal(run.rows[:, 1], h.series.ticks['force_n'][held])
+    assert np.array_equal(run.rows[:, 2], h.series.tick_states['force_setpoint_n'][held])
 
 
 def test_the_graph_runs_the_unknown_mass_grasp_tick_for_tick_as_headless(graph, tmp_path,
@@ -112,19 +112,20 @@ def test_the_graph_runs_the_unknown_mass_grasp_tick_for_tick_as_headless(graph, 
     assert run.response.force_setpoint_n == CONFIG.load_grip.touch_force_n
     series = load_grasp_series(run.bag_dir)
     assert not series.absent                      # every tick field recorded, the pads' too
-    start_ns = int(round(series.status.t_s[0] * 1e9))
+    start_ns = int(series.decisions['stamp_ns'][0])
     h = simulate_grasp(CONFIG, WIDTH_M, 0.0, lift=PICK, start_ns=start_ns - IDLE_TICK_NS,
                        **HELD)
     assert h.start_ns == start_ns
     # the bag starts with the grasp's first tick; the idle tick before it was not recorded
-    assert np.array_equal(h.t_ns[1:], series.ticks['stamp_ns'])
+    assert np.array_equal(h.series.ticks['stamp_ns'][1:], series.ticks['stamp_ns'])
     for name in ('position_m', 'force_n', *PADS):
-        assert np.array_equal(getattr(h, name)[1:], series.ticks[name]), name
+        assert np.array_equal(h.series.ticks[name][1:], series.ticks[name]), name
     # and it is the run of the first test, shifted in time
-    assert np.array_equal(h.force_n, headless_pick.force_n)
-    assert np.array_equal(h.pad1_displacement_m, headless_pick.pad1_displacement_m)
+    ticks, pick = h.series.ticks, headless_pick.series.ticks
+    assert np.array_equal(ticks['force_n'], pick['force_n'])
+    assert np.array_equal(ticks['pad1_displacement_m'], pick['pad1_displacement_m'])
     m = analyze_series(series)
-    assert m.pad_shear_max_n == np.max(0.5 * (h.pad1_shear_n + h.pad2_shear_n))
+    assert m.pad_shear_max_n == np.max(0.5 * (ticks['pad1_shear_n'] + ticks['pad2_shear_n']))
     assert math.isnan(m.overload_said_s)
 
 
@@ -212,4 +213,4 @@ def test_the_plant_reads_no_pads_without_a_held_object():
     h = simulate_grasp(CONFIG, WIDTH_M, 1.0)                        # never lifted
     assert h.outcome is Outcome.HOLDING
     for name in PADS:
-        assert np.all(getattr(h, name) == 0.0), name
+        assert np.all(h.series.ticks[name] == 0.0), name

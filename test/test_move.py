@@ -178,8 +178,8 @@ def test_a_move_reaches_its_width_never_faster_than_the_limit(speed_mps):
     assert answer.outcome is Outcome.MOVED and answer.reached_goal and not answer.stalled
     goal_m = TRAVEL_M - 0.05
     assert abs(answer.position_m - goal_m) <= S.move_tolerance_m
-    assert abs(run.velocity_mps[-1]) <= S.move_rest_speed_mps
-    top = np.max(np.abs(run.velocity_mps))
+    assert abs(run.series.ticks['velocity_mps'][-1]) <= S.move_rest_speed_mps
+    top = np.max(np.abs(run.series.ticks['velocity_mps']))
     assert top <= speed_mps * (1 + SPEED_SLACK)
     # 0.1 m is long enough to reach the limit: the speed rises to it (within 1 %)
     assert top >= 0.99 * speed_mps
@@ -197,21 +197,21 @@ def test_a_move_onto_a_rigid_object_stalls_pressing_with_the_effort_limit(effort
     # rigid contact: the force follows the current towards the stall force of the capped
     # voltage, the effort limit, and never passes it
     assert S.move_stall_force_fraction * effort_n <= answer.effort_n <= effort_n * (1 + 1e-9)
-    assert np.max(run.peak_force_n) <= effort_n * (1 + 1e-9)
+    assert np.max(run.series.ticks['peak_force_n']) <= effort_n * (1 + 1e-9)
     # stalled as soon as the force sensor tells it: no waiting out move_stall_timeout_s
-    touch_ns = run.t_ns[np.argmax(run.force_n > 0.0)]
+    touch_ns = run.series.ticks['stamp_ns'][np.argmax(run.series.ticks['force_n'] > 0.0)]
     assert (answer.answer_ns - touch_ns) * 1e-9 < S.move_stall_timeout_s / 10
-    assert np.max(np.abs(run.velocity_mps)) <= 0.02 * (1 + SPEED_SLACK)
+    assert np.max(np.abs(run.series.ticks['velocity_mps'])) <= 0.02 * (1 + SPEED_SLACK)
 
 
 def test_after_a_stall_the_finger_keeps_pressing_with_the_effort_limit():
     run = simulate_moves(CONFIG, [MoveRequest(0.02, 0.02, 5.0)], object_width_m=0.05,
                          hold_s=1.0)
     (stalled,) = run.answers
-    after = run.t_ns > stalled.answer_ns
-    assert (run.t_ns[-1] - stalled.answer_ns) * 1e-9 >= 1.0
-    assert np.allclose(run.force_n[after], 5.0, rtol=1e-9)     # the last command stays
-    assert np.all(run.phase[after] == Phase.DONE)
+    after = run.series.ticks['stamp_ns'] > stalled.answer_ns
+    assert (run.series.ticks['stamp_ns'][-1] - stalled.answer_ns) * 1e-9 >= 1.0
+    assert np.allclose(run.series.ticks['force_n'][after], 5.0, rtol=1e-9)  # the last command
+    assert np.all(run.series.tick_states['phase'][after] == Phase.DONE)
 
 
 def test_a_move_opens_the_fingers_after_a_stall():
@@ -221,8 +221,8 @@ def test_a_move_opens_the_fingers_after_a_stall():
     assert stalled.outcome is Outcome.STALLED and opened.outcome is Outcome.MOVED
     assert abs(opened.position_m - (TRAVEL_M - 0.12)) <= S.move_tolerance_m
     assert opened.effort_n == 0.0
-    after = run.t_ns >= opened.start_ns
-    assert np.max(np.abs(run.velocity_mps[after])) <= 0.04 * (1 + SPEED_SLACK)
+    after = run.series.ticks['stamp_ns'] >= opened.start_ns
+    assert np.max(np.abs(run.series.ticks['velocity_mps'][after])) <= 0.04 * (1 + SPEED_SLACK)
 
 
 def test_a_move_that_cannot_move_stalls_after_the_rest_timeout():
@@ -247,16 +247,16 @@ def test_the_same_moves_twice_are_bit_identical():
     moves = [MoveRequest(0.02, 0.03, 7.0), MoveRequest(0.1, 0.05)]
     a = simulate_moves(CONFIG, moves, object_width_m=0.06)
     b = simulate_moves(CONFIG, moves, object_width_m=0.06)
-    for name in ('t_ns', 'position_m', 'velocity_mps', 'force_n', 'motor_voltage_v'):
-        assert np.array_equal(getattr(a, name), getattr(b, name)), name
+    for name in a.series.ticks.dtype.names:
+        assert np.array_equal(a.series.ticks[name], b.series.ticks[name]), name
 
 
 def test_every_position_controller_keeps_the_speed_limit():
     for kind in ('pd', 'pid'):
         run = simulate_moves(CONFIG, [MoveRequest(0.05, 0.02, 10.0)], object_width_m=0.08,
                              position_controller=kind)
-        assert np.max(np.abs(run.velocity_mps)) <= 0.02 * (1 + SPEED_SLACK), kind
-        assert np.max(run.peak_force_n) <= 10.0 * (1 + 1e-9), kind
+        assert np.max(np.abs(run.series.ticks['velocity_mps'])) <= 0.02 * (1 + SPEED_SLACK), kind
+        assert np.max(run.series.ticks['peak_force_n']) <= 10.0 * (1 + 1e-9), kind
 
 
 @pytest.mark.parametrize('field', ['speed_limit_mps', 'voltage_limit_v'])
@@ -447,7 +447,8 @@ def test_the_graphs_move_is_the_headless_move_tick_for_tick(graph):
     (headless,) = run.answers
     assert (answer.outcome, answer.position_m, answer.effort_n) == \
         (int(headless.outcome), headless.position_m, headless.effort_n)
-    position_at = dict(zip(run.t_ns.tolist(), run.position_m.tolist()))
+    ticks = run.series.ticks
+    position_at = dict(zip(ticks['stamp_ns'].tolist(), ticks['position_m'].tolist()))
     graph_series = {_stamp_ns(m): m.position[0] for m in graph.joint_states}
     common = sorted(set(graph_series) & set(position_at))
     assert len(common) > 0.9 * len(position_at)
@@ -670,8 +671,8 @@ def test_serve_mode_records_a_move_in_a_bag_of_its_own(tmp_path):
     [bag] = serve.bags
     assert bag.name.startswith('move_')
     series = load_grasp_series(bag)
-    phases = set(series.status.phase.tolist())
+    phases = set(series.decisions['phase'].tolist())
     assert int(Phase.MOVING) in phases and int(Phase.POSITION) not in phases
-    assert TRAVEL_M - series.joint.position_m[-1] == pytest.approx(answer.width_m, abs=1e-9)
+    assert TRAVEL_M - series.ticks['position_m'][-1] == pytest.approx(answer.width_m, abs=1e-9)
     # whole ticks: one command and one measurement per tick
     assert series.ticks['stamp_ns'].size == series.commands['stamp_ns'].size > 100

@@ -613,12 +613,13 @@ def test_a_gain_set_over_the_parameter_services_takes_effect_at_the_next_stage(
         cfg = load_config()
         cfg = dataclasses.replace(cfg, position=dataclasses.replace(
             cfg.position, mpc_pd=dataclasses.replace(cfg.position.mpc_pd, kc=900.0)))
-        start = int(round(series.status.t_s[0] * 1e9))
+        start = int(series.decisions['stamp_ns'][0])
         h = simulate_grasp(cfg, 0.10, 0.75, start_ns=start - round(
             cfg.position.sample_time_s * 1e9))
         shipped_run = simulate_grasp(load_config(), 0.10, 0.75, start_ns=start)
-        assert np.array_equal(h.position_m[1:], series.joint.position_m)
-        assert not np.array_equal(shipped_run.position_m[:50], h.position_m[1:51])
+        assert np.array_equal(h.series.ticks['position_m'][1:], series.ticks['position_m'])
+        assert not np.array_equal(shipped_run.series.ticks['position_m'][:50],
+                                  h.series.ticks['position_m'][1:51])
     finally:
         assert _set(graph, 'position_controller', key, _double(shipped)).successful
 

@@ -56,8 +56,9 @@ for kw in (dict(width_m=0.05, mass_kg=1.69),
                 kinetic_friction=0.24, lift=Lift(acceleration_mps2=3.0, lift_off_s=0.1))):
     g = simulate_grasp(config, **kw)
     h.update(str(g.outcome).encode())
-    for a in (g.t_ns, g.position_m, g.force_n, g.motor_voltage_v, g.sensor_voltage_v, g.phase):
-        h.update(a.tobytes())
+    for name in ('stamp_ns', 'position_m', 'force_n', 'motor_voltage_v', 'sensor_voltage_v'):
+        h.update(g.series.ticks[name].tobytes())
+    h.update(g.series.tick_states['phase'].tobytes())
 print(h.hexdigest())
 """
 

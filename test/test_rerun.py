@@ -142,9 +142,10 @@ def test_paper_pi_on_a_stiff_object_shows_the_spike_the_recording_did_not(bags, 
     # ... exactly what a headless grasp with the PI from the start gives
     h = simulate_grasp(CONFIG, 0.05, 1.0, force_controller='pi', **STIFF,
                        start_ns=w.record.grasp_start_ns - round(0.01 * 1e9))
-    assert np.array_equal(h.force_n[1:], r.series.sensor.force_n)
-    in_grasp = (h.t_ns >= h.start_ns) & (h.t_ns <= h.answer_ns)
-    assert r.metrics.peak_contact_force_n == np.max(h.force_n[in_grasp])
+    assert np.array_equal(h.series.ticks['force_n'][1:], r.series.ticks['force_n'])
+    stamps = h.series.ticks['stamp_ns']
+    in_grasp = (stamps >= h.start_ns) & (stamps <= h.answer_ns)
+    assert r.metrics.peak_contact_force_n == np.max(h.series.ticks['force_n'][in_grasp])
     assert r.metrics.outcome == h.answer.name
     png = tmp_path / 'whatif.png'
     code, out = _cli([str(bags['stiff']), '--resimulate', '--closed-loop', '--force-controller',
@@ -208,7 +209,8 @@ def test_set_and_config_file_change_the_same_key(bags, tmp_path, capsys):
     path = tmp_path / 'changed.yaml'
     path.write_text(yaml.safe_dump(data), encoding='utf-8')
     b = rerun.whatif(bags['pd'], rerun.Changes(config_path=str(path)))
-    assert np.array_equal(a.reruns[0].series.joint.position_m, b.reruns[0].series.joint.position_m)
+    assert np.array_equal(a.reruns[0].series.ticks['position_m'],
+                          b.reruns[0].series.ticks['position_m'])
     assert b.reruns[0].setup.changes == ['position_control.pd.kc 968.0 -> 1500.0']
 
 

@@ -43,7 +43,7 @@ def test_every_stage_kind_answers_its_ticks_and_holds_the_grasp(position, force)
         2.0 * sup.friction_coefficient)
     assert f'{f_sp:.2f}' == '24.87' and run.force_setpoint_n == pytest.approx(f_sp, rel=1e-12)
     assert run.outcome is Outcome.HOLDING, run.message
-    assert abs(run.force_n[-1] - f_sp) <= sup.force_settle_band_fraction * f_sp
+    assert abs(run.series.ticks['force_n'][-1] - f_sp) <= sup.force_settle_band_fraction * f_sp
     for source, hold_s in ((Controller.POSITION, 0.01), (Controller.FORCE, 1e-4)):
         pairs = seen[source]
         assert len(pairs) > 10, source

@@ -25,7 +25,7 @@ LAYERS = (
 )
 """The layers, lowest first: a module may import its own folder and the layers below it; the
 folders of one layer do not import each other. ``gripper_ros.core`` is the shared modules
-directly in core/ (config, linalg, records, description), below every subpackage of it."""
+directly in core/ (config, linalg, records, description, series), below every subpackage of it."""
 
 APP_SHARED = 'gripper_ros.apps.common'
 """What the console programs share; no program imports another."""

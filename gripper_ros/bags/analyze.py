@@ -22,7 +22,8 @@ import sys
 from typing import Sequence
 
 from gripper_ros.bags.reader import BagError, EXIT_ERROR, EXIT_TRUNCATED, quiet_on_closed_pipe
-from gripper_ros.bags.series import GraspSeries, load_grasp_series
+from gripper_ros.bags.series import load_grasp_series
+from gripper_ros.core.series import GraspSeries, seconds
 from gripper_ros.studies.metrics import step_metrics
 from gripper_ros.wire import enum_name, HoldState, Outcome, Phase, SwitchCriterion
 import numpy as np
@@ -94,29 +95,30 @@ def find_stages(series: GraspSeries) -> Stages:
     Start = first POSITION-phase decision, switch = first FORCE-phase decision of that grasp,
     end = its answer (the first decision with an outcome).
     """
-    st = series.status
-    in_position = np.flatnonzero(st.phase == Phase.POSITION)
+    st = series.decisions
+    st_t = seconds(st)
+    in_position = np.flatnonzero(st['phase'] == Phase.POSITION)
     if in_position.size == 0:
         raise NoGraspError(f'{series.path}: no supervisor decision in the POSITION phase '
                            f'(no grasp was started)')
     first = in_position[0]
-    grasp_id = int(st.grasp_id[first])
-    same = np.flatnonzero(st.grasp_id == grasp_id)
+    grasp_id = int(st['grasp_id'][first])
+    same = np.flatnonzero(st['grasp_id'] == grasp_id)
     same = same[same >= first]
-    start_s = float(st.t_s[first])
-    answered = same[st.outcome[same] != 0]
-    end_s = float(st.t_s[answered[0]] if answered.size else st.t_s[same[-1]])
-    force_idx = same[(st.phase[same] == Phase.FORCE) | (st.phase[same] == Phase.HOLDING)]
-    switch_s = float(st.t_s[force_idx[0]]) if force_idx.size else math.nan
-    return Stages(grasp_id, start_s, switch_s, end_s, float(st.t_s[same[-1]]))
+    start_s = float(st_t[first])
+    answered = same[st['outcome'][same] != 0]
+    end_s = float(st_t[answered[0]] if answered.size else st_t[same[-1]])
+    force_idx = same[(st['phase'][same] == Phase.FORCE) | (st['phase'][same] == Phase.HOLDING)]
+    switch_s = float(st_t[force_idx[0]]) if force_idx.size else math.nan
+    return Stages(grasp_id, start_s, switch_s, end_s, float(st_t[same[-1]]))
 
 
 def bag_contents(series: GraspSeries) -> str:
     """Say what a bag without a grasp holds: its requests, their outcomes, time and ranges."""
-    st = series.status
+    st = series.decisions
     kinds = {Phase.MOVING: 'move', Phase.RELEASING: 'release'}
     requests: dict[int, list] = {}
-    for grasp_id, phase, outcome in zip(st.grasp_id, st.phase, st.outcome):
+    for grasp_id, phase, outcome in zip(st['grasp_id'], st['phase'], st['outcome']):
         entry = requests.setdefault(int(grasp_id), [None, 0])
         entry[0] = entry[0] or kinds.get(int(phase))
         entry[1] = int(outcome) or entry[1]
@@ -132,12 +134,11 @@ def bag_contents(series: GraspSeries) -> str:
     if 'excitation' in series.custom_data:
         what = f'an excitation ({what}; bag_identify fits the plant to it)'
     out = f'{series.path.name}: no grasp: {what}, {(series.end_ns - series.start_ns) * 1e-9:.3f} s'
-    if series.joint.position_m.size:
-        out += (f', finger {np.nanmin(series.joint.position_m):.4f}-'
-                f'{np.nanmax(series.joint.position_m):.4f} m')
-    if series.command.voltage_v.size:
-        out += (f', motor {np.nanmin(series.command.voltage_v):.2f} to '
-                f'{np.nanmax(series.command.voltage_v):.2f} V')
+    position_m, voltage_v = series.ticks['position_m'], series.commands['voltage_v']
+    if position_m.size:
+        out += f', finger {np.nanmin(position_m):.4f}-{np.nanmax(position_m):.4f} m'
+    if voltage_v.size:
+        out += f', motor {np.nanmin(voltage_v):.2f} to {np.nanmax(voltage_v):.2f} V'
     return out
 
 
@@ -201,26 +202,26 @@ def analyze_series(series: GraspSeries, voltage_limit_v: float | None = None) ->
     if voltage_limit_v is None:
         voltage_limit_v = recorded_voltage_limit_v(series)
     stages = find_stages(series)
-    st, joint, sensor, motor, cmd = (series.status, series.joint, series.sensor, series.motor,
-                                     series.command)
+    st, ticks, cmd = series.decisions, series.ticks, series.commands
+    st_t, t_s, cmd_t = seconds(st), series.t_s, seconds(cmd)
     t0, t_sw, t_end = stages.start_s, stages.switch_s, stages.end_s
-    in_grasp = _window(st.t_s, t0, t_end, include_hi=True) & (st.grasp_id == stages.grasp_id)
+    in_grasp = _window(st_t, t0, t_end, include_hi=True) & (st['grasp_id'] == stages.grasp_id)
     first = np.flatnonzero(in_grasp)[0]
-    pos_sp = float(st.position_setpoint_m[first])
+    pos_sp = float(st['position_setpoint_m'][first])
 
-    # contact: plant truth (joint effort) first, supervisor's view as fallback
-    jmask = _window(joint.t_s, t0, t_end, include_hi=True)
-    contact = np.flatnonzero(jmask & (joint.contact_force_n > 0.0))
+    # contact: the measured force first, supervisor's view as fallback
+    jmask = _window(t_s, t0, t_end, include_hi=True)
+    contact = np.flatnonzero(jmask & (ticks['force_n'] > 0.0))
     if contact.size:
-        time_to_contact = float(joint.t_s[contact[0]] - t0)
+        time_to_contact = float(t_s[contact[0]] - t0)
     else:
-        c = np.flatnonzero(in_grasp & st.contact)
-        time_to_contact = float(st.t_s[c[0]] - t0) if c.size else math.nan
+        c = np.flatnonzero(in_grasp & st['contact'])
+        time_to_contact = float(st_t[c[0]] - t0) if c.size else math.nan
 
     # position stage: [start, switch)
     pos_end = t_sw if math.isfinite(t_sw) else t_end
-    pmask = _window(joint.t_s, t0, pos_end, include_hi=not math.isfinite(t_sw))
-    p_t, p_y = joint.t_s[pmask] - t0, joint.position_m[pmask]
+    pmask = _window(t_s, t0, pos_end, include_hi=not math.isfinite(t_sw))
+    p_t, p_y = t_s[pmask] - t0, ticks['position_m'][pmask]
     p_init = float(p_y[0]) if p_y.size else math.nan
     pos_rms, pos_os, pos_settle = _safe_step(p_t, p_y, pos_sp, p_init)
 
@@ -228,43 +229,42 @@ def analyze_series(series: GraspSeries, voltage_limit_v: float | None = None) ->
     criterion, force_sp = 'NONE', math.nan
     f_rms = f_os = f_settle = math.nan
     if math.isfinite(t_sw):
-        at_sw = np.flatnonzero(in_grasp & (st.t_s >= t_sw))[0]
-        criterion = enum_name(SwitchCriterion, int(st.switch_criterion[at_sw]))
-        force_sp = float(st.force_setpoint_n[at_sw])
-        fmask = _window(sensor.t_s, t_sw, t_end, include_hi=True)
-        f_t, f_y = sensor.t_s[fmask] - t_sw, sensor.force_n[fmask]
+        at_sw = np.flatnonzero(in_grasp & (st_t >= t_sw))[0]
+        criterion = enum_name(SwitchCriterion, int(st['switch_criterion'][at_sw]))
+        force_sp = float(st['force_setpoint_n'][at_sw])
+        fmask = _window(t_s, t_sw, t_end, include_hi=True)
+        f_t, f_y = t_s[fmask] - t_sw, ticks['force_n'][fmask]
         f_init = float(f_y[0]) if f_y.size else math.nan
         f_rms, f_os, f_settle = _safe_step(f_t, f_y, force_sp, f_init)
-    elif np.any(st.force_setpoint_n[in_grasp] > 0):
-        force_sp = float(st.force_setpoint_n[in_grasp][st.force_setpoint_n[in_grasp] > 0][0])
+    elif np.any(st['force_setpoint_n'][in_grasp] > 0):
+        setpoints = st['force_setpoint_n'][in_grasp]
+        force_sp = float(setpoints[setpoints > 0][0])
 
-    forces = joint.contact_force_n[jmask]
+    forces = ticks['force_n'][jmask]
     forces = forces[np.isfinite(forces)]
-    if forces.size == 0:
-        forces = sensor.force_n[_window(sensor.t_s, t0, t_end, include_hi=True)]
     peak = float(np.max(forces)) if forces.size else math.nan
     ratio = peak / force_sp if force_sp and math.isfinite(force_sp) else math.nan
 
     # voltage: applied (motor_state) preferred, commands (hold_s each) as fallback
-    mmask = _window(motor.t_s, t0, t_end, include_hi=True)
-    if np.any(mmask):
-        volts = motor.voltage_v[mmask]
+    mmask = _window(t_s, t0, t_end, include_hi=True)
+    if 'tick.motor_voltage_v' not in series.absent and np.any(mmask):
+        volts = ticks['motor_voltage_v'][mmask]
         vmax = float(np.max(np.abs(volts)))
         idx = np.flatnonzero(mmask)
-        t_lim = _time_at_limit(motor.t_s[idx], motor.voltage_v[idx], voltage_limit_v)
+        t_lim = _time_at_limit(t_s[idx], ticks['motor_voltage_v'][idx], voltage_limit_v)
     else:
-        cmask = _window(cmd.t_s, t0, t_end, include_hi=True)
-        volts = cmd.voltage_v[cmask]
+        cmask = _window(cmd_t, t0, t_end, include_hi=True)
+        volts = cmd['voltage_v'][cmask]
         vmax = float(np.max(np.abs(volts))) if volts.size else math.nan
-        t_lim = float(np.sum(cmd.hold_s[cmask][np.abs(volts) >= voltage_limit_v - LIMIT_TOL_V]))
+        t_lim = float(np.sum(cmd['hold_s'][cmask][np.abs(volts) >=
+                                                  voltage_limit_v - LIMIT_TOL_V]))
 
     jlast = np.flatnonzero(jmask)
-    final_pos_err = float(pos_sp - joint.position_m[jlast[-1]]) if jlast.size else math.nan
-    slast = np.flatnonzero(_window(sensor.t_s, t0, t_end, include_hi=True))
-    final_force_err = (float(force_sp - sensor.force_n[slast[-1]])
-                       if slast.size and math.isfinite(force_sp) else math.nan)
+    final_pos_err = float(pos_sp - ticks['position_m'][jlast[-1]]) if jlast.size else math.nan
+    final_force_err = (float(force_sp - ticks['force_n'][jlast[-1]])
+                       if jlast.size and math.isfinite(force_sp) else math.nan)
 
-    outcome_code = int(st.outcome[np.flatnonzero(in_grasp)[-1]])
+    outcome_code = int(st['outcome'][np.flatnonzero(in_grasp)[-1]])
     hold = _hold_figures(series, stages)
     return GraspMetrics(
         bag=str(series.path), grasp_id=stages.grasp_id, outcome=enum_name(Outcome, outcome_code),
@@ -281,31 +281,33 @@ def analyze_series(series: GraspSeries, voltage_limit_v: float | None = None) ->
 
 def _hold_figures(series: GraspSeries, stages: Stages) -> dict:
     """Return what happened after the answer: the final outcome, the slip, the loss."""
-    st = series.status
-    same = np.flatnonzero((st.grasp_id == stages.grasp_id) & (st.t_s >= stages.start_s))
-    final = enum_name(Outcome, int(st.outcome[same[-1]])) if same.size else ''
-    last_tick_s = float(series.joint.t_s[-1]) if series.joint.t_s.size else stages.last_s
-    lost = same[(st.outcome[same] == Outcome.OBJECT_LOST) & (st.t_s[same] > stages.end_s)]
-    over = same[st.outcome[same] == Outcome.OVERLOADED]
+    st = series.decisions
+    st_t = seconds(st)
+    same = np.flatnonzero((st['grasp_id'] == stages.grasp_id) & (st_t >= stages.start_s))
+    final = enum_name(Outcome, int(st['outcome'][same[-1]])) if same.size else ''
+    last_tick_s = float(series.t_s[-1]) if series.ticks.size else stages.last_s
+    lost = same[(st['outcome'][same] == Outcome.OBJECT_LOST) & (st_t[same] > stages.end_s)]
+    over = same[st['outcome'][same] == Outcome.OVERLOADED]
     figures = {'final_outcome': final, 'hold_s': max(0.0, last_tick_s - stages.end_s),
-               'loss_detected_s': float(st.t_s[lost[0]] - stages.end_s) if lost.size
+               'loss_detected_s': float(st_t[lost[0]] - stages.end_s) if lost.size
                else math.nan,
-               'overload_said_s': float(st.t_s[over[0]] - stages.end_s) if over.size
+               'overload_said_s': float(st_t[over[0]] - stages.end_s) if over.size
                else math.nan}
     ticks = series.ticks
-    if ticks and 'tick.pad1_shear_n' not in series.absent and ticks['stamp_ns'].size:
+    if 'tick.pad1_shear_n' not in series.absent and ticks.size:
         figures['pad_shear_max_n'] = float(np.max(0.5 * (ticks['pad1_shear_n'] +
                                                          ticks['pad2_shear_n'])))
     obj = series.objects
-    if obj is not None and obj.t_s.size:
-        figures['max_slip_m'] = float(np.max(obj.slip_m))
-        gone = np.flatnonzero(obj.state == HoldState.LOST)
+    if obj.size:
+        obj_t = seconds(obj)
+        figures['max_slip_m'] = float(np.max(obj['slip_m']))
+        gone = np.flatnonzero(obj['state'] == HoldState.LOST)
         if gone.size:
-            figures['lost_at_s'] = float(obj.t_s[gone[0]] - stages.end_s)
-        lifted = ((obj.state == HoldState.STUCK) | (obj.state == HoldState.SLIDING)) & \
-            (obj.load_n > 0.0) & (obj.t_s >= stages.end_s + _lift_off_end_s(series))
+            figures['lost_at_s'] = float(obj_t[gone[0]] - stages.end_s)
+        lifted = ((obj['state'] == HoldState.STUCK) | (obj['state'] == HoldState.SLIDING)) & \
+            (obj['load_n'] > 0.0) & (obj_t >= stages.end_s + _lift_off_end_s(series))
         if np.any(lifted):
-            margin = obj.capacity_n[lifted] / obj.load_n[lifted]
+            margin = obj['capacity_n'][lifted] / obj['load_n'][lifted]
             figures['hold_margin_mean'] = float(np.mean(margin))
             figures['hold_margin_max'] = float(np.max(margin))
     return figures
@@ -377,10 +379,10 @@ def plot(series_list: list[GraspSeries], metrics: list[GraspMetrics], path: str,
         t0 = m.grasp_start_s
         t_sw = t0 + m.switch_time_s if math.isfinite(m.switch_time_s) else m.grasp_end_s
         rows = [
-            (s.joint.t_s, s.joint.position_m * 1e3, 'position (mm)', m.position_setpoint_m * 1e3),
-            (s.sensor.t_s, s.sensor.force_n, 'force (N)', m.force_setpoint_n),
-            (s.motor.t_s, s.motor.voltage_v, 'motor voltage (V)', None),
-            (s.sensor.t_s, s.sensor.voltage_v, 'sensor voltage (V)', None),
+            (s.t_s, s.ticks['position_m'] * 1e3, 'position (mm)', m.position_setpoint_m * 1e3),
+            (s.t_s, s.ticks['force_n'], 'force (N)', m.force_setpoint_n),
+            (s.t_s, s.ticks['motor_voltage_v'], 'motor voltage (V)', None),
+            (s.t_s, s.ticks['sensor_voltage_v'], 'sensor voltage (V)', None),
         ]
         for r, (t, y, label, sp) in enumerate(rows):
             ax = axes[r][col]

@@ -56,7 +56,7 @@ def load_run(path: str):
     except MissingTopicsError as exc:
         raise IdentifyError(f'{bag.path}: not a gripper_ros bag ({exc})') from None
     ticks = series.ticks
-    if not ticks or 'motor_voltage_v' not in ticks or not len(ticks['stamp_ns']):
+    if series.bag_format != 2 or not ticks.size:
         raise IdentifyError(f'{bag.path}: no loop ticks with the motor voltage (a bag of the '
                             f'older format or an empty one)')
     stamps = np.asarray(ticks['stamp_ns'], dtype=np.int64)
@@ -70,7 +70,7 @@ def load_run(path: str):
                                 f'the fit does not model')
     values = {k: float(obj.get(k, 0.0)) for k in OBJECT_KEYS}
     measured = {c: np.asarray(ticks[c], dtype=float)[keep]
-                for c in ('position_m', 'speed_rad_s', 'current_a', 'force_n') if c in ticks}
+                for c in ('position_m', 'speed_rad_s', 'current_a', 'force_n')}
     return Run(str(bag.path), stamps[keep], np.asarray(ticks['motor_voltage_v'],
                                                        dtype=float)[keep], measured,
                values['width_m'], values['stiffness_n_per_m'], values['damping_n_s_per_m'])

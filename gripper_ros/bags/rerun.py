@@ -9,17 +9,16 @@ configuration in effect, applies the changes asked for, and grasps again in clos
 node graph runs, wired as the graph wires them in fast mode, tick for tick. Unlike the open-loop
 ``--resimulate`` the plant answers the new commands, so a new gain's effect on position, force,
 contact peak and settling is seen. Both the recording and the re-run are analysed by
-:func:`gripper_ros.bags.analyze.analyze_series`, from series built by the same code
-(:func:`gripper_ros.bags.series.lockstep_series`).
+:func:`gripper_ros.bags.analyze.analyze_series`, from the same series type
+(:class:`gripper_ros.core.series.GraspSeries`: the bag's messages, the re-run's kept alike).
 
 Without a change the re-run equals the recording: every field of every tick, reference and
 command (grasp and stage ids and the world revision counted on from the recording's first).
 """
 from __future__ import annotations
 
-from collections import namedtuple
 import copy
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field, fields, replace
 import functools
 import math
 import os
@@ -29,14 +28,14 @@ from typing import Any, Sequence
 from gripper_ros.bags.analyze import analyze_series, GraspMetrics
 from gripper_ros.bags.reader import Bag, BagError, open_bag
 from gripper_ros.bags.resimulate import build_stages, load_resim_config
-from gripper_ros.bags.series import bag_namespace, GraspSeries, load_grasp_series, \
-    lockstep_series
+from gripper_ros.bags.series import bag_namespace, load_grasp_series
 from gripper_ros.core.config import ConfigError, flatten, GripperConfig, parse_config
 from gripper_ros.core.control.factories import ForceControllerKind, PositionControllerKind
 from gripper_ros.core.control.stages import (DEFAULT_APPROACH_FORCE_MARGIN,
                                              DEFAULT_FORCE_CONTROLLER, DEFAULT_POSITION_CONTROLLER)
 from gripper_ros.core.physics.plant import check_fault, GraspObject, Lift
-from gripper_ros.core.runtime.headless import GraspTrace, HeadlessGrasp, map_cases, simulate_grasp
+from gripper_ros.core.runtime.headless import HeadlessGrasp, map_cases, simulate_grasp
+from gripper_ros.core.series import GraspSeries
 from gripper_ros.core.supervision.requests import GraspRequest, RequestError, validate_request
 from gripper_ros.text import one_line
 from gripper_ros.wire import (Controller, DEFAULT_STATE_RATE_HZ, FaultKind, Outcome, Phase,
@@ -56,11 +55,6 @@ LIFT_FIELDS = ('lift_acceleration_mps2', 'lift_delay_s', 'lift_duration_s', 'lif
                'lift_frequency_hz', 'lift_off_s')
 """A bag's lift fields, Lift's arguments in order (a bag without the last two: a step)."""
 FAULT_FIELDS = ('fault', 'fault_at_s', 'fault_time_constant_s')
-STATUS_FIELDS = ('phase', 'active_controller', 'switch_criterion', 'grasp_id', 'outcome',
-                 'position_setpoint_m', 'force_setpoint_n', 'position_m', 'force_n', 'contact',
-                 'stage_id', 'approach_setpoint_m')
-_Status = namedtuple('_Status', STATUS_FIELDS)
-"""The supervisor's state on a tick it changed (what supervisor/status reports on change)."""
 
 
 class RerunError(BagError):
@@ -144,8 +138,9 @@ def load_record(bag: Bag | str | os.PathLike) -> GraspRecord:
                          f're-run starts from fully open')
     grasp = _grasp_keywords(bag.path, request, obj)
     series = load_grasp_series(bag, ns)
-    st = series.status
-    starts = np.flatnonzero((st.phase == Phase.POSITION) & (st.outcome == Outcome.UNKNOWN))
+    st = series.decisions
+    starts = np.flatnonzero((st['phase'] == Phase.POSITION) &
+                            (st['outcome'] == Outcome.UNKNOWN))
     if starts.size == 0:
         raise RerunError(f'{bag.path}: no grasp starts in the bag (no POSITION decision)')
     start_ns = int(series.references['stamp_ns'][starts[0]])
@@ -419,60 +414,43 @@ class Rerun:
     value: Any = None                   # the swept value (a sweep's row)
 
 
-class _Trace:
-    """Every tick of a headless grasp, as a bag holds it.
+def _as_recorded(series: GraspSeries, record: GraspRecord, first_ns: int, start_ns: int,
+                 label: str, config: GripperConfig) -> GraspSeries:
+    """Return a re-run's series from tick ``first_ns`` on, numbered as the recording is.
 
-    The tick, its reference and command, the supervisor's state when it changed, and the held
-    object's ground truth when the plant node publishes it (on the grid of the state period
-    and when the hold state changes): the compiled loop's :class:`GraspTrace`.
+    Its object and configuration (``custom_data``) are the recording's object and the
+    re-run's ``config``, so figures that read them (the lift-off's end) see this re-run.
+
+    The object's ground truth from the grasp's start ``start_ns`` on (the plant published
+    the idle tick's when the object was placed, before the recording began); the grasp id,
+    stage id and revision go on from the recording's at the grasp's start.
     """
-
-    def __init__(self, trace: GraspTrace):
-        self.trace = trace
-
-    def series(self, record: GraspRecord, first_ns: int, start_ns: int, label: str,
-               config: GripperConfig) -> GraspSeries:
-        """Build the series from tick ``first_ns`` on (the recording's first, or the start).
-
-        Its object and configuration (``custom_data``) are the recording's object and the
-        re-run's ``config``, so figures that read them (the lift-off's end) see this re-run.
-
-        The object's ground truth from the grasp's start ``start_ns`` on (the plant published
-        the idle tick's when the object was placed, before the recording began); the grasp id,
-        stage id and revision go on from the recording's at the grasp's start.
-        """
-        rec = record.series.references
-        first = np.flatnonzero(rec['stamp_ns'] == record.grasp_start_ns)[0]
-        tr = self.trace
-        ticks, refs, cmds, statuses = (rows[rows['stamp_ns'] >= first_ns] for rows in (
-            tr.ticks, tr.references, tr.commands, tr.statuses))
-        ours = refs[refs['stamp_ns'] == start_ns]
-        if ours.size:
-            shift = {name: int(rec[name][first]) - int(ours[0][name])
-                     for name in ('grasp_id', 'stage_id', 'revision')}
-            ticks = _shifted(ticks, {'revision': shift['revision']})
-            refs = _shifted(refs, shift)
-            cmds = _shifted(cmds, shift)
-            statuses = _shifted(statuses, {name: shift[name] for name in ('grasp_id',
-                                                                          'stage_id')})
-        objects = [(t_ns * 1e-9, *rest) for t_ns, *rest in tr.objects.tolist()]
-        objects = [o for o in objects if o[0] >= start_ns * 1e-9]
-        statuses = [(row[0], _Status(*row[1:])) for row in statuses.tolist()]
-        stamps = ticks['stamp_ns']
-        return lockstep_series(Path(label), record.series.namespace, ticks.tolist(),
-                               refs.tolist(), cmds.tolist(), statuses, objects,
-                               custom_data={'object': dict(record.obj), 'config': config.data},
-                               start_ns=int(stamps[0]) if stamps.size else first_ns,
-                               end_ns=int(stamps[-1]) if stamps.size else first_ns)
+    rec = record.series.references
+    first = np.flatnonzero(rec['stamp_ns'] == record.grasp_start_ns)[0]
+    ticks, refs, cmds, statuses = (rows[rows['stamp_ns'] >= first_ns] for rows in (
+        series.ticks, series.references, series.commands, series.statuses))
+    ours = refs[refs['stamp_ns'] == start_ns]
+    if ours.size:
+        shift = {name: int(rec[name][first]) - int(ours[0][name])
+                 for name in ('grasp_id', 'stage_id', 'revision')}
+        ticks = _shifted(ticks, {'revision': shift['revision']})
+        refs = _shifted(refs, shift)
+        cmds = _shifted(cmds, shift)
+        statuses = _shifted(statuses, {name: shift[name] for name in ('grasp_id', 'stage_id')})
+    stamps = ticks['stamp_ns']
+    return replace(series, ticks=ticks, references=refs, commands=cmds, statuses=statuses,
+                   objects=series.objects[series.objects['stamp_ns'] >= start_ns],
+                   tick_states=None, path=Path(label), namespace=record.series.namespace,
+                   custom_data={'object': dict(record.obj), 'config': config.data},
+                   start_ns=int(stamps[0]) if stamps.size else first_ns,
+                   end_ns=int(stamps[-1]) if stamps.size else first_ns)
 
 
 def _shifted(rows: np.ndarray, shift: dict[str, int]) -> np.ndarray:
-    """``rows`` with the named integer fields moved by their shift (widened: no wrap-around)."""
-    wide = np.dtype([(name, np.int64 if name in shift else rows.dtype.fields[name][0])
-                     for name in rows.dtype.names])
-    out = rows.astype(wide)
+    """Return ``rows`` with the named integer fields moved by their shift (no wrap-around)."""
+    out = rows.copy()
     for name, by in shift.items():
-        out[name] += by
+        out[name] = rows[name].astype(np.int64) + by
     return out
 
 
@@ -501,9 +479,9 @@ def run(record: GraspRecord, setup: RerunSetup, label: str = 're-run') -> Rerun:
         raise RerunError(f'{record.path}: the recorded object cannot be placed again: '
                          f'{one_line(exc)}') from None
     recorded_ticks = record.series.ticks['stamp_ns']
-    first_ns = max(int(recorded_ticks[0]), int(h.t_ns[0])) if recorded_ticks.size else \
-        h.start_ns
-    series = _Trace(h.trace).series(record, first_ns, h.start_ns, label, setup.config)
+    first_ns = max(int(recorded_ticks[0]), int(h.series.ticks['stamp_ns'][0])) \
+        if recorded_ticks.size else h.start_ns
+    series = _as_recorded(h.series, record, first_ns, h.start_ns, label, setup.config)
     metrics = analyze_series(series, setup.config.plant.voltage_limit_v)
     metrics.bag = label
     out = Rerun(setup, h, series, metrics)
@@ -535,6 +513,17 @@ def _first_apart(a: np.ndarray, b: np.ndarray, tolerance: float) -> np.ndarray:
     return np.flatnonzero(np.where(nan_a | nan_b, nan_a != nan_b, apart))
 
 
+FLAGS = ('running', 'contact', 'finite')
+"""The loop messages' fields that are yes or no (a byte on the wire)."""
+
+
+def _widened(column: np.ndarray, name: str) -> np.ndarray:
+    """Return a message field's column as numbers are compared and shown: int64, or bool."""
+    if column.dtype.kind in 'ui' and column.dtype != np.int64:
+        return column.astype(bool if name in FLAGS else np.int64)
+    return column
+
+
 def series_difference(recorded: GraspSeries, rerun: GraspSeries, first_ns: int,
                       objects_from_ns: int | None = None, tolerance: float = 0.0) -> str:
     """Say where the re-run first differs from the recording ('' when nowhere).
@@ -545,20 +534,11 @@ def series_difference(recorded: GraspSeries, rerun: GraspSeries, first_ns: int,
     ``tolerance`` > 0 each float within that fraction of its series' full scale (stamps,
     phases, states and codes stay exact). The answer is one line.
     """
-    objects = {}
-    for name, series in (('recorded', recorded), ('rerun', rerun)):
-        o = series.objects
-        objects[name] = {} if o is None else {
-            'stamp_ns': np.rint(o.t_s * 1e9).astype(np.int64), 'state': o.state,
-            'slip_m': o.slip_m, 'slip_speed_mps': o.slip_speed_mps, 'load_n': o.load_n,
-            'capacity_n': o.capacity_n}
     within = f' (beyond {tolerance:g} of full scale)' if tolerance else ''
     for kind, rec, new in (('tick', recorded.ticks, rerun.ticks),
                            ('reference', recorded.references, rerun.references),
                            ('command', recorded.commands, rerun.commands),
-                           ('object state', objects['recorded'], objects['rerun'])):
-        if not rec:
-            continue
+                           ('object state', recorded.objects, rerun.objects)):
         from_ns = objects_from_ns if kind == 'object state' and objects_from_ns is not None \
             else first_ns
         keep = rec['stamp_ns'] >= from_ns
@@ -566,10 +546,12 @@ def series_difference(recorded: GraspSeries, rerun: GraspSeries, first_ns: int,
         if count != new['stamp_ns'].size:
             return (f'{count} {kind}s recorded from t = {from_ns * 1e-9:.4f} s, '
                     f'{new["stamp_ns"].size} re-run')
-        for name, column in rec.items():
+        for name in rec.dtype.names:
+            column = _widened(rec[name], name)
             if f'{kind}.{name}' in recorded.absent:
                 continue                    # the bag's (older) message type has no such field
-            a, b = np.ascontiguousarray(column[keep]), np.ascontiguousarray(new[name])
+            a = np.ascontiguousarray(column[keep])
+            b = np.ascontiguousarray(_widened(new[name], name))
             differ = _first_apart(a, b, tolerance)
             if differ.size:
                 i = differ[0]
@@ -642,7 +624,7 @@ def series_nrmse(recorded: GraspSeries, rerun: GraspSeries) -> dict[str, float]:
     """
     from gripper_ros.identify.fit import nrmse
     a, b = recorded.ticks, rerun.ticks
-    if not a or not b:
+    if not a.size or not b.size:
         return {}
     _, ia, ib = np.intersect1d(a['stamp_ns'], b['stamp_ns'], return_indices=True)
     out = {}

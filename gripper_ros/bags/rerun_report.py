@@ -255,10 +255,10 @@ def plot(w: WhatIf, path: str) -> None:
                            label='hold after the answer (recorded)' if first else None)
             for (label, s, m, color, config), (switch, end, _) in zip(runs, times):
                 zero = m.grasp_start_s + (switch if col else 0.0)
-                t = s.joint.t_s - zero
+                t = s.t_s - zero
                 keep = (t >= lo) & (t <= hi)
-                y = (s.joint.position_m * 1e3, s.sensor.force_n, s.motor.voltage_v,
-                     s.sensor.voltage_v)[row]
+                y = (s.ticks['position_m'] * 1e3, s.ticks['force_n'], s.ticks['motor_voltage_v'],
+                     s.ticks['sensor_voltage_v'])[row]
                 width = 1.6 if color == 'k' else 1.1
                 if row == 2:            # each voltage holds over the interval ending at its stamp
                     ax.step(t[keep], y[keep], where='pre', lw=width, color=color,

@@ -5,22 +5,20 @@ hold ``<ns>/loop/tick`` (measurement), ``<ns>/loop/position_reference`` and
 ``<ns>/loop/force_reference`` (decision), ``<ns>/loop/motor_command`` (command), plus the
 state topics. Earlier bags held one tick message per topic under ``/gripper``
 (``joint_states``, ``force_sensor``, ``motor_state``, ``supervisor/status``, ``motor_command``
-with headers). Both give the same :class:`GraspSeries`.
+with headers). Both give the same :class:`gripper_ros.core.series.GraspSeries`.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+import math
 import os
-from pathlib import Path
-from typing import Any
 
 from gripper_ros.bags.reader import Bag, MissingTopicsError, open_bag
+from gripper_ros.core.series import GraspSeries, OBJECT_ROW, rows, STATUS_ROW
 from gripper_ros.wire import (COMMAND_LAYOUT, FINGER_JOINT, GRAPH_TOPICS, qualified,
                               REFERENCE_LAYOUT, stamp_ns, TICK_LAYOUT, TOPIC_FORCE_REFERENCE,
                               TOPIC_FORCE_SENSOR, TOPIC_JOINT_STATES, TOPIC_MOTOR_COMMAND,
                               TOPIC_OBJECT_STATE, TOPIC_POSITION_REFERENCE, TOPIC_STATUS,
                               TOPIC_TICK)
-import numpy as np
 
 LEGACY_NAMESPACE = 'gripper'
 LEGACY_MOTOR_STATE = 'motor_state'
@@ -37,128 +35,6 @@ LEGACY_TOPICS = {
 
 GRASP_TOPICS = GRAPH_TOPICS
 """Relative topic -> type of everything one gripper's graph publishes (what a bag records)."""
-
-
-def _t_s(msg) -> float:
-    """Return a stamped message's time in seconds."""
-    return stamp_ns(msg.header.stamp) * 1e-9
-
-
-@dataclass
-class JointSeries:
-    """Finger travel from fully open, its speed, contact force, per tick."""
-
-    t_s: np.ndarray
-    position_m: np.ndarray
-    velocity_mps: np.ndarray
-    contact_force_n: np.ndarray
-
-
-@dataclass
-class SensorSeries:
-    """The force sensor per tick."""
-
-    t_s: np.ndarray
-    force_n: np.ndarray
-    voltage_v: np.ndarray
-    peak_force_n: np.ndarray      # largest force since the previous tick (NaN in old bags)
-
-
-@dataclass
-class MotorSeries:
-    """Voltage applied over the interval ending at t_s, current, speed."""
-
-    t_s: np.ndarray
-    voltage_v: np.ndarray
-    current_a: np.ndarray
-    speed_rad_s: np.ndarray
-
-
-@dataclass
-class StatusSeries:
-    """The supervisor's decision, one row per tick (and its final state after the last)."""
-
-    t_s: np.ndarray
-    phase: np.ndarray
-    active_controller: np.ndarray
-    switch_criterion: np.ndarray
-    grasp_id: np.ndarray
-    outcome: np.ndarray
-    position_setpoint_m: np.ndarray
-    force_setpoint_n: np.ndarray
-    position_m: np.ndarray
-    force_n: np.ndarray
-    contact: np.ndarray
-    seed_voltage_v: np.ndarray
-    stage_id: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=int))
-    approach_setpoint_m: np.ndarray = field(default_factory=lambda: np.zeros(0))
-
-
-@dataclass
-class CommandSeries:
-    """One row per controller answer."""
-
-    t_s: np.ndarray
-    voltage_v: np.ndarray
-    source: np.ndarray
-    grasp_id: np.ndarray
-    hold_s: np.ndarray
-    inner_setpoint: np.ndarray
-    stage_id: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=int))
-
-
-@dataclass
-class ObjectSeries:
-    """Ground truth of the held object along the pads (empty in bags without it)."""
-
-    t_s: np.ndarray
-    state: np.ndarray
-    slip_m: np.ndarray
-    slip_speed_mps: np.ndarray
-    load_n: np.ndarray
-    capacity_n: np.ndarray
-
-
-@dataclass
-class GraspSeries:
-    """Numpy series of one grasp bag; ``t_s`` everywhere = simulated time of the tick."""
-
-    path: Path
-    joint: JointSeries
-    sensor: SensorSeries
-    motor: MotorSeries
-    status: StatusSeries
-    command: CommandSeries
-    custom_data: dict[str, Any]
-    counts: dict[str, int]
-    start_ns: int
-    end_ns: int
-    size_bytes: int
-    truncated: bool
-    damage: str = ''
-    namespace: str = LEGACY_NAMESPACE
-    bag_format: int = 1
-    objects: ObjectSeries | None = None
-    ticks: dict[str, np.ndarray] = field(default_factory=dict, repr=False)
-    """Format 2: every PlantTick field as an array (what a re-simulation feeds back)."""
-    references: dict[str, np.ndarray] = field(default_factory=dict, repr=False)
-    """Format 2: every StageReference field as an array, in tick order."""
-    commands: dict[str, np.ndarray] = field(default_factory=dict, repr=False)
-    """Format 2: every MotorCommand field as an array, in tick order."""
-    absent: frozenset = frozenset()
-    """``kind.field`` (kind ``tick``, ``reference``, ``command``) of the loop messages' fields
-    the bag's own (older) message types lack: read as 0, never recorded."""
-
-    @property
-    def duration_s(self) -> float:
-        return (self.end_ns - self.start_ns) * 1e-9
-
-
-def _columns(rows: list[tuple], dtypes: tuple) -> list[np.ndarray]:
-    if not rows:
-        return [np.zeros(0, dtype=d) for d in dtypes]
-    cols = list(zip(*rows))
-    return [np.asarray(cols[i], dtype=dtypes[i]) for i in range(len(dtypes))]
 
 
 def _joint_value(values, index: int) -> float:
@@ -236,67 +112,41 @@ def _lockstep_series(bag: Bag, ns: str) -> GraspSeries:
                 bag.decode(raw), COMMAND_LAYOUT.fields, 'command', absent))
         elif topic == t_status:
             m = bag.decode(raw)
-            statuses.append((stamp_ns(m.header.stamp), m))
+            statuses.append(_status_row(m))
         elif topic == t_object:
             m = bag.decode(raw)
-            objects.append((_t_s(m), m.state, m.slip_m, m.slip_speed_mps, m.load_n,
-                            m.capacity_n))
-    return lockstep_series(bag.path, ns, ticks, refs, cmds, statuses, objects,
-                           custom_data=bag.custom_data_parsed(), counts=bag.counts(),
-                           start_ns=bag.start_ns, end_ns=bag.end_ns, size_bytes=bag.size_bytes,
-                           truncated=bag.truncated, damage=bag.damage, absent=frozenset(absent))
-
-
-_NO_BAG = {'custom_data': {}, 'counts': {}, 'start_ns': 0, 'end_ns': 0, 'size_bytes': 0,
-           'truncated': False}
-"""The bag fields of a series that comes from no bag."""
-
-
-def lockstep_series(path, ns: str, ticks: list[tuple], refs: list[tuple], cmds: list[tuple],
-                    statuses: list[tuple], objects: list[tuple], **bag_fields) -> GraspSeries:
-    """Build the series of lockstep messages, for bags and grasps re-run without ROS alike.
-
-    ``ticks``, ``refs`` and ``cmds`` are the wire layouts' values (TICK_LAYOUT,
-    REFERENCE_LAYOUT, COMMAND_LAYOUT), ``statuses`` (stamp_ns, an object with
-    SupervisorStatus's fields), ``objects`` (t_s, state, slip_m, slip_speed_mps, load_n,
-    capacity_n); ``bag_fields`` fill the rest of :class:`GraspSeries`. One builder, so that
-    both give the same series.
-    """
-    # a repeated tick (a late peer) once; in tick order (DDS does not order topics)
+            objects.append((stamp_ns(m.header.stamp), m.state, m.slip_m, m.slip_speed_mps,
+                            m.load_n, m.capacity_n))
+    # a repeated message (a late peer) once; in tick order (DDS does not order topics)
     ticks = sorted(_unique_by(ticks, _key(TICK_LAYOUT, 'stamp_ns', 'revision')),
                    key=_key(TICK_LAYOUT, 'stamp_ns', 'revision'))
     refs = sorted(_unique_by(refs, _key(REFERENCE_LAYOUT, 'stage_id', 'stamp_ns')),
                   key=_key(REFERENCE_LAYOUT, 'stamp_ns', 'stage_id'))
     cmds = sorted(_unique_by(cmds, _key(COMMAND_LAYOUT, 'stage_id', 'stamp_ns')),
                   key=_key(COMMAND_LAYOUT, 'stamp_ns', 'stage_id'))
-    tick = dict(zip(TICK_LAYOUT.fields, _columns(
-        ticks, (np.int64,) + (float,) * 8 + (int, int) + (float,) * 4)))
-    t_s = tick['stamp_ns'] * 1e-9
-    f, i = float, int
-    ref = dict(zip(REFERENCE_LAYOUT.fields, _columns(
-        refs, (np.int64, i, i, i, i, i, i, bool, bool) + (f,) * 9)))
-    switch = _switch_criteria(ref['stamp_ns'], statuses)
-    status = StatusSeries(ref['stamp_ns'] * 1e-9, ref['phase'], ref['controller'], switch,
-                          ref['grasp_id'], ref['outcome'], ref['position_setpoint_m'],
-                          ref['force_setpoint_n'], ref['position_m'], ref['force_n'],
-                          ref['contact'], ref['seed_voltage_v'], ref['stage_id'],
-                          ref['approach_setpoint_m'])
-    status = _with_final_state(status, statuses)
-    cmd = dict(zip(COMMAND_LAYOUT.fields, _columns(
-        cmds, (np.int64, i, i, i, i, i, i, bool, bool, f, f, f))))
-    return GraspSeries(
-        path=Path(path),
-        joint=JointSeries(t_s, tick['position_m'], tick['velocity_mps'], tick['force_n']),
-        sensor=SensorSeries(t_s, tick['force_n'], tick['sensor_voltage_v'],
-                            tick['peak_force_n']),
-        motor=MotorSeries(t_s, tick['motor_voltage_v'], tick['current_a'], tick['speed_rad_s']),
-        status=status,
-        command=CommandSeries(cmd['stamp_ns'] * 1e-9, cmd['voltage_v'], cmd['source'],
-                              cmd['grasp_id'], cmd['hold_s'], cmd['inner_setpoint'],
-                              cmd['stage_id']),
-        namespace=ns, bag_format=2,
-        objects=ObjectSeries(*_columns(objects, (f, i, f, f, f, f))), ticks=tick,
-        references=ref, commands=cmd, **{**_NO_BAG, **bag_fields})
+    return GraspSeries(rows(TICK_LAYOUT.dtype, ticks), rows(REFERENCE_LAYOUT.dtype, refs),
+                       rows(COMMAND_LAYOUT.dtype, cmds), rows(STATUS_ROW, statuses),
+                       rows(OBJECT_ROW, objects), namespace=ns, bag_format=2,
+                       absent=frozenset(absent), **_bag_fields(bag))
+
+
+def _bag_fields(bag: Bag) -> dict:
+    """Return what a series says of the bag it was read from."""
+    return {'path': bag.path, 'custom_data': bag.custom_data_parsed(), 'counts': bag.counts(),
+            'start_ns': bag.start_ns, 'end_ns': bag.end_ns, 'size_bytes': bag.size_bytes,
+            'truncated': bag.truncated, 'damage': bag.damage}
+
+
+def _status_row(m) -> tuple:
+    """Return a SupervisorStatus message as a :data:`STATUS_ROW`.
+
+    A message type without a stage id or an approach setpoint (an older bag's) gives the grasp
+    id and the position setpoint.
+    """
+    return (stamp_ns(m.header.stamp), m.phase, m.active_controller, m.switch_criterion,
+            m.grasp_id, m.outcome, m.position_setpoint_m, m.force_setpoint_n, m.position_m,
+            m.force_n, bool(m.contact), getattr(m, 'stage_id', m.grasp_id),
+            getattr(m, 'approach_setpoint_m', m.position_setpoint_m))
 
 
 def _key(layout, *names):
@@ -313,9 +163,9 @@ def _fields(msg, names, kind: str, absent: set) -> tuple:
     return tuple(getattr(msg, n, 0) for n in names)
 
 
-def _unique_by(rows: list, key) -> list:
+def _unique_by(values: list, key) -> list:
     seen, out = set(), []
-    for row in rows:
+    for row in values:
         k = key(row)
         if k not in seen:
             seen.add(k)
@@ -323,80 +173,63 @@ def _unique_by(rows: list, key) -> list:
     return out
 
 
-def _switch_criteria(stamps_ns: np.ndarray, statuses: list) -> np.ndarray:
-    """Per decision tick, the switch criterion the supervisor's state reported by then."""
-    out = np.zeros(len(stamps_ns), dtype=int)
-    if not statuses:
-        return out
-    s_t = np.array([t for t, _ in statuses], dtype=np.int64)
-    s_v = np.array([m.switch_criterion for _, m in statuses], dtype=int)
-    idx = np.searchsorted(s_t, stamps_ns, side='right') - 1
-    valid = idx >= 0
-    out[valid] = s_v[idx[valid]]
-    return out
-
-
-def _with_final_state(status: StatusSeries, statuses: list) -> StatusSeries:
-    """Append the supervisor's last state when it ended the request after the last reference.
-
-    A FAULT: no stage is named, so no reference carries it.
-    """
-    if not statuses:
-        return status
-    t_ns, m = statuses[-1]
-    last_t = status.t_s[-1] if status.t_s.size else -np.inf
-    if t_ns * 1e-9 < last_t or (status.outcome.size and status.outcome[-1] == m.outcome and
-                                status.phase[-1] == m.phase):
-        return status
-    row = (t_ns * 1e-9, m.phase, m.active_controller, m.switch_criterion, m.grasp_id, m.outcome,
-           m.position_setpoint_m, m.force_setpoint_n, m.position_m, m.force_n, bool(m.contact),
-           np.nan, m.stage_id, m.approach_setpoint_m)
-    cols = [np.append(getattr(status, name), value) for name, value in
-            zip(('t_s', 'phase', 'active_controller', 'switch_criterion', 'grasp_id', 'outcome',
-                 'position_setpoint_m', 'force_setpoint_n', 'position_m', 'force_n', 'contact',
-                 'seed_voltage_v', 'stage_id', 'approach_setpoint_m'), row)]
-    return StatusSeries(*cols)
+LEGACY_TICK_FIELDS = ('peak_force_n', 'applied_source', 'revision', 'pad1_shear_n',
+                      'pad2_shear_n', 'pad1_displacement_m', 'pad2_displacement_m')
+"""The tick fields a bag recorded before the lockstep protocol has no message for."""
 
 
 def _legacy_series(bag: Bag) -> GraspSeries:
-    """Read a bag recorded before the lockstep protocol: a message per topic per tick."""
+    """Read a bag recorded before the lockstep protocol: a message per topic per tick.
+
+    Its joint, force-sensor and motor messages of one stamp make that stamp's tick; each
+    supervisor status is the decision of its tick, and the motor commands are the commands.
+    """
     topic = {name: qualified(LEGACY_NAMESPACE, name) for name in LEGACY_TOPICS}
     bag.require_topics([topic[TOPIC_JOINT_STATES], topic[TOPIC_FORCE_SENSOR],
                         topic[TOPIC_STATUS]])
-    joint, sensor, motor, status, command = [], [], [], [], []
+    joint, sensor, motor, status, command = [], {}, {}, [], []
+    peak_recorded = False
     for raw in bag.messages:
         if raw.topic == topic[TOPIC_JOINT_STATES]:
             m = bag.decode(raw)
             names = list(m.name)
             idx = names.index(FINGER_JOINT) if FINGER_JOINT in names else 0
-            joint.append((_t_s(m), _joint_value(m.position, idx),
-                          _joint_value(m.velocity, idx), _joint_value(m.effort, idx)))
+            joint.append((stamp_ns(m.header.stamp), _joint_value(m.position, idx),
+                          _joint_value(m.velocity, idx)))
         elif raw.topic == topic[TOPIC_FORCE_SENSOR]:
             m = bag.decode(raw)
-            sensor.append((_t_s(m), m.force_n, m.voltage_v,
-                           getattr(m, 'peak_force_n', float('nan'))))
+            peak_recorded = peak_recorded or hasattr(m, 'peak_force_n')
+            sensor[stamp_ns(m.header.stamp)] = (m.force_n, m.voltage_v,
+                                                getattr(m, 'peak_force_n', float('nan')))
         elif raw.topic == topic[LEGACY_MOTOR_STATE]:
             m = bag.decode(raw)
-            motor.append((_t_s(m), m.voltage_v, m.current_a, m.speed_rad_s))
+            motor[stamp_ns(m.header.stamp)] = (m.voltage_v, m.current_a, m.speed_rad_s)
         elif raw.topic == topic[TOPIC_STATUS]:
             m = bag.decode(raw)
-            status.append((_t_s(m), m.phase, m.active_controller, m.switch_criterion,
-                           m.grasp_id, m.outcome, m.position_setpoint_m, m.force_setpoint_n,
-                           m.position_m, m.force_n, bool(m.contact), m.seed_voltage_v,
-                           getattr(m, 'approach_setpoint_m', m.position_setpoint_m)))
+            status.append(m)
         elif raw.topic == topic[LEGACY_MOTOR_COMMAND]:
             m = bag.decode(raw)
-            command.append((_t_s(m), m.voltage_v, m.source, m.grasp_id, m.hold_s,
-                            m.inner_setpoint))
-    f, i = float, int
-    st = _columns(status, (f, i, i, i, i, i, f, f, f, f, bool, f, f))
-    return GraspSeries(
-        path=bag.path,
-        joint=JointSeries(*_columns(joint, (f, f, f, f))),
-        sensor=SensorSeries(*_columns(sensor, (f, f, f, f))),
-        motor=MotorSeries(*_columns(motor, (f, f, f, f))),
-        status=StatusSeries(*st[:12], stage_id=st[4].copy(), approach_setpoint_m=st[12]),
-        command=CommandSeries(*_columns(command, (f, f, i, i, f, f))),
-        custom_data=bag.custom_data_parsed(), counts=bag.counts(), start_ns=bag.start_ns,
-        end_ns=bag.end_ns, size_bytes=bag.size_bytes, truncated=bag.truncated,
-        damage=bag.damage, namespace=LEGACY_NAMESPACE, bag_format=1)
+            command.append((stamp_ns(m.header.stamp), m.grasp_id, 0, 0, m.source, 0, 0, 0, 1,
+                            m.voltage_v, m.hold_s, m.inner_setpoint))
+    nan3 = (math.nan,) * 3
+    ticks = [(t_ns, position_m, velocity_mps, force_n, peak_force_n, sensor_voltage_v,
+              motor_voltage_v, current_a, speed_rad_s, 0, 0, 0.0, 0.0, 0.0, 0.0)
+             for t_ns, position_m, velocity_mps in joint
+             for force_n, sensor_voltage_v, peak_force_n in [sensor.get(t_ns, nan3)]
+             for motor_voltage_v, current_a, speed_rad_s in [motor.get(t_ns, nan3)]]
+    statuses = [_status_row(m) for m in status]
+    refs = [(t_ns, grasp_id, grasp_id, 0, phase, outcome, controller, 0, contact, position_sp,
+             approach_sp, force_sp, position_m, 0.0, force_n, m.seed_voltage_v, 0.0, 0.0)
+            for m, (t_ns, phase, controller, _, grasp_id, outcome, position_sp, force_sp,
+                    position_m, force_n, contact, _, approach_sp) in zip(status, statuses)]
+    absent = {f'tick.{n}' for n in LEGACY_TICK_FIELDS[int(peak_recorded):]} | {
+        f'reference.{n}' for n in ('revision', 'running', 'velocity_mps', 'speed_limit_mps',
+                                   'voltage_limit_v')} | {
+        f'command.{n}' for n in ('stage_id', 'revision', 'phase', 'outcome', 'running',
+                                 'finite')}
+    if not motor:
+        absent |= {f'tick.{n}' for n in ('motor_voltage_v', 'current_a', 'speed_rad_s')}
+    return GraspSeries(rows(TICK_LAYOUT.dtype, ticks), rows(REFERENCE_LAYOUT.dtype, refs),
+                       rows(COMMAND_LAYOUT.dtype, command), rows(STATUS_ROW, statuses),
+                       namespace=LEGACY_NAMESPACE, bag_format=1, absent=frozenset(absent),
+                       **_bag_fields(bag))

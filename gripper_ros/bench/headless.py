@@ -53,7 +53,7 @@ def _ticks(config, width_m: float, mass_kg: float, hold_s: float, traced: bool,
     from gripper_ros.core.runtime.headless import simulate_grasp
     if captured:
         return len(simulate_grasp(config, width_m, mass_kg, hold_s=hold_s,
-                                  trace_state_period_ns=TRACE_STATE_PERIOD_NS).trace.ticks)
+                                  trace_state_period_ns=TRACE_STATE_PERIOD_NS).series.ticks)
     if traced:
         count = [0]
 
@@ -61,12 +61,12 @@ def _ticks(config, width_m: float, mass_kg: float, hold_s: float, traced: bool,
             count[0] += 1
         simulate_grasp(config, width_m, mass_kg, hold_s=hold_s, trace=trace)
         return count[0]
-    return len(simulate_grasp(config, width_m, mass_kg, hold_s=hold_s).t_ns)
+    return len(simulate_grasp(config, width_m, mass_kg, hold_s=hold_s).series.ticks)
 
 
 def _batch_ticks(case: dict, result) -> int:
     """Ticks of one batch grasp (runs in the worker: only the count comes back)."""
-    return len(result.t_ns)
+    return len(result.series.ticks)
 
 
 def measure(repeat: int = 5, hold_s: float = 1.0, batch: int = 32, jobs_list=(1, 2),

@@ -67,23 +67,25 @@ def _graph_path_run(config: GripperConfig, width_m: float, mass_kg: float,
     except RequestError as exc:
         return GripRun('REFUSED', str(exc), math.nan, math.nan, math.nan, math.nan,
                        math.nan, math.nan, math.nan)
-    grasp = h.t_ns <= (h.answer_ns if h.answer_ns is not None else h.end_ns)
-    ratio = float(np.nanmax(h.peak_force_n[grasp])) / h.force_setpoint_n
+    ticks, states = h.series.ticks, h.series.tick_states
+    t_ns = ticks['stamp_ns']
+    grasp = t_ns <= (h.answer_ns if h.answer_ns is not None else h.end_ns)
+    ratio = float(np.nanmax(ticks['peak_force_n'][grasp])) / h.force_setpoint_n
     if h.answer is not Outcome.HOLDING:
         return GripRun(h.answer.name, h.message, ratio, 0.0, math.nan, math.nan, math.nan,
                        math.nan, math.nan)
     lift_start_ns = h.answer_ns + (round(lift.delay_s * 1e9) if lift is not None else 0)
     end_ns = h.answer_ns + round(hold_s * 1e9)
-    hold = np.flatnonzero((h.t_ns >= h.answer_ns) & (h.t_ns <= end_ns))
-    lost = np.flatnonzero(h.hold_state[hold] == HoldState.LOST)
+    hold = np.flatnonzero((t_ns >= h.answer_ns) & (t_ns <= end_ns))
+    lost = np.flatnonzero(states['hold_state'][hold] == HoldState.LOST)
     if lost.size:                                   # the hold ends with the object
         hold = hold[:lost[0] + 1]
     rows = np.column_stack([
-        h.t_ns, h.force_n, h.setpoint_n, h.load_n,
-        2.0 * static_friction * np.maximum(h.force_n, 0.0), h.slip_series_m,
-        0.5 * (h.pad1_shear_n + h.pad2_shear_n),
-        0.5 * (h.pad1_displacement_m + h.pad2_displacement_m), h.mu_est,
-        h.hold_state]).astype(float)[hold]
+        t_ns, ticks['force_n'], states['force_setpoint_n'], states['load_n'],
+        2.0 * static_friction * np.maximum(ticks['force_n'], 0.0), states['slip_m'],
+        0.5 * (ticks['pad1_shear_n'] + ticks['pad2_shear_n']),
+        0.5 * (ticks['pad1_displacement_m'] + ticks['pad2_displacement_m']), states['mu_est'],
+        states['hold_state']]).astype(float)[hold]
     lift_off_s = lift.lift_off_or(config.contact.lift_off_s) if lift is not None else 0.0
     margin = _margins(rows, static_friction, lift_start_ns + round(lift_off_s * 1e9))
     rows = rows[::decimate]

@@ -309,10 +309,11 @@ def grasp_summary(case: dict, g):
     held = g.outcome.name == 'HOLDING'
     lo, hi, drift = math.nan, math.nan, math.nan
     hold = g.continued_hold
-    if held and g.position_m[hold].size:
+    position_m = g.series.ticks['position_m']
+    if held and position_m[hold].size:
         lo, hi = g.hold_force_range_n()
-        drift = float(max(abs(g.position_m[hold].max() - g.position_m[hold.start - 1]),
-                          abs(g.position_m[hold].min() - g.position_m[hold.start - 1])))
+        drift = float(max(abs(position_m[hold].max() - position_m[hold.start - 1]),
+                          abs(position_m[hold].min() - position_m[hold.start - 1])))
     return (g.outcome.name, f_sp, g.peak_contact_force_n,
             g.time_to_answer_s if held else math.inf, lo / f_sp, hi / f_sp, drift)
 

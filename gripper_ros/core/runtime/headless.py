@@ -30,6 +30,8 @@ from gripper_ros.core.records import as_record
 from gripper_ros.core.runtime.engine import map_cases
 from gripper_ros.core.runtime.lockstep import (Command, PlantSide, side_accept, side_needs_time,
                                                side_step, StageSide, SupervisorSide, Tick)
+from gripper_ros.core.series import (GraspSeries, OBJECT_ROW, rows, STATUS_ROW,
+                                     TICK_STATE_ROW)
 from gripper_ros.core.supervision.requests import (GraspRequest, MoveRequest, RequestError,
                                                    validate_move, validate_request)
 from gripper_ros.core.supervision.supervisor import (GraspSupervisor, K_LAW, K_PLAN, load_law,
@@ -41,17 +43,6 @@ import numba
 import numpy as np
 
 
-STATUS_ROW = np.dtype(
-    [('stamp_ns', 'i8'), ('phase', 'i4'), ('active_controller', 'i4'),
-     ('switch_criterion', 'i4'), ('grasp_id', 'i8'), ('outcome', 'i4'),
-     ('position_setpoint_m', 'f8'), ('force_setpoint_n', 'f8'), ('position_m', 'f8'),
-     ('force_n', 'f8'), ('contact', 'b1'), ('stage_id', 'i8'), ('approach_setpoint_m', 'f8')],
-    align=True)
-"""The supervisor's state on a tick it changed, as ``supervisor/status`` reports it."""
-OBJECT_ROW = np.dtype(
-    [('stamp_ns', 'i8'), ('state', 'i4'), ('slip_m', 'f8'), ('slip_speed_mps', 'f8'),
-     ('load_n', 'f8'), ('capacity_n', 'f8')], align=True)
-"""The held object's ground truth on a tick the plant node publishes ``sim/object_state``."""
 TRACE_STATE = np.dtype(
     [('state_period_ns', 'i8'),        # 0: no trace is kept
      ('references', 'i8'), ('statuses', 'i8'), ('objects', 'i8'),    # rows kept so far
@@ -60,25 +51,8 @@ TRACE_STATE = np.dtype(
 
 
 @dataclass
-class GraspTrace:
-    """Every message of a headless grasp, as the graph's bag holds them (structured arrays).
-
-    ``ticks``, ``references`` and ``commands`` have the wire layouts' fields
-    (``TICK_LAYOUT.dtype`` ...); ``statuses`` (:data:`STATUS_ROW`) the supervisor's state on
-    each tick it changed; ``objects`` (:data:`OBJECT_ROW`) the object's ground truth on the
-    grid of the state period and whenever its hold state changed.
-    """
-
-    ticks: np.ndarray
-    references: np.ndarray
-    commands: np.ndarray
-    statuses: np.ndarray
-    objects: np.ndarray
-
-
-@dataclass
 class HeadlessGrasp:
-    """Per-tick series (one entry per plant tick) and the grasp's result."""
+    """A headless grasp's answer and result, and its time series."""
 
     outcome: Outcome                    # the final outcome (after the hold, when it went on)
     message: str
@@ -91,34 +65,19 @@ class HeadlessGrasp:
     end_ns: int                         # the last tick simulated
     answer: Outcome = Outcome.UNKNOWN   # what the grasp service answered
     answer_ns: int | None = None        # when
-    t_ns: np.ndarray = field(repr=False, default=None)
-    position_m: np.ndarray = field(repr=False, default=None)
-    force_n: np.ndarray = field(repr=False, default=None)
-    peak_force_n: np.ndarray = field(repr=False, default=None)
-    motor_voltage_v: np.ndarray = field(repr=False, default=None)
-    sensor_voltage_v: np.ndarray = field(repr=False, default=None)
-    phase: np.ndarray = field(repr=False, default=None)
     final_ns: int | None = None         # when the final outcome was reached
     slip_m: float = 0.0                 # ground truth: how far the object slid on the pads
     lost_ns: int | None = None          # ground truth: when it left the pads
     overload_ns: int | None = None      # when the load-tracking grip answered OVERLOADED
     overload_need_n: float = math.nan   # ... the grip the load needed then
     overload_limit_n: float = math.nan  # ... the most 24 V holds
-    pad1_shear_n: np.ndarray = field(repr=False, default=None)         # the ticks' pad readings
-    pad2_shear_n: np.ndarray = field(repr=False, default=None)
-    pad1_displacement_m: np.ndarray = field(repr=False, default=None)
-    pad2_displacement_m: np.ndarray = field(repr=False, default=None)
-    setpoint_n: np.ndarray = field(repr=False, default=None)     # the reference's, each tick
-    load_n: np.ndarray = field(repr=False, default=None)         # truth: m (g + a) while held
-    slip_series_m: np.ndarray = field(repr=False, default=None)  # truth: the slide so far
-    hold_state: np.ndarray = field(repr=False, default=None)     # truth: HoldState
-    mu_est: np.ndarray = field(repr=False, default=None)         # the load-tracking law's
-    trace: GraspTrace | None = field(repr=False, default=None)   # with trace_state_period_ns
+    series: GraspSeries | None = field(repr=False, default=None)
+    """Every tick and its state; with ``trace_state_period_ns`` every message too."""
 
     @property
     def peak_contact_force_n(self) -> float:
         """Largest contact force, between samples included, over the grasp and the hold."""
-        return float(np.max(self.peak_force_n))
+        return float(np.max(self.series.ticks['peak_force_n']))
 
     @property
     def time_to_answer_s(self) -> float:
@@ -132,17 +91,18 @@ class HeadlessGrasp:
         """The samples after a HOLDING answer (empty without one or without ``hold_s``)."""
         if self.answer is not Outcome.HOLDING:
             return slice(0, 0)
-        return slice(int(np.searchsorted(self.t_ns, self.answer_ns, side='right')), None)
+        return slice(int(np.searchsorted(self.series.ticks['stamp_ns'], self.answer_ns,
+                                         side='right')), None)
 
     def hold_force_range_n(self) -> tuple[float, float]:
         """Return (min, max) of the force over the continued hold; (nan, nan) without one.
 
         The max includes the peaks between samples.
         """
-        hold = self.continued_hold
-        if self.force_n[hold].size == 0:
+        held = self.series.ticks[self.continued_hold]
+        if held.size == 0:
             return math.nan, math.nan
-        return float(np.min(self.force_n[hold])), float(np.max(self.peak_force_n[hold]))
+        return float(np.min(held['force_n'])), float(np.max(held['peak_force_n']))
 
     @property
     def duration_s(self) -> float:
@@ -154,48 +114,33 @@ LOOP_STATE = np.dtype([('woken', 'b1'), ('named', 'b1'), ('done', 'b1'),
                        ('announce', 'b1'),      # the arm announces its lift to the supervisor
                        ('announced', 'b1')], align=True)
 """The compiled loop's own state: resumable when its row buffers fill up."""
-ROWS = ('position_m', 'force_n', 'peak_force_n', 'motor_voltage_v', 'sensor_voltage_v',
-        'pad1_shear_n', 'pad2_shear_n', 'pad1_displacement_m', 'pad2_displacement_m',
-        'setpoint_n', 'load_n', 'slip_series_m', 'hold_state', 'mu_est')
-"""The per-tick float series a headless grasp keeps, in the order of its row buffer: the tick's
-fields, then the reference's force setpoint, the held object's truth (load m (g + a) while
-held, slip, HoldState) and the load-tracking law's friction estimate."""
-_TRACE_BUFFERS = (('ticks', TICK_LAYOUT.dtype), ('references', REFERENCE_LAYOUT.dtype),
-                  ('commands', COMMAND_LAYOUT.dtype), ('statuses', STATUS_ROW),
-                  ('objects', OBJECT_ROW))
-"""The compiled loop's trace buffers, in its arguments' order."""
+_TRACE_BUFFERS = (('references', REFERENCE_LAYOUT.dtype), ('commands', COMMAND_LAYOUT.dtype),
+                  ('statuses', STATUS_ROW), ('objects', OBJECT_ROW))
+"""The compiled loop's trace buffers, in its arguments' order (a grasp's every message)."""
 FIRST_ROWS = 4096
 """Rows a grasp's series buffers start with (they double when full)."""
 
 
 @numba.njit(cache=True)
-def _keep_row(rows_t, rows_f, rows_phase, n, tick, phase, ref, plant_k, law) -> None:
-    t = tick[0]
+def _keep_row(ticks, tick_states, n, tick, phase, ref, plant_k, law) -> None:
+    """Keep tick ``n`` and its state (:data:`TICK_STATE_ROW`)."""
+    ticks[n] = tick[0]
     h = plant_hold_record(plant_k)
-    rows_t[n] = t.stamp_ns
-    rows_f[n, 0] = t.position_m
-    rows_f[n, 1] = t.force_n
-    rows_f[n, 2] = t.peak_force_n
-    rows_f[n, 3] = t.motor_voltage_v
-    rows_f[n, 4] = t.sensor_voltage_v
-    rows_f[n, 5] = t.pad1_shear_n
-    rows_f[n, 6] = t.pad2_shear_n
-    rows_f[n, 7] = t.pad1_displacement_m
-    rows_f[n, 8] = t.pad2_displacement_m
-    rows_f[n, 9] = ref[0].force_setpoint_n
-    rows_f[n, 10] = hold_load_n(h) if h.has_hold else 0.0
-    rows_f[n, 11] = h.slip_m
-    rows_f[n, 12] = h.state
-    rows_f[n, 13] = law[0].mu_est
-    rows_phase[n] = phase
+    s = tick_states[n]
+    s.phase = phase
+    s.force_setpoint_n = ref[0].force_setpoint_n
+    s.approach_setpoint_m = ref[0].approach_setpoint_m
+    s.load_n = hold_load_n(h) if h.has_hold else 0.0
+    s.slip_m = h.slip_m
+    s.hold_state = h.state
+    s.mu_est = law[0].mu_est
 
 
 @numba.njit(cache=True)
-def _trace_tick(trace, n, tick, supervisor, plant_k, ticks, statuses, objects) -> None:
-    """Keep tick ``n``, the supervisor's state when it changed and the object's when due."""
+def _trace_tick(trace, tick, supervisor, plant_k, statuses, objects) -> None:
+    """Keep the supervisor's state when it changed and the object's when due."""
     ts = trace[0]
     t = tick[0]
-    ticks[n] = t
     m = ts.statuses
     if m > 0:
         last = statuses[m - 1]
@@ -275,8 +220,8 @@ def announce_lift(state, plant_k, supervisor_k) -> None:
 
 @numba.njit(cache=True)
 def run_lockstep(loop, side, plant_k, supervisor_k, position_k, force_k, tick, ref, cmd,
-                 rows_t, rows_f, rows_phase, trace, trace_ticks, trace_references,
-                 trace_commands, trace_statuses, trace_objects) -> bool:
+                 ticks, tick_states, trace, trace_references, trace_commands, trace_statuses,
+                 trace_objects) -> bool:
     """Run the graph's loop in fast mode from ``tick`` until simulated time would pause.
 
     Each tick: keep its row, let the named stage answer, the plant react and hold the command,
@@ -289,14 +234,13 @@ def run_lockstep(loop, side, plant_k, supervisor_k, position_k, force_k, tick, r
     tracing = trace[0].state_period_ns > 0
     n = state.rows
     while True:
-        if n == rows_t.shape[0]:
+        if n == ticks.shape[0]:
             state.rows = n
             return False
-        _keep_row(rows_t, rows_f, rows_phase, n, tick, supervisor.phase, ref, plant_k,
+        _keep_row(ticks, tick_states, n, tick, supervisor.phase, ref, plant_k,
                   supervisor_law_arrays(supervisor_k))
         if tracing:
-            _trace_tick(trace, n, tick, supervisor, plant_k, trace_ticks, trace_statuses,
-                        trace_objects)
+            _trace_tick(trace, tick, supervisor, plant_k, trace_statuses, trace_objects)
         n += 1
         if state.hold_until_ns == NO_NS and supervisor.answer_ns != NO_NS:
             state.hold_until_ns = supervisor.answer_ns + state.hold_ns
@@ -336,9 +280,8 @@ class _Loop:
         self.cmd = plant_side.command_record
         self.state = np.zeros(1, LOOP_STATE)
         self.state[0]['hold_until_ns'] = NO_NS
-        self.rows_t = np.zeros(0, np.int64)
-        self.rows_f = np.zeros((0, len(ROWS)))
-        self.rows_phase = np.zeros(0, np.int8)
+        self.ticks = np.zeros(0, TICK_LAYOUT.dtype)
+        self.tick_states = np.zeros(0, TICK_STATE_ROW)
         self.trace = np.zeros(1, TRACE_STATE)
         self.trace_buffers = {name: np.zeros(0, dtype) for name, dtype in _TRACE_BUFFERS}
 
@@ -356,11 +299,11 @@ class _Loop:
         return named
 
     def _grow(self) -> None:
-        size = max(FIRST_ROWS, 2 * self.rows_t.shape[0])
+        size = max(FIRST_ROWS, 2 * self.ticks.shape[0])
         n = int(self.state[0]['rows'])
-        for name in ('rows_t', 'rows_f', 'rows_phase'):
+        for name in ('ticks', 'tick_states'):
             old = getattr(self, name)
-            new = np.zeros((size,) + old.shape[1:], old.dtype)
+            new = np.zeros(size, old.dtype)
             new[:n] = old[:n]
             setattr(self, name, new)
         if self.tracing:
@@ -371,16 +314,16 @@ class _Loop:
 
     def keep_row(self) -> None:
         """Keep the present tick's row (the Python-driven loop)."""
-        if self.state[0]['rows'] == self.rows_t.shape[0]:
+        if self.state[0]['rows'] == self.ticks.shape[0]:
             self._grow()
         n = int(self.state[0]['rows'])
-        _keep_row(self.rows_t, self.rows_f, self.rows_phase, n, self.tick,
+        _keep_row(self.ticks, self.tick_states, n, self.tick,
                   int(self.supervisor.decision.phase), self.ref, self.plant_side.plant.kernel,
                   self.supervisor.law)
         if self.tracing:
             b = self.trace_buffers
-            _trace_tick(self.trace, n, self.tick, self.supervisor.record,
-                        self.plant_side.plant.kernel, b['ticks'], b['statuses'], b['objects'])
+            _trace_tick(self.trace, self.tick, self.supervisor.record,
+                        self.plant_side.plant.kernel, b['statuses'], b['objects'])
         self.state[0]['rows'] = n + 1
 
     def run(self) -> None:
@@ -389,20 +332,24 @@ class _Loop:
         while not run_lockstep(self.state, ps.state, ps.plant.kernel, self.supervisor.kernel,
                                self.stages[Controller.POSITION].stage.kernel,
                                self.stages[Controller.FORCE].stage.kernel, self.tick, self.ref,
-                               self.cmd, self.rows_t, self.rows_f, self.rows_phase,
+                               self.cmd, self.ticks, self.tick_states,
                                self.trace, *self.trace_buffers.values()):
             self._grow()
 
-    def grasp_trace(self) -> GraspTrace | None:
-        """Return the messages kept (None when no trace was kept)."""
-        if not self.tracing:
-            return None
-        ts = self.trace[0]
-        b = self.trace_buffers
-        count = {'ticks': int(self.state[0]['rows']), 'references': int(ts['references']),
-                 'commands': int(ts['references']), 'statuses': int(ts['statuses']),
-                 'objects': int(ts['objects'])}
-        return GraspTrace(**{name: b[name][:count[name]].copy() for name in b})
+    def series(self) -> GraspSeries:
+        """Return the ticks and their states kept, and the messages when traced."""
+        n = int(self.state[0]['rows'])
+        messages = {}
+        if self.tracing:
+            ts = self.trace[0]
+            count = {'references': int(ts['references']), 'commands': int(ts['references']),
+                     'statuses': int(ts['statuses']), 'objects': int(ts['objects'])}
+            messages = {name: rows[:count[name]].copy()
+                        for name, rows in self.trace_buffers.items()}
+        stamps = self.ticks['stamp_ns'][:n]
+        return GraspSeries(self.ticks[:n].copy(), tick_states=self.tick_states[:n].copy(),
+                           start_ns=int(stamps[0]) if n else 0,
+                           end_ns=int(stamps[-1]) if n else 0, **messages)
 
     def run_traced(self, trace: Callable) -> None:
         """Run tick by tick from Python, calling ``trace`` every tick: the same kernels."""
@@ -431,12 +378,6 @@ class _Loop:
             state['woken'] = False
             self.plant_side.step(self.cmd)
             self.decide()
-
-    def series(self) -> tuple:
-        n = int(self.state[0]['rows'])
-        f = self.rows_f[:n]
-        return (self.rows_t[:n].copy(), *(f[:, j].copy() for j in range(len(ROWS))),
-                self.rows_phase[:n].copy())
 
 
 def simulate_grasp(config: GripperConfig, width_m: float, mass_kg: float, *,
@@ -473,7 +414,7 @@ def simulate_grasp(config: GripperConfig, width_m: float, mass_kg: float, *,
     the decision is the supervisor's reused object, to be read at once. Without ``trace`` the
     loop runs compiled; with it, tick by tick from Python over the same compiled functions.
     ``trace_state_period_ns`` > 0 keeps, in the compiled loop, what ``trace`` sees as a bag
-    holds it (the result's :class:`GraspTrace`; the object state on that period's grid); it
+    holds it (in the result's :class:`GraspSeries`; the object state on that period's grid); it
     cannot be combined with ``trace``. ``announce``: the arm announces ``lift`` to the
     supervisor as the hold begins (its plan's breakpoints, ``arm/planned_acceleration`` in the
     graph), so that the load-tracking grip rises with the load the motion brings.
@@ -519,14 +460,12 @@ def simulate_grasp(config: GripperConfig, width_m: float, mass_kg: float, *,
     else:
         loop.run_traced(trace)
     s = supervisor
-    t_ns, *rows, phase = loop.series()
-    pads = dict(zip(ROWS[5:], rows[5:]))
     return HeadlessGrasp(
         s.outcome, s.message, s.switch_criterion, targets.position_setpoint_m,
         targets.force_setpoint_n, s.start_ns, s.switch_ns, s.contact_ns,
-        int(loop.tick[0]['stamp_ns']), s.answer, s.answer_ns, t_ns, *rows[:5], phase,
-        s.end_ns, plant.object_state.slip_m, plant.object_state.lost_ns, s.overload_ns,
-        s.overload_need_n, config.plant.max_force_n, **pads, trace=loop.grasp_trace())
+        int(loop.tick[0]['stamp_ns']), s.answer, s.answer_ns, s.end_ns,
+        plant.object_state.slip_m, plant.object_state.lost_ns, s.overload_ns,
+        s.overload_need_n, config.plant.max_force_n, loop.series())
 
 
 def _grasp_case(config: GripperConfig, summarize: Callable | None, case: dict):
@@ -578,19 +517,12 @@ class MoveAnswer:
 
 @dataclass
 class HeadlessMoves:
-    """Per-tick series of a sequence of moves and each move's answer."""
+    """Each move's answer and the time series of the whole sequence."""
 
     answers: list
-    t_ns: np.ndarray = field(repr=False, default=None)
-    position_m: np.ndarray = field(repr=False, default=None)
-    velocity_mps: np.ndarray = field(repr=False, default=None)
-    force_n: np.ndarray = field(repr=False, default=None)
-    peak_force_n: np.ndarray = field(repr=False, default=None)
-    motor_voltage_v: np.ndarray = field(repr=False, default=None)
-    phase: np.ndarray = field(repr=False, default=None)
-    approach_setpoint_m: np.ndarray = field(repr=False, default=None)
-    current_a: np.ndarray = field(repr=False, default=None)
-    speed_rad_s: np.ndarray = field(repr=False, default=None)
+    series: GraspSeries | None = field(repr=False, default=None)
+    """Every tick and the supervisor's phase and setpoints on it (``tick_states``; the held
+    object's truth and the law's estimate are not kept: NaN)."""
 
 
 def simulate_moves(config: GripperConfig, moves, *, object_width_m: float = 0.0,
@@ -623,11 +555,11 @@ def simulate_moves(config: GripperConfig, moves, *, object_width_m: float = 0.0,
     tick = plant_side.tick()
     decision, ref = decide(tick)                    # the position stage holds the open fingers
     pending = list(zip(targets, masses))
-    answers, rows = [], []
+    answers, ticks, states = [], [], []
     while True:
-        rows.append((tick.stamp_ns, tick.position_m, tick.velocity_mps, tick.force_n,
-                     tick.peak_force_n, tick.motor_voltage_v, int(decision.phase),
-                     decision.approach_setpoint_m, tick.current_a, tick.speed_rad_s))
+        ticks.append(tuple(tick))
+        states.append((int(decision.phase), decision.force_setpoint_n,
+                       decision.approach_setpoint_m, math.nan, math.nan, 0, math.nan))
         if decision.answer is not None:
             answers.append(MoveAnswer(decision.answer, decision.message, supervisor.start_ns,
                                       tick.stamp_ns, tick.position_m, tick.force_n))
@@ -651,11 +583,10 @@ def simulate_moves(config: GripperConfig, moves, *, object_width_m: float = 0.0,
                 supervisor.request_grasp(target, mass, after_ns=tick.stamp_ns)
         tick = plant_side.step(cmd)
         decision, ref = decide(tick)
-    cols = list(zip(*rows))
-    return HeadlessMoves(answers, np.array(cols[0], dtype=np.int64),
-                         *(np.array(c, dtype=float) for c in cols[1:6]),
-                         np.array(cols[6], dtype=np.int8), np.array(cols[7], dtype=float),
-                         np.array(cols[8], dtype=float), np.array(cols[9], dtype=float))
+    ticks = rows(TICK_LAYOUT.dtype, ticks)
+    return HeadlessMoves(answers, GraspSeries(ticks, tick_states=rows(TICK_STATE_ROW, states),
+                                              start_ns=int(ticks['stamp_ns'][0]),
+                                              end_ns=int(ticks['stamp_ns'][-1])))
 
 
 def warm_up_worker() -> None:
@@ -725,6 +656,6 @@ def _warm_up_faces(config: GripperConfig) -> None:
         LockstepAnswerer(ForceStageController(config, kind)).answer(ref)
 
 
-__all__ = ['GraspTrace', 'HeadlessGrasp', 'HeadlessMoves', 'map_cases', 'MoveAnswer',
+__all__ = ['GraspSeries', 'HeadlessGrasp', 'HeadlessMoves', 'map_cases', 'MoveAnswer',
            'MoveRequest', 'Phase', 'simulate_grasp', 'simulate_grasps', 'simulate_moves',
            'warm_up']
