@@ -50,11 +50,13 @@ import math
 
 from gripper_ros.core.config import (GripperConfig, PlantParams, shipped_config,
                                      SupervisorParams)
-from gripper_ros.core.control.load_grip import (HISTORY_ROWS, law_step, make_law, MU_GRID,
-                                                plan_announce, PLAN_DTYPE, PLAN_ROWS)
-from gripper_ros.core.records import RecordParams
+from gripper_ros.core.control.load_grip import (GRIP_DTYPE, HISTORY_ROWS, law_step, make_law,
+                                                MU_GRID, plan_announce, PLAN_DTYPE, PLAN_ROWS)
+from gripper_ros.core.records import (copy_fields, face_kernel, FLOATS_2D, RecordParams,
+                                      set_fields)
 from gripper_ros.core.supervision.requests import GraspTargets, MoveTargets, RequestError
-from gripper_ros.wire import Controller, Outcome, PendingRequest, Phase, SwitchCriterion
+from gripper_ros.wire import (Controller, Outcome, PendingRequest, Phase, REFERENCE_LAYOUT,
+                              SwitchCriterion, TICK_LAYOUT)
 import numba
 import numpy as np
 
@@ -169,6 +171,9 @@ K_MESSAGE = 2
 K_LAW_BUFFERS = 3
 K_LAW = 4
 K_PLAN = 5
+_KERNEL_ARRAYS = (SUPERVISOR_STATE, SUPERVISOR_PARAMS, SUPERVISOR_MESSAGE, FLOATS_2D, GRIP_DTYPE,
+                  PLAN_DTYPE)
+"""The types of ``GraspSupervisor.kernel``, entry by entry."""
 
 _kernel = numba.njit(cache=True)
 
@@ -267,26 +272,23 @@ def _end(s, phase, outcome, msg_code, hold, position_m, move_limits) -> int:
     return s.outcome
 
 
+_REQUEST_TIMES = ('answer_ns', 'switch_ns', 'contact_ns', 'settled_ns', 'end_ns',
+                  'in_band_since_ns', 'prev_force_t_ns', 'low_since_ns', 'rest_since_ns',
+                  'overload_ns')
+"""The instants of a request (``NO_NS`` as it starts)."""
+
+
 @_kernel
 def _reset(s, t_ns) -> None:
     s.outcome = Outcome.UNKNOWN
     s.answer = Outcome.UNKNOWN
-    s.answer_ns = NO_NS
     s.switch_criterion = SwitchCriterion.NONE
     s.start_ns = t_ns
     s.t_ns = t_ns
-    s.switch_ns = NO_NS
-    s.contact_ns = NO_NS
-    s.settled_ns = NO_NS
+    set_fields(s, _REQUEST_TIMES, NO_NS)
     s.hold_position_m = math.nan
-    s.end_ns = NO_NS
-    s.in_band_since_ns = NO_NS
-    s.prev_force_t_ns = NO_NS
     s.prev_force_n = 0.0
     s.gripped = False
-    s.low_since_ns = NO_NS
-    s.rest_since_ns = NO_NS
-    s.overload_ns = NO_NS
     s.msg_code = MSG_NONE
     s.msg_seq += 1
 
@@ -297,17 +299,7 @@ def _take_pending(s) -> None:
     s.kind = s.pend_kind
     s.tg_kind = s.pend_kind
     s.mass_kg = s.pend_mass_kg
-    s.tg_position_setpoint_m = s.pend_position_setpoint_m
-    s.tg_approach_setpoint_m = s.pend_approach_setpoint_m
-    s.tg_force_setpoint_n = s.pend_force_setpoint_n
-    s.tg_friction_coefficient = s.pend_friction_coefficient
-    s.tg_timeout_s = s.pend_timeout_s
-    s.tg_width_tolerance_m = s.pend_width_tolerance_m
-    s.tg_speed_mps = s.pend_speed_mps
-    s.tg_max_effort_n = s.pend_max_effort_n
-    s.tg_voltage_limit_v = s.pend_voltage_limit_v
-    s.tg_tolerance_m = s.pend_tolerance_m
-    s.tg_load_tracking = s.pend_load_tracking
+    copy_fields(s, s, _TARGET_FIELDS, 'tg_', 'pend_')
     s.pend_kind = 0
     s.grasp_id += 1
 
@@ -631,6 +623,7 @@ def _fill(s, answer) -> None:
         s.d_speed_limit_mps = 0.0
 
 
+@face_kernel(_KERNEL_ARRAYS, int, float, float, float, float, int, float, float)
 @_kernel
 def supervisor_step(k, t_ns, position_m, force_n, sensor_voltage_v, speed_mps,
                     revision, shear_n, displacement_m) -> None:
@@ -678,6 +671,14 @@ def _lead(s, p) -> None:
         s.d_approach_setpoint_m = min(max(ahead, 0.0), s.travel_m)
 
 
+_RELAYED_FIELDS = ('stamp_ns', 'revision', 'position_m', 'velocity_mps', 'force_n')
+"""What a StageReference relays of its PlantTick, as read."""
+_DECIDED_FIELDS = ('running', 'contact', 'position_setpoint_m', 'approach_setpoint_m',
+                   'force_setpoint_n', 'speed_limit_mps', 'voltage_limit_v')
+"""What it carries of the tick's decision (the state's ``d_*`` fields)."""
+
+
+@face_kernel(_KERNEL_ARRAYS, TICK_LAYOUT.dtype, REFERENCE_LAYOUT.dtype)
 @_kernel
 def supervisor_decide(k, tick, ref) -> bool:
     """Decide ``tick`` (a PlantTick record) and address ``ref`` (a StageReference record).
@@ -696,27 +697,14 @@ def supervisor_decide(k, tick, ref) -> bool:
     if s.active == Controller.NONE:
         return False
     r = ref[0]
-    r.stamp_ns = t.stamp_ns
-    r.grasp_id = s.grasp_id
-    r.stage_id = s.stage_id
-    r.revision = t.revision
-    r.phase = s.phase
-    r.outcome = s.outcome
+    copy_fields(r, t, _RELAYED_FIELDS)
+    copy_fields(r, s, ('grasp_id', 'stage_id', 'phase', 'outcome', 'seed_voltage_v'))
     r.controller = s.active
-    r.running = s.d_running
-    r.contact = s.d_contact
-    r.position_setpoint_m = s.d_position_setpoint_m
-    r.approach_setpoint_m = s.d_approach_setpoint_m
-    r.force_setpoint_n = s.d_force_setpoint_n
-    r.position_m = t.position_m
-    r.velocity_mps = t.velocity_mps
-    r.force_n = t.force_n
-    r.seed_voltage_v = s.seed_voltage_v
-    r.speed_limit_mps = s.d_speed_limit_mps
-    r.voltage_limit_v = s.d_voltage_limit_v
+    copy_fields(r, s, _DECIDED_FIELDS, '', 'd_')
     return True
 
 
+@face_kernel(_KERNEL_ARRAYS)
 @_kernel
 def supervisor_stop(k) -> bool:
     """End the running request, the hold, a stalled move's press or a waiting request: STOPPED.
@@ -738,6 +726,7 @@ def supervisor_stop(k) -> bool:
     return True
 
 
+@face_kernel(_KERNEL_ARRAYS)
 @_kernel
 def supervisor_fault(k) -> bool:
     """End the running request or the hold as FAULT: no controller drives the motor."""
