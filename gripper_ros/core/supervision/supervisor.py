@@ -52,8 +52,8 @@ from gripper_ros.core.config import (GripperConfig, PlantParams, shipped_config,
                                      SupervisorParams)
 from gripper_ros.core.control.load_grip import (GRIP_DTYPE, HISTORY_ROWS, law_step, make_law,
                                                 MU_GRID, plan_announce, PLAN_DTYPE, PLAN_ROWS)
-from gripper_ros.core.records import (copy_fields, face_kernel, FLOATS_2D, RecordParams,
-                                      set_fields)
+from gripper_ros.core.records import (copy_fields, face_kernel, FLOATS_2D, RecordField,
+                                      RecordParams, set_fields)
 from gripper_ros.core.supervision.requests import GraspTargets, MoveTargets, RequestError
 from gripper_ros.wire import (Controller, Outcome, PendingRequest, Phase, REFERENCE_LAYOUT,
                               SwitchCriterion, TICK_LAYOUT)
@@ -844,38 +844,48 @@ def _ns_or_none(value) -> int | None:
     return None if value == NO_NS else int(value)
 
 
-class Decision:
+def _state(read, field: str = '', doc: str | None = None) -> RecordField:
+    """Return a read-only field of the supervisor's state record (the face's ``_s``)."""
+    return RecordField(read, False, field=field, at='_s', doc=doc)
+
+
+class _StateView:
+    """What a supervisor and its decision both read of the state record ``_s``."""
+
+    __slots__ = ()
+
+    phase = _state(Phase)
+    active = _state(Controller)
+    switch_criterion = _state(SwitchCriterion)
+    outcome = _state(Outcome)
+    grasp_id = _state(int)
+    stage_id = _state(int)
+    running = _state(bool, 'd_running',
+                     'A request is in progress (it needs simulated time until answered).')
+
+
+class Decision(_StateView):
     """The supervisor's verdict for the last tick: a view of its state, current at any time.
 
     ``answer`` is the outcome this tick produced for the request (the grasp service answers
     now, the outcome is latched), or None.
     """
 
-    __slots__ = ('_owner',)
+    __slots__ = ('_owner', '_s')
 
     def __init__(self, owner: GraspSupervisor):
         self._owner = owner
+        self._s = owner._s
 
-    t_ns = property(lambda self: int(self._owner._s['t_ns']))
-    phase = property(lambda self: Phase(self._owner._s['phase']))
-    active = property(lambda self: Controller(self._owner._s['active']))
-    switch_criterion = property(lambda self: SwitchCriterion(self._owner._s['switch_criterion']))
-    outcome = property(lambda self: Outcome(self._owner._s['outcome']))
-    grasp_id = property(lambda self: int(self._owner._s['grasp_id']))
-    stage_id = property(lambda self: int(self._owner._s['stage_id']))
-    running = property(lambda self: bool(self._owner._s['d_running']))
-    contact = property(lambda self: bool(self._owner._s['d_contact']))
-    position_setpoint_m = property(lambda self: float(self._owner._s['d_position_setpoint_m']))
-    approach_setpoint_m = property(lambda self: float(self._owner._s['d_approach_setpoint_m']))
-    force_setpoint_n = property(lambda self: float(self._owner._s['d_force_setpoint_n']))
-    speed_limit_mps = property(lambda self: float(self._owner._s['d_speed_limit_mps']))
-    voltage_limit_v = property(lambda self: float(self._owner._s['d_voltage_limit_v']))
+    t_ns = _state(int)
+    contact = _state(bool, 'd_contact')
+    position_setpoint_m = _state(float, 'd_position_setpoint_m')
+    approach_setpoint_m = _state(float, 'd_approach_setpoint_m')
+    force_setpoint_n = _state(float, 'd_force_setpoint_n')
+    speed_limit_mps = _state(float, 'd_speed_limit_mps')
+    voltage_limit_v = _state(float, 'd_voltage_limit_v')
     message = property(lambda self: self._owner.message)
-
-    @property
-    def answer(self) -> Outcome | None:
-        answer = self._owner._s['d_answer']
-        return None if answer == NO_ANSWER else Outcome(answer)
+    answer = _state(lambda answer: None if answer == NO_ANSWER else Outcome(answer), 'd_answer')
 
     @property
     def finished(self) -> bool:
@@ -883,7 +893,7 @@ class Decision:
         return self.outcome is not Outcome.UNKNOWN
 
 
-class GraspSupervisor:
+class GraspSupervisor(_StateView):
     """One request at a time; :meth:`step` once per plant tick with that tick's measurements.
 
     A controller always drives the motor, except after a FAULT: with no request the position
@@ -951,29 +961,18 @@ class GraspSupervisor:
     # ------------------------------------------------------------------ state
     kind = property(lambda self: KIND_NAMES.get(int(self._s['kind'])),
                     doc="The current request's kind, None before any.")
-    phase = property(lambda self: Phase(self._s['phase']))
-    switch_criterion = property(lambda self: SwitchCriterion(self._s['switch_criterion']))
-    outcome = property(lambda self: Outcome(self._s['outcome']))
-    grasp_id = property(lambda self: int(self._s['grasp_id']))
-    stage_id = property(lambda self: int(self._s['stage_id']))
-    mass_kg = property(lambda self: float(self._s['mass_kg']),
-                       doc="The current grasp request's object mass.")
-    start_ns = property(lambda self: int(self._s['start_ns']))
-    switch_ns = property(lambda self: _ns_or_none(self._s['switch_ns']))
-    contact_ns = property(lambda self: _ns_or_none(self._s['contact_ns']))
-    settled_ns = property(lambda self: _ns_or_none(self._s['settled_ns']),
-                          doc='Force first settled (phase HOLDING from here).')
-    end_ns = property(lambda self: _ns_or_none(self._s['end_ns']),
-                      doc='When the request was answered or ended.')
-    answer = property(lambda self: Outcome(self._s['answer']),
-                      doc='What the current request was answered.')
-    answer_ns = property(lambda self: _ns_or_none(self._s['answer_ns']),
-                         doc="... and when (the grasp service's answer).")
-    active = property(lambda self: Controller(self._s['active']))
-    overload_ns = property(lambda self: _ns_or_none(self._s['overload_ns']),
-                           doc='When the load-tracking grip said the load is beyond 24 V.')
-    force_setpoint_n = property(lambda self: float(self._s['tg_force_setpoint_n']),
-                                doc="The grasp's force setpoint now (the law's, tracking).")
+    mass_kg = _state(float, doc="The current grasp request's object mass.")
+    start_ns = _state(int)
+    switch_ns = _state(_ns_or_none)
+    contact_ns = _state(_ns_or_none)
+    settled_ns = _state(_ns_or_none, doc='Force first settled (phase HOLDING from here).')
+    end_ns = _state(_ns_or_none, doc='When the request was answered or ended.')
+    answer = _state(Outcome, doc='What the current request was answered.')
+    answer_ns = _state(_ns_or_none, doc="... and when (the grasp service's answer).")
+    overload_ns = _state(_ns_or_none,
+                         doc='When the load-tracking grip said the load is beyond 24 V.')
+    force_setpoint_n = _state(float, 'tg_force_setpoint_n',
+                              "The grasp's force setpoint now (the law's, tracking).")
 
     @property
     def record(self):
@@ -1003,12 +1002,10 @@ class GraspSupervisor:
             self._targets, self._pending_targets = self._pending_targets, None
         return self._targets
 
-    running = property(lambda self: bool(self._s['d_running']),
-                       doc='A request is in progress (it needs simulated time until answered).')
-    holding = property(lambda self: bool(self._s['d_holding']),
-                       doc='A grasp was answered HOLDING (or OVERLOADED); the force stage holds.')
-    pressing = property(lambda self: bool(self._s['d_pressing']),
-                        doc="A stalled move's last command is in force: the finger presses.")
+    holding = _state(bool, 'd_holding',
+                     'A grasp was answered HOLDING (or OVERLOADED); the force stage holds.')
+    pressing = _state(bool, 'd_pressing',
+                      "A stalled move's last command is in force: the finger presses.")
 
     @property
     def releasing(self) -> bool:
