@@ -2,11 +2,17 @@
 
 The kernels own each face's state in a one-element structured array, ``self.record``; a face
 reads and writes its fields through these descriptors rather than one hand-written property each.
+A kernel a face calls from Python is declared with :func:`face_kernel` and the types the face
+passes, so that :func:`compile_face_kernels` compiles every one of them ahead of the first call.
 """
 
 from __future__ import annotations
 
-from numba import literal_unroll, types
+import dataclasses
+import sys
+
+import numba
+from numba import types
 from numba.extending import overload
 import numpy as np
 
@@ -97,22 +103,147 @@ class RecordParams:
         copy_fields(as_record(getattr(face, self.at)), value, self.fields)
 
 
-def copy_fields(record, source, names) -> None:
-    """Set fields of ``record`` from ``source``, an object (its attributes) or a record.
+class RecordChoice:
+    """A two-valued setting (such as an enum) kept as a 0/1 field: ``when_set`` while it is 1."""
 
-    ``names``: the fields, named alike in both, or a dict {record's field: source's name}.
-    Compiled, ``source`` is a record and ``names`` a constant tuple.
+    def __init__(self, field: str, when_set, when_clear, *, at: str = 'record'):
+        self.field, self.when_set, self.when_clear, self.at = field, when_set, when_clear, at
+
+    def __get__(self, face, owner=None):
+        if face is None:
+            return self
+        set_ = as_record(getattr(face, self.at))[self.field]
+        return self.when_set if set_ else self.when_clear
+
+    def __set__(self, face, value) -> None:
+        as_record(getattr(face, self.at))[self.field] = value is self.when_set
+
+
+def record_view(name: str, dtype: np.dtype, fields, doc: str = '', **defaults) -> type:
+    """Return a frozen dataclass of some of ``dtype``'s fields, read by ``view.of(record)``.
+
+    ``fields`` names the record's fields, or maps each attribute to its field; an attribute
+    reads as ``bool`` from a 1-byte field, as ``int`` from another integer one, else as
+    ``float``; ``defaults`` overrides the zero an attribute has when built by hand.
     """
+    fields = dict(fields) if isinstance(fields, dict) else {f: f for f in fields}
+    reads = {attr: _reader(dtype.fields[field][0]) for attr, field in fields.items()}
+    view = dataclasses.make_dataclass(
+        name, [(attr, read, dataclasses.field(default=defaults.get(attr, read())))
+               for attr, read in reads.items()], frozen=True)
+    view.__doc__ = doc
+    view.__module__ = sys._getframe(1).f_globals.get('__name__', __name__)
+
+    def of(record) -> view:
+        s = as_record(record)
+        return view(*(read(s[field]) for read, field in zip(reads.values(), fields.values())))
+
+    view.of = staticmethod(of)
+    return view
+
+
+def _reader(dtype: np.dtype):
+    if dtype.kind == 'b' or (dtype.kind == 'u' and dtype.itemsize == 1):
+        return bool
+    return int if dtype.kind in 'iu' else float
+
+
+def copy_fields(record, source, names, prefix: str = '', source_prefix: str = '') -> None:
+    """Set each ``prefix + name`` of ``record`` to ``source_prefix + name`` of ``source``.
+
+    ``source`` is an object (its attributes) or a record; ``names`` the fields, named alike in
+    both, or (from Python) a dict {record's field: source's name}. In compiled code ``names``
+    and the prefixes are constants and the copy compiles to one assignment per field.
+    """
+    read = source.__getitem__ if isinstance(source, (np.void, np.ndarray)) else \
+        (lambda field: getattr(source, field))
     for field, name in names.items() if isinstance(names, dict) else zip(names, names):
-        record[field] = source[name] if isinstance(source, np.void) else getattr(source, name)
+        record[prefix + field] = read(source_prefix + name)
 
 
-@overload(copy_fields)
-def _copy_fields(record, source, names):
-    def copy(record, source, names):
-        for name in literal_unroll(names):
-            record[name] = source[name]
-    return copy
+def set_fields(record, names, value) -> None:
+    """Set each of ``names`` in ``record`` to ``value`` (compiled: one assignment each)."""
+    for name in names:
+        record[name] = value
+
+
+def _literal(value, what: str):
+    """Return the constant a compiled call passed (a literal, or an omitted default)."""
+    if isinstance(value, types.Omitted):
+        return value.value
+    if isinstance(value, str):               # a default the call left out
+        return value
+    if isinstance(value, types.BaseTuple):
+        return tuple(_literal(v, what) for v in value)
+    if isinstance(value, types.Literal):
+        return value.literal_value
+    raise numba.errors.TypingError(f'{what} must be a constant in compiled code, got {value}')
+
+
+def _compiled(lines: list[str], name: str):
+    """Return the function ``name`` that ``lines`` (Python source) define."""
+    namespace = {}
+    exec('\n'.join(lines), namespace)      # noqa: S102 - source built from a record's names
+    return namespace[name]
+
+
+@overload(copy_fields, prefer_literal=True)
+def _copy_fields(record, source, names, prefix='', source_prefix=''):
+    names = _literal(names, 'names')
+    prefix, source_prefix = _literal(prefix, 'prefix'), _literal(source_prefix, 'source_prefix')
+    return _compiled(['def copy(record, source, names, prefix="", source_prefix=""):']
+                     + [f'    record.{prefix}{n} = source.{source_prefix}{n}' for n in names]
+                     + ['    return None'], 'copy')
+
+
+@overload(set_fields, prefer_literal=True)
+def _set_fields(record, names, value):
+    names = _literal(names, 'names')
+    return _compiled(['def set_(record, names, value):']
+                     + [f'    record.{n} = value' for n in names] + ['    return None'], 'set_')
+
+
+FACE_KERNELS = []
+"""Every (kernel, argument types) a face calls from Python, as :func:`face_kernel` declares."""
+
+
+def face_kernel(*args):
+    """Declare the types a Python face calls this compiled kernel with (stack for several).
+
+    Each of ``args`` is a record dtype (a 1-element array of it), ``float``, ``int``,
+    ``bool``, a numba type, or a tuple of these (a tuple argument).
+    """
+    signature = tuple(_numba_type(a) for a in args)
+
+    def declare(kernel):
+        if not isinstance(kernel, numba.core.dispatcher.Dispatcher):
+            raise TypeError(f'{kernel!r} is not compiled: put face_kernel above numba.njit')
+        FACE_KERNELS.append((kernel, signature))
+        return kernel
+    return declare
+
+
+FLOATS = types.float64[::1]
+"""A float array argument of :func:`face_kernel`."""
+FLOATS_2D = types.float64[:, ::1]
+"""A 2-D float array argument of :func:`face_kernel`."""
+
+
+def _numba_type(arg):
+    if isinstance(arg, np.dtype):
+        return types.Array(numba.from_dtype(arg), 1, 'C')
+    if isinstance(arg, tuple):
+        return types.Tuple(tuple(_numba_type(a) for a in arg))
+    if arg in (float, int, bool):
+        return numba.typeof(arg())
+    return arg
+
+
+def compile_face_kernels() -> int:
+    """Compile (or load from numba's cache) every declared face kernel; return how many."""
+    for kernel, signature in FACE_KERNELS:
+        kernel.compile(signature)
+    return len(FACE_KERNELS)
 
 
 def as_record(x):

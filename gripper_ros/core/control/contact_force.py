@@ -63,31 +63,15 @@ numbers at construction and is the Python façade over the kernels.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
 import math
 
 from gripper_ros.core.config import ContactForceTuning, PlantParams
 from gripper_ros.core.control.pid import (LAW_CONTACT_INPUT, law_error, LAW_MATH_DOMAIN,
                                           LAW_NUMBERS, LAW_OK, LAW_ZERO_DIVISION, py_max, py_min)
-from gripper_ros.core.records import as_record
-from gripper_ros.core.records import copy_fields, RecordPair
+from gripper_ros.core.records import (as_record, copy_fields, face_kernel, FLOATS, record_view,
+                                      RecordPair, set_fields)
 import numba
 import numpy as np
-
-
-@dataclass
-class ContactForceTerms:
-    """The parts of the last output, for logging and tests."""
-
-    feedforward_v: float = 0.0
-    force_v: float = 0.0
-    damping_v: float = 0.0
-    integral_v: float = 0.0
-    stiffness_n_per_m: float = math.inf   # k_hat since contact (inf before contact)
-    damping_gain_v_s_per_m: float = 0.0
-    speed_ref_mps: float = 0.0
-    in_contact: bool = False
-    output_v: float = 0.0
 
 
 def impact_factor(damping_ratio: float) -> float:
@@ -142,21 +126,25 @@ CONTACT_DTYPE = np.dtype([
 """One contact-aware force stage: design numbers, state and last terms (1-element array)."""
 
 
+ContactForceTerms = record_view(
+    'ContactForceTerms', CONTACT_DTYPE,
+    ('feedforward_v', 'force_v', 'damping_v', 'integral_v', 'stiffness_n_per_m',
+     'damping_gain_v_s_per_m', 'speed_ref_mps', 'in_contact', 'output_v'),
+    'The parts of the last output, for logging and tests (``stiffness_n_per_m``, k_hat since '
+    'contact, is inf before contact).', stiffness_n_per_m=math.inf)
+
+
 @numba.njit(cache=True)
 def contact_reset_terms(c):
     """Zero the last output's terms (``stiffness`` inf: nothing touched)."""
     s = as_record(c)
-    s.feedforward_v = 0.0
-    s.force_v = 0.0
-    s.damping_v = 0.0
-    s.integral_v = 0.0
+    set_fields(s, ('feedforward_v', 'force_v', 'damping_v', 'integral_v',
+                   'damping_gain_v_s_per_m', 'speed_ref_mps', 'output_v'), 0.0)
     s.stiffness_n_per_m = math.inf
-    s.damping_gain_v_s_per_m = 0.0
-    s.speed_ref_mps = 0.0
     s.in_contact = 0
-    s.output_v = 0.0
 
 
+@face_kernel(CONTACT_DTYPE, bool, float)
 @numba.njit(cache=True)
 def contact_reset(c, has_position, position_m):
     """Start a new force stage at ``position_m`` (speed 0; ``has_position`` 0: unknown)."""
@@ -171,6 +159,7 @@ def contact_reset(c, has_position, position_m):
     contact_reset_terms(s)
 
 
+@face_kernel(CONTACT_DTYPE, float, float)
 @numba.njit(cache=True)
 def contact_speed_mps(c, force_setpoint_n, width_tolerance_m):
     """Return the speed at which the finger meets the object (see the façade's method)."""
@@ -179,6 +168,7 @@ def contact_speed_mps(c, force_setpoint_n, width_tolerance_m):
             else s.contact_speed_mps_per_n) * force_setpoint_n
 
 
+@face_kernel(CONTACT_DTYPE, float)
 @numba.njit(cache=True)
 def contact_loop_time_constant_s(c, stiffness_n_per_m):
     """Return (code, tau_k): see :meth:`ContactForceController.loop_time_constant_s`."""
@@ -200,6 +190,7 @@ def contact_loop_time_constant_s(c, stiffness_n_per_m):
     return LAW_OK, py_max(s.time_constant_s, 1.0 / rate)
 
 
+@face_kernel(CONTACT_DTYPE, float, float)
 @numba.njit(cache=True)
 def contact_damping_gain_for(c, stiffness_n_per_m, time_constant_s):
     """Return (code, Kv): see :meth:`ContactForceController.damping_gain_for`."""
@@ -216,6 +207,7 @@ def contact_damping_gain_for(c, stiffness_n_per_m, time_constant_s):
                           s.max_damping_v_s_per_m)
 
 
+@face_kernel(CONTACT_DTYPE, float, float)
 @numba.njit(cache=True)
 def contact_speed_profile_mps(c, distance_m, time_constant_s):
     """Return (code, speed): see :meth:`ContactForceController.speed_profile_mps`."""
@@ -235,6 +227,7 @@ def contact_speed_profile_mps(c, distance_m, time_constant_s):
     return LAW_OK, (v if distance_m >= 0.0 else -v)
 
 
+@face_kernel(CONTACT_DTYPE, float, float, float, float, float, FLOATS)
 @numba.njit(cache=True)
 def contact_step(c, force_setpoint_n, force_n, position_m, face_m, width_tolerance_m, numbers):
     """Return (code, voltage) for the coming sample (``code`` LAW_OK unless refused)."""
@@ -421,14 +414,8 @@ class ContactForceController:
 
     output_limits = RecordPair('low', 'high')
 
-    @property
-    def terms(self) -> ContactForceTerms:
-        s = self.record[0]
-        return ContactForceTerms(
-            float(s['feedforward_v']), float(s['force_v']), float(s['damping_v']),
-            float(s['integral_v']), float(s['stiffness_n_per_m']),
-            float(s['damping_gain_v_s_per_m']), float(s['speed_ref_mps']),
-            bool(s['in_contact']), float(s['output_v']))
+    terms = property(lambda self: ContactForceTerms.of(self.record),
+                     doc='The parts of the last output, for logging and tests.')
 
     def _checked(self, code: int, value: float) -> float:
         if code != LAW_OK:

@@ -45,10 +45,10 @@ import math
 from typing import Callable
 
 from gripper_ros.core import linalg
-from gripper_ros.core.control.pid import (law_error, LAW_NUMBERS, LAW_OK, PID, pid_reset,
-                                          pid_setpoint_for_output, pid_setpoint_range,
+from gripper_ros.core.control.pid import (law_error, LAW_NUMBERS, LAW_OK, PID, PID_DTYPE,
+                                          pid_reset, pid_setpoint_for_output, pid_setpoint_range,
                                           pid_step_checked, py_max, py_min)
-from gripper_ros.core.records import as_record, RecordField, RecordPair
+from gripper_ros.core.records import as_record, face_kernel, FLOATS, RecordField, RecordPair
 import numba
 import numpy as np
 
@@ -98,6 +98,7 @@ def dmc_vectors(d, buf):
     return buf[0:n], buf[n:2 * n], buf[2 * n:3 * n + 1], buf[3 * n + 1:4 * n + 1]
 
 
+@face_kernel(DMC_DTYPE, FLOATS, float, float)
 @numba.njit(cache=True)
 def dmc_reset(d, buf, measurement, output):
     """At rest: output steady at ``measurement``, manipulated variable at ``output``."""
@@ -108,6 +109,7 @@ def dmc_reset(d, buf, measurement, output):
     s.last_move = 0.0
 
 
+@face_kernel(DMC_DTYPE, FLOATS, float, float, bool, float, float)
 @numba.njit(cache=True)
 def dmc_step(d, buf, setpoint, measurement, has_range, range_low, range_high):
     """One sample (eqs. 19-22): returns the new manipulated variable.
@@ -251,6 +253,7 @@ def governor_vectors(g, buf):
             buf[free_end:forced_end].reshape((rows, 2)), buf[forced_end:forced_end + 2 * rows])
 
 
+@face_kernel(GOVERNOR_DTYPE, FLOATS, float)
 @numba.njit(cache=True)
 def governor_reset(g, buf, measurement):
     """At rest at ``measurement``; the next move starts with ACCELERATE."""
@@ -284,6 +287,7 @@ def _governor_ahead(g, buf, voltage):
     return ahead
 
 
+@face_kernel(GOVERNOR_DTYPE, FLOATS, float, float)
 @numba.njit(cache=True)
 def governor_command(g, buf, setpoint, measurement):
     """Return (forced, voltage): the voltage to hold over the coming sample, if forced.
@@ -308,6 +312,7 @@ def governor_command(g, buf, setpoint, measurement):
     return False, 0.0
 
 
+@face_kernel(GOVERNOR_DTYPE, FLOATS, float)
 @numba.njit(cache=True)
 def governor_applied(g, buf, voltage):
     """Book the voltage held over the sample that starts now."""
@@ -423,7 +428,11 @@ CASCADE_DTYPE = np.dtype([
 """One cascade's flags and outputs; the kernels take it with the inner PID's record, the DMC's
 record and buffer and the governor's (placeholders of the same types without a governor)."""
 
+_CASCADE_ARRAYS = (CASCADE_DTYPE, PID_DTYPE, DMC_DTYPE, FLOATS, GOVERNOR_DTYPE, FLOATS)
+"""The arrays the ``cascade_*`` kernels take first (:attr:`CascadedMpc.kernel`)."""
 
+
+@face_kernel(*_CASCADE_ARRAYS, float, float)
 @numba.njit(cache=True)
 def cascade_reset(c, p, d, dbuf, g, gbuf, measurement, output):
     """At rest at ``measurement``, the inner loop starting from ``output``."""
@@ -455,6 +464,7 @@ def _cascade_forced(s, p, d, dbuf, g, gbuf, voltage, measurement, numbers):
     return LAW_OK, output
 
 
+@face_kernel(*_CASCADE_ARRAYS, float, float, FLOATS)
 @numba.njit(cache=True)
 def cascade_step(c, p, d, dbuf, g, gbuf, setpoint, measurement, numbers):
     """Return (code, output): one sample of the cascade (``code`` LAW_OK unless refused)."""

@@ -50,7 +50,7 @@ import math
 
 from gripper_ros.core.config import LoadGripParams
 from gripper_ros.core.physics.hold import presliding_m
-from gripper_ros.core.records import as_record
+from gripper_ros.core.records import as_record, copy_fields, face_kernel
 import numba
 import numpy as np
 
@@ -151,20 +151,16 @@ def make_law(params: LoadGripParams, max_force_n: float, tangential_stiffness_n_
     rec = np.zeros(1, GRIP_DTYPE)
     r = rec[0]
     r['k_margin'] = params.grip_margin
-    r['mu_start'] = params.mu_start
-    r['mu_safety'] = params.mu_safety
-    r['touch_force_n'] = params.touch_force_n
+    copy_fields(r, params, ('mu_start', 'mu_safety', 'touch_force_n', 'slip_speed_mps',
+                            'min_samples', 'release_rate_n_per_s'))
     r['max_force_n'] = max_force_n
     r['tangential_stiffness_n_per_m'] = tangential_stiffness_n_per_m
-    r['slip_speed_mps'] = params.slip_speed_mps
     r['window'] = max(1, round(params.slip_window_s / dt_s))
     r['rest'] = max(1, round(params.slip_rest_s / dt_s))
     r['overload_samples'] = max(1, round(params.overload_slip_s / dt_s))
-    r['min_samples'] = params.min_samples
     noise_var = displacement_noise_m ** 2 + displacement_resolution_m ** 2 / 12.0
     r['separation'] = SEPARATION_NOISES * noise_var
     r['dt_s'] = dt_s
-    r['release_rate_n_per_s'] = params.release_rate_n_per_s
     r['mu_est'] = params.mu_start
     r['force_setpoint_n'] = params.touch_force_n
     r['overload_ns'] = -1
@@ -380,6 +376,7 @@ def plan_load_ratio(g, plan, t_ns):
     return (coming if coming > floor else floor) / g.plan_filtered
 
 
+@face_kernel(GRIP_DTYPE, PLAN_DTYPE, int, float)
 @numba.njit(cache=True)
 def plan_announce(g, plan, t_ns, accel_mps2):
     """Take the breakpoint (from ``t_ns`` on, ``accel_mps2``): it replaces the plan from there."""

@@ -20,12 +20,12 @@ law that refuses its numbers (``LAW_*``, formatted by :func:`law_error`).
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
 import enum
 import math
 
 from gripper_ros.core.config import PidGains
-from gripper_ros.core.records import as_record, RecordField, RecordPair, RecordParams
+from gripper_ros.core.records import (as_record, face_kernel, record_view, RecordChoice,
+                                      RecordField, RecordPair, RecordParams)
 import numba
 import numpy as np
 
@@ -51,21 +51,23 @@ LAW_NUMBERS = 5
 """Length of the float array a compiled law writes the numbers of its refusal into."""
 
 
+LAW_ERRORS = {
+    LAW_PID_INPUT: (ValueError, 'non-finite input: setpoint={0!r}, measurement={1!r}'),
+    LAW_NO_SLOPE: (ValueError, 'the output does not depend on the setpoint (kc = 0?)'),
+    LAW_CONTACT_INPUT: (ValueError, 'non-finite input: force_setpoint_n={0!r}, force_n={1!r}, '
+                        'position_m={2!r}, face_m={3!r}, width_tolerance_m={4!r}'),
+    LAW_ZERO_DIVISION: (ZeroDivisionError, 'float division by zero'),
+    LAW_MATH_DOMAIN: (ValueError, 'math domain error'),
+}
+"""Each refusal's exception and text, over the law's numbers in the order it writes them."""
+
+
 def law_error(code: int, numbers) -> Exception:
     """Return the exception for a compiled law's refusal ``code`` and its ``numbers``."""
-    v = [float(x) for x in numbers]
-    if code == LAW_PID_INPUT:
-        return ValueError(f'non-finite input: setpoint={v[0]!r}, measurement={v[1]!r}')
-    if code == LAW_NO_SLOPE:
-        return ValueError('the output does not depend on the setpoint (kc = 0?)')
-    if code == LAW_CONTACT_INPUT:
-        return ValueError(f'non-finite input: force_setpoint_n={v[0]!r}, force_n={v[1]!r}, '
-                          f'position_m={v[2]!r}, face_m={v[3]!r}, width_tolerance_m={v[4]!r}')
-    if code == LAW_ZERO_DIVISION:
-        return ZeroDivisionError('float division by zero')
-    if code == LAW_MATH_DOMAIN:
-        return ValueError('math domain error')
-    return RuntimeError(f'unknown control-law code {code}')
+    if code not in LAW_ERRORS:
+        return RuntimeError(f'unknown control-law code {code}')
+    kind, text = LAW_ERRORS[code]
+    return kind(text.format(*(float(x) for x in numbers)))
 
 
 @numba.njit(cache=True)
@@ -105,6 +107,7 @@ def pid_clamp(p, value):
     return py_min(s.high, py_max(s.low, value))
 
 
+@face_kernel(PID_DTYPE, float, bool, float, bool, float)
 @numba.njit(cache=True)
 def pid_reset(p, output, has_setpoint, setpoint, has_measurement, measurement):
     """Forget the past; with setpoint and measurement the next step returns ``output``."""
@@ -151,6 +154,7 @@ def pid_output_line(p, measurement):
     return base, (0.0 + p1 + i1 + d1) - base
 
 
+@face_kernel(PID_DTYPE, float)
 @numba.njit(cache=True)
 def pid_setpoint_range(p, measurement):
     """Setpoints for which the next output stays inside the limits (-inf, inf: any)."""
@@ -161,6 +165,7 @@ def pid_setpoint_range(p, measurement):
     return (s.low - base) / slope, (s.high - base) / slope
 
 
+@face_kernel(PID_DTYPE, float, float)
 @numba.njit(cache=True)
 def pid_setpoint_for_output(p, output, measurement):
     """Return (code, setpoint): the setpoint for which the next output is ``output``.
@@ -174,6 +179,7 @@ def pid_setpoint_for_output(p, output, measurement):
     return LAW_OK, (pid_clamp(s, output) - base) / slope
 
 
+@face_kernel(PID_DTYPE, float, float)
 @numba.njit(cache=True)
 def pid_step(p, setpoint, measurement):
     """One sample on finite inputs: returns the clamped output and books the terms."""
@@ -214,15 +220,10 @@ def pid_step_checked(p, setpoint, measurement, numbers):
     return LAW_OK, pid_step(p, setpoint, measurement)
 
 
-@dataclass
-class PidTerms:
-    """The parts of the last output, for logging and tests."""
-
-    proportional: float = 0.0
-    integral: float = 0.0
-    derivative: float = 0.0
-    output: float = 0.0
-    saturated: bool = False
+PidTerms = record_view('PidTerms', PID_DTYPE,
+                       {'proportional': 'proportional', 'integral': 'integral_term',
+                        'derivative': 'derivative', 'output': 'output', 'saturated': 'saturated'},
+                       'The parts of the last output, for logging and tests.')
 
 
 class PID:
@@ -260,32 +261,16 @@ class PID:
 
     output_limits = RecordPair('low', 'high')
 
-    @property
-    def derivative_on(self) -> DerivativeOn:
-        return (DerivativeOn.MEASUREMENT if self.record[0]['derivative_on_measurement']
-                else DerivativeOn.ERROR)
+    derivative_on = RecordChoice('derivative_on_measurement', DerivativeOn.MEASUREMENT,
+                                 DerivativeOn.ERROR)
 
-    @derivative_on.setter
-    def derivative_on(self, value: DerivativeOn) -> None:
-        self.record[0]['derivative_on_measurement'] = value is DerivativeOn.MEASUREMENT
-
-    @property
-    def anti_windup(self) -> AntiWindup:
-        return AntiWindup.CONDITIONAL if self.record[0]['conditional'] else AntiWindup.NONE
-
-    @anti_windup.setter
-    def anti_windup(self, value: AntiWindup) -> None:
-        self.record[0]['conditional'] = value is AntiWindup.CONDITIONAL
+    anti_windup = RecordChoice('conditional', AntiWindup.CONDITIONAL, AntiWindup.NONE)
 
     setpoint_weight = RecordField()
 
     last_output = RecordField(writable=False)
 
-    @property
-    def terms(self) -> PidTerms:
-        s = self.record[0]
-        return PidTerms(float(s['proportional']), float(s['integral_term']),
-                        float(s['derivative']), float(s['output']), bool(s['saturated']))
+    terms = property(lambda self: PidTerms.of(self.record), doc=PidTerms.__doc__)
 
     def reset(self, output: float = 0.0, setpoint: float | None = None,
               measurement: float | None = None) -> None:
@@ -316,8 +301,7 @@ class PID:
     def step(self, setpoint: float, measurement: float) -> float:
         """One sample: returns the clamped output (e.g. armature voltage)."""
         if not (math.isfinite(setpoint) and math.isfinite(measurement)):
-            raise ValueError(f'non-finite input: setpoint={setpoint!r}, '
-                             f'measurement={measurement!r}')
+            raise law_error(LAW_PID_INPUT, (setpoint, measurement))
         return pid_step(self.record, float(setpoint), float(measurement))
 
 

@@ -40,7 +40,7 @@ from gripper_ros.core.control.factories import (ForceControllerKind, make_force_
                                                 make_position_controller, PositionControllerKind)
 from gripper_ros.core.control.pid import (law_error, LAW_NUMBERS, LAW_OK, PID_DTYPE, pid_reset,
                                           pid_step_checked, py_max, py_min)
-from gripper_ros.core.records import as_record, RecordPair
+from gripper_ros.core.records import as_record, copy_fields, face_kernel, FLOATS, RecordPair
 from gripper_ros.wire import COMMAND_LAYOUT, Controller, REFERENCE_LAYOUT
 import numba
 import numpy as np
@@ -218,6 +218,7 @@ def _force_apply_limits(st, r):
     p.high = high
 
 
+@face_kernel(STATE_DTYPE, FLOATS, REFERENCE_DTYPE, float)
 @numba.njit(cache=True)
 def stage_activate(state, buffers, ref, measurement):
     """Restart the law for a new stage (position: from rest; force: approach or seeded PI)."""
@@ -244,6 +245,7 @@ def stage_activate(state, buffers, ref, measurement):
         pid_reset(st.pid, r.seed_voltage_v, True, r.force_setpoint_n, True, measurement)
 
 
+@face_kernel(STATE_DTYPE, FLOATS, REFERENCE_DTYPE, float)
 @numba.njit(cache=True)
 def stage_compute(state, buffers, ref, measurement):
     """Return (code, voltage_v, inner_setpoint) for this tick (``code`` LAW_OK unless refused).
@@ -334,6 +336,11 @@ def answer_close(last, law_numbers, code, voltage, inner):
     return 1, voltage, inner
 
 
+_ECHOED_FIELDS = ('stamp_ns', 'grasp_id', 'stage_id', 'revision', 'phase', 'outcome', 'running')
+"""What a MotorCommand repeats of the StageReference it answers."""
+
+
+@face_kernel((STATE_DTYPE, FLOATS), REFERENCE_DTYPE, COMMAND_DTYPE)
 @numba.njit(cache=True)
 def stage_answer(k, ref, cmd):
     """Answer the reference record ``ref`` into the command record ``cmd``; False if repeated.
@@ -360,14 +367,8 @@ def stage_answer(k, ref, cmd):
         finite, voltage, inner = answer_close(
             last, buffers[LAW_NUMBERS_AT:REFERENCE_NUMBERS_AT], code, voltage, inner)
     c = cmd[0]
-    c.stamp_ns = r.stamp_ns
-    c.grasp_id = r.grasp_id
-    c.stage_id = r.stage_id
-    c.revision = r.revision
+    copy_fields(c, r, _ECHOED_FIELDS)
     c.source = s.source
-    c.phase = r.phase
-    c.outcome = r.outcome
-    c.running = r.running
     c.finite = finite
     c.voltage_v = voltage
     c.hold_s = s.sample_time_s

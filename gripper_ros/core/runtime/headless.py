@@ -26,7 +26,7 @@ from gripper_ros.core.control.stages import (DEFAULT_APPROACH_FORCE_MARGIN,
 from gripper_ros.core.physics.hold import ANNOUNCE_ROWS, hold_load_n, hold_plan
 from gripper_ros.core.physics.plant import (_object_state, check_fault, GraspObject, HoldState,
                                             Lift, OBJECT_STATE_DTYPE, plant_hold_record)
-from gripper_ros.core.records import as_record
+from gripper_ros.core.records import as_record, compile_face_kernels
 from gripper_ros.core.runtime.engine import map_cases
 from gripper_ros.core.runtime.lockstep import (Command, PlantSide, side_accept, side_needs_time,
                                                side_step, StageSide, SupervisorSide, Tick)
@@ -622,13 +622,12 @@ def warm_up(config: GripperConfig | None = None) -> float:
 
 
 def _warm_up_faces(config: GripperConfig) -> None:
-    """Call, once, what the nodes and the tools call from Python one tick at a time.
+    """Compile, once, what the nodes and the tools call from Python one tick at a time.
 
     A kernel called from Python is compiled for Python's argument types, apart from the same
-    kernel inside the compiled loop.
+    kernel inside the compiled loop: the laws' and the supervisor's are declared with the types
+    their faces pass (:func:`~gripper_ros.core.records.face_kernel`), the plant's are called.
     """
-    from gripper_ros.core.control.factories import ForceControllerKind, PositionControllerKind
-    from gripper_ros.core.control.stages import LockstepAnswerer
     plant = make_plant(config)
     side = PlantSide(plant)
     side.set_object(GraspObject(0.05, 0.0, 0.0, 1.0), lift=Lift(1.0, 0.0, 0.01),
@@ -641,19 +640,8 @@ def _warm_up_faces(config: GripperConfig) -> None:
     plant.begin_hold(plant.t_ns, 1.0)
     plant.schedule_fault(FaultKind.SENSOR_DROPOUT, plant.t_ns + 1000)
     plant.cancel_fault()
-    supervisor = GraspSupervisor(config.plant, config.supervisor)
-    decision, ref = SupervisorSide(supervisor).decide(tick)
-    supervisor.step(tick.stamp_ns + 1, tick.position_m, tick.force_n, tick.sensor_voltage_v)
-    supervisor.request_release()
-    supervisor.stop()
-    supervisor.request_release()
-    supervisor.step(tick.stamp_ns + 2, tick.position_m, tick.force_n, tick.sensor_voltage_v)
-    supervisor.fault('warm-up')
-    supervisor.message
-    for kind in PositionControllerKind:
-        LockstepAnswerer(PositionStageController(config, kind)).answer(ref)
-    for kind in ForceControllerKind:
-        LockstepAnswerer(ForceStageController(config, kind)).answer(ref)
+    SupervisorSide(GraspSupervisor(config.plant, config.supervisor)).decide(tick)
+    compile_face_kernels()
 
 
 __all__ = ['GraspSeries', 'HeadlessGrasp', 'HeadlessMoves', 'map_cases', 'MoveAnswer',

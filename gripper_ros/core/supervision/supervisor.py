@@ -50,11 +50,13 @@ import math
 
 from gripper_ros.core.config import (GripperConfig, numbers_of, PlantParams, shipped_config,
                                      SupervisorParams)
-from gripper_ros.core.control.load_grip import (HISTORY_ROWS, law_step, make_law, MU_GRID,
-                                                plan_announce, PLAN_DTYPE, PLAN_ROWS)
-from gripper_ros.core.records import RecordParams
+from gripper_ros.core.control.load_grip import (GRIP_DTYPE, HISTORY_ROWS, law_step, make_law,
+                                                MU_GRID, plan_announce, PLAN_DTYPE, PLAN_ROWS)
+from gripper_ros.core.records import (copy_fields, face_kernel, FLOATS_2D, RecordField,
+                                      RecordParams, set_fields)
 from gripper_ros.core.supervision.requests import GraspTargets, MoveTargets, RequestError
-from gripper_ros.wire import Controller, Outcome, PendingRequest, Phase, SwitchCriterion
+from gripper_ros.wire import (Controller, Outcome, PendingRequest, Phase, REFERENCE_LAYOUT,
+                              SwitchCriterion, TICK_LAYOUT)
 import numba
 import numpy as np
 
@@ -137,7 +139,8 @@ MSG_MOVED = 10
 MSG_STALLED_PRESSING = 11
 MSG_STALLED_AT_REST = 12
 MSG_MOVE_TIMEOUT = 13
-MSG_OVERLOADED = 14
+MSG_OVERLOADED = 14           # the load needs more grip than the most the motor holds
+MSG_OVERLOADED_SLIDING = 15   # the object slides on at the most grip
 
 SUPERVISOR_MESSAGE = np.dtype(
     [('t_ns', 'i8'), ('start_ns', 'i8'),
@@ -156,6 +159,50 @@ SUPERVISOR_MESSAGE = np.dtype(
     align=True)
 """The numbers of the current message, by name; each code writes the fields its text reads."""
 
+_MOST_GRIP = ('the most {voltage_limit_v:g} V holds is {max_force_n:.2f} N; gripping with '
+              '{force_n:.2f} N, at most that, while the object stays')
+_WHERE = ('finger at {position_m:.5f} m (opening {opening_m:.5f} m, goal {goal_opening_m:.5f} m),'
+          ' force {force_n:.3f} N, after {elapsed_s:.3f} s')
+_STALLED = 'stalled {short_of_goal_mm:.2f} mm short of the goal, '
+
+MESSAGES = {
+    MSG_NONE: '',
+    MSG_TEXT: '{text}',
+    MSG_SENSOR_FAULT: ('fault at t={t_s:.4f} s ({elapsed_s:.4f} s into the {what}): {bad}; '
+                       'no controller drives the motor from here on'),
+    MSG_NO_OBJECT: ('no object: the finger passed the expected face ({position_setpoint_m:.4f} m'
+                    '{tolerance}) by {past_face_mm:.2f} mm without contact'),
+    MSG_LOST_FORCE: ('object lost at {at}, {into}: force {force_n:.3f} N has been below '
+                     '{lost_force_fraction:g} x the setpoint {force_setpoint_n:.3f} N = '
+                     '{floor_n:.3f} N for {low_ms:.2f} ms (since t={since_s:.4f} s); finger at '
+                     '{position_m:.5f} m'),
+    MSG_LOST_MOVED_ON: ('object lost at {at}, {into}: the finger moved on {moved_on_mm:.2f} mm '
+                        'past the held position {hold_position_m:.5f} m (margin {margin_mm:g} '
+                        'mm); force {force_n:.3f} N'),
+    MSG_OVERLOADED: ('overloaded at {at} ({into}): the load {load_n:.2f} N needs {need_n:.2f} N '
+                     'of grip at the measured friction {friction_coefficient:.3f}, '
+                     + _MOST_GRIP),
+    MSG_OVERLOADED_SLIDING: ('overloaded at {at} ({into}): the object slides on, no slower, with'
+                             ' the grip at its most: kinetic friction ({friction_coefficient:.3f}'
+                             ' measured) is short of the load; ' + _MOST_GRIP),
+    MSG_HOLDING: ('holding {force_n:.3f} N (setpoint {force_setpoint_n:.3f} N) at '
+                  '{position_m:.5f} m'),
+    MSG_GRASP_TIMEOUT: ('not settled within {timeout_s:g} s of simulated time (phase '
+                        '{phase_name}, position {position_m:.5f} m, force {force_n:.3f} N)'),
+    MSG_RELEASED: ('released: finger at {position_m:.5f} m (open position '
+                   '{position_setpoint_m:.5f} m, opening {opening_m:.5f} m) after '
+                   '{elapsed_s:.3f} s'),
+    MSG_RELEASE_TIMEOUT: ('release not done within {timeout_s:g} s of simulated time (finger at '
+                          '{position_m:.5f} m)'),
+    MSG_MOVED: 'moved: ' + _WHERE,
+    MSG_STALLED_PRESSING: (_STALLED + 'pressing with {force_n:.3f} N at the effort limit '
+                           '{max_effort_n:.3f} N: ' + _WHERE),
+    MSG_STALLED_AT_REST: _STALLED + 'at rest for {rest_s:.3f} s: ' + _WHERE,
+    MSG_MOVE_TIMEOUT: 'move not done within {timeout_s:g} s of simulated time: ' + _WHERE,
+}
+"""Each message code's text: :data:`SUPERVISOR_MESSAGE` fields and :data:`MESSAGE_VALUES` by
+name (:func:`format_message`)."""
+
 # The entries of the tuple ``GraspSupervisor.kernel`` (the headless loop reads 0 and 4).
 K_STATE = 0
 K_PARAMS = 1
@@ -163,6 +210,9 @@ K_MESSAGE = 2
 K_LAW_BUFFERS = 3
 K_LAW = 4
 K_PLAN = 5
+_KERNEL_ARRAYS = (SUPERVISOR_STATE, SUPERVISOR_PARAMS, SUPERVISOR_MESSAGE, FLOATS_2D, GRIP_DTYPE,
+                  PLAN_DTYPE)
+"""The types of ``GraspSupervisor.kernel``, entry by entry."""
 
 _kernel = numba.njit(cache=True)
 
@@ -261,26 +311,23 @@ def _end(s, phase, outcome, msg_code, hold, position_m, move_limits) -> int:
     return s.outcome
 
 
+_REQUEST_TIMES = ('answer_ns', 'switch_ns', 'contact_ns', 'settled_ns', 'end_ns',
+                  'in_band_since_ns', 'prev_force_t_ns', 'low_since_ns', 'rest_since_ns',
+                  'overload_ns')
+"""The instants of a request (``NO_NS`` as it starts)."""
+
+
 @_kernel
 def _reset(s, t_ns) -> None:
     s.outcome = Outcome.UNKNOWN
     s.answer = Outcome.UNKNOWN
-    s.answer_ns = NO_NS
     s.switch_criterion = SwitchCriterion.NONE
     s.start_ns = t_ns
     s.t_ns = t_ns
-    s.switch_ns = NO_NS
-    s.contact_ns = NO_NS
-    s.settled_ns = NO_NS
+    set_fields(s, _REQUEST_TIMES, NO_NS)
     s.hold_position_m = math.nan
-    s.end_ns = NO_NS
-    s.in_band_since_ns = NO_NS
-    s.prev_force_t_ns = NO_NS
     s.prev_force_n = 0.0
     s.gripped = False
-    s.low_since_ns = NO_NS
-    s.rest_since_ns = NO_NS
-    s.overload_ns = NO_NS
     s.msg_code = MSG_NONE
     s.msg_seq += 1
 
@@ -291,17 +338,7 @@ def _take_pending(s) -> None:
     s.kind = s.pend_kind
     s.tg_kind = s.pend_kind
     s.mass_kg = s.pend_mass_kg
-    s.tg_position_setpoint_m = s.pend_position_setpoint_m
-    s.tg_approach_setpoint_m = s.pend_approach_setpoint_m
-    s.tg_force_setpoint_n = s.pend_force_setpoint_n
-    s.tg_friction_coefficient = s.pend_friction_coefficient
-    s.tg_timeout_s = s.pend_timeout_s
-    s.tg_width_tolerance_m = s.pend_width_tolerance_m
-    s.tg_speed_mps = s.pend_speed_mps
-    s.tg_max_effort_n = s.pend_max_effort_n
-    s.tg_voltage_limit_v = s.pend_voltage_limit_v
-    s.tg_tolerance_m = s.pend_tolerance_m
-    s.tg_load_tracking = s.pend_load_tracking
+    copy_fields(s, s, _TARGET_FIELDS, 'tg_', 'pend_')
     s.pend_kind = 0
     s.grasp_id += 1
 
@@ -334,15 +371,22 @@ def _switch(s, criterion, t_ns) -> None:
 
 
 @_kernel
-def _snapshot_into(s, m) -> None:
-    """Write when (``t_ns``) and where in the grasp the event happened: after HOLDING or not."""
+def _note(s, m, position_m, force_n) -> None:
+    """Write what every message may read: when, how long in, the position and the force.
+
+    How long into the request, or into the hold after HOLDING; each message code then writes
+    its own numbers.
+    """
     m.t_ns = s.t_ns
+    m.start_ns = s.start_ns
     if _holding(s) and s.end_ns != NO_NS:
         m.after_holding = True
         m.into_ns = s.t_ns - s.end_ns
     else:
         m.after_holding = False
         m.into_ns = s.t_ns - s.start_ns
+    m.position_m = position_m
+    m.force_n = force_n
 
 
 @_kernel
@@ -388,43 +432,37 @@ def _object_lost(s, p, m, t_ns, position_m, force_n) -> int:
             s.low_since_ns = t_ns
         low_s = (t_ns - s.low_since_ns) * 1e-9
         if low_s >= p.lost_force_hold_s:
-            _snapshot_into(s, m)
+            _note(s, m, position_m, force_n)
             m.since_ns = s.low_since_ns
-            m.force_n = force_n
             m.lost_force_fraction = p.lost_force_fraction
             m.force_setpoint_n = s.tg_force_setpoint_n
             m.floor_n = floor
-            m.position_m = position_m
             return _end(s, Phase.FAILED, Outcome.OBJECT_LOST, MSG_LOST_FORCE, True,
                         position_m, False)
     if not math.isnan(s.hold_position_m) and \
             position_m > s.hold_position_m + p.no_object_margin_m:
-        _snapshot_into(s, m)
-        m.position_m = position_m
+        _note(s, m, position_m, force_n)
         m.hold_position_m = s.hold_position_m
         m.margin_m = p.no_object_margin_m
-        m.force_n = force_n
         return _end(s, Phase.FAILED, Outcome.OBJECT_LOST, MSG_LOST_MOVED_ON, True, position_m,
                     False)
     return NO_ANSWER
 
 
 @_kernel
-def _step_release(s, p, m, t_ns, position_m) -> int:
+def _step_release(s, p, m, t_ns, position_m, force_n) -> int:
     if abs(position_m - s.tg_position_setpoint_m) <= p.release_tolerance_m:
         if s.in_band_since_ns == NO_NS:
             s.in_band_since_ns = t_ns
         if (t_ns - s.in_band_since_ns) * 1e-9 >= p.release_settle_s:
-            m.position_m = position_m
+            _note(s, m, position_m, force_n)
             m.position_setpoint_m = s.tg_position_setpoint_m
-            m.t_ns = t_ns
-            m.start_ns = s.start_ns
             return _end(s, Phase.DONE, Outcome.RELEASED, MSG_RELEASED, True, position_m, False)
     else:
         s.in_band_since_ns = NO_NS
     if (t_ns - s.start_ns) * 1e-9 > s.tg_timeout_s:
+        _note(s, m, position_m, force_n)
         m.timeout_s = s.tg_timeout_s
-        m.position_m = position_m
         return _end(s, Phase.FAILED, Outcome.TIMEOUT, MSG_RELEASE_TIMEOUT, True, position_m,
                     False)
     return NO_ANSWER
@@ -441,11 +479,8 @@ def _step_move(s, p, m, t_ns, position_m, force_n, sensor_voltage_v,
         s.contact_ns = t_ns
     error_m = goal - position_m                   # > 0: still to close
     at_rest = abs(speed_mps) <= p.move_rest_speed_mps
-    m.position_m = position_m                     # where: position, goal, force, elapsed
+    _note(s, m, position_m, force_n)              # where: position, goal, force, elapsed
     m.position_setpoint_m = goal
-    m.force_n = force_n
-    m.t_ns = t_ns
-    m.start_ns = s.start_ns
     if not at_rest:
         s.rest_since_ns = NO_NS
     elif abs(error_m) <= s.tg_tolerance_m:
@@ -482,19 +517,16 @@ def _step_request(s, p, m, t_ns, position_m, force_n, sensor_voltage_v,
     bad_force = not position_only and not (math.isfinite(force_n)
                                            and math.isfinite(sensor_voltage_v))
     if bad_position or bad_force:
-        m.t_ns = t_ns
-        m.start_ns = s.start_ns
+        _note(s, m, position_m, force_n)
         m.bad_position = bad_position
         m.bad_force = bad_force
         m.request_kind = 0 if _holding(s) else s.kind   # 0: the hold
-        m.position_m = position_m
-        m.force_n = force_n
         m.sensor_voltage_v = sensor_voltage_v
         return _end(s, Phase.FAILED, Outcome.FAULT, MSG_SENSOR_FAULT, False, math.nan, False)
     s.position_m = position_m                          # finite: where a stop holds
     if position_only:
         if phase == Phase.RELEASING:
-            return _step_release(s, p, m, t_ns, position_m)
+            return _step_release(s, p, m, t_ns, position_m, force_n)
         return _step_move(s, p, m, t_ns, position_m, force_n, sensor_voltage_v,
                           speed_mps)
     sensor_rise = sensor_voltage_v - s.baseline_voltage_v > p.sensor_voltage_threshold_v
@@ -502,9 +534,9 @@ def _step_request(s, p, m, t_ns, position_m, force_n, sensor_voltage_v,
         s.contact_ns = t_ns
     farthest_face_m = s.tg_position_setpoint_m + s.tg_width_tolerance_m   # narrowest object
     if s.contact_ns == NO_NS and position_m > farthest_face_m + p.no_object_margin_m:
+        _note(s, m, position_m, force_n)
         m.position_setpoint_m = s.tg_position_setpoint_m
         m.width_tolerance_m = s.tg_width_tolerance_m
-        m.position_m = position_m
         m.farthest_face_m = farthest_face_m
         return _end(s, Phase.FAILED, Outcome.NO_OBJECT, MSG_NO_OBJECT, True, position_m, False)
     if s.contact_ns != NO_NS:
@@ -528,16 +560,14 @@ def _step_request(s, p, m, t_ns, position_m, force_n, sensor_voltage_v,
     if s.phase == Phase.HOLDING and (t_ns - s.settled_ns) * 1e-9 >= p.hold_watch_s:
         s.outcome = Outcome.HOLDING
         s.end_ns = t_ns
-        m.force_n = force_n
+        _note(s, m, position_m, force_n)
         m.force_setpoint_n = s.tg_force_setpoint_n
-        m.position_m = position_m
         s.msg_code = MSG_HOLDING
         s.msg_seq += 1
         return s.outcome
     if (t_ns - s.start_ns) * 1e-9 > s.tg_timeout_s:
+        _note(s, m, position_m, force_n)
         m.timeout_s = s.tg_timeout_s
-        m.position_m = position_m
-        m.force_n = force_n
         m.phase = s.phase
         return _end(s, Phase.FAILED, Outcome.TIMEOUT, MSG_GRASP_TIMEOUT, True, position_m, False)
     return NO_ANSWER
@@ -574,17 +604,16 @@ def _track_load(s, m, law, law_buffers, plan, t_ns, force_n, shear_n, displaceme
     if g.overload_ns == -1 or s.overload_ns != NO_NS or not may_answer:
         return NO_ANSWER
     s.overload_ns = t_ns
-    _snapshot_into(s, m)
+    _note(s, m, s.position_m, force_n)
     m.need_n = g.overload_need_n
     m.max_force_n = g.max_force_n
-    m.force_n = force_n
     m.load_n = 2.0 * shear_n
     m.friction_coefficient = g.overload_mu
     s.phase = Phase.HOLDING
     s.outcome = Outcome.OVERLOADED
     if s.end_ns == NO_NS:                  # not answered before: answered now
         s.end_ns = t_ns
-    s.msg_code = MSG_OVERLOADED
+    s.msg_code = MSG_OVERLOADED if m.need_n > m.max_force_n else MSG_OVERLOADED_SLIDING
     s.msg_seq += 1
     return s.outcome
 
@@ -625,6 +654,7 @@ def _fill(s, answer) -> None:
         s.d_speed_limit_mps = 0.0
 
 
+@face_kernel(_KERNEL_ARRAYS, int, float, float, float, float, int, float, float)
 @_kernel
 def supervisor_step(k, t_ns, position_m, force_n, sensor_voltage_v, speed_mps,
                     revision, shear_n, displacement_m) -> None:
@@ -672,6 +702,14 @@ def _lead(s, p) -> None:
         s.d_approach_setpoint_m = min(max(ahead, 0.0), s.travel_m)
 
 
+_RELAYED_FIELDS = ('stamp_ns', 'revision', 'position_m', 'velocity_mps', 'force_n')
+"""What a StageReference relays of its PlantTick, as read."""
+_DECIDED_FIELDS = ('running', 'contact', 'position_setpoint_m', 'approach_setpoint_m',
+                   'force_setpoint_n', 'speed_limit_mps', 'voltage_limit_v')
+"""What it carries of the tick's decision (the state's ``d_*`` fields)."""
+
+
+@face_kernel(_KERNEL_ARRAYS, TICK_LAYOUT.dtype, REFERENCE_LAYOUT.dtype)
 @_kernel
 def supervisor_decide(k, tick, ref) -> bool:
     """Decide ``tick`` (a PlantTick record) and address ``ref`` (a StageReference record).
@@ -690,27 +728,14 @@ def supervisor_decide(k, tick, ref) -> bool:
     if s.active == Controller.NONE:
         return False
     r = ref[0]
-    r.stamp_ns = t.stamp_ns
-    r.grasp_id = s.grasp_id
-    r.stage_id = s.stage_id
-    r.revision = t.revision
-    r.phase = s.phase
-    r.outcome = s.outcome
+    copy_fields(r, t, _RELAYED_FIELDS)
+    copy_fields(r, s, ('grasp_id', 'stage_id', 'phase', 'outcome', 'seed_voltage_v'))
     r.controller = s.active
-    r.running = s.d_running
-    r.contact = s.d_contact
-    r.position_setpoint_m = s.d_position_setpoint_m
-    r.approach_setpoint_m = s.d_approach_setpoint_m
-    r.force_setpoint_n = s.d_force_setpoint_n
-    r.position_m = t.position_m
-    r.velocity_mps = t.velocity_mps
-    r.force_n = t.force_n
-    r.seed_voltage_v = s.seed_voltage_v
-    r.speed_limit_mps = s.d_speed_limit_mps
-    r.voltage_limit_v = s.d_voltage_limit_v
+    copy_fields(r, s, _DECIDED_FIELDS, '', 'd_')
     return True
 
 
+@face_kernel(_KERNEL_ARRAYS)
 @_kernel
 def supervisor_stop(k) -> bool:
     """End the running request, the hold, a stalled move's press or a waiting request: STOPPED.
@@ -732,6 +757,7 @@ def supervisor_stop(k) -> bool:
     return True
 
 
+@face_kernel(_KERNEL_ARRAYS)
 @_kernel
 def supervisor_fault(k) -> bool:
     """End the running request or the hold as FAULT: no controller drives the motor."""
@@ -745,6 +771,55 @@ def supervisor_fault(k) -> bool:
 
 
 # ------------------------------------------------------------------ the Python face
+MESSAGE_VALUES = {
+    't_s': lambda m: m['t_ns'] * 1e-9,
+    'elapsed_s': lambda m: (m['t_ns'] - m['start_ns']) * 1e-9,
+    'at': lambda m: f"t={m['t_s']:.4f} s",
+    'into': lambda m: (f"{m['into_ns'] * 1e-9:.4f} s after HOLDING" if m['after_holding'] else
+                       f"{m['into_ns'] * 1e-9:.4f} s into the grasp"),
+    'since_s': lambda m: m['since_ns'] * 1e-9,
+    'low_ms': lambda m: (m['t_ns'] - m['since_ns']) * 1e-9 * 1e3,
+    'rest_s': lambda m: (m['t_ns'] - m['since_ns']) * 1e-9,
+    'what': lambda m: KIND_NAMES[m['request_kind']] if m['request_kind'] else 'hold',
+    'bad': lambda m: '; '.join(
+        ([f"finger position sensor (joint state) reads {m['position_m']!r} m"]
+         if m['bad_position'] else [])
+        + ([f"force sensor reads force {m['force_n']!r} N, voltage {m['sensor_voltage_v']!r} V "
+            '(sensor dropout)'] if m['bad_force'] else [])),
+    'tolerance': lambda m: (f" + {m['width_tolerance_m'] * 1e3:g} mm tolerance"
+                            if m['width_tolerance_m'] else ''),
+    'past_face_mm': lambda m: (m['position_m'] - m['farthest_face_m']) * 1e3,
+    'moved_on_mm': lambda m: (m['position_m'] - m['hold_position_m']) * 1e3,
+    'margin_mm': lambda m: m['margin_m'] * 1e3,
+    'phase_name': lambda m: Phase(m['phase']).name,
+    'opening_m': lambda m: m['travel_m'] - m['position_m'],
+    'goal_opening_m': lambda m: m['travel_m'] - m['position_setpoint_m'],
+    'short_of_goal_mm': lambda m: abs(m['short_of_goal_m']) * 1e3,
+}
+"""What the message texts derive from the record's numbers (and the plant's ``travel_m`` and
+``voltage_limit_v``), by name."""
+
+
+class _MessageNumbers(dict):
+    """A message record's numbers by name; a derived value is computed when a text reads it."""
+
+    def __missing__(self, name: str):
+        value = self[name] = MESSAGE_VALUES[name](self)
+        return value
+
+
+def format_message(code: int, record, plant: PlantParams, text: str = '') -> str:
+    """Return message ``code``'s text from its record's numbers (``text``: a given one)."""
+    try:
+        template = MESSAGES[code]
+    except KeyError:
+        raise ValueError(f'unknown message code {code}') from None
+    numbers = _MessageNumbers({name: record[name].item() for name in SUPERVISOR_MESSAGE.names},
+                              text=text, travel_m=plant.max_travel_m,
+                              voltage_limit_v=plant.voltage_limit_v)
+    return template.format_map(numbers)
+
+
 def load_law(config: GripperConfig) -> tuple:
     """Return the load-tracking grip of ``config`` for a supervisor (``make_law``'s arrays).
 
@@ -763,38 +838,48 @@ def _ns_or_none(value) -> int | None:
     return None if value == NO_NS else int(value)
 
 
-class Decision:
+def _state(read, field: str = '', doc: str | None = None) -> RecordField:
+    """Return a read-only field of the supervisor's state record (the face's ``_s``)."""
+    return RecordField(read, False, field=field, at='_s', doc=doc)
+
+
+class _StateView:
+    """What a supervisor and its decision both read of the state record ``_s``."""
+
+    __slots__ = ()
+
+    phase = _state(Phase)
+    active = _state(Controller)
+    switch_criterion = _state(SwitchCriterion)
+    outcome = _state(Outcome)
+    grasp_id = _state(int)
+    stage_id = _state(int)
+    running = _state(bool, 'd_running',
+                     'A request is in progress (it needs simulated time until answered).')
+
+
+class Decision(_StateView):
     """The supervisor's verdict for the last tick: a view of its state, current at any time.
 
     ``answer`` is the outcome this tick produced for the request (the grasp service answers
     now, the outcome is latched), or None.
     """
 
-    __slots__ = ('_owner',)
+    __slots__ = ('_owner', '_s')
 
     def __init__(self, owner: GraspSupervisor):
         self._owner = owner
+        self._s = owner._s
 
-    t_ns = property(lambda self: int(self._owner._s['t_ns']))
-    phase = property(lambda self: Phase(self._owner._s['phase']))
-    active = property(lambda self: Controller(self._owner._s['active']))
-    switch_criterion = property(lambda self: SwitchCriterion(self._owner._s['switch_criterion']))
-    outcome = property(lambda self: Outcome(self._owner._s['outcome']))
-    grasp_id = property(lambda self: int(self._owner._s['grasp_id']))
-    stage_id = property(lambda self: int(self._owner._s['stage_id']))
-    running = property(lambda self: bool(self._owner._s['d_running']))
-    contact = property(lambda self: bool(self._owner._s['d_contact']))
-    position_setpoint_m = property(lambda self: float(self._owner._s['d_position_setpoint_m']))
-    approach_setpoint_m = property(lambda self: float(self._owner._s['d_approach_setpoint_m']))
-    force_setpoint_n = property(lambda self: float(self._owner._s['d_force_setpoint_n']))
-    speed_limit_mps = property(lambda self: float(self._owner._s['d_speed_limit_mps']))
-    voltage_limit_v = property(lambda self: float(self._owner._s['d_voltage_limit_v']))
+    t_ns = _state(int)
+    contact = _state(bool, 'd_contact')
+    position_setpoint_m = _state(float, 'd_position_setpoint_m')
+    approach_setpoint_m = _state(float, 'd_approach_setpoint_m')
+    force_setpoint_n = _state(float, 'd_force_setpoint_n')
+    speed_limit_mps = _state(float, 'd_speed_limit_mps')
+    voltage_limit_v = _state(float, 'd_voltage_limit_v')
     message = property(lambda self: self._owner.message)
-
-    @property
-    def answer(self) -> Outcome | None:
-        answer = self._owner._s['d_answer']
-        return None if answer == NO_ANSWER else Outcome(answer)
+    answer = _state(lambda answer: None if answer == NO_ANSWER else Outcome(answer), 'd_answer')
 
     @property
     def finished(self) -> bool:
@@ -802,7 +887,7 @@ class Decision:
         return self.outcome is not Outcome.UNKNOWN
 
 
-class GraspSupervisor:
+class GraspSupervisor(_StateView):
     """One request at a time; :meth:`step` once per plant tick with that tick's measurements.
 
     A controller always drives the motor, except after a FAULT: with no request the position
@@ -870,29 +955,18 @@ class GraspSupervisor:
     # ------------------------------------------------------------------ state
     kind = property(lambda self: KIND_NAMES.get(int(self._s['kind'])),
                     doc="The current request's kind, None before any.")
-    phase = property(lambda self: Phase(self._s['phase']))
-    switch_criterion = property(lambda self: SwitchCriterion(self._s['switch_criterion']))
-    outcome = property(lambda self: Outcome(self._s['outcome']))
-    grasp_id = property(lambda self: int(self._s['grasp_id']))
-    stage_id = property(lambda self: int(self._s['stage_id']))
-    mass_kg = property(lambda self: float(self._s['mass_kg']),
-                       doc="The current grasp request's object mass.")
-    start_ns = property(lambda self: int(self._s['start_ns']))
-    switch_ns = property(lambda self: _ns_or_none(self._s['switch_ns']))
-    contact_ns = property(lambda self: _ns_or_none(self._s['contact_ns']))
-    settled_ns = property(lambda self: _ns_or_none(self._s['settled_ns']),
-                          doc='Force first settled (phase HOLDING from here).')
-    end_ns = property(lambda self: _ns_or_none(self._s['end_ns']),
-                      doc='When the request was answered or ended.')
-    answer = property(lambda self: Outcome(self._s['answer']),
-                      doc='What the current request was answered.')
-    answer_ns = property(lambda self: _ns_or_none(self._s['answer_ns']),
-                         doc="... and when (the grasp service's answer).")
-    active = property(lambda self: Controller(self._s['active']))
-    overload_ns = property(lambda self: _ns_or_none(self._s['overload_ns']),
-                           doc='When the load-tracking grip said the load is beyond 24 V.')
-    force_setpoint_n = property(lambda self: float(self._s['tg_force_setpoint_n']),
-                                doc="The grasp's force setpoint now (the law's, tracking).")
+    mass_kg = _state(float, doc="The current grasp request's object mass.")
+    start_ns = _state(int)
+    switch_ns = _state(_ns_or_none)
+    contact_ns = _state(_ns_or_none)
+    settled_ns = _state(_ns_or_none, doc='Force first settled (phase HOLDING from here).')
+    end_ns = _state(_ns_or_none, doc='When the request was answered or ended.')
+    answer = _state(Outcome, doc='What the current request was answered.')
+    answer_ns = _state(_ns_or_none, doc="... and when (the grasp service's answer).")
+    overload_ns = _state(_ns_or_none,
+                         doc='When the load-tracking grip said the load is beyond 24 V.')
+    force_setpoint_n = _state(float, 'tg_force_setpoint_n',
+                              "The grasp's force setpoint now (the law's, tracking).")
 
     @property
     def record(self):
@@ -922,12 +996,10 @@ class GraspSupervisor:
             self._targets, self._pending_targets = self._pending_targets, None
         return self._targets
 
-    running = property(lambda self: bool(self._s['d_running']),
-                       doc='A request is in progress (it needs simulated time until answered).')
-    holding = property(lambda self: bool(self._s['d_holding']),
-                       doc='A grasp was answered HOLDING (or OVERLOADED); the force stage holds.')
-    pressing = property(lambda self: bool(self._s['d_pressing']),
-                        doc="A stalled move's last command is in force: the finger presses.")
+    holding = _state(bool, 'd_holding',
+                     'A grasp was answered HOLDING (or OVERLOADED); the force stage holds.')
+    pressing = _state(bool, 'd_pressing',
+                      "A stalled move's last command is in force: the finger presses.")
 
     @property
     def releasing(self) -> bool:
@@ -952,7 +1024,9 @@ class GraspSupervisor:
         """The current request's outcome, in words with its numbers ('' while none)."""
         seq = int(self._s['msg_seq'])
         if self._message[0] != seq:
-            self._message = (seq, self._format_message(int(self._s['msg_code'])))
+            self._message = (seq, format_message(int(self._s['msg_code']),
+                                                 self.kernel[K_MESSAGE][0], self.plant,
+                                                 self._text))
         return self._message[1]
 
     # ------------------------------------------------------------------ requests
@@ -1144,86 +1218,3 @@ class GraspSupervisor:
                         float(sensor_voltage_v), float(speed_mps), revision, float(shear_n),
                         float(displacement_m))
         return self._decision
-
-    # ------------------------------------------------------------------ messages
-    def _format_message(self, code: int) -> str:
-        """Return the outcome message in words, from the numbers the kernel kept then."""
-        if code == MSG_NONE:
-            return ''
-        if code == MSG_TEXT:
-            return self._text
-        record = self.kernel[K_MESSAGE][0]
-        m = {name: record[name].item() for name in SUPERVISOR_MESSAGE.names}
-        travel = self.plant.max_travel_m
-        if code == MSG_SENSOR_FAULT:
-            bad = []
-            if m['bad_position']:
-                bad.append(f"finger position sensor (joint state) reads {m['position_m']!r} m")
-            if m['bad_force']:
-                bad.append(f"force sensor reads force {m['force_n']!r} N, voltage "
-                           f"{m['sensor_voltage_v']!r} V (sensor dropout)")
-            what = KIND_NAMES[m['request_kind']] if m['request_kind'] else 'hold'
-            return (f"fault at t={m['t_ns'] * 1e-9:.4f} s "
-                    f"({(m['t_ns'] - m['start_ns']) * 1e-9:.4f} s into the {what}): "
-                    + '; '.join(bad) + '; no controller drives the motor from here on')
-        if code == MSG_NO_OBJECT:
-            tolerance_m = m['width_tolerance_m']
-            return ('no object: the finger passed the expected face '
-                    f"({m['position_setpoint_m']:.4f} m"
-                    + (f' + {tolerance_m * 1e3:g} mm tolerance' if tolerance_m else '') +
-                    f") by {(m['position_m'] - m['farthest_face_m']) * 1e3:.2f} mm "
-                    'without contact')
-        at = f"t={m['t_ns'] * 1e-9:.4f} s"
-        into = (f"{m['into_ns'] * 1e-9:.4f} s after HOLDING" if m['after_holding'] else
-                f"{m['into_ns'] * 1e-9:.4f} s into the grasp")
-        if code == MSG_LOST_FORCE:
-            return (f"object lost at {at}, {into}: force {m['force_n']:.3f} N has been below "
-                    f"{m['lost_force_fraction']:g} x the setpoint {m['force_setpoint_n']:.3f} N"
-                    f" = {m['floor_n']:.3f} N for "
-                    f"{(m['t_ns'] - m['since_ns']) * 1e-9 * 1e3:.2f} ms "
-                    f"(since t={m['since_ns'] * 1e-9:.4f} s); finger at {m['position_m']:.5f} m")
-        if code == MSG_LOST_MOVED_ON:
-            return (f'object lost at {at}, {into}: the finger moved on '
-                    f"{(m['position_m'] - m['hold_position_m']) * 1e3:.2f} mm past the held "
-                    f"position {m['hold_position_m']:.5f} m (margin {m['margin_m'] * 1e3:g} mm);"
-                    f" force {m['force_n']:.3f} N")
-        if code == MSG_OVERLOADED:
-            most = (f'the most {self.plant.voltage_limit_v:g} V holds is '
-                    f"{m['max_force_n']:.2f} N; gripping with {m['force_n']:.2f} N, at most "
-                    'that, while the object stays')
-            if not m['need_n'] > m['max_force_n']:      # said of a slide that did not slow
-                return (f'overloaded at {at} ({into}): the object slides on, no slower, with '
-                        f"the grip at its most: kinetic friction ({m['friction_coefficient']:.3f}"
-                        f' measured) is short of the load; {most}')
-            return (f"overloaded at {at} ({into}): the load {m['load_n']:.2f} N needs "
-                    f"{m['need_n']:.2f} N of grip at the measured friction "
-                    f"{m['friction_coefficient']:.3f}, {most}")
-        if code == MSG_HOLDING:
-            return (f"holding {m['force_n']:.3f} N (setpoint {m['force_setpoint_n']:.3f} N) at "
-                    f"{m['position_m']:.5f} m")
-        if code == MSG_GRASP_TIMEOUT:
-            return (f"not settled within {m['timeout_s']:g} s of simulated time (phase "
-                    f"{Phase(m['phase']).name}, position {m['position_m']:.5f} m, force "
-                    f"{m['force_n']:.3f} N)")
-        after_s = (m['t_ns'] - m['start_ns']) * 1e-9
-        if code == MSG_RELEASED:
-            return (f"released: finger at {m['position_m']:.5f} m (open position "
-                    f"{m['position_setpoint_m']:.5f} m, opening "
-                    f"{travel - m['position_m']:.5f} m) after {after_s:.3f} s")
-        if code == MSG_RELEASE_TIMEOUT:
-            return (f"release not done within {m['timeout_s']:g} s of simulated time (finger "
-                    f"at {m['position_m']:.5f} m)")
-        where = (f"finger at {m['position_m']:.5f} m (opening {travel - m['position_m']:.5f} m,"
-                 f" goal {travel - m['position_setpoint_m']:.5f} m), force {m['force_n']:.3f} N,"
-                 f' after {after_s:.3f} s')
-        if code == MSG_MOVED:
-            return f'moved: {where}'
-        if code in (MSG_STALLED_PRESSING, MSG_STALLED_AT_REST):
-            why = (f"pressing with {m['force_n']:.3f} N at the effort limit "
-                   f"{m['max_effort_n']:.3f} N" if code == MSG_STALLED_PRESSING else
-                   f"at rest for {(m['t_ns'] - m['since_ns']) * 1e-9:.3f} s")
-            return (f"stalled {abs(m['short_of_goal_m']) * 1e3:.2f} mm short of the goal, "
-                    f'{why}: {where}')
-        if code == MSG_MOVE_TIMEOUT:
-            return f"move not done within {m['timeout_s']:g} s of simulated time: {where}"
-        raise ValueError(f'unknown message code {code}')

@@ -1,0 +1,154 @@
+"""The Python faces over the compiled records: declared kernels, record copies, message texts.
+
+A node's or a tool's first call of a face must not pay numba's compilation: warm-up compiles
+every kernel declared with ``face_kernel``, and driving each face afterwards compiles nothing
+more. A compiled ``copy_fields`` writes what the Python one writes. Every supervisor message
+code has one template, and the texts carry the kernel's numbers.
+"""
+from __future__ import annotations
+
+import importlib
+import math
+import string
+
+from gripper_ros.core.config import load_config
+from gripper_ros.core.control.dmc import CascadedMpc
+from gripper_ros.core.control.factories import ForceControllerKind, PositionControllerKind
+from gripper_ros.core.control.pid import AntiWindup, DerivativeOn, PID
+from gripper_ros.core.control.stages import (ForceStageController, LockstepAnswerer,
+                                             PositionStageController, Reference)
+from gripper_ros.core.records import compile_face_kernels, copy_fields, set_fields
+from gripper_ros.core.supervision import supervisor as sv
+from gripper_ros.core.supervision.requests import MoveTargets
+import numba
+import numpy as np
+
+CONFIG = load_config()
+
+FACE_MODULES = ('gripper_ros.core.control.pid', 'gripper_ros.core.control.dmc',
+                'gripper_ros.core.control.contact_force', 'gripper_ros.core.control.load_grip',
+                'gripper_ros.core.control.stages', 'gripper_ros.core.supervision.supervisor')
+
+
+def _signatures() -> dict:
+    """Return the number of compiled signatures of every kernel of the face modules."""
+    counts = {}
+    for name in FACE_MODULES:
+        for attr, value in vars(importlib.import_module(name)).items():
+            if isinstance(value, numba.core.dispatcher.Dispatcher):
+                counts[f'{name}.{attr}'] = len(value.signatures)
+    return counts
+
+
+def _drive_every_face() -> None:
+    """Call every face method that runs a kernel, as the nodes and the tools do."""
+    supervisor = sv.GraspSupervisor(CONFIG.plant, CONFIG.supervisor, sv.load_law(CONFIG))
+    supervisor.step(1_000_000, 0.0, 0.0, 0.0)
+    supervisor.request_move(MoveTargets(0.1, 0.02, 5.0, 3.6, 0.0, 1e-3))
+    supervisor.step(2_000_000, 0.0, 0.0, 0.0, 0.0, 1, 0.0, 0.0)
+    supervisor.announce(3_000_000, 1.0)
+    supervisor.stop()
+    supervisor.request_release()
+    supervisor.step(3_000_000, 0.0, 0.0, 0.0)
+    supervisor.fault('a test fault')
+    assert supervisor.message == 'a test fault'
+    ref = Reference(1, 1, 1, 0, 0, 0, 1, 1, 0, 0.01, 0.01, 5.0, 0.0, 0.0, 0.0, 1.0)
+    for stage in ([PositionStageController(CONFIG, kind) for kind in PositionControllerKind]
+                  + [ForceStageController(CONFIG, kind) for kind in ForceControllerKind]):
+        assert LockstepAnswerer(stage).answer(ref).finite
+        stage.activate(ref, 0.0)
+        stage.compute(ref, 0.0)
+        law = stage.controller
+        law.reset(*(() if isinstance(law, PID) else (0.0,)))
+        if isinstance(law, CascadedMpc):
+            law.step(0.01, 0.0)
+            law.dmc.reset(0.0, 0.0)
+            law.dmc.step(0.01, 0.0, (-1.0, 1.0))
+            if law.governor is not None:
+                law.governor.reset(0.0)
+                law.governor.applied(law.governor.command(0.01, 0.0) or 0.0)
+    pid = PID(CONFIG.position.pd, 0.01, (-24.0, 24.0))
+    pid.setpoint_range(0.0)
+    pid.setpoint_for_output(1.0, 0.0)
+    contact = ForceStageController(CONFIG, ForceControllerKind.CONTACT_AWARE).controller
+    contact.reset(0.0)
+    contact.contact_speed_mps(5.0, 1e-3)
+    contact.speed_profile_mps(0.01)
+    contact.step(5.0, 0.0, 0.0, 0.01, 0.0)
+
+
+def test_after_warm_up_no_face_compiles_a_kernel_at_its_first_call():
+    """Drive every face after compile_face_kernels: no kernel of their modules compiles again.
+
+    A face that called a kernel with types nobody declared would compile it here, at the
+    first tick of a node.
+    """
+    assert compile_face_kernels() >= 20
+    before = _signatures()
+    _drive_every_face()
+    after = _signatures()
+    assert {k: (before[k], n) for k, n in after.items() if n != before[k]} == {}
+
+
+def test_compiled_copy_fields_and_set_fields_write_what_the_python_ones_write():
+    dtype = np.dtype([('tg_a', 'f8'), ('tg_b', 'i8'), ('pend_a', 'f8'), ('pend_b', 'i8'),
+                      ('t_ns', 'i8')], align=True)
+
+    @numba.njit
+    def take(x):
+        s = x[0]
+        copy_fields(s, s, ('a', 'b'), 'tg_', 'pend_')
+        set_fields(s, ('pend_b', 't_ns'), -1)
+
+    compiled = np.zeros(1, dtype)
+    compiled[0]['pend_a'], compiled[0]['pend_b'] = 2.5, 7
+    python = compiled.copy()
+    take(compiled)
+    copy_fields(python[0], python[0], ('a', 'b'), 'tg_', 'pend_')
+    set_fields(python[0], ('pend_b', 't_ns'), -1)
+    assert compiled.tobytes() == python.tobytes()
+    assert compiled[0].tolist() == (2.5, 7, 2.5, -1, -1)
+
+
+def test_pid_settings_and_terms_read_the_record():
+    pid = PID(CONFIG.position.pd, 0.01, (-24.0, 24.0), DerivativeOn.MEASUREMENT,
+              AntiWindup.NONE)
+    assert pid.derivative_on is DerivativeOn.MEASUREMENT and pid.anti_windup is AntiWindup.NONE
+    assert pid.record[0]['derivative_on_measurement'] == 1 and pid.record[0]['conditional'] == 0
+    output = pid.step(0.01, 0.0)                  # kc x 10 mm, inside the limits
+    terms = pid.terms
+    assert terms.output == output == terms.proportional + terms.integral + terms.derivative
+    assert terms.proportional == CONFIG.position.pd.kc * 0.01 and not terms.saturated
+    assert pid.step(1.0, 0.0) == 24.0 and pid.terms.saturated
+
+
+def _message_codes() -> dict:
+    return {name: value for name, value in vars(sv).items() if name.startswith('MSG_')}
+
+
+def test_every_message_code_has_one_template_over_named_numbers():
+    """Each MSG_* code has a template; every name it reads is a record field or derived."""
+    codes = _message_codes()
+    assert sorted(sv.MESSAGES) == sorted(codes.values()) == list(range(len(codes)))
+    known = set(sv.SUPERVISOR_MESSAGE.names) | set(sv.MESSAGE_VALUES) | {
+        'text', 'travel_m', 'voltage_limit_v'}
+    for code, template in sv.MESSAGES.items():
+        names = {field for _, field, _, _ in string.Formatter().parse(template) if field}
+        assert names <= known, (code, names - known)
+
+
+def test_a_message_carries_the_kernels_numbers_into_its_text():
+    """The numbers written by the kernel come out as the template formats them."""
+    record = np.zeros(1, sv.SUPERVISOR_MESSAGE)[0]
+    record['force_n'], record['force_setpoint_n'], record['position_m'] = 24.8712, 24.87, 0.1234
+    assert sv.format_message(sv.MSG_HOLDING, record, CONFIG.plant) == \
+        'holding 24.871 N (setpoint 24.870 N) at 0.12340 m'
+    record['t_ns'], record['start_ns'], record['position_setpoint_m'] = 2_500_000_000, 0, 0.1
+    travel = CONFIG.plant.max_travel_m
+    assert sv.format_message(sv.MSG_MOVED, record, CONFIG.plant) == (
+        f'moved: finger at 0.12340 m (opening {travel - 0.1234:.5f} m, goal '
+        f'{travel - 0.1:.5f} m), force 24.871 N, after 2.500 s')
+    record['bad_force'], record['force_n'] = True, math.nan
+    assert sv.format_message(sv.MSG_SENSOR_FAULT, record, CONFIG.plant) == (
+        'fault at t=2.5000 s (2.5000 s into the hold): force sensor reads force nan N, voltage '
+        '0.0 V (sensor dropout); no controller drives the motor from here on')
