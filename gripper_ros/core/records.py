@@ -217,6 +217,8 @@ def face_kernel(*args):
 
     def declare(kernel):
         if not isinstance(kernel, numba.core.dispatcher.Dispatcher):
+            if numba.config.DISABLE_JIT:          # the interpreted core: nothing to compile
+                return kernel
             raise TypeError(f'{kernel!r} is not compiled: put face_kernel above numba.njit')
         FACE_KERNELS.append((kernel, signature))
         return kernel
