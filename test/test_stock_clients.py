@@ -356,7 +356,9 @@ def test_joint_trajectory_controller_ramp_is_one_move_that_follows_each_update(g
                   if t0_ns + UPDATE_NS < t <= t0_ns + ramp_s * 1e9]
         assert {i for _, _, i in during} == {first_id}         # from its first setpoint on
         ramp = [(t, sp) for t, sp, _ in during]
-        assert len({sp for _, sp in ramp}) >= 150             # the reference follows them
+        # the reference follows them: it changes at most updates (statuses read over DDS may be
+        # lost, and under load two setpoints can land in one tick: a share, not a count)
+        assert len(ramp) >= 50 and len({sp for _, sp in ramp}) >= 0.5 * len(ramp)
         assert all(sp <= controller.reference(t) + 1e-12 for t, sp in ramp)
         limit_mps = CONFIG.supervisor.move_default_speed_mps
         errors = [(t - t0_ns, controller.reference(t) - p, v)
