@@ -30,8 +30,8 @@ from gripper_ros.nodes.move_action_node import MoveActionServer
 from gripper_ros.nodes.names import NameClaim
 from gripper_ros.nodes.plant_simulator_node import PlantSimulatorNode
 from gripper_ros.nodes.position_controller_node import PositionControllerNode
-from gripper_ros.nodes.process import (build_node, ExecutorKind, make_executor,
-                                       release_nodes, spin_until_stopped)
+from gripper_ros.nodes.process import (build_node, CLEAN_UP_STEP_S, ExecutorKind,
+                                       make_executor, release_nodes, spin_until_stopped)
 from gripper_ros.nodes.qos import SERVICE_QOS
 from gripper_ros.nodes.services import call_and_wait
 from gripper_ros.nodes.supervisor_node import SupervisorNode
@@ -424,13 +424,14 @@ class GripperGraph:
         """Stop spinning and destroy every node (and the context it owns); safe to call twice.
 
         Recordings close first, while the executor still runs; every node leaves the stopped
-        executor before it is destroyed.
+        executor before it is destroyed. The executor's end is awaited within a node process's
+        clean-up bound (:data:`~gripper_ros.nodes.process.CLEAN_UP_STEP_S`).
         """
         self.close_recordings()
         if hasattr(self, '_stop'):
             if not self._stop.done():
                 self._stop.set_result(True)
-            self._thread.join(timeout=10.0)
+            self._thread.join(timeout=CLEAN_UP_STEP_S)
             release_nodes(self.executor, self.nodes)
         for node in self.nodes:
             node.destroy_node()
