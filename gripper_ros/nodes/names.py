@@ -67,12 +67,7 @@ class NameClaim:
         probe = None
 
         def make_probe():
-            kw = {'namespace': DEFAULT_NAMESPACE if namespace is None else namespace}
-            if context is not None:
-                kw['context'] = context
-            return rclpy.create_node(PROBE_NODE, enable_rosout=False,
-                                     start_parameter_services=False,
-                                     cli_args=keep_name_args(PROBE_NODE), **kw)
+            return probe_node(DEFAULT_NAMESPACE if namespace is None else namespace, context)
 
         claim = None
         try:
@@ -188,15 +183,24 @@ def namespace_as_given(default: str = DEFAULT_NAMESPACE, context=None) -> str:
     One source of truth for a graph whose namespace may come from an option or from
     ``--ros-args -r __ns:=/x``: ask a node (the remap wins, as for every ROS node).
     """
-    import rclpy
-    kw = {'context': context} if context is not None else {}
-    probe = rclpy.create_node(PROBE_NODE, namespace=default, enable_rosout=False,
-                              start_parameter_services=False,
-                              cli_args=keep_name_args(PROBE_NODE), **kw)
+    probe = probe_node(default, context)
     try:
         return probe.get_namespace().strip('/')
     finally:
         probe.destroy_node()
+
+
+def probe_node(namespace: str = DEFAULT_NAMESPACE, context=None) -> Node:
+    """Make the short-lived start-up node, in ``namespace`` as the command line remaps it.
+
+    It keeps its own name (:func:`keep_name_args`), starts no parameter services and no
+    rosout; the caller destroys it once it has asked what it needs.
+    """
+    import rclpy
+    kw = {'context': context} if context is not None else {}
+    return rclpy.create_node(PROBE_NODE, namespace=namespace, enable_rosout=False,
+                             start_parameter_services=False, cli_args=keep_name_args(PROBE_NODE),
+                             **kw)
 
 
 def taken_names(node: Node, node_names: tuple[str, ...] = (), services: tuple[str, ...] = (),
