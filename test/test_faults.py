@@ -219,16 +219,10 @@ class LiveGraph:
         self._mark = (self.published(), self.watcher.seen())
 
     def published(self) -> Counter:
-        """Count the messages the graph's nodes published, per topic the watcher reads."""
+        """Count the messages the graph published, per topic the watcher reads."""
         g = self.graph
-
-        def count() -> Counter:
-            total = Counter()
-            for node in (g.plant, g.supervisor, g.position, g.force):
-                for topic, n in node.published.items():
-                    total[qualified(g.namespace, topic)] += n
-            return total
-        return g.run_in_executor(count, 10.0)
+        counts = g.run_in_executor(g.published_counts, 10.0)
+        return Counter({qualified(g.namespace, t): n for t, n in counts.items()})
 
     def mark(self) -> None:
         """Count from here in :meth:`delivered`."""
