@@ -354,26 +354,30 @@ class GripperGraph:
     def sim_time_ns(self) -> int:
         return self.plant.plant.t_ns
 
+    def stands_still(self) -> bool:
+        """Tell whether simulated time stands still now; ask it on the executor thread.
+
+        Every loop message has been handed over, and the plant is paused or (fast mode) has
+        found that nothing needs time.
+        """
+        return self.bus.idle and (self.plant.paused or not self.plant.advancing)
+
     def wait_still(self, quiet_s: float = 0.05, timeout_s: float = 30.0) -> bool:
         """Wait until simulated time stands still: the plant waits and nothing is in flight.
 
-        Asked on the executor thread, between two callbacks: every loop message has been handed
-        over, and the plant is paused or (fast mode) has found that nothing needs time. In fast
+        Asked on the executor thread, between two callbacks (:meth:`stands_still`). In fast
         mode that means the request and its hold scenario are over; paused, that a step's last
         tick has been answered. The answer must hold twice, ``quiet_s`` apart, with no tick in
         between (an input from outside the process may still wake the plant). False on timeout
         (realtime: time never stands still unless paused).
         """
-        plant, bus = self.plant, self.bus
-
-        def still() -> bool:
-            return bus.idle and (plant.paused or not plant.advancing)
-
+        plant = self.plant
         deadline = time.monotonic() + timeout_s
         seen = None                     # ticks_published when the graph was last found still
         while time.monotonic() < deadline:
             try:
-                now_still = self.run_in_executor(still, max(0.1, deadline - time.monotonic()))
+                now_still = self.run_in_executor(self.stands_still,
+                                                 max(0.1, deadline - time.monotonic()))
             except GraphError:
                 return False
             ticks = plant.ticks_published
