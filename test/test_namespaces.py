@@ -207,6 +207,29 @@ def _discovered_elsewhere(namespace: str, node_name: str, timeout_s: float = 30.
         rclpy.try_shutdown(context=context)
 
 
+def test_namespaces_that_give_one_prefix_are_refused_until_one_takes_another():
+    """``a/b`` and ``a_b`` both give the prefix ``a_b_``: the second graph is refused in a line.
+
+    Both would publish ``a_b_gripper_base`` on the global /tf and a joint ``a_b_finger_joint``.
+    With a prefix of its own it starts; once the first is closed the prefix is free again.
+    """
+    first = GripperGraph.in_own_context(GraphOptions(namespace='pfx/one'))
+    try:
+        with pytest.raises(StartupError) as refused:
+            GripperGraph.in_own_context(GraphOptions(namespace='pfx_one'))
+        assert str(refused.value) == (
+            f"prefix 'pfx_one_' of namespace /pfx_one is taken on ROS_DOMAIN_ID "
+            f"{first.context.get_domain_id()} by namespace /pfx/one on this machine: both "
+            'would publish the same TF frames and joint; give one another prefix '
+            '(-p prefix:=NAME_)')
+        own = GripperGraph.in_own_context(GraphOptions(namespace='pfx_one', prefix='flat_'))
+        own.close()
+    finally:
+        first.close()
+    second = GripperGraph.in_own_context(GraphOptions(namespace='pfx_one'))
+    second.close()
+
+
 def test_names_are_free_again_once_the_graph_is_closed():
     first = GripperGraph.in_own_context(GraphOptions(namespace='reused'))
     first.close()

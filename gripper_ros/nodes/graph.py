@@ -37,9 +37,9 @@ from gripper_ros.nodes.services import call_and_wait
 from gripper_ros.nodes.supervisor_node import SupervisorNode
 from gripper_ros.wire import (ACTION_GRASP, ACTION_GRIPPER_CMD, ACTION_MOVE, check_namespace,
                               DEFAULT_NAMESPACE, DEFAULT_STATE_RATE_HZ, NODE_PLANT,
-                              NODE_SUPERVISOR, SERVICE_EXCITE, SERVICE_GRASP, SERVICE_MOVE,
-                              SERVICE_PAUSE, SERVICE_RELEASE, SERVICE_RESUME, SERVICE_SET_OBJECT,
-                              SERVICE_STEP, SERVICE_STOP, TimeMode)
+                              namespace_prefix, NODE_SUPERVISOR, SERVICE_EXCITE, SERVICE_GRASP,
+                              SERVICE_MOVE, SERVICE_PAUSE, SERVICE_RELEASE, SERVICE_RESUME,
+                              SERVICE_SET_OBJECT, SERVICE_STEP, SERVICE_STOP, TimeMode)
 import rclpy
 from rclpy.context import Context
 from rclpy.parameter import Parameter
@@ -89,8 +89,9 @@ class GripperGraph:
         self.bus = IntraProcessBus(rclpy.logging.get_logger('gripper_ros.intra_process'))
         self.close_hooks: list = []          # run first by close() (e.g. open recordings)
         load_config(opts.config_file or None)   # a bad file is refused before a name is taken
+        prefix = namespace_prefix(self.namespace) if opts.prefix is None else opts.prefix
         self._claim = NameClaim.take((NODE_PLANT, NODE_SUPERVISOR), (SERVICE_GRASP,), context,
-                                     self.namespace) if opts.check_names else None
+                                     self.namespace, prefix) if opts.check_names else None
         try:
             self._build(opts, kw)
         except BaseException:
