@@ -21,7 +21,7 @@ from gripper_ros.wire import (DESCRIPTION_TOPICS, FRAME_BASE, FRAME_FIXED_FINGER
                               FRAME_MOVING_FINGER, Outcome, qualified, TOPIC_FORCE_REFERENCE,
                               TOPIC_JOINT_STATES, TOPIC_MOTOR_COMMAND, TOPIC_POSITION_REFERENCE,
                               TOPIC_ROBOT_DESCRIPTION, TOPIC_TF, TOPIC_TF_STATIC, TOPIC_TICK)
-from helpers import frames_of_bag, urdf_tree
+from helpers import frames_of_bag, tf_as_robot_state_publisher, urdf_tree
 import pytest
 
 OBJECTS = {'left': (0.05, 1.69), 'right': (0.10, 0.75)}
@@ -38,7 +38,8 @@ def _check_bag(bag_dir, namespace):
     counts = {t.name: t.count for t in bag.topics.values() if t.count}
     # its own topics, and its own fingers on the global /tf and /tf_static
     assert all(t.startswith(f'/{namespace}/') or t in GLOBAL for t in counts), sorted(counts)
-    assert counts[TOPIC_TF] == counts[qualified(namespace, TOPIC_JOINT_STATES)]
+    tf, expected = tf_as_robot_state_publisher(bag, namespace)   # as robot_state_publisher
+    assert tf == expected and len(tf) >= counts[qualified(namespace, TOPIC_JOINT_STATES)] // 5
     # the frames: its own URDF's (the other gripper's differ in name), each under its parent
     (description,) = [bag.decode(m).data for m in bag.messages
                       if m.topic == qualified(namespace, TOPIC_ROBOT_DESCRIPTION)]

@@ -436,7 +436,7 @@ def drain_published(graph, tap: GraphTap, recorder: BagRecorder, before: dict,
     """Wait until the tap has received every message published since ``before``.
 
     Time stands still then; a tick the tap still holds for its decision is written. /tf
-    follows each joint_states through description_publisher: its last one is waited for first.
+    follows joint_states through description_publisher: the last joint state is waited for first.
     """
     description = getattr(graph, 'description', None)
     if description is not None:
