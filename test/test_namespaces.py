@@ -219,8 +219,8 @@ def test_namespaces_that_give_one_prefix_are_refused_until_one_takes_another():
         with pytest.raises(StartupError) as refused:
             GripperGraph.in_own_context(GraphOptions(namespace='pfx_one'))
         assert str(refused.value) == (
-            f"prefix 'pfx_one_' of namespace /pfx_one is taken on ROS_DOMAIN_ID "
-            f"{first.context.get_domain_id()} by namespace /pfx/one on this machine: both "
+            "prefix 'pfx_one_' of namespace /pfx_one is taken on ROS_DOMAIN_ID "
+            f'{first.context.get_domain_id()} by namespace /pfx/one on this machine: both '
             'would publish the same TF frames and joint; give one another prefix '
             '(-p prefix:=NAME_)')
         own = GripperGraph.in_own_context(GraphOptions(namespace='pfx_one', prefix='flat_'))

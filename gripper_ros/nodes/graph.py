@@ -36,8 +36,8 @@ from gripper_ros.nodes.qos import SERVICE_QOS
 from gripper_ros.nodes.services import call_and_wait
 from gripper_ros.nodes.supervisor_node import SupervisorNode
 from gripper_ros.wire import (ACTION_GRASP, ACTION_GRIPPER_CMD, ACTION_MOVE, check_namespace,
-                              DEFAULT_NAMESPACE, DEFAULT_STATE_RATE_HZ, NODE_PLANT,
-                              namespace_prefix, NODE_SUPERVISOR, SERVICE_EXCITE, SERVICE_GRASP,
+                              DEFAULT_NAMESPACE, DEFAULT_STATE_RATE_HZ, namespace_prefix,
+                              NODE_PLANT, NODE_SUPERVISOR, SERVICE_EXCITE, SERVICE_GRASP,
                               SERVICE_MOVE, SERVICE_PAUSE, SERVICE_RELEASE, SERVICE_RESUME,
                               SERVICE_SET_OBJECT, SERVICE_STEP, SERVICE_STOP, TimeMode)
 import rclpy
