@@ -216,3 +216,32 @@ class TickHook:
 
     def remove(self) -> None:
         self.plant._tick_pub = self._real
+
+
+def tf_as_robot_state_publisher(bag, namespace: str = 'gripper',
+                                publish_frequency_hz: float = 20.0) -> tuple[list, list]:
+    """Return the stamps of a bag's /tf and those robot_state_publisher would publish.
+
+    Its rule (ros/robot_state_publisher, src/robot_state_publisher.cpp, callbackJointState):
+    a joint_states message gets a transform when its stamp is at least ``1000 / frequency``
+    whole milliseconds past the last transform's (0 before any). A bag is a window of a longer
+    run: its first transform is a joint state's at most one interval after the first.
+    """
+    from gripper_ros.wire import qualified, TOPIC_JOINT_STATES, TOPIC_TF
+
+    def ns(stamp) -> int:
+        return stamp.sec * 1_000_000_000 + stamp.nanosec
+    joints, tf = [], []
+    for raw in bag.messages:
+        if raw.topic == qualified(namespace, TOPIC_JOINT_STATES):
+            joints.append(ns(bag.decode(raw).header.stamp))
+        elif raw.topic == TOPIC_TF:
+            tf.append(ns(bag.decode(raw).transforms[0].header.stamp))
+    interval_ns = int(1000.0 / publish_frequency_hz) * 1_000_000
+    if not (tf and joints and tf[0] in joints and tf[0] <= joints[0] + interval_ns):
+        return tf, [None]
+    expected = [tf[0]]
+    for stamp in joints:
+        if stamp >= expected[-1] + interval_ns:
+            expected.append(stamp)
+    return tf, expected

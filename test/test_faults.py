@@ -9,6 +9,7 @@ every message on every graph topic is checked by a watcher node.
 
 The controller stage logic's 0 V hold on NaN / inf is also tested without ROS, first.
 """
+from collections import Counter
 import math
 import threading
 import time
@@ -199,6 +200,11 @@ class Watcher(Node):
         with self.lock:
             return list(self.nonfinite), list(self.commands), list(self.motor_voltages)
 
+    def seen(self) -> dict:
+        """Return how many messages each topic has brought so far."""
+        with self.lock:
+            return dict(self.counts)
+
 
 class LiveGraph:
     """A graph of its own (one at a time on this domain) with a watcher."""
@@ -210,6 +216,29 @@ class LiveGraph:
         self.watcher = Watcher(self.context)
         self.graph.add_node(self.watcher)
         assert wait_until(self.watcher.matched, 10.0), 'the watcher matched no graph writer'
+        self._mark = (self.published(), self.watcher.seen())
+
+    def published(self) -> Counter:
+        """Count the messages the graph published, per topic the watcher reads."""
+        g = self.graph
+        counts = g.run_in_executor(g.published_counts, 10.0)
+        return Counter({qualified(g.namespace, t): n for t, n in counts.items()})
+
+    def mark(self) -> None:
+        """Count from here in :meth:`delivered`."""
+        self._mark = (self.published(), self.watcher.seen())
+
+    def delivered(self, timeout_s: float = 30.0) -> bool:
+        """Wait until the watcher has each message the graph published since :meth:`mark`.
+
+        DDS delivers a writer's messages in order: the counts agree once the last one is in.
+        """
+        published, seen = self._mark
+
+        def caught_up() -> bool:
+            now_published, now_seen = self.published(), self.watcher.seen()
+            return all(now_seen[t] - seen[t] >= now_published[t] - published[t] for t in TOPICS)
+        return wait_until(caught_up, timeout_s, step_s=0.02)
 
     def start_grasp(self, width_m=0.10, mass_kg=0.75, timeout_s=0.0, paused=False):
         """Place the object and ask for the grasp (``paused``: simulated time held first)."""
@@ -383,19 +412,21 @@ def injected_runs():
     try:
         for field, phase, value in CASES:
             inj = Injection(g, field, value, in_phase(g, phase))
+            lg.mark()
             before = lg.watcher.snapshot()
             r = g.grasp(0.10, 0.75, wall_timeout_s=60.0) if g.set_object(0.10).success \
                 else None
             inj.remove()
             ticks_at_end = g.plant.ticks_published
             commands_at_end = g.position.commands_published + g.force.commands_published
-            time.sleep(0.2)
+            still = g.wait_still()
+            assert lg.delivered(), 'the watcher missed messages of the graph'
             after = lg.watcher.snapshot()
             runs.append(SimpleNamespace(
                 field=field, phase=phase, value=value, response=r, stamp_ns=inj.stamp_ns,
                 nonfinite=after[0][len(before[0]):], commands=after[1][len(before[1]):],
                 motor_voltages=after[2][len(before[2]):],
-                quiet=(g.plant.ticks_published == ticks_at_end and
+                quiet=(still and g.plant.ticks_published == ticks_at_end and
                        g.position.commands_published + g.force.commands_published
                        == commands_at_end)))
         # the graph still grasps after all that
@@ -458,6 +489,7 @@ def idle_runs():
     try:
         for field, value in IDLE_CASES:
             inj = Injection(g, field, value, lambda: True)
+            lg.mark()
             before = lg.watcher.snapshot()
             held = g.position.nonfinite_answers
             assert g.set_object(0.10).success
@@ -469,7 +501,7 @@ def idle_runs():
             r = g.grasp(0.10, 0.75, timeout_s=0.3, wall_timeout_s=60.0)
             moved = g.plant.ticks_published - ticks
             released = g.release(60)                     # on the same bad reading
-            time.sleep(0.2)
+            assert g.wait_still() and lg.delivered(), 'the graph did not come to rest'
             after = lg.watcher.snapshot()
             runs.append(SimpleNamespace(
                 field=field, value=value, t0=inj.stamp_ns, response=r, released=released,
@@ -531,12 +563,13 @@ def motor_runs():
     try:
         for value in BAD_VALUES:
             inj = Injection(g, 'voltage', value, in_phase(g, Phase.POSITION))
+            lg.mark()
             before = lg.watcher.snapshot()
             held = g.position.nonfinite_answers
             assert g.set_object(0.10).success
             r = g.grasp(0.10, 0.75, timeout_s=0.5, wall_timeout_s=60.0)
             inj.remove()
-            time.sleep(0.2)
+            assert g.wait_still() and lg.delivered(), 'the graph did not come to rest'
             after = lg.watcher.snapshot()
             runs.append(SimpleNamespace(
                 value=value, response=r, stamp_ns=inj.stamp_ns,

@@ -20,9 +20,9 @@ from gripper_ros.core.config import (ConfigError, load_config, parse_config,
                                      read_as_notes)
 from gripper_ros.core.control.factories import make_plant
 from gripper_ros.core.runtime.headless import simulate_grasp, simulate_moves
-from gripper_ros.identify.excitation import (check_spec, excitation_requests, ExcitationSpec,
-                                             free_band_m, MAX_SECONDS, STOP_WIDTH_M,
-                                             TRAVEL_MARGIN_M)
+from gripper_ros.identify.excitation import (check_spec, excitation_requests, ExcitationRun,
+                                             ExcitationSpec, free_band_m, MAX_SECONDS,
+                                             STOP_WIDTH_M, TRAVEL_MARGIN_M)
 from gripper_ros.identify.fit import (check_run, combinations, identify, IdentifyError,
                                       linear_seed, nrmse, Run)
 from helpers import run_main
@@ -136,6 +136,19 @@ def test_excitation_refuses_bad_parameters_naming_them(field, value):
     spec = ExcitationSpec(**{**SPEC.__dict__, field: value})
     with pytest.raises(ValueError, match=field):
         check_spec(spec, PAPER.plant)
+
+
+def test_an_answer_without_a_request_is_refused_and_counts_nothing():
+    """Count one answer per request; one without a request raises and leaves the counts."""
+    run = ExcitationRun(SPEC, PAPER, start_ns=0)
+    with pytest.raises(RuntimeError, match='without a request'):
+        run.answered('MOVED')
+    assert (run.moves, run.grasps) == (0, 0)
+    assert run.next_request(0) is not None
+    assert run.answered('MOVED')
+    with pytest.raises(RuntimeError, match='without a request'):
+        run.answered('MOVED')                   # the same request, answered twice
+    assert run.moves + run.grasps == 1
 
 
 # ------------------------------------------------------------------ the linear seed

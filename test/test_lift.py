@@ -116,3 +116,24 @@ def test_grasp_demo_refuses_a_bad_lift(argv, message):
                              '--no-record'], capture_output=True, text=True, timeout=60,
                             stdin=subprocess.DEVNULL)
     assert result.returncode == 2 and message in result.stderr, result.stderr
+
+
+def test_grasp_client_and_grasp_demo_place_the_same_object_and_lift():
+    """Send one SetObject for the same options: the real object's fields and the lift's."""
+    from gripper_ros.apps import grasp_client, grasp_demo
+    from gripper_ros.apps.common import set_object_fields
+    from gripper_ros.core.physics.hold import parse_profile
+    from gripper_ros.wire import LiftProfile
+    argv = ['--width', '0.05', '--mass', '0.3', '--profile', 'shake:3,2', '--unannounced',
+            '--object-mass', '0.4', '--lift-off', '0.1']
+    client = grasp_client.build_parser().parse_args(argv)
+    demo = grasp_demo.build_parser().parse_args(argv)
+    for args in (client, demo):                 # as each main() reads --profile
+        args.profile = parse_profile(args.profile)
+    demo.lift = demo.profile[1]
+    expected = {'mass_kg': 0.4, 'lift_acceleration_mps2': 3.0, 'lift_delay_s': LIFT_DELAY_S,
+                'lift_duration_s': LIFT_DURATION_S, 'lift_off_s': 0.1,
+                'lift_profile': int(LiftProfile.SHAKE), 'lift_frequency_hz': 2.0,
+                'announce_lift': False}
+    assert set_object_fields(client) == set_object_fields(demo) == expected
+    assert set_object_fields(grasp_client.build_parser().parse_args(argv[:4])) == {}

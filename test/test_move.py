@@ -148,6 +148,19 @@ def test_a_setpoint_stream_is_one_move_whose_reference_leads_by_its_rate():
     assert (d.grasp_id, d.stage_id) == (grasp_id, stage_id)
 
 
+def test_a_retargeted_setpoint_move_aims_at_the_newest_setpoint():
+    """Give the newest setpoint as the targets, though nobody read them as the move started."""
+    sup = GraspSupervisor(P, S)
+    sup.step(0, 0.0, 0.0, 0.005)
+    sup.request_servo(_setpoint(0.01), after_ns=0)
+    d = sup.step(10 * MS, 0.0, 0.0, 0.005)
+    assert d.running and sup.servo
+    assert sup.request_servo(_setpoint(0.03)) is None       # retargeted in place
+    assert sup.targets.position_setpoint_m == pytest.approx(0.03)
+    d = sup.step(20 * MS, 0.001, 0.0, 0.005, speed_mps=0.01)
+    assert sup.targets.position_setpoint_m == pytest.approx(d.position_setpoint_m)
+
+
 def test_a_setpoint_preempts_a_running_grasp_and_a_request_preempts_a_setpoint_move():
     sup = GraspSupervisor(P, S)
     sup.step(0, 0.0, 0.0, 0.005)

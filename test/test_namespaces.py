@@ -21,7 +21,7 @@ from gripper_ros.wire import (DESCRIPTION_TOPICS, FRAME_BASE, FRAME_FIXED_FINGER
                               FRAME_MOVING_FINGER, Outcome, qualified, TOPIC_FORCE_REFERENCE,
                               TOPIC_JOINT_STATES, TOPIC_MOTOR_COMMAND, TOPIC_POSITION_REFERENCE,
                               TOPIC_ROBOT_DESCRIPTION, TOPIC_TF, TOPIC_TF_STATIC, TOPIC_TICK)
-from helpers import frames_of_bag, urdf_tree
+from helpers import frames_of_bag, tf_as_robot_state_publisher, urdf_tree
 import pytest
 
 OBJECTS = {'left': (0.05, 1.69), 'right': (0.10, 0.75)}
@@ -38,7 +38,8 @@ def _check_bag(bag_dir, namespace):
     counts = {t.name: t.count for t in bag.topics.values() if t.count}
     # its own topics, and its own fingers on the global /tf and /tf_static
     assert all(t.startswith(f'/{namespace}/') or t in GLOBAL for t in counts), sorted(counts)
-    assert counts[TOPIC_TF] == counts[qualified(namespace, TOPIC_JOINT_STATES)]
+    tf, expected = tf_as_robot_state_publisher(bag, namespace)   # as robot_state_publisher
+    assert tf == expected and len(tf) >= counts[qualified(namespace, TOPIC_JOINT_STATES)] // 5
     # the frames: its own URDF's (the other gripper's differ in name), each under its parent
     (description,) = [bag.decode(m).data for m in bag.messages
                       if m.topic == qualified(namespace, TOPIC_ROBOT_DESCRIPTION)]
@@ -205,6 +206,29 @@ def _discovered_elsewhere(namespace: str, node_name: str, timeout_s: float = 30.
         return False
     finally:
         rclpy.try_shutdown(context=context)
+
+
+def test_namespaces_that_give_one_prefix_are_refused_until_one_takes_another():
+    """``a/b`` and ``a_b`` both give the prefix ``a_b_``: the second graph is refused in a line.
+
+    Both would publish ``a_b_gripper_base`` on the global /tf and a joint ``a_b_finger_joint``.
+    With a prefix of its own it starts; once the first is closed the prefix is free again.
+    """
+    first = GripperGraph.in_own_context(GraphOptions(namespace='pfx/one'))
+    try:
+        with pytest.raises(StartupError) as refused:
+            GripperGraph.in_own_context(GraphOptions(namespace='pfx_one'))
+        assert str(refused.value) == (
+            "prefix 'pfx_one_' of namespace /pfx_one is taken on ROS_DOMAIN_ID "
+            f'{first.context.get_domain_id()} by namespace /pfx/one on this machine: both '
+            'would publish the same TF frames and joint; give one another prefix '
+            '(-p prefix:=NAME_)')
+        own = GripperGraph.in_own_context(GraphOptions(namespace='pfx_one', prefix='flat_'))
+        own.close()
+    finally:
+        first.close()
+    second = GripperGraph.in_own_context(GraphOptions(namespace='pfx_one'))
+    second.close()
 
 
 def test_names_are_free_again_once_the_graph_is_closed():

@@ -256,6 +256,23 @@ def test_gripper_graph_refuses_a_bad_setting_in_one_line(name, value, words):
         run.stderr[-2000:]
 
 
+@pytest.mark.parametrize('remap, namespace, prefix', [
+    ((), 'gripper', ''), (('-r', '__ns:=/arm2/left'), 'arm2/left', 'arm2_left_')])
+def test_gripper_graph_reads_its_namespace_with_its_settings(remap, namespace, prefix):
+    """The namespace is the default one as ``-r __ns:=`` remaps it; the prefix follows it."""
+    import rclpy
+    from rclpy.context import Context
+    from gripper_ros.nodes.graph_process import read_settings
+    context = Context()
+    rclpy.init(args=['--ros-args', *remap, '-p', 'time_mode:=fast'], context=context)
+    try:
+        settings = read_settings(context)
+    finally:
+        rclpy.try_shutdown(context=context)
+    assert (settings['namespace'], settings['prefix'], settings['time_mode']) == \
+        (namespace, prefix, 'fast')
+
+
 def test_a_bug_in_a_node_constructor_keeps_its_traceback():
     """A ValueError raised by a node's own code is a bug, not a refused start: exit 1, traced."""
     code = ('from gripper_ros.nodes.process import run_node\n'

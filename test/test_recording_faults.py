@@ -23,6 +23,7 @@ from gripper_ros.nodes.recording import recorded_grasp, ServeRecorder
 from gripper_ros.nodes.services import wait_until
 from gripper_ros.wire import (DESCRIPTION_TOPICS, LATCHED_DESCRIPTION_TOPICS, Outcome, qualified,
                               TOPIC_JOINT_STATES, TOPIC_TF)
+from helpers import tf_as_robot_state_publisher
 import pytest
 
 FULL_AFTER_BYTES = 100_000         # a few chunks into the first grasp's bag (about 20 kB each)
@@ -196,11 +197,12 @@ def test_the_tap_adds_no_subscription_and_counts_equal_published(graph, tmp_path
     described = {qualified(graph.namespace, t) for t in DESCRIPTION_TOPICS}
     assert {t: n for t, n in run.recorded.items() if t not in described} == run.published
     assert all(n > 0 for n in run.published.values())
-    # the latched description once, at the start; a transform for every joint state
+    # the latched description once, at the start; transforms at 20 Hz of joint states
     assert [run.recorded[qualified(graph.namespace, t)] for t in LATCHED_DESCRIPTION_TOPICS] \
         == [1, 1]
-    assert run.recorded[TOPIC_TF] == run.published[qualified(graph.namespace,
-                                                             TOPIC_JOINT_STATES)]
+    tf, expected = tf_as_robot_state_publisher(read_bag(tmp_path / 'tapped'), graph.namespace)
+    assert tf == expected and len(tf) == run.recorded[TOPIC_TF] >= \
+        run.published[qualified(graph.namespace, TOPIC_JOINT_STATES)] // 5
     assert read_bag(tmp_path / 'tapped').counts() == run.recorded
     tap = graph.recording_tap
     assert not [s for node in graph.nodes for s in node.subscriptions

@@ -87,6 +87,68 @@ def test_a_late_subscriber_gets_the_description_and_the_fixed_finger(graph):
     assert fixed.transform.translation.x == pytest.approx(TRAVEL_M / 2)
 
 
+@pytest.mark.parametrize('overrides, expected_ms', [
+    ({}, [50, 100, 150, 200]),                                   # 20 Hz: every 50 ms
+    ({'publish_frequency': 30.0}, [40, 80, 120, 160, 200]),      # 33 whole ms
+    ({'ignore_timestamp': True}, list(range(0, 201, 10)))])
+def test_description_paces_tf_and_stamps_tf_static_as_robot_state_publisher(
+        overrides, expected_ms):
+    """A transform per joint_states stamp at least 1000 / publish_frequency whole ms past the last.
+
+    Follows ros/robot_state_publisher src/robot_state_publisher.cpp (3.3):
+    ``callbackJointState`` (the first transform one interval past 0, every message with
+    ``ignore_timestamp``) and ``publishFixedTransforms`` (/tf_static stamped with the node's
+    time at start).
+    """
+    import time
+    import rclpy
+    from rclpy.context import Context
+    from rclpy.parameter import Parameter
+    from rclpy.serialization import serialize_message
+    from gripper_ros.nodes.description_node import DescriptionPublisher
+    context = Context()
+    rclpy.init(context=context)
+    node = None
+    try:
+        before_ns = time.time_ns()
+        node = DescriptionPublisher(context=context, parameter_overrides=[
+            Parameter(k, value=v) for k, v in overrides.items()])
+        (fixed,) = node.latched[TOPIC_TF_STATIC].transforms
+        assert before_ns <= fixed.header.stamp.sec * 10**9 + fixed.header.stamp.nanosec <= \
+            time.time_ns()
+        published_ms = []
+        for ms in range(0, 201, 10):                            # joint_states at 100 Hz
+            state = _command([0.01])
+            state.header.stamp.nanosec = ms * 1_000_000
+            count = node.published[TOPIC_TF]
+            node._on_joint_states(serialize_message(state))
+            if node.published[TOPIC_TF] > count:
+                published_ms.append(ms)
+        assert published_ms == expected_ms
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown(context=context)
+
+
+@pytest.mark.parametrize('frequency', [0.0, 1000.5, math.nan])
+def test_description_refuses_a_publish_frequency_out_of_range(frequency):
+    """As robot_state_publisher, (0, 1000] Hz; 0 too, which divides by zero there."""
+    import rclpy
+    from rclpy.context import Context
+    from rclpy.parameter import Parameter
+    from gripper_ros.nodes.description_node import DescriptionPublisher
+    from gripper_ros.nodes.startup import StartupError
+    context = Context()
+    rclpy.init(context=context)
+    try:
+        with pytest.raises(StartupError, match=r'"publish_frequency" must be in \(0, 1000\] Hz'):
+            DescriptionPublisher(context=context, parameter_overrides=[
+                Parameter('publish_frequency', value=frequency)])
+    finally:
+        rclpy.try_shutdown(context=context)
+
+
 def test_a_joint_command_closes_on_the_object_with_its_effort_limit(graph):
     seen = Listener(graph, {TOPIC_TF: (TFMessage, GRAPH_QOS),
                             TOPIC_JOINT_STATES: (JointState, GRAPH_QOS)})
@@ -115,10 +177,14 @@ def test_a_joint_command_closes_on_the_object_with_its_effort_limit(graph):
         answer['effort_n']
     with seen.lock:
         (moving,) = seen.newest[TOPIC_TF].transforms
+        at_stamp = [s for s in seen.every[TOPIC_JOINT_STATES]
+                    if s.header.stamp == moving.header.stamp]
     assert (moving.header.frame_id, moving.child_frame_id) == (FRAME_BASE, FRAME_MOVING_FINGER)
-    # the pad faces are the object's width apart
-    gap_m = TRAVEL_M / 2 - moving.transform.translation.x
-    assert gap_m == pytest.approx(OBJECT_WIDTH_M, abs=1e-4)
+    # the finger where the joint state of its stamp puts it (/tf is paced, 20 Hz of stamps)
+    (state,) = at_stamp
+    assert (moving.transform.translation.x, moving.transform.translation.y,
+            moving.transform.translation.z) == graph.description.frames.moving_finger_xyz(
+                state.position[0])
     # joint_states as JointStateTopicSystem reads it: position, velocity and effort of the joint
     with seen.lock:
         states = list(seen.every[TOPIC_JOINT_STATES])

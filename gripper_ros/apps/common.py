@@ -33,6 +33,32 @@ def negative_option(args, names) -> str | None:
     return None
 
 
+def set_object_fields(args) -> dict:
+    """Return the SetObject fields of an app's object and lift options.
+
+    ``args`` holds ``object_mass``, ``static_friction``, ``kinetic_friction``, ``profile``
+    (parsed, or None), ``lift_off`` and ``unannounced``; ``lift``, ``lift_delay`` and
+    ``lift_duration`` where the app has them (else ``profile``'s acceleration and the lift
+    runs' timing). Only the object's fields that were given; no lift fields without a lift.
+    """
+    from gripper_ros.studies.lift_runs import LIFT_DELAY_S, LIFT_DURATION_S
+    out = {name: getattr(args, key) for key, name in (
+        ('object_mass', 'mass_kg'), ('static_friction', 'static_friction'),
+        ('kinetic_friction', 'kinetic_friction')) if getattr(args, key)}
+    lift = getattr(args, 'lift', 0.0) or (args.profile[1] if args.profile is not None else 0.0)
+    if not lift:
+        return out
+    out.update({'lift_acceleration_mps2': lift,
+                'lift_delay_s': getattr(args, 'lift_delay', LIFT_DELAY_S),
+                'lift_duration_s': getattr(args, 'lift_duration', LIFT_DURATION_S)})
+    if args.lift_off:
+        out['lift_off_s'] = args.lift_off
+    if args.profile is not None:
+        out.update({'lift_profile': int(args.profile[0]), 'lift_frequency_hz': args.profile[2]})
+    out['announce_lift'] = not args.unannounced
+    return out
+
+
 def with_values(config, values: dict):
     """Return ``config`` with each dotted key set; ConfigError (one line) if the reader refuses."""
     from gripper_ros.bags.rerun import apply_settings

@@ -82,21 +82,6 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
-def _object_fields(args) -> dict:
-    """Return SetObject's hold and lift fields of the command line (none without --profile)."""
-    from gripper_ros.studies.lift_runs import LIFT_DELAY_S, LIFT_DURATION_S
-    out = {'mass_kg': args.object_mass, 'static_friction': args.static_friction,
-           'kinetic_friction': args.kinetic_friction}
-    if args.profile is None:
-        return out
-    profile, accel, hz = args.profile
-    out.update({'lift_acceleration_mps2': accel, 'lift_delay_s': LIFT_DELAY_S,
-                'lift_duration_s': LIFT_DURATION_S, 'lift_profile': int(profile),
-                'lift_frequency_hz': hz, 'lift_off_s': args.lift_off,
-                'announce_lift': not args.unannounced})
-    return out
-
-
 def _request_fields(args) -> dict:
     """Return the grasp request of the command line (the service request and the goal alike)."""
     return {'width_m': args.width, 'mass_kg': args.mass, 'friction_coefficient': args.friction,
@@ -185,6 +170,7 @@ def main(argv: list[str] | None = None) -> int:
 
 def _run(rclpy, args, namespace: str, signals: StopSignals) -> int:
     from gripper_interfaces.srv import Grasp, SetObject
+    from gripper_ros.apps.common import set_object_fields
     from rclpy.executors import ExternalShutdownException
 
     node = rclpy.create_node('grasp_client', namespace=namespace)
@@ -203,7 +189,7 @@ def _run(rclpy, args, namespace: str, signals: StopSignals) -> int:
         if not args.no_place:
             width = args.width if args.object_width is None else args.object_width
             request = SetObject.Request(width_m=width, stiffness_n_per_m=args.stiffness,
-                                        open_fingers=True, **_object_fields(args))
+                                        open_fingers=True, **set_object_fields(args))
             placed = call_spinning(node, place, request, args.call_timeout, signals)
             if placed is not None and not placed.success and 'is held' in placed.message:
                 print('grasp_client: an object is held: releasing it first', flush=True)

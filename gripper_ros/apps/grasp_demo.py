@@ -270,26 +270,6 @@ def _bag_dir(output: Path, i: int, width_m: float, mass_kg: float, overwrite: bo
     return output / stem if overwrite else unique_bag_dir(output, stem)
 
 
-def _lift(args) -> dict:
-    """Return the SetObject fields of the real object and of ``--lift`` or ``--profile``.
-
-    Only the object's fields that were given; no lift fields without a lift.
-    """
-    out = {name: getattr(args, key) for key, name in (
-        ('object_mass', 'mass_kg'), ('static_friction', 'static_friction'),
-        ('kinetic_friction', 'kinetic_friction')) if getattr(args, key)}
-    if not args.lift:
-        return out
-    out.update({'lift_acceleration_mps2': args.lift, 'lift_delay_s': args.lift_delay,
-                'lift_duration_s': args.lift_duration})
-    if args.lift_off:
-        out['lift_off_s'] = args.lift_off
-    if args.profile is not None:
-        out.update({'lift_profile': int(args.profile[0]), 'lift_frequency_hz': args.profile[2]})
-    out['announce_lift'] = not args.unannounced
-    return out
-
-
 def _recorded(fields: dict) -> dict:
     """Return ``fields`` as recorded_grasp takes them (the object's mass by its own name)."""
     out = dict(fields)
@@ -299,6 +279,7 @@ def _recorded(fields: dict) -> dict:
 
 
 def _grasp_one(graph, args, width_m: float, mass_kg: float, i: int, n: int) -> GraspRecord:
+    from gripper_ros.apps.common import set_object_fields
     from gripper_ros.bags.recorder import RecordingError
     from gripper_ros.nodes.graph import GraphError
     from gripper_ros.nodes.recording import recorded_grasp
@@ -309,7 +290,7 @@ def _grasp_one(graph, args, width_m: float, mass_kg: float, i: int, n: int) -> G
     if args.no_record:
         t0 = time.perf_counter()
         placed = graph.set_object(graph.simulated_width_m(width_m, args.object_width),
-                                  args.stiffness, args.damping, **_lift(args))
+                                  args.stiffness, args.damping, **set_object_fields(args))
         if not placed.success:
             raise GraphError(f'set_object: {placed.message}')
         response = graph.grasp(width_m, mass_kg, args.friction, args.lift,
@@ -323,7 +304,7 @@ def _grasp_one(graph, args, width_m: float, mass_kg: float, i: int, n: int) -> G
                          args.stiffness, args.damping, args.overwrite,
                          width_tolerance_m=args.width_tolerance,
                          object_width_m=args.object_width, acceleration_mps2=args.lift,
-                         stop_on_error=True, **_recorded(_lift(args)))
+                         stop_on_error=True, **_recorded(set_object_fields(args)))
     if run.recording_error:
         raise RecordingError(run.recording_error)
     return GraspRecord(width_m, mass_kg, run.response, run.bag_dir, run.wall_s,

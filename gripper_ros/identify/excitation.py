@@ -137,8 +137,15 @@ class ExcitationRun:
         return replace(request, timeout_s=min(left_s, MAX_TIMEOUT_S))
 
     def answered(self, outcome_name: str, message: str = '') -> bool:
-        """Count an answered request; False (ended) unless it is a continuing outcome."""
+        """Count the answer to the last request; False (ended) unless a continuing outcome.
+
+        RuntimeError, counting nothing, when no request was given since the last answer.
+        """
+        if not self._kind:
+            raise RuntimeError('ExcitationRun.answered() without a request: each answer follows '
+                               'a next_request() that returned one')
         setattr(self, self._kind, getattr(self, self._kind) + 1)
+        self._kind = ''
         if outcome_name in CONTINUING_OUTCOMES:
             return True
         self.ended_by, self.message = outcome_name, message

@@ -3,8 +3,10 @@
 What robot_state_publisher does for this one gripper, without xacro or a URDF parser, so that
 it runs on the ros-jazzy wheels too: ``robot_description`` (std_msgs/String, latched), the URDF
 written from the node's config (:mod:`gripper_ros.core.description`); ``/tf_static`` (latched)
-with the fixed finger on the base; and ``/tf`` with the moving finger at the position of each
-``joint_states`` message, stamped with that message's (simulated) time. ``prefix`` (by default
+with the fixed finger on the base, stamped with the node's time at start; and ``/tf`` with the
+moving finger at the position of a ``joint_states`` message, stamped with that message's
+(simulated) time, at most ``publish_frequency`` times a second of those stamps (every message
+with ``ignore_timestamp``). ``prefix`` (by default
 from the namespace: ``left_`` in ``/left``) goes before every name of the URDF (the xacro's
 prefix) and the joint it reads, so the frames are the URDF's links; ``frame_prefix`` (default
 empty) is put before every frame id on top, as robot_state_publisher's parameter of that name
@@ -16,7 +18,6 @@ from __future__ import annotations
 import math
 import sys
 
-from builtin_interfaces.msg import Time
 from geometry_msgs.msg import TransformStamped
 from gripper_ros.core.description import finger_frames, urdf_text
 from gripper_ros.nodes.gripper_node import GripperNode
@@ -33,6 +34,18 @@ from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import JointState
 from std_msgs.msg import String
 from tf2_msgs.msg import TFMessage
+
+
+DEFAULT_PUBLISH_FREQUENCY_HZ = 20.0
+"""robot_state_publisher's default ``publish_frequency``."""
+
+
+def _publish_interval_ns(publish_frequency_hz: float) -> int:
+    """Return the interval robot_state_publisher keeps between transforms: whole ms."""
+    if not (isinstance(publish_frequency_hz, float) and 0.0 < publish_frequency_hz <= 1000.0):
+        raise StartupError(f'parameter "publish_frequency" must be in (0, 1000] Hz, got '
+                           f'{publish_frequency_hz!r}')
+    return int(1000.0 / publish_frequency_hz) * 1_000_000
 
 
 def _transform(stamp, parent: str, child: str, xyz) -> TransformStamped:
@@ -61,6 +74,16 @@ class DescriptionPublisher(GripperNode):
         if not set(prefix) <= NAME_CHARACTERS | {'/'}:
             raise StartupError(f'parameter "frame_prefix" may hold only ASCII letters, digits, '
                                f'_ and /, got {prefix!r}')
+        self.publish_interval_ns = _publish_interval_ns(self.declare_parameter(
+            'publish_frequency', DEFAULT_PUBLISH_FREQUENCY_HZ, ParameterDescriptor(
+                description='most /tf messages a second of joint_states stamps (as '
+                            'robot_state_publisher; in (0, 1000])', read_only=True)).value)
+        self.ignore_timestamp = self.declare_parameter(
+            'ignore_timestamp', False, ParameterDescriptor(
+                description='publish /tf for every joint_states message (as '
+                            'robot_state_publisher)', read_only=True)).value
+        self._last_tf_ns = 0                   # the stamp of the last /tf (0: none yet)
+        self._last_callback_ns = 0             # the node's time at the last joint_states
         self.frames = finger_frames(config)
         self.urdf = urdf_text(config, name_prefix)
         prefix += name_prefix
@@ -78,7 +101,7 @@ class DescriptionPublisher(GripperNode):
         self._tf_layout = transform_template(self._base, self._moving)
         self.latched = {TOPIC_ROBOT_DESCRIPTION: String(data=self.urdf),
                         TOPIC_TF_STATIC: TFMessage(transforms=[_transform(
-                            Time(), self._base,
+                            self.get_clock().now().to_msg(), self._base,
                             prefix + FRAME_FIXED_FINGER, self.frames.fixed_finger_xyz)])}
         """The latched messages, as published once at start: what a recording starts with."""
         self._description_pub.publish(self.latched[TOPIC_ROBOT_DESCRIPTION])
@@ -90,6 +113,9 @@ class DescriptionPublisher(GripperNode):
         """Publish the moving finger's transform at the joint position, at the message's stamp.
 
         joint_states as the plant packs it is read by layout; any other form the general way.
+        A transform is due as robot_state_publisher decides it (its ``callbackJointState``):
+        the stamp at least one publish interval after the last transform's stamp (or the
+        node's time, if earlier), and every one again once the node's time went backwards.
         """
         values = self._joint_layout.unpack(data)
         if values is not None:
@@ -101,12 +127,20 @@ class DescriptionPublisher(GripperNode):
                 position_m = msg.position[list(msg.name).index(self.joint_name)]
             except (ValueError, IndexError):
                 position_m = math.nan
-        self.last_state_ns = sec * 1_000_000_000 + nanosec
+        stamp_ns = self.last_state_ns = sec * 1_000_000_000 + nanosec
         if not math.isfinite(position_m):
             self.skipped += 1
             return
+        now_ns = self.get_clock().now().nanoseconds
+        if self._last_callback_ns > now_ns:     # moved backwards in time: publish again
+            self._last_tf_ns = 0
+        self._last_callback_ns = now_ns
+        last_ns = min(now_ns, self._last_tf_ns)
+        if not (self.ignore_timestamp or stamp_ns >= last_ns + self.publish_interval_ns):
+            return
         self._tf_pub.publish(self._tf_layout.pack(
             sec, nanosec, *self.frames.moving_finger_xyz(position_m)))
+        self._last_tf_ns = stamp_ns
         self.published[TOPIC_TF] += 1
 
 

@@ -30,16 +30,16 @@ from gripper_ros.nodes.move_action_node import MoveActionServer
 from gripper_ros.nodes.names import NameClaim
 from gripper_ros.nodes.plant_simulator_node import PlantSimulatorNode
 from gripper_ros.nodes.position_controller_node import PositionControllerNode
-from gripper_ros.nodes.process import (build_node, ExecutorKind, make_executor,
-                                       release_nodes, spin_until_stopped)
+from gripper_ros.nodes.process import (build_node, CLEAN_UP_STEP_S, ExecutorKind,
+                                       make_executor, release_nodes, spin_until_stopped)
 from gripper_ros.nodes.qos import SERVICE_QOS
 from gripper_ros.nodes.services import call_and_wait
 from gripper_ros.nodes.supervisor_node import SupervisorNode
 from gripper_ros.wire import (ACTION_GRASP, ACTION_GRIPPER_CMD, ACTION_MOVE, check_namespace,
-                              DEFAULT_NAMESPACE, DEFAULT_STATE_RATE_HZ, NODE_PLANT,
-                              NODE_SUPERVISOR, SERVICE_EXCITE, SERVICE_GRASP, SERVICE_MOVE,
-                              SERVICE_PAUSE, SERVICE_RELEASE, SERVICE_RESUME, SERVICE_SET_OBJECT,
-                              SERVICE_STEP, SERVICE_STOP, TimeMode)
+                              DEFAULT_NAMESPACE, DEFAULT_STATE_RATE_HZ, namespace_prefix,
+                              NODE_PLANT, NODE_SUPERVISOR, SERVICE_EXCITE, SERVICE_GRASP,
+                              SERVICE_MOVE, SERVICE_PAUSE, SERVICE_RELEASE, SERVICE_RESUME,
+                              SERVICE_SET_OBJECT, SERVICE_STEP, SERVICE_STOP, TimeMode)
 import rclpy
 from rclpy.context import Context
 from rclpy.parameter import Parameter
@@ -89,8 +89,9 @@ class GripperGraph:
         self.bus = IntraProcessBus(rclpy.logging.get_logger('gripper_ros.intra_process'))
         self.close_hooks: list = []          # run first by close() (e.g. open recordings)
         load_config(opts.config_file or None)   # a bad file is refused before a name is taken
+        prefix = namespace_prefix(self.namespace) if opts.prefix is None else opts.prefix
         self._claim = NameClaim.take((NODE_PLANT, NODE_SUPERVISOR), (SERVICE_GRASP,), context,
-                                     self.namespace) if opts.check_names else None
+                                     self.namespace, prefix) if opts.check_names else None
         try:
             self._build(opts, kw)
         except BaseException:
@@ -354,26 +355,30 @@ class GripperGraph:
     def sim_time_ns(self) -> int:
         return self.plant.plant.t_ns
 
+    def stands_still(self) -> bool:
+        """Tell whether simulated time stands still now; ask it on the executor thread.
+
+        Every loop message has been handed over, and the plant is paused or (fast mode) has
+        found that nothing needs time.
+        """
+        return self.bus.idle and (self.plant.paused or not self.plant.advancing)
+
     def wait_still(self, quiet_s: float = 0.05, timeout_s: float = 30.0) -> bool:
         """Wait until simulated time stands still: the plant waits and nothing is in flight.
 
-        Asked on the executor thread, between two callbacks: every loop message has been handed
-        over, and the plant is paused or (fast mode) has found that nothing needs time. In fast
+        Asked on the executor thread, between two callbacks (:meth:`stands_still`). In fast
         mode that means the request and its hold scenario are over; paused, that a step's last
         tick has been answered. The answer must hold twice, ``quiet_s`` apart, with no tick in
         between (an input from outside the process may still wake the plant). False on timeout
         (realtime: time never stands still unless paused).
         """
-        plant, bus = self.plant, self.bus
-
-        def still() -> bool:
-            return bus.idle and (plant.paused or not plant.advancing)
-
+        plant = self.plant
         deadline = time.monotonic() + timeout_s
         seen = None                     # ticks_published when the graph was last found still
         while time.monotonic() < deadline:
             try:
-                now_still = self.run_in_executor(still, max(0.1, deadline - time.monotonic()))
+                now_still = self.run_in_executor(self.stands_still,
+                                                 max(0.1, deadline - time.monotonic()))
             except GraphError:
                 return False
             ticks = plant.ticks_published
@@ -424,13 +429,14 @@ class GripperGraph:
         """Stop spinning and destroy every node (and the context it owns); safe to call twice.
 
         Recordings close first, while the executor still runs; every node leaves the stopped
-        executor before it is destroyed.
+        executor before it is destroyed. The executor's end is awaited within a node process's
+        clean-up bound (:data:`~gripper_ros.nodes.process.CLEAN_UP_STEP_S`).
         """
         self.close_recordings()
         if hasattr(self, '_stop'):
             if not self._stop.done():
                 self._stop.set_result(True)
-            self._thread.join(timeout=10.0)
+            self._thread.join(timeout=CLEAN_UP_STEP_S)
             release_nodes(self.executor, self.nodes)
         for node in self.nodes:
             node.destroy_node()

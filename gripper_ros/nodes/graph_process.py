@@ -34,19 +34,19 @@ POLL_S = 0.1
 def read_settings(context=None) -> dict:
     """Return :data:`SETTINGS` as the command line gives them (``-p``, ``--params-file``).
 
-    A short-lived probe node reads them (``ros2 node list`` does not show it afterwards). The
+    With them ``namespace``: the graph's, :data:`DEFAULT_NAMESPACE` as ``-r __ns:=`` remaps it.
+    The start-up probe node reads them (``ros2 node list`` does not show it afterwards). The
     ``prefix`` not given comes from the namespace, as each node's own (``declare_prefix``).
     """
-    import rclpy
-    from gripper_ros.nodes.names import keep_name_args, PROBE_NODE
+    from gripper_ros.nodes.names import probe_node
     from gripper_ros.wire import namespace_prefix
-    kw = {'context': context} if context is not None else {}
-    probe = rclpy.create_node(PROBE_NODE, enable_rosout=False, start_parameter_services=False,
-                              cli_args=keep_name_args(PROBE_NODE), **kw)
+    probe = probe_node(DEFAULT_NAMESPACE, context)
     try:
-        defaults = {'prefix': namespace_prefix(probe.get_namespace())}
-        return {name: probe.declare_parameter(name, defaults.get(name, default)).value
-                for name, default, _ in SETTINGS}
+        namespace = probe.get_namespace().strip('/')
+        defaults = {'prefix': namespace_prefix(namespace)}
+        settings = {name: probe.declare_parameter(name, defaults.get(name, default)).value
+                    for name, default, _ in SETTINGS}
+        return {**settings, 'namespace': namespace}
     finally:
         probe.destroy_node()
 
@@ -66,7 +66,6 @@ def main(args: list[str] | None = None) -> int:
     from rclpy.exceptions import InvalidNamespaceException, ParameterException
     from gripper_ros.core.config import ConfigError
     from gripper_ros.nodes.graph import GraphError, GraphOptions, GripperGraph
-    from gripper_ros.nodes.names import namespace_as_given
     from gripper_ros.nodes.process import (BoundedCleanUp, CLEAN_UP_LIMIT_S,
                                            exit_without_a_last_collection, GIL_HELD_MARGIN_S,
                                            init_without_signal_handlers, StopSignals,
@@ -95,8 +94,8 @@ def main(args: list[str] | None = None) -> int:
         try:
             settings = read_settings()
             graph = GripperGraph(GraphOptions(
-                config_file=settings['config_file'], namespace=namespace_as_given(
-                    DEFAULT_NAMESPACE), time_mode=settings['time_mode'],
+                config_file=settings['config_file'], namespace=settings['namespace'],
+                time_mode=settings['time_mode'],
                 real_time_factor=float(settings['real_time_factor']),
                 publish_clock=bool(settings['publish_clock']), prefix=settings['prefix'],
                 client_name=CLIENT_NODE))

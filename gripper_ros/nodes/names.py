@@ -11,6 +11,9 @@ Two checks, before anything is published:
   also finds a gripper on another host. DDS discovery across processes can take seconds, so
   this check alone would let a graph started right after another one through.
 
+A graph also claims its TF prefix on this machine (the frames and the joint it publishes), so
+that a second namespace with the same prefix (``a/b`` and ``a_b``) is refused.
+
 The probe that asks the domain keeps its own name under a global ``-r __node:=NAME`` remap
 (how ``launch_ros`` names a node), else it would find itself under the claimed name.
 """
@@ -54,12 +57,15 @@ class NameClaim:
 
     @classmethod
     def take(cls, node_names: tuple[str, ...], services: tuple[str, ...] = (), context=None,
-             namespace: str | None = None) -> NameClaim:
+             namespace: str | None = None, prefix: str | None = None) -> NameClaim:
         """Claim ``node_names`` in ``namespace``, or raise StartupError if one is taken.
 
         ``namespace`` defaults to the default one as the command line remaps it
         (``-r __ns:=/left``). The StartupError names what is found when one of the nodes, or a
-        server of one of the relative ``services``, exists already.
+        server of one of the relative ``services``, exists already. With ``prefix`` (the TF
+        frames' and the joint's, ``wire.namespace_prefix``) the prefix is claimed as well: a
+        graph of another namespace on this machine that publishes the same frames (``a/b`` and
+        ``a_b`` both give ``a_b_``) refuses this one.
         """
         import rclpy
         ctx = context or rclpy.get_default_context()
@@ -67,12 +73,7 @@ class NameClaim:
         probe = None
 
         def make_probe():
-            kw = {'namespace': DEFAULT_NAMESPACE if namespace is None else namespace}
-            if context is not None:
-                kw['context'] = context
-            return rclpy.create_node(PROBE_NODE, enable_rosout=False,
-                                     start_parameter_services=False,
-                                     cli_args=keep_name_args(PROBE_NODE), **kw)
+            return probe_node(DEFAULT_NAMESPACE if namespace is None else namespace, context)
 
         claim = None
         try:
@@ -94,7 +95,36 @@ class NameClaim:
                 claim.release()
             raise StartupError(f'namespace {where} is taken on ROS_DOMAIN_ID {domain}: found '
                                f'{", ".join(found)}')
+        other = None if prefix is None else claim._hold_prefix(domain, where, prefix)
+        if other is not None:
+            claim.release()
+            raise StartupError(f'prefix {prefix!r} of namespace {where} is taken on '
+                               f'ROS_DOMAIN_ID {domain} by namespace {other} on this machine: '
+                               'both would publish the same TF frames and joint; give one '
+                               'another prefix (-p prefix:=NAME_)')
         return claim
+
+    def _hold_prefix(self, domain: int, namespace: str, prefix: str) -> str | None:
+        """Hold ``prefix`` for ``namespace``; return another namespace holding it, else None.
+
+        One lock file per namespace in the prefix's folder, held shared by each process of the
+        namespace; a file another process holds is a live graph of that namespace.
+        """
+        folder = claims_dir() / f'domain_{domain}' / 'prefix' / (prefix or '-')
+        folder.mkdir(parents=True, exist_ok=True)
+        mine = (namespace.strip('/').replace('/', '-') or '-') + '.lock'   # '-': in no name
+        f = open(folder / mine, 'a+')  # noqa: SIM115 - held until release()
+        fcntl.flock(f, fcntl.LOCK_SH)
+        self._files.append(f)
+        for path in sorted(folder.glob('*.lock')):
+            if path.name == mine:
+                continue
+            with open(path, 'a+') as other:
+                try:
+                    fcntl.flock(other, fcntl.LOCK_EX | fcntl.LOCK_NB)
+                except BlockingIOError:
+                    return '/' + path.stem.replace('-', '/').strip('/')
+        return None
 
     @classmethod
     def _lock(cls, domain: int, namespace: str, node_names) -> tuple[NameClaim, list[str]]:
@@ -188,15 +218,24 @@ def namespace_as_given(default: str = DEFAULT_NAMESPACE, context=None) -> str:
     One source of truth for a graph whose namespace may come from an option or from
     ``--ros-args -r __ns:=/x``: ask a node (the remap wins, as for every ROS node).
     """
-    import rclpy
-    kw = {'context': context} if context is not None else {}
-    probe = rclpy.create_node(PROBE_NODE, namespace=default, enable_rosout=False,
-                              start_parameter_services=False,
-                              cli_args=keep_name_args(PROBE_NODE), **kw)
+    probe = probe_node(default, context)
     try:
         return probe.get_namespace().strip('/')
     finally:
         probe.destroy_node()
+
+
+def probe_node(namespace: str = DEFAULT_NAMESPACE, context=None) -> Node:
+    """Make the short-lived start-up node, in ``namespace`` as the command line remaps it.
+
+    It keeps its own name (:func:`keep_name_args`), starts no parameter services and no
+    rosout; the caller destroys it once it has asked what it needs.
+    """
+    import rclpy
+    kw = {'context': context} if context is not None else {}
+    return rclpy.create_node(PROBE_NODE, namespace=namespace, enable_rosout=False,
+                             start_parameter_services=False, cli_args=keep_name_args(PROBE_NODE),
+                             **kw)
 
 
 def taken_names(node: Node, node_names: tuple[str, ...] = (), services: tuple[str, ...] = (),

@@ -164,6 +164,10 @@ context): past it the process ends with that code, saying so in one line. Deleti
 can block for good in the middle of discovery traffic (seen once in some hundreds of stops, in
 the action server's ``rcl_action_server_fini``); a stopped node must still stop."""
 
+CLEAN_UP_STEP_S = CLEAN_UP_LIMIT_S / 3
+"""Longest a clean-up waits for a spinning thread to end, and again for its executor to shut
+down: a third of :data:`CLEAN_UP_LIMIT_S` each, the last third for destroying the nodes."""
+
 GIL_HELD_MARGIN_S = 1.0
 """How much later than its limit a bound ends the process when no Python thread can run.
 
@@ -234,7 +238,7 @@ def release_nodes(executor, nodes) -> None:
             executor.remove_node(node)
         except Exception:  # noqa: BLE001 - a node the executor no longer has
             pass
-    executor.shutdown(timeout_sec=1.0)
+    executor.shutdown(timeout_sec=CLEAN_UP_STEP_S)
 
 
 def build_node(make_node: Callable[..., Node], *args, **kwargs) -> Node:

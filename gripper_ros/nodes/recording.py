@@ -436,7 +436,7 @@ def drain_published(graph, tap: GraphTap, recorder: BagRecorder, before: dict,
     """Wait until the tap has received every message published since ``before``.
 
     Time stands still then; a tick the tap still holds for its decision is written. /tf
-    follows each joint_states through description_publisher: its last one is waited for first.
+    follows joint_states through description_publisher: the last joint state is waited for first.
     """
     description = getattr(graph, 'description', None)
     if description is not None:
@@ -454,7 +454,7 @@ class ServeRecorder:
     The tap watches the stage references: the first reference of a new grasp opens a bag
     (with the tick it decides), the tick ``linger_s`` of simulated time after the grasp's
     answer closes it, as does the first reference of another request, or simulated time
-    standing still after the answer (fast mode). Each bag holds whole ticks.
+    standing still after the answer (fast mode, or paused). Each bag holds whole ticks.
     """
 
     def __init__(self, graph, output_dir, linger_s: float = 0.5):
@@ -466,8 +466,7 @@ class ServeRecorder:
         self.errors: list[str] = []
         self._grasp_id: int | None = None       # the grasp being recorded
         self._close_at_ns: int | None = None
-        self._answered_wall: float | None = None
-        self._last_received = 0
+        self._answered = False                  # the recorded request's answer was seen
         self._placements_used = 0               # the plant's SetObjects a request began after
         self.tap = graph_tap(graph)
         self.tap.on_reference = self._on_reference
@@ -495,7 +494,7 @@ class ServeRecorder:
         elif self.tap.sink is not None and outcome != Outcome.UNKNOWN and \
                 self._close_at_ns is None:
             self._close_at_ns = stamp_ns + round(self.linger_s * 1e9)
-            self._answered_wall = time.monotonic()
+            self._answered = True
 
     def _rerun_data(self, grasp_id: int, placed: dict | None) -> dict:
         """custom_data a closed-loop re-run reads: the request and the object, or why not."""
@@ -530,7 +529,7 @@ class ServeRecorder:
             self._report(f'recording not started under {self.output_dir}: '
                          f'{getattr(exc, "strerror", None) or exc}')
             return
-        self._close_at_ns = self._answered_wall = None
+        self._close_at_ns, self._answered = None, False
         self.bags.append(bag_dir)
         self.tap.start(sink, 'last_tick')          # the tick this first decision is for
 
@@ -539,12 +538,8 @@ class ServeRecorder:
         if self.tap.error:
             self._report(self.tap.error)
             self.tap.error = ''
-        received = sum(self.tap.received.values())
-        still = received == self._last_received
-        self._last_received = received
-        if still and self._answered_wall is not None and self.tap.sink is not None and \
-                time.monotonic() - self._answered_wall > 0.1:
-            self._close_bag()                   # fast mode: simulated time stands still
+        if self._answered and self.tap.sink is not None and self.graph.stands_still():
+            self._close_bag()                   # no linger tick is coming
 
     def _report(self, message: str) -> None:
         self.errors.append(message)
@@ -553,7 +548,7 @@ class ServeRecorder:
 
     def _close_bag(self, before_ns: int | None = None) -> None:
         """Close the bag now, or (``before_ns``) before that tick, once the last one is whole."""
-        self._close_at_ns = self._answered_wall = None
+        self._close_at_ns, self._answered = None, False
         if before_ns is not None and self.tap.sink is not None:
             sink = self.tap.sink
             self.tap.stop_at(before_ns)

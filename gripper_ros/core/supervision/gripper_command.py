@@ -13,7 +13,7 @@ import dataclasses
 import enum
 import math
 
-from gripper_ros.core.supervision.requests import check_move_limits, MoveRequest, RequestError
+from gripper_ros.core.supervision.requests import MoveRequest, RequestError
 from gripper_ros.wire import FINGER_JOINT, Outcome, Phase
 
 
@@ -97,10 +97,10 @@ class JointCommandStream:
 
     ros2_control's topic-based hardware publishes the command on every controller update while
     the joint is away from it; only a new setpoint (position, speed or effort) is a new request,
-    a repeat of the one in force (the same numbers) is not. A command that is not finite, out of
-    the travel, with a negative limit or for another joint raises RequestError; a setpoint
-    becomes the one in force only once accepted (:meth:`accept`), so that a refused one changes
-    nothing.
+    a repeat of the one in force (the same numbers) is not. A command out of the travel or for
+    another joint raises RequestError; the move's limits are judged once, by ``validate_move``
+    (a refused setpoint never equals the one in force). A setpoint becomes the one in force
+    only once accepted (:meth:`accept`), so that a refused one changes nothing.
     """
 
     def __init__(self, plant, joint: str = FINGER_JOINT):
@@ -111,14 +111,14 @@ class JointCommandStream:
         """Return the move of ``command`` (a JointState) if it is a new setpoint, else None.
 
         Its velocity and effort are limits: one beyond the motor (faster than the free speed,
-        more than the stall force at the voltage limit) is the motor's own.
+        more than the stall force at the voltage limit) is the motor's own; pass a new one to
+        ``validate_move``.
         """
         move = move_request_of(command, self.plant.max_travel_m, self.joint)
         if math.isfinite(move.speed_mps) and math.isfinite(move.max_effort_n):
             move = dataclasses.replace(
                 move, speed_mps=min(move.speed_mps, self.plant.max_free_speed_mps),
                 max_effort_n=min(move.max_effort_n, self.plant.max_force_n))
-        check_move_limits(move, self.plant)
         return None if move == self.last else move
 
     def accept(self, move: MoveRequest) -> None:

@@ -992,9 +992,13 @@ class GraspSupervisor(_StateView):
     @property
     def targets(self) -> GraspTargets | MoveTargets | None:
         """Return what the current request aims at; a waiting one's once it has started."""
+        self._promote_started()
+        return self._targets
+
+    def _promote_started(self) -> None:
+        """Make a waiting request's targets current once the kernel has started it."""
         if self._pending_targets is not None and self._s['pend_kind'] == 0:
             self._targets, self._pending_targets = self._pending_targets, None
-        return self._targets
 
     holding = _state(bool, 'd_holding',
                      'A grasp was answered HOLDING (or OVERLOADED); the force stage holds.')
@@ -1044,7 +1048,7 @@ class GraspSupervisor(_StateView):
 
     def _wait(self, kind: str, targets, mass_kg: float, after_ns: int | None):
         """Write a request that starts at the first tick after ``after_ns`` (None: the next)."""
-        self.targets                            # the one that started before becomes current
+        self._promote_started()                 # the one that started before becomes current
         s = self._s
         for name in _TARGET_FIELDS:
             s['pend_' + name] = getattr(targets, name, 0.0)
@@ -1127,6 +1131,7 @@ class GraspSupervisor(_StateView):
             self._wait(RequestKind.MOVE, targets, 0.0, after_ns)
             return None
         if self.servo and self.running and self.phase is Phase.MOVING:
+            self._promote_started()             # else the started move's targets come back
             self._measure_rate(targets)
             for name in _TARGET_FIELDS:
                 s['tg_' + name] = getattr(targets, name, 0.0)
