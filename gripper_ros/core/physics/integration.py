@@ -25,7 +25,7 @@ from gripper_ros.core.physics.events import fire_fault
 from gripper_ros.core.physics.hold import (hold_advance, hold_fire_events, hold_live,
                                            hold_stays_stuck, HoldState)
 from gripper_ros.core.physics.motor_zoh import advance_zoh, DISC_COMPLIANT, DISC_FREE
-from gripper_ros.core.physics.pad_sensing import pads_rest, pads_sample
+from gripper_ros.core.physics.plant_pads import pads_rest, pads_sample
 from gripper_ros.core.physics.plant_records import (K_DISC_COEF, K_DISC_KEYS, K_FIRED, K_HOLD,
                                                     K_PADS, K_PARAMS, K_SENSOR, K_STATE)
 from gripper_ros.wire import FaultKind

@@ -12,7 +12,7 @@ compiled (numba) and lives in one module a concept:
   (:func:`plant_step`);
 * :mod:`~gripper_ros.core.physics.events`: injected faults and the lift of a held object
   (:mod:`gripper_ros.core.physics.hold`'s friction model), each at an exact simulated instant;
-* :mod:`~gripper_ros.core.physics.pad_sensing`: the four pad channels sampled while the object
+* :mod:`~gripper_ros.core.physics.plant_pads`: the four pad channels sampled while the object
   is held;
 * :mod:`~gripper_ros.core.physics.readout`: what the sensors and motor report, the wire's tick,
   the held object's state;
@@ -45,7 +45,7 @@ from gripper_ros.core.physics.integration import plant_step
 from gripper_ros.core.physics.motor_zoh import (AFF_I1, AFF_IE, AFF_II, AFF_W1, AFF_WI, AFF_X1,
                                                 AFF_XE, AFF_XI, DISC_COEFFICIENTS, DISC_FREE,
                                                 DISC_TABLE_SIZE, discretise, raw_constants)
-from gripper_ros.core.physics.pad_sensing import PAD_CHANNELS, PAD_DTYPE
+from gripper_ros.core.physics.plant_pads import PAD_CHANNELS, PAD_DTYPE
 from gripper_ros.core.physics.pad_sensor import CHANNEL_DTYPE, make_channel
 from gripper_ros.core.physics.plant_records import (K_FIRED, K_HOLD, K_PADS, K_PARAMS, K_SENSOR,
                                                     K_STATE, MAX_FIRED_FAULTS, PARAMS_DTYPE,

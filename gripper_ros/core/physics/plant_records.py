@@ -7,7 +7,7 @@
 :class:`~gripper_ros.core.physics.force_sensor.FsrVoltageDivider` wraps), the faults fired since
 ``set_object`` (int64 rows ``(kind, t_ns)``), the table of discretisations
 (:mod:`gripper_ros.core.physics.motor_zoh`) and the pad channels
-(:mod:`gripper_ros.core.physics.pad_sensing`).
+(:mod:`gripper_ros.core.physics.plant_pads`).
 """
 from __future__ import annotations
 

@@ -2,7 +2,7 @@
 
 The force sensor (:mod:`gripper_ros.core.physics.force_sensor`) reads the contact force (NaN
 once it has dropped out), its noise and the position's drawn per tick; a tick carries the four
-pad channels' readings (:mod:`gripper_ros.core.physics.pad_sensing`).
+pad channels' readings (:mod:`gripper_ros.core.physics.plant_pads`).
 """
 from __future__ import annotations
 
@@ -15,8 +15,8 @@ from gripper_ros.core.physics.force_sensor import (fsr_voltage_v, NOISE_CHANNEL_
                                                    NOISE_CHANNEL_POSITION, noisy_reading)
 from gripper_ros.core.physics.hold import (hold_capacity_n, hold_load_n, hold_presliding_m,
                                            hold_shear_n, HoldState, ObjectState)
-from gripper_ros.core.physics.pad_sensing import (PAD_DISPLACEMENT_1, PAD_DISPLACEMENT_2,
-                                                  PAD_SHEAR_1, PAD_SHEAR_2)
+from gripper_ros.core.physics.plant_pads import (PAD_DISPLACEMENT_1, PAD_DISPLACEMENT_2,
+                                                 PAD_SHEAR_1, PAD_SHEAR_2)
 from gripper_ros.core.physics.plant_records import K_HOLD, K_PADS, K_PARAMS, K_SENSOR, K_STATE
 from gripper_ros.core.records import copy_fields
 import numba
