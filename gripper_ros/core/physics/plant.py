@@ -45,8 +45,8 @@ from gripper_ros.core.physics.integration import plant_step
 from gripper_ros.core.physics.motor_zoh import (AFF_I1, AFF_IE, AFF_II, AFF_W1, AFF_WI, AFF_X1,
                                                 AFF_XE, AFF_XI, DISC_COEFFICIENTS, DISC_FREE,
                                                 DISC_TABLE_SIZE, discretise, raw_constants)
-from gripper_ros.core.physics.plant_pads import PAD_CHANNELS, PAD_DTYPE
 from gripper_ros.core.physics.pad_sensor import CHANNEL_DTYPE, make_channel
+from gripper_ros.core.physics.plant_pads import PAD_CHANNELS, PAD_DTYPE
 from gripper_ros.core.physics.plant_records import (K_FIRED, K_HOLD, K_PADS, K_PARAMS, K_SENSOR,
                                                     K_STATE, MAX_FIRED_FAULTS, PARAMS_DTYPE,
                                                     plant_params_record, STATE_DTYPE)
