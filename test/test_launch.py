@@ -38,7 +38,6 @@ EXECUTABLES = {name for package, name in LAUNCHED if package == 'gripper_ros'}
 DEFAULTS = {'namespace': 'gripper', 'time_mode': 'realtime', 'real_time_factor': '1.0',
             'publish_clock': 'true', 'prefix': '', 'per_node': 'false'}
 LAYOUTS = {'one_process': 'false', 'per_node': 'true'}
-START_TIMEOUT_S = 90.0
 STOP_WITHIN_S = 30.0
 """Ctrl-C to every process gone: each ends within a few seconds by its own bound; launch would
 escalate to SIGTERM after 5 s (and say so, which the test also rules out), SIGKILL after 10."""
@@ -86,71 +85,28 @@ def _group_alive(pgid: int) -> bool:
     return bool(group_pids(pgid))
 
 
-def _launch(layout: str, folder: Path) -> tuple[str, subprocess.Popen]:
-    """Start ``ros2 launch`` in its own process group, in fast time, in a namespace of its own.
+@pytest.fixture(params=list(LAYOUTS), ids=list(LAYOUTS))
+def launched(request, tmp_path):
+    """``ros2 launch`` in its own process group, in fast time, in a namespace of its own.
 
     Its output goes to a file (``proc.log``): a pipe nobody reads would stop it when full.
     """
-    namespace = f'launch_test_{layout}'
-    log = folder / 'launch.log'
+    ros2 = shutil.which('ros2')
+    if ros2 is None:
+        pytest.skip('the ros2 command is not on PATH')
+    namespace = f'launch_test_{request.param}'
+    log = tmp_path / 'launch.log'
     with open(log, 'w') as out:
-        proc = subprocess.Popen(['ros2', 'launch', 'gripper_ros', 'gripper.launch.py',
+        proc = subprocess.Popen([ros2, 'launch', 'gripper_ros', 'gripper.launch.py',
                                  f'namespace:={namespace}', 'time_mode:=fast',
-                                 f'per_node:={LAYOUTS[layout]}'],
+                                 f'per_node:={LAYOUTS[request.param]}'],
                                 stdin=subprocess.DEVNULL, stdout=out, stderr=subprocess.STDOUT,
                                 start_new_session=True)
     proc.log = log
-    return namespace, proc
-
-
-def _expected_nodes(namespace: str) -> set[str]:
-    return EXECUTABLES if namespace.endswith('per_node') else set(LAUNCHED_NODES)
-
-
-def _wait_until_up(started: dict, timeout_s: float = START_TIMEOUT_S) -> None:
-    """Wait until every layout's nodes are discovered, or one ended, or ``timeout_s``."""
-    import rclpy
-    from rclpy.context import Context
-    context = Context()
-    rclpy.init(context=context)
-    try:
-        probe = rclpy.create_node('launch_test_probe', context=context)
-        deadline = time.monotonic() + timeout_s
-        while time.monotonic() < deadline and all(p.poll() is None for _, p in started.values()):
-            names = probe.get_node_names_and_namespaces()
-            if all({n for n, ns in names if ns == f'/{namespace}'} >= _expected_nodes(namespace)
-                   for namespace, _ in started.values()):
-                break
-            time.sleep(0.1)
-        probe.destroy_node()
-    finally:
-        rclpy.try_shutdown(context=context)
-
-
-@pytest.fixture(scope='module')
-def launches(tmp_path_factory):
-    """Both layouts, started side by side; given once both are up (or one failed).
-
-    Up before either test runs: neither start loads the machine while the other is stopped.
-    """
-    if shutil.which('ros2') is None:
-        pytest.skip('the ros2 command is not on PATH')
-    started = {}
-    try:
-        for layout in LAYOUTS:
-            started[layout] = _launch(layout, tmp_path_factory.mktemp(layout))
-        _wait_until_up(started)
-        yield started
-    finally:
-        for _namespace, proc in started.values():
-            if _group_alive(proc.pid):
-                os.killpg(proc.pid, signal.SIGKILL)
-            proc.wait()
-
-
-@pytest.fixture(params=list(LAYOUTS), ids=list(LAYOUTS))
-def launched(request, launches):
-    return launches[request.param]
+    yield namespace, proc
+    if _group_alive(proc.pid):
+        os.killpg(proc.pid, signal.SIGKILL)
+    proc.wait()
 
 
 def test_the_launched_graph_moves_the_finger(launched):
@@ -188,7 +144,7 @@ def test_the_launched_graph_moves_the_finger(launched):
         assert answer.reached_goal and answer.outcome == Outcome.MOVED, answer.message
         ours = {name for name, ns in node.get_node_names_and_namespaces()
                 if ns == f'/{namespace}'}
-        assert ours >= _expected_nodes(namespace)
+        assert ours >= (EXECUTABLES if namespace.endswith('per_node') else set(LAUNCHED_NODES))
         try:
             import control_msgs  # noqa: F401
         except ImportError:
