@@ -76,7 +76,7 @@ done
 
 # Two workers by test file: a module's shared graph stays in one process. Most tests wait on
 # DDS, subprocesses and timers, so two workers on two cores take about half the time. The tests
-# marked serial (many processes, discovery, wall-clock watchdogs) then run alone, in one process.
+# marked serial (a wall-clock bound: a stop, a watchdog, a rate) then run alone, in one process.
 echo "[test] ROS_DOMAIN_ID(s)=$GRIPPER_ROS_WORKER_DOMAINS ROS_AUTOMATIC_DISCOVERY_RANGE=$ROS_AUTOMATIC_DISCOVERY_RANGE workers=$WORKERS" >&2
 set +e
 if [[ "$WORKERS" == 2 ]]; then

@@ -15,19 +15,18 @@ if _worker.startswith('gw') and _worker[2:].isdigit() and int(_worker[2:]) < len
     os.environ['ROS_DOMAIN_ID'] = _domains[int(_worker[2:])]
 os.environ.setdefault('ROS_DOMAIN_ID', str(40 + os.getpid() % 50))
 
-SERIAL_MODULES = frozenset({
-    'test_node_executables.py', 'test_shutdown.py', 'test_namespaces.py', 'test_hostile_graph.py',
-    'test_grasp_client.py', 'test_launch_args.py', 'test_launch.py', 'test_faults.py',
-    'test_recording_faults.py', 'test_time_modes.py', 'test_soak.py', 'test_tf_tree.py',
-})
-"""Modules that start many processes, wait on discovery or watch wall-clock timeouts: run
-alone, after the rest (scripts/test.sh), so the other worker's load cannot starve them.
-test_parameters is not one: its watchdog tests read the silence the watchdog itself counted
-(time in which its executor ran), which another process's load does not change."""
+SERIAL_MODULES = frozenset({'test_launch.py', 'test_time_modes.py'})
+"""Modules whose every test watches the wall clock: run alone, after the rest (scripts/test.sh),
+so the other worker's load cannot starve them. A test of another module that does so (a bound
+on the time a process takes to stop, a watchdog's detection time, a rate in wall time, a race
+between a signal and a paced grasp) carries ``@pytest.mark.serial`` itself. The rest run on the
+two workers however loaded: they wait on events (discovery, an answer, a line) with generous
+bounds, never on a wall-clock pace, and each worker has a domain of its own. Watchdogs count
+only the time in which their executor ran, so a starved process trips none."""
 
 
 def pytest_collection_modifyitems(config, items):
-    """Mark the tests of :data:`SERIAL_MODULES` ``serial``."""
+    """Mark the tests of :data:`SERIAL_MODULES` ``serial`` (others are marked in their module)."""
     for item in items:
         if item.path.name in SERIAL_MODULES:
             item.add_marker(pytest.mark.serial)

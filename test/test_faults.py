@@ -263,6 +263,7 @@ def live():
 
 
 # ---------------------------------------------------------------------- dead nodes
+@pytest.mark.serial   # the tick watchdog's detection time, in wall seconds
 def test_dead_plant_mid_grasp_ends_in_fault_naming_it_and_nothing_commands_after(live):
     g = live.graph
     sup_timeout = g.supervisor.tick_timeout_s
@@ -318,6 +319,7 @@ def stall_run():
         lg.close(pending)
 
 
+@pytest.mark.serial   # a wall-clock stall against the watchdogs' timeouts
 def test_executor_stall_trips_no_watchdog_and_the_grasp_holds(stall_run):
     """Statuses and ticks queued behind the stall are not silence.
 
@@ -335,6 +337,7 @@ STAGE_LEAD_S = {Phase.POSITION: 0.0, Phase.FORCE: 1.5}
 from open fingers runs its position stage from 0.01 s to 1.92 s of simulated time."""
 
 
+@pytest.mark.serial   # the status watchdog's detection time, in wall seconds
 @pytest.mark.parametrize('phase', [Phase.POSITION, Phase.FORCE], ids=['position', 'force'])
 def test_dead_supervisor_mid_grasp_active_controller_falls_to_zero_volts(live, phase):
     g = live.graph

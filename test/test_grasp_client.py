@@ -190,6 +190,7 @@ def test_signal_during_a_recorded_grasp_leaves_a_complete_bag(tmp_path, sig):
     assert not bag.truncated and bag.message_count > 0
 
 
+@pytest.mark.serial   # the cancel races the paced grasp
 @pytest.mark.parametrize('sig', [signal.SIGINT, signal.SIGTERM])
 def test_client_action_stopped_mid_grasp_prints_the_servers_stopped_answer(tmp_path, sig):
     """Ctrl-C on ``grasp_client --action`` cancels the goal and prints the server's answer."""

@@ -159,6 +159,7 @@ def test_a_value_the_controller_cannot_take_is_refused_at_once_and_nothing_chang
 
 
 # ---------------------------------------------------------------- item 6: pause mid-grasp
+@pytest.mark.serial   # a wall-clock wait against the tick watchdog
 def test_a_pause_during_a_grasp_is_no_fault():
     with GripperGraph.in_own_context(GraphOptions(
             namespace='paused_grasp', supervisor_parameters={'tick_timeout_s': 0.5})) as g:
@@ -246,6 +247,7 @@ def test_grasp_demo_serves_records_and_claims_in_a_namespace_given_by_remap(tmp_
 
 
 # ---------------------------------------------------------------- item 9: a plant alone
+@pytest.mark.serial   # a rate in wall time
 def test_a_plant_alone_in_realtime_keeps_its_clock_and_state_stream():
     from rclpy.context import Context
     from rclpy.executors import SingleThreadedExecutor
@@ -298,6 +300,7 @@ def test_a_plant_whose_supervisor_died_keeps_its_clock():
 
 
 # ---------------------------------------------------------------- small: a plant killed
+@pytest.mark.serial   # the kill races the paced grasp
 def test_a_grasp_whose_plant_process_was_killed_says_the_plant_is_gone():
     """A killed plant stays discovered for a while: the silence of its ticks tells."""
     from gripper_interfaces.srv import Grasp, SetObject

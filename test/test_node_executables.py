@@ -5,8 +5,9 @@ Ctrl-C (SIGINT) or SIGTERM once it runs (it answers a parameter request), it exi
 2 s, quietly; given a bad start-up parameter (out of range, of the wrong type, not one of the
 allowed words) it exits 2 with one line on stderr naming the parameter, and no traceback; a
 second one started beside a running one exits 2 with one line naming the taken name. The
-cases run side by side in one module fixture (a node start costs about a second); each test
-reads its own case's result.
+cases run side by side in two module fixtures, the stops and the refusals (a node start costs
+about a second); each test reads its own case's result. The refusals watch no clock, so they
+run beside the other worker's tests; the stops are timed and run alone.
 """
 from __future__ import annotations
 
@@ -119,34 +120,42 @@ def _wait_until_running(cases: list[Case]) -> None:
         rclpy.try_shutdown(context=context)
 
 
-def _cases() -> dict[str, Case]:
-    cases = {}
-    for node in MODULES:
-        for label, sig in SIGNALS.items():
-            cases[f'{node}-{label}'] = Case(node, f'exit_{node}_{label}', [], stop=sig)
-    for k, (node, parameter, value, _words) in enumerate(BAD_PARAMETERS):
-        cases[f'{node}-{parameter}:={value}'] = Case(node, f'exit_{node}_bad_{k}',
-                                                     ['-p', f'{parameter}:={value}'])
+@pytest.fixture(scope='module')
+def refusals():
+    """Every bad start-up parameter at once: started side by side, each waited for."""
+    cases = {f'{node}-{parameter}:={value}': Case(node, f'exit_{node}_bad_{k}',
+                                                  ['-p', f'{parameter}:={value}'])
+             for k, (node, parameter, value, _words) in enumerate(BAD_PARAMETERS)}
+    try:
+        for case in cases.values():
+            _start(case)
+        for case in cases.values():
+            _finish(case)
+    finally:
+        for case in cases.values():
+            if case.proc is not None and case.proc.poll() is None:
+                case.proc.kill()
+                case.proc.wait()
     return cases
 
 
 @pytest.fixture(scope='module')
 def results():
-    """Every case at once: started, the running ones signalled, each waited for."""
-    cases = _cases()
+    """Every node stopped by each signal at once: started, signalled once running, waited for."""
+    cases = {f'{node}-{label}': Case(node, f'exit_{node}_{label}', [], stop=sig)
+             for node in MODULES for label, sig in SIGNALS.items()}
     try:
         for case in cases.values():
             _start(case)
-        stopped = [c for c in cases.values() if c.stop is not None]
-        _wait_until_running(stopped)
-        for case in stopped:
+        _wait_until_running(list(cases.values()))
+        for case in cases.values():
             if case.stop is signal.SIGINT and case.answered:
                 case.twin = Case(case.node, case.namespace, [])
                 _start(case.twin)
-        for case in stopped:                    # each twin ends before its first one is stopped
+        for case in cases.values():             # each twin ends before its first one is stopped
             if case.twin is not None:
                 _finish(case.twin)
-        signalled = [c for c in stopped if c.answered and c.proc.poll() is None]
+        signalled = [c for c in cases.values() if c.answered and c.proc.poll() is None]
         sent = time.monotonic()
         for case in signalled:
             case.proc.send_signal(case.stop)
@@ -157,7 +166,7 @@ def results():
                     case.exit_s = time.monotonic() - sent
             time.sleep(0.01)
         for case in cases.values():
-            if case.stop is not None and not case.answered and case.proc.poll() is None:
+            if not case.answered and case.proc.poll() is None:
                 _abort(case, f'never answered, {RUNNING_TIMEOUT_S:.0f} s after the last node '
                              'that did')        # never ran: its test fails showing where it was
             else:
@@ -192,6 +201,7 @@ def _abort(case: Case, why: str) -> None:
     case.returncode = case.proc.returncode
 
 
+@pytest.mark.serial   # exit within EXIT_WITHIN_S of the signal
 @pytest.mark.parametrize('node', list(MODULES))
 @pytest.mark.parametrize('label', list(SIGNALS))
 def test_a_running_node_stopped_by_a_signal_exits_0_at_once_and_quietly(results, node, label):
@@ -204,8 +214,8 @@ def test_a_running_node_stopped_by_a_signal_exits_0_at_once_and_quietly(results,
 
 
 @pytest.mark.parametrize('node, parameter, value, words', BAD_PARAMETERS)
-def test_a_bad_start_up_parameter_exits_2_in_one_line(results, node, parameter, value, words):
-    case = results[f'{node}-{parameter}:={value}']
+def test_a_bad_start_up_parameter_exits_2_in_one_line(refusals, node, parameter, value, words):
+    case = refusals[f'{node}-{parameter}:={value}']
     assert case.returncode == 2, f'exit {case.returncode}: {case.stderr[-6000:]}'
     assert 'Traceback' not in case.stderr
     lines = case.stderr.strip().splitlines()
@@ -214,6 +224,7 @@ def test_a_bad_start_up_parameter_exits_2_in_one_line(results, node, parameter, 
         lines[0]
 
 
+@pytest.mark.serial   # its first node is started and stopped by the fixture above
 @pytest.mark.parametrize('node', list(MODULES))
 def test_a_second_node_beside_a_running_one_exits_2_in_one_line(results, node):
     first = results[f'{node}-sigint']

@@ -172,8 +172,9 @@ def test_grippers_side_by_side_publish_one_tree_their_descriptions_name(how, tmp
     context = Context()
     rclpy.init(context=context)
     try:
-        for ns in GRIPPERS:                     # one after the other: the first owns /clock
+        for ns in GRIPPERS:                     # side by side: only the first publishes /clock
             started[ns] = start(ns, tmp_path)
+        for ns in GRIPPERS:
             assert started[ns].ready.wait(START_TIMEOUT_S) and started[ns].proc.poll() is None, \
                 ''.join(started[ns].lines)
         listener = Listener(context)

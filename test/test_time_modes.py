@@ -79,10 +79,10 @@ def _stamps_every_state_period(samples):
     assert gaps == {STATE_PERIOD_NS}, sorted(gaps)[:5]
 
 
-def _graph_with_streams(time_mode: str):
+def _graph_with_streams(time_mode: str, namespace: str = ''):
     """Yield a graph in ``time_mode`` (a namespace of its own) and its watched streams."""
-    graph = GripperGraph.in_own_context(GraphOptions(time_mode=time_mode,
-                                                     namespace=f'time_modes_{time_mode}'))
+    graph = GripperGraph.in_own_context(GraphOptions(
+        time_mode=time_mode, namespace=namespace or f'time_modes_{time_mode}'))
     try:
         yield graph, Streams(graph)
     finally:
@@ -97,6 +97,12 @@ def realtime():
 @pytest.fixture
 def fast():
     yield from _graph_with_streams('fast')
+
+
+@pytest.fixture(scope='module')
+def fast_refusing():
+    """One graph in fast time for every refused step: a refusal changes nothing."""
+    yield from _graph_with_streams('fast', 'time_modes_refused_steps')
 
 
 def test_realtime_streams_idle_and_after_holding_never_ahead_of_the_wall_clock(realtime):
@@ -186,8 +192,8 @@ def test_pause_stops_simulated_time_and_a_step_advances_it_by_exactly_n_ticks(re
 @pytest.mark.parametrize('ticks, duration_s, words', [
     (0, 0.0, 'exactly one'), (3, 0.5, 'exactly one'), (0, float('nan'), 'finite'),
     (0, -1.0, '>= 0'), (0, 601.0, '<= 600')])
-def test_bad_steps_are_refused_and_time_does_not_move(fast, ticks, duration_s, words):
-    graph, _streams = fast
+def test_bad_steps_are_refused_and_time_does_not_move(fast_refusing, ticks, duration_s, words):
+    graph, _streams = fast_refusing
     graph.wait_still()
     t0 = graph.sim_time_ns
     response = graph.step(ticks=ticks, duration_s=duration_s)
