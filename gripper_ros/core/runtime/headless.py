@@ -26,7 +26,7 @@ from gripper_ros.core.control.stages import (DEFAULT_APPROACH_FORCE_MARGIN,
 from gripper_ros.core.physics.hold import ANNOUNCE_ROWS, hold_load_n, hold_plan
 from gripper_ros.core.physics.plant import (_object_state, check_fault, GraspObject, HoldState,
                                             Lift, OBJECT_STATE_DTYPE, plant_hold_record)
-from gripper_ros.core.records import as_record, compile_face_kernels
+from gripper_ros.core.records import as_record, compile_face_kernels, copy_fields
 from gripper_ros.core.runtime.engine import map_cases
 from gripper_ros.core.runtime.lockstep import (Command, PlantSide, side_accept, side_needs_time,
                                                side_step, StageSide, SupervisorSide, Tick)
@@ -153,19 +153,12 @@ def _trace_tick(trace, tick, supervisor, plant_k, statuses, objects) -> None:
         changed = True
     if changed:
         r = statuses[m]
-        r.stamp_ns = t.stamp_ns
-        r.phase = supervisor.phase
+        copy_fields(r, t, ('stamp_ns', 'position_m', 'force_n'))
+        copy_fields(r, supervisor, ('phase', 'switch_criterion', 'grasp_id', 'outcome',
+                                    'stage_id'))
+        copy_fields(r, supervisor, ('position_setpoint_m', 'force_setpoint_n', 'contact',
+                                    'approach_setpoint_m'), '', 'd_')
         r.active_controller = supervisor.active
-        r.switch_criterion = supervisor.switch_criterion
-        r.grasp_id = supervisor.grasp_id
-        r.outcome = supervisor.outcome
-        r.position_setpoint_m = supervisor.d_position_setpoint_m
-        r.force_setpoint_n = supervisor.d_force_setpoint_n
-        r.position_m = t.position_m
-        r.force_n = t.force_n
-        r.contact = supervisor.d_contact
-        r.stage_id = supervisor.stage_id
-        r.approach_setpoint_m = supervisor.d_approach_setpoint_m
         ts.statuses = m + 1
     h = plant_hold_record(plant_k)
     hold_state = h.state if h.has_hold else HoldState.NONE
@@ -176,11 +169,7 @@ def _trace_tick(trace, tick, supervisor, plant_k, statuses, objects) -> None:
         s = now[0]
         o = objects[j]
         o.stamp_ns = t.stamp_ns
-        o.state = s.state
-        o.slip_m = s.slip_m
-        o.slip_speed_mps = s.slip_speed_mps
-        o.load_n = s.load_n
-        o.capacity_n = s.capacity_n
+        copy_fields(o, s, ('state', 'slip_m', 'slip_speed_mps', 'load_n', 'capacity_n'))
         ts.hold_state = s.state
         ts.next_object_ns = (t.stamp_ns // ts.state_period_ns + 1) * ts.state_period_ns
         ts.objects = j + 1
