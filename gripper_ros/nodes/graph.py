@@ -61,6 +61,7 @@ class GraphOptions:
     real_time_factor: float = 1.0
     state_rate_hz: float = DEFAULT_STATE_RATE_HZ
     publish_clock: bool = True
+    use_sim_time: bool = False       # every node on the /clock of a world (time_mode realtime)
     position_controller: str = DEFAULT_POSITION_CONTROLLER.value
     force_controller: str = DEFAULT_FORCE_CONTROLLER.value
     approach_force_margin: float = DEFAULT_APPROACH_FORCE_MARGIN
@@ -99,7 +100,8 @@ class GripperGraph:
             raise
 
     def _build(self, opts: GraphOptions, client_kw: dict) -> None:
-        cfg = [Parameter('config_file', value=opts.config_file)]
+        sim_time = [Parameter('use_sim_time', value=True)] if opts.use_sim_time else []
+        cfg = [Parameter('config_file', value=opts.config_file)] + sim_time   # every node
         named = cfg + ([] if opts.prefix is None else [Parameter('prefix', value=opts.prefix)])
         kw = {**client_kw, 'intra_process': self.bus}   # the graph's topics between its nodes
         self.plant = build_node(PlantSimulatorNode, parameter_overrides=named + [
@@ -121,7 +123,8 @@ class GripperGraph:
             Parameter('status_rate_hz', value=float(opts.state_rate_hz))] + [
             Parameter(k, value=v) for k, v in opts.supervisor_parameters.items()], **kw)
         self.nodes.append(self.supervisor)
-        self.client_node = rclpy.create_node(opts.client_name, **client_kw)
+        self.client_node = rclpy.create_node(opts.client_name, parameter_overrides=sim_time,
+                                             **client_kw)
         self.nodes.append(self.client_node)
         self.action_server = self.move_action_server = self.excitation_server = None
         if opts.action_server:
@@ -354,6 +357,11 @@ class GripperGraph:
     @property
     def sim_time_ns(self) -> int:
         return self.plant.plant.t_ns
+
+    @property
+    def time_text(self) -> str:
+        """Say how the graph's time runs, as its banners do (``TimeMode.text``)."""
+        return self.plant.time_mode.text
 
     def stands_still(self) -> bool:
         """Tell whether simulated time stands still now; ask it on the executor thread.
