@@ -28,6 +28,7 @@ from gripper_ros.nodes.grasp_action_node import GraspActionServer
 from gripper_ros.nodes.intra_process import IntraProcessBus
 from gripper_ros.nodes.move_action_node import MoveActionServer
 from gripper_ros.nodes.names import NameClaim
+from gripper_ros.nodes.parameters import refuse_unknown_overrides, strict_parameters
 from gripper_ros.nodes.plant_simulator_node import PlantSimulatorNode
 from gripper_ros.nodes.position_controller_node import PositionControllerNode
 from gripper_ros.nodes.process import (build_node, CLEAN_UP_STEP_S, ExecutorKind,
@@ -95,6 +96,7 @@ class GripperGraph:
                                      self.namespace, prefix) if opts.check_names else None
         try:
             self._build(opts, kw)
+            refuse_unknown_overrides(self.nodes)    # a -p or params file naming nothing here
         except BaseException:
             self.close()
             raise
@@ -125,6 +127,7 @@ class GripperGraph:
         self.nodes.append(self.supervisor)
         self.client_node = rclpy.create_node(opts.client_name, parameter_overrides=sim_time,
                                              **client_kw)
+        strict_parameters(self.client_node)
         self.nodes.append(self.client_node)
         self.action_server = self.move_action_server = self.excitation_server = None
         if opts.action_server:
