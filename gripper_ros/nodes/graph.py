@@ -96,7 +96,6 @@ class GripperGraph:
                                      self.namespace, prefix) if opts.check_names else None
         try:
             self._build(opts, kw)
-            refuse_unknown_overrides(self.nodes)    # a -p or params file naming nothing here
         except BaseException:
             self.close()
             raise
@@ -141,6 +140,7 @@ class GripperGraph:
         if opts.description:
             self.description = build_node(DescriptionPublisher, parameter_overrides=named, **kw)
             self.nodes.append(self.description)
+        refuse_unknown_overrides(self.nodes)    # a -p or params file naming nothing here
         self.executor = make_executor(opts.executor, self.context)
         for node in self.nodes:
             self.executor.add_node(node)

@@ -170,12 +170,8 @@ class PlantSimulatorNode(GripperNode):
         self._force_layout = force_sensor_template(self.frame_id)
         self._object_layout = object_state_template(self.frame_id)
         self._clock_layout = clock_template()
-        following = isinstance(self.pacing, ClockPacing)
-        self.get_logger().info(
-            f'plant ready ({self.time_mode.text}): travel '
-            f'{self.config.plant.max_travel_m:g} m, max force {self.config.plant.max_force_n:.2f} '
-            f'N at {self.config.plant.voltage_limit_v:g} V')
-        if following:                           # the world's time starts it
+        self._said_ready = False                # said once the process's nodes all started
+        if isinstance(self.pacing, ClockPacing):                           # the world's time starts it
             self._world_jumps = self.get_clock().create_jump_callback(
                 JumpThreshold(min_forward=Duration(nanoseconds=1),
                               min_backward=Duration(nanoseconds=-1), on_clock_change=False),
@@ -415,7 +411,16 @@ class PlantSimulatorNode(GripperNode):
         if warning:
             self.get_logger().warning(warning)
 
+    def _say_ready(self) -> None:
+        self._said_ready = True
+        self.get_logger().info(
+            f'plant ready ({self.time_mode.text}): travel '
+            f'{self.config.plant.max_travel_m:g} m, max force {self.config.plant.max_force_n:.2f} '
+            f'N at {self.config.plant.voltage_limit_v:g} V')
+
     def _housekeeping(self) -> None:
+        if not self._said_ready:                # spinning: every start-up check has passed
+            self._say_ready()
         now = time.monotonic()
         if now - self._last_sim_status >= SIM_STATUS_PERIOD_S:
             self._publish_sim_status()
