@@ -17,7 +17,8 @@ as ``grasp_action_server`` is for the grasp:
   gripper controller). Feedback and result are the finger's JointState, stamped with the simulated
   time of the newest status; its velocity is the newest ``joint_states`` sample's.
 - ``gripper_status`` (diagnostic_msgs/DiagnosticStatus, latched), for a ros2_control user who
-  reads no gripper_interfaces message: a request's ``moving`` (``grasping``, ``releasing``) with
+  reads no gripper_interfaces message: ``idle`` from the gripper's first status on (a client of
+  an idle gripper gets it at once), a request's ``moving`` (``grasping``, ``releasing``) with
   its id as soon as it starts, then how it ended (``supervisor/outcome`` in standard types),
   ``stalled`` and ``object_detected`` (the fingers press on an object) among its values. The
   supervisor serves ``joint_commands`` itself.
@@ -38,6 +39,7 @@ from gripper_interfaces.action import Move as MoveAction
 from gripper_interfaces.msg import SupervisorStatus
 from gripper_interfaces.srv import Move
 from gripper_ros.core.supervision.gripper_command import (goal_end, GoalEnd,
+                                                          grip_idle_fields,
                                                           grip_progress_fields,
                                                           grip_status_fields, joint_state_fields,
                                                           move_request_of, result_fields)
@@ -298,6 +300,10 @@ class MoveActionServer(GripperNode):
     def _on_status(self, data: bytes) -> None:
         self._status_data = data
         msg = read_status(data)
+        if not self.grip_statuses_published and not msg.running:   # latched from the start
+            self._publish_grip_status(grip_idle_fields(msg.position_m, msg.force_n,
+                                                       self.travel_m, msg.grasp_id,
+                                                       self.detect_n))
         if msg.running and msg.grasp_id > self._announced_id:     # a request has started
             self._announced_id = msg.grasp_id
             self._publish_grip_status(grip_progress_fields(
