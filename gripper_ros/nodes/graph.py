@@ -141,6 +141,7 @@ class GripperGraph:
             self.description = build_node(DescriptionPublisher, parameter_overrides=named, **kw)
             self.nodes.append(self.description)
         refuse_unknown_overrides(self.nodes)    # a -p or params file naming nothing here
+        self._one_clock_subscription()
         self.executor = make_executor(opts.executor, self.context)
         for node in self.nodes:
             self.executor.add_node(node)
@@ -162,6 +163,25 @@ class GripperGraph:
         for c in (self._set_object, self._grasp, self._release, self._move):
             if not c.wait_for_service(timeout_sec=10.0):
                 raise GraphError(f'service {c.srv_name} did not come up')
+
+    def _one_clock_subscription(self) -> None:
+        """Under use_sim_time, set every node's ROS clock from the plant's /clock subscription.
+
+        rclpy gives each node a TimeSource of its own, each subscribing to /clock
+        (``time_source.py``): nine subscriptions in one process, each message taken nine times
+        (a world at 1 kHz cost a quarter of a core). The others' clocks are attached to the
+        plant's TimeSource instead (``attach_clock``), and their own subscription goes
+        (``detach_node``); their ``use_sim_time`` stays as given. rclpy keeps a node's
+        TimeSource in ``Node._time_source``.
+        """
+        source = self.plant._time_source
+        if not source.ros_time_is_active:
+            return
+        for node in self.nodes:
+            own = node._time_source
+            if node is not self.plant and own.ros_time_is_active:
+                own.detach_node()
+                source.attach_clock(node.get_clock())
 
     # ------------------------------------------------------------------ nodes
     def add_node(self, node) -> None:

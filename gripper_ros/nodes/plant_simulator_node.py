@@ -274,9 +274,15 @@ class PlantSimulatorNode(GripperNode):
             self._woken = True
         self._try_step()
 
-    def _on_world_time(self, _jump=None) -> None:
-        """Follow the world's time: the node's ROS clock changed (a /clock, use_sim_time)."""
-        world_ns = self.get_clock().now().nanoseconds
+    def _on_world_time(self, jump) -> None:
+        """Follow the world's time: the node's ROS clock changed (a /clock, use_sim_time).
+
+        The change is the jump's; the clock itself is read only for the first (``now()`` costs
+        as much as the rest of a call, and a world may publish a thousand a second).
+        """
+        known_ns = self.pacing.world_ns
+        world_ns = self.get_clock().now().nanoseconds if known_ns is None else \
+            known_ns + jump.delta.nanoseconds
         change = self.pacing.take_world_time(world_ns)
         if change is WorldTime.START:           # the simulation starts at the world's time,
             self.plant.t_ns = world_ns - world_ns % self._state_period_ns    # on the grid
