@@ -132,7 +132,7 @@ class PlantSimulatorNode(GripperNode):
         self._step_reply = None                 # (header, response) of a running sim/step
         self._unpowered = self.pacing.runs_unasked   # nobody commands (yet)
         self._status: StatusView | None = None
-        self._pacing = False                    # waiting for the pace timer
+        self._pace_wait = False                 # waiting for the pace timer
         self._state_period_ns = round(1e9 / self.state_rate_hz)
         self._last_sim_status = 0.0
         self._advancing = False
@@ -171,7 +171,7 @@ class PlantSimulatorNode(GripperNode):
         self._object_layout = object_state_template(self.frame_id)
         self._clock_layout = clock_template()
         self._said_ready = False                # said once the process's nodes all started
-        if isinstance(self.pacing, ClockPacing):                           # the world's time starts it
+        if isinstance(self.pacing, ClockPacing):    # the world's first time starts it
             self._world_jumps = self.get_clock().create_jump_callback(
                 JumpThreshold(min_forward=Duration(nanoseconds=1),
                               min_backward=Duration(nanoseconds=-1), on_clock_change=False),
@@ -356,16 +356,16 @@ class PlantSimulatorNode(GripperNode):
         One timer, re-armed: a timer made per tick costs the executor a rebuild of its entities
         every time.
         """
-        if self._pacing:
+        if self._pace_wait:
             return
-        self._pacing = True
+        self._pace_wait = True
         self._pace_timer.timer_period_ns = max(1, round(lead_s * 1e9))
         self._pace_timer.reset()
 
     def _on_pace_timer(self) -> None:
         self._pace_timer.cancel()
-        if self._pacing:
-            self._pacing = False
+        if self._pace_wait:
+            self._pace_wait = False
             self._try_step()
 
     def _publish_tick(self) -> None:
@@ -435,7 +435,7 @@ class PlantSimulatorNode(GripperNode):
         if self._pending or self.pacing.paused:
             return
         runs_unasked = self.pacing.runs_unasked
-        if self._unpowered and runs_unasked and not self._pacing:
+        if self._unpowered and runs_unasked and not self._pace_wait:
             self._try_step()                    # nobody commands: time goes on at 0 V
             return
         silent_s = now - self._tick_first_wall  # a republished tick is no answer
