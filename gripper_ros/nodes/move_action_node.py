@@ -134,6 +134,8 @@ class MoveActionServer(GripperNode):
         self._grip_status_pub = self.create_publisher(DiagnosticStatus, TOPIC_GRIPPER_STATUS,
                                                       LATCHED_QOS)
         self.grip_statuses_published = 0
+        self.latched: dict = {}
+        """The newest gripper_status, as a late subscriber gets it (a recording, a live view)."""
         self.create_subscription(SupervisorStatus, TOPIC_OUTCOME, self._on_outcome, LATCHED_QOS,
                                  raw=True)
         if self.gripper_command_served:
@@ -281,10 +283,12 @@ class MoveActionServer(GripperNode):
                                                      self.travel_m, msg.grasp_id, self.detect_n))
 
     def _publish_grip_status(self, fields: dict) -> None:
-        self._grip_status_pub.publish(DiagnosticStatus(
+        msg = DiagnosticStatus(
             level=bytes([fields['level']]), name=self.joint_name, hardware_id=ROBOT_NAME,
             message=fields['message'],
-            values=[KeyValue(key=k, value=v) for k, v in fields['values'].items()]))
+            values=[KeyValue(key=k, value=v) for k, v in fields['values'].items()])
+        self._grip_status_pub.publish(msg)
+        self.latched[TOPIC_GRIPPER_STATUS] = msg
         self.grip_statuses_published += 1
 
     def _on_joint_state(self, data: bytes) -> None:
