@@ -1,16 +1,16 @@
 """On a world simulator's clock (``use_sim_time``): the gripper runs in step with /clock.
 
 The world publishes /clock as Gazebo does through ros_gz_bridge, at half the wall clock's pace
-(:mod:`world_clock`, which names the upstream sources it follows).
-The gripper's nodes take it as every rclpy node does under ``use_sim_time``
-(rclpy ``time_source.py``: a best-effort, depth-1 subscription that sets the node's ROS clock).
+(:mod:`world_clock`, which names the upstream sources it follows). The gripper's nodes take it
+as every rclpy node does under ``use_sim_time`` (rclpy ``time_source.py``: a best-effort,
+depth-1 subscription that sets the node's ROS clock), the graph's through the plant's.
 
 Known answers: joint_states carry the world's time, never ahead of what the world had published
-when they were sent and, from the gripper's first 0.1 s on, within 20 ms behind it; a move takes the simulated time it takes at
-any pace (the finger's samples, relative to the move's start, equal a fast-mode graph's bit for
-bit), so at half pace at least twice that in wall time, and no more of the world's time than
-that; while /clock stands still nothing moves and no watchdog fires, however long; two grippers
-on one clock publish the same stamps.
+when they were sent and, from the gripper's first 0.1 s on, within 20 ms behind it; a move
+takes the simulated time it takes at any pace (the finger's samples, relative to the move's
+start, equal a fast-mode graph's bit for bit), so at half pace at least twice that in wall
+time, and no more of the world's time than that; while /clock stands still nothing moves and
+no watchdog fires, however long; two grippers on one clock publish the same stamps.
 """
 from __future__ import annotations
 

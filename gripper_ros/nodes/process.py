@@ -301,8 +301,8 @@ def run_node(make_node: Callable[[], Node], name: str, args=None,
     0 on Ctrl-C or SIGTERM, after the node is destroyed and the context shut down, with
     nothing on stderr (:class:`StopSignals`); ``EXIT_BAD_START`` with one line on stderr, no
     traceback, for a bad config file, a refused or unknown start-up parameter or names already
-    taken (a node ``name``, or a server of one of ``services``, in its namespace). Any other exception
-    is a bug and keeps its traceback. The executor is the node's ``executor`` parameter
+    taken (a node ``name``, or a server of one of ``services``, in its namespace). Any other
+    exception is a bug and keeps its traceback. The executor is the node's ``executor`` parameter
     (``events``, the default, or ``single``).
     """
     import rclpy
