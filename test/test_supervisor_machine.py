@@ -11,10 +11,10 @@ from pathlib import Path
 import re
 
 from gripper_ros.core.config import load_config
+from gripper_ros.core.control.factories import make_plant
 from gripper_ros.core.control.stages import ForceStageController, PositionStageController
 from gripper_ros.core.physics.hold import Lift
 from gripper_ros.core.physics.plant import GraspObject
-from gripper_ros.core.control.factories import make_plant
 from gripper_ros.core.runtime.headless import simulate_grasp
 from gripper_ros.core.runtime.lockstep import PlantSide, StageSide, SupervisorSide
 from gripper_ros.core.supervision import machine
