@@ -202,7 +202,7 @@ if [[ "$MODE" == wheels ]]; then
 fi
 build_hash="$( {
   echo "mode=$MODE venv=$VENV vendored=${VENDORED[*]}"; cat "$PIP_STAMP"
-  find package.xml setup.py setup.cfg resource config launch urdf gripper_interfaces vendor scripts/setup.sh \
+  find package.xml setup.py setup.cfg resource config launch urdf viewers gripper_interfaces vendor scripts/setup.sh \
        -path gripper_interfaces/build -prune -o -type f -print 2>/dev/null | LC_ALL=C sort | xargs -r sha256sum
 } | sha256sum | cut -d' ' -f1)"
 

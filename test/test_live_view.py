@@ -1,0 +1,198 @@
+"""grasp_demo --serve --foxglove, watched by Foxglove's own client library during a grasp.
+
+The client is ``test/interop/live_client.mjs``: ``@foxglove/ws-protocol``'s FoxgloveClient over
+``ws``, offering the subprotocols ``foxglove.sdk.v1`` and ``foxglove.websocket.v1`` as the
+Foxglove app does (the SDK's server, ``rust/foxglove/src/websocket/handshake.rs`` in
+foxglove/foxglove-sdk, accepts only the first); every schema parsed by ``@foxglove/rosmsg``,
+every message decoded by ``@foxglove/rosmsg2-serialization`` (pinned in
+test/interop/package-lock.json, installed by scripts/setup.sh). ``hostile_client.mjs`` sends
+what a broken or malicious client might, and then stops reading.
+"""
+from __future__ import annotations
+
+import json
+import math
+import os
+from pathlib import Path
+import re
+import shutil
+import signal
+import subprocess
+import sys
+import threading
+
+from gripper_ros.core.config import load_config
+from gripper_ros.core.description import finger_frames
+from gripper_ros.nodes.object_marker import COLORS
+from gripper_ros.wire import (DEFAULT_NAMESPACE, HoldState, LIVE_TOPICS, qualified,
+                              TOPIC_GRIPPER_STATUS, TOPIC_JOINT_STATES, TOPIC_OBJECT_MARKER,
+                              TOPIC_ROBOT_DESCRIPTION, TOPIC_TF, TOPIC_TF_STATIC)
+import pytest
+from test_foxglove_interop import _node_skip_reason, NPM_DIR
+
+INTEROP = Path(__file__).resolve().parent / 'interop'
+GRASP = (0.05, 1.69)                    # Table V's second object
+URL = re.compile(r'Foxglove live view at (ws://\S+)')
+SERVED = {qualified(DEFAULT_NAMESPACE, t): msgtype for t, msgtype in LIVE_TOPICS.items()}
+STATE_PERIOD_NS = 10_000_000            # joint_states at state_rate_hz 100
+
+
+def _lines_until(stream, pattern: re.Pattern, timeout_s: float, seen: list) -> re.Match:
+    """Read ``stream`` line by line until ``pattern`` matches (or it ends, or time runs out)."""
+    found: list = []
+
+    def read():
+        for line in stream:
+            seen.append(line)
+            match = pattern.search(line)
+            if match:
+                found.append(match)
+                return
+    reader = threading.Thread(target=read, daemon=True)
+    reader.start()
+    reader.join(timeout_s)
+    assert found, f'no line matching {pattern.pattern!r}; read: {"".join(seen)[-2000:]}'
+    return found[0]
+
+
+def _script(name: str) -> str:
+    """Copy an interop script beside the installed npm packages (node resolves them there)."""
+    target = NPM_DIR / name
+    staged = target.with_name(f'.{name}.{os.getpid()}')
+    shutil.copyfile(INTEROP / name, staged)
+    os.replace(staged, target)
+    return str(target)
+
+
+@pytest.fixture(scope='module')
+def node() -> str:
+    reason = _node_skip_reason()
+    if reason:
+        pytest.skip(reason)
+    return shutil.which('node')
+
+
+@pytest.fixture(scope='module')
+def served():
+    """``grasp_demo --serve --foxglove 0``: (process, url, its output so far)."""
+    seen: list = []
+    proc = subprocess.Popen(
+        [sys.executable, '-m', 'gripper_ros.apps.grasp_demo', '--serve', '--no-record',
+         '--foxglove', '0', '--ros-args', '--log-level', 'warn'],
+        stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    try:
+        url = _lines_until(proc.stdout, URL, 120.0, seen).group(1)
+        _lines_until(proc.stdout, re.compile(r'grasp_demo: serving'), 60.0, seen)
+        yield proc, url, seen
+    finally:
+        if proc.poll() is None:
+            proc.send_signal(signal.SIGINT)
+        try:
+            proc.wait(30.0)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait()
+
+
+def _grasp(width_m: float, mass_kg: float) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, '-m', 'gripper_ros.apps.grasp_client', '--width',
+                           str(width_m), '--mass', str(mass_kg)],
+                          stdin=subprocess.DEVNULL, capture_output=True, text=True, timeout=300)
+
+
+def _watch(node: str, url: str, during, *extra: str) -> dict:
+    """Run the live client on ``url`` while ``during()`` runs; return its report."""
+    client = subprocess.Popen([node, _script('live_client.mjs'), url, *extra],
+                              stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
+                              stderr=subprocess.PIPE, text=True)
+    try:
+        _lines_until(client.stdout, re.compile(r'^subscribed \d+'), 60.0, [])
+        during()
+    finally:
+        client.send_signal(signal.SIGTERM)
+        out, err = client.communicate(timeout=60)
+    assert client.returncode == 0, err
+    return json.loads(out.strip().splitlines()[-1])
+
+
+@pytest.fixture(scope='module')
+def watched(node, served):
+    """Return the report of a client that watched every topic during a grasp, and the answer."""
+    proc, url, _ = served
+    answers: list = []
+    report = _watch(node, url, lambda: answers.append(_grasp(*GRASP)))
+    assert proc.poll() is None
+    return report, answers[0]
+
+
+def test_the_server_speaks_the_sdk_protocol_and_takes_nothing_from_a_client(watched):
+    report, answer = watched
+    assert answer.returncode == 0, answer.stdout + answer.stderr
+    assert report['protocol'] == 'foxglove.sdk.v1'
+    assert report['server'] == {'name': 'gripper_ros', 'capabilities': []}
+    assert report['errors'] == []
+
+
+def test_every_live_topic_is_advertised_with_its_ros2_schema_and_parses(watched):
+    topics = watched[0]['topics']
+    assert {t: e['schema'] for t, e in topics.items()} == SERVED
+    assert {t: (e['schema_encoding'], e['message_encoding']) for t, e in topics.items()} == \
+        dict.fromkeys(SERVED, ('ros2msg', 'cdr'))
+    assert {t: e['schema_error'] for t, e in topics.items()} == dict.fromkeys(SERVED, '')
+    assert {t: (e['failed'], e['error']) for t, e in topics.items()} == \
+        dict.fromkeys(SERVED, (0, ''))
+    assert all(e['decoded'] == e['received'] for e in topics.values())
+
+
+def test_joint_states_arrive_one_by_one_and_show_the_finger_closing(watched):
+    """Every joint_states of the grasp arrives (100 Hz of simulated time: none dropped).
+
+    Its log time is its stamp, as in a bag; the finger runs from open to the object's face.
+    """
+    entry = watched[0]['topics'][qualified(DEFAULT_NAMESPACE, TOPIC_JOINT_STATES)]
+    stamps = [s for s, _ in entry['joint_states']]
+    positions = [p for _, p in entry['joint_states']]
+    assert len(stamps) >= 200                              # the grasp takes about 3 s
+    # one per period, none missing; a repeat of the same stamp where the graph published one
+    # again (sim/set_object publishes the state at once)
+    assert {b - a for a, b in zip(stamps, stamps[1:])} <= {0, STATE_PERIOD_NS}
+    assert entry['last_log_ns'] == stamps[-1]
+    travel = load_config(None).plant.max_travel_m
+    assert positions[0] < 0.01
+    assert math.isclose(positions[-1], travel - GRASP[0], abs_tol=1e-3)
+    assert all(b >= a - 1e-6 for a, b in zip(positions, positions[1:]))   # closing only
+
+
+def test_latched_description_and_moving_tf_reach_a_late_subscriber(watched):
+    topics = watched[0]['topics']
+    description = topics[qualified(DEFAULT_NAMESPACE, TOPIC_ROBOT_DESCRIPTION)]
+    assert description['received'] >= 1
+    assert description['first']['data'].startswith('<?xml')
+    static = topics[TOPIC_TF_STATIC]['first']['transforms'][0]
+    assert (static['header']['frame_id'], static['child_frame_id']) == ('gripper_base',
+                                                                        'fixed_finger')
+    frames = finger_frames(load_config(None))
+    moving = topics[TOPIC_TF]['last']['transforms'][0]
+    assert moving['child_frame_id'] == 'moving_finger'
+    x = moving['transform']['translation']['x']
+    assert math.isclose(x, frames.moving_finger_xyz(frames.travel_m - GRASP[0])[0],
+                        abs_tol=1e-3)
+
+
+def test_the_object_marker_is_the_object_between_the_pads(watched):
+    marker = watched[0]['topics'][qualified(DEFAULT_NAMESPACE, TOPIC_OBJECT_MARKER)]['last']
+    config = load_config(None)
+    fixed_x = finger_frames(config).fixed_finger_xyz[0]
+    assert marker['header']['frame_id'] == 'gripper_base'
+    assert (marker['ns'], marker['id'], marker['type'], marker['action']) == ('object', 0, 1, 0)
+    assert math.isclose(marker['scale']['x'], GRASP[0], rel_tol=1e-6)
+    assert math.isclose(marker['pose']['position']['x'], fixed_x - GRASP[0] / 2, abs_tol=1e-9)
+    color = marker['color']
+    assert (color['r'], color['g'], color['b'], color['a']) == pytest.approx(
+        COLORS[HoldState.RESTING])                          # held, not lifted
+
+
+def test_gripper_status_says_how_the_grasp_ended(watched):
+    status = watched[0]['topics'][qualified(DEFAULT_NAMESPACE, TOPIC_GRIPPER_STATUS)]['last']
+    values = {kv['key']: kv['value'] for kv in status['values']}
+    assert values['object_detected'] == 'true'
