@@ -29,6 +29,11 @@ if [ "$_gr_mode" = wheels ]; then
 fi
 # shellcheck disable=SC1091
 source "$_gr_root/install/setup.bash"
+# the ROS 2 command line of `setup.sh --ros2-cli` (ros2, ros2 launch, control_msgs), if built
+if [ "$_gr_mode" = wheels ] && [ -f "$_gr_venv/ros2_cli/install/local_setup.bash" ]; then
+  # shellcheck disable=SC1091
+  source "$_gr_venv/ros2_cli/install/local_setup.bash"
+fi
 
 export ROS_AUTOMATIC_DISCOVERY_RANGE="${ROS_AUTOMATIC_DISCOVERY_RANGE:-LOCALHOST}"
 if [ -z "${ROS_DOMAIN_ID:-}" ]; then
