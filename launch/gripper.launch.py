@@ -13,7 +13,10 @@ loop goes, paused between requests),
 (``/clock``, one simulator per ROS graph), ``prefix`` (the xacro's: ``left_`` names the
 joint ``left_finger_joint`` in joint_states and joint_commands, and the URDF's links, so every
 TF frame; by default from the namespace: none in ``gripper``, ``left_`` in ``left``, so grippers
-launched side by side share no frame and no joint) and ``per_node`` (default ``false``).
+launched side by side share no frame and no joint), ``per_node`` (default ``false``), and
+``foxglove`` (default ``false``; ``true`` serves the graph live to Foxglove over its WebSocket
+protocol, on ``foxglove_port`` (8765) at ``foxglove_address`` (this machine only: 127.0.0.1);
+only with the graph in one process).
 The nodes: plant_simulator, position_controller, force_controller, supervisor,
 grasp_action_server, move_action_server (which also serves control_msgs
 ParallelGripperCommand on ``gripper_cmd`` where control_msgs is installed) and the one
