@@ -6,7 +6,8 @@ Foxglove app does (the SDK's server, ``rust/foxglove/src/websocket/handshake.rs`
 foxglove/foxglove-sdk, accepts only the first); every schema parsed by ``@foxglove/rosmsg``,
 every message decoded by ``@foxglove/rosmsg2-serialization`` (pinned in
 test/interop/package-lock.json, installed by scripts/setup.sh). ``hostile_client.mjs`` sends
-what a broken or malicious client might, and then stops reading.
+what a broken or malicious client might, and then stops reading (the SDK drops the oldest of a
+slow client's messages: ``send_lossy.rs``).
 """
 from __future__ import annotations
 
@@ -94,6 +95,55 @@ def served():
             proc.wait()
 
 
+class _Published:
+    """The joint_states stamps the graph publishes, as a ROS subscriber in this process gets them."""
+
+    def __init__(self):
+        import rclpy
+        from rclpy.context import Context
+        from rclpy.executors import SingleThreadedExecutor
+        from gripper_ros.nodes.loop_io import joint_state_template
+        from gripper_ros.nodes.qos import GRAPH_QOS
+        from sensor_msgs.msg import JointState
+        self.stamps: list[int] = []
+        self._context = Context()
+        rclpy.init(context=self._context)
+        self._node = rclpy.create_node('live_view_test_listener', context=self._context)
+        layout = joint_state_template('finger_joint', 'gripper_base')
+
+        def on_joint_states(data: bytes) -> None:
+            sec, nanosec = layout.unpack(data)[:2]
+            self.stamps.append(sec * 1_000_000_000 + nanosec)
+        self._node.create_subscription(JointState, qualified(DEFAULT_NAMESPACE,
+                                                             TOPIC_JOINT_STATES),
+                                       on_joint_states, GRAPH_QOS, raw=True)
+        self._stop = threading.Event()
+        self._executor = SingleThreadedExecutor(context=self._context)
+        self._executor.add_node(self._node)
+        self._thread = threading.Thread(target=self._spin, daemon=True)
+        self._thread.start()
+
+    def _spin(self) -> None:
+        while not self._stop.is_set():
+            self._executor.spin_once(timeout_sec=0.05)
+
+    def close(self) -> None:
+        import rclpy
+        self._stop.set()
+        self._thread.join(10.0)
+        self._executor.shutdown()
+        self._node.destroy_node()
+        rclpy.try_shutdown(context=self._context)
+
+
+def _assert_every_published_one_arrived(received: list[int], published: list[int]) -> None:
+    """Hold what a Foxglove client got to what the graph published, over both their spans."""
+    first, last = max(received[0], published[0]), min(received[-1], published[-1])
+    assert last - first > 100 * STATE_PERIOD_NS, (first, last)
+    assert [s for s in received if first <= s <= last] == \
+        [s for s in published if first <= s <= last]
+
+
 def _grasp(width_m: float, mass_kg: float) -> subprocess.CompletedProcess:
     return subprocess.run([sys.executable, '-m', 'gripper_ros.apps.grasp_client', '--width',
                            str(width_m), '--mass', str(mass_kg)],
@@ -117,16 +167,21 @@ def _watch(node: str, url: str, during, *extra: str) -> dict:
 
 @pytest.fixture(scope='module')
 def watched(node, served):
-    """Return the report of a client that watched every topic during a grasp, and the answer."""
+    """Return the report of a client that watched every topic during a grasp, the answer, and
+    the joint_states stamps published meanwhile."""
     proc, url, _ = served
     answers: list = []
-    report = _watch(node, url, lambda: answers.append(_grasp(*GRASP)))
+    published = _Published()
+    try:
+        report = _watch(node, url, lambda: answers.append(_grasp(*GRASP)))
+    finally:
+        published.close()
     assert proc.poll() is None
-    return report, answers[0]
+    return report, answers[0], published.stamps
 
 
 def test_the_server_speaks_the_sdk_protocol_and_takes_nothing_from_a_client(watched):
-    report, answer = watched
+    report, answer, _ = watched
     assert answer.returncode == 0, answer.stdout + answer.stderr
     assert report['protocol'] == 'foxglove.sdk.v1'
     assert report['server'] == {'name': 'gripper_ros', 'capabilities': []}
@@ -145,16 +200,18 @@ def test_every_live_topic_is_advertised_with_its_ros2_schema_and_parses(watched)
 
 
 def test_joint_states_arrive_one_by_one_and_show_the_finger_closing(watched):
-    """Every joint_states of the grasp arrives (100 Hz of simulated time: none dropped).
+    """Every joint_states the graph published during the grasp arrives: none dropped.
 
-    Its log time is its stamp, as in a bag; the finger runs from open to the object's face.
+    100 Hz of simulated time (a repeat of a stamp where the graph published one again:
+    sim/set_object publishes the state at once). Its log time is its stamp, as in a bag; the
+    finger runs from open to the object's face.
     """
-    entry = watched[0]['topics'][qualified(DEFAULT_NAMESPACE, TOPIC_JOINT_STATES)]
+    report, _, published = watched
+    entry = report['topics'][qualified(DEFAULT_NAMESPACE, TOPIC_JOINT_STATES)]
     stamps = [s for s, _ in entry['joint_states']]
     positions = [p for _, p in entry['joint_states']]
     assert len(stamps) >= 200                              # the grasp takes about 3 s
-    # one per period, none missing; a repeat of the same stamp where the graph published one
-    # again (sim/set_object publishes the state at once)
+    _assert_every_published_one_arrived(stamps, published)
     assert {b - a for a, b in zip(stamps, stamps[1:])} <= {0, STATE_PERIOD_NS}
     assert entry['last_log_ns'] == stamps[-1]
     travel = load_config(None).plant.max_travel_m
@@ -196,3 +253,46 @@ def test_gripper_status_says_how_the_grasp_ended(watched):
     status = watched[0]['topics'][qualified(DEFAULT_NAMESPACE, TOPIC_GRIPPER_STATUS)]['last']
     values = {kv['key']: kv['value'] for kv in status['values']}
     assert values['object_detected'] == 'true'
+
+
+def test_a_hostile_then_stalled_client_leaves_the_graph_and_other_clients_alone(node, served):
+    """Garbage, unknown channels, publishing, parameters, services, assets; then no reading.
+
+    The server answers each with a status (foxglove-sdk ``connected_client.rs``); the graph
+    grasps again, and another client gets every joint_states of that grasp meanwhile.
+    """
+    proc, url, _ = served
+    hostile = subprocess.Popen([node, _script('hostile_client.mjs'), url],
+                               stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
+                               stderr=subprocess.PIPE, text=True)
+    try:
+        stalled = _lines_until(hostile.stdout, re.compile(r'^stalled (\d+)'), 60.0, [])
+        assert int(stalled.group(1)) == len(SERVED)
+        answers: list = []
+
+        def release_and_grasp():
+            answers.append(subprocess.run(
+                [sys.executable, '-m', 'gripper_ros.apps.grasp_client', '--release'],
+                stdin=subprocess.DEVNULL, capture_output=True, text=True, timeout=300))
+            answers.append(_grasp(0.1, 0.75))
+        published = _Published()
+        try:
+            report = _watch(node, url, release_and_grasp, '--topics',
+                            qualified(DEFAULT_NAMESPACE, TOPIC_JOINT_STATES))
+        finally:
+            published.close()
+    finally:
+        hostile.send_signal(signal.SIGTERM)
+        out, _ = hostile.communicate(timeout=60)
+    statuses = json.loads(out.strip().splitlines()[-1])
+    for refusal in ('Invalid message', 'Unknown channel ID: 999999',
+                    'Server does not support clientPublish capability',
+                    'Server does not support parameters capability',
+                    'Server does not support assets capability'):
+        assert any(s.startswith(refusal) for s in statuses), (refusal, statuses)
+    assert [a.returncode for a in answers] == [0, 0], [a.stdout + a.stderr for a in answers]
+    assert proc.poll() is None
+    stamps = [s for s, _ in report['topics'][qualified(DEFAULT_NAMESPACE,
+                                                       TOPIC_JOINT_STATES)]['joint_states']]
+    assert len(stamps) >= 200
+    _assert_every_published_one_arrived(stamps, published.stamps)
