@@ -96,7 +96,7 @@ def served():
 
 
 class _Published:
-    """The joint_states stamps the graph publishes, as a ROS subscriber in this process gets them."""
+    """The joint_states stamps the graph publishes, as a ROS subscriber in this process gets."""
 
     def __init__(self):
         import rclpy
@@ -167,8 +167,10 @@ def _watch(node: str, url: str, during, *extra: str) -> dict:
 
 @pytest.fixture(scope='module')
 def watched(node, served):
-    """Return the report of a client that watched every topic during a grasp, the answer, and
-    the joint_states stamps published meanwhile."""
+    """Return what a client watching every topic during a grasp got, the answer, the stamps.
+
+    The stamps: the joint_states the graph published meanwhile.
+    """
     proc, url, _ = served
     answers: list = []
     published = _Published()

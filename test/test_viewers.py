@@ -1,5 +1,7 @@
-"""The shipped Foxglove layout and RViz config: what viewer_layouts writes, installed, and every
-topic they name served by the live view and recorded in a grasp's bag.
+"""The shipped Foxglove layout and RViz config: generated, installed, served and recorded.
+
+Each is what viewer_layouts writes, is installed, and every topic it names is served by the live
+view and recorded in a grasp's bag.
 
 Known answers: the topics and types of ``wire.LIVE_TOPICS`` and ``wire.BAG_TOPICS``, the
 generated message classes' fields, the latched QoS of the description's publisher, and a bag the
@@ -96,8 +98,8 @@ def test_every_path_of_the_foxglove_layout_is_a_served_and_recorded_field():
         if fields:                           # a plotted value: a number
             assert slot in ('double', 'float'), (path, slot)
         topics.add(topic)
-    namespaced = {qualified(DEFAULT_NAMESPACE, t) for t in (TOPIC_ROBOT_DESCRIPTION,
-                                                             TOPIC_OBJECT_MARKER)}
+    namespaced = {qualified(DEFAULT_NAMESPACE, t)
+                  for t in (TOPIC_ROBOT_DESCRIPTION, TOPIC_OBJECT_MARKER)}
     assert namespaced <= topics                 # the URDF and the object in the 3D panel
     assert len([p for p in paths if '.' in p]) == 5     # position, force: each with a setpoint
 
