@@ -42,6 +42,7 @@ import shutil
 import subprocess
 import sys
 import tempfile
+import time
 
 ROOT = Path(__file__).resolve().parents[1]
 DOCS = ROOT / 'docs'
@@ -73,6 +74,8 @@ CHECKOUT = '<checkout>'
 
 BAG_NAME = re.compile(r'\b(?:grasp|move|excite)_\d{8}_\d{6}_[\w.]+?_\d+\b')
 EXIT = re.compile(r'^\[exit (\d+)\]$')
+LOG_TIME = re.compile(r'^(\[(?:WARN|ERROR|FATAL)\]) \[[\d.]+\]')
+"""A node's warning: shown with its time as ``[...]``."""
 ROS_LOG = re.compile(r'^\[(DEBUG|INFO)\] \[[\d.]+\] \[')
 """A node's log line: the transcripts leave them out (as ``grep -v '^\\[INFO\\]'`` does)."""
 
@@ -142,7 +145,8 @@ def render(command: str, output: list[str]) -> list[str]:
     as :data:`CHECKOUT`.
     """
     return [f'$ {command.replace(f"{ROOT}/", "").rstrip()}',
-            *(line.replace(str(ROOT), CHECKOUT).rstrip() for line in output)]
+            *(LOG_TIME.sub(r'\1 [...]', line.replace(str(ROOT), CHECKOUT)).rstrip()
+              for line in output)]
 
 
 SIM_STATUS_VARIES = (
@@ -161,15 +165,43 @@ WALL = (re.compile(r'\b\d+(?:\.\d+)?(?= s wall\b)'),
 VARIES = '<varies>'
 
 
+ELISION = re.compile(r'^(\.\.\.|\(more .*\))$')
+"""A line of a shown output that stands for lines left out (``...``, ``(more rows)``)."""
+
+
+def fit(shown: list[str], printed: list[str]) -> list[str]:
+    """Return the output to show: ``printed``, as abridged as ``shown`` where it can be.
+
+    Where every line ``shown`` has (but its elisions) is one ``printed`` has, in order, with
+    what varies left out (:func:`masked`), the printed lines that those are, and the elisions
+    in place: a doc may show part of what a command prints. Else all of ``printed``.
+    """
+    if not shown:
+        return printed
+    a, b = masked(shown), masked(printed)
+    out: list[str] = []
+    matcher = difflib.SequenceMatcher(None, a, b, autojunk=False)
+    for tag, i1, i2, j1, j2 in matcher.get_opcodes():
+        if tag == 'equal':
+            out += printed[j1:j2]
+        elif tag in ('delete', 'replace'):
+            if not all(ELISION.match(line) for line in shown[i1:i2]):
+                return printed
+            out += shown[i1:i2]
+    return out
+
+
 def masked(lines: list[str]) -> list[str]:
     """Return ``lines`` with what varies from run to run replaced by :data:`VARIES`.
 
-    Bag names keyed (bag_key), wall-clock times, the last column of a table whose header ends
-    with ``wall s``, and what depends on a bag's sim/status (:data:`SIM_STATUS_VARIES`).
+    This checkout's path as :data:`CHECKOUT`, bag names keyed (bag_key), wall-clock times, the
+    last column of a table whose header ends with ``wall s``, and what depends on a bag's
+    sim/status (:data:`SIM_STATUS_VARIES`).
     """
     out, wall_column = [], False
     for line in lines:
-        line = BAG_NAME.sub(lambda m: bag_key(m.group()), line)
+        line = BAG_NAME.sub(lambda m: bag_key(m.group()),
+                            LOG_TIME.sub(r'\1 [...]', line.replace(str(ROOT), CHECKOUT)))
         for pattern in (*WALL, *SIM_STATUS_VARIES):
             line = pattern.sub(VARIES, line)
         if wall_column and re.match(r'^\s+-?\d', line):
@@ -227,7 +259,8 @@ def regenerate_bag_tools(out: Path, missed: list[str], check: bool = False) -> s
             if check and key in varying:
                 new += render(command, output)
             elif key in transcript:
-                new += render(*transcript[key])
+                printed_command, printed = transcript[key]
+                new += render(printed_command, fit(output, printed))
             else:
                 new += render(command, output)
                 missed.append(f'{BAG_TOOLS}: $ {command} (not printed by examples.sh)')
@@ -263,7 +296,8 @@ def regenerate_transcripts(doc: str, scratch: Path, missed: list[str]) -> str:
             for name in BAG_NAME.findall(printed):
                 names[bag_key(name)] = name
             kept = [line for line in printed.splitlines() if not ROS_LOG.match(line)]
-            new += render(live, kept + ([f'[exit {status}]'] if exit_shown else []))
+            kept += [f'[exit {status}]'] if exit_shown else []
+            new += render(live, fit(output, kept))
         if whole:
             replaced.append((first, end, new))
     for first, end, new in reversed(replaced):
@@ -299,7 +333,7 @@ def regenerate_pairs(doc: str, scratch: Path, missed: list[str]) -> str:
             missed.append(f'{doc}: {command} (exit {status})')
             continue
         kept = [line for line in printed.splitlines() if not ROS_LOG.match(line)]
-        lines[first:end] = render('', kept)[1:]
+        lines[first:end] = render('', fit(lines[first:end], kept))[1:]
     return '\n'.join(lines) + '\n'
 
 
@@ -359,6 +393,7 @@ def main(argv=None) -> int:
     drift: list[str] = []
     for doc in args.docs or every:
         print(f'doc_examples: {doc} ...', flush=True)
+        t0 = time.monotonic()
         claims = scratch / 'claims' / doc
         shutil.rmtree(claims, ignore_errors=True)
         CLAIMS['GRIPPER_ROS_CLAIMS_DIR'] = str(claims)
@@ -376,6 +411,7 @@ def main(argv=None) -> int:
             drift += differences(doc, (DOCS / doc).read_text(), text)
         else:
             (DOCS / doc).write_text(text)
+        print(f'doc_examples: {doc} done in {time.monotonic() - t0:.0f} s', flush=True)
     for line in missed:
         print(f'doc_examples: not regenerated: {line}')
     for line in drift:

@@ -27,11 +27,13 @@ clock), the rates of ``/clock`` and ``joint_states`` against ``state_rate_hz``, 
 figure from ``sim/status``, and the child's CPU time as a share of one core (summed over the
 node processes with ``--per-node``, over the launch group with ``--launch``).
 
-``--foxglove`` measures ``grasp_demo --serve`` twice in one run: as above, then serving the live
-view (``--foxglove``) to Foxglove's own client library watching every topic through both windows
+``--foxglove`` measures ``grasp_demo --serve`` three times in one run: as above, then serving the
+live view (``--foxglove``) to Foxglove's own client library through both windows, watching the
+topics of the shipped layout (viewers/gripper.foxglove.json), then every topic
 (``test/interop/live_client.mjs``: ``@foxglove/ws-protocol``, every message decoded, from the
 npm packages scripts/setup.sh installs in ``build/interop``; ``--foxglove-client`` names another
-command, given the URL). It prints both, the CPU the live view adds, and what the client got.
+command, given the URL and ``--topics T1,T2``). It prints each, the CPU the live view adds and
+what the client got.
 """
 from __future__ import annotations
 
@@ -191,8 +193,9 @@ def default_client() -> list[str]:
 class _LiveClient:
     """A Foxglove client watching every topic of the live view at ``url``."""
 
-    def __init__(self, command: list[str], url: str, log) -> None:
-        self.proc = subprocess.Popen([*command, url], stdin=subprocess.DEVNULL,
+    def __init__(self, command: list[str], url: str, topics: Optional[list[str]], log) -> None:
+        extra = ['--topics', ','.join(topics)] if topics else []
+        self.proc = subprocess.Popen([*command, url, *extra], stdin=subprocess.DEVNULL,
                                      stdout=subprocess.PIPE, stderr=log, text=True)
         line = self.proc.stdout.readline()
         if not line.startswith('subscribed'):
@@ -211,10 +214,12 @@ class _LiveClient:
 
 
 def measure(seconds: float, record: bool, per_node: bool = False,
-            launch: bool = False, client: Optional[list[str]] = None) -> Dict[str, Any]:
+            launch: bool = False, client: Optional[list[str]] = None,
+            topics: Optional[list[str]] = None) -> Dict[str, Any]:
     """Idle and holding windows of a ``grasp_demo --serve`` child, the node children, or launch.
 
-    ``client``: serve the live view to this command (given the URL) through both windows.
+    ``client``: serve the live view to this command (given the URL) through both windows,
+    watching ``topics`` (relative names; None: every one).
     """
     from gripper_interfaces.srv import Grasp, SetObject
     from std_srvs.srv import Trigger
@@ -249,7 +254,9 @@ def measure(seconds: float, record: bool, per_node: bool = False,
                 url = LIVE_URL.search(printed.read())
                 if url is None:
                     raise BenchError('grasp_demo --serve --foxglove said no URL')
-                viewer = _LiveClient(client, url.group(1), log)
+                from gripper_ros.wire import qualified
+                viewer = _LiveClient(client, url.group(1),
+                                     topics and [qualified(namespace, t) for t in topics], log)
             if launch:                        # launch and every process it started
                 pids = group_pids(children[0].pid)
             idle = _window(watcher, pids, seconds)
@@ -311,7 +318,8 @@ def _client_summary(report: Dict[str, Any]) -> Dict[str, Any]:
         span_s = ((e['last_wall_ms'] or 0) - (e['first_wall_ms'] or 0)) * 1e-3
         topics[topic] = {'decoded': e['decoded'], 'failed': e['failed'],
                          'hz': (e['decoded'] - 1) / span_s if span_s > 0 else 0.0}
-    return {'protocol': report['protocol'], 'errors': report['errors'], 'topics': topics}
+    return {'protocol': report['protocol'], 'errors': report['errors'], 'topics': topics,
+            'watched': sorted(t for t, e in report['topics'].items() if e['decoded'])}
 
 
 def format_report(r: Dict[str, Any]) -> str:
@@ -347,20 +355,24 @@ def format_report(r: Dict[str, Any]) -> str:
                           if c['hz'] >= 1.0)
         decoded = sum(c['decoded'] for c in client['topics'].values())
         failed = sum(c['failed'] for c in client['topics'].values())
-        lines.append(f'Foxglove client ({client["protocol"]}), every topic, from before the '
-                     f'idle window to after the holding one: {decoded} messages decoded, '
-                     f'{failed} failed; {rates}')
+        lines.append(f'Foxglove client ({client["protocol"]}), {len(client["watched"])} '
+                     'topics, from before the idle window to after the holding one: '
+                     f'{decoded} messages decoded, {failed} failed; {rates}')
     return '\n'.join(lines)
 
 
-def format_comparison(off: Dict[str, Any], on: Dict[str, Any]) -> str:
-    """Return both reports and the CPU the live view adds in each window."""
-    added = [f'{name}: {on[name]["cpu_share"] - off[name]["cpu_share"]:+.2f} of a core '
-             f'({off[name]["cpu_share"]:.2f} -> {on[name]["cpu_share"]:.2f}), RTF '
-             f'{off[name]["rtf"]:.3f} -> {on[name]["rtf"]:.3f}' for name in ('idle', 'holding')]
-    return '\n'.join(['without the live view:', format_report(off), '',
-                      'with the live view and a Foxglove client watching every topic:',
-                      format_report(on), '', 'the live view adds: ' + '; '.join(added)])
+def format_comparison(off: Dict[str, Any], layout: Dict[str, Any], every: Dict[str, Any]) -> str:
+    """Return the three reports and the CPU the live view adds in each window."""
+    lines = ['without the live view:', format_report(off)]
+    for title, on in (("a Foxglove client watching the shipped layout's topics", layout),
+                      ('a Foxglove client watching every topic', every)):
+        added = [f'{name}: {on[name]["cpu_share"] - off[name]["cpu_share"]:+.2f} of a core '
+                 f'({off[name]["cpu_share"]:.2f} -> {on[name]["cpu_share"]:.2f}), RTF '
+                 f'{off[name]["rtf"]:.3f} -> {on[name]["rtf"]:.3f}' for name in ('idle',
+                                                                                 'holding')]
+        lines += ['', f'with the live view and {title}:', format_report(on), '',
+                  'the live view adds: ' + '; '.join(added)]
+    return '\n'.join(lines)
 
 
 def main(args: Optional[Sequence[str]] = None) -> int:
@@ -395,10 +407,14 @@ def main(args: Optional[Sequence[str]] = None) -> int:
         if opts.foxglove:
             client = shlex.split(opts.foxglove_client) if opts.foxglove_client else \
                 default_client()
+            from gripper_ros.apps.viewer_layouts import layout_topics
+            shown = [t.lstrip('/').removeprefix('gripper/') if t.startswith('/gripper/') else t
+                     for t in layout_topics()]
             off = measure(opts.seconds, opts.record)
-            on = measure(opts.seconds, opts.record, client=client)
-            print(json.dumps({'off': off, 'on': on}, indent=2) if opts.json else
-                  format_comparison(off, on))
+            layout = measure(opts.seconds, opts.record, client=client, topics=shown)
+            every = measure(opts.seconds, opts.record, client=client)
+            print(json.dumps({'off': off, 'layout': layout, 'every': every}, indent=2)
+                  if opts.json else format_comparison(off, layout, every))
             return 0
         report = measure(opts.seconds, opts.record, opts.per_node, opts.launch)
     except BenchError as exc:

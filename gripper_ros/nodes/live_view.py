@@ -48,7 +48,10 @@ class _Topic:
         self.publishers = publishers
         self.latched = latched          # the last message of a latched topic (None: others)
         self.watchers = 0
-        self._log = channel.log
+        # the SDK's channel below its Python wrapper: a call into Rust per message, not three
+        base = getattr(channel, 'base', None)
+        self._log = base.log if base is not None and hasattr(base, 'log') else \
+            (lambda data, log_time: channel.log(data, log_time=log_time))
         self._now_ns = now_ns
 
     def tap(self, _topic: str, msg) -> None:
@@ -57,7 +60,7 @@ class _Topic:
         if self.latched is not None:
             self.latched = data
         if self.watchers:
-            self._log(data, log_time=self._now_ns())
+            self._log(data, self._now_ns())
 
 
 class LiveView:
