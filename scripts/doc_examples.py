@@ -69,6 +69,11 @@ NOT_RUN = {
 }
 """Transcripts shown but not run: a benchmark's wall-clock figures, a graph served in several
 terminals (each line of a doc's transcript starting so)."""
+NOT_COMPARED = {
+    'STUDIES.md': ('tune ',),
+}
+"""Commands regenerated but not run by ``--check``: their output is not the same from run to
+run (tune's trials on two workers: which trial the sampler sees first decides the next one)."""
 CHECKOUT = '<checkout>'
 """How a doc shows this checkout's path (the reader's own, wherever it is)."""
 
@@ -128,7 +133,7 @@ def entries(body: list[str]) -> list[tuple[str, list[str]]]:
         command = body[i][2:]
         while command.endswith('\\') and i + 1 < len(body):
             i += 1
-            command = command[:-1] + ' ' + body[i].strip()
+            command += '\n' + body[i]                  # bash runs it so, and it reads so
         i += 1
         output = []
         while i < len(body) and not body[i].startswith('$ '):
@@ -269,8 +274,12 @@ def regenerate_bag_tools(out: Path, missed: list[str], check: bool = False) -> s
 
 
 # --- the other transcripts ------------------------------------------------------------------
-def regenerate_transcripts(doc: str, scratch: Path, missed: list[str]) -> str:
-    """Return ``doc`` with each transcript as its commands print now, run in order."""
+def regenerate_transcripts(doc: str, scratch: Path, missed: list[str],
+                           check: bool = False) -> str:
+    """Return ``doc`` with each transcript as its commands print now, run in order.
+
+    ``check``: a command of :data:`NOT_COMPARED` is not run; it keeps the doc's output.
+    """
     lines = (DOCS / doc).read_text().splitlines()
     folder = scratch / doc.replace('.md', '')
     shutil.rmtree(folder, ignore_errors=True)
@@ -286,6 +295,9 @@ def regenerate_transcripts(doc: str, scratch: Path, missed: list[str]) -> str:
             continue
         for command, output in shown:
             live = BAG_NAME.sub(lambda m: names.get(bag_key(m.group()), m.group()), command)
+            if check and command.startswith(NOT_COMPARED.get(doc, ())):
+                new += render(live, output)
+                continue
             printed, status = run(live, folder)
             exit_shown = EXIT.match(output[-1]) if output else None
             if status != (int(exit_shown.group(1)) if exit_shown else 0):
@@ -380,7 +392,9 @@ def main(argv=None) -> int:
         for doc in TRANSCRIPTS:
             print(f'docs/{doc}: its transcripts, run in order'
                   + (f' after: {SETUP[doc]}' if doc in SETUP else '')
-                  + (f' (not run: {", ".join(NOT_RUN[doc])})' if doc in NOT_RUN else ''))
+                  + (f' (not run: {", ".join(NOT_RUN[doc])})' if doc in NOT_RUN else '')
+                  + (f' (not compared: {", ".join(NOT_COMPARED[doc])})'
+                     if doc in NOT_COMPARED else ''))
         for doc in PAIRS:
             print(f'docs/{doc}: each command block and the output block after it')
         for name, command in FILES.items():
@@ -402,7 +416,7 @@ def main(argv=None) -> int:
                 scratch / BAG_TOOLS_OUT.name if args.scratch else BAG_TOOLS_OUT, missed,
                 args.check)
         elif doc in TRANSCRIPTS:
-            text = regenerate_transcripts(doc, scratch, missed)
+            text = regenerate_transcripts(doc, scratch, missed, args.check)
         elif doc in PAIRS:
             text = regenerate_pairs(doc, scratch, missed)
         else:

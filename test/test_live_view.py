@@ -150,36 +150,53 @@ def _grasp(width_m: float, mass_kg: float) -> subprocess.CompletedProcess:
                           stdin=subprocess.DEVNULL, capture_output=True, text=True, timeout=300)
 
 
-def _watch(node: str, url: str, during, *extra: str) -> dict:
-    """Run the live client on ``url`` while ``during()`` runs; return its report."""
-    client = subprocess.Popen([node, _script('live_client.mjs'), url, *extra],
+def _watch(node: str, url: str, during, *clients: tuple[str, ...]) -> list[dict]:
+    """Run a live client on ``url`` per argument list of ``clients`` while ``during()`` runs.
+
+    Return their reports, in order.
+    """
+    procs = [subprocess.Popen([node, _script('live_client.mjs'), url, *extra],
                               stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
-                              stderr=subprocess.PIPE, text=True)
+                              stderr=subprocess.PIPE, text=True) for extra in clients]
+    reports = []
     try:
-        _lines_until(client.stdout, re.compile(r'^subscribed \d+'), 60.0, [])
+        for proc in procs:
+            _lines_until(proc.stdout, re.compile(r'^subscribed \d+'), 60.0, [])
         during()
     finally:
-        client.send_signal(signal.SIGTERM)
-        out, err = client.communicate(timeout=60)
-    assert client.returncode == 0, err
-    return json.loads(out.strip().splitlines()[-1])
+        for proc in procs:
+            proc.send_signal(signal.SIGTERM)
+        for proc in procs:
+            out, err = proc.communicate(timeout=60)
+            assert proc.returncode == 0, err
+            reports.append(json.loads(out.strip().splitlines()[-1]))
+    return reports
+
+
+JOINT_STATES_ONLY = ('--topics', qualified(DEFAULT_NAMESPACE, TOPIC_JOINT_STATES))
+"""A client of joint_states alone: 100 Hz, which any machine keeps up with. (A client of every
+topic takes the loop's 10 kHz topics too; one that cannot keep up loses its oldest messages, as
+the SDK decides, joint_states among them.)"""
 
 
 @pytest.fixture(scope='module')
 def watched(node, served):
-    """Return what a client watching every topic during a grasp got, the answer, the stamps.
+    """Return what a client of every topic got during a grasp, the answer, and the stamps.
 
-    The stamps: the joint_states the graph published meanwhile.
+    The stamps: of the joint_states a client of joint_states alone got, and of those the graph
+    published meanwhile.
     """
     proc, url, _ = served
     answers: list = []
     published = _Published()
     try:
-        report = _watch(node, url, lambda: answers.append(_grasp(*GRASP)))
+        every, joints = _watch(node, url, lambda: answers.append(_grasp(*GRASP)), (),
+                               JOINT_STATES_ONLY)
     finally:
         published.close()
     assert proc.poll() is None
-    return report, answers[0], published.stamps
+    received = joints['topics'][qualified(DEFAULT_NAMESPACE, TOPIC_JOINT_STATES)]
+    return every, answers[0], ([s for s, _ in received['joint_states']], published.stamps)
 
 
 def test_the_server_speaks_the_sdk_protocol_and_takes_nothing_from_a_client(watched):
@@ -202,19 +219,17 @@ def test_every_live_topic_is_advertised_with_its_ros2_schema_and_parses(watched)
 
 
 def test_joint_states_arrive_one_by_one_and_show_the_finger_closing(watched):
-    """Every joint_states the graph published during the grasp arrives: none dropped.
+    """Every joint_states the graph published during the grasp reaches a client: none dropped.
 
-    100 Hz of simulated time (a repeat of a stamp where the graph published one again:
-    sim/set_object publishes the state at once). Its log time is its stamp, as in a bag; the
-    finger runs from open to the object's face.
+    At 100 Hz of simulated time, the same stamps as a ROS subscriber of the topic gets. Its
+    log time is its stamp, as in a bag; the finger runs from open to the object's face.
     """
-    report, _, published = watched
+    report, _, (alone, published) = watched
+    assert len(alone) >= 200                               # the grasp takes about 3 s
+    _assert_every_published_one_arrived(alone, published)
     entry = report['topics'][qualified(DEFAULT_NAMESPACE, TOPIC_JOINT_STATES)]
-    stamps = [s for s, _ in entry['joint_states']]
+    stamps = [s for s, _ in entry['joint_states']]          # the client of every topic
     positions = [p for _, p in entry['joint_states']]
-    assert len(stamps) >= 200                              # the grasp takes about 3 s
-    _assert_every_published_one_arrived(stamps, published)
-    assert {b - a for a, b in zip(stamps, stamps[1:])} <= {0, STATE_PERIOD_NS}
     assert entry['last_log_ns'] == stamps[-1]
     travel = load_config(None).plant.max_travel_m
     assert positions[0] < 0.01
@@ -279,8 +294,7 @@ def test_a_hostile_then_stalled_client_leaves_the_graph_and_other_clients_alone(
             answers.append(_grasp(0.1, 0.75))
         published = _Published()
         try:
-            report = _watch(node, url, release_and_grasp, '--topics',
-                            qualified(DEFAULT_NAMESPACE, TOPIC_JOINT_STATES))
+            report, = _watch(node, url, release_and_grasp, JOINT_STATES_ONLY)
         finally:
             published.close()
     finally:
