@@ -170,8 +170,9 @@ WALL = (re.compile(r'\b\d+(?:\.\d+)?(?= s wall\b)'),
 VARIES = '<varies>'
 
 
-ELISION = re.compile(r'^(\.\.\.|\(more .*\))$')
-"""A line of a shown output that stands for lines left out (``...``, ``(more rows)``)."""
+ELISION = re.compile(r'^(\.\.\.|\(more .*\)|)$')
+"""A line of a shown output that stands for lines left out (``...``, ``(more rows)``), or a blank
+one the doc puts between two commands."""
 
 
 def fit(shown: list[str], printed: list[str]) -> list[str]:
@@ -179,10 +180,11 @@ def fit(shown: list[str], printed: list[str]) -> list[str]:
 
     Where every line ``shown`` has (but its elisions) is one ``printed`` has, in order, with
     what varies left out (:func:`masked`), the printed lines that those are, and the elisions
-    in place: a doc may show part of what a command prints. Else all of ``printed``.
+    in place: a doc may show part of what a command prints (nothing, for a command whose
+    result is a file). Else all of ``printed``.
     """
     if not shown:
-        return printed
+        return []
     a, b = masked(shown), masked(printed)
     out: list[str] = []
     matcher = difflib.SequenceMatcher(None, a, b, autojunk=False)
