@@ -53,10 +53,18 @@ BAG_TOOLS_OUT = Path('/tmp/bt24')
 
 BAG_TOOLS = 'BAG_TOOLS.md'
 TRANSCRIPTS = ('GRIP.md', 'IDENTIFICATION.md', 'STUDIES.md', 'USING.md', 'results_whatif.md')
+CHATTER = ("python3 -c 'from rosbags.rosbag2 import StoragePlugin, Writer; "
+           'from rosbags.typesys import get_typestore, Stores; '
+           'ts = get_typestore(Stores.ROS2_JAZZY); S = ts.types["std_msgs/msg/String"]; '
+           'w = Writer("chatter", version=9, storage_plugin=StoragePlugin.MCAP); w.open(); '
+           'c = w.add_connection("/chatter", S.__msgtype__, typestore=ts); '
+           'w.write(c, 0, ts.serialize_cdr(S(data="hello"), S.__msgtype__)); w.close()' + "'")
+"""A bag of another program (one String on /chatter), which results_whatif.md's reader has."""
 SETUP = {
     'IDENTIFICATION.md': (f'cp {ROOT}/test/data/hidden_gripper.yaml my_gripper.yaml && '
                           f'ln -s {ROOT}/config config'),
     'GRIP.md': f'ln -s {DOCS} docs',
+    'results_whatif.md': CHATTER,
 }
 """Shell set-up of a doc's scratch folder: the inputs its text says the reader has."""
 FILES = {'contact_sweep.txt': 'contact_sweep --plot docs/contact_sweep.png',
@@ -212,7 +220,7 @@ def masked(lines: list[str]) -> list[str]:
         for pattern in (*WALL, *SIM_STATUS_VARIES):
             line = pattern.sub(VARIES, line)
         if wall_column and re.match(r'^\s+-?\d', line):
-            line = re.sub(r'\S+$', VARIES, line)
+            line = re.sub(r'\s*\S+$', f' {VARIES}', line)
         elif line.strip():
             wall_column = line.rstrip().endswith('wall s') or (wall_column and
                                                                line.startswith(' '))

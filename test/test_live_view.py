@@ -312,3 +312,41 @@ def test_a_hostile_then_stalled_client_leaves_the_graph_and_other_clients_alone(
                                                        TOPIC_JOINT_STATES)]['joint_states']]
     assert len(stamps) >= 200
     _assert_every_published_one_arrived(stamps, published.stamps)
+
+
+@pytest.mark.parametrize('args,words', [
+    (['--foxglove', '70000', '--serve'], '--foxglove: a port is 0-65535, got 70000'),
+    (['--foxglove'], '--foxglove shows the graph as it runs: use it with --serve or '
+                     '--time-mode realtime'),
+])
+def test_grasp_demo_refuses_a_bad_live_view_in_one_line(args, words):
+    done = subprocess.run([sys.executable, '-m', 'gripper_ros.apps.grasp_demo', *args],
+                          stdin=subprocess.DEVNULL, capture_output=True, text=True, timeout=120)
+    assert (done.returncode, done.stdout, done.stderr) == (2, '', f'grasp_demo: {words}\n')
+
+
+def test_a_taken_port_is_one_line_and_the_graph_stops(served):
+    """A second live view on the port of the first: refused in one line, exit 2, no traceback."""
+    _, url, _ = served
+    port = url.rsplit(':', 1)[1]
+    done = subprocess.run([sys.executable, '-m', 'gripper_ros.apps.grasp_demo', '--serve',
+                           '--no-record', '--namespace', 'second_view', '--foxglove', port],
+                          stdin=subprocess.DEVNULL, capture_output=True, text=True, timeout=300)
+    assert done.returncode == 2, done.stdout + done.stderr
+    assert done.stderr.strip().splitlines()[-1] == (
+        f'grasp_demo: the Foxglove live view cannot listen on 127.0.0.1:{port}: Failed to bind '
+        'port: Address already in use (os error 98)')
+    assert 'Traceback' not in done.stderr
+
+
+def test_the_launch_file_refuses_the_live_view_beside_one_process_per_node():
+    if shutil.which('ros2') is None:
+        if os.environ.get('ROS2_OVERLAY'):
+            raise AssertionError('ROS2_OVERLAY is set but ros2 is not on the PATH')
+        pytest.skip('no ros2 command (bash scripts/setup.sh --ros2-cli builds it)')
+    done = subprocess.run(['ros2', 'launch', 'gripper_ros', 'gripper.launch.py',
+                           'foxglove:=true', 'per_node:=true'], stdin=subprocess.DEVNULL,
+                          capture_output=True, text=True, timeout=120)
+    assert done.returncode != 0
+    assert 'foxglove:=true serves the graph from its one process: it does not go with ' \
+           'per_node:=true' in done.stdout + done.stderr

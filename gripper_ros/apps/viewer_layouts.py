@@ -21,8 +21,7 @@ import sys
 
 from gripper_ros.wire import (DEFAULT_NAMESPACE, FRAME_BASE, namespace_prefix, qualified,
                               TOPIC_FORCE_SENSOR, TOPIC_JOINT_STATES, TOPIC_MOTOR_COMMAND,
-                              TOPIC_OBJECT_MARKER, TOPIC_ROBOT_DESCRIPTION, TOPIC_STATUS,
-                              TOPIC_TF, TOPIC_TF_STATIC)
+                              TOPIC_OBJECT_MARKER, TOPIC_ROBOT_DESCRIPTION, TOPIC_STATUS)
 
 FOXGLOVE_LAYOUT = 'gripper.foxglove.json'
 RVIZ_CONFIG = 'gripper.rviz'
@@ -74,27 +73,6 @@ def foxglove_layout(namespace: str = DEFAULT_NAMESPACE, prefix: str | None = Non
     layout = fl.Layout(content=fl.SplitContainer(direction='row', items=[
         fl.SplitItem(proportion=1, content=left), fl.SplitItem(proportion=1, content=plots)]))
     return json.dumps(json.loads(layout.to_json()), indent=1) + '\n'
-
-
-def layout_topics(namespace: str = DEFAULT_NAMESPACE) -> list[str]:
-    """Return the topics the Foxglove layout subscribes to: those it names, and the TF topics."""
-    layout = json.loads(foxglove_layout(namespace))
-    found: set[str] = set()
-
-    def walk(node) -> None:
-        if isinstance(node, dict):
-            for key, value in node.items():
-                if key == 'topics' and isinstance(value, dict):
-                    found.update(value)
-                elif key in ('value', 'topicPath') and isinstance(value, str):
-                    found.add(value.split('.')[0])
-                else:
-                    walk(value)
-        elif isinstance(node, list):
-            for value in node:
-                walk(value)
-    walk(layout)
-    return sorted(found | {TOPIC_TF, TOPIC_TF_STATIC})
 
 
 def rviz_config(namespace: str = DEFAULT_NAMESPACE, prefix: str | None = None) -> str:

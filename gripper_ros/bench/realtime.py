@@ -190,6 +190,16 @@ def default_client() -> list[str]:
     return [node, str(target)]
 
 
+def shipped_layout_topics() -> list[str]:
+    """Return the topics of the installed Foxglove layout, relative to its gripper's namespace."""
+    from ament_index_python.packages import get_package_share_directory
+    from gripper_ros.nodes.live_view import layout_topics
+    from gripper_ros.wire import DEFAULT_NAMESPACE
+    path = Path(get_package_share_directory('gripper_ros')) / 'viewers' / 'gripper.foxglove.json'
+    prefix = f'/{DEFAULT_NAMESPACE}/'
+    return [t.removeprefix(prefix) for t in layout_topics(json.loads(path.read_text()))]
+
+
 class _LiveClient:
     """A Foxglove client watching every topic of the live view at ``url``."""
 
@@ -407,9 +417,7 @@ def main(args: Optional[Sequence[str]] = None) -> int:
         if opts.foxglove:
             client = shlex.split(opts.foxglove_client) if opts.foxglove_client else \
                 default_client()
-            from gripper_ros.apps.viewer_layouts import layout_topics
-            shown = [t.lstrip('/').removeprefix('gripper/') if t.startswith('/gripper/') else t
-                     for t in layout_topics()]
+            shown = shipped_layout_topics()
             off = measure(opts.seconds, opts.record)
             layout = measure(opts.seconds, opts.record, client=client, topics=shown)
             every = measure(opts.seconds, opts.record, client=client)

@@ -24,7 +24,8 @@ import threading
 
 from gripper_ros.bags.schema import message_definition
 from gripper_ros.text import one_line
-from gripper_ros.wire import LATCHED_LIVE_TOPICS, LIVE_TOPICS, qualified
+from gripper_ros.wire import (LATCHED_LIVE_TOPICS, LIVE_TOPICS, qualified, TOPIC_TF,
+                              TOPIC_TF_STATIC)
 from rclpy.serialization import serialize_message
 
 DEFAULT_PORT = 8765
@@ -164,6 +165,30 @@ class LiveView:
         if server is not None:
             server.stop()
         self._untap()
+
+
+def layout_topics(layout) -> list[str]:
+    """Return the topics a Foxglove layout (its JSON, as a dict) subscribes to.
+
+    Those its panels name (a 3D panel's topics, a plot's message paths, a raw message's topic
+    path), and ``/tf`` and ``/tf_static``, which a 3D panel takes for its frames.
+    """
+    found: set[str] = set()
+
+    def walk(node) -> None:
+        if isinstance(node, dict):
+            for key, value in node.items():
+                if key == 'topics' and isinstance(value, dict):
+                    found.update(value)
+                elif key in ('value', 'topicPath') and isinstance(value, str):
+                    found.add(value.split('.')[0])
+                else:
+                    walk(value)
+        elif isinstance(node, list):
+            for value in node:
+                walk(value)
+    walk(layout)
+    return sorted(found | {TOPIC_TF, TOPIC_TF_STATIC})
 
 
 def serve_live(prog: str, graph, address: str, port: int) -> LiveView:
