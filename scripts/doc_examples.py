@@ -166,12 +166,14 @@ SIM_STATUS_VARIES = (
     re.compile(r'(?<=^Bag size:)\s+\S+ \S+$'),
     re.compile(r'(?<=^Messages:)\s+\d+$'),
     re.compile(r'(?<=/sim/status ).*$'),
+    re.compile(r'(?<=/supervisor/status ).*$'),
     re.compile(r'\b\d+(?= messages\b)'),
     re.compile(r'(?<=^  message_count: )\d+$'),
     re.compile(r'(?<=^\[bag_replay\] ).*$'),
 )
 """What depends on how many sim/status a bag holds (one about every wall second: its line, a
-bag's total and size), and bag_replay's progress line (its wall-clock position)."""
+bag's total and size), on supervisor/status's heartbeat (one a wall second when nothing
+changes), and bag_replay's progress line (its wall-clock position)."""
 WALL = (re.compile(r'\b\d+(?:\.\d+)?(?= s wall\b)'),
         re.compile(r'(?<=\bwall )\d+(?:\.\d+)?(?= s\b)'))
 """Wall-clock times in a line: ``N s wall``, ``wall N s``."""
@@ -215,6 +217,8 @@ def masked(lines: list[str]) -> list[str]:
     """
     out, wall_column = [], False
     for line in lines:
+        line = re.sub(r'_\d+(_\d+\.mcap)\b', r'\1', line)      # a bag file: its process id
+        line = re.sub(r'(\.\d*?)0+$', r'\1', line)   # a number cut short by `cut` (names vary)
         line = BAG_NAME.sub(lambda m: bag_key(m.group()),
                             LOG_TIME.sub(r'\1 [...]', line.replace(str(ROOT), CHECKOUT)))
         for pattern in (*WALL, *SIM_STATUS_VARIES):
