@@ -74,6 +74,7 @@ class GraphOptions:
     client_name: str = 'grasp_demo_client'   # the node of the graph's own service clients
     supervisor_parameters: dict = field(default_factory=dict)
     plant_parameters: dict = field(default_factory=dict)
+    process_parameters: tuple = ()   # names the process reads itself (gripper_graph's settings)
 
 
 class GripperGraph:
@@ -140,7 +141,7 @@ class GripperGraph:
         if opts.description:
             self.description = build_node(DescriptionPublisher, parameter_overrides=named, **kw)
             self.nodes.append(self.description)
-        refuse_unknown_overrides(self.nodes)    # a -p or params file naming nothing here
+        refuse_unknown_overrides(self.nodes, opts.process_parameters)   # a -p naming nothing
         self._one_clock_subscription()
         self.executor = make_executor(opts.executor, self.context)
         for node in self.nodes:

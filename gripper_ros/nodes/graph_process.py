@@ -8,9 +8,9 @@ excitation_server and the graph's own service client, under one executor, the lo
 handed over in the process. Its settings are the launch file's parameters, given the ROS way
 (``-p NAME:=VALUE`` or a ``--params-file`` for ``/**``, which also reaches every node of the
 process): ``config_file``, ``time_mode``, ``real_time_factor``, ``publish_clock``,
-``use_sim_time``, ``prefix``; the namespace is ``-r __ns:=/NAME`` (default ``/gripper``).
-Ctrl-C or SIGTERM stops it, exit 0; a bad setting, a parameter no node of it declares or a taken
-namespace is one line, exit 2.
+``use_sim_time``, ``prefix``, ``foxglove``, ``foxglove_port``, ``foxglove_address``; the
+namespace is ``-r __ns:=/NAME`` (default ``/gripper``). Ctrl-C or SIGTERM stops it, exit 0; a
+bad setting, a parameter no node of it declares or a taken namespace is one line, exit 2.
 """
 from __future__ import annotations
 
@@ -27,7 +27,11 @@ SETTINGS = (('config_file', '', 'config YAML (default: the installed one)'),
             ('publish_clock', True, 'publish /clock'),
             ('use_sim_time', False, 'follow the /clock of a world simulator (publish none)'),
             ('prefix', '', "the xacro's prefix: the joint's and the URDF's names; "
-             'default: from the namespace (wire.namespace_prefix)'))
+             'default: from the namespace (wire.namespace_prefix)'),
+            ('foxglove', False, 'serve the graph live to Foxglove (its WebSocket protocol)'),
+            ('foxglove_port', 8765, "the live view's port (0: any free port)"),
+            ('foxglove_address', '127.0.0.1', 'where the live view listens (0.0.0.0: every '
+             'interface)'))
 """The launch arguments this process takes as parameters: name, default, description."""
 POLL_S = 0.1
 """How often the main thread looks for a stop signal or a graph that stopped spinning."""
@@ -69,6 +73,7 @@ def main(args: list[str] | None = None) -> int:
     from rclpy.exceptions import InvalidNamespaceException, ParameterException
     from gripper_ros.core.config import ConfigError
     from gripper_ros.nodes.graph import GraphError, GraphOptions, GripperGraph
+    from gripper_ros.nodes.live_view import LiveViewError, serve_live
     from gripper_ros.nodes.process import (BoundedCleanUp, CLEAN_UP_LIMIT_S,
                                            exit_without_a_last_collection, GIL_HELD_MARGIN_S,
                                            init_without_signal_handlers, StopSignals,
@@ -101,13 +106,16 @@ def main(args: list[str] | None = None) -> int:
                 time_mode=settings['time_mode'],
                 real_time_factor=float(settings['real_time_factor']),
                 publish_clock=bool(settings['publish_clock']), prefix=settings['prefix'],
-                use_sim_time=bool(settings['use_sim_time']), client_name=CLIENT_NODE))
+                use_sim_time=bool(settings['use_sim_time']), client_name=CLIENT_NODE,
+                process_parameters=tuple(name for name, _, _ in SETTINGS)))
+            if settings['foxglove']:
+                serve_live(NAME, graph, settings['foxglove_address'], settings['foxglove_port'])
             names = ', '.join(qualified(graph.namespace, n) for n in graph.served_names())
             print(f'{NAME}: serving {names} ({graph.time_text}); Ctrl-C to stop', flush=True)
             while not signals.received and graph.spinning:
                 time.sleep(POLL_S)
         except (ConfigError, ParameterException, StartupError, RCLError, GraphError,
-                InvalidNamespaceException, ValueError) as exc:
+                InvalidNamespaceException, ValueError, LiveViewError) as exc:
             print(f'{NAME}: {one_line(exc)}', file=sys.stderr)
             exit_code = EXIT_BAD_START
         except KeyboardInterrupt:

@@ -136,18 +136,18 @@ def strict_parameters(node: Node) -> None:
     node.add_pre_set_parameters_callback(as_declared)
 
 
-def refuse_unknown_overrides(nodes: list[Node]) -> None:
+def refuse_unknown_overrides(nodes: list[Node], known: tuple[str, ...] = ()) -> None:
     """Refuse a start-up parameter (``-p``, ``--params-file``) that none of ``nodes`` declares.
 
     rclpy keeps such an override without a word: a node declares only what it asks for
     (``allow_undeclared_parameters`` and ``automatically_declare_parameters_from_overrides``
     false, rclpy's defaults), and an override that names nothing is never read. Call it once
     every node of the process has declared its parameters; a ``-p`` or a ``/**`` file reaches
-    every node of a process, so a name counts as known when one of them declares it. A
-    ConfigError names the first unknown one and the closest declared name, as a typo in
-    ``config_file`` is named.
+    every node of a process, so a name counts as known when one of them declares it, or when
+    it is in ``known`` (what the process reads itself). A ConfigError names the first unknown
+    one and the closest declared name, as a typo in ``config_file`` is named.
     """
-    declared = sorted({name for node in nodes for name in declared_names(node)})
+    declared = sorted({name for node in nodes for name in declared_names(node)} | set(known))
     given = sorted({name for node in nodes for name in node._parameter_overrides} -
                    set(declared))
     if given:
