@@ -30,7 +30,7 @@ TRAVEL_M = 0.15
 
 
 def msg_point(t_s, positions=(), velocities=(), accelerations=(), effort=()):
-    """A JointTrajectoryPoint's fields, the time in ns."""
+    """Return a JointTrajectoryPoint's fields, the time in ns."""
     return SimpleNamespace(time_from_start_ns=round(t_s * S), positions=list(positions),
                            velocities=list(velocities), accelerations=list(accelerations),
                            effort=list(effort))
@@ -211,8 +211,8 @@ def test_goal_tolerances_resolve_per_field_as_jtc():
 
 
 @pytest.mark.parametrize('path, goal, goal_time_s, words', [
-    ([_tol('other', 0.1)], [], 0.0, "joint 'other' specified in goal.path_tolerance does not "
-                                     'exist. Using default tolerances.'),
+    ([_tol('other', 0.1)], [], 0.0,
+     "joint 'other' specified in goal.path_tolerance does not exist. Using default tolerances."),
     ([], [_tol(position=-0.3)], 0.0, "joint 'finger_joint' specified in goal.goal_tolerance has "
                                      'a invalid position tolerance. Using default tolerances.'),
     ([], [], -2.0, 'Specified illegal goal_time_tolerance: -2.000000. Using default tolerances'),
@@ -256,7 +256,7 @@ def test_the_goal_succeeds_at_its_end_within_the_goal_tolerance():
 
 
 def test_with_default_constraints_a_stalled_finger_succeeds_once_stopped():
-    """goal 0 (not checked), stopped_velocity_tolerance 0.01: at rest short of it succeeds."""
+    """Default goal 0 (unchecked), stopped_velocity_tolerance 0.01: at rest short of it."""
     run = _run([Point(S, 0.14, 0.0)])
     run.update(0, 0.05, 0.0, 10 * MS)
     assert run.update(S, 0.10, 0.02, 10 * MS).verdict is None        # still moving: waits

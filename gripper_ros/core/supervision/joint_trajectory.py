@@ -150,7 +150,7 @@ def check_trajectory(joint_names, points, joint: str, travel_m: float, start_ns:
         velocity = _entry(p.velocities, 0, 'velocities', i, 1, True)
         acceleration = _entry(p.accelerations, 0, 'accelerations', i, 1, True)
         if list(p.effort):
-            raise TrajectoryError("Trajectories with effort fields are only supported for "
+            raise TrajectoryError('Trajectories with effort fields are only supported for '
                                   "controllers using the 'effort' command interface.")
         for what, value in (('position', position), ('velocity', velocity),
                             ('acceleration', acceleration)):
@@ -158,7 +158,7 @@ def check_trajectory(joint_names, points, joint: str, travel_m: float, start_ns:
                 raise TrajectoryError(f'point #{i}: the {what} of {joint} is {value!r}, not a '
                                       'finite number')
         if not 0.0 <= position <= travel_m:
-            raise TrajectoryError(f"point #{i}: position {position!r} of {joint} is out of the "
+            raise TrajectoryError(f'point #{i}: position {position!r} of {joint} is out of the '
                                   f"joint's limits [0, {travel_m:g}] m (the travel of the finger "
                                   'from fully open)')
         if acceleration is not None and velocity is None:
@@ -214,8 +214,10 @@ def interpolate(t0_ns: int, a: State | Point, t1_ns: int, b: State | Point,
 
 @dataclass(frozen=True)
 class Sample:
-    """A sampled state, the index of the point of its segment's start (-1: before the first
-    point) and whether the last point's time is still ahead."""
+    """A sampled state, where it is and whether the last point's time is still ahead.
+
+    ``segment``: the index of the point its segment starts at (-1: before the first point).
+    """
 
     state: State
     segment: int
@@ -431,5 +433,3 @@ class TrajectoryRun:
                           f'Aborted due to goal_time_tolerance exceeding by {late_s:f} seconds: '
                           + violation_text(error, tol.goal), hold)
         return Update(t_ns, desired, actual, error, command, command_ns)
-
-
