@@ -24,6 +24,7 @@ import math
 import re
 import threading
 
+from action_msgs.msg import GoalStatus
 from builtin_interfaces.msg import Duration
 from gripper_interfaces.msg import ServoSetpoint
 from gripper_ros.core.config import load_config
@@ -35,6 +36,7 @@ from gripper_ros.wire import (ACTION_FOLLOW_JOINT_TRAJECTORY, qualified, stamp_n
 from helpers import wait_future
 import numpy as np
 import pytest
+from rclpy.action import ActionClient
 from rclpy.qos import qos_profile_sensor_data
 from scipy.interpolate import BPoly, CubicHermiteSpline
 from sensor_msgs.msg import JointState
@@ -42,9 +44,7 @@ from trajectory_msgs.msg import JointTrajectoryPoint
 
 control_msgs = pytest.importorskip('control_msgs.action', reason='control_msgs is not '
                                    'installed (the ros-jazzy wheels have none; the overlay has)')
-from action_msgs.msg import GoalStatus  # noqa: E402 - after the skip
-from control_msgs.msg import JointTolerance  # noqa: E402
-from rclpy.action import ActionClient  # noqa: E402
+from control_msgs.msg import JointTolerance  # noqa: E402, I100 - after the skip
 
 FollowJointTrajectory = control_msgs.FollowJointTrajectory
 Result = FollowJointTrajectory.Result
@@ -135,7 +135,10 @@ def _duration(t_s: float) -> Duration:
 
 
 def _goal(joint, points, path_m=0.0, goal_m=0.0, goal_time_s=0.0, names=None):
-    """A goal of ``points``: (time_from_start s, position, velocity|None, acceleration|None)."""
+    """Return a goal of ``points``: (time_from_start s, position, velocity, acceleration).
+
+    A velocity or acceleration None is left out of its point.
+    """
     goal = FollowJointTrajectory.Goal()
     goal.trajectory.joint_names = [joint] if names is None else names
     for t_s, p, v, a in points:
@@ -226,8 +229,8 @@ def _smooth_points(kind: str) -> list:
 
 
 @pytest.mark.parametrize('kind', ['positions', 'velocities', 'accelerations'])
-def test_the_samples_are_jtcs_splines_of_the_points_at_their_times(graph, client, recorder,
-                                                                   joint, kind):
+def test_the_samples_are_jtcs_splines_of_the_points_at_their_times(
+        graph, client, recorder, joint, kind):
     _start(graph, recorder)
     status, result, feedback = _run(client, _goal(joint, _smooth_points(kind)))
     assert status == GoalStatus.STATUS_SUCCEEDED
@@ -255,8 +258,8 @@ def test_the_samples_are_jtcs_splines_of_the_points_at_their_times(graph, client
 
 
 # ====================================================================== tolerances
-def test_a_path_tolerance_violated_aborts_and_the_finger_holds_where_it_was(graph, client,
-                                                                             recorder, joint):
+def test_a_path_tolerance_violated_aborts_and_the_finger_holds_where_it_was(
+        graph, client, recorder, joint):
     """0 to 0.10 m in 0.5 s needs 0.2 m/s, three times the free speed: it falls behind."""
     _start(graph, recorder)
     status, result, _ = _run(client, _goal(joint, [(0.5, 0.10, 0.0, None)], path_m=0.002))
@@ -270,12 +273,12 @@ def test_a_path_tolerance_violated_aborts_and_the_finger_holds_where_it_was(grap
     assert abs(p_rest - p_hold) <= 0.01    # stopping from the free speed at 24 V: 9.5 mm
 
 
-def test_outside_the_goal_tolerance_after_goal_time_the_goal_aborts(graph, client, recorder,
-                                                                     joint):
+def test_outside_the_goal_tolerance_after_goal_time_the_goal_aborts(
+        graph, client, recorder, joint):
     """Closing onto an object at 0.09 m towards 0.12 m: blocked 30 mm short."""
     _start(graph, recorder, width_m=TRAVEL_M - 0.09)
-    status, result, feedback = _run(client, _goal(joint, [(3.0, 0.12, 0.0, None)], goal_m=0.001,
-                                                   goal_time_s=0.5))
+    goal = _goal(joint, [(3.0, 0.12, 0.0, None)], goal_m=0.001, goal_time_s=0.5)
+    status, result, feedback = _run(client, goal)
     assert status == GoalStatus.STATUS_ABORTED
     assert result.error_code == Result.GOAL_TOLERANCE_VIOLATED
     late_s = float(re.match(r'Aborted due to goal_time_tolerance exceeding by (\d+\.\d+) '
@@ -284,17 +287,17 @@ def test_outside_the_goal_tolerance_after_goal_time_the_goal_aborts(graph, clien
     assert feedback[-1].actual.positions[0] == pytest.approx(0.09, abs=1e-6)
 
 
-def test_with_default_constraints_a_trajectory_stalled_on_an_object_succeeds(graph, client,
-                                                                          recorder, joint):
-    """JTC's defaults check no position at the goal, only stopped_velocity_tolerance (0.01)."""
+def test_with_default_constraints_a_trajectory_stalled_on_an_object_succeeds(
+        graph, client, recorder, joint):
+    """By default JTC checks no position at the goal, only stopped_velocity_tolerance (0.01)."""
     _start(graph, recorder, width_m=TRAVEL_M - 0.09)
     status, result, feedback = _run(client, _goal(joint, [(3.0, 0.12, 0.0, None)]))
     assert status == GoalStatus.STATUS_SUCCEEDED and result.error_code == Result.SUCCESSFUL
     assert feedback[-1].actual.positions[0] == pytest.approx(0.09, abs=1e-6)
 
 
-def test_with_no_goal_time_it_waits_for_the_goal_tolerance_until_canceled(graph, client,
-                                                                        recorder, joint):
+def test_with_no_goal_time_it_waits_for_the_goal_tolerance_until_canceled(
+        graph, client, recorder, joint):
     _start(graph, recorder, width_m=TRAVEL_M - 0.09)
     handle, feedback = _send(client, _goal(joint, [(1.0, 0.12, 0.0, None)], goal_m=0.001))
     assert handle.accepted
@@ -312,8 +315,8 @@ def test_with_no_goal_time_it_waits_for_the_goal_tolerance_until_canceled(graph,
 @pytest.mark.parametrize('case', ['other joint', 'two joints', 'beyond the travel', 'nan',
                                   'final velocity', 'time not increasing', 'effort',
                                   'in the past', 'no points'])
-def test_a_goal_jtc_or_the_travel_refuses_is_rejected_and_nothing_moves(graph, client,
-                                                                          recorder, joint, case):
+def test_a_goal_jtc_or_the_travel_refuses_is_rejected_and_nothing_moves(
+        graph, client, recorder, joint, case):
     points = [(1.0, 0.05, None, None)]
     goal = _goal(joint, points)
     if case == 'other joint':
@@ -369,8 +372,8 @@ def test_a_new_goal_aborts_the_running_one_with_invalid_goal(graph, client, reco
     assert second_end.status == GoalStatus.STATUS_SUCCEEDED
 
 
-def test_a_cancel_ends_the_goal_canceled_holding_the_measured_position(graph, client,
-                                                                         recorder, joint):
+def test_a_cancel_ends_the_goal_canceled_holding_the_measured_position(
+        graph, client, recorder, joint):
     _start(graph, recorder)
     moving, on_feedback = _moving(0.02)
     handle, _ = _send(client, _goal(joint, [(3.0, 0.14, 0.0, None)]), on_feedback)
@@ -384,8 +387,8 @@ def test_a_cancel_ends_the_goal_canceled_holding_the_measured_position(graph, cl
     assert p_hold == measured[t_hold] and (v_hold, a_hold) == (0.0, 0.0)
 
 
-def test_a_request_of_another_client_takes_the_gripper_and_aborts_the_goal(graph, client,
-                                                                          recorder, joint):
+def test_a_request_of_another_client_takes_the_gripper_and_aborts_the_goal(
+        graph, client, recorder, joint):
     _start(graph, recorder)
     moving, on_feedback = _moving(0.01)
     handle, _ = _send(client, _goal(joint, [(3.0, 0.14, 0.0, None)]), on_feedback)

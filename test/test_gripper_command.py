@@ -27,17 +27,17 @@ from __future__ import annotations
 import math
 import threading
 
+from action_msgs.msg import GoalStatus
 from gripper_ros.core.config import load_config
 from gripper_ros.nodes.graph import GraphOptions, GripperGraph
 from gripper_ros.wire import ACTION_GRIPPER_COMMAND, qualified, TimeMode
 from helpers import wait_future
 import pytest
+from rclpy.action import ActionClient
+from rclpy.parameter import Parameter
 
 control_msgs = pytest.importorskip('control_msgs.action', reason='control_msgs is not '
                                    'installed (the ros-jazzy wheels have none; the overlay has)')
-from action_msgs.msg import GoalStatus  # noqa: E402 - after the skip
-from rclpy.action import ActionClient  # noqa: E402
-from rclpy.parameter import Parameter  # noqa: E402
 
 GripperCommand = control_msgs.GripperCommand
 CONFIG = load_config()
@@ -110,7 +110,7 @@ def test_a_stall_on_an_object_presses_with_max_effort_and_aborts_unless_allowed(
 
 
 def test_max_effort_zero_is_the_motors_limit(graph, client):
-    """MoveIt's GripperCommand handle sends max_effort 0 unless configured: the motor's 33.39 N."""
+    """Zero max_effort, what MoveIt's GripperCommand handle sends by default: the motor's limit."""
     assert graph.set_object(0.06, open_fingers=True).success
     status, result, _ = _run(graph, client, _goal(0.14), allow_stalling=True)
     assert status == GoalStatus.STATUS_SUCCEEDED and result.stalled
