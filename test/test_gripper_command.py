@@ -151,8 +151,8 @@ def test_a_cancel_ends_the_goal_canceled_and_the_finger_holds(graph, client):
 @pytest.mark.parametrize('position_m, effort_n', [
     (-0.001, 0.0), (TRAVEL_M + 0.001, 0.0), (math.nan, 0.0), (0.05, -1.0), (0.05, math.inf),
     (0.05, P.max_force_n + 1.0)])
-def test_a_goal_the_gripper_cannot_do_is_rejected_and_nothing_moves(graph, client, position_m,
-                                                                     effort_n):
+def test_a_goal_the_gripper_cannot_do_is_rejected_and_nothing_moves(
+        graph, client, position_m, effort_n):
     requests = graph.supervisor.logic.grasp_id
     handle, _ = _send(graph, client, _goal(position_m, effort_n))
     assert not handle.accepted
