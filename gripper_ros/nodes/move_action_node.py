@@ -107,9 +107,10 @@ class MoveActionServer(GripperNode):
         if PROBLEM:      # the graph's trajectory action is not served either: one line for all
             self.get_logger().warning(not_served((ACTION_GRIPPER_CMD, ACTION_GRIPPER_COMMAND,
                                                   ACTION_FOLLOW_JOINT_TRAJECTORY)))
+        self.joint_name = declare_prefix(self) + FINGER_JOINT
+        self._joint_name_bytes = self.joint_name.encode()
         self._joint_data: bytes | None = None    # the newest joint_states, read when needed
         self.graph_subscription(JointState, TOPIC_JOINT_STATES, self._on_joint_state)
-        self.joint_name = declare_prefix(self) + FINGER_JOINT
         self.detect_n = config.force_sensor.activation_force_n    # the sensor feels a press
         self._announced_id = -1                  # the request whose start gripper_status said
         self._grip_status_pub = self.create_publisher(DiagnosticStatus, TOPIC_GRIPPER_STATUS,
@@ -306,14 +307,22 @@ class MoveActionServer(GripperNode):
         self.grip_statuses_published += 1
 
     def _on_joint_state(self, data: bytes) -> None:
-        self._joint_data = data
+        if self._joint_name_bytes in data:      # not another joint's (a shared /joint_states)
+            self._joint_data = data
 
     def _velocity_mps(self) -> float | None:
-        """Return the finger's velocity in the newest joint_states sample (None before one)."""
+        """Return the finger's velocity in the newest joint_states sample (None before one).
+
+        joint_states remapped to a robot's ``/joint_states`` carries other joints too.
+        """
         if self._joint_data is None:
             return None
-        velocity = deserialize_message(self._joint_data, JointState).velocity
-        return float(velocity[0]) if len(velocity) else None
+        msg = deserialize_message(self._joint_data, JointState)
+        names = list(msg.name)
+        if self.joint_name not in names:
+            return None
+        i = names.index(self.joint_name)
+        return float(msg.velocity[i]) if len(msg.velocity) > i else None
 
     def _on_status(self, data: bytes) -> None:
         self._status_data = data
