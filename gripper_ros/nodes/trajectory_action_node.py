@@ -117,7 +117,9 @@ class TrajectoryActionServer(GripperNode):
         self.monitor_rate_hz = self.declare_parameter('action_monitor_rate', 20.0, rate).value
         self._setpoints = self.graph_publisher(ServoSetpoint, TOPIC_SERVO_SETPOINT)
         self.setpoints_published = 0
-        self._sample: tuple[int, float, float | None] | None = None   # newest (t, p, v)
+        self._joint_name_bytes = self.joint_name.encode()
+        self._joint_data: bytes | None = None    # the newest joint_states, read when needed
+        self._read_ns = -1                       # the stamp of the newest one read
         self._period_ns = round(1e9 / DEFAULT_STATE_RATE_HZ)
         self.graph_subscription(JointState, TOPIC_JOINT_STATES, self._on_joint_state)
         self._newest_id = -1                     # the newest request id a status showed
@@ -140,7 +142,7 @@ class TrajectoryActionServer(GripperNode):
     def _check(self, goal_request) -> GoalResponse:
         """Reject what JTC's validate_trajectory_msg refuses, or what leaves the travel."""
         traj = goal_request.trajectory
-        if self._sample is None:
+        if self._sample() is None:
             self.get_logger().warning(f'{ACTION_FOLLOW_JOINT_TRAJECTORY} goal rejected: no '
                                       f'{TOPIC_JOINT_STATES} yet (the gripper is not running)')
             return GoalResponse.REJECT
@@ -175,9 +177,10 @@ class TrajectoryActionServer(GripperNode):
         points = check_trajectory(traj.joint_names, self._points_of(traj), self.joint_name,
                                   self.plant.max_travel_m,
                                   allow_nonzero_velocity_at_end=True)   # checked at goal
+        sample = self._sample()
         start_ns = stamp_ns(traj.header.stamp)
         if start_ns:                 # the node's clock -> the gripper's (its joint_states)
-            start_ns -= self.get_clock().now().nanoseconds - self._sample[0]
+            start_ns -= self.get_clock().now().nanoseconds - sample[0]
         tolerances, why_defaults = self._tolerances(request)
         if why_defaults:
             self.get_logger().error(why_defaults)
@@ -186,7 +189,8 @@ class TrajectoryActionServer(GripperNode):
         goal = self._goal = _Goal(goal_handle, TrajectoryRun(Trajectory(points, start_ns),
                                                              tolerances), self.executor)
         goal.first_id = self._newest_id + 1
-        self._update(goal, *self._sample)       # at once: a paused simulation wakes
+        self._read_ns = -1                      # the sample period is measured from here
+        self._update(goal, *sample)             # at once: a paused simulation wakes
         verdict, message = await goal.done
         result = FollowJointTrajectory.Result(error_code=int(verdict or 0), error_string=message)
         if verdict is None:
@@ -200,8 +204,9 @@ class TrajectoryActionServer(GripperNode):
     def _on_cancel(self, goal_handle) -> CancelResponse:
         """Cancel the running goal: it ends canceled and the finger holds where it is."""
         goal = self._goal
-        if goal is not None and goal.handle is goal_handle and self._sample is not None:
-            t_ns, position, _ = self._sample
+        sample = self._sample()
+        if goal is not None and goal.handle is goal_handle and sample is not None:
+            t_ns, position, _ = sample
             self._hold(goal, State(position, 0.0, 0.0), t_ns)
             self._finish(goal, None, '')
         return CancelResponse.ACCEPT
@@ -214,17 +219,30 @@ class TrajectoryActionServer(GripperNode):
 
     # ------------------------------------------------------------------ updates
     def _on_joint_state(self, data: bytes) -> None:
-        msg = deserialize_message(data, JointState)
-        if self.joint_name not in msg.name:
+        """Keep the newest sample of the joint; with a goal running, it is an update."""
+        if self._joint_name_bytes not in data:   # another joint's (a shared /joint_states)
             return
-        i = list(msg.name).index(self.joint_name)
+        self._joint_data = data
+        if self._goal is not None:
+            sample = self._sample()
+            if sample is not None and math.isfinite(sample[1]):
+                self._update(self._goal, *sample)
+
+    def _sample(self) -> tuple[int, float, float | None] | None:
+        """Return the newest sample (stamp ns, position, velocity or None); None before one."""
+        if self._joint_data is None:
+            return None
+        msg = deserialize_message(self._joint_data, JointState)
+        names = list(msg.name)
+        if self.joint_name not in names:
+            return None
+        i = names.index(self.joint_name)
         t_ns = stamp_ns(msg.header.stamp)
+        if t_ns > self._read_ns >= 0:
+            self._period_ns = t_ns - self._read_ns
+        self._read_ns = max(self._read_ns, t_ns)
         velocity = float(msg.velocity[i]) if len(msg.velocity) > i else None
-        if self._sample is not None and t_ns > self._sample[0]:
-            self._period_ns = t_ns - self._sample[0]
-        self._sample = (t_ns, float(msg.position[i]), velocity)
-        if self._goal is not None and math.isfinite(self._sample[1]):
-            self._update(self._goal, *self._sample)
+        return t_ns, float(msg.position[i]), velocity
 
     def _update(self, goal: _Goal, t_ns: int, position: float, velocity: float | None) -> None:
         """Run one update of ``goal`` on the sample at ``t_ns``: command, feedback, verdict."""
