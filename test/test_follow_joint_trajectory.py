@@ -387,12 +387,19 @@ def test_a_cancel_ends_the_goal_canceled_holding_the_measured_position(
     assert p_hold == measured[t_hold] and (v_hold, a_hold) == (0.0, 0.0)
 
 
+@pytest.mark.parametrize('preempted_first', [False, True])
 def test_a_request_of_another_client_takes_the_gripper_and_aborts_the_goal(
-        graph, client, recorder, joint):
+        graph, client, recorder, joint, preempted_first):
+    """Also when the goal took over a preempted goal's stream (the move it retargets)."""
     _start(graph, recorder)
     moving, on_feedback = _moving(0.01)
     handle, _ = _send(client, _goal(joint, [(3.0, 0.14, 0.0, None)]), on_feedback)
     assert handle.accepted and moving.wait(WAIT_S)
+    if preempted_first:
+        first = handle
+        handle, feedback = _send(client, _goal(joint, [(3.0, 0.12, 0.0, None)]))
+        assert handle.accepted and wait_until(lambda: feedback, WAIT_S)
+        assert wait_future(first.get_result_async(), WAIT_S).result.error_string == PREEMPTED
     assert graph.stop().success
     end = wait_future(handle.get_result_async(), WAIT_S)
     assert end.status == GoalStatus.STATUS_ABORTED

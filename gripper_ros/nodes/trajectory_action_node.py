@@ -184,11 +184,13 @@ class TrajectoryActionServer(GripperNode):
         tolerances, why_defaults = self._tolerances(request)
         if why_defaults:
             self.get_logger().error(why_defaults)
-        if self._goal is not None:
-            self._finish(self._goal, Verdict.INVALID_GOAL, PREEMPTED)
-        goal = self._goal = _Goal(goal_handle, TrajectoryRun(Trajectory(points, start_ns),
-                                                             tolerances), self.executor)
+        goal = _Goal(goal_handle, TrajectoryRun(Trajectory(points, start_ns), tolerances),
+                     self.executor)
         goal.first_id = self._newest_id + 1
+        if self._goal is not None:            # the stream goes on: its moves are the new goal's
+            goal.first_id, goal.move_ids = self._goal.first_id, set(self._goal.move_ids)
+            self._finish(self._goal, Verdict.INVALID_GOAL, PREEMPTED)
+        self._goal = goal
         self._read_ns = -1                      # the sample period is measured from here
         self._update(goal, *sample)             # at once: a paused simulation wakes
         verdict, message = await goal.done
