@@ -122,7 +122,7 @@ class TrajectoryActionServer(GripperNode):
         self._read_ns = -1                       # the stamp of the newest one read
         self._period_ns = round(1e9 / DEFAULT_STATE_RATE_HZ)
         self.graph_subscription(JointState, TOPIC_JOINT_STATES, self._on_joint_state)
-        self._newest_id = -1                     # the newest request id a status showed
+        self._status_data: bytes | None = None   # the newest status, read when needed
         self.graph_subscription(SupervisorStatus, TOPIC_STATUS, self._on_status)
         self.create_subscription(SupervisorStatus, TOPIC_OUTCOME, self._on_outcome, LATCHED_QOS,
                                  raw=True)
@@ -186,7 +186,8 @@ class TrajectoryActionServer(GripperNode):
             self.get_logger().error(why_defaults)
         goal = _Goal(goal_handle, TrajectoryRun(Trajectory(points, start_ns), tolerances),
                      self.executor)
-        goal.first_id = self._newest_id + 1
+        newest = read_status(self._status_data) if self._status_data is not None else None
+        goal.first_id = newest.grasp_id + 1 if newest is not None else 0
         if self._goal is not None:            # the stream goes on: its moves are the new goal's
             goal.first_id, goal.move_ids = self._goal.first_id, set(self._goal.move_ids)
             self._finish(self._goal, Verdict.INVALID_GOAL, PREEMPTED)
@@ -296,11 +297,13 @@ class TrajectoryActionServer(GripperNode):
 
     # ------------------------------------------------------------------ who is in command
     def _on_status(self, data: bytes) -> None:
-        msg = read_status(data)
-        self._newest_id = max(self._newest_id, msg.grasp_id)
+        """Keep the newest status; with a goal running, note the moves its setpoints drive."""
+        self._status_data = data
         goal = self._goal
-        if goal is not None and goal.last_command is not None and msg.running and \
-                msg.phase == Phase.MOVING and msg.grasp_id >= goal.first_id:
+        if goal is None or goal.last_command is None:
+            return
+        msg = read_status(data)
+        if msg.running and msg.phase == Phase.MOVING and msg.grasp_id >= goal.first_id:
             goal.move_ids.add(msg.grasp_id)
 
     def _on_outcome(self, data: bytes) -> None:
