@@ -188,11 +188,12 @@ def qualified(namespace: str, name: str) -> str:
 
 NAME_CHARACTERS = frozenset(string.ascii_letters + string.digits + '_')
 """What a part of a ROS name may hold (ASCII only: rcl refuses other letters)."""
-MAX_NAMESPACE_LENGTH = 190
+MAX_NAMESPACE_LENGTH = 174
 """Longest namespace (without its slashes) allowed: every node's, topic's, service's and
-action's full name under it must fit rcl's limit (a graph comes up under 195 characters and not
-under 200, where rcl cannot name a node's ``~/get_type_description``); ``test_hostile_graph``
-grasps under this one."""
+action's full name under it must fit rcl's limit, 247 characters (255 less 8 for the DDS
+suffixes). The longest name under it is FollowJointTrajectory's cancel service,
+``/<ns>/joint_trajectory_controller/follow_joint_trajectory/_action/cancel_goal``: 73 more
+characters. ``test_hostile_graph`` grasps under this one."""
 
 
 def check_namespace(namespace: str) -> str:
