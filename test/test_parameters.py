@@ -35,6 +35,7 @@ from gripper_ros.nodes.parameters import refuse_unknown_overrides
 from gripper_ros.nodes.plant_simulator_node import PlantSimulatorNode
 from gripper_ros.nodes.position_controller_node import PositionControllerNode
 from gripper_ros.nodes.supervisor_node import DEFAULT_TICK_TIMEOUT_S, SupervisorNode
+from gripper_ros.nodes.trajectory_action_node import TrajectoryActionServer
 from gripper_ros.wire import DEFAULT_NAMESPACE, Outcome, Phase, STATUS_HEARTBEAT_S
 import numpy as np
 import pytest
@@ -718,11 +719,15 @@ UNKNOWN_OVERRIDES = [   # (node class, a typo of one of its parameters, the name
     (GraspActionServer, 'feedback_period', 'feedback_period_s'),
     (MoveActionServer, 'allow_stalled', 'allow_stalling'),
     (ExcitationServer, 'excitation.amplitude', 'excitation.amplitude_v'),
-    (DescriptionPublisher, 'publish_frequncy', 'publish_frequency')]
+    (DescriptionPublisher, 'publish_frequncy', 'publish_frequency'),
+    (TrajectoryActionServer, 'constraints.goal_tme', 'constraints.goal_time')]
+NEEDS_CONTROL_MSGS = pytest.mark.skipif(FollowJointTrajectory is None,
+                                        reason='control_msgs is not installed')
 
 
-@pytest.mark.parametrize('node_class, typo, meant', UNKNOWN_OVERRIDES,
-                         ids=[c.__name__ for c, *_ in UNKNOWN_OVERRIDES])
+@pytest.mark.parametrize('node_class, typo, meant', [
+    pytest.param(*case, marks=NEEDS_CONTROL_MSGS if case[0] is TrajectoryActionServer else ())
+    for case in UNKNOWN_OVERRIDES], ids=[c.__name__ for c, *_ in UNKNOWN_OVERRIDES])
 def test_an_unknown_start_up_parameter_is_refused_naming_the_nearest(own_context, node_class,
                                                                      typo, meant):
     """A ``-p`` or params-file name the node does not declare ends its start (run_node).
