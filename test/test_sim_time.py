@@ -35,8 +35,14 @@ CLOSED_M = 0.10
 
 
 def _following(namespace: str) -> GripperGraph:
+    """A graph on the world's clock, given ``use_sim_time`` as gripper_graph is by launch.
+
+    The launch file's parameters reach every node of the process (``/**``), the deferred
+    services' private server nodes too.
+    """
     return GripperGraph.in_own_context(GraphOptions(
-        namespace=namespace, time_mode=TimeMode.REALTIME.parameter, use_sim_time=True))
+        namespace=namespace, time_mode=TimeMode.REALTIME.parameter, use_sim_time=True),
+        args=['--ros-args', '-p', 'use_sim_time:=true'])
 
 
 def _move_samples(samples: list) -> list[tuple[int, float]]:
@@ -79,6 +85,8 @@ def test_at_half_pace_the_stamps_are_the_world_s_and_a_move_takes_twice_the_wall
             assert wait_until(lambda: len(world.samples[ns]) >= 50, 30.0)
             # the gripper publishes no /clock: the world's is the one
             assert graph.client_node.count_publishers(TOPIC_CLOCK) == 1
+            # and takes it once: the plant's subscription sets every node's clock
+            assert graph.client_node.count_subscribers(TOPIC_CLOCK) == 1
             idle = list(world.samples[ns])
             stamps = [s[1] for s in idle]
             assert stamps[0] >= WORLD_START_NS and stamps[0] % STATE_PERIOD_NS == 0

@@ -444,14 +444,17 @@ class GripperGraph:
     # ------------------------------------------------------------------ lifecycle
     @classmethod
     def in_own_context(cls, options: GraphOptions | None = None,
-                       domain_id: int | None = None) -> GripperGraph:
+                       domain_id: int | None = None,
+                       args: list[str] | None = None) -> GripperGraph:
         """Start a graph in a fresh rclpy context that :meth:`close` shuts down.
 
-        The context is on ``domain_id`` (default ROS_DOMAIN_ID). Several graphs, or a graph and
-        other rclpy users, can share a process without sharing a context.
+        The context is on ``domain_id`` (default ROS_DOMAIN_ID), with ``args`` as a process's
+        command line (``['--ros-args', '-p', ...]``, for every node). Several graphs, or a graph
+        and other rclpy users, can share a process without sharing a context.
         """
         context = Context()
-        rclpy.init(context=context, **({} if domain_id is None else {'domain_id': domain_id}))
+        rclpy.init(args=args, context=context,
+                   **({} if domain_id is None else {'domain_id': domain_id}))
         try:
             graph = cls(options, context=context)
         except BaseException:
