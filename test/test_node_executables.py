@@ -262,6 +262,9 @@ GRAPH_BAD_SETTINGS = [('time_mode', 'sideways', 'must be realtime or fast'),
                       ('supervisor.bogus_key', '1.0',
                        'unknown parameter "supervisor.bogus_key"; known here: '),
                       ('executor', 'single', 'unknown parameter "executor"'),
+                      # the process's own settings, read by no node, are known: the typo is named
+                      ('supervisor.timeot_s', '5.0 -p foxglove_port:=0 -p foxglove_address:=::1',
+                       'unknown parameter "supervisor.timeot_s"; did you mean'),
                       ('time_mode', 'fast -p use_sim_time:=true', 'time_mode must be realtime')]
 
 
