@@ -35,7 +35,7 @@ CLOSED_M = 0.10
 
 
 def _following(namespace: str) -> GripperGraph:
-    """A graph on the world's clock, given ``use_sim_time`` as gripper_graph is by launch.
+    """Start a graph on the world's clock, given ``use_sim_time`` as launch gives gripper_graph.
 
     The launch file's parameters reach every node of the process (``/**``), the deferred
     services' private server nodes too.
