@@ -12,7 +12,8 @@ import math
 from gripper_ros.apps.common import with_values
 from gripper_ros.apps.grip_study import DEFAULT_LIFT_OFF_S
 from gripper_ros.core.config import load_config
-from gripper_ros.core.control.load_grip import law_step, make_law, MU_GRID, PLAN_DTYPE
+from gripper_ros.core.control.load_grip import (law_step, make_law, MU_GRID, plan_announce,
+                                                PLAN_DTYPE)
 from gripper_ros.core.physics.hold import Lift, presliding_m
 from gripper_ros.studies.grip_runs import simulate_load_grip
 from gripper_ros.wire import LiftProfile
@@ -29,6 +30,7 @@ DT_S = CONFIG.force.sample_time_s
 
 
 NO_PLAN = np.zeros(1, PLAN_DTYPE)                     # the arm announces nothing
+NO_POSITION = math.nan                                # the finger's position unread
 
 
 def law():
@@ -41,7 +43,8 @@ def test_mu_is_read_from_the_incipient_slip_and_sets_the_grip(mu):
     q = 5.0                                            # each pad's shear: a 10 N load
     for i in range(600):                               # the grip sweeps 30 N -> 14 N
         f = 30.0 - 16.0 * i / 600
-        law_step(g[0], history, sums, MU_GRID, i, q, presliding_m(q, f, mu, K_T), f, NO_PLAN)
+        law_step(g[0], history, sums, MU_GRID, i, q, presliding_m(q, f, mu, K_T), f, NO_PLAN,
+                 NO_POSITION)
     assert g[0]['estimated'] == 1
     assert g[0]['mu_est'] == pytest.approx(P.mu_safety * mu, abs=0.011)
     # held still from then on, the setpoint comes down to k F_load / (2 mu_est), no faster
@@ -49,7 +52,7 @@ def test_mu_is_read_from_the_incipient_slip_and_sets_the_grip(mu):
     f = 14.0
     for i in range(600, 3000):
         sp = law_step(g[0], history, sums, MU_GRID, i, q, presliding_m(q, f, mu, K_T), f,
-                      NO_PLAN)
+                      NO_PLAN, NO_POSITION)
     assert sp == pytest.approx(max(P.touch_force_n,
                                    P.grip_margin * 2 * q / (2 * g[0]['mu_est'])), rel=1e-12)
 
@@ -59,17 +62,50 @@ def test_a_slip_raises_the_grip_at_once():
     f, q = 10.0, 4.0                                   # carrying 0.4 F per pad
     d = presliding_m(q, f, 0.5, K_T)
     for i in range(100):
-        before = law_step(g[0], history, sums, MU_GRID, i, q, d, f, NO_PLAN)
+        before = law_step(g[0], history, sums, MU_GRID, i, q, d, f, NO_PLAN, NO_POSITION)
     window = int(g[0]['window'])
     speed = 4 * P.slip_speed_mps
     for i in range(100, 100 + window + 1):             # the object runs down the pads
         d += speed * DT_S
-        sp = law_step(g[0], history, sums, MU_GRID, i, q, d, f, NO_PLAN)
+        sp = law_step(g[0], history, sums, MU_GRID, i, q, d, f, NO_PLAN, NO_POSITION)
     assert g[0]['slipping'] == 1 and g[0]['slips'] == 1
     # mu_est is what the pads carry as it slides (kinetic: a lower bound of mu_s, which
     # betters the conservative start when nothing was measured before)
     assert g[0]['mu_est'] == q / f
     assert sp >= P.grip_margin * f > before            # k times the force, within the window
+
+
+@pytest.mark.parametrize('announced', [True, False])
+def test_after_a_slip_the_grip_holds_over_the_static_friction_the_pads_carried(announced):
+    """A grip too light for the fit holds, after a slip, over what the pads carried stuck.
+
+    Stuck, the pads carry up to Q / F = 0.58 (so mu_s >= 0.58); then a slip reads kinetic
+    friction, 0.48. Told the arm's motion the law holds, once the object sticks again, at its
+    margin over the static bound, mu_safety x 0.58; without, over the kinetic reading (its
+    extra is reserve for a load nobody announced).
+    """
+    g, history, sums = law()
+    plan = np.zeros(4, PLAN_DTYPE)
+    if announced:
+        plan_announce(g, plan, 0, 0.0)                # the arm holds still: planned, no change
+    f, mu_s, i = 2.0, 0.6, 0
+    for q in np.linspace(0.5, 0.58 * f, 300):          # the load grows, the pads stuck
+        law_step(g[0], history, sums, MU_GRID, i, q, presliding_m(q, f, mu_s, K_T), f, plan,
+                 NO_POSITION)
+        i += 1
+    d = presliding_m(0.58 * f, f, mu_s, K_T)
+    for _ in range(int(g[0]['window']) + 1):            # it slides: kinetic friction 0.48 F
+        d += 4 * P.slip_speed_mps * DT_S
+        law_step(g[0], history, sums, MU_GRID, i, 0.48 * f, d, f, plan, NO_POSITION)
+        i += 1
+    assert g[0]['slipping'] == 1 and g[0]['mu_est'] == pytest.approx(0.48)
+    for _ in range(int(g[0]['window'] + g[0]['rest']) + 1):   # stuck again
+        law_step(g[0], history, sums, MU_GRID, i, 0.48 * f, d, f, plan, NO_POSITION)
+        i += 1
+    assert g[0]['slipping'] == 0
+    expected = P.mu_safety * 0.58 if announced else 0.48
+    assert g[0]['mu_est'] == pytest.approx(expected, rel=1e-12)
+    assert g[0]['mu_est'] < mu_s                        # never above what holds
 
 
 def pick_and_place():

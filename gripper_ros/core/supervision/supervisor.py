@@ -50,8 +50,9 @@ import math
 
 from gripper_ros.core.config import (GripperConfig, numbers_of, PlantParams, shipped_config,
                                      SupervisorParams)
-from gripper_ros.core.control.load_grip import (GRIP_DTYPE, HISTORY_ROWS, law_step, make_law,
-                                                MU_GRID, plan_announce, PLAN_DTYPE, PLAN_ROWS)
+from gripper_ros.core.control.load_grip import (GRIP_DTYPE, HISTORY_ROWS, law_for, law_step,
+                                                make_law, MU_GRID, plan_announce, PLAN_DTYPE,
+                                                PLAN_ROWS)
 from gripper_ros.core.records import (copy_fields, face_kernel, FLOATS_2D, RecordField,
                                       RecordParams, set_fields)
 from gripper_ros.core.supervision.requests import GraspTargets, MoveTargets, RequestError
@@ -600,7 +601,7 @@ def _track_load(s, m, law, law_buffers, plan, t_ns, force_n, shear_n, displaceme
     history = law_buffers[:HISTORY_ROWS, :g.window + 1]
     sums = law_buffers[HISTORY_ROWS:, :MU_GRID.size]
     s.tg_force_setpoint_n = law_step(g, history, sums, MU_GRID, t_ns, shear_n, displacement_m,
-                                     force_n, plan)
+                                     force_n, plan, s.position_m)
     if g.overload_ns == -1 or s.overload_ns != NO_NS or not may_answer:
         return NO_ANSWER
     s.overload_ns = t_ns
@@ -821,17 +822,8 @@ def format_message(code: int, record, plant: PlantParams, text: str = '') -> str
 
 
 def load_law(config: GripperConfig) -> tuple:
-    """Return the load-tracking grip of ``config`` for a supervisor (``make_law``'s arrays).
-
-    Sampled at the force stage's period, the pads' tangential stiffness and displacement
-    sensing as configured, at most the force 24 V holds.
-    """
-    pads = config.pad_sensor
-    return make_law(config.load_grip, config.plant.max_force_n,
-                    config.contact.pad_tangential_stiffness_n_per_m,
-                    config.force.sample_time_s, pads.displacement_noise_m,
-                    pads.displacement_resolution_m, pads.shear.latency_s,
-                    pads.shear.bandwidth_hz, config.plant.gravity_mps2)
+    """Return the load-tracking grip of ``config`` for a supervisor (``law_for``'s arrays)."""
+    return law_for(config)
 
 
 def _ns_or_none(value) -> int | None:
