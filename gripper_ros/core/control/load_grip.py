@@ -162,6 +162,7 @@ GRIP_DTYPE = np.dtype([
     ('lead_s', np.float64),            # the lead of the rise the plan asks for now (0: none)
     ('pregrip_until_ns', np.int64),    # an unweighed lift's grip stays at its most until then
     ('fall_time_s', np.float64),       # a known fall: first order, no faster than this
+    ('most_lead_ns', np.int64),        # no rise on this contact needs a longer lead
 ], align=True)
 """The law's settings and state."""
 
@@ -216,6 +217,7 @@ def make_law(params: LoadGripParams, max_force_n: float, tangential_stiffness_n_
     r['loaded_ns'] = -1
     r['pregrip_until_ns'] = -1
     r['fall_time_s'] = fall_time_s
+    _most_lead(r)
     history = np.zeros((HISTORY_ROWS, int(r['window']) + 1))
     sums = np.zeros((2, MU_GRID.size))
     return rec, history, sums
@@ -485,6 +487,20 @@ def _contact(g, force_n, position_m):
     gained = force_n - g.contact_force_n
     if travel > 0.0 and gained >= 0.5 * g.touch_force_n:
         g.stiffness_n_per_m = gained / travel
+        _most_lead(g)
+
+
+@numba.njit(cache=True)
+def _most_lead(g):
+    """Bound every lead on this contact: the rise from nothing to the most (``most_lead_ns``).
+
+    The electrical rise's log is at most ln(1 / band), the travel's at most the whole 24 V
+    force over k: a breakpoint further ahead needs nothing yet.
+    """
+    t = g.electrical_time_s * math.log(1.0 / g.settle_band) + 2.0 * g.dt_s
+    if g.stiffness_n_per_m < math.inf and g.reflected_mass_kg > 0.0:
+        t += 2.0 * math.sqrt(g.reflected_mass_kg / g.stiffness_n_per_m)
+    g.most_lead_ns = round(t * 1e9)
 
 
 @numba.njit(cache=True)
@@ -530,11 +546,10 @@ def _lift_coming(g, plan, t_ns, force_n):
     lift's instant is the plan's next breakpoint; once past, its weight reaches the law
     through the shear channel's latency and settling.
     """
-    lead_ns = _lead_ns(g, force_n, g.max_force_n)
     after_ns = g.channel_settle_ns + round(g.normal_delay * g.dt_s * 1e9)
     for i in range(g.plan_count):
         d = plan[i].t_ns - t_ns
-        if d > lead_ns:
+        if d > g.most_lead_ns or (d > 0 and d > _lead_ns(g, force_n, g.max_force_n)):
             return -1
         if d >= -after_ns:
             return plan[i].t_ns
@@ -590,7 +605,7 @@ def plan_load_ratio(g, plan, t_ns, load_n, force_n, margin, mu):
         g.plan_primed = 1
     hi, i = _planned_accel(g, plan, t_ns)
     mass_kg = load_n / g.plan_filtered
-    horizon_ns = t_ns + _lead_ns(g, force_n, g.max_force_n)
+    horizon_ns = t_ns + g.most_lead_ns
     while i < g.plan_count and plan[i].t_ns <= horizon_ns:
         a = plan[i].accel_mps2
         if a > hi:
