@@ -20,7 +20,7 @@ from gripper_ros.wire import LiftProfile
 import numpy as np
 import pytest
 
-BASE = load_config()
+BASE = load_config()                                  # the shipped instant lift-off
 # the study's arm: the weight passes from the support to the pads over 0.1 s
 CONFIG = with_values(BASE, {'contact.lift_off_s': DEFAULT_LIFT_OFF_S})
 P = CONFIG.load_grip
@@ -146,6 +146,23 @@ def test_an_overload_is_said_before_the_object_falls():
     assert math.isfinite(run.overload_s)
     assert run.outcome == 'HOLDING' or run.overload_s < run.lost_s
     assert f'{MAX_N:.2f} N at 24 V' in run.note
+
+
+@pytest.mark.parametrize('announce', [True, False])
+def test_a_frictionless_object_is_called_overloaded_before_it_falls(announce):
+    """Friction 0 holds nothing, whatever the grip: OVERLOADED is said before the object is out.
+
+    Lifted at once, it slides out of the 20 mm pads in sqrt(2 L / (g + a)). The pads carry no
+    shear of it, so the law raises the grip to the most and, the slide not slowing there, says
+    so while it is still between them.
+    """
+    g, a = BASE.plant.gravity_mps2, 3.0
+    run = simulate_load_grip(BASE, 0.05, 0.5, 0.0, 0.0, Lift(a, 0.2, 1.0), 'load_tracking',
+                             announce=announce)
+    assert run.outcome == 'OBJECT_LOST'
+    assert run.lost_s == pytest.approx(math.sqrt(2 * BASE.contact.pad_length_m / (g + a)),
+                                       abs=2 * DT_S)
+    assert math.isfinite(run.overload_s) and run.overload_s < run.lost_s, run.note
 
 
 def test_grip_study_prints_a_row_per_law_and_refuses_bad_input():
