@@ -14,7 +14,7 @@ from gripper_ros.apps.grip_study import DEFAULT_LIFT_OFF_S
 from gripper_ros.core.config import load_config
 from gripper_ros.core.control.load_grip import (law_step, make_law, MU_GRID, plan_announce,
                                                 PLAN_DTYPE)
-from gripper_ros.core.physics.hold import Lift, presliding_m
+from gripper_ros.core.physics.hold import HoldModel, HoldState, Lift, presliding_m
 from gripper_ros.studies.grip_runs import simulate_load_grip
 from gripper_ros.wire import LiftProfile
 import numpy as np
@@ -165,19 +165,50 @@ def test_a_frictionless_object_is_called_overloaded_before_it_falls(announce):
     assert math.isfinite(run.overload_s) and run.overload_s < run.lost_s, run.note
 
 
+@pytest.mark.parametrize('mass, mu, accel', [(2.0, 0.6, 5.0), (0.5, 0.9, 3.0), (1.0, 0.4, 6.0)])
+def test_the_instant_slip_bound_is_the_hold_models_own_slide(mass, mu, accel):
+    """The least slip of a reacting grip, in closed form, against the hold model integrated.
+
+    The weight lands on the touch and the grip rises at 24 V as the stalled motor's current,
+    F(t) = F_24V - (F_24V - F0) exp(-t / tau); the model slides against kinetic friction.
+    """
+    from gripper_ros.apps.grip_study import instant_slip_bound_m
+    tau = BASE.plant.inductance_h / BASE.plant.resistance_ohm
+    f0 = P.touch_force_n
+    hold = HoldModel(mass, mu, 0.8 * mu, 1.0, BASE.plant.gravity_mps2, Lift(accel, 0.0, 10.0))
+    hold.begin(0, mass)
+    hold.fire_events(0)
+    dt, t = tau / 2000, 0.0
+    while hold.state is not HoldState.STUCK or t == 0.0:
+        mid = t + 0.5 * dt                                 # the grip at the middle of the piece
+        hold.advance(MAX_N - (MAX_N - f0) * math.exp(-mid / tau), dt)
+        t += dt
+    bound = instant_slip_bound_m(BASE, mass, mu, 0.8 * mu, accel)
+    assert hold.slip_m == pytest.approx(bound, rel=1e-4)
+    # beyond kinetic friction at 24 V, m (g + A) > 2 mu_k F_24V, the slide never stops
+    assert instant_slip_bound_m(BASE, 2.0, 0.4, 0.32, 3.0) == math.inf
+
+
 def test_grip_study_prints_a_row_per_law_and_refuses_bad_input():
     from gripper_ros.apps.grip_study import main
     import contextlib
     import io
     out = io.StringIO()
     with contextlib.redirect_stdout(out):
-        assert main(['--masses', '1.2', '--frictions', '0.5']) == 0
+        assert main(['--masses', '1.2', '--frictions', '0.5', '--instant-masses', '2',
+                     '--instant-frictions', '0.6', '--instant-steps', '5']) == 0
     lines = out.getvalue().splitlines()
     for label in ('load-tracking, announced', 'load-tracking, unannounced'):
         row = next(line for line in lines if line.startswith(label))
         cases, lost = row[len(label):].split()[:2]
         assert (cases, lost) == ('6', '0')              # six motions, none lost
     assert sum(line.startswith('friction,') for line in lines) == 2
+    # the instant step: a table of its own, the bounds beside it
+    instant = lines[next(i for i, line in enumerate(lines) if 'instant steps' in line):]
+    row = next(line for line in instant if line.startswith('load-tracking, announced'))
+    assert row.split()[2:5] == ['1', '0', '0'] and float(row.split()[5]) == 0.0
+    assert any(line.startswith('announced: the weight is unknown') for line in instant)
+    assert any(line.startswith('unannounced: the least slip') for line in instant)
     err = io.StringIO()
     with contextlib.redirect_stderr(err):
         assert main(['--masses', '1,nan']) == 2
