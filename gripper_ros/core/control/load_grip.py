@@ -217,7 +217,7 @@ def make_law(params: LoadGripParams, max_force_n: float, tangential_stiffness_n_
     r['loaded_ns'] = -1
     r['pregrip_until_ns'] = -1
     r['fall_time_s'] = fall_time_s
-    _most_lead(r)
+    _most_lead(rec)
     history = np.zeros((HISTORY_ROWS, int(r['window']) + 1))
     sums = np.zeros((2, MU_GRID.size))
     return rec, history, sums
@@ -490,6 +490,7 @@ def _contact(g, force_n, position_m):
         _most_lead(g)
 
 
+@face_kernel(GRIP_DTYPE)
 @numba.njit(cache=True)
 def _most_lead(g):
     """Bound every lead on this contact: the rise from nothing to the most (``most_lead_ns``).
@@ -497,6 +498,7 @@ def _most_lead(g):
     The electrical rise's log is at most ln(1 / band), the travel's at most the whole 24 V
     force over k: a breakpoint further ahead needs nothing yet.
     """
+    g = as_record(g)
     t = g.electrical_time_s * math.log(1.0 / g.settle_band) + 2.0 * g.dt_s
     if g.stiffness_n_per_m < math.inf and g.reflected_mass_kg > 0.0:
         t += 2.0 * math.sqrt(g.reflected_mass_kg / g.stiffness_n_per_m)
