@@ -53,7 +53,7 @@ follow the load the pads feel, ``F_sp(t) = k F_load(t) / (2 mu_est)``, with a ma
   rate, keeps it above the slip limit. No plan: the law above, exactly.
 
 The supervisor runs :func:`law_step` each tick for a grasp of unknown mass
-(``core/supervision/supervisor.py``); one grasp and hold of the study is
+(``core/supervision/machine.py``, ``_track_load``); one grasp and hold of the study is
 :func:`gripper_ros.studies.grip_runs.simulate_load_grip`.
 """
 from __future__ import annotations
