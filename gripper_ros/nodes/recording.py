@@ -325,7 +325,7 @@ def bag_metadata(graph, request: dict | None, placed: dict | None) -> dict:
     """
     rerun = {'request': request, 'object': placed} if request is not None else {}
     return {'gripper_ros': {'format': BAG_FORMAT, 'namespace': graph.namespace,
-                            'time_mode': graph.options.time_mode,
+                            'time_mode': graph.plant.time_mode.parameter,
                             'state_rate_hz': float(graph.plant.state_rate_hz)},
             **rerun,
             'controllers': graph.controller_settings(),
