@@ -1,7 +1,7 @@
 """What several test modules share.
 
 Running a console main, writing an MCAP file again, holding a closed-loop re-run to its
-recording, and the package's console scripts as setup.py declares them.
+recording, the package's console scripts as setup.py declares them, and checking a doc's examples.
 """
 from __future__ import annotations
 
@@ -10,6 +10,8 @@ from dataclasses import asdict
 import json
 from pathlib import Path
 import re
+import subprocess
+import sys
 from typing import Callable
 
 import numpy as np
@@ -18,6 +20,16 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[1]
 SWEEP_OUTPUT = REPO / 'docs' / 'contact_sweep.txt'
 """``contact_sweep``'s output, as docs/RESULTS.md quotes it."""
+DOC_EXAMPLE_MODULES = {
+    'test_docs_fingers.py': ('contact_sweep_fingers.txt',),
+    'test_docs_studies.py': ('contact_sweep.txt', 'grip_study.txt'),
+    'test_docs_bag_tools.py': ('BAG_TOOLS.md', 'RESULTS.md', 'STUDIES.md', 'USING.md'),
+    'test_docs_transcripts.py': ('IDENTIFICATION.md', 'results_whatif.md', 'GRIP.md'),
+}
+"""The test module that checks each doc's example outputs (``scripts/doc_examples.py --check``).
+
+Four modules of about the same time (2.5 minutes each at a load of 5), since a module stays on
+one worker (scripts/test.sh): together they are a third of the suite's work."""
 
 
 def console_scripts() -> dict[str, str]:
@@ -257,3 +269,16 @@ def wait_future(future, timeout_s: float = 120.0):
     future.add_done_callback(lambda _f: done.set())
     assert done.wait(timeout_s), 'no answer in time'
     return future.result()
+
+
+def doc_examples(*args: str, timeout_s: float = 3600.0):
+    """Run ``scripts/doc_examples.py ARGS``; return the completed process (output captured)."""
+    return subprocess.run([sys.executable, str(REPO / 'scripts' / 'doc_examples.py'), *args],
+                          stdin=subprocess.DEVNULL, capture_output=True, text=True,
+                          timeout=timeout_s, check=False)
+
+
+def assert_doc_examples_printed(doc: str, scratch: Path) -> None:
+    """Assert that every example output ``doc`` shows is what its command prints now."""
+    done = doc_examples('--check', '--scratch', str(scratch), doc)
+    assert done.returncode == 0, done.stdout[-6000:] + done.stderr[-2000:]

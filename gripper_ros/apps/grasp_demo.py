@@ -71,11 +71,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('--object-mass', type=float, default=0.0, metavar='KG',
                    help="the simulated object's real mass, not told to the controller "
                         '(0 = the requested --mass)')
-    p.add_argument('--static-friction', type=float, default=0.0, metavar='MU',
+    p.add_argument('--static-friction', type=float, default=None, metavar='MU',
                    help="the simulated object's real mu_s on the pads, not told to the "
-                        'controller (0 = configured default)')
-    p.add_argument('--kinetic-friction', type=float, default=0.0, metavar='MU',
-                   help='its real mu_k (<= mu_s; 0 = configured default)')
+                        'controller (0 = frictionless; with --kinetic-friction, neither = the '
+                        'configured friction)')
+    p.add_argument('--kinetic-friction', type=float, default=None, metavar='MU',
+                   help='its real mu_k (<= mu_s; 0 = it slides without friction)')
     p.add_argument('--lift-delay', type=float, default=LIFT_DELAY_S,
                    help='seconds from HOLDING to the lift (default %(default)g)')
     p.add_argument('--lift-duration', type=float, default=LIFT_DURATION_S,
@@ -166,9 +167,10 @@ def main(argv: list[str] | None = None) -> int:
     for w, m in objects:
         if not (math.isfinite(w) and math.isfinite(m)):
             return _fail(f'width and mass must be finite, got {w!r}, {m!r}')
-    from gripper_ros.apps.common import negative_option
+    from gripper_ros.apps.common import friction_option, negative_option
     negative = negative_option(args, ('lift', 'lift_delay', 'lift_duration', 'object_mass',
-                                      'static_friction', 'kinetic_friction', 'lift_off'))
+                                      'static_friction', 'kinetic_friction', 'lift_off')) or \
+        friction_option(args)
     if negative:
         return _fail(negative)
     from gripper_ros.core.physics.hold import MAX_LIFT_OFF_S

@@ -6,7 +6,8 @@
 
 Times, in ONE process run (so that ratios compare figures taken under the same machine load):
 
-- ``simulate_grasp`` of each Table V object with ``--hold-s`` of hold after HOLDING, run
+- ``simulate_grasp`` of each Table V object with ``--hold-s`` of hold after HOLDING, and of an
+  object of unknown mass (the load-tracking grip, the arm announcing a pick-and-place), run
   compiled (the default path) and, as the in-run baseline, tick by tick from Python over the
   same compiled functions (``trace=``: what a loop driven from Python, like the graph's nodes,
   costs without DDS), and compiled keeping every message as a closed-loop re-run needs them
@@ -40,6 +41,9 @@ import time
 
 TABLE_V = ((0.01, 1.27), (0.05, 1.69), (0.1, 0.75))
 """The paper's Table V objects: width (m), mass (kg)."""
+UNKNOWN_MASS = (0.05, 0.0)
+"""A 50 mm object of unknown mass (0.6 kg, mu_s 0.5): the load-tracking grip runs each tick,
+through a pick-and-place of 3 m/s^2 its arm announces (lifted off over 0.1 s)."""
 OVERHEAD_ITEMS = 400
 """Trivial tasks sent one a task through the engine to measure what a task costs it."""
 BATCH_RUNS = 3
@@ -53,17 +57,25 @@ TRACE_STATE_PERIOD_NS = 10_000_000
 def _ticks(config, width_m: float, mass_kg: float, hold_s: float, traced: bool,
            captured: bool = False) -> int:
     from gripper_ros.core.runtime.headless import simulate_grasp
+    more = {}
+    if mass_kg == 0.0:
+        from gripper_ros.core.physics.hold import Lift
+        from gripper_ros.wire import LiftProfile
+        more = {'object_mass_kg': 0.6, 'static_friction': 0.5, 'kinetic_friction': 0.4,
+                'lift': Lift(3.0, 0.2, 1.2, LiftProfile.PICK_AND_PLACE, lift_off_s=0.1),
+                'announce': True}
     if captured:
         return len(simulate_grasp(config, width_m, mass_kg, hold_s=hold_s,
-                                  trace_state_period_ns=TRACE_STATE_PERIOD_NS).series.ticks)
+                                  trace_state_period_ns=TRACE_STATE_PERIOD_NS,
+                                  **more).series.ticks)
     if traced:
         count = [0]
 
         def trace(*_):
             count[0] += 1
-        simulate_grasp(config, width_m, mass_kg, hold_s=hold_s, trace=trace)
+        simulate_grasp(config, width_m, mass_kg, hold_s=hold_s, trace=trace, **more)
         return count[0]
-    return len(simulate_grasp(config, width_m, mass_kg, hold_s=hold_s).series.ticks)
+    return len(simulate_grasp(config, width_m, mass_kg, hold_s=hold_s, **more).series.ticks)
 
 
 def _batch_ticks(case: dict, result) -> int:
@@ -88,7 +100,8 @@ def measure(repeat: int = 5, hold_s: float = 1.0, batch: int = 32, jobs_list=(1,
     _ticks(config, *TABLE_V[0], 0.0, traced=True)
     _ticks(config, *TABLE_V[0], 0.0, traced=False, captured=True)
     out['first_call_s'] = time.perf_counter() - t0
-    for width_m, mass_kg in TABLE_V:
+    _ticks(config, *UNKNOWN_MASS, hold_s, traced=False)
+    for width_m, mass_kg in TABLE_V + (UNKNOWN_MASS,):
         row = {'width_m': width_m, 'mass_kg': mass_kg}
         for name, traced, captured in (('compiled', False, False),
                                        ('python_driven', True, False),

@@ -556,6 +556,13 @@ class PlantSimulatorNode(GripperNode):
                               request.damping_n_s_per_m, request.mass_kg,
                               request.static_friction, request.kinetic_friction,
                               request.pad_length_m)
+            if request.default_friction:
+                if request.static_friction or request.kinetic_friction:
+                    raise ValueError(
+                        f'default_friction asks for the configured friction; static_friction '
+                        f'and kinetic_friction must then be 0, got {request.static_friction!r} '
+                        f'and {request.kinetic_friction!r}')
+                obj = self.plant.configured_friction(obj)
             lift = Lift(request.lift_acceleration_mps2, request.lift_delay_s,
                         request.lift_duration_s, request.lift_profile,
                         request.lift_frequency_hz, request.lift_off_s) \

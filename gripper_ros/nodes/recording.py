@@ -361,7 +361,7 @@ def recorded_grasp(graph, bag_dir, width_m: float, mass_kg: float,
                'friction_coefficient': friction_coefficient,
                'acceleration_mps2': acceleration_mps2, 'width_tolerance_m': width_tolerance_m}
     obj = {'width_m': placed_width, 'stiffness_n_per_m': stiffness_n_per_m,
-           'damping_n_s_per_m': damping_n_s_per_m,
+           'damping_n_s_per_m': damping_n_s_per_m, 'default_friction': 0.0,
            **{k: int(v) if k == 'fault' else float(v) for k, v in hold.items()}}
     tap = graph_tap(graph)
     try:
