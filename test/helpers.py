@@ -20,6 +20,26 @@ SWEEP_OUTPUT = REPO / 'docs' / 'contact_sweep.txt'
 """``contact_sweep``'s output, as docs/RESULTS.md quotes it."""
 
 
+EXECUTOR_BOUND_S = 60.0
+"""A bound on an executor's thread running a task it was given, never reached unless it hangs."""
+
+
+def in_executor(executor, action: Callable):
+    """Run ``action`` in the thread that spins ``executor``, wait until it has run, return its value.
+
+    Destroy a node or an entity of one that an executor spins in another thread this way:
+    rclpy's executor (Jazzy, executors.py ``_wait_for_ready_callbacks``) still adds to its wait
+    set an event handler whose destruction another thread requested meanwhile, and the
+    InvalidHandle that raises ends its spinning thread, so that every later callback is lost.
+    """
+    import threading
+    done = threading.Event()
+    task = executor.create_task(action)
+    task.add_done_callback(lambda _: done.set())
+    assert done.wait(EXECUTOR_BOUND_S), 'the executor did not run the task: is it spinning?'
+    return task.result()
+
+
 def console_scripts() -> dict[str, str]:
     """Return setup.py's console scripts: executable name -> ``module:function``."""
     tree = ast.parse((REPO / 'setup.py').read_text())

@@ -316,11 +316,7 @@ class BagRecorder:
                 return
             self._closed = True
         atexit.unregister(self.close)
-        for sub in self._subscriptions:
-            try:
-                self._node.destroy_subscription(sub)
-            except Exception:  # noqa: BLE001 - node already destroyed / context shut down
-                pass
+        self._destroy_subscriptions()
         self._stop.set()
         if self._thread is not threading.current_thread():
             self._thread.join()
@@ -360,6 +356,35 @@ class BagRecorder:
         return False
 
     # --- internals ----------------------------------------------------------------------------
+
+    def _destroy_subscriptions(self) -> None:
+        """Destroy this recorder's subscriptions in the thread that spins its node, if any.
+
+        rclpy's executor (Jazzy, executors.py ``_wait_for_ready_callbacks``) still adds to its
+        wait set an event handler whose destruction another thread requested meanwhile, and
+        the InvalidHandle that raises ends its spinning thread: every node it spins then goes
+        deaf. In the executor's own thread nothing races; a message taken after close() is
+        ignored.
+        """
+        subscriptions, self._subscriptions = self._subscriptions, []
+        if not subscriptions:
+            return
+        node = self._node
+
+        def destroy() -> None:
+            for sub in subscriptions:
+                try:
+                    node.destroy_subscription(sub)
+                except Exception:  # noqa: BLE001 - node already destroyed / context shut down
+                    pass
+        executor = getattr(node, 'executor', None)
+        try:
+            if executor is not None:
+                executor.create_task(destroy)
+                return
+        except Exception:  # noqa: BLE001 - an executor already shut down: nothing spins
+            pass
+        destroy()
 
     def _on_message(self, topic: str, data: bytes, info: Any = None) -> None:
         """Queue a message of one of this recorder's own subscriptions."""
