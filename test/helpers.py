@@ -40,6 +40,29 @@ def in_executor(executor, action: Callable):
     return task.result()
 
 
+def wait_for_recording(folder: Path, pattern: str = 'grasp_*',
+                       bound_s: float = EXECUTOR_BOUND_S) -> Path:
+    """Return the bag under ``folder`` matching ``pattern`` once it holds a message.
+
+    A recording process writes its bag a chunk at a time while it records: a test that waits
+    for the first one acts while the recording runs, however long the process took to get there.
+    """
+    import time
+
+    from gripper_ros.bags.reader import BagError, read_bag
+    deadline = time.monotonic() + bound_s
+    while True:
+        for bag in sorted(folder.glob(pattern)):
+            try:
+                if read_bag(bag, allow_empty=True).message_count > 0:
+                    return bag
+            except BagError:
+                pass                        # not a bag yet (no file, no header)
+        assert time.monotonic() < deadline, f'no {pattern} under {folder} holds a message ' \
+            f'after {bound_s:g} s'
+        time.sleep(0.05)
+
+
 def console_scripts() -> dict[str, str]:
     """Return setup.py's console scripts: executable name -> ``module:function``."""
     tree = ast.parse((REPO / 'setup.py').read_text())

@@ -506,6 +506,37 @@ def test_a_consumer_starved_past_the_wait_is_counted_in_one_line(recorded, tmp_p
         f'{n} on {JS}): not acknowledged by every reliable subscriber within 500 ms']
 
 
+def test_a_loop_waits_before_its_history_drops_what_a_reader_lacks(recorded, node_factory,
+                                                                   tmp_path):
+    """A keep_last writer drops its oldest sample when full, acknowledged or not.
+
+    So a replay looping into a reader that acknowledges nothing stops once a topic's
+    unacknowledged messages fill its history (1000: a pass is 150), waits for the
+    acknowledgements up to ``wait_for_all_acked_ms`` and only then lets the writer drop: the
+    1000 counted, per topic, /clock's too.
+    """
+    consumer = subprocess.Popen([sys.executable, '-c', STARVED_CONSUMER,
+                                 str(tmp_path / 'unused.pickle')],
+                                stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True,
+                                env=_replay_env())
+    stop = threading.Event()
+    player = bag_replay.BagPlayer(node_factory('looping_player'), read_bag(tmp_path / 'run1'),
+                                  bag_replay.ReplayOptions(rate=50.0, loop=True, topics=[JS],
+                                                           clock=True,
+                                                           wait_for_all_acked_ms=300))
+    try:
+        assert consumer.stdout.readline().strip() == 'READY'
+        assert player.wait_for_subscribers(1, BOUND_S)
+        consumer.send_signal(signal.SIGSTOP)
+        player.play(stop, progress=lambda _line: player.undelivered and stop.set())
+    finally:
+        consumer.send_signal(signal.SIGCONT)
+        consumer.kill()
+        consumer.wait()
+    assert player.undelivered == {JS: 1000, CLK: 1000}
+    assert player.published > 1000
+
+
 def test_truncated_recorder_file(recorded, node_factory, tmp_path, capsys):
     """A real recorder file cut in the middle: complete messages recovered; CLIs exit 3."""
     src = tmp_path / 'run1' / 'run1_0.mcap'

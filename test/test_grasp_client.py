@@ -5,6 +5,7 @@ import subprocess
 import sys
 import time
 
+from helpers import wait_for_recording
 import pytest
 
 
@@ -179,9 +180,9 @@ def test_signal_during_a_recorded_grasp_leaves_a_complete_bag(tmp_path, sig):
     for line in proc.stdout:
         if 'grasping width' in line:
             break
-    time.sleep(1.0)          # well inside the grasp (3.8 s of simulated time, paced)
+    wait_for_recording(tmp_path)            # recording: the grasp takes 3.8 s, paced
     proc.send_signal(sig)
-    out, _ = proc.communicate(timeout=30)
+    out, _ = proc.communicate(timeout=120)   # beyond its own stop bound
     assert proc.returncode == 130, out
     bags = sorted(tmp_path.glob('grasp_*'))
     assert len(bags) == 1

@@ -432,7 +432,7 @@ def _published_since(graph, tap: GraphTap, before: dict) -> dict:
 
 
 def drain_published(graph, tap: GraphTap, recorder: BagRecorder, before: dict,
-                    received_before: dict, timeout_s: float = 10.0) -> None:
+                    received_before: dict, timeout_s: float = 60.0) -> None:
     """Wait until the tap has received every message published since ``before``.
 
     Time stands still then; a tick the tap still holds for its decision is written. /tf
