@@ -25,7 +25,7 @@ EXECUTOR_BOUND_S = 60.0
 
 
 def in_executor(executor, action: Callable):
-    """Run ``action`` in the thread that spins ``executor``, wait until it has run, return its value.
+    """Run ``action`` in the thread that spins ``executor``; wait for it and return its value.
 
     Destroy a node or an entity of one that an executor spins in another thread this way:
     rclpy's executor (Jazzy, executors.py ``_wait_for_ready_callbacks``) still adds to its wait
