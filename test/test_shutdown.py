@@ -313,13 +313,18 @@ def test_a_destroy_that_holds_the_gil_still_ends_the_process(gil_held_stops, sig
 
     The C watchdog (``process.arm_hard_bound``) ends the process anyway: exit 1, after
     ``Timeout`` and every thread's stack (the stuck ``destroy_node`` among them) on stderr.
-    The bound is a few seconds; the check allows far more, well short of the 600 s block.
+    The bound is a few seconds (more on a loaded machine: ``process.stop_bound_s``); the check
+    allows far more, well short of the 600 s block.
     """
+    import re
+
     from gripper_ros.nodes.process import CLEAN_UP_LIMIT_S, GIL_HELD_MARGIN_S
     stopped = gil_held_stops[how, sig.name]
     bound_s = CLEAN_UP_LIMIT_S + GIL_HELD_MARGIN_S
     assert stopped.returncode == 1, f'exit {stopped.returncode}\n{stopped.output}'
-    assert f'Timeout (0:00:{bound_s:02.0f})!' in stopped.output, stopped.output
+    said = re.search(r'Timeout \((\d+):(\d\d):(\d\d)(\.\d+)?\)!', stopped.output)
+    assert said and 3600 * int(said[1]) + 60 * int(said[2]) + int(said[3]) >= int(bound_s), \
+        stopped.output
     assert 'in stuck' in stopped.output, stopped.output
     assert stopped.exit_s < GIL_HELD_FOR_S / 10, stopped.exit_s
 
