@@ -317,7 +317,7 @@ def test_a_destroy_that_holds_the_gil_still_ends_the_process(gil_held_stops, sig
 
     The C watchdog (``process.arm_hard_bound``) ends the process anyway: exit 1, after
     ``Timeout`` and every thread's stack (the stuck ``destroy_node`` among them) on stderr.
-    The bound is a few seconds (more on a loaded machine: ``process.stop_bound_s``); the check
+    The bound is a few seconds (more on a loaded machine: ``process.load_bound_s``); the check
     allows far more, well short of the 600 s block.
     """
     import re

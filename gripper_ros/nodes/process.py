@@ -190,17 +190,17 @@ def machine_load() -> float:
         return 1.0
 
 
-def stop_bound_s(limit_s: float) -> float:
-    """Return the wall time a stop bound of ``limit_s`` (free cores) allows on this machine now.
+def load_bound_s(limit_s: float) -> float:
+    """Return the wall time a bound of ``limit_s`` (on free cores) allows on this machine now.
 
-    The bounds are for a clean-up that never ends; one that a loaded machine only slows down
-    must still end with its own exit code, not be cut short as hung.
+    A bound on a wait or a clean-up is there for one that never ends; one that a loaded machine
+    only slows down must still end as it would on free cores, not be cut short as hung.
     """
     return limit_s * machine_load()
 
 
 def arm_hard_bound(limit_s: float) -> None:
-    """End this process :func:`stop_bound_s` of ``limit_s`` from now, whatever its threads do.
+    """End this process :func:`load_bound_s` of ``limit_s`` from now, whatever its threads do.
 
     ``faulthandler.dump_traceback_later(exit=True)``: a C thread that needs no GIL writes
     ``Timeout (H:MM:SS)!`` and every thread's stack to stderr, then ``_exit(1)`` (CPython's
@@ -208,7 +208,7 @@ def arm_hard_bound(limit_s: float) -> None:
     replaces it.
     """
     import faulthandler
-    faulthandler.dump_traceback_later(stop_bound_s(limit_s), exit=True, file=sys.__stderr__)
+    faulthandler.dump_traceback_later(load_bound_s(limit_s), exit=True, file=sys.__stderr__)
 
 
 def disarm_hard_bound() -> None:
@@ -218,7 +218,7 @@ def disarm_hard_bound() -> None:
 
 
 class BoundedCleanUp:
-    """Within ``with``: if the block outlasts ``limit_s`` (:func:`stop_bound_s`), say so and exit.
+    """Within ``with``: if the block outlasts ``limit_s`` (:func:`load_bound_s`), say so and exit.
 
     A Python timer ends the process with ``code`` and one line; when the GIL is held for good,
     :func:`arm_hard_bound` ends it :data:`GIL_HELD_MARGIN_S` later with 1 and the stacks.
@@ -234,7 +234,7 @@ class BoundedCleanUp:
         self._timer = None
 
     def __enter__(self) -> BoundedCleanUp:
-        bound_s = stop_bound_s(self._limit_s)
+        bound_s = load_bound_s(self._limit_s)
         self._timer = threading.Timer(bound_s, self._give_up, (self._name, self._code, bound_s))
         self._timer.daemon = True
         arm_hard_bound(self._limit_s + GIL_HELD_MARGIN_S)
