@@ -494,7 +494,8 @@ def test_info_on_bag_without_grasp_topics_is_fine(tmp_path, capsys):
 
 @pytest.mark.parametrize('argv', [
     ['--rate', '0'], ['--rate', 'nan'], ['--start-offset', '-1'], ['--remap', 'nocolon'],
-    ['--remap', '/nope:=/x'], ['--start-offset', '1000'],
+    ['--remap', '/nope:=/x'], ['--start-offset', '1000'], ['--wait-for-all-acked', '-1'],
+    ['--wait-for-all-acked', '100000000000'],
 ])
 def test_replay_bad_options(grasp_bag, argv, capsys):
     code, captured = _run_cli(bag_replay.main, [str(grasp_bag), '--quiet'] + argv, capsys)
