@@ -14,6 +14,7 @@ import time
 from types import SimpleNamespace
 
 from gripper_ros.core.config import load_config
+from gripper_ros.core.control.servo_feedforward import feedforward_gains
 from gripper_ros.core.runtime.headless import MoveRequest, simulate_moves
 from gripper_ros.core.supervision.gripper_command import (goal_end, GoalEnd, joint_state_fields,
                                                           move_request_of, result_fields)
@@ -120,12 +121,13 @@ def _setpoint(position_m, speed_mps=0.0, max_effort_n=0.0) -> MoveTargets:
     return _targets(TRAVEL_M - position_m, speed_mps, max_effort_n)
 
 
-def test_a_setpoint_stream_is_one_move_whose_reference_leads_by_its_rate():
-    """Retarget the running setpoint move in place; lead a changing stream by rate x lead.
+def test_a_setpoint_stream_is_one_move_whose_reference_moves_on_with_it():
+    """Retarget the running setpoint move in place; the reference moves on with the stream.
 
     The stage is not restarted (one stage_id), the request keeps its id; while the setpoints
-    change the reference is the newest plus the rate (over the window) x servo_lead_s; once
-    they stop for longer than the window, the reference is the setpoint itself.
+    of a 0.04 m/s ramp come, one each 10 ms tick, the reference is the newest moved on to the
+    tick by the stream's velocity (a cubic fit: 0.04 m/s exactly), which the reference carries
+    for the stage's feed-forward; once they stop it brakes to rest and stands at the setpoint.
     """
     sup = GraspSupervisor(P, S)
     sup.step(0, 0.0, 0.0, 0.005)
@@ -140,11 +142,16 @@ def test_a_setpoint_stream_is_one_move_whose_reference_leads_by_its_rate():
         d = sup.step((10 + 10 * k) * MS, 0.5 * setpoint_m, 0.0, 0.005, speed_mps=0.02)
         assert (d.grasp_id, d.stage_id, d.phase) == (grasp_id, stage_id, Phase.MOVING)
         assert d.position_setpoint_m == pytest.approx(setpoint_m)
-    assert d.approach_setpoint_m == pytest.approx(setpoint_m + rate_mps * S.servo_lead_s)
-    window_ticks = math.ceil(S.servo_rate_window_s / 0.01)
-    for k in range(31, 32 + window_ticks):      # the stream holds its end
+    record = sup.record
+    assert d.approach_setpoint_m == pytest.approx(setpoint_m + rate_mps * 0.01)
+    assert record['d_approach_velocity_mps'] == pytest.approx(rate_mps)
+    assert record['d_approach_acceleration_mps2'] == pytest.approx(0.0, abs=1e-9)
+    brake_ticks = math.ceil((S.servo_rate_window_s + rate_mps * feedforward_gains(P)[1]
+                             / P.voltage_limit_v) / 0.01)
+    for k in range(31, 32 + brake_ticks):       # the stream stops
         d = sup.step((10 + 10 * k) * MS, 0.5 * setpoint_m, 0.0, 0.005, speed_mps=0.02)
     assert d.approach_setpoint_m == pytest.approx(setpoint_m)
+    assert record['d_approach_velocity_mps'] == 0.0
     assert (d.grasp_id, d.stage_id) == (grasp_id, stage_id)
 
 

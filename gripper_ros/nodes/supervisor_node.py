@@ -350,10 +350,12 @@ class SupervisorNode(GripperNode):
 
     def _on_joint_command(self, msg: JointState) -> None:
         """Put a new setpoint in force; refuse a bad one with one line, changing nothing."""
+        sample_ns = stamp_ns(msg.header.stamp) or None   # when it was sampled, if stamped
         try:
             move = self._commands.take(msg)
-            if move is None:
-                return                          # the setpoint in force, again
+            if move is None:                    # the setpoint in force, again: it stands
+                self.logic.servo_repeated(sample_ns)
+                return
             targets = validate_move(move, self.config.plant, self.config.supervisor)
             refusal = self._refusal(RequestKind.MOVE, preempts=True)
             if refusal:
@@ -365,7 +367,8 @@ class SupervisorNode(GripperNode):
             return
         ended = self.logic.request_servo(
             targets, after_ns=self._tick.stamp_ns,
-            message=f'preempted by a setpoint on {self.resolve_topic_name(TOPIC_JOINT_COMMANDS)}')
+            message=f'preempted by a setpoint on {self.resolve_topic_name(TOPIC_JOINT_COMMANDS)}',
+            sample_ns=sample_ns)
         self._commands.accept(move)
         self.joint_commands_taken += 1
         if ended is not None:

@@ -320,6 +320,15 @@ def governor_applied(g, buf, voltage):
     buf[12:15] = ahead
 
 
+@numba.njit(cache=True)
+def governor_applied_more(g, buf, voltage):
+    """Book ``voltage`` more, held over the sample :func:`governor_applied` booked (the model
+    is linear: its state one sample on moves by ``Bd`` times it)."""
+    _, bd, state, _, _, _, _ = governor_vectors(g, buf)
+    for j in range(3):
+        state[j] += bd[j] * voltage
+
+
 @functools.lru_cache(maxsize=GOVERNOR_TABLES_CACHED)
 def _governor_tables(ad_bytes: bytes, bd_bytes: bytes, samples: int):
     """``Ad^k`` and the forced response ``sum Ad^j Bd`` for k <= samples, once per model."""

@@ -35,7 +35,9 @@ Setpoint (:meth:`GraspSupervisor.request_servo`, ``joint_commands``): a position
 newest setpoint is a move in force at once: while the previous setpoint's move runs, its goal
 and limits change in place (same request, the position stage not restarted); otherwise what
 runs ends STOPPED and the setpoint's move starts at the next tick. A stream that keeps changing
-is led by its rate x ``servo_lead_s``. A grasp, release or move request ends a running
+moves its reference on between setpoints with its velocity and acceleration, given or estimated
+(:mod:`gripper_ros.core.control.servo_feedforward`), which the position stage also turns into
+feed-forward. A grasp, release or move request ends a running
 setpoint's move (STOPPED) and runs; requests among themselves go one at a time.
 
 The state machine is compiled (numba): :func:`supervisor_step` and :func:`supervisor_decide`
@@ -52,6 +54,9 @@ from gripper_ros.core.config import (GripperConfig, numbers_of, PlantParams, shi
                                      SupervisorParams)
 from gripper_ros.core.control.load_grip import (GRIP_DTYPE, HISTORY_ROWS, law_step, make_law,
                                                 MU_GRID, plan_announce, PLAN_DTYPE, PLAN_ROWS)
+from gripper_ros.core.control.servo_feedforward import (NO_STREAM, SERVO_DTYPE, servo_changing,
+                                                        servo_reference, servo_sample,
+                                                        servo_setup)
 from gripper_ros.core.records import (copy_fields, face_kernel, FLOATS_2D, RecordField,
                                       RecordParams, set_fields)
 from gripper_ros.core.supervision.requests import GraspTargets, MoveTargets, RequestError
@@ -105,8 +110,7 @@ SUPERVISOR_STATE = np.dtype(
      ('status_key', 'i8'),                 # phase, active, outcome and stage in one number
      ('overload_ns', 'i8'),                # when the load-tracking grip said overload
      ('tg_kind', 'i4'),                    # the current request's targets (0: none yet)
-     ('servo_rate_mps', 'f8'),             # a setpoint stream's rate (0: none)
-     ('servo_change_ns', 'i8'),            # ... when its setpoint last changed
+     ('servo', SERVO_DTYPE),               # the setpoint stream moving a move's goal
      ('travel_m', 'f8')]                   # the finger's travel: where a reference may lie
     + [('tg_' + name, 'f8') for name in _TARGET_FIELDS]
     + [('pend_kind', 'i4'), ('pend_mass_kg', 'f8'), ('pend_after_ns', 'i8')]   # 0: none
@@ -114,7 +118,8 @@ SUPERVISOR_STATE = np.dtype(
     + [('d_answer', 'i4'), ('d_running', 'b1'), ('d_contact', 'b1'),   # the tick's decision
        ('d_position_setpoint_m', 'f8'), ('d_approach_setpoint_m', 'f8'),
        ('d_force_setpoint_n', 'f8'), ('d_speed_limit_mps', 'f8'), ('d_voltage_limit_v', 'f8'),
-       ('d_holding', 'b1'), ('d_pressing', 'b1')],
+       ('d_holding', 'b1'), ('d_pressing', 'b1'),
+       ('d_approach_velocity_mps', 'f8'), ('d_approach_acceleration_mps2', 'f8')],
     align=True)
 """Everything the state machine remembers between ticks, and the decision of the last one."""
 
@@ -484,8 +489,7 @@ def _step_move(s, p, m, t_ns, position_m, force_n, sensor_voltage_v,
     if not at_rest:
         s.rest_since_ns = NO_NS
     elif abs(error_m) <= s.tg_tolerance_m:
-        if s.servo_change_ns == NO_NS or \
-                t_ns - s.servo_change_ns > p.servo_rate_window_s * 1e9:   # no stream moves it
+        if not servo_changing(s.servo, t_ns, p.servo_rate_window_s):   # no stream moves it
             return _end(s, Phase.DONE, Outcome.MOVED, MSG_MOVED, True, goal, True)
     else:
         if s.rest_since_ns == NO_NS:
@@ -627,6 +631,8 @@ def _fill(s, answer) -> None:
     s.d_holding = _holding(s)
     s.d_pressing = _pressing(s)
     s.d_contact = s.contact_ns != NO_NS
+    s.d_approach_velocity_mps = 0.0
+    s.d_approach_acceleration_mps2 = 0.0
     if answer != NO_ANSWER and s.answer_ns == NO_NS:
         s.answer = answer
         s.answer_ns = s.t_ns
@@ -690,22 +696,34 @@ def supervisor_step(k, t_ns, position_m, force_n, sensor_voltage_v, speed_mps,
         if overloaded != NO_ANSWER:
             answer = overloaded
     _fill(s, answer)
-    _lead(s, p)
+    _follow(s, p)
 
 
 @_kernel
-def _lead(s, p) -> None:
-    """Lead the reference of a setpoint stream that keeps changing by its rate x the lead."""
-    if s.d_running and s.phase == Phase.MOVING and s.servo_rate_mps != 0.0 and \
-            s.t_ns - s.servo_change_ns <= p.servo_rate_window_s * 1e9:
-        ahead = s.d_approach_setpoint_m + s.servo_rate_mps * p.servo_lead_s
-        s.d_approach_setpoint_m = min(max(ahead, 0.0), s.travel_m)
+def _follow(s, p) -> None:
+    """Move the reference on with a setpoint stream that keeps changing (servo_feedforward)."""
+    if s.d_running and s.phase == Phase.MOVING and s.servo.t_ns != NO_STREAM:
+        (s.d_approach_setpoint_m, s.d_approach_velocity_mps,
+         s.d_approach_acceleration_mps2) = servo_reference(
+            s.servo, s.t_ns, p.servo_rate_window_s, p.servo_lead_s, s.tg_speed_mps, s.travel_m)
+
+
+@face_kernel(_KERNEL_ARRAYS, int, float, float, float)
+@_kernel
+def supervisor_servo_sample(k, t_ns, position_m, velocity_mps, acceleration_mps2) -> None:
+    """Take a setpoint of the stream, of instant ``t_ns`` (velocity, acceleration: NaN if not
+    given)."""
+    s = k[K_STATE][0]
+    p = k[K_PARAMS][0]
+    servo_sample(s.servo, t_ns, position_m, velocity_mps, acceleration_mps2,
+                 p.servo_fit_memory_s, p.servo_rate_window_s)
 
 
 _RELAYED_FIELDS = ('stamp_ns', 'revision', 'position_m', 'velocity_mps', 'force_n')
 """What a StageReference relays of its PlantTick, as read."""
 _DECIDED_FIELDS = ('running', 'contact', 'position_setpoint_m', 'approach_setpoint_m',
-                   'force_setpoint_n', 'speed_limit_mps', 'voltage_limit_v')
+                   'force_setpoint_n', 'speed_limit_mps', 'voltage_limit_v',
+                   'approach_velocity_mps', 'approach_acceleration_mps2')
 """What it carries of the tick's decision (the state's ``d_*`` fields)."""
 
 
@@ -924,6 +942,7 @@ class GraspSupervisor(_StateView):
             self._s[name] = math.nan
         self._s['revision'] = NO_NS
         self._s['travel_m'] = plant.max_travel_m
+        servo_setup(state['servo'], plant)
         self._s['d_answer'] = NO_ANSWER
         self._s['t_ns'] = 0
         self._params = np.zeros(1, SUPERVISOR_PARAMS)
@@ -942,7 +961,6 @@ class GraspSupervisor(_StateView):
         self._targets: GraspTargets | MoveTargets | None = None
         self._pending_targets: GraspTargets | MoveTargets | None = None
         self._servo_id = NO_NS                   # the id of the last setpoint's move
-        self._servo_anchor = (NO_NS, 0.0)        # (t_ns, setpoint) its rate is measured from
         self._preempted: Decision | None = None  # the end of one, by the last request
         self._text = ''                          # a message given by stop() or fault()
         self._message = (-1, '')                 # (msg_seq, text) formatted last
@@ -1043,8 +1061,7 @@ class GraspSupervisor(_StateView):
                                'waiting to start')
         elif self.running:
             raise RequestError(f'a {self.kind} is running (phase {self.phase.name})')
-        self._s['servo_change_ns'] = NO_NS      # no setpoint stream moves this request's goal
-        self._s['servo_rate_mps'] = 0.0
+        self._s['servo']['t_ns'] = NO_STREAM    # no setpoint stream moves this request's goal
 
     def _wait(self, kind: str, targets, mass_kg: float, after_ns: int | None):
         """Write a request that starts at the first tick after ``after_ns`` (None: the next)."""
@@ -1115,7 +1132,9 @@ class GraspSupervisor(_StateView):
         return self._servo_id == self.grasp_id + (1 if self.pending else 0)
 
     def request_servo(self, targets: MoveTargets, after_ns: int | None = None,
-                      message: str = 'preempted by a new setpoint') -> Decision | None:
+                      message: str = 'preempted by a new setpoint', *,
+                      velocity_mps: float = math.nan, acceleration_mps2: float = math.nan,
+                      sample_ns: int | None = None) -> Decision | None:
         """Put a position setpoint in force (a move, :func:`validate_move`) at once.
 
         The setpoint is the one command in force, as a position command interface is to the
@@ -1124,15 +1143,20 @@ class GraspSupervisor(_StateView):
         its id); otherwise a running or waiting request ends STOPPED with ``message`` and the
         setpoint's move starts at the first tick after ``after_ns`` (a hold or a stalled press
         ends as it starts, as before any move).
+        ``velocity_mps`` and ``acceleration_mps2`` are the setpoint's own (NaN: estimated from
+        the stream), ``sample_ns`` the simulated instant it was sampled at (:meth:`_instant`);
+        the reference moves on with them (:mod:`~gripper_ros.core.control.servo_feedforward`).
+        The same targets again while their move runs are no new request (:meth:`servo_repeated`).
         Returns the decision that ended a preempted request (to be answered), else None.
         """
         s = self._s
+        t_ns = self._instant(sample_ns)
+        moving = self.servo and self.running and self.phase is Phase.MOVING
+        if moving:
+            self._promote_started()             # else the started move's targets come back
         if self.servo and self.pending:          # not started yet: it starts with these
             self._wait(RequestKind.MOVE, targets, 0.0, after_ns)
-            return None
-        if self.servo and self.running and self.phase is Phase.MOVING:
-            self._promote_started()             # else the started move's targets come back
-            self._measure_rate(targets)
+        elif moving and targets != self._targets:     # else the same again: it stands
             for name in _TARGET_FIELDS:
                 s['tg_' + name] = getattr(targets, name, 0.0)
             position_m = float(s['position_m'])
@@ -1145,31 +1169,35 @@ class GraspSupervisor(_StateView):
                     targets.timeout_s
             s['rest_since_ns'] = NO_NS
             self._targets = targets
-            return None
-        ended = None
-        if self.pending or self.running:        # a hold or a press ends as the move starts
-            ended = self.stop(message)
-        self._wait(RequestKind.MOVE, targets, 0.0, after_ns)
-        self._servo_id = self.grasp_id + 1
-        self._servo_anchor = (int(s['t_ns']), targets.position_setpoint_m)
-        s['servo_rate_mps'] = 0.0
-        s['servo_change_ns'] = int(s['t_ns'])   # a stream's first setpoint: not done at once
-        return ended
+        elif not moving:
+            ended = None
+            if self.pending or self.running:    # a hold or a press ends as the move starts
+                ended = self.stop(message)
+            self._wait(RequestKind.MOVE, targets, 0.0, after_ns)
+            self._servo_id = self.grasp_id + 1
+            s['servo']['t_ns'] = NO_STREAM      # a new stream (its first setpoint: not done)
+            supervisor_servo_sample(self.kernel, t_ns, targets.position_setpoint_m,
+                                    float(velocity_mps), float(acceleration_mps2))
+            return ended
+        supervisor_servo_sample(self.kernel, t_ns, targets.position_setpoint_m,
+                                float(velocity_mps), float(acceleration_mps2))
+        return None
 
-    def _measure_rate(self, targets: MoveTargets) -> None:
-        """Measure the stream's rate over at least ``servo_rate_window_s``, at most the speed.
+    def servo_repeated(self, sample_ns: int | None = None) -> None:
+        """Note the setpoint in force sent again (a topic-based hardware's repeat): no request;
+        the stream lives and stands there (velocity and acceleration 0)."""
+        if self.servo and self.running and self.phase is Phase.MOVING:
+            supervisor_servo_sample(self.kernel, self._instant(sample_ns),
+                                    float(self._s['tg_position_setpoint_m']), 0.0, 0.0)
 
-        The supervisor's time is the newest tick's: setpoints 10 ms apart may share one.
-        """
-        s = self._s
-        t_ns = int(s['t_ns'])
-        anchor_ns, anchor_m = self._servo_anchor
-        window_ns = self.params.servo_rate_window_s * 1e9
-        if t_ns - anchor_ns >= window_ns:
-            rate = (targets.position_setpoint_m - anchor_m) / ((t_ns - anchor_ns) * 1e-9)
-            s['servo_rate_mps'] = max(-targets.speed_mps, min(rate, targets.speed_mps))
-            self._servo_anchor = (t_ns, targets.position_setpoint_m)
-        s['servo_change_ns'] = t_ns
+    def _instant(self, sample_ns: int | None) -> int:
+        """Return when a setpoint was sampled: its stamp when that is on this clock (within
+        ``servo_rate_window_s`` of the newest tick), else the newest tick's instant."""
+        t_ns = int(self._s['t_ns'])
+        if sample_ns is not None and \
+                abs(int(sample_ns) - t_ns) <= self.params.servo_rate_window_s * 1e9:
+            return int(sample_ns)
+        return t_ns
 
     def stop(self, message: str = 'stopped on request') -> Decision | None:
         """End the running request, the hold, a stalled move's press or a waiting request now.
