@@ -468,6 +468,6 @@ def test_a_key_declared_without_bounds_or_a_meaning_is_caught(shipped_data):
 
 def test_the_supervisor_kernel_reads_the_numbers_its_dataclass_declares():
     from gripper_ros.core.config import numbers_of, SupervisorParams
-    from gripper_ros.core.supervision.supervisor import SUPERVISOR_PARAMS
-    assert set(SUPERVISOR_PARAMS.names) == set(numbers_of(SupervisorParams))
-    assert 'force_law' not in SUPERVISOR_PARAMS.names and 'hold_watch_s' in SUPERVISOR_PARAMS.names
+    from gripper_ros.core.supervision.machine import PARAMS_DTYPE
+    assert set(PARAMS_DTYPE.names) == set(numbers_of(SupervisorParams))
+    assert 'force_law' not in PARAMS_DTYPE.names and 'hold_watch_s' in PARAMS_DTYPE.names

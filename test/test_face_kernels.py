@@ -18,6 +18,7 @@ from gripper_ros.core.control.pid import AntiWindup, DerivativeOn, PID
 from gripper_ros.core.control.stages import (ForceStageController, LockstepAnswerer,
                                              PositionStageController, Reference)
 from gripper_ros.core.records import compile_face_kernels, copy_fields, set_fields
+from gripper_ros.core.supervision import machine, messages
 from gripper_ros.core.supervision import supervisor as sv
 from gripper_ros.core.supervision.requests import MoveTargets
 import numba
@@ -27,7 +28,7 @@ CONFIG = load_config()
 
 FACE_MODULES = ('gripper_ros.core.control.pid', 'gripper_ros.core.control.dmc',
                 'gripper_ros.core.control.contact_force', 'gripper_ros.core.control.load_grip',
-                'gripper_ros.core.control.stages', 'gripper_ros.core.supervision.supervisor')
+                'gripper_ros.core.control.stages', 'gripper_ros.core.supervision.machine')
 
 
 def _signatures() -> dict:
@@ -122,33 +123,31 @@ def test_pid_settings_and_terms_read_the_record():
     assert pid.step(1.0, 0.0) == 24.0 and pid.terms.saturated
 
 
-def _message_codes() -> dict:
-    return {name: value for name, value in vars(sv).items() if name.startswith('MSG_')}
+def test_every_answering_event_has_one_template_over_named_numbers():
+    """Each event that answers a request has a template; each name it reads is a field or derived.
 
-
-def test_every_message_code_has_one_template_over_named_numbers():
-    """Each MSG_* code has a template; every name it reads is a record field or derived."""
-    codes = _message_codes()
-    assert sorted(sv.MESSAGES) == sorted(codes.values()) == list(range(len(codes)))
-    known = set(sv.SUPERVISOR_MESSAGE.names) | set(sv.MESSAGE_VALUES) | {
+    An event answers when a transition of the machine gives it an outcome.
+    """
+    assert sorted(messages.MESSAGES) == sorted(event.name for event in machine.ANSWERS)
+    known = set(messages.MESSAGE_DTYPE.names) | set(messages.MESSAGE_VALUES) | {
         'text', 'travel_m', 'voltage_limit_v'}
-    for code, template in sv.MESSAGES.items():
+    for event, template in messages.MESSAGES.items():
         names = {field for _, field, _, _ in string.Formatter().parse(template) if field}
-        assert names <= known, (code, names - known)
+        assert names <= known, (event, names - known)
 
 
 def test_a_message_carries_the_kernels_numbers_into_its_text():
     """The numbers written by the kernel come out as the template formats them."""
-    record = np.zeros(1, sv.SUPERVISOR_MESSAGE)[0]
+    record = np.zeros(1, messages.MESSAGE_DTYPE)[0]
     record['force_n'], record['force_setpoint_n'], record['position_m'] = 24.8712, 24.87, 0.1234
-    assert sv.format_message(sv.MSG_HOLDING, record, CONFIG.plant) == \
+    assert messages.format_message('HELD', record, CONFIG.plant) == \
         'holding 24.871 N (setpoint 24.870 N) at 0.12340 m'
     record['t_ns'], record['start_ns'], record['position_setpoint_m'] = 2_500_000_000, 0, 0.1
     travel = CONFIG.plant.max_travel_m
-    assert sv.format_message(sv.MSG_MOVED, record, CONFIG.plant) == (
+    assert messages.format_message('MOVED', record, CONFIG.plant) == (
         f'moved: finger at 0.12340 m (opening {travel - 0.1234:.5f} m, goal '
         f'{travel - 0.1:.5f} m), force 24.871 N, after 2.500 s')
     record['bad_force'], record['force_n'] = True, math.nan
-    assert sv.format_message(sv.MSG_SENSOR_FAULT, record, CONFIG.plant) == (
+    assert messages.format_message('SENSOR_FAULT', record, CONFIG.plant) == (
         'fault at t=2.5000 s (2.5000 s into the hold): force sensor reads force nan N, voltage '
         '0.0 V (sensor dropout); no controller drives the motor from here on')

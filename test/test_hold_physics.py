@@ -390,9 +390,8 @@ def test_a_bad_lift_off_is_refused_naming_it(bad):
 def test_a_lifts_own_lift_off_wins_and_0_means_the_configs(lift_off_s, config_s, expected_s):
     """SetObject.lift_off_s (the Lift's) sets the hand-over; 0 leaves contact.lift_off_s."""
     import dataclasses
-    from gripper_ros.core.physics.plant import K_HOLD
     config = dataclasses.replace(CONFIG, contact=dataclasses.replace(C, lift_off_s=config_s))
     plant = make_plant(config)
     plant.set_object(GraspObject(WIDTH_M, mass_kg=1.0),
                      lift=Lift(1.0, 0.0, 1.0, lift_off_s=lift_off_s))
-    assert plant.kernel[K_HOLD][0]['lift_off_ns'] == round(expected_s * 1e9)
+    assert plant.kernel[0]['hold']['lift_off_ns'] == round(expected_s * 1e9)

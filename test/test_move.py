@@ -142,16 +142,15 @@ def test_a_setpoint_stream_is_one_move_whose_reference_moves_on_with_it():
         d = sup.step((10 + 10 * k) * MS, 0.5 * setpoint_m, 0.0, 0.005, speed_mps=0.02)
         assert (d.grasp_id, d.stage_id, d.phase) == (grasp_id, stage_id, Phase.MOVING)
         assert d.position_setpoint_m == pytest.approx(setpoint_m)
-    record = sup.record
     assert d.approach_setpoint_m == pytest.approx(setpoint_m + rate_mps * 0.01)
-    assert record['d_approach_velocity_mps'] == pytest.approx(rate_mps)
-    assert record['d_approach_acceleration_mps2'] == pytest.approx(0.0, abs=1e-9)
+    assert d.approach_velocity_mps == pytest.approx(rate_mps)
+    assert d.approach_acceleration_mps2 == pytest.approx(0.0, abs=1e-9)
     brake_ticks = math.ceil((S.servo_rate_window_s + rate_mps * feedforward_gains(P)[1]
                              / P.voltage_limit_v) / 0.01)
     for k in range(31, 32 + brake_ticks):       # the stream stops
         d = sup.step((10 + 10 * k) * MS, 0.5 * setpoint_m, 0.0, 0.005, speed_mps=0.02)
     assert d.approach_setpoint_m == pytest.approx(setpoint_m)
-    assert record['d_approach_velocity_mps'] == 0.0
+    assert d.approach_velocity_mps == 0.0
     assert (d.grasp_id, d.stage_id) == (grasp_id, stage_id)
 
 

@@ -15,8 +15,8 @@ import math
 from gripper_ros.core.config import load_config
 from gripper_ros.core.control.factories import make_plant
 from gripper_ros.core.control.servo_feedforward import (feedforward_gains, feedforward_v,
-                                                        new_servo, servo_changing,
-                                                        servo_reference, servo_sample)
+                                                        new_stream, stream_changing,
+                                                        stream_reference, stream_sample)
 import numpy as np
 import pytest
 
@@ -76,10 +76,10 @@ def test_feed_forward_alone_keeps_the_exact_plant_at_constant_speed_from_a_start
 def test_the_fit_gives_a_cubic_s_velocity_and_acceleration_exactly(instants_ms):
     """Setpoints of x = c0 + c1 t + c2 t^2 + c3 t^3 at regular or bunched instants."""
     c0, c1, c2, c3 = 0.05, 0.03, -0.02, 0.04
-    servo = new_servo(P)
+    servo = new_stream(P)
     for t_ms in instants_ms:
         t = t_ms * 1e-3
-        servo_sample(servo, t_ms * MS, c0 + t * (c1 + t * (c2 + t * c3)), math.nan, math.nan,
+        stream_sample(servo, t_ms * MS, c0 + t * (c1 + t * (c2 + t * c3)), math.nan, math.nan,
                      MEMORY_S, WINDOW_S)
     t = instants_ms[-1] * 1e-3
     assert servo[0]['velocity_mps'] == pytest.approx(c1 + t * (2 * c2 + 3 * c3 * t), rel=1e-7)
@@ -87,51 +87,51 @@ def test_the_fit_gives_a_cubic_s_velocity_and_acceleration_exactly(instants_ms):
 
 
 def test_given_velocity_and_acceleration_are_taken_as_given():
-    servo = new_servo(P)
-    servo_sample(servo, 0, 0.05, 0.02, -0.01, MEMORY_S, WINDOW_S)
+    servo = new_stream(P)
+    stream_sample(servo, 0, 0.05, 0.02, -0.01, MEMORY_S, WINDOW_S)
     assert (servo[0]['velocity_mps'], servo[0]['acceleration_mps2']) == (0.02, -0.01)
 
 
 def test_the_reference_moves_on_then_brakes_to_rest_then_stands_at_the_setpoint():
     """Closed forms: x + v t + a t^2 / 2 for the window; then braking at D = 24 V / k_a."""
     x, v, a = 0.05, 0.02, 0.01
-    servo = new_servo(P)
-    servo_sample(servo, 0, x, v, a, MEMORY_S, WINDOW_S)
+    servo = new_stream(P)
+    stream_sample(servo, 0, x, v, a, MEMORY_S, WINDOW_S)
     d = P.voltage_limit_v / feedforward_gains(P)[1]
     t = 0.5 * WINDOW_S
-    assert servo_reference(servo, round(t * 1e9), WINDOW_S, 0.0, 0.05, TRAVEL_M) == \
+    assert stream_reference(servo, round(t * 1e9), WINDOW_S, 0.0, 0.05, TRAVEL_M) == \
         pytest.approx((x + v * t + 0.5 * a * t * t, v + a * t, a), rel=1e-12)
     x_w, v_w = x + v * WINDOW_S + 0.5 * a * WINDOW_S ** 2, v + a * WINDOW_S
     t = 0.5 * v_w / d                          # halfway through braking
-    assert servo_reference(servo, round((WINDOW_S + t) * 1e9), WINDOW_S, 0.0, 0.05,
+    assert stream_reference(servo, round((WINDOW_S + t) * 1e9), WINDOW_S, 0.0, 0.05,
                            TRAVEL_M) == pytest.approx((x_w + v_w * t - 0.5 * d * t * t,
                                                        v_w - d * t, -d), rel=1e-6)
     stop_s = WINDOW_S + v_w / d
-    assert servo_reference(servo, round((stop_s + 0.001) * 1e9), WINDOW_S, 0.0, 0.05,
+    assert stream_reference(servo, round((stop_s + 0.001) * 1e9), WINDOW_S, 0.0, 0.05,
                            TRAVEL_M) == (x, 0.0, 0.0)
     # the speed limit caps it, the travel bounds it
-    assert servo_reference(servo, 0, WINDOW_S, 0.0, 0.01, TRAVEL_M)[1] == 0.01
-    servo_sample(servo, 1, TRAVEL_M - 1e-4, 0.05, 0.0, MEMORY_S, WINDOW_S)
-    assert servo_reference(servo, 100 * MS, WINDOW_S, 0.0, 0.05, TRAVEL_M) == (TRAVEL_M, 0.0, 0.0)
+    assert stream_reference(servo, 0, WINDOW_S, 0.0, 0.01, TRAVEL_M)[1] == 0.01
+    stream_sample(servo, 1, TRAVEL_M - 1e-4, 0.05, 0.0, MEMORY_S, WINDOW_S)
+    assert stream_reference(servo, 100 * MS, WINDOW_S, 0.0, 0.05, TRAVEL_M) == (TRAVEL_M, 0.0, 0.0)
 
 
 def test_a_setpoint_the_motor_cannot_reach_in_time_restarts_the_estimate():
     """A stream at 0.03 m/s, then 20 mm on in 10 ms (2 m/s): a jump, velocity unknown again."""
-    servo = new_servo(P)
+    servo = new_stream(P)
     for k in range(10):
-        servo_sample(servo, k * 10 * MS, 0.05 + 0.0003 * k, math.nan, math.nan, MEMORY_S,
+        stream_sample(servo, k * 10 * MS, 0.05 + 0.0003 * k, math.nan, math.nan, MEMORY_S,
                      WINDOW_S)
     assert servo[0]['velocity_mps'] == pytest.approx(0.03, rel=1e-9)
-    servo_sample(servo, 100 * MS, 0.073, math.nan, math.nan, MEMORY_S, WINDOW_S)
+    stream_sample(servo, 100 * MS, 0.073, math.nan, math.nan, MEMORY_S, WINDOW_S)
     assert (servo[0]['velocity_mps'], servo[0]['acceleration_mps2']) == (0.0, 0.0)
-    assert servo_reference(servo, 110 * MS, WINDOW_S, 0.0, 0.05, TRAVEL_M) == (0.073, 0.0, 0.0)
+    assert stream_reference(servo, 110 * MS, WINDOW_S, 0.0, 0.05, TRAVEL_M) == (0.073, 0.0, 0.0)
 
 
 def test_a_stream_changes_while_new_setpoints_come_and_a_repeat_stands():
-    servo = new_servo(P)
-    servo_sample(servo, 0, 0.05, math.nan, math.nan, MEMORY_S, WINDOW_S)
-    servo_sample(servo, 10 * MS, 0.0503, math.nan, math.nan, MEMORY_S, WINDOW_S)
-    servo_sample(servo, 20 * MS, 0.0503, 0.0, 0.0, MEMORY_S, WINDOW_S)   # the same again
-    assert servo_reference(servo, 30 * MS, WINDOW_S, 0.0, 0.05, TRAVEL_M) == (0.0503, 0.0, 0.0)
-    assert servo_changing(servo, round((0.01 + WINDOW_S) * 1e9), WINDOW_S)
-    assert not servo_changing(servo, round((0.01 + WINDOW_S) * 1e9) + 1, WINDOW_S)
+    servo = new_stream(P)
+    stream_sample(servo, 0, 0.05, math.nan, math.nan, MEMORY_S, WINDOW_S)
+    stream_sample(servo, 10 * MS, 0.0503, math.nan, math.nan, MEMORY_S, WINDOW_S)
+    stream_sample(servo, 20 * MS, 0.0503, 0.0, 0.0, MEMORY_S, WINDOW_S)   # the same again
+    assert stream_reference(servo, 30 * MS, WINDOW_S, 0.0, 0.05, TRAVEL_M) == (0.0503, 0.0, 0.0)
+    assert stream_changing(servo, round((0.01 + WINDOW_S) * 1e9), WINDOW_S)
+    assert not stream_changing(servo, round((0.01 + WINDOW_S) * 1e9) + 1, WINDOW_S)

@@ -18,7 +18,8 @@ STATUS_ROW = np.dtype(
     [('stamp_ns', 'i8'), ('phase', 'i4'), ('active_controller', 'i4'),
      ('switch_criterion', 'i4'), ('grasp_id', 'i8'), ('outcome', 'i4'),
      ('position_setpoint_m', 'f8'), ('force_setpoint_n', 'f8'), ('position_m', 'f8'),
-     ('force_n', 'f8'), ('contact', 'b1'), ('stage_id', 'i8'), ('approach_setpoint_m', 'f8')],
+     ('force_n', 'f8'), ('contact', 'b1'), ('stage_id', 'i8'), ('approach_setpoint_m', 'f8'),
+     ('pending_request', 'i4')],
     align=True)
 """The supervisor's state on a tick it changed, as ``supervisor/status`` reports it."""
 OBJECT_ROW = np.dtype(
@@ -108,8 +109,9 @@ class GraspSeries:
             if not (ref.size and (last['stamp_ns'] < ref['stamp_ns'][-1] or (
                     out['outcome'][-1] == last['outcome'] and out['phase'][-1] == last['phase']))):
                 final = np.zeros(1, DECISION_ROW)
-                for name in STATUS_ROW.names:
-                    final[name] = last[name]
+                for name in DECISION_ROW.names:
+                    if name in STATUS_ROW.names:
+                        final[name] = last[name]
                 final['seed_voltage_v'] = np.nan
                 out = np.concatenate((out, final))
         return out

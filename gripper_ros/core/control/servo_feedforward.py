@@ -32,7 +32,7 @@ the time between them (plus the window) is a jump, not a trajectory: the estimat
 there, so the newest setpoint is in force at once and the position law makes the least-time
 move to it.
 
-The kernels work on one :data:`SERVO_DTYPE` record (the supervisor keeps it in its state); the
+The kernels work on one :data:`STREAM_DTYPE` record (the supervisor keeps it in its state); the
 stage calls :func:`feedforward_v` with its own sampling time.
 """
 from __future__ import annotations
@@ -51,7 +51,7 @@ FIT_DEGREE = 3
 """The fit's polynomial degree: a cubic, whose acceleration is unbiased by a constant jerk."""
 
 
-SERVO_DTYPE = np.dtype([
+STREAM_DTYPE = np.dtype([
     ('t_ns', 'i8'),                        # the newest setpoint's instant (NO_STREAM: none)
     ('changed_ns', 'i8'),                  # the instant of the last that changed
     ('position_m', 'f8'),                  # ... the newest setpoint
@@ -83,17 +83,22 @@ def voltage_needed_v(plant: PlantParams, velocity_mps, acceleration_mps2):
     return k_v * np.asarray(velocity_mps) + k_a * np.asarray(acceleration_mps2)
 
 
-def new_servo(plant: PlantParams) -> np.ndarray:
-    """Return a 1-element :data:`SERVO_DTYPE` array holding no stream, for this plant."""
-    record = np.zeros(1, SERVO_DTYPE)
-    servo_setup(record, plant)
+def new_stream(plant: PlantParams) -> np.ndarray:
+    """Return a 1-element :data:`STREAM_DTYPE` array holding no stream, for this plant."""
+    record = np.zeros(1, STREAM_DTYPE)
+    stream_setup(record, plant)
     return record
 
 
-def servo_setup(record, plant: PlantParams) -> None:
+def stream_bounds(plant: PlantParams) -> tuple[float, float]:
+    """Return (jump speed in m/s, most acceleration at rest in m/s^2) of a stream's record: the
+    free speed at the voltage limit, and the limit over ``k_a``."""
+    return plant.max_free_speed_mps, plant.voltage_limit_v / feedforward_gains(plant)[1]
+
+
+def stream_setup(record, plant: PlantParams) -> None:
     """Write the plant's bounds into ``record`` (a 1-element array); it holds no stream."""
-    record['jump_speed_mps'] = plant.max_free_speed_mps
-    record['max_acceleration_mps2'] = plant.voltage_limit_v / feedforward_gains(plant)[1]
+    record['jump_speed_mps'], record['max_acceleration_mps2'] = stream_bounds(plant)
     record['t_ns'] = NO_STREAM
 
 
@@ -144,14 +149,14 @@ def _fit(s, degree, memory_s):
 @numba.njit(cache=True)
 def _moves_for_s(s, window_s):
     """Return how long after the newest setpoint the reference moves: the window, then the
-    braking to rest (:func:`servo_reference`); a setpoint later than that starts a new stream."""
+    braking to rest (:func:`stream_reference`); a setpoint later than that starts a new stream."""
     v = s.velocity_mps + window_s * min(max(s.acceleration_mps2, -s.max_acceleration_mps2),
                                         s.max_acceleration_mps2)
     return window_s + abs(v) / s.max_acceleration_mps2
 
 
 @numba.njit(cache=True)
-def servo_sample(sv, t_ns, position_m, velocity_mps, acceleration_mps2, memory_s,
+def stream_sample(sv, t_ns, position_m, velocity_mps, acceleration_mps2, memory_s,
                  window_s) -> None:
     """Take the setpoint ``position_m`` of instant ``t_ns`` (velocity, acceleration: NaN if not
     given, then the fit's)."""
@@ -184,14 +189,14 @@ def servo_sample(sv, t_ns, position_m, velocity_mps, acceleration_mps2, memory_s
 
 
 @numba.njit(cache=True)
-def servo_changing(sv, t_ns, window_s) -> bool:
+def stream_changing(sv, t_ns, window_s) -> bool:
     """Tell whether the stream has changed its setpoint within ``window_s`` of ``t_ns``."""
     s = as_record(sv)
     return s.t_ns != NO_STREAM and (t_ns - s.changed_ns) * 1e-9 <= window_s
 
 
 @numba.njit(cache=True)
-def servo_reference(sv, t_ns, window_s, lead_s, speed_limit_mps, travel_m):
+def stream_reference(sv, t_ns, window_s, lead_s, speed_limit_mps, travel_m):
     """Return (position, velocity, acceleration) of the reference at ``t_ns``.
 
     Within ``window_s`` of the newest setpoint: that setpoint moved on with its velocity (at

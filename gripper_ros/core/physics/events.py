@@ -30,7 +30,7 @@ from gripper_ros.core.physics.contact import (contact_force_n, CONTACT_RIGID, CO
                                               remove_object)
 from gripper_ros.core.physics.hold import (hold_begin, hold_drive, hold_live,
                                            hold_scenario_in_progress, HoldState)
-from gripper_ros.core.physics.plant_records import K_HOLD, K_PARAMS, K_STATE
+from gripper_ros.core.records import as_record
 from gripper_ros.wire import FaultKind
 import numba
 
@@ -109,7 +109,7 @@ def fire_fault(s, p, h, sensor, fired):
 @numba.njit(cache=True)
 def plant_begin_hold(k, t_ns, grasp_mass_kg):
     """Start the lift's clock at ``t_ns``; 1 (nothing changed) if the object left its support."""
-    h = k[K_HOLD][0]
+    h = as_record(k).hold
     if not h.has_hold or h.state == HoldState.NONE:
         return 0
     mass = h.mass_kg if h.mass_kg != 0.0 else grasp_mass_kg
@@ -122,9 +122,9 @@ def plant_begin_hold(k, t_ns, grasp_mass_kg):
 @numba.njit(cache=True)
 def plant_drive_load(k, accel_mps2):
     """Set the arm's acceleration live from now on; 1 (nothing changed) if nothing is held."""
-    h = k[K_HOLD][0]
-    if not h.has_hold or hold_drive(h, k[K_STATE][0].t_ns, accel_mps2,
-                                    k[K_PARAMS][0].after_lift_ns):
+    pl = as_record(k)
+    h = pl.hold
+    if not h.has_hold or hold_drive(h, pl.state.t_ns, accel_mps2, pl.params.after_lift_ns):
         return 1
     h.live = 1
     return 0
@@ -133,15 +133,16 @@ def plant_drive_load(k, accel_mps2):
 @numba.njit(cache=True)
 def plant_scenario_in_progress(k):
     """Whether a hold scenario (a lift) is still to be played out."""
-    h = k[K_HOLD][0]
-    return h.has_hold != 0 and hold_scenario_in_progress(
-        h, k[K_STATE][0].t_ns, k[K_PARAMS][0].after_lift_ns)
+    pl = as_record(k)
+    h = pl.hold
+    return h.has_hold != 0 and hold_scenario_in_progress(h, pl.state.t_ns,
+                                                         pl.params.after_lift_ns)
 
 
 @numba.njit(cache=True)
 def plant_schedule_fault(k, kind, at_ns, time_constant_s):
     """Fire ``kind`` at ``at_ns`` (>= now; replaces a scheduled one; NONE cancels)."""
-    s = k[K_STATE][0]
+    s = as_record(k).state
     s.fault_kind = kind
     s.fault_at_ns = at_ns if at_ns > s.t_ns else s.t_ns
     s.fault_time_constant_s = time_constant_s
@@ -150,10 +151,10 @@ def plant_schedule_fault(k, kind, at_ns, time_constant_s):
 @numba.njit(cache=True)
 def plant_cancel_fault(k):
     """Drop a scheduled fault that has not fired (its effects, once fired, stay)."""
-    k[K_STATE][0].fault_kind = FaultKind.NONE
+    as_record(k).state.fault_kind = FaultKind.NONE
 
 
 @numba.njit(cache=True)
 def plant_fault_scheduled(k):
     """Whether a fault is scheduled and has not fired."""
-    return k[K_STATE][0].fault_kind != FaultKind.NONE
+    return as_record(k).state.fault_kind != FaultKind.NONE

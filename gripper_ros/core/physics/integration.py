@@ -26,8 +26,7 @@ from gripper_ros.core.physics.hold import (hold_advance, hold_fire_events, hold_
                                            hold_stays_stuck, HoldState)
 from gripper_ros.core.physics.motor_zoh import advance_zoh, DISC_COMPLIANT, DISC_FREE
 from gripper_ros.core.physics.plant_pads import pads_rest, pads_sample
-from gripper_ros.core.physics.plant_records import (K_DISC_COEF, K_DISC_KEYS, K_FIRED, K_HOLD,
-                                                    K_PADS, K_PARAMS, K_SENSOR, K_STATE)
+from gripper_ros.core.records import as_record
 from gripper_ros.wire import FaultKind
 import numba
 
@@ -142,11 +141,12 @@ def _step_in_pieces(s, p, h, sensor, fired, keys, coef, e, t_ns, end_ns):
 @numba.njit(cache=True)
 def plant_step(k, voltage_v, duration_ns):
     """Hold ``voltage_v`` (clipped to the supply) for ``duration_ns`` >= 1 (validated)."""
-    s = k[K_STATE][0]
-    p = k[K_PARAMS][0]
-    h = k[K_HOLD][0]
-    keys = k[K_DISC_KEYS]
-    coef = k[K_DISC_COEF]
+    pl = as_record(k)
+    s = pl.state
+    p = pl.params
+    h = pl.hold
+    keys = pl.disc_keys
+    coef = pl.disc_coef
     limit = p.limit_v
     e = limit if voltage_v > limit else (-limit if voltage_v < -limit else voltage_v)
     s.voltage = e
@@ -157,12 +157,11 @@ def plant_step(k, voltage_v, duration_ns):
             h.live == 0 or hold_stays_stuck(h, s.peak, end_ns)):
         _integrate(s, p, h, keys, coef, e, duration_ns * 1e-9, start_ns * 1e-9)
     else:
-        _step_in_pieces(s, p, h, k[K_SENSOR][0], k[K_FIRED], keys, coef, e, start_ns, end_ns)
+        _step_in_pieces(s, p, h, pl.sensor, pl.fired, keys, coef, e, start_ns, end_ns)
     s.t_ns = end_ns
     s.t_now_s = end_ns * 1e-9
-    # the pads, every tick: given only the arrays they need (a call copies the tuple)
     if h.has_hold != 0 and (h.state == HoldState.STUCK or h.state == HoldState.SLIDING):
-        pads_sample(s, p, h, k[K_PADS], duration_ns)
+        pads_sample(s, p, h, pl.pads, duration_ns)
     elif not s.pads_resting:
-        pads_rest(k[K_PADS])
+        pads_rest(pl.pads)
         s.pads_resting = 1

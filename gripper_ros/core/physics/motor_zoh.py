@@ -23,6 +23,7 @@ DISC_COMPLIANT = 1
 DISC_LOADED = 2
 DISC_TABLE_SIZE = 64          # entries of the plant's table (a grasp uses about 8)
 DISC_COEFFICIENTS = 15        # one entry's coefficients, in one of the two layouts below
+DISC_KEYS = 5                 # one entry's key: kind, dt_s, stiffness, damping, x_c
 # DISC_FREE and DISC_COMPLIANT: rows i, omega, x of the augmented Ad (over [i, omega, x, 1],
 # so the contact's affine term is exact), then Bd. AFF_WX is omega's row, x's column.
 (AFF_II, AFF_IW, AFF_IX, AFF_I1, AFF_WI, AFF_WW, AFF_WX, AFF_W1, AFF_XI, AFF_XW, AFF_XX,

@@ -16,8 +16,8 @@ compiled (numba) and lives in one module a concept:
   is held;
 * :mod:`~gripper_ros.core.physics.readout`: what the sensors and motor report, the wire's tick,
   the held object's state;
-* :mod:`~gripper_ros.core.physics.plant_records`: the kernel buffers, the tuple ``k`` every
-  kernel takes.
+* :mod:`~gripper_ros.core.physics.plant_records`: the plant's one record, which every kernel
+  takes.
 
 Here: the kernels that place the finger and the object, the warm-up, and the facade. The names
 other modules use (``__all__``) are importable from here.
@@ -39,28 +39,27 @@ from gripper_ros.core.physics.events import (check_fault, clear_fault_state,
                                              plant_fault_scheduled, plant_scenario_in_progress,
                                              plant_schedule_fault, ScheduledFault)
 from gripper_ros.core.physics.force_sensor import FsrVoltageDivider
-from gripper_ros.core.physics.hold import (ANNOUNCE_ROWS, check_finite_nonnegative, HOLD_DTYPE,
+from gripper_ros.core.physics.hold import (ANNOUNCE_ROWS, check_finite_nonnegative,
                                            hold_plan, HoldModel, HoldState, Lift, ObjectState)
 from gripper_ros.core.physics.integration import plant_step
 from gripper_ros.core.physics.motor_zoh import (AFF_I1, AFF_IE, AFF_II, AFF_W1, AFF_WI, AFF_X1,
-                                                AFF_XE, AFF_XI, DISC_COEFFICIENTS, DISC_FREE,
-                                                DISC_TABLE_SIZE, discretise, raw_constants)
+                                                AFF_XE, AFF_XI, DISC_FREE, discretise,
+                                                raw_constants)
 from gripper_ros.core.physics.pad_sensor import CHANNEL_DTYPE, make_channel
-from gripper_ros.core.physics.plant_pads import PAD_CHANNELS, PAD_DTYPE
-from gripper_ros.core.physics.plant_records import (K_FIRED, K_HOLD, K_PADS, K_PARAMS, K_SENSOR,
-                                                    K_STATE, MAX_FIRED_FAULTS, PARAMS_DTYPE,
-                                                    plant_params_record, STATE_DTYPE)
+from gripper_ros.core.physics.plant_pads import PAD_CHANNELS
+from gripper_ros.core.physics.plant_records import (fill_params, PARAMS_DTYPE, PLANT_DTYPE,
+                                                    STATE_DTYPE)
 from gripper_ros.core.physics.readout import (_object_state, OBJECT_STATE_DTYPE,
                                               plant_hold_record, plant_read_tick, plant_sample,
                                               PlantSample)
-from gripper_ros.core.records import copy_fields, RecordField
+from gripper_ros.core.records import as_record, copy_fields, RecordField
 from gripper_ros.wire import FaultKind, TICK_LAYOUT
 import numba
 import numpy as np
 
 __all__ = ['check_fault', 'ContactState', 'DEFAULT_SLIP_TIME_CONSTANT_S', 'FaultKind',
-           'GraspObject', 'GripperPlant', 'HoldState', 'K_HOLD', 'Lift', 'OBJECT_STATE_DTYPE',
-           'ObjectState', 'PARAMS_DTYPE', 'plant_begin_hold', 'plant_cancel_fault',
+           'GraspObject', 'GripperPlant', 'HoldState', 'Lift', 'OBJECT_STATE_DTYPE',
+           'ObjectState', 'PARAMS_DTYPE', 'PLANT_DTYPE', 'plant_begin_hold', 'plant_cancel_fault',
            'plant_drive_load', 'plant_fault_scheduled', 'plant_hold_record', 'plant_place',
            'plant_read_tick', 'plant_sample', 'plant_scenario_in_progress',
            'plant_schedule_fault', 'plant_step', 'PlantSample', 'ScheduledFault', 'STATE_DTYPE']
@@ -81,8 +80,9 @@ def _motor_off(s):
 @numba.njit(cache=True)
 def _reset(k, open_fingers):
     """Motor at rest; optionally the finger back at the fully-open stop."""
-    s = k[K_STATE][0]
-    p = k[K_PARAMS][0]
+    pl = as_record(k)
+    s = pl.state
+    p = pl.params
     _motor_off(s)
     if open_fingers:
         s.x = 0.0
@@ -94,11 +94,12 @@ def _reset(k, open_fingers):
 @numba.njit(cache=True)
 def _touch_object(k):
     """Put the finger at rest just touching the object, motor off."""
-    s = k[K_STATE][0]
+    pl = as_record(k)
+    s = pl.state
     _motor_off(s)
     s.x = s.x_c
     s.contact = CONTACT_RIGID if s.stiffness_n_per_m == 0.0 and not \
-        k[K_PARAMS][0].chain else CONTACT_COMPLIANT
+        pl.params.chain else CONTACT_COMPLIANT
     chain_untouched(s)
 
 
@@ -106,29 +107,32 @@ def _touch_object(k):
 def _set_object(k, width_m, stiffness, damping, mass_kg, static_friction, kinetic_friction,
                 pad_length_m):
     """Place a validated object (the hold record is already the object's)."""
-    s = k[K_STATE][0]
-    p = k[K_PARAMS][0]
+    pl = as_record(k)
+    s = pl.state
+    p = pl.params
     use_object(s, p, width_m, stiffness, damping, mass_kg, static_friction, kinetic_friction,
                pad_length_m)
-    k[K_HOLD][0].live = 0
-    clear_fault_state(s, k[K_SENSOR][0])
+    pl.hold.live = 0
+    clear_fault_state(s, pl.sensor)
     refresh_contact_state(s, p)
 
 
 @numba.njit(cache=True)
 def _use_default_object(k, stiffness, damping):
     """Place a new plant's object: width 0 (nothing), the contact defaults' stiffness."""
-    use_object(k[K_STATE][0], k[K_PARAMS][0], 0.0, stiffness, damping, 0.0, 0.0, 0.0, 0.0)
+    pl = as_record(k)
+    use_object(pl.state, pl.params, 0.0, stiffness, damping, 0.0, 0.0, 0.0, 0.0)
 
 
 @numba.njit(cache=True)
 def plant_place(k, x, w, i):
     """Put the finger at travel ``x`` with motor speed ``w`` and current ``i`` (a run's start)."""
-    s = k[K_STATE][0]
+    pl = as_record(k)
+    s = pl.state
     s.x = x
     s.w = w
     s.i = i
-    refresh_contact_state(s, k[K_PARAMS][0])
+    refresh_contact_state(s, pl.params)
 
 
 @numba.njit(cache=True)
@@ -148,10 +152,10 @@ def _warm_up(kernel: tuple) -> None:
     """
     if _warmed_up:
         return
-    k = tuple(a.copy() for a in kernel)
+    k = kernel.copy()
     _reset(k, True)
     _set_object(k, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
-    k[K_STATE][0]['x'] = 0.5 * k[K_PARAMS][0]['max_travel_m']
+    k[0]['state']['x'] = 0.5 * k[0]['params']['max_travel_m']
     _reset(k, False)
     _step_and_sample(k, 0.0, 1)             # free motion: a table miss, linalg's expm loaded
     _touch_object(k)
@@ -170,9 +174,9 @@ def _warm_up(kernel: tuple) -> None:
 class GripperPlant:
     """Exact-discretised motor + lead screw + contact. Call :meth:`step` with a held voltage.
 
-    The state lives in numpy records (the tuple :attr:`kernel`, see ``K_*``); every step and
-    reading runs the compiled kernels of the modules named above. This class validates and
-    formats.
+    The state lives in one numpy record (:attr:`kernel`, a 1-element :data:`PLANT_DTYPE`
+    array); every step and reading runs the compiled kernels of the modules named above. This
+    class validates and formats.
     """
 
     def __init__(self, params: PlantParams, sensor: FsrVoltageDivider,
@@ -195,18 +199,16 @@ class GripperPlant:
         self._raw = raw_constants(params)
         self._object_record = np.zeros(1, OBJECT_STATE_DTYPE)   # _object_state writes it
         self._lift: Lift | None = None
-        state = np.zeros(1, STATE_DTYPE)
-        hold = np.zeros(1, HOLD_DTYPE)
-        hold[0]['state'] = HoldState.NONE
-        self.kernel = (state, plant_params_record(params, self.contact_defaults), hold,
-                       sensor.record, np.zeros((MAX_FIRED_FAULTS, 2), np.int64),
-                       np.zeros((DISC_TABLE_SIZE, 5)),
-                       np.zeros((DISC_TABLE_SIZE, DISC_COEFFICIENTS)),
-                       np.zeros(PAD_CHANNELS, PAD_DTYPE))
-        """The kernel buffers: (state, params, hold, sensor, fired faults, table keys, table,
-        pad channels with their delay lines)."""
+        self.kernel = np.zeros(1, PLANT_DTYPE)
+        """The plant's record (state, constants, hold, sensor, fired faults, discretisations,
+        pad channels), as a 1-element array."""
+        record = self.kernel[0]
+        record['hold']['state'] = HoldState.NONE
+        fill_params(record['params'], params, self.contact_defaults)
+        record['sensor'] = sensor.record[0]
+        sensor.record = self.kernel['sensor']          # the sensor's face views the plant's
         if pads is not None:
-            self.kernel[K_PARAMS][0]['pad_dt_ns'] = round(self._pad_dt_s * 1e9)
+            record['params']['pad_dt_ns'] = round(self._pad_dt_s * 1e9)
         self._seed_pads()
         _use_default_object(self.kernel, float(default.stiffness_n_per_m),
                             float(default.damping_n_s_per_m))
@@ -217,22 +219,21 @@ class GripperPlant:
     @property
     def _s(self) -> np.void:
         """The state record (looked up each time: a deep copy of the plant has its own)."""
-        return self.kernel[K_STATE][0]
+        return self.kernel[0]['state']
 
     @property
     def _h(self) -> np.void:
         """The hold record."""
-        return self.kernel[K_HOLD][0]
+        return self.kernel[0]['hold']
 
     def snapshot(self) -> tuple:
         """Return a copy of the whole state (for :meth:`restore` after a refused change)."""
-        return tuple(a.copy() for a in self.kernel), self._lift
+        return self.kernel.copy(), self._lift
 
     def restore(self, saved: tuple) -> None:
-        """Put back a :meth:`snapshot` (the buffers stay the same arrays)."""
-        arrays, self._lift = saved
-        for a, b in zip(self.kernel, arrays):
-            a[...] = b
+        """Put back a :meth:`snapshot` (the record stays the same array)."""
+        record, self._lift = saved
+        self.kernel[...] = record
 
     # ----------------------------------------------------------------- set-up
     def reset(self, open_fingers: bool = True) -> None:
@@ -264,7 +265,7 @@ class GripperPlant:
             self._h['has_hold'] = 0
             self._h['state'] = HoldState.NONE
         else:
-            self.kernel[K_HOLD][0] = hold.record[0]
+            self.kernel[0]['hold'] = hold.record[0]
             self._h['has_hold'] = 1
         self._lift = lift
         self._seed_pads()
@@ -278,7 +279,7 @@ class GripperPlant:
         for i, spec in enumerate(self._pad_specs):
             record, buffer = make_channel(spec, self._pad_dt_s,
                                           (self._pad_seed * PAD_CHANNELS + i) % 2 ** 64)
-            pad = self.kernel[K_PADS][i]
+            pad = self.kernel[0]['pads'][i]
             copy_fields(pad, record[0], CHANNEL_DTYPE.names)
             pad['line'] = buffer
         self._s['pads_resting'] = 0
@@ -333,7 +334,7 @@ class GripperPlant:
     @property
     def _hold(self) -> HoldModel | None:
         """The object's tangential hold (a view of the plant's hold record), if any."""
-        return HoldModel.view(self.kernel[K_HOLD], self._lift) if self._h['has_hold'] else None
+        return HoldModel.view(self.kernel['hold'], self._lift) if self._h['has_hold'] else None
 
     @property
     def hold_state(self) -> HoldState:
@@ -347,7 +348,7 @@ class GripperPlant:
         """
         times = np.zeros(ANNOUNCE_ROWS, np.int64)
         accels = np.zeros(ANNOUNCE_ROWS)
-        n = hold_plan(self.kernel[K_HOLD], times, accels)
+        n = hold_plan(self.kernel['hold'], times, accels)
         return [(int(times[i]), float(accels[i])) for i in range(n)]
 
     @property
@@ -393,7 +394,7 @@ class GripperPlant:
     @property
     def fired_faults(self) -> list[tuple[FaultKind, int]]:
         """(kind, t_ns) of each fault fired since set_object."""
-        rows = self.kernel[K_FIRED][:int(self._s['fired_count'])]
+        rows = self.kernel[0]['fired'][:int(self._s['fired_count'])]
         return [(FaultKind(int(kind)), int(at_ns)) for kind, at_ns in rows]
 
     def cancel_fault(self) -> None:
@@ -458,7 +459,7 @@ class GripperPlant:
 
     def discrete_force_model(self, dt_s: float) -> tuple[float, float]:
         """Exact ZOH of eq. 13: ``F[k+1] = a F[k] + b e[k]`` on a rigid object."""
-        a = math.exp(-dt_s / self.kernel[K_PARAMS][0]['tau_e'])
+        a = math.exp(-dt_s / self.kernel[0]['params']['tau_e'])
         return a, self.params.stall_force_per_volt_n * (1.0 - a)
 
     # ----------------------------------------------------------------- simulation

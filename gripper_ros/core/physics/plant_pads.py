@@ -13,8 +13,8 @@ from gripper_ros.core.physics.pad_sensor import CHANNEL_DTYPE, channel_step, MAX
 import numba
 import numpy as np
 
-# The pad channels (K_PADS rows, core/physics/pad_sensor.py), in PlantTick's order of their
-# readings.
+# The pad channels (the plant record's ``pads``, core/physics/pad_sensor.py), in PlantTick's
+# order of their readings.
 PAD_SHEAR_1, PAD_SHEAR_2, PAD_DISPLACEMENT_1, PAD_DISPLACEMENT_2 = range(4)
 PAD_CHANNELS = 4
 PAD_DTYPE = np.dtype([(name, CHANNEL_DTYPE.fields[name][0]) for name in CHANNEL_DTYPE.names]

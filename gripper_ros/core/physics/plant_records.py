@@ -1,26 +1,28 @@
-"""The plant's kernel buffers: the tuple ``k`` every plant kernel takes, and its two own records.
+"""The plant's record: everything the plant's kernels read and write, in one numpy record.
 
-``GripperPlant.kernel`` is the tuple ``k`` of the plant's arrays, indexed by ``K_*``: the state
-(:data:`STATE_DTYPE`), the constants (:data:`PARAMS_DTYPE`), the object's hold
+``GripperPlant.kernel`` is a 1-element :data:`PLANT_DTYPE` array (a compiled caller passes its
+record): the state (:data:`STATE_DTYPE`), the constants (:data:`PARAMS_DTYPE`), the object's hold
 (:data:`gripper_ros.core.physics.hold.HOLD_DTYPE`), the sensor
 (:data:`gripper_ros.core.physics.force_sensor.SENSOR_DTYPE`, the record the plant's
-:class:`~gripper_ros.core.physics.force_sensor.FsrVoltageDivider` wraps), the faults fired since
-``set_object`` (int64 rows ``(kind, t_ns)``), the table of discretisations
-(:mod:`gripper_ros.core.physics.motor_zoh`) and the pad channels
-(:mod:`gripper_ros.core.physics.plant_pads`).
+:class:`~gripper_ros.core.physics.force_sensor.FsrVoltageDivider` views), the faults fired since
+``set_object`` (rows ``(kind, t_ns)``), the table of discretisations
+(:mod:`gripper_ros.core.physics.motor_zoh`) and the pad channels with their delay lines
+(:mod:`gripper_ros.core.physics.plant_pads`). One record, not a tuple of arrays: a kernel call
+passes one pointer, where each array of a tuple costs numba a reference count in and out of
+every call it does not inline.
 """
 from __future__ import annotations
 
 from gripper_ros.core.config import ContactParams, PlantParams
 from gripper_ros.core.physics.contact_chain import PADS_IN_CHAIN
+from gripper_ros.core.physics.force_sensor import SENSOR_DTYPE
+from gripper_ros.core.physics.hold import HOLD_DTYPE
+from gripper_ros.core.physics.motor_zoh import DISC_COEFFICIENTS, DISC_KEYS, DISC_TABLE_SIZE
+from gripper_ros.core.physics.plant_pads import PAD_CHANNELS, PAD_DTYPE
 from gripper_ros.core.records import copy_fields
 import numpy as np
 
 MAX_FIRED_FAULTS = 16         # fired faults kept since set_object (the oldest are dropped)
-
-# The entries of the tuple ``GripperPlant.kernel``.
-# Few arrays: the compiled code copies the tuple on every call it does not inline.
-K_STATE, K_PARAMS, K_HOLD, K_SENSOR, K_FIRED, K_DISC_KEYS, K_DISC_COEF, K_PADS = range(8)
 
 PARAMS_DTYPE = np.dtype([
     ('rho', np.float64),                   # p / (2 pi), m per motor rad (eq. 10)
@@ -85,11 +87,21 @@ STATE_DTYPE = np.dtype([
 """The plant's mutable state: mechanics, object, slip, scheduled fault, table bookkeeping."""
 
 
-def plant_params_record(params: PlantParams, contact: ContactParams) -> np.ndarray:
-    """Return the plant's constants as a 1-element :data:`PARAMS_DTYPE` array."""
+PLANT_DTYPE = np.dtype([
+    ('state', STATE_DTYPE), ('params', PARAMS_DTYPE), ('hold', HOLD_DTYPE),
+    ('sensor', SENSOR_DTYPE),
+    ('fired', np.int64, (MAX_FIRED_FAULTS, 2)),          # (kind, t_ns) of each fault fired
+    ('disc_keys', np.float64, (DISC_TABLE_SIZE, DISC_KEYS)),
+    ('disc_coef', np.float64, (DISC_TABLE_SIZE, DISC_COEFFICIENTS)),
+    ('pads', PAD_DTYPE, (PAD_CHANNELS,)),
+], align=True)
+"""The whole plant in one record: what :class:`~gripper_ros.core.physics.plant.GripperPlant`
+holds."""
+
+
+def fill_params(r, params: PlantParams, contact: ContactParams) -> None:
+    """Write the plant's constants into ``r`` (a :data:`PARAMS_DTYPE` record)."""
     p = params
-    rec = np.zeros(1, PARAMS_DTYPE)
-    r = rec[0]
     copy_fields(r, p, {'rho': 'travel_per_rad_m', 'lever': 'force_lever_m',
                        'kt': 'torque_constant_n_m_per_a', 'kb': 'back_emf_v_s_per_rad',
                        'h': 'contact_substep_s', 'limit_v': 'voltage_limit_v'})
@@ -106,4 +118,3 @@ def plant_params_record(params: PlantParams, contact: ContactParams) -> np.ndarr
     r['finger_compliance_m_per_n'] = PADS_IN_CHAIN / finger_k if finger_k > 0.0 else 0.0
     copy_fields(r, contact, {'pad_stiffness_n_per_m1_5': 'pad_normal_stiffness_n_per_m1_5'})
     r['chain'] = 1 if finger_k > 0.0 or contact.pad_normal_stiffness_n_per_m1_5 > 0.0 else 0
-    return rec

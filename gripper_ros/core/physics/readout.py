@@ -17,8 +17,7 @@ from gripper_ros.core.physics.hold import (hold_capacity_n, hold_load_n, hold_pr
                                            hold_shear_n, HoldState, ObjectState)
 from gripper_ros.core.physics.plant_pads import (PAD_DISPLACEMENT_1, PAD_DISPLACEMENT_2,
                                                  PAD_SHEAR_1, PAD_SHEAR_2)
-from gripper_ros.core.physics.plant_records import K_HOLD, K_PADS, K_PARAMS, K_SENSOR, K_STATE
-from gripper_ros.core.records import copy_fields
+from gripper_ros.core.records import as_record, copy_fields
 import numba
 import numpy as np
 
@@ -45,9 +44,10 @@ class PlantSample(NamedTuple):
 @numba.njit(cache=True)
 def plant_sample(k):
     """Return what the sensors and motor report now, as PlantSample's fields in order."""
-    s = k[K_STATE][0]
-    p = k[K_PARAMS][0]
-    sensor = k[K_SENSOR][0]
+    pl = as_record(k)
+    s = pl.state
+    p = pl.params
+    sensor = pl.sensor
     force = contact_force_n(s, p)
     x = s.x
     if sensor.dropped_out:
@@ -73,7 +73,7 @@ def plant_sample(k):
 @numba.njit(cache=True)
 def plant_hold_record(k):
     """Return the held object's record (``HOLD_DTYPE``) of the plant ``k`` (compiled readers)."""
-    return k[K_HOLD][0]
+    return as_record(k).hold
 
 
 @numba.njit(cache=True)
@@ -92,7 +92,7 @@ def plant_read_tick(k, tick, revision, applied_source):
     r.speed_rad_s = w
     r.applied_source = applied_source
     r.revision = revision
-    pads = k[K_PADS]
+    pads = as_record(k).pads
     r.pad1_shear_n = pads[PAD_SHEAR_1].reading
     r.pad2_shear_n = pads[PAD_SHEAR_2].reading
     r.pad1_displacement_m = pads[PAD_DISPLACEMENT_1].reading
@@ -112,7 +112,8 @@ def _object_state(k, out):
     Nothing held: all zeros; an object taken away (state NONE): only how far it had slid.
     """
     o = out[0]
-    h = k[K_HOLD][0]
+    pl = as_record(k)
+    h = pl.hold
     o.state = _HOLD_NONE
     o.slip_m = o.slip_speed_mps = o.load_n = o.capacity_n = 0.0
     o.lift_acceleration_mps2 = o.shear_n = o.presliding_m = 0.0
@@ -122,7 +123,7 @@ def _object_state(k, out):
     o.slip_m = h.slip_m
     if h.state == HoldState.NONE:
         return
-    force = contact_force_n(k[K_STATE][0], k[K_PARAMS][0])
+    force = contact_force_n(pl.state, pl.params)
     copy_fields(o, h, ('state', 'slip_speed_mps', 'lost_ns'))
     o.load_n = hold_load_n(h)
     o.capacity_n = hold_capacity_n(h, force)

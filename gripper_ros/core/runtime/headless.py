@@ -32,11 +32,11 @@ from gripper_ros.core.runtime.lockstep import (Command, PlantSide, side_accept, 
                                                side_step, StageSide, SupervisorSide, Tick)
 from gripper_ros.core.series import (GraspSeries, OBJECT_ROW, rows, STATUS_ROW,
                                      TICK_STATE_ROW)
+from gripper_ros.core.supervision.machine import (NO_NS, status_changed, status_note,
+                                                  supervisor_decide)
 from gripper_ros.core.supervision.requests import (GraspRequest, MoveRequest, RequestError,
                                                    validate_move, validate_request)
-from gripper_ros.core.supervision.supervisor import (GraspSupervisor, K_LAW, K_PLAN, load_law,
-                                                     NO_NS, supervisor_decide,
-                                                     supervisor_law_arrays, supervisor_record)
+from gripper_ros.core.supervision.supervisor import GraspSupervisor, load_law
 from gripper_ros.wire import (COMMAND_LAYOUT, Controller, FaultKind, FORCE_SAMPLE_S, Outcome,
                               Phase, REFERENCE_LAYOUT, SwitchCriterion, TICK_LAYOUT)
 import numba
@@ -137,28 +137,17 @@ def _keep_row(ticks, tick_states, n, tick, phase, ref, plant_k, law) -> None:
 
 
 @numba.njit(cache=True)
-def _trace_tick(trace, tick, supervisor, plant_k, statuses, objects) -> None:
+def _trace_tick(trace, tick, sup, plant_k, statuses, objects) -> None:
     """Keep the supervisor's state when it changed and the object's when due."""
     ts = trace[0]
     t = tick[0]
     m = ts.statuses
-    if m > 0:
-        last = statuses[m - 1]
-        changed = (supervisor.phase != last.phase or supervisor.active != last.active_controller
-                   or supervisor.switch_criterion != last.switch_criterion
-                   or supervisor.grasp_id != last.grasp_id or supervisor.outcome != last.outcome
-                   or supervisor.stage_id != last.stage_id
-                   or supervisor.d_contact != last.contact)
-    else:
-        changed = True
-    if changed:
+    if m == 0 or status_changed(sup, statuses[m - 1]):
         r = statuses[m]
         copy_fields(r, t, ('stamp_ns', 'position_m', 'force_n'))
-        copy_fields(r, supervisor, ('phase', 'switch_criterion', 'grasp_id', 'outcome',
-                                    'stage_id'))
-        copy_fields(r, supervisor, ('position_setpoint_m', 'force_setpoint_n', 'contact',
-                                    'approach_setpoint_m'), '', 'd_')
-        r.active_controller = supervisor.active
+        status_note(sup, r)
+        copy_fields(r, sup.decided, ('position_setpoint_m', 'force_setpoint_n',
+                                     'approach_setpoint_m'))
         ts.statuses = m + 1
     h = plant_hold_record(plant_k)
     hold_state = h.state if h.has_hold else HoldState.NONE
@@ -185,7 +174,7 @@ def _trace_answer(trace, ref, cmd, references, commands) -> None:
 
 
 @numba.njit(cache=True)
-def announce_lift(state, plant_k, supervisor_k) -> None:
+def announce_lift(state, plant_k, sup) -> None:
     """Once the lift's clock has started, hand its plan to the supervisor, as the arm would.
 
     The graph's plant node publishes the same breakpoints on ``arm/planned_acceleration`` then;
@@ -202,15 +191,15 @@ def announce_lift(state, plant_k, supervisor_k) -> None:
     times = np.zeros(ANNOUNCE_ROWS, np.int64)
     accels = np.zeros(ANNOUNCE_ROWS)
     n = hold_plan(h, times, accels)
-    law = supervisor_k[K_LAW]
+    sup = as_record(sup)
     for i in range(n):
-        plan_announce(law[0], supervisor_k[K_PLAN], times[i], accels[i])
+        plan_announce(sup.law[0], sup.plan, times[i], accels[i])
 
 
 @numba.njit(cache=True)
-def run_lockstep(loop, side, plant_k, supervisor_k, position_k, force_k, tick, ref, cmd,
-                 ticks, tick_states, trace, trace_references, trace_commands, trace_statuses,
-                 trace_objects) -> bool:
+def run_lockstep(loop, side, plant_k, supervisor, law_buffers, position_k, force_k, tick, ref,
+                 cmd, ticks, tick_states, trace, trace_references, trace_commands,
+                 trace_statuses, trace_objects) -> bool:
     """Run the graph's loop in fast mode from ``tick`` until simulated time would pause.
 
     Each tick: keep its row, let the named stage answer, the plant react and hold the command,
@@ -219,20 +208,20 @@ def run_lockstep(loop, side, plant_k, supervisor_k, position_k, force_k, tick, r
     full (call again with larger ones: everything resumes from the records).
     """
     state = loop[0]
-    supervisor = supervisor_record(supervisor_k)
+    sup = supervisor[0]
+    s = sup.machine
     tracing = trace[0].state_period_ns > 0
     n = state.rows
     while True:
         if n == ticks.shape[0]:
             state.rows = n
             return False
-        _keep_row(ticks, tick_states, n, tick, supervisor.phase, ref, plant_k,
-                  supervisor_law_arrays(supervisor_k))
+        _keep_row(ticks, tick_states, n, tick, s.phase, ref, plant_k, sup.law)
         if tracing:
-            _trace_tick(trace, tick, supervisor, plant_k, trace_statuses, trace_objects)
+            _trace_tick(trace, tick, sup, plant_k, trace_statuses, trace_objects)
         n += 1
-        if state.hold_until_ns == NO_NS and supervisor.answer_ns != NO_NS:
-            state.hold_until_ns = supervisor.answer_ns + state.hold_ns
+        if state.hold_until_ns == NO_NS and s.answer_ns != NO_NS:
+            state.hold_until_ns = s.answer_ns + state.hold_ns
         if not state.named:
             break                                   # a FAULT: nothing drives the motor
         if ref[0].controller == Controller.POSITION:
@@ -242,14 +231,14 @@ def run_lockstep(loop, side, plant_k, supervisor_k, position_k, force_k, tick, r
         if tracing:
             _trace_answer(trace, ref, cmd, trace_references, trace_commands)
         side_accept(side, plant_k, cmd)
-        announce_lift(state, plant_k, supervisor_k)
+        announce_lift(state, plant_k, sup)
         needed = side_needs_time(plant_k, cmd) or state.woken or (
             state.hold_until_ns != NO_NS and tick[0].stamp_ns < state.hold_until_ns)
         if not needed:
             break                                   # fast mode: simulated time pauses
         state.woken = False
         side_step(side, plant_k, cmd, tick)
-        state.named = supervisor_decide(supervisor_k, tick, ref)
+        state.named = supervisor_decide(sup, law_buffers, tick, ref)
     state.rows = n
     state.done = True
     return True
@@ -311,14 +300,14 @@ class _Loop:
                   self.supervisor.law)
         if self.tracing:
             b = self.trace_buffers
-            _trace_tick(self.trace, self.tick, self.supervisor.record,
+            _trace_tick(self.trace, self.tick, self.supervisor.record[0],
                         self.plant_side.plant.kernel, b['statuses'], b['objects'])
         self.state[0]['rows'] = n + 1
 
     def run(self) -> None:
         """Run compiled until simulated time pauses."""
         ps = self.plant_side
-        while not run_lockstep(self.state, ps.state, ps.plant.kernel, self.supervisor.kernel,
+        while not run_lockstep(self.state, ps.state, ps.plant.kernel, *self.supervisor.kernel,
                                self.stages[Controller.POSITION].stage.kernel,
                                self.stages[Controller.FORCE].stage.kernel, self.tick, self.ref,
                                self.cmd, self.ticks, self.tick_states,
@@ -359,7 +348,7 @@ class _Loop:
             trace(self.plant_side.plant, tick, sup.decision, ref,
                   Command._make(self.cmd[0].item()))
             self.plant_side.accept(self.cmd)
-            announce_lift(self.state, self.plant_side.plant.kernel, sup.kernel)
+            announce_lift(self.state, self.plant_side.plant.kernel, sup.record)
             needed = self.plant_side.needs_time(self.cmd) or state['woken'] or (
                 state['hold_until_ns'] != NO_NS and tick.stamp_ns < state['hold_until_ns'])
             if not needed:

@@ -22,9 +22,10 @@ from gripper_ros.core.physics.plant import (GraspObject, GripperPlant, HoldState
                                             plant_scenario_in_progress, plant_schedule_fault,
                                             plant_step)
 from gripper_ros.core.records import RecordField
-from gripper_ros.core.supervision.supervisor import (Decision, GraspSupervisor, NO_ANSWER, NO_NS,
-                                                     status_key, supervisor_decide,
-                                                     supervisor_record)
+from gripper_ros.core.series import STATUS_ROW
+from gripper_ros.core.supervision.machine import (NO_NS, status_changed, status_note,
+                                                  supervisor_decide)
+from gripper_ros.core.supervision.supervisor import Decision, GraspSupervisor
 from gripper_ros.wire import (COMMAND_LAYOUT, Controller, FaultKind, Outcome, Phase,
                               REFERENCE_LAYOUT, TICK_LAYOUT)
 import numba
@@ -228,7 +229,8 @@ SUPERVISOR_SIDE_STATE = np.dtype(
     [('decided_stamp_ns', 'i8'), ('decided_revision', 'i8'),   # the tick last decided
      ('expected_source', 'i4'),        # who should command the next tick
      ('good_position_m', 'f8'), ('good_force_n', 'f8'),        # the last finite readings
-     ('status_key', 'i8'), ('next_status_ns', 'i8'), ('status_period_ns', 'i8')],
+     ('status', STATUS_ROW),           # what the last status said (status_changed compares)
+     ('next_status_ns', 'i8'), ('status_period_ns', 'i8')],
     align=True)
 """The supervisor node's bookkeeping between ticks (beside the supervisor's own state)."""
 
@@ -245,7 +247,7 @@ ACTIVE_SHIFT = 4
 
 
 @_kernel
-def supervisor_take_tick(k, side, data, tick, tick_bytes, ref) -> int:
+def supervisor_take_tick(sup, law_buffers, side, data, tick, tick_bytes, ref) -> int:
     """Decide the tick ``data``; FOREIGN, REPEATED, or the flags of what the node must do.
 
     A tick already decided is REPEATED (its reference goes out again). Otherwise ``ref`` holds
@@ -264,27 +266,27 @@ def supervisor_take_tick(k, side, data, tick, tick_bytes, ref) -> int:
         n.good_position_m = t.position_m
     if math.isfinite(t.force_n):
         n.good_force_n = t.force_n
-    s = supervisor_record(k)
+    record = sup[0]
+    s = record.machine
     flags = 0
-    if t.applied_source == n.expected_source or not s.d_running:
+    if t.applied_source == n.expected_source or not s.running:
         flags |= PROGRESS
-    if supervisor_decide(k, tick, ref):
+    if supervisor_decide(record, law_buffers, t, ref[0]):
         flags |= NAMED
     n.expected_source = s.active
     flags |= s.active << ACTIVE_SHIFT
-    if status_key(s) != n.status_key or t.stamp_ns >= n.next_status_ns:
+    if status_changed(record, n.status) or t.stamp_ns >= n.next_status_ns:
         flags |= STATUS_DUE
-    if s.d_answer != NO_ANSWER:
+    if s.tick_answer != Outcome.UNKNOWN:
         flags |= ANSWERED
     return flags
 
 
 @_kernel
-def supervisor_status_published(k, side, t_ns) -> None:
+def supervisor_status_published(sup, side, t_ns) -> None:
     """Note the status of ``t_ns``: the next is due one period on, or on a change."""
-    s = supervisor_record(k)
     n = side[0]
-    n.status_key = status_key(s)
+    status_note(sup[0], n.status)
     n.next_status_ns = (t_ns // n.status_period_ns + 1) * n.status_period_ns
 
 
@@ -441,19 +443,21 @@ class SupervisorSide:
         self.state = np.zeros(1, SUPERVISOR_SIDE_STATE)
         """The node's bookkeeping: the tick last decided, the last finite readings, the status."""
         n = self.state[0]
-        n['decided_stamp_ns'] = n['decided_revision'] = n['status_key'] = NO_NS
+        n['decided_stamp_ns'] = n['decided_revision'] = NO_NS
+        n['status']['stage_id'] = NO_NS           # no status yet: the first is a change
         n['expected_source'] = Controller.NONE
-        kernel, state, tick, ref = self.supervisor.kernel, self.state, self.tick_record, \
-            self.reference_record
+        (sup, buffers), state, tick, ref = self.supervisor.kernel, self.state, \
+            self.tick_record, self.reference_record
         tick_bytes = tick.view(np.uint8)
-        take = entry_point(supervisor_take_tick, kernel, state, b'', tick, tick_bytes, ref)
-        self.take_tick = lambda data: take(kernel, state, data, tick, tick_bytes, ref)
+        take = entry_point(supervisor_take_tick, sup, buffers, state, b'', tick, tick_bytes,
+                           ref)
+        self.take_tick = lambda data: take(sup, buffers, state, data, tick, tick_bytes, ref)
         """Decide a serialised tick (:func:`supervisor_take_tick`): its flags."""
 
     def status_published(self, t_ns: int, period_ns: int) -> None:
         """Note the status of ``t_ns``; the next is due ``period_ns`` on, or on a change."""
         self.state[0]['status_period_ns'] = period_ns
-        supervisor_status_published(self.supervisor.kernel, self.state, t_ns)
+        supervisor_status_published(self.supervisor.record, self.state, t_ns)
 
     @property
     def good_readings(self) -> tuple[float, float]:
@@ -467,7 +471,7 @@ class SupervisorSide:
 
     def decide_record(self, tick: np.ndarray) -> bool:
         """Decide the tick record ``tick``; True when ``reference_record`` names a stage."""
-        return bool(supervisor_decide(self.supervisor.kernel, tick, self.reference_record))
+        return bool(supervisor_decide(*self.supervisor.kernel, tick, self.reference_record))
 
     def decide(self, tick: Tick) -> tuple[Decision, Reference | None]:
         """Return the decision for ``tick`` and the reference to the stage it names (or None).

@@ -8,14 +8,20 @@ pads of friction, safety factor ``k``) by default, eq. 23's ``mu_s m (g + a)`` w
 ``supervisor.force_law: paper``. A request of mass 0 leaves the mass unknown: the grip then
 tracks the load the pads measure (:mod:`gripper_ros.core.control.load_grip`, run by the
 supervisor), from a touch at ``load_grip.touch_force_n``.
+
+The compiled supervisor keeps a request as a :data:`TARGETS_DTYPE` record (its kind, mass and
+start besides the targets): the one record type of the current, the waiting and the decided
+request (:func:`targets_record` makes one, :func:`targets_of` reads one back).
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 import math
 
 from gripper_ros.core.config import (ForceLaw, LoadGripParams, PlantParams, shipped_config,
                                      SupervisorParams)
+from gripper_ros.wire import PendingRequest
+import numpy as np
 
 MAX_TIMEOUT_S = 600.0  # simulated seconds; a longer grasp is a mistake, not a request
 
@@ -80,6 +86,47 @@ class GraspTargets:
     def approach_setpoint_m(self) -> float:
         """The position stage's target: the face of the widest object the request allows."""
         return self.position_setpoint_m - self.width_tolerance_m
+
+
+TARGETS_DTYPE = np.dtype([
+    ('kind', 'i4'),                        # PendingRequest: GRASP, RELEASE, MOVE; 0: none
+    ('mass_kg', 'f8'),                     # a grasp's declared mass (0: unknown)
+    ('after_ns', 'i8'),                    # waiting: it starts at the first tick after this
+    ('position_setpoint_m', 'f8'), ('approach_setpoint_m', 'f8'), ('force_setpoint_n', 'f8'),
+    ('friction_coefficient', 'f8'), ('timeout_s', 'f8'), ('width_tolerance_m', 'f8'),
+    ('speed_mps', 'f8'), ('max_effort_n', 'f8'), ('voltage_limit_v', 'f8'),
+    ('tolerance_m', 'f8'), ('load_tracking', 'b1')], align=True)
+"""A request as the compiled supervisor keeps it: kind, mass, start and targets (a grasp's move
+fields are 0, a move's grasp fields its own: approach = the goal, force = the effort limit)."""
+
+_TARGET_FIELDS = ('position_setpoint_m', 'approach_setpoint_m', 'force_setpoint_n',
+                  'friction_coefficient', 'timeout_s', 'width_tolerance_m', 'speed_mps',
+                  'max_effort_n', 'voltage_limit_v', 'tolerance_m', 'load_tracking')
+
+
+def targets_record(kind: PendingRequest, targets, mass_kg: float = 0.0,
+                   after_ns: int = -1) -> np.ndarray:
+    """Return ``targets`` (:class:`GraspTargets`, :class:`MoveTargets`) as a 1-element record."""
+    record = np.zeros(1, TARGETS_DTYPE)
+    r = record[0]
+    r['kind'] = int(kind)
+    r['mass_kg'] = mass_kg
+    r['after_ns'] = after_ns
+    for name in _TARGET_FIELDS:
+        r[name] = getattr(targets, name, 0.0)
+    return record
+
+
+def targets_of(record) -> GraspTargets | MoveTargets | None:
+    """Return the targets a :data:`TARGETS_DTYPE` record holds (None: no request)."""
+    kind = int(record['kind'])
+    if kind == PendingRequest.NONE:
+        return None
+    if kind == PendingRequest.MOVE:
+        return MoveTargets(*(float(record[f.name]) for f in fields(MoveTargets)))
+    return GraspTargets(*(float(record[name]) for name in (
+        'position_setpoint_m', 'force_setpoint_n', 'friction_coefficient', 'timeout_s',
+        'width_tolerance_m')), load_tracking=bool(record['load_tracking']))
 
 
 def force_setpoint_n(mass_kg: float, friction_coefficient: float, gravity_mps2: float,
