@@ -31,8 +31,8 @@ P = CONFIG.plant
 LIMIT_V = 0.8 * P.voltage_limit_v
 TOLERANCE_M = 1e-3
 TRAJECTORIES = {
-    'trapezoid closing': Trapezoid(0.01, 0.14, 0.04, 0.012),
-    'trapezoid opening': Trapezoid(0.14, 0.01, 0.04, 0.012),
+    'trapezoid closing': Trapezoid(0.01, 0.14, 0.036, 0.015),
+    'trapezoid opening': Trapezoid(0.14, 0.01, 0.036, 0.015),
     'sine': Sine(0.075, 0.06, 9.0),
     'spline': Spline(((0.0, 0.02), (4.0, 0.08), (6.0, 0.07), (10.0, 0.135), (14.0, 0.02))),
 }
