@@ -38,7 +38,8 @@ def test_the_gains_are_the_free_speed_per_volt_and_the_mechanical_time_constant(
         P.mechanical_time_constant_s + P.inductance_h * P.damping_n_m_s_per_rad
         / (P.resistance_ohm * P.damping_n_m_s_per_rad
            + P.torque_constant_n_m_per_a * P.back_emf_v_s_per_rad), rel=1e-12)
-    assert feedforward_v(k_v, k_a, 0.04, 0.0, DT_S) == pytest.approx(0.04 / P.free_speed_per_volt_mps)
+    assert feedforward_v(k_v, k_a, 0.04, 0.0, DT_S) == \
+        pytest.approx(0.04 / P.free_speed_per_volt_mps)
 
 
 def _follow_open_loop(trajectory, seconds: float):
@@ -59,7 +60,7 @@ def _follow_open_loop(trajectory, seconds: float):
 
 
 def test_feed_forward_alone_keeps_the_exact_plant_on_a_constant_acceleration():
-    """x = 0.01 + a t^2 / 2 for 3 s: no feedback, 300 zero-order holds, within 1 um."""
+    """A position 0.01 + a t^2 / 2 for 3 s: no feedback, 300 zero-order holds, within 1 um."""
     a = 0.012
     worst = _follow_open_loop(lambda t: (0.01 + 0.5 * a * t * t, a * t, a), 3.0)
     assert worst < 1e-6, worst
@@ -80,7 +81,7 @@ def test_the_fit_gives_a_cubic_s_velocity_and_acceleration_exactly(instants_ms):
     for t_ms in instants_ms:
         t = t_ms * 1e-3
         stream_sample(servo, t_ms * MS, c0 + t * (c1 + t * (c2 + t * c3)), math.nan, math.nan,
-                     MEMORY_S, WINDOW_S)
+                      MEMORY_S, WINDOW_S)
     t = instants_ms[-1] * 1e-3
     assert servo[0]['velocity_mps'] == pytest.approx(c1 + t * (2 * c2 + 3 * c3 * t), rel=1e-7)
     assert servo[0]['acceleration_mps2'] == pytest.approx(2 * c2 + 6 * c3 * t, rel=1e-6)
@@ -104,11 +105,11 @@ def test_the_reference_moves_on_then_brakes_to_rest_then_stands_at_the_setpoint(
     x_w, v_w = x + v * WINDOW_S + 0.5 * a * WINDOW_S ** 2, v + a * WINDOW_S
     t = 0.5 * v_w / d                          # halfway through braking
     assert stream_reference(servo, round((WINDOW_S + t) * 1e9), WINDOW_S, 0.0, 0.05,
-                           TRAVEL_M) == pytest.approx((x_w + v_w * t - 0.5 * d * t * t,
-                                                       v_w - d * t, -d), rel=1e-6)
+                            TRAVEL_M) == pytest.approx((x_w + v_w * t - 0.5 * d * t * t,
+                                                        v_w - d * t, -d), rel=1e-6)
     stop_s = WINDOW_S + v_w / d
     assert stream_reference(servo, round((stop_s + 0.001) * 1e9), WINDOW_S, 0.0, 0.05,
-                           TRAVEL_M) == (x, 0.0, 0.0)
+                            TRAVEL_M) == (x, 0.0, 0.0)
     # the speed limit caps it, the travel bounds it
     assert stream_reference(servo, 0, WINDOW_S, 0.0, 0.01, TRAVEL_M)[1] == 0.01
     stream_sample(servo, 1, TRAVEL_M - 1e-4, 0.05, 0.0, MEMORY_S, WINDOW_S)
@@ -120,7 +121,7 @@ def test_a_setpoint_the_motor_cannot_reach_in_time_restarts_the_estimate():
     servo = new_stream(P)
     for k in range(10):
         stream_sample(servo, k * 10 * MS, 0.05 + 0.0003 * k, math.nan, math.nan, MEMORY_S,
-                     WINDOW_S)
+                      WINDOW_S)
     assert servo[0]['velocity_mps'] == pytest.approx(0.03, rel=1e-9)
     stream_sample(servo, 100 * MS, 0.073, math.nan, math.nan, MEMORY_S, WINDOW_S)
     assert (servo[0]['velocity_mps'], servo[0]['acceleration_mps2']) == (0.0, 0.0)

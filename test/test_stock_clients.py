@@ -174,9 +174,11 @@ class TrajectoryController:
 
 
 class TrajectorySampler:
-    """joint_trajectory_controller following a smooth trajectory: from the update after it
-    came, its position at each update (trajectory.cpp's sample at the update's time); its end
-    held after it."""
+    """joint_trajectory_controller following a smooth trajectory, sampled at each update.
+
+    From the update after it came, its position at each update (trajectory.cpp's sample at the
+    update's time); its end held after it.
+    """
 
     def __init__(self):
         self.hold_m: float | None = None

@@ -401,10 +401,11 @@ class SupervisorNode(GripperNode):
     def _put_setpoint(self, targets, topic: str, width_m: float, *,
                       velocity_mps: float = math.nan, acceleration_mps2: float = math.nan,
                       sample_ns: int | None = None) -> None:
-        """Put a checked setpoint of ``topic`` in force, with its velocity and acceleration
-        (NaN: estimated from the stream) and its sample's instant (None: not known).
+        """Put a checked setpoint of ``topic`` in force.
 
-        What it ends is answered; a new move is logged and wakes a paused simulation.
+        With its velocity and acceleration (NaN: estimated from the stream) and its sample's
+        instant (None: not known). What it ends is answered; a new move is logged and wakes a
+        paused simulation.
         """
         ended = self.logic.request_servo(
             targets, after_ns=self._tick.stamp_ns,

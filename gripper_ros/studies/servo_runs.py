@@ -31,7 +31,7 @@ from gripper_ros.core.physics.plant import GraspObject
 from gripper_ros.core.runtime.lockstep import PlantSide, StageSide, SupervisorSide
 from gripper_ros.core.supervision.requests import MoveRequest, validate_move
 from gripper_ros.core.supervision.supervisor import GraspSupervisor, load_law
-from gripper_ros.wire import Controller, Outcome
+from gripper_ros.wire import Outcome
 import numpy as np
 from scipy.interpolate import CubicSpline
 
@@ -44,8 +44,11 @@ REACHED_M = 1e-5
 
 @dataclass(frozen=True)
 class Trapezoid:
-    """From ``start_m`` to ``end_m``: accelerate at ``accel_mps2`` to ``speed_mps``, cruise,
-    decelerate to rest (a triangle when the distance is too short to reach the speed)."""
+    """From ``start_m`` to ``end_m``: a trapezoidal velocity profile.
+
+    Accelerate at ``accel_mps2`` to ``speed_mps``, cruise, decelerate to rest (a triangle when
+    the distance is too short to reach the speed).
+    """
 
     start_m: float
     end_m: float
@@ -92,9 +95,11 @@ class Trapezoid:
 
 @dataclass(frozen=True)
 class Ramp:
-    """From rest at ``start_m``, at once at ``speed_mps`` for ``ramp_s``, then standing: what
-    joint_trajectory_controller makes of one position-only point (needs an infinite voltage
-    at its start)."""
+    """From rest at ``start_m``, at once at ``speed_mps`` for ``ramp_s``, then standing.
+
+    What joint_trajectory_controller makes of one position-only point (needs an infinite
+    voltage at its start).
+    """
 
     start_m: float
     speed_mps: float
@@ -102,7 +107,8 @@ class Ramp:
 
     @property
     def name(self) -> str:
-        return f'ramp from {self.start_m * 1e3:g} mm at {self.speed_mps:g} m/s for {self.ramp_s:g} s'
+        return (f'ramp from {self.start_m * 1e3:g} mm at {self.speed_mps:g} m/s for '
+                f'{self.ramp_s:g} s')
 
     @property
     def duration_s(self) -> float:
@@ -117,8 +123,10 @@ class Ramp:
 
 @dataclass(frozen=True)
 class Sine:
-    """``center - amplitude cos(2 pi t / period)`` for ``cycles`` periods: from rest at its
-    lowest, through its highest, back to rest at its lowest."""
+    """``center - amplitude cos(2 pi t / period)`` for ``cycles`` periods.
+
+    From rest at its lowest, through its highest, back to rest at its lowest.
+    """
 
     center_m: float
     amplitude_m: float

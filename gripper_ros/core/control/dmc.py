@@ -322,8 +322,10 @@ def governor_applied(g, buf, voltage):
 
 @numba.njit(cache=True)
 def governor_applied_more(g, buf, voltage):
-    """Book ``voltage`` more, held over the sample :func:`governor_applied` booked (the model
-    is linear: its state one sample on moves by ``Bd`` times it)."""
+    """Book ``voltage`` more, held over the sample :func:`governor_applied` booked.
+
+    The model is linear: its state one sample on moves by ``Bd`` times it.
+    """
     _, bd, state, _, _, _, _ = governor_vectors(g, buf)
     for j in range(3):
         state[j] += bd[j] * voltage

@@ -91,8 +91,10 @@ def new_stream(plant: PlantParams) -> np.ndarray:
 
 
 def stream_bounds(plant: PlantParams) -> tuple[float, float]:
-    """Return (jump speed in m/s, most acceleration at rest in m/s^2) of a stream's record: the
-    free speed at the voltage limit, and the limit over ``k_a``."""
+    """Return (jump speed in m/s, most acceleration at rest in m/s^2) of a stream's record.
+
+    The free speed at the voltage limit, and the limit over ``k_a``.
+    """
     return plant.max_free_speed_mps, plant.voltage_limit_v / feedforward_gains(plant)[1]
 
 
@@ -148,8 +150,11 @@ def _fit(s, degree, memory_s):
 
 @numba.njit(cache=True)
 def _moves_for_s(s, window_s):
-    """Return how long after the newest setpoint the reference moves: the window, then the
-    braking to rest (:func:`stream_reference`); a setpoint later than that starts a new stream."""
+    """Return how long after the newest setpoint the reference moves.
+
+    The window, then the braking to rest (:func:`stream_reference`); a setpoint later than that
+    starts a new stream.
+    """
     v = s.velocity_mps + window_s * min(max(s.acceleration_mps2, -s.max_acceleration_mps2),
                                         s.max_acceleration_mps2)
     return window_s + abs(v) / s.max_acceleration_mps2
@@ -157,9 +162,11 @@ def _moves_for_s(s, window_s):
 
 @numba.njit(cache=True)
 def stream_sample(sv, t_ns, position_m, velocity_mps, acceleration_mps2, memory_s,
-                 window_s) -> None:
-    """Take the setpoint ``position_m`` of instant ``t_ns`` (velocity, acceleration: NaN if not
-    given, then the fit's)."""
+                  window_s) -> None:
+    """Take the setpoint ``position_m`` of instant ``t_ns``.
+
+    Its velocity and acceleration: NaN if not given, then the fit's.
+    """
     s = as_record(sv)
     restart = s.t_ns == NO_STREAM or (t_ns - s.t_ns) * 1e-9 > _moves_for_s(s, window_s)
     dt_s = 0.0

@@ -202,11 +202,10 @@ def position_voltage_cap_v(state, ref, toward_speed_mps):
 
 @numba.njit(cache=True)
 def _position_apply_limits(st, r, measurement, feedforward):
-    """Set this tick's output limits (only a move's reference changes them); return the
-    feed-forward within them.
+    """Set this tick's output limits; return the feed-forward within them.
 
-    The law's own limits are the stage's less the feed-forward, so that every loop books the
-    voltage applied.
+    Only a move's reference changes the limits. The law's own limits are the stage's less the
+    feed-forward, so that every loop books the voltage applied.
     """
     s = st.stage
     if r.voltage_limit_v == 0.0 and r.speed_limit_mps == 0.0:
@@ -351,7 +350,8 @@ def _move_frame(st, r, feedforward):
     s.frame_advance_m = 0.0
     if feedforward != 0.0:
         dt = s.sample_time_s
-        s.frame_advance_m = dt * (r.approach_velocity_mps + 0.5 * dt * r.approach_acceleration_mps2)
+        s.frame_advance_m = dt * (r.approach_velocity_mps
+                                  + 0.5 * dt * r.approach_acceleration_mps2)
 
 
 @numba.njit(cache=True)

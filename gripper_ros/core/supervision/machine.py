@@ -22,10 +22,10 @@ shows the same table (``test_supervisor_machine`` holds the two equal).
 Everything the machine keeps is one record (:data:`SUPERVISOR_DTYPE`): its state, the
 thresholds, the current message's numbers, the current, the waiting and the decided request
 (:data:`~gripper_ros.core.supervision.requests.TARGETS_DTYPE`), a setpoint stream (its fit
-and the motion it gives the reference), and the load-tracking grip's record and the arm's plan; the grip's history is one float array
-beside it. A kernel takes ``(record, law_buffers)``: a record passes as one pointer. The
-Python face (:mod:`.supervisor`) reads the record and asks through the kernels named
-``supervisor_*``; it writes no field itself.
+and the motion it gives the reference), and the load-tracking grip's record and the arm's
+plan; the grip's history is one float array beside it. A kernel takes ``(record,
+law_buffers)``: a record passes as one pointer. The Python face (:mod:`.supervisor`) reads
+the record and asks through the kernels named ``supervisor_*``; it writes no field itself.
 """
 from __future__ import annotations
 
@@ -35,8 +35,8 @@ import math
 from gripper_ros.core.config import numbers_of, SupervisorParams
 from gripper_ros.core.control.load_grip import (GRIP_DTYPE, HISTORY_ROWS, law_step, MU_GRID,
                                                 PLAN_DTYPE, PLAN_ROWS)
-from gripper_ros.core.control.servo_feedforward import (NO_STREAM, STREAM_DTYPE,
-                                                        stream_changing, stream_reference,
+from gripper_ros.core.control.servo_feedforward import (NO_STREAM, stream_changing,
+                                                        STREAM_DTYPE, stream_reference,
                                                         stream_sample)
 from gripper_ros.core.records import as_record, copy_fields, face_kernel, FLOATS_2D, set_fields
 from gripper_ros.core.supervision.messages import MESSAGE_DTYPE, MESSAGES
@@ -828,11 +828,11 @@ def supervisor_wait(sup, law_buffers, targets, stream) -> None:
 @_kernel
 def supervisor_servo_sample(sup, law_buffers, sample_ns, position_m, velocity_mps,
                             acceleration_mps2) -> None:
-    """Take the stream's setpoint ``position_m`` sampled at ``sample_ns`` (velocity and
-    acceleration NaN when not given).
+    """Take the stream's setpoint ``position_m`` sampled at ``sample_ns``.
 
-    Its instant is ``sample_ns`` when that is on the ticks' clock (within
-    ``servo_rate_window_s`` of the newest tick; NO_NS: not known), else the newest tick's.
+    Its velocity and acceleration are NaN when not given. Its instant is ``sample_ns`` when
+    that is on the ticks' clock (within ``servo_rate_window_s`` of the newest tick; NO_NS: not
+    known), else the newest tick's.
     """
     sup = as_record(sup)
     p = sup.params

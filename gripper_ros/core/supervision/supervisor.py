@@ -362,8 +362,10 @@ class GraspSupervisor(_MachineView):
         return ended
 
     def servo_repeated(self, sample_ns: int | None = None) -> None:
-        """Note the setpoint in force sent again (a topic-based hardware's repeat): no request;
-        the stream lives and stands there (velocity and acceleration 0)."""
+        """Note the setpoint in force sent again (a topic-based hardware's repeat).
+
+        No request: the stream lives and stands there (velocity and acceleration 0).
+        """
         if self.servo and self.running and self.phase is Phase.MOVING:
             self._sample(float(self.record[0]['current']['position_setpoint_m']), 0.0, 0.0,
                          sample_ns)
