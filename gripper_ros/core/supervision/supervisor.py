@@ -344,8 +344,9 @@ class GraspSupervisor(_MachineView):
         ends as it starts, as before any move).
         ``velocity_mps`` and ``acceleration_mps2`` are the setpoint's own (NaN: estimated from
         the stream), ``sample_ns`` the simulated instant it was sampled at (None: the newest
-        tick's); the reference moves on with them (:mod:`.servo_feedforward`). The same
-        targets again while their move runs are no new request (:meth:`servo_repeated`).
+        tick's); the reference moves on with them
+        (:mod:`~gripper_ros.core.control.servo_feedforward`). The same targets again while
+        their move runs are no new request (:meth:`servo_repeated`).
         Returns the decision that ended a preempted request (to be answered), else None.
         """
         ended = None
