@@ -36,7 +36,8 @@ from gripper_ros.core.control.contact_force import CONTACT_DTYPE, contact_reset,
 from gripper_ros.core.control.dmc import (CASCADE_DTYPE, cascade_reset, cascade_step,
                                           dmc_buffer_size, DMC_DTYPE, dmc_reset,
                                           governor_applied_more, governor_buffer_size,
-                                          GOVERNOR_DTYPE, PHASE_ACCELERATE, PHASE_DMC)
+                                          GOVERNOR_DTYPE, governor_moving, PHASE_ACCELERATE,
+                                          PHASE_DMC)
 from gripper_ros.core.control.factories import (ForceControllerKind, make_force_controller,
                                                 make_position_controller, PositionControllerKind)
 from gripper_ros.core.control.pid import (law_error, LAW_NUMBERS, LAW_OK, PID_DTYPE, pid_reset,
@@ -122,6 +123,8 @@ STAGE_DTYPE = np.dtype([
     ('ff_v_per_mps2', 'f8'),               # ... and per m/s^2 of its acceleration
     ('feedforward_v', 'f8'),               # this tick's feed-forward (within its limits)
     ('frame_advance_m', 'f8'),             # how far it moves the reference by the next tick
+    ('rad_per_m', 'f8'),                   # the motor's turn per metre of the finger
+    ('back_emf_v_s_per_rad', 'f8'), ('resistance_ohm', 'f8'),   # its armature
     # force stage
     ('approach_margin', 'f8'),
     ('contact', 'u1'),                     # contact seen since activation (PI / MPC-PI cap off)
@@ -270,7 +273,7 @@ def _force_apply_limits(st, r):
 @face_kernel(STATE_DTYPE, FLOATS, REFERENCE_DTYPE, float)
 @numba.njit(cache=True)
 def stage_activate(state, buffers, ref, measurement):
-    """Restart the law for a new stage (position: from rest; force: approach or seeded PI)."""
+    """Restart the law for a new stage (position: from the finger's motion; force: seeded)."""
     st = as_record(state)
     r = as_record(ref)
     s = st.stage
@@ -280,6 +283,11 @@ def stage_activate(state, buffers, ref, measurement):
         s.frame_advance_m = 0.0
         if s.kind == KIND_MPC_PD:
             cascade_reset(st.cascade, st.pid, st.dmc, dbuf, st.governor, gbuf, measurement, 0.0)
+            if st.cascade.has_governor and math.isfinite(r.velocity_mps) and \
+                    math.isfinite(r.seed_voltage_v):      # from the finger's motion now
+                speed = r.velocity_mps * s.rad_per_m
+                governor_moving(st.governor, gbuf, (r.seed_voltage_v - s.back_emf_v_s_per_rad
+                                                    * speed) / s.resistance_ohm, speed)
         else:
             pid_reset(st.pid, 0.0, False, 0.0, True, measurement)
         return
@@ -606,6 +614,9 @@ class PositionStageController(_KernelStage):
         gain = 1.0 / ((1.0 - a) * plant.free_speed_per_volt_mps)
         s['speed_gain_limit'], s['speed_gain_speed'] = (1.0 - pole) * gain, (a - pole) * gain
         s['ff_v_per_mps'], s['ff_v_per_mps2'] = feedforward_gains(plant)
+        s['rad_per_m'] = 1.0 / plant.travel_per_rad_m
+        s['back_emf_v_s_per_rad'] = plant.back_emf_v_s_per_rad
+        s['resistance_ohm'] = plant.resistance_ohm
 
     @staticmethod
     def measurement(ref) -> float:
