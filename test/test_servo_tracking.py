@@ -17,11 +17,10 @@ stopping distance from the speed limit.
 """
 from __future__ import annotations
 
-import math
 
 from gripper_ros.core.config import load_config
-from gripper_ros.studies.servo_runs import (GIVEN, needed_peak_v, Ramp, Sine, Spline, track,
-                                            Trapezoid)
+from gripper_ros.studies.servo_runs import (farthest_m, GIVEN, needed_peak_v, Ramp, Sine,
+                                            Spline, stopping_m, track, Trapezoid)
 from gripper_ros.wire import Outcome
 import numpy as np
 import pytest
@@ -68,38 +67,19 @@ def test_unstamped_setpoints_on_time_are_tracked_within_1_mm(name):
     assert run.worst_error_m <= TOLERANCE_M
 
 
-def _farthest_m(t_s: float, speed_limit_mps: float) -> float:
-    """Return the farthest a finger at rest gets in ``t_s``: 24 V until the speed limit.
-
-    x(t) = v_max (t - tau (1 - exp(-t / tau))) until the speed v_max (1 - exp(-t / tau))
-    reaches the limit, at t_1 = tau ln(v_max / (v_max - limit)); at the limit after.
-    """
-    v_max, tau = P.max_free_speed_mps, P.mechanical_time_constant_s
-    t_1 = tau * math.log(v_max / (v_max - speed_limit_mps))
-    at = min(t_s, t_1)
-    return v_max * (at - tau * (1.0 - math.exp(-at / tau))) + speed_limit_mps * (t_s - at)
-
-
-def _stopping_m(speed_mps: float) -> float:
-    """Return how far a finger at ``speed_mps`` runs on with 24 V against it until at rest."""
-    v_max, tau = P.max_free_speed_mps, P.mechanical_time_constant_s
-    t_s = tau * math.log((speed_mps + v_max) / v_max)
-    return -v_max * t_s + (speed_mps + v_max) * tau * (1.0 - math.exp(-t_s / tau))
-
-
 def test_an_infeasible_ramp_lags_by_about_the_least_24_v_allows():
     ramp = Ramp(0.0, 0.04, 2.0)
     limit_mps = CONFIG.supervisor.move_default_speed_mps
     run = track(CONFIG, ramp, settle_s=3.0)
     on = (run.t_s >= 0.3) & (run.t_s <= ramp.ramp_s)
-    least = np.array([0.04 * t - _farthest_m(t, limit_mps) for t in run.t_s[on]])
+    least = np.array([0.04 * t - farthest_m(P, t, limit_mps) for t in run.t_s[on]])
     lag = run.error_m[on]
     overshoot = np.max(run.position_m) - ramp.at(ramp.ramp_s)[0]
     print(f'ramp 0.04 m/s from rest: worst lag {np.max(lag) * 1e3:.2f} mm (least '
           f'{np.max(least) * 1e3:.2f}), {lag[-1] * 1e3:.2f} at its end (least '
           f'{least[-1] * 1e3:.2f}); runs on {overshoot * 1e3:.2f} mm (stopping from 0.04 m/s '
-          f'takes {_stopping_m(0.04) * 1e3:.2f})')
+          f'takes {stopping_m(P, 0.04) * 1e3:.2f})')
     assert np.all(run.error_m[run.t_s <= ramp.ramp_s] >= -1e-3)      # never ahead of it
     assert np.all(lag <= least + 1.1e-3)
-    assert overshoot <= _stopping_m(limit_mps)
+    assert overshoot <= stopping_m(P, limit_mps)
     assert run.outcome is Outcome.MOVED and run.moves == 1

@@ -181,6 +181,33 @@ class Spline:
         return curve(t), np.where(on, curve(t, 1), 0.0), np.where(on, curve(t, 2), 0.0)
 
 
+def farthest_m(plant, t_s: float, speed_limit_mps: float) -> float:
+    """Return the farthest a finger at rest gets in ``t_s``: the voltage limit, then the limit.
+
+    The least lag of a ramp from rest is the ramp less this. ``x(t) = v_max (t - tau (1 -
+    exp(-t / tau)))`` until the speed ``v_max (1 - exp(-t / tau))`` reaches the limit, at
+    ``t_1 = tau ln(v_max / (v_max - limit))``; at the limit after.
+    """
+    v_max, tau = plant.max_free_speed_mps, plant.mechanical_time_constant_s
+    t_1 = tau * math.log(v_max / (v_max - speed_limit_mps))
+    at = min(t_s, t_1)
+    return v_max * (at - tau * (1.0 - math.exp(-at / tau))) + speed_limit_mps * (t_s - at)
+
+
+def stopping_m(plant, speed_mps: float, volts: float = 0.0) -> float:
+    """Return how far a finger at ``speed_mps`` runs on with ``volts`` against it.
+
+    ``volts`` 0: the voltage limit. The speed ``-v_b + (v0 + v_b) exp(-t / tau)`` (``v_b`` the
+    free speed at those volts) reaches 0 at ``tau ln((v0 + v_b) / v_b)``; the distance is its
+    integral to then.
+    """
+    v_max = plant.free_speed_per_volt_mps * (volts or plant.voltage_limit_v)
+    tau = plant.mechanical_time_constant_s
+    speed = abs(speed_mps)
+    t_s = tau * math.log((speed + v_max) / v_max)
+    return -v_max * t_s + (speed + v_max) * tau * (1.0 - math.exp(-t_s / tau))
+
+
 def needed_peak_v(config: GripperConfig, trajectory, step_s: float = 1e-3) -> float:
     """Return the most voltage the trajectory needs at any instant (its feed-forward's peak)."""
     t = np.arange(0.0, trajectory.duration_s + step_s, step_s)
