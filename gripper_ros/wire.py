@@ -454,8 +454,8 @@ REFERENCE_LAYOUT = LoopLayout(
     ('stamp_ns', 'grasp_id', 'stage_id', 'revision', 'phase', 'outcome', 'controller',
      'running', 'contact', 'position_setpoint_m', 'approach_setpoint_m', 'force_setpoint_n',
      'position_m', 'velocity_mps', 'force_n', 'seed_voltage_v', 'speed_limit_mps',
-     'voltage_limit_v'),
-    'qIII5B7x9d')
+     'voltage_limit_v', 'approach_velocity_mps', 'approach_acceleration_mps2'),
+    'qIII5B7x11d')
 COMMAND_LAYOUT = LoopLayout(
     'gripper_interfaces/msg/MotorCommand',
     ('stamp_ns', 'grasp_id', 'stage_id', 'revision', 'source', 'phase', 'outcome', 'running',

@@ -151,7 +151,7 @@ def write_grasp_bag(path: Path, topics=None, n_ticks: int = N_TICKS, custom_data
                 POS_REF if g['source'] == 1 else FORCE_REF: REFERENCE_LAYOUT.pack(
                     t_ns, GRASP_ID, g['stage'], 0, g['phase'], g['outcome'], g['source'],
                     running, k >= K_CONTACT, POS_SP_M, POS_SP_M, FORCE_SP_N, g['pos'], 0.0,
-                    g['force'], 0.0, 0.0, 0.0),
+                    g['force'], 0.0, 0.0, 0.0, 0.0, 0.0),
                 COMMAND: COMMAND_LAYOUT.pack(t_ns, GRASP_ID, g['stage'], 0, g['source'],
                                              g['phase'], g['outcome'], running, True,
                                              _voltage(k + 1), 1e-3, 0.0),

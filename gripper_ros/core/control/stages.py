@@ -34,12 +34,15 @@ import math
 from gripper_ros.core.config import ConfigError, GripperConfig
 from gripper_ros.core.control.contact_force import CONTACT_DTYPE, contact_reset, contact_step
 from gripper_ros.core.control.dmc import (CASCADE_DTYPE, cascade_reset, cascade_step,
-                                          dmc_buffer_size, DMC_DTYPE, governor_buffer_size,
-                                          GOVERNOR_DTYPE)
+                                          dmc_buffer_size, DMC_DTYPE, dmc_reset,
+                                          governor_applied_more, governor_buffer_size,
+                                          GOVERNOR_DTYPE, governor_moving, PHASE_ACCELERATE,
+                                          PHASE_DMC)
 from gripper_ros.core.control.factories import (ForceControllerKind, make_force_controller,
                                                 make_position_controller, PositionControllerKind)
 from gripper_ros.core.control.pid import (law_error, LAW_NUMBERS, LAW_OK, PID_DTYPE, pid_reset,
                                           pid_step_checked, py_max, py_min)
+from gripper_ros.core.control.servo_feedforward import feedforward_gains, feedforward_v
 from gripper_ros.core.records import as_record, copy_fields, face_kernel, FLOATS, RecordPair
 from gripper_ros.wire import COMMAND_LAYOUT, Controller, REFERENCE_LAYOUT
 import numba
@@ -52,16 +55,23 @@ DEFAULT_POSITION_CONTROLLER = PositionControllerKind.MPC_PD
 DEFAULT_FORCE_CONTROLLER = ForceControllerKind.CONTACT_AWARE
 DEFAULT_APPROACH_FORCE_MARGIN = 1.0
 
-Reference = namedtuple('Reference', REFERENCE_LAYOUT.fields, defaults=(0.0, 0.0))
-"""One StageReference's fields, in message order (``Reference._make(values)``); the last two,
-a move's ``speed_limit_mps`` and ``voltage_limit_v``, default to 0 (no limit)."""
+OPTIONAL_FIELDS = ('speed_limit_mps', 'voltage_limit_v', 'approach_velocity_mps',
+                   'approach_acceleration_mps2')
+"""The reference's last fields, 0 where a sender does not give them: a move's limits (0: none)
+and the motion of its approach setpoint (0: it stands)."""
+Reference = namedtuple('Reference', REFERENCE_LAYOUT.fields,
+                       defaults=(0.0,) * len(OPTIONAL_FIELDS))
+"""One StageReference's fields, in message order (``Reference._make(values)``); the last
+(:data:`OPTIONAL_FIELDS`) default to 0."""
 
 REFERENCE_NUMBERS = ('position_setpoint_m', 'approach_setpoint_m', 'force_setpoint_n',
                      'seed_voltage_v', 'position_m')
 """The reference fields a stage computes with; a non-finite one is never acted on."""
 LIMIT_NUMBERS = ('speed_limit_mps', 'voltage_limit_v')
 """... and the position stage's limits (a stage's ``reference_numbers`` name all it uses)."""
-NUMBER_FIELDS = REFERENCE_NUMBERS + LIMIT_NUMBERS
+MOTION_NUMBERS = ('approach_velocity_mps', 'approach_acceleration_mps2')
+"""... and the motion of its setpoint (its feed-forward)."""
+NUMBER_FIELDS = REFERENCE_NUMBERS + LIMIT_NUMBERS + MOTION_NUMBERS
 """Bit i of a last-answer record's ``numbers_mask`` / ``bad_mask`` is ``NUMBER_FIELDS[i]``."""
 N_NUMBERS = len(NUMBER_FIELDS)
 # each reference number's slot and bit, by name (the compiled code reads them as constants)
@@ -72,6 +82,8 @@ AT_SEED_VOLTAGE = NUMBER_FIELDS.index('seed_voltage_v')
 AT_POSITION = NUMBER_FIELDS.index('position_m')
 AT_SPEED_LIMIT = NUMBER_FIELDS.index('speed_limit_mps')
 AT_VOLTAGE_LIMIT = NUMBER_FIELDS.index('voltage_limit_v')
+AT_APPROACH_VELOCITY = NUMBER_FIELDS.index('approach_velocity_mps')
+AT_APPROACH_ACCELERATION = NUMBER_FIELDS.index('approach_acceleration_mps2')
 
 
 def parse_kind(kind_cls: type[enum.Enum], value, name: str = 'controller'):
@@ -107,6 +119,12 @@ STAGE_DTYPE = np.dtype([
     ('limit_low', 'f8'), ('limit_high', 'f8'),     # this tick's output limits
     ('speed_gain_limit', 'f8'),            # V per m/s of the speed limit
     ('speed_gain_speed', 'f8'),            # V per m/s of the speed towards the setpoint
+    ('ff_v_per_mps', 'f8'),                # feed-forward: V per m/s of the setpoint's speed
+    ('ff_v_per_mps2', 'f8'),               # ... and per m/s^2 of its acceleration
+    ('feedforward_v', 'f8'),               # this tick's feed-forward (within its limits)
+    ('frame_advance_m', 'f8'),             # how far it moves the reference by the next tick
+    ('rad_per_m', 'f8'),                   # the motor's turn per metre of the finger
+    ('back_emf_v_s_per_rad', 'f8'), ('resistance_ohm', 'f8'),   # its armature
     # force stage
     ('approach_margin', 'f8'),
     ('contact', 'u1'),                     # contact seen since activation (PI / MPC-PI cap off)
@@ -148,13 +166,13 @@ stage. Parts a kind does not use are placeholders, so every stage compiles to on
 ``state['pid']`` ...)."""
 
 LAW_NUMBERS_AT = 0                                       # buffers[0:5]: a refusing law's numbers
-REFERENCE_NUMBERS_AT = LAW_NUMBERS_AT + LAW_NUMBERS      # buffers[5:12]: the reference's, as read
-DMC_BUFFER_AT = REFERENCE_NUMBERS_AT + len(NUMBER_FIELDS)  # buffers[12:]: DMC's, governor's
+REFERENCE_NUMBERS_AT = LAW_NUMBERS_AT + LAW_NUMBERS      # buffers[5:14]: the reference's, as read
+DMC_BUFFER_AT = REFERENCE_NUMBERS_AT + len(NUMBER_FIELDS)  # buffers[14:]: DMC's, governor's
 
 KERNEL_LAYOUT = ('state', 'buffers')
 """``k = (state, buffers)``: ``state`` a 1-element :data:`STATE_DTYPE` array, ``buffers`` one
 float array: a refusing law's numbers (5, ``LAW_NUMBERS_AT``), the reference numbers as read
-(``NUMBER_FIELDS`` order, 7, ``REFERENCE_NUMBERS_AT``), the DMC's buffer (``DMC_BUFFER_AT``,
+(``NUMBER_FIELDS`` order, 9, ``REFERENCE_NUMBERS_AT``), the DMC's buffer (``DMC_BUFFER_AT``,
 :func:`~gripper_ros.core.control.dmc.dmc_buffer_size`) and the governor's buffer after it
 (:func:`~gripper_ros.core.control.dmc.governor_buffer_size`). Two arrays, so a call costs few
 reference counts: the kernels below pass records."""
@@ -186,8 +204,12 @@ def position_voltage_cap_v(state, ref, toward_speed_mps):
 
 
 @numba.njit(cache=True)
-def _position_apply_limits(st, r, measurement):
-    """Set this tick's output limits (only a move's reference changes them)."""
+def _position_apply_limits(st, r, measurement, feedforward):
+    """Set this tick's output limits; return the feed-forward within them.
+
+    Only a move's reference changes the limits. The law's own limits are the stage's less the
+    feed-forward, so that every loop books the voltage applied.
+    """
     s = st.stage
     if r.voltage_limit_v == 0.0 and r.speed_limit_mps == 0.0:
         low, high = -s.full_v, s.full_v
@@ -195,14 +217,44 @@ def _position_apply_limits(st, r, measurement):
         low, high = -s.full_v, position_voltage_cap_v(st, r, r.velocity_mps)
     else:
         low, high = -position_voltage_cap_v(st, r, -r.velocity_mps), s.full_v
-    if not (low == s.limit_low and high == s.limit_high):
+    law_low, law_high = low, high
+    if feedforward != 0.0:
+        feedforward = py_min(high, py_max(low, feedforward))
+        law_low, law_high = low - feedforward, high - feedforward
+    p = st.pid
+    if not (low == s.limit_low and high == s.limit_high and law_low == p.low and
+            law_high == p.high):
         s.limit_low = low
         s.limit_high = high
-        p = st.pid
-        p.low = low
-        p.high = high
+        p.low = law_low
+        p.high = law_high
         if s.kind == KIND_MPC_PD and st.cascade.has_governor:
             st.governor.limit_v = py_min(-low, high)
+    return feedforward
+
+
+@numba.njit(cache=True)
+def _position_feedforward(st, buffers, r, measurement):
+    """Return the voltage the reference's motion needs over the coming hold (0: it stands).
+
+    The braking governor plans a least-time move to a setpoint that stands; a moving reference
+    hands the cascade over to its DMC at once (as the governor does at rest: both loops start
+    afresh from the measurement), and one that stands again has the governor plan the rest.
+    """
+    s = st.stage
+    governed = s.kind == KIND_MPC_PD and st.cascade.has_governor
+    if r.approach_velocity_mps == 0.0 and r.approach_acceleration_mps2 == 0.0:
+        if governed and s.frame_advance_m != 0.0:   # it stood still again: least time to it
+            st.governor.phase = PHASE_ACCELERATE
+        return 0.0
+    if governed and st.governor.phase != PHASE_DMC:
+        _, _, dbuf, _ = stage_buffers(st, buffers)
+        st.governor.phase = PHASE_DMC
+        dmc_reset(st.dmc, dbuf, measurement, measurement)
+        pid_reset(st.pid, 0.0, True, measurement, True, measurement)
+        s.frame_advance_m = 0.0
+    return feedforward_v(s.ff_v_per_mps, s.ff_v_per_mps2, r.approach_velocity_mps,
+                         r.approach_acceleration_mps2, s.sample_time_s)
 
 
 @numba.njit(cache=True)
@@ -221,15 +273,21 @@ def _force_apply_limits(st, r):
 @face_kernel(STATE_DTYPE, FLOATS, REFERENCE_DTYPE, float)
 @numba.njit(cache=True)
 def stage_activate(state, buffers, ref, measurement):
-    """Restart the law for a new stage (position: from rest; force: approach or seeded PI)."""
+    """Restart the law for a new stage (position: from the finger's motion; force: seeded)."""
     st = as_record(state)
     r = as_record(ref)
     s = st.stage
     _, _, dbuf, gbuf = stage_buffers(st, buffers)
     if s.source == Controller.POSITION:
-        _position_apply_limits(st, r, measurement)
+        s.feedforward_v = _position_apply_limits(st, r, measurement, 0.0)
+        s.frame_advance_m = 0.0
         if s.kind == KIND_MPC_PD:
             cascade_reset(st.cascade, st.pid, st.dmc, dbuf, st.governor, gbuf, measurement, 0.0)
+            if st.cascade.has_governor and math.isfinite(r.velocity_mps) and \
+                    math.isfinite(r.seed_voltage_v):      # from the finger's motion now
+                speed = r.velocity_mps * s.rad_per_m
+                governor_moving(st.governor, gbuf, (r.seed_voltage_v - s.back_emf_v_s_per_rad
+                                                    * speed) / s.resistance_ohm, speed)
         else:
             pid_reset(st.pid, 0.0, False, 0.0, True, measurement)
         return
@@ -256,8 +314,11 @@ def stage_compute(state, buffers, ref, measurement):
     r = as_record(ref)
     s = st.stage
     numbers = buffers[LAW_NUMBERS_AT:REFERENCE_NUMBERS_AT]
+    feedforward = 0.0
     if s.source == Controller.POSITION:
-        _position_apply_limits(st, r, measurement)
+        feedforward = _position_apply_limits(st, r, measurement,
+                                             _position_feedforward(st, buffers, r, measurement))
+        s.feedforward_v = feedforward
         setpoint = r.approach_setpoint_m
     else:
         setpoint = r.force_setpoint_n
@@ -271,11 +332,42 @@ def stage_compute(state, buffers, ref, measurement):
             _force_apply_limits(st, r)
     if s.kind == KIND_MPC_PD or s.kind == KIND_MPC_PI:
         _, _, dbuf, gbuf = stage_buffers(st, buffers)
+        if s.source == Controller.POSITION:
+            _move_frame(st, r, feedforward)
         code, voltage = cascade_step(st.cascade, st.pid, st.dmc, dbuf, st.governor, gbuf,
                                      setpoint, measurement, numbers)
-        return code, voltage, st.cascade.last_inner_setpoint
+        if feedforward != 0.0 and st.cascade.has_governor:
+            governor_applied_more(st.governor, gbuf, feedforward)
+        return code, _plus(s, voltage, feedforward), st.cascade.last_inner_setpoint
     code, voltage = pid_step_checked(st.pid, setpoint, measurement, numbers)
-    return code, voltage, setpoint
+    return code, _plus(s, voltage, feedforward), setpoint
+
+
+@numba.njit(cache=True)
+def _move_frame(st, r, feedforward):
+    """Move the DMC's output (the inner PD's setpoint) on with the reference's motion.
+
+    The feed-forward moves the finger along the reference; the DMC then predicts and corrects
+    the deviation from it, in a frame that moves as the reference did over the last hold, so
+    that its output follows the reference without booking that as a move of its own (the
+    cascade works on the deviation exactly as it works on a standing setpoint).
+    """
+    s = st.stage
+    if s.frame_advance_m != 0.0 and feedforward != 0.0:
+        st.dmc.last_output += s.frame_advance_m
+    s.frame_advance_m = 0.0
+    if feedforward != 0.0:
+        dt = s.sample_time_s
+        s.frame_advance_m = dt * (r.approach_velocity_mps
+                                  + 0.5 * dt * r.approach_acceleration_mps2)
+
+
+@numba.njit(cache=True)
+def _plus(s, voltage, feedforward):
+    """Return the law's voltage with the feed-forward added, within the stage's limits."""
+    if feedforward == 0.0:
+        return voltage
+    return py_min(s.limit_high, py_max(s.limit_low, voltage + feedforward))
 
 
 @numba.njit(cache=True)
@@ -304,6 +396,8 @@ def answer_open(last, reference_numbers, ref, measurement):
     reference_numbers[AT_POSITION] = r.position_m
     reference_numbers[AT_SPEED_LIMIT] = r.speed_limit_mps
     reference_numbers[AT_VOLTAGE_LIMIT] = r.voltage_limit_v
+    reference_numbers[AT_APPROACH_VELOCITY] = r.approach_velocity_mps
+    reference_numbers[AT_APPROACH_ACCELERATION] = r.approach_acceleration_mps2
     bad = 0
     for i in range(N_NUMBERS):
         if (b.numbers_mask >> i) & 1 and not math.isfinite(reference_numbers[i]):
@@ -417,15 +511,12 @@ def reason_text(last, reference_numbers, law_numbers, names=NUMBER_FIELDS) -> st
     return ''
 
 
-_LIMIT_DEFAULTS = {'speed_limit_mps': 0.0, 'voltage_limit_v': 0.0}
-
-
 def fill_reference(ref, out: np.ndarray) -> np.ndarray:
     """Write ``ref`` (a :data:`Reference`, an rclpy message, a double) into the record ``out``."""
     if type(ref) is Reference:
         out[0] = ref
     else:
-        out[0] = tuple(getattr(ref, name) if name not in _LIMIT_DEFAULTS
+        out[0] = tuple(getattr(ref, name) if name not in OPTIONAL_FIELDS
                        else getattr(ref, name, 0.0) for name in REFERENCE_LAYOUT.fields)
     return out
 
@@ -502,7 +593,7 @@ class PositionStageController(_KernelStage):
     """
 
     source = SOURCE_POSITION
-    reference_numbers = REFERENCE_NUMBERS + LIMIT_NUMBERS
+    reference_numbers = REFERENCE_NUMBERS + LIMIT_NUMBERS + MOTION_NUMBERS
 
     def __init__(self, config: GripperConfig,
                  kind: PositionControllerKind | str = DEFAULT_POSITION_CONTROLLER):
@@ -522,6 +613,10 @@ class PositionStageController(_KernelStage):
         pole = config.position.speed_limit_pole
         gain = 1.0 / ((1.0 - a) * plant.free_speed_per_volt_mps)
         s['speed_gain_limit'], s['speed_gain_speed'] = (1.0 - pole) * gain, (a - pole) * gain
+        s['ff_v_per_mps'], s['ff_v_per_mps2'] = feedforward_gains(plant)
+        s['rad_per_m'] = 1.0 / plant.travel_per_rad_m
+        s['back_emf_v_s_per_rad'] = plant.back_emf_v_s_per_rad
+        s['resistance_ohm'] = plant.resistance_ohm
 
     @staticmethod
     def measurement(ref) -> float:
