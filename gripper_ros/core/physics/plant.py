@@ -42,11 +42,9 @@ from gripper_ros.core.physics.force_sensor import FsrVoltageDivider
 from gripper_ros.core.physics.hold import (ANNOUNCE_ROWS, check_finite_nonnegative,
                                            hold_plan, HoldModel, HoldState, Lift, ObjectState)
 from gripper_ros.core.physics.integration import plant_step
-from gripper_ros.core.physics.motor_zoh import (AFF_I1, AFF_IE, AFF_II, AFF_W1, AFF_WI, AFF_X1,
-                                                AFF_XE, AFF_XI, DISC_FREE, discretise,
-                                                raw_constants)
+from gripper_ros.core.physics.motor_zoh import force_model, free_model
 from gripper_ros.core.physics.pad_sensor import CHANNEL_DTYPE, make_channel
-from gripper_ros.core.physics.plant_pads import PAD_CHANNELS
+from gripper_ros.core.physics.plant_pads import PAD_CHANNELS, PAD_DTYPE
 from gripper_ros.core.physics.plant_records import (fill_params, PARAMS_DTYPE, PLANT_DTYPE,
                                                     STATE_DTYPE)
 from gripper_ros.core.physics.readout import (_object_state, OBJECT_STATE_DTYPE,
@@ -194,9 +192,9 @@ class GripperPlant:
             pads.shear, pads.shear, pads.displacement, pads.displacement)
         self._pad_dt_s = float(pad_dt_s) if pads is not None else 1.0
         self._pad_seed = int(pad_seed)
+        self._fresh_pads = None                 # the pad channels as set_object starts them
         self.contact_defaults = contact or object_contact(0.0, 0.0)
         default = self.contact_defaults
-        self._raw = raw_constants(params)
         self._object_record = np.zeros(1, OBJECT_STATE_DTYPE)   # _object_state writes it
         self._lift: Lift | None = None
         self.kernel = np.zeros(1, PLANT_DTYPE)
@@ -276,12 +274,13 @@ class GripperPlant:
 
     def _seed_pads(self) -> None:
         """Fresh pad channels (each its own noise stream from the seed), resting at 0."""
-        for i, spec in enumerate(self._pad_specs):
-            record, buffer = make_channel(spec, self._pad_dt_s,
-                                          (self._pad_seed * PAD_CHANNELS + i) % 2 ** 64)
-            pad = self.kernel[0]['pads'][i]
-            copy_fields(pad, record[0], CHANNEL_DTYPE.names)
-            pad['line'] = buffer
+        if self._fresh_pads is None:
+            self._fresh_pads = np.zeros(PAD_CHANNELS, PAD_DTYPE)
+            for i, spec in enumerate(self._pad_specs):
+                record, _ = make_channel(spec, self._pad_dt_s,
+                                         (self._pad_seed * PAD_CHANNELS + i) % 2 ** 64)
+                copy_fields(self._fresh_pads[i], record[0], CHANNEL_DTYPE.names)
+        self.kernel[0]['pads'] = self._fresh_pads
         self._s['pads_resting'] = 0
 
     def _hold_model_for(self, obj: GraspObject, lift: Lift | None) -> HoldModel | None:
@@ -453,14 +452,11 @@ class GripperPlant:
 
     def discrete_free_model(self, dt_s: float) -> tuple[np.ndarray, np.ndarray]:
         """Exact ZOH model of free motion: ``s[k+1] = Ad s[k] + Bd e[k]``, s = [i, omega, x]."""
-        c = discretise(self._raw, DISC_FREE, dt_s, 0.0, 0.0, 0.0).tolist()
-        return (np.array([c[AFF_II:AFF_I1], c[AFF_WI:AFF_W1], c[AFF_XI:AFF_X1]]),
-                np.array(c[AFF_IE:AFF_XE + 1]))
+        return free_model(self.params, dt_s)
 
     def discrete_force_model(self, dt_s: float) -> tuple[float, float]:
         """Exact ZOH of eq. 13: ``F[k+1] = a F[k] + b e[k]`` on a rigid object."""
-        a = math.exp(-dt_s / self.kernel[0]['params']['tau_e'])
-        return a, self.params.stall_force_per_volt_n * (1.0 - a)
+        return force_model(self.params, dt_s)
 
     # ----------------------------------------------------------------- simulation
     def sample(self) -> PlantSample:

@@ -247,7 +247,9 @@ def run_lockstep(loop, side, plant_k, supervisor, law_buffers, position_k, force
 class _Loop:
     """One headless grasp's plant, supervisor and stages, wired as the graph wires them."""
 
-    def __init__(self, plant_side, supervisor, position_stage, force_stage):
+    def __init__(self, plant_side, supervisor, position_stage, force_stage,
+                 rows: int = FIRST_ROWS):
+        self._first_rows = rows
         self.plant_side = plant_side
         self.supervisor = supervisor
         self.sup_side = SupervisorSide(supervisor)
@@ -277,16 +279,20 @@ class _Loop:
         return named
 
     def _grow(self) -> None:
-        size = max(FIRST_ROWS, 2 * self.ticks.shape[0])
+        """Give the row buffers room: the first rows asked for, then twice as many.
+
+        Every row below the count kept is written before it is read: the buffers start empty.
+        """
+        size = max(self._first_rows, 2 * self.ticks.shape[0])
         n = int(self.state[0]['rows'])
         for name in ('ticks', 'tick_states'):
             old = getattr(self, name)
-            new = np.zeros(size, old.dtype)
+            new = np.empty(size, old.dtype)
             new[:n] = old[:n]
             setattr(self, name, new)
         if self.tracing:
             for name, old in self.trace_buffers.items():
-                new = np.zeros(size, old.dtype)
+                new = np.empty(size, old.dtype)
                 new[:old.shape[0]] = old
                 self.trace_buffers[name] = new
 
@@ -315,17 +321,19 @@ class _Loop:
             self._grow()
 
     def series(self) -> GraspSeries:
-        """Return the ticks and their states kept, and the messages when traced."""
+        """Return the ticks and their states kept, and the messages when traced.
+
+        The buffers' rows themselves, not copies: the loop is done with them.
+        """
         n = int(self.state[0]['rows'])
         messages = {}
         if self.tracing:
             ts = self.trace[0]
             count = {'references': int(ts['references']), 'commands': int(ts['references']),
                      'statuses': int(ts['statuses']), 'objects': int(ts['objects'])}
-            messages = {name: rows[:count[name]].copy()
-                        for name, rows in self.trace_buffers.items()}
+            messages = {name: rows[:count[name]] for name, rows in self.trace_buffers.items()}
         stamps = self.ticks['stamp_ns'][:n]
-        return GraspSeries(self.ticks[:n].copy(), tick_states=self.tick_states[:n].copy(),
+        return GraspSeries(self.ticks[:n], tick_states=self.tick_states[:n],
                            start_ns=int(stamps[0]) if n else 0,
                            end_ns=int(stamps[-1]) if n else 0, **messages)
 
@@ -416,7 +424,8 @@ def simulate_grasp(config: GripperConfig, width_m: float, mass_kg: float, *,
     supervisor = GraspSupervisor(config.plant, config.supervisor, load_law(config))
     loop = _Loop(plant_side, supervisor,
                  PositionStageController(config, position_controller),
-                 ForceStageController(config, force_controller, approach_force_margin))
+                 ForceStageController(config, force_controller, approach_force_margin),
+                 FIRST_ROWS + round(hold_s / config.force.sample_time_s))
     state = loop.state[0]
     state['hold_ns'] = round(hold_s * 1e9)
     state['announce'] = announce
@@ -438,12 +447,13 @@ def simulate_grasp(config: GripperConfig, width_m: float, mass_kg: float, *,
     else:
         loop.run_traced(trace)
     s = supervisor
+    held = plant.object_state
     return HeadlessGrasp(
         s.outcome, s.message, s.switch_criterion, targets.position_setpoint_m,
         targets.force_setpoint_n, s.start_ns, s.switch_ns, s.contact_ns,
         int(loop.tick[0]['stamp_ns']), s.answer, s.answer_ns, s.end_ns,
-        plant.object_state.slip_m, plant.object_state.lost_ns, s.overload_ns,
-        s.overload_need_n, config.plant.max_force_n, loop.series())
+        held.slip_m, held.lost_ns, s.overload_ns, s.overload_need_n, config.plant.max_force_n,
+        loop.series())
 
 
 def _grasp_case(config: GripperConfig, summarize: Callable | None, case: dict):
