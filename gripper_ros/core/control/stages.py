@@ -41,7 +41,7 @@ from gripper_ros.core.control.factories import (ForceControllerKind, make_force_
 from gripper_ros.core.control.pid import (law_error, LAW_NUMBERS, LAW_OK, PID_DTYPE, pid_reset,
                                           pid_step_checked, py_max, py_min)
 from gripper_ros.core.records import as_record, copy_fields, face_kernel, FLOATS, RecordPair
-from gripper_ros.wire import COMMAND_LAYOUT, Controller, REFERENCE_LAYOUT
+from gripper_ros.wire import COMMAND_LAYOUT, Controller, MSG_REFERENCE, REFERENCE_LAYOUT
 import numba
 import numpy as np
 
@@ -52,7 +52,7 @@ DEFAULT_POSITION_CONTROLLER = PositionControllerKind.MPC_PD
 DEFAULT_FORCE_CONTROLLER = ForceControllerKind.CONTACT_AWARE
 DEFAULT_APPROACH_FORCE_MARGIN = 1.0
 
-Reference = namedtuple('Reference', REFERENCE_LAYOUT.fields, defaults=(0.0, 0.0))
+Reference = REFERENCE_LAYOUT.tuple
 """One StageReference's fields, in message order (``Reference._make(values)``); the last two,
 a move's ``speed_limit_mps`` and ``voltage_limit_v``, default to 0 (no limit)."""
 
@@ -336,7 +336,7 @@ def answer_close(last, law_numbers, code, voltage, inner):
     return 1, voltage, inner
 
 
-_ECHOED_FIELDS = ('stamp_ns', 'grasp_id', 'stage_id', 'revision', 'phase', 'outcome', 'running')
+_ECHOED_FIELDS = COMMAND_LAYOUT.copied_from(MSG_REFERENCE)
 """What a MotorCommand repeats of the StageReference it answers."""
 
 
@@ -417,16 +417,19 @@ def reason_text(last, reference_numbers, law_numbers, names=NUMBER_FIELDS) -> st
     return ''
 
 
-_LIMIT_DEFAULTS = {'speed_limit_mps': 0.0, 'voltage_limit_v': 0.0}
+_DEFAULTS = Reference._field_defaults
 
 
 def fill_reference(ref, out: np.ndarray) -> np.ndarray:
-    """Write ``ref`` (a :data:`Reference`, an rclpy message, a double) into the record ``out``."""
+    """Write ``ref`` (a :data:`Reference`, an rclpy message, a double) into the record ``out``.
+
+    A field the sender's message type lacks takes the layout's default.
+    """
     if type(ref) is Reference:
         out[0] = ref
     else:
-        out[0] = tuple(getattr(ref, name) if name not in _LIMIT_DEFAULTS
-                       else getattr(ref, name, 0.0) for name in REFERENCE_LAYOUT.fields)
+        out[0] = tuple(getattr(ref, name) if name not in _DEFAULTS
+                       else getattr(ref, name, _DEFAULTS[name]) for name in Reference._fields)
     return out
 
 

@@ -11,7 +11,6 @@ and so on), so a headless grasp equals the graph's tick for tick.
 """
 from __future__ import annotations
 
-from collections import namedtuple
 import math
 
 from gripper_ros.core.control.stages import LockstepAnswerer, Reference, stage_answer, TickAnswer
@@ -31,9 +30,9 @@ from gripper_ros.wire import (COMMAND_LAYOUT, Controller, FaultKind, Outcome, Ph
 import numba
 import numpy as np
 
-Tick = namedtuple('Tick', TICK_LAYOUT.fields)
+Tick = TICK_LAYOUT.tuple
 """One PlantTick's fields, in message order."""
-Command = namedtuple('Command', COMMAND_LAYOUT.fields)
+Command = COMMAND_LAYOUT.tuple
 """One MotorCommand's fields, in message order."""
 
 MAX_HOLD_S = 1.0
