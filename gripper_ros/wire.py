@@ -347,7 +347,7 @@ _STRUCT_CODES = {'i8': 'q', 'u4': 'I', 'u1': 'B', 'f8': 'd'}
 
 
 class LoopField(NamedTuple):
-    """One field of a loop message: its name and type, and where its value comes from.
+    """One field of a loop message: its name and type (``kind``), and where its value comes from.
 
     ``copied_from`` names the loop message whose field of the same name this one repeats
     (a reference relays its tick's measurement, a command echoes its reference's ids);
@@ -355,7 +355,7 @@ class LoopField(NamedTuple):
     """
 
     name: str
-    type: str                           # numpy's: 'i8', 'u4', 'u1', 'f8'
+    kind: str                           # numpy's type: 'i8', 'u4', 'u1', 'f8'
     copied_from: str = ''
     default: float | None = None
 
@@ -388,12 +388,12 @@ class LoopLayout:
         self.msgtype = msgtype
         self._specs = tuple(LoopField(*f) for f in fields)
         self.fields = tuple(f.name for f in self._specs)
-        self.dtype = np.dtype([(f.name, '<' + f.type if f.type != 'u1' else f.type)
+        self.dtype = np.dtype([(f.name, '<' + f.kind if f.kind != 'u1' else f.kind)
                                for f in self._specs], align=True)
         body, at = '', 0
         for f in self._specs:
             offset = self.dtype.fields[f.name][1]
-            body += (f'{offset - at}x' if offset > at else '') + _STRUCT_CODES[f.type]
+            body += (f'{offset - at}x' if offset > at else '') + _STRUCT_CODES[f.kind]
             at = offset + self.dtype[f.name].itemsize
         self.body = body
         self._reader = struct.Struct('<4x' + body)
