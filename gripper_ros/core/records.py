@@ -2,8 +2,9 @@
 
 The kernels own each face's state in a one-element structured array, ``self.record``; a face
 reads and writes its fields through these descriptors rather than one hand-written property each.
-A kernel a face calls from Python is declared with :func:`face_kernel` and the types the face
-passes, so that :func:`compile_face_kernels` compiles every one of them ahead of the first call.
+Every kernel called from Python (a face's, a node's, the compiled loop itself) is declared with
+:func:`face_kernel` and the types it is called with, so that :func:`compile_face_kernels`
+compiles every one of them ahead of the first call: the one compile path of the core.
 """
 
 from __future__ import annotations
@@ -229,6 +230,12 @@ FLOATS = types.float64[::1]
 """A float array argument of :func:`face_kernel`."""
 FLOATS_2D = types.float64[:, ::1]
 """A 2-D float array argument of :func:`face_kernel`."""
+INTS = types.int64[::1]
+"""An int64 array argument of :func:`face_kernel`."""
+UINT8S = types.uint8[::1]
+"""A byte array argument (a record's bytes) of :func:`face_kernel`."""
+BYTES = numba.typeof(b'')
+"""A ``bytes`` argument (a serialised message) of :func:`face_kernel`."""
 
 
 def _numba_type(arg):
@@ -241,11 +248,19 @@ def _numba_type(arg):
     return arg
 
 
-def compile_face_kernels() -> int:
-    """Compile (or load from numba's cache) every declared face kernel; return how many."""
+def compile_face_kernels(package: str = 'gripper_ros') -> int:
+    """Compile (or load from numba's cache) the declared kernels of ``package``; return how many.
+
+    The one way the core is compiled ahead: set-up compiles them all, a node's face loads its
+    package's before its first tick.
+    """
+    count = 0
     for kernel, signature in FACE_KERNELS:
-        kernel.compile(signature)
-    return len(FACE_KERNELS)
+        module = kernel.py_func.__module__
+        if module == package or module.startswith(package + '.'):
+            kernel.compile(signature)
+            count += 1
+    return count
 
 
 def as_record(x):

@@ -330,8 +330,8 @@ def governor_applied(g, buf, voltage):
 @functools.lru_cache(maxsize=GOVERNOR_TABLES_CACHED)
 def _governor_tables(ad_bytes: bytes, bd_bytes: bytes, samples: int):
     """``Ad^k`` and the forced response ``sum Ad^j Bd`` for k <= samples, once per model."""
-    ad = np.frombuffer(ad_bytes).reshape(3, 3)
-    bd = np.frombuffer(bd_bytes)
+    ad = np.frombuffer(ad_bytes).reshape(3, 3).copy()    # writable: the kernels' one type
+    bd = np.frombuffer(bd_bytes).copy()
     powers = np.empty((samples + 1, 3, 3))
     steps = np.zeros((samples + 1, 3))
     powers[0] = np.eye(3)

@@ -151,6 +151,9 @@ LAW_NUMBERS_AT = 0                                       # buffers[0:5]: a refus
 REFERENCE_NUMBERS_AT = LAW_NUMBERS_AT + LAW_NUMBERS      # buffers[5:12]: the reference's, as read
 DMC_BUFFER_AT = REFERENCE_NUMBERS_AT + len(NUMBER_FIELDS)  # buffers[12:]: DMC's, governor's
 
+STAGE_KERNEL = (STATE_DTYPE, FLOATS)
+"""The types of a stage's kernel ``k`` (:func:`~gripper_ros.core.records.face_kernel`)."""
+
 KERNEL_LAYOUT = ('state', 'buffers')
 """``k = (state, buffers)``: ``state`` a 1-element :data:`STATE_DTYPE` array, ``buffers`` one
 float array: a refusing law's numbers (5, ``LAW_NUMBERS_AT``), the reference numbers as read
@@ -340,7 +343,7 @@ _ECHOED_FIELDS = COMMAND_LAYOUT.copied_from(MSG_REFERENCE)
 """What a MotorCommand repeats of the StageReference it answers."""
 
 
-@face_kernel((STATE_DTYPE, FLOATS), REFERENCE_DTYPE, COMMAND_DTYPE)
+@face_kernel(STAGE_KERNEL, REFERENCE_DTYPE, COMMAND_DTYPE)
 @numba.njit(cache=True)
 def stage_answer(k, ref, cmd):
     """Answer the reference record ``ref`` into the command record ``cmd``; False if repeated.

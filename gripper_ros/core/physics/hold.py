@@ -53,7 +53,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 import math
 
-from gripper_ros.core.records import as_record, copy_fields
+from gripper_ros.core.records import as_record, copy_fields, face_kernel, FLOATS, INTS
 from gripper_ros.wire import FORCE_SAMPLE_S, HoldState, LiftProfile
 import numba
 import numpy as np
@@ -192,6 +192,7 @@ class ObjectState:
     presliding_m: float = 0.0      # each pad's elastic (partial-slip) displacement of the object
 
 
+@face_kernel(HOLD_DTYPE, int, float)
 @numba.njit(cache=True)
 def hold_begin(hold, t_ns, mass_kg):
     """Start the lift's clock at ``t_ns``; 1 (nothing changed) if the object is off its support."""
@@ -229,6 +230,7 @@ def hold_scenario_in_progress(h, t_ns, after_lift_ns):
     return t_ns < h.lift_end_ns + after_lift_ns
 
 
+@face_kernel(HOLD_DTYPE)
 @numba.njit(cache=True, inline='always')
 def hold_live(hold):
     """Tell whether the model must be stepped: a lift pending, or the object lifted and held."""
@@ -243,6 +245,7 @@ def _pads_load_n(h):
     return (1.0 - h.support_share) * (h.mass_kg * (h.gravity_mps2 + h.acceleration_mps2))
 
 
+@face_kernel(HOLD_DTYPE)
 @numba.njit(cache=True)
 def hold_load_n(hold):
     """Tangential load on the pads now (0 unless lifted and between the pads)."""
@@ -252,6 +255,7 @@ def hold_load_n(hold):
     return 0.0
 
 
+@face_kernel(HOLD_DTYPE, float)
 @numba.njit(cache=True)
 def hold_capacity_n(hold, force_n):
     """Most the two pads hold by static friction at grip force ``force_n``."""
@@ -259,6 +263,7 @@ def hold_capacity_n(hold, force_n):
     return 2.0 * h.static_friction * (force_n if force_n > 0.0 else 0.0)
 
 
+@face_kernel(HOLD_DTYPE, float)
 @numba.njit(cache=True)
 def hold_shear_n(hold, force_n):
     """Tangential force on each pad at grip ``force_n``: half the load while stuck, mu_k F sliding.
@@ -292,6 +297,7 @@ def presliding_m(shear_n, normal_n, static_friction, tangential_stiffness_n_per_
     return out if shear_n >= 0.0 else -out
 
 
+@face_kernel(HOLD_DTYPE, float)
 @numba.njit(cache=True)
 def hold_presliding_m(hold, force_n):
     """Each pad's elastic displacement of the object now, at grip ``force_n`` (0 when rigid).
@@ -317,6 +323,7 @@ def hold_stays_stuck(h, force_n, until_ns):
         _pads_load_n(h) <= 2.0 * h.static_friction * force_n
 
 
+@face_kernel(HOLD_DTYPE, int)
 @numba.njit(cache=True)
 def hold_fire_events(hold, t_ns):
     """Apply the lift's breakpoints (start, lift-off pieces, profile changes, end) now due."""
@@ -405,6 +412,7 @@ ANNOUNCE_ROWS = ANNOUNCE_MAX_PIECES + 8
 """The most breakpoints :func:`hold_plan` writes."""
 
 
+@face_kernel(HOLD_DTYPE, INTS, FLOATS)
 @numba.njit(cache=True)
 def hold_plan(hold, plan_t_ns, plan_accel_mps2):
     """Write the begun lift's plan, as its arm would announce it; return how many breakpoints.
@@ -447,6 +455,7 @@ def hold_plan(hold, plan_t_ns, plan_accel_mps2):
     return n + 1
 
 
+@face_kernel(HOLD_DTYPE, int, float, int)
 @numba.njit(cache=True)
 def hold_drive(hold, t_ns, accel_mps2, after_ns):
     """Let a live arm set ``a`` from ``t_ns`` on; 1 (nothing changed) unless the hold has begun.
@@ -472,6 +481,7 @@ def hold_drive(hold, t_ns, accel_mps2, after_ns):
     return 0
 
 
+@face_kernel(HOLD_DTYPE)
 @numba.njit(cache=True)
 def hold_remove(hold):
     """Take the object away (not slid out): nothing is held from now on."""
@@ -483,6 +493,7 @@ def hold_remove(hold):
     h.ramp_next_ns = -1
 
 
+@face_kernel(HOLD_DTYPE, float, float)
 @numba.njit(cache=True)
 def hold_advance(hold, force_n, dt_s):
     """Integrate ``dt_s`` at grip force ``force_n`` and the present ``a``, both constant.

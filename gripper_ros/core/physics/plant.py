@@ -25,6 +25,7 @@ other modules use (``__all__``) are importable from here.
 from __future__ import annotations
 
 from dataclasses import fields
+import functools
 import math
 
 from gripper_ros.core.config import (ChannelSpec, ContactParams, object_contact, PadSensorParams,
@@ -50,8 +51,9 @@ from gripper_ros.core.physics.plant_records import (fill_params, PARAMS_DTYPE, P
 from gripper_ros.core.physics.readout import (_object_state, OBJECT_STATE_DTYPE,
                                               plant_hold_record, plant_read_tick, plant_sample,
                                               PlantSample)
-from gripper_ros.core.records import as_record, copy_fields, RecordField
-from gripper_ros.wire import FaultKind, TICK_LAYOUT
+from gripper_ros.core.records import (as_record, compile_face_kernels, copy_fields, face_kernel,
+                                      RecordField)
+from gripper_ros.wire import FaultKind
 import numba
 import numpy as np
 
@@ -75,6 +77,7 @@ def _motor_off(s):
     s.peak = 0.0
 
 
+@face_kernel(PLANT_DTYPE, bool)
 @numba.njit(cache=True)
 def _reset(k, open_fingers):
     """Motor at rest; optionally the finger back at the fully-open stop."""
@@ -89,6 +92,7 @@ def _reset(k, open_fingers):
     refresh_contact_state(s, p)
 
 
+@face_kernel(PLANT_DTYPE)
 @numba.njit(cache=True)
 def _touch_object(k):
     """Put the finger at rest just touching the object, motor off."""
@@ -101,6 +105,7 @@ def _touch_object(k):
     chain_untouched(s)
 
 
+@face_kernel(PLANT_DTYPE, float, float, float, float, float, float, float)
 @numba.njit(cache=True)
 def _set_object(k, width_m, stiffness, damping, mass_kg, static_friction, kinetic_friction,
                 pad_length_m):
@@ -115,6 +120,7 @@ def _set_object(k, width_m, stiffness, damping, mass_kg, static_friction, kineti
     refresh_contact_state(s, p)
 
 
+@face_kernel(PLANT_DTYPE, float, float)
 @numba.njit(cache=True)
 def _use_default_object(k, stiffness, damping):
     """Place a new plant's object: width 0 (nothing), the contact defaults' stiffness."""
@@ -122,6 +128,7 @@ def _use_default_object(k, stiffness, damping):
     use_object(pl.state, pl.params, 0.0, stiffness, damping, 0.0, 0.0, 0.0, 0.0)
 
 
+@face_kernel(PLANT_DTYPE, float, float, float)
 @numba.njit(cache=True)
 def plant_place(k, x, w, i):
     """Put the finger at travel ``x`` with motor speed ``w`` and current ``i`` (a run's start)."""
@@ -133,39 +140,21 @@ def plant_place(k, x, w, i):
     refresh_contact_state(s, pl.params)
 
 
+@face_kernel(PLANT_DTYPE, float, int)
 @numba.njit(cache=True)
 def _step_and_sample(k, voltage_v, duration_ns):
     plant_step(k, voltage_v, duration_ns)
     return plant_sample(k)
 
 
-_warmed_up = []
-
-
-def _warm_up(kernel: tuple) -> None:
-    """Load (or compile) every kernel the facade calls, once per process, on a scratch copy.
+@functools.cache
+def _load_physics() -> None:
+    """Load (or compile) every physics kernel, once per process, at the first plant.
 
     A kernel's first call loads its machine code from numba's cache (tens of ms; seconds when
     it must compile): done here, a node's first lift or fault does not stall its loop.
     """
-    if _warmed_up:
-        return
-    k = kernel.copy()
-    _reset(k, True)
-    _set_object(k, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
-    k[0]['state']['x'] = 0.5 * k[0]['params']['max_travel_m']
-    _reset(k, False)
-    _step_and_sample(k, 0.0, 1)             # free motion: a table miss, linalg's expm loaded
-    _touch_object(k)
-    plant_sample(k)
-    plant_read_tick(k, np.zeros(1, TICK_LAYOUT.dtype), 0, 0)
-    _object_state(k, np.zeros(1, OBJECT_STATE_DTYPE))
-    plant_begin_hold(k, 0, 0.0)
-    plant_scenario_in_progress(k)
-    plant_schedule_fault(k, 1, 0, DEFAULT_SLIP_TIME_CONSTANT_S)
-    plant_fault_scheduled(k)
-    plant_cancel_fault(k)
-    _warmed_up.append(True)
+    compile_face_kernels(__package__)
 
 
 # ----------------------------------------------------------------------------- the facade
@@ -211,7 +200,7 @@ class GripperPlant:
         _use_default_object(self.kernel, float(default.stiffness_n_per_m),
                             float(default.damping_n_s_per_m))
         self.reset()
-        _warm_up(self.kernel)
+        _load_physics()
 
     # ----------------------------------------------------------------- records for callers
     @property

@@ -18,27 +18,30 @@ from typing import Callable, Sequence
 
 from gripper_ros.core.config import GripperConfig
 from gripper_ros.core.control.factories import make_plant
-from gripper_ros.core.control.load_grip import plan_announce
+from gripper_ros.core.control.load_grip import GRIP_DTYPE, plan_announce
 from gripper_ros.core.control.stages import (DEFAULT_APPROACH_FORCE_MARGIN,
                                              DEFAULT_FORCE_CONTROLLER, DEFAULT_POSITION_CONTROLLER,
                                              ForceStageController, PositionStageController,
-                                             Reference, stage_answer)
+                                             Reference, stage_answer, STAGE_KERNEL)
 from gripper_ros.core.physics.hold import ANNOUNCE_ROWS, hold_load_n, hold_plan
 from gripper_ros.core.physics.plant import (_object_state, check_fault, GraspObject, HoldState,
-                                            Lift, OBJECT_STATE_DTYPE, plant_hold_record)
-from gripper_ros.core.records import as_record, compile_face_kernels, copy_fields
+                                            Lift, OBJECT_STATE_DTYPE, PLANT_DTYPE,
+                                            plant_hold_record)
+from gripper_ros.core.records import (as_record, compile_face_kernels, copy_fields, face_kernel,
+                                      FLOATS_2D)
 from gripper_ros.core.runtime.engine import map_cases
-from gripper_ros.core.runtime.lockstep import (Command, PlantSide, side_accept, side_needs_time,
-                                               side_step, StageSide, SupervisorSide, Tick)
+from gripper_ros.core.runtime.lockstep import (Command, PLANT_SIDE_STATE, PlantSide, side_accept,
+                                               side_needs_time, side_step, StageSide,
+                                               SupervisorSide, Tick)
 from gripper_ros.core.series import (GraspSeries, OBJECT_ROW, rows, STATUS_ROW,
                                      TICK_STATE_ROW)
 from gripper_ros.core.supervision.machine import (NO_NS, status_changed, status_note,
-                                                  supervisor_decide)
+                                                  supervisor_decide, SUPERVISOR_DTYPE)
 from gripper_ros.core.supervision.requests import (GraspRequest, MoveRequest, RequestError,
                                                    validate_move, validate_request)
 from gripper_ros.core.supervision.supervisor import GraspSupervisor, load_law
-from gripper_ros.wire import (COMMAND_LAYOUT, Controller, FaultKind, FORCE_SAMPLE_S, Outcome,
-                              Phase, REFERENCE_LAYOUT, SwitchCriterion, TICK_LAYOUT)
+from gripper_ros.wire import (COMMAND_LAYOUT, Controller, FaultKind, Outcome, Phase,
+                              REFERENCE_LAYOUT, SwitchCriterion, TICK_LAYOUT)
 import numba
 import numpy as np
 
@@ -121,6 +124,8 @@ FIRST_ROWS = 4096
 """Rows a grasp's series buffers start with (they double when full)."""
 
 
+@face_kernel(TICK_LAYOUT.dtype, TICK_STATE_ROW, int, TICK_LAYOUT.dtype, int,
+             REFERENCE_LAYOUT.dtype, PLANT_DTYPE, GRIP_DTYPE)
 @numba.njit(cache=True)
 def _keep_row(ticks, tick_states, n, tick, phase, ref, plant_k, law) -> None:
     """Keep tick ``n`` and its state (:data:`TICK_STATE_ROW`)."""
@@ -136,11 +141,13 @@ def _keep_row(ticks, tick_states, n, tick, phase, ref, plant_k, law) -> None:
     s.mu_est = law[0].mu_est
 
 
+@face_kernel(TRACE_STATE, TICK_LAYOUT.dtype, SUPERVISOR_DTYPE, PLANT_DTYPE, STATUS_ROW, OBJECT_ROW)
 @numba.njit(cache=True)
 def _trace_tick(trace, tick, sup, plant_k, statuses, objects) -> None:
     """Keep the supervisor's state when it changed and the object's when due."""
     ts = trace[0]
     t = tick[0]
+    sup = as_record(sup)
     m = ts.statuses
     if m == 0 or status_changed(sup, statuses[m - 1]):
         r = statuses[m]
@@ -173,6 +180,7 @@ def _trace_answer(trace, ref, cmd, references, commands) -> None:
     ts.references += 1
 
 
+@face_kernel(LOOP_STATE, PLANT_DTYPE, SUPERVISOR_DTYPE)
 @numba.njit(cache=True)
 def announce_lift(state, plant_k, sup) -> None:
     """Once the lift's clock has started, hand its plan to the supervisor, as the arm would.
@@ -196,6 +204,10 @@ def announce_lift(state, plant_k, sup) -> None:
         plan_announce(sup.law[0], sup.plan, times[i], accels[i])
 
 
+@face_kernel(LOOP_STATE, PLANT_SIDE_STATE, PLANT_DTYPE, SUPERVISOR_DTYPE, FLOATS_2D, STAGE_KERNEL,
+             STAGE_KERNEL, TICK_LAYOUT.dtype, REFERENCE_LAYOUT.dtype, COMMAND_LAYOUT.dtype,
+             TICK_LAYOUT.dtype, TICK_STATE_ROW, TRACE_STATE, REFERENCE_LAYOUT.dtype,
+             COMMAND_LAYOUT.dtype, STATUS_ROW, OBJECT_ROW)
 @numba.njit(cache=True)
 def run_lockstep(loop, side, plant_k, supervisor, law_buffers, position_k, force_k, tick, ref,
                  cmd, ticks, tick_states, trace, trace_references, trace_commands,
@@ -306,7 +318,7 @@ class _Loop:
                   self.supervisor.law)
         if self.tracing:
             b = self.trace_buffers
-            _trace_tick(self.trace, self.tick, self.supervisor.record[0],
+            _trace_tick(self.trace, self.tick, self.supervisor.record,
                         self.plant_side.plant.kernel, b['statuses'], b['objects'])
         self.state[0]['rows'] = n + 1
 
@@ -586,50 +598,15 @@ def warm_up_worker() -> None:
         pass
 
 
-def warm_up(config: GripperConfig | None = None) -> float:
-    """Compile (or load from numba's cache) every kernel a grasp, a move and a trace use.
+def warm_up() -> float:
+    """Compile (or load from numba's cache) every kernel the package declares.
 
-    Set-up calls this once, so that the first ``grasp_demo`` pays no compilation; returns the
-    seconds it took.
+    Set-up calls this once after a change, so that no program pays numba's compilation;
+    returns the seconds it took.
     """
-    from gripper_ros.core.config import load_config
-    from gripper_ros.core.control.factories import ForceControllerKind, PositionControllerKind
     start = time.perf_counter()
-    config = config or load_config()
-    for position in PositionControllerKind:
-        for force in ForceControllerKind:
-            simulate_grasp(config, 0.1, 0.5, stiffness_n_per_m=1e5, damping_n_s_per_m=50.0,
-                           position_controller=position, force_controller=force,
-                           timeout_s=0.05)
-    simulate_grasp(config, 0.1, 0.5, timeout_s=0.05, trace=lambda *_: None)
-    simulate_grasp(config, 0.1, 0.5, timeout_s=0.05, idle_unpowered_s=0.01,
-                   trace_state_period_ns=10_000_000)
-    simulate_moves(config, [MoveRequest(0.148, speed_mps=0.02, max_effort_n=5.0, timeout_s=0.02)])
-    _warm_up_faces(config)
-    return time.perf_counter() - start
-
-
-def _warm_up_faces(config: GripperConfig) -> None:
-    """Compile, once, what the nodes and the tools call from Python one tick at a time.
-
-    A kernel called from Python is compiled for Python's argument types, apart from the same
-    kernel inside the compiled loop: the laws' and the supervisor's are declared with the types
-    their faces pass (:func:`~gripper_ros.core.records.face_kernel`), the plant's are called.
-    """
-    plant = make_plant(config)
-    side = PlantSide(plant)
-    side.set_object(GraspObject(0.05, 0.0, 0.0, 1.0), lift=Lift(1.0, 0.0, 0.01),
-                    fault=(FaultKind.OBJECT_REMOVED, 0.01, 0.0))
-    tick = side.tick()
-    side.step_unpowered(0.001)
-    plant.sample()
-    plant.step(1.0, FORCE_SAMPLE_S)
-    plant.object_state
-    plant.begin_hold(plant.t_ns, 1.0)
-    plant.schedule_fault(FaultKind.SENSOR_DROPOUT, plant.t_ns + 1000)
-    plant.cancel_fault()
-    SupervisorSide(GraspSupervisor(config.plant, config.supervisor)).decide(tick)
     compile_face_kernels()
+    return time.perf_counter() - start
 
 
 __all__ = ['GraspSeries', 'HeadlessGrasp', 'HeadlessMoves', 'map_cases', 'MoveAnswer',
