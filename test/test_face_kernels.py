@@ -24,7 +24,7 @@ from gripper_ros.core.control.stages import (ForceStageController, LockstepAnswe
 from gripper_ros.core.physics.hold import HoldModel, Lift
 from gripper_ros.core.physics.pad_sensor import PadChannel
 from gripper_ros.core.physics.plant import GraspObject
-from gripper_ros.core.records import compile_face_kernels, copy_fields, set_fields
+from gripper_ros.core.records import compile_face_kernels, copy_fields, fields_into, set_fields
 from gripper_ros.core.runtime.headless import simulate_grasp, simulate_moves
 from gripper_ros.core.runtime.lockstep import PlantSide, StageSide, SupervisorSide
 from gripper_ros.core.supervision import machine, messages
@@ -162,6 +162,21 @@ def test_compiled_copy_fields_and_set_fields_write_what_the_python_ones_write():
     set_fields(python[0], ('pend_b', 't_ns'), -1)
     assert compiled.tobytes() == python.tobytes()
     assert compiled[0].tolist() == (2.5, 7, 2.5, -1, -1)
+
+
+def test_compiled_fields_into_writes_the_named_fields_in_order():
+    dtype = np.dtype([('a', 'f8'), ('b', 'i8'), ('c', 'f8')], align=True)
+
+    @numba.njit
+    def into(x, out):
+        fields_into(out, x[0], ('c', 'a', 'b'))
+
+    record = np.zeros(1, dtype)
+    record[0] = (1.5, 7, -2.25)
+    out, python = np.zeros(3), np.zeros(3)
+    into(record, out)
+    fields_into(python, record[0], ('c', 'a', 'b'))
+    assert out.tolist() == python.tolist() == [-2.25, 1.5, 7.0]
 
 
 def test_pid_settings_and_terms_read_the_record():

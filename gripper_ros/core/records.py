@@ -149,17 +149,26 @@ def _reader(dtype: np.dtype):
     return int if dtype.kind in 'iu' else float
 
 
-def copy_fields(record, source, names, prefix: str = '', source_prefix: str = '') -> None:
+def copy_fields(record, source, names=None, prefix: str = '', source_prefix: str = '') -> None:
     """Set each ``prefix + name`` of ``record`` to ``source_prefix + name`` of ``source``.
 
-    ``source`` is an object (its attributes) or a record; ``names`` the fields, named alike in
-    both, or (from Python) a dict {record's field: source's name}. In compiled code ``names``
-    and the prefixes are constants and the copy compiles to one assignment per field.
+    ``source`` is an object (its attributes), a record, or (from Python) a dict of values;
+    ``names`` the fields, named alike in both, or (from Python) a dict {record's field:
+    source's name}; None (a dict source): every key of it. In compiled code ``names`` and the
+    prefixes are constants and the copy compiles to one assignment per field.
     """
-    read = source.__getitem__ if isinstance(source, (np.void, np.ndarray)) else \
+    read = source.__getitem__ if isinstance(source, (np.void, np.ndarray, dict)) else \
         (lambda field: getattr(source, field))
-    for field, name in names.items() if isinstance(names, dict) else zip(names, names):
+    names = source if names is None else names
+    for field, name in names.items() if isinstance(names, dict) and names is not source \
+            else zip(names, names):
         record[prefix + field] = read(source_prefix + name)
+
+
+def fields_into(out, record, names) -> None:
+    """Set ``out[i]`` to field ``names[i]`` of ``record`` (compiled: one assignment each)."""
+    for i, name in enumerate(names):
+        out[i] = record[name]
 
 
 def set_fields(record, names, value) -> None:
@@ -195,6 +204,14 @@ def _copy_fields(record, source, names, prefix='', source_prefix=''):
     return _compiled(['def copy(record, source, names, prefix="", source_prefix=""):']
                      + [f'    record.{prefix}{n} = source.{source_prefix}{n}' for n in names]
                      + ['    return None'], 'copy')
+
+
+@overload(fields_into, prefer_literal=True)
+def _fields_into(out, record, names):
+    names = _literal(names, 'names')
+    return _compiled(['def into(out, record, names):']
+                     + [f'    out[{i}] = record.{n}' for i, n in enumerate(names)]
+                     + ['    return None'], 'into')
 
 
 @overload(set_fields, prefer_literal=True)

@@ -40,7 +40,8 @@ from gripper_ros.core.control.factories import (ForceControllerKind, make_force_
                                                 make_position_controller, PositionControllerKind)
 from gripper_ros.core.control.pid import (law_error, LAW_NUMBERS, LAW_OK, PID_DTYPE, pid_reset,
                                           pid_step_checked, py_max, py_min)
-from gripper_ros.core.records import as_record, copy_fields, face_kernel, FLOATS, RecordPair
+from gripper_ros.core.records import (as_record, copy_fields, face_kernel, fields_into, FLOATS,
+                                      RecordPair)
 from gripper_ros.wire import COMMAND_LAYOUT, Controller, MSG_REFERENCE, REFERENCE_LAYOUT
 import numba
 import numpy as np
@@ -64,14 +65,6 @@ LIMIT_NUMBERS = ('speed_limit_mps', 'voltage_limit_v')
 NUMBER_FIELDS = REFERENCE_NUMBERS + LIMIT_NUMBERS
 """Bit i of a last-answer record's ``numbers_mask`` / ``bad_mask`` is ``NUMBER_FIELDS[i]``."""
 N_NUMBERS = len(NUMBER_FIELDS)
-# each reference number's slot and bit, by name (the compiled code reads them as constants)
-AT_POSITION_SETPOINT = NUMBER_FIELDS.index('position_setpoint_m')
-AT_APPROACH_SETPOINT = NUMBER_FIELDS.index('approach_setpoint_m')
-AT_FORCE_SETPOINT = NUMBER_FIELDS.index('force_setpoint_n')
-AT_SEED_VOLTAGE = NUMBER_FIELDS.index('seed_voltage_v')
-AT_POSITION = NUMBER_FIELDS.index('position_m')
-AT_SPEED_LIMIT = NUMBER_FIELDS.index('speed_limit_mps')
-AT_VOLTAGE_LIMIT = NUMBER_FIELDS.index('voltage_limit_v')
 
 
 def parse_kind(kind_cls: type[enum.Enum], value, name: str = 'controller'):
@@ -300,13 +293,7 @@ def answer_open(last, reference_numbers, ref, measurement):
     if not math.isfinite(measurement):
         b.reason = REASON_MEASUREMENT
         return REASON_MEASUREMENT
-    reference_numbers[AT_POSITION_SETPOINT] = r.position_setpoint_m
-    reference_numbers[AT_APPROACH_SETPOINT] = r.approach_setpoint_m
-    reference_numbers[AT_FORCE_SETPOINT] = r.force_setpoint_n
-    reference_numbers[AT_SEED_VOLTAGE] = r.seed_voltage_v
-    reference_numbers[AT_POSITION] = r.position_m
-    reference_numbers[AT_SPEED_LIMIT] = r.speed_limit_mps
-    reference_numbers[AT_VOLTAGE_LIMIT] = r.voltage_limit_v
+    fields_into(reference_numbers, r, NUMBER_FIELDS)
     bad = 0
     for i in range(N_NUMBERS):
         if (b.numbers_mask >> i) & 1 and not math.isfinite(reference_numbers[i]):
@@ -520,14 +507,14 @@ class PositionStageController(_KernelStage):
         self._build_kernel(self.kind, pid=None if mpc else self.controller,
                            cascade=self.controller if mpc else None)
         plant = config.plant
-        s = self.record[0]
-        s['full_v'] = plant.voltage_limit_v
-        s['limit_low'], s['limit_high'] = -plant.voltage_limit_v, plant.voltage_limit_v
         # speed one sample on: a v + (1 - a) k_v u; the cap u puts it at v_lim - pole (v_lim - v)
         a = math.exp(-self.sample_time_s / plant.mechanical_time_constant_s)
         pole = config.position.speed_limit_pole
         gain = 1.0 / ((1.0 - a) * plant.free_speed_per_volt_mps)
-        s['speed_gain_limit'], s['speed_gain_speed'] = (1.0 - pole) * gain, (a - pole) * gain
+        copy_fields(self.record[0], {
+            'full_v': plant.voltage_limit_v, 'limit_low': -plant.voltage_limit_v,
+            'limit_high': plant.voltage_limit_v, 'speed_gain_limit': (1.0 - pole) * gain,
+            'speed_gain_speed': (a - pole) * gain})
 
     @staticmethod
     def measurement(ref) -> float:

@@ -53,7 +53,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 import math
 
-from gripper_ros.core.records import as_record, copy_fields, face_kernel, FLOATS, INTS
+from gripper_ros.core.records import (as_record, copy_fields, face_kernel, FLOATS, INTS,
+                                      RecordField)
 from gripper_ros.wire import FORCE_SAMPLE_S, HoldState, LiftProfile
 import numba
 import numpy as np
@@ -559,12 +560,10 @@ class HoldModel:
         self.record = np.zeros(1, HOLD_DTYPE)
         r = self.record[0]
         r['lift_off_ns'] = round(check_finite_nonnegative('lift', 'lift_off_s', lift_off_s) * 1e9)
-        r['tangential_stiffness_n_per_m'] = tangential_stiffness_n_per_m
-        r['mass_kg'] = mass_kg
-        r['static_friction'] = static_friction
-        r['kinetic_friction'] = kinetic_friction
-        r['pad_length_m'] = pad_length_m
-        r['gravity_mps2'] = gravity_mps2
+        copy_fields(r, {'mass_kg': mass_kg, 'static_friction': static_friction,
+                        'kinetic_friction': kinetic_friction, 'pad_length_m': pad_length_m,
+                        'gravity_mps2': gravity_mps2,
+                        'tangential_stiffness_n_per_m': tangential_stiffness_n_per_m})
         if lift is not None:
             r['has_lift'] = 1
             copy_fields(r, lift, {f'lift_{name}': name for name in (
@@ -583,26 +582,21 @@ class HoldModel:
         model.lift = lift
         return model
 
-    def _get(self, name):
-        return self.record[0][name]
-
-    mass_kg = property(lambda self: float(self._get('mass_kg')))
-    static_friction = property(lambda self: float(self._get('static_friction')))
-    kinetic_friction = property(lambda self: float(self._get('kinetic_friction')))
-    pad_length_m = property(lambda self: float(self._get('pad_length_m')))
-    gravity_mps2 = property(lambda self: float(self._get('gravity_mps2')))
-    tangential_stiffness_n_per_m = property(
-        lambda self: float(self._get('tangential_stiffness_n_per_m')))
-    state = property(lambda self: HoldState(int(self._get('state'))))
-    slip_m = property(lambda self: float(self._get('slip_m')))
-    slip_speed_mps = property(lambda self: float(self._get('slip_speed_mps')))
-    acceleration_mps2 = property(lambda self: float(self._get('acceleration_mps2')),
-                                 doc="The arm's upward acceleration now.")
-    hold_ns = property(lambda self: _optional_ns(self._get('hold_ns')))
-    lift_start_ns = property(lambda self: _optional_ns(self._get('lift_start_ns')))
-    lift_end_ns = property(lambda self: _optional_ns(self._get('lift_end_ns')))
-    lost_ns = property(lambda self: _optional_ns(self._get('lost_ns')))
-    next_event_ns = property(lambda self: _optional_ns(self._get('next_event_ns')))
+    mass_kg = RecordField(writable=False)
+    static_friction = RecordField(writable=False)
+    kinetic_friction = RecordField(writable=False)
+    pad_length_m = RecordField(writable=False)
+    gravity_mps2 = RecordField(writable=False)
+    tangential_stiffness_n_per_m = RecordField(writable=False)
+    state = RecordField(HoldState, writable=False)
+    slip_m = RecordField(writable=False)
+    slip_speed_mps = RecordField(writable=False)
+    acceleration_mps2 = RecordField(writable=False, doc="The arm's upward acceleration now.")
+    hold_ns = RecordField(_optional_ns, writable=False)
+    lift_start_ns = RecordField(_optional_ns, writable=False)
+    lift_end_ns = RecordField(_optional_ns, writable=False)
+    lost_ns = RecordField(_optional_ns, writable=False)
+    next_event_ns = RecordField(_optional_ns, writable=False)
 
     def begin(self, t_ns: int, mass_kg: float) -> None:
         """Start the lift's clock at ``t_ns`` (HOLDING declared); the object weighs ``mass_kg``."""

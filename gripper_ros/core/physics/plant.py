@@ -427,18 +427,6 @@ class GripperPlant:
         return (np.array([p.torque_constant_n_m_per_a / p.force_lever_m]),
                 np.array([p.inductance_h, p.resistance_ohm]))
 
-    def stall_force_n(self, voltage_v: float) -> float:
-        """Steady gripping force for a held voltage on a rigid object (DC gain of eq. 13)."""
-        return self.params.stall_force_per_volt_n * voltage_v
-
-    def free_speed_mps(self, voltage_v: float) -> float:
-        """Steady finger speed for a held voltage in free motion (DC gain of eq. 9 times p/2pi)."""
-        p = self.params
-        w = p.torque_constant_n_m_per_a * voltage_v / (
-            p.damping_n_m_s_per_rad * p.resistance_ohm
-            + p.torque_constant_n_m_per_a * p.back_emf_v_s_per_rad)
-        return w * p.travel_per_rad_m
-
     def discrete_free_model(self, dt_s: float) -> tuple[np.ndarray, np.ndarray]:
         """Exact ZOH model of free motion: ``s[k+1] = Ad s[k] + Bd e[k]``, s = [i, omega, x]."""
         return free_model(self.params, dt_s)

@@ -155,6 +155,7 @@ def _trace_tick(trace, tick, sup, plant_k, statuses, objects) -> None:
         status_note(sup, r)
         copy_fields(r, sup.decided, ('position_setpoint_m', 'force_setpoint_n',
                                      'approach_setpoint_m'))
+        r.seed_voltage_v = sup.machine.seed_voltage_v
         ts.statuses = m + 1
     h = plant_hold_record(plant_k)
     hold_state = h.state if h.has_hold else HoldState.NONE
