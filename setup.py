@@ -14,6 +14,8 @@ setup(
         ('share/' + package_name + '/config', sorted(glob('config/*.yaml'))),
         ('share/' + package_name + '/launch', sorted(glob('launch/*.launch.py'))),
         ('share/' + package_name + '/urdf', sorted(glob('urdf/*.urdf') + glob('urdf/*.xacro'))),
+        ('share/' + package_name + '/viewers', sorted(glob('viewers/*.json') +
+                                                      glob('viewers/*.rviz'))),
     ],
     install_requires=['setuptools'],
     zip_safe=True,

@@ -71,6 +71,9 @@ TOPIC_STATUS = 'supervisor/status'
 TOPIC_OUTCOME = 'supervisor/outcome'
 """The final status of the last request, latched (transient local, depth 1)."""
 TOPIC_OBJECT_STATE = 'sim/object_state'
+TOPIC_OBJECT_MARKER = 'sim/object_marker'
+"""visualization_msgs/Marker, with each sim/object_state: the object as the plant has it, drawn
+in the base frame (nodes/object_marker.py)."""
 TOPIC_SIM_STATUS = 'sim/status'
 TOPIC_LOAD_ACCELERATION = 'sim/load_acceleration'
 """geometry_msgs/AccelStamped, an arm (simulator) -> plant: the arm's acceleration while it holds;
@@ -149,6 +152,7 @@ STATE_TOPICS: dict[str, str] = {
     TOPIC_FORCE_SENSOR: 'gripper_interfaces/msg/ForceSensor',
     TOPIC_STATUS: 'gripper_interfaces/msg/SupervisorStatus',
     TOPIC_OBJECT_STATE: 'gripper_interfaces/msg/ObjectState',
+    TOPIC_OBJECT_MARKER: 'visualization_msgs/msg/Marker',
     TOPIC_SIM_STATUS: 'gripper_interfaces/msg/SimStatus',
 }
 GRAPH_TOPICS: dict[str, str] = {**LOOP_TOPICS, **STATE_TOPICS}
@@ -162,6 +166,11 @@ DESCRIPTION_TOPICS: dict[str, str] = {
 LATCHED_DESCRIPTION_TOPICS = (TOPIC_ROBOT_DESCRIPTION, TOPIC_TF_STATIC)
 BAG_TOPICS: dict[str, str] = {**GRAPH_TOPICS, **DESCRIPTION_TOPICS}
 """What a grasp bag of a graph with its description records: a viewer draws the fingers."""
+LIVE_TOPICS: dict[str, str] = {**BAG_TOPICS,
+                               TOPIC_GRIPPER_STATUS: 'diagnostic_msgs/msg/DiagnosticStatus'}
+"""What the live view serves (nodes/live_view.py): a bag's topics and gripper_status."""
+LATCHED_LIVE_TOPICS = (*LATCHED_DESCRIPTION_TOPICS, TOPIC_GRIPPER_STATUS)
+"""The live view's latched topics: each new subscriber gets the last message."""
 
 
 def qualified(namespace: str, name: str) -> str:

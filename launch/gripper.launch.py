@@ -13,7 +13,10 @@ loop goes, paused between requests),
 (``/clock``, one simulator per ROS graph), ``prefix`` (the xacro's: ``left_`` names the
 joint ``left_finger_joint`` in joint_states and joint_commands, and the URDF's links, so every
 TF frame; by default from the namespace: none in ``gripper``, ``left_`` in ``left``, so grippers
-launched side by side share no frame and no joint) and ``per_node`` (default ``false``).
+launched side by side share no frame and no joint), ``per_node`` (default ``false``), and
+``foxglove`` (default ``false``; ``true`` serves the graph live to Foxglove over its WebSocket
+protocol, on ``foxglove_port`` (8765) at ``foxglove_address`` (this machine only: 127.0.0.1);
+only with the graph in one process).
 The nodes: plant_simulator, position_controller, force_controller, supervisor,
 grasp_action_server, move_action_server (which also serves control_msgs
 ParallelGripperCommand on ``gripper_cmd`` where control_msgs is installed) and the one
@@ -41,11 +44,12 @@ On Ctrl-C the terminal sends SIGINT to every process of the group; launch then w
 within its own stop bound first (docs/USING.md, "Stopping").
 """
 from gripper_ros.nodes import launched_executables, robot_state_publisher_installed
+from gripper_ros.nodes.live_view import DEFAULT_ADDRESS, DEFAULT_PORT
 from gripper_ros.wire import (DEFAULT_NAMESPACE, namespace_prefix, NODE_DESCRIPTION,
                               NODE_MOVE_ACTION, NODE_PLANT, NODE_SUPERVISOR,
                               ROBOT_STATE_PUBLISHER, TIME_MODE_CHOICES, TimeMode)
 from launch import LaunchDescription
-from launch.actions import DeclareLaunchArgument
+from launch.actions import DeclareLaunchArgument, OpaqueFunction
 from launch.conditions import IfCondition, UnlessCondition
 from launch.substitution import Substitution
 from launch.substitutions import Command, LaunchConfiguration, PathJoinSubstitution
@@ -83,9 +87,26 @@ ARGUMENTS = (
      "before finger_joint and the URDF's names, so every TF frame (the xacro's prefix)"),
     ('per_node', 'false', 'true: one process per node; false: the whole graph in one process '
      '(real time while holding)'),
+    ('foxglove', 'false', 'true: serve the graph live to Foxglove (its WebSocket protocol; '
+     'the graph in one process)'),
+    ('foxglove_port', str(DEFAULT_PORT), "the live view's port"),
+    ('foxglove_address', DEFAULT_ADDRESS, 'where the live view listens (0.0.0.0: every '
+     'interface)'),
 )
+TRUE = ('true', '1', 'yes', 'on')
+"""What launch's conditions take as true."""
 GRAPH_EXECUTABLE = 'gripper_graph'
 """The one process of the default layout: every node of the graph under one executor."""
+
+
+def _live_view_needs_one_process(context) -> list:
+    """Refuse ``foxglove:=true`` with ``per_node:=true``: the live view taps the one process."""
+    def true(name: str) -> bool:
+        return context.launch_configurations.get(name, 'false').strip().lower() in TRUE
+    if true('foxglove') and true('per_node'):
+        raise RuntimeError('foxglove:=true serves the graph from its one process: it does not '
+                           'go with per_node:=true')
+    return []
 
 
 def generate_launch_description() -> LaunchDescription:
@@ -102,13 +123,20 @@ def generate_launch_description() -> LaunchDescription:
                                            value_type=float),
         'publish_clock': ParameterValue(LaunchConfiguration('publish_clock'), value_type=bool),
     }
+    live = {
+        'foxglove': ParameterValue(LaunchConfiguration('foxglove'), value_type=bool),
+        'foxglove_port': ParameterValue(LaunchConfiguration('foxglove_port'), value_type=int),
+        'foxglove_address': ParameterValue(LaunchConfiguration('foxglove_address'),
+                                           value_type=str),
+    }
     per_node = LaunchConfiguration('per_node')
     actions = [DeclareLaunchArgument(name, default_value=default, description=description)
                for name, default, description in ARGUMENTS]
+    actions.append(OpaqueFunction(function=_live_view_needs_one_process))
     actions.append(Node(package=PACKAGE, executable=GRAPH_EXECUTABLE,
                         namespace=LaunchConfiguration('namespace'),
-                        parameters=[config, plant, named], output='screen', emulate_tty=True,
-                        condition=UnlessCondition(per_node)))
+                        parameters=[config, plant, named, live], output='screen',
+                        emulate_tty=True, condition=UnlessCondition(per_node)))
     urdf = Command([PathJoinSubstitution([FindPackagePrefix(PACKAGE), 'lib', PACKAGE,
                                           'gripper_urdf']),
                     ' --config ', LaunchConfiguration('config_file'),

@@ -2,7 +2,9 @@
 # Source me (do not execute):   source scripts/env.sh
 # Activates the project's environment built by scripts/setup.sh: the system ROS 2 Jazzy (if that
 # is what setup.sh used) or the venv's ROS wheels, the venv, and the colcon install/ overlay.
-# Sets ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST and a per-checkout ROS_DOMAIN_ID unless already set.
+# Sets ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST and a per-checkout ROS_DOMAIN_ID unless already set,
+# and puts the package's programs (install/gripper_ros/lib/gripper_ros: grasp_demo, bag_info ...)
+# on the PATH, as the docs' transcripts run them.
 if [ -z "${BASH_VERSION:-}" ]; then echo "scripts/env.sh needs bash" >&2; return 1 2>/dev/null || exit 1; fi
 _gr_root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 _gr_venv="${GRIPPER_ROS_VENV:-$_gr_root/.venv}"
@@ -29,7 +31,14 @@ if [ "$_gr_mode" = wheels ]; then
 fi
 # shellcheck disable=SC1091
 source "$_gr_root/install/setup.bash"
+# the ROS 2 command line of `setup.sh --ros2-cli` (ros2, ros2 launch, control_msgs), if built
+if [ "$_gr_mode" = wheels ] && [ -f "$_gr_venv/ros2_cli/install/local_setup.bash" ]; then
+  # shellcheck disable=SC1091
+  source "$_gr_venv/ros2_cli/install/local_setup.bash"
+fi
 
+case ":$PATH:" in *":$_gr_root/install/gripper_ros/lib/gripper_ros:"*) ;;
+  *) export PATH="$_gr_root/install/gripper_ros/lib/gripper_ros:$PATH";; esac
 export ROS_AUTOMATIC_DISCOVERY_RANGE="${ROS_AUTOMATIC_DISCOVERY_RANGE:-LOCALHOST}"
 if [ -z "${ROS_DOMAIN_ID:-}" ]; then
   # stable per checkout, 1..100 (valid for Fast DDS), so two clones on one machine do not meet

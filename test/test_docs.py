@@ -1,14 +1,19 @@
-"""The docs' lists of executables, nodes and launch arguments are the package's.
+"""The docs' lists and example outputs are the package's: what its programs print.
 
 Known answers: setup.py's console scripts, the launch file's ``ARGUMENTS`` (read from its
 source, so the check needs no ``launch`` package), ``wire.LAUNCHED_NODES`` and the node modules
 of ``gripper_ros.nodes``. A doc that names a program, node or argument the package lacks, or
-leaves out one it has, fails here with both lists.
+leaves out one it has, fails here with both lists. Every example output ``scripts/doc_examples.py``
+regenerates is run again here (``--check``): a shown line that differs from what its command
+prints now fails, named with both, the numbers that vary from run to run (wall times, bag
+names' stamps, the checkout's path) left out.
 """
 from __future__ import annotations
 
 import ast
 import re
+import subprocess
+import sys
 
 from gripper_ros.nodes import NODE_MODULES
 from gripper_ros.wire import LAUNCHED_NODES
@@ -95,6 +100,59 @@ def test_using_md_describes_every_node_and_counts_the_launched_ones():
     assert sorted(described) == sorted(NODE_MODULES)
     assert text.lstrip().startswith(f'{NUMBER_WORDS[len(NODE_MODULES)].capitalize()} nodes')
     assert f'The launch file starts {NUMBER_WORDS[len(LAUNCHED_NODES)]} of them' in text
+
+
+def _doc_examples(*args: str, timeout_s: float = 3600.0) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, str(REPO / 'scripts' / 'doc_examples.py'), *args],
+                          stdin=subprocess.DEVNULL, capture_output=True, text=True,
+                          timeout=timeout_s, check=False)
+
+
+def _regenerated() -> list[str]:
+    """Return the docs doc_examples.py regenerates (its --list), by file name."""
+    listed = _doc_examples('--list').stdout
+    return re.findall(r'^docs/(\S+):', listed, re.MULTILINE)
+
+
+@pytest.mark.parametrize('doc', _regenerated())
+def test_every_shown_example_is_what_its_command_prints(doc, tmp_path):
+    done = _doc_examples('--check', '--scratch', str(tmp_path), doc)
+    assert done.returncode == 0, done.stdout[-6000:] + done.stderr[-2000:]
+
+
+def test_a_drift_in_a_shown_figure_is_found(tmp_path, monkeypatch):
+    """A figure changed in a copy of RESULTS.md's position floor is named, with both lines."""
+    import importlib.util
+    spec = importlib.util.spec_from_file_location('doc_examples', REPO / 'scripts' /
+                                                  'doc_examples.py')
+    doc_examples = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(doc_examples)
+    text = (DOCS / 'RESULTS.md').read_text()
+    shown = re.search(r'minimum RMS error over 20 s \(samples 0\.\.2000\): (\S+) m', text)
+    planted = text.replace(shown.group(0), shown.group(0).replace(shown.group(1), '9.87654'))
+    lines = doc_examples.differences('RESULTS.md', planted, text)
+    assert len(lines) == 2 and '9.87654' in lines[0] and shown.group(1) in lines[1], lines
+    assert doc_examples.differences('RESULTS.md', text, text) == []
+
+
+def test_what_varies_from_run_to_run_is_left_out():
+    import importlib.util
+    spec = importlib.util.spec_from_file_location('doc_examples', REPO / 'scripts' /
+                                                  'doc_examples.py')
+    doc_examples = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(doc_examples)
+    a = [' width m  mass kg     outcome  wall s', '   0.010    1.270     HOLDING    0.18',
+         'bag: bags/grasp_20261206_054616_1_w10mm_m1.27kg_26105',
+         'contact_sweep: 760 grasps in 24 s wall', 'excite: 7 moves in 20.01 s (wall 3.3 s)']
+    b = [' width m  mass kg     outcome  wall s', '   0.010    1.270     HOLDING    0.45',
+         'bag: bags/grasp_20261201_203919_1_w10mm_m1.27kg_25213',
+         'contact_sweep: 760 grasps in 33 s wall', 'excite: 7 moves in 20.01 s (wall 0.8 s)']
+    assert doc_examples.masked(a) == doc_examples.masked(b)
+    c = list(b)
+    c[1] = '   0.010    1.271     HOLDING    0.45'           # a simulated figure: never masked
+    c[4] = 'excite: 7 moves in 20.02 s (wall 0.8 s)'
+    assert [i for i, (x, y) in enumerate(zip(doc_examples.masked(a), doc_examples.masked(c)))
+            if x != y] == [1, 4]
 
 
 @pytest.mark.parametrize('doc', sorted(p.name for p in DOCS.glob('*.md')) + ['../README.md'])

@@ -39,11 +39,15 @@ RECORDED = {qualified(DEFAULT_NAMESPACE, t): msgtype for t, msgtype in GRAPH_TOP
 """The graph's topics of the default gripper, with their types."""
 FRESH = {qualified(DEFAULT_NAMESPACE, t): msgtype for t, msgtype in BAG_TOPICS.items()}
 """The topics of a fresh bag: the graph's and the description's (robot_description, /tf)."""
-HEADER_TYPES = sorted(t for t in set(GRAPH_TOPICS.values()) if not t.endswith(
-    ('/PlantTick', '/StageReference', '/MotorCommand')))
-"""The recorded types with a std_msgs/Header (the lockstep messages have none)."""
-PLAIN_TOPICS = {t for t, msgtype in RECORDED.items() if msgtype not in HEADER_TYPES}
-"""sensor_msgs/JointState and our gripper_interfaces messages: all have a std_msgs/Header."""
+PLAIN_TYPES = ('gripper_interfaces/msg/PlantTick', 'gripper_interfaces/msg/StageReference',
+               'gripper_interfaces/msg/MotorCommand')
+"""The lockstep messages: no nested type."""
+HEADER_TYPES = sorted(t for t in set(GRAPH_TOPICS.values())
+                      if t not in PLAIN_TYPES and t != 'visualization_msgs/msg/Marker')
+"""The recorded types whose only nested type is a std_msgs/Header: sensor_msgs/JointState and
+our gripper_interfaces messages (the object's Marker has many more)."""
+PLAIN_TOPICS = {t for t, msgtype in RECORDED.items() if msgtype in PLAIN_TYPES}
+"""The topics whose schema text names no dependency."""
 PRIMITIVES = {'bool', 'byte', 'char', 'float32', 'float64', 'int8', 'uint8', 'int16', 'uint16',
               'int32', 'uint32', 'int64', 'uint64', 'string', 'wstring'}
 FOXGLOVE_HEADER_ERROR = "Expected 1 top level type definition for 'std_msgs/Header' but found 0"

@@ -4,8 +4,9 @@ The graph in one process (``gripper_graph``, the default) or one process per nod
 (``per_node:=true``), the namespace, config file and time mode as launch arguments; Ctrl-C
 (SIGINT to the process group, as a terminal sends it) stops every process, each exiting 0
 before launch escalates. The ros-jazzy wheels have no launch_ros (nor the ros2 launch
-command), so there these tests skip (run them with ``ROS2_OVERLAY`` set); test_install_layout
-checks that the file is installed either way.
+command): there these tests skip, unless ``setup.sh --ros2-cli`` built them (scripts/test.sh
+then sets ``ROS2_OVERLAY``, and a failure to import is an error); test_install_layout checks
+that the file is installed either way.
 """
 import importlib.util
 import os

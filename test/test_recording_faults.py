@@ -210,9 +210,9 @@ def test_the_tap_adds_no_subscription_and_counts_equal_published(graph, tmp_path
     publishers = [p for node in graph.nodes for p in getattr(node, 'graph_publishers', ())
                   if p.topic_name in tap.topics]
     assert {p.topic_name for p in publishers} == set(tap.topics)   # every recorded topic
-    assert all(p.tap is not None for p in publishers)
+    assert all(p.taps == (tap._on_message,) for p in publishers)
     tap.close()
-    assert all(p.tap is None for p in publishers)
+    assert all(p.taps == () for p in publishers)
 
 
 def test_a_second_signal_while_closing_leaves_a_complete_bag_and_no_traceback(tmp_path):

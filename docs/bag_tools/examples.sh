@@ -44,11 +44,11 @@ run "bag_analyze $B2 --json | head -8"
 run "bag_analyze $B2 --csv | cut -c1-100"
 echo '## bag_replay (publish), each with a listener started first'
 for args in '--rate 1 -q' '--rate 5 -q'; do
-  python3 "$HERE/replay_listener.py" 8 > listener.txt & sleep 2
+  python3 "$HERE/replay_listener.py" 120 > listener.txt & sleep 2
   run bag_replay "$B2" --topics /gripper/joint_states $args --wait-for-subscribers 1
   wait; cat listener.txt
 done
-python3 "$HERE/replay_listener.py" 8 > listener.txt & sleep 2
+python3 "$HERE/replay_listener.py" 120 > listener.txt & sleep 2
 run "bag_replay $B2 --topics /gripper/joint_states --clock --rate 5 --wait-for-subscribers 1 2>&1 | tr '\r' '\n' | sed 's/\x1b\[K//' | tail -2"
 wait; cat listener.txt
 echo '## --resimulate'

@@ -25,6 +25,7 @@ def build_parser() -> argparse.ArgumentParser:
     from gripper_ros.core.control.stages import (DEFAULT_APPROACH_FORCE_MARGIN,
                                                  DEFAULT_FORCE_CONTROLLER,
                                                  DEFAULT_POSITION_CONTROLLER)
+    from gripper_ros.nodes.live_view import DEFAULT_ADDRESS, DEFAULT_PORT
     from gripper_ros.nodes.process import ExecutorKind
     from gripper_ros.studies.lift_runs import LIFT_DELAY_S, LIFT_DURATION_S
     from gripper_ros.wire import DEFAULT_NAMESPACE, TIME_MODE_CHOICES
@@ -73,6 +74,13 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('--serve', action='store_true',
                    help='keep the graph up as simulated hardware and answer grasp, release, '
                         'stop and sim/* from other processes')
+    p.add_argument('--foxglove', type=int, nargs='?', const=DEFAULT_PORT, default=None,
+                   metavar='PORT',
+                   help='serve the graph live to Foxglove over its WebSocket protocol, on PORT '
+                        '(default %(const)s; 0: any free port); with --serve or realtime time')
+    p.add_argument('--foxglove-address', default=DEFAULT_ADDRESS, metavar='ADDRESS',
+                   help='where the live view listens (default %(default)s: this machine only; '
+                        '0.0.0.0: every interface)')
     p.add_argument('--namespace', default=DEFAULT_NAMESPACE,
                    help='ROS namespace of this gripper (default %(default)s: /gripper/...)')
     p.add_argument('--prefix', default=None,
@@ -188,6 +196,12 @@ def main(argv: list[str] | None = None) -> int:
     if not (math.isfinite(args.real_time_factor) and 0.0 < args.real_time_factor <= 100.0):
         return _fail(f'--real-time-factor must be in (0, 100], got {args.real_time_factor!r}')
     time_mode = args.time_mode or (TimeMode.REALTIME if args.serve else TimeMode.FAST).parameter
+    if args.foxglove is not None:
+        if not 0 <= args.foxglove <= 65535:
+            return _fail(f'--foxglove: a port is 0-65535, got {args.foxglove}')
+        if time_mode != TimeMode.REALTIME.parameter:
+            return _fail('--foxglove shows the graph as it runs: use it with --serve or '
+                         '--time-mode realtime')
     from rclpy.signals import SignalHandlerOptions
     from rclpy.exceptions import InvalidNamespaceException
     from rclpy.utilities import ok
@@ -214,6 +228,9 @@ def main(argv: list[str] | None = None) -> int:
     signals.__enter__()
 
     def demo(graph) -> int:
+        if args.foxglove is not None:
+            from gripper_ros.nodes.live_view import serve_live
+            serve_live('grasp_demo', graph, args.foxglove_address, args.foxglove)
         if args.serve:
             if not args.no_record:
                 ServeRecorder(graph, args.output)

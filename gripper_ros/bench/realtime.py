@@ -4,6 +4,7 @@
     ros2 run gripper_ros bench_realtime --seconds 10 --no-record --json
     ros2 run gripper_ros bench_realtime --per-node       # one process per node
     ros2 run gripper_ros bench_realtime --launch         # via ros2 launch (one process)
+    ros2 run gripper_ros bench_realtime --foxglove       # without, then with a Foxglove client
 
 ``grasp_demo --serve`` runs in a child process, exactly as a user starts it (realtime time,
 real-time factor 1, bags per grasp unless ``--no-record``); with ``--per-node`` the launch
@@ -25,12 +26,24 @@ stamps of ``joint_states``; 1.0 is the aim, and the plant never runs ahead of th
 clock), the rates of ``/clock`` and ``joint_states`` against ``state_rate_hz``, the plant's own
 figure from ``sim/status``, and the child's CPU time as a share of one core (summed over the
 node processes with ``--per-node``, over the launch group with ``--launch``).
+
+``--foxglove`` measures ``grasp_demo --serve`` three times in one run: as above, then serving the
+live view (``--foxglove``) to Foxglove's own client library through both windows, watching the
+topics of the shipped layout (viewers/gripper.foxglove.json), then every topic
+(``test/interop/live_client.mjs``: ``@foxglove/ws-protocol``, every message decoded, from the
+npm packages scripts/setup.sh installs in ``build/interop``; ``--foxglove-client`` names another
+command, given the URL and ``--topics T1,T2``). It prints each, the CPU the live view adds and
+what the client got.
 """
 from __future__ import annotations
 
 import argparse
 import json
 import os
+from pathlib import Path
+import re
+import shlex
+import shutil
 import signal
 import subprocess
 import sys
@@ -145,7 +158,7 @@ def _window(watcher: _Watcher, pids: Sequence[int], seconds: float) -> Dict[str,
 
 
 def _commands(namespace: str, output: str, record: bool, per_node: bool,
-              launch: bool = False) -> list[list[str]]:
+              launch: bool = False, live: bool = False) -> list[list[str]]:
     """Return the command line of each child: grasp_demo --serve, one per node, or ros2 launch."""
     if launch:
         return [ros2_launch_command(namespace, per_node)]
@@ -156,12 +169,68 @@ def _commands(namespace: str, output: str, record: bool, per_node: bool,
            namespace, '--output', output, '--ros-args', '--log-level', 'warn']
     if not record:
         cmd.insert(-3, '--no-record')
+    if live:
+        cmd[-3:-3] = ['--foxglove', '0']
     return [cmd]
 
 
+LIVE_URL = re.compile(r'Foxglove live view at (ws://\S+)')
+
+
+def default_client() -> list[str]:
+    """Return the command of Foxglove's client library as the tests run it (BenchError if none)."""
+    repo = Path(__file__).resolve().parents[2]
+    script, modules = repo / 'test' / 'interop' / 'live_client.mjs', repo / 'build' / 'interop'
+    node = shutil.which('node')
+    if node is None or not script.is_file() or not (modules / 'node_modules').is_dir():
+        raise BenchError('--foxglove needs node and the npm packages scripts/setup.sh installs in '
+                         'build/interop (or --foxglove-client COMMAND)')
+    target = modules / script.name          # node resolves the packages beside the script
+    shutil.copyfile(script, target)
+    return [node, str(target)]
+
+
+def shipped_layout_topics() -> list[str]:
+    """Return the topics of the installed Foxglove layout, relative to its gripper's namespace."""
+    from ament_index_python.packages import get_package_share_directory
+    from gripper_ros.nodes.live_view import layout_topics
+    from gripper_ros.wire import DEFAULT_NAMESPACE
+    path = Path(get_package_share_directory('gripper_ros')) / 'viewers' / 'gripper.foxglove.json'
+    prefix = f'/{DEFAULT_NAMESPACE}/'
+    return [t.removeprefix(prefix) for t in layout_topics(json.loads(path.read_text()))]
+
+
+class _LiveClient:
+    """A Foxglove client watching every topic of the live view at ``url``."""
+
+    def __init__(self, command: list[str], url: str, topics: Optional[list[str]], log) -> None:
+        extra = ['--topics', ','.join(topics)] if topics else []
+        self.proc = subprocess.Popen([*command, url, *extra], stdin=subprocess.DEVNULL,
+                                     stdout=subprocess.PIPE, stderr=log, text=True)
+        line = self.proc.stdout.readline()
+        if not line.startswith('subscribed'):
+            self.proc.kill()
+            raise BenchError(f'the Foxglove client did not subscribe: {line.strip()!r}')
+
+    def stop(self) -> Dict[str, Any]:
+        """Stop it (SIGTERM); return its report, JSON (live_client.mjs)."""
+        if self.proc.poll() is None:
+            self.proc.send_signal(signal.SIGTERM)
+        out, _ = self.proc.communicate(timeout=60)
+        try:
+            return json.loads(out.strip().splitlines()[-1])
+        except (ValueError, IndexError):
+            raise BenchError(f'the Foxglove client printed no report: {out[-300:]!r}') from None
+
+
 def measure(seconds: float, record: bool, per_node: bool = False,
-            launch: bool = False) -> Dict[str, Any]:
-    """Idle and holding windows of a ``grasp_demo --serve`` child, the node children, or launch."""
+            launch: bool = False, client: Optional[list[str]] = None,
+            topics: Optional[list[str]] = None) -> Dict[str, Any]:
+    """Idle and holding windows of a ``grasp_demo --serve`` child, the node children, or launch.
+
+    ``client``: serve the live view to this command (given the URL) through both windows,
+    watching ``topics`` (relative names; None: every one).
+    """
     from gripper_interfaces.srv import Grasp, SetObject
     from std_srvs.srv import Trigger
     from gripper_ros.wire import Outcome
@@ -169,11 +238,13 @@ def measure(seconds: float, record: bool, per_node: bool = False,
     record = record and not (per_node or launch)
     with tempfile.TemporaryDirectory(prefix='bench_realtime_') as tmp:
         log = open(os.path.join(tmp, 'stderr.log'), 'w+')    # never a full pipe that blocks
-        children = [subprocess.Popen(cmd, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
+        printed = open(os.path.join(tmp, 'stdout.log'), 'w+')
+        children = [subprocess.Popen(cmd, stdin=subprocess.DEVNULL, stdout=printed,
                                      stderr=log, text=True, start_new_session=launch)
-                    for cmd in _commands(namespace, tmp, record, per_node, launch)]
+                    for cmd in _commands(namespace, tmp, record, per_node, launch,
+                                         client is not None)]
         pids = [child.pid for child in children]
-        watcher = None
+        watcher = viewer = None
         try:
             watcher = _Watcher(namespace)
             deadline = time.monotonic() + _UP_TIMEOUT_S
@@ -188,6 +259,14 @@ def measure(seconds: float, record: bool, per_node: bool = False,
                     raise BenchError('grasp_demo --serve did not come up')
                 time.sleep(0.05)
             time.sleep(0.5)
+            if client is not None:
+                printed.seek(0)
+                url = LIVE_URL.search(printed.read())
+                if url is None:
+                    raise BenchError('grasp_demo --serve --foxglove said no URL')
+                from gripper_ros.wire import qualified
+                viewer = _LiveClient(client, url.group(1),
+                                     topics and [qualified(namespace, t) for t in topics], log)
             if launch:                        # launch and every process it started
                 pids = group_pids(children[0].pid)
             idle = _window(watcher, pids, seconds)
@@ -209,13 +288,19 @@ def measure(seconds: float, record: bool, per_node: bool = False,
             time.sleep(1.0)                  # the serve bag closes 0.5 s after the answer
             holding = _window(watcher, pids, seconds)
             watcher.call(watcher.release, Trigger.Request(), 60.0)
-            return {'record': record, 'per_node': per_node, 'launch': launch,
-                    'processes': len(pids), 'seconds': seconds,
-                    'state_rate_hz': DEFAULT_STATE_RATE_HZ,
-                    'grasp': {'width_m': GRASP[0], 'mass_kg': GRASP[1],
-                              'wall_s': grasp_wall_s},
-                    'idle': idle, 'holding': holding}
+            result = {'record': record, 'per_node': per_node, 'launch': launch,
+                      'processes': len(pids), 'seconds': seconds,
+                      'state_rate_hz': DEFAULT_STATE_RATE_HZ,
+                      'grasp': {'width_m': GRASP[0], 'mass_kg': GRASP[1],
+                                'wall_s': grasp_wall_s},
+                      'idle': idle, 'holding': holding}
+            if viewer is not None:
+                result['foxglove_client'] = _client_summary(viewer.stop())
+            return result
         finally:
+            if viewer is not None and viewer.proc.poll() is None:
+                viewer.proc.kill()
+                viewer.proc.wait()
             if watcher is not None:
                 watcher.close()
             for child in children:
@@ -233,6 +318,18 @@ def measure(seconds: float, record: bool, per_node: bool = False,
                     child.kill()
                     child.wait()
             log.close()
+            printed.close()
+
+
+def _client_summary(report: Dict[str, Any]) -> Dict[str, Any]:
+    """Return what the client got: per topic, messages decoded and their rate (its wall time)."""
+    topics = {}
+    for topic, e in report['topics'].items():
+        span_s = ((e['last_wall_ms'] or 0) - (e['first_wall_ms'] or 0)) * 1e-3
+        topics[topic] = {'decoded': e['decoded'], 'failed': e['failed'],
+                         'hz': (e['decoded'] - 1) / span_s if span_s > 0 else 0.0}
+    return {'protocol': report['protocol'], 'errors': report['errors'], 'topics': topics,
+            'watched': sorted(t for t, e in report['topics'].items() if e['decoded'])}
 
 
 def format_report(r: Dict[str, Any]) -> str:
@@ -262,6 +359,29 @@ def format_report(r: Dict[str, Any]) -> str:
                  f'{g["wall_s"]:.2f} s of wall time')
     lines.append('RTF: simulated s per wall s from the joint_states stamps (aim 1.0, never '
                  'above); plant RTF: the lowest sim/status figure in the window')
+    client = r.get('foxglove_client')
+    if client is not None:
+        rates = ', '.join(f'{t} {c["hz"]:.0f} Hz' for t, c in sorted(client['topics'].items())
+                          if c['hz'] >= 1.0)
+        decoded = sum(c['decoded'] for c in client['topics'].values())
+        failed = sum(c['failed'] for c in client['topics'].values())
+        lines.append(f'Foxglove client ({client["protocol"]}), {len(client["watched"])} '
+                     'topics, from before the idle window to after the holding one: '
+                     f'{decoded} messages decoded, {failed} failed; {rates}')
+    return '\n'.join(lines)
+
+
+def format_comparison(off: Dict[str, Any], layout: Dict[str, Any], every: Dict[str, Any]) -> str:
+    """Return the three reports and the CPU the live view adds in each window."""
+    lines = ['without the live view:', format_report(off)]
+    for title, on in (("a Foxglove client watching the shipped layout's topics", layout),
+                      ('a Foxglove client watching every topic', every)):
+        added = [f'{name}: {on[name]["cpu_share"] - off[name]["cpu_share"]:+.2f} of a core '
+                 f'({off[name]["cpu_share"]:.2f} -> {on[name]["cpu_share"]:.2f}), RTF '
+                 f'{off[name]["rtf"]:.3f} -> {on[name]["rtf"]:.3f}' for name in ('idle',
+                                                                                 'holding')]
+        lines += ['', f'with the live view and {title}:', format_report(on), '',
+                  'the live view adds: ' + '; '.join(added)]
     return '\n'.join(lines)
 
 
@@ -278,12 +398,32 @@ def main(args: Optional[Sequence[str]] = None) -> int:
     p.add_argument('--launch', action='store_true',
                    help='run ros2 launch gripper_ros gripper.launch.py (with --per-node: '
                         'per_node:=true); needs the ros2 command')
+    p.add_argument('--foxglove', action='store_true',
+                   help='grasp_demo --serve without, then with the live view and a Foxglove '
+                        'client watching every topic')
+    p.add_argument('--foxglove-client', default=None, metavar='COMMAND',
+                   help='the client to run (given the URL; default: test/interop/'
+                        'live_client.mjs with node)')
     p.add_argument('--json', action='store_true', help='print JSON instead of the table')
     opts = p.parse_args(list(sys.argv[1:] if args is None else args))
     if not (0.5 <= opts.seconds <= 600.0):
         print('bench_realtime: error: --seconds must be in [0.5, 600]', file=sys.stderr)
         return 2
+    if opts.foxglove and (opts.per_node or opts.launch):
+        print('bench_realtime: error: --foxglove measures grasp_demo --serve (not with '
+              '--per-node or --launch)', file=sys.stderr)
+        return 2
     try:
+        if opts.foxglove:
+            client = shlex.split(opts.foxglove_client) if opts.foxglove_client else \
+                default_client()
+            shown = shipped_layout_topics()
+            off = measure(opts.seconds, opts.record)
+            layout = measure(opts.seconds, opts.record, client=client, topics=shown)
+            every = measure(opts.seconds, opts.record, client=client)
+            print(json.dumps({'off': off, 'layout': layout, 'every': every}, indent=2)
+                  if opts.json else format_comparison(off, layout, every))
+            return 0
         report = measure(opts.seconds, opts.record, opts.per_node, opts.launch)
     except BenchError as exc:
         print(f'bench_realtime: error: {exc}', file=sys.stderr)

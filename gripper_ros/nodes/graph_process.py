@@ -25,7 +25,11 @@ SETTINGS = (('config_file', '', 'config YAML (default: the installed one)'),
             ('real_time_factor', 1.0, 'realtime: simulated seconds per wall second'),
             ('publish_clock', True, 'publish /clock'),
             ('prefix', '', "the xacro's prefix: the joint's and the URDF's names; "
-             'default: from the namespace (wire.namespace_prefix)'))
+             'default: from the namespace (wire.namespace_prefix)'),
+            ('foxglove', False, 'serve the graph live to Foxglove (its WebSocket protocol)'),
+            ('foxglove_port', 8765, "the live view's port (0: any free port)"),
+            ('foxglove_address', '127.0.0.1', 'where the live view listens (0.0.0.0: every '
+             'interface)'))
 """The launch arguments this process takes as parameters: name, default, description."""
 POLL_S = 0.1
 """How often the main thread looks for a stop signal or a graph that stopped spinning."""
@@ -66,6 +70,7 @@ def main(args: list[str] | None = None) -> int:
     from rclpy.exceptions import InvalidNamespaceException, ParameterException
     from gripper_ros.core.config import ConfigError
     from gripper_ros.nodes.graph import GraphError, GraphOptions, GripperGraph
+    from gripper_ros.nodes.live_view import LiveViewError, serve_live
     from gripper_ros.nodes.process import (BoundedCleanUp, CLEAN_UP_LIMIT_S,
                                            exit_without_a_last_collection, GIL_HELD_MARGIN_S,
                                            init_without_signal_handlers, StopSignals,
@@ -99,13 +104,15 @@ def main(args: list[str] | None = None) -> int:
                 real_time_factor=float(settings['real_time_factor']),
                 publish_clock=bool(settings['publish_clock']), prefix=settings['prefix'],
                 client_name=CLIENT_NODE))
+            if settings['foxglove']:
+                serve_live(NAME, graph, settings['foxglove_address'], settings['foxglove_port'])
             names = ', '.join(qualified(graph.namespace, n) for n in graph.served_names())
             print(f'{NAME}: serving {names} ({graph.options.time_mode} time); '
                   'Ctrl-C to stop', flush=True)
             while not signals.received and graph.spinning:
                 time.sleep(POLL_S)
         except (ConfigError, ParameterException, StartupError, RCLError, GraphError,
-                InvalidNamespaceException, ValueError) as exc:
+                InvalidNamespaceException, ValueError, LiveViewError) as exc:
             print(f'{NAME}: {one_line(exc)}', file=sys.stderr)
             exit_code = EXIT_BAD_START
         except KeyboardInterrupt:

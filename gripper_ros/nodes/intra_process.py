@@ -159,8 +159,9 @@ def _convert(msg, raw: bool, msg_type):
 class GraphPublisher:
     """A graph topic's publisher: to the bus's subscribers, and over DDS while others listen.
 
-    ``tap``, when set, is called with (topic, message) before the message is handed over (a
-    recorder: what was published is what it sees, in publish order).
+    Each of ``taps`` is called with (topic, message) before the message is handed over (a
+    recorder, a live view: what was published is what each sees, in publish order). A tap is
+    added or removed from any thread: the tuple is replaced, never changed in place.
     """
 
     def __init__(self, node, msg_type, topic: str, qos, bus: IntraProcessBus | None) -> None:
@@ -171,7 +172,15 @@ class GraphPublisher:
         events = PublisherEventCallbacks(matched=self._on_matched) if bus is not None else None
         self.dds = node.create_publisher(msg_type, topic, qos, event_callbacks=events)
         self.topic_name = self.dds.topic_name
-        self.tap: Callable[[str, bytes], None] | None = None
+        self.taps: tuple[Callable[[str, object], None], ...] = ()
+
+    def add_tap(self, tap: Callable[[str, object], None]) -> None:
+        """Call ``tap(topic, message)`` with every message published from now on."""
+        self.taps = (*self.taps, tap)
+
+    def remove_tap(self, tap: Callable[[str, object], None]) -> None:
+        """Stop calling ``tap`` (one that was not added is ignored)."""
+        self.taps = tuple(t for t in self.taps if t != tap)
 
     def _on_matched(self, info) -> None:
         self._outside = info.current_count
@@ -186,8 +195,7 @@ class GraphPublisher:
 
     def publish(self, msg) -> None:
         """Publish ``msg``: serialised bytes or a message object."""
-        tap = self.tap
-        if tap is not None:
+        for tap in self.taps:
             tap(self.topic_name, msg)
         if self._outside or self._outside_now():
             self.dds.publish(msg)

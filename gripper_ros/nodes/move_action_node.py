@@ -129,7 +129,7 @@ class MoveActionServer(GripperNode):
         self.joint_name = declare_prefix(self) + FINGER_JOINT
         self.detect_n = config.force_sensor.activation_force_n    # the sensor feels a press
         self._announced_id = -1                  # the request whose start gripper_status said
-        self._grip_status_pub = self.create_publisher(DiagnosticStatus, TOPIC_GRIPPER_STATUS,
+        self._grip_status_pub = self.tapped_publisher(DiagnosticStatus, TOPIC_GRIPPER_STATUS,
                                                       LATCHED_QOS)
         self.grip_statuses_published = 0
         self.create_subscription(SupervisorStatus, TOPIC_OUTCOME, self._on_outcome, LATCHED_QOS,

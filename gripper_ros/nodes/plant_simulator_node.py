@@ -37,6 +37,7 @@ from gripper_ros.nodes.gripper_node import GripperNode
 from gripper_ros.nodes.loop_io import (clock_template, force_sensor_template, in_layout,
                                        joint_state_template, object_state_template,
                                        read_status, split_ns, StatusView)
+from gripper_ros.nodes.object_marker import ObjectMarkerPublisher
 from gripper_ros.nodes.parameters import ConfigParameters, declare_prefix
 from gripper_ros.nodes.process import run_node
 from gripper_ros.nodes.qos import GRAPH_QOS, SERVICE_QOS
@@ -150,6 +151,7 @@ class PlantSimulatorNode(GripperNode):
         self._joint_pub = self.graph_publisher(JointState, TOPIC_JOINT_STATES)
         self._force_pub = self.tapped_publisher(ForceSensor, TOPIC_FORCE_SENSOR, GRAPH_QOS)
         self._object_pub = self.tapped_publisher(ObjectState, TOPIC_OBJECT_STATE, GRAPH_QOS)
+        self._marker = ObjectMarkerPublisher(self)
         self._sim_pub = self.graph_publisher(SimStatus, TOPIC_SIM_STATUS)
         self._clock_pub = self.create_publisher(ClockMsg, TOPIC_CLOCK, GRAPH_QOS) \
             if self.publish_clock else None
@@ -382,6 +384,7 @@ class PlantSimulatorNode(GripperNode):
             sec, nanosec, int(state.state), state.slip_m, state.slip_speed_mps, state.load_n,
             state.capacity_n, state.lift_acceleration_mps2))
         self.published[TOPIC_OBJECT_STATE] += 1
+        self._marker.publish(sec, nanosec, state.state, state.slip_m, tick.position_m)
 
     def _publish_sim_status(self, window: bool = True) -> None:
         """sim/status; ``window``: the periodic one, which measures the real-time factor."""

@@ -116,7 +116,7 @@ class GraphTap:
             wrapped = getattr(node, 'graph_publishers', ())
             for publisher in wrapped:
                 if publisher.topic_name in self.topics:
-                    publisher.tap = self._on_message
+                    publisher.add_tap(self._on_message)
                     self._tapped.append(publisher)
             inner = {id(p.dds) for p in wrapped}
             untapped = sorted(p.topic_name for p in node.publishers
@@ -296,7 +296,7 @@ class GraphTap:
 
     def close(self) -> None:
         for publisher in self._tapped:
-            publisher.tap = None
+            publisher.remove_tap(self._on_message)
         self._tapped = []
 
     def __enter__(self) -> GraphTap:
