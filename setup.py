@@ -35,6 +35,7 @@ setup(
             'grasp_client = gripper_ros.apps.grasp_client:main',
             'grasp_action_server = gripper_ros.nodes.grasp_action_node:main',
             'move_action_server = gripper_ros.nodes.move_action_node:main',
+            'trajectory_action_server = gripper_ros.nodes.trajectory_action_node:main',
             'excitation_server = gripper_ros.nodes.excitation_node:main',
             'description_publisher = gripper_ros.nodes.description_node:main',
             'gripper_graph = gripper_ros.nodes.graph_process:main',

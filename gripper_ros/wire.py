@@ -91,6 +91,10 @@ TOPIC_JOINT_COMMANDS = 'joint_commands'
 position (travel from fully open, m), optionally a speed limit (velocity) and an effort limit;
 each new command becomes a move (move_action_server)."""
 
+TOPIC_SERVO_SETPOINT = 'servo_setpoint'
+"""ServoSetpoint, trajectory_action_server -> supervisor: a setpoint with its velocity and
+acceleration, in force at once as a joint_commands setpoint is (a graph topic)."""
+
 TOPIC_GRIPPER_STATUS = 'gripper_status'
 """diagnostic_msgs/DiagnosticStatus, latched: how the last request ended, for a ros2_control user
 (no gripper_interfaces): outcome, stalled, object_detected, position_m, width_m, effort_n."""
@@ -115,6 +119,16 @@ ACTION_GRASP = 'grasp_action'
 ACTION_MOVE = 'move_action'
 ACTION_GRIPPER_CMD = 'gripper_cmd'
 """control_msgs/action/ParallelGripperCommand, the name MoveIt's parallel-gripper handle uses."""
+ACTION_GRIPPER_COMMAND = 'gripper_action_controller/gripper_cmd'
+"""control_msgs/action/GripperCommand: where ros2_controllers' GripperActionController (a
+controller named as its parameters' namespace) serves it, ``<controller>/gripper_cmd``."""
+ACTION_FOLLOW_JOINT_TRAJECTORY = 'joint_trajectory_controller/follow_joint_trajectory'
+"""control_msgs/action/FollowJointTrajectory: where joint_trajectory_controller serves it,
+``<controller>/follow_joint_trajectory``."""
+CONTROL_ACTIONS = {ACTION_GRIPPER_CMD: 'ParallelGripperCommand',
+                   ACTION_GRIPPER_COMMAND: 'GripperCommand',
+                   ACTION_FOLLOW_JOINT_TRAJECTORY: 'FollowJointTrajectory'}
+"""The control_msgs actions served where control_msgs is installed: name -> action type."""
 
 NODE_PLANT = 'plant_simulator'
 NODE_POSITION_CONTROLLER = 'position_controller'
@@ -124,8 +138,9 @@ NODE_GRASP_ACTION = 'grasp_action_server'
 NODE_MOVE_ACTION = 'move_action_server'
 NODE_EXCITATION = 'excitation_server'
 NODE_DESCRIPTION = 'description_publisher'
+NODE_TRAJECTORY_ACTION = 'trajectory_action_server'
 LAUNCHED_NODES = (NODE_PLANT, NODE_POSITION_CONTROLLER, NODE_FORCE_CONTROLLER, NODE_SUPERVISOR,
-                  NODE_GRASP_ACTION, NODE_MOVE_ACTION, NODE_DESCRIPTION)
+                  NODE_GRASP_ACTION, NODE_MOVE_ACTION, NODE_TRAJECTORY_ACTION, NODE_DESCRIPTION)
 """What launch/gripper.launch.py starts, one process each; each the executable and the node."""
 ROBOT_STATE_PUBLISHER = 'robot_state_publisher'
 """The package (and its node) the launch file runs instead of description_publisher where it is
@@ -183,11 +198,12 @@ def qualified(namespace: str, name: str) -> str:
 
 NAME_CHARACTERS = frozenset(string.ascii_letters + string.digits + '_')
 """What a part of a ROS name may hold (ASCII only: rcl refuses other letters)."""
-MAX_NAMESPACE_LENGTH = 190
+MAX_NAMESPACE_LENGTH = 174
 """Longest namespace (without its slashes) allowed: every node's, topic's, service's and
-action's full name under it must fit rcl's limit (a graph comes up under 195 characters and not
-under 200, where rcl cannot name a node's ``~/get_type_description``); ``test_hostile_graph``
-grasps under this one."""
+action's full name under it must fit rcl's limit, 247 characters (255 less 8 for the DDS
+suffixes). The longest name under it is FollowJointTrajectory's cancel service,
+``/<ns>/joint_trajectory_controller/follow_joint_trajectory/_action/cancel_goal``: 73 more
+characters. ``test_hostile_graph`` grasps under this one."""
 
 
 def check_namespace(namespace: str) -> str:

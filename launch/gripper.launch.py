@@ -19,7 +19,10 @@ protocol, on ``foxglove_port`` (8765) at ``foxglove_address`` (this machine only
 only with the graph in one process).
 The nodes: plant_simulator, position_controller, force_controller, supervisor,
 grasp_action_server, move_action_server (which also serves control_msgs
-ParallelGripperCommand on ``gripper_cmd`` where control_msgs is installed) and the one
+ParallelGripperCommand on ``gripper_cmd`` and GripperCommand on
+``gripper_action_controller/gripper_cmd`` where control_msgs is installed),
+trajectory_action_server (FollowJointTrajectory on
+``joint_trajectory_controller/follow_joint_trajectory``, there too) and the one
 publisher of ``robot_description`` and ``/tf``.
 
 What each layout costs:
@@ -47,6 +50,7 @@ from gripper_ros.nodes import launched_executables, robot_state_publisher_instal
 from gripper_ros.nodes.live_view import DEFAULT_ADDRESS, DEFAULT_PORT
 from gripper_ros.wire import (DEFAULT_NAMESPACE, namespace_prefix, NODE_DESCRIPTION,
                               NODE_MOVE_ACTION, NODE_PLANT, NODE_SUPERVISOR,
+                              NODE_TRAJECTORY_ACTION,
                               ROBOT_STATE_PUBLISHER, TIME_MODE_CHOICES, TimeMode)
 from launch import LaunchDescription
 from launch.actions import DeclareLaunchArgument, OpaqueFunction
@@ -73,7 +77,8 @@ class NamespacePrefix(Substitution):
                                                                   DEFAULT_NAMESPACE))
 
 
-JOINT_NAMED = (NODE_PLANT, NODE_SUPERVISOR, NODE_MOVE_ACTION, NODE_DESCRIPTION)
+JOINT_NAMED = (NODE_PLANT, NODE_SUPERVISOR, NODE_MOVE_ACTION, NODE_TRAJECTORY_ACTION,
+               NODE_DESCRIPTION)
 """The nodes that take the ``prefix`` parameter: the joint's name and the URDF's."""
 ARGUMENTS = (
     ('namespace', DEFAULT_NAMESPACE, 'namespace of every node, topic, service and action'),

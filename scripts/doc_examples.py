@@ -62,6 +62,7 @@ CHATTER = ("python3 -c 'from rosbags.rosbag2 import StoragePlugin, Writer; "
 """A bag of another program (one String on /chatter), which results_whatif.md's reader has."""
 SETUP = {
     'IDENTIFICATION.md': (f'cp {ROOT}/test/data/hidden_gripper.yaml my_gripper.yaml && '
+                          f'cp {ROOT}/test/data/slow_gripper.yaml slow_gripper.yaml && '
                           f'ln -s {ROOT}/config config'),
     'GRIP.md': f'ln -s {DOCS} docs',
     'results_whatif.md': CHATTER,
@@ -170,10 +171,12 @@ SIM_STATUS_VARIES = (
     re.compile(r'\b\d+(?= messages\b)'),
     re.compile(r'(?<=^  message_count: )\d+$'),
     re.compile(r'(?<=^\[bag_replay\] ).*$'),
+    re.compile(r'(?<=\bstage_id=)\d+'),
 )
 """What depends on how many sim/status a bag holds (one about every wall second: its line, a
 bag's total and size), on supervisor/status's heartbeat (one a wall second when nothing
-changes), and bag_replay's progress line (its wall-clock position)."""
+changes), bag_replay's progress line (its wall-clock position), and a stage id: it counts every
+handover since the graph started, those between a realtime graph's grasps included."""
 WALL = (re.compile(r'\b\d+(?:\.\d+)?(?= s wall\b)'),
         re.compile(r'(?<=\bwall )\d+(?:\.\d+)?(?= s\b)'))
 """Wall-clock times in a line: ``N s wall``, ``wall N s``."""
@@ -317,7 +320,7 @@ def regenerate_transcripts(doc: str, scratch: Path, missed: list[str],
                 # a file the reader wrote, shown by cat: it holds what the doc shows
                 (folder / written.group(1)).write_text(''.join(f'{line}\n' for line in output))
             printed, status = run(live, folder)
-            exit_shown = EXIT.match(output[-1]) if output else None
+            exit_shown = EXIT.match(next((line for line in reversed(output) if line), ''))
             if status != (int(exit_shown.group(1)) if exit_shown else 0):
                 missed.append(f'{doc}: $ {command} (exit {status}; the doc shows '
                               f'{exit_shown.group(1) if exit_shown else 0})')

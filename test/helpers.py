@@ -245,3 +245,15 @@ def tf_as_robot_state_publisher(bag, namespace: str = 'gripper',
         if stamp >= expected[-1] + interval_ns:
             expected.append(stamp)
     return tf, expected
+
+
+def wait_future(future, timeout_s: float = 120.0):
+    """Wait (wall, a bound for a slow machine) until ``future`` is done; return its result.
+
+    For futures another thread's executor completes (an action client's goal and result).
+    """
+    import threading
+    done = threading.Event()
+    future.add_done_callback(lambda _f: done.set())
+    assert done.wait(timeout_s), 'no answer in time'
+    return future.result()

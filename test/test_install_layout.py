@@ -15,8 +15,8 @@ from helpers import console_scripts, REPO
 import pytest
 
 INTERFACES = {
-    'msg': ['ForceSensor', 'MotorCommand', 'ObjectState', 'PlantTick', 'SimStatus',
-            'StageReference', 'SupervisorStatus'],
+    'msg': ['ForceSensor', 'MotorCommand', 'ObjectState', 'PlantTick', 'ServoSetpoint',
+            'SimStatus', 'StageReference', 'SupervisorStatus'],
     'srv': ['Grasp', 'Move', 'SetObject', 'SimStep'],
     'action': ['Grasp', 'Move'],
 }

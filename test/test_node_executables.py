@@ -22,7 +22,8 @@ import time
 from gripper_ros.nodes import NODE_MODULES
 from gripper_ros.wire import (NODE_DESCRIPTION, NODE_EXCITATION, NODE_FORCE_CONTROLLER,
                               NODE_GRASP_ACTION, NODE_MOVE_ACTION, NODE_PLANT,
-                              NODE_POSITION_CONTROLLER, NODE_SUPERVISOR)
+                              NODE_POSITION_CONTROLLER, NODE_SUPERVISOR,
+                              NODE_TRAJECTORY_ACTION)
 import pytest
 from rcl_interfaces.srv import GetParameters
 import rclpy
@@ -44,6 +45,7 @@ BAD_PARAMETERS = [   # (node, parameter, value as typed after -p name:=, words i
     (NODE_GRASP_ACTION, 'feedback_period_s', '-1.0', 'out of range'),
     (NODE_GRASP_ACTION, 'feedback_period_s', '-1', 'out of range'),
     (NODE_MOVE_ACTION, 'feedback_period_s', '-1.0', 'out of range'),
+    (NODE_TRAJECTORY_ACTION, 'action_monitor_rate', '0.0', 'out of range'),
     (NODE_EXCITATION, 'excitation.amplitude_v', '99.0', 'amplitude_v must be in'),
     (NODE_GRASP_ACTION, 'executor', 'threads', 'must be one of'),          # run_node's own
     (NODE_DESCRIPTION, 'frame_prefix', 'left-', 'may hold only ASCII letters'),

@@ -1,10 +1,10 @@
-"""An optional interface that cannot load costs that interface only, with one line.
+"""An optional interface that cannot load costs those interfaces only, with one line.
 
 control_msgs installed but its C type support not loadable: the overlay's ``control_msgs/lib``
 left off ``LD_LIBRARY_PATH`` (what made ``grasp_demo`` die with ``UnsupportedTypeSupport``), or,
 where control_msgs is not installed, a control_msgs package whose type support is missing, as
 rosidl_generator_py's ``import_type_support`` meets it. Known answer: the graph grasps (HOLDING),
-exits 0, and says once that ``gripper_cmd`` is not served, with no traceback.
+exits 0, and says once that control_msgs' three actions are not served, with no traceback.
 """
 from __future__ import annotations
 
@@ -12,10 +12,10 @@ import os
 import subprocess
 import sys
 
-from gripper_ros.wire import ACTION_GRIPPER_CMD
+from gripper_ros.wire import CONTROL_ACTIONS
 
 NO_TYPE_SUPPORT = """\
-class Metaclass_ParallelGripperCommand(type):
+class Metaclass_NoTypeSupport(type):
     _TYPE_SUPPORT = None
 
     @classmethod
@@ -24,7 +24,15 @@ class Metaclass_ParallelGripperCommand(type):
         import_type_support('control_msgs')
 
 
-class ParallelGripperCommand(metaclass=Metaclass_ParallelGripperCommand):
+class ParallelGripperCommand(metaclass=Metaclass_NoTypeSupport):
+    pass
+
+
+class GripperCommand(metaclass=Metaclass_NoTypeSupport):
+    pass
+
+
+class FollowJointTrajectory(metaclass=Metaclass_NoTypeSupport):
     pass
 """
 
@@ -50,7 +58,7 @@ def _environment(tmp_path) -> dict:
     return env
 
 
-def test_control_msgs_without_type_support_costs_gripper_cmd_only(tmp_path):
+def test_control_msgs_without_type_support_costs_its_actions_only(tmp_path):
     result = subprocess.run(
         [sys.executable, '-m', 'gripper_ros.apps.grasp_demo', '--namespace', 'optional_interface',
          '--width', '0.05', '--mass', '1.69', '--no-record', '--no-plot'],
@@ -61,7 +69,8 @@ def test_control_msgs_without_type_support_costs_gripper_cmd_only(tmp_path):
     assert 'Traceback' not in output
     said = [line for line in output.splitlines() if 'control_msgs' in line]
     assert len(said) == 1, output
-    assert f'{ACTION_GRIPPER_CMD} (control_msgs/action/ParallelGripperCommand) not served' in \
-        said[0] and "Could not import 'rosidl_typesupport_c' for package 'control_msgs'" in \
-        said[0]
+    listed = ', '.join(f'{name} (control_msgs/action/{kind})'
+                       for name, kind in CONTROL_ACTIONS.items())
+    assert f'{listed} not served' in said[0]
+    assert "Could not import 'rosidl_typesupport_c' for package 'control_msgs'" in said[0]
     assert 'HOLDING' in result.stdout

@@ -22,6 +22,7 @@ import subprocess
 import time
 
 from gripper_ros.core.config import ConfigError, flatten, SCHEMA
+from gripper_ros.nodes.control_actions import FollowJointTrajectory
 from gripper_ros.nodes.controller_node import DEFAULT_STATUS_TIMEOUT_S
 from gripper_ros.nodes.force_controller_node import ForceControllerNode
 from gripper_ros.nodes.graph import GraphOptions, GripperGraph
@@ -688,7 +689,8 @@ def test_a_bad_params_file_value_stops_the_executable_in_one_line(tmp_path):
 
 
 # ---------------------------------------------------------------------- every run-time change
-GRAPH_NODES = (*NODE_CLASSES, 'move_action_server', 'excitation_server')
+GRAPH_NODES = (*NODE_CLASSES, 'move_action_server', 'excitation_server') + (
+    ('trajectory_action_server',) if FollowJointTrajectory is not None else ())
 RCLPY_OWN = {'use_sim_time'}
 """rclpy's own writable parameter on every node (test_plant_answers_... sets it)."""
 
@@ -714,6 +716,8 @@ def _in_use(node, name):
         return float((node._next_stage or node.stage).record[0]['approach_margin'])
     if name.startswith('excitation.'):
         return getattr(node.spec, name.split('.', 1)[1])
+    if node.get_name() == 'trajectory_action_server':     # read as each goal is accepted
+        return node.get_parameter(name).value
     if '.' not in name:
         return getattr(node, name)
     stage = getattr(node, '_next_stage', None) or getattr(node, 'stage', None)
@@ -744,6 +748,8 @@ def test_every_writable_parameter_set_at_run_time_reaches_every_node_that_uses_i
              graph.action_server.get_name(): graph.action_server,
              graph.move_action_server.get_name(): graph.move_action_server,
              graph.excitation_server.get_name(): graph.excitation_server}
+    if graph.trajectory_action_server is not None:
+        nodes[graph.trajectory_action_server.get_name()] = graph.trajectory_action_server
     for key in START_UP_ONLY:
         holders = [n for n, ds in described.items() if key in ds]
         assert sorted(holders) == ['force_controller', 'plant_simulator', 'supervisor']

@@ -147,3 +147,15 @@ def test_the_name_prefix_of_a_namespace():
     assert wire.namespace_prefix('robot/left/') == 'robot_left_'
     assert wire.namespace_prefix('right') != wire.namespace_prefix('left')
     assert set(wire.namespace_prefix('robot_2/left')) <= wire.NAME_CHARACTERS
+
+
+def test_the_longest_namespace_leaves_room_for_every_action_name_under_it():
+    """Fit every action's names under the longest namespace: rcl's limit is 255 - 8.
+
+    rcl/src/rcl/node_resolve_name.c refuses a longer topic or service name; an action's
+    longest is its ``_action/cancel_goal``.
+    """
+    actions = (wire.ACTION_GRASP, wire.ACTION_MOVE, *wire.CONTROL_ACTIONS)
+    longest = max(len(f'{action}/_action/{part}') for action in actions
+                  for part in ('send_goal', 'cancel_goal', 'get_result', 'feedback', 'status'))
+    assert wire.MAX_NAMESPACE_LENGTH == 255 - 8 - len('//') - longest

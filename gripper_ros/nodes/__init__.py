@@ -3,7 +3,7 @@
 from gripper_ros.wire import (LAUNCHED_NODES, NODE_DESCRIPTION, NODE_EXCITATION,
                               NODE_FORCE_CONTROLLER, NODE_GRASP_ACTION, NODE_MOVE_ACTION,
                               NODE_PLANT, NODE_POSITION_CONTROLLER, NODE_SUPERVISOR,
-                              ROBOT_STATE_PUBLISHER)
+                              NODE_TRAJECTORY_ACTION, ROBOT_STATE_PUBLISHER)
 
 NODE_MODULES = {NODE_PLANT: 'plant_simulator_node',
                 NODE_POSITION_CONTROLLER: 'position_controller_node',
@@ -11,6 +11,7 @@ NODE_MODULES = {NODE_PLANT: 'plant_simulator_node',
                 NODE_SUPERVISOR: 'supervisor_node',
                 NODE_GRASP_ACTION: 'grasp_action_node',
                 NODE_MOVE_ACTION: 'move_action_node',
+                NODE_TRAJECTORY_ACTION: 'trajectory_action_node',
                 NODE_EXCITATION: 'excitation_node',
                 NODE_DESCRIPTION: 'description_node'}
 """The module of each node executable: ``python -m gripper_ros.nodes.MODULE`` runs it."""

@@ -35,7 +35,9 @@ from gripper_ros.nodes.process import (build_node, CLEAN_UP_STEP_S, ExecutorKind
 from gripper_ros.nodes.qos import SERVICE_QOS
 from gripper_ros.nodes.services import call_and_wait
 from gripper_ros.nodes.supervisor_node import SupervisorNode
-from gripper_ros.wire import (ACTION_GRASP, ACTION_GRIPPER_CMD, ACTION_MOVE, check_namespace,
+from gripper_ros.nodes.trajectory_action_node import TrajectoryActionServer
+from gripper_ros.wire import (ACTION_FOLLOW_JOINT_TRAJECTORY, ACTION_GRASP, ACTION_GRIPPER_CMD,
+                              ACTION_GRIPPER_COMMAND, ACTION_MOVE, check_namespace,
                               DEFAULT_NAMESPACE, DEFAULT_STATE_RATE_HZ, namespace_prefix,
                               NODE_PLANT, NODE_SUPERVISOR, SERVICE_EXCITE, SERVICE_GRASP,
                               SERVICE_MOVE, SERVICE_PAUSE, SERVICE_RELEASE, SERVICE_RESUME,
@@ -124,11 +126,16 @@ class GripperGraph:
         self.client_node = rclpy.create_node(opts.client_name, **client_kw)
         self.nodes.append(self.client_node)
         self.action_server = self.move_action_server = self.excitation_server = None
+        self.trajectory_action_server = None
         if opts.action_server:
             self.action_server = build_node(GraspActionServer, parameter_overrides=cfg, **kw)
             self.nodes.append(self.action_server)
             self.move_action_server = build_node(MoveActionServer, parameter_overrides=named, **kw)
             self.nodes.append(self.move_action_server)
+            if self.move_action_server.gripper_command_served:   # control_msgs loads
+                self.trajectory_action_server = build_node(TrajectoryActionServer,
+                                                           parameter_overrides=named, **kw)
+                self.nodes.append(self.trajectory_action_server)
             self.excitation_server = build_node(ExcitationServer, parameter_overrides=cfg, **kw)
             self.nodes.append(self.excitation_server)
         self.description = None
@@ -343,7 +350,9 @@ class GripperGraph:
         if self.move_action_server is not None:
             names.append(ACTION_MOVE)
             if self.move_action_server.gripper_command_served:
-                names.append(ACTION_GRIPPER_CMD)
+                names += [ACTION_GRIPPER_CMD, ACTION_GRIPPER_COMMAND]
+        if self.trajectory_action_server is not None:
+            names.append(ACTION_FOLLOW_JOINT_TRAJECTORY)
         return names
 
     @property

@@ -1,4 +1,4 @@
-"""move_action_server: the move as actions, ours and the standard parallel-gripper one.
+"""move_action_server: the move as actions, ours and control_msgs' gripper commands.
 
 A thin front end over the graph's ``move`` and ``stop`` services and ``supervisor/status``,
 as ``grasp_action_server`` is for the grasp:
@@ -6,24 +6,29 @@ as ``grasp_action_server`` is for the grasp:
 - ``move_action`` (gripper_interfaces/action/Move): a goal becomes a ``move`` call, feedback
   comes from the status (phase, position, opening, force), a cancel calls ``stop`` (the move
   ends STOPPED, the goal canceled). Succeeded only when the width was reached.
-- ``gripper_cmd`` (control_msgs/action/ParallelGripperCommand), served when control_msgs
-  loads (a system ROS 2 Jazzy; one warning line where it is installed but cannot), so that
-  MoveIt's parallel-gripper controller handle (``action_ns: gripper_cmd``) drives this
-  gripper: the command's ``<prefix>finger_joint`` position
-  (travel from fully open, m) and optional velocity and effort become the move
-  (:mod:`gripper_ros.core.supervision.gripper_command`); a malformed command is rejected. The
-  result is the finger's JointState, ``stalled`` and ``reached_goal``; the goal succeeds on
-  reaching the goal, and on a stall only with ``allow_stalling`` (as ros2_controllers' parallel
-  gripper controller). Feedback and result are the finger's JointState, stamped with the simulated
-  time of the newest status; its velocity is the newest ``joint_states`` sample's.
+- ``gripper_cmd`` (control_msgs/action/ParallelGripperCommand), where control_msgs loads
+  (:mod:`gripper_ros.nodes.control_actions`), so that MoveIt's parallel-gripper controller
+  handle (``action_ns: gripper_cmd``) drives this gripper: the command's
+  ``<prefix>finger_joint`` position (travel from fully open, m) and optional velocity and
+  effort become the move (:mod:`gripper_ros.core.supervision.gripper_command`); a malformed
+  command is rejected. The result is the finger's JointState, ``stalled`` and ``reached_goal``.
+  Feedback and result are the finger's JointState, stamped with the simulated time of the
+  newest status; its velocity is the newest ``joint_states`` sample's.
+- ``gripper_action_controller/gripper_cmd`` (control_msgs/action/GripperCommand), where
+  ros2_controllers' GripperActionController serves it, for MoveIt's gripper handle and the
+  drivers that speak it: ``command.position`` (the joint's position) and ``max_effort`` (0: the
+  motor's limit) become the move; the result is ``position``, ``effort`` (the force sensor's),
+  ``stalled`` and ``reached_goal``, and so is the feedback (GripperActionController sends none).
+- Either control_msgs goal succeeds on reaching the goal, and on a stall only with
+  ``allow_stalling`` (as ros2_controllers' gripper controllers), else it is aborted.
 - ``gripper_status`` (diagnostic_msgs/DiagnosticStatus, latched), for a ros2_control user who
   reads no gripper_interfaces message: a request's ``moving`` (``grasping``, ``releasing``) with
   its id as soon as it starts, then how it ended (``supervisor/outcome`` in standard types),
   ``stalled`` and ``object_detected`` (the fingers press on an object) among its values. The
   supervisor serves ``joint_commands`` itself.
 
-One goal at a time (the gripper does one request at a time). A ``gripper_cmd`` goal while
-another executes preempts it, as ros2_controllers' parallel gripper controller does
+One goal at a time (the gripper does one request at a time). A control_msgs gripper goal while
+another executes preempts it, as ros2_controllers' gripper controllers do
 (``preempt_active_goal``): the running goal's move is stopped and that goal ends canceled, then
 the new goal's move runs. A ``move_action`` goal while another executes is aborted at once
 (REFUSED in our result). Feedback is throttled to ``feedback_period_s`` of wall time and sent
@@ -39,18 +44,23 @@ from gripper_interfaces.msg import SupervisorStatus
 from gripper_interfaces.srv import Move
 from gripper_ros.core.supervision.gripper_command import (goal_end, GoalEnd,
                                                           grip_progress_fields,
-                                                          grip_status_fields, joint_state_fields,
+                                                          grip_status_fields,
+                                                          gripper_command_fields,
+                                                          gripper_command_move_of,
+                                                          joint_state_fields,
                                                           move_request_of, result_fields)
 from gripper_ros.core.supervision.requests import check_move_limits, RequestError
 from gripper_ros.nodes.actions import (accept_goal, cancel_by_stop, declare_feedback_period,
                                        end_preempted, RunningGoal)
+from gripper_ros.nodes.control_actions import (GripperCommand, not_served,
+                                               ParallelGripperCommand, PROBLEM)
 from gripper_ros.nodes.gripper_node import GripperNode
 from gripper_ros.nodes.loop_io import read_status, StatusView
 from gripper_ros.nodes.parameters import declare_config, declare_prefix, follow
 from gripper_ros.nodes.process import run_node
 from gripper_ros.nodes.qos import LATCHED_QOS, SERVICE_QOS
-from gripper_ros.text import one_line
-from gripper_ros.wire import (ACTION_GRIPPER_CMD, ACTION_MOVE, FINGER_JOINT, NODE_MOVE_ACTION,
+from gripper_ros.wire import (ACTION_FOLLOW_JOINT_TRAJECTORY, ACTION_GRIPPER_CMD,
+                              ACTION_GRIPPER_COMMAND, ACTION_MOVE, FINGER_JOINT, NODE_MOVE_ACTION,
                               Outcome, Phase, ROBOT_NAME, SERVICE_MOVE, SERVICE_STOP, stamp_ns,
                               TOPIC_GRIPPER_STATUS, TOPIC_JOINT_STATES,
                               TOPIC_OUTCOME, TOPIC_STATUS)
@@ -58,37 +68,10 @@ from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.action import ActionServer, GoalResponse
 from rclpy.serialization import deserialize_message
 from rclpy.task import Future
-from rclpy.type_support import check_for_type_support
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Header
 from std_srvs.srv import Trigger
 
-
-def _load_gripper_command():
-    """Return control_msgs' ParallelGripperCommand, or None and why it cannot be served.
-
-    A system ROS 2 Jazzy has control_msgs; the ros-jazzy wheels do not (None, nothing to say).
-    Installed but not loadable (its C type support, e.g. with its ``lib`` folder missing from
-    ``LD_LIBRARY_PATH``): None and one line, and the rest of the node serves.
-    """
-    try:
-        from control_msgs.action import ParallelGripperCommand as action
-    except ModuleNotFoundError as exc:
-        if (exc.name or '').split('.')[0] == 'control_msgs':
-            return None, ''
-        return None, one_line(exc)
-    except ImportError as exc:  # pragma: no cover - depends on the installation
-        return None, one_line(exc)
-    try:
-        check_for_type_support(action)
-    except Exception as exc:  # noqa: BLE001 - UnsupportedTypeSupport and kin: said in one line
-        cause = exc.__cause__ or exc.__context__
-        return None, one_line(f'{exc} ({cause})' if cause else exc)
-    return action, ''
-
-
-ParallelGripperCommand, GRIPPER_COMMAND_PROBLEM = _load_gripper_command()
-"""The action type, None where it is not served; why not, when control_msgs is there."""
 
 _REQUEST_FIELDS = ('width_m', 'speed_mps', 'max_effort_n', 'timeout_s')
 _RESULT_FIELDS = ('success', 'outcome', 'message', 'position_m', 'width_m', 'effort_n',
@@ -104,8 +87,9 @@ class MoveActionServer(GripperNode):
         self.feedback_period_s = declare_feedback_period(self)
         self.allow_stalling = self.declare_parameter(
             'allow_stalling', False, ParameterDescriptor(
-                description=f'{ACTION_GRIPPER_CMD}: a stalled move (blocked by an object at '
-                            'the effort limit) succeeds rather than aborts')).value
+                description=f'{ACTION_GRIPPER_CMD} and {ACTION_GRIPPER_COMMAND}: a stalled move '
+                            '(blocked by an object at the effort limit) succeeds rather than '
+                            'aborts')).value
         follow(self, {'feedback_period_s': float, 'allow_stalling': bool})   # next status
         self._move = self.create_client(Move, SERVICE_MOVE, qos_profile=SERVICE_QOS)
         self._stop = self.create_client(Trigger, SERVICE_STOP, qos_profile=SERVICE_QOS)
@@ -120,13 +104,13 @@ class MoveActionServer(GripperNode):
         self.own(ActionServer(self, MoveAction, ACTION_MOVE, execute_callback=self._execute_move,
                               goal_callback=accept_goal, cancel_callback=self._on_cancel))
         self.gripper_command_served = ParallelGripperCommand is not None
-        if GRIPPER_COMMAND_PROBLEM:
-            self.get_logger().warning(
-                f'{ACTION_GRIPPER_CMD} (control_msgs/action/ParallelGripperCommand) not served: '
-                f'{GRIPPER_COMMAND_PROBLEM}; the rest of the graph runs')
+        if PROBLEM:      # the graph's trajectory action is not served either: one line for all
+            self.get_logger().warning(not_served((ACTION_GRIPPER_CMD, ACTION_GRIPPER_COMMAND,
+                                                  ACTION_FOLLOW_JOINT_TRAJECTORY)))
+        self.joint_name = declare_prefix(self) + FINGER_JOINT
+        self._joint_name_bytes = self.joint_name.encode()
         self._joint_data: bytes | None = None    # the newest joint_states, read when needed
         self.graph_subscription(JointState, TOPIC_JOINT_STATES, self._on_joint_state)
-        self.joint_name = declare_prefix(self) + FINGER_JOINT
         self.detect_n = config.force_sensor.activation_force_n    # the sensor feels a press
         self._announced_id = -1                  # the request whose start gripper_status said
         self._grip_status_pub = self.tapped_publisher(DiagnosticStatus, TOPIC_GRIPPER_STATUS,
@@ -139,6 +123,10 @@ class MoveActionServer(GripperNode):
                                   execute_callback=self._execute_gripper_command,
                                   goal_callback=self._check_gripper_command,
                                   cancel_callback=self._on_cancel))
+            self.own(ActionServer(self, GripperCommand, ACTION_GRIPPER_COMMAND,
+                                  execute_callback=self._execute_gripper_action,
+                                  goal_callback=self._check_gripper_action,
+                                  cancel_callback=self._on_cancel))
 
     # ------------------------------------------------------------------ goals
     def _check_gripper_command(self, goal_request) -> GoalResponse:
@@ -148,6 +136,16 @@ class MoveActionServer(GripperNode):
                                               self.joint_name), self.plant)
         except RequestError as exc:
             self.get_logger().warning(f'{ACTION_GRIPPER_CMD} goal rejected: {exc}')
+            return GoalResponse.REJECT
+        return GoalResponse.ACCEPT
+
+    def _check_gripper_action(self, goal_request) -> GoalResponse:
+        """Reject a GripperCommand that is no move of this gripper (bad numbers), saying why."""
+        try:
+            check_move_limits(gripper_command_move_of(goal_request.command, self.travel_m,
+                                                      self.joint_name), self.plant)
+        except RequestError as exc:
+            self.get_logger().warning(f'{ACTION_GRIPPER_COMMAND} goal rejected: {exc}')
             return GoalResponse.REJECT
         return GoalResponse.ACCEPT
 
@@ -223,13 +221,32 @@ class MoveActionServer(GripperNode):
         fields = result_fields(response, self._velocity_mps(), self.joint_name)
         result = ParallelGripperCommand.Result(
             state=JointState(header=self._status_header(), **fields.pop('state')), **fields)
+        self._end_control_goal(goal_handle, response)
+        return result
+
+    async def _execute_gripper_action(self, goal_handle):
+        move = gripper_command_move_of(goal_handle.request.command, self.travel_m,
+                                       self.joint_name)                 # checked at goal
+        request = Move.Request(width_m=move.width_m, speed_mps=move.speed_mps,
+                               max_effort_n=move.max_effort_n)
+        response = await self._call_move(goal_handle, request, self._gripper_action_feedback,
+                                         preempts=True)
+        if response.outcome == Outcome.REFUSED:
+            self.get_logger().warning(f'{ACTION_GRIPPER_COMMAND} goal aborted: '
+                                      f'{response.message}')
+        result = GripperCommand.Result(**gripper_command_fields(
+            response.position_m, response.effort_n, response.stalled, response.reached_goal))
+        self._end_control_goal(goal_handle, response)
+        return result
+
+    def _end_control_goal(self, goal_handle, response: Move.Response) -> None:
+        """End a control_msgs goal: canceled when preempted, else by the move's answer."""
         if id(goal_handle) in self._preempted:
             self._preempted.discard(id(goal_handle))
             end_preempted(goal_handle)
         else:
             self._end(goal_handle, goal_end(response, self.allow_stalling,
                                             goal_handle.is_cancel_requested))
-        return result
 
     @staticmethod
     def _end(goal_handle, end: GoalEnd) -> None:
@@ -253,6 +270,10 @@ class MoveActionServer(GripperNode):
             header=self._status_header(msg),
             **joint_state_fields(msg.position_m, msg.force_n, self._velocity_mps(),
                                  self.joint_name)))
+
+    @staticmethod
+    def _gripper_action_feedback(msg: StatusView):
+        return GripperCommand.Feedback(**gripper_command_fields(msg.position_m, msg.force_n))
 
     def _status_header(self, msg: StatusView | None = None) -> Header:
         """Return a header stamped with the simulated time of ``msg`` (the newest status)."""
@@ -286,14 +307,22 @@ class MoveActionServer(GripperNode):
         self.grip_statuses_published += 1
 
     def _on_joint_state(self, data: bytes) -> None:
-        self._joint_data = data
+        if self._joint_name_bytes in data:      # not another joint's (a shared /joint_states)
+            self._joint_data = data
 
     def _velocity_mps(self) -> float | None:
-        """Return the finger's velocity in the newest joint_states sample (None before one)."""
+        """Return the finger's velocity in the newest joint_states sample (None before one).
+
+        joint_states remapped to a robot's ``/joint_states`` carries other joints too.
+        """
         if self._joint_data is None:
             return None
-        velocity = deserialize_message(self._joint_data, JointState).velocity
-        return float(velocity[0]) if len(velocity) else None
+        msg = deserialize_message(self._joint_data, JointState)
+        names = list(msg.name)
+        if self.joint_name not in names:
+            return None
+        i = names.index(self.joint_name)
+        return float(msg.velocity[i]) if len(msg.velocity) > i else None
 
     def _on_status(self, data: bytes) -> None:
         self._status_data = data

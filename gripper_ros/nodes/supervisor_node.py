@@ -17,7 +17,9 @@ is a position servo: the newest setpoint is in force at once. While its move run
 changes the move's goal and limits in place (the position stage follows without restarting); a
 running grasp, release or move of a service ends STOPPED (preempted) and the setpoint's move
 starts at the next tick. A repeat of the setpoint in force is no new request; a bad one is
-refused with one warning line and changes nothing. A service request preempts a running
+refused with one warning line and changes nothing. ``servo_setpoint`` (ServoSetpoint, from
+``trajectory_action_server``) is the same servo's input with the setpoint's own velocity and
+acceleration: each message is a new setpoint. A service request preempts a running
 setpoint's move in turn; between service requests, one at a time (the next is refused).
 
 ``supervisor/status`` carries the state for other programs: at ``status_rate_hz`` of simulated
@@ -35,7 +37,8 @@ import sys
 import time
 
 from geometry_msgs.msg import AccelStamped
-from gripper_interfaces.msg import PlantTick, SimStatus, StageReference, SupervisorStatus
+from gripper_interfaces.msg import (PlantTick, ServoSetpoint, SimStatus, StageReference,
+                                    SupervisorStatus)
 from gripper_interfaces.srv import Grasp, Move
 from gripper_ros.core.runtime.lockstep import (ACTIVE_SHIFT, ANSWERED, FOREIGN, NAMED, PROGRESS,
                                                STATUS_DUE, SupervisorSide, Tick)
@@ -58,8 +61,8 @@ from gripper_ros.wire import (CDR_LITTLE_ENDIAN, FINGER_JOINT, GRAPH_NOT_READY, 
                               SERVICE_RELEASE, SERVICE_STOP, STAGE_NODES, STAGE_REFERENCE_TOPICS,
                               stamp_ns, STATUS_HEARTBEAT_S, TICK_LAYOUT, TOPIC_JOINT_COMMANDS,
                               TOPIC_MOTOR_COMMAND, TOPIC_OUTCOME, TOPIC_PLANNED_ACCELERATION,
-                              TOPIC_POSITION_REFERENCE, TOPIC_SIM_STATUS, TOPIC_STATUS,
-                              TOPIC_TICK)
+                              TOPIC_POSITION_REFERENCE, TOPIC_SERVO_SETPOINT,
+                              TOPIC_SIM_STATUS, TOPIC_STATUS, TOPIC_TICK)
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
 from rclpy.clock import Clock, ClockType
 from sensor_msgs.msg import JointState
@@ -129,6 +132,8 @@ class SupervisorNode(GripperNode):
         self.joint_commands_refused = 0
         self.create_subscription(JointState, TOPIC_JOINT_COMMANDS, self._on_joint_command,
                                  GRAPH_QOS)
+        self.graph_subscription(ServoSetpoint, TOPIC_SERVO_SETPOINT, self._on_servo_setpoint,
+                                raw=False)
         steady = Clock(clock_type=ClockType.STEADY_TIME)
         self._silence = ExecutorSilence()       # executor-running wall time without progress
         self.create_timer(WATCHDOG_PERIOD_S, self._watchdog, clock=steady)
@@ -360,10 +365,40 @@ class SupervisorNode(GripperNode):
             self.get_logger().warning(f'{TOPIC_JOINT_COMMANDS} refused: {one_line(exc)}',
                                       throttle_duration_sec=1.0)
             return
+        self._commands.accept(move)
+        self._put_setpoint(targets, TOPIC_JOINT_COMMANDS, move.width_m)
+
+    def _on_servo_setpoint(self, msg: ServoSetpoint) -> None:
+        """Put a setpoint with its velocity and acceleration in force, or refuse it in a line."""
+        plant = self.config.plant
+        try:
+            if msg.name != self.joint_name:
+                raise RequestError(f'setpoint for joint {msg.name!r}; this gripper has one '
+                                   f'joint, {self.joint_name!r}')
+            position_m = msg.position_m
+            if not (math.isfinite(position_m) and 0.0 <= position_m <= plant.max_travel_m):
+                raise RequestError(f'position of {self.joint_name!r} must be in '
+                                   f'[0, {plant.max_travel_m:g}] m, got {position_m!r}')
+            move = MoveRequest(plant.max_travel_m - position_m, msg.speed_mps, msg.max_effort_n)
+            targets = validate_move(move, plant, self.config.supervisor)
+            refusal = self._refusal(RequestKind.MOVE, preempts=True)
+            if refusal:
+                raise RequestError(refusal.removeprefix('refused: '))
+        except RequestError as exc:
+            self.joint_commands_refused += 1
+            self.get_logger().warning(f'{TOPIC_SERVO_SETPOINT} refused: {one_line(exc)}',
+                                      throttle_duration_sec=1.0)
+            return
+        self._put_setpoint(targets, TOPIC_SERVO_SETPOINT, move.width_m)
+
+    def _put_setpoint(self, targets, topic: str, width_m: float) -> None:
+        """Put a checked setpoint of ``topic`` in force.
+
+        What it ends is answered; a new move is logged and wakes a paused simulation.
+        """
         ended = self.logic.request_servo(
             targets, after_ns=self._tick.stamp_ns,
-            message=f'preempted by a setpoint on {self.resolve_topic_name(TOPIC_JOINT_COMMANDS)}')
-        self._commands.accept(move)
+            message=f'preempted by a setpoint on {self.resolve_topic_name(topic)}')
         self.joint_commands_taken += 1
         if ended is not None:
             self._publish_status(self._tick.stamp_ns)
@@ -371,8 +406,8 @@ class SupervisorNode(GripperNode):
         if self.logic.pending:                  # a new move (not the running one retargeted)
             self._ids.save(self.logic.grasp_id + 1)
             self.get_logger().info(
-                f'move {self.logic.grasp_id + 1}: {TOPIC_JOINT_COMMANDS} width '
-                f'{move.width_m:g} m -> position {targets.position_setpoint_m:.4f} m at most '
+                f'move {self.logic.grasp_id + 1}: {topic} width '
+                f'{width_m:g} m -> position {targets.position_setpoint_m:.4f} m at most '
                 f'at {targets.speed_mps:g} m/s, {targets.max_effort_n:.3f} N')
             self._silence.reset()
             self._publish_status(self._tick.stamp_ns)   # wakes a paused simulation

@@ -1,11 +1,18 @@
-"""control_msgs ParallelGripperCommand in terms of a move, without control_msgs or rclpy.
+"""control_msgs' gripper commands in terms of a move, without control_msgs or rclpy.
 
-MoveIt's parallel-gripper handle sends a ``sensor_msgs/JointState`` command: the position of
-the gripper joint (here ``finger_joint``, the finger's travel from fully open, m), optionally a
-most velocity and a most effort per joint (MoveIt fills the effort, 0 when the trajectory has
-none), and names that may be empty. The result is the gripper's state as a JointState and
-GripperCommand's ``stalled`` and ``reached_goal``. The functions here map both ways on plain
-attributes, so the mapping is tested without control_msgs; the action node fills the messages.
+ParallelGripperCommand: MoveIt's parallel-gripper handle sends a ``sensor_msgs/JointState``
+command: the position of the gripper joint (here ``finger_joint``, the finger's travel from
+fully open, m), optionally a most velocity and a most effort per joint (MoveIt fills them from
+its ``max_velocity`` and ``max_effort``, none when 0), and names that may be empty. The result
+is the gripper's state as a JointState and ``stalled`` and ``reached_goal``.
+
+GripperCommand: MoveIt's gripper handle sends ``command.position``, the last trajectory point's
+position of its command joint, and ``command.max_effort`` (the point's effort, else its
+``max_effort``, 0 by default); ros2_controllers' GripperActionController commands that position
+to the joint. The result is ``position``, ``effort``, ``stalled`` and ``reached_goal``.
+
+The functions here map both ways on plain attributes, so the mapping is tested without
+control_msgs; the action node fills the messages.
 """
 from __future__ import annotations
 
@@ -57,6 +64,33 @@ def move_request_of(command, travel_m: float, joint: str = FINGER_JOINT) -> Move
     speed_mps = velocities[index] if len(velocities) > index else 0.0
     effort_n = efforts[index] if len(efforts) > index else 0.0
     return MoveRequest(travel_m - position_m, float(speed_mps), float(effort_n))
+
+
+def gripper_command_move_of(command, travel_m: float,
+                            joint: str = FINGER_JOINT) -> MoveRequest:
+    """Return the move a GripperCommand ``command`` (``position``, ``max_effort``) asks for.
+
+    ``position`` is the joint's: ``joint``'s travel from fully open (m), as MoveIt sends it and
+    GripperActionController commands it (the action's comment calls it the gap). ``max_effort``
+    0 (MoveIt's default) is the motor's effort limit; the speed is the default move speed.
+    RequestError says what is wrong; the effort's range is checked with the move.
+    """
+    position_m, effort_n = command.position, command.max_effort
+    if not (isinstance(position_m, (int, float)) and math.isfinite(position_m)
+            and 0.0 <= position_m <= travel_m):
+        raise RequestError(f'position of {joint!r} must be in [0, {travel_m:g}] m (the travel '
+                           f'of the finger from fully open), got {position_m!r}')
+    if not (isinstance(effort_n, (int, float)) and math.isfinite(effort_n)):
+        raise RequestError(f"max_effort must be a finite number (N; 0: the motor's limit), "
+                           f'got {effort_n!r}')
+    return MoveRequest(travel_m - position_m, 0.0, float(effort_n))
+
+
+def gripper_command_fields(position_m: float, effort_n: float, stalled: bool = False,
+                           reached_goal: bool = False) -> dict:
+    """Return GripperCommand's result (and feedback) fields: the joint's position, the force."""
+    return {'position': float(position_m), 'effort': float(effort_n), 'stalled': bool(stalled),
+            'reached_goal': bool(reached_goal)}
 
 
 def joint_state_fields(position_m: float, effort_n: float, velocity_mps: float | None = None,
