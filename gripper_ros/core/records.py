@@ -159,9 +159,8 @@ def copy_fields(record, source, names=None, prefix: str = '', source_prefix: str
     """
     read = source.__getitem__ if isinstance(source, (np.void, np.ndarray, dict)) else \
         (lambda field: getattr(source, field))
-    names = source if names is None else names
-    for field, name in names.items() if isinstance(names, dict) and names is not source \
-            else zip(names, names):
+    names = tuple(source) if names is None else names
+    for field, name in names.items() if isinstance(names, dict) else zip(names, names):
         record[prefix + field] = read(source_prefix + name)
 
 
