@@ -34,7 +34,7 @@ import time
 GRASP = (0.05, 1.69)
 """Table V's 50 mm / 1.69 kg object (width m, mass kg)."""
 
-_HEADLESS = '''
+_HEADLESS = """
 import json, sys, time
 from gripper_ros.core.config import load_config
 from gripper_ros.core.runtime.headless import simulate_grasp
@@ -49,7 +49,7 @@ for _ in range(grasps):
     simulate_grasp(config, width_m, mass_kg, hold_s=hold_s)
     cpu.append(time.process_time() - t0)
 print(json.dumps({'ticks': ticks, 'cpu_s': cpu}))
-'''
+"""
 
 
 def _env(tree: Path) -> dict:
