@@ -13,6 +13,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 import functools
 import math
+import sys
 import time
 from typing import Callable, Sequence
 
@@ -257,6 +258,11 @@ def run_lockstep(loop, side, plant_k, supervisor, law_buffers, position_k, force
     return True
 
 
+_SPARE_ROWS: list = []
+"""Row buffers (ticks, tick states) of a summarized batch case that nothing refers to any more:
+the process's next grasp writes its rows into them instead of allocating and growing its own."""
+
+
 class _Loop:
     """One headless grasp's plant, supervisor and stages, wired as the graph wires them."""
 
@@ -273,8 +279,8 @@ class _Loop:
         self.cmd = plant_side.command_record
         self.state = np.zeros(1, LOOP_STATE)
         self.state[0]['hold_until_ns'] = NO_NS
-        self.ticks = np.zeros(0, TICK_LAYOUT.dtype)
-        self.tick_states = np.zeros(0, TICK_STATE_ROW)
+        self.ticks, self.tick_states = _SPARE_ROWS.pop() if _SPARE_ROWS else (
+            np.zeros(0, TICK_LAYOUT.dtype), np.zeros(0, TICK_STATE_ROW))
         self.trace = np.zeros(1, TRACE_STATE)
         self.trace_buffers = {name: np.zeros(0, dtype) for name, dtype in _TRACE_BUFFERS}
 
@@ -294,20 +300,16 @@ class _Loop:
     def _grow(self) -> None:
         """Give the row buffers room: the first rows asked for, then twice as many.
 
-        Every row below the count kept is written before it is read: the buffers start empty.
+        In place (``ndarray.resize``, a realloc: a large buffer's pages are moved, its rows not
+        copied); no view of a buffer exists before :meth:`series`. Every row below the count
+        kept is written before it is read.
         """
         size = max(self._first_rows, 2 * self.ticks.shape[0])
-        n = int(self.state[0]['rows'])
-        for name in ('ticks', 'tick_states'):
-            old = getattr(self, name)
-            new = np.empty(size, old.dtype)
-            new[:n] = old[:n]
-            setattr(self, name, new)
+        buffers = [self.ticks, self.tick_states]
         if self.tracing:
-            for name, old in self.trace_buffers.items():
-                new = np.empty(size, old.dtype)
-                new[:old.shape[0]] = old
-                self.trace_buffers[name] = new
+            buffers += self.trace_buffers.values()
+        for rows_buffer in buffers:
+            rows_buffer.resize(size, refcheck=False)
 
     def keep_row(self) -> None:
         """Keep the present tick's row (the Python-driven loop)."""
@@ -477,7 +479,17 @@ def _grasp_case(config: GripperConfig, summarize: Callable | None, case: dict):
         result = simulate_grasp(config, **case)
     except RequestError as exc:
         result = exc
-    return result if summarize is None else summarize(case, result)
+    if summarize is None:
+        return result
+    summary = summarize(case, result)
+    if isinstance(result, HeadlessGrasp):
+        ticks, states = result.series.ticks.base, result.series.tick_states.base
+        del result
+        # no view left (the summary kept none): the buffers are free for the next case
+        if ticks is not None and states is not None and \
+                sys.getrefcount(ticks) == sys.getrefcount(states) == 2:
+            _SPARE_ROWS[:] = [(ticks, states)]
+    return summary
 
 
 def simulate_grasps(config: GripperConfig, cases: Sequence[dict], jobs: int | None = None,
