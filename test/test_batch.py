@@ -96,14 +96,14 @@ def test_summaries_come_back_in_the_order_of_the_cases():
 
 
 def _ticks_digest(case: dict, result):
-    """A summary of every tick's numbers (a sweep's summary reads them all)."""
+    """Summarize every tick's numbers (as a sweep's summary reads them all)."""
     if isinstance(result, RequestError):
         return 'refused'
     return [result.series.ticks[n].tobytes() for n in result.series.ticks.dtype.names]
 
 
 def _force_rows(case: dict, result):
-    """A summary that keeps a view of the grasp's rows."""
+    """Summarize by a view of the grasp's rows (kept: the rows must stay as they are)."""
     return None if isinstance(result, RequestError) else result.series.ticks['force_n']
 
 
