@@ -327,15 +327,23 @@ class TimeMode(enum.IntEnum):
 
     REALTIME = 0
     FAST = 1
+    SIM_TIME = 2
 
     @property
     def parameter(self) -> str:
         """The plant's ``time_mode`` parameter value: ``realtime`` or ``fast``."""
         return self.name.lower()
 
+    @property
+    def text(self) -> str:
+        """How this time runs, in a banner: ``realtime time``, ``sim time: follows /clock``."""
+        return 'sim time: follows /clock' if self is TimeMode.SIM_TIME else \
+            f'{self.parameter} time'
 
-TIME_MODE_CHOICES = tuple(mode.parameter for mode in TimeMode)
-"""What ``time_mode`` (parameter, launch argument, ``--time-mode``) accepts."""
+
+TIME_MODE_CHOICES = (TimeMode.REALTIME.parameter, TimeMode.FAST.parameter)
+"""What ``time_mode`` (parameter, launch argument, ``--time-mode``) accepts; ``use_sim_time``
+chooses SIM_TIME."""
 
 
 WIRE_CODES = (

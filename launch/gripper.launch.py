@@ -10,13 +10,16 @@ Launch arguments: ``namespace`` (default ``gripper``: ``/gripper/grasp``, ``/gri
 ``time_mode`` (``realtime``, the default, paced to the wall clock; ``fast``: as fast as the
 loop goes, paused between requests),
 ``real_time_factor`` (realtime: simulated seconds per wall second), ``publish_clock``
-(``/clock``, one simulator per ROS graph), ``prefix`` (the xacro's: ``left_`` names the
+(``/clock``, one simulator per ROS graph), ``use_sim_time`` (every node on the ``/clock`` of a
+world simulator such as Gazebo or MuJoCo, the simulation in step with it; the gripper then
+publishes no ``/clock``), ``prefix`` (the xacro's: ``left_`` names the
 joint ``left_finger_joint`` in joint_states and joint_commands, and the URDF's links, so every
 TF frame; by default from the namespace: none in ``gripper``, ``left_`` in ``left``, so grippers
 launched side by side share no frame and no joint), ``per_node`` (default ``false``), and
 ``foxglove`` (default ``false``; ``true`` serves the graph live to Foxglove over its WebSocket
 protocol, on ``foxglove_port`` (8765) at ``foxglove_address`` (this machine only: 127.0.0.1);
 only with the graph in one process).
+A namespace that is no ROS name is refused in one line before any node starts.
 The nodes: plant_simulator, position_controller, force_controller, supervisor,
 grasp_action_server, move_action_server (which also serves control_msgs
 ParallelGripperCommand on ``gripper_cmd`` and GripperCommand on
@@ -48,8 +51,8 @@ within its own stop bound first (docs/USING.md, "Stopping").
 """
 from gripper_ros.nodes import launched_executables, robot_state_publisher_installed
 from gripper_ros.nodes.live_view import DEFAULT_ADDRESS, DEFAULT_PORT
-from gripper_ros.wire import (DEFAULT_NAMESPACE, namespace_prefix, NODE_DESCRIPTION,
-                              NODE_MOVE_ACTION, NODE_PLANT, NODE_SUPERVISOR,
+from gripper_ros.wire import (check_namespace, DEFAULT_NAMESPACE, namespace_prefix,
+                              NODE_DESCRIPTION, NODE_MOVE_ACTION, NODE_PLANT, NODE_SUPERVISOR,
                               NODE_TRAJECTORY_ACTION,
                               ROBOT_STATE_PUBLISHER, TIME_MODE_CHOICES, TimeMode)
 from launch import LaunchDescription
@@ -77,6 +80,17 @@ class NamespacePrefix(Substitution):
                                                                   DEFAULT_NAMESPACE))
 
 
+def check_namespace_argument(context) -> list:
+    """Refuse a ``namespace`` that is no ROS name, in one line, before any node starts.
+
+    launch_ros would say it for each Node action over several lines, naming the argument
+    ``<LaunchConfiguration object at 0x...>``. Raised here, launch prints one line
+    (``Caught exception in launch ...: namespace 'a-b' is not a ROS name: ...``) and exits 1.
+    """
+    check_namespace(context.launch_configurations['namespace'])
+    return []
+
+
 JOINT_NAMED = (NODE_PLANT, NODE_SUPERVISOR, NODE_MOVE_ACTION, NODE_TRAJECTORY_ACTION,
                NODE_DESCRIPTION)
 """The nodes that take the ``prefix`` parameter: the joint's name and the URDF's."""
@@ -88,6 +102,8 @@ ARGUMENTS = (
      f'{" or ".join(TIME_MODE_CHOICES)}: paced to the wall clock, or as fast as the loop goes'),
     ('real_time_factor', '1.0', 'realtime: simulated seconds per wall second'),
     ('publish_clock', 'true', 'publish /clock'),
+    ('use_sim_time', 'false', "true: every node on a world simulator's /clock, the simulation "
+     'in step with it (the gripper publishes none)'),
     ('prefix', NamespacePrefix(),
      "before finger_joint and the URDF's names, so every TF frame (the xacro's prefix)"),
     ('per_node', 'false', 'true: one process per node; false: the whole graph in one process '
@@ -120,7 +136,8 @@ def generate_launch_description() -> LaunchDescription:
     ``per_node`` chooses which of the two runs. The one process takes every parameter
     dictionary (each a ``/**`` parameters file, reaching every node in it) and no ``name``.
     """
-    config = {'config_file': ParameterValue(LaunchConfiguration('config_file'), value_type=str)}
+    config = {'config_file': ParameterValue(LaunchConfiguration('config_file'), value_type=str),
+              'use_sim_time': ParameterValue(LaunchConfiguration('use_sim_time'), value_type=bool)}
     named = {'prefix': ParameterValue(LaunchConfiguration('prefix'), value_type=str)}
     plant = {
         'time_mode': ParameterValue(LaunchConfiguration('time_mode'), value_type=str),
@@ -137,6 +154,7 @@ def generate_launch_description() -> LaunchDescription:
     per_node = LaunchConfiguration('per_node')
     actions = [DeclareLaunchArgument(name, default_value=default, description=description)
                for name, default, description in ARGUMENTS]
+    actions.append(OpaqueFunction(function=check_namespace_argument))
     actions.append(OpaqueFunction(function=_live_view_needs_one_process))
     actions.append(Node(package=PACKAGE, executable=GRAPH_EXECUTABLE,
                         namespace=LaunchConfiguration('namespace'),
@@ -148,7 +166,8 @@ def generate_launch_description() -> LaunchDescription:
                     ' --prefix "', LaunchConfiguration('prefix'), '"'])
     for package, name in launched_executables(robot_state_publisher_installed()):
         if package == ROBOT_STATE_PUBLISHER:
-            parameters = [{'robot_description': ParameterValue(urdf, value_type=str)}]
+            parameters = [{'robot_description': ParameterValue(urdf, value_type=str),
+                           'use_sim_time': config['use_sim_time']}]
         else:
             parameters = [config, plant] if name == NODE_PLANT else [config]
             if name in JOINT_NAMED:

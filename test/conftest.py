@@ -15,7 +15,7 @@ if _worker.startswith('gw') and _worker[2:].isdigit() and int(_worker[2:]) < len
     os.environ['ROS_DOMAIN_ID'] = _domains[int(_worker[2:])]
 os.environ.setdefault('ROS_DOMAIN_ID', str(40 + os.getpid() % 50))
 
-SERIAL_MODULES = frozenset({'test_launch.py', 'test_time_modes.py'})
+SERIAL_MODULES = frozenset({'test_launch.py', 'test_sim_time.py', 'test_time_modes.py'})
 """Modules whose every test watches the wall clock: run alone, after the rest (scripts/test.sh),
 so the other worker's load cannot starve them. A test of another module that does so (a bound
 on the time a process takes to stop, a watchdog's detection time, a rate in wall time, a race

@@ -30,6 +30,7 @@ STEP_NS = 100_000
 def held_plant(volts, mass_kg=1.0, lift=None, **obj):
     """Finger stalled on a rigid object at ``volts``, current settled exactly at V/R."""
     plant = make_plant(CONFIG)
+    obj = {'static_friction': MU_S, 'kinetic_friction': MU_K, **obj}    # the configured ones
     plant.set_object(GraspObject(WIDTH_M, mass_kg=mass_kg, **obj), lift=lift)
     plant.touch_object()
     for _ in range(2000):                                 # 0.2 s = 1900 L/R
@@ -253,13 +254,15 @@ def test_without_a_lift_the_plant_steps_exactly_as_without_a_mass():
                 plant.begin_hold(plant.t_ns, 1.69)
             out.append(plant.step(24.0 if k < 300 else 5.0, 0.01 if k < 300 else STEP_S))
         return out
-    assert run(GraspObject(WIDTH_M), False) == run(GraspObject(WIDTH_M, mass_kg=1.69), True)
+    assert run(GraspObject(WIDTH_M), False) == run(
+        GraspObject(WIDTH_M, mass_kg=1.69, static_friction=MU_S, kinetic_friction=MU_K), True)
 
 
 def test_two_runs_with_a_slide_and_a_loss_are_bit_identical():
     def run():
         plant = make_plant(CONFIG)
-        plant.set_object(GraspObject(WIDTH_M, 1e5, 50.0, mass_kg=0.8), Lift(3.0, 0.0123, 0.05))
+        plant.set_object(plant.configured_friction(GraspObject(WIDTH_M, 1e5, 50.0, mass_kg=0.8)),
+                         Lift(3.0, 0.0123, 0.05))
         samples, states = [], []
         for k in range(1500):
             if k == 400:
@@ -288,9 +291,34 @@ def test_kinetic_friction_above_static_is_refused():
     plant = make_plant(CONFIG)
     with pytest.raises(ValueError, match='kinetic_friction'):
         plant.set_object(GraspObject(WIDTH_M, static_friction=0.3, kinetic_friction=0.35))
-    with pytest.raises(ValueError, match='kinetic_friction'):        # against the default 0.4
-        plant.set_object(GraspObject(WIDTH_M, static_friction=0.3))
+    with pytest.raises(ValueError, match='kinetic_friction'):        # the configured mu_k 0.4
+        plant.set_object(GraspObject(WIDTH_M, static_friction=0.3,
+                                     kinetic_friction=C.kinetic_friction))
     assert plant.object == GraspObject(0.0)
+
+
+@pytest.mark.parametrize('grip_v', [2.0, 24.0])
+def test_friction_0_is_frictionless_and_the_configured_friction_is_asked_for_apart(grip_v):
+    """A frictionless object falls through any grip as the closed form x = (g + a) t^2 / 2.
+
+    Friction 0 is the object's own (none), not the configured one, which
+    :meth:`configured_friction` gives instead.
+    """
+    m, a = 1.0, 2.0
+    plant = held_plant(grip_v, m, Lift(a, 0.0, 1.0), static_friction=0.0,
+                       kinetic_friction=0.0)
+    plant.begin_hold(plant.t_ns)
+    t = 0.0
+    while plant.object_state.state is not HoldState.LOST:
+        plant.step(grip_v, STEP_S)
+        t += STEP_S
+        state = plant.object_state
+        if state.state is HoldState.SLIDING:
+            assert state.slip_m == pytest.approx(0.5 * (G + a) * t * t, rel=1e-9)
+            assert state.shear_n == 0.0 and state.presliding_m == 0.0
+    assert t == pytest.approx(math.sqrt(2 * PAD_M / (G + a)), abs=STEP_S)
+    configured = plant.configured_friction(GraspObject(WIDTH_M, static_friction=0.0))
+    assert (configured.static_friction, configured.kinetic_friction) == (MU_S, MU_K)
 
 
 @pytest.mark.parametrize('kwargs, field', [
@@ -392,6 +420,6 @@ def test_a_lifts_own_lift_off_wins_and_0_means_the_configs(lift_off_s, config_s,
     import dataclasses
     config = dataclasses.replace(CONFIG, contact=dataclasses.replace(C, lift_off_s=config_s))
     plant = make_plant(config)
-    plant.set_object(GraspObject(WIDTH_M, mass_kg=1.0),
+    plant.set_object(plant.configured_friction(GraspObject(WIDTH_M, mass_kg=1.0)),
                      lift=Lift(1.0, 0.0, 1.0, lift_off_s=lift_off_s))
     assert plant.kernel[0]['hold']['lift_off_ns'] == round(expected_s * 1e9)

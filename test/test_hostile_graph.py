@@ -16,8 +16,8 @@ import time
 
 from gripper_interfaces.srv import SetObject
 from gripper_ros.core.config import MAX_HORIZON
+from gripper_ros.core.runtime.pacing import MAX_STEP_TICKS
 from gripper_ros.nodes.graph import GraphOptions, GripperGraph
-from gripper_ros.nodes.plant_simulator_node import MAX_STEP_TICKS
 from gripper_ros.nodes.qos import SERVICE_QOS
 from gripper_ros.wire import (GRAPH_NOT_READY, MAX_NAMESPACE_LENGTH, NODE_POSITION_CONTROLLER,
                               Outcome, Phase, SERVICE_PAUSE, SERVICE_SET_OBJECT, SERVICE_STOP,

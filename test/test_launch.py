@@ -3,10 +3,12 @@
 The graph in one process (``gripper_graph``, the default) or one process per node
 (``per_node:=true``), the namespace, config file and time mode as launch arguments; Ctrl-C
 (SIGINT to the process group, as a terminal sends it) stops every process, each exiting 0
-before launch escalates. The ros-jazzy wheels have no launch_ros (nor the ros2 launch
-command): there these tests skip, unless ``setup.sh --ros2-cli`` built them (scripts/test.sh
-then sets ``ROS2_OVERLAY``, and a failure to import is an error); test_install_layout checks
-that the file is installed either way.
+before launch escalates. With ``use_sim_time:=true`` the launched gripper runs on a world's
+/clock (:mod:`world_clock`); a namespace that is no ROS name is one line, no node started.
+The ros-jazzy wheels have no launch_ros (nor the ros2 launch command): there these tests
+skip, unless ``setup.sh --ros2-cli`` built them (scripts/test.sh then sets ``ROS2_OVERLAY``,
+and a failure to import is an error); test_install_layout checks that the file is installed
+either way.
 """
 import importlib.util
 import os
@@ -38,8 +40,9 @@ from gripper_ros.wire import LAUNCHED_NODES  # noqa: I100
 LAUNCHED = launched_executables(robot_state_publisher_installed())
 EXECUTABLES = {name for package, name in LAUNCHED if package == 'gripper_ros'}
 DEFAULTS = {'namespace': 'gripper', 'time_mode': 'realtime', 'real_time_factor': '1.0',
-            'publish_clock': 'true', 'prefix': '', 'per_node': 'false', 'foxglove': 'false',
-            'foxglove_port': str(DEFAULT_PORT), 'foxglove_address': DEFAULT_ADDRESS}
+            'publish_clock': 'true', 'use_sim_time': 'false', 'prefix': '', 'per_node': 'false',
+            'foxglove': 'false', 'foxglove_port': str(DEFAULT_PORT),
+            'foxglove_address': DEFAULT_ADDRESS}
 LAYOUTS = {'one_process': 'false', 'per_node': 'true'}
 STOP_WITHIN_S = 30.0
 """Ctrl-C to every process gone: each ends within a few seconds by its own bound; launch would
@@ -185,3 +188,56 @@ def _ctrl_c_stops_every_process(proc) -> None:
     started = output.count('process started with pid')
     assert started >= 1 and output.count('process has finished cleanly') == started, output
     assert 'escalating' not in output and proc.wait() == 0, output
+
+
+def test_a_namespace_that_is_no_ros_name_is_one_line_and_starts_nothing():
+    """launch_ros alone says it over lines naming ``<LaunchConfiguration object at 0x...>``."""
+    ros2 = shutil.which('ros2')
+    if ros2 is None:
+        pytest.skip('the ros2 command is not on PATH')
+    run = subprocess.run([ros2, 'launch', 'gripper_ros', 'gripper.launch.py',
+                          'namespace:=left-arm'], stdin=subprocess.DEVNULL, capture_output=True,
+                         text=True, timeout=120, start_new_session=True)
+    errors = [line for line in (run.stdout + run.stderr).splitlines() if '[ERROR]' in line]
+    assert run.returncode == 1 and len(errors) == 1, run.stdout + run.stderr
+    assert "namespace 'left-arm' is not a ROS name" in errors[0], errors
+    assert 'process started' not in run.stdout + run.stderr
+
+
+def test_launched_on_a_world_clock_the_stamps_are_the_world_s():
+    """``use_sim_time:=true``: no /clock of its own; joint_states stamped with the world's time.
+
+    Never ahead of the world's time when sent, and typically within 20 ms behind it. Every
+    sample within 20 ms is test_sim_time's, where the world runs in the gripper's process: here
+    the two are processes of a shared machine, and a starved gripper falls behind a world that
+    is not (it catches up at its loop's pace, the stamps still the world's).
+    """
+    from world_clock import lags_ns, World, WORLD_START_NS
+    ros2 = shutil.which('ros2')
+    if ros2 is None:
+        pytest.skip('the ros2 command is not on PATH')
+    namespace = 'launch_sim_time'
+    world = World((namespace,))
+    proc = subprocess.Popen([ros2, 'launch', 'gripper_ros', 'gripper.launch.py',
+                             f'namespace:={namespace}', 'use_sim_time:=true'],
+                            stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
+                            stderr=subprocess.DEVNULL, start_new_session=True)
+    try:
+        deadline = time.monotonic() + 120.0
+        while len(world.samples[namespace]) < 50 and time.monotonic() < deadline:
+            time.sleep(0.05)
+        with world.lock:
+            samples = list(world.samples[namespace])
+        assert len(samples) >= 50, proc.poll()
+        assert samples[0][1] >= WORLD_START_NS
+        lags = sorted(lags_ns(world, samples))
+        assert 0 <= lags[0] and lags[len(lags) // 2] <= 20_000_000, lags
+        assert world.node.count_publishers('/clock') == 1
+    finally:
+        os.killpg(proc.pid, signal.SIGINT)
+        try:
+            assert proc.wait(timeout=STOP_WITHIN_S) == 0
+        finally:
+            if _group_alive(proc.pid):
+                os.killpg(proc.pid, signal.SIGKILL)
+            world.close()

@@ -134,6 +134,23 @@ def test_grasp_client_and_grasp_demo_place_the_same_object_and_lift():
     expected = {'mass_kg': 0.4, 'lift_acceleration_mps2': 3.0, 'lift_delay_s': LIFT_DELAY_S,
                 'lift_duration_s': LIFT_DURATION_S, 'lift_off_s': 0.1,
                 'lift_profile': int(LiftProfile.SHAKE), 'lift_frequency_hz': 2.0,
-                'announce_lift': False}
+                'announce_lift': False, 'default_friction': True}
     assert set_object_fields(client) == set_object_fields(demo) == expected
-    assert set_object_fields(grasp_client.build_parser().parse_args(argv[:4])) == {}
+    # no friction given: the configured one, asked for; 0 given: frictionless, as given
+    assert set_object_fields(grasp_client.build_parser().parse_args(argv[:4])) == \
+        {'default_friction': True}
+    frictionless = argv[:4] + ['--static-friction', '0', '--kinetic-friction', '0']
+    for parser in (grasp_client.build_parser(), grasp_demo.build_parser()):
+        assert set_object_fields(parser.parse_args(frictionless)) == \
+            {'static_friction': 0.0, 'kinetic_friction': 0.0}
+
+
+@pytest.mark.parametrize('app, more', [('grasp_demo', ['--no-record']), ('grasp_client', [])])
+def test_an_objects_friction_by_halves_is_refused_in_one_line(app, more):
+    result = subprocess.run([sys.executable, '-m', f'gripper_ros.apps.{app}', '--width', '0.05',
+                             '--mass', '0', '--static-friction', '0.6', *more],
+                            capture_output=True, text=True, timeout=120,
+                            stdin=subprocess.DEVNULL)
+    errors = [line for line in result.stderr.splitlines() if line.strip()]
+    assert result.returncode == 2 and '--static-friction and --kinetic-friction go together' \
+        in errors[-1], result.stderr

@@ -37,7 +37,7 @@ def graph():
 
 
 def hold(graph):
-    assert graph.set_object(WIDTH, mass_kg=MASS).success
+    assert graph.set_object(WIDTH, mass_kg=MASS, default_friction=True).success
     r = graph.grasp(WIDTH, MASS)
     assert r.success and r.outcome == Outcome.HOLDING, r.message
     graph.wait_still()

@@ -29,6 +29,7 @@ from rcl_interfaces.srv import GetParameters
 import rclpy
 from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
+import yaml
 
 MODULES = NODE_MODULES
 SIGNALS = {'sigint': signal.SIGINT, 'sigterm': signal.SIGTERM}
@@ -49,6 +50,9 @@ BAD_PARAMETERS = [   # (node, parameter, value as typed after -p name:=, words i
     (NODE_EXCITATION, 'excitation.amplitude_v', '99.0', 'amplitude_v must be in'),
     (NODE_GRASP_ACTION, 'executor', 'threads', 'must be one of'),          # run_node's own
     (NODE_DESCRIPTION, 'frame_prefix', 'left-', 'may hold only ASCII letters'),
+    # a name the node does not declare (every node, test_parameters): the nearest one it does
+    (NODE_PLANT, 'time_mod', 'fast', 'unknown parameter "time_mod"; did you mean "time_mode"'),
+    (NODE_SUPERVISOR, 'supervisor.bogus_key', '1.0', 'unknown parameter "supervisor.bogus_key"'),
 ]
 RUNNING_TIMEOUT_S = 60.0
 """How long the start-up may go without any further node answering: some thirty nodes start at
@@ -254,19 +258,42 @@ def test_every_node_executable_is_here_with_a_bad_start_up_parameter():
 GRAPH_BAD_SETTINGS = [('time_mode', 'sideways', 'must be realtime or fast'),
                       ('real_time_factor', '0.0', 'out of range'),
                       ('real_time_factor', 'fast', WRONG_TYPE),
-                      ('config_file', '/nonexistent/gripper.yaml', 'cannot read config file')]
+                      ('config_file', '/nonexistent/gripper.yaml', 'cannot read config file'),
+                      ('supervisor.bogus_key', '1.0',
+                       'unknown parameter "supervisor.bogus_key"; known here: '),
+                      ('executor', 'single', 'unknown parameter "executor"'),
+                      # the process's own settings, read by no node, are known: the typo is named
+                      ('supervisor.timeot_s', '5.0 -p foxglove_port:=0 -p foxglove_address:=::1',
+                       'unknown parameter "supervisor.timeot_s"; did you mean'),
+                      ('time_mode', 'fast -p use_sim_time:=true', 'time_mode must be realtime')]
 
 
 @pytest.mark.parametrize('name,value,words', GRAPH_BAD_SETTINGS)
 def test_gripper_graph_refuses_a_bad_setting_in_one_line(name, value, words):
     """The launch file's settings reach gripper_graph as parameters; a bad one: exit 2, a line."""
+    value, *more = value.split(' ')
     run = subprocess.run([sys.executable, '-m', 'gripper_ros.nodes.graph_process', '--ros-args',
-                          '-r', f'__ns:=/graph_bad_{os.getpid()}', '-p', f'{name}:={value}'],
-                         stdin=subprocess.DEVNULL, capture_output=True, text=True, timeout=120)
+                          '-r', f'__ns:=/graph_bad_{os.getpid()}', '-p', f'{name}:={value}',
+                          *more], stdin=subprocess.DEVNULL, capture_output=True, text=True,
+                         timeout=120)
     lines = run.stderr.strip().splitlines()
     assert run.returncode == 2, run.stderr[-2000:]
     assert len(lines) == 1 and lines[0].startswith('gripper_graph: ') and words in lines[0], \
         run.stderr[-2000:]
+
+
+@pytest.mark.parametrize('section', [{'supervisor': {'timeot_s': 5.0}},
+                                     {'supervisor.timeot_s': 5.0}])
+def test_gripper_graph_refuses_a_params_file_typo_naming_the_nearest_key(tmp_path, section):
+    """A ``--params-file`` for ``/**`` (nested or dotted) with a typo: exit 2, one line."""
+    path = tmp_path / 'params.yaml'
+    path.write_text(yaml.safe_dump({'/**': {'ros__parameters': section}}), encoding='utf-8')
+    run = subprocess.run([sys.executable, '-m', 'gripper_ros.nodes.graph_process', '--ros-args',
+                          '-r', f'__ns:=/graph_typo_{os.getpid()}', '--params-file', str(path)],
+                         stdin=subprocess.DEVNULL, capture_output=True, text=True, timeout=120)
+    assert run.returncode == 2, run.stderr[-2000:]
+    assert run.stderr.strip() == ('gripper_graph: unknown parameter "supervisor.timeot_s"; '
+                                  'did you mean "supervisor.timeout_s"?'), run.stderr[-2000:]
 
 
 @pytest.mark.parametrize('remap, namespace, prefix', [

@@ -18,18 +18,24 @@ import math
 import os
 from pathlib import Path
 import re
+import shutil
 import subprocess
 import time
 
 from gripper_ros.core.config import ConfigError, flatten, SCHEMA
 from gripper_ros.nodes.control_actions import FollowJointTrajectory
 from gripper_ros.nodes.controller_node import DEFAULT_STATUS_TIMEOUT_S
+from gripper_ros.nodes.description_node import DescriptionPublisher
+from gripper_ros.nodes.excitation_node import ExcitationServer
 from gripper_ros.nodes.force_controller_node import ForceControllerNode
 from gripper_ros.nodes.graph import GraphOptions, GripperGraph
 from gripper_ros.nodes.grasp_action_node import GraspActionServer
+from gripper_ros.nodes.move_action_node import MoveActionServer
+from gripper_ros.nodes.parameters import refuse_unknown_overrides
 from gripper_ros.nodes.plant_simulator_node import PlantSimulatorNode
 from gripper_ros.nodes.position_controller_node import PositionControllerNode
 from gripper_ros.nodes.supervisor_node import DEFAULT_TICK_TIMEOUT_S, SupervisorNode
+from gripper_ros.nodes.trajectory_action_node import TrajectoryActionServer
 from gripper_ros.wire import DEFAULT_NAMESPACE, Outcome, Phase, STATUS_HEARTBEAT_S
 import numpy as np
 import pytest
@@ -39,6 +45,7 @@ from rcl_interfaces.srv import DescribeParameters, GetParameters, ListParameters
 import rclpy
 from rclpy.context import Context
 from rclpy.exceptions import InvalidParameterValueException
+from rclpy.node import Node
 from rclpy.parameter import Parameter
 import yaml
 
@@ -675,6 +682,77 @@ def test_a_params_file_sets_config_keys_at_start_up(tmp_path):
             node.destroy_node()
     finally:
         rclpy.try_shutdown(context=context)
+
+
+def test_a_set_of_an_unknown_name_is_refused_naming_it_and_the_nearest(graph):
+    """``ros2 param set`` of a typo: the name in the refusal, and what it was likely meant as.
+
+    rclpy alone answers ``Invalid access to undeclared parameter(s): []`` (its
+    ``_check_undeclared_parameters`` lists a generator its ``any()`` consumed).
+    """
+    refused = _set(graph, 'supervisor', 'supervisor.timeot_s', _double(5.0))
+    assert not refused.successful
+    assert refused.reason == ('Invalid access to undeclared parameter(s): '
+                              "['supervisor.timeot_s']; did you mean \"supervisor.timeout_s\"?")
+    refused = _set(graph, 'plant_simulator', 'bogus_key', _double(1.0))
+    assert not refused.successful and "['bogus_key']; known here: " in refused.reason
+    assert _get(graph, 'supervisor', 'supervisor.timeout_s') == \
+        SHIPPED_DATA['supervisor']['timeout_s']
+
+
+@pytest.mark.skipif(shutil.which('ros2') is None, reason='ros2cli is not installed')
+def test_ros2_param_set_of_an_unknown_name_says_which(graph):
+    """The real ``ros2 param set`` prints the refusal's reason: the name and the nearest one."""
+    run = subprocess.run(['ros2', 'param', 'set', '--no-daemon', '--timeout', '60',
+                          f'/{graph.namespace}/supervisor', 'supervisor.timeot_s', '5.0'],
+                         capture_output=True, text=True, timeout=60, stdin=subprocess.DEVNULL)
+    assert run.stderr.strip() == ('Setting parameter failed: Invalid access to undeclared '
+                                  "parameter(s): ['supervisor.timeot_s']; did you mean "
+                                  '"supervisor.timeout_s"?'), run.stdout + run.stderr
+
+
+UNKNOWN_OVERRIDES = [   # (node class, a typo of one of its parameters, the name it meant)
+    (PlantSimulatorNode, 'time_mod', 'time_mode'),
+    (PositionControllerNode, 'position_control.mpc_pd.kcc', 'position_control.mpc_pd.kc'),
+    (ForceControllerNode, 'status_timeout', 'status_timeout_s'),
+    (SupervisorNode, 'supervisor.timeot_s', 'supervisor.timeout_s'),
+    (GraspActionServer, 'feedback_period', 'feedback_period_s'),
+    (MoveActionServer, 'allow_stalled', 'allow_stalling'),
+    (ExcitationServer, 'excitation.amplitude', 'excitation.amplitude_v'),
+    (DescriptionPublisher, 'publish_frequncy', 'publish_frequency'),
+    (TrajectoryActionServer, 'constraints.goal_tme', 'constraints.goal_time')]
+NEEDS_CONTROL_MSGS = pytest.mark.skipif(FollowJointTrajectory is None,
+                                        reason='control_msgs is not installed')
+
+
+@pytest.mark.parametrize('node_class, typo, meant', [
+    pytest.param(*case, marks=NEEDS_CONTROL_MSGS if case[0] is TrajectoryActionServer else ())
+    for case in UNKNOWN_OVERRIDES], ids=[c.__name__ for c, *_ in UNKNOWN_OVERRIDES])
+def test_an_unknown_start_up_parameter_is_refused_naming_the_nearest(own_context, node_class,
+                                                                     typo, meant):
+    """A ``-p`` or params-file name the node does not declare ends its start (run_node).
+
+    As a typo in config_file: the name, and the closest of the node's own in its group.
+    """
+    node = node_class(context=own_context, namespace=f'params_unknown_{node_class.__name__}',
+                      parameter_overrides=[Parameter(typo, value=1.0)])
+    try:
+        with pytest.raises(ConfigError, match=f'^unknown parameter "{re.escape(typo)}"; '
+                                              f'did you mean "{re.escape(meant)}"[?]$'):
+            refuse_unknown_overrides([node])
+    finally:
+        node.destroy_node()
+
+
+def test_every_node_executable_is_held_to_its_declared_parameters():
+    """Every node class of the package is a case above: each runs through run_node's check."""
+    from gripper_ros.nodes import NODE_MODULES
+    import importlib
+    classes = {cls for module in NODE_MODULES.values() for cls in vars(importlib.import_module(
+        f'gripper_ros.nodes.{module}')).values()
+        if isinstance(cls, type) and cls.__module__.endswith(module) and
+        issubclass(cls, Node)}
+    assert classes == {c for c, *_ in UNKNOWN_OVERRIDES}
 
 
 def test_a_bad_params_file_value_stops_the_executable_in_one_line(tmp_path):

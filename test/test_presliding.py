@@ -104,7 +104,8 @@ def test_rigid_and_compliant_pads_slide_alike():
 def test_plant_reports_the_pad_shear_and_displacement_of_a_lifted_object():
     volts, m, a = 10.0, 1.0, 2.0
     plant = make_plant(CONFIG)
-    plant.set_object(GraspObject(0.05, mass_kg=m), lift=Lift(a, 0.0, 1.0))
+    plant.set_object(plant.configured_friction(GraspObject(0.05, mass_kg=m)),
+                     lift=Lift(a, 0.0, 1.0))
     plant.touch_object()
     for _ in range(2000):
         plant.step(volts, 1e-4)

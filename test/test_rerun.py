@@ -52,7 +52,8 @@ def bags(tmp_path_factory):
         runs['rigid'] = recorded_grasp(graph, out / 'rigid', 0.05, 1.69)
         runs['stiff'] = recorded_grasp(graph, out / 'stiff', 0.05, 1.0, **STIFF)
         runs['lift'] = recorded_grasp(graph, out / 'lift', 0.05, 1.0, lift_acceleration_mps2=8.0,
-                                      lift_delay_s=0.1, lift_duration_s=0.3)
+                                      lift_delay_s=0.1, lift_duration_s=0.3,
+                                      default_friction=True)
         runs['dropout'] = recorded_grasp(graph, out / 'dropout', 0.05, 1.0,
                                          fault=int(FaultKind.SENSOR_DROPOUT), fault_at_s=2.92)
         runs['after_fault'] = recorded_grasp(graph, out / 'after_fault', 0.11, 0.5)

@@ -3,8 +3,9 @@
 One graph for the module: a late subscriber gets robot_description and /tf_static; a
 JointState on ``joint_commands`` (what ros2_control's JointStateTopicSystem publishes) closes
 the finger onto an object with the command's effort limit, joint_states' effort (the applied
-force) never passes it, /tf follows the finger, gripper_status says moving at once and then
-stalled on an object, and bad commands are refused without moving anything.
+force) never passes it, /tf follows the finger, gripper_status says idle from the start,
+moving at once and then stalled on an object, and bad commands are refused without moving
+anything.
 """
 from __future__ import annotations
 
@@ -210,6 +211,27 @@ def test_a_joint_command_closes_on_the_object_with_its_effort_limit(graph):
 
 def _values(report) -> dict:
     return {kv.key: kv.value for kv in report.values} if report is not None else {}
+
+
+def test_a_client_of_an_idle_gripper_gets_its_status_without_any_request():
+    """gripper_status is latched from the start: idle, the finger fully open, no object.
+
+    A subscriber that connects later, as a ros2_control user's node does, gets it at once
+    (transient local, depth 1), before anything is asked of the gripper.
+    """
+    with GripperGraph.in_own_context(GraphOptions(namespace='idle_status')) as idle:
+        assert wait_until(lambda: idle.move_action_server.grip_statuses_published == 1, 30.0)
+        late = Listener(idle, {TOPIC_GRIPPER_STATUS: (DiagnosticStatus, LATCHED_QOS)})
+        assert wait_until(lambda: late.count[TOPIC_GRIPPER_STATUS] == 1, 30.0)
+        report = late.newest[TOPIC_GRIPPER_STATUS]
+        assert (report.level, report.name, report.message) == (
+            DiagnosticStatus.OK, idle.move_action_server.joint_name, 'idle')
+        values = _values(report)
+        assert (values['outcome'], values['stalled'], values['object_detected']) == \
+            ('IDLE', 'false', 'false')
+        assert (float(values['position_m']), float(values['width_m'])) == (0.0, TRAVEL_M)
+        assert int(values['grasp_id']) == idle.supervisor.logic.grasp_id    # none asked since
+        assert not idle.supervisor.logic.running
 
 
 ACTIVATION_N = CONFIG.force_sensor.activation_force_n

@@ -24,27 +24,45 @@ def negative_option(args, names) -> str | None:
     """Return the error of the first option in ``names`` not finite and >= 0; None if all are.
 
     ``names`` are argparse destinations (``lift_delay``); the error names the option
-    (``--lift-delay``) and the value given.
+    (``--lift-delay``) and the value given. An option not given (None) passes.
     """
     for name in names:
         value = getattr(args, name)
-        if not (math.isfinite(value) and value >= 0.0):
+        if value is not None and not (math.isfinite(value) and value >= 0.0):
             return f'--{name.replace("_", "-")} must be finite and >= 0, got {value!r}'
+    return None
+
+
+FRICTION_OPTIONS = '--static-friction and --kinetic-friction'
+
+
+def friction_option(args) -> str | None:
+    """Return the error of an object's friction given by halves; None if both or neither are.
+
+    Neither: the configured friction (``SetObject.default_friction``); 0 is frictionless.
+    """
+    if (args.static_friction is None) != (args.kinetic_friction is None):
+        return (f'{FRICTION_OPTIONS} go together (neither: the configured friction; '
+                f'0: frictionless)')
     return None
 
 
 def set_object_fields(args) -> dict:
     """Return the SetObject fields of an app's object and lift options.
 
-    ``args`` holds ``object_mass``, ``static_friction``, ``kinetic_friction``, ``profile``
-    (parsed, or None), ``lift_off`` and ``unannounced``; ``lift``, ``lift_delay`` and
-    ``lift_duration`` where the app has them (else ``profile``'s acceleration and the lift
-    runs' timing). Only the object's fields that were given; no lift fields without a lift.
+    ``args`` holds ``object_mass``, ``static_friction``, ``kinetic_friction`` (both None: the
+    configured friction), ``profile`` (parsed, or None), ``lift_off`` and ``unannounced``;
+    ``lift``, ``lift_delay`` and ``lift_duration`` where the app has them (else ``profile``'s
+    acceleration and the lift runs' timing). Only the object's fields that were given; no lift
+    fields without a lift.
     """
     from gripper_ros.studies.lift_runs import LIFT_DELAY_S, LIFT_DURATION_S
-    out = {name: getattr(args, key) for key, name in (
-        ('object_mass', 'mass_kg'), ('static_friction', 'static_friction'),
-        ('kinetic_friction', 'kinetic_friction')) if getattr(args, key)}
+    out = {'mass_kg': args.object_mass} if args.object_mass else {}
+    if args.static_friction is None and args.kinetic_friction is None:
+        out['default_friction'] = True
+    else:
+        out.update(static_friction=args.static_friction or 0.0,
+                   kinetic_friction=args.kinetic_friction or 0.0)
     lift = getattr(args, 'lift', 0.0) or (args.profile[1] if args.profile is not None else 0.0)
     if not lift:
         return out

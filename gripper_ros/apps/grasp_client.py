@@ -69,10 +69,11 @@ def build_parser() -> argparse.ArgumentParser:
                    help='the arm hands the weight to the pads over S seconds (0 = configured)')
     p.add_argument('--object-mass', type=float, default=0.0, metavar='KG',
                    help="the simulated object's real mass (0 = the requested --mass)")
-    p.add_argument('--static-friction', type=float, default=0.0, metavar='MU',
-                   help='its real mu_s on the pads (0 = configured)')
-    p.add_argument('--kinetic-friction', type=float, default=0.0, metavar='MU',
-                   help='its real mu_k (0 = configured)')
+    p.add_argument('--static-friction', type=float, default=None, metavar='MU',
+                   help='its real mu_s on the pads (0 = frictionless; with --kinetic-friction, '
+                        'neither = the configured friction)')
+    p.add_argument('--kinetic-friction', type=float, default=None, metavar='MU',
+                   help='its real mu_k (0 = it slides without friction)')
     p.add_argument('--wait', type=float, default=10.0, help='seconds to wait for the services')
     p.add_argument('--call-timeout', type=float, default=600.0, help='wall seconds per call')
     p.add_argument('--action', action='store_true',
@@ -155,6 +156,9 @@ def main(argv: list[str] | None = None) -> int:
         parser.error(str(exc))
     if (args.unannounced or args.lift_off) and args.profile is None:
         parser.error('--unannounced and --lift-off need --profile')
+    from gripper_ros.apps.common import friction_option
+    if friction_option(args):
+        parser.error(friction_option(args))
     if args.profile is not None:
         from gripper_ros.core.physics.hold import parse_profile
         try:

@@ -59,11 +59,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('--object-mass', type=float, default=0.0, metavar='KG',
                    help="the simulated object's real mass, not told to the controller "
                         '(0 = the requested --mass)')
-    p.add_argument('--static-friction', type=float, default=0.0, metavar='MU',
+    p.add_argument('--static-friction', type=float, default=None, metavar='MU',
                    help="the simulated object's real mu_s on the pads, not told to the "
-                        'controller (0 = configured default)')
-    p.add_argument('--kinetic-friction', type=float, default=0.0, metavar='MU',
-                   help='its real mu_k (<= mu_s; 0 = configured default)')
+                        'controller (0 = frictionless; with --kinetic-friction, neither = the '
+                        'configured friction)')
+    p.add_argument('--kinetic-friction', type=float, default=None, metavar='MU',
+                   help='its real mu_k (<= mu_s; 0 = it slides without friction)')
     p.add_argument('--lift-delay', type=float, default=LIFT_DELAY_S,
                    help='seconds from HOLDING to the lift (default %(default)g)')
     p.add_argument('--lift-duration', type=float, default=LIFT_DURATION_S,
@@ -93,6 +94,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help='realtime: simulated seconds per wall second (default 1)')
     p.add_argument('--no-clock', action='store_true',
                    help='do not publish /clock (another simulator on the domain does)')
+    p.add_argument('--use-sim-time', action='store_true',
+                   help='with --serve: every node on the /clock of a world simulator (Gazebo, '
+                        'MuJoCo), the simulation in step with it; publishes no /clock')
     p.add_argument('--no-record', action='store_true', help='do not write bags')
     p.add_argument('--output', default='bags', help='folder for bags and the figure')
     p.add_argument('--overwrite', action='store_true', help='replace existing bag folders')
@@ -151,9 +155,10 @@ def main(argv: list[str] | None = None) -> int:
     for w, m in objects:
         if not (math.isfinite(w) and math.isfinite(m)):
             return _fail(f'width and mass must be finite, got {w!r}, {m!r}')
-    from gripper_ros.apps.common import negative_option
+    from gripper_ros.apps.common import friction_option, negative_option
     negative = negative_option(args, ('lift', 'lift_delay', 'lift_duration', 'object_mass',
-                                      'static_friction', 'kinetic_friction', 'lift_off'))
+                                      'static_friction', 'kinetic_friction', 'lift_off')) or \
+        friction_option(args)
     if negative:
         return _fail(negative)
     from gripper_ros.core.physics.hold import MAX_LIFT_OFF_S
@@ -195,6 +200,11 @@ def main(argv: list[str] | None = None) -> int:
             return _fail(problem)
     if not (math.isfinite(args.real_time_factor) and 0.0 < args.real_time_factor <= 100.0):
         return _fail(f'--real-time-factor must be in (0, 100], got {args.real_time_factor!r}')
+    if args.use_sim_time and not args.serve:
+        return _fail("--use-sim-time serves the graph on a world's /clock: it needs --serve")
+    if args.use_sim_time and args.time_mode == TimeMode.FAST.parameter:
+        return _fail('--use-sim-time follows the /clock of a world simulator: not with '
+                     '--time-mode fast')
     time_mode = args.time_mode or (TimeMode.REALTIME if args.serve else TimeMode.FAST).parameter
     if args.foxglove is not None:
         if not 0 <= args.foxglove <= 65535:
@@ -243,7 +253,8 @@ def main(argv: list[str] | None = None) -> int:
         executor=ExecutorKind(args.executor), config_file=args.config, namespace=namespace,
         prefix=args.prefix,
         time_mode=time_mode, real_time_factor=args.real_time_factor,
-        publish_clock=not args.no_clock, position_controller=args.position_controller,
+        publish_clock=not args.no_clock, use_sim_time=args.use_sim_time,
+        position_controller=args.position_controller,
         force_controller=args.force_controller, approach_force_margin=args.approach_force_margin,
         supervisor_parameters={} if args.force_law is None else
         {'supervisor.force_law': args.force_law})), demo, signals, 'bags')
@@ -259,7 +270,7 @@ def _serve(graph, args, signals) -> int:
     where = 'not recording' if args.no_record else f'one bag per grasp in {args.output}/'
     names = ', '.join(qualified(graph.namespace, n) for n in graph.served_names())
     print(f'grasp_demo: serving {names}, publishing the latched '
-          f'{qualified(graph.namespace, TOPIC_OUTCOME)} ({graph.options.time_mode} time, '
+          f'{qualified(graph.namespace, TOPIC_OUTCOME)} ({graph.time_text}, '
           f'{where}); joint {graph.plant.joint_name}, TF frames under {graph.plant.frame_id}; '
           'Ctrl-C to stop', flush=True)
     while not signals.received and graph.spinning:

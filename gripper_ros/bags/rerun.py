@@ -52,6 +52,9 @@ OBJECT_FIELDS = {
     'static_friction': 'static_friction', 'kinetic_friction': 'kinetic_friction',
     'pad_length_m': 'pad_length_m'}
 """A bag's ``object`` fields (SetObject names) -> simulate_grasp's keyword."""
+FRICTION_FIELDS = ('static_friction', 'kinetic_friction')
+"""The object's pad friction: 0 frictionless; the configured one with ``default_friction``, and
+in a bag recorded before that field, where 0 meant it."""
 LIFT_FIELDS = ('lift_acceleration_mps2', 'lift_delay_s', 'lift_duration_s', 'lift_profile',
                'lift_frequency_hz', 'lift_off_s')
 """A bag's lift fields, Lift's arguments in order (a bag without the last two: a step)."""
@@ -129,7 +132,7 @@ def load_record(bag: Bag | str | os.PathLike) -> GraspRecord:
         if name not in request:
             raise RerunError(f'{bag.path}: the recorded request has no "{name}"')
     known = set(OBJECT_FIELDS) | set(LIFT_FIELDS) | set(FAULT_FIELDS) | \
-        {'open_fingers', 'announce_lift'}
+        {'open_fingers', 'announce_lift', 'default_friction'}
     for name, value in obj.items():
         if name not in known:
             raise RerunError(f'{bag.path}: recorded object field "{name}" is not re-run')
@@ -175,6 +178,12 @@ def _grasp_keywords(path, request: dict, obj: dict) -> dict:
     for name, keyword in OBJECT_FIELDS.items():
         if name in obj:
             out[keyword] = float(obj[name])
+    # the configured friction: asked for (default_friction), or a bag from before that field,
+    # whose 0 meant it
+    for name in FRICTION_FIELDS:
+        given = float(obj.get(name, 0.0))
+        asked = float(obj['default_friction']) if 'default_friction' in obj else given == 0.0
+        out[name] = None if asked else given
     try:
         if float(obj.get('lift_duration_s', 0.0)) > 0.0:
             values = [float(obj.get(name, 0.0)) for name in LIFT_FIELDS]

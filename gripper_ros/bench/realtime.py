@@ -4,6 +4,7 @@
     ros2 run gripper_ros bench_realtime --seconds 10 --no-record --json
     ros2 run gripper_ros bench_realtime --per-node       # one process per node
     ros2 run gripper_ros bench_realtime --launch         # via ros2 launch (one process)
+    ros2 run gripper_ros bench_realtime --use-sim-time   # on a world's /clock at the wall's pace
     ros2 run gripper_ros bench_realtime --foxglove       # without, then with a Foxglove client
 
 ``grasp_demo --serve`` runs in a child process, exactly as a user starts it (realtime time,
@@ -13,7 +14,10 @@ arguments ``launch_ros`` gives them (no bags; the graph of
 ``ros2 launch gripper_ros gripper.launch.py per_node:=true``); with
 ``--launch`` the child is ``ros2 launch gripper_ros gripper.launch.py`` itself (with
 ``--per-node``: ``per_node:=true``) in a process group of its own, every process of the group
-counted, stopped as Ctrl-C stops it (SIGINT to the group). From this process, over
+counted, stopped as Ctrl-C stops it (SIGINT to the group). With ``--use-sim-time [PACE]`` the
+graph runs with ``use_sim_time`` on the /clock of a world (``gripper_ros.bench.world_clock``,
+as Gazebo publishes it, in a process of its own, not counted) at ``PACE`` of the wall clock's
+(default 1): the RTF to aim at is then ``PACE``. From this process, over
 DDS, the benchmark watches ``/clock``, ``joint_states`` and ``sim/status`` and reads the
 child's CPU time from /proc, in two windows of ``--seconds`` wall seconds each:
 
@@ -158,17 +162,26 @@ def _window(watcher: _Watcher, pids: Sequence[int], seconds: float) -> Dict[str,
 
 
 def _commands(namespace: str, output: str, record: bool, per_node: bool,
-              launch: bool = False, live: bool = False) -> list[list[str]]:
-    """Return the command line of each child: grasp_demo --serve, one per node, or ros2 launch."""
+              launch: bool = False, sim_time: bool = False,
+              live: bool = False) -> list[list[str]]:
+    """Return the command line of each child: grasp_demo --serve, one per node, or ros2 launch.
+
+    ``sim_time``: every node with ``use_sim_time``; ``live``: grasp_demo serves the live view.
+    """
     if launch:
-        return [ros2_launch_command(namespace, per_node)]
+        return [ros2_launch_command(namespace, per_node) +
+                (['use_sim_time:=true'] if sim_time else [])]
     if per_node:
         return [[sys.executable, '-m', f'gripper_ros.nodes.{module}', '--ros-args', '-r',
-                 f'__ns:=/{namespace}', '--log-level', 'warn'] for module in PER_NODE_MODULES]
+                 f'__ns:=/{namespace}', '--log-level', 'warn'] +
+                (['-p', 'use_sim_time:=true'] if sim_time else [])
+                for module in PER_NODE_MODULES]
     cmd = [sys.executable, '-m', 'gripper_ros.apps.grasp_demo', '--serve', '--namespace',
            namespace, '--output', output, '--ros-args', '--log-level', 'warn']
     if not record:
         cmd.insert(-3, '--no-record')
+    if sim_time:
+        cmd.insert(-3, '--use-sim-time')
     if live:
         cmd[-3:-3] = ['--foxglove', '0']
     return [cmd]
@@ -224,10 +237,12 @@ class _LiveClient:
 
 
 def measure(seconds: float, record: bool, per_node: bool = False,
-            launch: bool = False, client: Optional[list[str]] = None,
+            launch: bool = False, world_pace: float = 0.0,
+            client: Optional[list[str]] = None,
             topics: Optional[list[str]] = None) -> Dict[str, Any]:
     """Idle and holding windows of a ``grasp_demo --serve`` child, the node children, or launch.
 
+    ``world_pace`` > 0: on the /clock of a world at that pace (``use_sim_time``).
     ``client``: serve the live view to this command (given the URL) through both windows,
     watching ``topics`` (relative names; None: every one).
     """
@@ -242,8 +257,13 @@ def measure(seconds: float, record: bool, per_node: bool = False,
         children = [subprocess.Popen(cmd, stdin=subprocess.DEVNULL, stdout=printed,
                                      stderr=log, text=True, start_new_session=launch)
                     for cmd in _commands(namespace, tmp, record, per_node, launch,
-                                         client is not None)]
+                                         world_pace > 0.0, client is not None)]
         pids = [child.pid for child in children]
+        world = None
+        if world_pace > 0.0:              # not one of the gripper's: its CPU is not counted
+            world = subprocess.Popen([sys.executable, '-m', 'gripper_ros.bench.world_clock',
+                                      '--pace', repr(world_pace)], stdin=subprocess.DEVNULL,
+                                     stdout=subprocess.DEVNULL, stderr=log)
         watcher = viewer = None
         try:
             watcher = _Watcher(namespace)
@@ -289,7 +309,7 @@ def measure(seconds: float, record: bool, per_node: bool = False,
             holding = _window(watcher, pids, seconds)
             watcher.call(watcher.release, Trigger.Request(), 60.0)
             result = {'record': record, 'per_node': per_node, 'launch': launch,
-                      'processes': len(pids), 'seconds': seconds,
+                      'world_pace': world_pace, 'processes': len(pids), 'seconds': seconds,
                       'state_rate_hz': DEFAULT_STATE_RATE_HZ,
                       'grasp': {'width_m': GRASP[0], 'mass_kg': GRASP[1],
                                 'wall_s': grasp_wall_s},
@@ -317,6 +337,13 @@ def measure(seconds: float, record: bool, per_node: bool = False,
                         os.killpg(child.pid, signal.SIGKILL)
                     child.kill()
                     child.wait()
+            if world is not None:
+                world.send_signal(signal.SIGINT)
+                try:
+                    world.wait(15.0)
+                except subprocess.TimeoutExpired:
+                    world.kill()
+                    world.wait()
             log.close()
             printed.close()
 
@@ -342,8 +369,11 @@ def format_report(r: Dict[str, Any]) -> str:
                  '(as the launch file starts them)')
     else:
         graph = f"grasp_demo --serve{'' if r['record'] else ' --no-record'}"
+    pace = r.get('world_pace') or 0.0
+    timing = f"use_sim_time, on a world's /clock at {pace:g} x the wall clock's pace" if pace \
+        else 'realtime, real-time factor 1'
     lines = [f'bench_realtime: {graph} '
-             f"(realtime, real-time factor 1, state_rate_hz {r['state_rate_hz']:g}) watched "
+             f"({timing}, state_rate_hz {r['state_rate_hz']:g}) watched "
              f"from another process, {r['seconds']:g} s per window; CPU: the serving "
              'process(es), share of one core', '',
              f'{"window":>8s} {"RTF":>6s} {"plant RTF":>9s} {"/clock Hz":>10s} '
@@ -357,8 +387,9 @@ def format_report(r: Dict[str, Any]) -> str:
     lines.append('')
     lines.append(f'grasp of {g["width_m"]:g} m / {g["mass_kg"]:g} kg answered HOLDING after '
                  f'{g["wall_s"]:.2f} s of wall time')
-    lines.append('RTF: simulated s per wall s from the joint_states stamps (aim 1.0, never '
-                 'above); plant RTF: the lowest sim/status figure in the window')
+    lines.append(f'RTF: simulated s per wall s from the joint_states stamps (aim '
+                 f'{pace or 1.0:g}, never above); plant RTF: the lowest sim/status figure in the '
+                 'window')
     client = r.get('foxglove_client')
     if client is not None:
         rates = ', '.join(f'{t} {c["hz"]:.0f} Hz' for t, c in sorted(client['topics'].items())
@@ -398,6 +429,9 @@ def main(args: Optional[Sequence[str]] = None) -> int:
     p.add_argument('--launch', action='store_true',
                    help='run ros2 launch gripper_ros gripper.launch.py (with --per-node: '
                         'per_node:=true); needs the ros2 command')
+    p.add_argument('--use-sim-time', type=float, nargs='?', const=1.0, default=0.0,
+                   metavar='PACE', help='every node on the /clock of a world at PACE x the wall '
+                                        "clock's pace (default 1), as Gazebo publishes it")
     p.add_argument('--foxglove', action='store_true',
                    help='grasp_demo --serve without, then with the live view and a Foxglove '
                         'client watching every topic')
@@ -409,9 +443,13 @@ def main(args: Optional[Sequence[str]] = None) -> int:
     if not (0.5 <= opts.seconds <= 600.0):
         print('bench_realtime: error: --seconds must be in [0.5, 600]', file=sys.stderr)
         return 2
-    if opts.foxglove and (opts.per_node or opts.launch):
+    if opts.use_sim_time and not 0.01 <= opts.use_sim_time <= 10.0:
+        print('bench_realtime: error: --use-sim-time PACE must be in [0.01, 10]',
+              file=sys.stderr)
+        return 2
+    if opts.foxglove and (opts.per_node or opts.launch or opts.use_sim_time):
         print('bench_realtime: error: --foxglove measures grasp_demo --serve (not with '
-              '--per-node or --launch)', file=sys.stderr)
+              '--per-node, --launch or --use-sim-time)', file=sys.stderr)
         return 2
     try:
         if opts.foxglove:
@@ -424,7 +462,8 @@ def main(args: Optional[Sequence[str]] = None) -> int:
             print(json.dumps({'off': off, 'layout': layout, 'every': every}, indent=2)
                   if opts.json else format_comparison(off, layout, every))
             return 0
-        report = measure(opts.seconds, opts.record, opts.per_node, opts.launch)
+        report = measure(opts.seconds, opts.record, opts.per_node, opts.launch,
+                         opts.use_sim_time)
     except BenchError as exc:
         print(f'bench_realtime: error: {exc}', file=sys.stderr)
         return 1

@@ -664,16 +664,23 @@ def with_bounds_text(text: str) -> str:
     return (text[:start] if start >= 0 else text.rstrip('\n') + '\n\n') + bounds_text()
 
 
+def nested(names) -> dict:
+    """Return dotted ``names`` as nested sections, a leaf None: ``a.b`` -> ``{a: {b: None}}``."""
+    tree: dict = {}
+    for dotted in names:
+        *sections, leaf = dotted.split('.')
+        node = tree
+        for section in sections:
+            if not isinstance(node.get(section), dict):     # a name that is also a section
+                node[section] = {}
+            node = node[section]
+        node.setdefault(leaf, None)
+    return tree
+
+
 def known_keys() -> dict:
     """Every key a config file may hold, as nested sections (a leaf is None)."""
-    known: dict = {}
-    for dotted in SCHEMA:
-        *sections, leaf = dotted.split('.')
-        node = known
-        for section in sections:
-            node = node.setdefault(section, {})
-        node[leaf] = None
-    return known
+    return nested(SCHEMA)
 
 
 def _optional(section: str) -> bool:
@@ -739,18 +746,35 @@ def flatten(data: dict, prefix: str = '') -> dict[str, object]:
     return out
 
 
-def _refuse_unknown(data: dict, known: dict, where: str = '') -> None:
-    """Refuse a key the package does not read (a typo), naming it and the closest known one."""
+def find_unknown(data: dict, known: dict, where: str = '') -> tuple[str, str] | None:
+    """Return the first name of ``data`` that ``known`` lacks (a typo) and a hint, or None.
+
+    ``data`` and ``known`` are nested sections (:func:`nested`). The hint is the closest known
+    name of the same section (``did you mean "supervisor.timeout_s"?``), or that section's
+    known names when none is close.
+    """
     import difflib
     for key, value in data.items():
         name = f'{where}{key}'
         if key not in known:
             close = difflib.get_close_matches(str(key), [str(k) for k in known], n=1)
-            hint = f'; did you mean "{where}{close[0]}"?' if close else \
-                f'; known here: {", ".join(known)}'
-            raise ConfigError(f'unknown key "{name}"{hint}')
+            return name, (f'did you mean "{where}{close[0]}"?' if close else
+                          f'known here: {", ".join(known)}')
         if isinstance(known[key], dict) and isinstance(value, dict):
-            _refuse_unknown(value, known[key], name + '.')
+            found = find_unknown(value, known[key], name + '.')
+            if found is not None:
+                return found
+    return None
+
+
+def refuse_unknown(data: dict, known: dict, what: str = 'key') -> None:
+    """Refuse a name nobody reads (:func:`find_unknown`): ConfigError naming it and a hint.
+
+    ``what`` names what the names are: a config file's keys, a node's parameters.
+    """
+    found = find_unknown(data, known)
+    if found is not None:
+        raise ConfigError(f'unknown {what} "{found[0]}"; {found[1]}')
 
 
 def _section(data: dict, key: str, where: str) -> dict:
@@ -840,7 +864,7 @@ def parse_config(data: dict, source: str = '<dict>') -> GripperConfig:
     """Validate a loaded YAML mapping into a :class:`GripperConfig`."""
     if not isinstance(data, dict):
         raise ConfigError(f'{source}: top level must be a mapping')
-    _refuse_unknown(data, known_keys())
+    refuse_unknown(data, known_keys())
     hints = typing.get_type_hints(GripperConfig)
     parts = {}
     for f in fields(GripperConfig):

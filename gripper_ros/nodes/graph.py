@@ -28,6 +28,7 @@ from gripper_ros.nodes.grasp_action_node import GraspActionServer
 from gripper_ros.nodes.intra_process import IntraProcessBus
 from gripper_ros.nodes.move_action_node import MoveActionServer
 from gripper_ros.nodes.names import NameClaim
+from gripper_ros.nodes.parameters import refuse_unknown_overrides, strict_parameters
 from gripper_ros.nodes.plant_simulator_node import PlantSimulatorNode
 from gripper_ros.nodes.position_controller_node import PositionControllerNode
 from gripper_ros.nodes.process import (build_node, CLEAN_UP_STEP_S, ExecutorKind,
@@ -63,6 +64,7 @@ class GraphOptions:
     real_time_factor: float = 1.0
     state_rate_hz: float = DEFAULT_STATE_RATE_HZ
     publish_clock: bool = True
+    use_sim_time: bool = False       # every node on the /clock of a world (time_mode realtime)
     position_controller: str = DEFAULT_POSITION_CONTROLLER.value
     force_controller: str = DEFAULT_FORCE_CONTROLLER.value
     approach_force_margin: float = DEFAULT_APPROACH_FORCE_MARGIN
@@ -74,6 +76,7 @@ class GraphOptions:
     client_name: str = 'grasp_demo_client'   # the node of the graph's own service clients
     supervisor_parameters: dict = field(default_factory=dict)
     plant_parameters: dict = field(default_factory=dict)
+    process_parameters: tuple = ()   # names the process reads itself (gripper_graph's settings)
 
 
 class GripperGraph:
@@ -101,7 +104,8 @@ class GripperGraph:
             raise
 
     def _build(self, opts: GraphOptions, client_kw: dict) -> None:
-        cfg = [Parameter('config_file', value=opts.config_file)]
+        sim_time = [Parameter('use_sim_time', value=True)] if opts.use_sim_time else []
+        cfg = [Parameter('config_file', value=opts.config_file)] + sim_time   # every node
         named = cfg + ([] if opts.prefix is None else [Parameter('prefix', value=opts.prefix)])
         kw = {**client_kw, 'intra_process': self.bus}   # the graph's topics between its nodes
         self.plant = build_node(PlantSimulatorNode, parameter_overrides=named + [
@@ -123,7 +127,9 @@ class GripperGraph:
             Parameter('status_rate_hz', value=float(opts.state_rate_hz))] + [
             Parameter(k, value=v) for k, v in opts.supervisor_parameters.items()], **kw)
         self.nodes.append(self.supervisor)
-        self.client_node = rclpy.create_node(opts.client_name, **client_kw)
+        self.client_node = rclpy.create_node(opts.client_name, parameter_overrides=sim_time,
+                                             **client_kw)
+        strict_parameters(self.client_node)
         self.nodes.append(self.client_node)
         self.action_server = self.move_action_server = self.excitation_server = None
         self.trajectory_action_server = None
@@ -142,6 +148,8 @@ class GripperGraph:
         if opts.description:
             self.description = build_node(DescriptionPublisher, parameter_overrides=named, **kw)
             self.nodes.append(self.description)
+        refuse_unknown_overrides(self.nodes, opts.process_parameters)   # a -p naming nothing
+        self._one_clock_subscription()
         self.executor = make_executor(opts.executor, self.context)
         for node in self.nodes:
             self.executor.add_node(node)
@@ -163,6 +171,25 @@ class GripperGraph:
         for c in (self._set_object, self._grasp, self._release, self._move):
             if not c.wait_for_service(timeout_sec=10.0):
                 raise GraphError(f'service {c.srv_name} did not come up')
+
+    def _one_clock_subscription(self) -> None:
+        """Under use_sim_time, set every node's ROS clock from the plant's /clock subscription.
+
+        rclpy gives each node a TimeSource of its own, each subscribing to /clock
+        (``time_source.py``): nine subscriptions in one process, each message taken nine times
+        (a world at 1 kHz cost a quarter of a core). The others' clocks are attached to the
+        plant's TimeSource instead (``attach_clock``), and their own subscription goes
+        (``detach_node``); their ``use_sim_time`` stays as given. rclpy keeps a node's
+        TimeSource in ``Node._time_source``.
+        """
+        source = self.plant._time_source
+        if not source.ros_time_is_active:
+            return
+        for node in self.nodes:
+            own = node._time_source
+            if node is not self.plant and own.ros_time_is_active:
+                own.detach_node()
+                source.attach_clock(node.get_clock())
 
     # ------------------------------------------------------------------ nodes
     def add_node(self, node) -> None:
@@ -364,6 +391,11 @@ class GripperGraph:
     def sim_time_ns(self) -> int:
         return self.plant.plant.t_ns
 
+    @property
+    def time_text(self) -> str:
+        """Say how the graph's time runs, as its banners do (``TimeMode.text``)."""
+        return self.plant.time_mode.text
+
     def stands_still(self) -> bool:
         """Tell whether simulated time stands still now; ask it on the executor thread.
 
@@ -412,14 +444,17 @@ class GripperGraph:
     # ------------------------------------------------------------------ lifecycle
     @classmethod
     def in_own_context(cls, options: GraphOptions | None = None,
-                       domain_id: int | None = None) -> GripperGraph:
+                       domain_id: int | None = None,
+                       args: list[str] | None = None) -> GripperGraph:
         """Start a graph in a fresh rclpy context that :meth:`close` shuts down.
 
-        The context is on ``domain_id`` (default ROS_DOMAIN_ID). Several graphs, or a graph and
-        other rclpy users, can share a process without sharing a context.
+        The context is on ``domain_id`` (default ROS_DOMAIN_ID), with ``args`` as a process's
+        command line (``['--ros-args', '-p', ...]``, for every node). Several graphs, or a graph
+        and other rclpy users, can share a process without sharing a context.
         """
         context = Context()
-        rclpy.init(context=context, **({} if domain_id is None else {'domain_id': domain_id}))
+        rclpy.init(args=args, context=context,
+                   **({} if domain_id is None else {'domain_id': domain_id}))
         try:
             graph = cls(options, context=context)
         except BaseException:

@@ -7,9 +7,10 @@ supervisor, grasp_action_server, move_action_server, description_publisher) plus
 excitation_server and the graph's own service client, under one executor, the loop topics
 handed over in the process. Its settings are the launch file's parameters, given the ROS way
 (``-p NAME:=VALUE`` or a ``--params-file`` for ``/**``, which also reaches every node of the
-process): ``config_file``, ``time_mode``, ``real_time_factor``, ``publish_clock``, ``prefix``;
-the namespace is ``-r __ns:=/NAME`` (default ``/gripper``). Ctrl-C or SIGTERM stops it, exit 0;
-a bad setting or a taken namespace is one line, exit 2.
+process): ``config_file``, ``time_mode``, ``real_time_factor``, ``publish_clock``,
+``use_sim_time``, ``prefix``, ``foxglove``, ``foxglove_port``, ``foxglove_address``; the
+namespace is ``-r __ns:=/NAME`` (default ``/gripper``). Ctrl-C or SIGTERM stops it, exit 0; a
+bad setting, a parameter no node of it declares or a taken namespace is one line, exit 2.
 """
 from __future__ import annotations
 
@@ -24,6 +25,7 @@ SETTINGS = (('config_file', '', 'config YAML (default: the installed one)'),
             ('time_mode', TimeMode.REALTIME.parameter, 'realtime | fast'),
             ('real_time_factor', 1.0, 'realtime: simulated seconds per wall second'),
             ('publish_clock', True, 'publish /clock'),
+            ('use_sim_time', False, 'follow the /clock of a world simulator (publish none)'),
             ('prefix', '', "the xacro's prefix: the joint's and the URDF's names; "
              'default: from the namespace (wire.namespace_prefix)'),
             ('foxglove', False, 'serve the graph live to Foxglove (its WebSocket protocol)'),
@@ -48,8 +50,9 @@ def read_settings(context=None) -> dict:
     try:
         namespace = probe.get_namespace().strip('/')
         defaults = {'prefix': namespace_prefix(namespace)}
-        settings = {name: probe.declare_parameter(name, defaults.get(name, default)).value
-                    for name, default, _ in SETTINGS}
+        settings = {name: (probe.get_parameter(name) if probe.has_parameter(name) else
+                           probe.declare_parameter(name, defaults.get(name, default))).value
+                    for name, default, _ in SETTINGS}          # rclpy declares use_sim_time
         return {**settings, 'namespace': namespace}
     finally:
         probe.destroy_node()
@@ -103,12 +106,12 @@ def main(args: list[str] | None = None) -> int:
                 time_mode=settings['time_mode'],
                 real_time_factor=float(settings['real_time_factor']),
                 publish_clock=bool(settings['publish_clock']), prefix=settings['prefix'],
-                client_name=CLIENT_NODE))
+                use_sim_time=bool(settings['use_sim_time']), client_name=CLIENT_NODE,
+                process_parameters=tuple(name for name, _, _ in SETTINGS)))
             if settings['foxglove']:
                 serve_live(NAME, graph, settings['foxglove_address'], settings['foxglove_port'])
             names = ', '.join(qualified(graph.namespace, n) for n in graph.served_names())
-            print(f'{NAME}: serving {names} ({graph.options.time_mode} time); '
-                  'Ctrl-C to stop', flush=True)
+            print(f'{NAME}: serving {names} ({graph.time_text}); Ctrl-C to stop', flush=True)
             while not signals.received and graph.spinning:
                 time.sleep(POLL_S)
         except (ConfigError, ParameterException, StartupError, RCLError, GraphError,

@@ -5,6 +5,7 @@ from typing import Callable, Protocol, TypeVar
 
 from gripper_ros.nodes.intra_process import GraphPublisher, IntraProcessBus
 from gripper_ros.nodes.names import default_namespace
+from gripper_ros.nodes.parameters import strict_parameters
 from gripper_ros.nodes.qos import GRAPH_QOS
 from rclpy.node import Node
 
@@ -29,7 +30,8 @@ class GripperNode(Node):
 
     ``intra_process``: the bus of the nodes of one process
     (:mod:`gripper_ros.nodes.intra_process`); the topics of :meth:`graph_publisher` and
-    :meth:`graph_subscription` go over it.
+    :meth:`graph_subscription` go over it. A set of a parameter it does not declare is refused
+    with the name (:func:`~gripper_ros.nodes.parameters.strict_parameters`).
     """
 
     def __init__(self, node_name: str, *, intra_process: IntraProcessBus | None = None,
@@ -38,6 +40,7 @@ class GripperNode(Node):
         self.intra_process = intra_process
         self.graph_publishers: list[GraphPublisher] = []
         super().__init__(node_name, **default_namespace(kwargs))
+        strict_parameters(self)
 
     def own(self, resource: OwnedT) -> OwnedT:
         """Destroy ``resource`` with this node; return it."""

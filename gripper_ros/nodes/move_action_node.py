@@ -22,7 +22,8 @@ as ``grasp_action_server`` is for the grasp:
 - Either control_msgs goal succeeds on reaching the goal, and on a stall only with
   ``allow_stalling`` (as ros2_controllers' gripper controllers), else it is aborted.
 - ``gripper_status`` (diagnostic_msgs/DiagnosticStatus, latched), for a ros2_control user who
-  reads no gripper_interfaces message: a request's ``moving`` (``grasping``, ``releasing``) with
+  reads no gripper_interfaces message: ``idle`` from the gripper's first status on (a client of
+  an idle gripper gets it at once), a request's ``moving`` (``grasping``, ``releasing``) with
   its id as soon as it starts, then how it ended (``supervisor/outcome`` in standard types),
   ``stalled`` and ``object_detected`` (the fingers press on an object) among its values. The
   supervisor serves ``joint_commands`` itself.
@@ -43,6 +44,7 @@ from gripper_interfaces.action import Move as MoveAction
 from gripper_interfaces.msg import SupervisorStatus
 from gripper_interfaces.srv import Move
 from gripper_ros.core.supervision.gripper_command import (goal_end, GoalEnd,
+                                                          grip_idle_fields,
                                                           grip_progress_fields,
                                                           grip_status_fields,
                                                           gripper_command_fields,
@@ -116,6 +118,8 @@ class MoveActionServer(GripperNode):
         self._grip_status_pub = self.tapped_publisher(DiagnosticStatus, TOPIC_GRIPPER_STATUS,
                                                       LATCHED_QOS)
         self.grip_statuses_published = 0
+        self.latched: dict = {}
+        """The newest gripper_status, as a late subscriber gets it (a recording, a live view)."""
         self.create_subscription(SupervisorStatus, TOPIC_OUTCOME, self._on_outcome, LATCHED_QOS,
                                  raw=True)
         if self.gripper_command_served:
@@ -300,10 +304,12 @@ class MoveActionServer(GripperNode):
                                                      self.travel_m, msg.grasp_id, self.detect_n))
 
     def _publish_grip_status(self, fields: dict) -> None:
-        self._grip_status_pub.publish(DiagnosticStatus(
+        msg = DiagnosticStatus(
             level=bytes([fields['level']]), name=self.joint_name, hardware_id=ROBOT_NAME,
             message=fields['message'],
-            values=[KeyValue(key=k, value=v) for k, v in fields['values'].items()]))
+            values=[KeyValue(key=k, value=v) for k, v in fields['values'].items()])
+        self._grip_status_pub.publish(msg)
+        self.latched[TOPIC_GRIPPER_STATUS] = msg
         self.grip_statuses_published += 1
 
     def _on_joint_state(self, data: bytes) -> None:
@@ -327,6 +333,10 @@ class MoveActionServer(GripperNode):
     def _on_status(self, data: bytes) -> None:
         self._status_data = data
         msg = read_status(data)
+        if not self.grip_statuses_published and not msg.running:   # latched from the start
+            self._publish_grip_status(grip_idle_fields(msg.position_m, msg.force_n,
+                                                       self.travel_m, msg.grasp_id,
+                                                       self.detect_n))
         if msg.running and msg.grasp_id > self._announced_id:     # a request has started
             self._announced_id = msg.grasp_id
             self._publish_grip_status(grip_progress_fields(

@@ -20,13 +20,15 @@ from __future__ import annotations
 import copy
 from typing import Callable
 
-from gripper_ros.core.config import (dotted_section, flatten, GripperConfig, load_config,
-                                     parse_config, SCHEMA)
+from gripper_ros.core.config import (ConfigError, dotted_section, find_unknown, flatten,
+                                     GripperConfig, load_config, nested, parse_config, SCHEMA)
 from gripper_ros.nodes.startup import StartupError
 from gripper_ros.text import one_line
 from gripper_ros.wire import FINGER_JOINT, NAME_CHARACTERS, namespace_prefix
 from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescriptor,
                                 ParameterType, SetParametersResult)
+from rcl_interfaces.srv import ListParameters
+from rclpy.exceptions import ParameterNotDeclaredException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
@@ -79,30 +81,78 @@ def _whole_number_as_double(parameter: Parameter) -> Parameter:
     return Parameter(parameter.name, Parameter.Type.DOUBLE, float(parameter.value))
 
 
-def accept_whole_numbers(node: Node) -> None:
-    """Take a whole number for a double parameter, as users type it: ``kc 900`` is ``900.0``.
+def declared_names(node: Node) -> list[str]:
+    """Return the names of every parameter ``node`` has declared."""
+    return list(node.list_parameters([], ListParameters.Request.DEPTH_RECURSIVE).names)
 
-    ``ros2 param set`` and ``-p name:=900`` send an INTEGER, which rclpy refuses for a DOUBLE.
-    A start-up override is converted before the node declares it (only the keys of
-    ``INTEGER_KEYS`` are integers); a set at run time is converted when the parameter is a
-    declared double. Ranges and the config reader then check the value as for ``900.0``.
-    Call it first thing in a node's constructor; a second call does nothing.
+
+def unknown_and_hint(names: list[str], declared) -> tuple[str, str]:
+    """Return the first of ``names`` (none declared) and what it was likely meant to be.
+
+    The config's own nearest-name rule (:func:`gripper_ros.core.config.find_unknown`): the
+    closest declared name in the same group, or the group's names when none is close.
     """
-    if getattr(node, '_accepts_whole_numbers', False):
+    found = find_unknown(nested(names), nested(declared))
+    if found is None:                    # the name of a group, as supervisor of supervisor.x
+        return names[0], f'it names a group of parameters ({names[0]}.*), not one'
+    return found
+
+
+def strict_parameters(node: Node) -> None:
+    """Hold a set of ``node``'s parameters to what ROS users expect: names said, whole numbers.
+
+    - A set of a name the node does not declare (``ros2 param set``) is refused naming it and
+      the closest declared name. rclpy's own refusal names none (its
+      ``_check_undeclared_parameters`` hands ``ParameterNotDeclaredException`` a generator that
+      its ``any()`` has consumed: ``Invalid access to undeclared parameter(s): []``); the same
+      exception is raised here first, with the names, and the parameter service answers with it.
+    - A whole number is taken for a double parameter, as users type it: ``kc 900`` is
+      ``900.0``. ``ros2 param set`` and ``-p name:=900`` send an INTEGER, which rclpy refuses
+      for a DOUBLE. A start-up override is converted before the node declares it (only the keys
+      of ``INTEGER_KEYS`` are integers); a set at run time is converted when the parameter is
+      a declared double. Ranges and the config reader then check the value as for ``900.0``.
+
+    One pre-set callback does both (rclpy joins the lists several of them return). Call it
+    first thing in a node's constructor; a second call does nothing.
+    """
+    if getattr(node, '_strict_parameters', False):
         return
-    node._accepts_whole_numbers = True
+    node._strict_parameters = True
     overrides = node._parameter_overrides          # rclpy reads these at declare_parameter
     for name, parameter in list(overrides.items()):
         if parameter.type_ is Parameter.Type.INTEGER and name not in INTEGER_KEYS:
             overrides[name] = _whole_number_as_double(parameter)
 
     def as_declared(parameters: list[Parameter]) -> list[Parameter]:
+        undeclared = [p.name for p in parameters if not node.has_parameter(p.name)]
+        if undeclared:
+            _, hint = unknown_and_hint(undeclared, sorted(declared_names(node)))
+            raise ParameterNotDeclaredException(f'{undeclared}; {hint}')
         return [_whole_number_as_double(p)
-                if p.type_ is Parameter.Type.INTEGER and node.has_parameter(p.name)
+                if p.type_ is Parameter.Type.INTEGER
                 and node.describe_parameter(p.name).type == ParameterType.PARAMETER_DOUBLE
                 else p for p in parameters]
 
     node.add_pre_set_parameters_callback(as_declared)
+
+
+def refuse_unknown_overrides(nodes: list[Node], known: tuple[str, ...] = ()) -> None:
+    """Refuse a start-up parameter (``-p``, ``--params-file``) that none of ``nodes`` declares.
+
+    rclpy keeps such an override without a word: a node declares only what it asks for
+    (``allow_undeclared_parameters`` and ``automatically_declare_parameters_from_overrides``
+    false, rclpy's defaults), and an override that names nothing is never read. Call it once
+    every node of the process has declared its parameters; a ``-p`` or a ``/**`` file reaches
+    every node of a process, so a name counts as known when one of them declares it, or when
+    it is in ``known`` (what the process reads itself). A ConfigError names the first unknown
+    one and the closest declared name, as a typo in ``config_file`` is named.
+    """
+    declared = sorted({name for node in nodes for name in declared_names(node)} | set(known))
+    given = sorted({name for node in nodes for name in node._parameter_overrides} -
+                   set(declared))
+    if given:
+        name, hint = unknown_and_hint(given, declared)
+        raise ConfigError(f'unknown parameter "{name}"; {hint}')
 
 
 class ConfigParameters:
@@ -120,7 +170,7 @@ class ConfigParameters:
     def __init__(self, node: Node, writable: tuple[str, ...], read_only: tuple[str, ...] = (),
                  on_change: Callable[[GripperConfig, list[str], object], None] | None = None,
                  check: Callable[[GripperConfig], object] | None = None):
-        accept_whole_numbers(node)
+        strict_parameters(node)
         path = node.declare_parameter('config_file', '', ParameterDescriptor(
             description='YAML file of every default, read once at start-up',
             read_only=True)).value
@@ -141,8 +191,8 @@ class ConfigParameters:
                 fixed = entry in read_only or dotted in START_UP_ONLY
                 declared = node.declare_parameter(dotted, _as_parameter_value(dotted, value),
                                                   config_descriptor(dotted, fixed)).value
-                section, key = dotted_section(self.data, dotted)
-                section[key] = declared
+                holder, key = dotted_section(self.data, dotted)
+                holder[key] = declared
                 self.keys.add(dotted)
         self.config = parse_config(self.data, self.source)   # start-up overrides, validated
         self._pending: dict | None = None
@@ -191,9 +241,9 @@ def declare_config(node: Node) -> GripperConfig:
     """Declare ``config_file`` (empty = the installed config/gripper.yaml) and load it.
 
     A bad file raises ConfigError naming the key; the node does not start. A whole number is
-    taken for every double parameter of the node (:func:`parameters.accept_whole_numbers`).
+    taken for every double parameter of the node (:func:`strict_parameters`).
     """
-    accept_whole_numbers(node)
+    strict_parameters(node)
     path = node.declare_parameter('config_file', '', ParameterDescriptor(
         description='YAML file, read once at start-up', read_only=True)).value
     return load_config(path or None)

@@ -3,25 +3,27 @@
 Lockstep: it publishes the measurement of tick ``t_k`` on ``loop/tick``, takes the command of
 ``t_k`` from ``loop/motor_command`` (the stage the supervisor named, as the command's echo says),
 holds it for the command's ``hold_s`` and publishes tick ``t_k + hold_s``. How simulated time
-runs is the parameter ``time_mode``:
+runs is the parameter ``time_mode`` (:mod:`gripper_ros.core.runtime.pacing`):
 
 - ``realtime`` (default): time always advances, paced to the wall clock by ``real_time_factor``
   and never ahead of it; with no command (no supervisor yet, a FAULT, a node gone for
   ``command_timeout_s``) the motor is held at 0 V and time goes on.
 - ``fast``: lockstep as fast as the graph goes while a request needs time (the command's echo
   says so, or a lift is being played out), then time pauses until the next request.
+- with ``use_sim_time`` true: in step with the ``/clock`` a world simulator publishes, from the
+  world's time of its first ``/clock`` on, held while the world's time stands still; it
+  publishes no ``/clock`` itself. Otherwise as realtime.
 
 ``sim/pause``, ``sim/resume`` and ``sim/step`` (ticks or a duration) hold and advance time in
-either mode. For other programs it publishes, at ``state_rate_hz`` of simulated time,
+the first two modes. For other programs it publishes, at ``state_rate_hz`` of simulated time,
 ``joint_states``, ``force_sensor``, ``sim/object_state`` (ground truth of the held object) and,
 with ``publish_clock``, ``/clock``; and ``sim/status`` (mode, pause, achieved real-time factor)
-about once a second. ``sim/set_object`` places an object, its hold physics and a lift, and may
-schedule a fault for the next grasp.
+about once a second and on every change. ``sim/set_object`` places an object, its hold physics
+and a lift, and may schedule a fault for the next grasp.
 """
 from __future__ import annotations
 
 from collections import Counter
-import math
 import sys
 import time
 
@@ -33,6 +35,8 @@ from gripper_ros.core.control.factories import make_plant
 from gripper_ros.core.physics.plant import check_fault, GraspObject, Lift
 from gripper_ros.core.runtime.lockstep import (Command, command_problem, FOREIGN, PlantSide,
                                                REFUSED, REPEATED, side_state_published, Tick)
+from gripper_ros.core.runtime.pacing import (ClockPacing, HELD, IDLE, make_pacing, NOW,
+                                             step_problem, WorldTime)
 from gripper_ros.nodes.gripper_node import GripperNode
 from gripper_ros.nodes.loop_io import (clock_template, force_sensor_template, in_layout,
                                        joint_state_template, object_state_template,
@@ -45,7 +49,7 @@ from gripper_ros.nodes.services import DeferredService
 from gripper_ros.nodes.stamps import ns_to_time
 from gripper_ros.nodes.startup import StartupError
 from gripper_ros.wire import (CDR_LITTLE_ENDIAN, COMMAND_LAYOUT, Controller,
-                              DEFAULT_STATE_RATE_HZ, FINGER_JOINT, FORCE_SAMPLE_S, FRAME_BASE,
+                              DEFAULT_STATE_RATE_HZ, FINGER_JOINT, FRAME_BASE,
                               NODE_PLANT, Outcome, Phase, REPUBLISH_AFTER_S,
                               SERVICE_PAUSE, SERVICE_RESUME, SERVICE_SET_OBJECT, SERVICE_STEP,
                               TIME_MODE_CHOICES, TimeMode, TOPIC_CLOCK,
@@ -53,8 +57,9 @@ from gripper_ros.wire import (CDR_LITTLE_ENDIAN, COMMAND_LAYOUT, Controller,
                               TOPIC_MOTOR_COMMAND, TOPIC_OBJECT_STATE,
                               TOPIC_PLANNED_ACCELERATION, TOPIC_SIM_STATUS, TOPIC_STATUS,
                               TOPIC_TICK)
-from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
-from rclpy.clock import Clock, ClockType
+from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor, SetParametersResult
+from rclpy.clock import Clock, ClockType, JumpThreshold
+from rclpy.duration import Duration
 from rosgraph_msgs.msg import Clock as ClockMsg
 from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
@@ -62,24 +67,8 @@ from std_srvs.srv import Trigger
 HOUSEKEEPING_PERIOD_S = 0.05
 """Steady timer: republish a tick nobody answered, free-run without commands, sim/status."""
 SIM_STATUS_PERIOD_S = 1.0
-RTF_WARN_FRACTION = 0.95
-"""Realtime: warn (throttled) when the achieved real-time factor falls below this x target."""
-RTF_WARN_PERIOD_S = 10.0
-RTF_WARN_GRACE_S = 3.0
-"""No pace warning this soon after start: the first ticks wait for the peers' discovery."""
-MAX_LAG_S = 0.1
-"""Realtime: behind the wall clock by up to this (the process was not scheduled for a while, a
-bag closed), simulated time catches up at the loop's own pace; behind by more (a real stall),
-pacing starts afresh from now rather than rushing, and the achieved real-time factor shows the
-loss."""
-SLEEP_LIMIT_S = 0.001
-"""Realtime pacing: a wait this short is slept in place; a longer one is a timer."""
 STEP_BATCH = 100
-"""sim/step without commands: unpowered ticks taken in one callback before yielding."""
-MAX_STEP_S = 600.0
-"""sim/step: the most simulated time one request may ask for (duration_s)."""
-MAX_STEP_TICKS = round(MAX_STEP_S / FORCE_SAMPLE_S)
-"""sim/step: the most ticks one request may ask for (MAX_STEP_S of force samples)."""
+"""Unpowered ticks taken in one callback before yielding (a sim/step, a world's time ahead)."""
 
 
 class PlantSimulatorNode(GripperNode):
@@ -103,11 +92,15 @@ class PlantSimulatorNode(GripperNode):
                            'realtime: paced to the wall clock, always advancing | fast: as '
                            'fast as the graph goes while a request runs',
                            read_only=True)
-        try:
-            self.time_mode = TimeMode[str(mode).upper()]
-        except KeyError:
+        if mode not in TIME_MODE_CHOICES:
             raise StartupError(f'parameter "time_mode" must be {" or ".join(TIME_MODE_CHOICES)}, '
-                               f'got {mode!r}') from None
+                               f'got {mode!r}')
+        self.time_mode = TimeMode[str(mode).upper()]
+        if self.get_parameter('use_sim_time').value:
+            if self.time_mode is TimeMode.FAST:
+                raise StartupError('use_sim_time follows the /clock of a world simulator: '
+                                   'time_mode must be realtime (the default), not fast')
+            self.time_mode = TimeMode.SIM_TIME
         self.real_time_factor = self._param(
             'real_time_factor', 1.0, 'realtime: simulated seconds per wall second',
             (1e-3, 100.0))
@@ -115,11 +108,12 @@ class PlantSimulatorNode(GripperNode):
             'state_rate_hz', DEFAULT_STATE_RATE_HZ, 'rate (per simulated second) of joint_states, '
             'force_sensor, sim/object_state and /clock', (1.0, 10000.0))
         self.command_timeout_s = self._param(
-            'command_timeout_s', 1.0, 'realtime: wall seconds without a command before the '
-            'motor is held at 0 V and time goes on', (0.01, 600.0))
+            'command_timeout_s', 1.0, 'realtime and use_sim_time: wall seconds without a '
+            'command before the motor is held at 0 V and time goes on', (0.01, 600.0))
         self.publish_clock = self._param(
-            'publish_clock', True, 'publish /clock (one simulator per ROS graph should)',
-            read_only=True)
+            'publish_clock', True, 'publish /clock (one simulator per ROS graph should; never '
+            'with use_sim_time)', read_only=True) and self.time_mode is not TimeMode.SIM_TIME
+        self.add_on_set_parameters_callback(self._keep_use_sim_time)
         self.add_post_set_parameters_callback(self._on_parameters_set)
 
         self.ticks_published = 0
@@ -134,18 +128,16 @@ class PlantSimulatorNode(GripperNode):
         self._tick_wall = time.monotonic()      # when the current tick was (re)published
         self._tick_first_wall = self._tick_wall  # when it was first published
         self._woken = False                     # a request is waiting for simulated time
-        self._paused = False
-        self._budget: tuple[str, int] | None = None    # sim/step: ('ticks', n) or ('until', ns)
+        self.pacing = make_pacing(self.time_mode, self.plant.t_ns, self.real_time_factor)
+        self._fast = self.time_mode is TimeMode.FAST
         self._step_reply = None                 # (header, response) of a running sim/step
-        self._unpowered = self.time_mode is TimeMode.REALTIME   # nobody commands (yet)
+        self._unpowered = self.pacing.runs_unasked   # nobody commands (yet)
         self._status: StatusView | None = None
-        self._pacing = False                    # realtime: waiting for the wall clock
-        self._anchor()
+        self._pace_wait = False                 # waiting for the pace timer
         self._state_period_ns = round(1e9 / self.state_rate_hz)
-        self._rtf = (time.monotonic(), self.plant.t_ns, 0.0)   # window start; last achieved
-        self._last_rtf_warning = time.monotonic() - RTF_WARN_PERIOD_S + RTF_WARN_GRACE_S
         self._last_sim_status = 0.0
         self._advancing = False
+        self._held = self.pacing.held           # as the last sim/status said
 
         self._tick_pub = self.graph_publisher(PlantTick, TOPIC_TICK)
         self._joint_pub = self.graph_publisher(JointState, TOPIC_JOINT_STATES)
@@ -180,12 +172,15 @@ class PlantSimulatorNode(GripperNode):
         self._force_layout = force_sensor_template(self.frame_id)
         self._object_layout = object_state_template(self.frame_id)
         self._clock_layout = clock_template()
-        self.get_logger().info(
-            f'plant ready ({self.time_mode.name.lower()} time): travel '
-            f'{self.config.plant.max_travel_m:g} m, max force {self.config.plant.max_force_n:.2f} '
-            f'N at {self.config.plant.voltage_limit_v:g} V')
-        self._publish_tick()
-        self._publish_state()
+        self._said_ready = False                # said once the process's nodes all started
+        if isinstance(self.pacing, ClockPacing):    # the world's first time starts it
+            self._world_jumps = self.get_clock().create_jump_callback(
+                JumpThreshold(min_forward=Duration(nanoseconds=1),
+                              min_backward=Duration(nanoseconds=-1), on_clock_change=False),
+                post_callback=self._on_world_time)
+        else:
+            self._publish_tick()
+            self._publish_state()
         self._publish_sim_status()
 
     def _param(self, name, default, description, value_range=None, read_only=False):
@@ -195,12 +190,22 @@ class PlantSimulatorNode(GripperNode):
                 from_value=value_range[0], to_value=value_range[1])]
         return self.declare_parameter(name, default, descriptor).value
 
+    def _keep_use_sim_time(self, parameters) -> SetParametersResult:
+        """Refuse a change of ``use_sim_time``: the time mode is chosen at start-up."""
+        for p in parameters:
+            if p.name == 'use_sim_time' and \
+                    bool(p.value) != (self.time_mode is TimeMode.SIM_TIME):
+                return SetParametersResult(successful=False, reason=(
+                    'use_sim_time is read at start-up, when the plant chooses how its time '
+                    'runs: restart the gripper to change it'))
+        return SetParametersResult(successful=True)
+
     def _on_parameters_set(self, parameters) -> None:
         """Apply accepted changes from the next tick (the descriptors refuse the rest)."""
         for p in parameters:
             if p.name == 'real_time_factor':
-                self.real_time_factor = float(p.value)
-                self._anchor()
+                self.real_time_factor = self.pacing.real_time_factor = float(p.value)
+                self.pacing.restart(self.plant.t_ns)
             elif p.name == 'state_rate_hz':
                 self.state_rate_hz = float(p.value)
                 self._state_period_ns = round(1e9 / self.state_rate_hz)
@@ -271,48 +276,58 @@ class PlantSimulatorNode(GripperNode):
             self._woken = True
         self._try_step()
 
-    def _anchor(self) -> None:
-        """Realtime pacing counts from here: simulated time now = wall time now."""
-        self._wall_anchor = time.monotonic()
-        self._sim_anchor_ns = self.plant.t_ns
+    def _on_world_time(self, jump) -> None:
+        """Follow the world's time: the node's ROS clock changed (a /clock, use_sim_time).
 
-    def _lead_s(self, t_next_ns: int) -> float:
-        """Wall seconds until simulated time ``t_next_ns`` may be published (realtime)."""
-        wall_s = time.monotonic() - self._wall_anchor
-        return (t_next_ns - self._sim_anchor_ns) * 1e-9 / self.real_time_factor - wall_s
+        The change is the jump's; the clock itself is read only for the first (``now()`` costs
+        as much as the rest of a call, and a world may publish a thousand a second).
+        """
+        known_ns = self.pacing.world_ns
+        world_ns = self.get_clock().now().nanoseconds if known_ns is None else \
+            known_ns + jump.delta.nanoseconds
+        change = self.pacing.take_world_time(world_ns)
+        if change is WorldTime.START:           # the simulation starts at the world's time,
+            self.plant.t_ns = world_ns - world_ns % self._state_period_ns    # on the grid
+            self._stamp_ns = self.side.tick().stamp_ns
+            self._publish_tick()
+            self._publish_state()
+            self.get_logger().info(f'following /clock from t={self._stamp_ns * 1e-9:.4f} s')
+        elif change is WorldTime.BACK and world_ns < self._stamp_ns:
+            self.get_logger().warning(
+                f'/clock went back to t={world_ns * 1e-9:.4f} s (a world reset?): the gripper, '
+                f"at t={self._stamp_ns * 1e-9:.4f} s, holds until the world's time passes "
+                'its own; restart it to start over', throttle_duration_sec=5.0)
+        if self._held != self.pacing.held:
+            self._publish_sim_status(window=False)
+        self._try_step()
+
+    def _needs_time(self) -> bool:
+        """Fast mode: a request waits, or the accepted command's scenario needs time."""
+        return self._woken or (self._pending and self.side.command_needs_time())
 
     def _try_step(self) -> None:
-        """Step when the gate of the time mode is open; without a command, step unpowered.
+        """Step while the pacing's gate is open; without a command, step unpowered.
 
-        Unpowered steps of a sim/step come in batches of ``STEP_BATCH``, between which the
-        executor serves other callbacks (a sim/pause ends the step).
+        Unpowered steps come in batches of ``STEP_BATCH`` (a sim/step, a world's time far
+        ahead), between which the executor serves other callbacks (a sim/pause ends the step).
         """
         batch = STEP_BATCH
-        fast = self.time_mode is TimeMode.FAST
+        pacing = self.pacing
         while True:
             powered = self._pending
             if not powered and not self._unpowered:
                 return
             hold_ns = round(float(self.side.command_record[0]['hold_s']) * 1e9) if powered \
                 else self._state_period_ns
-            if self._budget is not None:
-                pass                            # sim/step: advance now, in either mode
-            elif self._paused:
+            wait_s = pacing.gate(self._stamp_ns, self._stamp_ns + hold_ns, self._needs_time)
+            if wait_s is HELD:
                 return
-            elif fast:
-                if not (self._woken or (powered and self.side.command_needs_time())):
-                    self._set_advancing(False)
-                    return                      # nothing needs time: it pauses here
-            else:
-                lead_s = self._lead_s(self._stamp_ns + hold_ns)
-                if lead_s < -MAX_LAG_S:         # fell behind (a stall): no burst to catch up
-                    self._anchor()
-                    lead_s = self._lead_s(self._stamp_ns + hold_ns)
-                if lead_s > 0.0:
-                    if lead_s > SLEEP_LIMIT_S:
-                        self._wait(lead_s)
-                        return
-                    time.sleep(lead_s)
+            if wait_s > NOW:
+                if wait_s == IDLE:
+                    self._set_advancing(False)  # nothing needs time: it pauses here
+                else:
+                    self._wait(wait_s)
+                return
             self._woken = False
             self._pending = False
             if not self._advancing:
@@ -322,12 +337,12 @@ class PlantSimulatorNode(GripperNode):
             self._publish_tick()
             if due:
                 self._publish_state()
-            if self._budget is not None:
-                self._spend_budget()
-            if powered or fast:
+            if pacing.stepping and pacing.spend(self._stamp_ns):
+                self._end_step()
+            if powered or self._fast:
                 return                          # lockstep: the next step needs its command
             batch -= 1
-            if self._budget is not None and batch <= 0:
+            if batch <= 0:
                 self._wait(0.0)                 # go on after what else waits
                 return
 
@@ -343,16 +358,16 @@ class PlantSimulatorNode(GripperNode):
         One timer, re-armed: a timer made per tick costs the executor a rebuild of its entities
         every time.
         """
-        if self._pacing:
+        if self._pace_wait:
             return
-        self._pacing = True
+        self._pace_wait = True
         self._pace_timer.timer_period_ns = max(1, round(lead_s * 1e9))
         self._pace_timer.reset()
 
     def _on_pace_timer(self) -> None:
         self._pace_timer.cancel()
-        if self._pacing:
-            self._pacing = False
+        if self._pace_wait:
+            self._pace_wait = False
             self._try_step()
 
     def _publish_tick(self) -> None:
@@ -388,41 +403,46 @@ class PlantSimulatorNode(GripperNode):
 
     def _publish_sim_status(self, window: bool = True) -> None:
         """sim/status; ``window``: the periodic one, which measures the real-time factor."""
-        now = time.monotonic()
-        wall0, sim0, rtf = self._rtf
-        elapsed = now - wall0
+        pacing = self.pacing
         if window:
-            rtf = (self.plant.t_ns - sim0) * 1e-9 / elapsed if elapsed > 0.0 else 0.0
-            self._rtf = (now, self.plant.t_ns, rtf)
-            self._last_sim_status = now
-        msg = SimStatus(time_mode=int(self.time_mode), paused=self._paused,
-                        advancing=self._advancing if not window else self.plant.t_ns > sim0,
-                        real_time_factor_target=self.real_time_factor
-                        if self.time_mode is TimeMode.REALTIME else 0.0,
+            rtf, elapsed, advanced = pacing.achieved(self.plant.t_ns)
+            self._last_sim_status = time.monotonic()
+        else:
+            rtf, advanced = pacing.last_factor, self._advancing
+        self._held = pacing.held
+        msg = SimStatus(time_mode=int(self.time_mode), paused=self._held, advancing=advanced,
+                        real_time_factor_target=pacing.target_factor,
                         real_time_factor=rtf, ticks=self.ticks_published)
         msg.header.stamp = ns_to_time(self.plant.t_ns)
         self._sim_pub.publish(msg)
         self.published[TOPIC_SIM_STATUS] += 1
-        if window and self.time_mode is TimeMode.REALTIME and not self._paused and \
-                rtf < RTF_WARN_FRACTION * self.real_time_factor and \
-                now - self._last_rtf_warning > RTF_WARN_PERIOD_S and elapsed > 0.5:
-            self._last_rtf_warning = now
-            self.get_logger().warning(
-                f'the graph cannot keep pace: achieved real-time factor {rtf:.2f} against '
-                f'{self.real_time_factor:g} over the last {elapsed:.1f} s')
+        warning = pacing.pace_warning(self.plant.t_ns, rtf, elapsed) if window else ''
+        if warning:
+            self.get_logger().warning(warning)
+
+    def _say_ready(self) -> None:
+        self._said_ready = True
+        self.get_logger().info(
+            f'plant ready ({self.time_mode.text}): travel '
+            f'{self.config.plant.max_travel_m:g} m, max force {self.config.plant.max_force_n:.2f} '
+            f'N at {self.config.plant.voltage_limit_v:g} V')
 
     def _housekeeping(self) -> None:
+        if not self._said_ready:                # spinning: every start-up check has passed
+            self._say_ready()
         now = time.monotonic()
         if now - self._last_sim_status >= SIM_STATUS_PERIOD_S:
             self._publish_sim_status()
-        if self._pending or self._paused:
+        elif self._held != self.pacing.held:    # the world's time stopped or went on
+            self._publish_sim_status(window=False)
+        if self._pending or self.pacing.paused:
             return
-        if self._unpowered and self.time_mode is TimeMode.REALTIME and not self._pacing:
+        runs_unasked = self.pacing.runs_unasked
+        if self._unpowered and runs_unasked and not self._pace_wait:
             self._try_step()                    # nobody commands: time goes on at 0 V
             return
         silent_s = now - self._tick_first_wall  # a republished tick is no answer
-        if self.time_mode is TimeMode.REALTIME and not self._unpowered and \
-                silent_s >= self.command_timeout_s:
+        if runs_unasked and not self._unpowered and silent_s >= self.command_timeout_s:
             self._unpowered = True
             self.get_logger().error(
                 f'no command for t={self._stamp_ns * 1e-9:.4f} s in {silent_s:.2f} s: '
@@ -434,24 +454,11 @@ class PlantSimulatorNode(GripperNode):
             self._tick_wall = now
 
     # ------------------------------------------------------------------ sim services
-    def _budget_done(self) -> bool:
-        kind, value = self._budget
-        return value <= 0 if kind == 'ticks' else self._stamp_ns >= value
-
-    def _spend_budget(self) -> None:
-        if self._budget is None:
-            return
-        if self._budget[0] == 'ticks':
-            self._budget = ('ticks', self._budget[1] - 1)
-        if self._budget_done():
-            self._end_step()
-
     def _end_step(self, cut_short: str = '') -> None:
         """Answer the running sim/step: done, or ``cut_short`` (success false) by a pause."""
-        if self._budget is None:
+        if not self.pacing.stepping:
             return
-        self._budget = None
-        self._anchor()
+        self.pacing.end_step(self.plant.t_ns)
         reply, self._step_reply = self._step_reply, None
         if reply is not None:
             header, response = reply
@@ -464,50 +471,50 @@ class PlantSimulatorNode(GripperNode):
     def _on_step(self, request: SimStep.Request, header) -> None:
         response = SimStep.Response()
         ticks, duration = int(request.ticks), float(request.duration_s)
-        problem = ''
-        if self._step_reply is not None:
-            problem = 'a step is already running'
-        elif not math.isfinite(duration) or duration < 0.0:
-            problem = f'duration_s must be finite and >= 0, got {duration!r}'
-        elif (ticks > 0) == (duration > 0.0):
-            problem = f'give exactly one of ticks ({ticks}) and duration_s ({duration:g}) > 0'
-        elif duration > MAX_STEP_S:
-            problem = f'duration_s must be <= {MAX_STEP_S:g} s, got {duration:g}'
-        elif ticks > MAX_STEP_TICKS:
-            problem = f'ticks must be <= {MAX_STEP_TICKS}, got {ticks}'
+        problem = self.pacing.pause_refusal() or \
+            ('a step is already running' if self._step_reply is not None else '') or \
+            step_problem(ticks, duration)
         if problem:
             response.success = False
             response.message = f'refused: {problem}'
             response.time_s = self.plant.t_ns * 1e-9
             self.step_service.reply(header, response)
             return
-        self._budget = ('ticks', ticks) if ticks else \
-            ('until', self.plant.t_ns + round(duration * 1e9))
+        self.pacing.start_step(ticks, duration, self.plant.t_ns)
         self._step_reply = (header, response)
         self._try_step()
 
     def _on_pause(self, request, response):
-        response.success = not self._paused
-        response.message = f'paused at t={self.plant.t_ns * 1e-9:.6f} s' if not self._paused \
-            else 'already paused'
-        self._paused = True
+        refusal = self.pacing.pause_refusal()
+        paused = self.pacing.paused
+        response.success = not paused and not refusal
+        response.message = f'refused: {refusal}' if refusal else \
+            f'paused at t={self.plant.t_ns * 1e-9:.6f} s' if not paused else 'already paused'
+        if refusal:
+            return response
+        self.pacing.paused = True
         self._end_step('ended by sim/pause')
         self._publish_sim_status()
         return response
 
     def _on_resume(self, request, response):
-        response.success = self._paused
-        response.message = f'resumed at t={self.plant.t_ns * 1e-9:.6f} s' if self._paused \
-            else 'not paused'
-        self._paused = False
-        self._anchor()
+        refusal = self.pacing.pause_refusal()
+        paused = self.pacing.paused
+        response.success = paused and not refusal
+        response.message = f'refused: {refusal}' if refusal else \
+            f'resumed at t={self.plant.t_ns * 1e-9:.6f} s' if paused else 'not paused'
+        if refusal:
+            return response
+        self.pacing.paused = False
+        self.pacing.restart(self.plant.t_ns)
         self._publish_sim_status()
         self._try_step()
         return response
 
     @property
     def paused(self) -> bool:
-        return self._paused
+        """Simulated time is held: sim/pause, or a world whose /clock stands still."""
+        return self.pacing.held
 
     @property
     def advancing(self) -> bool:
@@ -549,6 +556,13 @@ class PlantSimulatorNode(GripperNode):
                               request.damping_n_s_per_m, request.mass_kg,
                               request.static_friction, request.kinetic_friction,
                               request.pad_length_m)
+            if request.default_friction:
+                if request.static_friction or request.kinetic_friction:
+                    raise ValueError(
+                        f'default_friction asks for the configured friction; static_friction '
+                        f'and kinetic_friction must then be 0, got {request.static_friction!r} '
+                        f'and {request.kinetic_friction!r}')
+                obj = self.plant.configured_friction(obj)
             lift = Lift(request.lift_acceleration_mps2, request.lift_delay_s,
                         request.lift_duration_s, request.lift_profile,
                         request.lift_frequency_hz, request.lift_off_s) \
@@ -569,8 +583,9 @@ class PlantSimulatorNode(GripperNode):
                                 for n in request.get_fields_and_field_types())})
         self._pending = False                   # the command was for the world before
         self._stamp_ns = self.side.tick().stamp_ns
-        self._publish_tick()
-        self._publish_state()
+        if self.pacing.started:                 # (following /clock: once the world's came)
+            self._publish_tick()
+            self._publish_state()
         response.success = True
         response.message = (f'object width {request.width_m:g} m, contact at '
                             f'{self.plant.contact_position_m:.4f} m')

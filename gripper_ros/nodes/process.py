@@ -12,6 +12,7 @@ from typing import Callable
 
 from gripper_ros.core.config import ConfigError
 from gripper_ros.nodes.names import NameClaim
+from gripper_ros.nodes.parameters import refuse_unknown_overrides
 from gripper_ros.nodes.startup import EXIT_BAD_START, StartupError
 from gripper_ros.text import one_line
 from rcl_interfaces.msg import ParameterDescriptor
@@ -299,9 +300,9 @@ def run_node(make_node: Callable[[], Node], name: str, args=None,
 
     0 on Ctrl-C or SIGTERM, after the node is destroyed and the context shut down, with
     nothing on stderr (:class:`StopSignals`); ``EXIT_BAD_START`` with one line on stderr, no
-    traceback, for a bad config file, a refused start-up parameter or names already taken (a
-    node ``name``, or a server of one of ``services``, in its namespace). Any other exception
-    is a bug and keeps its traceback. The executor is the node's ``executor`` parameter
+    traceback, for a bad config file, a refused or unknown start-up parameter or names already
+    taken (a node ``name``, or a server of one of ``services``, in its namespace). Any other
+    exception is a bug and keeps its traceback. The executor is the node's ``executor`` parameter
     (``events``, the default, or ``single``).
     """
     import rclpy
@@ -335,6 +336,7 @@ def run_node(make_node: Callable[[], Node], name: str, args=None,
             except ValueError:
                 raise StartupError(f'parameter "executor" must be one of '
                                    f'{[k.value for k in ExecutorKind]}, got {kind!r}') from None
+            refuse_unknown_overrides([node])
             executor.add_node(node)
             if not signals.received:         # a signal during start-up: stop at once
                 spin_until_stopped(executor, Future(), signals)

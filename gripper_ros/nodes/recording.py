@@ -327,7 +327,7 @@ def bag_metadata(graph, request: dict | None, placed: dict | None) -> dict:
     """
     rerun = {'request': request, 'object': placed} if request is not None else {}
     return {'gripper_ros': {'format': BAG_FORMAT, 'namespace': graph.namespace,
-                            'time_mode': graph.options.time_mode,
+                            'time_mode': graph.plant.time_mode.parameter,
                             'state_rate_hz': float(graph.plant.state_rate_hz)},
             **rerun,
             'controllers': graph.controller_settings(),
@@ -363,7 +363,7 @@ def recorded_grasp(graph, bag_dir, width_m: float, mass_kg: float,
                'friction_coefficient': friction_coefficient,
                'acceleration_mps2': acceleration_mps2, 'width_tolerance_m': width_tolerance_m}
     obj = {'width_m': placed_width, 'stiffness_n_per_m': stiffness_n_per_m,
-           'damping_n_s_per_m': damping_n_s_per_m,
+           'damping_n_s_per_m': damping_n_s_per_m, 'default_friction': 0.0,
            **{k: int(v) if k == 'fault' else float(v) for k, v in hold.items()}}
     tap = graph_tap(graph)
     try:

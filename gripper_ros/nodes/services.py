@@ -7,6 +7,7 @@ from typing import TYPE_CHECKING
 from gripper_ros.nodes.names import keep_name_args
 from gripper_ros.nodes.qos import SERVICE_QOS
 from rclpy.node import Node
+from rclpy.parameter import Parameter
 
 if TYPE_CHECKING:
     from gripper_ros.nodes.gripper_node import GripperNode
@@ -96,9 +97,11 @@ class DeferredService:
         # 'supervisor_grasp_server'): a node with two deferred services must not register one
         # name twice (rcl warns 'Publisher already registered for node name')
         server_name = server_node_name(node.get_name(), name)
+        # never spun, so no clock: no /clock subscription under a global use_sim_time:=true
         self._server_node = Node(server_name, namespace=node.get_namespace(),
                                  context=node.context, start_parameter_services=False,
-                                 cli_args=keep_name_args(server_name))
+                                 cli_args=keep_name_args(server_name),
+                                 parameter_overrides=[Parameter('use_sim_time', value=False)])
         self._service = self._server_node.create_service(srv_type, name, self._not_spun,
                                                          qos_profile=SERVICE_QOS)
         self._on_request = on_request

@@ -42,6 +42,7 @@ class GripRun:
     max_margin: float
     min_margin: float
     rows: np.ndarray = field(repr=False, default_factory=lambda: np.zeros((0, len(ROW_FIELDS))))
+    landed_force_n: float = math.nan   # the grip on the first tick the pads carry a load
 
 
 def _graph_path_run(config: GripperConfig, width_m: float, mass_kg: float,
@@ -88,6 +89,8 @@ def _graph_path_run(config: GripperConfig, width_m: float, mass_kg: float,
         states['hold_state']]).astype(float)[hold]
     lift_off_s = lift.lift_off_or(config.contact.lift_off_s) if lift is not None else 0.0
     margin = _margins(rows, static_friction, lift_start_ns + round(lift_off_s * 1e9))
+    carried = np.flatnonzero(rows[:, 3] > 0.0)
+    landed_force_n = float(rows[carried[0], 1]) if carried.size else math.nan
     rows = rows[::decimate]
     overload_s = math.nan if h.overload_ns is None else (h.overload_ns - lift_start_ns) * 1e-9
     lost_s = math.nan if h.lost_ns is None else (h.lost_ns - lift_start_ns) * 1e-9
@@ -100,7 +103,7 @@ def _graph_path_run(config: GripperConfig, width_m: float, mass_kg: float,
                    float(h.slip_m), lost_s, overload_s,
                    float(margin.mean()) if margin.size else math.nan,
                    float(margin.max()) if margin.size else math.nan,
-                   float(margin.min()) if margin.size else math.nan, rows)
+                   float(margin.min()) if margin.size else math.nan, rows, landed_force_n)
 
 
 def _margins(rows: np.ndarray, static_friction: float, lifted_off_ns: int) -> np.ndarray:

@@ -30,25 +30,37 @@ follow the load the pads feel, ``F_sp(t) = k F_load(t) / (2 mu_est)``, with a ma
   the object is still between the pads.
 * An announced motion (the arm's plan, :func:`plan_announce`: from each breakpoint's instant
   on, its upward acceleration ``a``): the grip rises in parallel with the load it will bring,
-  as a hand's does with its own arm's motion (Flanagan and Wing 1993, 1997): ``F_load`` is
-  scaled by ``(g + a_max) / (g + a_read)``, ``a_max`` the most announced within
-  :data:`ANTICIPATION_S` ahead, ``a_read`` the announced one as the pads' shear channel reads
-  it now (its latency and bandwidth: :func:`plan_load_ratio`), and the margin is
-  :data:`ANNOUNCED_MARGIN`. The slip reflex stays for what was not announced.
+  as a hand's does with its own arm's motion (Flanagan and Wing 1993, 1997), and is there when
+  the load comes. The mass is the load read over ``g + a`` as the pads' shear channel reads it
+  (its latency and bandwidth); a coming breakpoint counts from as long before its instant as
+  24 V needs to raise the grip from the force now to what that load needs
+  (:func:`rise_time_s`: the motor's current, L / R, on a rigid contact; the finger's travel
+  on a compliant one), two samples more (:func:`plan_load_ratio`). A lift of an object not
+  yet weighed (the pads carry nothing, so nothing tells its weight) is met the same way with
+  the most 24 V gives, held until the pads' reading of the weight has settled. A known fall
+  lowers the grip first-order, as fast as the force stage follows without undershoot
+  (:func:`fall_time_s`), to what the friction believed needs, and only below that at the
+  release rate, once the force has caught up. The margin is :data:`ANNOUNCED_MARGIN`, and
+  after a slip the friction believed is at least ``mu_safety`` times the most ``Q / F`` the
+  pads were read to carry (a stuck pad carries at most ``mu_s F``, and so does the channel's
+  reading of it): static friction, not the slide's kinetic reading. The slip reflex stays
+  for what was not announced.
+* A slide the pads carry nothing of (a frictionless object) raises the grip to the most at
+  once; not slowing there, it is an overload at the friction it read.
 * Unannounced, a grip within :data:`TOP_RESERVE` of the most 24 V gives is the most.
 * The grip falls at ``release_rate_n_per_s``, a light one in proportion to itself
-  (:data:`RELEASE_TIME_S`), so that the force stage, which follows a falling setpoint late,
-  keeps it above the slip limit. No plan: the law above, exactly.
+  (:data:`RELEASE_TIME_S`), so that the force stage, which leads a falling setpoint by its
+  rate, keeps it above the slip limit. No plan: the law above, exactly.
 
 The supervisor runs :func:`law_step` each tick for a grasp of unknown mass
-(``core/supervision/supervisor.py``); one grasp and hold of the study is
+(``core/supervision/machine.py``, ``_track_load``); one grasp and hold of the study is
 :func:`gripper_ros.studies.grip_runs.simulate_load_grip`.
 """
 from __future__ import annotations
 
 import math
 
-from gripper_ros.core.config import LoadGripParams
+from gripper_ros.core.config import GripperConfig, LoadGripParams
 from gripper_ros.core.physics.hold import presliding_m
 from gripper_ros.core.records import as_record, copy_fields, face_kernel
 import numba
@@ -79,8 +91,10 @@ ANNOUNCED_MARGIN = 1.15
 pads' noise and the fit's error, not a rise of the load nobody told (a hand's margin is
 smaller for its own arm's motion than for a load it must react to)."""
 ANTICIPATION_S = 0.01
-"""An announced rise of the load is met this long before it comes: the grip's rise on a
-rigid object at 24 V takes about 5 ms (the force stage's step)."""
+"""A breakpoint of the plan acts as planned when it arrives this long before its stamp: more
+than the lead of any rise on a rigid contact (:func:`rise_time_s`, under 1 ms at 24 V)."""
+NOISE_SIGMAS = 5.0
+"""A mean shear reading beyond this many of its noise sigmas is load the pads carry."""
 TOP_RESERVE = 1.5
 """Unannounced, a grip above the most 24 V gives over this goes to the most at once: what is
 left above it is less than a load step of (TOP_RESERVE - 1) g needs, and a slide begun near the
@@ -132,9 +146,23 @@ GRIP_DTYPE = np.dtype([
     ('slide_not_slowing', np.uint8),   # at its most the grip did not slow the slide
     ('gravity_mps2', np.float64),
     ('plan_count', np.int64),          # breakpoints of the arm's announced plan (0: none)
-    ('plan_lead_ns', np.int64),        # an announced load is met this long before it comes
     ('plan_filtered', np.float64),     # g + a announced, as the shear channel would read it
     ('plan_primed', np.uint8),
+    ('electrical_time_s', np.float64),  # L / R: the stalled motor's force follows its current
+    ('reflected_mass_kg', np.float64),  # the motor's inertia as the finger feels it
+    ('settle_band', np.float64),       # a grip is there within this share of it
+    ('shear_floor_n', np.float64),     # a mean shear reading the noise stays below
+    ('channel_settle_ns', np.int64),   # the shear channel reads a step within the band after it
+    ('contact_position_m', np.float64),  # where the finger first felt the object (NaN: not yet)
+    ('contact_force_n', np.float64),   # ... and the force then
+    ('stiffness_n_per_m', np.float64),  # the contact's, force gained over travel (inf: rigid)
+    ('mu_carried', np.float64),        # the most Q / F the pads were read to carry: mu_s >= it
+    ('loaded_ns', np.int64),           # the first sample the pads read a load (-1: none yet)
+    ('slide_mu', np.float64),          # Q / F as the last slip was seen
+    ('lead_s', np.float64),            # the lead of the rise the plan asks for now (0: none)
+    ('pregrip_until_ns', np.int64),    # an unweighed lift's grip stays at its most until then
+    ('fall_time_s', np.float64),       # a known fall: first order, no faster than this
+    ('most_lead_ns', np.int64),        # no rise on this contact needs a longer lead
 ], align=True)
 """The law's settings and state."""
 
@@ -142,11 +170,18 @@ GRIP_DTYPE = np.dtype([
 def make_law(params: LoadGripParams, max_force_n: float, tangential_stiffness_n_per_m: float,
              dt_s: float, displacement_noise_m: float, displacement_resolution_m: float,
              shear_latency_s: float = 0.0, shear_bandwidth_hz: float = 0.0,
-             gravity_mps2: float = 9.81):
+             gravity_mps2: float = 9.81, *, electrical_time_s: float = 0.0,
+             reflected_mass_kg: float = 0.0, settle_band: float = 0.02,
+             shear_noise_n: float = 0.0, shear_resolution_n: float = 0.0,
+             fall_time_s: float = math.inf):
     """Return the law's (record, displacement history, residual sums) for samples ``dt_s``.
 
     The grip force it divides the shear by passes through the shear channel's latency and
-    bandwidth first, so that their ratio is not skewed while the grip moves.
+    bandwidth first, so that their ratio is not skewed while the grip moves. The plant's
+    ``electrical_time_s`` (L / R) and ``reflected_mass_kg`` bound how fast 24 V raises the grip
+    (:func:`rise_time_s`), to within ``settle_band`` of it; the shear channel's noise and
+    resolution, which load reading is carried load. ``fall_time_s``: a fall the law knows is
+    safe approaches its grip first-order, no faster (inf: only at the release rate).
     """
     rec = np.zeros(1, GRIP_DTYPE)
     r = rec[0]
@@ -169,20 +204,76 @@ def make_law(params: LoadGripParams, max_force_n: float, tangential_stiffness_n_
     r['normal_alpha'] = 1.0 if shear_bandwidth_hz == 0.0 else \
         -math.expm1(-2.0 * math.pi * shear_bandwidth_hz * dt_s)
     r['gravity_mps2'] = gravity_mps2
-    r['plan_lead_ns'] = round(ANTICIPATION_S * 1e9)
+    r['electrical_time_s'] = electrical_time_s
+    r['reflected_mass_kg'] = reflected_mass_kg
+    r['settle_band'] = settle_band
+    # the mean of the two pads' readings: each with its noise and its rounding
+    r['shear_floor_n'] = NOISE_SIGMAS * math.sqrt(
+        (shear_noise_n ** 2 + shear_resolution_n ** 2 / 12.0) / 2.0)
+    tau_s = 0.0 if shear_bandwidth_hz == 0.0 else 1.0 / (2.0 * math.pi * shear_bandwidth_hz)
+    r['channel_settle_ns'] = round((tau_s * math.log(1.0 / settle_band) + dt_s) * 1e9)
+    r['contact_position_m'] = math.nan
+    r['stiffness_n_per_m'] = math.inf
+    r['loaded_ns'] = -1
+    r['pregrip_until_ns'] = -1
+    r['fall_time_s'] = fall_time_s
+    _most_lead(rec)
     history = np.zeros((HISTORY_ROWS, int(r['window']) + 1))
     sums = np.zeros((2, MU_GRID.size))
     return rec, history, sums
 
 
-@numba.njit(cache=True)
-def law_step(g, history, sums, grid, t_ns, shear_n, displacement_m, force_n, plan):
-    """Take one sample of the pads (mean shear per pad, mean displacement) and the grip force.
+def law_for(config: GripperConfig):
+    """Return :func:`make_law`'s arrays for ``config``: the law a supervisor runs.
 
+    Sampled at the force stage's period, with the pads' tangential stiffness and sensing as
+    configured, at most the force 24 V holds, the plant's electrical time constant and
+    reflected mass, the force stage's settle band as "there" and its fastest fall
+    (:func:`fall_time_s`).
+    """
+    pads = config.pad_sensor
+    plant = config.plant
+    return make_law(config.load_grip, plant.max_force_n,
+                    config.contact.pad_tangential_stiffness_n_per_m,
+                    config.force.sample_time_s, pads.displacement_noise_m,
+                    pads.displacement_resolution_m, pads.shear.latency_s,
+                    pads.shear.bandwidth_hz, plant.gravity_mps2,
+                    electrical_time_s=plant.inductance_h / plant.resistance_ohm,
+                    reflected_mass_kg=plant.reflected_mass_kg,
+                    settle_band=config.supervisor.force_settle_band_fraction,
+                    shear_noise_n=pads.shear_noise_n,
+                    shear_resolution_n=pads.shear_resolution_n,
+                    fall_time_s=fall_time_s(config))
+
+
+def fall_time_s(config: GripperConfig) -> float:
+    """Return the time constant of the fastest first-order fall the force stage follows.
+
+    The contact stage leads a moving setpoint by its rate, low-passed over
+    ``setpoint_rate_time_constant_s`` (``tau``), through its servo gain: on a rigid contact
+    the force runs ``T_L = K_stall Kv / k_d`` times that rate ahead of the setpoint (5.8 ms
+    shipped). A fall ``F_sp = b + g exp(-t / T)`` then leaves the force ``g [exp(-t / T)
+    (1 - T_L / (T - tau)) + T_L / (T - tau) exp(-t / tau)]`` above ``b``: never below it for
+    ``T >= tau + T_L``.
+    """
+    from gripper_ros.core.control.contact_force import ContactForceController
+    tuning = config.force.contact_aware
+    stage = ContactForceController(config.plant, tuning, config.force.sample_time_s).record[0]
+    lead_s = stage['stall_force_per_volt_n'] * stage['cap_kv'] / stage['cap_k']
+    return tuning.setpoint_rate_time_constant_s + lead_s
+
+
+@numba.njit(cache=True)
+def law_step(g, history, sums, grid, t_ns, shear_n, displacement_m, force_n, plan, position_m):
+    """Take one sample of the pads (mean shear, mean displacement), the grip and the finger.
+
+    The finger's position gives the contact's stiffness (how fast 24 V raises the grip).
     ``history`` (4 x window + 1) keeps the last displacements, shears, forces as the shear
     channel reads them and forces as given; ``plan`` the arm's announced breakpoints
     (:func:`plan_announce`). Returns the force setpoint.
     """
+    measured_n = force_n
+    _contact(g, measured_n, position_m)
     n = history.shape[1]
     head = g.head
     old = (head + 1) % n
@@ -203,7 +294,9 @@ def law_step(g, history, sums, grid, t_ns, shear_n, displacement_m, force_n, pla
         g.filled += 1
     load_n = 2.0 * shear_n if shear_n > 0.0 else 0.0
     grip_n = force_n if force_n > 0.0 else 0.0
+    planned = g.plan_count > 0
     speed = 0.0
+    bare = False
     if g.filled == n:
         # what the pads' own shear explains of the displacement (Cattaneo-Mindlin at the
         # friction believed) is not a slip: a load that jumps moves the object that far
@@ -217,16 +310,22 @@ def law_step(g, history, sums, grid, t_ns, shear_n, displacement_m, force_n, pla
         k_t = g.tangential_stiffness_n_per_m
         sheared = presliding_m(shear_n, grip_n, mu, k_t) - presliding_m(
             history[1, old], grip_old, mu, k_t)
-        speed = (displacement_m - history[0, old] - sheared) / ((n - 1) * g.dt_s)
+        moved = displacement_m - history[0, old]
+        speed = (moved - sheared) / ((n - 1) * g.dt_s)
+        # the object runs down the pads and they carry nothing of it: no friction holds it
+        # (it moves further than the pads' whole partial slip at the most friction expected)
+        bare = grip_n > 0.0 and shear_n <= g.shear_floor_n and \
+            (k_t <= 0.0 or moved > 1.5 * grid[-1] * grip_n / k_t)
     felt = shear_n / grip_n if grip_n > 0.0 else 0.0
     # a slip: the object runs down the pads while they carry near all friction gives (a load
     # that jumps moves it fast too, but within the pads' shear, at a small Q / F)
     reference = g.mu_at_slip if g.slipping else g.mu_est
-    if speed > g.slip_speed_mps and felt >= SLIP_SHARE * reference:
+    if speed > g.slip_speed_mps and (felt >= SLIP_SHARE * reference or bare):
         if not g.slipping:
             estimated_before = g.estimated == 1 or g.slips > 0
             g.slips += 1
             g.mu_at_slip = g.mu_est
+            g.slide_mu = felt
             if g.estimated and g.mu_est < g.mu_ceiling:
                 g.mu_ceiling = g.mu_est
             if felt > g.mu_bound:
@@ -260,6 +359,14 @@ def law_step(g, history, sums, grid, t_ns, shear_n, displacement_m, force_n, pla
         if g.quiet >= g.rest:
             g.slipping = 0
             g.slipping_saturated = 0
+            if planned:
+                # stuck again: mu_s is at least what the pads were read to carry (the most
+                # Q / F before the slip began), not only the kinetic friction the slide read
+                floor = g.mu_safety * g.mu_carried
+                if floor > g.mu_ceiling:
+                    floor = g.mu_ceiling
+                if floor > g.mu_est:
+                    g.mu_est = floor
     elif grip_n > 0.0 and load_n > 0.0:
         g.count += 1
         best, lo, hi = -1, math.inf, 0.0
@@ -280,12 +387,21 @@ def law_step(g, history, sums, grid, t_ns, shear_n, displacement_m, force_n, pla
             # a fit below what a slip showed the pads carrying is wrong: mu_s >= mu_k >= it;
             # once measured, only a slip lowers the estimate (a later fit that drifts down
             # without one has seen an undetected creep, not less friction)
-            fitted = g.mu_safety * (grid[best] if grid[best] > g.mu_bound else g.mu_bound)
+            least = g.mu_bound
+            if planned and g.mu_carried > least:
+                least = g.mu_carried                   # mu_s >= what the pads carried stuck
+            fitted = g.mu_safety * (grid[best] if grid[best] > least else least)
             if fitted > g.mu_ceiling:                  # it slipped there before
                 fitted = g.mu_ceiling
             if not g.estimated or fitted > g.mu_est:
                 g.mu_est = fitted
             g.estimated = 1
+    if not g.slipping and grip_n >= g.touch_force_n and shear_n > g.shear_floor_n:
+        # stuck, a pad carries at most mu_s F: so does the channel's reading of both
+        carried = (shear_n - g.shear_floor_n) / grip_n
+        if carried > g.mu_carried:
+            g.mu_carried = carried
+    first_load = load_n > 0.0 and g.loaded_ns == -1
     # Not yet measured: the grip relaxes (at the release rate) towards the least friction's
     # grip; the incipient slip it brings on is what measures mu. After a slip it relaxes no
     # further than the friction that slip showed.
@@ -294,12 +410,26 @@ def law_step(g, history, sums, grid, t_ns, shear_n, displacement_m, force_n, pla
     # slip carried while it slides (kinetic)
     mu_seen = g.mu_est / g.mu_safety if g.estimated else g.mu_est
     need_n = load_n / (2.0 * mu_seen)
-    # an announced motion: the load it will bring, from the mass the pads' load shows
-    planned = g.plan_count > 0
-    ahead = load_n
-    if planned:
-        ahead = load_n * plan_load_ratio(g, plan, t_ns)
+    # an announced motion: the load it will bring, from the mass the pads' load shows, met
+    # as early as 24 V needs to raise the grip there; a lift of an object not yet weighed,
+    # with the most 24 V gives, until the pads have read its weight
     margin = ANNOUNCED_MARGIN if planned and ANNOUNCED_MARGIN < g.k_margin else g.k_margin
+    ahead = load_n
+    pregrip = False
+    g.lead_s = 0.0
+    if planned:
+        ahead = load_n * plan_load_ratio(g, plan, t_ns, load_n, measured_n, margin, mu)
+        if g.loaded_ns == -1 and not first_load:
+            lift_ns = _lift_coming(g, plan, t_ns, measured_n)
+            if lift_ns != -1:
+                until_ns = lift_ns + g.channel_settle_ns + round(g.normal_delay * g.dt_s * 1e9)
+                if until_ns > g.pregrip_until_ns:
+                    g.pregrip_until_ns = until_ns
+        elif first_load and t_ns < g.pregrip_until_ns:
+            g.pregrip_until_ns = t_ns + g.channel_settle_ns     # read within the band then
+        pregrip = t_ns < g.pregrip_until_ns
+    if first_load:
+        g.loaded_ns = t_ns
     setpoint = margin * ahead / (2.0 * mu)
     near_top = not planned and (g.estimated or g.slips > 0) and \
         setpoint * TOP_RESERVE > g.max_force_n      # what it needs, not where it relaxes from
@@ -309,21 +439,123 @@ def law_step(g, history, sums, grid, t_ns, shear_n, displacement_m, force_n, pla
     if g.force_setpoint_n < rate * RELEASE_TIME_S:
         rate = g.force_setpoint_n / RELEASE_TIME_S     # a light grip in proportion
     lowest = g.force_setpoint_n - rate * g.dt_s
+    if planned:
+        # the load to come is known: the grip falls at once to what the friction believed
+        # needs for it, and only below that (to find the friction) at the release rate
+        believed = margin * ahead / (2.0 * g.mu_est)
+        if believed < setpoint:
+            believed = setpoint
+        if measured_n < (1.0 - g.settle_band) * g.force_setpoint_n and lowest < believed:
+            # the force stage has not caught up with the grip asked (it leads a fall): no
+            # release below what the friction believed needs until it has
+            lowest = believed if believed < g.force_setpoint_n else g.force_setpoint_n
+        fall = g.force_setpoint_n - (g.force_setpoint_n - believed) * g.dt_s / g.fall_time_s
+        if fall < lowest:
+            lowest = fall
     if g.slipping:
         lowest = g.force_setpoint_n                    # a slip never lowers the grip
     if setpoint < lowest:
         setpoint = lowest                              # let go slowly, as a hand does
-    if near_top:
-        setpoint = g.max_force_n
+    if near_top or pregrip or (g.slipping and g.slide_mu < grid[0]):
+        setpoint = g.max_force_n                       # (a slide the pads read no friction of)
     if setpoint > g.max_force_n:
         setpoint = g.max_force_n
     if g.overload_ns == -1 and ((g.estimated and need_n > g.max_force_n) or
                                 g.slide_not_slowing):
         g.overload_ns = t_ns
         g.overload_need_n = need_n
-        g.overload_mu = mu_seen
+        # a slide: the friction it was read to carry, which may be below the grid's least
+        g.overload_mu = g.slide_mu if g.slide_not_slowing and g.slide_mu < mu_seen else mu_seen
     g.force_setpoint_n = setpoint
     return setpoint
+
+
+@numba.njit(cache=True)
+def _contact(g, force_n, position_m):
+    """Estimate the contact's stiffness: the force gained since the first touch over the travel.
+
+    A rigid object stops the finger dead (no travel: ``inf``); the estimate is taken once the
+    grip has gained half the touch force, so that a sensor's noise does not make it.
+    """
+    if not (force_n > 0.0) or math.isnan(position_m):
+        return
+    if math.isnan(g.contact_position_m):
+        g.contact_position_m = position_m
+        g.contact_force_n = force_n
+        return
+    travel = position_m - g.contact_position_m
+    gained = force_n - g.contact_force_n
+    if travel > 0.0 and gained >= 0.5 * g.touch_force_n:
+        g.stiffness_n_per_m = gained / travel
+        _most_lead(g)
+
+
+@face_kernel(GRIP_DTYPE)
+@numba.njit(cache=True)
+def _most_lead(g):
+    """Bound every lead on this contact: the rise from nothing to the most (``most_lead_ns``).
+
+    The electrical rise's log is at most ln(1 / band), the travel's at most the whole 24 V
+    force over k: a breakpoint further ahead needs nothing yet.
+    """
+    g = as_record(g)
+    t = g.electrical_time_s * math.log(1.0 / g.settle_band) + 2.0 * g.dt_s
+    if g.stiffness_n_per_m < math.inf and g.reflected_mass_kg > 0.0:
+        t += 2.0 * math.sqrt(g.reflected_mass_kg / g.stiffness_n_per_m)
+    g.most_lead_ns = round(t * 1e9)
+
+
+@numba.njit(cache=True)
+def rise_time_s(g, from_n, to_n):
+    """Return the least time 24 V takes to raise the grip from ``from_n`` to ``to_n``.
+
+    To within the settle band of it (of the most 24 V holds at the most). Two bounds, the
+    longer: the motor's current, and with it a stalled motor's force, rises no faster than
+    first order towards the 24 V stall force with the time constant L / R; on a contact of
+    stiffness k the finger must travel the rise over k, as the motor's inertia seen through
+    the screw (``reflected_mass_kg``) pushed by at most that force, accelerating then braking.
+    """
+    top = g.max_force_n
+    goal = (to_n if to_n < top else top) * (1.0 - g.settle_band)
+    if goal <= from_n:
+        return 0.0
+    t = 0.0
+    if g.electrical_time_s > 0.0:
+        t = g.electrical_time_s * math.log((top - from_n) / (top - goal))
+    if g.stiffness_n_per_m < math.inf and g.reflected_mass_kg > 0.0:
+        travel = 2.0 * math.sqrt((goal - from_n) * g.reflected_mass_kg /
+                                 (g.stiffness_n_per_m * top))
+        if travel > t:
+            t = travel
+    return t
+
+
+@numba.njit(cache=True, inline='always')
+def _lead_ns(g, from_n, to_n):
+    """Return how long before a load comes its grip must be asked for: the rise, two samples.
+
+    The setpoint acts from the next sample on, and the load's instant lies between samples.
+    """
+    return round((rise_time_s(g, from_n, to_n) + 2.0 * g.dt_s) * 1e9)
+
+
+@numba.njit(cache=True)
+def _lift_coming(g, plan, t_ns, force_n):
+    """Return the instant the arm lifts the object, not yet weighed, if within the rise, or -1.
+
+    The pads carry nothing yet, so nothing tells its weight: up to what 24 V holds may come,
+    and the grip goes to the most from the lead of that rise on (:func:`rise_time_s`). The
+    lift's instant is the plan's next breakpoint; once past, its weight reaches the law
+    through the shear channel's latency and settling.
+    """
+    after_ns = g.channel_settle_ns + round(g.normal_delay * g.dt_s * 1e9)
+    for i in range(g.plan_count):
+        d = plan[i].t_ns - t_ns
+        if d > g.most_lead_ns or (d > 0 and d > _lead_ns(g, force_n, g.max_force_n)):
+            return -1
+        if d >= -after_ns:
+            return plan[i].t_ns
+    return -1
 
 
 @numba.njit(cache=True)
@@ -354,12 +586,14 @@ def plan_range(g, plan, from_ns, to_ns):
 
 
 @numba.njit(cache=True)
-def plan_load_ratio(g, plan, t_ns):
-    """Return the most load the plan brings within the lead over the load the pads show now.
+def plan_load_ratio(g, plan, t_ns, load_n, force_n, margin, mu):
+    """Return the most load the plan brings, whose grip must rise from now on, over the load read.
 
     The pads' shear reads ``m (g + a)`` through the channel's latency and bandwidth: the
-    announced ``g + a`` passed through the same (``plan_filtered``) gives the mass; the most
-    announced until ``plan_lead_ns`` ahead, the load to meet. Once a tick.
+    announced ``g + a`` passed through the same (``plan_filtered``) gives the mass. A coming
+    breakpoint counts once it is no further ahead than 24 V needs to raise the grip from
+    ``force_n`` to what it needs (``margin m (g + a) / (2 mu)``, :func:`rise_time_s`); its
+    lead is kept in ``lead_s``. A fall counts from its instant on. Once a tick.
     """
     a_read, _ = _planned_accel(g, plan, t_ns - round(g.normal_delay * g.dt_s * 1e9))
     floor = LEAST_SUPPORT * g.gravity_mps2
@@ -371,7 +605,18 @@ def plan_load_ratio(g, plan, t_ns):
     else:
         g.plan_filtered = read
         g.plan_primed = 1
-    _, hi = plan_range(g, plan, t_ns, t_ns + g.plan_lead_ns)
+    hi, i = _planned_accel(g, plan, t_ns)
+    mass_kg = load_n / g.plan_filtered
+    horizon_ns = t_ns + g.most_lead_ns
+    while i < g.plan_count and plan[i].t_ns <= horizon_ns:
+        a = plan[i].accel_mps2
+        if a > hi:
+            need_n = margin * mass_kg * (g.gravity_mps2 + a) / (2.0 * mu)
+            lead_ns = _lead_ns(g, force_n, need_n)
+            if plan[i].t_ns - t_ns <= lead_ns:
+                hi = a
+                g.lead_s = lead_ns * 1e-9
+        i += 1
     coming = g.gravity_mps2 + hi
     return (coming if coming > floor else floor) / g.plan_filtered
 

@@ -58,8 +58,10 @@ class ContactState(enum.Enum):
 class GraspObject:
     """What lies between the fingers. width 0 = nothing (the fingers meet at full travel).
 
-    ``mass_kg`` 0 = the grasp's mass (given to :meth:`GripperPlant.begin_hold`); the pad friction
-    and pad length 0 = the configured ``contact`` defaults.
+    ``mass_kg`` 0 = the grasp's mass (given to :meth:`GripperPlant.begin_hold`); pad length 0 =
+    the configured ``contact`` default. The pad friction is the object's own: 0 is frictionless
+    (nothing holds its weight); the configured friction is asked for with
+    :meth:`GripperPlant.configured_friction`.
     """
 
     width_m: float = 0.0

@@ -24,7 +24,7 @@ other modules use (``__all__``) are importable from here.
 """
 from __future__ import annotations
 
-from dataclasses import fields
+from dataclasses import fields, replace
 import functools
 import math
 
@@ -272,17 +272,25 @@ class GripperPlant:
         self.kernel[0]['pads'] = self._fresh_pads
         self._s['pads_resting'] = 0
 
+    def configured_friction(self, obj: GraspObject) -> GraspObject:
+        """Return ``obj`` with the configured pad friction instead of its own.
+
+        ``contact.static_friction`` and ``contact.kinetic_friction``: what a request that asks
+        for the defaults (``SetObject.default_friction``) places.
+        """
+        d = self.contact_defaults
+        return replace(obj, static_friction=d.static_friction,
+                       kinetic_friction=d.kinetic_friction)
+
     def _hold_model_for(self, obj: GraspObject, lift: Lift | None) -> HoldModel | None:
-        """Build the hold of ``obj``, its friction resolved against the defaults (ValueError)."""
+        """Build the hold of ``obj``, its friction as given (ValueError)."""
         if obj.width_m == 0.0:
             return None
         d = self.contact_defaults
-        mu_s = obj.static_friction or d.static_friction
-        mu_k = obj.kinetic_friction or d.kinetic_friction
+        mu_s, mu_k = obj.static_friction, obj.kinetic_friction
         if mu_k > mu_s:
             raise ValueError(f'object kinetic_friction {mu_k!r} must be <= its static_friction '
-                             f'{mu_s!r} (0 = the contact defaults {d.kinetic_friction!r} / '
-                             f'{d.static_friction!r})')
+                             f'{mu_s!r}')
         pad_m = obj.pad_length_m or d.pad_length_m
         if not pad_m > 0.0:
             raise ValueError(f'object pad_length_m must be > 0 (0 = the contact default '

@@ -389,8 +389,8 @@ def simulate_grasp(config: GripperConfig, width_m: float, mass_kg: float, *,
                    position_controller=DEFAULT_POSITION_CONTROLLER,
                    force_controller=DEFAULT_FORCE_CONTROLLER,
                    approach_force_margin: float = DEFAULT_APPROACH_FORCE_MARGIN,
-                   object_mass_kg: float = 0.0, static_friction: float = 0.0,
-                   kinetic_friction: float = 0.0, pad_length_m: float = 0.0,
+                   object_mass_kg: float = 0.0, static_friction: float | None = None,
+                   kinetic_friction: float | None = None, pad_length_m: float = 0.0,
                    lift: Lift | None = None, hold_s: float = 0.0,
                    start_ns: int = 0,
                    fault: tuple[FaultKind | int, float, float] | None = None,
@@ -400,10 +400,10 @@ def simulate_grasp(config: GripperConfig, width_m: float, mass_kg: float, *,
     """Grasp from fully open, as the graph grasps in fast mode.
 
     ``object_width_m`` (default ``width_m``; 0 = nothing) is the real
-    object, ``width_m`` the expected one. The object's own mass and pad friction (0 = the
-    grasp's mass, the configured friction) hold it once ``lift`` lifts it; time runs until the
-    lift has played out, and ``hold_s`` at least that long after the answer. Raises
-    RequestError for a request the graph refuses.
+    object, ``width_m`` the expected one. The object's own mass (0 = the grasp's) and pad
+    friction (None = the configured one, ``SetObject.default_friction``; 0 = frictionless) hold
+    it once ``lift`` lifts it; time runs until the lift has played out, and ``hold_s`` at least
+    that long after the answer. Raises RequestError for a request the graph refuses.
 
     ``fault`` = (kind, seconds after the grasp's start, time constant; 0 = the default) is
     scheduled as ``sim/set_object`` schedules it (ValueError when refused).
@@ -430,8 +430,11 @@ def simulate_grasp(config: GripperConfig, width_m: float, mass_kg: float, *,
     plant_side = PlantSide(plant)
     plant_side.grasp_mass_kg = mass_kg
     obj = GraspObject(width_m if object_width_m is None else object_width_m, stiffness_n_per_m,
-                      damping_n_s_per_m, object_mass_kg, static_friction, kinetic_friction,
-                      pad_length_m)
+                      damping_n_s_per_m, object_mass_kg,
+                      config.contact.static_friction if static_friction is None
+                      else static_friction,
+                      config.contact.kinetic_friction if kinetic_friction is None
+                      else kinetic_friction, pad_length_m)
     if fault is not None:
         kind, tau = check_fault(fault[0], fault[1], fault[2], obj.rigid)
         fault = (kind, fault[1], tau)

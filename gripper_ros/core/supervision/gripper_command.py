@@ -199,6 +199,18 @@ def grip_status_fields(outcome: int, position_m: float, force_n: float, travel_m
                                      outcome in _NO_OBJECT_OUTCOMES)}
 
 
+def grip_idle_fields(position_m: float, force_n: float, travel_m: float, grasp_id: int,
+                     detect_n: float) -> dict:
+    """Return the DiagnosticStatus fields of a gripper that has run no request since it started.
+
+    Published once the gripper's first status comes, so that a client connecting to an idle
+    gripper gets one at once: ``idle`` as the message and, upper case, the ``outcome`` value;
+    ``grasp_id`` the last id given (0 for none); level OK.
+    """
+    return {'level': LEVEL_OK, 'message': 'idle',
+            'values': _status_values('IDLE', force_n, detect_n, position_m, travel_m, grasp_id)}
+
+
 def grip_progress_fields(phase: int, position_m: float, force_n: float, travel_m: float,
                          grasp_id: int, detect_n: float) -> dict:
     """Return the DiagnosticStatus fields of a request that has started and runs.

@@ -630,7 +630,7 @@ def _track_load(sup, law_buffers, t_ns, force_n, shear_n, displacement_m, may_an
     history = law_buffers[:HISTORY_ROWS, :g.window + 1]
     sums = law_buffers[HISTORY_ROWS:, :MU_GRID.size]
     s.force_setpoint_n = law_step(g, history, sums, MU_GRID, t_ns, shear_n, displacement_m,
-                                  force_n, sup.plan)
+                                  force_n, sup.plan, s.position_m)
     if g.overload_ns == -1 or s.overload_ns != NO_NS or not may_answer:
         return Event.NONE
     s.overload_ns = t_ns

@@ -19,7 +19,7 @@ from __future__ import annotations
 import math
 
 from gripper_ros.core.config import GripperConfig, PlantParams, shipped_config, SupervisorParams
-from gripper_ros.core.control.load_grip import make_law, plan_announce
+from gripper_ros.core.control.load_grip import law_for, make_law, plan_announce
 from gripper_ros.core.records import copy_fields, RecordField
 from gripper_ros.core.supervision.machine import (Event, NO_NS, PARAMS_DTYPE, PARAMS_FIELDS,
                                                   State, STREAM_BEGIN, STREAM_CLEAR,
@@ -50,17 +50,8 @@ KIND_NAMES = {int(code): kind for kind, code in KIND_CODES.items()}
 
 
 def load_law(config: GripperConfig) -> tuple:
-    """Return the load-tracking grip of ``config`` for a supervisor (``make_law``'s arrays).
-
-    Sampled at the force stage's period, the pads' tangential stiffness and displacement
-    sensing as configured, at most the force 24 V holds.
-    """
-    pads = config.pad_sensor
-    return make_law(config.load_grip, config.plant.max_force_n,
-                    config.contact.pad_tangential_stiffness_n_per_m,
-                    config.force.sample_time_s, pads.displacement_noise_m,
-                    pads.displacement_resolution_m, pads.shear.latency_s,
-                    pads.shear.bandwidth_hz, config.plant.gravity_mps2)
+    """Return the load-tracking grip of ``config`` for a supervisor (``law_for``'s arrays)."""
+    return law_for(config)
 
 
 def _ns_or_none(value) -> int | None:
