@@ -496,7 +496,8 @@ REFERENCE_LAYOUT = LoopLayout(MSG_REFERENCE, (
     ('running', 'u1'), ('contact', 'u1'), ('position_setpoint_m', 'f8'),
     ('approach_setpoint_m', 'f8'), ('force_setpoint_n', 'f8'), ('position_m', 'f8', MSG_TICK),
     ('velocity_mps', 'f8', MSG_TICK), ('force_n', 'f8', MSG_TICK), ('seed_voltage_v', 'f8'),
-    ('speed_limit_mps', 'f8', '', 0.0), ('voltage_limit_v', 'f8', '', 0.0)))
+    ('speed_limit_mps', 'f8', '', 0.0), ('voltage_limit_v', 'f8', '', 0.0),
+    ('approach_velocity_mps', 'f8', '', 0.0), ('approach_acceleration_mps2', 'f8', '', 0.0)))
 COMMAND_LAYOUT = LoopLayout(MSG_COMMAND, (
     ('stamp_ns', 'i8', MSG_REFERENCE), ('grasp_id', 'u4', MSG_REFERENCE),
     ('stage_id', 'u4', MSG_REFERENCE), ('revision', 'u4', MSG_REFERENCE), ('source', 'u1'),

@@ -82,10 +82,12 @@ done
 # Two workers by test file: a module's shared graph stays in one process. Most tests wait on
 # DDS, subprocesses and timers, so two workers on two cores take about half the time. The tests
 # marked serial (a wall-clock bound: a stop, a watchdog, a rate) then run alone, in one process.
+# The modules go to the workers in the order test/conftest.py collects them (the longest first),
+# not pytest-xdist's (the most tests first).
 echo "[test] ROS_DOMAIN_ID(s)=$GRIPPER_ROS_WORKER_DOMAINS ROS_AUTOMATIC_DISCOVERY_RANGE=$ROS_AUTOMATIC_DISCOVERY_RANGE workers=$WORKERS" >&2
 set +e
 if [[ "$WORKERS" == 2 ]]; then
-  python -m pytest "${targets[@]}" -q -n 2 --dist loadfile -m "not serial" "$@" </dev/null
+  python -m pytest "${targets[@]}" -q -n 2 --dist loadfile --no-loadscope-reorder -m "not serial" "$@" </dev/null
   rc1=$?
   echo "[test] the serial tests, alone:" >&2
   python -m pytest "${targets[@]}" -q -m serial "$@" </dev/null

@@ -25,11 +25,34 @@ bounds, never on a wall-clock pace, and each worker has a domain of its own. Wat
 only the time in which their executor ran, so a starved process trips none."""
 
 
+MODULE_SECONDS = {
+    'test_docs_transcripts.py': 157, 'test_docs_fingers.py': 149, 'test_docs_studies.py': 149,
+    'test_docs_bag_tools.py': 142,
+}
+"""The longest modules' time on a worker (pytest --durations summed per module, at a load of 5).
+
+A module stays on one worker (scripts/test.sh), and pytest-xdist hands the modules out in the
+order collected: the longest go first, so that none starts last and keeps one worker busy while
+the other is done. The rest follow in pytest-xdist's own order (most tests first). A figure
+here orders the modules; no test depends on it."""
+
+
 def pytest_collection_modifyitems(config, items):
-    """Mark the tests of :data:`SERIAL_MODULES` ``serial`` (others are marked in their module)."""
+    """Mark the tests of :data:`SERIAL_MODULES` ``serial`` (others are marked in their module).
+
+    On a pytest-xdist worker, order the modules longest first (:data:`MODULE_SECONDS`).
+    """
     for item in items:
         if item.path.name in SERIAL_MODULES:
             item.add_marker(pytest.mark.serial)
+    if os.environ.get('PYTEST_XDIST_WORKER'):
+        tests, first = {}, {}
+        for i, item in enumerate(items):
+            first.setdefault(item.path.name, i)
+            tests[item.path.name] = tests.get(item.path.name, 0) + (
+                item.get_closest_marker('serial') is None)
+        items.sort(key=lambda item: (-MODULE_SECONDS.get(item.path.name, 0),
+                                     -tests[item.path.name], first[item.path.name]))
 
 
 @pytest.fixture(scope='module')

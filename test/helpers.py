@@ -1,15 +1,19 @@
 """What several test modules share.
 
 Running a console main, writing an MCAP file again, holding a closed-loop re-run to its
-recording, and the package's console scripts as setup.py declares them.
+recording, the package's console scripts as setup.py declares them, and checking a doc's examples.
 """
 from __future__ import annotations
 
 import ast
 from dataclasses import asdict
 import json
+import os
 from pathlib import Path
 import re
+import subprocess
+import sys
+import time
 from typing import Callable
 
 import numpy as np
@@ -18,6 +22,129 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[1]
 SWEEP_OUTPUT = REPO / 'docs' / 'contact_sweep.txt'
 """``contact_sweep``'s output, as docs/RESULTS.md quotes it."""
+DOC_EXAMPLE_MODULES = {
+    'test_docs_fingers.py': ('contact_sweep_fingers.txt',),
+    'test_docs_studies.py': ('contact_sweep.txt', 'grip_study.txt'),
+    'test_docs_bag_tools.py': ('BAG_TOOLS.md', 'RESULTS.md', 'STUDIES.md', 'USING.md'),
+    'test_docs_transcripts.py': ('IDENTIFICATION.md', 'results_whatif.md', 'GRIP.md'),
+}
+"""The test module that checks each doc's example outputs (``scripts/doc_examples.py --check``).
+
+Four modules of about the same time (2.5 minutes each at a load of 5), since a module stays on
+one worker (scripts/test.sh): together they are a third of the suite's work."""
+
+
+EXECUTOR_BOUND_S = 60.0
+"""A bound on an executor's thread running a task it was given, never reached unless it hangs."""
+
+
+def in_executor(executor, action: Callable):
+    """Run ``action`` in the thread that spins ``executor``; wait for it and return its value.
+
+    Destroy a node or an entity of one that an executor spins in another thread this way:
+    rclpy's executor (Jazzy, executors.py ``_wait_for_ready_callbacks``) still adds to its wait
+    set an event handler whose destruction another thread requested meanwhile, and the
+    InvalidHandle that raises ends its spinning thread, so that every later callback is lost.
+    """
+    import threading
+    done = threading.Event()
+    task = executor.create_task(action)
+    task.add_done_callback(lambda _: done.set())
+    assert done.wait(EXECUTOR_BOUND_S), 'the executor did not run the task: is it spinning?'
+    return task.result()
+
+
+def wait_for_recording(folder: Path, pattern: str = 'grasp_*',
+                       bound_s: float = EXECUTOR_BOUND_S) -> Path:
+    """Return the bag under ``folder`` matching ``pattern`` once it holds a message.
+
+    A recording process writes its bag a chunk at a time while it records: a test that waits
+    for the first one acts while the recording runs, however long the process took to get there.
+    """
+    from gripper_ros.bags.reader import BagError, read_bag
+    deadline = time.monotonic() + bound_s
+    while True:
+        for bag in sorted(folder.glob(pattern)):
+            try:
+                if read_bag(bag, allow_empty=True).message_count > 0:
+                    return bag
+            except BagError:
+                pass                        # not a bag yet (no file, no header)
+        assert time.monotonic() < deadline, f'no {pattern} under {folder} holds a message ' \
+            f'after {bound_s:g} s'
+        time.sleep(0.05)
+
+
+STALL_QUIET_S = 60.0
+"""How long a process may use no CPU at all before it counts as hung: a machine loaded many
+times over its cores still runs each runnable process several times a second."""
+
+
+def cpu_s(pid: int) -> float | None:
+    """Return the CPU time (user + system, s) process ``pid`` has used; None once it is gone."""
+    try:
+        with open(f'/proc/{pid}/stat') as f:
+            fields = f.read().rsplit(')', 1)[1].split()
+    except (FileNotFoundError, ProcessLookupError):
+        return None
+    return (int(fields[11]) + int(fields[12])) / os.sysconf('SC_CLK_TCK')
+
+
+class ProgressWatch:
+    """Tell a process that is slow from one that is hung, on a machine of any load.
+
+    Wall time alone says nothing on a loaded machine, where a process gets a sliver of a core:
+    a process that has not yet done what it is waited for (started, answered, exited) counts as
+    hung once it has used no CPU for ``quiet_s`` (it waits for something that never comes), or
+    more than ``budget_s`` of CPU since the watch began (it spins).
+    """
+
+    def __init__(self, pids, budget_s: float, quiet_s: float = STALL_QUIET_S):
+        self.budget_s, self.quiet_s = budget_s, quiet_s
+        self._first = {pid: cpu_s(pid) or 0.0 for pid in pids}
+        self._last = dict(self._first)
+        self._moved = dict.fromkeys(self._first, time.monotonic())
+
+    def hung(self, pids=None) -> str:
+        """Return why each of ``pids`` (default: all watched) is hung; '' while one progresses.
+
+        A process that is gone is not waited for: it counts as hung here (the caller reads its
+        exit first).
+        """
+        why = []
+        for pid in self._first if pids is None else pids:
+            used, now = cpu_s(pid), time.monotonic()
+            if used is None:
+                why.append(f'process {pid} is gone')
+                continue
+            if used > self._last[pid]:
+                self._last[pid], self._moved[pid] = used, now
+            if used - self._first[pid] > self.budget_s:
+                why.append(f'process {pid} used {used - self._first[pid]:.0f} s of CPU')
+            elif now - self._moved[pid] > self.quiet_s:
+                why.append(f'process {pid} used no CPU for {self.quiet_s:.0f} s')
+            else:
+                return ''
+        return '; '.join(why)
+
+
+def wait_for_exit(proc, budget_s: float = 60.0) -> int:
+    """Return ``proc``'s exit code once it ends; kill it and fail if it hangs meanwhile.
+
+    Hung as :class:`ProgressWatch` says (no CPU for a minute, or ``budget_s`` of it): a process
+    a loaded machine stops slowly is waited for.
+    """
+    import subprocess
+    watch = ProgressWatch([proc.pid], budget_s)
+    while True:
+        try:
+            return proc.wait(timeout=1.0)
+        except subprocess.TimeoutExpired:
+            hung = watch.hung()
+            if hung:
+                proc.kill()
+                proc.wait()
+                raise AssertionError(f'{proc.args} did not exit: {hung}') from None
 
 
 def console_scripts() -> dict[str, str]:
@@ -257,3 +384,16 @@ def wait_future(future, timeout_s: float = 120.0):
     future.add_done_callback(lambda _f: done.set())
     assert done.wait(timeout_s), 'no answer in time'
     return future.result()
+
+
+def doc_examples(*args: str, timeout_s: float = 3600.0):
+    """Run ``scripts/doc_examples.py ARGS``; return the completed process (output captured)."""
+    return subprocess.run([sys.executable, str(REPO / 'scripts' / 'doc_examples.py'), *args],
+                          stdin=subprocess.DEVNULL, capture_output=True, text=True,
+                          timeout=timeout_s, check=False)
+
+
+def assert_doc_examples_printed(doc: str, scratch: Path) -> None:
+    """Assert that every example output ``doc`` shows is what its command prints now."""
+    done = doc_examples('--check', '--scratch', str(scratch), doc)
+    assert done.returncode == 0, done.stdout[-6000:] + done.stderr[-2000:]

@@ -18,9 +18,10 @@ os.environ.setdefault('ROS_DOMAIN_ID', '79')
 
 from gripper_ros.bags import info as bag_info  # noqa: E402
 from gripper_ros.bags import replay as bag_replay  # noqa: E402
-from gripper_ros.bags.reader import EXIT_TRUNCATED, read_bag  # noqa: E402
+from gripper_ros.bags.reader import EXIT_TRUNCATED, EXIT_UNDELIVERED, read_bag  # noqa: E402
 from gripper_ros.bags.recorder import BagRecorder, BagRecorderError  # noqa: E402
 from gripper_ros.nodes.services import wait_until  # noqa: E402
+from helpers import in_executor, run_main  # noqa: E402
 import pytest  # noqa: E402
 import rclpy  # noqa: E402
 from rclpy.executors import SingleThreadedExecutor  # noqa: E402
@@ -31,6 +32,11 @@ from sensor_msgs.msg import JointState  # noqa: E402
 import yaml  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
+PROCESS_BOUND_S = 120.0
+"""A bound on a replay process and its consumer, never reached unless something hangs."""
+BOUND_S = 60.0
+"""A bound on an event (a match, a message taken): milliseconds on an idle machine, and reached
+only when the event never comes, so that a loaded machine fails no test."""
 JS, CLK = '/gripper/joint_states', '/clock'
 STD_TOPICS = {JS: 'sensor_msgs/msg/JointState', CLK: 'rosgraph_msgs/msg/Clock'}
 GRAPH_QOS = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
@@ -68,9 +74,12 @@ def node_factory(ros):
         nodes.append(node)
         return node
     yield make
-    for node in nodes:
-        executor.remove_node(node)
-        node.destroy_node()
+
+    def destroy():
+        for node in nodes:
+            executor.remove_node(node)
+            node.destroy_node()
+    in_executor(executor, destroy)
 
 
 def joint_state(k: int) -> JointState:
@@ -101,7 +110,8 @@ def record(node_factory, bag_dir: Path, n: int = 150, **kwargs) -> dict:
             SupervisorStatus, '/gripper/supervisor/status', LATCHED_QOS)
     recorder = BagRecorder(rec_node, bag_dir, topics, custom_data={'grasp_request': {
         'width_m': 0.05, 'mass_kg': 0.2}}, **kwargs)
-    assert wait_until(lambda: all(p.get_subscription_count() >= 1 for p in pubs.values()))
+    assert wait_until(lambda: all(p.get_subscription_count() >= 1 for p in pubs.values()),
+                      BOUND_S)
     sent = {t: [] for t in topics}
     for k in range(n):
         msgs = {JS: joint_state(k), CLK: clock(k)}
@@ -113,7 +123,8 @@ def record(node_factory, bag_dir: Path, n: int = 150, **kwargs) -> dict:
         for topic, msg in msgs.items():
             pubs[topic].publish(msg)
             sent[topic].append(msg)
-    assert wait_until(lambda: recorder.message_count == len(topics) * n), recorder.counts
+    assert wait_until(lambda: recorder.message_count == len(topics) * n, BOUND_S), \
+        recorder.counts
     recorder.set_custom_data({'grasp_outcome': {'outcome': 'HOLDING'}})
     return {'recorder': recorder, 'sent': sent, 'topics': topics, 'n': n,
             'publishers': pubs, 'rec_node': rec_node}
@@ -219,10 +230,10 @@ def test_context_manager_keeps_bag_after_exception(node_factory, tmp_path):
     pub = node_factory('cm_pub').create_publisher(JointState, JS, GRAPH_QOS)
     with pytest.raises(RuntimeError, match='boom'):
         with BagRecorder(node, tmp_path / 'cm', {JS: STD_TOPICS[JS]}) as rec:
-            assert wait_until(lambda: pub.get_subscription_count() >= 1)
+            assert wait_until(lambda: pub.get_subscription_count() >= 1, BOUND_S)
             for k in range(10):
                 pub.publish(joint_state(k))
-            assert wait_until(lambda: rec.message_count == 10)
+            assert wait_until(lambda: rec.message_count == 10, BOUND_S)
             raise RuntimeError('boom')
     assert rec.closed
     assert (tmp_path / 'cm' / 'metadata.yaml').is_file()
@@ -238,13 +249,18 @@ def test_sim_time_log_time(node_factory, tmp_path):
     js_pub = pub_node.create_publisher(JointState, JS, GRAPH_QOS)
     rec = BagRecorder(node, tmp_path / 'sim', {JS: STD_TOPICS[JS]})
     assert wait_until(lambda: clock_pub.get_subscription_count() >= 1
-                      and js_pub.get_subscription_count() >= 1)
+                      and js_pub.get_subscription_count() >= 1, BOUND_S)
     msg = Clock()
     msg.clock.sec = 42
-    clock_pub.publish(msg)
-    assert wait_until(lambda: node.get_clock().now().nanoseconds == 42_000_000_000)
+
+    def clock_is_42() -> bool:
+        # again until seen: the time source's best-effort subscription (rclpy time_source.py)
+        # drops a message sent before its side of the match
+        clock_pub.publish(msg)
+        return node.get_clock().now().nanoseconds == 42_000_000_000
+    assert wait_until(clock_is_42, BOUND_S)
     js_pub.publish(joint_state(1))
-    assert wait_until(lambda: rec.message_count == 1)
+    assert wait_until(lambda: rec.message_count == 1, BOUND_S)
     rec.close()
     bag = read_bag(tmp_path / 'sim')
     assert bag.messages[0].log_time_ns == 42_000_000_000
@@ -318,31 +334,207 @@ def test_player_republishes_exactly_in_order(recorded, node_factory, tmp_path):
         rate=20.0, topics=list(topics), remap={JS: '/replayed/js'}, wait_for_subscribers=1))
     assert player.play() == 2 * recorded['n']
     assert wait_until(lambda: len(got['/replayed/js']) == recorded['n']
-                      and len(got[CLK]) == recorded['n'])
+                      and len(got[CLK]) == recorded['n'], BOUND_S)
     assert got['/replayed/js'] == _recorded_bytes(tmp_path / 'run1', JS)     # byte-identical
     assert got[CLK] == _recorded_bytes(tmp_path / 'run1', CLK)
 
 
+def _replay_env() -> dict:
+    return dict(os.environ, PYTHONPATH=os.pathsep.join([str(REPO),
+                                                        os.environ.get('PYTHONPATH', '')]))
+
+
+def _clock_stamps(bag_dir: Path) -> list[int]:
+    """Return the /clock a ``--clock`` replay of the joint states sends: each bag time, once."""
+    return sorted({m.log_time_ns for m in read_bag(bag_dir).messages if m.topic == JS})
+
+
+def _clock_ns(data: list[bytes]) -> list[int]:
+    from rclpy.serialization import deserialize_message
+    clocks = [deserialize_message(b, Clock).clock for b in data]
+    return [c.sec * 1_000_000_000 + c.nanosec for c in clocks]
+
+
 def test_replay_cli_in_subprocess_with_clock(recorded, node_factory, tmp_path):
-    """bag_replay as a program; --clock replaces the recorded /clock with bag time."""
+    """bag_replay as a program; --clock replaces the recorded /clock with bag time.
+
+    It exits once every reliable reader has acknowledged every message, so what it sent is in
+    the listener's history (keep_last 1000, above the burst of 150) when it exits.
+    """
     _, got, _ = _collector(node_factory, 'cli_listener', {JS: JointState, CLK: Clock},
                            qos=GRAPH_QOS)
     proc = subprocess.run(
         [sys.executable, '-m', 'gripper_ros.bags.replay', str(tmp_path / 'run1'), '--rate', '10',
          '--clock', '--wait-for-subscribers', '1', '--topics', JS],
-        capture_output=True, text=True, timeout=30,
-        env=dict(os.environ, PYTHONPATH=os.pathsep.join([str(REPO),
-                                                         os.environ.get('PYTHONPATH', '')])))
+        capture_output=True, text=True, timeout=PROCESS_BOUND_S, env=_replay_env())
     assert proc.returncode == 0, proc.stderr
     assert f"{recorded['n']}/{recorded['n']} msgs" in proc.stderr       # progress line
-    assert wait_until(lambda: len(got[JS]) == recorded['n'])
+    stamps = _clock_stamps(tmp_path / 'run1')
+    assert wait_until(lambda: len(got[JS]) == recorded['n'] and len(got[CLK]) == len(stamps),
+                      BOUND_S), {t: len(v) for t, v in got.items()}
     assert got[JS] == _recorded_bytes(tmp_path / 'run1', JS)
+    assert _clock_ns(got[CLK]) == stamps
+
+
+def test_wait_for_subscribers_waits_for_the_clock_subscriber_too(recorded, node_factory,
+                                                                 tmp_path):
+    """A /clock subscriber that comes last still gets the first /clock: nothing is sent before."""
     bag = read_bag(tmp_path / 'run1')
-    stamps = sorted({m.log_time_ns for m in bag.messages if m.topic == JS})
-    assert wait_until(lambda: len(got[CLK]) == len(stamps))
-    from rclpy.serialization import deserialize_message
-    clocks = [deserialize_message(b, Clock).clock for b in got[CLK]]
-    assert [c.sec * 1_000_000_000 + c.nanosec for c in clocks] == stamps
+    node, got, _ = _collector(node_factory, 'js_first', {JS: JointState})
+    player = bag_replay.BagPlayer(node_factory('clock_player'), bag, bag_replay.ReplayOptions(
+        rate=20.0, topics=[JS], clock=True, wait_for_subscribers=1))
+    waiting = threading.Event()
+    notes = []
+
+    def note(line):
+        notes.append(line)
+        waiting.set()
+    played = threading.Thread(target=player.play, kwargs={'progress': note})
+    played.start()
+    try:
+        assert waiting.wait(PROCESS_BOUND_S), 'no word of what it waits on'
+        assert notes[0] == f'waiting for 1 subscriber(s) on {CLK}' and player.published == 0
+        clocks = []
+        node.create_subscription(Clock, CLK, lambda data: clocks.append(bytes(data)),
+                                 GRAPH_QOS, raw=True)
+    finally:
+        played.join(PROCESS_BOUND_S)
+    assert not played.is_alive() and player.undelivered == {}
+    stamps = _clock_stamps(tmp_path / 'run1')
+    assert wait_until(lambda: len(got[JS]) == recorded['n'] and len(clocks) == len(stamps),
+                      BOUND_S)
+    assert _clock_ns(clocks) == stamps
+
+
+STARVED_CONSUMER = textwrap.dedent("""
+    import pickle, select, sys, rclpy
+    from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
+    from rosgraph_msgs.msg import Clock
+    from sensor_msgs.msg import JointState
+    rclpy.init()
+    node = rclpy.create_node('starved_consumer')
+    got = {'/gripper/joint_states': [], '/clock': []}
+    keep_all = QoSProfile(history=HistoryPolicy.KEEP_ALL, reliability=ReliabilityPolicy.RELIABLE)
+    for topic, cls in (('/gripper/joint_states', JointState), ('/clock', Clock)):
+        node.create_subscription(cls, topic, lambda data, t=topic: got[t].append(bytes(data)),
+                                 keep_all, raw=True)
+    print('READY', flush=True)
+    while not select.select([sys.stdin], [], [], 0)[0]:  # until told the replay has ended
+        rclpy.spin_once(node, timeout_sec=0.05)
+    while True:                      # then take what its history holds, until it holds none
+        before = sum(map(len, got.values()))
+        rclpy.spin_once(node, timeout_sec=0.1)
+        if sum(map(len, got.values())) == before:
+            break
+    with open(sys.argv[1], 'wb') as f:
+        pickle.dump(got, f)
+""")
+
+
+def _starved_replay(bag_dir: Path, tmp_path: Path, argv: list[str], monkeypatch, capsys,
+                    resume: bool):
+    """Run bag_replay into a consumer process that is stopped (SIGSTOP) for the whole burst.
+
+    It is stopped once the replay's publishers have matched it, before the first message;
+    ``resume``: it runs again (SIGCONT) when the replay begins its wait for the
+    acknowledgements, else once the replay has ended. Returns the replay's exit code and
+    stderr, and what the consumer took, per topic.
+    """
+    import pickle
+    out = tmp_path / 'consumer.pickle'
+    consumer = subprocess.Popen([sys.executable, '-c', STARVED_CONSUMER, str(out)],
+                                stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True,
+                                env=_replay_env())
+    matched, confirm = bag_replay.BagPlayer.wait_for_subscribers, bag_replay.confirm
+
+    def match_then_stop(player, *args, **kwargs):
+        done = matched(player, *args, **kwargs)
+        consumer.send_signal(signal.SIGSTOP)
+        return done
+
+    def resume_then_confirm(*args, **kwargs):
+        consumer.send_signal(signal.SIGCONT)
+        return confirm(*args, **kwargs)
+    monkeypatch.setattr(bag_replay.BagPlayer, 'wait_for_subscribers', match_then_stop)
+    if resume:
+        monkeypatch.setattr(bag_replay, 'confirm', resume_then_confirm)
+    try:
+        assert consumer.stdout.readline().strip() == 'READY'
+        code, captured = run_main(bag_replay.main, [
+            str(bag_dir), '--topics', JS, '--clock', '--wait-for-subscribers', '1', '-q',
+            *argv], capsys)
+        consumer.send_signal(signal.SIGCONT)
+        consumer.stdin.write('replay ended\n')
+        consumer.stdin.flush()
+        assert consumer.wait(PROCESS_BOUND_S) == 0
+    finally:
+        consumer.send_signal(signal.SIGCONT)
+        consumer.kill()
+        consumer.wait()
+    with open(out, 'rb') as f:
+        return code, captured.err, pickle.load(f)
+
+
+def test_a_starved_consumer_still_gets_every_message(recorded, tmp_path, monkeypatch, capsys):
+    """A keep_all consumer stopped for the whole burst gets every message once it runs again.
+
+    As rosbag2's player with ``--wait-for-all-acked`` (rosbag2_transport player.cpp: after the
+    last message, ``wait_for_all_acked`` on each publisher): the replay keeps every message a
+    reliable reader has not acknowledged and exits only once all are (here within the default
+    wait).
+    """
+    code, err, got = _starved_replay(tmp_path / 'run1', tmp_path, ['--rate', '5'],
+                                     monkeypatch, capsys, resume=True)
+    assert code == 0, err
+    assert got[JS] == _recorded_bytes(tmp_path / 'run1', JS)
+    assert _clock_ns(got[CLK]) == _clock_stamps(tmp_path / 'run1')
+
+
+def test_a_consumer_starved_past_the_wait_is_counted_in_one_line(recorded, tmp_path,
+                                                                 monkeypatch, capsys):
+    """Stopped past ``--wait-for-all-acked``: exit 4 and one line counting what it lacks.
+
+    The consumer acknowledged nothing, so every message sent is counted, per topic.
+    """
+    n = recorded['n']
+    code, err, got = _starved_replay(tmp_path / 'run1', tmp_path,
+                                     ['--rate', '5', '--wait-for-all-acked', '500'],
+                                     monkeypatch, capsys, resume=False)
+    assert code == EXIT_UNDELIVERED
+    assert err.strip().splitlines() == [
+        f'bag_replay: error: {2 * n} messages may not have been delivered ({n} on {CLK}, '
+        f'{n} on {JS}): not acknowledged by every reliable subscriber within 500 ms']
+
+
+def test_a_loop_waits_before_its_history_drops_what_a_reader_lacks(recorded, node_factory,
+                                                                   tmp_path):
+    """A keep_last writer drops its oldest sample when full, acknowledged or not.
+
+    So a replay looping into a reader that acknowledges nothing stops once a topic's
+    unacknowledged messages fill its history (1000: a pass is 150), waits for the
+    acknowledgements up to ``wait_for_all_acked_ms`` and only then lets the writer drop: the
+    1000 counted, per topic, /clock's too.
+    """
+    consumer = subprocess.Popen([sys.executable, '-c', STARVED_CONSUMER,
+                                 str(tmp_path / 'unused.pickle')],
+                                stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True,
+                                env=_replay_env())
+    stop = threading.Event()
+    player = bag_replay.BagPlayer(node_factory('looping_player'), read_bag(tmp_path / 'run1'),
+                                  bag_replay.ReplayOptions(rate=50.0, loop=True, topics=[JS],
+                                                           clock=True,
+                                                           wait_for_all_acked_ms=300))
+    try:
+        assert consumer.stdout.readline().strip() == 'READY'
+        assert player.wait_for_subscribers(1, BOUND_S)
+        consumer.send_signal(signal.SIGSTOP)
+        player.play(stop, progress=lambda _line: player.undelivered and stop.set())
+    finally:
+        consumer.send_signal(signal.SIGCONT)
+        consumer.kill()
+        consumer.wait()
+    assert player.undelivered == {JS: 1000, CLK: 1000}
+    assert player.published > 1000
 
 
 def test_truncated_recorder_file(recorded, node_factory, tmp_path, capsys):
@@ -367,7 +559,7 @@ def test_truncated_recorder_file(recorded, node_factory, tmp_path, capsys):
         bag_replay.main([str(cut_dir), '--topics', JS, '--rate', '50', '--quiet',
                          '--wait-for-subscribers', '1'])
     assert exc_info.value.code == EXIT_TRUNCATED
-    assert wait_until(lambda: len(got[JS]) == n_js)
+    assert wait_until(lambda: len(got[JS]) == n_js, BOUND_S)
     assert got[JS] == _recorded_bytes(tmp_path / 'run1', JS)[:n_js]
 
 
@@ -425,7 +617,7 @@ def test_messages_left_waiting_are_written_by_the_timer(node_factory, tmp_path):
                       subscribe=False, flush_every_messages=100, flush_every_s=0.1)
     for k in range(7):
         rec.write(JS, serialize_message(joint_state(k)), k)
-    assert wait_until(lambda: rec.readable_count == 7, 5.0)
+    assert wait_until(lambda: rec.readable_count == 7, BOUND_S)
     assert read_bag(tmp_path / 'waiting', allow_empty=True).message_count == 7
     rec.close()
 

@@ -151,7 +151,7 @@ def write_grasp_bag(path: Path, topics=None, n_ticks: int = N_TICKS, custom_data
                 POS_REF if g['source'] == 1 else FORCE_REF: REFERENCE_LAYOUT.pack(
                     t_ns, GRASP_ID, g['stage'], 0, g['phase'], g['outcome'], g['source'],
                     running, k >= K_CONTACT, POS_SP_M, POS_SP_M, FORCE_SP_N, g['pos'], 0.0,
-                    g['force'], 0.0, 0.0, 0.0),
+                    g['force'], 0.0, 0.0, 0.0, 0.0, 0.0),
                 COMMAND: COMMAND_LAYOUT.pack(t_ns, GRASP_ID, g['stage'], 0, g['source'],
                                              g['phase'], g['outcome'], running, True,
                                              _voltage(k + 1), 1e-3, 0.0),
@@ -494,7 +494,8 @@ def test_info_on_bag_without_grasp_topics_is_fine(tmp_path, capsys):
 
 @pytest.mark.parametrize('argv', [
     ['--rate', '0'], ['--rate', 'nan'], ['--start-offset', '-1'], ['--remap', 'nocolon'],
-    ['--remap', '/nope:=/x'], ['--start-offset', '1000'],
+    ['--remap', '/nope:=/x'], ['--start-offset', '1000'], ['--wait-for-all-acked', '-1'],
+    ['--wait-for-all-acked', '100000000000'],
 ])
 def test_replay_bad_options(grasp_bag, argv, capsys):
     code, captured = _run_cli(bag_replay.main, [str(grasp_bag), '--quiet'] + argv, capsys)

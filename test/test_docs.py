@@ -4,20 +4,18 @@ Known answers: setup.py's console scripts, the launch file's ``ARGUMENTS`` (read
 source, so the check needs no ``launch`` package), ``wire.LAUNCHED_NODES`` and the node modules
 of ``gripper_ros.nodes``. A doc that names a program, node or argument the package lacks, or
 leaves out one it has, fails here with both lists. Every example output ``scripts/doc_examples.py``
-regenerates is run again here (``--check``): a shown line that differs from what its command
-prints now fails, named with both, the numbers that vary from run to run (wall times, bag
-names' stamps, the checkout's path) left out.
+regenerates is run again (``--check``, in the modules of ``helpers.DOC_EXAMPLE_MODULES``): a
+shown line that differs from what its command prints now fails, named with both, the numbers
+that vary from run to run (wall times, bag names' stamps, the checkout's path) left out.
 """
 from __future__ import annotations
 
 import ast
 import re
-import subprocess
-import sys
 
 from gripper_ros.nodes import NODE_MODULES
 from gripper_ros.wire import LAUNCHED_NODES
-from helpers import console_scripts, REPO
+from helpers import console_scripts, DOC_EXAMPLE_MODULES, doc_examples, REPO
 import pytest
 
 DOCS = REPO / 'docs'
@@ -102,22 +100,19 @@ def test_using_md_describes_every_node_and_counts_the_launched_ones():
     assert f'The launch file starts {NUMBER_WORDS[len(LAUNCHED_NODES)]} of them' in text
 
 
-def _doc_examples(*args: str, timeout_s: float = 3600.0) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, str(REPO / 'scripts' / 'doc_examples.py'), *args],
-                          stdin=subprocess.DEVNULL, capture_output=True, text=True,
-                          timeout=timeout_s, check=False)
+def test_every_doc_with_examples_is_checked_by_one_module():
+    """Each doc doc_examples.py regenerates (its --list) is checked by one test module.
 
-
-def _regenerated() -> list[str]:
-    """Return the docs doc_examples.py regenerates (its --list), by file name."""
-    listed = _doc_examples('--list').stdout
-    return re.findall(r'^docs/(\S+):', listed, re.MULTILINE)
-
-
-@pytest.mark.parametrize('doc', _regenerated())
-def test_every_shown_example_is_what_its_command_prints(doc, tmp_path):
-    done = _doc_examples('--check', '--scratch', str(tmp_path), doc)
-    assert done.returncode == 0, done.stdout[-6000:] + done.stderr[-2000:]
+    The checks run in :data:`helpers.DOC_EXAMPLE_MODULES`'s modules, so that the suite's two
+    workers share them; a doc added to doc_examples.py and to none of them fails here.
+    """
+    listed = doc_examples('--list').stdout
+    regenerated = re.findall(r'^docs/(\S+):', listed, re.MULTILINE)
+    checked = [doc for docs in DOC_EXAMPLE_MODULES.values() for doc in docs]
+    assert sorted(checked) == sorted(regenerated)
+    for module, docs in DOC_EXAMPLE_MODULES.items():
+        source = (REPO / 'test' / module).read_text()
+        assert 'assert_doc_examples_printed' in source and 'DOC_EXAMPLE_MODULES[' in source, module
 
 
 def test_a_drift_in_a_shown_figure_is_found(tmp_path, monkeypatch):

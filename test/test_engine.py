@@ -56,3 +56,40 @@ def test_a_malformed_scheduler_address_is_refused_in_one_line(address, capsys):
     assert contact_sweep.main(['--quick', '--scheduler', address]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith('contact_sweep: --scheduler')
+
+
+QUIET_CLOSE = """
+import asyncio, functools, operator
+from distributed.deploy.spec import SpecCluster
+from gripper_ros.core.runtime.engine import map_cases
+_close = SpecCluster._close
+
+
+async def scheduler_first(self):        # as a close a loaded machine delays can order it
+    await self.scheduler.close()
+    await asyncio.sleep(3.0)            # the workers still run: their heartbeats find it gone
+    await _close(self)
+
+if __name__ == '__main__':
+    print(sum(map_cases(functools.partial(operator.mul, 2), list(range(40)), jobs=2)))
+    SpecCluster._close = scheduler_first
+"""
+
+
+def test_a_batch_program_ends_with_nothing_from_dask_on_its_stderr(tmp_path):
+    """The local cluster closes at exit without a word, even when its scheduler goes first.
+
+    Its scheduler lives in the program's process; a worker that outlives it (a loaded machine
+    stops them slowly) logs into the program's stderr, where a study's output is (a
+    "Failed to communicate with scheduler during heartbeat" traceback once reached a document).
+    """
+    import os
+    import subprocess
+    import sys
+    script = tmp_path / 'batch_program.py'        # local workers re-import the main script
+    script.write_text(QUIET_CLOSE, encoding='utf-8')
+    done = subprocess.run([sys.executable, str(script)], capture_output=True, text=True,
+                          timeout=600, stdin=subprocess.DEVNULL, env=os.environ.copy())
+    assert done.returncode == 0, done.stderr[-3000:]
+    assert done.stdout == f'{2 * sum(range(40))}\n'
+    assert done.stderr == ''

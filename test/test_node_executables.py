@@ -1,13 +1,14 @@
 """Every node executable's exit code, as a user or a launch file sees it.
 
 ``python -m gripper_ros.nodes.<module>``, each case in a namespace of its own: stopped with
-Ctrl-C (SIGINT) or SIGTERM once it runs (it answers a parameter request), it exits 0 within
-2 s, quietly; given a bad start-up parameter (out of range, of the wrong type, not one of the
-allowed words) it exits 2 with one line on stderr naming the parameter, and no traceback; a
-second one started beside a running one exits 2 with one line naming the taken name. The
-cases run side by side in two module fixtures, the stops and the refusals (a node start costs
-about a second); each test reads its own case's result. The refusals watch no clock, so they
-run beside the other worker's tests; the stops are timed and run alone.
+Ctrl-C (SIGINT) or SIGTERM once it runs (it answers a parameter request), it exits 0, quietly
+(a clean-up that outlasts the node's own stop bound ends it with 1 and its stacks); given a
+bad start-up parameter (out of range, of the wrong type, not one of the allowed words) it
+exits 2 with one line on stderr naming the parameter, and no traceback; a second one started
+beside a running one exits 2 with one line naming the taken name. The cases run side by side
+in two module fixtures, the stops and the refusals (a node start costs about a second); each
+test reads its own case's result. Nothing is timed: a process is waited for while it uses CPU
+(:class:`helpers.ProgressWatch`), however loaded the machine; the stops run alone.
 """
 from __future__ import annotations
 
@@ -24,6 +25,7 @@ from gripper_ros.wire import (NODE_DESCRIPTION, NODE_EXCITATION, NODE_FORCE_CONT
                               NODE_GRASP_ACTION, NODE_MOVE_ACTION, NODE_PLANT,
                               NODE_POSITION_CONTROLLER, NODE_SUPERVISOR,
                               NODE_TRAJECTORY_ACTION)
+from helpers import ProgressWatch
 import pytest
 from rcl_interfaces.srv import GetParameters
 import rclpy
@@ -54,14 +56,14 @@ BAD_PARAMETERS = [   # (node, parameter, value as typed after -p name:=, words i
     (NODE_PLANT, 'time_mod', 'fast', 'unknown parameter "time_mod"; did you mean "time_mode"'),
     (NODE_SUPERVISOR, 'supervisor.bogus_key', '1.0', 'unknown parameter "supervisor.bogus_key"'),
 ]
-RUNNING_TIMEOUT_S = 60.0
-"""How long the start-up may go without any further node answering: some thirty nodes start at
-once, so on a slow machine the last answers come minutes after the first, but keep coming."""
-EXIT_WITHIN_S = 5.0
-"""'At once', with room for a loaded machine: a hung node is waited for 10 s more, then killed."""
+STEP_CPU_S = 60.0
+"""CPU a node process may use for one step (to answer, to refuse, to stop): a start costs a few
+seconds (imports, the compiled core, DDS), so one that needs much more spins. Some thirty start
+at once: on a loaded machine the last answers come minutes after the first, each using CPU."""
 ALARMING = ('Traceback', 'FATAL', 'ERROR', 'Fatal Python error')
 ASK_AGAIN_S = 2.0
-HUNG_AFTER_S = 60.0
+ABORT_BOUND_S = 60.0
+"""A bound on an aborted process writing its stacks, never reached unless SIGABRT is lost."""
 NODES_DIR = Path(__file__).resolve().parents[1] / 'gripper_ros' / 'nodes'
 
 
@@ -87,11 +89,12 @@ def _start(case: Case) -> None:
         env={**os.environ, 'PYTHONFAULTHANDLER': '1'})
 
 
-def _wait_until_running(cases: list[Case]) -> None:
+def _wait_until_running(cases: list[Case]) -> str:
     """Mark each case whose node answers ``get_parameters`` (its executor spins).
 
-    It waits while answers keep coming: until every node answered or exited, or none answered for
-    ``RUNNING_TIMEOUT_S``, however long the whole start takes on this machine.
+    It waits until every node answered or exited, or each that did neither is hung (used no CPU
+    for a minute, or :data:`STEP_CPU_S` of it), however long the whole start takes here.
+    Returns why those it gave up on are hung ('' if none).
     """
     context = Context()
     rclpy.init(context=context)
@@ -103,16 +106,19 @@ def _wait_until_running(cases: list[Case]) -> None:
         clients = {id(c): probe.create_client(
             GetParameters, f'/{c.namespace}/{c.node}/get_parameters') for c in cases}
         futures = {}
-        progress = time.monotonic()
-        while time.monotonic() - progress < RUNNING_TIMEOUT_S and \
-                not all(c.answered for c in cases):
+        watch = ProgressWatch([c.proc.pid for c in cases], STEP_CPU_S)
+        hung = ''
+        while True:
+            waited = [c.proc.pid for c in cases if not c.answered and c.proc.poll() is None]
+            hung = watch.hung(waited) if waited else ''
+            if not waited or hung:
+                break
             for c in cases:
                 if c.answered or c.proc.poll() is not None:
                     continue
                 future, asked = futures.get(id(c), (None, 0.0))
                 if future is not None and future.done():
                     c.answered = future.result() is not None
-                    progress = time.monotonic()
                 elif clients[id(c)].service_is_ready() and (
                         future is None or time.monotonic() - asked > ASK_AGAIN_S):
                     # asked again: a node still starting may drop an answer to a client it has
@@ -124,6 +130,7 @@ def _wait_until_running(cases: list[Case]) -> None:
         probe.destroy_node()
     finally:
         rclpy.try_shutdown(context=context)
+    return hung
 
 
 @pytest.fixture(scope='module')
@@ -153,7 +160,7 @@ def results():
     try:
         for case in cases.values():
             _start(case)
-        _wait_until_running(list(cases.values()))
+        hung = _wait_until_running(list(cases.values()))
         for case in cases.values():
             if case.stop is signal.SIGINT and case.answered:
                 case.twin = Case(case.node, case.namespace, [])
@@ -165,16 +172,17 @@ def results():
         sent = time.monotonic()
         for case in signalled:
             case.proc.send_signal(case.stop)
-        while time.monotonic() - sent < EXIT_WITHIN_S + 10.0 and \
-                any(c.exit_s == float('inf') for c in signalled):
+        watch = ProgressWatch([c.proc.pid for c in signalled], STEP_CPU_S)
+        while any(c.exit_s == float('inf') for c in signalled):
             for case in signalled:
                 if case.exit_s == float('inf') and case.proc.poll() is not None:
                     case.exit_s = time.monotonic() - sent
+            if watch.hung([c.proc.pid for c in signalled if c.exit_s == float('inf')]):
+                break
             time.sleep(0.01)
         for case in cases.values():
             if not case.answered and case.proc.poll() is None:
-                _abort(case, f'never answered, {RUNNING_TIMEOUT_S:.0f} s after the last node '
-                             'that did')        # never ran: its test fails showing where it was
+                _abort(case, f'never answered ({hung})')   # its test shows where it was
             else:
                 _finish(case)
     finally:
@@ -187,11 +195,20 @@ def results():
 
 
 def _finish(case: Case) -> None:
-    """Wait for the case's process; one that hangs is aborted and its test shows every stack."""
-    try:
-        case.stderr = case.proc.communicate(timeout=HUNG_AFTER_S)[1]
-    except subprocess.TimeoutExpired:
-        _abort(case, f'hung for {HUNG_AFTER_S:.0f} s')
+    """Wait for the case's process; one that hangs is aborted and its test shows every stack.
+
+    Hung: it used no CPU for a minute, or :data:`STEP_CPU_S` of it (a start, a refusal, a stop).
+    """
+    watch = ProgressWatch([case.proc.pid], STEP_CPU_S)
+    while True:
+        try:
+            case.stderr = case.proc.communicate(timeout=1.0)[1]
+            break
+        except subprocess.TimeoutExpired:
+            hung = watch.hung()
+            if hung:
+                _abort(case, f'hung ({hung})')
+                break
     case.returncode = case.proc.returncode
 
 
@@ -199,7 +216,7 @@ def _abort(case: Case, why: str) -> None:
     """Abort the case's process: faulthandler prints each thread's stack into its test's text."""
     case.proc.send_signal(signal.SIGABRT)
     try:
-        stacks = case.proc.communicate(timeout=HUNG_AFTER_S)[1]
+        stacks = case.proc.communicate(timeout=ABORT_BOUND_S)[1]
     except subprocess.TimeoutExpired:
         case.proc.kill()
         stacks = case.proc.communicate()[1]
@@ -207,15 +224,19 @@ def _abort(case: Case, why: str) -> None:
     case.returncode = case.proc.returncode
 
 
-@pytest.mark.serial   # exit within EXIT_WITHIN_S of the signal
+@pytest.mark.serial   # the stops run alone, beside no other worker's test
 @pytest.mark.parametrize('node', list(MODULES))
 @pytest.mark.parametrize('label', list(SIGNALS))
 def test_a_running_node_stopped_by_a_signal_exits_0_at_once_and_quietly(results, node, label):
-    """Exit 0 within EXIT_WITHIN_S of the signal; no traceback, nothing at FATAL or ERROR."""
+    """Exit 0, no traceback, nothing at FATAL or ERROR.
+
+    "At once" is the node's own stop bound (gripper_ros.nodes.process): a clean-up that
+    outlasts it ends the process with 1 and every thread's stack, "Timeout" on stderr.
+    """
     case = results[f'{node}-{label}']
     assert case.answered, f'{node} never answered a parameter request: {case.stderr[-2000:]}'
-    assert case.returncode == 0, f'exit {case.returncode}: {case.stderr[-6000:]}'
-    assert case.exit_s <= EXIT_WITHIN_S, (case.exit_s, case.stderr[-2000:])
+    assert case.returncode == 0, f'exit {case.returncode} {case.exit_s:.1f} s after the ' \
+        f'signal: {case.stderr[-6000:]}'
     assert not [w for w in ALARMING if w in case.stderr], case.stderr[-2000:]
 
 
@@ -356,6 +377,8 @@ def test_a_node_refused_half_way_leaves_nothing_in_the_graph():
 
 def test_a_clean_up_that_never_ends_still_exits_with_the_nodes_code():
     """A node whose destruction blocks (as a DDS entity's deletion can) still ends, saying so."""
+    import re
+
     from gripper_ros.nodes.process import CLEAN_UP_LIMIT_S
     code = ('import time\n'
             'from rclpy.node import Node\n'
@@ -373,5 +396,6 @@ def test_a_clean_up_that_never_ends_still_exits_with_the_nodes_code():
     lines = result.stderr.strip().splitlines()
     assert len(lines) == 2 and 'Traceback' not in result.stderr, result.stderr
     assert lines[0].startswith('stuck_node: parameter "executor" must be one of'), lines[0]
-    assert lines[1] == (f'stuck_node: clean-up did not finish within {CLEAN_UP_LIMIT_S:.0f} s '
-                        '(a DDS entity that never finished deleting); exiting with 2'), lines[1]
+    said = re.fullmatch(r'stuck_node: clean-up did not finish within (\d+) s \(a DDS entity '
+                        r'that never finished deleting\); exiting with 2', lines[1])
+    assert said and int(said[1]) >= CLEAN_UP_LIMIT_S, lines[1]     # more on a loaded machine

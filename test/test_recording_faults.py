@@ -23,7 +23,7 @@ from gripper_ros.nodes.recording import recorded_grasp, ServeRecorder
 from gripper_ros.nodes.services import wait_until
 from gripper_ros.wire import (DESCRIPTION_TOPICS, LATCHED_DESCRIPTION_TOPICS, Outcome, qualified,
                               TOPIC_JOINT_STATES, TOPIC_TF)
-from helpers import tf_as_robot_state_publisher
+from helpers import tf_as_robot_state_publisher, wait_for_recording
 import pytest
 
 FULL_AFTER_BYTES = 100_000         # a few chunks into the first grasp's bag (about 20 kB each)
@@ -223,11 +223,11 @@ def test_a_second_signal_while_closing_leaves_a_complete_bag_and_no_traceback(tm
     for line in proc.stdout:
         if 'grasping width' in line:
             break
-    time.sleep(1.0)                         # well inside the grasp
+    wait_for_recording(tmp_path)            # recording: the grasp takes 3.8 s, paced
     proc.send_signal(signal.SIGINT)
     time.sleep(0.05)                        # while the bag is being closed
     proc.send_signal(signal.SIGINT)
-    out, _ = proc.communicate(timeout=30)
+    out, _ = proc.communicate(timeout=120)   # beyond its own stop bound
     assert proc.returncode == 130, out
     assert 'Traceback' not in out
     bags = sorted(tmp_path.glob('grasp_*'))

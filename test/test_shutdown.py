@@ -2,15 +2,15 @@
 
 Three ways to run it: ``grasp_demo --serve`` (the graph in one process, recording bags),
 ``gripper_graph`` (the graph in one process, as the launch file starts it by default) and one
-process per node, started with the arguments ``launch_ros`` gives them (``--ros-args -r
-__ns:=/NS --params-file FILE``). Each process must be gone within ``EXIT_WITHIN_S`` of the
-signal, exit 0, print no traceback and nothing at FATAL or ERROR, and leave every bag it
-wrote closed (metadata.yaml written, nothing truncated). A second signal while closing, and
-a SIGINT that arrives at a process started with SIGINT ignored (a script's background job),
-are covered too. Each scenario runs ``REPEATS`` times; run the module in a loop for more.
-And a stop that cannot finish: a node whose destruction blocks in C with the GIL held (as
-rclpy's ``destroy_when_not_in_use`` was seen to spin) still ends each of them within its bound;
-those cases run side by side, and beside the other worker's tests (their bound is far off).
+process per node, started with the arguments ``launch_ros`` gives them (``--ros-args -r __ns:=/NS
+--params-file FILE``). Each process must exit 0 (within its own stop bound, past which it ends with
+1: ``gripper_ros.nodes.process``), print no traceback and nothing at FATAL or ERROR, and leave
+every bag it wrote closed (metadata.yaml written, nothing truncated). A second signal while
+closing, and a SIGINT that arrives at a process started with SIGINT ignored (a script's background
+job), are covered too. Each scenario runs ``REPEATS`` times; run the module in a loop for more. And
+a stop that cannot finish: a node whose destruction blocks in C with the GIL held (as rclpy's
+``destroy_when_not_in_use`` was seen to spin) still ends each of them within its bound; those cases
+run side by side, and beside the other worker's tests (their bound is far off).
 """
 from __future__ import annotations
 
@@ -26,10 +26,12 @@ from gripper_interfaces.srv import Grasp, SetObject
 from gripper_ros.nodes import LAUNCHED_MODULES
 from gripper_ros.wire import (GRAPH_NOT_READY, NODE_PLANT, Outcome, SERVICE_GRASP,
                               SERVICE_SET_OBJECT)
+from helpers import ProgressWatch
 import pytest
 
-EXIT_WITHIN_S = 5.0
-"""'At once', with room for a loaded machine: a hung process is waited for 10 s more."""
+STOP_CPU_S = 60.0
+"""CPU a stopping process may use before it counts as hung (a stop costs well under a second;
+its bags' last chunks and index a few more); one that uses none for a minute is hung too."""
 START_TIMEOUT_S = 90.0
 REPEATS = 1
 MODULES = LAUNCHED_MODULES
@@ -111,7 +113,9 @@ def _stop(procs: dict[str, subprocess.Popen], sig: signal.Signals | dict[str, si
             if proc.poll() is None:
                 proc.send_signal(sigs[name])
     ended = {}
-    while len(ended) < len(procs) and time.monotonic() - sent < EXIT_WITHIN_S + 10.0:
+    watch = ProgressWatch([proc.pid for proc in procs.values()], STOP_CPU_S)
+    while len(ended) < len(procs) and \
+            not watch.hung([p.pid for n, p in procs.items() if n not in ended]):
         for name, proc in procs.items():
             if name not in ended and proc.poll() is not None:
                 ended[name] = time.monotonic() - sent
@@ -128,8 +132,8 @@ def _stop(procs: dict[str, subprocess.Popen], sig: signal.Signals | dict[str, si
 
 def _assert_clean(stopped: list[Stopped]) -> None:
     for s in stopped:
-        assert s.returncode == 0 and s.exit_s <= EXIT_WITHIN_S, \
-            f'{s.name}: exit {s.returncode} after {s.exit_s:.2f} s\n{s.output}'
+        assert s.returncode == 0, f'{s.name}: exit {s.returncode} after {s.exit_s:.2f} s\n' \
+            f'{s.output}'
         alarming = [w for w in ALARMING if w in s.output]
         assert not alarming, f'{s.name}: {alarming}\n{s.output}'
 
@@ -187,7 +191,7 @@ def _per_node(tmp_path: Path, sig: signal.Signals, tag: str) -> None:
 SIGNALS = {'sigint': signal.SIGINT, 'sigterm': signal.SIGTERM}
 
 
-@pytest.mark.serial   # exit within EXIT_WITHIN_S of the signal
+@pytest.mark.serial   # stops run alone: each process is held to its own stop bound
 @pytest.mark.parametrize('repeat', range(REPEATS))
 @pytest.mark.parametrize('holding', [False, True], ids=['idle', 'holding'])
 @pytest.mark.parametrize('sig', SIGNALS.values(), ids=SIGNALS.keys())
@@ -195,20 +199,20 @@ def test_grasp_demo_serve_stops_at_once_and_closes_its_bags(tmp_path, sig, holdi
     _one_process(tmp_path, sig, holding, f'{sig.name.lower()}_{int(holding)}_{repeat}')
 
 
-@pytest.mark.serial   # exit within EXIT_WITHIN_S of the signal
+@pytest.mark.serial   # stops run alone: each process is held to its own stop bound
 @pytest.mark.parametrize('sig', SIGNALS.values(), ids=SIGNALS.keys())
 def test_one_process_per_node_stops_at_once_while_holding(tmp_path, sig):
     """Idle, each node alone: test_node_executables (the same bound, every node, both signals)."""
     _per_node(tmp_path, sig, sig.name.lower())
 
 
-@pytest.mark.serial   # exit within EXIT_WITHIN_S of the signal
+@pytest.mark.serial   # stops run alone: each process is held to its own stop bound
 def test_a_background_job_with_sigint_ignored_still_stops_on_sigint(tmp_path):
     """A script's ``grasp_demo --serve &`` starts with SIGINT ignored; SIGINT still stops it."""
     _one_process(tmp_path, signal.SIGINT, False, 'background', ignore_sigint=True)
 
 
-@pytest.mark.serial   # exit within EXIT_WITHIN_S of the signal
+@pytest.mark.serial   # stops run alone: each process is held to its own stop bound
 def test_a_second_signal_while_closing_changes_nothing(tmp_path):
     """GNU ``timeout`` or Ctrl-C twice: the second signal neither aborts nor cuts a bag short."""
     namespace, output = 'shut_twice', tmp_path / 'twice'
@@ -234,7 +238,7 @@ def _wait_for_line(proc: subprocess.Popen, word: str) -> None:
     assert proc.poll() is None, proc.stdout.read()
 
 
-@pytest.mark.serial   # exit within EXIT_WITHIN_S of the signal
+@pytest.mark.serial   # stops run alone: each process is held to its own stop bound
 @pytest.mark.parametrize('sig', SIGNALS.values(), ids=SIGNALS.keys())
 def test_gripper_graph_stops_at_once_while_holding(sig):
     namespace = f'shut_graph_{sig.name.lower()}'
@@ -313,13 +317,18 @@ def test_a_destroy_that_holds_the_gil_still_ends_the_process(gil_held_stops, sig
 
     The C watchdog (``process.arm_hard_bound``) ends the process anyway: exit 1, after
     ``Timeout`` and every thread's stack (the stuck ``destroy_node`` among them) on stderr.
-    The bound is a few seconds; the check allows far more, well short of the 600 s block.
+    The bound is a few seconds (more on a loaded machine: ``process.load_bound_s``); the check
+    allows far more, well short of the 600 s block.
     """
+    import re
+
     from gripper_ros.nodes.process import CLEAN_UP_LIMIT_S, GIL_HELD_MARGIN_S
     stopped = gil_held_stops[how, sig.name]
     bound_s = CLEAN_UP_LIMIT_S + GIL_HELD_MARGIN_S
     assert stopped.returncode == 1, f'exit {stopped.returncode}\n{stopped.output}'
-    assert f'Timeout (0:00:{bound_s:02.0f})!' in stopped.output, stopped.output
+    said = re.search(r'Timeout \((\d+):(\d\d):(\d\d)(\.\d+)?\)!', stopped.output)
+    assert said and 3600 * int(said[1]) + 60 * int(said[2]) + int(said[3]) >= int(bound_s), \
+        stopped.output
     assert 'in stuck' in stopped.output, stopped.output
     assert stopped.exit_s < GIL_HELD_FOR_S / 10, stopped.exit_s
 

@@ -7,12 +7,15 @@ into the state interfaces, the controller updates the command interfaces, and ``
 the command interfaces (position, velocity, effort, in that order of fields) on ``joint_commands``
 with QoS depth 1 unless they differ from the states by at most ``trigger_joint_command_threshold``
 (1e-5) in sum; a NaN command (a command interface before any controller set it) differs, so it is
-published. The updates are clocked on the ``joint_states`` stamps (simulated time), so that nothing
-depends on the machine's speed.
+published. Its header is stamped with the node's clock, ``now()``. The updates are clocked on the
+``joint_states`` stamps (simulated time: a controller manager on the gripper's ``/clock``, as
+``use_sim_time`` gives), so that nothing depends on the machine's speed, and so are the stamps.
 
 The graph is ``grasp_demo --serve``'s (realtime). The controllers are emulated from
 ros-controls/ros2_controllers: forward_command_controller, joint_trajectory_controller's linear
-interpolation of a position-only trajectory, parallel_gripper_action_controller's goal handling.
+interpolation of a position-only trajectory and its sampling of a smooth one at each update
+(trapezoids, sines, splines of ``studies/servo_runs.py``), parallel_gripper_action_controller's
+goal handling.
 The plant is the paper's (J_m 0.0043 kg m^2 at the motor): its mechanical time constant of
 1.13 s and free speed of 0.069 m/s at 24 V bound how fast any finger can turn or catch up a
 ramp; the bounds below are computed from them.
@@ -28,8 +31,11 @@ from gripper_ros.core.config import load_config
 from gripper_ros.nodes.graph import GraphOptions, GripperGraph
 from gripper_ros.nodes.qos import GRAPH_QOS, LATCHED_QOS
 from gripper_ros.nodes.services import wait_until
+from gripper_ros.nodes.stamps import ns_to_time
+from gripper_ros.studies.servo_runs import needed_peak_v, Sine, Spline, Trapezoid
 from gripper_ros.wire import (FINGER_JOINT, qualified, TimeMode, TOPIC_GRIPPER_STATUS,
                               TOPIC_JOINT_COMMANDS, TOPIC_JOINT_STATES, TOPIC_STATUS)
+import numpy as np
 import pytest
 from rclpy.qos import qos_profile_sensor_data, QoSProfile
 from sensor_msgs.msg import JointState
@@ -96,6 +102,7 @@ class TopicSystem:
         if diff <= THRESHOLD:
             return
         msg = JointState(name=[FINGER_JOINT])
+        msg.header.stamp = ns_to_time(t_ns)          # now(), on the simulated clock
         for name in self.interfaces:
             getattr(msg, name).append(self.command[name])
         self.pub.publish(msg)
@@ -164,6 +171,34 @@ class TrajectoryController:
     def reference(self, t_ns: int) -> float:
         """Return the position the trajectory asks for at ``t_ns`` (after it started)."""
         return self.update(t_ns, {'position': NAN})['position']
+
+
+class TrajectorySampler:
+    """joint_trajectory_controller following a smooth trajectory, sampled at each update.
+
+    From the update after it came, its position at each update (trajectory.cpp's sample at the
+    update's time); its end held after it.
+    """
+
+    def __init__(self):
+        self.hold_m: float | None = None
+        self.trajectory = None
+        self.start_ns: int | None = None
+
+    def send(self, trajectory) -> None:
+        self.trajectory, self.start_ns = trajectory, None
+
+    def update(self, t_ns: int, state: dict) -> dict:
+        if self.hold_m is None:
+            self.hold_m = state['position']
+        if self.trajectory is None:
+            return {'position': self.hold_m}
+        if self.start_ns is None:
+            self.start_ns = t_ns
+        return {'position': self.reference(t_ns)}
+
+    def reference(self, t_ns: int) -> float:
+        return float(self.trajectory.at((t_ns - self.start_ns) * 1e-9)[0])
 
 
 class ParallelGripperAction:
@@ -384,6 +419,57 @@ def test_joint_trajectory_controller_ramp_is_one_move_that_follows_each_update(g
             end_m, abs=CONFIG.supervisor.move_tolerance_m)
     finally:
         graph.client_node.destroy_subscription(status_sub)
+        system.close(graph)
+
+
+STREAMS = {
+    'trapezoid': Trapezoid(0.01, 0.14, 0.036, 0.015),
+    'sine': Sine(0.075, 0.06, 9.0),
+    'spline': Spline(((0.0, 0.02), (4.0, 0.08), (6.0, 0.07), (10.0, 0.135), (14.0, 0.02))),
+}
+
+
+@pytest.mark.parametrize('name', sorted(STREAMS))
+def test_joint_trajectory_controller_streams_within_80_percent_of_24_v_are_tracked_within_1_mm(
+        graph, name):
+    """Track a trapezoid, a sine and a spline across the travel within 1 mm, as one move.
+
+    Each needs at most 80 % of the voltage limit at any instant (its feed-forward's peak,
+    ``k_v v + k_a a``). joint_trajectory_controller (trajectory.cpp) samples it at each 100 Hz
+    update and JointStateTopicSystem publishes the positions alone, stamped; the finger, moved
+    to its start first, is held to the trajectory at every joint_states sample. One move
+    follows it until its last moments: the hardware falls silent once the finger is within
+    its threshold of the slowing command, the move ends MOVED at rest there, and the
+    hardware's next command is a new move.
+    """
+    trajectory = STREAMS[name]
+    needed_v = needed_peak_v(CONFIG, trajectory)
+    assert needed_v <= 0.8 * P.voltage_limit_v
+    _reset(graph)
+    moved = graph.move(TRAVEL_M - trajectory.start_m, 0.05)
+    assert moved.reached_goal, moved.message
+    supervisor = graph.supervisor
+    controller = TrajectorySampler()
+    system = TopicSystem(graph, controller)
+    try:
+        system.wait_for(max(system.t_ns, 0) + 5 * UPDATE_NS)
+        controller.send(trajectory)
+        assert wait_until(lambda: controller.start_ns is not None, WAIT_S)
+        start_ns = controller.start_ns
+        system.wait_for(start_ns + round(0.05e9))
+        first_id = supervisor.logic.grasp_id
+        last_moments_s = CONFIG.supervisor.servo_rate_window_s + 0.1
+        system.wait_for(start_ns + round((trajectory.duration_s - last_moments_s) * 1e9))
+        assert supervisor.logic.grasp_id == first_id        # one move for the stream
+        system.wait_for(start_ns + round(trajectory.duration_s * 1e9))
+        errors = np.array([controller.reference(t) - p for t, p, _, _ in system.series(start_ns)
+                           if t - start_ns <= trajectory.duration_s * 1e9])
+        worst = np.max(np.abs(errors))
+        print(f'{trajectory.name}: needs {needed_v:.2f} V of {P.voltage_limit_v:g} V, '
+              f'{errors.size} joint_states samples, worst error {worst * 1e3:.3f} mm')
+        assert errors.size >= 0.5 * trajectory.duration_s * 100
+        assert worst <= 1e-3
+    finally:
         system.close(graph)
 
 

@@ -42,15 +42,18 @@ echo '## bag_analyze'
 run bag_analyze "$B1" "$B2" "$B3" --plot analysis.png
 run "bag_analyze $B2 --json | head -8"
 run "bag_analyze $B2 --csv | cut -c1-100"
-echo '## bag_replay (publish), each with a listener started first'
+echo '## bag_replay (publish), each with a listener told to stop once the replay has ended'
 for args in '--rate 1 -q' '--rate 5 -q'; do
-  python3 "$HERE/replay_listener.py" 120 > listener.txt & sleep 2
+  python3 "$HERE/replay_listener.py" > listener.txt & listener=$!
   run bag_replay "$B2" --topics /gripper/joint_states $args --wait-for-subscribers 1
-  wait; cat listener.txt
+  kill -INT "$listener"; wait; cat listener.txt
 done
-python3 "$HERE/replay_listener.py" 120 > listener.txt & sleep 2
+python3 "$HERE/replay_listener.py" > listener.txt & listener=$!
 run "bag_replay $B2 --topics /gripper/joint_states --clock --rate 5 --wait-for-subscribers 1 2>&1 | tr '\r' '\n' | sed 's/\x1b\[K//' | tail -2"
-wait; cat listener.txt
+kill -INT "$listener"; wait; cat listener.txt
+python3 "$HERE/replay_listener.py" --stop-at-first > listener.txt & listener=$!
+run bag_replay "$B2" --topics /gripper/joint_states --rate 5 -q --wait-for-subscribers 1 --wait-for-all-acked 1000
+kill -CONT "$listener"; kill -INT "$listener"; wait; cat listener.txt
 echo '## --resimulate'
 for b in "$B1" "$B2" "$B3"; do run bag_replay "$b" --resimulate; done
 run bag_replay "$B2" --resimulate impact_0.9.yaml

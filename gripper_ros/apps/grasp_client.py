@@ -35,7 +35,7 @@ import os
 import sys
 
 from gripper_ros.nodes.process import StopSignals
-from gripper_ros.nodes.services import call_spinning, spin_until_done
+from gripper_ros.nodes.services import call_spinning, call_until_answered, spin_until_done
 from gripper_ros.wire import (ACTION_GRASP, check_namespace, DEFAULT_NAMESPACE, Outcome, Phase,
                               SERVICE_GRASP, SERVICE_RELEASE, SERVICE_SET_OBJECT)
 
@@ -194,11 +194,12 @@ def _run(rclpy, args, namespace: str, signals: StopSignals) -> int:
             width = args.width if args.object_width is None else args.object_width
             request = SetObject.Request(width_m=width, stiffness_n_per_m=args.stiffness,
                                         open_fingers=True, **set_object_fields(args))
-            placed = call_spinning(node, place, request, args.call_timeout, signals)
+            placed = call_until_answered(node, place, request, args.call_timeout, signals)
             if placed is not None and not placed.success and 'is held' in placed.message:
                 print('grasp_client: an object is held: releasing it first', flush=True)
                 if _release(node, args, signals) == 0:
-                    placed = call_spinning(node, place, request, args.call_timeout, signals)
+                    placed = call_until_answered(node, place, request, args.call_timeout,
+                                                 signals)
             if placed is None:
                 print('grasp_client: set_object did not answer', file=sys.stderr)
                 return 2

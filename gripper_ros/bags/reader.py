@@ -28,6 +28,8 @@ EXIT_ERROR = 1
 """CLI exit code: bad input, nothing done."""
 EXIT_TRUNCATED = 3
 """CLI exit code: done, but the bag was damaged (only the complete messages were used)."""
+EXIT_UNDELIVERED = 4
+"""CLI exit code: published, but not every message was acknowledged by every reliable reader."""
 EXIT_CLOSED_PIPE = 128 + signal.SIGPIPE
 """CLI exit code: the reader of the output stopped early (``| head``), as a shell reports it."""
 

@@ -33,7 +33,6 @@ from gripper_ros.bags.mcap_file import McapFile
 from gripper_ros.bags.reader import BagError, CUSTOM_DATA_RECORD, read_bag
 from gripper_ros.bags.schema import import_message_class, message_definition, type_hash_from_share
 from gripper_ros.bags.series import GRASP_TOPICS
-from gripper_ros.wire import GRAPH_QOS_DEPTH
 from mcap.writer import CompressionType
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
@@ -146,7 +145,7 @@ class BagRecorder:
     """
 
     def __init__(self, node: Node, bag_dir: str | os.PathLike,
-                 topics: Mapping[str, str] | None = None, *, qos_depth: int = GRAPH_QOS_DEPTH,
+                 topics: Mapping[str, str] | None = None, *,
                  time_source: Callable[[], int] | None = None,
                  flush_every_messages: int = CHUNK_MESSAGES, flush_every_s: float = 0.5,
                  custom_data: Mapping[str, Any] | None = None, overwrite: bool = False,
@@ -201,11 +200,15 @@ class BagRecorder:
         if custom_data:
             self.set_custom_data(custom_data)
 
-        qos = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=int(qos_depth),
-                         reliability=ReliabilityPolicy.RELIABLE,
+        # keep_all: a message the executor has not taken yet waits in the subscription's history
+        # (acknowledged there) however long the executor is starved; keep_last would drop the
+        # oldest, acknowledged, which no publisher could tell. rosbag2's recorder keeps 10.
+        qos = QoSProfile(history=HistoryPolicy.KEEP_ALL, reliability=ReliabilityPolicy.RELIABLE,
                          durability=DurabilityPolicy.VOLATILE)
         # subscribe=False: the caller owns long-lived subscriptions and calls write(). A volatile
-        # reader created just before a grasp can drop the first sample an idle writer sends it.
+        # reader created just before a grasp can drop the first sample an idle writer sends it:
+        # a caller publishing into a new recorder first waits for the match
+        # (Publisher.get_subscription_count()), as with ros2 bag record.
         self._subscriptions = [
             node.create_subscription(classes[topic], topic,
                                      functools.partial(self._on_message, topic), qos, raw=True)
@@ -316,11 +319,7 @@ class BagRecorder:
                 return
             self._closed = True
         atexit.unregister(self.close)
-        for sub in self._subscriptions:
-            try:
-                self._node.destroy_subscription(sub)
-            except Exception:  # noqa: BLE001 - node already destroyed / context shut down
-                pass
+        self._destroy_subscriptions()
         self._stop.set()
         if self._thread is not threading.current_thread():
             self._thread.join()
@@ -360,6 +359,35 @@ class BagRecorder:
         return False
 
     # --- internals ----------------------------------------------------------------------------
+
+    def _destroy_subscriptions(self) -> None:
+        """Destroy this recorder's subscriptions in the thread that spins its node, if any.
+
+        rclpy's executor (Jazzy, executors.py ``_wait_for_ready_callbacks``) still adds to its
+        wait set an event handler whose destruction another thread requested meanwhile, and
+        the InvalidHandle that raises ends its spinning thread: every node it spins then goes
+        deaf. In the executor's own thread nothing races; a message taken after close() is
+        ignored.
+        """
+        subscriptions, self._subscriptions = self._subscriptions, []
+        if not subscriptions:
+            return
+        node = self._node
+
+        def destroy() -> None:
+            for sub in subscriptions:
+                try:
+                    node.destroy_subscription(sub)
+                except Exception:  # noqa: BLE001 - node already destroyed / context shut down
+                    pass
+        executor = getattr(node, 'executor', None)
+        try:
+            if executor is not None:
+                executor.create_task(destroy)
+                return
+        except Exception:  # noqa: BLE001 - an executor already shut down: nothing spins
+            pass
+        destroy()
 
     def _on_message(self, topic: str, data: bytes, info: Any = None) -> None:
         """Queue a message of one of this recorder's own subscriptions."""

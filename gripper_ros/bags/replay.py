@@ -3,6 +3,12 @@
 Messages go out as recorded bytes (``Publisher.publish(bytes)``), paced by their recorded
 ``log_time`` (simulated time in our bags) divided by ``--rate``. ``--clock`` publishes /clock
 from the bag's time so nodes with ``use_sim_time`` follow the replay.
+
+It delivers or says so: every publisher (/clock too) waits for its subscribers
+(``--wait-for-subscribers``), keeps every message no reliable reader has acknowledged yet, and
+at the end waits until every reliable reader has acknowledged everything
+(``--wait-for-all-acked``, rosbag2's option); what was not acknowledged is counted in one line
+(exit :data:`~gripper_ros.bags.reader.EXIT_UNDELIVERED`).
 """
 from __future__ import annotations
 
@@ -19,6 +25,7 @@ from gripper_ros.bags.reader import (
     BagError,
     EXIT_ERROR,
     EXIT_TRUNCATED,
+    EXIT_UNDELIVERED,
     MissingTopicsError,
     quiet_on_closed_pipe,
     RawMessage,
@@ -32,6 +39,15 @@ from gripper_ros.wire import GRAPH_QOS_DEPTH, TOPIC_CLOCK
 
 PROG = 'bag_replay'
 _PROGRESS_PERIOD_S = 0.1
+ACK_TIMEOUT_MS = 30_000
+"""``--wait-for-all-acked`` when not given: a reliable reader acknowledges at the writer's next
+heartbeat (Fast DDS: every 3 s) once its process runs; a starved one gets ten of them."""
+_ACK_PROBE_PERIOD_S = 0.1
+"""How often a replay asks its publishers whether everything so far is acknowledged."""
+_ACK_SLICE_S = 0.1
+"""A wait for acknowledgements is cut into slices this long, so that a stop is seen between."""
+_WAIT_NOTE_S = 1.0
+"""--wait-for-subscribers: after this long unmatched it says which topics it waits on."""
 
 
 @dataclass
@@ -47,7 +63,8 @@ class ReplayOptions:
     clock_hz: float = 0.0                          # 0: publish /clock at each new bag time only
     delay_s: float = 0.0
     wait_for_subscribers: int = 0
-    wait_timeout_s: float = 5.0
+    wait_timeout_s: float | None = None            # None: until matched (or stopped)
+    wait_for_all_acked_ms: int = ACK_TIMEOUT_MS    # as rosbag2's: 0 forever, negative no wait
     progress: bool = True
 
 
@@ -57,6 +74,8 @@ MAX_OFFSET_S = 2 ** 63 * 1e-9
 """--start-offset: a bag's stamps are int64 nanoseconds, so no bag is longer."""
 MAX_DELAY_S = 86400.0
 """--delay: at most a day."""
+MAX_ACK_TIMEOUT_MS = 86_400_000
+"""--wait-for-all-acked: at most a day (0 waits for ever)."""
 
 
 def parse_remap(items: Sequence[str]) -> dict[str, str]:
@@ -103,8 +122,13 @@ def select_messages(bag: Bag, options: ReplayOptions) -> list[RawMessage]:
     return selected
 
 
-def _qos_for(bag: Bag, topic: str):
-    """Offer the recorded publishers' reliability/durability (depth from the bag, or 1000)."""
+def _qos_for(bag: Bag, topic: str, count: int = 0):
+    """Offer the recorded publishers' reliability/durability, keeping at least ``count``.
+
+    The depth is the recorded one, at least :data:`GRAPH_QOS_DEPTH` and ``count`` (the
+    topic's messages in one pass): a reliable keep_last writer drops its oldest sample when
+    its history is full, acknowledged or not, so the history holds a whole pass.
+    """
     from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
     profiles = bag.topics[topic].offered_qos_profiles or [{}]
     first = profiles[0] if isinstance(profiles[0], dict) else {}
@@ -113,12 +137,90 @@ def _qos_for(bag: Bag, topic: str):
     durability = (DurabilityPolicy.TRANSIENT_LOCAL if first.get('durability') == 'transient_local'
                   else DurabilityPolicy.VOLATILE)
     depth = int(first.get('depth') or 0) or GRAPH_QOS_DEPTH
-    return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=max(depth, GRAPH_QOS_DEPTH),
+    return QoSProfile(history=HistoryPolicy.KEEP_LAST,
+                      depth=max(depth, GRAPH_QOS_DEPTH, count),
                       reliability=reliability, durability=durability)
 
 
+def clock_qos(count: int = 0):
+    """/clock as the graph's plant publishes it (reliable, volatile), keeping ``count``."""
+    from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+    return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=max(GRAPH_QOS_DEPTH, count),
+                      reliability=ReliabilityPolicy.RELIABLE,
+                      durability=DurabilityPolicy.VOLATILE)
+
+
+class Delivery:
+    """One publisher of a replay: what it sent that no reliable reader has confirmed yet.
+
+    ``unconfirmed`` counts the messages published since the publisher last reported every one
+    acknowledged by every reliable reader (``Publisher.wait_for_all_acked``): an upper bound on
+    those a reader may still lack. ``undelivered`` counts those given up on.
+    """
+
+    def __init__(self, topic: str, publisher, depth: int):
+        self.topic, self.publisher, self.depth = topic, publisher, depth
+        self.unconfirmed = 0
+        self.undelivered = 0
+
+    def publish(self, data) -> None:
+        self.publisher.publish(data)
+        self.unconfirmed += 1
+
+    def confirmed(self, timeout_s: float = 0.0) -> bool:
+        """Whether every reliable reader acknowledged all, waiting up to ``timeout_s``."""
+        if self.unconfirmed == 0:
+            return True
+        from rclpy.duration import Duration
+        try:
+            done = self.publisher.wait_for_all_acked(Duration(nanoseconds=int(timeout_s * 1e9)))
+        except Exception:  # noqa: BLE001 - a context already shut down confirms nothing
+            return False
+        if done:
+            self.unconfirmed = 0
+        return done
+
+    def give_up(self) -> None:
+        self.undelivered += self.unconfirmed
+        self.unconfirmed = 0
+
+
+def confirm(deliveries: Sequence[Delivery], timeout_ms: int,
+            stop: threading.Event | None = None) -> list[Delivery]:
+    """Wait until every reliable reader has acknowledged everything; return those unconfirmed.
+
+    ``timeout_ms`` as rosbag2's ``--wait-for-all-acked``: 0 waits for ever, a negative value not
+    at all. The wait is shared by all publishers and ends early when ``stop`` is set.
+    """
+    pending = [d for d in deliveries if not d.confirmed()]
+    if timeout_ms < 0:
+        return pending
+    deadline = math.inf if timeout_ms == 0 else time.monotonic() + timeout_ms * 1e-3
+    while pending and not (stop is not None and stop.is_set()):
+        left = deadline - time.monotonic()
+        if left <= 0:
+            break
+        pending = [d for d in pending if not d.confirmed(min(_ACK_SLICE_S, left))]
+    return pending
+
+
+def undelivered_line(counts: dict[str, int], timeout_ms: int) -> str:
+    """Say in one line how many messages on which topics may not have been delivered."""
+    within = f'within {timeout_ms} ms' if timeout_ms > 0 else \
+        'before the stop' if timeout_ms == 0 else 'at the end (no wait asked)'
+    topics = ', '.join(f'{n} on {t}' for t, n in sorted(counts.items()))
+    return (f'{sum(counts.values())} messages may not have been delivered ({topics}): not '
+            f'acknowledged by every reliable subscriber {within}')
+
+
 class BagPlayer:
-    """Publishes a bag's messages on a caller's node with recorded timing."""
+    """Publishes a bag's messages on a caller's node with recorded timing, and delivers them.
+
+    Every publisher keeps what its reliable readers have not acknowledged: a pass of the bag in
+    its history, and before it would drop an unacknowledged message (a second pass, a reader
+    far behind) it waits for the acknowledgements (``wait_for_all_acked_ms``), as a keep_all
+    writer does. :attr:`undelivered` counts, per topic, what was not acknowledged in time.
+    """
 
     def __init__(self, node, bag: Bag, options: ReplayOptions | None = None):
         self._node = node
@@ -128,50 +230,109 @@ class BagPlayer:
             raise ValueError('rate must be a positive number')
         self._messages = select_messages(bag, self._options)
         classes = resolve_classes(bag, {m.topic for m in self._messages})
-        self._publishers = {
-            topic: node.create_publisher(cls, self._options.remap.get(topic, topic),
-                                         _qos_for(bag, topic))
-            for topic, cls in classes.items()}
-        self._clock_pub = None
+        per_topic = dict.fromkeys(classes, 0)
+        for m in self._messages:
+            per_topic[m.topic] += 1
+        self._deliveries: dict[str, Delivery] = {}
+        for topic, cls in classes.items():
+            qos = _qos_for(bag, topic, per_topic[topic])
+            name = self._options.remap.get(topic, topic)
+            self._deliveries[topic] = Delivery(name, node.create_publisher(cls, name, qos),
+                                               qos.depth)
+        self._clock: Delivery | None = None
         if self._options.clock:
             from rosgraph_msgs.msg import Clock
-            self._clock_pub = node.create_publisher(Clock, TOPIC_CLOCK, 10)
+            qos = clock_qos(self._clock_count())
+            self._clock = Delivery(TOPIC_CLOCK, node.create_publisher(Clock, TOPIC_CLOCK, qos),
+                                   qos.depth)
         self.published = 0
 
     @property
     def messages(self) -> list[RawMessage]:
         return list(self._messages)
 
-    def wait_for_subscribers(self, count: int, timeout_s: float) -> bool:
-        """Until every publisher has ``count`` matched subscriptions (no lost first messages)."""
-        deadline = time.monotonic() + timeout_s
-        while time.monotonic() < deadline:
-            if all(p.get_subscription_count() >= count for p in self._publishers.values()):
+    @property
+    def deliveries(self) -> list[Delivery]:
+        """Every publisher the replay uses, /clock included."""
+        return list(self._deliveries.values()) + ([self._clock] if self._clock else [])
+
+    @property
+    def undelivered(self) -> dict[str, int]:
+        """Messages per topic (as published) not acknowledged in time: none when delivered."""
+        return {d.topic: d.undelivered for d in self.deliveries if d.undelivered}
+
+    def _clock_count(self) -> int:
+        """/clock messages in one pass: one per bag time, and those ``clock_hz`` adds."""
+        opts = self._options
+        stamps = len({m.log_time_ns for m in self._messages})
+        span_s = (self._messages[-1].log_time_ns - self._messages[0].log_time_ns) * 1e-9
+        return stamps + (math.ceil(span_s / opts.rate * opts.clock_hz) if opts.clock_hz else 0)
+
+    def unmatched(self, count: int) -> list[str]:
+        """Return the topics (/clock included) with fewer than ``count`` matched subscriptions."""
+        return [d.topic for d in self.deliveries
+                if d.publisher.get_subscription_count() < count]
+
+    def wait_for_subscribers(self, count: int, timeout_s: float | None = None,
+                             stop: threading.Event | None = None,
+                             note: Callable[[str], None] | None = None) -> bool:
+        """Until every publisher, /clock's too, has ``count`` matched subscriptions.
+
+        A volatile subscription gets only what is published after it matched: waiting here
+        loses no first message. ``timeout_s`` None waits until then (or ``stop``); ``note``
+        hears once which topics it still waits on.
+        """
+        start = time.monotonic()
+        noted = False
+        while not (stop is not None and stop.is_set()):
+            missing = self.unmatched(count)
+            if not missing:
                 return True
+            waited = time.monotonic() - start
+            if timeout_s is not None and waited >= timeout_s:
+                return False
+            if note is not None and not noted and waited >= _WAIT_NOTE_S:
+                noted = True
+                note(f'waiting for {count} subscriber(s) on {", ".join(missing)}')
             time.sleep(0.01)
         return False
 
-    def _publish_clock(self, t_ns: int) -> None:
+    def _publish_clock(self, t_ns: int, stop: threading.Event) -> None:
         from rosgraph_msgs.msg import Clock
         msg = Clock()
         msg.clock.sec, msg.clock.nanosec = divmod(int(t_ns), 1_000_000_000)
-        self._clock_pub.publish(msg)
+        self._send(self._clock, msg, stop)
+
+    def _send(self, delivery: Delivery, data, stop: threading.Event) -> None:
+        """Publish, first waiting for acknowledgements where the history would drop one."""
+        if delivery.unconfirmed >= delivery.depth and \
+                confirm([delivery], self._options.wait_for_all_acked_ms, stop):
+            delivery.give_up()                  # the oldest is dropped now: counted
+        delivery.publish(data)
 
     def play(self, stop: threading.Event | None = None,
              progress: Callable[[str], None] | None = None) -> int:
-        """Publish (looping if asked) until done or ``stop`` is set; the count published."""
+        """Publish (looping if asked) until done or ``stop`` is set; the count published.
+
+        At the end (not after a stop) it waits for every reliable reader's acknowledgements
+        (``wait_for_all_acked_ms``); what is still unacknowledged then is in :attr:`undelivered`.
+        """
         opts = self._options
         stop = stop or threading.Event()
         if opts.wait_for_subscribers > 0:
-            if not self.wait_for_subscribers(opts.wait_for_subscribers, opts.wait_timeout_s):
-                print(f'{PROG}: warning: not all topics have {opts.wait_for_subscribers} '
-                      f'subscriber(s) after {opts.wait_timeout_s} s; playing anyway',
-                      file=sys.stderr)
+            if not self.wait_for_subscribers(opts.wait_for_subscribers, opts.wait_timeout_s,
+                                             stop, progress):
+                if stop.is_set():
+                    return self.published
+                print(f'{PROG}: warning: {", ".join(self.unmatched(opts.wait_for_subscribers))}'
+                      f' still without {opts.wait_for_subscribers} subscriber(s) after '
+                      f'{opts.wait_timeout_s} s; playing anyway', file=sys.stderr)
         if opts.delay_s > 0 and stop.wait(opts.delay_s):
             return self.published
         first_ns, last_ns = self._messages[0].log_time_ns, self._messages[-1].log_time_ns
         span_s = (last_ns - first_ns) * 1e-9
         loop_index = 0
+        last_probe = time.monotonic()
         while not stop.is_set():
             wall0 = time.monotonic()
             last_clock_ns, last_progress = None, 0.0
@@ -182,19 +343,23 @@ class BagPlayer:
                     if target <= now or stop.is_set():
                         break
                     step = target - now
-                    if self._clock_pub is not None and opts.clock_hz > 0:
+                    if self._clock is not None and opts.clock_hz > 0:
                         step = min(step, 1.0 / opts.clock_hz)
                         bag_ns = first_ns + int((now - wall0) * opts.rate * 1e9)
-                        self._publish_clock(bag_ns)
+                        self._publish_clock(bag_ns, stop)
                     stop.wait(step)
                 if stop.is_set():
                     break
-                if self._clock_pub is not None and msg.log_time_ns != last_clock_ns:
-                    self._publish_clock(msg.log_time_ns)
+                if self._clock is not None and msg.log_time_ns != last_clock_ns:
+                    self._publish_clock(msg.log_time_ns, stop)
                     last_clock_ns = msg.log_time_ns
-                self._publishers[msg.topic].publish(msg.data)
+                self._send(self._deliveries[msg.topic], msg.data, stop)
                 self.published += 1
                 now = time.monotonic()
+                if now - last_probe >= _ACK_PROBE_PERIOD_S:
+                    last_probe = now
+                    for delivery in self.deliveries:
+                        delivery.confirmed()
                 if progress is not None and (now - last_progress >= _PROGRESS_PERIOD_S
                                              or i + 1 == len(self._messages)):
                     last_progress = now
@@ -204,19 +369,10 @@ class BagPlayer:
             loop_index += 1
             if not opts.loop:
                 break
-        self.wait_for_acks(2.0)
+        if not stop.is_set():
+            for delivery in confirm(self.deliveries, opts.wait_for_all_acked_ms, stop):
+                delivery.give_up()
         return self.published
-
-    def wait_for_acks(self, timeout_s: float) -> bool:
-        """Reliable readers acknowledged everything (so exiting right after loses nothing)."""
-        from rclpy.duration import Duration
-        ok = True
-        for pub in list(self._publishers.values()) + [p for p in [self._clock_pub] if p]:
-            try:
-                ok = pub.wait_for_all_acked(Duration(seconds=timeout_s)) and ok
-            except Exception:  # noqa: BLE001 - best effort publishers / shutdown
-                ok = False
-        return ok
 
 
 def resolve_classes(bag: Bag, topics: set[str]) -> dict[str, type]:
@@ -260,7 +416,13 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument('-d', '--delay', type=float, default=0.0, metavar='S',
                         help='wait this long after creating publishers')
     parser.add_argument('--wait-for-subscribers', type=int, default=0, metavar='N',
-                        help='first wait until every topic has N subscribers (max 5 s)')
+                        help='first wait until every topic (/clock too) has N subscribers')
+    parser.add_argument('--wait-for-all-acked', type=int, default=ACK_TIMEOUT_MS,
+                        metavar='TIMEOUT',
+                        help='at the end, wait up to TIMEOUT ms until every reliable subscriber '
+                             'has acknowledged every message (0 = for ever; default '
+                             f'{ACK_TIMEOUT_MS}); what is not: one line, exit '
+                             f'{EXIT_UNDELIVERED}')
     parser.add_argument('-q', '--quiet', action='store_true', help='no progress line')
     resim = parser.add_argument_group(
         're-simulation (open loop; nothing is published)',
@@ -329,11 +491,14 @@ def options_from_args(args: argparse.Namespace) -> ReplayOptions:
         raise ValueError('--clock HZ must be >= 0')
     if args.wait_for_subscribers < 0:
         raise ValueError('--wait-for-subscribers must be >= 0')
+    if not 0 <= args.wait_for_all_acked <= MAX_ACK_TIMEOUT_MS:
+        raise ValueError(f'--wait-for-all-acked must be in [0, {MAX_ACK_TIMEOUT_MS}] ms '
+                         f'(0 = for ever), got {args.wait_for_all_acked}')
     return ReplayOptions(rate=args.rate, loop=args.loop, start_offset_s=args.start_offset,
                          topics=args.topics, remap=parse_remap(args.remap),
                          clock=args.clock is not None, clock_hz=args.clock or 0.0,
                          delay_s=args.delay, wait_for_subscribers=args.wait_for_subscribers,
-                         progress=not args.quiet)
+                         wait_for_all_acked_ms=args.wait_for_all_acked, progress=not args.quiet)
 
 
 def _run_resimulation(args: argparse.Namespace) -> int:
@@ -426,7 +591,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Replay a bag, or re-simulate it (open or closed loop).
 
     Exit 0; 1 on bad input (one line on stderr); 3 when the bag was truncated (what was
-    recovered is replayed). ``--resimulate``: see :func:`_run_resimulation`;
+    recovered is replayed); 4 when some messages were not acknowledged by every reliable
+    subscriber in time (one line: how many on which topics; before 3). ``--resimulate``: see
+    :func:`_run_resimulation`;
     ``--resimulate --closed-loop``: see :func:`_run_closed_loop`.
     """
     args = build_parser().parse_args(argv)
@@ -457,22 +624,29 @@ def main(argv: Sequence[str] | None = None) -> int:
         sys.stderr.flush()
 
     rclpy.init()
-    node = None
+    node = player = None
     try:
         node = rclpy.create_node('bag_replay')
         player = BagPlayer(node, bag, options)
         player.play(progress=show if options.progress else None)
-        if options.progress:
-            sys.stderr.write('\n')
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:
+        if options.progress:
+            sys.stderr.write('\n')
         if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()
+    code = 0
     if bag.truncated:
         print(f'{PROG}: warning: {bag.truncation_note()}', file=sys.stderr)
-        sys.exit(EXIT_TRUNCATED)
+        code = EXIT_TRUNCATED
+    if player is not None and player.undelivered:
+        line = undelivered_line(player.undelivered, options.wait_for_all_acked_ms)
+        print(f'{PROG}: error: {line}', file=sys.stderr)
+        code = EXIT_UNDELIVERED
+    if code:
+        sys.exit(code)
     return 0
 
 

@@ -220,12 +220,14 @@ def _legacy_series(bag: Bag) -> GraspSeries:
              for motor_voltage_v, current_a, speed_rad_s in [motor.get(t_ns, nan3)]]
     statuses = [_status_row(m) for m in status]
     refs = [(t_ns, grasp_id, grasp_id, 0, phase, outcome, controller, 0, contact, position_sp,
-             approach_sp, force_sp, position_m, 0.0, force_n, m.seed_voltage_v, 0.0, 0.0)
+             approach_sp, force_sp, position_m, 0.0, force_n, m.seed_voltage_v, 0.0, 0.0, 0.0,
+             0.0)
             for m, (t_ns, phase, controller, _, grasp_id, outcome, position_sp, force_sp,
                     position_m, force_n, contact, _, approach_sp, _, _) in zip(status, statuses)]
     absent = {f'tick.{n}' for n in LEGACY_TICK_FIELDS[int(peak_recorded):]} | {
         f'reference.{n}' for n in ('revision', 'running', 'velocity_mps', 'speed_limit_mps',
-                                   'voltage_limit_v')} | {
+                                   'voltage_limit_v', 'approach_velocity_mps',
+                                   'approach_acceleration_mps2')} | {
         f'command.{n}' for n in ('stage_id', 'revision', 'phase', 'outcome', 'running',
                                  'finite')}
     if not motor:

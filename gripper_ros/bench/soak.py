@@ -50,6 +50,9 @@ from gripper_ros.studies.paper import PAPER_OBJECTS
 CHEAP_OBJECTS = ((0.10, 0.75), (0.12, 0.5), (0.14, 1.0))
 OBJECT_SETS = {'paper': PAPER_OBJECTS, 'cheap': CHEAP_OBJECTS}
 DRIFT_WINDOW = 10
+BAG_CLOSED_BOUND_S = 120.0
+"""A bound on a grasp's bag closing after its answer: milliseconds unless the machine is loaded,
+and a bag not closed by then counts as a mismatch."""
 
 
 class SoakError(RuntimeError):
@@ -140,7 +143,7 @@ def client_worker() -> int:
     import rclpy
     from gripper_interfaces.srv import Grasp, SetObject
 
-    from gripper_ros.nodes.services import call_spinning
+    from gripper_ros.nodes.services import call_spinning, call_until_answered
     from gripper_ros.wire import Outcome
 
     out = sys.stdout
@@ -161,7 +164,7 @@ def client_worker() -> int:
         place = node.create_client(SetObject, SERVICE_SET_OBJECT)
         release = node.create_client(Trigger, SERVICE_RELEASE)
         for client in (grasp, place, release):
-            if not client.wait_for_service(timeout_sec=30.0):
+            if not client.wait_for_service(timeout_sec=60.0):
                 say({'ready': False, 'error': f'{client.srv_name} not available'})
                 return 2
         say({'ready': True, 'pid': os.getpid()})
@@ -172,10 +175,10 @@ def client_worker() -> int:
                 break
             if op == 'place':
                 request = SetObject.Request(width_m=float(cmd['width']), open_fingers=True)
-                r = call_spinning(node, place, request, 60.0)
+                r = call_until_answered(node, place, request, 60.0)
                 if r is not None and not r.success and 'is held' in r.message:
                     call_spinning(node, release, Trigger.Request(), 120.0)   # as grasp_client does
-                    r = call_spinning(node, place, request, 60.0)
+                    r = call_until_answered(node, place, request, 60.0)
                 say({'ok': r is not None and r.success,
                      'message': 'no answer' if r is None else r.message})
             elif op == 'grasp':
@@ -213,7 +216,7 @@ def _check_bag(path: str) -> dict:
 
 
 class _WorkerClient:
-    def __init__(self, env=None, timeout_s: float = 60.0):
+    def __init__(self, env=None, timeout_s: float = 120.0):
         self.proc = subprocess.Popen(
             [sys.executable, '-m', 'gripper_ros.bench.soak', '--client-worker'],
             stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True, bufsize=1,
@@ -299,7 +302,7 @@ def run_soak(graph, worker: _WorkerClient, objects, grasps: int, bag_root: Path,
         # the tap lets go of a bag just before its writer finishes it: wait for the finished
         # file, else the check may read it mid-close and call it truncated
         closed = wait_until(lambda: len(recorder.bags) > n_bags and not recorder.recording
-                            and _finished(recorder.bags[-1]), 10.0)
+                            and _finished(recorder.bags[-1]), BAG_CLOSED_BOUND_S)
         # every lockstep message published from the grasp's request on (state topics are
         # sampled on the grid of simulated time, and the request's own status precedes it)
         published = {qualified(graph.namespace, t): n - before.get(t, 0)

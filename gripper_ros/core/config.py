@@ -547,11 +547,15 @@ class SupervisorParams:
                                                'reached)')
     move_stall_timeout_s: float = key('stalled: at rest short of the width this long',
                                       bounds=(1e-3, 60.0), absent=SHIPPED)
-    servo_lead_s: float = key('a streamed reference leads the newest setpoint by rate x this '
-                              '(0: no lead)', bounds=(0.0, 10.0), rule=NONNEGATIVE,
-                              absent=SHIPPED)
-    servo_rate_window_s: float = key("a stream's rate over at least this; changing: within it",
+    servo_lead_s: float = key("a stream's setpoints are this old as they come: the reference "
+                              'leads the newest by its motion over this (0: none)',
+                              bounds=(0.0, 10.0), rule=NONNEGATIVE, absent=SHIPPED)
+    servo_rate_window_s: float = key('a stream changes while a setpoint comes within this; the '
+                                     'reference moves on from the newest this long at most',
                                      bounds=(1e-3, 1.0), absent=SHIPPED)
+    servo_fit_memory_s: float = key("a stream's velocity and acceleration: a quadratic fit to "
+                                    'its setpoints weighted by exp(-age / this)',
+                                    bounds=(1e-3, 10.0), absent=SHIPPED)
 
 
 def _move_default_speed_above_rest(config: GripperConfig) -> None:

@@ -32,7 +32,8 @@ from gripper_ros.nodes.parameters import refuse_unknown_overrides, strict_parame
 from gripper_ros.nodes.plant_simulator_node import PlantSimulatorNode
 from gripper_ros.nodes.position_controller_node import PositionControllerNode
 from gripper_ros.nodes.process import (build_node, CLEAN_UP_STEP_S, ExecutorKind,
-                                       make_executor, release_nodes, spin_until_stopped)
+                                       load_bound_s, make_executor, release_nodes,
+                                       spin_until_stopped)
 from gripper_ros.nodes.qos import SERVICE_QOS
 from gripper_ros.nodes.services import call_and_wait
 from gripper_ros.nodes.supervisor_node import SupervisorNode
@@ -169,7 +170,7 @@ class GripperGraph:
         self._resume = client(Trigger, SERVICE_RESUME, qos_profile=SERVICE_QOS)
         self._step = client(SimStep, SERVICE_STEP, qos_profile=SERVICE_QOS)
         for c in (self._set_object, self._grasp, self._release, self._move):
-            if not c.wait_for_service(timeout_sec=10.0):
+            if not c.wait_for_service(timeout_sec=load_bound_s(10.0)):
                 raise GraphError(f'service {c.srv_name} did not come up')
 
     def _one_clock_subscription(self) -> None:
@@ -227,8 +228,9 @@ class GripperGraph:
 
         name = node.get_name()
         self.executor.create_task(remove)
-        if not done.wait(timeout_s):
-            raise GraphError(f'node {name} could not be removed within {timeout_s:g} s')
+        bound_s = load_bound_s(timeout_s)
+        if not done.wait(bound_s):
+            raise GraphError(f'node {name} could not be removed within {bound_s:.1f} s')
         if failure:
             raise GraphError(f'removing node {name} failed: {failure[0]}')
         self.nodes.remove(node)
@@ -246,8 +248,9 @@ class GripperGraph:
             done.set()
 
         self.executor.create_task(task)
-        if not done.wait(timeout_s):
-            raise GraphError(f'the executor did not run a task within {timeout_s:g} s')
+        bound_s = load_bound_s(timeout_s)
+        if not done.wait(bound_s):
+            raise GraphError(f'the executor did not run a task within {bound_s:.1f} s')
         ok, value = result[0]
         if not ok:
             raise value
@@ -255,10 +258,14 @@ class GripperGraph:
 
     # ------------------------------------------------------------------ calls
     def call(self, client, request, timeout_s: float):
-        """Make a real service call from this process; wait in this (non-executor) thread."""
-        response = call_and_wait(client, request, timeout_s)
+        """Make a real service call from this process; wait in this (non-executor) thread.
+
+        ``timeout_s`` is for free cores: a loaded machine waits longer (:func:`load_bound_s`).
+        """
+        bound_s = load_bound_s(timeout_s)
+        response = call_and_wait(client, request, bound_s)
         if response is None:
-            raise GraphError(f'{client.srv_name} did not answer within {timeout_s:g} s')
+            raise GraphError(f'{client.srv_name} did not answer within {bound_s:.1f} s')
         return response
 
     def set_object(self, width_m: float, stiffness_n_per_m: float = 0.0,

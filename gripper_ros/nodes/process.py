@@ -161,7 +161,8 @@ def exit_without_a_last_collection() -> None:
 
 CLEAN_UP_LIMIT_S = 3.0
 """Longest a node executable's clean-up may take once it has its exit code (executor, node,
-context): past it the process ends with that code, saying so in one line. Deleting a DDS entity
+context), on free cores (times :func:`machine_load` on a loaded machine): past it the process
+ends with that code, saying so in one line. Deleting a DDS entity
 can block for good in the middle of discovery traffic (seen once in some hundreds of stops, in
 the action server's ``rcl_action_server_fini``); a stopped node must still stop."""
 
@@ -178,15 +179,37 @@ C (``faulthandler``): at its limit it writes every thread's stack to stderr and 
 ``_exit(1)`` without taking the GIL."""
 
 
+def machine_load() -> float:
+    """Return how many runnable processes share each core, at least 1 (the 1-minute load average).
+
+    A process gets about one over this of a core: what it does in a second on free cores takes
+    this many seconds here.
+    """
+    try:
+        return max(1.0, os.getloadavg()[0] / (os.cpu_count() or 1))
+    except OSError:               # no load average on this system
+        return 1.0
+
+
+def load_bound_s(limit_s: float) -> float:
+    """Return the wall time a bound of ``limit_s`` (on free cores) allows on this machine now.
+
+    A bound on a wait or a clean-up is there for one that never ends; one that a loaded machine
+    only slows down must still end as it would on free cores, not be cut short as hung.
+    """
+    return limit_s * machine_load()
+
+
 def arm_hard_bound(limit_s: float) -> None:
-    """End this process ``limit_s`` from now, whatever its threads do; re-arming replaces it.
+    """End this process :func:`load_bound_s` of ``limit_s`` from now, whatever its threads do.
 
     ``faulthandler.dump_traceback_later(exit=True)``: a C thread that needs no GIL writes
-    ``Timeout (0:00:0N)!`` and every thread's stack to stderr, then ``_exit(1)`` (CPython's
-    Modules/faulthandler.c: the code is fixed, so the process's own is lost).
+    ``Timeout (H:MM:SS)!`` and every thread's stack to stderr, then ``_exit(1)`` (CPython's
+    Modules/faulthandler.c: the code is fixed, so the process's own is lost). Re-arming
+    replaces it.
     """
     import faulthandler
-    faulthandler.dump_traceback_later(limit_s, exit=True, file=sys.__stderr__)
+    faulthandler.dump_traceback_later(load_bound_s(limit_s), exit=True, file=sys.__stderr__)
 
 
 def disarm_hard_bound() -> None:
@@ -196,7 +219,7 @@ def disarm_hard_bound() -> None:
 
 
 class BoundedCleanUp:
-    """Within ``with``: if the block outlasts ``limit_s``, say so and exit with ``code``.
+    """Within ``with``: if the block outlasts ``limit_s`` (:func:`load_bound_s`), say so and exit.
 
     A Python timer ends the process with ``code`` and one line; when the GIL is held for good,
     :func:`arm_hard_bound` ends it :data:`GIL_HELD_MARGIN_S` later with 1 and the stacks.
@@ -208,10 +231,13 @@ class BoundedCleanUp:
 
     def __init__(self, name: str, code: int, limit_s: float = CLEAN_UP_LIMIT_S):
         self._limit_s = limit_s
-        self._timer = threading.Timer(limit_s, self._give_up, (name, code, limit_s))
-        self._timer.daemon = True
+        self._name, self._code = name, code
+        self._timer = None
 
     def __enter__(self) -> BoundedCleanUp:
+        bound_s = load_bound_s(self._limit_s)
+        self._timer = threading.Timer(bound_s, self._give_up, (self._name, self._code, bound_s))
+        self._timer.daemon = True
         arm_hard_bound(self._limit_s + GIL_HELD_MARGIN_S)
         self._timer.start()
         return self

@@ -23,6 +23,7 @@ import time
 
 from gripper_ros.bags.recorder import (BAG_FORMAT, BagRecorder, BagRecorderError, failure_message,
                                        RecordingError, unique_bag_dir)
+from gripper_ros.nodes.process import load_bound_s
 from gripper_ros.nodes.services import wait_until
 from gripper_ros.wire import (BAG_TOPICS, GRAPH_TOPICS, LOOP_TOPICS, Outcome, Phase, qualified,
                               REFERENCE_LAYOUT, TimeMode, TOPIC_FORCE_REFERENCE,
@@ -425,7 +426,8 @@ def _play_out(graph, linger_s: float) -> None:
         graph.wait_still()
         return
     until = graph.sim_time_ns + round(linger_s * 1e9)
-    wait_until(lambda: graph.sim_time_ns >= until, timeout_s=max(10.0, 10 * linger_s))
+    wait_until(lambda: graph.sim_time_ns >= until,
+               timeout_s=load_bound_s(max(10.0, 10 * linger_s)))
 
 
 def _published_since(graph, tap: GraphTap, before: dict) -> dict:
@@ -435,12 +437,15 @@ def _published_since(graph, tap: GraphTap, before: dict) -> dict:
 
 
 def drain_published(graph, tap: GraphTap, recorder: BagRecorder, before: dict,
-                    received_before: dict, timeout_s: float = 10.0) -> None:
+                    received_before: dict, timeout_s: float = 60.0) -> None:
     """Wait until the tap has received every message published since ``before``.
 
     Time stands still then; a tick the tap still holds for its decision is written. /tf
     follows joint_states through description_publisher: the last joint state is waited for first.
+    ``timeout_s`` is for free cores (:func:`~gripper_ros.nodes.process.load_bound_s`): past it
+    the recording is called incomplete.
     """
+    timeout_s = load_bound_s(timeout_s)
     description = getattr(graph, 'description', None)
     if description is not None:
         wait_until(lambda: recorder.closed or

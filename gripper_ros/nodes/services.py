@@ -59,6 +59,29 @@ def call_spinning(node, client, request, timeout_s: float, signals=None):
     return future.result()
 
 
+ASK_AGAIN_S = 5.0
+"""Wall seconds an idempotent call waits for its answer before it asks again."""
+
+
+def call_until_answered(node, client, request, timeout_s: float, signals=None,
+                        ask_again_s: float = ASK_AGAIN_S):
+    """Call an idempotent service, asking again while no answer comes; None after ``timeout_s``.
+
+    A server drops its answer to a client whose response reader it has not matched within its
+    writer's max_blocking_time, 100 ms (rmw_fastrtps rmw_response.cpp): a request sent as soon
+    as the client sees the server can go unanswered on a loaded machine. Asked again, it is
+    answered; an answer to an earlier request is dropped. A stop signal raises KeyboardInterrupt.
+    """
+    deadline = time.monotonic() + timeout_s
+    while True:
+        left = deadline - time.monotonic()
+        if left <= 0:
+            return None
+        response = call_spinning(node, client, request, min(ask_again_s, left), signals)
+        if response is not None:
+            return response
+
+
 def wait_until(predicate, timeout_s: float = 5.0, step_s: float = 0.005) -> bool:
     """Poll ``predicate`` until it holds or ``timeout_s`` of wall time has passed.
 

@@ -352,10 +352,12 @@ class SupervisorNode(GripperNode):
 
     def _on_joint_command(self, msg: JointState) -> None:
         """Put a new setpoint in force; refuse a bad one with one line, changing nothing."""
+        sample_ns = stamp_ns(msg.header.stamp) or None   # when it was sampled, if stamped
         try:
             move = self._commands.take(msg)
-            if move is None:
-                return                          # the setpoint in force, again
+            if move is None:                    # the setpoint in force, again: it stands
+                self.logic.servo_repeated(sample_ns)
+                return
             targets = validate_move(move, self.config.plant, self.config.supervisor)
             refusal = self._refusal(RequestKind.MOVE, preempts=True)
             if refusal:
@@ -366,7 +368,7 @@ class SupervisorNode(GripperNode):
                                       throttle_duration_sec=1.0)
             return
         self._commands.accept(move)
-        self._put_setpoint(targets, TOPIC_JOINT_COMMANDS, move.width_m)
+        self._put_setpoint(targets, TOPIC_JOINT_COMMANDS, move.width_m, sample_ns=sample_ns)
 
     def _on_servo_setpoint(self, msg: ServoSetpoint) -> None:
         """Put a setpoint with its velocity and acceleration in force, or refuse it in a line."""
@@ -389,16 +391,23 @@ class SupervisorNode(GripperNode):
             self.get_logger().warning(f'{TOPIC_SERVO_SETPOINT} refused: {one_line(exc)}',
                                       throttle_duration_sec=1.0)
             return
-        self._put_setpoint(targets, TOPIC_SERVO_SETPOINT, move.width_m)
+        self._put_setpoint(targets, TOPIC_SERVO_SETPOINT, move.width_m,
+                           velocity_mps=msg.velocity_mps, acceleration_mps2=msg.acceleration_mps2,
+                           sample_ns=stamp_ns(msg.header.stamp) or None)
 
-    def _put_setpoint(self, targets, topic: str, width_m: float) -> None:
+    def _put_setpoint(self, targets, topic: str, width_m: float, *,
+                      velocity_mps: float = math.nan, acceleration_mps2: float = math.nan,
+                      sample_ns: int | None = None) -> None:
         """Put a checked setpoint of ``topic`` in force.
 
-        What it ends is answered; a new move is logged and wakes a paused simulation.
+        With its velocity and acceleration (NaN: estimated from the stream) and its sample's
+        instant (None: not known). What it ends is answered; a new move is logged and wakes a
+        paused simulation.
         """
         ended = self.logic.request_servo(
             targets, after_ns=self._tick.stamp_ns,
-            message=f'preempted by a setpoint on {self.resolve_topic_name(topic)}')
+            message=f'preempted by a setpoint on {self.resolve_topic_name(topic)}',
+            velocity_mps=velocity_mps, acceleration_mps2=acceleration_mps2, sample_ns=sample_ns)
         self.joint_commands_taken += 1
         if ended is not None:
             self._publish_status(self._tick.stamp_ns)

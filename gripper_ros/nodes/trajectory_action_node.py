@@ -11,7 +11,9 @@ commands (:mod:`gripper_ros.core.supervision.joint_trajectory` holds the numeric
 - Each ``joint_states`` sample is an update, on its stamp (the gripper's clock: simulated time,
   /clock's under ``use_sim_time``): the trajectory is sampled for the next sample's time and
   that sample (position, velocity, acceleration) is sent to the supervisor's position servo on
-  ``servo_setpoint``. A goal starts at once from the newest sample (the state before the
+  ``servo_setpoint``, which feeds the motor forward with them (between points of positions
+  alone the servo estimates them from the samples instead: a straight segment's velocity steps
+  at each point). A goal starts at once from the newest sample (the state before the
   trajectory: its position and velocity), or at its header's stamp, read on the node's clock.
 - Path tolerance until the last point's time (PATH_TOLERANCE_VIOLATED), then the goal
   tolerance within ``constraints.goal_time`` (GOAL_TOLERANCE_VIOLATED; 0: it waits); success
@@ -251,7 +253,9 @@ class TrajectoryActionServer(GripperNode):
         """Run one update of ``goal`` on the sample at ``t_ns``: command, feedback, verdict."""
         update = goal.run.update(t_ns, position, velocity, self._period_ns)
         if update.command is not None:
-            self._send(goal, update.command, update.command_ns)
+            traj = goal.run.trajectory
+            linear = traj.points[0].velocity is None and update.command_ns < traj.end_ns
+            self._send(goal, update.command, update.command_ns, motion_given=not linear)
         self._feedback(goal, update)
         if update.verdict is not None:
             if update.hold is not None:
@@ -262,13 +266,19 @@ class TrajectoryActionServer(GripperNode):
                 self.get_logger().warning(f'{ACTION_FOLLOW_JOINT_TRAJECTORY}: {update.message}')
             self._finish(goal, update.verdict, update.message)
 
-    def _send(self, goal: _Goal, state: State, sample_ns: int) -> None:
-        """Send ``state`` (a sample of ``sample_ns``) to the position servo."""
+    def _send(self, goal: _Goal, state: State, sample_ns: int, motion_given: bool = True) -> None:
+        """Send ``state`` (a sample of ``sample_ns``) to the position servo.
+
+        Without ``motion_given`` (a linear segment between points of positions alone, whose
+        velocity steps at each point) its velocity and acceleration are left to the servo to
+        estimate from the stream, as a joint_commands stream's are.
+        """
         nan = math.nan
+        given = motion_given and state.velocity is not None
         msg = ServoSetpoint(name=self.joint_name, position_m=float(state.position),
-                            velocity_mps=nan if state.velocity is None else float(state.velocity),
-                            acceleration_mps2=(nan if state.acceleration is None
-                                               else float(state.acceleration)),
+                            velocity_mps=float(state.velocity) if given else nan,
+                            acceleration_mps2=(float(state.acceleration) if given and
+                                               state.acceleration is not None else nan),
                             speed_mps=float(self.plant.max_free_speed_mps), max_effort_n=0.0)
         msg.header.stamp = ns_to_time(sample_ns)
         self._setpoints.publish(msg)

@@ -271,6 +271,17 @@ def governor_reset(g, buf, measurement):
 
 
 @numba.njit(cache=True)
+def governor_moving(g, buf, current_a, speed_rad_s):
+    """Start the model from the motor's current and speed (after :func:`governor_reset`).
+
+    A move that starts while the finger moves is planned from that motion: from rest, the
+    least-time rule would accelerate a finger already at speed and carry it past the setpoint.
+    """
+    buf[12] = current_a
+    buf[13] = speed_rad_s
+
+
+@numba.njit(cache=True)
 def governor_stop_position(g, buf, state, direction):
     """Where the finger comes to rest (speed through zero) braking at ``braking_v``."""
     s = as_record(g)
@@ -325,6 +336,17 @@ def governor_applied(g, buf, voltage):
     """Book the voltage held over the sample that starts now."""
     ahead = _governor_ahead(g, buf, voltage)
     buf[12:15] = ahead
+
+
+@numba.njit(cache=True)
+def governor_applied_more(g, buf, voltage):
+    """Book ``voltage`` more, held over the sample :func:`governor_applied` booked.
+
+    The model is linear: its state one sample on moves by ``Bd`` times it.
+    """
+    _, bd, state, _, _, _, _ = governor_vectors(g, buf)
+    for j in range(3):
+        state[j] += bd[j] * voltage
 
 
 @functools.lru_cache(maxsize=GOVERNOR_TABLES_CACHED)

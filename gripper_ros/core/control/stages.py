@@ -34,12 +34,15 @@ import math
 from gripper_ros.core.config import ConfigError, GripperConfig
 from gripper_ros.core.control.contact_force import CONTACT_DTYPE, contact_reset, contact_step
 from gripper_ros.core.control.dmc import (CASCADE_DTYPE, cascade_reset, cascade_step,
-                                          dmc_buffer_size, DMC_DTYPE, governor_buffer_size,
-                                          GOVERNOR_DTYPE)
+                                          dmc_buffer_size, DMC_DTYPE, dmc_reset,
+                                          governor_applied_more, governor_buffer_size,
+                                          GOVERNOR_DTYPE, governor_moving, PHASE_ACCELERATE,
+                                          PHASE_DMC)
 from gripper_ros.core.control.factories import (ForceControllerKind, make_force_controller,
                                                 make_position_controller, PositionControllerKind)
 from gripper_ros.core.control.pid import (law_error, LAW_NUMBERS, LAW_OK, PID_DTYPE, pid_reset,
                                           pid_step_checked, py_max, py_min)
+from gripper_ros.core.control.servo_feedforward import feedforward_gains, feedforward_v
 from gripper_ros.core.records import (as_record, copy_fields, face_kernel, fields_into, FLOATS,
                                       RecordPair)
 from gripper_ros.wire import COMMAND_LAYOUT, Controller, MSG_REFERENCE, REFERENCE_LAYOUT
@@ -54,15 +57,18 @@ DEFAULT_FORCE_CONTROLLER = ForceControllerKind.CONTACT_AWARE
 DEFAULT_APPROACH_FORCE_MARGIN = 1.0
 
 Reference = REFERENCE_LAYOUT.tuple
-"""One StageReference's fields, in message order (``Reference._make(values)``); the last two,
-a move's ``speed_limit_mps`` and ``voltage_limit_v``, default to 0 (no limit)."""
+"""One StageReference's fields, in message order (``Reference._make(values)``); the last four
+default to 0: a move's ``speed_limit_mps`` and ``voltage_limit_v`` (no limit) and the motion of
+its approach setpoint (it stands)."""
 
 REFERENCE_NUMBERS = ('position_setpoint_m', 'approach_setpoint_m', 'force_setpoint_n',
                      'seed_voltage_v', 'position_m')
 """The reference fields a stage computes with; a non-finite one is never acted on."""
 LIMIT_NUMBERS = ('speed_limit_mps', 'voltage_limit_v')
 """... and the position stage's limits (a stage's ``reference_numbers`` name all it uses)."""
-NUMBER_FIELDS = REFERENCE_NUMBERS + LIMIT_NUMBERS
+MOTION_NUMBERS = ('approach_velocity_mps', 'approach_acceleration_mps2')
+"""... and the motion of its setpoint (its feed-forward)."""
+NUMBER_FIELDS = REFERENCE_NUMBERS + LIMIT_NUMBERS + MOTION_NUMBERS
 """Bit i of a last-answer record's ``numbers_mask`` / ``bad_mask`` is ``NUMBER_FIELDS[i]``."""
 N_NUMBERS = len(NUMBER_FIELDS)
 
@@ -100,6 +106,12 @@ STAGE_DTYPE = np.dtype([
     ('limit_low', 'f8'), ('limit_high', 'f8'),     # this tick's output limits
     ('speed_gain_limit', 'f8'),            # V per m/s of the speed limit
     ('speed_gain_speed', 'f8'),            # V per m/s of the speed towards the setpoint
+    ('ff_v_per_mps', 'f8'),                # feed-forward: V per m/s of the setpoint's speed
+    ('ff_v_per_mps2', 'f8'),               # ... and per m/s^2 of its acceleration
+    ('feedforward_v', 'f8'),               # this tick's feed-forward (within its limits)
+    ('frame_advance_m', 'f8'),             # how far it moves the reference by the next tick
+    ('rad_per_m', 'f8'),                   # the motor's turn per metre of the finger
+    ('back_emf_v_s_per_rad', 'f8'), ('resistance_ohm', 'f8'),   # its armature
     # force stage
     ('approach_margin', 'f8'),
     ('contact', 'u1'),                     # contact seen since activation (PI / MPC-PI cap off)
@@ -141,8 +153,8 @@ stage. Parts a kind does not use are placeholders, so every stage compiles to on
 ``state['pid']`` ...)."""
 
 LAW_NUMBERS_AT = 0                                       # buffers[0:5]: a refusing law's numbers
-REFERENCE_NUMBERS_AT = LAW_NUMBERS_AT + LAW_NUMBERS      # buffers[5:12]: the reference's, as read
-DMC_BUFFER_AT = REFERENCE_NUMBERS_AT + len(NUMBER_FIELDS)  # buffers[12:]: DMC's, governor's
+REFERENCE_NUMBERS_AT = LAW_NUMBERS_AT + LAW_NUMBERS      # buffers[5:14]: the reference's, as read
+DMC_BUFFER_AT = REFERENCE_NUMBERS_AT + len(NUMBER_FIELDS)  # buffers[14:]: DMC's, governor's
 
 STAGE_KERNEL = (STATE_DTYPE, FLOATS)
 """The types of a stage's kernel ``k`` (:func:`~gripper_ros.core.records.face_kernel`)."""
@@ -150,7 +162,7 @@ STAGE_KERNEL = (STATE_DTYPE, FLOATS)
 KERNEL_LAYOUT = ('state', 'buffers')
 """``k = (state, buffers)``: ``state`` a 1-element :data:`STATE_DTYPE` array, ``buffers`` one
 float array: a refusing law's numbers (5, ``LAW_NUMBERS_AT``), the reference numbers as read
-(``NUMBER_FIELDS`` order, 7, ``REFERENCE_NUMBERS_AT``), the DMC's buffer (``DMC_BUFFER_AT``,
+(``NUMBER_FIELDS`` order, 9, ``REFERENCE_NUMBERS_AT``), the DMC's buffer (``DMC_BUFFER_AT``,
 :func:`~gripper_ros.core.control.dmc.dmc_buffer_size`) and the governor's buffer after it
 (:func:`~gripper_ros.core.control.dmc.governor_buffer_size`). Two arrays, so a call costs few
 reference counts: the kernels below pass records."""
@@ -182,8 +194,12 @@ def position_voltage_cap_v(state, ref, toward_speed_mps):
 
 
 @numba.njit(cache=True)
-def _position_apply_limits(st, r, measurement):
-    """Set this tick's output limits (only a move's reference changes them)."""
+def _position_apply_limits(st, r, measurement, feedforward):
+    """Set this tick's output limits; return the feed-forward within them.
+
+    Only a move's reference changes the limits. The law's own limits are the stage's less the
+    feed-forward, so that every loop books the voltage applied.
+    """
     s = st.stage
     if r.voltage_limit_v == 0.0 and r.speed_limit_mps == 0.0:
         low, high = -s.full_v, s.full_v
@@ -191,14 +207,44 @@ def _position_apply_limits(st, r, measurement):
         low, high = -s.full_v, position_voltage_cap_v(st, r, r.velocity_mps)
     else:
         low, high = -position_voltage_cap_v(st, r, -r.velocity_mps), s.full_v
-    if not (low == s.limit_low and high == s.limit_high):
+    law_low, law_high = low, high
+    if feedforward != 0.0:
+        feedforward = py_min(high, py_max(low, feedforward))
+        law_low, law_high = low - feedforward, high - feedforward
+    p = st.pid
+    if not (low == s.limit_low and high == s.limit_high and law_low == p.low and
+            law_high == p.high):
         s.limit_low = low
         s.limit_high = high
-        p = st.pid
-        p.low = low
-        p.high = high
+        p.low = law_low
+        p.high = law_high
         if s.kind == KIND_MPC_PD and st.cascade.has_governor:
             st.governor.limit_v = py_min(-low, high)
+    return feedforward
+
+
+@numba.njit(cache=True)
+def _position_feedforward(st, buffers, r, measurement):
+    """Return the voltage the reference's motion needs over the coming hold (0: it stands).
+
+    The braking governor plans a least-time move to a setpoint that stands; a moving reference
+    hands the cascade over to its DMC at once (as the governor does at rest: both loops start
+    afresh from the measurement), and one that stands again has the governor plan the rest.
+    """
+    s = st.stage
+    governed = s.kind == KIND_MPC_PD and st.cascade.has_governor
+    if r.approach_velocity_mps == 0.0 and r.approach_acceleration_mps2 == 0.0:
+        if governed and s.frame_advance_m != 0.0:   # it stood still again: least time to it
+            st.governor.phase = PHASE_ACCELERATE
+        return 0.0
+    if governed and st.governor.phase != PHASE_DMC:
+        _, _, dbuf, _ = stage_buffers(st, buffers)
+        st.governor.phase = PHASE_DMC
+        dmc_reset(st.dmc, dbuf, measurement, measurement)
+        pid_reset(st.pid, 0.0, True, measurement, True, measurement)
+        s.frame_advance_m = 0.0
+    return feedforward_v(s.ff_v_per_mps, s.ff_v_per_mps2, r.approach_velocity_mps,
+                         r.approach_acceleration_mps2, s.sample_time_s)
 
 
 @numba.njit(cache=True)
@@ -217,15 +263,21 @@ def _force_apply_limits(st, r):
 @face_kernel(STATE_DTYPE, FLOATS, REFERENCE_DTYPE, float)
 @numba.njit(cache=True)
 def stage_activate(state, buffers, ref, measurement):
-    """Restart the law for a new stage (position: from rest; force: approach or seeded PI)."""
+    """Restart the law for a new stage (position: from the finger's motion; force: seeded)."""
     st = as_record(state)
     r = as_record(ref)
     s = st.stage
     _, _, dbuf, gbuf = stage_buffers(st, buffers)
     if s.source == Controller.POSITION:
-        _position_apply_limits(st, r, measurement)
+        s.feedforward_v = _position_apply_limits(st, r, measurement, 0.0)
+        s.frame_advance_m = 0.0
         if s.kind == KIND_MPC_PD:
             cascade_reset(st.cascade, st.pid, st.dmc, dbuf, st.governor, gbuf, measurement, 0.0)
+            if st.cascade.has_governor and math.isfinite(r.velocity_mps) and \
+                    math.isfinite(r.seed_voltage_v):      # from the finger's motion now
+                speed = r.velocity_mps * s.rad_per_m
+                governor_moving(st.governor, gbuf, (r.seed_voltage_v - s.back_emf_v_s_per_rad
+                                                    * speed) / s.resistance_ohm, speed)
         else:
             pid_reset(st.pid, 0.0, False, 0.0, True, measurement)
         return
@@ -252,8 +304,11 @@ def stage_compute(state, buffers, ref, measurement):
     r = as_record(ref)
     s = st.stage
     numbers = buffers[LAW_NUMBERS_AT:REFERENCE_NUMBERS_AT]
+    feedforward = 0.0
     if s.source == Controller.POSITION:
-        _position_apply_limits(st, r, measurement)
+        feedforward = _position_apply_limits(st, r, measurement,
+                                             _position_feedforward(st, buffers, r, measurement))
+        s.feedforward_v = feedforward
         setpoint = r.approach_setpoint_m
     else:
         setpoint = r.force_setpoint_n
@@ -267,11 +322,42 @@ def stage_compute(state, buffers, ref, measurement):
             _force_apply_limits(st, r)
     if s.kind == KIND_MPC_PD or s.kind == KIND_MPC_PI:
         _, _, dbuf, gbuf = stage_buffers(st, buffers)
+        if s.source == Controller.POSITION:
+            _move_frame(st, r, feedforward)
         code, voltage = cascade_step(st.cascade, st.pid, st.dmc, dbuf, st.governor, gbuf,
                                      setpoint, measurement, numbers)
-        return code, voltage, st.cascade.last_inner_setpoint
+        if feedforward != 0.0 and st.cascade.has_governor:
+            governor_applied_more(st.governor, gbuf, feedforward)
+        return code, _plus(s, voltage, feedforward), st.cascade.last_inner_setpoint
     code, voltage = pid_step_checked(st.pid, setpoint, measurement, numbers)
-    return code, voltage, setpoint
+    return code, _plus(s, voltage, feedforward), setpoint
+
+
+@numba.njit(cache=True)
+def _move_frame(st, r, feedforward):
+    """Move the DMC's output (the inner PD's setpoint) on with the reference's motion.
+
+    The feed-forward moves the finger along the reference; the DMC then predicts and corrects
+    the deviation from it, in a frame that moves as the reference did over the last hold, so
+    that its output follows the reference without booking that as a move of its own (the
+    cascade works on the deviation exactly as it works on a standing setpoint).
+    """
+    s = st.stage
+    if s.frame_advance_m != 0.0 and feedforward != 0.0:
+        st.dmc.last_output += s.frame_advance_m
+    s.frame_advance_m = 0.0
+    if feedforward != 0.0:
+        dt = s.sample_time_s
+        s.frame_advance_m = dt * (r.approach_velocity_mps
+                                  + 0.5 * dt * r.approach_acceleration_mps2)
+
+
+@numba.njit(cache=True)
+def _plus(s, voltage, feedforward):
+    """Return the law's voltage with the feed-forward added, within the stage's limits."""
+    if feedforward == 0.0:
+        return voltage
+    return py_min(s.limit_high, py_max(s.limit_low, voltage + feedforward))
 
 
 @numba.njit(cache=True)
@@ -495,7 +581,7 @@ class PositionStageController(_KernelStage):
     """
 
     source = SOURCE_POSITION
-    reference_numbers = REFERENCE_NUMBERS + LIMIT_NUMBERS
+    reference_numbers = REFERENCE_NUMBERS + LIMIT_NUMBERS + MOTION_NUMBERS
 
     def __init__(self, config: GripperConfig,
                  kind: PositionControllerKind | str = DEFAULT_POSITION_CONTROLLER):
@@ -511,10 +597,14 @@ class PositionStageController(_KernelStage):
         a = math.exp(-self.sample_time_s / plant.mechanical_time_constant_s)
         pole = config.position.speed_limit_pole
         gain = 1.0 / ((1.0 - a) * plant.free_speed_per_volt_mps)
+        ff_v_per_mps, ff_v_per_mps2 = feedforward_gains(plant)
         copy_fields(self.record[0], {
             'full_v': plant.voltage_limit_v, 'limit_low': -plant.voltage_limit_v,
             'limit_high': plant.voltage_limit_v, 'speed_gain_limit': (1.0 - pole) * gain,
-            'speed_gain_speed': (a - pole) * gain})
+            'speed_gain_speed': (a - pole) * gain, 'ff_v_per_mps': ff_v_per_mps,
+            'ff_v_per_mps2': ff_v_per_mps2, 'rad_per_m': 1.0 / plant.travel_per_rad_m,
+            'back_emf_v_s_per_rad': plant.back_emf_v_s_per_rad,
+            'resistance_ohm': plant.resistance_ohm})
 
     @staticmethod
     def measurement(ref) -> float:

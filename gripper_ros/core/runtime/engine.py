@@ -27,8 +27,12 @@ WORKER_PRELOAD = 'gripper_ros.core.runtime.batch_worker'
 """Imported by each worker as it starts (``dask worker --preload``): loads the compiled core."""
 CHUNKS_PER_WORKER = 4
 """A batch is cut into this many chunks per worker: few tasks, balanced load."""
-CLUSTER_START_TIMEOUT_S = 120.0
-"""How long :func:`dask_cluster` waits for its scheduler and workers."""
+CLUSTER_START_CPU_S = 120.0
+"""CPU :func:`dask_cluster`'s scheduler and workers may use, together, before all have joined:
+each start costs a few seconds (imports, the compiled core, one grasp), so more means one spins."""
+CLUSTER_STALL_S = 60.0
+"""How long :func:`dask_cluster` waits while none of its processes uses any CPU: a loaded machine
+starts them slowly, but runs each of them several times a second."""
 
 _local: dict[int, object] = {}
 """The local clients of this process, by worker count (started once, closed at exit)."""
@@ -40,28 +44,61 @@ class EngineError(RuntimeError):
     """The engine could not run a batch (no scheduler at the address, a worker lost)."""
 
 
-def _quiet_logs() -> None:
+def _quiet_logs(level: int = logging.ERROR) -> None:
     """Log only errors of this process's scheduler: its start and shut-down are no news."""
     import distributed  # noqa: F401 - its import configures the loggers set below
     for name in [*logging.root.manager.loggerDict, 'distributed']:
         if name.startswith('distributed'):
-            logging.getLogger(name).setLevel(logging.ERROR)
+            logging.getLogger(name).setLevel(level)
+
+
+def _silence_worker() -> None:
+    """Log nothing more in this worker (run on each by :func:`_close_all`): its batches are done.
+
+    A local cluster's scheduler lives in the program's process. When a loaded machine stops a
+    worker slowly, its heartbeat can find the scheduler gone and log a "Failed to communicate
+    with scheduler during heartbeat" traceback into the program's stderr, where the program's
+    own output is.
+    """
+    _quiet_logs(logging.CRITICAL + 1)
 
 
 def _close_all() -> None:
+    """Close this process's clients, then their local clusters: workers first, then scheduler.
+
+    A local cluster's workers are silenced first (:func:`_silence_worker`). No wall-time limit
+    (the workers' nannies bound their own stop): a close cut short on a loaded machine leaves
+    workers running past their scheduler.
+    """
     for client in (*_local.values(), *_remote.values()):
         try:
             cluster = client.cluster
-            client.close(timeout=5)
             if cluster is not None:
-                cluster.close(timeout=5)
+                client.run(_silence_worker)
+                _quiet_logs(logging.CRITICAL + 1)       # its scheduler, here
+            client.close(timeout=None)
+            if cluster is not None:
+                cluster.close(timeout=None)
         except Exception:       # noqa: B902 - at exit, a cluster already gone is no error
             pass
     _local.clear()
     _remote.clear()
 
 
-atexit.register(_close_all)
+def _close_at_exit() -> None:
+    """Close the clients at exit before ``distributed``'s own exit handler does.
+
+    Registered once a client exists, after ``distributed`` registered its handler (handlers run
+    last registered first), which closes each local cluster with a 10 s limit and says nothing
+    when a loaded machine needs longer.
+    """
+    global _close_registered
+    if not _close_registered:
+        atexit.register(_close_all)
+        _close_registered = True
+
+
+_close_registered = False
 
 
 def local_client(workers: int):
@@ -77,6 +114,7 @@ def local_client(workers: int):
                                dashboard_address=':0', preload=[WORKER_PRELOAD],
                                silence_logs=logging.ERROR)
         client = _local[workers] = Client(cluster, set_as_default=False)
+        _close_at_exit()
     return client
 
 
@@ -90,6 +128,7 @@ def remote_client(address: str):
         except (OSError, TimeoutError) as exc:
             raise EngineError(f'no Dask scheduler answers at {address} ({exc})') from None
         _remote[address] = client
+        _close_at_exit()
     return client
 
 
@@ -246,33 +285,81 @@ def dask_cluster(workers: int = 2, host: str = '127.0.0.1',
             if address is not None:
                 client = _remote.pop(address, None)
                 if client is not None:
-                    client.close(timeout=5)
-            for proc in reversed(procs):
-                if proc.poll() is None:
-                    proc.terminate()
-            for proc in reversed(procs):
-                try:
-                    proc.wait(timeout=20)
-                except subprocess.TimeoutExpired:
-                    proc.kill()
-                    proc.wait()
+                    client.close(timeout=None)
+            for group in (procs[1:], procs[:1]):        # the workers, then the scheduler
+                for proc in group:
+                    if proc.poll() is None:
+                        proc.terminate()
+                for proc in group:
+                    try:
+                        proc.wait(timeout=20)
+                    except subprocess.TimeoutExpired:
+                        proc.kill()
+                        proc.wait()
+
+
+class _StartWatch:
+    """Tell processes that start slowly (a loaded machine) from ones that never will.
+
+    Hung: none of them used any CPU for :data:`CLUSTER_STALL_S`, or together more than
+    :data:`CLUSTER_START_CPU_S`.
+    """
+
+    def __init__(self, procs: list):
+        import psutil
+        self._procs = [psutil.Process(p.pid) for p in procs]
+        self._first = self._last = self._used()
+        self._moved = time.monotonic()
+
+    def _used(self) -> float:
+        import psutil
+        used = 0.0
+        for proc in self._procs:
+            try:
+                times = proc.cpu_times()
+            except psutil.Error:            # ended: the caller sees its exit
+                continue
+            used += times.user + times.system
+        return used
+
+    def hung(self) -> str:
+        """Return why the processes count as hung, or '' while they are starting."""
+        used, now = self._used(), time.monotonic()
+        if used > self._last:
+            self._last, self._moved = used, now
+        if used - self._first > CLUSTER_START_CPU_S:
+            return f'used {used - self._first:.0f} s of CPU'
+        if now - self._moved > CLUSTER_STALL_S:
+            return f'used no CPU for {CLUSTER_STALL_S:.0f} s'
+        return ''
 
 
 def _wait_for_workers(info: Path, workers: int, procs: list) -> str:
+    """Wait until the scheduler wrote its address and ``workers`` workers joined it.
+
+    For as long as they start: on a loaded machine that takes minutes. EngineError once one of
+    the processes ended or all of them are hung (:class:`_StartWatch`).
+    """
     import json
-    deadline = time.monotonic() + CLUSTER_START_TIMEOUT_S
+    watch = _StartWatch(procs)
     while not info.exists() or not info.read_text():
-        if time.monotonic() > deadline or procs[0].poll() is not None:
-            raise EngineError('dask scheduler did not start')
+        hung = watch.hung()
+        if hung or procs[0].poll() is not None:
+            raise EngineError(f'dask scheduler did not start ({hung or "it ended"})')
         time.sleep(0.1)
     time.sleep(0.1)
     address = json.loads(info.read_text())['address']
-    client = remote_client(address)
-    try:
-        client.wait_for_workers(workers, timeout=max(1.0, deadline - time.monotonic()))
-    except TimeoutError:
-        raise EngineError(f'{workers} dask workers did not join {address}') from None
-    return address
+    while True:
+        try:       # again when a slow scheduler dropped the client: it makes a new one
+            remote_client(address).wait_for_workers(workers, timeout=1.0)
+            return address
+        except (TimeoutError, EngineError):
+            pass
+        ended = [p.args[3] for p in procs if p.poll() is not None]
+        hung = watch.hung()
+        if ended or hung:
+            raise EngineError(f'{workers} dask workers did not join {address} (' +
+                              (f'a dask {ended[0]} ended' if ended else hung) + ')')
 
 
 __all__ = ['check_address', 'chunked', 'dask_cluster', 'EngineError', 'local_client',

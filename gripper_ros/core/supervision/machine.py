@@ -21,11 +21,11 @@ shows the same table (``test_supervisor_machine`` holds the two equal).
 
 Everything the machine keeps is one record (:data:`SUPERVISOR_DTYPE`): its state, the
 thresholds, the current message's numbers, the current, the waiting and the decided request
-(:data:`~gripper_ros.core.supervision.requests.TARGETS_DTYPE`), a setpoint stream's rate, and
-the load-tracking grip's record and the arm's plan; the grip's history is one float array
-beside it. A kernel takes ``(record, law_buffers)``: a record passes as one pointer. The
-Python face (:mod:`.supervisor`) reads the record and asks through the kernels named
-``supervisor_*``; it writes no field itself.
+(:data:`~gripper_ros.core.supervision.requests.TARGETS_DTYPE`), a setpoint stream (its fit
+and the motion it gives the reference), and the load-tracking grip's record and the arm's
+plan; the grip's history is one float array beside it. A kernel takes ``(record,
+law_buffers)``: a record passes as one pointer. The Python face (:mod:`.supervisor`) reads
+the record and asks through the kernels named ``supervisor_*``; it writes no field itself.
 """
 from __future__ import annotations
 
@@ -35,7 +35,9 @@ import math
 from gripper_ros.core.config import numbers_of, SupervisorParams
 from gripper_ros.core.control.load_grip import (GRIP_DTYPE, HISTORY_ROWS, law_step, MU_GRID,
                                                 PLAN_DTYPE, PLAN_ROWS)
-from gripper_ros.core.control.pid import py_max, py_min
+from gripper_ros.core.control.servo_feedforward import (NO_STREAM, stream_changing,
+                                                        STREAM_DTYPE, stream_reference,
+                                                        stream_sample)
 from gripper_ros.core.records import as_record, copy_fields, face_kernel, FLOATS_2D, set_fields
 from gripper_ros.core.supervision.messages import MESSAGE_DTYPE, MESSAGES
 from gripper_ros.core.supervision.requests import TARGETS_DTYPE
@@ -219,11 +221,13 @@ MACHINE_DTYPE = np.dtype(
 
 SERVO_DTYPE = np.dtype(
     [('request_id', 'i8'),                 # the id of the last setpoint's move (-1: none)
-     ('anchor_ns', 'i8'), ('anchor_m', 'f8'),   # where its rate is measured from
-     ('rate_mps', 'f8'),                   # the stream's rate (0: none)
-     ('change_ns', 'i8')],                 # when its setpoint last changed (-1: no stream)
+     ('stream', STREAM_DTYPE),             # its setpoints' fit (servo_feedforward)
+     ('velocity_mps', 'f8'),               # the decided reference's velocity (0: it stands)
+     ('acceleration_mps2', 'f8')],         # ... and acceleration
     align=True)
-"""A stream of position setpoints (``joint_commands``): its move, rate and last change."""
+"""A stream of position setpoints (``joint_commands``, a trajectory's samples): its move, the
+stream (:mod:`~gripper_ros.core.control.servo_feedforward`), and the motion it gives the tick's
+reference (the position stage's feed-forward)."""
 
 PARAMS_FIELDS = numbers_of(SupervisorParams)
 PARAMS_DTYPE = np.dtype([(name, 'f8') for name in PARAMS_FIELDS], align=True)
@@ -569,8 +573,7 @@ def _tick_move(sup, t_ns, position_m, force_n, sensor_voltage_v, speed_mps) -> i
     if not at_rest:
         s.rest_since_ns = NO_NS
     elif abs(error_m) <= c.tolerance_m:
-        change_ns = sup.servo.change_ns
-        if change_ns == NO_NS or t_ns - change_ns > p.servo_rate_window_s * 1e9:
+        if not stream_changing(sup.servo.stream, t_ns, p.servo_rate_window_s):
             return Event.MOVED                    # no setpoint stream moves it
     else:
         if s.rest_since_ns == NO_NS:
@@ -679,15 +682,18 @@ def _decide(sup, answer) -> None:
 
 @_kernel
 def _lead(sup) -> None:
-    """Lead the reference of a setpoint stream that keeps changing by its rate x the lead."""
+    """Move a setpoint stream's reference on with its velocity and acceleration (0: none)."""
     s = sup.machine
     p = sup.params
     v = sup.servo
-    if s.state == State.MOVE and v.rate_mps != 0.0 and \
-            s.t_ns - v.change_ns <= p.servo_rate_window_s * 1e9:
+    if s.state == State.MOVE and v.stream.t_ns != NO_STREAM:
         d = sup.decided
-        ahead = d.approach_setpoint_m + v.rate_mps * p.servo_lead_s
-        d.approach_setpoint_m = py_min(py_max(ahead, 0.0), s.travel_m)
+        d.approach_setpoint_m, v.velocity_mps, v.acceleration_mps2 = stream_reference(
+            v.stream, s.t_ns, p.servo_rate_window_s, p.servo_lead_s, sup.current.speed_mps,
+            s.travel_m)
+    else:
+        v.velocity_mps = 0.0
+        v.acceleration_mps2 = 0.0
 
 
 # ------------------------------------------------------------------ the entry points
@@ -759,6 +765,8 @@ def supervisor_decide(sup, law_buffers, tick, ref) -> bool:
     copy_fields(r, d, ('position_setpoint_m', 'approach_setpoint_m', 'force_setpoint_n',
                        'voltage_limit_v'))
     r.speed_limit_mps = d.speed_mps
+    r.approach_velocity_mps = sup.servo.velocity_mps
+    r.approach_acceleration_mps2 = sup.servo.acceleration_mps2
     return True
 
 
@@ -810,16 +818,29 @@ def supervisor_wait(sup, law_buffers, targets, stream) -> None:
     sup = as_record(sup)
     sup.waiting = as_record(targets)
     v = sup.servo
-    s = sup.machine
-    if stream == STREAM_CLEAR:
-        v.change_ns = NO_NS
-        v.rate_mps = 0.0
-    elif stream == STREAM_BEGIN:
-        v.request_id = s.grasp_id + 1
-        v.anchor_ns = s.t_ns
-        v.anchor_m = sup.waiting.position_setpoint_m
-        v.rate_mps = 0.0
-        v.change_ns = s.t_ns                 # a stream's first setpoint: not done at once
+    if stream == STREAM_CLEAR or stream == STREAM_BEGIN:
+        v.stream.t_ns = NO_STREAM            # no stream moves it (yet: supervisor_servo_sample)
+    if stream == STREAM_BEGIN:
+        v.request_id = sup.machine.grasp_id + 1
+
+
+@face_kernel(*_ARRAYS, int, float, float, float)
+@_kernel
+def supervisor_servo_sample(sup, law_buffers, sample_ns, position_m, velocity_mps,
+                            acceleration_mps2) -> None:
+    """Take the stream's setpoint ``position_m`` sampled at ``sample_ns``.
+
+    Its velocity and acceleration are NaN when not given. Its instant is ``sample_ns`` when
+    that is on the ticks' clock (within ``servo_rate_window_s`` of the newest tick; NO_NS: not
+    known), else the newest tick's.
+    """
+    sup = as_record(sup)
+    p = sup.params
+    t_ns = sup.machine.t_ns
+    if sample_ns != NO_NS and abs(sample_ns - t_ns) <= p.servo_rate_window_s * 1e9:
+        t_ns = sample_ns
+    stream_sample(sup.servo.stream, t_ns, position_m, velocity_mps, acceleration_mps2,
+                  p.servo_fit_memory_s, p.servo_rate_window_s)
 
 
 @face_kernel(*_ARRAYS, TARGETS_DTYPE)
@@ -827,21 +848,14 @@ def supervisor_wait(sup, law_buffers, targets, stream) -> None:
 def supervisor_retarget(sup, law_buffers, targets) -> None:
     """Give the running setpoint move new targets in place (same request, same stage).
 
-    The stream's rate is measured over at least ``servo_rate_window_s`` (at most the move's
-    speed); the move's timeout counts on from its start.
+    The move's timeout counts on from its start; the stream's motion is the setpoint's
+    (:func:`supervisor_servo_sample`).
     """
     sup = as_record(sup)
     s = sup.machine
     p = sup.params
-    v = sup.servo
     t = as_record(targets)
     t_ns = s.t_ns
-    if t_ns - v.anchor_ns >= p.servo_rate_window_s * 1e9:
-        rate = (t.position_setpoint_m - v.anchor_m) / ((t_ns - v.anchor_ns) * 1e-9)
-        v.rate_mps = py_max(-t.speed_mps, py_min(rate, t.speed_mps))
-        v.anchor_ns = t_ns
-        v.anchor_m = t.position_setpoint_m
-    v.change_ns = t_ns
     sup.current = t
     sup.current.kind = PendingRequest.MOVE
     s.force_setpoint_n = t.force_setpoint_n
@@ -869,12 +883,14 @@ def supervisor_configure(sup, law_buffers, params) -> None:
     sup.params = as_record(params)
 
 
-@face_kernel(*_ARRAYS, float, GRIP_DTYPE)
+@face_kernel(*_ARRAYS, float, GRIP_DTYPE, float, float)
 @_kernel
-def supervisor_reset(sup, law_buffers, travel_m, law) -> None:
+def supervisor_reset(sup, law_buffers, travel_m, law, jump_speed_mps,
+                     servo_acceleration_mps2) -> None:
     """Put a new supervisor's record in its first state: nothing drives, nothing asked.
 
-    ``law`` is the load-tracking grip as each grasp starts it (``make_law``'s record).
+    ``law`` is the load-tracking grip as each grasp starts it (``make_law``'s record); a
+    setpoint stream's bounds are the plant's (``servo_feedforward.stream_bounds``).
     """
     sup = as_record(sup)
     s = sup.machine
@@ -885,7 +901,10 @@ def supervisor_reset(sup, law_buffers, travel_m, law) -> None:
     s.travel_m = travel_m
     s.tick_answer = Outcome.UNKNOWN
     v = sup.servo
-    set_fields(v, ('request_id', 'anchor_ns', 'change_ns'), NO_NS)
+    v.request_id = NO_NS
+    v.stream.t_ns = NO_STREAM
+    v.stream.jump_speed_mps = jump_speed_mps
+    v.stream.max_acceleration_mps2 = servo_acceleration_mps2
     sup.law[1] = as_record(law)
     sup.law[0] = sup.law[1]
 

@@ -11,8 +11,10 @@ A request is accepted at once and starts at the next tick (:meth:`GraspSuperviso
 at a time. A position setpoint (:meth:`~GraspSupervisor.request_servo`, ``joint_commands``) is in
 force at once: while the previous setpoint's move runs, its goal and limits change in place
 (same request, the position stage not restarted); otherwise what runs ends STOPPED and the
-setpoint's move starts at the next tick. A stream that keeps changing is led by its rate x
-``servo_lead_s``. A grasp, release or move request ends a running setpoint's move (STOPPED).
+setpoint's move starts at the next tick. A stream that keeps changing moves its reference on
+between setpoints with its velocity and acceleration, given or estimated
+(:mod:`gripper_ros.core.control.servo_feedforward`), which the position stage also turns into
+feed-forward. A grasp, release or move request ends a running setpoint's move (STOPPED).
 """
 from __future__ import annotations
 
@@ -20,14 +22,16 @@ import math
 
 from gripper_ros.core.config import GripperConfig, PlantParams, shipped_config, SupervisorParams
 from gripper_ros.core.control.load_grip import law_for, make_law, plan_announce
+from gripper_ros.core.control.servo_feedforward import stream_bounds
 from gripper_ros.core.records import copy_fields, RecordField
 from gripper_ros.core.supervision.machine import (Event, NO_NS, PARAMS_DTYPE, PARAMS_FIELDS,
                                                   State, STREAM_BEGIN, STREAM_CLEAR,
                                                   STREAM_KEEP, supervisor_configure,
                                                   supervisor_continue_ids, SUPERVISOR_DTYPE,
                                                   supervisor_fault, supervisor_reset,
-                                                  supervisor_retarget, supervisor_step,
-                                                  supervisor_stop, supervisor_wait)
+                                                  supervisor_retarget, supervisor_servo_sample,
+                                                  supervisor_step, supervisor_stop,
+                                                  supervisor_wait)
 from gripper_ros.core.supervision.messages import format_message
 from gripper_ros.core.supervision.requests import (GraspTargets, MoveTargets, RequestError,
                                                    targets_of, targets_record)
@@ -105,6 +109,12 @@ class Decision(_MachineView):
     force_setpoint_n = _decided(float)
     speed_limit_mps = _decided(float, 'speed_mps')
     voltage_limit_v = _decided(float)
+    approach_velocity_mps = property(
+        lambda self: float(self._owner.record[0]['servo']['velocity_mps']),
+        doc="The approach setpoint's velocity (a setpoint stream's; 0 while it stands).")
+    approach_acceleration_mps2 = property(
+        lambda self: float(self._owner.record[0]['servo']['acceleration_mps2']),
+        doc='... and its acceleration.')
     message = property(lambda self: self._owner.message)
     answer = _machine(lambda answer: None if answer == Outcome.UNKNOWN else Outcome(answer),
                       'tick_answer')
@@ -146,7 +156,7 @@ class GraspSupervisor(_MachineView):
         self.kernel = (self.record, buffers)
         self._s = self.record[0]['machine']      # views: what the kernels write shows here
         self._d = self.record[0]['decided']
-        supervisor_reset(*self.kernel, float(plant.max_travel_m), record)
+        supervisor_reset(*self.kernel, float(plant.max_travel_m), record, *stream_bounds(plant))
         self.params = params
         self._preempted: Decision | None = None  # the end of one, by the last request
         self._text = ''                          # a message given by stop() or fault()
@@ -312,7 +322,9 @@ class GraspSupervisor(_MachineView):
             self.grasp_id + (1 if self.pending else 0)
 
     def request_servo(self, targets: MoveTargets, after_ns: int | None = None,
-                      message: str = 'preempted by a new setpoint') -> Decision | None:
+                      message: str = 'preempted by a new setpoint', *,
+                      velocity_mps: float = math.nan, acceleration_mps2: float = math.nan,
+                      sample_ns: int | None = None) -> Decision | None:
         """Put a position setpoint in force (a move, :func:`validate_move`) at once.
 
         The setpoint is the one command in force, as a position command interface is to the
@@ -321,19 +333,39 @@ class GraspSupervisor(_MachineView):
         its id); otherwise a running or waiting request ends STOPPED with ``message`` and the
         setpoint's move starts at the first tick after ``after_ns`` (a hold or a stalled press
         ends as it starts, as before any move).
+        ``velocity_mps`` and ``acceleration_mps2`` are the setpoint's own (NaN: estimated from
+        the stream), ``sample_ns`` the simulated instant it was sampled at (None: the newest
+        tick's); the reference moves on with them
+        (:mod:`~gripper_ros.core.control.servo_feedforward`). The same targets again while
+        their move runs are no new request (:meth:`servo_repeated`).
         Returns the decision that ended a preempted request (to be answered), else None.
         """
+        ended = None
         if self.servo and self.pending:          # not started yet: it starts with these
             self._wait(RequestKind.MOVE, targets, 0.0, after_ns, STREAM_KEEP)
-            return None
-        if self.servo and self.running and self.phase is Phase.MOVING:
-            supervisor_retarget(*self.kernel, targets_record(PendingRequest.MOVE, targets))
-            return None
-        ended = None
-        if self.pending or self.running:        # a hold or a press ends as the move starts
-            ended = self.stop(message)
-        self._wait(RequestKind.MOVE, targets, 0.0, after_ns, STREAM_BEGIN)
+        elif self.servo and self.running and self.phase is Phase.MOVING:
+            if targets != self.targets:          # else the same again: it stands
+                supervisor_retarget(*self.kernel, targets_record(PendingRequest.MOVE, targets))
+        else:
+            if self.pending or self.running:    # a hold or a press ends as the move starts
+                ended = self.stop(message)
+            self._wait(RequestKind.MOVE, targets, 0.0, after_ns, STREAM_BEGIN)
+        self._sample(targets.position_setpoint_m, velocity_mps, acceleration_mps2, sample_ns)
         return ended
+
+    def servo_repeated(self, sample_ns: int | None = None) -> None:
+        """Note the setpoint in force sent again (a topic-based hardware's repeat).
+
+        No request: the stream lives and stands there (velocity and acceleration 0).
+        """
+        if self.servo and self.running and self.phase is Phase.MOVING:
+            self._sample(float(self.record[0]['current']['position_setpoint_m']), 0.0, 0.0,
+                         sample_ns)
+
+    def _sample(self, position_m: float, velocity_mps: float, acceleration_mps2: float,
+                sample_ns: int | None) -> None:
+        supervisor_servo_sample(*self.kernel, NO_NS if sample_ns is None else int(sample_ns),
+                                float(position_m), float(velocity_mps), float(acceleration_mps2))
 
     def stop(self, message: str = 'stopped on request') -> Decision | None:
         """End the running request, the hold, a stalled move's press or a waiting request now.
