@@ -56,6 +56,7 @@ setup(
             'bench_realtime = gripper_ros.bench.realtime:main',
             'bench_headless = gripper_ros.bench.headless:main',
             'bench_launch_stop = gripper_ros.bench.launch_stop:main',
+            'bench_trees = gripper_ros.bench.trees:main',
             'tune = gripper_ros.apps.tune:main',
         ],
     },

@@ -10,10 +10,11 @@ namespace is ``gripper``. ``/clock`` is global, as everywhere in ROS.
 """
 from __future__ import annotations
 
+import collections
 import enum
-import re
 import string
 import struct
+from typing import NamedTuple
 
 import numpy as np
 
@@ -374,39 +375,75 @@ CDR_LITTLE_ENDIAN = b'\x00\x01\x00\x00'
 """The encapsulation header of a little-endian plain-CDR payload (the first four bytes)."""
 
 
-_NUMPY_OF_STRUCT = {'q': '<i8', 'I': '<u4', 'B': 'u1', 'd': '<f8'}
-"""The numpy type of each struct code the loop layouts use."""
+_STRUCT_CODES = {'i8': 'q', 'u4': 'I', 'u1': 'B', 'f8': 'd'}
+"""The struct code of each field type the loop layouts use (numpy's short names)."""
+
+
+class LoopField(NamedTuple):
+    """One field of a loop message: its name and type (``kind``), and where its value comes from.
+
+    ``copied_from`` names the loop message whose field of the same name this one repeats
+    (a reference relays its tick's measurement, a command echoes its reference's ids);
+    ``default`` is what a sender that predates the field gives.
+    """
+
+    name: str
+    kind: str                           # numpy's type: 'i8', 'u4', 'u1', 'f8'
+    copied_from: str = ''
+    default: float | None = None
 
 
 class LoopLayout:
-    """The serialised form of one fixed-size lockstep message type.
+    """The one definition of a fixed-size lockstep message type, and all that derives from it.
 
     The nodes publish and take these messages as bytes: packing a handful of numbers with
     :mod:`struct` costs a fraction of rclpy's conversion to and from a Python message object,
-    and the lockstep loop sends three of them every 0.1 ms. ``body`` is the struct format of
-    the fields after the 4-byte encapsulation header, with CDR's alignment (8 bytes for
-    int64/float64, counted from the end of the header) and its padding to a multiple of 4
-    written out. A message in another encapsulation (big-endian) or of another size is not for
-    the fast path: :meth:`unpack` returns None and the caller deserialises it the general way.
+    and the lockstep loop sends three of them every 0.1 ms. From the fields, in the ``.msg``
+    file's order (``test_wire`` holds them to it and to rclpy's serialisation):
 
-    ``dtype`` is the same message as a numpy record (natural alignment, no header): what the
-    compiled core reads and writes, one field per message field with the message's type.
+    - ``dtype``: the message as a numpy record (natural alignment, no header), what the compiled
+      core reads and writes and a series keeps as its rows: CDR aligns each number to its size
+      from the end of the 4-byte encapsulation header, as numpy does from the record's start,
+      so the record's bytes are the message's CDR body;
+    - ``body``: the struct format of those bytes, padding written out (:meth:`pack`,
+      :meth:`unpack`, :meth:`reader`);
+    - ``fields``: the names in order; ``tuple``: a namedtuple of them (defaults for the fields
+      that have one); :meth:`copied_from`: the fields a kernel copies from another message.
+
+    A message in another encapsulation (big-endian) or of another size is not for the fast
+    path: :meth:`unpack` returns None and the caller deserialises it the general way.
     """
 
-    __slots__ = ('msgtype', 'fields', 'size', 'dtype', '_reader', '_writer')
+    __slots__ = ('msgtype', 'fields', 'body', 'size', 'dtype', 'tuple', '_specs', '_reader',
+                 '_writer')
 
-    def __init__(self, msgtype: str, fields: tuple[str, ...], body: str):
+    def __init__(self, msgtype: str, fields: tuple):
         self.msgtype = msgtype
-        self.fields = fields
+        self._specs = tuple(LoopField(*f) for f in fields)
+        self.fields = tuple(f.name for f in self._specs)
+        self.dtype = np.dtype([(f.name, '<' + f.kind if f.kind != 'u1' else f.kind)
+                               for f in self._specs], align=True)
+        body, at = '', 0
+        for f in self._specs:
+            offset = self.dtype.fields[f.name][1]
+            body += (f'{offset - at}x' if offset > at else '') + _STRUCT_CODES[f.kind]
+            at = offset + self.dtype[f.name].itemsize
+        self.body = body
         self._reader = struct.Struct('<4x' + body)
         self._writer = struct.Struct('<4s' + body)
         self.size = self._reader.size
-        codes = [code for count, code in re.findall(r'(\d*)([a-zA-Z])', body) if code != 'x'
-                 for _ in range(int(count or 1))]
-        if len(codes) != len(fields):
-            raise ValueError(f'{msgtype}: {len(fields)} fields but {len(codes)} in {body!r}')
-        self.dtype = np.dtype([(name, _NUMPY_OF_STRUCT[code])
-                               for name, code in zip(fields, codes)], align=True)
+        if self.size != 4 + self.dtype.itemsize:
+            raise ValueError(f'{msgtype}: the record ({self.dtype.itemsize} bytes) is not the '
+                             f'CDR body ({self.size - 4} bytes)')
+        defaults = [f.default for f in self._specs if f.default is not None]
+        if any(f.default is None for f in self._specs[len(self._specs) - len(defaults):]):
+            raise ValueError(f'{msgtype}: only the last fields may have defaults')
+        self.tuple = collections.namedtuple(msgtype.rsplit('/', 1)[-1], self.fields,
+                                            defaults=defaults)
+
+    def copied_from(self, msgtype: str) -> tuple[str, ...]:
+        """Return the fields this message repeats of loop message ``msgtype``, in order."""
+        return tuple(f.name for f in self._specs if f.copied_from == msgtype)
 
     def pack(self, *values) -> bytes:
         """Return the CDR bytes of a message with ``values`` in field order (bools as 0/1)."""
@@ -433,7 +470,7 @@ class LoopLayout:
             offset = 4 + self.dtype.fields[name][1]
             if offset < at:
                 raise ValueError(f'{name}: fields must be given in message order')
-            code = {'i8': 'q', 'u4': 'I', 'u1': 'B', 'f8': 'd'}[self.dtype[name].str[1:]]
+            code = _STRUCT_CODES[self.dtype[name].str[1:]]
             fmt += f'{offset - at}x{code}' if offset > at else code
             at = offset + self.dtype[name].itemsize
         return struct.Struct(fmt)
@@ -443,23 +480,29 @@ class LoopLayout:
         return dict(zip(self.fields, values))
 
 
-TICK_LAYOUT = LoopLayout(
-    'gripper_interfaces/msg/PlantTick',
-    ('stamp_ns', 'position_m', 'velocity_mps', 'force_n', 'peak_force_n', 'sensor_voltage_v',
-     'motor_voltage_v', 'current_a', 'speed_rad_s', 'applied_source', 'revision',
-     'pad1_shear_n', 'pad2_shear_n', 'pad1_displacement_m', 'pad2_displacement_m'),
-    'q8dB3xI4d')
-REFERENCE_LAYOUT = LoopLayout(
-    'gripper_interfaces/msg/StageReference',
-    ('stamp_ns', 'grasp_id', 'stage_id', 'revision', 'phase', 'outcome', 'controller',
-     'running', 'contact', 'position_setpoint_m', 'approach_setpoint_m', 'force_setpoint_n',
-     'position_m', 'velocity_mps', 'force_n', 'seed_voltage_v', 'speed_limit_mps',
-     'voltage_limit_v', 'approach_velocity_mps', 'approach_acceleration_mps2'),
-    'qIII5B7x11d')
-COMMAND_LAYOUT = LoopLayout(
-    'gripper_interfaces/msg/MotorCommand',
-    ('stamp_ns', 'grasp_id', 'stage_id', 'revision', 'source', 'phase', 'outcome', 'running',
-     'finite', 'voltage_v', 'hold_s', 'inner_setpoint'),
-    'qIII5B7x3d')
+MSG_TICK = 'gripper_interfaces/msg/PlantTick'
+MSG_REFERENCE = 'gripper_interfaces/msg/StageReference'
+MSG_COMMAND = 'gripper_interfaces/msg/MotorCommand'
+
+TICK_LAYOUT = LoopLayout(MSG_TICK, (
+    ('stamp_ns', 'i8'), ('position_m', 'f8'), ('velocity_mps', 'f8'), ('force_n', 'f8'),
+    ('peak_force_n', 'f8'), ('sensor_voltage_v', 'f8'), ('motor_voltage_v', 'f8'),
+    ('current_a', 'f8'), ('speed_rad_s', 'f8'), ('applied_source', 'u1'), ('revision', 'u4'),
+    ('pad1_shear_n', 'f8'), ('pad2_shear_n', 'f8'), ('pad1_displacement_m', 'f8'),
+    ('pad2_displacement_m', 'f8')))
+REFERENCE_LAYOUT = LoopLayout(MSG_REFERENCE, (
+    ('stamp_ns', 'i8', MSG_TICK), ('grasp_id', 'u4'), ('stage_id', 'u4'),
+    ('revision', 'u4', MSG_TICK), ('phase', 'u1'), ('outcome', 'u1'), ('controller', 'u1'),
+    ('running', 'u1'), ('contact', 'u1'), ('position_setpoint_m', 'f8'),
+    ('approach_setpoint_m', 'f8'), ('force_setpoint_n', 'f8'), ('position_m', 'f8', MSG_TICK),
+    ('velocity_mps', 'f8', MSG_TICK), ('force_n', 'f8', MSG_TICK), ('seed_voltage_v', 'f8'),
+    ('speed_limit_mps', 'f8', '', 0.0), ('voltage_limit_v', 'f8', '', 0.0),
+    ('approach_velocity_mps', 'f8', '', 0.0), ('approach_acceleration_mps2', 'f8', '', 0.0)))
+COMMAND_LAYOUT = LoopLayout(MSG_COMMAND, (
+    ('stamp_ns', 'i8', MSG_REFERENCE), ('grasp_id', 'u4', MSG_REFERENCE),
+    ('stage_id', 'u4', MSG_REFERENCE), ('revision', 'u4', MSG_REFERENCE), ('source', 'u1'),
+    ('phase', 'u1', MSG_REFERENCE), ('outcome', 'u1', MSG_REFERENCE),
+    ('running', 'u1', MSG_REFERENCE), ('finite', 'u1'), ('voltage_v', 'f8'), ('hold_s', 'f8'),
+    ('inner_setpoint', 'f8')))
 LOOP_LAYOUTS = {layout.msgtype: layout for layout in (TICK_LAYOUT, REFERENCE_LAYOUT,
                                                       COMMAND_LAYOUT)}

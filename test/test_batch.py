@@ -6,7 +6,8 @@
   a ``trace=`` callback is given, field for field.
 - ``simulate_grasps`` gives, for every case, what ``simulate_grasp`` gives in this process,
   whatever the number of worker processes; a refused request comes back as its RequestError;
-  ``summarize`` runs in the worker and only its result comes back.
+  ``summarize`` runs in the worker and only its result comes back; summarized cases in one
+  process reuse the rows a case before left free, and give the same bytes.
 - Bad ``jobs`` are refused.
 """
 from __future__ import annotations
@@ -92,6 +93,36 @@ def test_summaries_come_back_in_the_order_of_the_cases():
     assert summaries[2] == 'refused'
     assert summaries == [_outcome_and_ticks(c, simulate_grasp(CONFIG, **c))
                          if c['mass_kg'] != 50.0 else 'refused' for c in CASES]
+
+
+def _ticks_digest(case: dict, result):
+    """Summarize every tick's numbers (as a sweep's summary reads them all)."""
+    if isinstance(result, RequestError):
+        return 'refused'
+    return [result.series.ticks[n].tobytes() for n in result.series.ticks.dtype.names]
+
+
+def _force_rows(case: dict, result):
+    """Summarize by a view of the grasp's rows (kept: the rows must stay as they are)."""
+    return None if isinstance(result, RequestError) else result.series.ticks['force_n']
+
+
+def test_summarized_grasps_in_one_process_give_what_each_gives_alone():
+    """A summarized case writes into the rows the one before left free, and only then.
+
+    Each summary is the same bytes as the grasp's alone (the longer hold first: the next ones
+    write into bigger, used rows); a summary that keeps a view of its rows keeps them intact
+    through the cases after it.
+    """
+    cases = [dict(CASES[0], hold_s=0.5)] + CASES
+    summaries = simulate_grasps(CONFIG, cases, jobs=1, summarize=_ticks_digest)
+    assert summaries == [_ticks_digest(c, simulate_grasp(CONFIG, **c))
+                         if c['mass_kg'] != 50.0 else 'refused' for c in cases]
+    kept = simulate_grasps(CONFIG, cases, jobs=1, summarize=_force_rows)
+    for case, rows in zip(cases, kept):
+        if rows is not None:
+            assert np.array_equal(rows, simulate_grasp(CONFIG, **case).series.ticks['force_n'],
+                                  equal_nan=True)
 
 
 @pytest.mark.parametrize('jobs', [0, -1, 1.5, 10 ** 6])

@@ -1,48 +1,101 @@
 """The Python faces over the compiled records: declared kernels, record copies, message texts.
 
 A node's or a tool's first call of a face must not pay numba's compilation: warm-up compiles
-every kernel declared with ``face_kernel``, and driving each face afterwards compiles nothing
-more. A compiled ``copy_fields`` writes what the Python one writes. Every supervisor message
-code has one template, and the texts carry the kernel's numbers.
+every kernel declared with ``face_kernel`` (physics, control, supervision, the nodes' tick
+calls, the compiled loop), and driving each face afterwards, the plant's and the loop's
+included, compiles nothing more. A compiled ``copy_fields`` writes what the Python one writes.
+Every answering event of the supervisor has one template, and the texts carry the kernel's
+numbers.
 """
 from __future__ import annotations
 
 import importlib
 import math
+import pkgutil
 import string
 
 from gripper_ros.core.config import load_config
 from gripper_ros.core.control.dmc import CascadedMpc
-from gripper_ros.core.control.factories import ForceControllerKind, PositionControllerKind
+from gripper_ros.core.control.factories import (ForceControllerKind, make_plant,
+                                                PositionControllerKind)
 from gripper_ros.core.control.pid import AntiWindup, DerivativeOn, PID
 from gripper_ros.core.control.stages import (ForceStageController, LockstepAnswerer,
                                              PositionStageController, Reference)
-from gripper_ros.core.records import compile_face_kernels, copy_fields, set_fields
+from gripper_ros.core.physics.hold import HoldModel, Lift
+from gripper_ros.core.physics.pad_sensor import PadChannel
+from gripper_ros.core.physics.plant import GraspObject
+from gripper_ros.core.records import compile_face_kernels, copy_fields, fields_into, set_fields
+from gripper_ros.core.runtime.headless import simulate_grasp, simulate_moves
+from gripper_ros.core.runtime.lockstep import PlantSide, StageSide, SupervisorSide
 from gripper_ros.core.supervision import machine, messages
 from gripper_ros.core.supervision import supervisor as sv
-from gripper_ros.core.supervision.requests import MoveTargets
+from gripper_ros.core.supervision.requests import MoveRequest, MoveTargets
+from gripper_ros.wire import CDR_LITTLE_ENDIAN, FaultKind
 import numba
 import numpy as np
 
 CONFIG = load_config()
 
-FACE_MODULES = ('gripper_ros.core.control.pid', 'gripper_ros.core.control.dmc',
-                'gripper_ros.core.control.contact_force', 'gripper_ros.core.control.load_grip',
-                'gripper_ros.core.control.stages', 'gripper_ros.core.supervision.machine')
+
+def _core_modules() -> list[str]:
+    """Return every module of the compiled core (and the identification's compiled replay)."""
+    import gripper_ros.core
+    names = [m.name for m in pkgutil.walk_packages(gripper_ros.core.__path__, 'gripper_ros.core.')]
+    return sorted(n for n in names if not n.endswith('batch_worker')) + [
+        'gripper_ros.identify.replay']
 
 
 def _signatures() -> dict:
-    """Return the number of compiled signatures of every kernel of the face modules."""
+    """Return the number of compiled signatures of every kernel of the core."""
     counts = {}
-    for name in FACE_MODULES:
+    for name in _core_modules():
         for attr, value in vars(importlib.import_module(name)).items():
             if isinstance(value, numba.core.dispatcher.Dispatcher):
                 counts[f'{name}.{attr}'] = len(value.signatures)
     return counts
 
 
+def _drive_the_plant_and_the_loop() -> None:
+    """Run the plant's faces, the sides' tick calls and every mode of the headless loop."""
+    plant = make_plant(CONFIG)
+    side = PlantSide(plant)
+    side.set_object(GraspObject(0.05, 0.0, 0.0, 1.0), lift=Lift(1.0, 0.0, 0.01),
+                    fault=(FaultKind.OBJECT_REMOVED, 0.01, 0.0))
+    side.step_unpowered(0.001)
+    plant.step(1.0, 1e-4)
+    plant.object_state
+    plant.lift_plan()
+    plant.begin_hold(plant.t_ns, 1.0)
+    plant.schedule_fault(FaultKind.SENSOR_DROPOUT, plant.t_ns + 1000)
+    plant.cancel_fault()
+    plant.touch_object()
+    plant.sensor.voltage_v(1.0), plant.sensor.resistance_ohm(1.0)
+    plant.reset()
+    hold = HoldModel(1.0, 0.5, 0.4, 0.02, 9.81, Lift(1.0, 0.0, 0.1))
+    hold.begin(0, 1.0)
+    hold.fire_events(0), hold.live, hold.load_n, hold.capacity_n(1.0), hold.shear_n(1.0)
+    hold.presliding_m(1.0), hold.advance(1.0, 1e-4), hold.drive(0, 1.0), hold.remove()
+    PadChannel(CONFIG.pad_sensor.shear, 1e-4).run([0.0, 1.0])
+    supervisor = sv.GraspSupervisor(CONFIG.plant, CONFIG.supervisor, sv.load_law(CONFIG))
+    sides = (side, SupervisorSide(supervisor), StageSide(PositionStageController(CONFIG)))
+    tick = CDR_LITTLE_ENDIAN + side.tick_record.tobytes()
+    sides[1].take_tick(tick)
+    sides[1].status_published(0, 10_000_000)
+    ref = CDR_LITTLE_ENDIAN + sides[1].reference_record.tobytes()
+    sides[2].take_reference(ref)
+    side.take_command(CDR_LITTLE_ENDIAN + sides[2].command_record.tobytes(), False)
+    side.step_due()
+    for kwargs in ({}, {'trace': lambda *_: None}, {'trace_state_period_ns': 10_000_000},
+                   {'idle_unpowered_s': 0.01, 'announce': True, 'mass_kg': 0.0}):
+        simulate_grasp(CONFIG, 0.05, kwargs.pop('mass_kg', 1.0), timeout_s=0.05,
+                       lift=Lift(1.0, 0.0, 0.01), **kwargs)
+    simulate_moves(CONFIG, [MoveRequest(0.14, speed_mps=0.02, max_effort_n=5.0,
+                                        timeout_s=0.02)])
+
+
 def _drive_every_face() -> None:
     """Call every face method that runs a kernel, as the nodes and the tools do."""
+    _drive_the_plant_and_the_loop()
     supervisor = sv.GraspSupervisor(CONFIG.plant, CONFIG.supervisor, sv.load_law(CONFIG))
     supervisor.step(1_000_000, 0.0, 0.0, 0.0)
     supervisor.request_move(MoveTargets(0.1, 0.02, 5.0, 3.6, 0.0, 1e-3))
@@ -84,7 +137,7 @@ def test_after_warm_up_no_face_compiles_a_kernel_at_its_first_call():
     A face that called a kernel with types nobody declared would compile it here, at the
     first tick of a node.
     """
-    assert compile_face_kernels() >= 20
+    assert compile_face_kernels() >= 70
     before = _signatures()
     _drive_every_face()
     after = _signatures()
@@ -109,6 +162,21 @@ def test_compiled_copy_fields_and_set_fields_write_what_the_python_ones_write():
     set_fields(python[0], ('pend_b', 't_ns'), -1)
     assert compiled.tobytes() == python.tobytes()
     assert compiled[0].tolist() == (2.5, 7, 2.5, -1, -1)
+
+
+def test_compiled_fields_into_writes_the_named_fields_in_order():
+    dtype = np.dtype([('a', 'f8'), ('b', 'i8'), ('c', 'f8')], align=True)
+
+    @numba.njit
+    def into(x, out):
+        fields_into(out, x[0], ('c', 'a', 'b'))
+
+    record = np.zeros(1, dtype)
+    record[0] = (1.5, 7, -2.25)
+    out, python = np.zeros(3), np.zeros(3)
+    into(record, out)
+    fields_into(python, record[0], ('c', 'a', 'b'))
+    assert out.tolist() == python.tolist() == [-2.25, 1.5, 7.0]
 
 
 def test_pid_settings_and_terms_read_the_record():

@@ -64,22 +64,29 @@ def test_template_is_rclpys_serialisation_both_ways(name):
 
 
 def test_template_refuses_a_message_of_another_form():
-    """Another frame_id, or a status carrying a text, is not in the layout: None.
-
-    The status reader falls back to rclpy and still reads its numbers.
-    """
+    """Another frame_id is not in the layout: None."""
     force = loop_io.force_sensor_template('gripper_base')
     other = deserialize_message(force.pack(1, 2, 3.0, 4.0, 5.0), force.msg_cls)
     other.header.frame_id = 'elsewhere'
     assert force.unpack(serialize_message(other)) is None
 
+
+def test_a_status_with_a_text_is_read_and_written_by_its_template():
+    """A status's message (the held grasp's, on every status while it holds) is any text.
+
+    The template packs it as rclpy serialises it (rclpy reads text and numbers back), and reads
+    the numbers of what rclpy writes whatever the text (none, ASCII or not).
+    """
+    status = loop_io.status_template()
     values = (3, 2, 1, 7, 9, 4, True, 0, 0.14, 0.14, 18.5, 1.27, 0.1399, 18.4, 0.0101, True)
-    plain = loop_io.status_template().pack(5, 6, *values)
-    with_text = serialize_message(loop_io.status_message(5_000_000_006, values, 'why'))
-    assert loop_io.status_template().unpack(with_text) is None
-    assert loop_io.read_status(with_text) == loop_io.read_status(plain)
-    assert loop_io.read_status(plain).grasp_id == 7
-    assert deserialize_message(with_text, loop_io.status_template().msg_cls).message == 'why'
+    for text in ('', 'why', 'holding 11.036 N (setpoint 11.036 N) at 0.05000 m', 'µ 0.6 → 0.5'):
+        packed = status.pack(5, 6, *values, text=text)
+        back = deserialize_message(packed, status.msg_cls)
+        assert back.message == text and back.grasp_id == 7 and back.force_n == 18.4
+        written = serialize_message(loop_io.status_message(5_000_000_006, values, text))
+        assert status.unpack(written) == status.unpack(packed) == (5, 6, *values)
+        assert loop_io.read_status(written).grasp_id == 7
+    assert status.unpack(status.pack(5, 6, *values, text='why')[:-1]) is None    # cut short
 
 
 def test_a_string_cannot_be_a_template_field():

@@ -134,7 +134,7 @@ def test_long_constant_voltage_reaches_dc_speed_of_eq_9():
     assert plant.contact_state is ContactState.FREE
     assert s.velocity_mps == pytest.approx(FREE_MPS_PER_V * 1.0, rel=1e-5)
     assert s.speed_rad_s * RHO == pytest.approx(s.velocity_mps, rel=1e-12)
-    assert plant.free_speed_mps(1.0) == pytest.approx(FREE_MPS_PER_V, rel=1e-12)
+    assert P.free_speed_per_volt_mps == pytest.approx(FREE_MPS_PER_V, rel=1e-12)
     # at steady speed the armature current only covers viscous damping: k_t i = b omega (eq. 3)
     assert KT * s.current_a == pytest.approx(B_M * s.speed_rad_s, rel=1e-5)
 
@@ -209,7 +209,7 @@ def test_force_step_on_rigid_object_is_first_order_of_eq_13():
 def test_stall_force_at_24_volts():
     assert P.max_force_n == pytest.approx(33.39, abs=0.01)
     plant = make_plant()
-    assert plant.stall_force_n(24.0) == pytest.approx(24.0 * STALL_N_PER_V, rel=1e-12)
+    assert P.stall_force_per_volt_n == pytest.approx(STALL_N_PER_V, rel=1e-12)
     plant.set_object(GraspObject(width_m=0.02))
     plant.touch_object()
     s = plant.step(24.0, 0.01)            # 97 electrical time constants

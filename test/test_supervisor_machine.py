@@ -36,6 +36,17 @@ def test_architecture_md_shows_the_table_the_machine_reads():
     assert shown.group(1) == machine.transitions_table()
 
 
+def test_every_event_that_sets_an_outcome_has_its_message_template():
+    """An outcome is its code, the row that reaches it and its template: none is left out.
+
+    Each event whose row reports an outcome has a template in ``messages.MESSAGES``, and every
+    template is such an event's (a template no row reaches is a dead one).
+    """
+    from gripper_ros.core.supervision.messages import MESSAGES
+    answering = {row[1].name for row in TRANSITIONS if row[4] not in (KEEP, Outcome.UNKNOWN)}
+    assert answering == set(MESSAGES)
+
+
 def test_every_state_is_reached_from_the_first_and_every_answer_leaves_a_request_done():
     reached, frontier = {State.UNDRIVEN}, [State.UNDRIVEN]
     while frontier:

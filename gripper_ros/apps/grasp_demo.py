@@ -11,24 +11,12 @@ DDS discovery is limited to localhost unless ``ROS_AUTOMATIC_DISCOVERY_RANGE`` i
 from __future__ import annotations
 
 import argparse
-from dataclasses import dataclass
 from datetime import datetime
 import math
 import os
 from pathlib import Path
 import sys
 import time
-
-
-@dataclass
-class GraspRecord:
-    width_m: float
-    mass_kg: float
-    response: object
-    bag_dir: Path | None
-    wall_s: float
-    final_outcome: str = ''          # after the hold that follows the answer (a lift)
-    final_message: str = ''
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -260,7 +248,7 @@ def main(argv: list[str] | None = None) -> int:
         records = [_grasp_one(graph, args, w, m, i, len(objects))
                    for i, (w, m) in enumerate(objects, 1)]
         _summarise(graph, records, args)
-        return 0 if all(r.final_outcome == 'HOLDING' for r in records) else 1
+        return 0 if all(r.final_outcome.name == 'HOLDING' for r in records) else 1
     return run_graph('grasp_demo', lambda: GripperGraph(GraphOptions(
         executor=ExecutorKind(args.executor), config_file=args.config, namespace=namespace,
         prefix=args.prefix,
@@ -306,11 +294,12 @@ def _recorded(fields: dict) -> dict:
     return out
 
 
-def _grasp_one(graph, args, width_m: float, mass_kg: float, i: int, n: int) -> GraspRecord:
+def _grasp_one(graph, args, width_m: float, mass_kg: float, i: int, n: int):
+    """Grasp one object; its :class:`~gripper_ros.nodes.recording.RecordedGrasp`."""
     from gripper_ros.apps.common import set_object_fields
     from gripper_ros.bags.recorder import RecordingError
     from gripper_ros.nodes.graph import GraphError
-    from gripper_ros.nodes.recording import recorded_grasp
+    from gripper_ros.nodes.recording import recorded_grasp, RecordedGrasp
     lift = f', lifted at {args.lift:g} m/s^2' if args.lift else ''
     print(f'[{i}/{n}] grasping width {width_m:g} m, mass {mass_kg:g} kg{lift} ...', flush=True)
     if i > 1:                        # the previous object is still held: open the fingers
@@ -325,8 +314,8 @@ def _grasp_one(graph, args, width_m: float, mass_kg: float, i: int, n: int) -> G
                                width_tolerance_m=args.width_tolerance)
         graph.wait_still()
         logic = graph.supervisor.logic
-        return GraspRecord(width_m, mass_kg, response, None, time.perf_counter() - t0,
-                           logic.outcome.name, logic.message)
+        return RecordedGrasp(response, None, {}, {}, time.perf_counter() - t0, logic.outcome,
+                             logic.message, width_m=width_m, mass_kg=mass_kg)
     run = recorded_grasp(graph, _bag_dir(Path(args.output), i, width_m, mass_kg,
                                          args.overwrite), width_m, mass_kg, args.friction,
                          args.stiffness, args.damping, args.overwrite,
@@ -335,8 +324,7 @@ def _grasp_one(graph, args, width_m: float, mass_kg: float, i: int, n: int) -> G
                          stop_on_error=True, **_recorded(set_object_fields(args)))
     if run.recording_error:
         raise RecordingError(run.recording_error)
-    return GraspRecord(width_m, mass_kg, run.response, run.bag_dir, run.wall_s,
-                       run.final_outcome.name, run.final_message)
+    return run
 
 
 def _dash(value: float, fmt: str) -> str:
@@ -345,7 +333,7 @@ def _dash(value: float, fmt: str) -> str:
     return f'{"-":>{width}s}' if value != value else f'{value:{fmt}}'
 
 
-def _summarise(graph, records: list[GraspRecord], args) -> None:
+def _summarise(graph, records: list, args) -> None:
     lifted = bool(args.lift) and not args.no_record
     print(f'\n{"width m":>8s} {"mass kg":>8s} {"outcome":>11s} {"contact s":>10s} '
           f'{"switch s":>9s} {"criterion":>18s} {"pos err mm":>11s} {"force N":>8s} '
@@ -366,8 +354,8 @@ def _summarise(graph, records: list[GraspRecord], args) -> None:
     for i, r in enumerate(records):
         resp = r.response
         outcome = Outcome(resp.outcome).name
-        if r.final_outcome and resp.outcome != Outcome.REFUSED:   # refused: nothing ran after
-            outcome = r.final_outcome
+        if resp.outcome != Outcome.REFUSED:                     # refused: nothing ran after
+            outcome = r.final_outcome.name
         pos_err_mm = (resp.final_position_m - resp.position_setpoint_m) * 1e3
         if i in rows:
             m = rows[i]

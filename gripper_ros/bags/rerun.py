@@ -29,7 +29,8 @@ from gripper_ros.bags.analyze import analyze_series, GraspMetrics
 from gripper_ros.bags.reader import Bag, BagError, open_bag
 from gripper_ros.bags.resimulate import build_stages, load_resim_config
 from gripper_ros.bags.series import bag_namespace, load_grasp_series
-from gripper_ros.core.config import ConfigError, flatten, GripperConfig, parse_config
+from gripper_ros.core.config import (ConfigError, dotted_section, flatten, GripperConfig,
+                                     parse_config)
 from gripper_ros.core.control.factories import ForceControllerKind, PositionControllerKind
 from gripper_ros.core.control.stages import (DEFAULT_APPROACH_FORCE_MARGIN,
                                              DEFAULT_FORCE_CONTROLLER, DEFAULT_POSITION_CONTROLLER)
@@ -253,21 +254,11 @@ def apply_settings(data: dict, settings: Sequence[tuple[str, Any]], source: str)
     """
     out = copy.deepcopy(data)
     for key, value in settings:
-        parts = key.split('.')
-        node = out
-        for depth, part in enumerate(parts):
-            where = '.'.join(parts[:depth])
-            if not isinstance(node, dict) or part not in node:
-                has = ', '.join(sorted(node)) if isinstance(node, dict) else 'no keys'
-                raise ConfigError(f'unknown config key "{key}" in {source} '
-                                  f'({where or "the top level"} has: {has})')
-            if depth == len(parts) - 1:
-                if isinstance(node[part], dict):
-                    raise ConfigError(f'"{key}" is a section of {source}, not a value (it has: '
-                                      f'{", ".join(sorted(node[part]))})')
-                node[part] = value
-            else:
-                node = node[part]
+        section, leaf = dotted_section(out, key, source)
+        if isinstance(section[leaf], dict):
+            raise ConfigError(f'"{key}" is a section of {source}, not a value (it has: '
+                              f'{", ".join(sorted(section[leaf]))})')
+        section[leaf] = value
     return out
 
 

@@ -147,7 +147,7 @@ def _status_row(m) -> tuple:
             m.grasp_id, m.outcome, m.position_setpoint_m, m.force_setpoint_n, m.position_m,
             m.force_n, bool(m.contact), getattr(m, 'stage_id', m.grasp_id),
             getattr(m, 'approach_setpoint_m', m.position_setpoint_m),
-            getattr(m, 'pending_request', 0))
+            getattr(m, 'pending_request', 0), math.nan)
 
 
 def _key(layout, *names):
@@ -223,7 +223,7 @@ def _legacy_series(bag: Bag) -> GraspSeries:
              approach_sp, force_sp, position_m, 0.0, force_n, m.seed_voltage_v, 0.0, 0.0, 0.0,
              0.0)
             for m, (t_ns, phase, controller, _, grasp_id, outcome, position_sp, force_sp,
-                    position_m, force_n, contact, _, approach_sp, _) in zip(status, statuses)]
+                    position_m, force_n, contact, _, approach_sp, _, _) in zip(status, statuses)]
     absent = {f'tick.{n}' for n in LEGACY_TICK_FIELDS[int(peak_recorded):]} | {
         f'reference.{n}' for n in ('revision', 'running', 'velocity_mps', 'speed_limit_mps',
                                    'voltage_limit_v', 'approach_velocity_mps',

@@ -705,10 +705,8 @@ def _absent_value(dotted: str):
         return MISSING
     if meaning is not SHIPPED:
         return meaning
-    data = _shipped_data()
-    for part_name in dotted.split('.'):
-        data = data[part_name]
-    return data
+    section, key = dotted_section(_shipped_data(), dotted)
+    return section[key]
 
 
 def shipped_config() -> GripperConfig:
@@ -719,6 +717,25 @@ def shipped_config() -> GripperConfig:
 @functools.cache
 def _shipped_config() -> GripperConfig:
     return load_config(shipped_config_path())
+
+
+def dotted_section(data: dict, dotted: str, source: str = 'the config') -> tuple[dict, str]:
+    """Return the section of ``data`` that holds key ``dotted``, and the key's last part.
+
+    The one walk of a dotted key (``force_control.sample_time_s``) into nested sections;
+    ConfigError names a part the mapping lacks, where, and what that section holds.
+    """
+    parts = dotted.split('.')
+    node = data
+    for depth, part in enumerate(parts):
+        if not isinstance(node, dict) or part not in node:
+            where = '.'.join(parts[:depth])
+            has = ', '.join(sorted(node)) if isinstance(node, dict) else 'no keys'
+            raise ConfigError(f'unknown config key "{dotted}" in {source} '
+                              f'({where or "the top level"} has: {has})')
+        if depth < len(parts) - 1:
+            node = node[part]
+    return node, parts[-1]
 
 
 def flatten(data: dict, prefix: str = '') -> dict[str, object]:

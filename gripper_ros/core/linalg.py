@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import math
 
+from gripper_ros.core.records import face_kernel, FLOATS, FLOATS_2D
 import numba
 import numpy as np
 
@@ -54,12 +55,14 @@ def matvec_into(a, x, out):
     return out
 
 
+@face_kernel(FLOATS_2D, FLOATS)
 @numba.njit(cache=True)
 def matvec(a, x):
     """Return ``a x`` as a new vector."""
     return matvec_into(a, x, np.empty(a.shape[0]))
 
 
+@face_kernel(FLOATS_2D, FLOATS_2D)
 @numba.njit(cache=True)
 def matmul(a, b):
     """Return ``a b``; each entry summed over the inner index from 0 up."""
@@ -77,6 +80,7 @@ def matmul(a, b):
     return out
 
 
+@face_kernel(FLOATS_2D, FLOATS_2D)
 @numba.njit(cache=True)
 def solve(a, b):
     """Return X with ``a X = b`` (b 2-D): Gaussian elimination with partial pivoting.
@@ -192,6 +196,7 @@ def _pade_13(a):
     return _pade_quotient(u, v)
 
 
+@face_kernel(FLOATS_2D)
 @numba.njit(cache=True)
 def expm(a):
     """Matrix exponential by scaling and squaring with Pade approximants (Higham 2005).

@@ -2,8 +2,9 @@
 
 The kernels own each face's state in a one-element structured array, ``self.record``; a face
 reads and writes its fields through these descriptors rather than one hand-written property each.
-A kernel a face calls from Python is declared with :func:`face_kernel` and the types the face
-passes, so that :func:`compile_face_kernels` compiles every one of them ahead of the first call.
+Every kernel called from Python (a face's, a node's, the compiled loop itself) is declared with
+:func:`face_kernel` and the types it is called with, so that :func:`compile_face_kernels`
+compiles every one of them ahead of the first call: the one compile path of the core.
 """
 
 from __future__ import annotations
@@ -148,17 +149,25 @@ def _reader(dtype: np.dtype):
     return int if dtype.kind in 'iu' else float
 
 
-def copy_fields(record, source, names, prefix: str = '', source_prefix: str = '') -> None:
+def copy_fields(record, source, names=None, prefix: str = '', source_prefix: str = '') -> None:
     """Set each ``prefix + name`` of ``record`` to ``source_prefix + name`` of ``source``.
 
-    ``source`` is an object (its attributes) or a record; ``names`` the fields, named alike in
-    both, or (from Python) a dict {record's field: source's name}. In compiled code ``names``
-    and the prefixes are constants and the copy compiles to one assignment per field.
+    ``source`` is an object (its attributes), a record, or (from Python) a dict of values;
+    ``names`` the fields, named alike in both, or (from Python) a dict {record's field:
+    source's name}; None (a dict source): every key of it. In compiled code ``names`` and the
+    prefixes are constants and the copy compiles to one assignment per field.
     """
-    read = source.__getitem__ if isinstance(source, (np.void, np.ndarray)) else \
+    read = source.__getitem__ if isinstance(source, (np.void, np.ndarray, dict)) else \
         (lambda field: getattr(source, field))
+    names = tuple(source) if names is None else names
     for field, name in names.items() if isinstance(names, dict) else zip(names, names):
         record[prefix + field] = read(source_prefix + name)
+
+
+def fields_into(out, record, names) -> None:
+    """Set ``out[i]`` to field ``names[i]`` of ``record`` (compiled: one assignment each)."""
+    for i, name in enumerate(names):
+        out[i] = record[name]
 
 
 def set_fields(record, names, value) -> None:
@@ -196,6 +205,14 @@ def _copy_fields(record, source, names, prefix='', source_prefix=''):
                      + ['    return None'], 'copy')
 
 
+@overload(fields_into, prefer_literal=True)
+def _fields_into(out, record, names):
+    names = _literal(names, 'names')
+    return _compiled(['def into(out, record, names):']
+                     + [f'    out[{i}] = record.{n}' for i, n in enumerate(names)]
+                     + ['    return None'], 'into')
+
+
 @overload(set_fields, prefer_literal=True)
 def _set_fields(record, names, value):
     names = _literal(names, 'names')
@@ -229,6 +246,12 @@ FLOATS = types.float64[::1]
 """A float array argument of :func:`face_kernel`."""
 FLOATS_2D = types.float64[:, ::1]
 """A 2-D float array argument of :func:`face_kernel`."""
+INTS = types.int64[::1]
+"""An int64 array argument of :func:`face_kernel`."""
+UINT8S = types.uint8[::1]
+"""A byte array argument (a record's bytes) of :func:`face_kernel`."""
+BYTES = numba.typeof(b'')
+"""A ``bytes`` argument (a serialised message) of :func:`face_kernel`."""
 
 
 def _numba_type(arg):
@@ -241,11 +264,19 @@ def _numba_type(arg):
     return arg
 
 
-def compile_face_kernels() -> int:
-    """Compile (or load from numba's cache) every declared face kernel; return how many."""
+def compile_face_kernels(package: str = 'gripper_ros') -> int:
+    """Compile (or load from numba's cache) the declared kernels of ``package``; return how many.
+
+    The one way the core is compiled ahead: set-up compiles them all, a node's face loads its
+    package's before its first tick.
+    """
+    count = 0
     for kernel, signature in FACE_KERNELS:
-        kernel.compile(signature)
-    return len(FACE_KERNELS)
+        module = kernel.py_func.__module__
+        if module == package or module.startswith(package + '.'):
+            kernel.compile(signature)
+            count += 1
+    return count
 
 
 def as_record(x):

@@ -19,9 +19,11 @@ STATUS_ROW = np.dtype(
      ('switch_criterion', 'i4'), ('grasp_id', 'i8'), ('outcome', 'i4'),
      ('position_setpoint_m', 'f8'), ('force_setpoint_n', 'f8'), ('position_m', 'f8'),
      ('force_n', 'f8'), ('contact', 'b1'), ('stage_id', 'i8'), ('approach_setpoint_m', 'f8'),
-     ('pending_request', 'i4')],
+     ('pending_request', 'i4'), ('seed_voltage_v', 'f8')],
     align=True)
-"""The supervisor's state on a tick it changed, as ``supervisor/status`` reports it."""
+"""The supervisor's state: as ``supervisor/status`` reports it on a tick it changed, and as each
+reference carries its decision (:attr:`GraspSeries.decisions`). The seed voltage is the
+supervisor's in a run without ROS, NaN from a bag (``supervisor/status`` does not carry it)."""
 OBJECT_ROW = np.dtype(
     [('stamp_ns', 'i8'), ('state', 'i4'), ('slip_m', 'f8'), ('slip_speed_mps', 'f8'),
      ('load_n', 'f8'), ('capacity_n', 'f8')], align=True)
@@ -32,13 +34,6 @@ TICK_STATE_ROW = np.dtype(
 """What the loop knew on a tick beside its message, one row a tick: the supervisor's phase and
 setpoints, the held object's truth (load m (g + a) while held, slide so far, HoldState) and the
 load-tracking law's friction estimate. A run without ROS keeps it; a bag does not."""
-DECISION_ROW = np.dtype(
-    [('stamp_ns', 'i8'), ('phase', 'i8'), ('active_controller', 'i8'),
-     ('switch_criterion', 'i8'), ('grasp_id', 'i8'), ('outcome', 'i8'),
-     ('position_setpoint_m', 'f8'), ('force_setpoint_n', 'f8'), ('position_m', 'f8'),
-     ('force_n', 'f8'), ('contact', 'b1'), ('seed_voltage_v', 'f8'), ('stage_id', 'i8'),
-     ('approach_setpoint_m', 'f8')])
-"""The supervisor's decision, one row a reference (and its final state after the last)."""
 
 
 def rows(dtype: np.dtype, values=()) -> np.ndarray:
@@ -89,15 +84,15 @@ class GraspSeries:
 
     @functools.cached_property
     def decisions(self) -> np.ndarray:
-        """Return the supervisor's decision of each reference (:data:`DECISION_ROW`).
+        """Return the supervisor's decision of each reference (:data:`STATUS_ROW`).
 
         Its switch criterion is the one the supervisor's state reported by then; when the
         supervisor ended the request after the last reference (a FAULT: no stage is named, so no
         reference carries it), its last state follows, with a NaN seed voltage.
         """
         ref, st = self.references, self.statuses
-        out = np.zeros(ref.size, DECISION_ROW)
-        for name in DECISION_ROW.names:
+        out = np.zeros(ref.size, STATUS_ROW)
+        for name in STATUS_ROW.names:
             if name in ref.dtype.names:
                 out[name] = ref[name]
         out['active_controller'] = ref['controller']
@@ -108,10 +103,8 @@ class GraspSeries:
             last = st[-1]
             if not (ref.size and (last['stamp_ns'] < ref['stamp_ns'][-1] or (
                     out['outcome'][-1] == last['outcome'] and out['phase'][-1] == last['phase']))):
-                final = np.zeros(1, DECISION_ROW)
-                for name in DECISION_ROW.names:
-                    if name in STATUS_ROW.names:
-                        final[name] = last[name]
+                final = np.zeros(1, STATUS_ROW)
+                final[0] = last
                 final['seed_voltage_v'] = np.nan
                 out = np.concatenate((out, final))
         return out
@@ -122,5 +115,5 @@ def seconds(stamped: np.ndarray) -> np.ndarray:
     return stamped['stamp_ns'] * 1e-9
 
 
-__all__ = ['DECISION_ROW', 'GraspSeries', 'OBJECT_ROW', 'rows', 'seconds',
+__all__ = ['GraspSeries', 'OBJECT_ROW', 'rows', 'seconds',
            'STATUS_ROW', 'TICK_STATE_ROW']

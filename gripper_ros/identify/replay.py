@@ -1,8 +1,11 @@
 """The plant driven by recorded voltages, compiled (apart: the fit's module compiles nothing)."""
-from gripper_ros.core.physics.plant import plant_read_tick, plant_step
+from gripper_ros.core.physics.plant import PLANT_DTYPE, plant_read_tick, plant_step
+from gripper_ros.core.records import face_kernel, FLOATS, FLOATS_2D, INTS
+from gripper_ros.wire import TICK_LAYOUT
 import numba
 
 
+@face_kernel(PLANT_DTYPE, INTS, FLOATS, FLOATS_2D, TICK_LAYOUT.dtype)
 @numba.njit(cache=True)
 def run_plant(k, t_ns, voltage_v, out, tick):
     """Drive the plant ``k`` with the recorded voltages; fill out[n] = (x, w, i, F)."""

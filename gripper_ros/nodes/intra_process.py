@@ -90,9 +90,15 @@ class IntraProcessBus:
         if not subscribers:
             return
         append = self._queue.append
+        published_raw = msg.__class__ is bytes
+        converted = None                  # the other form, made once for every subscriber
         for _owner, callback, raw, msg_type in subscribers:
-            append((callback, msg if raw == (msg.__class__ is bytes) else
-                    _convert(msg, raw, msg_type)))
+            if raw == published_raw:
+                append((callback, msg))
+            else:
+                if converted is None:
+                    converted = _convert(msg, raw, msg_type)
+                append((callback, converted))
         if not self._draining:
             self._schedule()
 

@@ -26,6 +26,10 @@ _SLOT_FORMATS = {'double': 'd', 'float': 'f', 'int64': 'q', 'uint64': 'Q', 'int3
                  'octet': 'B', 'char': 'B', 'byte': 'B', 'boolean': '?'}
 
 
+_LENGTH = struct.Struct('<I')
+"""A CDR string's length (its bytes and the terminating NUL)."""
+
+
 class _CdrPlan:
     """The plain-CDR form of one message value, piece by piece.
 
@@ -36,7 +40,8 @@ class _CdrPlan:
     def __init__(self, fields: tuple[str, ...]):
         self.fields = fields
         self.at = 0                          # offset in the payload (after the 4-byte header)
-        self.pieces: list[tuple] = []        # ('const', bytes) | ('pad', n) | ('field', i, fmt)
+        self.pieces: list[tuple] = []        # ('const' | 'text', bytes) | ('pad', n) |
+        #                                      ('field', i, fmt)
         self.found: set[str] = set()
 
     def _align(self, n: int) -> None:
@@ -60,7 +65,7 @@ class _CdrPlan:
             raise ValueError(f'{path}: a string cannot be a field of a fixed layout')
         data = text.encode('utf-8') + b'\0'
         self._align(4)
-        self.pieces.append(('const', struct.pack('<I', len(data)) + data))
+        self.pieces.append(('text', struct.pack('<I', len(data)) + data))
         self.at += 4 + len(data)
 
     def message(self, msg, prefix: str = '') -> None:
@@ -98,9 +103,12 @@ class MessageTemplate:
     written as zeros): :meth:`pack` costs a fraction of converting a Python message for
     ``publish``, and :meth:`unpack` of taking one. A message in another form (another
     frame_id, a string of other length, big-endian) unpacks to None.
+
+    ``last_text``: the message's last field is a string of any text (a status's message):
+    :meth:`pack` takes it as ``text``, :meth:`unpack` reads the numbers whatever it says.
     """
 
-    def __init__(self, template, fields: tuple[str, ...]):
+    def __init__(self, template, fields: tuple[str, ...], last_text: bool = False):
         self.msg_cls = type(template)
         self.fields = tuple(fields)
         plan = _CdrPlan(self.fields)
@@ -108,12 +116,18 @@ class MessageTemplate:
         missing = set(self.fields) - plan.found
         if missing:
             raise ValueError(f'{sorted(missing)}: not numbers of {self.msg_cls.__name__}')
+        pieces = plan.pieces
+        if last_text:
+            if not pieces or pieces[-1][0] != 'text':
+                raise ValueError(f'{self.msg_cls.__name__}: its last field is not a string')
+            pieces = pieces[:-1]
+        self.last_text = last_text
         write_fmt, read_fmt, self._args, self._checks, self._order = '<4s', '<4x', \
             [CDR_HEADER], [], []
         offset = 4
         formats = [''] * len(self.fields)
-        for piece in plan.pieces:
-            if piece[0] == 'const':
+        for piece in pieces:
+            if piece[0] in ('const', 'text'):
                 write_fmt += f'{len(piece[1])}s'
                 read_fmt += f'{len(piece[1])}x'
                 self._args.append(piece[1])
@@ -137,14 +151,24 @@ class MessageTemplate:
         self.size = self._writer.size
         self._identity = self._order == list(range(len(self.fields)))
 
-    def pack(self, *values) -> bytes:
-        """Return the serialised message with ``values`` for :attr:`fields`, in that order."""
-        return self._writer.pack(*[values[a] if a.__class__ is int else a
-                                   for a in self._args])
+    def pack(self, *values, text: str = '') -> bytes:
+        """Return the serialised message with ``values`` for :attr:`fields`, in that order.
+
+        ``text``: the last string's (``last_text`` templates only).
+        """
+        head = self._writer.pack(*[values[a] if a.__class__ is int else a for a in self._args])
+        if not self.last_text:
+            return head
+        data = text.encode('utf-8') + b'\0'
+        return head + _LENGTH.pack(len(data)) + data
 
     def unpack(self, data) -> tuple | None:
         """Return the values of :attr:`fields` in ``data``; None when it is in another form."""
-        if len(data) != self.size:
+        if self.last_text:
+            if len(data) < self.size + 5 or \
+                    _LENGTH.unpack_from(data, self.size)[0] != len(data) - self.size - 4:
+                return None
+        elif len(data) != self.size:
             return None
         for start, stop, part in self._checks:
             if data[start:stop] != part:
@@ -224,16 +248,16 @@ StatusView = namedtuple('StatusView', ('sec', 'nanosec') + STATUS_FIELDS)
 
 @functools.lru_cache(maxsize=None)
 def status_template() -> MessageTemplate:
-    """Return the template of a SupervisorStatus with empty frame_id and message, as most are."""
+    """Return the template of a SupervisorStatus with an empty frame_id, its message any text."""
     from gripper_interfaces.msg import SupervisorStatus
-    return MessageTemplate(SupervisorStatus(), STAMP + STATUS_FIELDS)
+    return MessageTemplate(SupervisorStatus(), STAMP + STATUS_FIELDS, last_text=True)
 
 
 def read_status(data: bytes) -> StatusView:
     """Read the numbers of a serialised status.
 
-    By layout when it has the usual form, else by rclpy's deserialisation (a message text,
-    another frame_id, a big-endian peer).
+    By layout when it has the usual form, else by rclpy's deserialisation (another frame_id,
+    a big-endian peer).
     """
     values = status_template().unpack(data)
     if values is None:

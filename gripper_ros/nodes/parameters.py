@@ -20,8 +20,8 @@ from __future__ import annotations
 import copy
 from typing import Callable
 
-from gripper_ros.core.config import (ConfigError, find_unknown, flatten, GripperConfig,
-                                     load_config, nested, parse_config, SCHEMA)
+from gripper_ros.core.config import (ConfigError, dotted_section, find_unknown, flatten,
+                                     GripperConfig, load_config, nested, parse_config, SCHEMA)
 from gripper_ros.nodes.startup import StartupError
 from gripper_ros.text import one_line
 from gripper_ros.wire import FINGER_JOINT, NAME_CHARACTERS, namespace_prefix
@@ -155,13 +155,6 @@ def refuse_unknown_overrides(nodes: list[Node], known: tuple[str, ...] = ()) -> 
         raise ConfigError(f'unknown parameter "{name}"; {hint}')
 
 
-def _set(data: dict, dotted: str, value) -> None:
-    *parents, leaf = dotted.split('.')
-    for part in parents:
-        data = data[part]
-    data[leaf] = value
-
-
 class ConfigParameters:
     """The config sections of one node as its ROS parameters.
 
@@ -198,7 +191,8 @@ class ConfigParameters:
                 fixed = entry in read_only or dotted in START_UP_ONLY
                 declared = node.declare_parameter(dotted, _as_parameter_value(dotted, value),
                                                   config_descriptor(dotted, fixed)).value
-                _set(self.data, dotted, declared)
+                holder, key = dotted_section(self.data, dotted)
+                holder[key] = declared
                 self.keys.add(dotted)
         self.config = parse_config(self.data, self.source)   # start-up overrides, validated
         self._pending: dict | None = None
@@ -211,7 +205,8 @@ class ConfigParameters:
             return SetParametersResult(successful=True)
         candidate = copy.deepcopy(self.data)
         for name, value in changes.items():
-            _set(candidate, name, value)
+            section, key = dotted_section(candidate, name)
+            section[key] = value
         try:
             config = parse_config(candidate, self.source)
             checked = self._check(config) if self._check is not None else None

@@ -33,10 +33,10 @@ from rclpy.serialization import serialize_message
 
 @dataclass
 class RecordedGrasp:
-    """A grasp's answer, its bag, and what the graph published while it recorded.
+    """A grasp the graph ran: the request, the answer, its bag and what was published.
 
-    ``published``: messages per topic (fast mode; in realtime simulated time runs on and it is
-    empty).
+    ``bag_dir`` None: not recorded. ``published``: messages per topic (fast mode; in realtime
+    simulated time runs on and it is empty).
     """
 
     response: object
@@ -48,6 +48,8 @@ class RecordedGrasp:
     final_message: str = ''
     recording_error: str = ''
     notes: list = field(default_factory=list)
+    width_m: float = 0.0                        # the request's
+    mass_kg: float = 0.0
 
 
 _STAMP = struct.Struct('<q')
@@ -414,7 +416,8 @@ def recorded_grasp(graph, bag_dir, width_m: float, mass_kg: float,
                 tap.error = failure_message(recorder, recorder.failure or exc)
         recorded = dict(recorder.counts)
     return RecordedGrasp(response, Path(bag_dir), published, recorded,
-                         time.perf_counter() - t0, final, message, tap.error)
+                         time.perf_counter() - t0, final, message, tap.error, width_m=width_m,
+                         mass_kg=mass_kg)
 
 
 def _play_out(graph, linger_s: float) -> None:

@@ -212,10 +212,7 @@ class SupervisorNode(GripperNode):
                   self.config.plant.max_travel_m - position_m, d.contact_ns is not None)
         message = d.message if d.outcome is not Outcome.UNKNOWN else ''
         self._status_now = (t_ns, values, message)
-        if message:                             # the rare status with a text: the general way
-            self._status_pub.publish(status_message(t_ns, values, message))
-        else:
-            self._status_pub.publish(status_template().pack(*split_ns(t_ns), *values))
+        self._status_pub.publish(status_template().pack(*split_ns(t_ns), *values, text=message))
         self.statuses_published += 1
         self.published[TOPIC_STATUS] += 1
 

@@ -75,6 +75,12 @@ def dmc_gain(step_response: np.ndarray, control_horizon: int,
     return linalg.solve(linalg.matmul(a_t, a) + move_suppression * np.eye(control_horizon), a_t)
 
 
+@functools.lru_cache(maxsize=64)
+def _dmc_gain(step_response: bytes, control_horizon: int, move_suppression: float) -> np.ndarray:
+    """:func:`dmc_gain` of a step response given as its bytes, once per process."""
+    return dmc_gain(np.frombuffer(step_response), control_horizon, move_suppression)
+
+
 DMC_DTYPE = np.dtype([
     ('horizon', 'i8'),                     # N: samples of the step response
     ('last_output', 'f8'),                 # the manipulated variable now
@@ -152,7 +158,8 @@ class DynamicMatrixControl:
                  output_limits: tuple[float, float] | None = None):
         self.step_response = np.asarray(step_response, dtype=float)
         self.horizon = n = self.step_response.size
-        self.gain = dmc_gain(self.step_response, control_horizon, move_suppression)
+        self.gain = _dmc_gain(self.step_response.tobytes(), control_horizon,
+                              move_suppression).copy()
         self.record = np.zeros(1, DMC_DTYPE)
         self.record[0]['horizon'] = n
         self.buffer = np.zeros(dmc_buffer_size(n))
@@ -345,8 +352,8 @@ def governor_applied_more(g, buf, voltage):
 @functools.lru_cache(maxsize=GOVERNOR_TABLES_CACHED)
 def _governor_tables(ad_bytes: bytes, bd_bytes: bytes, samples: int):
     """``Ad^k`` and the forced response ``sum Ad^j Bd`` for k <= samples, once per model."""
-    ad = np.frombuffer(ad_bytes).reshape(3, 3)
-    bd = np.frombuffer(bd_bytes)
+    ad = np.frombuffer(ad_bytes).reshape(3, 3).copy()    # writable: the kernels' one type
+    bd = np.frombuffer(bd_bytes).copy()
     powers = np.empty((samples + 1, 3, 3))
     steps = np.zeros((samples + 1, 3))
     powers[0] = np.eye(3)

@@ -9,14 +9,14 @@ import enum
 import functools
 
 from gripper_ros.core import linalg
-from gripper_ros.core.config import (DmcTuning, ForceSensorParams, GripperConfig, PidGains,
-                                     PlantParams)
+from gripper_ros.core.config import DmcTuning, GripperConfig, PidGains, PlantParams
 from gripper_ros.core.control.contact_force import ContactForceController
 from gripper_ros.core.control.dmc import (BrakingGovernor, CascadedMpc, closed_loop_step_response,
                                           DynamicMatrixControl)
 from gripper_ros.core.control.pid import (AntiWindup, DerivativeOn,
                                           first_order_pi_by_pole_placement, PID)
 from gripper_ros.core.physics.force_sensor import FsrVoltageDivider
+from gripper_ros.core.physics.motor_zoh import force_model, free_model
 from gripper_ros.core.physics.plant import GripperPlant
 import numpy as np
 
@@ -54,16 +54,15 @@ def _position_inner(config: GripperConfig, gains: PidGains, limits) -> PID:
 
 def position_step_response(config: GripperConfig, gains: PidGains, samples: int):
     """Unit-step response of PD + plant (exact ZOH, unsaturated): the MPC-PD's DMC model."""
-    return _position_step_response(config.plant, config.force_sensor,
-                                   config.position.sample_time_s, gains, samples).copy()
+    return _position_step_response(config.plant, config.position.sample_time_s, gains,
+                                   samples).copy()
 
 
 @functools.lru_cache(maxsize=MODEL_CACHE_SIZE)
-def _position_step_response(plant_params: PlantParams, sensor_params: ForceSensorParams,
-                            sample_time_s: float, gains: PidGains, samples: int) -> np.ndarray:
+def _position_step_response(plant_params: PlantParams, sample_time_s: float, gains: PidGains,
+                            samples: int) -> np.ndarray:
     """:func:`position_step_response`, once per plant, sampling time, gains and length."""
-    plant = GripperPlant(plant_params, FsrVoltageDivider(sensor_params))
-    ad, bd = plant.discrete_free_model(sample_time_s)
+    ad, bd = free_model(plant_params, sample_time_s)
     state = np.zeros(3)
 
     def model_step(u: float) -> float:
@@ -80,13 +79,13 @@ def force_pi_gains(config: GripperConfig, dt_s: float | None = None,
     """Our force PI: discrete pole placement on the exact ZOH of eq. 13 at ``dt_s``."""
     f = config.force
     dt = f.sample_time_s if dt_s is None else dt_s
-    a, b = make_plant(config).discrete_force_model(dt)
+    a, b = force_model(config.plant, dt)
     return first_order_pi_by_pole_placement(a, b, dt, f.closed_loop_pole if pole is None else pole)
 
 
 def force_step_response(config: GripperConfig, gains: PidGains, dt_s: float, samples: int):
     """Unit-step response of PI + eq. 13 (exact ZOH, unsaturated): the MPC-PI's DMC model."""
-    a, b = make_plant(config).discrete_force_model(dt_s)
+    a, b = force_model(config.plant, dt_s)
     state = [0.0]
 
     def model_step(u: float) -> float:
@@ -108,7 +107,7 @@ def make_position_controller(config: GripperConfig, kind: PositionControllerKind
     tuning = pos.mpc_pd_dmc
     model = position_step_response(config, pos.mpc_pd, tuning.horizon)
     dmc = DynamicMatrixControl(model, tuning.control_horizon, tuning.move_suppression)
-    ad, bd = make_plant(config).discrete_free_model(pos.sample_time_s)
+    ad, bd = free_model(config.plant, pos.sample_time_s)
     governor = None
     if pos.mpc_pd_braking_voltage_v > 0.0:  # ours, default on; 0 = the DMC's clamp alone
         governor = BrakingGovernor(ad, bd, config.plant.voltage_limit_v,

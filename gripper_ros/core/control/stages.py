@@ -43,8 +43,9 @@ from gripper_ros.core.control.factories import (ForceControllerKind, make_force_
 from gripper_ros.core.control.pid import (law_error, LAW_NUMBERS, LAW_OK, PID_DTYPE, pid_reset,
                                           pid_step_checked, py_max, py_min)
 from gripper_ros.core.control.servo_feedforward import feedforward_gains, feedforward_v
-from gripper_ros.core.records import as_record, copy_fields, face_kernel, FLOATS, RecordPair
-from gripper_ros.wire import COMMAND_LAYOUT, Controller, REFERENCE_LAYOUT
+from gripper_ros.core.records import (as_record, copy_fields, face_kernel, fields_into, FLOATS,
+                                      RecordPair)
+from gripper_ros.wire import COMMAND_LAYOUT, Controller, MSG_REFERENCE, REFERENCE_LAYOUT
 import numba
 import numpy as np
 
@@ -55,14 +56,10 @@ DEFAULT_POSITION_CONTROLLER = PositionControllerKind.MPC_PD
 DEFAULT_FORCE_CONTROLLER = ForceControllerKind.CONTACT_AWARE
 DEFAULT_APPROACH_FORCE_MARGIN = 1.0
 
-OPTIONAL_FIELDS = ('speed_limit_mps', 'voltage_limit_v', 'approach_velocity_mps',
-                   'approach_acceleration_mps2')
-"""The reference's last fields, 0 where a sender does not give them: a move's limits (0: none)
-and the motion of its approach setpoint (0: it stands)."""
-Reference = namedtuple('Reference', REFERENCE_LAYOUT.fields,
-                       defaults=(0.0,) * len(OPTIONAL_FIELDS))
-"""One StageReference's fields, in message order (``Reference._make(values)``); the last
-(:data:`OPTIONAL_FIELDS`) default to 0."""
+Reference = REFERENCE_LAYOUT.tuple
+"""One StageReference's fields, in message order (``Reference._make(values)``); the last four
+default to 0: a move's ``speed_limit_mps`` and ``voltage_limit_v`` (no limit) and the motion of
+its approach setpoint (it stands)."""
 
 REFERENCE_NUMBERS = ('position_setpoint_m', 'approach_setpoint_m', 'force_setpoint_n',
                      'seed_voltage_v', 'position_m')
@@ -74,16 +71,6 @@ MOTION_NUMBERS = ('approach_velocity_mps', 'approach_acceleration_mps2')
 NUMBER_FIELDS = REFERENCE_NUMBERS + LIMIT_NUMBERS + MOTION_NUMBERS
 """Bit i of a last-answer record's ``numbers_mask`` / ``bad_mask`` is ``NUMBER_FIELDS[i]``."""
 N_NUMBERS = len(NUMBER_FIELDS)
-# each reference number's slot and bit, by name (the compiled code reads them as constants)
-AT_POSITION_SETPOINT = NUMBER_FIELDS.index('position_setpoint_m')
-AT_APPROACH_SETPOINT = NUMBER_FIELDS.index('approach_setpoint_m')
-AT_FORCE_SETPOINT = NUMBER_FIELDS.index('force_setpoint_n')
-AT_SEED_VOLTAGE = NUMBER_FIELDS.index('seed_voltage_v')
-AT_POSITION = NUMBER_FIELDS.index('position_m')
-AT_SPEED_LIMIT = NUMBER_FIELDS.index('speed_limit_mps')
-AT_VOLTAGE_LIMIT = NUMBER_FIELDS.index('voltage_limit_v')
-AT_APPROACH_VELOCITY = NUMBER_FIELDS.index('approach_velocity_mps')
-AT_APPROACH_ACCELERATION = NUMBER_FIELDS.index('approach_acceleration_mps2')
 
 
 def parse_kind(kind_cls: type[enum.Enum], value, name: str = 'controller'):
@@ -168,6 +155,9 @@ stage. Parts a kind does not use are placeholders, so every stage compiles to on
 LAW_NUMBERS_AT = 0                                       # buffers[0:5]: a refusing law's numbers
 REFERENCE_NUMBERS_AT = LAW_NUMBERS_AT + LAW_NUMBERS      # buffers[5:14]: the reference's, as read
 DMC_BUFFER_AT = REFERENCE_NUMBERS_AT + len(NUMBER_FIELDS)  # buffers[14:]: DMC's, governor's
+
+STAGE_KERNEL = (STATE_DTYPE, FLOATS)
+"""The types of a stage's kernel ``k`` (:func:`~gripper_ros.core.records.face_kernel`)."""
 
 KERNEL_LAYOUT = ('state', 'buffers')
 """``k = (state, buffers)``: ``state`` a 1-element :data:`STATE_DTYPE` array, ``buffers`` one
@@ -389,15 +379,7 @@ def answer_open(last, reference_numbers, ref, measurement):
     if not math.isfinite(measurement):
         b.reason = REASON_MEASUREMENT
         return REASON_MEASUREMENT
-    reference_numbers[AT_POSITION_SETPOINT] = r.position_setpoint_m
-    reference_numbers[AT_APPROACH_SETPOINT] = r.approach_setpoint_m
-    reference_numbers[AT_FORCE_SETPOINT] = r.force_setpoint_n
-    reference_numbers[AT_SEED_VOLTAGE] = r.seed_voltage_v
-    reference_numbers[AT_POSITION] = r.position_m
-    reference_numbers[AT_SPEED_LIMIT] = r.speed_limit_mps
-    reference_numbers[AT_VOLTAGE_LIMIT] = r.voltage_limit_v
-    reference_numbers[AT_APPROACH_VELOCITY] = r.approach_velocity_mps
-    reference_numbers[AT_APPROACH_ACCELERATION] = r.approach_acceleration_mps2
+    fields_into(reference_numbers, r, NUMBER_FIELDS)
     bad = 0
     for i in range(N_NUMBERS):
         if (b.numbers_mask >> i) & 1 and not math.isfinite(reference_numbers[i]):
@@ -430,11 +412,11 @@ def answer_close(last, law_numbers, code, voltage, inner):
     return 1, voltage, inner
 
 
-_ECHOED_FIELDS = ('stamp_ns', 'grasp_id', 'stage_id', 'revision', 'phase', 'outcome', 'running')
+_ECHOED_FIELDS = COMMAND_LAYOUT.copied_from(MSG_REFERENCE)
 """What a MotorCommand repeats of the StageReference it answers."""
 
 
-@face_kernel((STATE_DTYPE, FLOATS), REFERENCE_DTYPE, COMMAND_DTYPE)
+@face_kernel(STAGE_KERNEL, REFERENCE_DTYPE, COMMAND_DTYPE)
 @numba.njit(cache=True)
 def stage_answer(k, ref, cmd):
     """Answer the reference record ``ref`` into the command record ``cmd``; False if repeated.
@@ -511,13 +493,19 @@ def reason_text(last, reference_numbers, law_numbers, names=NUMBER_FIELDS) -> st
     return ''
 
 
+_DEFAULTS = Reference._field_defaults
+
+
 def fill_reference(ref, out: np.ndarray) -> np.ndarray:
-    """Write ``ref`` (a :data:`Reference`, an rclpy message, a double) into the record ``out``."""
+    """Write ``ref`` (a :data:`Reference`, an rclpy message, a double) into the record ``out``.
+
+    A field the sender's message type lacks takes the layout's default.
+    """
     if type(ref) is Reference:
         out[0] = ref
     else:
-        out[0] = tuple(getattr(ref, name) if name not in OPTIONAL_FIELDS
-                       else getattr(ref, name, 0.0) for name in REFERENCE_LAYOUT.fields)
+        out[0] = tuple(getattr(ref, name) if name not in _DEFAULTS
+                       else getattr(ref, name, _DEFAULTS[name]) for name in Reference._fields)
     return out
 
 
@@ -605,18 +593,18 @@ class PositionStageController(_KernelStage):
         self._build_kernel(self.kind, pid=None if mpc else self.controller,
                            cascade=self.controller if mpc else None)
         plant = config.plant
-        s = self.record[0]
-        s['full_v'] = plant.voltage_limit_v
-        s['limit_low'], s['limit_high'] = -plant.voltage_limit_v, plant.voltage_limit_v
         # speed one sample on: a v + (1 - a) k_v u; the cap u puts it at v_lim - pole (v_lim - v)
         a = math.exp(-self.sample_time_s / plant.mechanical_time_constant_s)
         pole = config.position.speed_limit_pole
         gain = 1.0 / ((1.0 - a) * plant.free_speed_per_volt_mps)
-        s['speed_gain_limit'], s['speed_gain_speed'] = (1.0 - pole) * gain, (a - pole) * gain
-        s['ff_v_per_mps'], s['ff_v_per_mps2'] = feedforward_gains(plant)
-        s['rad_per_m'] = 1.0 / plant.travel_per_rad_m
-        s['back_emf_v_s_per_rad'] = plant.back_emf_v_s_per_rad
-        s['resistance_ohm'] = plant.resistance_ohm
+        ff_v_per_mps, ff_v_per_mps2 = feedforward_gains(plant)
+        copy_fields(self.record[0], {
+            'full_v': plant.voltage_limit_v, 'limit_low': -plant.voltage_limit_v,
+            'limit_high': plant.voltage_limit_v, 'speed_gain_limit': (1.0 - pole) * gain,
+            'speed_gain_speed': (a - pole) * gain, 'ff_v_per_mps': ff_v_per_mps,
+            'ff_v_per_mps2': ff_v_per_mps2, 'rad_per_m': 1.0 / plant.travel_per_rad_m,
+            'back_emf_v_s_per_rad': plant.back_emf_v_s_per_rad,
+            'resistance_ohm': plant.resistance_ohm})
 
     @staticmethod
     def measurement(ref) -> float:

@@ -30,7 +30,8 @@ from gripper_ros.core.physics.contact import (contact_force_n, CONTACT_RIGID, CO
                                               remove_object)
 from gripper_ros.core.physics.hold import (hold_begin, hold_drive, hold_live,
                                            hold_scenario_in_progress, HoldState)
-from gripper_ros.core.records import as_record
+from gripper_ros.core.physics.plant_records import PLANT_DTYPE
+from gripper_ros.core.records import as_record, face_kernel
 from gripper_ros.wire import FaultKind
 import numba
 
@@ -106,6 +107,7 @@ def fire_fault(s, p, h, sensor, fired):
             s.slip_tau_s = s.fault_time_constant_s
 
 
+@face_kernel(PLANT_DTYPE, int, float)
 @numba.njit(cache=True)
 def plant_begin_hold(k, t_ns, grasp_mass_kg):
     """Start the lift's clock at ``t_ns``; 1 (nothing changed) if the object left its support."""
@@ -119,6 +121,7 @@ def plant_begin_hold(k, t_ns, grasp_mass_kg):
     return 0
 
 
+@face_kernel(PLANT_DTYPE, float)
 @numba.njit(cache=True)
 def plant_drive_load(k, accel_mps2):
     """Set the arm's acceleration live from now on; 1 (nothing changed) if nothing is held."""
@@ -130,6 +133,7 @@ def plant_drive_load(k, accel_mps2):
     return 0
 
 
+@face_kernel(PLANT_DTYPE)
 @numba.njit(cache=True)
 def plant_scenario_in_progress(k):
     """Whether a hold scenario (a lift) is still to be played out."""
@@ -139,6 +143,7 @@ def plant_scenario_in_progress(k):
                                                          pl.params.after_lift_ns)
 
 
+@face_kernel(PLANT_DTYPE, int, int, float)
 @numba.njit(cache=True)
 def plant_schedule_fault(k, kind, at_ns, time_constant_s):
     """Fire ``kind`` at ``at_ns`` (>= now; replaces a scheduled one; NONE cancels)."""
@@ -148,12 +153,14 @@ def plant_schedule_fault(k, kind, at_ns, time_constant_s):
     s.fault_time_constant_s = time_constant_s
 
 
+@face_kernel(PLANT_DTYPE)
 @numba.njit(cache=True)
 def plant_cancel_fault(k):
     """Drop a scheduled fault that has not fired (its effects, once fired, stay)."""
     as_record(k).state.fault_kind = FaultKind.NONE
 
 
+@face_kernel(PLANT_DTYPE)
 @numba.njit(cache=True)
 def plant_fault_scheduled(k):
     """Whether a fault is scheduled and has not fired."""

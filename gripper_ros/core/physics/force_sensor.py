@@ -19,7 +19,7 @@ from __future__ import annotations
 import math
 
 from gripper_ros.core.config import ForceSensorParams, SensorNoiseParams
-from gripper_ros.core.records import copy_fields
+from gripper_ros.core.records import copy_fields, face_kernel
 import numba
 import numpy as np
 
@@ -97,11 +97,13 @@ def fsr_voltage_v(r, force_n):
 
 
 # Array-level entry points for Python (FsrVoltageDivider): the kernels above on ``sensor[0]``.
+@face_kernel(SENSOR_DTYPE, float)
 @numba.njit(cache=True)
 def _resistance_ohm(sensor, force_n):
     return fsr_resistance_ohm(sensor[0], force_n)
 
 
+@face_kernel(SENSOR_DTYPE, float)
 @numba.njit(cache=True)
 def _voltage_v(sensor, force_n):
     return fsr_voltage_v(sensor[0], force_n)

@@ -53,7 +53,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 import math
 
-from gripper_ros.core.records import as_record, copy_fields
+from gripper_ros.core.records import (as_record, copy_fields, face_kernel, FLOATS, INTS,
+                                      RecordField)
 from gripper_ros.wire import FORCE_SAMPLE_S, HoldState, LiftProfile
 import numba
 import numpy as np
@@ -192,6 +193,7 @@ class ObjectState:
     presliding_m: float = 0.0      # each pad's elastic (partial-slip) displacement of the object
 
 
+@face_kernel(HOLD_DTYPE, int, float)
 @numba.njit(cache=True)
 def hold_begin(hold, t_ns, mass_kg):
     """Start the lift's clock at ``t_ns``; 1 (nothing changed) if the object is off its support."""
@@ -229,6 +231,7 @@ def hold_scenario_in_progress(h, t_ns, after_lift_ns):
     return t_ns < h.lift_end_ns + after_lift_ns
 
 
+@face_kernel(HOLD_DTYPE)
 @numba.njit(cache=True, inline='always')
 def hold_live(hold):
     """Tell whether the model must be stepped: a lift pending, or the object lifted and held."""
@@ -243,6 +246,7 @@ def _pads_load_n(h):
     return (1.0 - h.support_share) * (h.mass_kg * (h.gravity_mps2 + h.acceleration_mps2))
 
 
+@face_kernel(HOLD_DTYPE)
 @numba.njit(cache=True)
 def hold_load_n(hold):
     """Tangential load on the pads now (0 unless lifted and between the pads)."""
@@ -252,6 +256,7 @@ def hold_load_n(hold):
     return 0.0
 
 
+@face_kernel(HOLD_DTYPE, float)
 @numba.njit(cache=True)
 def hold_capacity_n(hold, force_n):
     """Most the two pads hold by static friction at grip force ``force_n``."""
@@ -259,6 +264,7 @@ def hold_capacity_n(hold, force_n):
     return 2.0 * h.static_friction * (force_n if force_n > 0.0 else 0.0)
 
 
+@face_kernel(HOLD_DTYPE, float)
 @numba.njit(cache=True)
 def hold_shear_n(hold, force_n):
     """Tangential force on each pad at grip ``force_n``: half the load while stuck, mu_k F sliding.
@@ -292,6 +298,7 @@ def presliding_m(shear_n, normal_n, static_friction, tangential_stiffness_n_per_
     return out if shear_n >= 0.0 else -out
 
 
+@face_kernel(HOLD_DTYPE, float)
 @numba.njit(cache=True)
 def hold_presliding_m(hold, force_n):
     """Each pad's elastic displacement of the object now, at grip ``force_n`` (0 when rigid).
@@ -317,6 +324,7 @@ def hold_stays_stuck(h, force_n, until_ns):
         _pads_load_n(h) <= 2.0 * h.static_friction * force_n
 
 
+@face_kernel(HOLD_DTYPE, int)
 @numba.njit(cache=True)
 def hold_fire_events(hold, t_ns):
     """Apply the lift's breakpoints (start, lift-off pieces, profile changes, end) now due."""
@@ -405,6 +413,7 @@ ANNOUNCE_ROWS = ANNOUNCE_MAX_PIECES + 8
 """The most breakpoints :func:`hold_plan` writes."""
 
 
+@face_kernel(HOLD_DTYPE, INTS, FLOATS)
 @numba.njit(cache=True)
 def hold_plan(hold, plan_t_ns, plan_accel_mps2):
     """Write the begun lift's plan, as its arm would announce it; return how many breakpoints.
@@ -447,6 +456,7 @@ def hold_plan(hold, plan_t_ns, plan_accel_mps2):
     return n + 1
 
 
+@face_kernel(HOLD_DTYPE, int, float, int)
 @numba.njit(cache=True)
 def hold_drive(hold, t_ns, accel_mps2, after_ns):
     """Let a live arm set ``a`` from ``t_ns`` on; 1 (nothing changed) unless the hold has begun.
@@ -472,6 +482,7 @@ def hold_drive(hold, t_ns, accel_mps2, after_ns):
     return 0
 
 
+@face_kernel(HOLD_DTYPE)
 @numba.njit(cache=True)
 def hold_remove(hold):
     """Take the object away (not slid out): nothing is held from now on."""
@@ -483,6 +494,7 @@ def hold_remove(hold):
     h.ramp_next_ns = -1
 
 
+@face_kernel(HOLD_DTYPE, float, float)
 @numba.njit(cache=True)
 def hold_advance(hold, force_n, dt_s):
     """Integrate ``dt_s`` at grip force ``force_n`` and the present ``a``, both constant.
@@ -548,12 +560,10 @@ class HoldModel:
         self.record = np.zeros(1, HOLD_DTYPE)
         r = self.record[0]
         r['lift_off_ns'] = round(check_finite_nonnegative('lift', 'lift_off_s', lift_off_s) * 1e9)
-        r['tangential_stiffness_n_per_m'] = tangential_stiffness_n_per_m
-        r['mass_kg'] = mass_kg
-        r['static_friction'] = static_friction
-        r['kinetic_friction'] = kinetic_friction
-        r['pad_length_m'] = pad_length_m
-        r['gravity_mps2'] = gravity_mps2
+        copy_fields(r, {'mass_kg': mass_kg, 'static_friction': static_friction,
+                        'kinetic_friction': kinetic_friction, 'pad_length_m': pad_length_m,
+                        'gravity_mps2': gravity_mps2,
+                        'tangential_stiffness_n_per_m': tangential_stiffness_n_per_m})
         if lift is not None:
             r['has_lift'] = 1
             copy_fields(r, lift, {f'lift_{name}': name for name in (
@@ -572,26 +582,21 @@ class HoldModel:
         model.lift = lift
         return model
 
-    def _get(self, name):
-        return self.record[0][name]
-
-    mass_kg = property(lambda self: float(self._get('mass_kg')))
-    static_friction = property(lambda self: float(self._get('static_friction')))
-    kinetic_friction = property(lambda self: float(self._get('kinetic_friction')))
-    pad_length_m = property(lambda self: float(self._get('pad_length_m')))
-    gravity_mps2 = property(lambda self: float(self._get('gravity_mps2')))
-    tangential_stiffness_n_per_m = property(
-        lambda self: float(self._get('tangential_stiffness_n_per_m')))
-    state = property(lambda self: HoldState(int(self._get('state'))))
-    slip_m = property(lambda self: float(self._get('slip_m')))
-    slip_speed_mps = property(lambda self: float(self._get('slip_speed_mps')))
-    acceleration_mps2 = property(lambda self: float(self._get('acceleration_mps2')),
-                                 doc="The arm's upward acceleration now.")
-    hold_ns = property(lambda self: _optional_ns(self._get('hold_ns')))
-    lift_start_ns = property(lambda self: _optional_ns(self._get('lift_start_ns')))
-    lift_end_ns = property(lambda self: _optional_ns(self._get('lift_end_ns')))
-    lost_ns = property(lambda self: _optional_ns(self._get('lost_ns')))
-    next_event_ns = property(lambda self: _optional_ns(self._get('next_event_ns')))
+    mass_kg = RecordField(writable=False)
+    static_friction = RecordField(writable=False)
+    kinetic_friction = RecordField(writable=False)
+    pad_length_m = RecordField(writable=False)
+    gravity_mps2 = RecordField(writable=False)
+    tangential_stiffness_n_per_m = RecordField(writable=False)
+    state = RecordField(HoldState, writable=False)
+    slip_m = RecordField(writable=False)
+    slip_speed_mps = RecordField(writable=False)
+    acceleration_mps2 = RecordField(writable=False, doc="The arm's upward acceleration now.")
+    hold_ns = RecordField(_optional_ns, writable=False)
+    lift_start_ns = RecordField(_optional_ns, writable=False)
+    lift_end_ns = RecordField(_optional_ns, writable=False)
+    lost_ns = RecordField(_optional_ns, writable=False)
+    next_event_ns = RecordField(_optional_ns, writable=False)
 
     def begin(self, t_ns: int, mass_kg: float) -> None:
         """Start the lift's clock at ``t_ns`` (HOLDING declared); the object weighs ``mass_kg``."""

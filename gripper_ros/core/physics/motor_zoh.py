@@ -10,6 +10,8 @@ plant used.
 """
 from __future__ import annotations
 
+import math
+
 from gripper_ros.core.config import PlantParams
 from gripper_ros.core.linalg import expm
 import numba
@@ -78,6 +80,19 @@ def discretise(raw: tuple, kind: int, dt_s: float, stiffness: float, damping: fl
         _DISCRETISATIONS.clear()
     _DISCRETISATIONS[key] = out
     return out
+
+
+def free_model(params: PlantParams, dt_s: float) -> tuple[np.ndarray, np.ndarray]:
+    """Exact ZOH model of free motion: ``s[k+1] = Ad s[k] + Bd e[k]``, s = [i, omega, x]."""
+    c = discretise(raw_constants(params), DISC_FREE, dt_s, 0.0, 0.0, 0.0).tolist()
+    return (np.array([c[AFF_II:AFF_I1], c[AFF_WI:AFF_W1], c[AFF_XI:AFF_X1]]),
+            np.array(c[AFF_IE:AFF_XE + 1]))
+
+
+def force_model(params: PlantParams, dt_s: float) -> tuple[float, float]:
+    """Exact ZOH of eq. 13: ``F[k+1] = a F[k] + b e[k]`` on a rigid object."""
+    a = math.exp(-dt_s / (params.inductance_h / params.resistance_ohm))
+    return a, params.stall_force_per_volt_n * (1.0 - a)
 
 
 def raw_constants(params: PlantParams) -> tuple:

@@ -20,7 +20,7 @@ from __future__ import annotations
 import math
 
 from gripper_ros.core.config import ChannelSpec
-from gripper_ros.core.records import copy_fields
+from gripper_ros.core.records import copy_fields, face_kernel, FLOATS
 import numba
 import numpy as np
 
@@ -110,6 +110,7 @@ def channel_step(c, buf, value):
     return out
 
 
+@face_kernel(CHANNEL_DTYPE, FLOATS, FLOATS)
 @numba.njit(cache=True)
 def _channel_run(rec, buf, values):
     out = np.empty(values.shape[0])

@@ -25,6 +25,7 @@ other modules use (``__all__``) are importable from here.
 from __future__ import annotations
 
 from dataclasses import fields, replace
+import functools
 import math
 
 from gripper_ros.core.config import (ChannelSpec, ContactParams, object_contact, PadSensorParams,
@@ -42,18 +43,17 @@ from gripper_ros.core.physics.force_sensor import FsrVoltageDivider
 from gripper_ros.core.physics.hold import (ANNOUNCE_ROWS, check_finite_nonnegative,
                                            hold_plan, HoldModel, HoldState, Lift, ObjectState)
 from gripper_ros.core.physics.integration import plant_step
-from gripper_ros.core.physics.motor_zoh import (AFF_I1, AFF_IE, AFF_II, AFF_W1, AFF_WI, AFF_X1,
-                                                AFF_XE, AFF_XI, DISC_FREE, discretise,
-                                                raw_constants)
+from gripper_ros.core.physics.motor_zoh import force_model, free_model
 from gripper_ros.core.physics.pad_sensor import CHANNEL_DTYPE, make_channel
-from gripper_ros.core.physics.plant_pads import PAD_CHANNELS
+from gripper_ros.core.physics.plant_pads import PAD_CHANNELS, PAD_DTYPE
 from gripper_ros.core.physics.plant_records import (fill_params, PARAMS_DTYPE, PLANT_DTYPE,
                                                     STATE_DTYPE)
 from gripper_ros.core.physics.readout import (_object_state, OBJECT_STATE_DTYPE,
                                               plant_hold_record, plant_read_tick, plant_sample,
                                               PlantSample)
-from gripper_ros.core.records import as_record, copy_fields, RecordField
-from gripper_ros.wire import FaultKind, TICK_LAYOUT
+from gripper_ros.core.records import (as_record, compile_face_kernels, copy_fields, face_kernel,
+                                      RecordField)
+from gripper_ros.wire import FaultKind
 import numba
 import numpy as np
 
@@ -77,6 +77,7 @@ def _motor_off(s):
     s.peak = 0.0
 
 
+@face_kernel(PLANT_DTYPE, bool)
 @numba.njit(cache=True)
 def _reset(k, open_fingers):
     """Motor at rest; optionally the finger back at the fully-open stop."""
@@ -91,6 +92,7 @@ def _reset(k, open_fingers):
     refresh_contact_state(s, p)
 
 
+@face_kernel(PLANT_DTYPE)
 @numba.njit(cache=True)
 def _touch_object(k):
     """Put the finger at rest just touching the object, motor off."""
@@ -103,6 +105,7 @@ def _touch_object(k):
     chain_untouched(s)
 
 
+@face_kernel(PLANT_DTYPE, float, float, float, float, float, float, float)
 @numba.njit(cache=True)
 def _set_object(k, width_m, stiffness, damping, mass_kg, static_friction, kinetic_friction,
                 pad_length_m):
@@ -117,6 +120,7 @@ def _set_object(k, width_m, stiffness, damping, mass_kg, static_friction, kineti
     refresh_contact_state(s, p)
 
 
+@face_kernel(PLANT_DTYPE, float, float)
 @numba.njit(cache=True)
 def _use_default_object(k, stiffness, damping):
     """Place a new plant's object: width 0 (nothing), the contact defaults' stiffness."""
@@ -124,6 +128,7 @@ def _use_default_object(k, stiffness, damping):
     use_object(pl.state, pl.params, 0.0, stiffness, damping, 0.0, 0.0, 0.0, 0.0)
 
 
+@face_kernel(PLANT_DTYPE, float, float, float)
 @numba.njit(cache=True)
 def plant_place(k, x, w, i):
     """Put the finger at travel ``x`` with motor speed ``w`` and current ``i`` (a run's start)."""
@@ -135,39 +140,21 @@ def plant_place(k, x, w, i):
     refresh_contact_state(s, pl.params)
 
 
+@face_kernel(PLANT_DTYPE, float, int)
 @numba.njit(cache=True)
 def _step_and_sample(k, voltage_v, duration_ns):
     plant_step(k, voltage_v, duration_ns)
     return plant_sample(k)
 
 
-_warmed_up = []
-
-
-def _warm_up(kernel: tuple) -> None:
-    """Load (or compile) every kernel the facade calls, once per process, on a scratch copy.
+@functools.cache
+def _load_physics() -> None:
+    """Load (or compile) every physics kernel, once per process, at the first plant.
 
     A kernel's first call loads its machine code from numba's cache (tens of ms; seconds when
     it must compile): done here, a node's first lift or fault does not stall its loop.
     """
-    if _warmed_up:
-        return
-    k = kernel.copy()
-    _reset(k, True)
-    _set_object(k, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
-    k[0]['state']['x'] = 0.5 * k[0]['params']['max_travel_m']
-    _reset(k, False)
-    _step_and_sample(k, 0.0, 1)             # free motion: a table miss, linalg's expm loaded
-    _touch_object(k)
-    plant_sample(k)
-    plant_read_tick(k, np.zeros(1, TICK_LAYOUT.dtype), 0, 0)
-    _object_state(k, np.zeros(1, OBJECT_STATE_DTYPE))
-    plant_begin_hold(k, 0, 0.0)
-    plant_scenario_in_progress(k)
-    plant_schedule_fault(k, 1, 0, DEFAULT_SLIP_TIME_CONSTANT_S)
-    plant_fault_scheduled(k)
-    plant_cancel_fault(k)
-    _warmed_up.append(True)
+    compile_face_kernels(__package__)
 
 
 # ----------------------------------------------------------------------------- the facade
@@ -194,9 +181,9 @@ class GripperPlant:
             pads.shear, pads.shear, pads.displacement, pads.displacement)
         self._pad_dt_s = float(pad_dt_s) if pads is not None else 1.0
         self._pad_seed = int(pad_seed)
+        self._fresh_pads = None                 # the pad channels as set_object starts them
         self.contact_defaults = contact or object_contact(0.0, 0.0)
         default = self.contact_defaults
-        self._raw = raw_constants(params)
         self._object_record = np.zeros(1, OBJECT_STATE_DTYPE)   # _object_state writes it
         self._lift: Lift | None = None
         self.kernel = np.zeros(1, PLANT_DTYPE)
@@ -213,7 +200,7 @@ class GripperPlant:
         _use_default_object(self.kernel, float(default.stiffness_n_per_m),
                             float(default.damping_n_s_per_m))
         self.reset()
-        _warm_up(self.kernel)
+        _load_physics()
 
     # ----------------------------------------------------------------- records for callers
     @property
@@ -276,12 +263,13 @@ class GripperPlant:
 
     def _seed_pads(self) -> None:
         """Fresh pad channels (each its own noise stream from the seed), resting at 0."""
-        for i, spec in enumerate(self._pad_specs):
-            record, buffer = make_channel(spec, self._pad_dt_s,
-                                          (self._pad_seed * PAD_CHANNELS + i) % 2 ** 64)
-            pad = self.kernel[0]['pads'][i]
-            copy_fields(pad, record[0], CHANNEL_DTYPE.names)
-            pad['line'] = buffer
+        if self._fresh_pads is None:
+            self._fresh_pads = np.zeros(PAD_CHANNELS, PAD_DTYPE)
+            for i, spec in enumerate(self._pad_specs):
+                record, _ = make_channel(spec, self._pad_dt_s,
+                                         (self._pad_seed * PAD_CHANNELS + i) % 2 ** 64)
+                copy_fields(self._fresh_pads[i], record[0], CHANNEL_DTYPE.names)
+        self.kernel[0]['pads'] = self._fresh_pads
         self._s['pads_resting'] = 0
 
     def configured_friction(self, obj: GraspObject) -> GraspObject:
@@ -447,28 +435,13 @@ class GripperPlant:
         return (np.array([p.torque_constant_n_m_per_a / p.force_lever_m]),
                 np.array([p.inductance_h, p.resistance_ohm]))
 
-    def stall_force_n(self, voltage_v: float) -> float:
-        """Steady gripping force for a held voltage on a rigid object (DC gain of eq. 13)."""
-        return self.params.stall_force_per_volt_n * voltage_v
-
-    def free_speed_mps(self, voltage_v: float) -> float:
-        """Steady finger speed for a held voltage in free motion (DC gain of eq. 9 times p/2pi)."""
-        p = self.params
-        w = p.torque_constant_n_m_per_a * voltage_v / (
-            p.damping_n_m_s_per_rad * p.resistance_ohm
-            + p.torque_constant_n_m_per_a * p.back_emf_v_s_per_rad)
-        return w * p.travel_per_rad_m
-
     def discrete_free_model(self, dt_s: float) -> tuple[np.ndarray, np.ndarray]:
         """Exact ZOH model of free motion: ``s[k+1] = Ad s[k] + Bd e[k]``, s = [i, omega, x]."""
-        c = discretise(self._raw, DISC_FREE, dt_s, 0.0, 0.0, 0.0).tolist()
-        return (np.array([c[AFF_II:AFF_I1], c[AFF_WI:AFF_W1], c[AFF_XI:AFF_X1]]),
-                np.array(c[AFF_IE:AFF_XE + 1]))
+        return free_model(self.params, dt_s)
 
     def discrete_force_model(self, dt_s: float) -> tuple[float, float]:
         """Exact ZOH of eq. 13: ``F[k+1] = a F[k] + b e[k]`` on a rigid object."""
-        a = math.exp(-dt_s / self.kernel[0]['params']['tau_e'])
-        return a, self.params.stall_force_per_volt_n * (1.0 - a)
+        return force_model(self.params, dt_s)
 
     # ----------------------------------------------------------------- simulation
     def sample(self) -> PlantSample:

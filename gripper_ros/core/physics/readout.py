@@ -17,7 +17,9 @@ from gripper_ros.core.physics.hold import (hold_capacity_n, hold_load_n, hold_pr
                                            hold_shear_n, HoldState, ObjectState)
 from gripper_ros.core.physics.plant_pads import (PAD_DISPLACEMENT_1, PAD_DISPLACEMENT_2,
                                                  PAD_SHEAR_1, PAD_SHEAR_2)
-from gripper_ros.core.records import as_record, copy_fields
+from gripper_ros.core.physics.plant_records import PLANT_DTYPE
+from gripper_ros.core.records import as_record, copy_fields, face_kernel
+from gripper_ros.wire import TICK_LAYOUT
 import numba
 import numpy as np
 
@@ -41,6 +43,7 @@ class PlantSample(NamedTuple):
         return self.t_ns * 1e-9
 
 
+@face_kernel(PLANT_DTYPE)
 @numba.njit(cache=True)
 def plant_sample(k):
     """Return what the sensors and motor report now, as PlantSample's fields in order."""
@@ -76,6 +79,7 @@ def plant_hold_record(k):
     return as_record(k).hold
 
 
+@face_kernel(PLANT_DTYPE, TICK_LAYOUT.dtype, int, int)
 @numba.njit(cache=True)
 def plant_read_tick(k, tick, revision, applied_source):
     """Fill the 1-element TICK record array ``tick`` with the measurement now."""
@@ -105,6 +109,7 @@ OBJECT_STATE_DTYPE = np.dtype([(f.name, np.int64 if f.name in ('state', 'lost_ns
 _HOLD_NONE = int(HoldState.NONE)
 
 
+@face_kernel(PLANT_DTYPE, OBJECT_STATE_DTYPE)
 @numba.njit(cache=True)
 def _object_state(k, out):
     """Write the held object's :class:`ObjectState` into the record ``out[0]`` (lost_ns -1: not).

@@ -13,32 +13,36 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 import functools
 import math
+import sys
 import time
 from typing import Callable, Sequence
 
 from gripper_ros.core.config import GripperConfig
 from gripper_ros.core.control.factories import make_plant
-from gripper_ros.core.control.load_grip import plan_announce
+from gripper_ros.core.control.load_grip import GRIP_DTYPE, plan_announce
 from gripper_ros.core.control.stages import (DEFAULT_APPROACH_FORCE_MARGIN,
                                              DEFAULT_FORCE_CONTROLLER, DEFAULT_POSITION_CONTROLLER,
                                              ForceStageController, PositionStageController,
-                                             Reference, stage_answer)
+                                             Reference, stage_answer, STAGE_KERNEL)
 from gripper_ros.core.physics.hold import ANNOUNCE_ROWS, hold_load_n, hold_plan
 from gripper_ros.core.physics.plant import (_object_state, check_fault, GraspObject, HoldState,
-                                            Lift, OBJECT_STATE_DTYPE, plant_hold_record)
-from gripper_ros.core.records import as_record, compile_face_kernels, copy_fields
+                                            Lift, OBJECT_STATE_DTYPE, PLANT_DTYPE,
+                                            plant_hold_record)
+from gripper_ros.core.records import (as_record, compile_face_kernels, copy_fields, face_kernel,
+                                      FLOATS_2D)
 from gripper_ros.core.runtime.engine import map_cases
-from gripper_ros.core.runtime.lockstep import (Command, PlantSide, side_accept, side_needs_time,
-                                               side_step, StageSide, SupervisorSide, Tick)
+from gripper_ros.core.runtime.lockstep import (Command, PLANT_SIDE_STATE, PlantSide, side_accept,
+                                               side_needs_time, side_step, StageSide,
+                                               SupervisorSide, Tick)
 from gripper_ros.core.series import (GraspSeries, OBJECT_ROW, rows, STATUS_ROW,
                                      TICK_STATE_ROW)
 from gripper_ros.core.supervision.machine import (NO_NS, status_changed, status_note,
-                                                  supervisor_decide)
+                                                  supervisor_decide, SUPERVISOR_DTYPE)
 from gripper_ros.core.supervision.requests import (GraspRequest, MoveRequest, RequestError,
                                                    validate_move, validate_request)
 from gripper_ros.core.supervision.supervisor import GraspSupervisor, load_law
-from gripper_ros.wire import (COMMAND_LAYOUT, Controller, FaultKind, FORCE_SAMPLE_S, Outcome,
-                              Phase, REFERENCE_LAYOUT, SwitchCriterion, TICK_LAYOUT)
+from gripper_ros.wire import (COMMAND_LAYOUT, Controller, FaultKind, Outcome, Phase,
+                              REFERENCE_LAYOUT, SwitchCriterion, TICK_LAYOUT)
 import numba
 import numpy as np
 
@@ -121,6 +125,8 @@ FIRST_ROWS = 4096
 """Rows a grasp's series buffers start with (they double when full)."""
 
 
+@face_kernel(TICK_LAYOUT.dtype, TICK_STATE_ROW, int, TICK_LAYOUT.dtype, int,
+             REFERENCE_LAYOUT.dtype, PLANT_DTYPE, GRIP_DTYPE)
 @numba.njit(cache=True)
 def _keep_row(ticks, tick_states, n, tick, phase, ref, plant_k, law) -> None:
     """Keep tick ``n`` and its state (:data:`TICK_STATE_ROW`)."""
@@ -136,11 +142,13 @@ def _keep_row(ticks, tick_states, n, tick, phase, ref, plant_k, law) -> None:
     s.mu_est = law[0].mu_est
 
 
+@face_kernel(TRACE_STATE, TICK_LAYOUT.dtype, SUPERVISOR_DTYPE, PLANT_DTYPE, STATUS_ROW, OBJECT_ROW)
 @numba.njit(cache=True)
 def _trace_tick(trace, tick, sup, plant_k, statuses, objects) -> None:
     """Keep the supervisor's state when it changed and the object's when due."""
     ts = trace[0]
     t = tick[0]
+    sup = as_record(sup)
     m = ts.statuses
     if m == 0 or status_changed(sup, statuses[m - 1]):
         r = statuses[m]
@@ -148,6 +156,7 @@ def _trace_tick(trace, tick, sup, plant_k, statuses, objects) -> None:
         status_note(sup, r)
         copy_fields(r, sup.decided, ('position_setpoint_m', 'force_setpoint_n',
                                      'approach_setpoint_m'))
+        r.seed_voltage_v = sup.machine.seed_voltage_v
         ts.statuses = m + 1
     h = plant_hold_record(plant_k)
     hold_state = h.state if h.has_hold else HoldState.NONE
@@ -173,6 +182,7 @@ def _trace_answer(trace, ref, cmd, references, commands) -> None:
     ts.references += 1
 
 
+@face_kernel(LOOP_STATE, PLANT_DTYPE, SUPERVISOR_DTYPE)
 @numba.njit(cache=True)
 def announce_lift(state, plant_k, sup) -> None:
     """Once the lift's clock has started, hand its plan to the supervisor, as the arm would.
@@ -196,6 +206,10 @@ def announce_lift(state, plant_k, sup) -> None:
         plan_announce(sup.law[0], sup.plan, times[i], accels[i])
 
 
+@face_kernel(LOOP_STATE, PLANT_SIDE_STATE, PLANT_DTYPE, SUPERVISOR_DTYPE, FLOATS_2D, STAGE_KERNEL,
+             STAGE_KERNEL, TICK_LAYOUT.dtype, REFERENCE_LAYOUT.dtype, COMMAND_LAYOUT.dtype,
+             TICK_LAYOUT.dtype, TICK_STATE_ROW, TRACE_STATE, REFERENCE_LAYOUT.dtype,
+             COMMAND_LAYOUT.dtype, STATUS_ROW, OBJECT_ROW)
 @numba.njit(cache=True)
 def run_lockstep(loop, side, plant_k, supervisor, law_buffers, position_k, force_k, tick, ref,
                  cmd, ticks, tick_states, trace, trace_references, trace_commands,
@@ -244,10 +258,17 @@ def run_lockstep(loop, side, plant_k, supervisor, law_buffers, position_k, force
     return True
 
 
+_SPARE_ROWS: list = []
+"""Row buffers (ticks, tick states) of a summarized batch case that nothing refers to any more:
+the process's next grasp writes its rows into them instead of allocating and growing its own."""
+
+
 class _Loop:
     """One headless grasp's plant, supervisor and stages, wired as the graph wires them."""
 
-    def __init__(self, plant_side, supervisor, position_stage, force_stage):
+    def __init__(self, plant_side, supervisor, position_stage, force_stage,
+                 rows: int = FIRST_ROWS):
+        self._first_rows = rows
         self.plant_side = plant_side
         self.supervisor = supervisor
         self.sup_side = SupervisorSide(supervisor)
@@ -258,8 +279,8 @@ class _Loop:
         self.cmd = plant_side.command_record
         self.state = np.zeros(1, LOOP_STATE)
         self.state[0]['hold_until_ns'] = NO_NS
-        self.ticks = np.zeros(0, TICK_LAYOUT.dtype)
-        self.tick_states = np.zeros(0, TICK_STATE_ROW)
+        self.ticks, self.tick_states = _SPARE_ROWS.pop() if _SPARE_ROWS else (
+            np.zeros(0, TICK_LAYOUT.dtype), np.zeros(0, TICK_STATE_ROW))
         self.trace = np.zeros(1, TRACE_STATE)
         self.trace_buffers = {name: np.zeros(0, dtype) for name, dtype in _TRACE_BUFFERS}
 
@@ -277,18 +298,18 @@ class _Loop:
         return named
 
     def _grow(self) -> None:
-        size = max(FIRST_ROWS, 2 * self.ticks.shape[0])
-        n = int(self.state[0]['rows'])
-        for name in ('ticks', 'tick_states'):
-            old = getattr(self, name)
-            new = np.zeros(size, old.dtype)
-            new[:n] = old[:n]
-            setattr(self, name, new)
+        """Give the row buffers room: the first rows asked for, then twice as many.
+
+        In place (``ndarray.resize``, a realloc: a large buffer's pages are moved, its rows not
+        copied); no view of a buffer exists before :meth:`series`. Every row below the count
+        kept is written before it is read.
+        """
+        size = max(self._first_rows, 2 * self.ticks.shape[0])
+        buffers = [self.ticks, self.tick_states]
         if self.tracing:
-            for name, old in self.trace_buffers.items():
-                new = np.zeros(size, old.dtype)
-                new[:old.shape[0]] = old
-                self.trace_buffers[name] = new
+            buffers += self.trace_buffers.values()
+        for rows_buffer in buffers:
+            rows_buffer.resize(size, refcheck=False)
 
     def keep_row(self) -> None:
         """Keep the present tick's row (the Python-driven loop)."""
@@ -300,7 +321,7 @@ class _Loop:
                   self.supervisor.law)
         if self.tracing:
             b = self.trace_buffers
-            _trace_tick(self.trace, self.tick, self.supervisor.record[0],
+            _trace_tick(self.trace, self.tick, self.supervisor.record,
                         self.plant_side.plant.kernel, b['statuses'], b['objects'])
         self.state[0]['rows'] = n + 1
 
@@ -315,17 +336,19 @@ class _Loop:
             self._grow()
 
     def series(self) -> GraspSeries:
-        """Return the ticks and their states kept, and the messages when traced."""
+        """Return the ticks and their states kept, and the messages when traced.
+
+        The buffers' rows themselves, not copies: the loop is done with them.
+        """
         n = int(self.state[0]['rows'])
         messages = {}
         if self.tracing:
             ts = self.trace[0]
             count = {'references': int(ts['references']), 'commands': int(ts['references']),
                      'statuses': int(ts['statuses']), 'objects': int(ts['objects'])}
-            messages = {name: rows[:count[name]].copy()
-                        for name, rows in self.trace_buffers.items()}
+            messages = {name: rows[:count[name]] for name, rows in self.trace_buffers.items()}
         stamps = self.ticks['stamp_ns'][:n]
-        return GraspSeries(self.ticks[:n].copy(), tick_states=self.tick_states[:n].copy(),
+        return GraspSeries(self.ticks[:n], tick_states=self.tick_states[:n],
                            start_ns=int(stamps[0]) if n else 0,
                            end_ns=int(stamps[-1]) if n else 0, **messages)
 
@@ -419,7 +442,8 @@ def simulate_grasp(config: GripperConfig, width_m: float, mass_kg: float, *,
     supervisor = GraspSupervisor(config.plant, config.supervisor, load_law(config))
     loop = _Loop(plant_side, supervisor,
                  PositionStageController(config, position_controller),
-                 ForceStageController(config, force_controller, approach_force_margin))
+                 ForceStageController(config, force_controller, approach_force_margin),
+                 FIRST_ROWS + round(hold_s / config.force.sample_time_s))
     state = loop.state[0]
     state['hold_ns'] = round(hold_s * 1e9)
     state['announce'] = announce
@@ -441,12 +465,13 @@ def simulate_grasp(config: GripperConfig, width_m: float, mass_kg: float, *,
     else:
         loop.run_traced(trace)
     s = supervisor
+    held = plant.object_state
     return HeadlessGrasp(
         s.outcome, s.message, s.switch_criterion, targets.position_setpoint_m,
         targets.force_setpoint_n, s.start_ns, s.switch_ns, s.contact_ns,
         int(loop.tick[0]['stamp_ns']), s.answer, s.answer_ns, s.end_ns,
-        plant.object_state.slip_m, plant.object_state.lost_ns, s.overload_ns,
-        s.overload_need_n, config.plant.max_force_n, loop.series())
+        held.slip_m, held.lost_ns, s.overload_ns, s.overload_need_n, config.plant.max_force_n,
+        loop.series())
 
 
 def _grasp_case(config: GripperConfig, summarize: Callable | None, case: dict):
@@ -457,7 +482,17 @@ def _grasp_case(config: GripperConfig, summarize: Callable | None, case: dict):
         result = simulate_grasp(config, **case)
     except RequestError as exc:
         result = exc
-    return result if summarize is None else summarize(case, result)
+    if summarize is None:
+        return result
+    summary = summarize(case, result)
+    if isinstance(result, HeadlessGrasp):
+        ticks, states = result.series.ticks.base, result.series.tick_states.base
+        del result
+        # no view left (the summary kept none): the buffers are free for the next case
+        if ticks is not None and states is not None and \
+                sys.getrefcount(ticks) == sys.getrefcount(states) == 2:
+            _SPARE_ROWS[:] = [(ticks, states)]
+    return summary
 
 
 def simulate_grasps(config: GripperConfig, cases: Sequence[dict], jobs: int | None = None,
@@ -579,51 +614,15 @@ def warm_up_worker() -> None:
         pass
 
 
-def warm_up(config: GripperConfig | None = None) -> float:
-    """Compile (or load from numba's cache) every kernel a grasp, a move and a trace use.
+def warm_up() -> float:
+    """Compile (or load from numba's cache) every kernel the package declares.
 
-    Set-up calls this once, so that the first ``grasp_demo`` pays no compilation; returns the
-    seconds it took.
+    Set-up calls this once after a change, so that no program pays numba's compilation;
+    returns the seconds it took.
     """
-    from gripper_ros.core.config import load_config
-    from gripper_ros.core.control.factories import ForceControllerKind, PositionControllerKind
     start = time.perf_counter()
-    config = config or load_config()
-    for position in PositionControllerKind:
-        for force in ForceControllerKind:
-            simulate_grasp(config, 0.1, 0.5, stiffness_n_per_m=1e5, damping_n_s_per_m=50.0,
-                           position_controller=position, force_controller=force,
-                           timeout_s=0.05)
-    simulate_grasp(config, 0.1, 0.5, timeout_s=0.05, trace=lambda *_: None)
-    simulate_grasp(config, 0.1, 0.5, timeout_s=0.05, idle_unpowered_s=0.01,
-                   trace_state_period_ns=10_000_000)
-    simulate_moves(config, [MoveRequest(0.148, speed_mps=0.02, max_effort_n=5.0, timeout_s=0.02)])
-    _warm_up_faces(config)
-    return time.perf_counter() - start
-
-
-def _warm_up_faces(config: GripperConfig) -> None:
-    """Compile, once, what the nodes and the tools call from Python one tick at a time.
-
-    A kernel called from Python is compiled for Python's argument types, apart from the same
-    kernel inside the compiled loop: the laws' and the supervisor's are declared with the types
-    their faces pass (:func:`~gripper_ros.core.records.face_kernel`), the plant's are called.
-    """
-    plant = make_plant(config)
-    side = PlantSide(plant)
-    side.set_object(plant.configured_friction(GraspObject(0.05, 0.0, 0.0, 1.0)),
-                    lift=Lift(1.0, 0.0, 0.01),
-                    fault=(FaultKind.OBJECT_REMOVED, 0.01, 0.0))
-    tick = side.tick()
-    side.step_unpowered(0.001)
-    plant.sample()
-    plant.step(1.0, FORCE_SAMPLE_S)
-    plant.object_state
-    plant.begin_hold(plant.t_ns, 1.0)
-    plant.schedule_fault(FaultKind.SENSOR_DROPOUT, plant.t_ns + 1000)
-    plant.cancel_fault()
-    SupervisorSide(GraspSupervisor(config.plant, config.supervisor)).decide(tick)
     compile_face_kernels()
+    return time.perf_counter() - start
 
 
 __all__ = ['GraspSeries', 'HeadlessGrasp', 'HeadlessMoves', 'map_cases', 'MoveAnswer',

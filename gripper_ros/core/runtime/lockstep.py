@@ -11,29 +11,28 @@ and so on), so a headless grasp equals the graph's tick for tick.
 """
 from __future__ import annotations
 
-from collections import namedtuple
 import math
 
-from gripper_ros.core.control.stages import LockstepAnswerer, Reference, stage_answer, TickAnswer
+from gripper_ros.core.control.stages import (LockstepAnswerer, Reference, stage_answer,
+                                             STAGE_KERNEL, TickAnswer)
 from gripper_ros.core.physics.plant import (GraspObject, GripperPlant, HoldState,
-                                            plant_begin_hold, plant_cancel_fault,
+                                            plant_begin_hold, plant_cancel_fault, PLANT_DTYPE,
                                             plant_fault_scheduled, plant_hold_record,
-                                            plant_read_tick,
-                                            plant_scenario_in_progress, plant_schedule_fault,
-                                            plant_step)
-from gripper_ros.core.records import RecordField
+                                            plant_read_tick, plant_scenario_in_progress,
+                                            plant_schedule_fault, plant_step)
+from gripper_ros.core.records import BYTES, face_kernel, FLOATS_2D, RecordField, UINT8S
 from gripper_ros.core.series import STATUS_ROW
 from gripper_ros.core.supervision.machine import (NO_NS, status_changed, status_note,
-                                                  supervisor_decide)
+                                                  supervisor_decide, SUPERVISOR_DTYPE)
 from gripper_ros.core.supervision.supervisor import Decision, GraspSupervisor
 from gripper_ros.wire import (COMMAND_LAYOUT, Controller, FaultKind, Outcome, Phase,
                               REFERENCE_LAYOUT, TICK_LAYOUT)
 import numba
 import numpy as np
 
-Tick = namedtuple('Tick', TICK_LAYOUT.fields)
+Tick = TICK_LAYOUT.tuple
 """One PlantTick's fields, in message order."""
-Command = namedtuple('Command', COMMAND_LAYOUT.fields)
+Command = COMMAND_LAYOUT.tuple
 """One MotorCommand's fields, in message order."""
 
 MAX_HOLD_S = 1.0
@@ -73,6 +72,7 @@ def command_problem(cmd: Command) -> str:
 
 
 # ------------------------------------------------------------------ the plant side, compiled
+@face_kernel(PLANT_SIDE_STATE, PLANT_DTYPE, COMMAND_LAYOUT.dtype)
 @_kernel
 def side_accept(side, plant_k, cmd) -> None:
     """React to the decision ``cmd`` echoes, at the tick it answers.
@@ -99,6 +99,7 @@ def side_accept(side, plant_k, cmd) -> None:
         plant_begin_hold(plant_k, c.stamp_ns, s.grasp_mass_kg)   # 1: left its support before
 
 
+@face_kernel(PLANT_DTYPE, COMMAND_LAYOUT.dtype)
 @_kernel
 def side_needs_time(plant_k, cmd) -> bool:
     """Tell whether simulated time must go on after ``cmd`` in fast mode.
@@ -108,6 +109,7 @@ def side_needs_time(plant_k, cmd) -> bool:
     return cmd[0].running != 0 or plant_scenario_in_progress(plant_k)
 
 
+@face_kernel(PLANT_SIDE_STATE, PLANT_DTYPE, COMMAND_LAYOUT.dtype, TICK_LAYOUT.dtype)
 @_kernel
 def side_step(side, plant_k, cmd, tick) -> None:
     """Hold the command's voltage for its ``hold_s``; ``tick`` becomes the next tick."""
@@ -118,6 +120,7 @@ def side_step(side, plant_k, cmd, tick) -> None:
     plant_read_tick(plant_k, tick, s.revision, c.source)
 
 
+@face_kernel(PLANT_SIDE_STATE, PLANT_DTYPE, int, TICK_LAYOUT.dtype)
 @_kernel
 def side_step_unpowered(side, plant_k, duration_ns, tick) -> None:
     """No command came: the motor is held at 0 V (a driver's command timeout)."""
@@ -127,6 +130,7 @@ def side_step_unpowered(side, plant_k, duration_ns, tick) -> None:
     plant_read_tick(plant_k, tick, s.revision, Controller.NONE)
 
 
+@face_kernel(PLANT_SIDE_STATE, PLANT_DTYPE, TICK_LAYOUT.dtype)
 @_kernel
 def side_read_tick(side, plant_k, tick) -> None:
     """``tick``: the plant's measurement now."""
@@ -170,6 +174,8 @@ def _command_usable(c) -> bool:
         (c.source == Controller.POSITION or c.source == Controller.FORCE)
 
 
+@face_kernel(PLANT_SIDE_STATE, PLANT_DTYPE, BYTES, COMMAND_LAYOUT.dtype, UINT8S,
+             COMMAND_LAYOUT.dtype, UINT8S, TICK_LAYOUT.dtype, bool)
 @_kernel
 def side_take_command(side, plant_k, data, offered, offered_bytes, cmd, cmd_bytes, tick,
                       pending) -> int:
@@ -202,6 +208,7 @@ def _state_due(side, plant_k, tick) -> bool:
     return tick[0].stamp_ns >= s.next_state_ns or hold != s.state_hold
 
 
+@face_kernel(PLANT_SIDE_STATE, PLANT_DTYPE, TICK_LAYOUT.dtype, int)
 @_kernel
 def side_state_published(side, plant_k, tick, period_ns) -> None:
     """Note the state topics of ``tick``: next due one period on, or on a hold change."""
@@ -211,6 +218,7 @@ def side_state_published(side, plant_k, tick, period_ns) -> None:
     s.next_state_ns = (tick[0].stamp_ns // period_ns + 1) * period_ns
 
 
+@face_kernel(PLANT_SIDE_STATE, PLANT_DTYPE, COMMAND_LAYOUT.dtype, TICK_LAYOUT.dtype)
 @_kernel
 def side_step_due(side, plant_k, cmd, tick):
     """:func:`side_step`; the new tick's stamp, and whether the state topics are due for it."""
@@ -218,6 +226,7 @@ def side_step_due(side, plant_k, cmd, tick):
     return tick[0].stamp_ns, _state_due(side, plant_k, tick)
 
 
+@face_kernel(PLANT_SIDE_STATE, PLANT_DTYPE, int, TICK_LAYOUT.dtype)
 @_kernel
 def side_step_unpowered_due(side, plant_k, duration_ns, tick):
     """:func:`side_step_unpowered`; the new tick's stamp, and whether the state topics are due."""
@@ -246,6 +255,8 @@ ACTIVE_SHIFT = 4
 """... and above these flags, the stage named (a ``Controller``)."""
 
 
+@face_kernel(SUPERVISOR_DTYPE, FLOATS_2D, SUPERVISOR_SIDE_STATE, BYTES, TICK_LAYOUT.dtype, UINT8S,
+             REFERENCE_LAYOUT.dtype)
 @_kernel
 def supervisor_take_tick(sup, law_buffers, side, data, tick, tick_bytes, ref) -> int:
     """Decide the tick ``data``; FOREIGN, REPEATED, or the flags of what the node must do.
@@ -282,6 +293,7 @@ def supervisor_take_tick(sup, law_buffers, side, data, tick, tick_bytes, ref) ->
     return flags
 
 
+@face_kernel(SUPERVISOR_DTYPE, SUPERVISOR_SIDE_STATE, int)
 @_kernel
 def supervisor_status_published(sup, side, t_ns) -> None:
     """Note the status of ``t_ns``: the next is due one period on, or on a change."""
@@ -290,6 +302,7 @@ def supervisor_status_published(sup, side, t_ns) -> None:
     n.next_status_ns = (t_ns // n.status_period_ns + 1) * n.status_period_ns
 
 
+@face_kernel(STAGE_KERNEL, BYTES, REFERENCE_LAYOUT.dtype, UINT8S, COMMAND_LAYOUT.dtype)
 @_kernel
 def stage_take_reference(k, data, ref, ref_bytes, cmd) -> int:
     """Answer the reference ``data`` into ``cmd``: TAKEN, REPEATED (answered before) or FOREIGN."""

@@ -41,8 +41,8 @@ from gripper_ros.core.control.servo_feedforward import (NO_STREAM, stream_changi
 from gripper_ros.core.records import as_record, copy_fields, face_kernel, FLOATS_2D, set_fields
 from gripper_ros.core.supervision.messages import MESSAGE_DTYPE, MESSAGES
 from gripper_ros.core.supervision.requests import TARGETS_DTYPE
-from gripper_ros.wire import (Controller, Outcome, PendingRequest, Phase, REFERENCE_LAYOUT,
-                              SwitchCriterion, TICK_LAYOUT)
+from gripper_ros.wire import (Controller, MSG_TICK, Outcome, PendingRequest, Phase,
+                              REFERENCE_LAYOUT, SwitchCriterion, TICK_LAYOUT)
 import numba
 import numpy as np
 
@@ -733,7 +733,7 @@ def supervisor_step(sup, law_buffers, t_ns, position_m, force_n, sensor_voltage_
     _decide(sup, answer)
 
 
-_RELAYED_FIELDS = ('stamp_ns', 'revision', 'position_m', 'velocity_mps', 'force_n')
+_RELAYED_FIELDS = REFERENCE_LAYOUT.copied_from(MSG_TICK)
 """What a StageReference relays of its PlantTick, as read."""
 
 
