@@ -73,18 +73,26 @@ def test_feed_forward_alone_keeps_the_exact_plant_at_constant_speed_from_a_start
 
 
 @pytest.mark.parametrize('instants_ms', [list(range(0, 200, 10)),
-                                         [0, 10, 10, 30, 40, 40, 40, 70, 80, 100, 130, 140]])
+                                         [0, 10, 10, 30, 40, 40, 40, 70, 80, 100, 130, 140],
+                                         [0, 10, 30, 20, 40, 60, 50, 70, 100, 80, 90, 110]])
 def test_the_fit_gives_a_cubic_s_velocity_and_acceleration_exactly(instants_ms):
-    """Setpoints of x = c0 + c1 t + c2 t^2 + c3 t^3 at regular or bunched instants."""
+    """Setpoints of x = c0 + c1 t + c2 t^2 + c3 t^3 at regular, bunched or reordered instants.
+
+    Reordered: each sampled ahead by a period that varies (a FollowJointTrajectory server's
+    ``now + period``, the period measured from the samples it got), so one may be older than the
+    one before; the newest stays the reference's base.
+    """
     c0, c1, c2, c3 = 0.05, 0.03, -0.02, 0.04
     servo = new_stream(P)
     for t_ms in instants_ms:
         t = t_ms * 1e-3
         stream_sample(servo, t_ms * MS, c0 + t * (c1 + t * (c2 + t * c3)), math.nan, math.nan,
                       MEMORY_S, WINDOW_S)
-    t = instants_ms[-1] * 1e-3
+    t = max(instants_ms) * 1e-3
     assert servo[0]['velocity_mps'] == pytest.approx(c1 + t * (2 * c2 + 3 * c3 * t), rel=1e-7)
     assert servo[0]['acceleration_mps2'] == pytest.approx(2 * c2 + 6 * c3 * t, rel=1e-6)
+    assert (servo[0]['t_ns'], servo[0]['position_m']) == (
+        max(instants_ms) * MS, pytest.approx(c0 + t * (c1 + t * (c2 + t * c3)), abs=1e-15))
 
 
 def test_given_velocity_and_acceleration_are_taken_as_given():

@@ -165,9 +165,10 @@ def test_a_goal_within_80_percent_of_24_v_is_tracked_within_1_mm(graph, client, 
             feedback[0].desired.time_from_start.nanosec) == (0, 0)
     rows = states.between(start_ns, start_ns + round(trajectory.duration_s * SEC))
     reference_m = trajectory.at((rows[:, 0] - start_ns) / SEC)[0]
-    worst_m = float(np.max(np.abs(reference_m - rows[:, 1])))
+    errors_m = np.abs(reference_m - rows[:, 1])
+    worst_m = float(np.max(errors_m))
     print(f'{trajectory.name} ({given}), FollowJointTrajectory: needs {needed_v:.2f} V of '
           f'{P.voltage_limit_v:g} V, {len(rows)} joint_states samples, worst error '
-          f'{worst_m * 1e3:.3f} mm')
+          f'{worst_m * 1e3:.3f} mm at {(rows[np.argmax(errors_m), 0] - start_ns) / SEC:.2f} s')
     assert len(rows) >= 0.5 * trajectory.duration_s * 100     # 100 Hz, a share lost at most
     assert worst_m <= TOLERANCE_M

@@ -243,7 +243,7 @@ class TrajectoryActionServer(GripperNode):
             return None
         i = names.index(self.joint_name)
         t_ns = stamp_ns(msg.header.stamp)
-        if t_ns > self._read_ns >= 0:
+        if t_ns > self._read_ns >= 0 and self._goal is not None:   # between two updates
             self._period_ns = t_ns - self._read_ns
         self._read_ns = max(self._read_ns, t_ns)
         velocity = float(msg.velocity[i]) if len(msg.velocity) > i else None

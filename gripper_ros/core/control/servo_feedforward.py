@@ -130,6 +130,18 @@ def _shift(values, count, d, decay) -> None:
 
 
 @numba.njit(cache=True)
+def _add_older(s, u, position_m) -> None:
+    """Add a setpoint at ``u = (t - t_newest) / memory`` (< 0) to the fit, weighted exp(u)."""
+    weight = math.exp(u)
+    for k in range(s.moments.size):
+        s.moments[k] += weight
+        if k < s.sums.size:
+            s.sums[k] += weight * position_m
+        weight *= u
+    s.instants += 1
+
+
+@numba.njit(cache=True)
 def _fit(s, degree, memory_s):
     """Return (velocity, acceleration) at the newest instant from the polynomial fit.
 
@@ -165,9 +177,16 @@ def stream_sample(sv, t_ns, position_m, velocity_mps, acceleration_mps2, memory_
                   window_s) -> None:
     """Take the setpoint ``position_m`` of instant ``t_ns``.
 
-    Its velocity and acceleration: NaN if not given, then the fit's.
+    Its velocity and acceleration: NaN if not given, then the fit's. A setpoint older than the
+    newest (sampled ahead by a varying period, or late) joins the fit at its own instant; the
+    newest stays the reference's base.
     """
     s = as_record(sv)
+    if s.t_ns != NO_STREAM and t_ns < s.t_ns:
+        _add_older(s, (t_ns - s.t_ns) * 1e-9 / memory_s, position_m)
+        if not math.isfinite(velocity_mps):          # the newest's own motion stands
+            s.velocity_mps, s.acceleration_mps2 = _fit(s, FIT_DEGREE, memory_s)
+        return
     restart = s.t_ns == NO_STREAM or (t_ns - s.t_ns) * 1e-9 > _moves_for_s(s, window_s)
     dt_s = 0.0
     if not restart:
