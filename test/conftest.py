@@ -27,9 +27,11 @@ only the time in which their executor ran, so a starved process trips none."""
 
 MODULE_SECONDS = {
     'test_docs_transcripts.py': 157, 'test_docs_fingers.py': 149, 'test_docs_studies.py': 149,
-    'test_docs_bag_tools.py': 142,
+    'test_docs_bag_tools.py': 142, 'test_grasp_client.py': 54, 'test_identify.py': 54,
+    'test_rerun.py': 50, 'test_node_executables.py': 47, 'test_engine.py': 30,
+    'test_lint.py': 23, 'test_soak.py': 22, 'test_bag_tools.py': 21,
 }
-"""The longest modules' time on a worker (pytest --durations summed per module, at a load of 5).
+"""The longest modules' time on a worker (pytest --durations summed per module, load 4-10).
 
 A module stays on one worker (scripts/test.sh), and pytest-xdist hands the modules out in the
 order collected: the longest go first, so that none starts last and keeps one worker busy while
