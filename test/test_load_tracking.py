@@ -22,7 +22,8 @@ from gripper_ros.nodes.graph import GripperGraph
 from gripper_ros.nodes.qos import GRAPH_QOS, LATCHED_QOS
 from gripper_ros.nodes.recording import recorded_grasp
 from gripper_ros.studies.grip_runs import simulate_load_grip
-from gripper_ros.wire import LiftProfile, Outcome, Phase, TOPIC_OUTCOME, TOPIC_STATUS
+from gripper_ros.wire import (LiftProfile, Outcome, Phase, REFERENCE_LAYOUT, TOPIC_OUTCOME,
+                              TOPIC_STATUS)
 import numpy as np
 import pytest
 
@@ -130,9 +131,15 @@ def test_the_graph_runs_the_unknown_mass_grasp_tick_for_tick_as_headless(graph, 
 
 
 def test_a_bag_recorded_before_the_pad_readings_still_reads():
-    """Its PlantTick has no pad fields (the bag's own schema): they read 0, named absent."""
+    """Its PlantTick has no pad fields (the bag's own schema): they read 0, named absent.
+
+    Its StageReference also predates the reference's motion (the servo's feed-forward): read as
+    the layout's defaults, named absent.
+    """
     series = load_grasp_series(OLD_BAG)
-    assert series.absent == {f'tick.{name}' for name in PADS}
+    later = {'reference.approach_velocity_mps', 'reference.approach_acceleration_mps2'}
+    assert all(name.split('.')[1] in REFERENCE_LAYOUT.tuple._field_defaults for name in later)
+    assert series.absent == {f'tick.{name}' for name in PADS} | later
     assert series.ticks['stamp_ns'].size > 1000
     for name in PADS:
         assert series.ticks[name].shape == series.ticks['stamp_ns'].shape
