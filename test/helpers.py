@@ -374,6 +374,19 @@ def tf_as_robot_state_publisher(bag, namespace: str = 'gripper',
     return tf, expected
 
 
+def trajectory_action_client(graph):
+    """Return an rclpy ActionClient of ``graph``'s FollowJointTrajectory server, once found."""
+    from control_msgs.action import FollowJointTrajectory
+    from rclpy.action import ActionClient
+
+    from gripper_ros.wire import ACTION_FOLLOW_JOINT_TRAJECTORY, qualified
+    action = graph.run_in_executor(lambda: ActionClient(
+        graph.client_node, FollowJointTrajectory,
+        qualified(graph.namespace, ACTION_FOLLOW_JOINT_TRAJECTORY)))
+    assert action.wait_for_server(timeout_sec=30.0)
+    return action
+
+
 def wait_future(future, timeout_s: float = 120.0):
     """Wait (wall, a bound for a slow machine) until ``future`` is done; return its result.
 

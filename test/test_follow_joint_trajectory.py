@@ -32,12 +32,11 @@ from gripper_ros.core.config import load_config
 from gripper_ros.nodes.graph import GraphOptions, GripperGraph
 from gripper_ros.nodes.qos import GRAPH_QOS
 from gripper_ros.nodes.services import wait_until
-from gripper_ros.wire import (ACTION_FOLLOW_JOINT_TRAJECTORY, qualified, stamp_ns, TimeMode,
-                              TOPIC_JOINT_STATES, TOPIC_SERVO_SETPOINT)
-from helpers import wait_future
+from gripper_ros.wire import (qualified, stamp_ns, TimeMode, TOPIC_JOINT_STATES,
+                              TOPIC_SERVO_SETPOINT)
+from helpers import trajectory_action_client, wait_future
 import numpy as np
 import pytest
-from rclpy.action import ActionClient
 from rclpy.qos import qos_profile_sensor_data
 from scipy.interpolate import BPoly, CubicHermiteSpline
 from sensor_msgs.msg import JointState
@@ -108,10 +107,7 @@ def graph():
 
 @pytest.fixture(scope='module')
 def client(graph):
-    action = graph.run_in_executor(lambda: ActionClient(
-        graph.client_node, FollowJointTrajectory,
-        qualified(graph.namespace, ACTION_FOLLOW_JOINT_TRAJECTORY)))
-    assert action.wait_for_server(timeout_sec=30.0)
+    action = trajectory_action_client(graph)
     yield action
     graph.run_in_executor(action.destroy)
 

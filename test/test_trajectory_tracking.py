@@ -30,12 +30,10 @@ from gripper_ros.core.config import load_config
 from gripper_ros.nodes.graph import GraphOptions, GripperGraph
 from gripper_ros.nodes.services import wait_until
 from gripper_ros.studies.servo_runs import needed_peak_v, Sine, Spline, Trapezoid
-from gripper_ros.wire import (ACTION_FOLLOW_JOINT_TRAJECTORY, qualified, stamp_ns, TimeMode,
-                              TOPIC_JOINT_STATES)
-from helpers import wait_future
+from gripper_ros.wire import qualified, stamp_ns, TimeMode, TOPIC_JOINT_STATES
+from helpers import trajectory_action_client, wait_future
 import numpy as np
 import pytest
-from rclpy.action import ActionClient
 from rclpy.qos import qos_profile_sensor_data
 from sensor_msgs.msg import JointState
 from trajectory_msgs.msg import JointTrajectoryPoint
@@ -92,10 +90,7 @@ def graph():
 
 @pytest.fixture(scope='module')
 def client(graph):
-    action = graph.run_in_executor(lambda: ActionClient(
-        graph.client_node, FollowJointTrajectory,
-        qualified(graph.namespace, ACTION_FOLLOW_JOINT_TRAJECTORY)))
-    assert action.wait_for_server(timeout_sec=30.0)
+    action = trajectory_action_client(graph)
     yield action
     graph.run_in_executor(action.destroy)
 
