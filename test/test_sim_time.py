@@ -66,7 +66,6 @@ def reference():
             lambda m: seen.append((0, m.header.stamp.sec * 1_000_000_000 +
                                    m.header.stamp.nanosec, m.position[0])), GRAPH_QOS)
         assert wait_until(lambda: graph.plant.count_subscribers(TOPIC_JOINT_STATES) > 0, 10.0)
-        assert wait_until(lambda: graph.plant.ticks_published > 0, 60.0)   # a measurement
         assert graph.wait_still()                       # the first tick is decided
         answer = graph.move(CLOSED_M)
         assert answer.outcome == Outcome.MOVED, answer.message

@@ -35,7 +35,7 @@ from gripper_ros.nodes.process import (build_node, CLEAN_UP_STEP_S, ExecutorKind
                                        load_bound_s, make_executor, release_nodes,
                                        spin_until_stopped)
 from gripper_ros.nodes.qos import SERVICE_QOS
-from gripper_ros.nodes.services import call_and_wait
+from gripper_ros.nodes.services import call_and_wait, wait_until
 from gripper_ros.nodes.supervisor_node import SupervisorNode
 from gripper_ros.nodes.trajectory_action_node import TrajectoryActionServer
 from gripper_ros.wire import (ACTION_FOLLOW_JOINT_TRAJECTORY, ACTION_GRASP, ACTION_GRIPPER_CMD,
@@ -172,6 +172,9 @@ class GripperGraph:
         for c in (self._set_object, self._grasp, self._release, self._move):
             if not c.wait_for_service(timeout_sec=load_bound_s(10.0)):
                 raise GraphError(f'service {c.srv_name} did not come up')
+        if self.plant.time_mode is not TimeMode.SIM_TIME and \
+                not wait_until(lambda: self.supervisor.measured, load_bound_s(10.0)):
+            raise GraphError(f'{NODE_SUPERVISOR} has no measurement from {NODE_PLANT}')
 
     def _one_clock_subscription(self) -> None:
         """Under use_sim_time, set every node's ROS clock from the plant's /clock subscription.

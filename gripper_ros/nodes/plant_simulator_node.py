@@ -421,7 +421,12 @@ class PlantSimulatorNode(GripperNode):
             self.get_logger().warning(warning)
 
     def _say_ready(self) -> None:
+        """Say the plant is ready; the first tick goes out again to the nodes built after it."""
         self._said_ready = True
+        if self.ticks_published and not (self._pending or self._unpowered):
+            self._tick_pub.publish(self._tick_bytes)
+            self.published[TOPIC_TICK] += 1
+            self._tick_wall = time.monotonic()
         self.get_logger().info(
             f'plant ready ({self.time_mode.text}): travel '
             f'{self.config.plant.max_travel_m:g} m, max force {self.config.plant.max_force_n:.2f} '

@@ -166,6 +166,11 @@ class SupervisorNode(GripperNode):
 
     # ------------------------------------------------------------------ the tick
     @property
+    def measured(self) -> bool:
+        """Whether a tick of the plant has been decided: requests can start."""
+        return self._has_tick
+
+    @property
     def _tick(self) -> Tick | None:
         """The newest tick decided (None before the first)."""
         return Tick._make(self._side.tick_record[0].item()) if self._has_tick else None
