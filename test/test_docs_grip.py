@@ -1,4 +1,4 @@
-"""docs/contact_sweep_fingers.txt is what ``contact_sweep --fingers`` prints now.
+"""docs/GRIP.md's transcripts are as printed now.
 
 ``scripts/doc_examples.py --check`` per doc, the varying numbers left out (test_docs.py says
 how); a module of its own so that the suite's two workers share the docs' checks
