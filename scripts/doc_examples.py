@@ -446,7 +446,7 @@ def sweep_rows_sample(name: str, count: int) -> list[str]:
                 if lines[i] != t:
                     out += [f'docs/{name}:{i + 1}: shown:   {lines[i]}',
                             f'docs/{name}:{i + 1}: printed: {t}']
-    print(f'doc_examples: {name}: {len(found)} rows are the grid\'s objects; {len(picked)} of '
+    print(f"doc_examples: {name}: {len(found)} rows are the grid's objects; {len(picked)} of "
           'them grasped again', flush=True)
     return out
 
@@ -496,7 +496,8 @@ def grip_study_sample(name: str = 'grip_study.txt') -> list[str]:
                            f'(the case has no {named["what"]}: {row["outcome"]})')
             checked += 1
         if printed != line:
-            out += [f'docs/{name}:{i + 1}: shown:   {line}', f'docs/{name}:{i + 1}: printed: {printed}']
+            out += [f'docs/{name}:{i + 1}: shown:   {line}',
+                    f'docs/{name}:{i + 1}: printed: {printed}']
     if not checked:
         out.append(f'docs/{name}: no line names a case of grip_study')
     print(f'doc_examples: {name}: {checked} named cases grasped again', flush=True)
@@ -535,7 +536,7 @@ def main(argv=None) -> int:
     parser.add_argument('--rows', type=int, metavar='N',
                         help='with --check: a contact_sweep table (' + ', '.join(SWEEPS) +
                              ') on N rows, spread over it, grasped again alone, and its objects '
-                             "against the grid; grip_study.txt on the cases it names (the "
+                             'against the grid; grip_study.txt on the cases it names (the '
                              "suite's check); other docs whole")
     parser.add_argument('--list', action='store_true', help='say what is regenerated, and how')
     args = parser.parse_args(argv)
