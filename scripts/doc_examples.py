@@ -377,8 +377,17 @@ def regenerate_pairs(doc: str, scratch: Path, missed: list[str]) -> str:
     return '\n'.join(lines) + '\n'
 
 
-def regenerate_file(name: str, missed: list[str]) -> str:
-    printed, status = run(FILES[name], ROOT)
+def regenerate_file(name: str, missed: list[str], scratch: Path | None = None) -> str:
+    """Return what ``name``'s command prints, run from the checkout (or from ``scratch``).
+
+    ``scratch`` (``--check``): a folder with a ``docs`` folder of its own, where the command's
+    figure goes instead of over the checkout's.
+    """
+    cwd = ROOT
+    if scratch is not None:
+        cwd = scratch / 'files'
+        (cwd / 'docs').mkdir(parents=True, exist_ok=True)
+    printed, status = run(FILES[name], cwd)
     if status != 0:
         missed.append(f'docs/{name}: {FILES[name]} (exit {status})')
         return (DOCS / name).read_text()
@@ -584,7 +593,7 @@ def main(argv=None) -> int:
         elif doc in PAIRS:
             text = regenerate_pairs(doc, scratch, missed)
         else:
-            text = regenerate_file(doc, missed)
+            text = regenerate_file(doc, missed, scratch if args.check else None)
         if args.check:
             drift += differences(doc, (DOCS / doc).read_text(), text)
         else:
