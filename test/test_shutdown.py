@@ -317,8 +317,9 @@ def test_a_destroy_that_holds_the_gil_still_ends_the_process(gil_held_stops, sig
 
     The C watchdog (``process.arm_hard_bound``) ends the process anyway: exit 1, after
     ``Timeout`` and every thread's stack (the stuck ``destroy_node`` among them) on stderr.
-    The bound is a few seconds (more on a loaded machine: ``process.load_bound_s``); the check
-    allows far more, well short of the 600 s block.
+    The bound is a few seconds (more on a loaded machine: ``process.load_bound_s``); the
+    watchdog's firing is its ``Timeout`` line, its stack and exit 1, and that the block did not
+    end by itself is an exit before the block's 600 s would have.
     """
     import re
 
@@ -330,7 +331,7 @@ def test_a_destroy_that_holds_the_gil_still_ends_the_process(gil_held_stops, sig
     assert said and 3600 * int(said[1]) + 60 * int(said[2]) + int(said[3]) >= int(bound_s), \
         stopped.output
     assert 'in stuck' in stopped.output, stopped.output
-    assert stopped.exit_s < GIL_HELD_FOR_S / 10, stopped.exit_s
+    assert stopped.exit_s < GIL_HELD_FOR_S, stopped.exit_s
 
 
 def _wait_for_node(namespace: str, name: str, proc: subprocess.Popen) -> None:
