@@ -266,6 +266,28 @@ def test_table_i_combinations_are_recovered_on_the_paper_config():
     _check_combinations(result, PAPER.plant)
 
 
+def test_the_report_shows_round_off_as_a_bound_the_same_on_every_cpu():
+    """Noise-free signals of the paper's plant are fitted to round-off (the fit's std errors).
+
+    The report says so as a bound (``< 1e-06 rel``), never as round-off's digits, which change
+    with the CPU's linear algebra kernels; a difference that rounds to zero carries no sign.
+    """
+    import io
+    result = identify([_excitation_run(_config({}, None))], PAPER)
+    out = io.StringIO()
+    bag_identify.print_report(result, out, compare=PAPER)
+    rows = {line.split()[0]: line for line in out.getvalue().splitlines()
+            if line.split() and line.split()[0] in result.combinations}
+    assert rows
+    exact = [name for name in rows if result.stderr[name] < 1e-6 * abs(result.combinations[name])]
+    assert 'resistance_ohm' in exact
+    for name in exact:
+        assert '< 1e-06 rel' in rows[name], rows[name]
+    assert '-0.0000%' not in out.getvalue()
+    nrmse = next(line for line in out.getvalue().splitlines() if 'position_m' in line)
+    assert 'position_m < 1e-06' in nrmse, nrmse
+
+
 def _grasp_run(config, stiffness_n_per_m: float, damping_n_s_per_m: float,
                recorded_stiffness_n_per_m: float) -> Run:
     """Return a grasp's ticks as its bag holds them, its object recorded with that stiffness."""

@@ -107,6 +107,19 @@ def _finite(value):
     return float(value) if isinstance(value, (int, float)) and math.isfinite(value) else None
 
 
+NEGLIGIBLE_REL = 1e-6
+"""A std error or NRMSE below this share of its value is shown as a bound, not digits: there
+the fit is exact to its floating-point round-off, whose digits change with the CPU's linear
+algebra kernels."""
+
+
+def _relative_text(value: float, scale: float, spec: str) -> str:
+    """``value`` formatted by ``spec``, or the bound when below NEGLIGIBLE_REL of ``scale``."""
+    if abs(value) < NEGLIGIBLE_REL * abs(scale):
+        return f'< {NEGLIGIBLE_REL:.0e}' + (' rel' if scale != 1.0 else '')
+    return format(value, spec)
+
+
 def print_report(result, out=sys.stdout, compare=None) -> None:
     """Print the combinations (beside those of ``compare``, a config), the keys, the checks."""
     from gripper_ros.identify.fit import (COMBINATIONS, combinations, FIXED_PLANT_KEYS,
@@ -116,10 +129,11 @@ def print_report(result, out=sys.stdout, compare=None) -> None:
     print(f'{"combination":30s} {"value":>13s} {"std error":>11s}{extra}  unit', file=out)
     for name, (unit, _) in COMBINATIONS.items():
         err = result.stderr[name]
-        err_text = f'{err:11.3g}' if math.isfinite(err) else f'{"not excited":>11s}'
         value = result.combinations[name]
-        extra = f' {other[name]:13.6g} {100.0 * (value / other[name] - 1.0):+9.4f}%' \
-            if other else ''
+        err_text = f'{_relative_text(err, value, ".3g"):>11s}' if math.isfinite(err) else \
+            f'{"not excited":>11s}'
+        difference = round(100.0 * (value / other[name] - 1.0), 4) + 0.0 if other else 0.0
+        extra = f' {other[name]:13.6g} {difference:+9.4f}%' if other else ''   # no -0.0000
         print(f'{name:30s} {value:13.6g} {err_text}{extra}  {unit}', file=out)
     if other:
         print(f'compared: {compare.source}', file=out)
@@ -131,7 +145,7 @@ def print_report(result, out=sys.stdout, compare=None) -> None:
     print("held-out NRMSE (RMS error over the last 30 % of each bag / the bag's range):",
           file=out)
     for run, table in result.nrmse.items():
-        cells = ', '.join(f'{c} {v:.2e}' if math.isfinite(v) else f'{c} -'
+        cells = ', '.join(f'{c} {_relative_text(v, 1.0, ".2e")}' if math.isfinite(v) else f'{c} -'
                           for c, v in table.items())
         print(f'  {run}: {cells}', file=out)
 
