@@ -10,7 +10,7 @@ a sim/step advances now in every mode, ending after its n ticks or at its time.
 import math
 
 from gripper_ros.core.runtime.pacing import (ClockPacing, FastPacing, HELD, IDLE, make_pacing,
-                                             MAX_LAG_S, MAX_STEP_S, MAX_STEP_TICKS, NOW,
+                                             MAX_LAG_S, MAX_STEP_S, MAX_STEP_TICKS, NOW, QUANTUM_S,
                                              RealtimePacing, step_problem, WORLD_STILL_S,
                                              WorldTime)
 from gripper_ros.wire import TimeMode
@@ -59,7 +59,23 @@ def test_realtime_catches_up_a_short_lag_and_restarts_after_a_stall():
 def test_realtime_sleeps_a_wait_below_a_millisecond_in_place():
     wall = WallClock()
     pacing = RealtimePacing(0, 1.0, wall)
-    assert pacing.gate(0, 100_000, never) == NOW    # 0.1 ms: slept here, then published
+    assert pacing.gate(0, 10 * MS, never) == pytest.approx(0.010)
+    wall.now_s += 0.0099
+    assert pacing.gate(0, 10 * MS, never) == NOW    # 0.1 ms: slept here, then published
+
+
+def test_realtime_publishes_short_ticks_in_bursts_a_quantum_apart():
+    wall = WallClock()
+    pacing = RealtimePacing(0, 1.0, wall)
+    tick_ns = 100_000                               # the force stage's 0.1 ms
+    assert pacing.gate(0, tick_ns, never) == pytest.approx(QUANTUM_S)   # not 0.1 ms
+    wall.now_s += QUANTUM_S + 1e-6                  # woken: every tick due by now goes out
+    burst = round(QUANTUM_S * 1e9) // tick_ns
+    for k in range(1, burst + 1):
+        assert pacing.gate((k - 1) * tick_ns, k * tick_ns, never) == NOW
+    # the next is a tick ahead of the wall clock: the wake after it is a quantum on
+    assert pacing.gate(burst * tick_ns, (burst + 1) * tick_ns, never) == \
+        pytest.approx(QUANTUM_S - 1e-6)
 
 
 def test_fast_publishes_only_while_time_is_needed():

@@ -20,6 +20,11 @@ the first two modes. For other programs it publishes, at ``state_rate_hz`` of si
 with ``publish_clock``, ``/clock``; and ``sim/status`` (mode, pause, achieved real-time factor)
 about once a second and on every change. ``sim/set_object`` places an object, its hold physics
 and a lift, and may schedule a fault for the next grasp.
+
+The node wires topics, services and timers to the core: when to step and with what
+(:mod:`gripper_ros.core.runtime.plant_loop`), what the world may be set to
+(:mod:`gripper_ros.core.runtime.world`), the simulated arm's announcements
+(:mod:`gripper_ros.core.runtime.arm`).
 """
 from __future__ import annotations
 
@@ -32,15 +37,17 @@ from gripper_interfaces.msg import (ForceSensor, MotorCommand, ObjectState, Plan
                                     SupervisorStatus)
 from gripper_interfaces.srv import SetObject, SimStep
 from gripper_ros.core.control.factories import make_plant
-from gripper_ros.core.physics.plant import check_fault, GraspObject, Lift
+from gripper_ros.core.runtime.arm import LiftAnnouncer
 from gripper_ros.core.runtime.lockstep import (Command, command_problem, FOREIGN, PlantSide,
                                                REFUSED, REPEATED, side_state_published, Tick)
 from gripper_ros.core.runtime.pacing import (ClockPacing, HELD, IDLE, make_pacing, NOW,
                                              step_problem, WorldTime)
+from gripper_ros.core.runtime.plant_loop import Chore, PlantLoop, STEP_BATCH
+from gripper_ros.core.runtime.world import placed_message, placement
 from gripper_ros.nodes.gripper_node import GripperNode
 from gripper_ros.nodes.loop_io import (clock_template, force_sensor_template, in_layout,
                                        joint_state_template, object_state_template,
-                                       read_status, split_ns, StatusView)
+                                       read_status, split_ns)
 from gripper_ros.nodes.object_marker import ObjectMarkerPublisher
 from gripper_ros.nodes.parameters import ConfigParameters, declare_prefix
 from gripper_ros.nodes.process import run_node
@@ -48,9 +55,8 @@ from gripper_ros.nodes.qos import GRAPH_QOS, SERVICE_QOS
 from gripper_ros.nodes.services import DeferredService
 from gripper_ros.nodes.stamps import ns_to_time
 from gripper_ros.nodes.startup import StartupError
-from gripper_ros.wire import (CDR_LITTLE_ENDIAN, COMMAND_LAYOUT, Controller,
-                              DEFAULT_STATE_RATE_HZ, FINGER_JOINT, FRAME_BASE,
-                              NODE_PLANT, Outcome, Phase, REPUBLISH_AFTER_S,
+from gripper_ros.wire import (CDR_LITTLE_ENDIAN, COMMAND_LAYOUT,
+                              DEFAULT_STATE_RATE_HZ, FINGER_JOINT, FRAME_BASE, NODE_PLANT,
                               SERVICE_PAUSE, SERVICE_RESUME, SERVICE_SET_OBJECT, SERVICE_STEP,
                               TIME_MODE_CHOICES, TimeMode, TOPIC_CLOCK,
                               TOPIC_FORCE_SENSOR, TOPIC_JOINT_STATES, TOPIC_LOAD_ACCELERATION,
@@ -67,12 +73,10 @@ from std_srvs.srv import Trigger
 HOUSEKEEPING_PERIOD_S = 0.05
 """Steady timer: republish a tick nobody answered, free-run without commands, sim/status."""
 SIM_STATUS_PERIOD_S = 1.0
-STEP_BATCH = 100
-"""Unpowered ticks taken in one callback before yielding (a sim/step, a world's time ahead)."""
 
 
 class PlantSimulatorNode(GripperNode):
-    """Thin ROS wrapper around :class:`gripper_ros.core.physics.plant.GripperPlant`."""
+    """The ROS face of the simulated plant: :class:`PlantLoop` over a :class:`PlantSide`."""
 
     def __init__(self, **kwargs):
         super().__init__(NODE_PLANT, **kwargs)
@@ -120,21 +124,12 @@ class PlantSimulatorNode(GripperNode):
         self.published: Counter = Counter()     # messages per (relative) topic
         self.commands_rejected = 0
         self.commands_ignored = 0               # stale, duplicate or superseded
-        self._pending = False                   # a command accepted for the current tick
-        self._echoed = False                    # a command was ever accepted (its echo counts)
-        self.side.tick()
-        self._tick_bytes = CDR_LITTLE_ENDIAN + self.side.tick_record.tobytes()
-        self._stamp_ns = self.tick.stamp_ns     # the current tick's
-        self._tick_wall = time.monotonic()      # when the current tick was (re)published
-        self._tick_first_wall = self._tick_wall  # when it was first published
-        self._woken = False                     # a request is waiting for simulated time
         self.pacing = make_pacing(self.time_mode, self.plant.t_ns, self.real_time_factor)
-        self._fast = self.time_mode is TimeMode.FAST
+        self.loop = PlantLoop(self.side, self.pacing, round(1e9 / self.state_rate_hz),
+                              time.monotonic())
+        self._tick_bytes = CDR_LITTLE_ENDIAN + self.side.tick_record.tobytes()
         self._step_reply = None                 # (header, response) of a running sim/step
-        self._unpowered = self.pacing.runs_unasked   # nobody commands (yet)
-        self._status: StatusView | None = None
         self._pace_wait = False                 # waiting for the pace timer
-        self._state_period_ns = round(1e9 / self.state_rate_hz)
         self._last_sim_status = 0.0
         self._advancing = False
         self._held = self.pacing.held           # as the last sim/status said
@@ -152,12 +147,9 @@ class PlantSimulatorNode(GripperNode):
         self.create_subscription(AccelStamped, TOPIC_LOAD_ACCELERATION,
                                  self._on_load_acceleration, GRAPH_QOS)
         self.loads_refused = 0
-        # the simulated arm: it announces a lift asked to be announced as the hold begins
         self._plan_pub = self.create_publisher(AccelStamped, TOPIC_PLANNED_ACCELERATION,
                                                GRAPH_QOS)
-        self._announce_lift = False
-        self._announced_for = -1                # the grasp whose lift was announced
-        self.plans_announced = 0
+        self.arm = LiftAnnouncer()              # the simulated arm
         self.create_service(SetObject, SERVICE_SET_OBJECT, self._on_set_object,
                             qos_profile=SERVICE_QOS)
         self.create_service(Trigger, SERVICE_PAUSE, self._on_pause, qos_profile=SERVICE_QOS)
@@ -208,7 +200,7 @@ class PlantSimulatorNode(GripperNode):
                 self.pacing.restart(self.plant.t_ns)
             elif p.name == 'state_rate_hz':
                 self.state_rate_hz = float(p.value)
-                self._state_period_ns = round(1e9 / self.state_rate_hz)
+                self.loop.state_period_ns = round(1e9 / self.state_rate_hz)
             elif p.name == 'command_timeout_s':
                 self.command_timeout_s = float(p.value)
 
@@ -219,10 +211,10 @@ class PlantSimulatorNode(GripperNode):
 
     # ------------------------------------------------------------------ lockstep
     def _on_command(self, data: bytes) -> None:
-        taken = self.side.take_command(data, self._pending)
+        taken = self.side.take_command(data, self.loop.pending)
         if taken == FOREIGN:                    # another encapsulation: the general way
             taken = self.side.take_command(in_layout(COMMAND_LAYOUT, data, MotorCommand),
-                                           self._pending)
+                                           self.loop.pending)
         if taken == REPEATED:
             self.commands_ignored += 1          # stale, for the world before, or a repeat
             return
@@ -233,24 +225,25 @@ class PlantSimulatorNode(GripperNode):
                                     f'source {cmd.source}: {command_problem(cmd)}; motor held '
                                     'at 0 V', throttle_duration_sec=1.0)
             return
-        self._pending = self._echoed = True
-        self._unpowered = False
+        self.loop.command_accepted()
         self._announce_if_begun()
         self._try_step()
 
     def _announce_if_begun(self) -> None:
         """Publish the lift's plan on arm/planned_acceleration once its hold has begun."""
-        begun = int(self.side.state[0]['hold_begun_for'])
-        if not self._announce_lift or begun == self._announced_for or begun < 0:
+        if not self.arm.due(int(self.side.state[0]['hold_begun_for'])):
             return
-        self._announced_for = begun
         for t_ns, accel in self.plant.lift_plan():
             msg = AccelStamped()
             msg.header.stamp = ns_to_time(t_ns)
             msg.header.frame_id = self.frame_id
             msg.accel.linear.z = accel
             self._plan_pub.publish(msg)
-        self.plans_announced += 1
+
+    @property
+    def plans_announced(self) -> int:
+        """Lift plans the simulated arm announced."""
+        return self.arm.announced
 
     def _on_load_acceleration(self, msg: AccelStamped) -> None:
         """Take a live arm's upward acceleration: it loads the held object's pads from now."""
@@ -265,15 +258,7 @@ class PlantSimulatorNode(GripperNode):
         self._try_step()                        # fast mode: the load needs simulated time
 
     def _on_status(self, data: bytes) -> None:
-        msg = read_status(data)
-        previous, self._status = self._status, msg
-        if previous is None or msg.grasp_id != previous.grasp_id:
-            if msg.mass_kg > 0.0:
-                self.side.grasp_mass_kg = msg.mass_kg
-        if msg.active_controller == Controller.NONE and not self._pending:
-            self._unpowered = True              # nobody will command: 0 V, when time runs
-        if msg.pending_request:
-            self._woken = True
+        self.loop.take_status(read_status(data))
         self._try_step()
 
     def _on_world_time(self, jump) -> None:
@@ -286,24 +271,19 @@ class PlantSimulatorNode(GripperNode):
         world_ns = self.get_clock().now().nanoseconds if known_ns is None else \
             known_ns + jump.delta.nanoseconds
         change = self.pacing.take_world_time(world_ns)
-        if change is WorldTime.START:           # the simulation starts at the world's time,
-            self.plant.t_ns = world_ns - world_ns % self._state_period_ns    # on the grid
-            self._stamp_ns = self.side.tick().stamp_ns
+        if change is WorldTime.START:           # the simulation starts at the world's time
+            self.loop.start_at(world_ns)
             self._publish_tick()
             self._publish_state()
-            self.get_logger().info(f'following /clock from t={self._stamp_ns * 1e-9:.4f} s')
-        elif change is WorldTime.BACK and world_ns < self._stamp_ns:
+            self.get_logger().info(f'following /clock from t={self.loop.stamp_ns * 1e-9:.4f} s')
+        elif change is WorldTime.BACK and world_ns < self.loop.stamp_ns:
             self.get_logger().warning(
                 f'/clock went back to t={world_ns * 1e-9:.4f} s (a world reset?): the gripper, '
-                f"at t={self._stamp_ns * 1e-9:.4f} s, holds until the world's time passes "
+                f"at t={self.loop.stamp_ns * 1e-9:.4f} s, holds until the world's time passes "
                 'its own; restart it to start over', throttle_duration_sec=5.0)
         if self._held != self.pacing.held:
             self._publish_sim_status(window=False)
         self._try_step()
-
-    def _needs_time(self) -> bool:
-        """Fast mode: a request waits, or the accepted command's scenario needs time."""
-        return self._woken or (self._pending and self.side.command_needs_time())
 
     def _try_step(self) -> None:
         """Step while the pacing's gate is open; without a command, step unpowered.
@@ -312,14 +292,10 @@ class PlantSimulatorNode(GripperNode):
         ahead), between which the executor serves other callbacks (a sim/pause ends the step).
         """
         batch = STEP_BATCH
-        pacing = self.pacing
+        loop, pacing = self.loop, self.pacing
         while True:
-            powered = self._pending
-            if not powered and not self._unpowered:
-                return
-            hold_ns = round(float(self.side.command_record[0]['hold_s']) * 1e9) if powered \
-                else self._state_period_ns
-            wait_s = pacing.gate(self._stamp_ns, self._stamp_ns + hold_ns, self._needs_time)
+            powered = loop.pending
+            wait_s = loop.gate()
             if wait_s is HELD:
                 return
             if wait_s > NOW:
@@ -328,18 +304,15 @@ class PlantSimulatorNode(GripperNode):
                 else:
                     self._wait(wait_s)
                 return
-            self._woken = False
-            self._pending = False
             if not self._advancing:
                 self._set_advancing(True)
-            self._stamp_ns, due = self.side.step_due() if powered else \
-                self.side.step_unpowered_due(hold_ns)
+            due = loop.step()
             self._publish_tick()
             if due:
                 self._publish_state()
-            if pacing.stepping and pacing.spend(self._stamp_ns):
+            if pacing.stepping and pacing.spend(loop.stamp_ns):
                 self._end_step()
-            if powered or self._fast:
+            if powered or loop.fast:
                 return                          # lockstep: the next step needs its command
             batch -= 1
             if batch <= 0:
@@ -373,7 +346,7 @@ class PlantSimulatorNode(GripperNode):
     def _publish_tick(self) -> None:
         self._tick_bytes = CDR_LITTLE_ENDIAN + self.side.tick_record.tobytes()
         self._tick_pub.publish(self._tick_bytes)
-        self._tick_wall = self._tick_first_wall = time.monotonic()
+        self.loop.published(time.monotonic())
         self.ticks_published += 1
         self.published[TOPIC_TICK] += 1
 
@@ -383,7 +356,7 @@ class PlantSimulatorNode(GripperNode):
         tick = self.tick
         sec, nanosec = split_ns(tick.stamp_ns)
         side_state_published(self.side.state, self.plant.kernel, self.side.tick_record,
-                             self._state_period_ns)
+                             self.loop.state_period_ns)
         if self._clock_pub is not None:
             self._clock_pub.publish(self._clock_layout.pack(sec, nanosec))
             self.published[TOPIC_CLOCK] += 1
@@ -423,10 +396,10 @@ class PlantSimulatorNode(GripperNode):
     def _say_ready(self) -> None:
         """Say the plant is ready; the first tick goes out again to the nodes built after it."""
         self._said_ready = True
-        if self.ticks_published and not (self._pending or self._unpowered):
+        if self.ticks_published and not (self.loop.pending or self.loop.unpowered):
             self._tick_pub.publish(self._tick_bytes)
             self.published[TOPIC_TICK] += 1
-            self._tick_wall = time.monotonic()
+            self.loop.republished(time.monotonic())
         self.get_logger().info(
             f'plant ready ({self.time_mode.text}): travel '
             f'{self.config.plant.max_travel_m:g} m, max force {self.config.plant.max_force_n:.2f} '
@@ -440,23 +413,18 @@ class PlantSimulatorNode(GripperNode):
             self._publish_sim_status()
         elif self._held != self.pacing.held:    # the world's time stopped or went on
             self._publish_sim_status(window=False)
-        if self._pending or self.pacing.paused:
-            return
-        runs_unasked = self.pacing.runs_unasked
-        if self._unpowered and runs_unasked and not self._pace_wait:
-            self._try_step()                    # nobody commands: time goes on at 0 V
-            return
-        silent_s = now - self._tick_first_wall  # a republished tick is no answer
-        if runs_unasked and not self._unpowered and silent_s >= self.command_timeout_s:
-            self._unpowered = True
+        chore = self.loop.chore(now, self._pace_wait, self.command_timeout_s)
+        if chore is Chore.TIMED_OUT:
             self.get_logger().error(
-                f'no command for t={self._stamp_ns * 1e-9:.4f} s in {silent_s:.2f} s: '
-                'motor held at 0 V, time goes on', throttle_duration_sec=5.0)
-            self._try_step()
-        elif now - self._tick_wall >= REPUBLISH_AFTER_S and not self._unpowered:
+                f'no command for t={self.loop.stamp_ns * 1e-9:.4f} s in '
+                f'{self.loop.silent_s(now):.2f} s: motor held at 0 V, time goes on',
+                throttle_duration_sec=5.0)
+        if chore in (Chore.RUN, Chore.TIMED_OUT):
+            self._try_step()                    # nobody commands: time goes on at 0 V
+        elif chore is Chore.REPUBLISH:
             self._tick_pub.publish(self._tick_bytes)      # nobody answered: a late peer
             self.published[TOPIC_TICK] += 1
-            self._tick_wall = now
+            self.loop.republished(now)
 
     # ------------------------------------------------------------------ sim services
     def _end_step(self, cut_short: str = '') -> None:
@@ -527,57 +495,18 @@ class PlantSimulatorNode(GripperNode):
         return self._advancing
 
     # ------------------------------------------------------------------ simulation set-up
-    def _busy_reason(self) -> str:
-        """Say why the world may not be changed now ('' when it may).
-
-        The supervisor's newest word on it counts: its status, or the echo of the last command,
-        whichever is later.
-        """
-        echo = Command._make(self.side.command_record[0].item()) if self._echoed else None
-        status = self._status
-        state = echo
-        if status is not None and (echo is None or (status.grasp_id, status.stage_id) >=
-                                   (echo.grasp_id, echo.stage_id)):
-            state = status
-        if state is None:
-            return ''
-        if state.running or getattr(state, 'pending_request', 0):
-            return 'a grasp or release is running'
-        if state.phase == Phase.HOLDING and \
-                state.outcome in (Outcome.HOLDING, Outcome.OVERLOADED):
-            return 'an object is held (release or stop first)'
-        return ''
-
     def _on_set_object(self, request: SetObject.Request,
                        response: SetObject.Response) -> SetObject.Response:
         self.deliver_queued()                   # the supervisor's word on what runs, as it stands
-        busy = self._busy_reason()
+        busy = self.loop.busy_reason()
         if busy:
             response.success = False
             response.message = f'refused: {busy}'
             return response
         try:
-            obj = GraspObject(request.width_m, request.stiffness_n_per_m,
-                              request.damping_n_s_per_m, request.mass_kg,
-                              request.static_friction, request.kinetic_friction,
-                              request.pad_length_m)
-            if request.default_friction:
-                if request.static_friction or request.kinetic_friction:
-                    raise ValueError(
-                        f'default_friction asks for the configured friction; static_friction '
-                        f'and kinetic_friction must then be 0, got {request.static_friction!r} '
-                        f'and {request.kinetic_friction!r}')
-                obj = self.plant.configured_friction(obj)
-            lift = Lift(request.lift_acceleration_mps2, request.lift_delay_s,
-                        request.lift_duration_s, request.lift_profile,
-                        request.lift_frequency_hz, request.lift_off_s) \
-                if request.lift_duration_s > 0.0 else None
-            kind, tau = check_fault(request.fault, request.fault_at_s,
-                                    request.fault_time_constant_s, obj.rigid)
-            self.side.set_object(obj, request.open_fingers, (kind, request.fault_at_s, tau),
-                                 lift=lift)
-            self._announce_lift = bool(request.announce_lift) and lift is not None
-            self._announced_for = int(self.side.state[0]['hold_begun_for'])
+            placed = placement(request, self.plant)
+            self.side.set_object(placed.obj, request.open_fingers, placed.fault, lift=placed.lift)
+            self.arm.arm(placed.announce_lift, int(self.side.state[0]['hold_begun_for']))
         except (ValueError, TypeError) as exc:
             response.success = False
             response.message = f'refused: {exc}'
@@ -586,17 +515,12 @@ class PlantSimulatorNode(GripperNode):
             name: float(value) if name not in ('fault', 'lift_profile') else int(value)
             for name, value in ((n, getattr(request, n))
                                 for n in request.get_fields_and_field_types())})
-        self._pending = False                   # the command was for the world before
-        self._stamp_ns = self.side.tick().stamp_ns
+        self.loop.placed()
         if self.pacing.started:                 # (following /clock: once the world's came)
             self._publish_tick()
             self._publish_state()
         response.success = True
-        response.message = (f'object width {request.width_m:g} m, contact at '
-                            f'{self.plant.contact_position_m:.4f} m')
-        if kind.value:
-            response.message += (f'; fault {kind.name} {request.fault_at_s:g} s after the start '
-                                 f'of the next grasp')
+        response.message = placed_message(placed, self.plant)
         return response
 
 

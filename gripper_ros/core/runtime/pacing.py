@@ -5,6 +5,7 @@ simulated time ``t_next_ns`` be published now, after a wait of wall time, or onl
 event? One class a time mode (:class:`gripper_ros.wire.TimeMode`):
 
 - :class:`RealtimePacing`: paced to the wall clock by ``real_time_factor``, never ahead of it;
+  ticks shorter than :data:`QUANTUM_S` of wall time go out in bursts, one wake a quantum;
   behind by up to :data:`MAX_LAG_S` it catches up at the loop's own pace, behind by more it
   starts afresh from now rather than rushing.
 - :class:`FastPacing`: as fast as the loop goes while something needs simulated time (a request
@@ -42,6 +43,12 @@ MAX_LAG_S = 0.1
 bag closed), simulated time catches up at the loop's own pace; behind by more (a real stall),
 pacing starts afresh from now rather than rushing, and the achieved real-time factor shows the
 loss."""
+QUANTUM_S = 0.002
+"""Realtime: the plant wakes at most once per this much wall time. A tick due sooner after the
+current one waits until the wall clock is this far past the current one, then the ticks due by
+then go out back to back: simulated time lags the wall clock by up to one quantum (a command
+waits up to one quantum longer), and the process sleeps once a quantum instead of once a tick
+(ten thousand a second while the force stage holds)."""
 SLEEP_LIMIT_S = 0.001
 """Realtime: a wait this short is slept in place; a longer one is the node's timer."""
 MAX_STEP_S = 600.0
@@ -213,6 +220,7 @@ class RealtimePacing(Pacing):
             lead_s = self._lead_s(t_next_ns)
         if lead_s <= 0.0:
             return NOW
+        lead_s = max(lead_s, self._lead_s(t_ns) + QUANTUM_S)    # a short tick: a quantum on
         if lead_s > SLEEP_LIMIT_S:
             return lead_s
         time.sleep(lead_s)
