@@ -233,13 +233,14 @@ class LiveGraph:
         """Wait until the watcher has each message the graph published since :meth:`mark`.
 
         DDS delivers a writer's messages in order: the counts agree once the last one is in.
+        The bound scales with the machine's load (the watcher's thread shares the process).
         """
         published, seen = self._mark
 
         def caught_up() -> bool:
             now_published, now_seen = self.published(), self.watcher.seen()
             return all(now_seen[t] - seen[t] >= now_published[t] - published[t] for t in TOPICS)
-        return wait_until(caught_up, timeout_s, step_s=0.02)
+        return wait_until(caught_up, load_bound_s(timeout_s), step_s=0.02)
 
     def start_grasp(self, width_m=0.10, mass_kg=0.75, timeout_s=0.0, paused=False):
         """Place the object and ask for the grasp (``paused``: simulated time held first)."""
