@@ -162,8 +162,13 @@ def test_two_grippers_on_one_world_clock_publish_the_same_stamps():
             with _following('sim_time_right'):      # started later: the world's time, too
                 assert wait_until(lambda: len(world.samples['sim_time_right']) >= 50, 30.0)
                 with world.lock:
-                    left = {s[1] for s in world.samples['sim_time_left']}
                     right = [s[1] for s in world.samples['sim_time_right']]
+                # each gripper publishes as its process is scheduled: compare once the left one
+                # has sent the stamps up to the right one's newest
+                assert wait_until(lambda: world.samples['sim_time_left'][-1][1] >= right[-1],
+                                  30.0)
+                with world.lock:
+                    left = {s[1] for s in world.samples['sim_time_left']}
                 assert set(right[-40:]) <= left
                 for ns in world.samples:
                     lags = lags_ns(world, world.since(ns, right[0]))

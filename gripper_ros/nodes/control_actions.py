@@ -39,6 +39,12 @@ _LOADED, PROBLEM = _load()
 GripperCommand = _LOADED.get('GripperCommand')
 ParallelGripperCommand = _LOADED.get('ParallelGripperCommand')
 FollowJointTrajectory = _LOADED.get('FollowJointTrajectory')
+JointTrajectoryPoint = None
+"""trajectory_msgs' point, which FollowJointTrajectory carries: control_msgs depends on it, the
+wheels have neither."""
+if FollowJointTrajectory is not None:
+    from trajectory_msgs import msg as _trajectory_msgs
+    JointTrajectoryPoint = _trajectory_msgs.JointTrajectoryPoint
 
 
 def not_served(names) -> str:

@@ -40,7 +40,8 @@ from gripper_ros.core.supervision.joint_trajectory import (check_trajectory, def
                                                            resolve_tolerances, State,
                                                            Trajectory, TrajectoryError,
                                                            TrajectoryRun, Update, Verdict)
-from gripper_ros.nodes.control_actions import FollowJointTrajectory, not_served, PROBLEM
+from gripper_ros.nodes.control_actions import (FollowJointTrajectory, JointTrajectoryPoint,
+                                               not_served, PROBLEM)
 from gripper_ros.nodes.gripper_node import GripperNode
 from gripper_ros.nodes.loop_io import read_status
 from gripper_ros.nodes.parameters import declare_config, declare_prefix
@@ -56,7 +57,6 @@ from rclpy.action import ActionServer, CancelResponse, GoalResponse
 from rclpy.serialization import deserialize_message
 from rclpy.task import Future
 from sensor_msgs.msg import JointState
-from trajectory_msgs.msg import JointTrajectoryPoint
 
 PREEMPTED = 'Current goal preempted by new incoming action.'
 """JTC's error_string of a goal a newer goal preempted (INVALID_GOAL)."""
