@@ -28,8 +28,15 @@ every run and every machine (the simulation runs in simulated time, bit for bit)
 
 Each doc is rewritten in place; review with ``git diff``. ``--check`` writes nothing and prints,
 per doc, each shown line that differs from what the program prints now, the varying numbers left
-out (test/test_docs.py runs it). Exits 1 when an example could not be regenerated or (with
-``--check``) differs, each named; 0 otherwise.
+out. Exits 1 when an example could not be regenerated or (with ``--check``) differs, each
+named; 0 otherwise.
+
+``--check --rows N`` checks a contact_sweep table (:data:`SWEEPS`) on N of its rows, spread
+evenly over it, each grasped by the program alone (the rows are independent: each object is
+grasped on its own, and its floors are exact minima), with the row's lines in the summary, and
+the table's objects, every row, against the program's grid of them (nothing simulated). That is
+the suite's check of those docs (test/test_docs_*.py); the whole study, without ``--rows``, is
+the check before a release and what regenerates them.
 """
 from __future__ import annotations
 
@@ -68,6 +75,12 @@ SETUP = {
     'results_whatif.md': CHATTER,
 }
 """Shell set-up of a doc's scratch folder: the inputs its text says the reader has."""
+CHECK_SETUP = {'GRIP.md': f'cp -r {DOCS} docs'}
+"""The set-up instead, for ``--check``: a copy of docs/, so that the figures the commands write
+there (``grip_study --plot-step docs/grip_step.png``) do not overwrite the checkout's."""
+SHOWN_IN = {'GRIP.md': {'grip_study --jobs 2': 'grip_study.txt'}}
+"""Commands whose output is also a whole file of docs/ (FILES): with ``--rows``, the doc's lines
+are compared with that file's, which is checked on its own (the whole study is not run twice)."""
 FILES = {'contact_sweep.txt': 'contact_sweep --plot docs/contact_sweep.png',
          'contact_sweep_fingers.txt': 'contact_sweep --fingers',
          'grip_study.txt': 'grip_study --plot docs/grip_study.png'}
@@ -292,17 +305,18 @@ def regenerate_bag_tools(out: Path, missed: list[str], check: bool = False) -> s
 
 # --- the other transcripts ------------------------------------------------------------------
 def regenerate_transcripts(doc: str, scratch: Path, missed: list[str],
-                           check: bool = False) -> str:
+                           check: bool = False, rows: bool = False) -> str:
     """Return ``doc`` with each transcript as its commands print now, run in order.
 
     ``check``: a command of :data:`NOT_COMPARED` is not run; it keeps the doc's output.
+    ``rows`` (``--rows``): a command of :data:`SHOWN_IN` prints what its file holds.
     """
     lines = (DOCS / doc).read_text().splitlines()
     folder = scratch / doc.replace('.md', '')
     shutil.rmtree(folder, ignore_errors=True)
     folder.mkdir(parents=True)
     if doc in SETUP:
-        run(SETUP[doc], folder)
+        run(CHECK_SETUP.get(doc, SETUP[doc]) if check else SETUP[doc], folder)
     names: dict[str, str] = {}              # bag_key -> the name this run gave it
     replaced = []
     for first, end in blocks(lines):
@@ -319,7 +333,10 @@ def regenerate_transcripts(doc: str, scratch: Path, missed: list[str],
             if written and not (folder / written.group(1)).exists():
                 # a file the reader wrote, shown by cat: it holds what the doc shows
                 (folder / written.group(1)).write_text(''.join(f'{line}\n' for line in output))
-            printed, status = run(live, folder)
+            if rows and live in SHOWN_IN.get(doc, {}):
+                printed, status = (DOCS / SHOWN_IN[doc][live]).read_text(), 0
+            else:
+                printed, status = run(live, folder)
             exit_shown = EXIT.match(next((line for line in reversed(output) if line), ''))
             if status != (int(exit_shown.group(1)) if exit_shown else 0):
                 missed.append(f'{doc}: $ {command} (exit {status}; the doc shows '
@@ -370,12 +387,145 @@ def regenerate_pairs(doc: str, scratch: Path, missed: list[str]) -> str:
     return '\n'.join(lines) + '\n'
 
 
-def regenerate_file(name: str, missed: list[str]) -> str:
-    printed, status = run(FILES[name], ROOT)
+def regenerate_file(name: str, missed: list[str], scratch: Path | None = None) -> str:
+    """Return what ``name``'s command prints, run from the checkout (or from ``scratch``).
+
+    ``scratch`` (``--check``): a folder with a ``docs`` folder of its own, where the command's
+    figure goes instead of over the checkout's.
+    """
+    cwd = ROOT
+    if scratch is not None:
+        cwd = scratch / 'files'
+        (cwd / 'docs').mkdir(parents=True, exist_ok=True)
+    printed, status = run(FILES[name], cwd)
     if status != 0:
         missed.append(f'docs/{name}: {FILES[name]} (exit {status})')
         return (DOCS / name).read_text()
     return printed
+
+
+SWEEPS = {'contact_sweep.txt': False, 'contact_sweep_fingers.txt': True}
+"""The FILES that are a contact_sweep table (True: ``--fingers``'s), checkable on some rows."""
+
+
+def sweep_rows_sample(name: str, count: int) -> list[str]:
+    """Return where ``name``'s table differs from the program's, on ``count`` of its rows.
+
+    Every row's object (the columns up to kg) is the program's grid's, in order (a refused
+    object has no row); ``count`` rows spread evenly over the table are grasped again, alone,
+    and their lines, in the table and in the summary, must be what the program prints.
+    """
+    from gripper_ros.apps.contact_sweep import format_rows, summary
+    from gripper_ros.core.config import load_config
+    from gripper_ros.studies import sweep_runs
+    fingers = SWEEPS[name]
+    config = load_config(None)                      # the installed one, as contact_sweep's
+    cases, excluded = (sweep_runs.finger_cases if fingers else sweep_runs.envelope_cases)(config)
+    nan = float('nan')
+    blank = [sweep_runs.SweepRow(c.contact, c.stiffness_n_per_m, c.damping_ratio,
+                                 c.damping_n_s_per_m, c.width_m, c.object_width_m,
+                                 c.width_tolerance_m, c.mass_kg, '-', nan, nan, nan, nan, nan,
+                                 nan, nan, nan, nan, nan, nan, c.finger) for c in cases]
+    grid = format_rows(blank).splitlines()
+    header, legend, objects = grid[0], grid[-1], 7 if fingers else 6
+    lines = (DOCS / name).read_text().splitlines()
+    if header not in lines or legend not in lines:
+        return [f'docs/{name}: no table of contact_sweep{" --fingers" if fingers else ""}']
+    first, end = lines.index(header) + 1, lines.index(legend)
+    shown = lines[first:end]
+    found = []                              # (line index in the doc, case)
+    for case, line in zip(cases, grid[1:-1]):
+        k = len(found)
+        if k < len(shown) and shown[k].split()[:objects] == line.split()[:objects]:
+            found.append((first + k, case))
+    out = [f'docs/{name}:{first + k + 1}: shown:   {shown[k]}  (not an object of the '
+           "program's grid, in its order)" for k in range(len(found), len(shown))][:1]
+    counted = summary(config, [blank[cases.index(c)] for _, c in found], excluded, 0.0)
+    told = re.sub(r' in \S+ s wall on [^;]*', '', lines[0])
+    if told != counted.splitlines()[0]:
+        out += [f'docs/{name}:1: shown:   {told}', f'docs/{name}:1: printed: {counted}']
+    picked = sorted({k * len(found) // count for k in range(min(count, len(found)))})
+    rows = sweep_runs.sweep(config, [found[k][1] for k in picked],
+                            hold_s=sweep_runs.DEFAULT_HOLD_S, jobs=1, rest_floors=not fingers)
+    if len(rows) != len(picked):
+        return out + [f'docs/{name}: a row of the table was refused by the program']
+    printed = format_rows(rows).splitlines()[1:-1]
+    told_lines = summary(config, rows, excluded, sweep_runs.DEFAULT_HOLD_S).splitlines()
+    for k, row, line in zip(picked, rows, printed):
+        at = found[k][0]
+        if masked([lines[at]]) != masked([line]):
+            out += [f'docs/{name}:{at + 1}: shown:   {lines[at]}',
+                    f'docs/{name}:{at + 1}: printed: {line}']
+        if row.width_tolerance_m > 0.0:     # its line in the summary, after the table's rows
+            mine = [t for t in told_lines if t.startswith('  ') and
+                    t.split()[:len(_described(row))] == _described(row)]
+            theirs = [i for i, t in enumerate(lines[:first]) if t.startswith('  ') and
+                      t.split()[:len(_described(row))] == _described(row)]
+            for i, t in zip(theirs, mine):
+                if lines[i] != t:
+                    out += [f'docs/{name}:{i + 1}: shown:   {lines[i]}',
+                            f'docs/{name}:{i + 1}: printed: {t}']
+    print(f"doc_examples: {name}: {len(found)} rows are the grid's objects; {len(picked)} of "
+          'them grasped again', flush=True)
+    return out
+
+
+NAMED_CASE = re.compile(r'^(?P<label>.+), largest (?P<what>slip|mean margin): (?P<kg>\S+) kg, '
+                        r'mu_s (?P<mu>\S+), (?P<profile>[^:]+): slip ')
+"""A line of grip_study's that names one case (the largest slip or mean margin of a law)."""
+
+
+def grip_study_sample(name: str = 'grip_study.txt') -> list[str]:
+    """Return where the cases ``name`` names differ from what grip_study prints for them.
+
+    Each case a line names (a law's largest slip and largest mean margin, in the study and in
+    the instant steps) is grasped again, alone, and its line must be what the program prints.
+    """
+    from gripper_ros.apps import grip_study
+    from gripper_ros.apps.common import with_values
+    from gripper_ros.core.config import load_config
+    config = with_values(load_config(None),
+                         {'contact.lift_off_s': grip_study.DEFAULT_LIFT_OFF_S})
+    instant = with_values(config, {'contact.lift_off_s': 0.0})
+    floats = grip_study._floats
+    parts = (
+        (config, grip_study.LAWS, grip_study.study_cases(floats('0.2,0.5,1,2', 'masses'),
+                                                         floats('0.4,0.6,0.9', 'frictions'))),
+        (instant, grip_study.INSTANT_LAWS, grip_study.instant_cases(
+            *(floats(text, 'instant') for text in (grip_study.INSTANT_MASSES,
+                                                   grip_study.INSTANT_FRICTIONS,
+                                                   grip_study.INSTANT_STEPS)))))
+    lines = (DOCS / name).read_text().splitlines()
+    part, out, checked = 0, [], 0
+    for i, line in enumerate(lines):
+        if ' instant steps: ' in line:
+            part = 1
+        named = NAMED_CASE.match(line)
+        if not named:
+            continue
+        cfg, laws, cases = parts[part]
+        case = next((c for c in cases if c['label'] == named['label'] and
+                     f'{c["mass_kg"]:g}' == named['kg'] and f'{c["mu_s"]:g}' == named['mu'] and
+                     c['profile_label'] == named['profile']), None)
+        printed = '(no such case in the study)'
+        if case is not None:
+            row = grip_study._case(cfg, case)
+            lead = f'{named["label"]}, largest {named["what"]}: '
+            printed = next((t for t in grip_study.summarise([row], laws) if t.startswith(lead)),
+                           f'(the case has no {named["what"]}: {row["outcome"]})')
+            checked += 1
+        if printed != line:
+            out += [f'docs/{name}:{i + 1}: shown:   {line}',
+                    f'docs/{name}:{i + 1}: printed: {printed}']
+    if not checked:
+        out.append(f'docs/{name}: no line names a case of grip_study')
+    print(f'doc_examples: {name}: {checked} named cases grasped again', flush=True)
+    return out
+
+
+def _described(row) -> list[str]:
+    from gripper_ros.apps.contact_sweep import _describe
+    return _describe(row).split()
 
 
 def differences(name: str, shown: str, printed: str) -> list[str]:
@@ -402,8 +552,16 @@ def main(argv=None) -> int:
     parser.add_argument('--check', action='store_true',
                         help='write nothing; print where each doc differs from what its '
                              'commands print now (varying numbers left out)')
+    parser.add_argument('--rows', type=int, metavar='N',
+                        help='with --check: a contact_sweep table (' + ', '.join(SWEEPS) +
+                             ') on N rows, spread over it, grasped again alone, and its objects '
+                             'against the grid; grip_study.txt on the cases it names (the '
+                             "suite's check); GRIP.md's grip_study against grip_study.txt; "
+                             'other docs whole')
     parser.add_argument('--list', action='store_true', help='say what is regenerated, and how')
     args = parser.parse_args(argv)
+    if args.rows is not None and (not args.check or args.rows < 1):
+        parser.error('--rows N needs --check and N >= 1')
     unknown = sorted(set(args.docs) - set(every))
     if unknown:
         parser.error(f'no examples regenerated in {", ".join(unknown)}; known: '
@@ -432,16 +590,21 @@ def main(argv=None) -> int:
         claims = scratch / 'claims' / doc
         shutil.rmtree(claims, ignore_errors=True)
         CLAIMS['GRIPPER_ROS_CLAIMS_DIR'] = str(claims)
+        if args.rows and doc in (*SWEEPS, 'grip_study.txt'):
+            drift += (sweep_rows_sample(doc, args.rows) if doc in SWEEPS else
+                      grip_study_sample(doc))
+            print(f'doc_examples: {doc} done in {time.monotonic() - t0:.0f} s', flush=True)
+            continue
         if doc == BAG_TOOLS:
             text = regenerate_bag_tools(
                 scratch / BAG_TOOLS_OUT.name if args.scratch else BAG_TOOLS_OUT, missed,
                 args.check)
         elif doc in TRANSCRIPTS:
-            text = regenerate_transcripts(doc, scratch, missed, args.check)
+            text = regenerate_transcripts(doc, scratch, missed, args.check, bool(args.rows))
         elif doc in PAIRS:
             text = regenerate_pairs(doc, scratch, missed)
         else:
-            text = regenerate_file(doc, missed)
+            text = regenerate_file(doc, missed, scratch if args.check else None)
         if args.check:
             drift += differences(doc, (DOCS / doc).read_text(), text)
         else:

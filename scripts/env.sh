@@ -39,6 +39,8 @@ fi
 
 case ":$PATH:" in *":$_gr_root/install/gripper_ros/lib/gripper_ros:"*) ;;
   *) export PATH="$_gr_root/install/gripper_ros/lib/gripper_ros:$PATH";; esac
+# the compiled core's cache: a link that setup.sh swaps to a whole new folder after a change
+export NUMBA_CACHE_DIR="$_gr_root/install/numba_cache"
 export ROS_AUTOMATIC_DISCOVERY_RANGE="${ROS_AUTOMATIC_DISCOVERY_RANGE:-LOCALHOST}"
 if [ -z "${ROS_DOMAIN_ID:-}" ]; then
   # stable per checkout, 1..100 (valid for Fast DDS), so two clones on one machine do not meet

@@ -279,25 +279,54 @@ else
 fi
 
 # ---------------------------------------------------------------- compiled core (skipped when unchanged)
-# The simulation core is compiled by numba on first use and cached beside the sources (the
-# __pycache__ folders under gripper_ros/core/, shared by the source tree and the symlinked
-# install). Compile it here, once per change of the core, so that the first grasp_demo loads it
-# in about a second.
+# The simulation core is compiled by numba on first use and cached in NUMBA_CACHE_DIR, which
+# scripts/env.sh sets to install/numba_cache: a symbolic link to the folder of the current core
+# (numba_cache.<hash>). Compile it here, once per change of the core, so that the first
+# grasp_demo loads it in about a second.
+# numba checks only a function's own file: a kernel that inlined one from a changed file would
+# load stale from its cache, so a change of the core recompiles all of it, into a new folder
+# that no running process writes to; then the link is swapped to it in one rename. A process of
+# this checkout that runs meanwhile (a test, a node) never loads a half-written or half-deleted
+# cache: it sees the old folder whole, then the new one whole.
 CORE_STAMP="$ROOT/install/.gripper_ros_core.sha256"
+CORE_CACHE="$ROOT/install/numba_cache"
 core_hash="$( { "$PY" -c 'import numba, numpy; print(numba.__version__, numpy.__version__)'; \
   find gripper_ros -name '*.py' -print | LC_ALL=C sort | xargs -r sha256sum; } | sha256sum | cut -d' ' -f1)"
-if [[ "$(cat "$CORE_STAMP" 2>/dev/null || true)" == "$core_hash" ]] && \
-    compgen -G "gripper_ros/core/runtime/__pycache__/headless*.nbi" >/dev/null; then
+if [[ "$(cat "$CORE_STAMP" 2>/dev/null || true)" == "$core_hash" && -L "$CORE_CACHE" ]] && \
+    compgen -G "$CORE_CACHE/*/headless*.nbi" >/dev/null; then
   log "compiled core unchanged (stamp matches), warm-up skipped"
 else
   rm -f "$CORE_STAMP"
-  # numba checks only a function's own file: a kernel that inlined one from a changed file
-  # would load stale from its cache. A change of the core recompiles all of it.
-  find gripper_ros -name '*.nbi' -delete -o -name '*.nbc' -delete
+  fresh="numba_cache.${core_hash:0:16}.$$"
+  rm -rf "${ROOT:?}/install/$fresh"
+  mkdir -p "$ROOT/install/$fresh"
+  # numba names a source folder's cache after its path (numba/core/caching.py,
+  # get_suitable_cache_subpath: the folder's name and the sha1 of its absolute path); programs
+  # import the package through build/gripper_ros/gripper_ros (the install's egg-link), tests
+  # from the checkout: the one under build/ is made a link to the checkout's, so both load
+  # what was compiled here.
+  "$PY" - "$ROOT" "$ROOT/install/$fresh" <<'PYTHON'
+import hashlib, os, sys
+root, cache = sys.argv[1:]
+def name(folder):
+    return f'{os.path.basename(folder)}_{hashlib.sha1(folder.encode()).hexdigest()}'
+for folder, subfolders, _ in os.walk(os.path.join(root, 'gripper_ros')):
+    subfolders[:] = [s for s in subfolders if s != '__pycache__']
+    alias = os.path.join(root, 'build', 'gripper_ros', os.path.relpath(folder, root))
+    os.mkdir(os.path.join(cache, name(folder)))
+    os.symlink(name(folder), os.path.join(cache, name(alias)))
+PYTHON
   log "compiling the simulation core (numba; first time: about a minute)"
-  (cd /tmp && PYTHONPATH="$ROOT${PYTHONPATH:+:$PYTHONPATH}" "$PY" -c \
+  (cd /tmp && NUMBA_CACHE_DIR="$ROOT/install/$fresh" PYTHONPATH="$ROOT${PYTHONPATH:+:$PYTHONPATH}" "$PY" -c \
     'from gripper_ros.core.runtime.headless import warm_up; print(f"[setup] compiled core ready in {warm_up():.1f} s")' >&2) \
-    || die "compiling the simulation core failed (see above)"
+    || { rm -rf "${ROOT:?}/install/$fresh"; die "compiling the simulation core failed (see above)"; }
+  ln -sfn "$fresh" "$CORE_CACHE.new.$$"
+  mv -Tf "$CORE_CACHE.new.$$" "$CORE_CACHE"        # rename(2): atomic
+  for old in "$ROOT"/install/numba_cache.*; do
+    [[ "$old" == "$ROOT/install/$fresh" ]] || rm -rf "$old"
+  done
+  # caches of before NUMBA_CACHE_DIR (beside the sources): stale, and never loaded again
+  find gripper_ros -name '*.nbi' -delete -o -name '*.nbc' -delete
   # the package's own byte code, kept with the core: every node and test process loads it
   env -u PYTHONDONTWRITEBYTECODE "$PY" -m compileall -q -j 0 gripper_ros >/dev/null \
     || log "(byte-compiling gripper_ros failed: its modules are compiled on each import)"

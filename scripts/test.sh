@@ -36,14 +36,14 @@ fi
 # An isolated graph per run: LOCALHOST discovery and ROS_DOMAIN_IDs of our own (1..100, valid
 # for Fast DDS), one per pytest worker, held with lock files for the whole run so that
 # concurrent runs on this machine never share a domain. Worker K takes the K-th id (see
-# test/conftest.py); a second id is 25 away from the first, so that the ids tests derive from
-# theirs (+1, +50, +100) stay apart. GRIPPER_ROS_TEST_DOMAIN_ID forces the first.
-# GRIPPER_ROS_TEST_WORKERS: pytest-xdist workers (default 2; 1 = no xdist, one process).
+# test/conftest.py); each is 25 away from the one before, so that the ids tests derive from
+# theirs (+1, 100 + id) stay apart. GRIPPER_ROS_TEST_DOMAIN_ID forces the first.
+# GRIPPER_ROS_TEST_WORKERS: pytest-xdist workers (default 2; 1 = no xdist, one process; at most 4).
 export ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST
 unset ROS_STATIC_PEERS ROS_LOCALHOST_ONLY || true
 WORKERS="${GRIPPER_ROS_TEST_WORKERS:-2}"
-[[ "$WORKERS" =~ ^[12]$ ]] || { echo "[test] GRIPPER_ROS_TEST_WORKERS must be 1 or 2, not '$WORKERS'" >&2; exit 2; }
-second_of() { echo $(( ($1 + 24) % 100 + 1 )); }
+[[ "$WORKERS" =~ ^[1-4]$ ]] || { echo "[test] GRIPPER_ROS_TEST_WORKERS must be 1 to 4, not '$WORKERS'" >&2; exit 2; }
+nth_of() { echo $(( ($1 - 1 + 25 * $2) % 100 + 1 )); }   # nth_of ID K: worker K's id
 lock_domain() {   # lock_domain ID: hold ID's lock file open for the run (fd in locked_fd)
   exec {locked_fd}>"$lockdir/$1.lock"
   if flock -n "$locked_fd"; then return 0; fi
@@ -60,15 +60,20 @@ else
     mkdir -p "$lockdir"
     for i in $(seq 0 99); do
       cand=$(( (start + i) % 100 + 1 ))
-      lock_domain "$cand" || continue
-      first_fd=$locked_fd
-      if [[ "$WORKERS" == 1 ]] || lock_domain "$(second_of "$cand")"; then ROS_DOMAIN_ID=$cand; break; fi
-      exec {first_fd}>&-
+      held=()
+      for k in $(seq 0 $(( WORKERS - 1 ))); do
+        lock_domain "$(nth_of "$cand" "$k")" || break
+        held+=("$locked_fd")
+      done
+      if [[ ${#held[@]} == "$WORKERS" ]]; then ROS_DOMAIN_ID=$cand; break; fi
+      for fd in "${held[@]}"; do exec {fd}>&-; done
     done
   fi
 fi
 GRIPPER_ROS_WORKER_DOMAINS="$ROS_DOMAIN_ID"
-[[ "$WORKERS" == 2 ]] && GRIPPER_ROS_WORKER_DOMAINS="$ROS_DOMAIN_ID $(second_of "$ROS_DOMAIN_ID")"
+for k in $(seq 1 $(( WORKERS - 1 ))); do
+  GRIPPER_ROS_WORKER_DOMAINS+=" $(nth_of "$ROS_DOMAIN_ID" "$k")"
+done
 export GRIPPER_ROS_WORKER_DOMAINS
 export ROS_DOMAIN_ID
 export PYTHONDONTWRITEBYTECODE="${PYTHONDONTWRITEBYTECODE:-1}"
@@ -79,15 +84,17 @@ for a in "$@"; do
   if [[ "$a" != -* && -e "${a%%::*}" ]]; then targets=(); break; fi
 done
 
-# Two workers by test file: a module's shared graph stays in one process. Most tests wait on
-# DDS, subprocesses and timers, so two workers on two cores take about half the time. The tests
-# marked serial (a wall-clock bound: a stop, a watchdog, a rate) then run alone, in one process.
-# The modules go to the workers in the order test/conftest.py collects them (the longest first),
-# not pytest-xdist's (the most tests first).
+# Workers by test file: a module's shared graph stays in one process. Most tests wait on DDS,
+# subprocesses and timers (the suite keeps about one core of two busy), so two workers on two
+# cores take about half the time of one; three took less again but loaded the machine enough
+# for two load-sensitive checks to fail once (GRIPPER_ROS_TEST_WORKERS=3 to try it). The tests
+# marked serial (a measure against the wall clock itself: test/conftest.py says which and why)
+# then run alone, in one process. The modules go to the workers in the order test/conftest.py
+# collects them (the longest first), not pytest-xdist's (the most tests first).
 echo "[test] ROS_DOMAIN_ID(s)=$GRIPPER_ROS_WORKER_DOMAINS ROS_AUTOMATIC_DISCOVERY_RANGE=$ROS_AUTOMATIC_DISCOVERY_RANGE workers=$WORKERS" >&2
 set +e
-if [[ "$WORKERS" == 2 ]]; then
-  python -m pytest "${targets[@]}" -q -n 2 --dist loadfile --no-loadscope-reorder -m "not serial" "$@" </dev/null
+if [[ "$WORKERS" != 1 ]]; then
+  python -m pytest "${targets[@]}" -q -n "$WORKERS" --dist loadfile --no-loadscope-reorder -m "not serial" "$@" </dev/null
   rc1=$?
   echo "[test] the serial tests, alone:" >&2
   python -m pytest "${targets[@]}" -q -m serial "$@" </dev/null

@@ -16,26 +16,35 @@ if _worker.startswith('gw') and _worker[2:].isdigit() and int(_worker[2:]) < len
 os.environ.setdefault('ROS_DOMAIN_ID', str(40 + os.getpid() % 50))
 
 SERIAL_MODULES = frozenset({'test_launch.py', 'test_sim_time.py', 'test_time_modes.py'})
-"""Modules whose every test watches the wall clock: run alone, after the rest (scripts/test.sh),
-so the other worker's load cannot starve them. A test of another module that does so (a bound
-on the time a process takes to stop, a watchdog's detection time, a rate in wall time, a race
-between a signal and a paced grasp) carries ``@pytest.mark.serial`` itself. The rest run on the
-two workers however loaded: they wait on events (discovery, an answer, a line) with generous
-bounds, never on a wall-clock pace, and each worker has a domain of its own. Watchdogs count
-only the time in which their executor ran, so a starved process trips none."""
+"""Modules that measure against the wall clock itself: run alone, after the rest
+(scripts/test.sh), so that other workers' load cannot starve them. test_launch: launch's own
+escalation (SIGTERM, then SIGKILL, after wall-clock timeouts) races each process's stop.
+test_sim_time: a stamp within 20 ms of a world clock that runs in wall time (a latency).
+test_time_modes: a realtime plant paced by the wall clock, whose controllers must keep its grip
+within the settle band for a second (a rate). A test of another module that does so carries
+``@pytest.mark.serial`` itself, with its reason (a race between a signal and a paced grasp; six
+processes stopping at once). The rest run on the workers however loaded: they wait on events
+(discovery, an answer, a line, a process's CPU: helpers.ProgressWatch) with bounds that scale
+with the machine's load (process.load_bound_s), never on a wall-clock pace, and each worker has
+a domain of its own. Watchdogs count only the time in which their executor ran, so a starved
+process trips none."""
 
 
 MODULE_SECONDS = {
-    'test_docs_transcripts.py': 157, 'test_docs_fingers.py': 149, 'test_docs_studies.py': 149,
-    'test_docs_bag_tools.py': 142, 'test_grasp_client.py': 54, 'test_identify.py': 54,
-    'test_rerun.py': 50, 'test_node_executables.py': 47, 'test_engine.py': 30,
-    'test_lint.py': 23, 'test_soak.py': 22, 'test_bag_tools.py': 21,
+    'test_docs_bag_tools.py': 184, 'test_docs_transcripts.py': 159, 'test_docs_grip.py': 90,
+    'test_node_executables.py': 79, 'test_shutdown.py': 73, 'test_trajectory_tracking.py': 66,
+    'test_engine.py': 66, 'test_grasp_client.py': 55, 'test_stock_clients.py': 55,
+    'test_namespaces.py': 48, 'test_moveit_handles.py': 46, 'test_lint.py': 42,
+    'test_parameters.py': 39, 'test_hostile_graph.py': 34, 'test_live_view.py': 34,
+    'test_follow_joint_trajectory.py': 28, 'test_faults.py': 26, 'test_launch_args.py': 26,
+    'test_identify.py': 22, 'test_lift.py': 22, 'test_portability.py': 22,
 }
-"""The longest modules' time on a worker (pytest --durations summed per module, load 4-10).
+"""The longest modules' time on a worker (pytest --durations summed per module: main 4ba8165,
+``bash scripts/test.sh --durations=0``, load 4; the tests made parallel since added in).
 
 A module stays on one worker (scripts/test.sh), and pytest-xdist hands the modules out in the
 order collected: the longest go first, so that none starts last and keeps one worker busy while
-the other is done. The rest follow in pytest-xdist's own order (most tests first). A figure
+the others are done. The rest follow in pytest-xdist's own order (most tests first). A figure
 here orders the modules; no test depends on it."""
 
 

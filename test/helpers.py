@@ -23,15 +23,19 @@ REPO = Path(__file__).resolve().parents[1]
 SWEEP_OUTPUT = REPO / 'docs' / 'contact_sweep.txt'
 """``contact_sweep``'s output, as docs/RESULTS.md quotes it."""
 DOC_EXAMPLE_MODULES = {
-    'test_docs_fingers.py': ('contact_sweep_fingers.txt',),
-    'test_docs_studies.py': ('contact_sweep.txt', 'grip_study.txt'),
+    'test_docs_studies.py': ('contact_sweep.txt', 'contact_sweep_fingers.txt', 'grip_study.txt'),
+    'test_docs_grip.py': ('GRIP.md',),
     'test_docs_bag_tools.py': ('BAG_TOOLS.md', 'RESULTS.md', 'STUDIES.md', 'USING.md'),
-    'test_docs_transcripts.py': ('IDENTIFICATION.md', 'results_whatif.md', 'GRIP.md'),
+    'test_docs_transcripts.py': ('IDENTIFICATION.md', 'results_whatif.md'),
 }
 """The test module that checks each doc's example outputs (``scripts/doc_examples.py --check``).
 
-Four modules of about the same time (2.5 minutes each at a load of 5), since a module stays on
-one worker (scripts/test.sh): together they are a third of the suite's work."""
+Modules of a minute or two each, since a module stays on one worker (scripts/test.sh). The
+studies' tables are checked on some of their rows (:data:`STUDY_ROWS`)."""
+STUDY_ROWS = 96
+"""Rows of a contact_sweep table grasped again by the suite (``doc_examples.py --rows``): spread
+evenly over it, so that each kind of object and contact has some; the whole study is
+``doc_examples.py --check`` without it."""
 
 
 EXECUTOR_BOUND_S = 60.0
@@ -406,7 +410,10 @@ def doc_examples(*args: str, timeout_s: float = 3600.0):
                           timeout=timeout_s, check=False)
 
 
-def assert_doc_examples_printed(doc: str, scratch: Path) -> None:
-    """Assert that every example output ``doc`` shows is what its command prints now."""
-    done = doc_examples('--check', '--scratch', str(scratch), doc)
+def assert_doc_examples_printed(doc: str, scratch: Path, *options: str) -> None:
+    """Assert that every example output ``doc`` shows is what its command prints now.
+
+    ``options``: doc_examples.py's, e.g. ``--rows N`` (a study's table on N of its rows).
+    """
+    done = doc_examples('--check', '--scratch', str(scratch), *options, doc)
     assert done.returncode == 0, done.stdout[-6000:] + done.stderr[-2000:]

@@ -1,4 +1,4 @@
-"""IDENTIFICATION.md's, results_whatif.md's and GRIP.md's transcripts are as printed now.
+"""IDENTIFICATION.md's and results_whatif.md's transcripts are as printed now.
 
 ``scripts/doc_examples.py --check`` per doc, the varying numbers left out (test_docs.py says
 how); a module of its own so that the suite's two workers share the docs' checks

@@ -333,8 +333,10 @@ def test_a_taken_port_is_one_line_and_the_graph_stops(served):
                            '--no-record', '--namespace', 'second_view', '--foxglove', port],
                           stdin=subprocess.DEVNULL, capture_output=True, text=True, timeout=300)
     assert done.returncode == 2, done.stdout + done.stderr
-    # the nodes' own log lines may come on either side of it, as their threads run
-    ours = [line for line in done.stderr.splitlines() if not line.startswith('[INFO] [')]
+    # the nodes' own log lines may come on either side of it, as their threads run (on a loaded
+    # machine a realtime plant's warning that it cannot keep pace among them)
+    ours = [line for line in done.stderr.splitlines()
+            if not re.match(r'\[(INFO|WARN)\] \[[\d.]+\] \[second_view\.', line)]
     assert ours == [
         f'grasp_demo: the Foxglove live view cannot listen on 127.0.0.1:{port}: Failed to bind '
         'port: Address already in use (os error 98)'], done.stderr
