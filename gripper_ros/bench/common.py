@@ -2,7 +2,11 @@
 from __future__ import annotations
 
 import os
+import signal
+import subprocess
+import sys
 import threading
+from typing import Callable
 
 from gripper_ros.bench.pingpong import BenchError
 
@@ -58,6 +62,28 @@ class SpunNode:
         self.executor.shutdown(timeout_sec=1.0)
         self.node.destroy_node()
         self.context.try_shutdown()
+
+
+def run_bench(prog: str, run: Callable[[], int]) -> int:
+    """Return ``run()``'s exit status; a BenchError is one line and 1, Ctrl-C is 130."""
+    try:
+        return run()
+    except BenchError as exc:
+        print(f'{prog}: error: {exc}', file=sys.stderr)
+        return 1
+    except KeyboardInterrupt:
+        return 130
+
+
+def reap(proc: subprocess.Popen, timeout_s: float, group: bool = False) -> None:
+    """Wait ``timeout_s`` for a child told to stop, then kill it (``group``: its whole group)."""
+    try:
+        proc.wait(timeout_s)
+    except subprocess.TimeoutExpired:
+        if group:
+            os.killpg(proc.pid, signal.SIGKILL)
+        proc.kill()
+        proc.wait()
 
 
 def group_pids(pgid: int) -> list[int]:

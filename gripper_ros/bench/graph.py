@@ -40,7 +40,7 @@ import tempfile
 import time
 from typing import Any, Callable, Dict, List, Optional, Sequence
 
-from gripper_ros.bench.common import call, process_cpu_s, SpunNode
+from gripper_ros.bench.common import call, process_cpu_s, reap, SpunNode
 from gripper_ros.bench.observer import PhaseObserver, quiet_loggers
 from gripper_ros.bench.pingpong import (BenchError, EXECUTOR_KINDS, measure_pingpong,
                                         measure_ring)
@@ -293,11 +293,7 @@ class _NodeProcesses:
             if p.poll() is None:
                 p.terminate()
         for p in self.procs:
-            try:
-                p.wait(5.0)
-            except subprocess.TimeoutExpired:
-                p.kill()
-                p.wait()
+            reap(p, 5.0)
             if p.stderr:
                 p.stderr.close()
 

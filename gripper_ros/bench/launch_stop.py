@@ -27,7 +27,8 @@ import tempfile
 import time
 from typing import Any, Dict, List, Optional, Sequence
 
-from gripper_ros.bench.common import call, group_pids, ros2_launch_command, SpunNode
+from gripper_ros.bench.common import (call, group_pids, ros2_launch_command, run_bench,
+                                      SpunNode)
 from gripper_ros.bench.pingpong import BenchError
 
 GRASP = (0.10, 0.75)                   # Table V's third object
@@ -147,13 +148,12 @@ def main(args: Optional[Sequence[str]] = None) -> int:
         print('bench_launch_stop: error: --runs must be >= 1 and --limit in (0, 60]',
               file=sys.stderr)
         return 2
-    try:
-        report = measure(opts.runs, opts.per_node, opts.limit)
-    except BenchError as exc:
-        print(f'bench_launch_stop: error: {exc}', file=sys.stderr)
-        return 1
-    except KeyboardInterrupt:
-        return 130
+    return run_bench('bench_launch_stop', lambda: _run(opts))
+
+
+def _run(opts: argparse.Namespace) -> int:
+    """Measure, print the report; 0 if every launch stopped within the limit."""
+    report = measure(opts.runs, opts.per_node, opts.limit)
     print(json.dumps(report, indent=2) if opts.json else format_report(report))
     return 0 if report['within_limit'] == report['runs'] else 1
 

@@ -56,8 +56,8 @@ import threading
 import time
 from typing import Any, Dict, Optional, Sequence
 
-from gripper_ros.bench.common import (call, group_pids, process_cpu_s, ros2_launch_command,
-                                      SpunNode)
+from gripper_ros.bench.common import (call, group_pids, process_cpu_s, reap, ros2_launch_command,
+                                      run_bench, SpunNode)
 from gripper_ros.bench.pingpong import BenchError
 from gripper_ros.nodes import LAUNCHED_MODULES
 from gripper_ros.wire import DEFAULT_STATE_RATE_HZ
@@ -330,20 +330,10 @@ def measure(seconds: float, record: bool, per_node: bool = False,
                     else:
                         child.send_signal(signal.SIGINT)
             for child in children:
-                try:
-                    child.wait(15.0)
-                except subprocess.TimeoutExpired:
-                    if launch:
-                        os.killpg(child.pid, signal.SIGKILL)
-                    child.kill()
-                    child.wait()
+                reap(child, 15.0, group=launch)
             if world is not None:
                 world.send_signal(signal.SIGINT)
-                try:
-                    world.wait(15.0)
-                except subprocess.TimeoutExpired:
-                    world.kill()
-                    world.wait()
+                reap(world, 15.0)
             log.close()
             printed.close()
 
@@ -451,24 +441,22 @@ def main(args: Optional[Sequence[str]] = None) -> int:
         print('bench_realtime: error: --foxglove measures grasp_demo --serve (not with '
               '--per-node, --launch or --use-sim-time)', file=sys.stderr)
         return 2
-    try:
-        if opts.foxglove:
-            client = shlex.split(opts.foxglove_client) if opts.foxglove_client else \
-                default_client()
-            shown = shipped_layout_topics()
-            off = measure(opts.seconds, opts.record)
-            layout = measure(opts.seconds, opts.record, client=client, topics=shown)
-            every = measure(opts.seconds, opts.record, client=client)
-            print(json.dumps({'off': off, 'layout': layout, 'every': every}, indent=2)
-                  if opts.json else format_comparison(off, layout, every))
-            return 0
-        report = measure(opts.seconds, opts.record, opts.per_node, opts.launch,
-                         opts.use_sim_time)
-    except BenchError as exc:
-        print(f'bench_realtime: error: {exc}', file=sys.stderr)
-        return 1
-    except KeyboardInterrupt:
-        return 130
+    return run_bench('bench_realtime', lambda: _run(opts))
+
+
+def _run(opts: argparse.Namespace) -> int:
+    """Measure what ``opts`` asks for and print it."""
+    if opts.foxglove:
+        client = shlex.split(opts.foxglove_client) if opts.foxglove_client else \
+            default_client()
+        shown = shipped_layout_topics()
+        off = measure(opts.seconds, opts.record)
+        layout = measure(opts.seconds, opts.record, client=client, topics=shown)
+        every = measure(opts.seconds, opts.record, client=client)
+        print(json.dumps({'off': off, 'layout': layout, 'every': every}, indent=2)
+              if opts.json else format_comparison(off, layout, every))
+        return 0
+    report = measure(opts.seconds, opts.record, opts.per_node, opts.launch, opts.use_sim_time)
     print(json.dumps(report, indent=2) if opts.json else format_report(report))
     return 0
 

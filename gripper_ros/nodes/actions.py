@@ -39,6 +39,43 @@ def end_preempted(goal_handle) -> None:
     goal_handle.canceled()
 
 
+class NewestJoint:
+    """The newest joint_states sample naming one joint, kept raw and read when needed.
+
+    joint_states remapped to a robot's ``/joint_states`` carries other joints too: a sample
+    whose bytes lack the joint's name is not kept.
+    """
+
+    def __init__(self, joint_name: str):
+        self.joint_name = joint_name
+        self._name_bytes = joint_name.encode()
+        self.data: bytes | None = None
+
+    def keep(self, data: bytes) -> bool:
+        """Keep ``data`` if it names the joint; return whether it did."""
+        if self._name_bytes not in data:
+            return False
+        self.data = data
+        return True
+
+    def read(self):
+        """Return the newest ``JointState`` and the joint's index in it; None before one."""
+        if self.data is None:
+            return None
+        from rclpy.serialization import deserialize_message
+        from sensor_msgs.msg import JointState
+        msg = deserialize_message(self.data, JointState)
+        names = list(msg.name)
+        if self.joint_name not in names:
+            return None
+        return msg, names.index(self.joint_name)
+
+
+def joint_velocity_mps(msg, i: int) -> float | None:
+    """Return joint ``i``'s velocity in a ``JointState``; None where it carries none."""
+    return float(msg.velocity[i]) if len(msg.velocity) > i else None
+
+
 FEEDBACK_PERIOD_S = 0.05
 """Default of ``feedback_period_s``: feedback within a phase at most this often (wall)."""
 

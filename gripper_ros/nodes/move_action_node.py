@@ -53,7 +53,8 @@ from gripper_ros.core.supervision.gripper_command import (goal_end, GoalEnd,
                                                           move_request_of, result_fields)
 from gripper_ros.core.supervision.requests import check_move_limits, RequestError
 from gripper_ros.nodes.actions import (accept_goal, cancel_by_stop, declare_feedback_period,
-                                       end_preempted, RunningGoal)
+                                       end_preempted, joint_velocity_mps, NewestJoint,
+                                       RunningGoal)
 from gripper_ros.nodes.control_actions import (GripperCommand, not_served,
                                                ParallelGripperCommand, PROBLEM)
 from gripper_ros.nodes.gripper_node import GripperNode
@@ -68,7 +69,6 @@ from gripper_ros.wire import (ACTION_FOLLOW_JOINT_TRAJECTORY, ACTION_GRIPPER_CMD
                               TOPIC_OUTCOME, TOPIC_STATUS)
 from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.action import ActionServer, GoalResponse
-from rclpy.serialization import deserialize_message
 from rclpy.task import Future
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Header
@@ -110,9 +110,8 @@ class MoveActionServer(GripperNode):
             self.get_logger().warning(not_served((ACTION_GRIPPER_CMD, ACTION_GRIPPER_COMMAND,
                                                   ACTION_FOLLOW_JOINT_TRAJECTORY)))
         self.joint_name = declare_prefix(self) + FINGER_JOINT
-        self._joint_name_bytes = self.joint_name.encode()
-        self._joint_data: bytes | None = None    # the newest joint_states, read when needed
-        self.graph_subscription(JointState, TOPIC_JOINT_STATES, self._on_joint_state)
+        self._joint = NewestJoint(self.joint_name)
+        self.graph_subscription(JointState, TOPIC_JOINT_STATES, self._joint.keep)
         self.detect_n = config.force_sensor.activation_force_n    # the sensor feels a press
         self._announced_id = -1                  # the request whose start gripper_status said
         self._grip_status_pub = self.tapped_publisher(DiagnosticStatus, TOPIC_GRIPPER_STATUS,
@@ -213,15 +212,20 @@ class MoveActionServer(GripperNode):
         self._end(goal_handle, goal_end(response, False, goal_handle.is_cancel_requested))
         return result
 
+    async def _call_control_move(self, goal_handle, move, feedback, action: str):
+        """Run a control_msgs goal's ``move`` as a preempting move; say a refusal in a line."""
+        request = Move.Request(width_m=move.width_m, speed_mps=move.speed_mps,
+                               max_effort_n=move.max_effort_n)
+        response = await self._call_move(goal_handle, request, feedback, preempts=True)
+        if response.outcome == Outcome.REFUSED:
+            self.get_logger().warning(f'{action} goal aborted: {response.message}')
+        return response
+
     async def _execute_gripper_command(self, goal_handle):
         move = move_request_of(goal_handle.request.command, self.travel_m,
                                self.joint_name)                     # checked at goal
-        request = Move.Request(width_m=move.width_m, speed_mps=move.speed_mps,
-                               max_effort_n=move.max_effort_n)
-        response = await self._call_move(goal_handle, request, self._gripper_feedback,
-                                         preempts=True)
-        if response.outcome == Outcome.REFUSED:
-            self.get_logger().warning(f'{ACTION_GRIPPER_CMD} goal aborted: {response.message}')
+        response = await self._call_control_move(goal_handle, move, self._gripper_feedback,
+                                                 ACTION_GRIPPER_CMD)
         fields = result_fields(response, self._velocity_mps(), self.joint_name)
         result = ParallelGripperCommand.Result(
             state=JointState(header=self._status_header(), **fields.pop('state')), **fields)
@@ -231,13 +235,9 @@ class MoveActionServer(GripperNode):
     async def _execute_gripper_action(self, goal_handle):
         move = gripper_command_move_of(goal_handle.request.command, self.travel_m,
                                        self.joint_name)                 # checked at goal
-        request = Move.Request(width_m=move.width_m, speed_mps=move.speed_mps,
-                               max_effort_n=move.max_effort_n)
-        response = await self._call_move(goal_handle, request, self._gripper_action_feedback,
-                                         preempts=True)
-        if response.outcome == Outcome.REFUSED:
-            self.get_logger().warning(f'{ACTION_GRIPPER_COMMAND} goal aborted: '
-                                      f'{response.message}')
+        response = await self._call_control_move(goal_handle, move,
+                                                 self._gripper_action_feedback,
+                                                 ACTION_GRIPPER_COMMAND)
         result = GripperCommand.Result(**gripper_command_fields(
             response.position_m, response.effort_n, response.stalled, response.reached_goal))
         self._end_control_goal(goal_handle, response)
@@ -312,23 +312,10 @@ class MoveActionServer(GripperNode):
         self.latched[TOPIC_GRIPPER_STATUS] = msg
         self.grip_statuses_published += 1
 
-    def _on_joint_state(self, data: bytes) -> None:
-        if self._joint_name_bytes in data:      # not another joint's (a shared /joint_states)
-            self._joint_data = data
-
     def _velocity_mps(self) -> float | None:
-        """Return the finger's velocity in the newest joint_states sample (None before one).
-
-        joint_states remapped to a robot's ``/joint_states`` carries other joints too.
-        """
-        if self._joint_data is None:
-            return None
-        msg = deserialize_message(self._joint_data, JointState)
-        names = list(msg.name)
-        if self.joint_name not in names:
-            return None
-        i = names.index(self.joint_name)
-        return float(msg.velocity[i]) if len(msg.velocity) > i else None
+        """Return the finger's velocity in the newest joint_states sample (None before one)."""
+        sample = self._joint.read()
+        return joint_velocity_mps(*sample) if sample is not None else None
 
     def _on_status(self, data: bytes) -> None:
         self._status_data = data

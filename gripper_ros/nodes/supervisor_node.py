@@ -363,10 +363,7 @@ class SupervisorNode(GripperNode):
             if move is None:                    # the setpoint in force, again: it stands
                 self.logic.servo_repeated(sample_ns)
                 return
-            targets = validate_move(move, self.config.plant, self.config.supervisor)
-            refusal = self._refusal(RequestKind.MOVE, preempts=True)
-            if refusal:
-                raise RequestError(refusal.removeprefix('refused: '))
+            targets = self._setpoint_targets(move)
         except RequestError as exc:
             self.joint_commands_refused += 1
             self.get_logger().warning(f'{TOPIC_JOINT_COMMANDS} refused: {one_line(exc)}',
@@ -387,10 +384,7 @@ class SupervisorNode(GripperNode):
                 raise RequestError(f'position of {self.joint_name!r} must be in '
                                    f'[0, {plant.max_travel_m:g}] m, got {position_m!r}')
             move = MoveRequest(plant.max_travel_m - position_m, msg.speed_mps, msg.max_effort_n)
-            targets = validate_move(move, plant, self.config.supervisor)
-            refusal = self._refusal(RequestKind.MOVE, preempts=True)
-            if refusal:
-                raise RequestError(refusal.removeprefix('refused: '))
+            targets = self._setpoint_targets(move)
         except RequestError as exc:
             self.joint_commands_refused += 1
             self.get_logger().warning(f'{TOPIC_SERVO_SETPOINT} refused: {one_line(exc)}',
@@ -399,6 +393,14 @@ class SupervisorNode(GripperNode):
         self._put_setpoint(targets, TOPIC_SERVO_SETPOINT, move.width_m,
                            velocity_mps=msg.velocity_mps, acceleration_mps2=msg.acceleration_mps2,
                            sample_ns=stamp_ns(msg.header.stamp) or None)
+
+    def _setpoint_targets(self, move: MoveRequest):
+        """Return a setpoint's move as targets, or raise RequestError why it cannot preempt."""
+        targets = validate_move(move, self.config.plant, self.config.supervisor)
+        refusal = self._refusal(RequestKind.MOVE, preempts=True)
+        if refusal:
+            raise RequestError(refusal.removeprefix('refused: '))
+        return targets
 
     def _put_setpoint(self, targets, topic: str, width_m: float, *,
                       velocity_mps: float = math.nan, acceleration_mps2: float = math.nan,

@@ -40,6 +40,7 @@ from gripper_ros.core.supervision.joint_trajectory import (check_trajectory, def
                                                            resolve_tolerances, State,
                                                            Trajectory, TrajectoryError,
                                                            TrajectoryRun, Update, Verdict)
+from gripper_ros.nodes.actions import joint_velocity_mps, NewestJoint
 from gripper_ros.nodes.control_actions import (FollowJointTrajectory, JointTrajectoryPoint,
                                                not_served, PROBLEM)
 from gripper_ros.nodes.gripper_node import GripperNode
@@ -119,8 +120,7 @@ class TrajectoryActionServer(GripperNode):
         self.monitor_rate_hz = self.declare_parameter('action_monitor_rate', 20.0, rate).value
         self._setpoints = self.graph_publisher(ServoSetpoint, TOPIC_SERVO_SETPOINT)
         self.setpoints_published = 0
-        self._joint_name_bytes = self.joint_name.encode()
-        self._joint_data: bytes | None = None    # the newest joint_states, read when needed
+        self._joint = NewestJoint(self.joint_name)
         self._read_ns = -1                       # the stamp of the newest one read
         self._period_ns = round(1e9 / DEFAULT_STATE_RATE_HZ)
         self.graph_subscription(JointState, TOPIC_JOINT_STATES, self._on_joint_state)
@@ -225,29 +225,22 @@ class TrajectoryActionServer(GripperNode):
     # ------------------------------------------------------------------ updates
     def _on_joint_state(self, data: bytes) -> None:
         """Keep the newest sample of the joint; with a goal running, it is an update."""
-        if self._joint_name_bytes not in data:   # another joint's (a shared /joint_states)
-            return
-        self._joint_data = data
-        if self._goal is not None:
+        if self._joint.keep(data) and self._goal is not None:
             sample = self._sample()
             if sample is not None and math.isfinite(sample[1]):
                 self._update(self._goal, *sample)
 
     def _sample(self) -> tuple[int, float, float | None] | None:
         """Return the newest sample (stamp ns, position, velocity or None); None before one."""
-        if self._joint_data is None:
+        sample = self._joint.read()
+        if sample is None:
             return None
-        msg = deserialize_message(self._joint_data, JointState)
-        names = list(msg.name)
-        if self.joint_name not in names:
-            return None
-        i = names.index(self.joint_name)
+        msg, i = sample
         t_ns = stamp_ns(msg.header.stamp)
         if t_ns > self._read_ns >= 0 and self._goal is not None:   # between two updates
             self._period_ns = t_ns - self._read_ns
         self._read_ns = max(self._read_ns, t_ns)
-        velocity = float(msg.velocity[i]) if len(msg.velocity) > i else None
-        return t_ns, float(msg.position[i]), velocity
+        return t_ns, float(msg.position[i]), joint_velocity_mps(msg, i)
 
     def _update(self, goal: _Goal, t_ns: int, position: float, velocity: float | None) -> None:
         """Run one update of ``goal`` on the sample at ``t_ns``: command, feedback, verdict."""
