@@ -224,6 +224,7 @@ def _abort(case: Case, why: str) -> None:
     case.returncode = case.proc.returncode
 
 
+@pytest.mark.serial   # the stops run alone: beside another worker, that worker crashed once
 @pytest.mark.parametrize('node', list(MODULES))
 @pytest.mark.parametrize('label', list(SIGNALS))
 def test_a_running_node_stopped_by_a_signal_exits_0_at_once_and_quietly(results, node, label):
@@ -250,6 +251,7 @@ def test_a_bad_start_up_parameter_exits_2_in_one_line(refusals, node, parameter,
         lines[0]
 
 
+@pytest.mark.serial   # its first node is started and stopped by the fixture above
 @pytest.mark.parametrize('node', list(MODULES))
 def test_a_second_node_beside_a_running_one_exits_2_in_one_line(results, node):
     first = results[f'{node}-sigint']
