@@ -397,9 +397,7 @@ class PlantSimulatorNode(GripperNode):
         """Say the plant is ready; the first tick goes out again to the nodes built after it."""
         self._said_ready = True
         if self.ticks_published and not (self.loop.pending or self.loop.unpowered):
-            self._tick_pub.publish(self._tick_bytes)
-            self.published[TOPIC_TICK] += 1
-            self.loop.republished(time.monotonic())
+            self._republish_tick(time.monotonic())
         self.get_logger().info(
             f'plant ready ({self.time_mode.text}): travel '
             f'{self.config.plant.max_travel_m:g} m, max force {self.config.plant.max_force_n:.2f} '
@@ -422,9 +420,13 @@ class PlantSimulatorNode(GripperNode):
         if chore in (Chore.RUN, Chore.TIMED_OUT):
             self._try_step()                    # nobody commands: time goes on at 0 V
         elif chore is Chore.REPUBLISH:
-            self._tick_pub.publish(self._tick_bytes)      # nobody answered: a late peer
-            self.published[TOPIC_TICK] += 1
-            self.loop.republished(now)
+            self._republish_tick(now)           # nobody answered: a late peer
+
+    def _republish_tick(self, now_s: float) -> None:
+        """Publish the unanswered tick again (a peer that came after it)."""
+        self._tick_pub.publish(self._tick_bytes)
+        self.published[TOPIC_TICK] += 1
+        self.loop.republished(now_s)
 
     # ------------------------------------------------------------------ sim services
     def _end_step(self, cut_short: str = '') -> None:
