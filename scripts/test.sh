@@ -78,6 +78,27 @@ export GRIPPER_ROS_WORKER_DOMAINS
 export ROS_DOMAIN_ID
 export PYTHONDONTWRITEBYTECODE="${PYTHONDONTWRITEBYTECODE:-1}"
 
+# Every process the tests start carries this run's token in its environment. A process still
+# running after a phase (a worker that died leaves its children; a test's clean-up that missed
+# one) is killed and named, so that it loads neither the next phase nor the machine after it.
+export GRIPPER_ROS_TEST_RUN="$$.$RANDOM"
+reap_leftovers() {
+  local pids=() pid name environ
+  for environ in /proc/[0-9]*/environ; do
+    pid=${environ#/proc/}; pid=${pid%/environ}
+    [[ $pid == "$$" || $pid == "$BASHPID" ]] && continue
+    if grep -qzx "GRIPPER_ROS_TEST_RUN=$GRIPPER_ROS_TEST_RUN" "$environ" 2>/dev/null; then
+      pids+=("$pid")
+    fi
+  done
+  [[ ${#pids[@]} -eq 0 ]] && return 0
+  for pid in "${pids[@]}"; do
+    name=$(tr '\0' ' ' < "/proc/$pid/cmdline" 2>/dev/null | cut -c1-120)
+    kill -KILL "$pid" 2>/dev/null && echo "[test] still running after the tests, killed: $pid $name" >&2
+  done
+  return 0
+}
+
 # Default target `test` unless the caller names a path (file, dir or node id) of their own.
 targets=(test)
 for a in "$@"; do
@@ -96,9 +117,11 @@ set +e
 if [[ "$WORKERS" != 1 ]]; then
   python -m pytest "${targets[@]}" -q -n "$WORKERS" --dist loadfile --no-loadscope-reorder -m "not serial" "$@" </dev/null
   rc1=$?
+  reap_leftovers
   echo "[test] the serial tests, alone:" >&2
   python -m pytest "${targets[@]}" -q -m serial "$@" </dev/null
   rc2=$?
+  reap_leftovers
   # exit 5 (no tests) only when neither phase ran one; else the first failure's code
   if [[ $rc1 -eq 5 && $rc2 -eq 5 ]]; then rc=5
   else
@@ -109,6 +132,7 @@ if [[ "$WORKERS" != 1 ]]; then
 else
   python -m pytest "${targets[@]}" -q "$@" </dev/null
   rc=$?
+  reap_leftovers
 fi
 set -e
 if [[ $rc -eq 5 ]]; then

@@ -1,18 +1,52 @@
 """Test isolation: DDS traffic stays on this machine and on a domain of this run's own.
 
 scripts/test.sh picks free domain ids per run, one for each pytest-xdist worker
-(``GRIPPER_ROS_WORKER_DOMAINS``); worker ``gwK`` takes the K-th. Run directly, pytest falls back
-to a PID-derived id.
+(``GRIPPER_ROS_WORKER_DOMAINS``); worker ``gwK`` takes the K-th, and a worker started in place of
+one that died takes a free id of its own. Run directly, pytest falls back to a PID-derived id.
 """
 import os
 
 import pytest
 
 os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
+
+
+def _lock_free_domain(avoid) -> tuple[int, object]:
+    """Return a ROS_DOMAIN_ID (1..100) no other holder of its lock file has, and the open lock.
+
+    The lock files are scripts/test.sh's (``$TMPDIR/gripper_ros_domains.<uid>``); the lock is
+    held while the returned file stays open. ``avoid``: ids whose neighbours (a test's id + 1)
+    must stay free too.
+    """
+    import fcntl
+    from pathlib import Path
+    lockdir = Path(os.environ.get('TMPDIR', '/tmp')) / f'gripper_ros_domains.{os.getuid()}'
+    lockdir.mkdir(parents=True, exist_ok=True)
+    start = (os.getpid() + 50) % 100
+    for i in range(100):
+        candidate = (start + i) % 100 + 1
+        if any(abs(candidate - taken) <= 1 for taken in avoid):
+            continue
+        lock = open(lockdir / f'{candidate}.lock', 'w')
+        try:
+            fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            lock.close()
+            continue
+        return candidate, lock
+    raise RuntimeError('no free ROS_DOMAIN_ID in 1..100')
+
+
 _worker = os.environ.get('PYTEST_XDIST_WORKER', '')
 _domains = os.environ.get('GRIPPER_ROS_WORKER_DOMAINS', '').split()
-if _worker.startswith('gw') and _worker[2:].isdigit() and int(_worker[2:]) < len(_domains):
-    os.environ['ROS_DOMAIN_ID'] = _domains[int(_worker[2:])]
+if _worker.startswith('gw') and _worker[2:].isdigit():
+    if int(_worker[2:]) < len(_domains):
+        os.environ['ROS_DOMAIN_ID'] = _domains[int(_worker[2:])]
+    else:
+        # a worker started in place of one that died: the dead one's processes may live on in
+        # its domain, so this one takes a domain of its own, held until it exits
+        _domain, _REPLACEMENT_DOMAIN_LOCK = _lock_free_domain([int(d) for d in _domains])
+        os.environ['ROS_DOMAIN_ID'] = str(_domain)
 os.environ.setdefault('ROS_DOMAIN_ID', str(40 + os.getpid() % 50))
 
 SERIAL_MODULES = frozenset({'test_launch.py', 'test_sim_time.py', 'test_time_modes.py'})
@@ -73,25 +107,12 @@ def spare_domain_id():
     It is locked as scripts/test.sh locks the run's ids (a file under
     ``$TMPDIR/gripper_ros_domains.<uid>``), so no concurrent run on this machine takes it.
     """
-    import fcntl
-    from pathlib import Path
-    lockdir = Path(os.environ.get('TMPDIR', '/tmp')) / f'gripper_ros_domains.{os.getuid()}'
-    lockdir.mkdir(parents=True, exist_ok=True)
-    taken = {int(d) for d in os.environ.get('GRIPPER_ROS_WORKER_DOMAINS', '').split()}
-    start = (os.getpid() + 50) % 100
-    for i in range(100):
-        candidate = (start + i) % 100 + 1
-        if candidate in taken or candidate == int(os.environ['ROS_DOMAIN_ID']):
-            continue
-        lock = open(lockdir / f'{candidate}.lock', 'w')
-        try:
-            fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except OSError:
-            lock.close()
-            continue
-        try:
-            yield candidate
-        finally:
-            lock.close()
-        return
-    pytest.fail('no free ROS_DOMAIN_ID in 1..100 for a second graph')
+    taken = [int(d) for d in os.environ.get('GRIPPER_ROS_WORKER_DOMAINS', '').split()]
+    try:
+        candidate, lock = _lock_free_domain(taken + [int(os.environ['ROS_DOMAIN_ID'])])
+    except RuntimeError:
+        pytest.fail('no free ROS_DOMAIN_ID in 1..100 for a second graph')
+    try:
+        yield candidate
+    finally:
+        lock.close()

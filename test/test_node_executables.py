@@ -21,6 +21,7 @@ import sys
 import time
 
 from gripper_ros.nodes import NODE_MODULES
+from gripper_ros.nodes.process import load_bound_s
 from gripper_ros.wire import (NODE_DESCRIPTION, NODE_EXCITATION, NODE_FORCE_CONTROLLER,
                               NODE_GRASP_ACTION, NODE_MOVE_ACTION, NODE_PLANT,
                               NODE_POSITION_CONTROLLER, NODE_SUPERVISOR,
@@ -62,6 +63,10 @@ seconds (imports, the compiled core, DDS), so one that needs much more spins. So
 at once: on a loaded machine the last answers come minutes after the first, each using CPU."""
 ALARMING = ('Traceback', 'FATAL', 'ERROR', 'Fatal Python error')
 ASK_AGAIN_S = 2.0
+STRAGGLER_S = 120.0
+"""A bound (on free cores, :func:`load_bound_s`) on the wait for the last nodes to answer once
+none answered or exited for it: a node whose DDS threads tick uses some CPU however stuck its
+executor is, so :class:`ProgressWatch` alone would wait for it until the suite's own timeout."""
 ABORT_BOUND_S = 60.0
 """A bound on an aborted process writing its stacks, never reached unless SIGABRT is lost."""
 NODES_DIR = Path(__file__).resolve().parents[1] / 'gripper_ros' / 'nodes'
@@ -108,9 +113,15 @@ def _wait_until_running(cases: list[Case]) -> str:
         futures = {}
         watch = ProgressWatch([c.proc.pid for c in cases], STEP_CPU_S)
         hung = ''
+        waited_before, moved = len(cases) + 1, time.monotonic()
         while True:
             waited = [c.proc.pid for c in cases if not c.answered and c.proc.poll() is None]
+            if len(waited) < waited_before:
+                waited_before, moved = len(waited), time.monotonic()
             hung = watch.hung(waited) if waited else ''
+            if waited and not hung and time.monotonic() - moved > load_bound_s(STRAGGLER_S):
+                hung = (f'{len(waited)} of {len(cases)} never answered, none answered or exited '
+                        f'for {time.monotonic() - moved:.0f} s')
             if not waited or hung:
                 break
             for c in cases:
