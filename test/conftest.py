@@ -65,16 +65,16 @@ process trips none."""
 
 
 MODULE_SECONDS = {
-    'test_docs_bag_tools.py': 184, 'test_docs_transcripts.py': 159, 'test_docs_grip.py': 90,
-    'test_node_executables.py': 79, 'test_shutdown.py': 73, 'test_trajectory_tracking.py': 66,
-    'test_engine.py': 66, 'test_grasp_client.py': 55, 'test_stock_clients.py': 55,
-    'test_namespaces.py': 48, 'test_moveit_handles.py': 46, 'test_lint.py': 42,
-    'test_parameters.py': 39, 'test_hostile_graph.py': 34, 'test_live_view.py': 34,
-    'test_follow_joint_trajectory.py': 28, 'test_faults.py': 26, 'test_launch_args.py': 26,
-    'test_identify.py': 22, 'test_lift.py': 22, 'test_portability.py': 22,
+    'test_docs_bag_tools.py': 154, 'test_docs_transcripts.py': 106, 'test_node_executables.py': 100,
+    'test_shutdown.py': 73, 'test_grasp_client.py': 66, 'test_trajectory_tracking.py': 66,
+    'test_engine.py': 58, 'test_moveit_handles.py': 46, 'test_stock_clients.py': 44,
+    'test_namespaces.py': 41, 'test_docs_grip.py': 32, 'test_hostile_graph.py': 31,
+    'test_follow_joint_trajectory.py': 30, 'test_faults.py': 27, 'test_live_view.py': 25,
+    'test_parameters.py': 24, 'test_bag_recorder.py': 21, 'test_rerun.py': 20, 'test_lift.py': 18,
+    'test_portability.py': 17, 'test_identify.py': 17, 'test_recording_faults.py': 16,
 }
-"""The longest modules' time on a worker (pytest --durations summed per module: main 4ba8165,
-``bash scripts/test.sh --durations=0``, load 4; the tests made parallel since added in).
+"""The longest modules' time on a worker (wall time from each module's first test to the next
+module's, three workers, load 3: main f1b29da with test_node_executables' stops made parallel).
 
 A module stays on one worker (scripts/test.sh), and pytest-xdist hands the modules out in the
 order collected: the longest go first, so that none starts last and keeps one worker busy while
