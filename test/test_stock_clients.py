@@ -279,7 +279,7 @@ def _reset(graph, object_width_m: float = 0.0) -> None:
     start a move after a stop: that one is stopped too (a client writes nothing once closed).
     """
     for _ in range(3):
-        if graph.supervisor.logic.running:          # a test that failed half-way, or a late command
+        if graph.supervisor.logic.running:      # a test that failed half-way, or a late command
             graph.stop()
         placed = graph.set_object(object_width_m, open_fingers=True)
         if placed.success:
