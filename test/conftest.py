@@ -82,6 +82,19 @@ the others are done. The rest follow in pytest-xdist's own order (most tests fir
 here orders the modules; no test depends on it."""
 
 
+def pytest_ignore_collect(collection_path, config):
+    """In the serial phase (``-m serial``), leave out the modules that hold no serial test.
+
+    Importing and collecting the whole suite costs a process several seconds of CPU; the serial
+    phase runs a few modules' tests.
+    """
+    if (config.getoption('markexpr') != 'serial' or collection_path.suffix != '.py'
+            or not collection_path.name.startswith('test_')
+            or collection_path.name in SERIAL_MODULES):
+        return None
+    return None if 'pytest.mark.serial' in collection_path.read_text(encoding='utf-8') else True
+
+
 def pytest_collection_modifyitems(config, items):
     """Mark the tests of :data:`SERIAL_MODULES` ``serial`` (others are marked in their module).
 
