@@ -1,18 +1,52 @@
 """Test isolation: DDS traffic stays on this machine and on a domain of this run's own.
 
 scripts/test.sh picks free domain ids per run, one for each pytest-xdist worker
-(``GRIPPER_ROS_WORKER_DOMAINS``); worker ``gwK`` takes the K-th. Run directly, pytest falls back
-to a PID-derived id.
+(``GRIPPER_ROS_WORKER_DOMAINS``); worker ``gwK`` takes the K-th, and a worker started in place of
+one that died takes a free id of its own. Run directly, pytest falls back to a PID-derived id.
 """
 import os
 
 import pytest
 
 os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
+
+
+def _lock_free_domain(avoid) -> tuple[int, object]:
+    """Return a ROS_DOMAIN_ID (1..100) no other holder of its lock file has, and the open lock.
+
+    The lock files are scripts/test.sh's (``$TMPDIR/gripper_ros_domains.<uid>``); the lock is
+    held while the returned file stays open. ``avoid``: ids whose neighbours (a test's id + 1)
+    must stay free too.
+    """
+    import fcntl
+    from pathlib import Path
+    lockdir = Path(os.environ.get('TMPDIR', '/tmp')) / f'gripper_ros_domains.{os.getuid()}'
+    lockdir.mkdir(parents=True, exist_ok=True)
+    start = (os.getpid() + 50) % 100
+    for i in range(100):
+        candidate = (start + i) % 100 + 1
+        if any(abs(candidate - taken) <= 1 for taken in avoid):
+            continue
+        lock = open(lockdir / f'{candidate}.lock', 'w')
+        try:
+            fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            lock.close()
+            continue
+        return candidate, lock
+    raise RuntimeError('no free ROS_DOMAIN_ID in 1..100')
+
+
 _worker = os.environ.get('PYTEST_XDIST_WORKER', '')
 _domains = os.environ.get('GRIPPER_ROS_WORKER_DOMAINS', '').split()
-if _worker.startswith('gw') and _worker[2:].isdigit() and int(_worker[2:]) < len(_domains):
-    os.environ['ROS_DOMAIN_ID'] = _domains[int(_worker[2:])]
+if _worker.startswith('gw') and _worker[2:].isdigit():
+    if int(_worker[2:]) < len(_domains):
+        os.environ['ROS_DOMAIN_ID'] = _domains[int(_worker[2:])]
+    else:
+        # a worker started in place of one that died: the dead one's processes may live on in
+        # its domain, so this one takes a domain of its own, held until it exits
+        _domain, _REPLACEMENT_DOMAIN_LOCK = _lock_free_domain([int(d) for d in _domains])
+        os.environ['ROS_DOMAIN_ID'] = str(_domain)
 os.environ.setdefault('ROS_DOMAIN_ID', str(40 + os.getpid() % 50))
 
 SERIAL_MODULES = frozenset({'test_launch.py', 'test_sim_time.py', 'test_time_modes.py'})
@@ -31,21 +65,34 @@ process trips none."""
 
 
 MODULE_SECONDS = {
-    'test_docs_bag_tools.py': 184, 'test_docs_transcripts.py': 159, 'test_docs_grip.py': 90,
-    'test_node_executables.py': 79, 'test_shutdown.py': 73, 'test_trajectory_tracking.py': 66,
-    'test_engine.py': 66, 'test_grasp_client.py': 55, 'test_stock_clients.py': 55,
-    'test_namespaces.py': 48, 'test_moveit_handles.py': 46, 'test_lint.py': 42,
-    'test_parameters.py': 39, 'test_hostile_graph.py': 34, 'test_live_view.py': 34,
-    'test_follow_joint_trajectory.py': 28, 'test_faults.py': 26, 'test_launch_args.py': 26,
-    'test_identify.py': 22, 'test_lift.py': 22, 'test_portability.py': 22,
+    'test_docs_bag_tools.py': 154, 'test_docs_transcripts.py': 106,
+    'test_node_executables.py': 100, 'test_shutdown.py': 73, 'test_grasp_client.py': 66, 'test_trajectory_tracking.py': 66,
+    'test_engine.py': 58, 'test_moveit_handles.py': 46, 'test_stock_clients.py': 44,
+    'test_namespaces.py': 41, 'test_docs_grip.py': 32, 'test_hostile_graph.py': 31,
+    'test_follow_joint_trajectory.py': 30, 'test_faults.py': 27, 'test_live_view.py': 25,
+    'test_parameters.py': 24, 'test_bag_recorder.py': 21, 'test_rerun.py': 20, 'test_lift.py': 18,
+    'test_portability.py': 17, 'test_identify.py': 17, 'test_recording_faults.py': 16,
 }
-"""The longest modules' time on a worker (pytest --durations summed per module: main 4ba8165,
-``bash scripts/test.sh --durations=0``, load 4; the tests made parallel since added in).
+"""The longest modules' time on a worker (wall time from each module's first test to the next
+module's, three workers, load 3: main f1b29da with test_node_executables' stops made parallel).
 
 A module stays on one worker (scripts/test.sh), and pytest-xdist hands the modules out in the
 order collected: the longest go first, so that none starts last and keeps one worker busy while
 the others are done. The rest follow in pytest-xdist's own order (most tests first). A figure
 here orders the modules; no test depends on it."""
+
+
+def pytest_ignore_collect(collection_path, config):
+    """In the serial phase (``-m serial``), leave out the modules that hold no serial test.
+
+    Importing and collecting the whole suite costs a process several seconds of CPU; the serial
+    phase runs a few modules' tests.
+    """
+    if (config.getoption('markexpr') != 'serial' or collection_path.suffix != '.py'
+            or not collection_path.name.startswith('test_')
+            or collection_path.name in SERIAL_MODULES):
+        return None
+    return None if 'pytest.mark.serial' in collection_path.read_text(encoding='utf-8') else True
 
 
 def pytest_collection_modifyitems(config, items):
@@ -73,25 +120,12 @@ def spare_domain_id():
     It is locked as scripts/test.sh locks the run's ids (a file under
     ``$TMPDIR/gripper_ros_domains.<uid>``), so no concurrent run on this machine takes it.
     """
-    import fcntl
-    from pathlib import Path
-    lockdir = Path(os.environ.get('TMPDIR', '/tmp')) / f'gripper_ros_domains.{os.getuid()}'
-    lockdir.mkdir(parents=True, exist_ok=True)
-    taken = {int(d) for d in os.environ.get('GRIPPER_ROS_WORKER_DOMAINS', '').split()}
-    start = (os.getpid() + 50) % 100
-    for i in range(100):
-        candidate = (start + i) % 100 + 1
-        if candidate in taken or candidate == int(os.environ['ROS_DOMAIN_ID']):
-            continue
-        lock = open(lockdir / f'{candidate}.lock', 'w')
-        try:
-            fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except OSError:
-            lock.close()
-            continue
-        try:
-            yield candidate
-        finally:
-            lock.close()
-        return
-    pytest.fail('no free ROS_DOMAIN_ID in 1..100 for a second graph')
+    taken = [int(d) for d in os.environ.get('GRIPPER_ROS_WORKER_DOMAINS', '').split()]
+    try:
+        candidate, lock = _lock_free_domain(taken + [int(os.environ['ROS_DOMAIN_ID'])])
+    except RuntimeError:
+        pytest.fail('no free ROS_DOMAIN_ID in 1..100 for a second graph')
+    try:
+        yield candidate
+    finally:
+        lock.close()

@@ -35,6 +35,7 @@ from gripper_ros.nodes.stamps import ns_to_time
 from gripper_ros.studies.servo_runs import needed_peak_v, Sine, Spline, Trapezoid
 from gripper_ros.wire import (FINGER_JOINT, qualified, TimeMode, TOPIC_GRIPPER_STATUS,
                               TOPIC_JOINT_COMMANDS, TOPIC_JOINT_STATES, TOPIC_STATUS)
+from helpers import in_executor
 import numpy as np
 import pytest
 from rclpy.qos import qos_profile_sensor_data, QoSProfile
@@ -118,8 +119,11 @@ class TopicSystem:
             return [s for s in self.samples if s[0] >= since_ns]
 
     def close(self, graph) -> None:
-        graph.client_node.destroy_subscription(self.sub)
-        graph.client_node.destroy_publisher(self.pub)
+        """Stop reading and writing, in the executor's thread: no callback is left half-way."""
+        def destroy():
+            graph.client_node.destroy_subscription(self.sub)
+            graph.client_node.destroy_publisher(self.pub)
+        in_executor(graph.executor, destroy)
 
 
 class ForwardCommand:
@@ -269,10 +273,17 @@ def _values(status: DiagnosticStatus) -> dict:
 
 
 def _reset(graph, object_width_m: float = 0.0) -> None:
-    """Place the object (0: none) with the fingers fully open, at rest."""
-    if graph.supervisor.logic.running:              # a test that failed half-way
-        graph.stop()
-    placed = graph.set_object(object_width_m, open_fingers=True)
+    """Place the object (0: none) with the fingers fully open, at rest.
+
+    A command the last test's client wrote just before it closed may still be on its way and
+    start a move after a stop: that one is stopped too (a client writes nothing once closed).
+    """
+    for _ in range(3):
+        if graph.supervisor.logic.running:      # a test that failed half-way, or a late command
+            graph.stop()
+        placed = graph.set_object(object_width_m, open_fingers=True)
+        if placed.success:
+            return
     assert placed.success, placed.message
 
 
