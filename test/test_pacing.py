@@ -24,9 +24,15 @@ class WallClock:
 
     def __init__(self, start_s: float = 100.0):
         self.now_s = start_s
+        self.slept_s = None                         # the last wait slept in place
 
     def __call__(self) -> float:
         return self.now_s
+
+    def sleep(self, wait_s: float) -> None:
+        """Sleep ``wait_s`` as the wall clock does: woken a little late (1 us)."""
+        self.slept_s = wait_s
+        self.now_s += wait_s + 1e-6
 
 
 def never() -> bool:
@@ -56,26 +62,29 @@ def test_realtime_catches_up_a_short_lag_and_restarts_after_a_stall():
     assert pacing.gate(80 * MS, 90 * MS, never) == pytest.approx(0.010)
 
 
-def test_realtime_sleeps_a_wait_below_a_millisecond_in_place():
+def test_realtime_sleeps_a_wait_of_up_to_a_quantum_in_place():
     wall = WallClock()
-    pacing = RealtimePacing(0, 1.0, wall)
-    assert pacing.gate(0, 10 * MS, never) == pytest.approx(0.010)
+    pacing = RealtimePacing(0, 1.0, wall, wall.sleep)
+    assert pacing.gate(0, 10 * MS, never) == pytest.approx(0.010)    # the node's timer
     wall.now_s += 0.0099
     assert pacing.gate(0, 10 * MS, never) == NOW    # 0.1 ms: slept here, then published
+    assert wall.slept_s == pytest.approx(0.0001)
 
 
 def test_realtime_publishes_short_ticks_in_bursts_a_quantum_apart():
     wall = WallClock()
-    pacing = RealtimePacing(0, 1.0, wall)
+    pacing = RealtimePacing(0, 1.0, wall, wall.sleep)
     tick_ns = 100_000                               # the force stage's 0.1 ms
-    assert pacing.gate(0, tick_ns, never) == pytest.approx(QUANTUM_S)   # not 0.1 ms
-    wall.now_s += QUANTUM_S + 1e-6                  # woken: every tick due by now goes out
-    burst = round(QUANTUM_S * 1e9) // tick_ns
-    for k in range(1, burst + 1):
+    assert pacing.gate(0, tick_ns, never) == NOW    # after a quantum's sleep, not 0.1 ms
+    assert wall.slept_s == pytest.approx(QUANTUM_S)
+    burst = round(QUANTUM_S * 1e9) // tick_ns       # every tick due by now goes out
+    wall.slept_s = None
+    for k in range(2, burst + 1):
         assert pacing.gate((k - 1) * tick_ns, k * tick_ns, never) == NOW
+    assert wall.slept_s is None
     # the next is a tick ahead of the wall clock: the wake after it is a quantum on
-    assert pacing.gate(burst * tick_ns, (burst + 1) * tick_ns, never) == \
-        pytest.approx(QUANTUM_S - 1e-6)
+    assert pacing.gate(burst * tick_ns, (burst + 1) * tick_ns, never) == NOW
+    assert wall.slept_s == pytest.approx(QUANTUM_S - 1e-6)
 
 
 def test_fast_publishes_only_while_time_is_needed():

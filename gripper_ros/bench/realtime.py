@@ -6,6 +6,7 @@
     ros2 run gripper_ros bench_realtime --launch         # via ros2 launch (one process)
     ros2 run gripper_ros bench_realtime --use-sim-time   # on a world's /clock at the wall's pace
     ros2 run gripper_ros bench_realtime --foxglove       # without, then with a Foxglove client
+    ros2 run gripper_ros bench_realtime --split          # the holding graph's CPU, by part
 
 ``grasp_demo --serve`` runs in a child process, exactly as a user starts it (realtime time,
 real-time factor 1, bags per grasp unless ``--no-record``); with ``--per-node`` the launch
@@ -428,6 +429,9 @@ def main(args: Optional[Sequence[str]] = None) -> int:
     p.add_argument('--foxglove-client', default=None, metavar='COMMAND',
                    help='the client to run (given the URL; default: test/interop/'
                         'live_client.mjs with node)')
+    p.add_argument('--split', action='store_true',
+                   help='the one-process graph in this process, holding: its CPU a tick, split '
+                        'by part (gripper_ros.bench.holding_split)')
     p.add_argument('--json', action='store_true', help='print JSON instead of the table')
     opts = p.parse_args(list(sys.argv[1:] if args is None else args))
     if not (0.5 <= opts.seconds <= 600.0):
@@ -441,11 +445,20 @@ def main(args: Optional[Sequence[str]] = None) -> int:
         print('bench_realtime: error: --foxglove measures grasp_demo --serve (not with '
               '--per-node, --launch or --use-sim-time)', file=sys.stderr)
         return 2
+    if opts.split and (opts.per_node or opts.launch or opts.use_sim_time or opts.foxglove):
+        print('bench_realtime: error: --split measures the one-process graph in this process '
+              '(not with --per-node, --launch, --use-sim-time or --foxglove)', file=sys.stderr)
+        return 2
     return run_bench('bench_realtime', lambda: _run(opts))
 
 
 def _run(opts: argparse.Namespace) -> int:
     """Measure what ``opts`` asks for and print it."""
+    if opts.split:
+        from gripper_ros.bench.holding_split import format_split, measure_split
+        split = measure_split(opts.seconds)
+        print(json.dumps(split, indent=2) if opts.json else format_split(split))
+        return 0
     if opts.foxglove:
         client = shlex.split(opts.foxglove_client) if opts.foxglove_client else \
             default_client()

@@ -132,7 +132,7 @@ class LockstepController(GripperNode):
                 self._pub.publish(self._last_command)
                 self.published[TOPIC_MOTOR_COMMAND] += 1
             return
-        if not side.command_record[0]['finite']:
+        if not side.finite[0]:
             self.nonfinite_answers += 1
             ref = self._last_ref
             self.get_logger().error(f'{side.last_answer.reason} at t={ref.stamp_ns} '

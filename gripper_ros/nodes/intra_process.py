@@ -127,23 +127,24 @@ class IntraProcessBus:
         if limit is None:
             self._scheduled = False
         queue = self._queue
+        popleft = queue.popleft
         self._draining = True
         deadline = time.perf_counter() + DRAIN_SLICE_S
         handed = 0
+        check_at = CHECK_EVERY if limit is None else limit     # the next look: clock or count
         try:
             while queue:
-                callback, data = queue.popleft()
+                callback, data = popleft()
                 try:
                     callback(data)
                 except Exception as exc:  # noqa: BLE001 - reported; the loop goes on
                     self._logger.error(f'a callback failed and was skipped: '
                                        f'{type(exc).__name__}: {one_line(exc)}')
                 handed += 1
-                if limit is not None:
-                    if handed >= limit:
+                if handed == check_at:
+                    if limit is not None or time.perf_counter() > deadline:
                         break
-                elif handed % CHECK_EVERY == 0 and time.perf_counter() > deadline:
-                    break
+                    check_at += CHECK_EVERY
         finally:
             self._draining = False
             self.delivered += handed
@@ -185,19 +186,20 @@ class GraphPublisher:
     def _on_matched(self, info) -> None:
         self._outside = info.current_count
 
-    def _outside_now(self) -> int:
-        """Count the matched DDS subscriptions, asking DDS at most every ``OUTSIDE_POLL_S``."""
-        now_s = time.monotonic()
-        if now_s >= self._next_poll_s:
-            self._next_poll_s = now_s + OUTSIDE_POLL_S
-            self._outside = self.dds.get_subscription_count()
-        return self._outside
-
     def publish(self, msg) -> None:
-        """Publish ``msg``: serialised bytes or a message object."""
+        """Publish ``msg``: serialised bytes or a message object.
+
+        Over DDS while a subscription is matched there, asking DDS for one at most every
+        ``OUTSIDE_POLL_S`` (the loop's topics publish ten thousand a second: one call here).
+        """
         for tap in self.taps:
             tap(self.topic_name, msg)
-        if self._outside or self._outside_now():
+        if not self._outside:
+            now_s = time.monotonic()
+            if now_s >= self._next_poll_s:
+                self._next_poll_s = now_s + OUTSIDE_POLL_S
+                self._outside = self.dds.get_subscription_count()
+        if self._outside:
             self.dds.publish(msg)
         if self._bus is not None:
             self._bus.post(self.topic_name, msg)

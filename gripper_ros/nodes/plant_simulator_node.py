@@ -231,7 +231,7 @@ class PlantSimulatorNode(GripperNode):
 
     def _announce_if_begun(self) -> None:
         """Publish the lift's plan on arm/planned_acceleration once its hold has begun."""
-        if not self.arm.due(int(self.side.state[0]['hold_begun_for'])):
+        if not (self.arm.armed and self.arm.due(int(self.side.state[0]['hold_begun_for']))):
             return
         for t_ns, accel in self.plant.lift_plan():
             msg = AccelStamped()

@@ -514,6 +514,8 @@ class StageSide:
         take = entry_point(stage_take_reference, kernel, b'', ref, ref_bytes, cmd)
         self.take_reference = lambda data: take(kernel, data, ref, ref_bytes, cmd)
         """Answer a serialised reference (:func:`stage_take_reference`)."""
+        self.finite = cmd['finite']
+        """Whether the last command's voltage is the controller's (a view, read every tick)."""
 
     @property
     def last_answer(self) -> TickAnswer:

@@ -49,8 +49,11 @@ current one waits until the wall clock is this far past the current one, then th
 then go out back to back: simulated time lags the wall clock by up to one quantum (a command
 waits up to one quantum longer), and the process sleeps once a quantum instead of once a tick
 (ten thousand a second while the force stage holds)."""
-SLEEP_LIMIT_S = 0.001
-"""Realtime: a wait this short is slept in place; a longer one is the node's timer."""
+SLEEP_LIMIT_S = QUANTUM_S
+"""Realtime: a wait up to this long (every wait between the force stage's short ticks) is
+slept in place; a longer one is the node's timer. A timer re-armed, fired and cancelled once a
+quantum costs the executor more CPU than the wait it makes; sleeping in place keeps other
+callbacks waiting for at most a quantum, as a drain's slice of the intra-process bus does."""
 MAX_STEP_S = 600.0
 """sim/step: the most simulated time one request may ask for (duration_s)."""
 MAX_STEP_TICKS = round(MAX_STEP_S / FORCE_SAMPLE_S)
@@ -194,13 +197,18 @@ class Pacing:
 
 
 class RealtimePacing(Pacing):
-    """Paced to the wall clock by ``real_time_factor``, never ahead of it."""
+    """Paced to the wall clock by ``real_time_factor``, never ahead of it.
+
+    ``sleep`` waits in place (seconds); a test may pass its own, with its ``monotonic``.
+    """
 
     mode = TimeMode.REALTIME
 
     def __init__(self, t_ns: int, real_time_factor: float = 1.0,
-                 monotonic: Callable[[], float] = time.monotonic):
+                 monotonic: Callable[[], float] = time.monotonic,
+                 sleep: Callable[[float], None] = time.sleep):
         super().__init__(t_ns, real_time_factor, monotonic)
+        self.sleep = sleep
         self.restart(t_ns)
 
     def restart(self, t_ns: int) -> None:
@@ -223,7 +231,7 @@ class RealtimePacing(Pacing):
         lead_s = max(lead_s, self._lead_s(t_ns) + QUANTUM_S)    # a short tick: a quantum on
         if lead_s > SLEEP_LIMIT_S:
             return lead_s
-        time.sleep(lead_s)
+        self.sleep(lead_s)
         return NOW
 
     @property

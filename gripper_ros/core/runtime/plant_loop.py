@@ -40,6 +40,7 @@ class PlantLoop:
         self.pacing = pacing
         self.fast = pacing.mode is TimeMode.FAST
         self.state_period_ns = state_period_ns
+        self._hold_s = side.command_record['hold_s']     # a view: read every tick
         self.pending = False            # a command accepted for the current tick
         self.echoed = False             # a command was ever accepted (its echo counts)
         self.woken = False              # a request is waiting for simulated time
@@ -80,7 +81,7 @@ class PlantLoop:
         powered = self.pending
         if not powered and not self.unpowered:
             return HELD
-        hold_ns = round(float(self.side.command_record[0]['hold_s']) * 1e9) if powered \
+        hold_ns = round(float(self._hold_s[0]) * 1e9) if powered \
             else self.state_period_ns
         return self.pacing.gate(self.stamp_ns, self.stamp_ns + hold_ns, self.needs_time)
 
