@@ -146,11 +146,29 @@ def _cpu_s(pids: Sequence[int]) -> float:
     return sum(process_cpu_s(pid) for pid in pids)
 
 
+def _process_name(pid: int) -> str:
+    """Name a serving process as a user would: its program, or for Python its module."""
+    try:
+        with open(f'/proc/{pid}/cmdline', 'rb') as f:
+            argv = [a.decode(errors='replace') for a in f.read().split(b'\0') if a]
+    except OSError:
+        return str(pid)
+    words = [os.path.basename(a) for a in argv[:4] if not a.startswith('-')]
+    if words and words[0].startswith('python'):
+        words = words[1:]
+    if len(argv) > 1 and argv[1] == '-m':
+        words = [argv[2].rsplit('.', 1)[-1]]
+    return ' '.join(words[:2]) or str(pid)
+
+
 def _window(watcher: _Watcher, pids: Sequence[int], seconds: float) -> Dict[str, Any]:
     """Streams, simulated time and CPU (summed over ``pids``) over ``seconds`` of wall time."""
-    a, cpu0, t0 = watcher.snapshot(), _cpu_s(pids), time.perf_counter()
+    first = {pid: process_cpu_s(pid) for pid in pids}
+    a, t0 = watcher.snapshot(), time.perf_counter()
     time.sleep(seconds)
-    b, cpu1, t1 = watcher.snapshot(), _cpu_s(pids), time.perf_counter()
+    b, t1 = watcher.snapshot(), time.perf_counter()
+    last = {pid: process_cpu_s(pid) for pid in pids}
+    cpu0, cpu1 = sum(first.values()), sum(last.values())
     wall = t1 - t0
     with watcher._lock:
         sim_rtf = watcher.sim_rtf[a['sim_rtf']:b['sim_rtf']]
@@ -159,7 +177,9 @@ def _window(watcher: _Watcher, pids: Sequence[int], seconds: float) -> Dict[str,
             'clock_hz': (b['clock'] - a['clock']) / wall,
             'joint_states_hz': (b['joint'] - a['joint']) / wall,
             'plant_reported_rtf': min(sim_rtf) if sim_rtf else float('nan'),
-            'cpu_share': (cpu1 - cpu0) / wall}
+            'cpu_share': (cpu1 - cpu0) / wall,
+            'cpu_share_by_process': {f'{_process_name(pid)} ({pid})':
+                                     (last[pid] - first[pid]) / wall for pid in pids}}
 
 
 def _commands(namespace: str, output: str, record: bool, per_node: bool,
@@ -374,6 +394,12 @@ def format_report(r: Dict[str, Any]) -> str:
         lines.append(f'{name:>8s} {w["rtf"]:6.3f} {w["plant_reported_rtf"]:9.3f} '
                      f'{w["clock_hz"]:10.1f} {w["joint_states_hz"]:15.1f} '
                      f'{w["cpu_share"]:9.2f}')
+    for name in ('idle', 'holding'):
+        shares = r[name].get('cpu_share_by_process', {})
+        if len(shares) > 1:
+            lines.append(f'{name:>8s} CPU share by process: ' + ', '.join(
+                f'{process} {share:.2f}' for process, share in
+                sorted(shares.items(), key=lambda kv: -kv[1])))
     g = r['grasp']
     lines.append('')
     lines.append(f'grasp of {g["width_m"]:g} m / {g["mass_kg"]:g} kg answered HOLDING after '
