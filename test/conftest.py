@@ -66,7 +66,8 @@ process trips none."""
 
 MODULE_SECONDS = {
     'test_docs_bag_tools.py': 154, 'test_docs_transcripts.py': 106,
-    'test_node_executables.py': 100, 'test_shutdown.py': 73, 'test_grasp_client.py': 66, 'test_trajectory_tracking.py': 66,
+    'test_node_executables.py': 100, 'test_shutdown.py': 73, 'test_grasp_client.py': 66,
+    'test_trajectory_tracking.py': 66,
     'test_engine.py': 58, 'test_moveit_handles.py': 46, 'test_stock_clients.py': 44,
     'test_namespaces.py': 41, 'test_docs_grip.py': 32, 'test_hostile_graph.py': 31,
     'test_follow_joint_trajectory.py': 30, 'test_faults.py': 27, 'test_live_view.py': 25,
