@@ -142,10 +142,6 @@ PER_NODE_MODULES = tuple(LAUNCHED_MODULES.values())
 """The node executables the launch file starts, one process each."""
 
 
-def _cpu_s(pids: Sequence[int]) -> float:
-    return sum(process_cpu_s(pid) for pid in pids)
-
-
 def _process_name(pid: int) -> str:
     """Name a serving process as a user would: its program, or for Python its module."""
     try:
@@ -167,9 +163,8 @@ def _window(watcher: _Watcher, pids: Sequence[int], seconds: float) -> Dict[str,
     a, t0 = watcher.snapshot(), time.perf_counter()
     time.sleep(seconds)
     b, t1 = watcher.snapshot(), time.perf_counter()
-    last = {pid: process_cpu_s(pid) for pid in pids}
-    cpu0, cpu1 = sum(first.values()), sum(last.values())
     wall = t1 - t0
+    shares = {pid: (process_cpu_s(pid) - first[pid]) / wall for pid in pids}
     with watcher._lock:
         sim_rtf = watcher.sim_rtf[a['sim_rtf']:b['sim_rtf']]
     sim_s = (b['joint_ns'] - a['joint_ns']) * 1e-9 if a['joint_ns'] and b['joint_ns'] else 0.0
@@ -177,9 +172,9 @@ def _window(watcher: _Watcher, pids: Sequence[int], seconds: float) -> Dict[str,
             'clock_hz': (b['clock'] - a['clock']) / wall,
             'joint_states_hz': (b['joint'] - a['joint']) / wall,
             'plant_reported_rtf': min(sim_rtf) if sim_rtf else float('nan'),
-            'cpu_share': (cpu1 - cpu0) / wall,
-            'cpu_share_by_process': {f'{_process_name(pid)} ({pid})':
-                                     (last[pid] - first[pid]) / wall for pid in pids}}
+            'cpu_share': sum(shares.values()),
+            'cpu_share_by_process': {f'{_process_name(pid)} ({pid})': share
+                                     for pid, share in shares.items()}}
 
 
 def _commands(namespace: str, output: str, record: bool, per_node: bool,
