@@ -44,7 +44,7 @@ def read_settings(context=None) -> dict:
     The start-up probe node reads them (``ros2 node list`` does not show it afterwards). The
     ``prefix`` not given comes from the namespace, as each node's own (``declare_prefix``).
     """
-    from gripper_ros.nodes.names import probe_node
+    from gripper_ros.nodes.names import probe_node, retire_probe
     from gripper_ros.wire import namespace_prefix
     probe = probe_node(DEFAULT_NAMESPACE, context)
     try:
@@ -55,7 +55,7 @@ def read_settings(context=None) -> dict:
                     for name, default, _ in SETTINGS}          # rclpy declares use_sim_time
         return {**settings, 'namespace': namespace}
     finally:
-        probe.destroy_node()
+        retire_probe(probe)          # destroyed once the graph's nodes live
 
 
 def usage() -> str:

@@ -89,7 +89,7 @@ class NameClaim:
                 found = taken_names(probe, node_names, services)
         finally:
             if probe is not None:
-                probe.destroy_node()
+                retire_probe(probe)
         if found:
             if claim is not None:
                 claim.release()
@@ -222,6 +222,35 @@ def namespace_as_given(default: str = DEFAULT_NAMESPACE, context=None) -> str:
     try:
         return probe.get_namespace().strip('/')
     finally:
+        retire_probe(probe)
+
+
+_RETIRED_PROBES: list = []
+"""Start-up probes set aside by :func:`retire_probe`, destroyed by :func:`destroy_probes`."""
+
+
+def retire_probe(probe: Node) -> None:
+    """Set a start-up probe aside until a node of its own is built in its context.
+
+    The last node of a context takes the context's DDS participant with it, and Fast DDS 2.14
+    deletes a participant by spinning until no discovery callback runs
+    (``DomainParticipantImpl::set_listener`` with its infinite timeout; eProsima/Fast-DDS#6513):
+    amid the discovery of many starting processes the callback it waits for is starved, and the
+    start spins for good. Destroyed beside a live node, a probe takes no participant with it.
+    """
+    _RETIRED_PROBES.append(probe)
+
+
+def destroy_probes(context=None) -> None:
+    """Destroy the probes set aside in ``context`` (default: rclpy's).
+
+    Called once a node of the context's own lives there, or when the context is given up.
+    """
+    import rclpy
+    ctx = context or rclpy.get_default_context()
+    mine = [p for p in _RETIRED_PROBES if p.context is ctx]
+    _RETIRED_PROBES[:] = [p for p in _RETIRED_PROBES if p.context is not ctx]
+    for probe in mine:
         probe.destroy_node()
 
 
@@ -229,7 +258,7 @@ def probe_node(namespace: str = DEFAULT_NAMESPACE, context=None) -> Node:
     """Make the short-lived start-up node, in ``namespace`` as the command line remaps it.
 
     It keeps its own name (:func:`keep_name_args`), starts no parameter services and no
-    rosout; the caller destroys it once it has asked what it needs.
+    rosout; the caller retires it (:func:`retire_probe`) once it has asked what it needs.
     """
     import rclpy
     kw = {'context': context} if context is not None else {}

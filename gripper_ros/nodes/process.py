@@ -11,7 +11,7 @@ import threading
 from typing import Callable
 
 from gripper_ros.core.config import ConfigError
-from gripper_ros.nodes.names import NameClaim
+from gripper_ros.nodes.names import destroy_probes, NameClaim
 from gripper_ros.nodes.parameters import refuse_unknown_overrides
 from gripper_ros.nodes.startup import EXIT_BAD_START, StartupError
 from gripper_ros.text import one_line
@@ -352,6 +352,7 @@ def run_node(make_node: Callable[[], Node], name: str, args=None,
         try:
             claim = NameClaim.take((name,), services)
             node = build_node(make_node)
+            destroy_probes(node.context)     # beside the node: the participant stays
             kind = node.declare_parameter('executor', ExecutorKind.EVENTS.value,
                                           ParameterDescriptor(
                                               description='events (rclpy EventsExecutor) | '
