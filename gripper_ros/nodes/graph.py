@@ -27,7 +27,7 @@ from gripper_ros.nodes.force_controller_node import ForceControllerNode
 from gripper_ros.nodes.grasp_action_node import GraspActionServer
 from gripper_ros.nodes.intra_process import IntraProcessBus
 from gripper_ros.nodes.move_action_node import MoveActionServer
-from gripper_ros.nodes.names import NameClaim
+from gripper_ros.nodes.names import destroy_probes, NameClaim
 from gripper_ros.nodes.parameters import refuse_unknown_overrides, strict_parameters
 from gripper_ros.nodes.plant_simulator_node import PlantSimulatorNode
 from gripper_ros.nodes.position_controller_node import PositionControllerNode
@@ -96,13 +96,19 @@ class GripperGraph:
         self.close_hooks: list = []          # run first by close() (e.g. open recordings)
         load_config(opts.config_file or None)   # a bad file is refused before a name is taken
         prefix = namespace_prefix(self.namespace) if opts.prefix is None else opts.prefix
-        self._claim = NameClaim.take((NODE_PLANT, NODE_SUPERVISOR), (SERVICE_GRASP,), context,
-                                     self.namespace, prefix) if opts.check_names else None
+        try:
+            self._claim = NameClaim.take((NODE_PLANT, NODE_SUPERVISOR), (SERVICE_GRASP,),
+                                         context, self.namespace, prefix) \
+                if opts.check_names else None
+        except BaseException:
+            destroy_probes(self.context)
+            raise
         try:
             self._build(opts, kw)
         except BaseException:
             self.close()
             raise
+        destroy_probes(self.context)      # beside the graph's nodes: the participant stays
 
     def _build(self, opts: GraphOptions, client_kw: dict) -> None:
         sim_time = [Parameter('use_sim_time', value=True)] if opts.use_sim_time else []
@@ -484,14 +490,29 @@ class GripperGraph:
 
         Recordings close first, while the executor still runs; every node leaves the stopped
         executor before it is destroyed. The executor's end is awaited within a node process's
-        clean-up bound (:data:`~gripper_ros.nodes.process.CLEAN_UP_STEP_S`).
+        clean-up bound (:data:`~gripper_ros.nodes.process.CLEAN_UP_STEP_S`, scaled by the
+        machine's load); an executor still in a callback then is ended by shutting the owned
+        context down. Nodes an executor may still be using are never destroyed (rclpy frees
+        their handles under the running callback: a crash in C); they are left to the process's
+        exit, said in one line.
         """
         self.close_recordings()
+        destroy_probes(self.context)      # a graph refused or stopped while starting
         if hasattr(self, '_stop'):
             if not self._stop.done():
                 self._stop.set_result(True)
-            self._thread.join(timeout=CLEAN_UP_STEP_S)
-            release_nodes(self.executor, self.nodes)
+            self._thread.join(timeout=load_bound_s(CLEAN_UP_STEP_S))
+            if self._thread.is_alive() and self._owns_context:
+                rclpy.try_shutdown(context=self.context)
+                self._thread.join(timeout=load_bound_s(CLEAN_UP_STEP_S))
+            if self._thread.is_alive():
+                rclpy.logging.get_logger('gripper_ros').error(
+                    f"the graph's executor did not stop within "
+                    f'{2 * load_bound_s(CLEAN_UP_STEP_S):.1f} s; its {len(self.nodes)} nodes are '
+                    "left to the process's exit")
+                self.nodes = []
+            else:
+                release_nodes(self.executor, self.nodes)
         for node in self.nodes:
             node.destroy_node()
         self.nodes = []
