@@ -111,11 +111,14 @@ done
 # bounds with the load, so a busier machine slows them and fails none). The tests
 # marked serial (a measure against the wall clock itself: test/conftest.py says which and why)
 # then run alone, in one process. The modules go to the workers in the order test/conftest.py
-# collects them (the longest first), not pytest-xdist's (the most tests first).
+# collects them (the longest first), not pytest-xdist's (the most tests first). A worker that
+# crashes ends the run (--max-worker-restart 0): with --dist loadfile, pytest-xdist 3.8 puts the
+# dead worker's finished modules back in its queue as empty units, and the run then waits
+# forever with every worker idle (xdist/scheduler/loadscope.py remove_node; pytest-xdist#1378).
 echo "[test] ROS_DOMAIN_ID(s)=$GRIPPER_ROS_WORKER_DOMAINS ROS_AUTOMATIC_DISCOVERY_RANGE=$ROS_AUTOMATIC_DISCOVERY_RANGE workers=$WORKERS" >&2
 set +e
 if [[ "$WORKERS" != 1 ]]; then
-  python -m pytest "${targets[@]}" -q -n "$WORKERS" --dist loadfile --no-loadscope-reorder -m "not serial" "$@" </dev/null
+  python -m pytest "${targets[@]}" -q -n "$WORKERS" --dist loadfile --no-loadscope-reorder --max-worker-restart 0 -m "not serial" "$@" </dev/null
   rc1=$?
   reap_leftovers
   echo "[test] the serial tests, alone:" >&2
