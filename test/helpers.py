@@ -132,6 +132,30 @@ class ProgressWatch:
         return '; '.join(why)
 
 
+NATIVE_STACKS_BOUND_S = 120.0
+"""A bound on gdb reading a hung process's threads (it takes seconds; more on a loaded machine)."""
+
+
+def native_stacks(pid: int) -> str:
+    """Return every thread's native stack of ``pid`` as gdb prints it ('' without gdb).
+
+    A hang inside DDS or rcl shows only its Python caller in faulthandler's dump: the native
+    frames say where it spins or waits. Read before the process is aborted.
+    """
+    import shutil
+    gdb = shutil.which('gdb')
+    if gdb is None:
+        return ''
+    try:
+        done = subprocess.run([gdb, '-p', str(pid), '-batch', '-nx', '-ex', 'set pagination off',
+                               '-ex', 'thread apply all bt 25'], capture_output=True, text=True,
+                              timeout=NATIVE_STACKS_BOUND_S, stdin=subprocess.DEVNULL)
+    except (subprocess.TimeoutExpired, OSError) as exc:
+        return f'(gdb: {exc})'
+    threads = done.stdout[done.stdout.find('\nThread '):] if '\nThread ' in done.stdout else ''
+    return threads or f'(gdb printed no threads: {done.stderr.strip()[-500:]})'
+
+
 def wait_for_exit(proc, budget_s: float = 60.0) -> int:
     """Return ``proc``'s exit code once it ends; kill it and fail if it hangs meanwhile.
 

@@ -26,7 +26,7 @@ from gripper_ros.wire import (NODE_DESCRIPTION, NODE_EXCITATION, NODE_FORCE_CONT
                               NODE_GRASP_ACTION, NODE_MOVE_ACTION, NODE_PLANT,
                               NODE_POSITION_CONTROLLER, NODE_SUPERVISOR,
                               NODE_TRAJECTORY_ACTION)
-from helpers import ProgressWatch
+from helpers import native_stacks, ProgressWatch
 import pytest
 from rcl_interfaces.srv import GetParameters
 import rclpy
@@ -69,6 +69,10 @@ none answered or exited for it: a node whose DDS threads tick uses some CPU howe
 executor is, so :class:`ProgressWatch` alone would wait for it until the suite's own timeout."""
 ABORT_BOUND_S = 60.0
 """A bound on an aborted process writing its stacks, never reached unless SIGABRT is lost."""
+ABORT_TEXT_CHARS = 4000
+NATIVE_TEXT_CHARS = 30000
+"""What an aborted case's text keeps: the end of its Python stacks, the start of its native
+ones."""
 NODES_DIR = Path(__file__).resolve().parents[1] / 'gripper_ros' / 'nodes'
 
 
@@ -229,14 +233,19 @@ def _finish(case: Case) -> None:
 
 
 def _abort(case: Case, why: str) -> None:
-    """Abort the case's process: faulthandler prints each thread's stack into its test's text."""
+    """Abort the case's process; its threads' stacks go into its test's text.
+
+    The native ones first (gdb: where DDS spins or waits), then faulthandler's Python ones.
+    """
+    native = native_stacks(case.proc.pid)
     case.proc.send_signal(signal.SIGABRT)
     try:
         stacks = case.proc.communicate(timeout=ABORT_BOUND_S)[1]
     except subprocess.TimeoutExpired:
         case.proc.kill()
         stacks = case.proc.communicate()[1]
-    case.stderr = f'{why}, aborted:\n{stacks}'
+    case.stderr = f'{why}, aborted:\n{stacks[-ABORT_TEXT_CHARS:]}' + (
+        f'\nnative stacks (gdb):\n{native[:NATIVE_TEXT_CHARS]}' if native else '')
     case.returncode = case.proc.returncode
 
 
@@ -249,7 +258,7 @@ def test_a_running_node_stopped_by_a_signal_exits_0_at_once_and_quietly(results,
     outlasts it ends the process with 1 and every thread's stack, "Timeout" on stderr.
     """
     case = results[f'{node}-{label}']
-    assert case.answered, f'{node} never answered a parameter request: {case.stderr[-2000:]}'
+    assert case.answered, f'{node} never answered a parameter request: {case.stderr}'
     assert case.returncode == 0, f'exit {case.returncode} {case.exit_s:.1f} s after the ' \
         f'signal: {case.stderr[-6000:]}'
     assert not [w for w in ALARMING if w in case.stderr], case.stderr[-2000:]
@@ -269,7 +278,7 @@ def test_a_bad_start_up_parameter_exits_2_in_one_line(refusals, node, parameter,
 @pytest.mark.parametrize('node', list(MODULES))
 def test_a_second_node_beside_a_running_one_exits_2_in_one_line(results, node):
     first = results[f'{node}-sigint']
-    assert first.twin is not None, f'{node} never ran: {first.stderr[-2000:]}'
+    assert first.twin is not None, f'{node} never ran: {first.stderr}'
     twin = first.twin
     assert twin.returncode == 2, f'exit {twin.returncode}: {twin.stderr[-6000:]}'
     assert 'Traceback' not in twin.stderr
