@@ -83,6 +83,31 @@ the others are done. The rest follow in pytest-xdist's own order (most tests fir
 here orders the modules; no test depends on it."""
 
 
+def pytest_testnodedown(node, error):
+    """Say how a pytest-xdist worker that died ended: the signal that killed it, or its code.
+
+    pytest-xdist says only "Not properly terminated"; a worker ended by a signal nobody
+    handles (SIGKILL, SIGTERM) or by ``_exit`` leaves no stack, so its status is the one clue.
+    """
+    if not error:
+        return
+    import signal
+    import subprocess
+    import sys
+    popen = getattr(getattr(node.gateway, '_io', None), 'popen', None)
+    if popen is None:
+        return
+    try:
+        code = popen.wait(timeout=10)
+    except subprocess.TimeoutExpired:
+        return
+    try:
+        how = f'killed by {signal.Signals(-code).name}' if code < 0 else f'exit code {code}'
+    except ValueError:
+        how = f'status {code}'
+    sys.stderr.write(f'\n[test] pytest-xdist worker {node.gateway.id} ended: {how}\n')
+
+
 def pytest_ignore_collect(collection_path, config):
     """In the serial phase (``-m serial``), leave out the modules that hold no serial test.
 
