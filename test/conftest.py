@@ -83,6 +83,28 @@ the others are done. The rest follow in pytest-xdist's own order (most tests fir
 here orders the modules; no test depends on it."""
 
 
+@pytest.hookimpl(trylast=True)
+def pytest_configure(config):
+    """Keep a fatal error's stacks on pytest's own stream when rclpy re-enables faulthandler.
+
+    rclpy's EventsExecutor (every graph's default executor) calls ``faulthandler.enable()``
+    onto ``sys.stderr``, which during a test is pytest's capture: a worker that then dies of
+    a fatal signal writes its stacks into a capture file nobody reads. A call without a file
+    now writes where pytest's faulthandler plugin does (its copy of the real stderr).
+    """
+    import faulthandler
+    from _pytest.faulthandler import fault_handler_stderr_fd_key
+    stream_fd = config.stash.get(fault_handler_stderr_fd_key, None)
+    if stream_fd is None:
+        return
+    enable = faulthandler.enable
+
+    def enable_on_pytests_stream(file=None, all_threads=True):
+        enable(file=stream_fd if file is None else file, all_threads=all_threads)
+
+    faulthandler.enable = enable_on_pytests_stream
+
+
 def pytest_testnodedown(node, error):
     """Say how a pytest-xdist worker that died ended: the signal that killed it, or its code.
 
