@@ -235,7 +235,7 @@ def _finish(case: Case) -> None:
 def _abort(case: Case, why: str) -> None:
     """Abort the case's process; its threads' stacks go into its test's text.
 
-    The native ones first (gdb: where DDS spins or waits), then faulthandler's Python ones.
+    faulthandler's Python ones first, then the native ones (gdb: where DDS spins or waits).
     """
     native = native_stacks(case.proc.pid)
     case.proc.send_signal(signal.SIGABRT)
