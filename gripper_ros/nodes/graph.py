@@ -96,13 +96,14 @@ class GripperGraph:
         self.close_hooks: list = []          # run first by close() (e.g. open recordings)
         load_config(opts.config_file or None)   # a bad file is refused before a name is taken
         prefix = namespace_prefix(self.namespace) if opts.prefix is None else opts.prefix
-        try:
-            self._claim = NameClaim.take((NODE_PLANT, NODE_SUPERVISOR), (SERVICE_GRASP,),
-                                         context, self.namespace, prefix) \
-                if opts.check_names else None
-        except BaseException:
-            destroy_probes(self.context)
-            raise
+        self._claim = None
+        if opts.check_names:
+            try:
+                self._claim = NameClaim.take((NODE_PLANT, NODE_SUPERVISOR), (SERVICE_GRASP,),
+                                             context, self.namespace, prefix)
+            except BaseException:
+                destroy_probes(self.context)
+                raise
         try:
             self._build(opts, kw)
         except BaseException:
