@@ -55,7 +55,7 @@ def read_settings(context=None) -> dict:
                     for name, default, _ in SETTINGS}          # rclpy declares use_sim_time
         return {**settings, 'namespace': namespace}
     finally:
-        retire_probe(probe)          # the process's anchor (names.anchor_context)
+        retire_probe(probe)          # destroyed once the graph's nodes live
 
 
 def usage() -> str:
@@ -67,16 +67,14 @@ def usage() -> str:
 
 
 def main(args: list[str] | None = None) -> int:
-    """Serve the graph until Ctrl-C or SIGTERM; exit codes and exit as every node executable's."""
+    """Serve the graph until Ctrl-C or SIGTERM; exit codes as every node executable's."""
     import rclpy
     from rclpy._rclpy_pybind11 import RCLError
     from rclpy.exceptions import InvalidNamespaceException, ParameterException
     from gripper_ros.core.config import ConfigError
     from gripper_ros.nodes.graph import GraphError, GraphOptions, GripperGraph
     from gripper_ros.nodes.live_view import LiveViewError, serve_live
-    from gripper_ros.nodes.names import anchor_context
     from gripper_ros.nodes.process import (BoundedCleanUp, CLEAN_UP_LIMIT_S,
-                                           exit_keeping_participant,
                                            exit_without_a_last_collection, GIL_HELD_MARGIN_S,
                                            init_without_signal_handlers, StopSignals,
                                            user_arguments)
@@ -101,7 +99,6 @@ def main(args: list[str] | None = None) -> int:
     with StopSignals(hard_bound_s=CLEAN_UP_LIMIT_S + GIL_HELD_MARGIN_S) as signals:
         if not init_without_signal_handlers(NAME, argv):
             return EXIT_BAD_START
-        anchor_context()                 # the start-up probe outlives the graph's nodes
         try:
             settings = read_settings()
             graph = GripperGraph(GraphOptions(
@@ -128,7 +125,7 @@ def main(args: list[str] | None = None) -> int:
                 if graph is not None:
                     graph.close()
                 rclpy.try_shutdown()
-    exit_keeping_participant(exit_code)
+    return exit_code
 
 
 if __name__ == '__main__':

@@ -38,9 +38,7 @@ DISCOVERY_CONFIRM_S = 1.0
 shut down has left the graph by then and is not mistaken for a running one, and the rest of a
 running graph (its services) has been discovered too."""
 DISCOVERY_POLL_S = 0.05
-PROBE_NODE = f'_gripper_process_{os.getpid()}'
-"""The start-up probe's name: hidden (``ros2 node list`` omits names starting with ``_``) and
-one per process, so that ``ros2 node list --all`` names the process an anchor belongs to."""
+PROBE_NODE = 'gripper_startup_probe'
 
 
 def claims_dir() -> Path:
@@ -229,8 +227,6 @@ def namespace_as_given(default: str = DEFAULT_NAMESPACE, context=None) -> str:
 
 _RETIRED_PROBES: list = []
 """Start-up probes set aside by :func:`retire_probe`, destroyed by :func:`destroy_probes`."""
-_ANCHORED_CONTEXTS: list = []
-"""Contexts whose probes stay for the process's life (:func:`anchor_context`)."""
 
 
 def retire_probe(probe: Node) -> None:
@@ -245,28 +241,13 @@ def retire_probe(probe: Node) -> None:
     _RETIRED_PROBES.append(probe)
 
 
-def anchor_context(context=None) -> None:
-    """Keep the probes of ``context`` (default: rclpy's) alive until the process ends.
-
-    For a process that ends with :func:`~gripper_ros.nodes.process.exit_keeping_participant`:
-    its nodes are destroyed at a stop (their names and endpoints leave the graph at once), the
-    hidden probe stays the context's last node, so no DDS participant is ever deleted, and the
-    spin :func:`retire_probe` describes cannot happen at exit either. Peers drop the bare
-    participant at the end of its lease.
-    """
-    import rclpy
-    _ANCHORED_CONTEXTS.append(context or rclpy.get_default_context())
-
-
 def destroy_probes(context=None) -> None:
-    """Destroy the probes set aside in ``context`` (default: rclpy's), unless it is anchored.
+    """Destroy the probes set aside in ``context`` (default: rclpy's).
 
     Called once a node of the context's own lives there, or when the context is given up.
     """
     import rclpy
     ctx = context or rclpy.get_default_context()
-    if any(ctx is anchored for anchored in _ANCHORED_CONTEXTS):
-        return
     mine = [p for p in _RETIRED_PROBES if p.context is ctx]
     _RETIRED_PROBES[:] = [p for p in _RETIRED_PROBES if p.context is not ctx]
     for probe in mine:

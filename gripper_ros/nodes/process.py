@@ -8,10 +8,10 @@ import os
 import signal
 import sys
 import threading
-from typing import Callable, NoReturn
+from typing import Callable
 
 from gripper_ros.core.config import ConfigError
-from gripper_ros.nodes.names import anchor_context, NameClaim
+from gripper_ros.nodes.names import destroy_probes, NameClaim
 from gripper_ros.nodes.parameters import refuse_unknown_overrides
 from gripper_ros.nodes.startup import EXIT_BAD_START, StartupError
 from gripper_ros.text import one_line
@@ -329,9 +329,7 @@ def run_node(make_node: Callable[[], Node], name: str, args=None,
     traceback, for a bad config file, a refused or unknown start-up parameter or names already
     taken (a node ``name``, or a server of one of ``services``, in its namespace). Any other
     exception is a bug and keeps its traceback. The executor is the node's ``executor`` parameter
-    (``events``, the default, or ``single``). Once rclpy has started, the process ends here
-    (:func:`exit_keeping_participant`); the code is returned only before that (``--help``, bad
-    ``--ros-args``).
+    (``events``, the default, or ``single``).
     """
     import rclpy
     from rclpy._rclpy_pybind11 import RCLError
@@ -351,10 +349,10 @@ def run_node(make_node: Callable[[], Node], name: str, args=None,
     with StopSignals(hard_bound_s=CLEAN_UP_LIMIT_S + GIL_HELD_MARGIN_S) as signals:
         if not init_without_signal_handlers(name, args):
             return EXIT_BAD_START
-        anchor_context()                     # the start-up probe outlives the node
         try:
             claim = NameClaim.take((name,), services)
             node = build_node(make_node)
+            destroy_probes(node.context)     # beside the node: the participant stays
             kind = node.declare_parameter('executor', ExecutorKind.EVENTS.value,
                                           ParameterDescriptor(
                                               description='events (rclpy EventsExecutor) | '
@@ -383,24 +381,7 @@ def run_node(make_node: Callable[[], Node], name: str, args=None,
                 if claim is not None:
                     claim.release()
                 rclpy.try_shutdown()
-    exit_keeping_participant(exit_code)
-
-
-def exit_keeping_participant(code: int) -> NoReturn:
-    """End the process now with ``code``, stdout and stderr flushed, its DDS participant kept.
-
-    The process's nodes are destroyed and its context shut down; only the hidden start-up probe
-    is left (:func:`~gripper_ros.nodes.names.anchor_context`). The interpreter's finalisation
-    would destroy it, the context's last node, and with it the DDS participant, which Fast DDS
-    2.14 can spin on for good (:func:`~gripper_ros.nodes.names.retire_probe`); ``os._exit``
-    leaves the participant to its peers' lease.
-    """
-    for stream in (sys.stdout, sys.stderr):
-        try:
-            stream.flush()
-        except (OSError, ValueError):  # a closed pipe or stream: nothing more can be said
-            pass
-    os._exit(code)
+    return exit_code
 
 
 def node_usage(name: str, make_node) -> str:
