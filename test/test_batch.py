@@ -7,12 +7,14 @@
 - ``simulate_grasps`` gives, for every case, what ``simulate_grasp`` gives in this process,
   whatever the number of worker processes; a refused request comes back as its RequestError;
   ``summarize`` runs in the worker and only its result comes back; summarized cases in one
-  process reuse the rows a case before left free, and give the same bytes.
+  process reuse the rows a case before left free, and give the same bytes; so does a traced
+  grasp (a closed-loop re-run's) that follows them.
 - Bad ``jobs`` are refused.
 """
 from __future__ import annotations
 
 from gripper_ros.core.config import load_config
+from gripper_ros.core.runtime import headless
 from gripper_ros.core.runtime.headless import map_cases, simulate_grasp, simulate_grasps
 from gripper_ros.core.supervision.requests import RequestError
 from gripper_ros.wire import Outcome
@@ -123,6 +125,22 @@ def test_summarized_grasps_in_one_process_give_what_each_gives_alone():
         if rows is not None:
             assert np.array_equal(rows, simulate_grasp(CONFIG, **case).series.ticks['force_n'],
                                   equal_nan=True)
+
+
+def test_a_traced_grasp_after_a_summarized_batch_keeps_every_message():
+    """A traced grasp (a closed-loop re-run's) that writes into rows a batch left free.
+
+    Its ticks start in the spare rows, longer than its first trace rows would be: every
+    message is kept as in the same grasp traced first in the process, byte for byte.
+    """
+    case = dict(CASES[1], trace_state_period_ns=10_000_000)
+    alone = simulate_grasp(CONFIG, **case).series
+    simulate_grasps(CONFIG, [dict(CASES[0], hold_s=2.0)], jobs=1, summarize=_outcome_and_ticks)
+    assert headless._SPARE_ROWS, 'the batch left no rows free: nothing is tested'
+    after = simulate_grasp(CONFIG, **case).series
+    for name in ('ticks', 'references', 'commands', 'statuses', 'objects'):
+        assert getattr(after, name).tobytes() == getattr(alone, name).tobytes(), name
+    assert alone.statuses.size and alone.objects.size
 
 
 @pytest.mark.parametrize('jobs', [0, -1, 1.5, 10 ** 6])

@@ -218,8 +218,9 @@ def run_lockstep(loop, side, plant_k, supervisor, law_buffers, position_k, force
 
     Each tick: keep its row, let the named stage answer, the plant react and hold the command,
     the supervisor decide the next tick. With a state period in ``trace`` it also keeps every
-    message (``trace_*``, at most one row a tick each). Returns False when the row buffers are
-    full (call again with larger ones: everything resumes from the records).
+    message (``trace_*``, at most one row a tick each, in buffers as long as ``ticks``).
+    Returns False when the row buffers are full (call again with larger ones: everything
+    resumes from the records).
     """
     state = loop[0]
     sup = supervisor[0]
@@ -285,8 +286,14 @@ class _Loop:
         self.trace_buffers = {name: np.zeros(0, dtype) for name, dtype in _TRACE_BUFFERS}
 
     def keep_trace(self, state_period_ns: int) -> None:
-        """Keep every message from now on, the object's on a grid of ``state_period_ns``."""
+        """Keep every message from now on, the object's on a grid of ``state_period_ns``.
+
+        The trace buffers take the tick buffers' length (which may be a spare's, not 0): a
+        tick keeps at most one row of each, so a room check on the ticks alone covers them.
+        """
         self.trace[0]['state_period_ns'] = state_period_ns
+        for rows_buffer in self.trace_buffers.values():
+            rows_buffer.resize(self.ticks.shape[0], refcheck=False)
 
     @property
     def tracing(self) -> bool:
