@@ -217,8 +217,8 @@ fi
 
 # ---------------------------------------------------------------- colcon build (skipped when unchanged)
 # --symlink-install: Python sources and config/*.yaml are symlinked, so editing them needs no rebuild.
-# A rebuild is needed when package metadata, entry points, the set of config files or the interfaces
-# change; the hash below covers exactly that.
+# A rebuild is needed when package metadata, entry points (executables.py), the native fix, the set
+# of config files or the interfaces change; the hash below covers exactly that.
 # One colcon build at a time: concurrent runs (parallel test runs on one checkout) share build/ and
 # install/, and two builds at once once left a 0-byte interface library. The second run waits
 # here, then finds the stamp current and skips the build.
@@ -239,6 +239,7 @@ fi
 build_hash="$( {
   echo "mode=$MODE venv=$VENV vendored=${VENDORED[*]}"; cat "$PIP_STAMP"
   find package.xml setup.py setup.cfg resource config launch urdf viewers gripper_interfaces vendor scripts/setup.sh \
+       gripper_ros/executables.py gripper_ros/native/cond_wait_fix.c \
        -path gripper_interfaces/build -prune -o -type f -print 2>/dev/null | LC_ALL=C sort | xargs -r sha256sum
 } | sha256sum | cut -d' ' -f1)"
 

@@ -1,11 +1,10 @@
 """What several test modules share.
 
 Running a console main, writing an MCAP file again, holding a closed-loop re-run to its
-recording, the package's console scripts as setup.py declares them, and checking a doc's examples.
+recording, the package's executables, and checking a doc's examples.
 """
 from __future__ import annotations
 
-import ast
 from dataclasses import asdict
 import json
 import os
@@ -16,6 +15,7 @@ import sys
 import time
 from typing import Callable
 
+from gripper_ros.executables import EXECUTABLES
 import numpy as np
 
 
@@ -176,15 +176,12 @@ def wait_for_exit(proc, budget_s: float = 60.0) -> int:
 
 
 def console_scripts() -> dict[str, str]:
-    """Return setup.py's console scripts: executable name -> ``module:function``."""
-    tree = ast.parse((REPO / 'setup.py').read_text())
-    for node in ast.walk(tree):
-        if isinstance(node, ast.Dict):
-            for key, value in zip(node.keys, node.values):
-                if isinstance(key, ast.Constant) and key.value == 'console_scripts':
-                    entries = [ast.literal_eval(e) for e in value.elts]
-                    return dict((part.strip() for part in e.split('=', 1)) for e in entries)
-    raise AssertionError('setup.py declares no console_scripts')
+    """Return the package's executables: name -> the ``module:function`` each runs.
+
+    setup.py installs each as an entry point of :mod:`gripper_ros.executables`, which preloads
+    the condition-wait fix and then calls that function.
+    """
+    return dict(EXECUTABLES)
 
 
 def claimed_peak_ratio() -> float:

@@ -12,7 +12,7 @@ from pathlib import Path
 PACKAGE = Path(__file__).resolve().parents[1] / 'gripper_ros'
 
 LAYERS = (
-    ('gripper_ros.wire', 'gripper_ros.text', 'gripper_ros.progress'),
+    ('gripper_ros.wire', 'gripper_ros.text', 'gripper_ros.progress', 'gripper_ros.native'),
     ('gripper_ros.core',),
     ('gripper_ros.core.physics',),
     ('gripper_ros.core.control',),
@@ -22,10 +22,12 @@ LAYERS = (
     ('gripper_ros.bags',),
     ('gripper_ros.nodes',),
     ('gripper_ros.apps', 'gripper_ros.bench'),
+    ('gripper_ros.executables',),
 )
 """The layers, lowest first: a module may import its own folder and the layers below it; the
 folders of one layer do not import each other. ``gripper_ros.core`` is the shared modules
-directly in core/ (config, linalg, records, description, series), below every subpackage of it."""
+directly in core/ (config, linalg, records, description, series), below every subpackage of it.
+``gripper_ros.executables`` starts every program (by name, once the fix is preloaded)."""
 
 APP_SHARED = 'gripper_ros.apps.common'
 """What the console programs share; no program imports another."""
