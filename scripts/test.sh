@@ -78,6 +78,16 @@ export GRIPPER_ROS_WORKER_DOMAINS
 export ROS_DOMAIN_ID
 export PYTHONDONTWRITEBYTECODE="${PYTHONDONTWRITEBYTECODE:-1}"
 
+# The tests' own processes (pytest and its workers, whose graphs run in-process, and every
+# `python -m` they start) carry the condition-wait fix the package's executables preload
+# themselves with (gripper_ros/native): a context they close must never spin in Fast DDS.
+cond_wait_fix="$(python -c 'from gripper_ros.native import cond_wait_fix_path as p; print(p() or "")')"
+if [[ -n "$cond_wait_fix" ]]; then
+  export LD_PRELOAD="$cond_wait_fix${LD_PRELOAD:+ $LD_PRELOAD}"
+else
+  echo "[test] the condition-wait fix was not built (no C compiler): stops may spin in Fast DDS" >&2
+fi
+
 # Every process the tests start carries this run's token in its environment. A process still
 # running after a phase (a worker that died leaves its children; a test's clean-up that missed
 # one) is killed and named, so that it loads neither the next phase nor the machine after it.
