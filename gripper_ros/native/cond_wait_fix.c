@@ -30,7 +30,7 @@ __attribute__((constructor)) static void find_glibc_timedwait(void)
 int pthread_cond_timedwait(pthread_cond_t *cond, pthread_mutex_t *mutex,
                            const struct timespec *deadline)
 {
-  if (deadline != NULL && deadline->tv_sec < 0 &&
+  if (deadline->tv_sec < 0 &&
       (deadline->tv_nsec < 0 || deadline->tv_nsec >= 1000000000L)) {
     return pthread_cond_wait(cond, mutex);
   }
