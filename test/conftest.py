@@ -68,11 +68,12 @@ MODULE_SECONDS = {
     'test_docs_bag_tools.py': 154, 'test_docs_transcripts.py': 106,
     'test_node_executables.py': 100, 'test_shutdown.py': 73, 'test_grasp_client.py': 66,
     'test_trajectory_tracking.py': 66,
-    'test_engine.py': 58, 'test_moveit_handles.py': 46, 'test_stock_clients.py': 44,
+    'test_moveit_handles.py': 46, 'test_stock_clients.py': 44, 'test_engine.py': 30,
     'test_namespaces.py': 41, 'test_docs_grip.py': 32, 'test_hostile_graph.py': 31,
     'test_follow_joint_trajectory.py': 30, 'test_faults.py': 27, 'test_live_view.py': 25,
     'test_parameters.py': 24, 'test_bag_recorder.py': 21, 'test_rerun.py': 20, 'test_lift.py': 18,
     'test_portability.py': 17, 'test_identify.py': 17, 'test_recording_faults.py': 16,
+    'test_cond_wait_fix.py': 12,
 }
 """The longest modules' time on a worker (wall time from each module's first test to the next
 module's, three workers, load 3: main f1b29da with test_node_executables' stops made parallel).
