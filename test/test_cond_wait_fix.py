@@ -24,7 +24,7 @@ import sys
 import textwrap
 
 from gripper_ros.native import cond_wait_fix_path
-from helpers import ProgressWatch
+from helpers import wait_for_exit
 import pytest
 
 FIX = cond_wait_fix_path()
@@ -77,9 +77,9 @@ PEER_PROGRAM = textwrap.dedent("""
 """)
 
 
-def _without_fix(environ=None) -> dict:
+def _without_fix() -> dict:
     """Return the environment minus any LD_PRELOAD (the test runner may preload the fix)."""
-    return {k: v for k, v in (environ or os.environ).items() if k != 'LD_PRELOAD'}
+    return {k: v for k, v in os.environ.items() if k != 'LD_PRELOAD'}
 
 
 def _wait(deadline: str, preload: bool) -> tuple[int, bool]:
@@ -128,19 +128,10 @@ def _wait_for_line(proc: subprocess.Popen, words: str) -> list[str]:
     return lines
 
 
-def _stop(proc: subprocess.Popen) -> tuple[int | None, str]:
-    """Ctrl-C ``proc`` and wait for it; a stop that spins or hangs is killed (code None)."""
+def _stop(proc: subprocess.Popen) -> tuple[int, str]:
+    """Ctrl-C ``proc``; return its exit code and stderr (a stop that hangs fails the test)."""
     proc.send_signal(signal.SIGINT)
-    watch = ProgressWatch([proc.pid], STOP_CPU_S)
-    while True:
-        try:
-            return proc.wait(timeout=0.5), proc.stderr.read()
-        except subprocess.TimeoutExpired:
-            hung = watch.hung()
-            if hung:
-                proc.kill()
-                proc.wait()
-                return None, f'stop hung ({hung})'
+    return wait_for_exit(proc, STOP_CPU_S), proc.stderr.read()
 
 
 @needs_fix
@@ -181,8 +172,10 @@ def test_a_node_stopped_with_a_discovery_callback_in_flight_stops(tmp_path):
         seen = _wait_for_line(proc, 'plant ready')
         assert 'plant ready' in seen[-1], ''.join(seen)
     finally:
-        code, text = _stop(proc)
-        peer.kill()
-        peer.wait()
+        try:
+            code, text = _stop(proc)
+        finally:
+            peer.kill()
+            peer.wait()
     assert '[race] set_listener(nullptr) with a discovery callback held in flight' in text, text
     assert code == 0, text
