@@ -7,6 +7,8 @@ from __future__ import annotations
 
 import importlib
 
+from gripper_ros.native import preload_into_this_process
+
 EXECUTABLES = {
     'plant_simulator': 'gripper_ros.nodes.plant_simulator_node:main',
     'position_controller': 'gripper_ros.nodes.position_controller_node:main',
@@ -45,7 +47,6 @@ EXECUTABLES = {
 
 def run(name: str):
     """Run executable ``name``: with the fix preloaded, its main's return value."""
-    from gripper_ros.native import preload_into_this_process
     preload_into_this_process()
     module, function = EXECUTABLES[name].split(':')
     return getattr(importlib.import_module(module), function)()

@@ -27,9 +27,9 @@ def cond_wait_fix_path() -> Path | None:
     return None
 
 
-def preloaded(environ=os.environ) -> bool:
-    """Say whether ``environ``'s LD_PRELOAD names the built fix (of this or any checkout)."""
-    names = environ.get('LD_PRELOAD', '').replace(':', ' ').split()
+def preloaded() -> bool:
+    """Say whether this process's LD_PRELOAD names the built fix (of this or any checkout)."""
+    names = os.environ.get('LD_PRELOAD', '').replace(':', ' ').split()
     return any(Path(name).name.startswith(LIBRARY_STEM + '.') for name in names)
 
 
