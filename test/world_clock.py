@@ -28,16 +28,16 @@ the world's first time, while its process still warms up."""
 
 
 class World:
-    """A world's /clock at ``PACE``, and the joint_states and sim/status of ``namespaces``.
+    """A world's /clock at ``pace``, and the joint_states and sim/status of ``namespaces``.
 
     Each joint_states sample is (DDS source timestamp, stamp ns, position m).
     """
 
-    def __init__(self, namespaces: tuple[str, ...]):
+    def __init__(self, namespaces: tuple[str, ...], pace: float = PACE):
         self.context = Context()
         rclpy.init(context=self.context)
         self.node = rclpy.create_node('world', context=self.context)
-        self.clock = WorldClock(self.node, PACE, keep_history=True)
+        self.clock = WorldClock(self.node, pace, keep_history=True)
         self.lock = threading.Lock()
         self.samples: dict[str, list] = {ns: [] for ns in namespaces}
         self.statuses: list[SimStatus] = []
@@ -77,6 +77,9 @@ class World:
 
     def resume(self) -> None:
         self.clock.resume()
+
+    def step(self, duration_ns: int) -> int:
+        return self.clock.step(duration_ns)
 
     def since(self, ns: str, stamp_ns: int) -> list:
         with self.lock:

@@ -89,6 +89,23 @@ class WorldClock:
         with self.lock:
             self.paused = False
 
+    def step(self, duration_ns: int) -> int:
+        """Paused: move the time on by ``duration_ns`` and publish it now; return it.
+
+        As gz-sim's ``multi_step`` while paused: the world's time then stands again (and goes
+        out every millisecond).
+        """
+        with self.lock:
+            assert self.paused, 'step a paused world'
+            self._now_ns += duration_ns
+            t_ns = self._now_ns
+            if self._keep_history:
+                self.history.append((time.time_ns(), t_ns))
+        msg = type(self._msg)()
+        msg.clock.sec, msg.clock.nanosec = divmod(t_ns, 1_000_000_000)
+        self._pub.publish(msg)
+        return t_ns
+
     def stop(self) -> None:
         self._stop.set()
         self._thread.join(timeout=5.0)

@@ -130,6 +130,7 @@ class SupervisorNode(GripperNode):
         self._commands = JointCommandStream(self.config.plant, self.joint_name)
         self.joint_commands_taken = 0           # setpoints put in force
         self.joint_commands_refused = 0
+        self.joint_command_handled_ns = -1      # the stamp of the newest one taken or refused
         self.create_subscription(JointState, TOPIC_JOINT_COMMANDS, self._on_joint_command,
                                  GRAPH_QOS)
         self.graph_subscription(ServoSetpoint, TOPIC_SERVO_SETPOINT, self._on_servo_setpoint,
@@ -356,6 +357,13 @@ class SupervisorNode(GripperNode):
         self._await_answer(header, response)
 
     def _on_joint_command(self, msg: JointState) -> None:
+        """Take a joint_commands message, then note its stamp: a world in step waits on it."""
+        try:
+            self._take_joint_command(msg)
+        finally:
+            self.joint_command_handled_ns = stamp_ns(msg.header.stamp)
+
+    def _take_joint_command(self, msg: JointState) -> None:
         """Put a new setpoint in force; refuse a bad one with one line, changing nothing."""
         sample_ns = stamp_ns(msg.header.stamp) or None   # when it was sampled, if stamped
         try:
