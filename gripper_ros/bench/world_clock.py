@@ -96,7 +96,8 @@ class WorldClock:
         out every millisecond).
         """
         with self.lock:
-            assert self.paused, 'step a paused world'
+            if not self.paused:
+                raise RuntimeError('world_clock: step() needs a paused world (pause() first)')
             self._now_ns += duration_ns
             t_ns = self._now_ns
             if self._keep_history:
