@@ -56,13 +56,8 @@ class WorldClock:
         msg = self._msg
         while not self._stop.is_set():
             with self.lock:
-                if not self.paused:
-                    self._now_ns += STEP_NS
-                t_ns = self._now_ns
-                if self._keep_history:
-                    self.history.append((time.time_ns(), t_ns))
-            msg.clock.sec, msg.clock.nanosec = divmod(t_ns, 1_000_000_000)
-            self._pub.publish(msg)
+                t_ns = self._advance(0 if self.paused else STEP_NS)
+            self._send(msg, t_ns)
             if self.paused:
                 time.sleep(0.001)
                 next_update = time.monotonic() + period_s
@@ -98,14 +93,20 @@ class WorldClock:
         with self.lock:
             if not self.paused:
                 raise RuntimeError('world_clock: step() needs a paused world (pause() first)')
-            self._now_ns += duration_ns
-            t_ns = self._now_ns
-            if self._keep_history:
-                self.history.append((time.time_ns(), t_ns))
-        msg = type(self._msg)()
+            t_ns = self._advance(duration_ns)
+        self._send(type(self._msg)(), t_ns)
+        return t_ns
+
+    def _advance(self, duration_ns: int) -> int:
+        """Move the time on by ``duration_ns`` (the lock held) and note it; return it."""
+        self._now_ns += duration_ns
+        if self._keep_history:
+            self.history.append((time.time_ns(), self._now_ns))
+        return self._now_ns
+
+    def _send(self, msg, t_ns: int) -> None:
         msg.clock.sec, msg.clock.nanosec = divmod(t_ns, 1_000_000_000)
         self._pub.publish(msg)
-        return t_ns
 
     def stop(self) -> None:
         self._stop.set()
