@@ -24,7 +24,7 @@ from gripper_ros.nodes.services import wait_until
 from gripper_ros.wire import Outcome, qualified, TimeMode, TOPIC_CLOCK, TOPIC_JOINT_STATES
 import pytest
 from sensor_msgs.msg import JointState
-from world_clock import lags_ns, PACE, World, WORLD_START_NS
+from world_clock import following, lags_ns, PACE, World, WORLD_START_NS
 
 STATE_PERIOD_NS = 10_000_000
 """joint_states at state_rate_hz 100."""
@@ -32,17 +32,6 @@ WITHIN_NS = 20_000_000
 """How far behind the world's time a joint_states stamp may be when it is sent."""
 CLOSED_M = 0.10
 """A 50 mm move: from fully open (0.15 m) to 0.10 m."""
-
-
-def _following(namespace: str) -> GripperGraph:
-    """Start a graph on the world's clock, given ``use_sim_time`` as launch gives gripper_graph.
-
-    The launch file's parameters reach every node of the process (``/**``), the deferred
-    services' private server nodes too.
-    """
-    return GripperGraph.in_own_context(GraphOptions(
-        namespace=namespace, time_mode=TimeMode.REALTIME.parameter, use_sim_time=True),
-        args=['--ros-args', '-p', 'use_sim_time:=true'])
 
 
 def _move_samples(samples: list) -> list[tuple[int, float]]:
@@ -80,7 +69,7 @@ def test_at_half_pace_the_stamps_are_the_world_s_and_a_move_takes_twice_the_wall
     ns = 'sim_time_half'
     world = World((ns,))
     try:
-        with _following(ns) as graph:
+        with following(ns) as graph:
             assert graph.plant.time_mode is TimeMode.SIM_TIME
             assert wait_until(lambda: len(world.samples[ns]) >= 50, 30.0)
             # the gripper publishes no /clock: the world's is the one
@@ -121,7 +110,7 @@ def test_while_the_world_stands_still_nothing_moves_and_no_watchdog_fires(refere
     ns = 'sim_time_still'
     world = World((ns,))
     try:
-        with _following(ns) as graph:
+        with following(ns) as graph:
             tick_timeout_s = graph.supervisor.tick_timeout_s
             assert wait_until(lambda: len(world.samples[ns]) >= 10, 30.0)
             mark_ns = graph.sim_time_ns
@@ -157,9 +146,9 @@ def test_while_the_world_stands_still_nothing_moves_and_no_watchdog_fires(refere
 def test_two_grippers_on_one_world_clock_publish_the_same_stamps():
     world = World(('sim_time_left', 'sim_time_right'))
     try:
-        with _following('sim_time_left'):
+        with following('sim_time_left'):
             assert wait_until(lambda: len(world.samples['sim_time_left']) >= 20, 30.0)
-            with _following('sim_time_right'):      # started later: the world's time, too
+            with following('sim_time_right'):      # started later: the world's time, too
                 assert wait_until(lambda: len(world.samples['sim_time_right']) >= 50, 30.0)
                 with world.lock:
                     right = [s[1] for s in world.samples['sim_time_right']]
@@ -181,7 +170,7 @@ def test_on_the_world_clock_sim_pause_and_step_are_refused_and_fast_mode_is_not_
     from gripper_ros.nodes.startup import StartupError
     world = World(('sim_time_refusals',))
     try:
-        with _following('sim_time_refusals') as graph:
+        with following('sim_time_refusals') as graph:
             assert wait_until(lambda: world.samples['sim_time_refusals'], 30.0)
             for answer in (graph.pause(), graph.resume(), graph.step(ticks=3)):
                 assert not answer.success and 'use_sim_time' in answer.message, answer.message

@@ -31,20 +31,18 @@ import threading
 from diagnostic_msgs.msg import DiagnosticStatus
 from gripper_interfaces.msg import SupervisorStatus
 from gripper_ros.core.config import load_config
-from gripper_ros.nodes.graph import GraphOptions, GripperGraph
 from gripper_ros.nodes.qos import GRAPH_QOS, LATCHED_QOS
 from gripper_ros.nodes.services import wait_until
 from gripper_ros.nodes.stamps import ns_to_time
 from gripper_ros.studies.servo_runs import needed_peak_v, Sine, Spline, Trapezoid
-from gripper_ros.wire import (DEFAULT_NAMESPACE, FINGER_JOINT, qualified, TimeMode,
-                              TOPIC_GRIPPER_STATUS, TOPIC_JOINT_COMMANDS, TOPIC_JOINT_STATES,
-                              TOPIC_STATUS)
+from gripper_ros.wire import (DEFAULT_NAMESPACE, FINGER_JOINT, qualified, TOPIC_GRIPPER_STATUS,
+                              TOPIC_JOINT_COMMANDS, TOPIC_JOINT_STATES, TOPIC_STATUS)
 from helpers import in_executor
 import numpy as np
 import pytest
 from rclpy.qos import qos_profile_sensor_data, QoSProfile
 from sensor_msgs.msg import JointState
-from world_clock import World
+from world_clock import following, World
 
 CONFIG = load_config()
 P = CONFIG.plant
@@ -67,9 +65,7 @@ def world():
 @pytest.fixture(scope='module')
 def graph(world):
     """Start the graph on the world's clock, given ``use_sim_time`` as launch gives it."""
-    with GripperGraph.in_own_context(GraphOptions(
-            time_mode=TimeMode.REALTIME.parameter, use_sim_time=True),
-            args=['--ros-args', '-p', 'use_sim_time:=true']) as g:
+    with following() as g:
         yield g
 
 
@@ -167,14 +163,13 @@ class WorldInStep:
 
     def run_until(self, t_ns: int) -> None:
         """Step the world until its time is ``t_ns`` or later and that update has been taken."""
-        system = self.system
+        system, supervisor = self.system, self.supervisor
         while True:
             now_ns = self.t_ns
             assert wait_until(lambda: system.done_ns >= now_ns, WAIT_S, POLL_S), \
                 (system.done_ns, now_ns)
             with system.lock:
                 wrote = bool(system.published) and system.published[-1][0] == now_ns
-            supervisor = self.supervisor
             if wrote:
                 assert wait_until(lambda: supervisor.joint_command_handled_ns >= now_ns,
                                   WAIT_S, POLL_S), (supervisor.joint_command_handled_ns, now_ns)

@@ -11,8 +11,10 @@ import threading
 
 from gripper_interfaces.msg import SimStatus
 from gripper_ros.bench.world_clock import START_NS, WorldClock
+from gripper_ros.nodes.graph import GraphOptions, GripperGraph
 from gripper_ros.nodes.qos import GRAPH_QOS
-from gripper_ros.wire import qualified, TOPIC_JOINT_STATES, TOPIC_SIM_STATUS
+from gripper_ros.wire import (DEFAULT_NAMESPACE, qualified, TimeMode, TOPIC_JOINT_STATES,
+                              TOPIC_SIM_STATUS)
 import rclpy
 from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
@@ -25,6 +27,17 @@ WORLD_START_NS = START_NS
 SETTLING_NS = 100_000_000
 """A gripper's first 0.1 s of simulated time: it starts on its state grid, up to a period behind
 the world's first time, while its process still warms up."""
+
+
+def following(namespace: str = DEFAULT_NAMESPACE) -> GripperGraph:
+    """Start a graph on the world's clock, given ``use_sim_time`` as launch gives gripper_graph.
+
+    The launch file's parameters reach every node of the process (``/**``), the deferred
+    services' private server nodes too.
+    """
+    return GripperGraph.in_own_context(GraphOptions(
+        namespace=namespace, time_mode=TimeMode.REALTIME.parameter, use_sim_time=True),
+        args=['--ros-args', '-p', 'use_sim_time:=true'])
 
 
 class World:
