@@ -118,6 +118,7 @@ class SupervisorNode(GripperNode):
         self.graph_subscription(PlantTick, TOPIC_TICK, self._on_tick)
         self.sim_paused = False                 # the plant's sim/status says time is held
         self._last_tick_wall = time.monotonic()  # any tick, a republished one included
+        self._tripped_wall: float | None = None  # when the watchdog found this silence too long
         self.graph_subscription(SimStatus, TOPIC_SIM_STATUS, self._on_sim_status, raw=False)
         self.create_subscription(AccelStamped, TOPIC_PLANNED_ACCELERATION, self._on_plan,
                                  GRAPH_QOS)
@@ -506,18 +507,24 @@ class SupervisorNode(GripperNode):
         """Lockstep stalls if a node dies: end the request as FAULT, naming who went silent.
 
         Only time in which the executor demonstrably ran counts (``ExecutorSilence``): after a
-        stall of the whole process, ticks queued behind this timer are not silence.
+        stall of the whole process, ticks queued behind this timer are not silence. A plant
+        still discovered is told alive or gone by its republished ticks: the fault waits for
+        the next one (due within ``REPUBLISH_AFTER_S``) or for their silence.
         """
         running = self.logic.running
         silent_s = self._silence.check(counting=running and not self.sim_paused)
         if not running or silent_s < self.tick_timeout_s:
+            self._tripped_wall = None
             return
+        now = time.monotonic()
+        if self._tripped_wall is None:
+            self._tripped_wall = now
         expected = STAGE_NODES.get(self.logic.active, '?')
         commanders = {i.node_name for i in self.get_publishers_info_by_topic(
             self.resolve_topic_name(TOPIC_MOTOR_COMMAND))}
         plants = {i.node_name for i in self.get_publishers_info_by_topic(
             self.resolve_topic_name(TOPIC_TICK))}
-        tick_silent_s = time.monotonic() - self._last_tick_wall
+        tick_silent_s = now - self._last_tick_wall
         if expected not in commanders:
             who = f'{expected} is gone (no publisher on {TOPIC_MOTOR_COMMAND})'
         elif NODE_PLANT not in plants:
@@ -526,6 +533,8 @@ class SupervisorNode(GripperNode):
             # a live plant publishes an unanswered tick again every REPUBLISH_AFTER_S
             who = (f'{NODE_PLANT} is gone or hung (no tick at all for {tick_silent_s:.2f} s; '
                    f'a killed process stays discovered for a while)')
+        elif self._last_tick_wall <= self._tripped_wall:
+            return                              # no tick since: alive or gone, the next says
         else:
             who = f'{expected} did not answer or {NODE_PLANT} did not advance'
         t_ns = self._tick.stamp_ns if self._tick else 0
