@@ -21,6 +21,7 @@ from pathlib import Path
 import sys
 import typing
 
+from gripper_ros.yaml_read import safe_load_yaml
 import yaml
 
 PACKAGE_NAME = 'gripper_ros'
@@ -695,7 +696,7 @@ def _optional(section: str) -> bool:
 
 @functools.cache
 def _shipped_data() -> dict:
-    return yaml.safe_load(shipped_config_path().read_text(encoding='utf-8'))
+    return safe_load_yaml(shipped_config_path().read_text(encoding='utf-8'))
 
 
 def _absent_value(dotted: str):
@@ -916,7 +917,7 @@ def load_config(path: str | os.PathLike | None = None) -> GripperConfig:
         raise ConfigError(f'config file {file_path} is not UTF-8 text (byte {exc.start}): '
                           'is it a YAML file?') from None
     try:
-        data = yaml.safe_load(text)
+        data = safe_load_yaml(text)
     except yaml.YAMLError as exc:
         raise ConfigError(f'config file {file_path} is not valid YAML: {exc}') from None
     except RecursionError:
