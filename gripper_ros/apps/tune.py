@@ -45,7 +45,6 @@ import warnings
 from gripper_ros.apps.common import load_config_or_report, negative_option, with_values
 from gripper_ros.core.config import bounds_of
 from gripper_ros.core.runtime.engine import add_engine_arguments
-from gripper_ros.yaml_read import safe_load_yaml
 
 PROG = 'tune'
 ENVELOPES = ('quick', 'tablev', 'holdout')
@@ -162,7 +161,7 @@ def _envelope_file(path: str, config) -> list:
     import yaml
     from gripper_ros.studies.sweep_runs import SweepCase
     try:
-        data = safe_load_yaml(Path(path).read_text(encoding='utf-8'))
+        data = yaml.safe_load(Path(path).read_text(encoding='utf-8'))
     except OSError as exc:
         raise TuneError(f'cannot read envelope {path} ({exc.strerror or exc}); named '
                         f'envelopes: {", ".join(ENVELOPES)}') from None

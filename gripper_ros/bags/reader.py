@@ -22,7 +22,6 @@ import sys
 from typing import Any, Callable, Iterable, Iterator
 
 from gripper_ros.text import one_line
-from gripper_ros.yaml_read import safe_load_yaml
 import yaml
 
 EXIT_ERROR = 1
@@ -310,7 +309,7 @@ def _read_mcap(path: Path) -> _McapFile:
 
 def _load_metadata_yaml(path: Path) -> dict:
     try:
-        data = safe_load_yaml(path.read_text(encoding='utf-8'))
+        data = yaml.safe_load(path.read_text(encoding='utf-8'))
     except (OSError, yaml.YAMLError, UnicodeDecodeError) as exc:
         raise UnreadableBagError(f'{path}: unreadable metadata.yaml: {one_line(exc)}') from None
     if not isinstance(data, dict) or not isinstance(data.get('rosbag2_bagfile_information'), dict):
@@ -362,7 +361,7 @@ def _parse_qos(text: str) -> list:
     if not text:
         return []
     try:
-        value = safe_load_yaml(text)
+        value = yaml.safe_load(text)
     except yaml.YAMLError:
         return []
     return value if isinstance(value, list) else []
@@ -424,7 +423,7 @@ def read_bag(path: str | os.PathLike, *, allow_empty: bool = False) -> Bag:
     # metadata precedence: metadata.yaml, then the rosbag2 record inside the file
     if not info and record_meta.get('serialized_metadata'):
         try:
-            parsed = safe_load_yaml(record_meta['serialized_metadata'])
+            parsed = yaml.safe_load(record_meta['serialized_metadata'])
             if isinstance(parsed, dict):
                 info = parsed.get('rosbag2_bagfile_information', parsed)
         except yaml.YAMLError:

@@ -41,7 +41,6 @@ from gripper_ros.core.supervision.requests import GraspRequest, RequestError, va
 from gripper_ros.text import one_line
 from gripper_ros.wire import (Controller, DEFAULT_STATE_RATE_HZ, FaultKind, Outcome, Phase,
                               TimeMode)
-from gripper_ros.yaml_read import safe_load_yaml
 import numpy as np
 import yaml
 
@@ -236,7 +235,7 @@ def parse_sweep(text: str) -> tuple[str, list]:
 
 def _value(text: str):
     try:
-        value = safe_load_yaml(text)
+        value = yaml.safe_load(text)
     except yaml.YAMLError:
         return text
     if isinstance(value, str):

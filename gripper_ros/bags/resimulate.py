@@ -49,7 +49,6 @@ from gripper_ros.text import one_line
 from gripper_ros.wire import (COMMAND_LAYOUT, qualified, REFERENCE_LAYOUT, stamp_ns,
                               TOPIC_FORCE_REFERENCE, TOPIC_FORCE_SENSOR, TOPIC_JOINT_STATES,
                               TOPIC_MOTOR_COMMAND, TOPIC_POSITION_REFERENCE, TOPIC_STATUS)
-from gripper_ros.yaml_read import safe_load_yaml
 import yaml
 
 OPEN_LOOP_NOTE = ('open loop: the recorded measurements and supervisor decisions are replayed; '
@@ -153,7 +152,7 @@ def load_resim_config(config_path: str | os.PathLike | None) -> GripperConfig:
     except UnicodeDecodeError:
         raise ConfigError(f'config file {path} is not UTF-8 text') from None
     try:
-        data = safe_load_yaml(text)
+        data = yaml.safe_load(text)
     except yaml.YAMLError as exc:
         mark = getattr(exc, 'problem_mark', None)
         problem = getattr(exc, 'problem', None) or str(exc)

@@ -21,7 +21,6 @@ from pathlib import Path
 import sys
 import typing
 
-from gripper_ros.yaml_read import safe_load_yaml
 import yaml
 
 PACKAGE_NAME = 'gripper_ros'
@@ -696,7 +695,7 @@ def _optional(section: str) -> bool:
 
 @functools.cache
 def _shipped_data() -> dict:
-    return safe_load_yaml(shipped_config_path().read_text(encoding='utf-8'))
+    return yaml.safe_load(shipped_config_path().read_text(encoding='utf-8'))
 
 
 def _absent_value(dotted: str):
@@ -917,7 +916,7 @@ def load_config(path: str | os.PathLike | None = None) -> GripperConfig:
         raise ConfigError(f'config file {file_path} is not UTF-8 text (byte {exc.start}): '
                           'is it a YAML file?') from None
     try:
-        data = safe_load_yaml(text)
+        data = yaml.safe_load(text)
     except yaml.YAMLError as exc:
         raise ConfigError(f'config file {file_path} is not valid YAML: {exc}') from None
     except RecursionError:
