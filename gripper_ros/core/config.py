@@ -905,8 +905,17 @@ def read_as_notes(config: GripperConfig) -> list[str]:
     return []
 
 
+@functools.lru_cache(maxsize=8)
+def _parsed_yaml(text: str):
+    return yaml.safe_load(text)
+
+
 def load_config(path: str | os.PathLike | None = None) -> GripperConfig:
-    """Load and validate the YAML file (default: the package's ``config/gripper.yaml``)."""
+    """Load and validate the YAML file (default: the package's ``config/gripper.yaml``).
+
+    A text read before in this process is not parsed again (a graph's start reads its config
+    once per node, 20 ms each); the caller gets a copy of what it parsed to.
+    """
     file_path = Path(path) if path is not None else default_config_path()
     try:
         text = file_path.read_text(encoding='utf-8')
@@ -916,7 +925,7 @@ def load_config(path: str | os.PathLike | None = None) -> GripperConfig:
         raise ConfigError(f'config file {file_path} is not UTF-8 text (byte {exc.start}): '
                           'is it a YAML file?') from None
     try:
-        data = yaml.safe_load(text)
+        data = copy.deepcopy(_parsed_yaml(text))
     except yaml.YAMLError as exc:
         raise ConfigError(f'config file {file_path} is not valid YAML: {exc}') from None
     except RecursionError:
