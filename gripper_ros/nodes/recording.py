@@ -389,14 +389,8 @@ def recorded_grasp(graph, bag_dir, width_m: float, mass_kg: float,
     finally:
         tap.on_error = None
         if fast:
-            drain_published(graph, tap, recorder, before, received_before)
+            published = drain_published(graph, tap, recorder, before, received_before)
             tap.sink = None             # time stands still: the last tick is whole
-            published = _published_since(graph, tap, before)
-            unseen = {t: n - (tap.received[t] - received_before[t])
-                      for t, n in published.items() if tap.received[t] - received_before[t] < n}
-            if unseen and not tap.error:
-                tap.error = (f'recording incomplete: {bag_dir}: published but never seen by the '
-                             f'recorder: {unseen}')
         else:
             tap.stop()                  # realtime: at a tick, once the last one is whole
             published = {}              # (time runs on: no count to compare with)
@@ -437,13 +431,13 @@ def _published_since(graph, tap: GraphTap, before: dict) -> dict:
 
 
 def drain_published(graph, tap: GraphTap, recorder: BagRecorder, before: dict,
-                    received_before: dict, timeout_s: float = 60.0) -> None:
-    """Wait until the tap has received every message published since ``before``.
+                    received_before: dict, timeout_s: float = 60.0) -> dict:
+    """Wait until the tap has seen all published since ``before``; return the counts per topic.
 
     Time stands still then; a tick the tap still holds for its decision is written. /tf
     follows joint_states through description_publisher: the last joint state is waited for first.
     ``timeout_s`` is for free cores (:func:`~gripper_ros.nodes.process.load_bound_s`): past it
-    the recording is called incomplete.
+    the recording is incomplete, and the tap's :attr:`~GraphTap.error` names what it never saw.
     """
     timeout_s = load_bound_s(timeout_s)
     description = getattr(graph, 'description', None)
@@ -454,6 +448,12 @@ def drain_published(graph, tap: GraphTap, recorder: BagRecorder, before: dict,
     wait_until(lambda: recorder.closed or all(
         tap.received[t] - received_before[t] >= n for t, n in published.items()), timeout_s)
     tap.flush()
+    unseen = {t: n - (tap.received[t] - received_before[t])
+              for t, n in published.items() if tap.received[t] - received_before[t] < n}
+    if unseen and not tap.error:
+        tap.error = (f'recording incomplete: {recorder.bag_dir}: published but never seen by the '
+                     f'recorder: {unseen}')
+    return published
 
 
 class ServeRecorder:
@@ -580,5 +580,8 @@ class ServeRecorder:
         self._timer.cancel()
         self.tap.on_closed = None
         sink = self.tap.stop()                  # the executor still runs the tap here
+        if self.tap.error:
+            self._report(self.tap.error)
+            self.tap.error = ''
         self._close_sink(sink)
         self._close_bag()
