@@ -543,11 +543,15 @@ class ServeRecorder:
 
     def _check(self) -> None:
         self.tap.check_closing()
+        self._report_tap_error()
+        if self._answered and self.tap.sink is not None and self.graph.stands_still():
+            self._close_bag()                   # no linger tick is coming
+
+    def _report_tap_error(self) -> None:
+        """Report why the tap's last bag stopped early, once."""
         if self.tap.error:
             self._report(self.tap.error)
             self.tap.error = ''
-        if self._answered and self.tap.sink is not None and self.graph.stands_still():
-            self._close_bag()                   # no linger tick is coming
 
     def _report(self, message: str) -> None:
         self.errors.append(message)
@@ -580,8 +584,6 @@ class ServeRecorder:
         self._timer.cancel()
         self.tap.on_closed = None
         sink = self.tap.stop()                  # the executor still runs the tap here
-        if self.tap.error:
-            self._report(self.tap.error)
-            self.tap.error = ''
+        self._report_tap_error()
         self._close_sink(sink)
         self._close_bag()
