@@ -261,6 +261,29 @@ STAGE_REFERENCE_TOPICS = {Controller.POSITION: TOPIC_POSITION_REFERENCE,
 """Each stage's references: the supervisor to the node it names, on the ticks it names it."""
 
 
+class PositionControllerKind(enum.Enum):
+    """The position stage's law (parameter ``position_controller``; Table II)."""
+
+    PD = 'pd'
+    PID = 'pid'
+    MPC_PD = 'mpc_pd'
+
+
+class ForceControllerKind(enum.Enum):
+    """The force stage's law (parameter ``force_controller``; Table II, and ours)."""
+
+    PI = 'pi'                           # the paper's structure, our discrete gains
+    MPC_PI = 'mpc_pi'                   # DMC over that PI
+    CONTACT_AWARE = 'contact_aware'     # ours: rigid and compliant objects (contact_force.py)
+
+
+DEFAULT_POSITION_CONTROLLER = PositionControllerKind.MPC_PD
+DEFAULT_FORCE_CONTROLLER = ForceControllerKind.CONTACT_AWARE
+DEFAULT_APPROACH_FORCE_MARGIN = 1.0
+"""Parameter ``approach_force_margin``: the force stage's voltage before contact is capped at
+this many times F_sp / (N per V)."""
+
+
 class SwitchCriterion(enum.IntEnum):
     """``SupervisorStatus.SWITCH_*``: what ended the position stage."""
 

@@ -237,7 +237,8 @@ def test_the_rigid_loops_pi_would_spike_on_the_stiff_object():
     With our rigid gains it overshoots many times over, which is what this stage exists to
     prevent.
     """
-    from gripper_ros.core.control.factories import ForceControllerKind, make_force_controller
+    from gripper_ros.core.control.factories import make_force_controller
+    from gripper_ros.wire import ForceControllerKind
     plant = make_plant(CONFIG)
     plant.set_object(GraspObject(PLANT.max_travel_m - 0.1, 1e5, 50.0))
     plant.touch_object()

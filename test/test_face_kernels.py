@@ -16,8 +16,7 @@ import string
 
 from gripper_ros.core.config import load_config
 from gripper_ros.core.control.dmc import CascadedMpc
-from gripper_ros.core.control.factories import (ForceControllerKind, make_plant,
-                                                PositionControllerKind)
+from gripper_ros.core.control.factories import make_plant
 from gripper_ros.core.control.pid import AntiWindup, DerivativeOn, PID
 from gripper_ros.core.control.stages import (ForceStageController, LockstepAnswerer,
                                              PositionStageController, Reference)
@@ -30,7 +29,8 @@ from gripper_ros.core.runtime.lockstep import PlantSide, StageSide, SupervisorSi
 from gripper_ros.core.supervision import machine, messages
 from gripper_ros.core.supervision import supervisor as sv
 from gripper_ros.core.supervision.requests import MoveRequest, MoveTargets
-from gripper_ros.wire import CDR_LITTLE_ENDIAN, FaultKind
+from gripper_ros.wire import (CDR_LITTLE_ENDIAN, FaultKind, ForceControllerKind,
+                              PositionControllerKind)
 import numba
 import numpy as np
 

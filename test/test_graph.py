@@ -279,7 +279,8 @@ def test_position_stage_in_the_graph_is_the_controller_step_run(paper_runs, inde
     test_position_limit holds the step run's figures to the targets; here the graph follows it
     up to the switch, and the voltage never leaves +-24 V.
     """
-    from gripper_ros.core.control.factories import make_position_controller, PositionControllerKind
+    from gripper_ros.core.control.factories import make_position_controller
+    from gripper_ros.wire import PositionControllerKind
     from gripper_ros.studies.step_runs import position_step
     width, _ = PAPER_OBJECTS[index]
     setpoint = L_LS - width

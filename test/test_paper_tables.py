@@ -7,11 +7,11 @@ from pathlib import Path
 
 from gripper_ros.apps import paper_tables
 from gripper_ros.core.config import load_config
-from gripper_ros.core.control.factories import (force_pi_gains, ForceControllerKind,
-                                                make_force_controller)
+from gripper_ros.core.control.factories import force_pi_gains, make_force_controller
 from gripper_ros.studies.metrics import step_metrics, StepMetrics
 from gripper_ros.studies.paper import PAPER_TABLE_III, PAPER_TABLE_IV
 from gripper_ros.studies.step_runs import force_step
+from gripper_ros.wire import ForceControllerKind
 import numpy as np
 import pytest
 from scipy.signal import step as lti_step

@@ -3,11 +3,11 @@ import dataclasses
 
 from gripper_ros.apps.position_limit import main
 from gripper_ros.core.config import load_config
-from gripper_ros.core.control.factories import (make_plant, make_position_controller,
-                                                PositionControllerKind)
+from gripper_ros.core.control.factories import make_plant, make_position_controller
 from gripper_ros.studies.metrics import step_metrics
 from gripper_ros.studies.position_floor import minimum_time_floor, rms_floor
 from gripper_ros.studies.step_runs import position_step
+from gripper_ros.wire import PositionControllerKind
 import numpy as np
 import pytest
 

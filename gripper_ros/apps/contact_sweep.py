@@ -208,7 +208,7 @@ def plot(config, rows: list[SweepRow], path: str) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
-    from gripper_ros.core.control.factories import ForceControllerKind
+    from gripper_ros.wire import ForceControllerKind
     parser = argparse.ArgumentParser(prog='contact_sweep', description=__doc__.splitlines()[0])
     parser.add_argument('--config', help='YAML parameter file (default: installed)')
     grid = parser.add_mutually_exclusive_group()

@@ -21,14 +21,12 @@ import time
 
 def build_parser() -> argparse.ArgumentParser:
     from gripper_ros.core.config import ForceLaw
-    from gripper_ros.core.control.factories import ForceControllerKind, PositionControllerKind
-    from gripper_ros.core.control.stages import (DEFAULT_APPROACH_FORCE_MARGIN,
-                                                 DEFAULT_FORCE_CONTROLLER,
-                                                 DEFAULT_POSITION_CONTROLLER)
     from gripper_ros.nodes.live_view import DEFAULT_ADDRESS, DEFAULT_PORT
     from gripper_ros.nodes.process import ExecutorKind
     from gripper_ros.studies.lift_runs import LIFT_DELAY_S, LIFT_DURATION_S
-    from gripper_ros.wire import DEFAULT_NAMESPACE, TIME_MODE_CHOICES
+    from gripper_ros.wire import (DEFAULT_APPROACH_FORCE_MARGIN, DEFAULT_FORCE_CONTROLLER,
+                                  DEFAULT_NAMESPACE, DEFAULT_POSITION_CONTROLLER,
+                                  ForceControllerKind, PositionControllerKind, TIME_MODE_CHOICES)
     p = argparse.ArgumentParser(prog='grasp_demo', description=__doc__.splitlines()[0])
     p.add_argument('--width', type=float, help='object width (m); with --mass grasps one object')
     p.add_argument('--mass', type=float,

@@ -15,12 +15,12 @@ import sys
 
 from gripper_ros.apps.common import load_config_or_report
 from gripper_ros.core.config import GripperConfig
-from gripper_ros.core.control.factories import (force_pi_gains, ForceControllerKind,
-                                                make_force_controller, make_position_controller,
-                                                PositionControllerKind)
+from gripper_ros.core.control.factories import (force_pi_gains, make_force_controller,
+                                                make_position_controller)
 from gripper_ros.studies.metrics import StepMetrics
 from gripper_ros.studies.paper import PAPER_TABLE_III, PAPER_TABLE_IV
 from gripper_ros.studies.step_runs import force_step, position_step
+from gripper_ros.wire import ForceControllerKind, PositionControllerKind
 
 POSITION_SETPOINT_M = 0.1
 POSITION_HORIZON_S = 20.0

@@ -66,7 +66,8 @@ def main(argv: list[str] | None = None) -> int:
 
     import numpy as np
 
-    from gripper_ros.core.control.factories import make_position_controller, PositionControllerKind
+    from gripper_ros.core.control.factories import make_position_controller
+    from gripper_ros.wire import PositionControllerKind
     from gripper_ros.studies.step_runs import position_step
     braking_v = config.position.mpc_pd_braking_voltage_v or 20.0
     governed = dataclasses.replace(config, position=dataclasses.replace(

@@ -32,10 +32,9 @@ from gripper_ros.bags.reader import (
     read_bag,
 )
 from gripper_ros.bags.schema import import_message_class
-from gripper_ros.core.control.factories import ForceControllerKind, PositionControllerKind
-from gripper_ros.core.control.stages import (DEFAULT_APPROACH_FORCE_MARGIN,
-                                             DEFAULT_POSITION_CONTROLLER)
-from gripper_ros.wire import GRAPH_QOS_DEPTH, TOPIC_CLOCK
+from gripper_ros.wire import (DEFAULT_APPROACH_FORCE_MARGIN, DEFAULT_POSITION_CONTROLLER,
+                              ForceControllerKind, GRAPH_QOS_DEPTH, PositionControllerKind,
+                              TOPIC_CLOCK)
 
 PROG = 'bag_replay'
 _PROGRESS_PERIOD_S = 0.1

@@ -31,15 +31,14 @@ from gripper_ros.bags.resimulate import build_stages, load_resim_config
 from gripper_ros.bags.series import bag_namespace, load_grasp_series
 from gripper_ros.core.config import (ConfigError, dotted_section, flatten, GripperConfig,
                                      parse_config)
-from gripper_ros.core.control.factories import ForceControllerKind, PositionControllerKind
-from gripper_ros.core.control.stages import (DEFAULT_APPROACH_FORCE_MARGIN,
-                                             DEFAULT_FORCE_CONTROLLER, DEFAULT_POSITION_CONTROLLER)
 from gripper_ros.core.physics.plant import check_fault, GraspObject, Lift
 from gripper_ros.core.runtime.headless import HeadlessGrasp, map_cases, simulate_grasp
 from gripper_ros.core.series import GraspSeries
 from gripper_ros.core.supervision.requests import GraspRequest, RequestError, validate_request
 from gripper_ros.text import one_line
-from gripper_ros.wire import (Controller, DEFAULT_STATE_RATE_HZ, FaultKind, Outcome, Phase,
+from gripper_ros.wire import (Controller, DEFAULT_APPROACH_FORCE_MARGIN, DEFAULT_FORCE_CONTROLLER,
+                              DEFAULT_POSITION_CONTROLLER, DEFAULT_STATE_RATE_HZ, FaultKind,
+                              ForceControllerKind, Outcome, Phase, PositionControllerKind,
                               TimeMode)
 import numpy as np
 import yaml

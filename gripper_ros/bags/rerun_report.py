@@ -12,7 +12,7 @@ from typing import Any
 
 from gripper_ros.bags.analyze import format_cell, GraspMetrics
 from gripper_ros.bags.rerun import RECORDING_TOLERANCE, Rerun, series_nrmse, WhatIf
-from gripper_ros.core.control.stages import DEFAULT_APPROACH_FORCE_MARGIN
+from gripper_ros.wire import DEFAULT_APPROACH_FORCE_MARGIN
 
 SKIPPED = ('bag', 'grasp_id', 'truncated', 'grasp_start_s', 'grasp_end_s')
 """GraspMetrics fields that say which grasp, not how it went."""

@@ -39,16 +39,16 @@ from gripper_ros.bags.reader import Bag, BagError, open_bag
 from gripper_ros.bags.series import (bag_namespace, LEGACY_MOTOR_COMMAND, LEGACY_MOTOR_STATE,
                                      LEGACY_NAMESPACE, LEGACY_TOPICS)
 from gripper_ros.core.config import ConfigError, default_config_path, GripperConfig, parse_config
-from gripper_ros.core.control.factories import ForceControllerKind, PositionControllerKind
-from gripper_ros.core.control.stages import (DEFAULT_APPROACH_FORCE_MARGIN,
-                                             DEFAULT_FORCE_CONTROLLER, DEFAULT_POSITION_CONTROLLER,
-                                             ForceStageController, PositionStageController,
+from gripper_ros.core.control.stages import (ForceStageController, PositionStageController,
                                              Reference, SOURCE_FORCE, SOURCE_POSITION)
 from gripper_ros.core.runtime.lockstep import StageSide
 from gripper_ros.text import one_line
-from gripper_ros.wire import (COMMAND_LAYOUT, qualified, REFERENCE_LAYOUT, stamp_ns,
-                              TOPIC_FORCE_REFERENCE, TOPIC_FORCE_SENSOR, TOPIC_JOINT_STATES,
-                              TOPIC_MOTOR_COMMAND, TOPIC_POSITION_REFERENCE, TOPIC_STATUS)
+from gripper_ros.wire import (COMMAND_LAYOUT, DEFAULT_APPROACH_FORCE_MARGIN,
+                              DEFAULT_FORCE_CONTROLLER, DEFAULT_POSITION_CONTROLLER,
+                              ForceControllerKind, PositionControllerKind, qualified,
+                              REFERENCE_LAYOUT, stamp_ns, TOPIC_FORCE_REFERENCE,
+                              TOPIC_FORCE_SENSOR, TOPIC_JOINT_STATES, TOPIC_MOTOR_COMMAND,
+                              TOPIC_POSITION_REFERENCE, TOPIC_STATUS)
 import yaml
 
 OPEN_LOOP_NOTE = ('open loop: the recorded measurements and supervisor decisions are replayed; '

@@ -135,8 +135,8 @@ def _holding_plant(config, stiffness_n_per_m: float, damping_n_s_per_m: float,
     ``lifted_mass_kg`` > 0: the object is lifted off its support at once and held by friction
     (the hold physics runs every step).
     """
-    from gripper_ros.core.control.factories import (ForceControllerKind, make_force_controller,
-                                                    make_plant)
+    from gripper_ros.core.control.factories import make_force_controller, make_plant
+    from gripper_ros.wire import ForceControllerKind
     from gripper_ros.core.physics.plant import GraspObject, Lift
     plant = make_plant(config)
     lift = Lift(0.0) if lifted_mass_kg > 0.0 else None
@@ -155,8 +155,8 @@ def _holding_plant(config, stiffness_n_per_m: float, damping_n_s_per_m: float,
 
 def _free_plant(config):
     """Build a plant with nothing between the fingers, driven by the PD position controller."""
-    from gripper_ros.core.control.factories import (make_plant, make_position_controller,
-                                                    PositionControllerKind)
+    from gripper_ros.core.control.factories import make_plant, make_position_controller
+    from gripper_ros.wire import PositionControllerKind
     plant = make_plant(config)
     ctrl = make_position_controller(config, PositionControllerKind.PD)
 
@@ -168,9 +168,8 @@ def _free_plant(config):
 def measure(steps: int = 20000, warmup: int = 2000, period: int = 2000,
             config_file: str | None = None, disable_gc: bool = False) -> dict:
     from gripper_ros.core.config import load_config
-    from gripper_ros.core.control.factories import (ForceControllerKind, make_force_controller,
-                                                    make_position_controller,
-                                                    PositionControllerKind)
+    from gripper_ros.core.control.factories import make_force_controller, make_position_controller
+    from gripper_ros.wire import ForceControllerKind, PositionControllerKind
     config = load_config(config_file or None)
     f_dt = config.force.sample_time_s
     p_dt = config.position.sample_time_s

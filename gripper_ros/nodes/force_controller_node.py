@@ -11,13 +11,12 @@ from __future__ import annotations
 
 import sys
 
-from gripper_ros.core.control.factories import ForceControllerKind
-from gripper_ros.core.control.stages import (DEFAULT_APPROACH_FORCE_MARGIN,
-                                             DEFAULT_FORCE_CONTROLLER, ForceStageController)
+from gripper_ros.core.control.stages import ForceStageController
 from gripper_ros.nodes.controller_node import LockstepController
 from gripper_ros.nodes.parameters import declare_controller
 from gripper_ros.nodes.process import run_node
-from gripper_ros.wire import Controller, NODE_FORCE_CONTROLLER
+from gripper_ros.wire import (Controller, DEFAULT_APPROACH_FORCE_MARGIN, DEFAULT_FORCE_CONTROLLER,
+                              ForceControllerKind, NODE_FORCE_CONTROLLER)
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor
 
 

@@ -19,8 +19,6 @@ import time
 
 from gripper_interfaces.srv import Grasp, Move, SetObject, SimStep
 from gripper_ros.core.config import load_config
-from gripper_ros.core.control.stages import (DEFAULT_APPROACH_FORCE_MARGIN,
-                                             DEFAULT_FORCE_CONTROLLER, DEFAULT_POSITION_CONTROLLER)
 from gripper_ros.nodes.description_node import DescriptionPublisher
 from gripper_ros.nodes.excitation_node import ExcitationServer
 from gripper_ros.nodes.force_controller_node import ForceControllerNode
@@ -40,10 +38,12 @@ from gripper_ros.nodes.supervisor_node import SupervisorNode
 from gripper_ros.nodes.trajectory_action_node import TrajectoryActionServer
 from gripper_ros.wire import (ACTION_FOLLOW_JOINT_TRAJECTORY, ACTION_GRASP, ACTION_GRIPPER_CMD,
                               ACTION_GRIPPER_COMMAND, ACTION_MOVE, check_namespace,
-                              DEFAULT_NAMESPACE, DEFAULT_STATE_RATE_HZ, namespace_prefix,
-                              NODE_PLANT, NODE_SUPERVISOR, SERVICE_EXCITE, SERVICE_GRASP,
-                              SERVICE_MOVE, SERVICE_PAUSE, SERVICE_RELEASE, SERVICE_RESUME,
-                              SERVICE_SET_OBJECT, SERVICE_STEP, SERVICE_STOP, TimeMode)
+                              DEFAULT_APPROACH_FORCE_MARGIN, DEFAULT_FORCE_CONTROLLER,
+                              DEFAULT_NAMESPACE, DEFAULT_POSITION_CONTROLLER,
+                              DEFAULT_STATE_RATE_HZ, namespace_prefix, NODE_PLANT, NODE_SUPERVISOR,
+                              SERVICE_EXCITE, SERVICE_GRASP, SERVICE_MOVE, SERVICE_PAUSE,
+                              SERVICE_RELEASE, SERVICE_RESUME, SERVICE_SET_OBJECT, SERVICE_STEP,
+                              SERVICE_STOP, TimeMode)
 import rclpy
 from rclpy.context import Context
 from rclpy.parameter import Parameter

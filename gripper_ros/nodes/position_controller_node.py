@@ -8,12 +8,12 @@ from __future__ import annotations
 
 import sys
 
-from gripper_ros.core.control.factories import PositionControllerKind
-from gripper_ros.core.control.stages import DEFAULT_POSITION_CONTROLLER, PositionStageController
+from gripper_ros.core.control.stages import PositionStageController
 from gripper_ros.nodes.controller_node import LockstepController
 from gripper_ros.nodes.parameters import declare_controller
 from gripper_ros.nodes.process import run_node
-from gripper_ros.wire import Controller, NODE_POSITION_CONTROLLER
+from gripper_ros.wire import (Controller, DEFAULT_POSITION_CONTROLLER, NODE_POSITION_CONTROLLER,
+                              PositionControllerKind)
 
 
 class PositionControllerNode(LockstepController, stage=Controller.POSITION,

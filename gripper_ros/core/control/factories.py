@@ -5,7 +5,6 @@ where" and "what model the DMC predicts with" are decided, once, for nodes, tabl
 """
 from __future__ import annotations
 
-import enum
 import functools
 
 from gripper_ros.core import linalg
@@ -18,22 +17,11 @@ from gripper_ros.core.control.pid import (AntiWindup, DerivativeOn,
 from gripper_ros.core.physics.force_sensor import FsrVoltageDivider
 from gripper_ros.core.physics.motor_zoh import force_model, free_model
 from gripper_ros.core.physics.plant import GripperPlant
+from gripper_ros.wire import ForceControllerKind, PositionControllerKind
 import numpy as np
 
 UNSATURATED_V = 1e12  # limits used when building a DMC's linear model
 MODEL_CACHE_SIZE = 64  # DMC models kept per process: building one costs tens of ms, a grasp few
-
-
-class PositionControllerKind(enum.Enum):
-    PD = 'pd'
-    PID = 'pid'
-    MPC_PD = 'mpc_pd'
-
-
-class ForceControllerKind(enum.Enum):
-    PI = 'pi'                           # the paper's structure, our discrete gains
-    MPC_PI = 'mpc_pi'                   # DMC over that PI
-    CONTACT_AWARE = 'contact_aware'     # ours: rigid and compliant objects (contact_force.py)
 
 
 def make_plant(config: GripperConfig) -> GripperPlant:

@@ -38,23 +38,22 @@ from gripper_ros.core.control.dmc import (CASCADE_DTYPE, cascade_reset, cascade_
                                           governor_applied_more, governor_buffer_size,
                                           GOVERNOR_DTYPE, governor_moving, PHASE_ACCELERATE,
                                           PHASE_DMC)
-from gripper_ros.core.control.factories import (ForceControllerKind, make_force_controller,
-                                                make_position_controller, PositionControllerKind)
+from gripper_ros.core.control.factories import make_force_controller, make_position_controller
 from gripper_ros.core.control.pid import (law_error, LAW_NUMBERS, LAW_OK, PID_DTYPE, pid_reset,
                                           pid_step_checked, py_max, py_min)
 from gripper_ros.core.control.servo_feedforward import feedforward_gains, feedforward_v
 from gripper_ros.core.records import (as_record, copy_fields, face_kernel, fields_into, FLOATS,
                                       RecordPair)
-from gripper_ros.wire import COMMAND_LAYOUT, Controller, MSG_REFERENCE, REFERENCE_LAYOUT
+from gripper_ros.wire import (COMMAND_LAYOUT, Controller, DEFAULT_APPROACH_FORCE_MARGIN,
+                              DEFAULT_FORCE_CONTROLLER, DEFAULT_POSITION_CONTROLLER,
+                              ForceControllerKind, MSG_REFERENCE, PositionControllerKind,
+                              REFERENCE_LAYOUT)
 import numba
 import numpy as np
 
 SOURCE_POSITION = Controller.POSITION
 SOURCE_FORCE = Controller.FORCE
 
-DEFAULT_POSITION_CONTROLLER = PositionControllerKind.MPC_PD
-DEFAULT_FORCE_CONTROLLER = ForceControllerKind.CONTACT_AWARE
-DEFAULT_APPROACH_FORCE_MARGIN = 1.0
 
 Reference = REFERENCE_LAYOUT.tuple
 """One StageReference's fields, in message order (``Reference._make(values)``); the last four

@@ -20,9 +20,7 @@ from typing import Callable, Sequence
 from gripper_ros.core.config import GripperConfig
 from gripper_ros.core.control.factories import make_plant
 from gripper_ros.core.control.load_grip import GRIP_DTYPE, plan_announce
-from gripper_ros.core.control.stages import (DEFAULT_APPROACH_FORCE_MARGIN,
-                                             DEFAULT_FORCE_CONTROLLER, DEFAULT_POSITION_CONTROLLER,
-                                             ForceStageController, PositionStageController,
+from gripper_ros.core.control.stages import (ForceStageController, PositionStageController,
                                              Reference, stage_answer, STAGE_KERNEL)
 from gripper_ros.core.physics.hold import ANNOUNCE_ROWS, hold_load_n, hold_plan
 from gripper_ros.core.physics.plant import (_object_state, check_fault, GraspObject, HoldState,
@@ -41,8 +39,9 @@ from gripper_ros.core.supervision.machine import (NO_NS, status_changed, status_
 from gripper_ros.core.supervision.requests import (GraspRequest, MoveRequest, RequestError,
                                                    validate_move, validate_request)
 from gripper_ros.core.supervision.supervisor import GraspSupervisor, load_law
-from gripper_ros.wire import (COMMAND_LAYOUT, Controller, FaultKind, Outcome, Phase,
-                              REFERENCE_LAYOUT, SwitchCriterion, TICK_LAYOUT)
+from gripper_ros.wire import (COMMAND_LAYOUT, Controller, DEFAULT_APPROACH_FORCE_MARGIN,
+                              DEFAULT_FORCE_CONTROLLER, DEFAULT_POSITION_CONTROLLER, FaultKind,
+                              Outcome, Phase, REFERENCE_LAYOUT, SwitchCriterion, TICK_LAYOUT)
 import numba
 import numpy as np
 
