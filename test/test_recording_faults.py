@@ -13,16 +13,18 @@ import re
 import signal
 import subprocess
 import sys
+import threading
 import time
 
 from gripper_ros.bags import recorder as recorder_module
 from gripper_ros.bags.reader import read_bag
-from gripper_ros.bags.recorder import unique_bag_dir
+from gripper_ros.bags.recorder import BagRecorder, unique_bag_dir
+from gripper_ros.bags.series import load_grasp_series
 from gripper_ros.nodes.graph import GraphOptions, GripperGraph
-from gripper_ros.nodes.recording import recorded_grasp, ServeRecorder
+from gripper_ros.nodes.recording import graph_tap, recorded_grasp, ServeRecorder
 from gripper_ros.nodes.services import wait_until
 from gripper_ros.wire import (DESCRIPTION_TOPICS, LATCHED_DESCRIPTION_TOPICS, Outcome, qualified,
-                              TOPIC_JOINT_STATES, TOPIC_TF)
+                              TOPIC_JOINT_STATES, TOPIC_TF, TOPIC_TICK)
 from helpers import tf_as_robot_state_publisher, wait_for_recording
 import pytest
 
@@ -234,3 +236,64 @@ def test_a_second_signal_while_closing_leaves_a_complete_bag_and_no_traceback(tm
     assert len(bags) == 1 and (bags[0] / 'metadata.yaml').is_file()
     bag = read_bag(bags[0])
     assert not bag.truncated and bag.message_count > 0
+
+
+class _StalledSide:
+    """A stage's lockstep side whose next reference stalls the graph's executor until released.
+
+    The tick and its reference have been published (and seen by the tap) when the stage takes
+    the reference; its command comes only after :attr:`release`. A starved process looks so.
+    """
+
+    def __init__(self, side):
+        self._side = side
+        self.stalled = threading.Event()
+        self.release = threading.Event()
+
+    def take_reference(self, data):
+        self.stalled.set()
+        self.release.wait()
+        return self._side.take_reference(data)
+
+    def __getattr__(self, name):
+        return getattr(self._side, name)
+
+
+def test_a_realtime_recording_stopped_while_the_executor_stalls_mid_tick_says_it_is_incomplete(
+        tmp_path):
+    """Stopped while its executor is stalled between a tick and its command, a bag says so.
+
+    ``GraphTap.stop`` waits for the command of the bag's last tick (lockstep: the stage answers
+    each tick); one that does not come within the bound is named in the tap's error, which
+    ``recorded_grasp`` hands on and ``grasp_demo`` exits 2 with. Known answer: the bag read
+    back ends with that tick and holds no command for it.
+    """
+    graph = GripperGraph.in_own_context(GraphOptions(namespace='stalled', time_mode='realtime'))
+    stall = _StalledSide(graph.force.side)
+    try:
+        assert graph.set_object(graph.simulated_width_m(0.05, None), 0.0, 0.0).success
+        assert graph.grasp(0.05, 1.69).outcome == Outcome.HOLDING   # the force stage answers
+        tap = graph_tap(graph)
+        bag_dir = tmp_path / 'stalled'
+        recorder = BagRecorder(graph.client_node, bag_dir, tap.topics, subscribe=False,
+                               time_source=lambda: graph.sim_time_ns)
+        tap.start(recorder, 'next_tick')
+        tick = qualified(graph.namespace, TOPIC_TICK)
+        assert wait_until(lambda: recorder.counts.get(tick, 0) >= 10, timeout_s=60)
+        graph.force.side = stall
+        assert stall.stalled.wait(timeout=60)
+        assert tap.stop(timeout_s=0.2) is recorder
+        error = tap.error
+        stall.release.set()
+        recorder.close()
+        series = load_grasp_series(bag_dir)
+    finally:
+        stall.release.set()
+        graph.close()
+    last_tick_ns = int(series.ticks['stamp_ns'][-1])
+    assert re.fullmatch(f'recording incomplete: {re.escape(str(bag_dir))}: the motor command of '
+                        rf'its last tick \({last_tick_ns} ns\) did not come within [0-9.]+ s',
+                        error), error
+    assert last_tick_ns not in set(series.commands['stamp_ns'].tolist())
+    assert set(series.ticks['stamp_ns'][:-1].tolist()) <= \
+        set(series.commands['stamp_ns'].tolist())        # whole up to the stalled tick

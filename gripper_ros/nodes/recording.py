@@ -195,15 +195,27 @@ class GraphTap:
     def stop(self, timeout_s: float = 2.0) -> BagRecorder | None:
         """End the window at the next tick and wait until the sink is whole.
 
-        When no tick comes within ``timeout_s`` (simulated time stands still) it ends now.
+        When no tick comes within ``timeout_s`` on free cores (:func:`load_bound_s`; simulated
+        time stands still) it ends now; if the command of its last tick has not come by then
+        (the graph's executor stalled, a stage gone), :attr:`error` says the sink is incomplete.
         """
         sink = self.sink
         if sink is None:
             return None
         self.stop_at()
-        wait_until(lambda: self.sink is None, timeout_s)
-        self._finish()
+        bound_s = load_bound_s(timeout_s)
+        if not wait_until(lambda: self.sink is None, bound_s):
+            self._end_incomplete(sink, bound_s)
         return sink
+
+    def _end_incomplete(self, sink: BagRecorder | None, waited_s: float) -> None:
+        """Finish ``sink`` now, saying so in :attr:`error` if its last tick has no command."""
+        tick_ns = self._last_written_tick_ns
+        if sink is not None and self.sink is sink and tick_ns is not None and \
+                self._last_command_ns != tick_ns and not self.error:
+            self.error = (f'recording incomplete: {sink.bag_dir}: the motor command of its last '
+                          f'tick ({tick_ns} ns) did not come within {waited_s:.1f} s')
+        self._finish()
 
     def _finish(self) -> None:
         with self._lock:
@@ -213,9 +225,13 @@ class GraphTap:
             self.on_closed(sink)
 
     def check_closing(self, grace_s: float = 0.5) -> None:
-        """Finish a sink whose last command has not come for ``grace_s`` (a node gone)."""
-        if self._closing_since is not None and time.monotonic() - self._closing_since > grace_s:
-            self._finish()
+        """Finish a sink whose last command has not come for ``grace_s`` (a node gone).
+
+        ``grace_s`` is for free cores (:func:`load_bound_s`); :attr:`error` says it is incomplete.
+        """
+        since = self._closing_since
+        if since is not None and time.monotonic() - since > load_bound_s(grace_s):
+            self._end_incomplete(self.sink, time.monotonic() - since)
 
     def _on_message(self, topic: str, msg) -> None:
         """See one published message (bytes, or a message object); never raises."""
