@@ -426,21 +426,23 @@ def test_forward_command_controller_holds_one_position_and_an_out_of_range_one_m
         system.close(graph)
 
 
-def test_joint_trajectory_controller_ramp_is_one_move_that_follows_each_update(graph):
-    """Follow joint_trajectory_controller's 0.04 m/s ramp as one move.
+def test_joint_trajectory_controller_ramp_is_one_move_that_follows_each_update(world, graph):
+    """Follow joint_trajectory_controller's 0.04 m/s ramp as one move, in step with the world.
 
     Follows joint_trajectory_controller.cpp and trajectory.cpp: a position-only trajectory is
     interpolated linearly and written at every update, here a ramp for 2 s. The stream is one
-    request (not a move per setpoint): the supervisor's position setpoint takes each update's
-    position, never one the trajectory has not reached. The finger never runs ahead of the ramp and
-    lags it by at most 3 mm more than a finger at 24 V from rest, within the speed limit (the
-    default 0.05 m/s), could. Stopped at 0.04 m/s by the end of the ramp, it runs on at most the
-    stopping distance at 24 V, and comes back to rest at the end, in the same request.
+    request (not a move per setpoint) that takes every command the hardware wrote: the
+    supervisor's position setpoint takes each update's position, never one the trajectory has
+    not reached. The finger never runs ahead of the ramp and lags it by at most 3 mm more than a
+    finger at 24 V from rest, within the speed limit (the default 0.05 m/s), could. Stopped at
+    0.04 m/s by the end of the ramp, it runs on at most the stopping distance at 24 V, and comes
+    back to rest at the end, in the same request.
     """
     _reset(graph)
     supervisor = graph.supervisor
     controller = TrajectoryController()
     system = TopicSystem(graph, controller)
+    in_step = WorldInStep(world, system, supervisor)
     setpoints: list[tuple[int, float]] = []
     status_sub = graph.client_node.create_subscription(
         SupervisorStatus, qualified(graph.namespace, TOPIC_STATUS),
@@ -450,22 +452,26 @@ def test_joint_trajectory_controller_ramp_is_one_move_that_follows_each_update(g
         system.wait_for(max(system.t_ns, 0) + 5 * UPDATE_NS)   # active, holding
         taken = supervisor.joint_commands_taken
         ramp_mps, ramp_s, end_m = 0.04, 2.0, 0.08
+        sent_ns = in_step.start()
         controller.send([(ramp_s, end_m)])
-        assert wait_until(lambda: controller.start is not None, WAIT_S)
+        in_step.run_until(sent_ns + UPDATE_NS)
         t0_ns, p0 = controller.start
+        assert t0_ns == sent_ns + UPDATE_NS                   # the update after it came
         assert p0 == pytest.approx(0.0, abs=1e-6)
-        system.wait_for(t0_ns + round(0.05e9))
+        in_step.run_until(t0_ns + round(0.05e9))
         first_id = supervisor.logic.grasp_id
-        system.wait_for(t0_ns + round(ramp_s * 1e9))
+        in_step.run_until(t0_ns + round(ramp_s * 1e9))
         assert supervisor.logic.grasp_id == first_id          # one move for the whole ramp
         assert supervisor.logic.kind == 'move' and supervisor.logic.servo
-        assert supervisor.joint_commands_taken - taken >= 150  # a setpoint at each update
+        with system.lock:
+            written = [t for t, _ in system.published if t0_ns <= t <= t0_ns + ramp_s * 1e9]
+        assert len(written) >= round(ramp_s * 1e9 / UPDATE_NS)   # a setpoint at each update
+        assert supervisor.joint_commands_taken - taken == len(written)   # every one taken
         during = [(t, sp, i) for t, sp, i in list(setpoints)
                   if t0_ns + UPDATE_NS < t <= t0_ns + ramp_s * 1e9]
         assert {i for _, _, i in during} == {first_id}         # from its first setpoint on
         ramp = [(t, sp) for t, sp, _ in during]
-        # the reference follows them: it changes at most updates (statuses read over DDS may be
-        # lost, and under load two setpoints can land in one tick: a share, not a count)
+        # the reference follows them: it changes at most updates (statuses read over DDS)
         assert len(ramp) >= 50 and len({sp for _, sp in ramp}) >= 0.5 * len(ramp)
         assert all(sp <= controller.reference(t) + 1e-12 for t, sp in ramp)
         limit_mps = CONFIG.supervisor.move_default_speed_mps
@@ -481,8 +487,10 @@ def test_joint_trajectory_controller_ramp_is_one_move_that_follows_each_update(g
               f'{limit_mps} m/s lags {max(least) * 1e3:.2f} and {least[-1] * 1e3:.2f} mm at best')
         assert all(e <= bound + 3e-3 for (_, e), bound in zip(late, least))
         # the end held: the finger reaches it within the move's tolerance, one move still
-        assert wait_until(lambda: supervisor.logic.outcome.name == 'MOVED', WAIT_S), \
-            supervisor.logic.message
+        settle_ns = in_step.t_ns + round(10e9)
+        while supervisor.logic.outcome.name != 'MOVED' and in_step.t_ns < settle_ns:
+            in_step.run_until(in_step.t_ns + UPDATE_NS)
+        assert supervisor.logic.outcome.name == 'MOVED', supervisor.logic.message
         assert supervisor.logic.grasp_id == first_id
         overshoot = max(p for _, p, _, _ in system.series(t0_ns)) - end_m
         print(f'runs on {overshoot * 1e3:.2f} mm past the end; stopping at 24 V from '
@@ -491,6 +499,7 @@ def test_joint_trajectory_controller_ramp_is_one_move_that_follows_each_update(g
         assert system.series()[-1][1] == pytest.approx(
             end_m, abs=CONFIG.supervisor.move_tolerance_m)
     finally:
+        in_step.stop()
         graph.client_node.destroy_subscription(status_sub)
         system.close(graph)
 
