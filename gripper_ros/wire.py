@@ -262,7 +262,7 @@ STAGE_REFERENCE_TOPICS = {Controller.POSITION: TOPIC_POSITION_REFERENCE,
 
 
 class PositionControllerKind(enum.Enum):
-    """The position stage's law (parameter ``position_controller``; Table II)."""
+    """The position stage's law (position_controller's parameter ``controller``; Table II)."""
 
     PD = 'pd'
     PID = 'pid'
@@ -270,7 +270,7 @@ class PositionControllerKind(enum.Enum):
 
 
 class ForceControllerKind(enum.Enum):
-    """The force stage's law (parameter ``force_controller``; Table II, and ours)."""
+    """The force stage's law (force_controller's parameter ``controller``; Table II, and ours)."""
 
     PI = 'pi'                           # the paper's structure, our discrete gains
     MPC_PI = 'mpc_pi'                   # DMC over that PI
@@ -280,8 +280,8 @@ class ForceControllerKind(enum.Enum):
 DEFAULT_POSITION_CONTROLLER = PositionControllerKind.MPC_PD
 DEFAULT_FORCE_CONTROLLER = ForceControllerKind.CONTACT_AWARE
 DEFAULT_APPROACH_FORCE_MARGIN = 1.0
-"""Parameter ``approach_force_margin``: the force stage's voltage before contact is capped at
-this many times F_sp / (N per V)."""
+"""force_controller's parameter ``approach_force_margin``: the force stage's voltage before
+contact is capped at this many times F_sp / (N per V)."""
 
 
 class SwitchCriterion(enum.IntEnum):
