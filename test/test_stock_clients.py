@@ -560,16 +560,16 @@ def test_joint_trajectory_controller_streams_within_80_percent_of_24_v_are_track
 
 
 def test_parallel_gripper_action_controller_presses_with_its_effort_and_a_new_goal_preempts(
-        graph):
+        world, graph):
     """Press with parallel_gripper_action_controller's effort; a new goal turns the finger.
 
     Follows parallel_gripper_action_controller_impl.hpp: goal position with max_effort and
     max_velocity on the joint's effort and velocity command interfaces, written at every
     update. On an object the finger presses with at most the goal's effort (joint_states'
     effort), the controller sees the stall, gripper_status says stalled and object_detected.
-    Then a goal closing at 0.05 m/s is preempted 0.3 s in by one opening: the finger slows
-    within 0.1 s and reverses within 0.1 s of the least time the effort's voltage (10 N:
-    7.2 V) takes to reverse it.
+    Then a goal closing at 0.05 m/s is preempted 0.3 s in by one opening, in step with the world
+    (:class:`WorldInStep`): the finger slows within 0.1 s and reverses within 0.1 s of the least
+    time the effort's voltage (10 N: 7.2 V) takes to reverse it.
     """
     object_width_m, effort_n = 0.06, 10.0
     _reset(graph, object_width_m)
@@ -577,6 +577,7 @@ def test_parallel_gripper_action_controller_presses_with_its_effort_and_a_new_go
     controller = ParallelGripperAction(max_velocity=0.1, max_effort=effort_n)
     system = TopicSystem(graph, controller, ('position', 'velocity', 'effort'))
     seen, status_sub = _status_listener(graph)
+    in_step = WorldInStep(world, system, graph.supervisor)
     try:
         system.wait_for(max(system.t_ns, 0) + 5 * UPDATE_NS)
         press = controller.send_goal(0.14, 0.05, effort_n)   # past the object's face
@@ -593,16 +594,20 @@ def test_parallel_gripper_action_controller_presses_with_its_effort_and_a_new_go
         _reset(graph)
         open_goal = controller.send_goal(0.04, 0.05, effort_n)
         assert wait_until(lambda: open_goal['status'] == 'succeeded', WAIT_S), open_goal
+        t_sent = in_step.start()
         closing = controller.send_goal(0.14, 0.05, effort_n)
-        assert wait_until(lambda: controller.goal is closing, WAIT_S)
-        t_close = system.t_ns
-        system.wait_for(t_close + round(0.3e9))
+        in_step.run_until(t_sent + UPDATE_NS)
+        assert controller.goal is closing                     # taken at the next update
+        in_step.run_until(t_sent + UPDATE_NS + round(0.3e9))
+        t_sent = in_step.t_ns
         opening = controller.send_goal(0.02, 0.05, effort_n)
-        assert wait_until(lambda: controller.goal is opening, WAIT_S)
-        assert closing['status'] == 'canceled'
+        in_step.run_until(t_sent + UPDATE_NS)
+        assert controller.goal is opening and closing['status'] == 'canceled'
         with system.lock:
             t_preempt = next(t for t, m in system.published if m.position[0] == 0.02)
-        system.wait_for(t_preempt + round(1.0e9))
+        assert t_preempt == t_sent + UPDATE_NS
+        in_step.run_until(t_preempt + round(1.0e9))
+        in_step.stop()
         after = system.series(t_preempt)
         v0 = after[0][2]
         assert v0 > 0.005, v0                                  # it was closing
@@ -615,5 +620,6 @@ def test_parallel_gripper_action_controller_presses_with_its_effort_and_a_new_go
         assert turn_s <= _reversal_s(v0, effort_n) + 0.1
         assert wait_until(lambda: opening['status'] == 'succeeded', WAIT_S), opening
     finally:
+        in_step.stop()
         graph.client_node.destroy_subscription(status_sub)
         system.close(graph)
