@@ -230,8 +230,11 @@ class GraphTap:
         ``grace_s`` is for free cores (:func:`load_bound_s`); :attr:`error` says it is incomplete.
         """
         since = self._closing_since
-        if since is not None and time.monotonic() - since > load_bound_s(grace_s):
-            self._end_incomplete(self.sink, time.monotonic() - since)
+        if since is None:
+            return
+        waited_s = time.monotonic() - since
+        if waited_s > load_bound_s(grace_s):
+            self._end_incomplete(self.sink, waited_s)
 
     def _on_message(self, topic: str, msg) -> None:
         """See one published message (bytes, or a message object); never raises."""
